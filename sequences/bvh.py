@@ -1,0 +1,422 @@
+"""Read and write BVH motion capture (the CMU conversion: 31 joints, ZYX channels, Y up).
+
+A BVH file is a joint hierarchy (offsets, channels) and a MOTION block with one line of
+channel values per frame. The reader parses the hierarchy token by token (it is small) and the
+MOTION block in one call to ``np.loadtxt``; only when that fails does it walk the lines again
+to name the first bad one.
+"""
+from __future__ import annotations
+
+import io
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+_POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
+_ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
+_TOKEN = re.compile(r"[{}]|[^\s{}]+")
+
+
+class BVHError(ValueError):
+    """A malformed or unsupported BVH file; the message names the file and line."""
+
+
+@dataclass
+class Motion:
+    """A skeleton and its motion, one row per frame.
+
+    names: (J,) joint names; parents: (J,) int, -1 for the root (parents precede children).
+    offsets: (J, 3) bone offsets from the parent, CMU units.
+    end_sites: (J, 3) end-site offsets in the joint's frame, CMU units; NaN rows where the
+        joint has no end site.
+    channels: per joint, its channel names as in the file (root: 3 positions + 3 rotations).
+    euler_deg: (T, J, 3) local rotation angles in degrees, in each joint's rotation-channel
+        order (CMU: Z, Y, X, meaning R = Rz @ Ry @ Rx, intrinsic, as in BVH).
+    root_position: (T, 3) root translation, CMU units.
+    fps: frames per second; source: file name the motion came from ("" if none).
+    """
+
+    names: list[str]
+    parents: np.ndarray
+    offsets: np.ndarray
+    end_sites: np.ndarray
+    channels: list[list[str]]
+    euler_deg: np.ndarray
+    root_position: np.ndarray
+    fps: float
+    source: str = field(default="")
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames T."""
+        return int(self.euler_deg.shape[0])
+
+    def rotation_orders(self) -> list[str]:
+        """Per joint, the intrinsic Euler sequence of its rotation channels, e.g. "ZYX"."""
+        return [_rotation_order(ch) for ch in self.channels]
+
+    def local_rotations(self) -> np.ndarray:
+        """Local joint rotation matrices (T, J, 3, 3): child vector in parent frame = R @ v."""
+        return euler_to_matrices(self.euler_deg, self.rotation_orders())
+
+
+def euler_to_matrices(euler_deg: np.ndarray, orders: list[str]) -> np.ndarray:
+    """Rotation matrices (T, J, 3, 3) from angles (T, J, 3) in degrees, intrinsic ``orders[j]``."""
+    T, J, _ = euler_deg.shape
+    out = np.empty((T, J, 3, 3))
+    for order in set(orders):
+        cols = [j for j, o in enumerate(orders) if o == order]
+        angles = euler_deg[:, cols].reshape(-1, 3)
+        mats = Rotation.from_euler(order, angles, degrees=True).as_matrix()
+        out[:, cols] = mats.reshape(T, len(cols), 3, 3)
+    return out
+
+
+def matrices_to_euler(rot: np.ndarray, orders: list[str]) -> np.ndarray:
+    """Angles (T, J, 3) in degrees, intrinsic ``orders[j]``, from rotation matrices (T, J, 3, 3)."""
+    T, J = rot.shape[:2]
+    out = np.empty((T, J, 3))
+    for order in set(orders):
+        cols = [j for j, o in enumerate(orders) if o == order]
+        mats = rot[:, cols].reshape(-1, 3, 3)
+        out[:, cols] = Rotation.from_matrix(mats).as_euler(order, degrees=True).reshape(
+            T, len(cols), 3)
+    return out
+
+
+def _rotation_order(channels: list[str]) -> str:
+    return "".join(c[0] for c in channels if c in _ROTATION_CHANNELS)
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+class _Tokens:
+    """Hierarchy tokens with their 1-based line numbers."""
+
+    def __init__(self, lines: list[str], source: str):
+        self.items = [(n, tok) for n, line in enumerate(lines, 1) for tok in _TOKEN.findall(line)]
+        self.pos = 0
+        self.source = source
+        self.last_line = len(lines)
+
+    def error(self, message: str, line: int | None = None) -> BVHError:
+        if line is None:
+            line = self.items[self.pos][0] if self.pos < len(self.items) else self.last_line
+        return BVHError(f"{self.source} line {line}: {message}")
+
+    def next(self, what: str) -> tuple[int, str]:
+        if self.pos >= len(self.items):
+            raise self.error(f"unexpected end of file, expected {what}")
+        item = self.items[self.pos]
+        self.pos += 1
+        return item
+
+    def expect(self, word: str) -> int:
+        line, tok = self.next(repr(word))
+        if tok != word:
+            raise self.error(f"expected {word!r}, got {tok!r}", line)
+        return line
+
+    def number(self, what: str) -> float:
+        line, tok = self.next(what)
+        try:
+            value = float(tok)
+        except ValueError:
+            raise self.error(f"expected a number for {what}, got {tok!r}", line) from None
+        if not np.isfinite(value):
+            raise self.error(f"non-finite {what}: {tok!r}", line)
+        return value
+
+    def peek(self) -> str | None:
+        return self.items[self.pos][1] if self.pos < len(self.items) else None
+
+
+@dataclass
+class _Skeleton:
+    names: list[str] = field(default_factory=list)
+    parents: list[int] = field(default_factory=list)
+    offsets: list[list[float]] = field(default_factory=list)
+    end_sites: list[list[float]] = field(default_factory=list)
+    channels: list[list[str]] = field(default_factory=list)
+
+
+def _parse_offset(tok: _Tokens, owner: str) -> list[float]:
+    tok.expect("OFFSET")
+    return [tok.number(f"{owner} OFFSET") for _ in range(3)]
+
+
+def _parse_channels(tok: _Tokens, name: str, is_root: bool) -> list[str]:
+    line = tok.expect("CHANNELS")
+    count = tok.number(f"{name} CHANNELS count")
+    if count != int(count) or count < 0:
+        raise tok.error(f"bad channel count {count} for {name}", line)
+    channels = [tok.next(f"channel name of {name}")[1] for _ in range(int(count))]
+    rotations = [c for c in channels if c in _ROTATION_CHANNELS]
+    positions = [c for c in channels if c in _POSITION_CHANNELS]
+    unknown = [c for c in channels if c not in _ROTATION_CHANNELS + _POSITION_CHANNELS]
+    if unknown:
+        raise tok.error(f"unknown channel {unknown[0]!r} for {name}", line)
+    if sorted(rotations) != sorted(_ROTATION_CHANNELS):
+        raise tok.error(f"{name} needs exactly one X, Y and Z rotation channel", line)
+    expected_positions = sorted(_POSITION_CHANNELS) if is_root else []
+    if sorted(positions) != expected_positions:
+        raise tok.error(f"{name}: only the root may (and must) have X, Y, Z position channels",
+                        line)
+    if is_root and channels[:3] != list(_POSITION_CHANNELS):
+        raise tok.error(f"{name}: root channels must start Xposition Yposition Zposition", line)
+    return channels
+
+
+def _parse_joint(tok: _Tokens, skel: _Skeleton, name: str, parent: int) -> None:
+    open_line = tok.expect("{")
+    index = len(skel.names)
+    skel.names.append(name)
+    skel.parents.append(parent)
+    skel.offsets.append(_parse_offset(tok, name))
+    skel.channels.append(_parse_channels(tok, name, parent < 0))
+    skel.end_sites.append([np.nan] * 3)
+    while True:
+        word = tok.peek()
+        if word == "}":
+            tok.next("'}'")
+            return
+        if word == "JOINT":
+            tok.next("JOINT")
+            _, child = tok.next("joint name")
+            _parse_joint(tok, skel, child, index)
+        elif word == "End":
+            tok.next("End")
+            tok.expect("Site")
+            tok.expect("{")
+            skel.end_sites[index] = _parse_offset(tok, f"{name} End Site")
+            tok.expect("}")
+        elif word is None or word == "MOTION":
+            raise tok.error(f"unbalanced braces: joint {name!r} opened on line {open_line} "
+                            f"is not closed")
+        else:
+            raise tok.error(f"expected JOINT, End Site or '}}' in joint {name!r}, got {word!r}")
+
+
+def _parse_hierarchy(lines: list[str], source: str) -> _Skeleton:
+    tok = _Tokens(lines, source)
+    if not tok.items:
+        raise BVHError(f"{source} line 1: empty file, expected HIERARCHY")
+    line, word = tok.next("HIERARCHY")
+    if word != "HIERARCHY":
+        raise tok.error(f"expected HIERARCHY, got {word!r}", line)
+    tok.expect("ROOT")
+    _, root = tok.next("root name")
+    skel = _Skeleton()
+    _parse_joint(tok, skel, root, -1)
+    if tok.peek() != "MOTION":
+        word = tok.peek()
+        what = "end of file" if word is None else repr(word)
+        if word == "}":
+            raise tok.error("unbalanced braces: '}' without a matching '{'")
+        raise tok.error(f"expected MOTION after the hierarchy, got {what}")
+    return skel
+
+
+def _header_value(line: str, key: str, source: str, lineno: int) -> float:
+    label, _, value = line.partition(":")
+    if " ".join(label.split()) != key:
+        raise BVHError(f"{source} line {lineno}: expected '{key}:', got {line.strip()!r}")
+    try:
+        return float(value)
+    except ValueError:
+        raise BVHError(f"{source} line {lineno}: bad {key} value {value.strip()!r}") from None
+
+
+def _diagnose_motion(block: str, first_line: int, n_frames: int, n_values: int,
+                     source: str) -> BVHError:
+    """Walk the MOTION lines (slow path, only after the fast parse failed) to name the bad one."""
+    count = 0
+    lineno = first_line
+    for lineno, line in enumerate(block.splitlines(), first_line):
+        values = line.split()
+        if not values:
+            continue
+        count += 1
+        if count > n_frames:
+            return BVHError(f"{source} line {lineno}: more frame lines than 'Frames: {n_frames}'")
+        if len(values) != n_values:
+            return BVHError(f"{source} line {lineno}: expected {n_values} values, "
+                            f"got {len(values)}")
+        for value in values:
+            try:
+                number = float(value)
+            except ValueError:
+                return BVHError(f"{source} line {lineno}: non-numeric value {value!r}")
+            if not np.isfinite(number):
+                return BVHError(f"{source} line {lineno}: non-finite value {value!r}")
+    return BVHError(f"{source} line {lineno}: truncated motion block: 'Frames: {n_frames}' but "
+                    f"{count} frame lines")
+
+
+def _file_fps(frame_time: float) -> float:
+    """Frames per second from the 'Frame Time' (0.0083333 -> 120): snap to an integer rate when
+    the file's rounding of the frame time is the only difference."""
+    fps = 1.0 / frame_time
+    return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
+
+
+def _is_added_tpose(frame: np.ndarray, n_root_pos: int) -> bool:
+    """The CMU conversion's added T-pose frame: root rotation zero and every angle a whole
+    number (the real frames carry 4-6 decimals)."""
+    rotations = frame[n_root_pos:]
+    return bool(np.all(rotations[:3] == 0) and np.all(rotations == np.round(rotations)))
+
+
+def read_bvh(path: str | Path, fps: float | None = 30.0, drop_tpose: str | bool = "auto"
+             ) -> Motion:
+    """Read a BVH file into a Motion resampled to ``fps`` frames per second.
+
+    fps: target rate; None keeps the file's rate. An integer ratio (120 -> 30) decimates
+        exactly; otherwise rotations are slerped and root positions interpolated linearly.
+    drop_tpose: True drops frame 0, False keeps it, "auto" drops it when it is the T-pose the
+        CMU conversion added (root rotation zero and all angles whole numbers; 16_11 and 141_16
+        have none).
+    Raises BVHError naming the file and line for malformed input, FileNotFoundError if absent.
+    """
+    path = Path(path)
+    source = path.name
+    text = path.read_text(encoding="utf-8", errors="replace")
+    match = re.search(r"^[ \t]*MOTION[ \t]*\r?$", text, flags=re.MULTILINE)
+    head = text[: match.start()] if match else text
+    head_lines = head.splitlines()
+    skel = _parse_hierarchy(head_lines + (["MOTION"] if match else []), source)
+    motion_line = len(head_lines) + 1
+
+    rest = text[match.end():]
+    if rest.startswith("\r"):
+        rest = rest[1:]
+    rest = rest[1:] if rest.startswith("\n") else rest
+    header = rest.split("\n", 2)
+    if len(header) < 3 and not (len(header) == 2 and header[1].strip()):
+        raise BVHError(f"{source} line {motion_line + len(header)}: expected 'Frames:' and "
+                       f"'Frame Time:' after MOTION")
+    frames_value = _header_value(header[0], "Frames", source, motion_line + 1)
+    frame_time = _header_value(header[1], "Frame Time", source, motion_line + 2)
+    if frames_value != int(frames_value) or frames_value < 1:
+        raise BVHError(f"{source} line {motion_line + 1}: need a positive whole number of "
+                       f"frames, got {header[0].strip()!r}")
+    if not (np.isfinite(frame_time) and frame_time > 0):
+        raise BVHError(f"{source} line {motion_line + 2}: frame time must be positive, "
+                       f"got {header[1].strip()!r}")
+    n_frames = int(frames_value)
+    n_values = sum(len(c) for c in skel.channels)
+    block = header[2] if len(header) == 3 else ""
+    first_data_line = motion_line + 3
+
+    try:
+        data = np.loadtxt(io.StringIO(block), dtype=np.float64, ndmin=2, comments=None)
+        ok = data.shape == (n_frames, n_values) and bool(np.isfinite(data).all())
+    except ValueError:
+        ok = False
+    if not ok:
+        raise _diagnose_motion(block, first_data_line, n_frames, n_values, source)
+
+    n_pos = 3
+    if drop_tpose == "auto":
+        drop = _is_added_tpose(data[0], n_pos)
+    elif isinstance(drop_tpose, bool):
+        drop = drop_tpose
+    else:
+        raise ValueError(f"drop_tpose must be 'auto', True or False, got {drop_tpose!r}")
+    if drop:
+        data = data[1:]
+        if len(data) == 0:
+            raise BVHError(f"{source} line {first_data_line}: no frames left after dropping "
+                           f"the T-pose frame")
+
+    J = len(skel.names)
+    root_position = data[:, :n_pos].copy()
+    euler_deg = data[:, n_pos:].reshape(len(data), J, 3).copy()
+    motion = Motion(
+        names=skel.names,
+        parents=np.array(skel.parents, dtype=np.int64),
+        offsets=np.array(skel.offsets, dtype=np.float64),
+        end_sites=np.array(skel.end_sites, dtype=np.float64),
+        channels=skel.channels,
+        euler_deg=euler_deg,
+        root_position=root_position,
+        fps=_file_fps(frame_time),
+        source=source,
+    )
+    return motion if fps is None else resample(motion, fps)
+
+
+def resample(motion: Motion, fps: float) -> Motion:
+    """The motion at ``fps`` frames per second, starting at its first frame.
+
+    An integer ratio of rates decimates exactly (angles untouched); otherwise rotations are
+    slerped per joint (angles re-derived in each joint's order) and positions interpolated.
+    """
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be positive, got {fps!r}")
+    ratio = motion.fps / fps
+    step = round(ratio)
+    if abs(ratio - step) < 1e-9 and step >= 1:
+        return replace(motion, euler_deg=motion.euler_deg[::step].copy(),
+                       root_position=motion.root_position[::step].copy(), fps=float(fps))
+    T = motion.n_frames
+    t_in = np.arange(T) / motion.fps
+    t_out = np.arange(0.0, t_in[-1] + 1e-9, 1.0 / fps)
+    rot_in = motion.local_rotations()
+    rot_out = np.empty((len(t_out), rot_in.shape[1], 3, 3))
+    if T == 1:
+        rot_out[:] = rot_in[0]
+    else:
+        for j in range(rot_in.shape[1]):
+            rot_out[:, j] = Slerp(t_in, Rotation.from_matrix(rot_in[:, j]))(t_out).as_matrix()
+    position = np.stack([np.interp(t_out, t_in, motion.root_position[:, k]) for k in range(3)],
+                        axis=1)
+    euler = matrices_to_euler(rot_out, motion.rotation_orders())
+    return replace(motion, euler_deg=euler, root_position=position, fps=float(fps))
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def _format_vec(values) -> str:
+    return " ".join(f"{v:.6f}" for v in values)
+
+
+def write_bvh(path: str | Path, motion: Motion) -> None:
+    """Write ``motion`` as a BVH file that read_bvh(path, fps=None, drop_tpose=False) reads
+    back to within 1e-6 (angles in degrees, positions in CMU units; 6 decimals are written).
+    """
+    J = len(motion.names)
+    children: list[list[int]] = [[] for _ in range(J)]
+    for j, p in enumerate(motion.parents):
+        if p >= 0:
+            children[p].append(j)
+    out: list[str] = ["HIERARCHY"]
+
+    def emit(j: int, depth: int) -> None:
+        pad = "\t" * depth
+        kind = "ROOT" if motion.parents[j] < 0 else "JOINT"
+        out.append(f"{pad}{kind} {motion.names[j]}")
+        out.append(f"{pad}{{")
+        out.append(f"{pad}\tOFFSET {_format_vec(motion.offsets[j])}")
+        chans = motion.channels[j]
+        out.append(f"{pad}\tCHANNELS {len(chans)} {' '.join(chans)}")
+        for c in children[j]:
+            emit(c, depth + 1)
+        if not np.isnan(motion.end_sites[j]).any():
+            out += [f"{pad}\tEnd Site", f"{pad}\t{{",
+                    f"{pad}\t\tOFFSET {_format_vec(motion.end_sites[j])}", f"{pad}\t}}"]
+        out.append(f"{pad}}}")
+
+    emit(int(np.flatnonzero(motion.parents < 0)[0]), 0)
+    T = motion.n_frames
+    out += ["MOTION", f"Frames: {T}", f"Frame Time: {1.0 / motion.fps:.10g}"]
+    frames = np.concatenate([motion.root_position.reshape(T, 3),
+                             motion.euler_deg.reshape(T, J * 3)], axis=1)
+    buffer = io.StringIO()
+    np.savetxt(buffer, frames, fmt="%.6f")
+    Path(path).write_text("\n".join(out) + "\n" + buffer.getvalue(), encoding="utf-8")
