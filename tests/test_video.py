@@ -1,0 +1,187 @@
+"""Video decoding: metadata, time ranges, grayscale, and one-line errors for bad files."""
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from tracker.video import VideoError, VideoTruncatedWarning, _as_bgr, open_video
+
+
+def write_video(path: Path, frames: list[np.ndarray], fps: float = 25.0) -> Path:
+    """Write frames (BGR (H,W,3) or gray (H,W) uint8) to ``path`` with the mp4v codec."""
+    height, width = frames[0].shape[:2]
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (width, height),
+                             isColor=frames[0].ndim == 3)
+    assert writer.isOpened()
+    for frame in frames:
+        writer.write(frame)
+    writer.release()
+    return path
+
+
+def noise_frames(count: int, width: int = 96, height: int = 64, seed: int = 0) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return [rng.integers(0, 256, (height, width, 3), dtype=np.uint8) for _ in range(count)]
+
+
+def flat_frames(count: int, width: int = 96, height: int = 64) -> list[np.ndarray]:
+    """Frame i shows i in binary as 8 black/white vertical bands, so a decoded frame tells its
+    own index despite compression."""
+    bands = np.arange(width) * 8 // width
+    frames = []
+    for i in range(count):
+        row = np.where((i >> bands) & 1, 255, 0).astype(np.uint8)
+        frames.append(np.ascontiguousarray(np.broadcast_to(row[None, :, None], (height, width, 3))))
+    return frames
+
+
+def decoded_index(image: np.ndarray) -> int:
+    width = image.shape[1]
+    band_means = [image[:, b * width // 8 + width // 32:(b + 1) * width // 8 - width // 32].mean()
+                  for b in range(8)]
+    return sum(1 << b for b, m in enumerate(band_means) if m > 127)
+
+
+def test_reads_every_frame_with_metadata(tmp_path):
+    path = write_video(tmp_path / "clip.mp4", flat_frames(30), fps=25.0)
+    source = open_video(path)
+    assert (source.width, source.height, source.fps, source.frame_count) == (96, 64, 25.0, 30)
+    frames = list(source)
+    assert [f.index for f in frames] == list(range(30))
+    assert frames[10].time_s == pytest.approx(10 / 25.0)
+    assert all(f.image.shape == (64, 96, 3) and f.image.dtype == np.uint8 for f in frames)
+    assert [decoded_index(f.image) for f in frames] == list(range(30))
+    assert source.frames_read == 30 and not source.truncated
+
+
+def test_frames_unpack_as_index_time_image(tmp_path):
+    path = write_video(tmp_path / "clip.mp4", flat_frames(3))
+    index, time_s, image = next(iter(open_video(path)))
+    assert (index, time_s, image.shape) == (0, 0.0, (64, 96, 3))
+
+
+def test_start_and_end_seconds_select_frames(tmp_path):
+    path = write_video(tmp_path / "clip.mp4", flat_frames(40), fps=20.0)
+    frames = list(open_video(path, start_s=0.5, end_s=1.0))
+    assert [f.index for f in frames] == list(range(10, 20))
+    assert [decoded_index(f.image) for f in frames] == list(range(10, 20))
+    assert frames[0].time_s == pytest.approx(0.5)
+
+
+def test_source_can_be_iterated_twice(tmp_path):
+    source = open_video(write_video(tmp_path / "clip.mp4", flat_frames(5)))
+    assert len(list(source)) == len(list(source)) == 5
+
+
+def test_grayscale_video_gives_three_equal_channels(tmp_path):
+    gray = [np.full((64, 96), 40 * i, np.uint8) for i in range(4)]
+    frames = list(open_video(write_video(tmp_path / "gray.mp4", gray)))
+    image = frames[2].image
+    assert image.shape == (64, 96, 3)
+    assert np.array_equal(image[..., 0], image[..., 1]) and np.array_equal(image[..., 1], image[..., 2])
+    assert abs(float(image.mean()) - 80) < 4
+
+
+def test_gray_and_bgra_arrays_become_bgr():
+    gray = np.arange(12, dtype=np.uint8).reshape(3, 4)
+    assert np.array_equal(_as_bgr(gray), np.repeat(gray[..., None], 3, axis=2))
+    bgra = np.dstack([gray, gray + 1, gray + 2, np.zeros_like(gray)])
+    assert np.array_equal(_as_bgr(bgra), bgra[..., :3])
+
+
+def test_missing_file_is_refused(tmp_path):
+    with pytest.raises(VideoError, match="nope.mp4: no such file"):
+        open_video(tmp_path / "nope.mp4")
+
+
+def test_text_file_named_mp4_is_refused(tmp_path):
+    path = tmp_path / "notes.mp4"
+    path.write_text("this is not a video\n" * 50)
+    with pytest.raises(VideoError, match="notes.mp4: is not a video"):
+        open_video(path)
+
+
+def test_empty_file_is_refused(tmp_path):
+    path = tmp_path / "empty.mp4"
+    path.write_bytes(b"")
+    with pytest.raises(VideoError, match="empty.mp4: is empty"):
+        open_video(path)
+
+
+def test_zero_frame_video_is_refused(tmp_path):
+    path = tmp_path / "zero.mp4"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 25.0, (96, 64))
+    writer.release()
+    with pytest.raises(VideoError, match="zero.mp4: contains no video frames"):
+        open_video(path)
+
+
+def test_mp4_with_its_tail_cut_off_is_refused(tmp_path):
+    data = write_video(tmp_path / "full.mp4", noise_frames(20)).read_bytes()
+    cut = tmp_path / "cut.mp4"
+    cut.write_bytes(data[: len(data) // 2])
+    with pytest.raises(VideoError, match="cut.mp4: is a truncated MP4"):
+        open_video(cut)
+
+
+def test_corrupt_middle_stops_cleanly_with_a_warning(tmp_path):
+    data = bytearray(write_video(tmp_path / "full.mp4", noise_frames(40)).read_bytes())
+    start, length = len(data) // 2, len(data) // 10
+    data[start:start + length] = bytes(length)
+    corrupt = tmp_path / "corrupt.mp4"
+    corrupt.write_bytes(bytes(data))
+    source = open_video(corrupt)
+    with pytest.warns(VideoTruncatedWarning, match="corrupt.mp4: decoding stopped at frame"):
+        frames = list(source)
+    assert 0 < len(frames) < 40
+    assert source.truncated and source.frames_read == len(frames)
+    assert [f.index for f in frames] == list(range(len(frames)))
+
+
+def test_complete_video_gives_no_truncation_warning(tmp_path):
+    source = open_video(write_video(tmp_path / "clip.mp4", noise_frames(10)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", VideoTruncatedWarning)
+        assert len(list(source)) == 10
+
+
+def test_tiny_resolution_is_refused(tmp_path):
+    path = write_video(tmp_path / "tiny.mp4", flat_frames(3, width=8, height=8))
+    with pytest.raises(VideoError, match=r"tiny.mp4: resolution 8x8 is too small"):
+        open_video(path)
+
+
+def test_large_video_is_read_and_can_be_shrunk(tmp_path):
+    frames = flat_frames(2, width=4000, height=3000)
+    path = write_video(tmp_path / "large.mp4", frames)
+    full = open_video(path)
+    assert (full.width, full.height) == (4000, 3000)
+    shrunk = open_video(path, max_side=1000)
+    assert (shrunk.width, shrunk.height) == (1000, 750)
+    (_, _, first), (_, _, second) = list(shrunk)
+    assert first.shape == (750, 1000, 3) and decoded_index(second) == 1
+
+
+@pytest.mark.parametrize("start_s, end_s", [(-1.0, None), (1.0, 0.5), (100.0, None)])
+def test_bad_time_range_is_refused(tmp_path, start_s, end_s):
+    path = write_video(tmp_path / "clip.mp4", flat_frames(10))
+    with pytest.raises(VideoError, match="clip.mp4: .*start_s"):
+        open_video(path, start_s=start_s, end_s=end_s)
+
+
+def test_unusable_fps_override_is_refused(tmp_path):
+    path = write_video(tmp_path / "clip.mp4", flat_frames(3))
+    with pytest.raises(VideoError, match="clip.mp4: frame rate 0.0 is unusable"):
+        open_video(path, fps=0.0)
+
+
+def test_errors_are_one_line(tmp_path):
+    path = tmp_path / "bad.mp4"
+    path.write_text("x")
+    with pytest.raises(VideoError) as info:
+        open_video(path)
+    assert "\n" not in str(info.value) and "bad.mp4" in str(info.value)

@@ -1,0 +1,237 @@
+"""Video decoding: a file becomes a stream of (index, time, BGR frame) with checked metadata.
+
+Every failure to read a file is a :class:`VideoError` whose one-line message names the file.
+A stream that stops before the container's announced end (a corrupt or cut-off file) does not
+raise: it ends cleanly with what was decoded and emits a :class:`VideoTruncatedWarning`.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Iterator
+from pathlib import Path
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+
+MIN_SIDE_PX = 16
+# Longer than any camera or 8K video; beyond this a file is almost certainly damaged metadata.
+MAX_SIDE_PX = 16384
+MAX_FPS = 1000.0
+
+
+class VideoError(ValueError):
+    """A video file that cannot be used; the message is one line and names the file."""
+
+
+class VideoTruncatedWarning(UserWarning):
+    """Decoding stopped before the end the container announced (corrupt or cut-off file)."""
+
+
+def _mp4_top_level_boxes(path: Path) -> dict[bytes, int] | None:
+    """Top-level ISO-BMFF boxes of ``path`` as {type: payload size}, or None if not an MP4/MOV.
+
+    Reads only the 8-16 byte box headers (seeking past payloads), so it is cheap on large files.
+    Used only to explain why OpenCV refused a file.
+    """
+    boxes: dict[bytes, int] = {}
+    size_total = path.stat().st_size
+    with path.open("rb") as f:
+        offset = 0
+        while offset + 8 <= size_total:
+            f.seek(offset)
+            header = f.read(16)
+            size = int.from_bytes(header[:4], "big")
+            kind = header[4:8]
+            header_len = 8
+            if size == 1 and len(header) == 16:
+                size, header_len = int.from_bytes(header[8:16], "big"), 16
+            elif size == 0:  # box runs to the end of the file
+                size = size_total - offset
+            if offset == 0 and kind != b"ftyp":
+                return None
+            if size < header_len:
+                break
+            boxes[kind] = boxes.get(kind, 0) + min(size, size_total - offset) - header_len
+            offset += size
+    return boxes
+
+
+def _why_unopenable(path: Path) -> str:
+    """One-line reason OpenCV could not open an existing file."""
+    if path.stat().st_size == 0:
+        return "is empty (0 bytes)"
+    boxes = _mp4_top_level_boxes(path)
+    if boxes is None:
+        return "is not a video OpenCV can decode (unknown format or not a video file)"
+    if b"moov" not in boxes:
+        return "is a truncated MP4: its index ('moov' box) is missing, the file was probably cut off"
+    if boxes.get(b"mdat", 0) == 0:
+        return "contains no video frames"
+    return "is an MP4 OpenCV cannot decode (no supported video stream)"
+
+
+class VideoFrame(NamedTuple):
+    """One decoded frame: ``index`` from 0 at the file's start, ``time_s`` = index / fps (seconds),
+    ``image`` BGR uint8 (H, W, 3)."""
+
+    index: int
+    time_s: float
+    image: np.ndarray
+
+
+class VideoSource:
+    """A checked video file; iterate to get :class:`VideoFrame` (unpacks as index, time_s, frame).
+
+    Attributes: ``path``, ``fps`` (frames/s), ``frame_count`` (frames the container announces for
+    the whole file, None when it does not say; may be approximate), ``width``/``height`` (px of
+    the frames yielded, after any downscaling), ``source_width``/``source_height`` (px in the
+    file), ``start_index``/``end_index`` (frame range yielded, end exclusive; end None = until the
+    stream ends), ``frames_read`` (frames yielded by the last iteration) and ``truncated`` (True
+    when the last iteration stopped before ``end_index``).
+    Each iteration reopens the file, so a source can be iterated more than once.
+    """
+
+    def __init__(self, path: Path, fps: float, frame_count: int | None,
+                 source_size: tuple[int, int], size: tuple[int, int], start_index: int,
+                 end_index: int | None):
+        self.path = path
+        self.fps = fps
+        self.frame_count = frame_count
+        self.source_width, self.source_height = source_size
+        self.width, self.height = size
+        self.start_index = start_index
+        self.end_index = end_index
+        self.frames_read = 0
+        self.truncated = False
+
+    def expected_frames(self) -> int | None:
+        """Frames this source should yield (``end_index - start_index``), None if unknown."""
+        return None if self.end_index is None else self.end_index - self.start_index
+
+    def __iter__(self) -> Iterator[VideoFrame]:
+        capture = _open_capture(self.path)
+        self.frames_read, self.truncated = 0, False
+        try:
+            index = _seek(capture, self.start_index)
+            resize = (self.width, self.height) != (self.source_width, self.source_height)
+            end = math.inf if self.end_index is None else self.end_index
+            while index < end:
+                ok, image = capture.read()
+                if not ok or image is None:
+                    if self.end_index is None:
+                        return
+                    self.truncated = True
+                    warnings.warn(f"{self.path.name}: decoding stopped at frame {index} of "
+                                  f"{self.end_index} (corrupt or cut-off file); using the "
+                                  f"{self.frames_read} frames read", VideoTruncatedWarning,
+                                  stacklevel=2)
+                    return
+                image = _as_bgr(image)
+                if resize:
+                    image = cv2.resize(image, (self.width, self.height), interpolation=cv2.INTER_AREA)
+                yield VideoFrame(index, index / self.fps, image)
+                self.frames_read += 1
+                index += 1
+        finally:
+            capture.release()
+
+
+def _open_capture(path: Path) -> cv2.VideoCapture:
+    capture = cv2.VideoCapture(str(path), cv2.CAP_ANY)
+    if not capture.isOpened():
+        capture.release()
+        raise VideoError(f"{path}: {_why_unopenable(path)}")
+    return capture
+
+
+def _seek(capture: cv2.VideoCapture, start_index: int) -> int:
+    """Position ``capture`` so the next read returns frame ``start_index``; returns that index.
+
+    Tries a container seek first and falls back to decoding and discarding frames when the
+    backend lands elsewhere (some codecs only seek to key frames).
+    """
+    if start_index == 0:
+        return 0
+    capture.set(cv2.CAP_PROP_POS_FRAMES, start_index)
+    position = int(capture.get(cv2.CAP_PROP_POS_FRAMES))
+    if position == start_index:
+        return start_index
+    capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+    for index in range(start_index):
+        if not capture.grab():
+            return index
+    return start_index
+
+
+def _as_bgr(image: np.ndarray) -> np.ndarray:
+    """Any decoded frame (gray (H,W) or (H,W,1), BGR, BGRA) -> BGR uint8 (H,W,3)."""
+    if image.dtype != np.uint8:
+        image = cv2.convertScaleAbs(image, alpha=255.0 / max(float(image.max()), 1.0))
+    if image.ndim == 2 or image.shape[2] == 1:
+        return cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    if image.shape[2] == 4:
+        return cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+    return image
+
+
+def _scaled_size(width: int, height: int, max_side: int | None) -> tuple[int, int]:
+    """Frame size after shrinking so the longer side is at most ``max_side`` px (never enlarges)."""
+    if max_side is None or max(width, height) <= max_side:
+        return width, height
+    scale = max_side / max(width, height)
+    return max(1, round(width * scale)), max(1, round(height * scale))
+
+
+def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = None,
+               fps: float | None = None, max_side: int | None = None) -> VideoSource:
+    """Open and check a video file; returns a :class:`VideoSource` to iterate over.
+
+    ``start_s``/``end_s``: seconds from the file's start (end exclusive; None = to the end).
+    ``fps``: frames per second to assume when the container's rate is missing or wrong.
+    ``max_side``: if set (px), frames whose longer side exceeds it are shrunk (INTER_AREA) so the
+    longer side equals it; pixel coordinates downstream are then in the shrunk frame.
+    The first frame is decoded here, so a file that opens but yields nothing is refused now.
+    Raises :class:`VideoError` for a missing file, a non-video, a truncated MP4 without index,
+    zero frames, a resolution below 16 px or above 16384 px per side, an unusable frame rate,
+    or a start/end range outside the video.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise VideoError(f"{path}: no such file")
+    if not path.is_file():
+        raise VideoError(f"{path}: is not a file")
+    if max_side is not None and max_side < MIN_SIDE_PX:
+        raise VideoError(f"{path}: max_side={max_side} is below the minimum of {MIN_SIDE_PX} px")
+    capture = _open_capture(path)
+    try:
+        rate = float(capture.get(cv2.CAP_PROP_FPS)) if fps is None else float(fps)
+        count = capture.get(cv2.CAP_PROP_FRAME_COUNT)
+        ok, first = capture.read()
+    finally:
+        capture.release()
+    if not ok or first is None:
+        raise VideoError(f"{path}: contains no decodable video frames")
+    height, width = first.shape[:2]
+    if min(width, height) < MIN_SIDE_PX:
+        raise VideoError(f"{path}: resolution {width}x{height} is too small "
+                         f"(each side must be at least {MIN_SIDE_PX} px)")
+    if max(width, height) > MAX_SIDE_PX:
+        raise VideoError(f"{path}: resolution {width}x{height} is too large "
+                         f"(each side must be at most {MAX_SIDE_PX} px)")
+    if not (math.isfinite(rate) and 0.0 < rate <= MAX_FPS):
+        raise VideoError(f"{path}: frame rate {rate} is unusable; pass fps= to state it")
+    frame_count = int(count) if math.isfinite(count) and count >= 1 else None
+    if start_s < 0 or (end_s is not None and end_s <= start_s):
+        raise VideoError(f"{path}: bad time range start_s={start_s}, end_s={end_s}")
+    start_index = int(math.floor(start_s * rate + 1e-9))
+    end_index = frame_count
+    if end_s is not None:
+        end_index = int(math.ceil(end_s * rate - 1e-9))
+        end_index = end_index if frame_count is None else min(frame_count, end_index)
+    if frame_count is not None and start_index >= frame_count:
+        raise VideoError(f"{path}: start_s={start_s} is past the end "
+                         f"({frame_count} frames at {rate:g} fps)")
+    size = _scaled_size(width, height, max_side)
+    return VideoSource(path, rate, frame_count, (width, height), size, start_index, end_index)
