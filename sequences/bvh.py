@@ -408,8 +408,8 @@ def write_bvh(path: str | Path, motion: Motion) -> None:
         for c in children[j]:
             emit(c, depth + 1)
         if not np.isnan(motion.end_sites[j]).any():
-            out += [f"{pad}\tEnd Site", f"{pad}\t{{",
-                    f"{pad}\t\tOFFSET {_format_vec(motion.end_sites[j])}", f"{pad}\t}}"]
+            out.extend([f"{pad}\tEnd Site", f"{pad}\t{{",
+                        f"{pad}\t\tOFFSET {_format_vec(motion.end_sites[j])}", f"{pad}\t}}"])
         out.append(f"{pad}}}")
 
     emit(int(np.flatnonzero(motion.parents < 0)[0]), 0)
