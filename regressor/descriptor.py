@@ -1,0 +1,200 @@
+"""Silhouette descriptor: mask -> edge points -> shape contexts -> soft histogram on a codebook.
+
+This is the public entry to the descriptor (Agarwal & Triggs, CVPR 2004, section 2). The default
+settings give a 100-D histogram (with a 100-centre codebook) of 12 x 5 log-polar shape contexts
+at 300 outer-boundary points, summing to 100 like the paper's released descriptors.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+from typing import Callable, Iterable
+
+import numpy as np
+
+from regressor.codebook import Codebook, CodebookError, fit_codebook, soft_histogram
+from regressor.edges import DegenerateSilhouetteError, SilhouetteError, sample_edge_points
+from regressor.shape_context import shape_contexts
+
+__all__ = [
+    "Codebook",
+    "CodebookError",
+    "DegenerateSilhouetteError",
+    "DescriptorSettings",
+    "DescriptorSettingsError",
+    "SilhouetteError",
+    "contexts_for_masks",
+    "descriptor_for_mask",
+    "descriptors_for_masks",
+    "fit_codebook_for_masks",
+    "mask_contexts",
+]
+
+Progress = Callable[[int], None]
+
+
+class DescriptorSettingsError(ValueError):
+    """A descriptor setting is out of range, or stored settings are malformed."""
+
+
+@dataclass(frozen=True)
+class DescriptorSettings:
+    """How a silhouette becomes a descriptor (everything but the codebook).
+
+    n_points: edge points sampled at equal arc length along the boundary.
+    include_holes: also sample the boundaries of holes in the silhouette (internal edges).
+    n_angular, n_radial: shape context sectors and rings (context length n_angular * n_radial).
+    r_inner, r_outer: innermost / outermost ring boundaries in units of the mean distance between
+        edge points (about 0.35-0.4 of a standing person's height, so r_outer = 3 spans the body;
+        r_inner = 1/8 is about a limb's width).
+    n_votes: each context votes into this many nearest codebook centres (Gaussian weights).
+    total: the descriptor's sum (100, the scale of the paper's released data).
+    """
+
+    n_points: int = 300
+    include_holes: bool = False
+    n_angular: int = 12
+    n_radial: int = 5
+    r_inner: float = 0.125
+    r_outer: float = 3.0
+    n_votes: int = 5
+    total: float = 100.0
+
+    def __post_init__(self) -> None:
+        checks = {
+            "n_points": self.n_points >= 10,
+            "n_angular": self.n_angular >= 1,
+            "n_radial": self.n_radial >= 1,
+            "r_inner": 0 < self.r_inner < self.r_outer,
+            "n_votes": self.n_votes >= 1,
+            "total": self.total > 0,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise DescriptorSettingsError(f"descriptor setting {name}={getattr(self, name)!r} is out of range")
+
+    @property
+    def context_size(self) -> int:
+        """Length of one shape context, n_radial * n_angular."""
+        return self.n_radial * self.n_angular
+
+    def to_arrays(self, prefix: str = "descriptor_") -> dict[str, np.ndarray]:
+        """Plain 0-d arrays for an .npz, one per setting, named prefix + field name."""
+        return {prefix + k: np.array(v) for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_arrays(cls, arrays, prefix: str = "descriptor_") -> "DescriptorSettings":
+        """Rebuild from a mapping made by to_arrays (e.g. an NpzFile); validates every field."""
+        values = {}
+        for f in fields(cls):
+            key = prefix + f.name
+            if key not in arrays:
+                raise DescriptorSettingsError(f"descriptor settings missing {key}")
+            value = np.asarray(arrays[key])
+            if value.shape != ():
+                raise DescriptorSettingsError(f"{key} must be a scalar, got shape {value.shape}")
+            values[f.name] = {"int": int, "bool": bool, "float": float}[f.type](value.item())
+        return cls(**values)
+
+
+def mask_contexts(mask: np.ndarray, settings: DescriptorSettings) -> np.ndarray:
+    """Shape contexts of a silhouette's edge points.
+
+    mask: (H, W) bool/integer silhouette (nonzero = person), any size.
+    Returns (settings.n_points, settings.context_size) float64, each row summing to 1.
+    Raises DegenerateSilhouetteError for an empty, tiny or line-like silhouette.
+    """
+    points = sample_edge_points(mask, settings.n_points, settings.include_holes)
+    return shape_contexts(points, settings.n_angular, settings.n_radial, settings.r_inner, settings.r_outer)
+
+
+def _check_codebook(settings: DescriptorSettings, codebook: Codebook) -> None:
+    if codebook.centres.shape[1] != settings.context_size:
+        raise CodebookError(
+            f"codebook centres have {codebook.centres.shape[1]} columns but the settings give "
+            f"{settings.context_size}-bin shape contexts ({settings.n_radial} x {settings.n_angular})"
+        )
+
+
+def descriptor_for_mask(mask: np.ndarray, settings: DescriptorSettings, codebook: Codebook) -> np.ndarray:
+    """The histogram-of-shape-contexts descriptor of one silhouette.
+
+    mask: (H, W) bool/integer silhouette. Returns (K,) float64, K = codebook.n_centres, summing
+    to settings.total. Raises DegenerateSilhouetteError for an unusable silhouette.
+    """
+    _check_codebook(settings, codebook)
+    return soft_histogram(mask_contexts(mask, settings), codebook, settings.n_votes, settings.total)
+
+
+def descriptors_for_masks(
+    masks: Iterable[np.ndarray],
+    settings: DescriptorSettings,
+    codebook: Codebook,
+    progress: Progress | None = None,
+) -> np.ndarray:
+    """Descriptors of many silhouettes.
+
+    masks: iterable of (H_i, W_i) silhouettes (sizes may differ).
+    progress: called with the number of masks done so far after each mask.
+    Returns (N, K) float64. Raises DegenerateSilhouetteError naming the index of the first
+    unusable mask.
+    """
+    _check_codebook(settings, codebook)
+    rows = []
+    for i, mask in enumerate(masks):
+        try:
+            contexts = mask_contexts(mask, settings)
+        except SilhouetteError as err:
+            raise type(err)(f"mask {i}: {err}") from err
+        rows.append(soft_histogram(contexts, codebook, settings.n_votes, settings.total))
+        if progress is not None:
+            progress(i + 1)
+    return np.array(rows, dtype=np.float64).reshape(len(rows), codebook.n_centres)
+
+
+def contexts_for_masks(
+    masks: Iterable[np.ndarray],
+    settings: DescriptorSettings,
+    per_mask: int | None = None,
+    seed: int = 0,
+    progress: Progress | None = None,
+) -> np.ndarray:
+    """Shape contexts pooled from many silhouettes (the training data of a codebook).
+
+    per_mask: keep at most this many contexts per silhouette, drawn without replacement with a
+        Generator seeded by seed (None keeps all n_points).
+    Returns (M, settings.context_size) float64. Raises DegenerateSilhouetteError naming the index.
+    """
+    rng = np.random.default_rng(seed)
+    pooled = []
+    for i, mask in enumerate(masks):
+        try:
+            contexts = mask_contexts(mask, settings)
+        except SilhouetteError as err:
+            raise type(err)(f"mask {i}: {err}") from err
+        if per_mask is not None and per_mask < len(contexts):
+            contexts = contexts[np.sort(rng.choice(len(contexts), size=per_mask, replace=False))]
+        pooled.append(contexts)
+        if progress is not None:
+            progress(i + 1)
+    if not pooled:
+        raise CodebookError("no masks given to pool shape contexts from")
+    return np.vstack(pooled)
+
+
+def fit_codebook_for_masks(
+    masks: Iterable[np.ndarray],
+    settings: DescriptorSettings,
+    n_centres: int = 100,
+    seed: int = 0,
+    per_mask: int | None = 50,
+    max_samples: int = 20000,
+    progress: Progress | None = None,
+) -> Codebook:
+    """Fit a codebook (K = n_centres) on contexts pooled from training silhouettes.
+
+    per_mask contexts are kept per silhouette and at most max_samples are clustered; the same
+    masks, settings and seed give identical centres. Returns a Codebook with centres
+    (n_centres, settings.context_size).
+    """
+    contexts = contexts_for_masks(masks, settings, per_mask=per_mask, seed=seed, progress=progress)
+    return fit_codebook(contexts, n_centres=n_centres, seed=seed, max_samples=max_samples)

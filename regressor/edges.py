@@ -1,0 +1,118 @@
+"""Edge points of a binary silhouette, sampled at equal arc length along its boundary.
+
+The silhouette's outer boundary is the largest external contour of the mask (OpenCV
+``findContours``); holes inside it (the "internal edges" a binary mask has, e.g. the gap between an
+arm and the torso) are optional. Points are returned in image pixel coordinates, x to the right and
+y downwards, as in the mask's own indexing (column, row).
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+# A person's silhouette is never thinner than this fraction of its length (ratio of the smaller to
+# the larger standard deviation of its edge points). A 1-pixel line, straight or diagonal, scores
+# below 0.02; a standing person with arms down scores about 0.2.
+MIN_THICKNESS_RATIO = 0.05
+# Fewer boundary pixels than this cannot give a meaningful shape context histogram.
+MIN_EDGE_PIXELS = 10
+# Holes with a shorter boundary than this (pixels) are treated as segmentation noise.
+MIN_HOLE_PERIMETER = 8.0
+
+
+class SilhouetteError(ValueError):
+    """The input is not a usable silhouette mask (wrong shape or type)."""
+
+
+class DegenerateSilhouetteError(SilhouetteError):
+    """The mask is valid but holds no usable silhouette (empty, a few pixels, or a line)."""
+
+
+def as_mask(mask: np.ndarray) -> np.ndarray:
+    """Validate a silhouette mask and return it as a contiguous (H, W) uint8 array of 0/1.
+
+    mask: (H, W) bool or integer array; nonzero pixels are the silhouette.
+    Raises SilhouetteError for anything that is not a 2-D array of bool or integer type.
+    """
+    mask = np.asarray(mask)
+    if mask.ndim != 2:
+        raise SilhouetteError(f"silhouette mask must be 2-D (H, W), got shape {mask.shape}")
+    if mask.dtype != bool and not np.issubdtype(mask.dtype, np.integer):
+        raise SilhouetteError(f"silhouette mask must be bool or integer, got dtype {mask.dtype}")
+    return np.ascontiguousarray(mask != 0, dtype=np.uint8)
+
+
+def _boundaries(mask01: np.ndarray, include_holes: bool) -> list[np.ndarray]:
+    """Closed boundary polylines (M_i, 2) float64 (x, y) px: the largest outer contour first,
+    then (if asked) its holes. Raises DegenerateSilhouetteError when there is no silhouette."""
+    if not mask01.any():
+        raise DegenerateSilhouetteError("silhouette mask is empty (no foreground pixels)")
+    # A 1-pixel zero border so that silhouettes touching the image edge still get closed contours.
+    padded = cv2.copyMakeBorder(mask01, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    mode = cv2.RETR_CCOMP if include_holes else cv2.RETR_EXTERNAL
+    contours, hierarchy = cv2.findContours(padded, mode, cv2.CHAIN_APPROX_NONE)
+    hierarchy = hierarchy.reshape(-1, 4)  # next, previous, first child, parent
+    outer = [i for i in range(len(contours)) if hierarchy[i, 3] < 0]
+    # Largest by enclosed area; ties (e.g. zero-area lines) broken by boundary length.
+    best = max(outer, key=lambda i: (cv2.contourArea(contours[i]), len(contours[i])))
+    polylines = [contours[best].reshape(-1, 2).astype(np.float64) - 1.0]
+    if include_holes:
+        holes = [i for i in range(len(contours)) if hierarchy[i, 3] == best]
+        for i in holes:
+            hole = contours[i].reshape(-1, 2).astype(np.float64) - 1.0
+            if cv2.arcLength(contours[i], True) >= MIN_HOLE_PERIMETER:
+                polylines.append(hole)
+    return polylines
+
+
+def _closed_lengths(polyline: np.ndarray) -> np.ndarray:
+    """Cumulative arc length (M+1,) px of a closed polyline (M, 2), starting at 0."""
+    closed = np.vstack([polyline, polyline[:1]])
+    seg = np.hypot(*np.diff(closed, axis=0).T)
+    return np.concatenate([[0.0], np.cumsum(seg)])
+
+
+def _resample_closed(polyline: np.ndarray, count: int) -> np.ndarray:
+    """count points (count, 2) at equal arc length along a closed polyline (M, 2), from its start."""
+    cum = _closed_lengths(polyline)
+    closed = np.vstack([polyline, polyline[:1]])
+    targets = np.arange(count) * (cum[-1] / count)
+    return np.column_stack([np.interp(targets, cum, closed[:, 0]), np.interp(targets, cum, closed[:, 1])])
+
+
+def _split_count(lengths: np.ndarray, total: int) -> np.ndarray:
+    """Share total points among boundaries in proportion to their lengths (largest remainder)."""
+    share = total * lengths / lengths.sum()
+    counts = np.floor(share).astype(int)
+    order = np.argsort(-(share - counts), kind="stable")
+    counts[order[: total - counts.sum()]] += 1
+    return counts
+
+
+def sample_edge_points(mask: np.ndarray, n_points: int = 300, include_holes: bool = False) -> np.ndarray:
+    """Points at equal arc length along a silhouette's boundary.
+
+    mask: (H, W) bool/integer silhouette (nonzero = person).
+    n_points: how many points to return (spacing = boundary length / n_points).
+    include_holes: also sample the boundaries of holes inside the largest silhouette (internal
+        edges); points are then shared among the boundaries in proportion to their lengths.
+    Returns (n_points, 2) float64 (x, y) in pixels (x = column, y = row, y pointing down).
+    Raises DegenerateSilhouetteError for an empty mask, a silhouette with fewer than
+    MIN_EDGE_PIXELS boundary pixels, or one thinner than MIN_THICKNESS_RATIO of its length (a line).
+    """
+    if n_points < MIN_EDGE_PIXELS:
+        raise ValueError(f"n_points must be at least {MIN_EDGE_PIXELS}, got {n_points}")
+    polylines = _boundaries(as_mask(mask), include_holes)
+    if len(polylines[0]) < MIN_EDGE_PIXELS:
+        raise DegenerateSilhouetteError(
+            f"silhouette boundary has {len(polylines[0])} pixels, fewer than {MIN_EDGE_PIXELS}"
+        )
+    lengths = np.array([_closed_lengths(p)[-1] for p in polylines])
+    counts = _split_count(lengths, n_points)
+    points = np.vstack([_resample_closed(p, c) for p, c in zip(polylines, counts) if c > 0])
+    spread = np.sqrt(np.clip(np.linalg.eigvalsh(np.cov(points.T)), 0.0, None))
+    if spread[0] < MIN_THICKNESS_RATIO * spread[1]:
+        raise DegenerateSilhouetteError(
+            f"silhouette is a line (thickness ratio {spread[0] / spread[1]:.3f} < {MIN_THICKNESS_RATIO})"
+        )
+    return points
