@@ -1,0 +1,50 @@
+"""Parse every BVH file in a folder and print its frame count at a chosen rate and parse time.
+
+    python scripts/count_frames.py [folder] [--fps 30]
+
+The folder defaults to ../shared/data/cmu/bvh beside the repository.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from sequences.bvh import BVHError, read_bvh  # noqa: E402
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("folder", nargs="?", type=Path,
+                        default=ROOT.parent / "shared" / "data" / "cmu" / "bvh")
+    parser.add_argument("--fps", type=float, default=30.0, help="target frame rate (default 30)")
+    args = parser.parse_args(argv)
+    paths = sorted(args.folder.glob("*.bvh"))
+    if not paths:
+        print(f"no .bvh files in {args.folder}", file=sys.stderr)
+        return 1
+    total_frames, total_seconds, failures = 0, 0.0, 0
+    for path in paths:
+        start = time.perf_counter()
+        try:
+            motion = read_bvh(path, fps=args.fps)
+        except BVHError as error:
+            print(f"{path.name:<12} ERROR {error}")
+            failures += 1
+            continue
+        seconds = time.perf_counter() - start
+        total_frames += motion.n_frames
+        total_seconds += seconds
+        print(f"{path.name:<12} {motion.n_frames:6d} frames  {seconds * 1000:7.1f} ms")
+    print(f"{len(paths)} files, {total_frames} frames at {args.fps:g} fps "
+          f"({total_frames / args.fps / 60:.1f} min of motion), parsed in {total_seconds:.2f} s"
+          + (f", {failures} failed" if failures else ""))
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
