@@ -1,0 +1,411 @@
+"""MCAP recording of tracked poses, openable as is in Foxglove.
+
+Channels (JSON messages, JSON-schema schemas):
+- ``/pose`` (schema ``silhouette_pose.TrackedPose``): one message per track per frame: frame
+  index, time, track id, ambiguous flag, the centroid in pixels when known, and for both the raw
+  regressor output and the Kalman-filtered pose: heading in degrees, heading norm and the 55
+  values keyed by ``sequences.pose_vector.pose_vector_names()`` (Foxglove plots them by name,
+  e.g. ``/pose.filtered.pose.LeftArm_z``).
+- ``/skeleton`` (schema ``foxglove.SceneUpdate``): one message per frame, one entity per track
+  (id ``track-<id>``, frame ``world``, Z-up, metres): bones as a line list, joints as spheres, a
+  text label; entities of tracks absent from the frame are deleted.
+- Metadata records (e.g. ``video``, ``model``, ``settings``) given to the constructor.
+Log and publish times are the video time in nanoseconds.
+
+Crash safety: messages go into small compressed chunks (``chunk_size`` bytes, and a chunk is
+closed at least every ``flush_every_frames`` frames); every finished chunk is handed to the
+operating system at once, so a killed process leaves a file whose finished chunks are intact
+(read it back with ``tracker.mcap_repair.recover_mcap``). ``close()`` writes the summary and
+footer; it runs on leaving a ``with`` block (also on exceptions and Ctrl-C) and, failing that,
+at interpreter exit.
+"""
+from __future__ import annotations
+
+import io
+import json
+import math
+import weakref
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from mcap.writer import CompressionType, Writer
+
+from sequences.pose_vector import pose_vector_names
+from tracker.skeleton_geometry import (
+    SinkInputError,
+    bone_segments,
+    check_joints,
+    check_pose,
+    track_colour,
+    y_up_to_z_up,
+)
+
+POSE_TOPIC = "/pose"
+SKELETON_TOPIC = "/skeleton"
+POSE_SCHEMA_NAME = "silhouette_pose.TrackedPose"
+SCENE_SCHEMA_NAME = "foxglove.SceneUpdate"
+WORLD_FRAME = "world"
+#: Drawing sizes in metres.
+BONE_THICKNESS_M = 0.025
+JOINT_DIAMETER_M = 0.06
+_DECIMALS = 6  # JSON rounding: 1e-6 degrees or units is far below any estimate's accuracy
+
+
+# ---------------------------------------------------------------- JSON schemas
+
+def _object(title: str, properties: dict, description: str = "") -> dict:
+    """A JSON-schema object whose properties are all required (our messages always set all)."""
+    schema = {"title": title, "type": "object", "properties": properties,
+              "required": list(properties)}
+    if description:
+        schema["description"] = description
+    return schema
+
+
+def _array(items: dict) -> dict:
+    return {"type": "array", "items": items}
+
+
+_NUMBER = {"type": "number"}
+_STRING = {"type": "string"}
+_BOOLEAN = {"type": "boolean"}
+
+
+def _time(title: str = "time") -> dict:
+    seconds = {"type": "integer"} if title == "duration" else {"type": "integer", "minimum": 0}
+    return _object(title, {"sec": seconds,
+                           "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999}})
+
+
+def _vector3(title: str = "foxglove.Vector3") -> dict:
+    return _object(title, {"x": _NUMBER, "y": _NUMBER, "z": _NUMBER})
+
+
+def _colour() -> dict:
+    return _object("foxglove.Color", {"r": _NUMBER, "g": _NUMBER, "b": _NUMBER, "a": _NUMBER},
+                   "RGBA, each in [0, 1]")
+
+
+def _pose() -> dict:
+    quaternion = _object("foxglove.Quaternion",
+                         {"x": _NUMBER, "y": _NUMBER, "z": _NUMBER, "w": _NUMBER})
+    return _object("foxglove.Pose", {"position": _vector3(), "orientation": quaternion})
+
+
+def _enum(title: str, values: dict[str, int]) -> dict:
+    return {"title": title, "oneOf": [{"title": k, "const": v} for k, v in values.items()]}
+
+
+def scene_update_schema() -> dict:
+    """The JSON schema of Foxglove's ``foxglove.SceneUpdate`` message (field names and types as
+    in Foxglove's published schemas; every field is listed as required because we always set it).
+    """
+    point3 = _vector3("foxglove.Point3")
+    index_list = _array({"type": "integer", "minimum": 0})
+    primitives = {
+        "arrows": _object("foxglove.ArrowPrimitive", {
+            "pose": _pose(), "shaft_length": _NUMBER, "shaft_diameter": _NUMBER,
+            "head_length": _NUMBER, "head_diameter": _NUMBER, "color": _colour()}),
+        "cubes": _object("foxglove.CubePrimitive", {
+            "pose": _pose(), "size": _vector3(), "color": _colour()}),
+        "spheres": _object("foxglove.SpherePrimitive", {
+            "pose": _pose(), "size": _vector3(), "color": _colour()}),
+        "cylinders": _object("foxglove.CylinderPrimitive", {
+            "pose": _pose(), "size": _vector3(), "bottom_scale": _NUMBER, "top_scale": _NUMBER,
+            "color": _colour()}),
+        "lines": _object("foxglove.LinePrimitive", {
+            "type": _enum("foxglove.LineType", {"LINE_STRIP": 0, "LINE_LOOP": 1, "LINE_LIST": 2}),
+            "pose": _pose(), "thickness": {"type": "number", "minimum": 0},
+            "scale_invariant": _BOOLEAN, "points": _array(point3), "color": _colour(),
+            "colors": _array(_colour()), "indices": index_list}),
+        "triangles": _object("foxglove.TriangleListPrimitive", {
+            "pose": _pose(), "points": _array(point3), "color": _colour(),
+            "colors": _array(_colour()), "indices": index_list}),
+        "texts": _object("foxglove.TextPrimitive", {
+            "pose": _pose(), "billboard": _BOOLEAN, "font_size": _NUMBER,
+            "scale_invariant": _BOOLEAN, "color": _colour(), "text": _STRING}),
+        "models": _object("foxglove.ModelPrimitive", {
+            "pose": _pose(), "scale": _vector3(), "color": _colour(), "override_color": _BOOLEAN,
+            "url": _STRING, "media_type": _STRING,
+            "data": {"type": "string", "contentEncoding": "base64"}}),
+    }
+    entity = _object("foxglove.SceneEntity", {
+        "timestamp": _time(), "frame_id": _STRING, "id": _STRING,
+        "lifetime": _time("duration"), "frame_locked": _BOOLEAN,
+        "metadata": _array(_object("foxglove.KeyValuePair", {"key": _STRING, "value": _STRING})),
+        **{name: _array(item) for name, item in primitives.items()},
+    }, "A visual element in a 3D scene; replaces any prior entity with the same id")
+    deletion = _object("foxglove.SceneEntityDeletion", {
+        "timestamp": _time(),
+        "type": _enum("foxglove.SceneEntityDeletionType", {"MATCHING_ID": 0, "ALL": 1}),
+        "id": _STRING,
+    })
+    schema = _object(SCENE_SCHEMA_NAME, {"deletions": _array(deletion),
+                                         "entities": _array(entity)},
+                     "An update to the entities displayed in a 3D scene")
+    return schema
+
+
+def tracked_pose_schema() -> dict:
+    """JSON schema of the ``/pose`` messages (see the module docstring)."""
+    values = _object("PoseValues", {name: _NUMBER for name in pose_vector_names()},
+                     "The 55 pose-vector entries by name: heading cos/sin, then angles in degrees")
+    estimate = _object("PoseEstimate", {
+        "heading_deg": {"type": "number", "description": "atan2(sin, cos), degrees in (-180, 180]"},
+        "heading_norm": {"type": "number", "description": "norm of (cos, sin); low = ambiguous"},
+        "pose": values,
+    })
+    schema = _object(POSE_SCHEMA_NAME, {
+        "timestamp": _time(),
+        "frame_index": {"type": "integer", "minimum": 0},
+        "time_s": {"type": "number", "description": "video time of the frame, seconds"},
+        "track_id": {"type": "integer", "minimum": 0},
+        "ambiguous": {"type": "boolean",
+                      "description": "raw heading norm below the filter's threshold"},
+        "raw": estimate,
+        "filtered": estimate,
+    }, "One tracked person's pose in one video frame")
+    schema["properties"]["centroid_px"] = {
+        "type": "array", "items": _NUMBER, "minItems": 2, "maxItems": 2,
+        "description": "silhouette centroid (x, y) in pixels, when known"}
+    return schema
+
+
+# ---------------------------------------------------------------- message builders
+
+def _timestamp(time_ns: int) -> dict:
+    return {"sec": time_ns // 1_000_000_000, "nsec": time_ns % 1_000_000_000}
+
+
+def _estimate(vector: np.ndarray, names: list[str]) -> dict:
+    rounded = np.round(vector, _DECIMALS)
+    return {
+        "heading_deg": round(math.degrees(math.atan2(vector[1], vector[0])), _DECIMALS),
+        "heading_norm": round(math.hypot(vector[0], vector[1]), _DECIMALS),
+        "pose": dict(zip(names, rounded.tolist())),
+    }
+
+
+def _identity_pose() -> dict:
+    return {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
+            "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
+
+
+def _point_dicts(points: np.ndarray) -> list[dict]:
+    rounded = np.round(points, _DECIMALS).tolist()
+    return [{"x": x, "y": y, "z": z} for x, y, z in rounded]
+
+
+def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool) -> dict:
+    """A ``foxglove.SceneEntity`` drawing one track's skeleton.
+
+    joints3d: (18, 3) metres, Y-up (converted here to the Z-up ``world`` frame). Bones are one
+    LINE_LIST line primitive, joints one sphere each, plus a text label above the head.
+    """
+    joints = y_up_to_z_up(joints3d)
+    r, g, b = track_colour(track_id)
+    colour = {"r": r, "g": g, "b": b, "a": 1.0}
+    segments = bone_segments(joints).reshape(-1, 3)
+    spheres = [{"pose": {"position": p, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+                "size": {"x": JOINT_DIAMETER_M, "y": JOINT_DIAMETER_M, "z": JOINT_DIAMETER_M},
+                "color": colour} for p in _point_dicts(joints)]
+    label_position = joints[:, :].max(axis=0) * [0, 0, 1] + joints.mean(axis=0) * [1, 1, 0]
+    label_pose = _identity_pose()
+    label_pose["position"] = _point_dicts(label_position[None] + [0.0, 0.0, 0.25])[0]
+    return {
+        "timestamp": _timestamp(time_ns),
+        "frame_id": WORLD_FRAME,
+        "id": f"track-{track_id}",
+        "lifetime": {"sec": 0, "nsec": 0},
+        "frame_locked": False,
+        "metadata": [{"key": "track_id", "value": str(track_id)},
+                     {"key": "ambiguous", "value": str(bool(ambiguous)).lower()}],
+        "arrows": [], "cubes": [], "cylinders": [], "triangles": [], "models": [],
+        "spheres": spheres,
+        "lines": [{"type": 2, "pose": _identity_pose(), "thickness": BONE_THICKNESS_M,
+                   "scale_invariant": False, "points": _point_dicts(segments),
+                   "color": colour, "colors": [], "indices": []}],
+        "texts": [{"pose": label_pose, "billboard": True, "font_size": 0.15,
+                   "scale_invariant": False, "color": colour, "text": f"track {track_id}"}],
+    }
+
+
+def _to_bytes(message: dict) -> bytes:
+    return json.dumps(message, allow_nan=False, separators=(",", ":")).encode("utf-8")
+
+
+def _metadata_strings(name: str, values: Mapping[str, object]) -> dict[str, str]:
+    """MCAP metadata is str -> str: strings stay, anything else is written as JSON."""
+    if not isinstance(values, Mapping):
+        raise SinkInputError(f"metadata {name!r} must be a mapping, got {type(values).__name__}")
+    return {str(k): v if isinstance(v, str) else json.dumps(v) for k, v in values.items()}
+
+
+# ---------------------------------------------------------------- the sink
+
+class _WriteThrough(io.BufferedWriter):
+    """A buffered file that hands every write to the OS at once, so that a finished chunk
+    survives a SIGKILL of the process (the mcap Writer writes whole records, never per message)."""
+
+    def write(self, data) -> int:  # noqa: D102 (file protocol)
+        count = super().write(data)
+        self.flush()
+        return count
+
+
+def _finish(state: dict) -> None:
+    """Write summary and footer and close the file, once (shared by close() and the finalizer)."""
+    if state["done"]:
+        return
+    state["done"] = True
+    try:
+        state["writer"].finish()
+    finally:
+        state["stream"].close()
+
+
+class McapSink:
+    """Record tracked poses and skeletons into an MCAP file (see the module docstring).
+
+    path: output file (overwritten). metadata: name -> {key: value} records (values that are not
+    strings are stored as JSON), e.g. {"video": {...}, "model": {...}, "settings": {...}}.
+    chunk_size: uncompressed bytes per chunk. flush_every_frames: a chunk is also closed after
+    this many frames, bounding what a crash can lose. compression: "zstd", "lz4" or "none".
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        metadata: Mapping[str, Mapping[str, object]] | None = None,
+        chunk_size: int = 64 * 1024,
+        flush_every_frames: int = 10,
+        compression: str = "zstd",
+    ):
+        kinds = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+                 "none": CompressionType.NONE}
+        if compression not in kinds:
+            raise SinkInputError(f"compression must be one of {sorted(kinds)}, got {compression!r}")
+        if flush_every_frames < 1 or chunk_size < 1:
+            raise SinkInputError("chunk_size and flush_every_frames must be positive")
+        self.path = Path(path)
+        self._names = pose_vector_names()
+        self._flush_every = int(flush_every_frames)
+        stream = _WriteThrough(io.FileIO(self.path, "w"))
+        writer = Writer(stream, chunk_size=chunk_size, compression=kinds[compression])
+        self._state = {"writer": writer, "stream": stream, "done": False}
+        # Runs at interpreter exit (e.g. after an uncaught exception) if close() was not called.
+        self._finalizer = weakref.finalize(self, _finish, self._state)
+        writer.start(profile="", library="silhouette-pose tracker")
+        for name, values in (metadata or {}).items():
+            writer.add_metadata(str(name), _metadata_strings(str(name), values))
+        pose_schema = writer.register_schema(
+            POSE_SCHEMA_NAME, "jsonschema", _to_bytes(tracked_pose_schema()))
+        scene_schema = writer.register_schema(
+            SCENE_SCHEMA_NAME, "jsonschema", _to_bytes(scene_update_schema()))
+        self._pose_channel = writer.register_channel(POSE_TOPIC, "json", pose_schema)
+        self._scene_channel = writer.register_channel(SKELETON_TOPIC, "json", scene_schema)
+        self._frame: int | None = None  # frame whose scene update is being collected
+        self._frame_ns = 0
+        self._entities: dict[int, dict] = {}
+        self._shown: set[int] = set()  # track ids drawn in the last written scene update
+        self._frames_since_flush = 0
+        self.messages_written = 0
+
+    @property
+    def closed(self) -> bool:
+        """True once the footer has been written."""
+        return self._state["done"]
+
+    def write(
+        self,
+        frame_index: int,
+        time_s: float,
+        track_id: int,
+        raw55: np.ndarray,
+        filtered55: np.ndarray,
+        ambiguous: bool,
+        joints3d: np.ndarray,
+        *,
+        centroid_px: tuple[float, float] | None = None,
+    ) -> None:
+        """Record one track in one frame.
+
+        frame_index: video frame (>= 0, non-decreasing across calls); time_s: video time in
+        seconds (>= 0); raw55, filtered55: (55,) pose vectors; joints3d: (18, 3) metres, Y-up
+        (drawn as given); centroid_px: optional (x, y) pixels. Raises SinkInputError on bad
+        input or when the sink is closed.
+        """
+        if self.closed:
+            raise SinkInputError(f"MCAP sink {self.path.name} is closed")
+        raw = check_pose("raw55", raw55)
+        filtered = check_pose("filtered55", filtered55)
+        joints = check_joints(joints3d)
+        if not (math.isfinite(time_s) and time_s >= 0):
+            raise SinkInputError(f"time_s must be a finite number >= 0, got {time_s}")
+        frame_index, track_id = int(frame_index), int(track_id)
+        if frame_index < 0 or track_id < 0:
+            raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
+                                 f"{track_id}")
+        if self._frame is not None and frame_index < self._frame:
+            raise SinkInputError(f"frame_index went backwards: {frame_index} after {self._frame}")
+        if frame_index == self._frame and track_id in self._entities:
+            raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
+        time_ns = int(round(time_s * 1e9))
+        if frame_index != self._frame:
+            self._write_scene()
+            self._frame, self._frame_ns = frame_index, time_ns
+        message = {
+            "timestamp": _timestamp(time_ns), "frame_index": frame_index,
+            "time_s": float(time_s), "track_id": track_id, "ambiguous": bool(ambiguous),
+            "raw": _estimate(raw, self._names), "filtered": _estimate(filtered, self._names),
+        }
+        if centroid_px is not None:
+            message["centroid_px"] = [float(c) for c in centroid_px]
+        self._add(self._pose_channel, time_ns, message)
+        self._entities[track_id] = skeleton_entity(track_id, time_ns, joints, bool(ambiguous))
+
+    def add_metadata(self, name: str, values: Mapping[str, object]) -> None:
+        """Add a metadata record (e.g. results known only at the end)."""
+        if self.closed:
+            raise SinkInputError(f"MCAP sink {self.path.name} is closed")
+        self._state["writer"].add_metadata(str(name), _metadata_strings(str(name), values))
+
+    def _add(self, channel: int, time_ns: int, message: dict) -> None:
+        self._state["writer"].add_message(channel, log_time=time_ns, data=_to_bytes(message),
+                                          publish_time=time_ns)
+        self.messages_written += 1
+
+    def _write_scene(self) -> None:
+        """Write the collected frame's SceneUpdate; delete tracks that left since the last one."""
+        if self._frame is None:
+            return
+        stamp = _timestamp(self._frame_ns)
+        gone = sorted(self._shown - set(self._entities))
+        update = {
+            "deletions": [{"timestamp": stamp, "type": 0, "id": f"track-{t}"} for t in gone],
+            "entities": [self._entities[t] for t in sorted(self._entities)],
+        }
+        self._add(self._scene_channel, self._frame_ns, update)
+        self._shown = set(self._entities)
+        self._entities = {}
+        self._frames_since_flush += 1
+        if self._frames_since_flush >= self._flush_every:
+            self._state["writer"].flush()  # closes the chunk: it is now safe from a crash
+            self._frames_since_flush = 0
+
+    def close(self) -> None:
+        """Write the last frame's scene, the summary and the footer; idempotent."""
+        if self.closed:
+            return
+        try:
+            self._write_scene()
+        finally:
+            self._finalizer.detach()
+            _finish(self._state)
+
+    def __enter__(self) -> "McapSink":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()

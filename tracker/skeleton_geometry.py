@@ -1,0 +1,144 @@
+"""Stick-skeleton geometry shared by the output sinks (MCAP scene, meshcat view, BVH root).
+
+Conventions:
+- Joint positions come in as (18, 3) metres in the pose-joint order of
+  ``sequences.skeleton.POSE_JOINTS``, in the motion-capture frame: Y up, the subject at heading 0
+  faces +Z (towards the camera, which sits on the +Z side looking along -Z; image x runs along +X).
+- Viewers (Foxglove, meshcat) are Z-up, so drawing code converts with :func:`y_up_to_z_up`, a
+  proper rotation of +90 degrees about X: (x, y, z) -> (x, -z, y).
+- The tracker does not know where a subject stands in 3-D. :func:`ground_position_from_image`
+  gives an approximate root position from the image-plane centroid and silhouette height under
+  a pinhole camera with an assumed field of view and body height; see its docstring.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sequences.pose_vector import joint_positions
+from sequences.skeleton import BONES_FOR_DRAWING, CMU_UNIT_M, POSE_JOINTS
+
+N_JOINTS = len(POSE_JOINTS)
+
+#: (B, 2) int indices into the 18 pose joints of each drawn bone (parent, child).
+BONE_INDEX: np.ndarray = np.array(
+    [[POSE_JOINTS.index(parent), POSE_JOINTS.index(child)] for parent, child in BONES_FOR_DRAWING],
+    dtype=np.int64,
+)
+BONE_INDEX.flags.writeable = False
+
+#: Track colours (RGB in [0, 1]): saturated and distinct from each other and from the grey
+#: and white backgrounds of the viewers. Track id i gets entry i mod len.
+TRACK_PALETTE: np.ndarray = np.array([
+    [0.90, 0.10, 0.10],  # red
+    [0.10, 0.45, 0.95],  # blue
+    [0.05, 0.70, 0.20],  # green
+    [0.95, 0.55, 0.00],  # orange
+    [0.60, 0.20, 0.85],  # purple
+    [0.00, 0.70, 0.75],  # teal
+    [0.85, 0.15, 0.60],  # pink
+    [0.55, 0.45, 0.10],  # olive
+])
+TRACK_PALETTE.flags.writeable = False
+
+
+class SinkInputError(ValueError):
+    """A sink was given data of the wrong shape, type or value (message names the argument)."""
+
+
+def track_colour(track_id: int) -> tuple[float, float, float]:
+    """Colour (r, g, b) in [0, 1] of track ``track_id`` (palette entry ``track_id mod 8``)."""
+    r, g, b = TRACK_PALETTE[int(track_id) % len(TRACK_PALETTE)]
+    return float(r), float(g), float(b)
+
+
+def check_joints(joints3d: np.ndarray) -> np.ndarray:
+    """Validate pose-joint positions: returns them as float64 (18, 3) metres.
+
+    Raises SinkInputError when the shape is not (18, 3) or a value is not finite.
+    """
+    joints = np.asarray(joints3d, dtype=np.float64)
+    if joints.shape != (N_JOINTS, 3):
+        raise SinkInputError(f"joints3d must have shape ({N_JOINTS}, 3) metres, got {joints.shape}")
+    if not np.all(np.isfinite(joints)):
+        raise SinkInputError("joints3d contains NaN or infinite values")
+    return joints
+
+
+def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
+    """Validate a 55-D pose vector called ``name``: returns it as float64 (55,).
+
+    Raises SinkInputError naming ``name`` when the shape is not (55,) or a value is not finite.
+    """
+    vector = np.asarray(pose, dtype=np.float64)
+    if vector.shape != (55,):
+        raise SinkInputError(f"{name} must be a 55-D pose vector, got shape {vector.shape}")
+    if not np.all(np.isfinite(vector)):
+        raise SinkInputError(f"{name} contains NaN or infinite values")
+    return vector
+
+
+def pose_joints_m(vectors: np.ndarray, template=None, root_position_m: np.ndarray | None = None
+                  ) -> np.ndarray:
+    """Pose-joint positions (T, 18, 3) in metres (Y up) from pose vectors (T, 55).
+
+    template: as ``sequences.pose_vector.joint_positions`` (a Motion, (31, 3) CMU offsets, or
+    None for the default CMU skeleton). root_position_m: (T, 3) metres, None = root at origin.
+    """
+    root = None if root_position_m is None else np.asarray(root_position_m, np.float64) / CMU_UNIT_M
+    return joint_positions(vectors, template, root_position=root) * CMU_UNIT_M
+
+
+def bone_segments(joints3d: np.ndarray) -> np.ndarray:
+    """End points of the drawn bones.
+
+    joints3d: (..., 18, 3) positions. Returns (..., B, 2, 3): segment b runs from the parent
+    joint BONE_INDEX[b, 0] to the child BONE_INDEX[b, 1]; same units as the input.
+    """
+    joints = np.asarray(joints3d, dtype=np.float64)
+    return joints[..., BONE_INDEX, :]
+
+
+def y_up_to_z_up(points: np.ndarray) -> np.ndarray:
+    """Rotate (..., 3) points from the Y-up motion-capture frame to a Z-up viewer frame.
+
+    A rotation of +90 degrees about X: (x, y, z) -> (x, -z, y). Units unchanged. In the result
+    the camera looks along +Y (the subject at heading 0 faces -Y) and up is +Z.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    return np.stack([p[..., 0], -p[..., 2], p[..., 1]], axis=-1)
+
+
+def ground_position_from_image(
+    centroid_px: np.ndarray,
+    bbox_height_px: np.ndarray,
+    frame_width_px: int,
+    frame_height_px: int,
+    person_height_m: float = 1.7,
+    horizontal_fov_deg: float = 60.0,
+    hip_height_m: float = 0.95,
+) -> np.ndarray:
+    """Approximate root (hip) positions in metres from image-plane measurements.
+
+    A pinhole camera at the origin looks along -Z with Y up (image x along +X, image y down
+    along -Y). The focal length f = (W / 2) / tan(fov / 2) px follows from the assumed horizontal
+    field of view; the distance d = f * person_height_m / bbox_height_px from the assumed body
+    height. The root is put at lateral position X = (cx - W/2) * d / f, at height hip_height_m and
+    depth Z = -d. Only the image-plane motion is measured; depth is as good as the assumed height.
+
+    centroid_px: (..., 2) pixels (x right, y down); bbox_height_px: (...,) pixels (> 0).
+    Returns (..., 3) metres. Raises SinkInputError for non-positive heights or frame sizes.
+    """
+    centroid = np.asarray(centroid_px, dtype=np.float64)
+    height = np.asarray(bbox_height_px, dtype=np.float64)
+    if centroid.shape[-1:] != (2,):
+        raise SinkInputError(f"centroid_px must have shape (..., 2), got {centroid.shape}")
+    if frame_width_px <= 0 or frame_height_px <= 0:
+        raise SinkInputError(f"frame size must be positive, got {frame_width_px}x{frame_height_px}")
+    if not np.all(height > 0):
+        raise SinkInputError("bbox_height_px must be positive")
+    focal_px = 0.5 * frame_width_px / math.tan(math.radians(horizontal_fov_deg) / 2.0)
+    distance = focal_px * person_height_m / height
+    lateral = (centroid[..., 0] - 0.5 * frame_width_px) * distance / focal_px
+    return np.stack([lateral, np.full_like(lateral, hip_height_m), -distance], axis=-1)
