@@ -1,0 +1,297 @@
+"""MCAP sink: readable with CRC checks, Foxglove schema names, crash safety and recovery."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import NonSeekingReader, make_reader
+from mcap.stream_reader import StreamReader
+
+from sequences.pose_vector import pose_vector_names
+from tracker.mcap_repair import McapRecoveryError, recover_mcap
+from tracker.mcap_sink import McapSink, SinkInputError
+from tracker.skeleton_geometry import pose_joints_m
+
+ROOT = Path(__file__).resolve().parents[1]
+FPS = 25.0
+
+
+def _pose(rng: np.random.Generator) -> np.ndarray:
+    vector = rng.normal(0.0, 20.0, 55)
+    heading = rng.uniform(-math.pi, math.pi)
+    vector[:2] = 0.8 * np.cos(heading), 0.8 * np.sin(heading)
+    return vector
+
+
+def _record(path: Path, frames: int = 20, **kwargs) -> dict[int, list[int]]:
+    """Track 1 in every frame, track 2 in the first half only. Returns frames per track."""
+    rng = np.random.default_rng(7)
+    joints = pose_joints_m(np.r_[1.0, np.zeros(54)][None])[0]
+    seen: dict[int, list[int]] = {1: [], 2: []}
+    metadata = {"video": {"path": "walk.mp4", "fps": FPS}, "model": {"name": "default"},
+                "settings": {"smoothing": "kalman"}}
+    with McapSink(path, metadata=metadata, **kwargs) as sink:
+        for frame in range(frames):
+            for track in (1, 2) if frame < frames // 2 else (1,):
+                raw = _pose(rng)
+                sink.write(frame, frame / FPS, track, raw, raw * 0.5, frame % 3 == 0,
+                           joints + [track, 0.0, 0.0], centroid_px=(100.0 + frame, 50.0))
+                seen[track].append(frame)
+    return seen
+
+
+def _messages(path: Path):
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, validate_crcs=True)
+        return [(schema, channel, message) for schema, channel, message in reader.iter_messages()]
+
+
+def _check_required(instance, schema: dict, where: str = "$") -> None:
+    """Check the required properties and JSON types of ``instance`` against ``schema``."""
+    types = {"object": dict, "array": list, "string": str, "boolean": bool,
+             "integer": int, "number": (int, float)}
+    kind = schema.get("type")
+    if kind is not None:
+        assert isinstance(instance, types[kind]), f"{where}: expected {kind}"
+        if kind in ("integer", "number"):
+            assert not isinstance(instance, bool), f"{where}: expected {kind}, got boolean"
+    if "oneOf" in schema:
+        assert instance in [option["const"] for option in schema["oneOf"]], where
+    if isinstance(instance, dict):
+        for name in schema.get("required", []):
+            assert name in instance, f"{where}: missing required {name!r}"
+        for name, sub in schema.get("properties", {}).items():
+            if name in instance:
+                _check_required(instance[name], sub, f"{where}.{name}")
+    if isinstance(instance, list) and "items" in schema:
+        for i, item in enumerate(instance):
+            _check_required(item, schema["items"], f"{where}[{i}]")
+
+
+def test_recording_reads_back_with_crc_validation_and_exact_counts(tmp_path):
+    path = tmp_path / "run.mcap"
+    seen = _record(path)
+    messages = _messages(path)
+    poses = [m for s, c, m in messages if c.topic == "/pose"]
+    scenes = [m for s, c, m in messages if c.topic == "/skeleton"]
+    assert len(poses) == sum(len(f) for f in seen.values())
+    assert len(scenes) == 20  # one SceneUpdate per frame
+    # The non-seeking reader also checks the data-section CRC and reads every record.
+    with open(path, "rb") as stream:
+        assert sum(1 for _ in NonSeekingReader(stream, validate_crcs=True).iter_messages()) \
+            == len(messages)
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, validate_crcs=True)
+        summary = reader.get_summary()
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert summary.statistics.message_count == len(messages)
+    assert summary.statistics.chunk_count >= 2  # small chunks, flushed every 10 frames
+    assert set(metadata) == {"video", "model", "settings"}
+    assert metadata["video"] == {"path": "walk.mp4", "fps": "25.0"}
+
+
+def test_schemas_are_named_and_encoded_for_foxglove(tmp_path):
+    path = tmp_path / "run.mcap"
+    _record(path, frames=4)
+    by_topic = {c.topic: (s, c) for s, c, m in _messages(path)}
+    scene_schema, scene_channel = by_topic["/skeleton"]
+    pose_schema, pose_channel = by_topic["/pose"]
+    assert scene_schema.name == "foxglove.SceneUpdate"
+    assert pose_schema.name == "silhouette_pose.TrackedPose"
+    for schema, channel in by_topic.values():
+        assert schema.encoding == "jsonschema"
+        assert channel.message_encoding == "json"
+    entity = json.loads(scene_schema.data)["properties"]["entities"]["items"]
+    assert set(entity["properties"]) >= {
+        "timestamp", "frame_id", "id", "lifetime", "frame_locked", "metadata", "arrows",
+        "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models"}
+    line = entity["properties"]["lines"]["items"]["properties"]
+    assert set(line) == {"type", "pose", "thickness", "scale_invariant", "points", "color",
+                         "colors", "indices"}
+
+
+def test_messages_satisfy_their_schemas(tmp_path):
+    path = tmp_path / "run.mcap"
+    _record(path, frames=6)
+    jsonschema = None
+    try:
+        import jsonschema
+    except ImportError:
+        pass
+    for schema, channel, message in _messages(path):
+        body, spec = json.loads(message.data), json.loads(schema.data)
+        _check_required(body, spec)
+        if jsonschema is not None:
+            jsonschema.validate(body, spec)
+
+
+def test_scene_draws_one_entity_per_track_and_deletes_tracks_that_left(tmp_path):
+    path = tmp_path / "run.mcap"
+    _record(path, frames=8)
+    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/skeleton"]
+    assert [sorted(e["id"] for e in u["entities"]) for u in scenes] == \
+        [["track-1", "track-2"]] * 4 + [["track-1"]] * 4
+    assert [d["id"] for d in scenes[4]["deletions"]] == ["track-2"]
+    assert all(not u["deletions"] for i, u in enumerate(scenes) if i != 4)
+    entity = scenes[0]["entities"][0]
+    assert entity["frame_id"] == "world"
+    assert len(entity["spheres"]) == 18
+    assert entity["lines"][0]["type"] == 2 and len(entity["lines"][0]["points"]) == 2 * 17
+    colours = {json.dumps(e["spheres"][0]["color"]) for e in scenes[0]["entities"]}
+    assert len(colours) == 2  # one colour per track
+
+
+def test_pose_message_holds_named_values_times_in_ns_and_headings(tmp_path):
+    path = tmp_path / "run.mcap"
+    rng = np.random.default_rng(3)
+    raw, filtered = _pose(rng), _pose(rng)
+    joints = pose_joints_m(np.r_[1.0, np.zeros(54)][None])[0]
+    with McapSink(path) as sink:
+        sink.write(12, 0.48, 5, raw, filtered, True, joints)
+    (_, _, message), = [m for m in _messages(path) if m[1].topic == "/pose"]
+    body = json.loads(message.data)
+    assert message.log_time == message.publish_time == 480_000_000
+    assert body["timestamp"] == {"sec": 0, "nsec": 480_000_000}
+    assert (body["frame_index"], body["track_id"], body["ambiguous"]) == (12, 5, True)
+    names = pose_vector_names()
+    np.testing.assert_allclose([body["raw"]["pose"][n] for n in names], raw, atol=1e-6)
+    np.testing.assert_allclose([body["filtered"]["pose"][n] for n in names], filtered, atol=1e-6)
+    assert body["raw"]["heading_deg"] == pytest.approx(math.degrees(math.atan2(raw[1], raw[0])),
+                                                        abs=1e-5)
+    assert body["raw"]["heading_norm"] == pytest.approx(0.8, abs=1e-6)
+
+
+def test_exception_inside_with_block_still_writes_the_footer(tmp_path):
+    path = tmp_path / "run.mcap"
+    joints = np.zeros((18, 3))
+    with pytest.raises(RuntimeError):
+        with McapSink(path) as sink:
+            sink.write(0, 0.0, 1, np.r_[1.0, np.zeros(54)], np.r_[1.0, np.zeros(54)], False,
+                       joints)
+            raise RuntimeError("tracking failed")
+    assert len(_messages(path)) == 2  # footer and summary present: the seeking reader works
+
+
+def test_bad_input_and_use_after_close_raise_specific_errors(tmp_path):
+    sink = McapSink(tmp_path / "run.mcap")
+    good = np.r_[1.0, np.zeros(54)]
+    with pytest.raises(SinkInputError, match="raw55"):
+        sink.write(0, 0.0, 1, np.zeros(54), good, False, np.zeros((18, 3)))
+    with pytest.raises(SinkInputError, match="filtered55"):
+        sink.write(0, 0.0, 1, good, np.full(55, np.nan), False, np.zeros((18, 3)))
+    with pytest.raises(SinkInputError, match="joints3d"):
+        sink.write(0, 0.0, 1, good, good, False, np.zeros((17, 3)))
+    sink.write(3, 0.1, 1, good, good, False, np.zeros((18, 3)))
+    with pytest.raises(SinkInputError, match="backwards"):
+        sink.write(2, 0.1, 1, good, good, False, np.zeros((18, 3)))
+    sink.close()
+    sink.close()  # idempotent
+    with pytest.raises(SinkInputError, match="closed"):
+        sink.write(4, 0.2, 1, good, good, False, np.zeros((18, 3)))
+
+
+_SLOW_WRITER = textwrap.dedent("""
+    import sys, time
+    import numpy as np
+    from tracker.mcap_sink import McapSink
+    pose = np.r_[1.0, np.zeros(54)]
+    with McapSink(sys.argv[1], flush_every_frames=int(sys.argv[2]),
+                  chunk_size=int(sys.argv[3])) as sink:
+        for frame in range(10_000):
+            sink.write(frame, frame / 25.0, 1, pose, pose, False, np.zeros((18, 3)))
+            print(frame, flush=True)
+            time.sleep(0.01)
+""")
+
+
+def _start_slow_writer(path: Path, flush_every: int, chunk_size: int = 65536) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.Popen([sys.executable, "-c", _SLOW_WRITER, str(path), str(flush_every),
+                             str(chunk_size)],
+                            stdout=subprocess.PIPE, text=True, env=env, cwd=ROOT)
+
+
+def _wait_for_frame(proc: subprocess.Popen, frame: int) -> int:
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            raise AssertionError(f"writer exited early with code {proc.wait()}")
+        if int(line) >= frame:
+            return int(line)
+    raise AssertionError("writer too slow")
+
+
+def test_sigkill_leaves_every_flushed_frame_recoverable(tmp_path):
+    path, repaired = tmp_path / "killed.mcap", tmp_path / "repaired.mcap"
+    flush_every = 4
+    proc = _start_slow_writer(path, flush_every)
+    last_printed = _wait_for_frame(proc, 25)
+    proc.kill()
+    proc.wait()
+    # Frames 0 .. F*floor(k/F)-1 were in closed chunks when write(k) returned.
+    durable = flush_every * (last_printed // flush_every)
+    # The raw file has no footer: the streaming reader yields the whole chunks, then stops.
+    with open(path, "rb") as stream, pytest.raises(Exception):
+        for _ in StreamReader(stream, validate_crcs=True).records:
+            pass
+    report = recover_mcap(path, repaired)
+    assert not report.complete
+    frames = [json.loads(m.data)["frame_index"] for s, c, m in _messages(repaired)
+              if c.topic == "/pose"]
+    assert frames == list(range(len(frames)))  # an intact prefix, in order
+    assert len(frames) >= durable
+    assert report.messages == len(_messages(repaired))
+
+
+def test_sigkill_keeps_chunks_closed_by_size(tmp_path):
+    # Each message (> 1 KiB of JSON) overflows a 1 KiB chunk, so every message closes its chunk;
+    # the sink must hand each chunk to the OS at once, not keep it in a userspace buffer.
+    path, repaired = tmp_path / "killed.mcap", tmp_path / "repaired.mcap"
+    proc = _start_slow_writer(path, flush_every=10_000, chunk_size=1024)
+    last_printed = _wait_for_frame(proc, 15)
+    proc.kill()
+    proc.wait()
+    recover_mcap(path, repaired)
+    frames = [json.loads(m.data)["frame_index"] for s, c, m in _messages(repaired)
+              if c.topic == "/pose"]
+    assert frames[: last_printed + 1] == list(range(last_printed + 1))
+
+
+def test_recovering_a_complete_file_copies_everything(tmp_path):
+    path, copy = tmp_path / "run.mcap", tmp_path / "copy.mcap"
+    _record(path, frames=12)
+    report = recover_mcap(path, copy)
+    assert report.complete and report.stopped_by == ""
+    assert report.metadata == 3
+    original = [(c.topic, m.log_time, m.data) for s, c, m in _messages(path)]
+    assert [(c.topic, m.log_time, m.data) for s, c, m in _messages(copy)] == original
+    with pytest.raises(McapRecoveryError, match="different output"):
+        recover_mcap(path, path)
+    (tmp_path / "junk.mcap").write_bytes(b"not an mcap file at all")
+    with pytest.raises(McapRecoveryError, match="bad magic"):
+        recover_mcap(tmp_path / "junk.mcap", tmp_path / "out.mcap")
+
+
+def test_ctrl_c_closes_the_file_with_its_footer(tmp_path):
+    path = tmp_path / "interrupted.mcap"
+    proc = _start_slow_writer(path, flush_every=100)
+    _wait_for_frame(proc, 5)
+    proc.send_signal(signal.SIGINT)
+    proc.communicate(timeout=30)
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, validate_crcs=True)
+        statistics = reader.get_summary().statistics
+    frames = [json.loads(m.data)["frame_index"] for s, c, m in _messages(path)
+              if c.topic == "/pose"]
+    assert statistics.message_count == len(_messages(path))
+    assert len(frames) >= 6  # nothing buffered was lost, although no chunk had been flushed
