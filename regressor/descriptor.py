@@ -43,9 +43,9 @@ class DescriptorSettings:
     n_points: edge points sampled at equal arc length along the boundary.
     include_holes: also sample the boundaries of holes in the silhouette (internal edges).
     n_angular, n_radial: shape context sectors and rings (context length n_angular * n_radial).
-    r_inner, r_outer: innermost / outermost ring boundaries in units of the mean distance between
-        edge points (about 0.35-0.4 of a standing person's height, so r_outer = 3 spans the body;
-        r_inner = 1/8 is about a limb's width).
+    r_inner, r_outer: innermost / outermost ring boundaries in units of the root-mean-square
+        distance between edge points (about 0.38 of a standing person's height, so r_outer = 3
+        spans the whole body from any point; r_inner = 1/8 is about a limb's width).
     n_votes: each context votes into this many nearest codebook centres (Gaussian weights).
     total: the descriptor's sum (100, the scale of the paper's released data).
     """
