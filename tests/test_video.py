@@ -185,3 +185,11 @@ def test_errors_are_one_line(tmp_path):
     with pytest.raises(VideoError) as info:
         open_video(path)
     assert "\n" not in str(info.value) and "bad.mp4" in str(info.value)
+
+
+def test_sample_frames_are_evenly_spaced(tmp_path):
+    source = open_video(write_video(tmp_path / "clip.mp4", flat_frames(40), fps=20.0),
+                        start_s=0.5)
+    samples = source.sample_frames(4)
+    assert [decoded_index(image) for image in samples] == [10, 20, 29, 39]
+    assert all(image.shape == (64, 96, 3) for image in samples)

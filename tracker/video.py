@@ -115,7 +115,6 @@ class VideoSource:
         self.frames_read, self.truncated = 0, False
         try:
             index = _seek(capture, self.start_index)
-            resize = (self.width, self.height) != (self.source_width, self.source_height)
             end = math.inf if self.end_index is None else self.end_index
             while index < end:
                 ok, image = capture.read()
@@ -128,14 +127,38 @@ class VideoSource:
                                   f"{self.frames_read} frames read", VideoTruncatedWarning,
                                   stacklevel=2)
                     return
-                image = _as_bgr(image)
-                if resize:
-                    image = cv2.resize(image, (self.width, self.height), interpolation=cv2.INTER_AREA)
-                yield VideoFrame(index, index / self.fps, image)
+                yield VideoFrame(index, index / self.fps, self._prepare(image))
                 self.frames_read += 1
                 index += 1
         finally:
             capture.release()
+
+
+    def _prepare(self, image: np.ndarray) -> np.ndarray:
+        """A decoded image -> BGR uint8 at this source's (width, height)."""
+        image = _as_bgr(image)
+        if (self.width, self.height) != (self.source_width, self.source_height):
+            image = cv2.resize(image, (self.width, self.height), interpolation=cv2.INTER_AREA)
+        return image
+
+    def sample_frames(self, count: int) -> list[np.ndarray]:
+        """Up to ``count`` frames (BGR uint8 (H, W, 3)) evenly spaced over the selected range,
+        e.g. to estimate the empty background. Frames that fail to decode are skipped."""
+        end = self.end_index if self.end_index is not None else self.start_index + count
+        indices = np.unique(np.linspace(self.start_index, end - 1, max(count, 1)).round().astype(int))
+        capture = _open_capture(self.path)
+        images = []
+        try:
+            for index in indices:
+                if _seek(capture, int(index)) != index:
+                    break
+                ok, image = capture.read()
+                if not ok or image is None:
+                    break
+                images.append(self._prepare(image))
+        finally:
+            capture.release()
+        return images
 
 
 def _open_capture(path: Path) -> cv2.VideoCapture:

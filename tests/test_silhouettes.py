@@ -1,0 +1,197 @@
+"""Silhouettes: background subtraction, cleaning, per-person masks on synthetic scenes."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from tracker.silhouettes import (BackgroundSubtractor, PersonMask, SilhouetteError,
+                                 SilhouetteExtractor, clean_mask, median_background, person_masks)
+
+
+def background(width: int, height: int, seed: int = 0) -> np.ndarray:
+    """A static textured scene, BGR uint8 (height, width, 3)."""
+    rng = np.random.default_rng(seed)
+    return cv2.GaussianBlur(rng.integers(0, 256, (height, width, 3), dtype=np.uint8), (0, 0), 3)
+
+
+def draw_person(image: np.ndarray, centre: tuple[int, int], height: int,
+                colour=(40, 190, 70)) -> None:
+    """A person-like shape (ellipse body and round head) of about ``height`` px, in place."""
+    x, y = centre
+    cv2.ellipse(image, (x, y), (height // 8, height * 3 // 8), 0, 0, 360, colour, -1)
+    cv2.circle(image, (x, y - height * 7 // 16), height // 9, colour, -1)
+
+
+def scene(bg: np.ndarray, centres: list[tuple[int, int]], height: int,
+          rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """(noisy frame BGR uint8, truth mask bool) with a person at each centre."""
+    frame, truth = bg.copy(), np.zeros(bg.shape[:2], np.uint8)
+    for centre in centres:
+        draw_person(frame, centre, height)
+        draw_person(truth, centre, height, colour=255)
+    noise = rng.integers(0, 10, bg.shape, dtype=np.uint8)
+    return cv2.add(frame, noise), truth > 0
+
+
+def iou(person: PersonMask, truth: np.ndarray) -> float:
+    x, y, w, h = person.bbox
+    found = np.zeros_like(truth)
+    found[y:y + h, x:x + w] = person.mask
+    return np.count_nonzero(found & truth) / np.count_nonzero(found | truth)
+
+
+def warm_up(extractor: SilhouetteExtractor, bg: np.ndarray, rng: np.random.Generator) -> None:
+    for _ in range(extractor.subtractor.warmup_frames):
+        assert extractor(scene(bg, [], 0, rng)[0]) == []
+
+
+def test_moving_person_found_at_frame_resolution():
+    rng = np.random.default_rng(1)
+    bg = background(640, 480)
+    extractor = SilhouetteExtractor()  # works at 320 px, masks come back at 640
+    warm_up(extractor, bg, rng)
+    for i in range(12):
+        frame, truth = scene(bg, [(150 + 12 * i, 260)], 240, rng)
+        people = extractor(frame)
+        assert len(people) == 1
+        person = people[0]
+        assert iou(person, truth) > 0.93
+        ys, xs = np.nonzero(truth)
+        assert np.hypot(person.centroid[0] - xs.mean(), person.centroid[1] - ys.mean()) < 2.0
+        assert person.area == np.count_nonzero(person.mask)
+        assert person.mask.shape == (person.bbox[3], person.bbox[2]) and person.mask.dtype == bool
+
+
+def test_two_people_give_two_masks_largest_first():
+    rng = np.random.default_rng(2)
+    bg = background(320, 240)
+    extractor = SilhouetteExtractor()
+    warm_up(extractor, bg, rng)
+    frame = bg.copy()
+    draw_person(frame, (80, 130), 160)
+    draw_person(frame, (240, 150), 110)
+    people = extractor(frame)
+    assert len(people) == 2
+    assert people[0].area > people[1].area
+    assert abs(people[0].centroid[0] - 80) < 3 and abs(people[1].centroid[0] - 240) < 3
+
+
+def test_empty_scene_and_small_clutter_give_no_people():
+    rng = np.random.default_rng(3)
+    bg = background(320, 240)
+    extractor = SilhouetteExtractor(min_area_fraction=0.003)
+    warm_up(extractor, bg, rng)
+    for _ in range(5):
+        assert extractor(scene(bg, [], 0, rng)[0]) == []
+    frame = scene(bg, [], 0, rng)[0]
+    cv2.circle(frame, (100, 100), 4, (255, 0, 255), -1)  # ~50 px, below 0.3 % of 76800
+    assert extractor(frame) == []
+
+
+def test_shadow_is_not_foreground():
+    rng = np.random.default_rng(4)
+    bg = background(320, 240)
+    extractor = SilhouetteExtractor()
+    warm_up(extractor, bg, rng)
+    frame, truth = scene(bg, [(100, 130)], 160, rng)
+    shadow = np.zeros(bg.shape[:2], np.uint8)
+    cv2.ellipse(shadow, (220, 200), (60, 20), 0, 0, 360, 255, -1)
+    frame[shadow > 0] = (frame[shadow > 0] * 0.7).astype(np.uint8)
+    people = extractor(frame)
+    assert len(people) == 1 and iou(people[0], truth) > 0.9
+
+
+def test_warmup_frames_return_nothing_then_people():
+    rng = np.random.default_rng(5)
+    bg = background(160, 120)
+    extractor = SilhouetteExtractor(warmup_frames=4)
+    frames = [scene(bg, [(80, 60)], 80, rng)[0] for _ in range(6)]
+    results = [extractor(f) for f in frames[:4]]
+    assert results == [[], [], [], []]
+    assert not BackgroundSubtractor(warmup_frames=4).ready
+
+
+def test_still_person_kept_for_a_hundred_frames():
+    rng = np.random.default_rng(6)
+    bg = background(160, 120)
+    extractor = SilhouetteExtractor()
+    warm_up(extractor, bg, rng)
+    areas = [sum(p.area for p in extractor(scene(bg, [(80, 65)], 90, rng)[0]))
+             for _ in range(100)]
+    assert min(areas) > 0.9 * areas[0] > 0
+
+
+def test_priming_with_median_background_finds_people_from_first_frame():
+    rng = np.random.default_rng(7)
+    bg = background(320, 240)
+    shots = [scene(bg, [(40 + 8 * i, 130)], 150, rng) for i in range(30)]
+    primed = SilhouetteExtractor()
+    primed.prime(median_background([frame for frame, _ in shots[::3]]))
+    assert primed.subtractor.ready
+    for frame, truth in shots:
+        people = primed(frame)
+        assert len(people) == 1 and iou(people[0], truth) > 0.9
+
+
+def test_small_holes_filled_large_holes_kept():
+    mask = np.zeros((100, 100), np.uint8)
+    mask[10:90, 10:90] = 255
+    mask[20:23, 20:23] = 0  # 9 px hole: a subtraction dropout
+    mask[40:70, 40:70] = 0  # 900 px hole: real background (e.g. between arm and torso)
+    (person,) = person_masks(mask, (100, 100), min_area_fraction=0.01, max_hole_fraction=0.01)
+    assert person.bbox == (10, 10, 80, 80)
+    assert person.mask[10:13, 10:13].all()
+    assert not person.mask[30:60, 30:60].any()
+    assert person.area == 80 * 80 - 900
+
+
+def test_component_reproduced_exactly_at_equal_resolution():
+    rng = np.random.default_rng(8)
+    blobs = cv2.GaussianBlur(rng.random((60, 80)).astype(np.float32), (0, 0), 2.5) > 0.5
+    mask = blobs.astype(np.uint8) * 255
+    count, labels = cv2.connectedComponents(mask, connectivity=8)
+    people = person_masks(mask, (80, 60), min_area_fraction=0.0, max_hole_fraction=0.0)
+    assert len(people) == count - 1
+    for person in people:
+        x, y, w, h = person.bbox
+        label = labels[y:y + h, x:x + w][person.mask][0]
+        assert np.array_equal(labels[y:y + h, x:x + w] == label, person.mask)
+
+
+def test_masks_scaled_up_to_frame_size():
+    mask = np.zeros((60, 80), np.uint8)
+    mask[10:40, 20:30] = 255
+    (person,) = person_masks(mask, (320, 240), min_area_fraction=0.01)
+    assert person.bbox == (80, 40, 40, 120)
+    assert person.area == 40 * 120
+    assert person.centroid == pytest.approx((99.5, 99.5))
+
+
+def test_clean_mask_drops_specks_and_joins_gaps():
+    mask = np.zeros((50, 50), np.uint8)
+    mask[5, 5] = 255
+    mask[10:40, 10:24] = 255
+    mask[10:40, 25:40] = 255  # 1 px gap at column 24
+    cleaned = clean_mask(mask)
+    assert cleaned[5, 5] == 0
+    assert cleaned[20:30, 24].all()
+
+
+def test_frame_size_change_is_refused():
+    subtractor = BackgroundSubtractor()
+    subtractor.apply(np.zeros((48, 64, 3), np.uint8))
+    with pytest.raises(SilhouetteError, match="frame size changed from 64x48 to 32x48"):
+        subtractor.apply(np.zeros((48, 32, 3), np.uint8))
+
+
+@pytest.mark.parametrize("options", [{"working_width": 8}, {"history": 0},
+                                     {"background_ratio": 1.5}, {"learning_rate": 2.0}])
+def test_bad_settings_are_refused(options):
+    with pytest.raises(SilhouetteError):
+        BackgroundSubtractor(**options)
+
+
+def test_gray_frame_array_is_refused():
+    with pytest.raises(SilhouetteError, match=r"BGR uint8 \(H, W, 3\)"):
+        BackgroundSubtractor().apply(np.zeros((48, 64), np.uint8))
