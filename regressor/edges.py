@@ -65,19 +65,27 @@ def _boundaries(mask01: np.ndarray, include_holes: bool) -> list[np.ndarray]:
     return polylines
 
 
-def _closed_lengths(polyline: np.ndarray) -> np.ndarray:
-    """Cumulative arc length (M+1,) px of a closed polyline (M, 2), starting at 0."""
+def _closed_lengths(polyline: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A closed polyline (M, 2) as (vertices (M+1, 2) with the first repeated at the end,
+    cumulative arc length (M+1,) px starting at 0)."""
     closed = np.vstack([polyline, polyline[:1]])
     seg = np.hypot(*np.diff(closed, axis=0).T)
-    return np.concatenate([[0.0], np.cumsum(seg)])
+    return closed, np.concatenate([[0.0], np.cumsum(seg)])
 
 
-def _resample_closed(polyline: np.ndarray, count: int) -> np.ndarray:
-    """count points (count, 2) at equal arc length along a closed polyline (M, 2), from its start."""
-    cum = _closed_lengths(polyline)
-    closed = np.vstack([polyline, polyline[:1]])
+def _resample_closed(closed: np.ndarray, cum: np.ndarray, count: int) -> np.ndarray:
+    """count points (count, 2) at equal arc length along a closed polyline, from its start.
+    closed, cum: as returned by _closed_lengths."""
     targets = np.arange(count) * (cum[-1] / count)
     return np.column_stack([np.interp(targets, cum, closed[:, 0]), np.interp(targets, cum, closed[:, 1])])
+
+
+def _thickness_ratio(points: np.ndarray) -> float:
+    """sqrt(smaller / larger eigenvalue) of the (2, 2) covariance of points (N, 2): 0 for a line."""
+    cxx, cyy = points.var(axis=0)
+    cxy = ((points[:, 0] - points[:, 0].mean()) * (points[:, 1] - points[:, 1].mean())).mean()
+    half_sum, root = 0.5 * (cxx + cyy), np.hypot(0.5 * (cxx - cyy), cxy)
+    return float(np.sqrt(max(half_sum - root, 0.0) / (half_sum + root))) if half_sum > 0 else 0.0
 
 
 def _split_count(lengths: np.ndarray, total: int) -> np.ndarray:
@@ -107,12 +115,10 @@ def sample_edge_points(mask: np.ndarray, n_points: int = 300, include_holes: boo
         raise DegenerateSilhouetteError(
             f"silhouette boundary has {len(polylines[0])} pixels, fewer than {MIN_EDGE_PIXELS}"
         )
-    lengths = np.array([_closed_lengths(p)[-1] for p in polylines])
-    counts = _split_count(lengths, n_points)
-    points = np.vstack([_resample_closed(p, c) for p, c in zip(polylines, counts) if c > 0])
-    spread = np.sqrt(np.clip(np.linalg.eigvalsh(np.cov(points.T)), 0.0, None))
-    if spread[0] < MIN_THICKNESS_RATIO * spread[1]:
-        raise DegenerateSilhouetteError(
-            f"silhouette is a line (thickness ratio {spread[0] / spread[1]:.3f} < {MIN_THICKNESS_RATIO})"
-        )
+    traced = [_closed_lengths(p) for p in polylines]
+    counts = _split_count(np.array([cum[-1] for _, cum in traced]), n_points)
+    points = np.vstack([_resample_closed(closed, cum, c) for (closed, cum), c in zip(traced, counts) if c > 0])
+    ratio = _thickness_ratio(points)
+    if ratio < MIN_THICKNESS_RATIO:
+        raise DegenerateSilhouetteError(f"silhouette is a line (thickness ratio {ratio:.3f} < {MIN_THICKNESS_RATIO})")
     return points
