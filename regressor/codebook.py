@@ -15,7 +15,7 @@ class CodebookError(ValueError):
     """A codebook's arrays, or the data given to fit or use one, are malformed."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Codebook:
     """k-means centres of shape contexts and the width of the Gaussian votes onto them.
 
@@ -34,7 +34,9 @@ class Codebook:
             raise CodebookError("codebook centres contain NaN or infinite values")
         if not (np.isfinite(self.sigma) and self.sigma > 0):
             raise CodebookError(f"codebook sigma must be a positive finite number, got {self.sigma}")
-        object.__setattr__(self, "centres", np.array(centres, dtype=np.float64))
+        centres = np.array(centres, dtype=np.float64)  # a private copy, read-only: a codebook never changes
+        centres.flags.writeable = False
+        object.__setattr__(self, "centres", centres)
         object.__setattr__(self, "sigma", float(self.sigma))
 
     @property
