@@ -1,0 +1,234 @@
+"""meshcat server (loopback only, never orphaned), live view scene contents, skeleton geometry."""
+from __future__ import annotations
+
+import base64
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import umsgpack
+import zmq
+
+from tracker.meshcat_server import ViewerServer
+from tracker.meshcat_view import MeshcatView, joint_spheres
+from tracker.skeleton_geometry import (
+    BONE_INDEX,
+    SinkInputError,
+    bone_segments,
+    ground_position_from_image,
+    pose_joints_m,
+    y_up_to_z_up,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+POSE = np.r_[1.0, np.zeros(54)]
+JOINTS = pose_joints_m(POSE[None])[0] + [0.0, 0.95, 0.0]
+LOOPBACK_HEX = "0100007F"  # 127.0.0.1 as /proc/net/tcp writes it
+
+
+def _listening_addresses(pid: int) -> list[str]:
+    """Local addresses ("HEXIP:HEXPORT") of the TCP sockets process ``pid`` listens on."""
+    inodes = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        match = re.fullmatch(r"socket:\[(\d+)\]", os.readlink(fd))
+        if match:
+            inodes.add(match.group(1))
+    addresses = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        for line in Path(table).read_text().splitlines()[1:]:
+            fields = line.split()
+            if fields[3] == "0A" and fields[9] in inodes:  # 0A = LISTEN
+                addresses.append(fields[1])
+    return addresses
+
+
+def _gone(pid: int, timeout_s: float = 10.0) -> bool:
+    """True once process ``pid`` no longer runs (absent, or a zombie nobody reaped yet)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (FileNotFoundError, ProcessLookupError):
+            return True
+        if state in ("Z", "X"):
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _non_loopback_address() -> str | None:
+    """An IPv4 address of this machine other than 127.x, if it has one (UDP connect sends
+    nothing; it only picks the outgoing interface)."""
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        probe.connect(("10.254.254.254", 9))
+        address = probe.getsockname()[0]
+    except OSError:
+        return None
+    finally:
+        probe.close()
+    return None if address.startswith("127.") or address == "0.0.0.0" else address
+
+
+@pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="needs Linux /proc/net/tcp")
+def test_server_listens_on_loopback_only():
+    with ViewerServer() as server:
+        addresses = _listening_addresses(server.pid)
+        web_port = int(server.web_url.rsplit(":", 1)[1].split("/")[0])
+        zmq_port = int(server.zmq_url.rsplit(":", 1)[1])
+        assert sorted(int(a.split(":")[1], 16) for a in addresses) == sorted([web_port, zmq_port])
+        assert all(a.split(":")[0] == LOOPBACK_HEX for a in addresses), addresses
+        assert server.web_url.startswith("http://127.0.0.1:")
+        other = _non_loopback_address()
+        if other is not None:
+            with pytest.raises(OSError):
+                socket.create_connection((other, web_port), timeout=2).close()
+        socket.create_connection(("127.0.0.1", web_port), timeout=2).close()
+
+
+def test_server_is_gone_after_close():
+    server = ViewerServer()
+    assert server.running
+    pid, web_port = server.pid, int(server.web_url.rsplit(":", 1)[1].split("/")[0])
+    server.close()
+    server.close()  # idempotent
+    assert _gone(pid)
+    with pytest.raises(OSError):
+        socket.create_connection(("127.0.0.1", web_port), timeout=2).close()
+
+
+_PARENT = textwrap.dedent("""
+    import sys, time
+    import numpy as np
+    from tracker.meshcat_view import MeshcatView
+    with MeshcatView(print_url=False) as view:
+        print(view.server.pid, flush=True)
+        frame = 0
+        while True:
+            view.write(frame, frame / 25.0, 1, np.zeros(55), np.zeros(55), False,
+                       np.zeros((18, 3)))
+            frame += 1
+            time.sleep(0.02)
+""")
+
+
+def _start_parent(**popen_kwargs) -> tuple[subprocess.Popen, int]:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    parent = subprocess.Popen([sys.executable, "-c", _PARENT], stdout=subprocess.PIPE,
+                              text=True, env=env, cwd=ROOT, **popen_kwargs)
+    line = parent.stdout.readline()
+    if not line.strip().isdigit():
+        parent.kill()
+        parent.wait()
+        raise AssertionError(f"parent printed {line!r} instead of the server's pid")
+    return parent, int(line)
+
+
+def test_server_dies_with_its_killed_parent():
+    parent, child = _start_parent()
+    try:
+        assert not _gone(child, timeout_s=0.5)
+    finally:
+        parent.kill()  # SIGKILL: no Python clean-up runs in the parent
+        parent.wait()
+    assert _gone(child)
+
+
+@pytest.mark.parametrize("to_group, signum", [(True, signal.SIGINT), (False, signal.SIGINT),
+                                               (False, signal.SIGTERM)],
+                         ids=["ctrl-c-in-terminal", "sigint-to-parent", "sigterm-to-parent"])
+def test_interrupting_the_parent_stops_the_server(to_group, signum):
+    # A terminal's Ctrl-C sends SIGINT to the whole foreground process group; a SIGINT to the
+    # parent alone leaves the stopping to its KeyboardInterrupt clean-up; SIGTERM kills the
+    # parent without clean-up, leaving it to the child's stdin watch.
+    parent, child = _start_parent(start_new_session=True)
+    try:
+        time.sleep(0.3)
+        (os.killpg if to_group else os.kill)(parent.pid, signum)
+        assert parent.wait(timeout=20) != 0
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+            parent.wait()
+    assert _gone(child)
+
+
+def _scene_paths(zmq_url: str) -> list[str]:
+    """Paths of the objects the server holds, from its 'get_scene' HTML (msgpack commands)."""
+    context = zmq.Context.instance()
+    request = context.socket(zmq.REQ)
+    request.setsockopt(zmq.RCVTIMEO, 10_000)
+    request.connect(zmq_url)
+    try:
+        request.send(b"get_scene")
+        html = request.recv().decode("utf-8")
+    finally:
+        request.close(linger=0)
+    commands = [umsgpack.unpackb(base64.b64decode(b)) for b in
+                re.findall(r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", html)]
+    return [c["path"] for c in commands if c["type"] == "set_object"]
+
+
+def test_view_draws_each_track_and_removes_tracks_that_left():
+    with MeshcatView(print_url=False) as view:
+        view.write(0, 0.0, 1, POSE, POSE, False, JOINTS)
+        view.write(0, 0.0, 2, POSE, POSE, False, JOINTS + [1.0, 0.0, 0.0])
+        paths = _scene_paths(view.server.zmq_url)
+        assert {p for p in paths if "skeletons" in p} == {
+            f"/meshcat/skeletons/track-{t}/{part}" for t in (1, 2) for part in ("bones", "joints")}
+        view.write(1, 0.04, 1, POSE, POSE, False, JOINTS)
+        view.write(2, 0.08, 1, POSE, POSE, False, JOINTS)  # frame 1 ended without track 2
+        paths = _scene_paths(view.server.zmq_url)
+        assert {p for p in paths if "skeletons" in p} == {
+            "/meshcat/skeletons/track-1/bones", "/meshcat/skeletons/track-1/joints"}
+        with pytest.raises(SinkInputError, match="joints3d"):
+            view.write(3, 0.12, 1, POSE, POSE, False, np.zeros((18, 2)))
+    assert view.closed and _gone(view.server.pid)
+    with pytest.raises(SinkInputError, match="closed"):
+        view.write(4, 0.16, 1, POSE, POSE, False, JOINTS)
+
+
+def test_joint_spheres_are_closed_meshes_of_the_right_radius():
+    centres = np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]])
+    vertices, faces = joint_spheres(centres, 0.05)
+    assert vertices.shape == (84, 3) and faces.shape == (160, 3)
+    distances = np.linalg.norm(vertices.reshape(2, 42, 3) - centres[:, None], axis=2)
+    np.testing.assert_allclose(distances, 0.05, atol=1e-6)  # float32 vertices
+    assert faces.min() == 0 and faces.max() == 83
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(counts == 2)  # every edge shared by two triangles: watertight
+
+
+def test_bone_segments_join_the_named_joints():
+    joints = np.arange(18 * 3, dtype=float).reshape(18, 3)
+    segments = bone_segments(joints)
+    assert segments.shape == (len(BONE_INDEX), 2, 3)
+    np.testing.assert_array_equal(segments[:, 0], joints[BONE_INDEX[:, 0]])
+    np.testing.assert_array_equal(segments[:, 1], joints[BONE_INDEX[:, 1]])
+
+
+def test_y_up_to_z_up_is_a_rotation_that_puts_the_head_on_top():
+    points = np.random.default_rng(0).normal(size=(5, 3))
+    rotated = y_up_to_z_up(points)
+    np.testing.assert_allclose(np.linalg.norm(rotated, axis=1), np.linalg.norm(points, axis=1))
+    joints = y_up_to_z_up(JOINTS)
+    assert joints[3, 2] > joints[0, 2] > joints[14, 2]  # head above hips above left foot
+
+
+def test_ground_position_from_image_follows_the_pinhole_model():
+    # A 170-px silhouette in a 640-px-wide frame with a 90-degree field of view: f = 320 px,
+    # so a 1.7-m person is 3.2 m away; 160 px right of the centre is 1.6 m to the right.
+    position = ground_position_from_image(np.array([[480.0, 240.0]]), np.array([170.0]),
+                                          640, 480, horizontal_fov_deg=90.0)
+    np.testing.assert_allclose(position, [[1.6, 0.95, -3.2]])
+    with pytest.raises(SinkInputError, match="bbox_height_px"):
+        ground_position_from_image(np.array([[1.0, 1.0]]), np.array([0.0]), 640, 480)

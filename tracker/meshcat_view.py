@@ -1,0 +1,171 @@
+"""Live 3-D view of the tracked skeletons in a browser, through meshcat.
+
+One skeleton per track under ``/skeletons/track-<id>``: bones as line segments and joints as
+small spheres (one merged triangle mesh), in the track's colour, updated on every ``write``.
+Tracks that were not written in the previous frame are removed. Positions are drawn as given
+(metres, Y up in, converted to meshcat's Z-up world).
+
+The view talks to a :class:`tracker.meshcat_server.ViewerServer` (127.0.0.1 only) through
+meshcat's ``Visualizer``; by default it starts its own server and stops it on ``close()``.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+
+import numpy as np
+import zmq
+
+from tracker.meshcat_server import ViewerServer
+from tracker.skeleton_geometry import (
+    SinkInputError,
+    bone_segments,
+    check_joints,
+    track_colour,
+    y_up_to_z_up,
+)
+
+_REPLY_TIMEOUT_MS = 10_000  # a dead server must not hang the tracker forever
+
+
+def _icosphere() -> tuple[np.ndarray, np.ndarray]:
+    """Unit icosahedron subdivided once: vertices (42, 3) on the unit sphere, faces (80, 3)."""
+    t = (1.0 + 5.0 ** 0.5) / 2.0
+    vertices = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+                         [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]],
+                        dtype=np.float64)
+    faces = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
+                      [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
+                      [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
+                      [8, 6, 7], [9, 8, 1]])
+    # Split each triangle into four through its edge midpoints (shared midpoints merged).
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
+    unique, inverse = np.unique(edges, axis=0, return_inverse=True)
+    mid = len(vertices) + inverse.reshape(3, -1).T  # (20, 3): midpoints of edges 01, 12, 20
+    vertices = np.concatenate([vertices, vertices[unique].mean(axis=1)])
+    a, b, c = faces.T
+    ab, bc, ca = mid.T
+    faces = np.concatenate([np.stack(f, axis=1) for f in
+                            ((a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca))])
+    return vertices / np.linalg.norm(vertices, axis=1, keepdims=True), faces
+
+
+_SPHERE_VERTICES, _SPHERE_FACES = _icosphere()
+
+
+def joint_spheres(joints: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """One triangle mesh of a sphere around every joint.
+
+    joints: (N, 3) metres. Returns vertices (N * 42, 3) float32 and faces (N * 80, 3) uint32.
+    """
+    n = len(joints)
+    vertices = joints[:, None, :] + radius_m * _SPHERE_VERTICES[None]
+    faces = _SPHERE_FACES[None] + len(_SPHERE_VERTICES) * np.arange(n)[:, None, None]
+    return vertices.reshape(-1, 3).astype(np.float32), faces.reshape(-1, 3).astype(np.uint32)
+
+
+def _hex(track_id: int) -> int:
+    r, g, b = (int(round(255 * c)) for c in track_colour(track_id))
+    return (r << 16) | (g << 8) | b
+
+
+class MeshcatView:
+    """Live skeleton view (see the module docstring).
+
+    server: a running ViewerServer to draw into; None starts one (owned: stopped by close()).
+    joint_radius_m: sphere radius at each joint. camera_position_m: where the browser's camera
+    starts, metres in the Z-up world (default: in front of a subject at heading 0, seen from
+    the video camera's side, a little to the right and above); it orbits the origin. None keeps
+    meshcat's default. print_url: print the page's address on start.
+    Attributes: web_url (open it in a browser).
+    """
+
+    def __init__(self, server: ViewerServer | None = None, joint_radius_m: float = 0.04,
+                 camera_position_m: tuple[float, float, float] | None = (0.8, -3.5, 1.4),
+                 print_url: bool = True):
+        import meshcat  # deferred: it pulls in IPython and PIL, needed only for the live view
+        import meshcat.geometry
+
+        self._g = meshcat.geometry
+        self._owns_server = server is None
+        self.server = ViewerServer() if server is None else server
+        self.web_url = self.server.web_url
+        self._radius = float(joint_radius_m)
+        self._frame: int | None = None
+        self._last_frame: dict[int, int] = {}  # track id -> last frame it was drawn in
+        self._closed = False
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL itself
+                self._vis = meshcat.Visualizer(zmq_url=self.server.zmq_url)
+            socket = self._vis.window.zmq_socket
+            socket.setsockopt(zmq.RCVTIMEO, _REPLY_TIMEOUT_MS)
+            socket.setsockopt(zmq.SNDTIMEO, _REPLY_TIMEOUT_MS)
+            socket.setsockopt(zmq.LINGER, 0)
+            self._vis["skeletons"].delete()
+            if camera_position_m is not None:
+                self._place_camera(camera_position_m)
+        except BaseException:
+            self.close()
+            raise
+        if print_url:
+            print(f"meshcat viewer: {self.web_url}")
+
+    def _place_camera(self, position: tuple[float, float, float]) -> None:
+        # meshcat's camera lives in a frame rotated to three.js's Y-up convention:
+        # Z-up (x, y, z) is (x, z, -y) there.
+        x, y, z = (float(c) for c in position)
+        self._vis["/Cameras/default"].set_transform(np.eye(4))
+        self._vis["/Cameras/default/rotated/<object>"].set_property("position", [x, z, -y])
+
+    @property
+    def closed(self) -> bool:
+        """True after close()."""
+        return self._closed
+
+    def write(self, frame_index: int, time_s: float, track_id: int, raw55: np.ndarray,
+              filtered55: np.ndarray, ambiguous: bool, joints3d: np.ndarray, *,
+              centroid_px: tuple[float, float] | None = None) -> None:
+        """Draw track ``track_id`` at joints3d (18, 3) metres (Y up); other arguments are
+        accepted for the common sink interface. Raises SinkInputError on bad joints or when
+        closed; zmq.Again when the server does not answer within 10 s."""
+        if self._closed:
+            raise SinkInputError("meshcat view is closed")
+        joints = y_up_to_z_up(check_joints(joints3d))
+        frame_index, track_id = int(frame_index), int(track_id)
+        if frame_index != self._frame:
+            self._remove_absent_tracks()
+            self._frame = frame_index
+        node = self._vis["skeletons"][f"track-{track_id}"]
+        g, colour = self._g, _hex(track_id)
+        segments = bone_segments(joints).reshape(-1, 3).T.astype(np.float32)  # (3, 2B)
+        node["bones"].set_object(g.LineSegments(g.PointsGeometry(segments),
+                                                g.LineBasicMaterial(color=colour, linewidth=3)))
+        vertices, faces = joint_spheres(joints, self._radius)
+        node["joints"].set_object(g.TriangularMeshGeometry(vertices, faces),
+                                  g.MeshLambertMaterial(color=colour))
+        self._last_frame[track_id] = frame_index
+
+    def _remove_absent_tracks(self) -> None:
+        """Delete skeletons of tracks not drawn in the frame that just ended."""
+        gone = [t for t, f in self._last_frame.items() if f != self._frame]
+        for track_id in gone:
+            self._vis["skeletons"][f"track-{track_id}"].delete()
+            del self._last_frame[track_id]
+
+    def close(self) -> None:
+        """Disconnect, and stop the server if this view started it; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        vis = getattr(self, "_vis", None)
+        if vis is not None:
+            # meshcat's Visualizer.close() raises (its window has no close); close the socket.
+            vis.window.zmq_socket.close(linger=0)
+        if self._owns_server:
+            self.server.close()
+
+    def __enter__(self) -> "MeshcatView":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
