@@ -306,12 +306,13 @@ class Skinner:
         single = np.asarray(local_rot).ndim == 3
         P, G = self.joints(local_rot, root_position_m)
         M = G @ self._bone_matrix                              # (T, J, 3, 3)
-        t = P - np.einsum("tjab,jb->tja", M, self.body.heads)  # (T, J, 3)
+        t = P - (M @ self.body.heads[:, :, None])[..., 0]      # (T, J, 3)
         affine = np.concatenate([M.reshape(*M.shape[:2], 9), t], axis=2)   # (T, J, 12)
-        blended = np.einsum("vj,tjk->tvk", self.body.weights, affine)     # (T, V, 12)
+        blended = self.body.weights @ affine                   # (T, V, 12) per-vertex affine
         v = self.body.vertices
-        out = np.einsum("tvab,vb->tva", blended[..., :9].reshape(*blended.shape[:2], 3, 3), v)
-        out += blended[..., 9:]
+        out = blended[..., 9:].copy()
+        for b in range(3):                                     # out_a += M_ab v_b
+            out += blended[..., b:9:3] * v[:, b:b + 1]
         return out[0] if single else out
 
     def _check(self, local_rot, root_position_m) -> tuple[np.ndarray, np.ndarray]:

@@ -84,38 +84,44 @@ def look_at_camera(target, azimuth_deg: float, elevation_deg: float, distance_m:
 def centred_camera(vertices: np.ndarray, azimuth_deg: float, elevation_deg: float,
                    size: tuple[int, int], person_px: float = 240.0, distance_m: float = 5.0,
                    reference_height_m: float | None = None) -> Camera:
-    """Camera aimed at the centre of the bounding box of vertices (V, 3) metres, distance_m
-    away, with the focal length that images reference_height_m metres (default: the vertices'
-    vertical extent) at person_px pixels at that distance. Pass the body's standing height
-    as reference_height_m to keep crouches smaller than standing poses."""
+    """Camera distance_m from the body (vertices (V, 3) metres), az/el in degrees, aimed so
+    that the projected vertices' bounding box is centred in the image, with the focal length
+    that images reference_height_m metres (default: the vertices' vertical extent) at
+    person_px pixels at that distance. Pass the body's standing height as reference_height_m
+    to keep crouches smaller than standing poses."""
     v = np.asarray(vertices, dtype=np.float64)
     lo, hi = v.min(axis=0), v.max(axis=0)
     height = hi[1] - lo[1] if reference_height_m is None else reference_height_m
     if not height > 0:
         raise RenderError(f"reference height must be > 0 metres, got {height}")
-    return look_at_camera((lo + hi) / 2, azimuth_deg, elevation_deg, distance_m,
-                          person_px * distance_m / height, size)
+    focal = person_px * distance_m / height
+    target = (lo + hi) / 2
+    camera = look_at_camera(target, azimuth_deg, elevation_deg, distance_m, focal, size)
+    # The 3-D box centre need not project to the 2-D box centre: move the target sideways.
+    uv, _ = camera.project(v)
+    offset = (uv.min(axis=0) + uv.max(axis=0)) / 2 - camera.principal_point
+    target = target + (distance_m / focal) * (offset[0] * camera.rotation[0]
+                                              + offset[1] * camera.rotation[1])
+    return look_at_camera(target, azimuth_deg, elevation_deg, distance_m, focal, size)
 
 
 def _projected_triangles(vertices, faces, camera: Camera):
     """Fixed-point pixel triangles (F, 3, 2) int32, visibility (F,) bool, facing (F,) bool
-    (True: front side towards the camera), depths (F, 3)."""
+    (True: outward side towards the camera), vertex depths (F, 3) metres."""
     v = np.asarray(vertices, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != 3 or not np.isfinite(v).all():
         raise RenderError(f"vertices must be finite (V, 3) metres, got shape {v.shape}")
     uv, z = camera.project(v)
-    h, w = camera.size
-    limit = 4.0 * max(h, w)                       # keep fixed-point coordinates in int32
-    uv = np.clip(uv, -limit, limit + max(h, w))
-    tri_uv = uv[faces]                             # (F, 3, 2)
+    limit = 4.0 * max(camera.size)                 # keep fixed-point coordinates in int32
+    fixed = np.rint(np.clip(uv, -limit, 2 * limit) * (1 << _SHIFT)).astype(np.int32)
+    tri = fixed[faces]                             # (F, 3, 2)
     tri_z = z[faces]
     visible = tri_z.min(axis=1) > _NEAR_M
-    e1, e2 = tri_uv[:, 1] - tri_uv[:, 0], tri_uv[:, 2] - tri_uv[:, 0]
+    e = (tri[:, 1:] - tri[:, :1]).astype(np.int64)  # exact integer edge vectors
     # Image y points down, so a counter-clockwise (outward) face seen from outside has a
     # negative signed area in pixel coordinates.
-    facing = (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) < 0
-    fixed = np.rint(tri_uv * (1 << _SHIFT)).astype(np.int32)
-    return fixed, visible, facing, tri_z
+    facing = (e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0]) < 0
+    return tri, visible, facing, tri_z
 
 
 def silhouette_mask(vertices: np.ndarray, faces: np.ndarray, patch_start: np.ndarray,
@@ -125,12 +131,10 @@ def silhouette_mask(vertices: np.ndarray, faces: np.ndarray, patch_start: np.nda
     BodyModel provides)."""
     tri, visible, facing, _ = _projected_triangles(vertices, faces, camera)
     mask = np.zeros(camera.size, dtype=np.uint8)
-    patch = np.repeat(np.arange(len(patch_start) - 1), np.diff(patch_start))
-    keep = visible & facing
-    patch = patch[keep]
-    bounds = np.searchsorted(patch, np.arange(len(patch_start)))   # faces are patch-sorted
-    tri = tri[keep]
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
+    kept = np.flatnonzero(visible & facing)
+    bounds = np.searchsorted(kept, patch_start)    # faces are sorted by patch
+    tri = tri[kept]
+    for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
         if hi > lo:
             cv2.fillPoly(mask, tri[lo:hi], 1, lineType=cv2.LINE_8, shift=_SHIFT)
     return mask.astype(bool)
@@ -143,7 +147,8 @@ def shaded_render(vertices: np.ndarray, faces: np.ndarray, camera: Camera,
 
     vertices: (V, 3) metres; faces: (F, 3); colour, background: RGB 0-255; ambient: fraction
     of light that does not depend on the surface direction. The light comes from behind the
-    camera, above it. Triangles are painted far to near (painter's algorithm; offline use).
+    camera, above it. Triangles facing the camera are painted far to near (painter's
+    algorithm, a Python loop over triangles: a few ms a frame, for offline video writing).
     Returns image (H, W, 3) uint8 RGB and mask (H, W) bool.
     """
     tri, visible, facing, tri_z = _projected_triangles(vertices, faces, camera)
@@ -153,15 +158,15 @@ def shaded_render(vertices: np.ndarray, faces: np.ndarray, camera: Camera,
     normal /= np.linalg.norm(normal, axis=1, keepdims=True) + 1e-12
     light = -camera.rotation[2] - 0.6 * camera.rotation[1]      # from the camera, from above
     light /= np.linalg.norm(light)
-    lambert = np.abs(normal @ light)                            # both sides lit (open eye holes)
+    lambert = np.clip(normal @ light, 0.0, None)
     shade = ambient + (1.0 - ambient) * lambert
     rgb = np.clip(np.outer(shade, colour), 0, 255).astype(np.uint8)
     image = np.empty((*camera.size, 3), dtype=np.uint8)
     image[:] = np.asarray(background, dtype=np.uint8)
     mask = np.zeros(camera.size, dtype=np.uint8)
-    keep = np.flatnonzero(visible)
+    keep = np.flatnonzero(visible & facing)                     # closed mesh: front faces do
     keep = keep[np.argsort(-tri_z[keep].mean(axis=1))]          # far first
-    for f in keep:
-        cv2.fillConvexPoly(image, tri[f], rgb[f].tolist(), lineType=cv2.LINE_8, shift=_SHIFT)
-        cv2.fillConvexPoly(mask, tri[f], 1, lineType=cv2.LINE_8, shift=_SHIFT)
+    for f in keep:                                              # same fill rule as the masks
+        cv2.fillPoly(image, [tri[f]], rgb[f].tolist(), lineType=cv2.LINE_8, shift=_SHIFT)
+        cv2.fillPoly(mask, [tri[f]], 1, lineType=cv2.LINE_8, shift=_SHIFT)
     return image, mask.astype(bool)
