@@ -1,0 +1,112 @@
+"""BVH sink: files read back by our reader with the same angles, root and joint positions."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sequences.bvh import read_bvh
+from sequences.pose_vector import joint_positions, motion_to_pose_vectors
+from sequences.skeleton import CMU_UNIT_M
+from tracker.bvh_sink import BVHSink
+from tracker.skeleton_geometry import SinkInputError, pose_joints_m
+
+FPS = 25.0
+
+
+def _poses(n: int, seed: int) -> np.ndarray:
+    """Smooth random pose vectors (n, 55): angles within +-50 degrees, unit heading."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    vectors = 40.0 * np.sin(2 * math.pi * t * rng.uniform(0.5, 2, 55) + rng.uniform(0, 6, 55))
+    heading = np.radians(rng.uniform(-180, 180) + 300.0 * t[:, 0])  # crosses +-180
+    vectors[:, 0], vectors[:, 1] = np.cos(heading), np.sin(heading)
+    return vectors
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    return (angle + 180.0) % 360.0 - 180.0
+
+
+def _write_tracks(directory, frames_by_track: dict[int, np.ndarray], **kwargs):
+    """Write each track's poses at its frames with hips walking along X. Returns the inputs."""
+    inputs = {}
+    with BVHSink(directory, FPS, **kwargs) as sink:
+        for track, frames in frames_by_track.items():
+            vectors = _poses(len(frames), seed=track)
+            hips = np.c_[0.02 * frames, np.full(len(frames), 0.95), -3.0 - 0.01 * frames]
+            joints = pose_joints_m(vectors, root_position_m=hips)
+            inputs[track] = (frames, vectors, joints)
+        for frame in range(max(f.max() for f in frames_by_track.values()) + 1):
+            for track, (frames, vectors, joints) in inputs.items():
+                (hit,) = np.flatnonzero(frames == frame)[:1].tolist() or [None]
+                if hit is not None:
+                    sink.write(frame, frame / FPS, track, vectors[hit] * 1.3, vectors[hit],
+                               False, joints[hit])
+    return sink, inputs
+
+
+def test_written_bvh_reads_back_with_the_same_angles_root_and_joints(tmp_path):
+    sink, inputs = _write_tracks(tmp_path, {1: np.arange(0, 40), 4: np.arange(10, 30)})
+    assert sorted(sink.paths) == [1, 4]
+    for track, (frames, vectors, joints) in inputs.items():
+        motion = read_bvh(sink.paths[track], fps=None, drop_tpose=False)
+        assert motion.n_frames == len(frames)
+        assert motion.fps == pytest.approx(FPS)
+        np.testing.assert_allclose(motion.euler_deg, sink.motion(track).euler_deg, atol=1e-6)
+        back = motion_to_pose_vectors(motion)
+        np.testing.assert_allclose(np.degrees(np.arctan2(back[:, 1], back[:, 0])),
+                                   np.degrees(np.arctan2(vectors[:, 1], vectors[:, 0])),
+                                   atol=1e-5)
+        np.testing.assert_allclose(_wrap(back[:, 2:] - vectors[:, 2:]), 0.0, atol=1e-5)
+        np.testing.assert_allclose(motion.root_position * CMU_UNIT_M, joints[:, 0], atol=1e-6)
+        positions = joint_positions(back, motion, root_position=motion.root_position)
+        np.testing.assert_allclose(positions * CMU_UNIT_M, joints, atol=1e-5)
+
+
+def test_missed_frames_hold_the_last_pose(tmp_path):
+    frames = np.array([5, 6, 9, 10])
+    sink, inputs = _write_tracks(tmp_path, {2: frames})
+    motion = read_bvh(sink.paths[2], fps=None, drop_tpose=False)
+    assert motion.n_frames == 6  # frames 5..10
+    euler = motion.euler_deg
+    np.testing.assert_array_equal(euler[2], euler[1])  # frames 7, 8 repeat frame 6
+    np.testing.assert_array_equal(euler[3], euler[1])
+    assert not np.allclose(euler[4], euler[1])
+    np.testing.assert_allclose(motion.root_position[3] * CMU_UNIT_M, inputs[2][2][1, 0],
+                               atol=1e-6)
+
+
+def test_short_tracks_are_skipped_and_errors_are_specific(tmp_path):
+    sink, _ = _write_tracks(tmp_path, {1: np.arange(10), 3: np.arange(2)}, min_frames=5)
+    assert sorted(sink.paths) == [1]
+    assert not (tmp_path / "track_3.bvh").exists()
+    pose, joints = np.r_[1.0, np.zeros(54)], np.zeros((18, 3))
+    sink = BVHSink(tmp_path / "new", FPS)
+    sink.write(3, 0.12, 1, pose, pose, False, joints)
+    with pytest.raises(SinkInputError, match="does not follow"):
+        sink.write(3, 0.12, 1, pose, pose, False, joints)
+    with pytest.raises(SinkInputError, match="filtered55"):
+        sink.write(4, 0.16, 1, pose, pose[:54], False, joints)
+    sink.close()
+    sink.close()
+    with pytest.raises(SinkInputError, match="closed"):
+        sink.write(5, 0.2, 1, pose, pose, False, joints)
+    with pytest.raises(SinkInputError, match="fps"):
+        BVHSink(tmp_path, 0.0)
+
+
+def test_a_cmu_file_can_be_the_template(tmp_path, cmu_bvh_dir):
+    source = sorted(cmu_bvh_dir.rglob("*.bvh"))[0]
+    template = read_bvh(source, fps=30.0)
+    vectors = _poses(12, seed=9)
+    with BVHSink(tmp_path, 30.0, template=template) as sink:
+        for frame, vector in enumerate(vectors):
+            sink.write(frame, frame / 30.0, 1, vector, vector, False,
+                       pose_joints_m(vector[None], template)[0])
+    motion = read_bvh(sink.paths[1], fps=None, drop_tpose=False)
+    assert motion.names == template.names
+    np.testing.assert_allclose(motion.offsets, template.offsets, atol=1e-6)
+    back = motion_to_pose_vectors(motion)
+    np.testing.assert_allclose(_wrap(back[:, 2:] - vectors[:, 2:]), 0.0, atol=1e-5)

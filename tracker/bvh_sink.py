@@ -1,0 +1,137 @@
+"""BVH export: one file per track on the CMU skeleton, written when the sink is closed.
+
+Angles: the filtered pose vectors, converted by ``sequences.pose_vector.pose_vectors_to_motion``
+(camera azimuth 0: the video camera sits on the subject's +Z side, so heading 0 faces it).
+
+Root translation: the tracker does not measure where a person is in 3-D. The BVH root follows
+the Hips position of the ``joints3d`` given to ``write`` (metres, converted to CMU units), so it
+is whatever placement the caller chose: with ``tracker.skeleton_geometry.ground_position_from_image``
+it is the image-plane motion turned into an approximate ground-plane position (lateral position
+and depth from an assumed body height and field of view; hips at a fixed height); with
+root-relative joints it stays at the origin.
+
+Frames: BVH frame i is video frame ``first_frame + i`` at the ``fps`` given, for every frame from
+the track's first to its last; frames where the track was not written (missed detections,
+skipped frames) repeat the last written pose and root. A track with fewer than ``min_frames``
+written frames gets no file. Nothing is written before close(): the MCAP recording is the
+crash-safe record.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from sequences.bvh import Motion, write_bvh
+from sequences.pose_vector import pose_vectors_to_motion
+from sequences.skeleton import (
+    CMU_JOINT_NAMES,
+    CMU_PARENTS,
+    CMU_REST_END_SITES,
+    CMU_REST_OFFSETS,
+    CMU_UNIT_M,
+)
+from tracker.skeleton_geometry import SinkInputError, check_joints, check_pose
+
+_ROOT_CHANNELS = ["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]
+_JOINT_CHANNELS = ["Zrotation", "Yrotation", "Xrotation"]
+
+
+def default_cmu_template(fps: float) -> Motion:
+    """A one-frame rest Motion of the CMU skeleton (subject 02's bone lengths, ZYX channels as
+    in the CMU BVH conversion), for writing BVH without a motion-capture file at hand."""
+    names = list(CMU_JOINT_NAMES)
+    return Motion(
+        names=names, parents=CMU_PARENTS.copy(), offsets=CMU_REST_OFFSETS.copy(),
+        end_sites=CMU_REST_END_SITES.copy(),
+        channels=[list(_ROOT_CHANNELS if p < 0 else _JOINT_CHANNELS) for p in CMU_PARENTS],
+        euler_deg=np.zeros((1, len(names), 3)), root_position=np.zeros((1, 3)),
+        fps=float(fps), source="")
+
+
+def _fill_gaps(frames: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Rows for every frame frames[0] .. frames[-1], holding the last written row in gaps.
+
+    frames: (N,) increasing ints; values: (N, D). Returns (frames[-1] - frames[0] + 1, D).
+    """
+    wanted = np.arange(frames[0], frames[-1] + 1)
+    return values[np.searchsorted(frames, wanted, side="right") - 1]
+
+
+class BVHSink:
+    """Collect each track's filtered poses and root positions; write one BVH per track on close.
+
+    directory: where files go (created if missing); files are ``<prefix>_<track id>.bvh``.
+    fps: video frame rate (frames per second of the frame indices). template: the skeleton
+    (a Motion, e.g. a CMU file read with sequences.bvh.read_bvh); None uses
+    default_cmu_template. min_frames: shortest track that gets a file.
+    After close(), ``paths`` maps track id -> written file.
+    """
+
+    def __init__(self, directory: str | Path, fps: float, prefix: str = "track",
+                 template: Motion | None = None, min_frames: int = 1):
+        if not (math.isfinite(fps) and fps > 0):
+            raise SinkInputError(f"fps must be a positive number, got {fps}")
+        self.directory = Path(directory)
+        self.fps = float(fps)
+        self.prefix = prefix
+        self.template = default_cmu_template(fps) if template is None else template
+        self.min_frames = int(min_frames)
+        self._root = int(np.flatnonzero(np.asarray(self.template.parents) < 0)[0])
+        self._tracks: dict[int, tuple[list[int], list[np.ndarray], list[np.ndarray]]] = {}
+        self.paths: dict[int, Path] = {}
+        self._closed = False
+
+    @property
+    def closed(self) -> bool:
+        """True after close()."""
+        return self._closed
+
+    def write(self, frame_index: int, time_s: float, track_id: int, raw55: np.ndarray,
+              filtered55: np.ndarray, ambiguous: bool, joints3d: np.ndarray, *,
+              centroid_px: tuple[float, float] | None = None) -> None:
+        """Keep filtered55 (55,) and the Hips position joints3d[0] (metres) of this track and
+        frame. Frame indices of a track must increase. Raises SinkInputError on bad input."""
+        if self._closed:
+            raise SinkInputError("BVH sink is closed")
+        pose = check_pose("filtered55", filtered55)
+        joints = check_joints(joints3d)
+        frames, poses, roots = self._tracks.setdefault(int(track_id), ([], [], []))
+        if frames and int(frame_index) <= frames[-1]:
+            raise SinkInputError(f"track {track_id}: frame_index {frame_index} does not follow "
+                                 f"{frames[-1]}")
+        frames.append(int(frame_index))
+        poses.append(pose)
+        roots.append(joints[0])
+
+    def motion(self, track_id: int) -> Motion:
+        """The Motion that close() writes for ``track_id`` (KeyError if never written)."""
+        frames, poses, roots = self._tracks[track_id]
+        frames_arr = np.asarray(frames)
+        vectors = _fill_gaps(frames_arr, np.asarray(poses))
+        root_cmu = _fill_gaps(frames_arr, np.asarray(roots)) / CMU_UNIT_M \
+            - self.template.offsets[self._root]
+        motion = pose_vectors_to_motion(vectors, self.template, root_position=root_cmu)
+        motion.fps = self.fps
+        motion.source = f"{self.prefix}_{track_id}.bvh"
+        return motion
+
+    def close(self) -> None:
+        """Write one BVH per track with at least min_frames frames; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self.directory.mkdir(parents=True, exist_ok=True)
+        for track_id in sorted(self._tracks):
+            if len(self._tracks[track_id][0]) < self.min_frames:
+                continue
+            path = self.directory / f"{self.prefix}_{track_id}.bvh"
+            write_bvh(path, self.motion(track_id))
+            self.paths[track_id] = path
+
+    def __enter__(self) -> "BVHSink":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
