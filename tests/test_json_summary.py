@@ -1,0 +1,89 @@
+"""JSON summary: layout, values, speed, atomic replacement."""
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+from tracker.json_summary import JsonSummarySink, write_json_atomically
+from tracker.skeleton_geometry import SinkInputError
+
+JOINTS = np.zeros((18, 3))
+
+
+class _Clock:
+    """A clock the test advances by hand."""
+
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _pose(heading_deg: float, norm: float, fill: float) -> np.ndarray:
+    vector = np.full(55, fill)
+    vector[0] = norm * math.cos(math.radians(heading_deg))
+    vector[1] = norm * math.sin(math.radians(heading_deg))
+    return vector
+
+
+def test_summary_lists_tracks_with_filtered_values_and_speed(tmp_path):
+    clock = _Clock()
+    path = tmp_path / "summary.json"
+    with JsonSummarySink(path, video_fps=25.0, clock=clock) as sink:
+        for frame in range(10):
+            sink.mark_frame(frame)  # frames 0..9 processed, people only in 2..7
+            if 2 <= frame <= 7:
+                sink.write(frame, frame / 25.0, 3, _pose(170.0 + 4 * frame, 0.3, 1.0),
+                           _pose(175.0 + 4 * frame, 1.0, 2.0), frame == 4, JOINTS,
+                           centroid_px=(10.0 * frame, 20.0))
+            if frame == 5:
+                sink.write(frame, 0.2, 1, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
+                           centroid_px=(1.0, 2.0))
+            clock.now += 0.5
+    summary = json.loads(path.read_text())
+    assert (summary["frames"], summary["video_fps"]) == (10, 25.0)
+    assert summary["fps"] == pytest.approx(10 / 5.0)
+    assert [t["id"] for t in summary["tracks"]] == [1, 3]
+    track = summary["tracks"][1]
+    assert track["frames"] == list(range(2, 8))
+    assert (track["first_frame"], track["last_frame"], track["n_frames"]) == (2, 7, 6)
+    assert track["centroid_px"][0] == [20.0, 20.0]
+    expected = [(175.0 + 4 * f + 180.0) % 360.0 - 180.0 for f in range(2, 8)]
+    np.testing.assert_allclose(track["heading_deg"], expected, atol=1e-5)  # wraps past 180
+    np.testing.assert_allclose(track["heading_norm"], 0.3, atol=1e-6)  # raw norm
+    assert track["ambiguous"] == [f == 4 for f in range(2, 8)] and track["ambiguous_frames"] == 1
+    assert track["heading_mean_deg"] == pytest.approx(193.0 - 360.0, abs=1e-4)
+    assert np.array(track["pose"]).shape == (6, 55)
+    np.testing.assert_allclose(np.array(track["pose"])[:, 2:], 2.0)
+
+
+def test_write_needs_a_centroid_and_valid_vectors(tmp_path):
+    sink = JsonSummarySink(tmp_path / "s.json", 25.0)
+    good = _pose(0, 1, 0)
+    with pytest.raises(SinkInputError, match="centroid_px"):
+        sink.write(0, 0.0, 1, good, good, False, JOINTS)
+    with pytest.raises(SinkInputError, match="raw55"):
+        sink.write(0, 0.0, 1, np.full(55, np.inf), good, False, JOINTS, centroid_px=(1, 2))
+    sink.close()
+    sink.close()
+    with pytest.raises(SinkInputError, match="closed"):
+        sink.write(1, 0.0, 1, good, good, False, JOINTS, centroid_px=(1, 2))
+    assert json.loads((tmp_path / "s.json").read_text())["tracks"] == []
+
+
+def test_atomic_write_replaces_whole_files_and_leaves_no_temporary(tmp_path):
+    path = tmp_path / "s.json"
+    write_json_atomically(path, {"a": 1})
+    inode = os.stat(path).st_ino
+    write_json_atomically(path, {"a": 2})
+    assert json.loads(path.read_text()) == {"a": 2}
+    assert os.stat(path).st_ino != inode  # a new file was renamed over the old one
+    with pytest.raises(ValueError):
+        write_json_atomically(path, {"a": float("nan")})
+    assert json.loads(path.read_text()) == {"a": 2}  # the failed write left the old file
+    assert [p.name for p in tmp_path.iterdir()] == ["s.json"]

@@ -1,0 +1,154 @@
+"""JSON summary of a tracking run, for scripts: frames, speed, and per track its frames,
+centroids, headings, ambiguity flags and filtered poses.
+
+Layout (format version 1)::
+
+    {"format": "silhouette-pose tracking summary", "version": 1,
+     "frames": int,            # frames processed (with or without people)
+     "fps": float,             # frames processed per second of wall time (speed achieved)
+     "video_fps": float, "wall_time_s": float,
+     "tracks": [{"id": int, "first_frame": int, "last_frame": int, "n_frames": int,
+                 "frames": [int], "time_s": [float], "centroid_px": [[x, y]],
+                 "heading_deg": [float],   # filtered heading, degrees in (-180, 180]
+                 "heading_norm": [float],  # norm of the RAW (cos, sin): the ambiguity measure
+                                           # (the filtered one is 1 by construction)
+                 "ambiguous": [bool], "ambiguous_frames": int,
+                 "heading_mean_deg": float,  # circular mean of the filtered heading
+                 "pose": [[55 filtered values]]}]}
+
+The file is replaced atomically (written to a temporary file in the same folder, flushed to
+disk, then renamed), so a reader never sees half a summary.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from tracker.skeleton_geometry import SinkInputError, check_joints, check_pose
+
+FORMAT = "silhouette-pose tracking summary"
+VERSION = 1
+_DECIMALS = 6
+
+
+def write_json_atomically(path: str | Path, document: dict) -> None:
+    """Write ``document`` as JSON to ``path`` via a temporary file and a rename.
+
+    Raises ValueError (from json) for NaN or infinite values rather than writing invalid JSON.
+    """
+    path = Path(path)
+    text = json.dumps(document, allow_nan=False, separators=(",", ":"))
+    handle = tempfile.NamedTemporaryFile("w", encoding="utf-8", dir=path.parent,
+                                         prefix=f".{path.name}.", suffix=".tmp", delete=False)
+    try:
+        with handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(handle.name, path)
+    except BaseException:
+        Path(handle.name).unlink(missing_ok=True)
+        raise
+
+
+class JsonSummarySink:
+    """Collect per-track results and write the summary on close (see the module docstring).
+
+    path: output JSON file. video_fps: the video's frame rate. clock: seconds counter used for
+    the speed achieved (default time.perf_counter; a parameter so tests can fix it).
+    """
+
+    def __init__(self, path: str | Path, video_fps: float,
+                 clock: Callable[[], float] = time.perf_counter):
+        if not (math.isfinite(video_fps) and video_fps > 0):
+            raise SinkInputError(f"video_fps must be a positive number, got {video_fps}")
+        self.path = Path(path)
+        self.video_fps = float(video_fps)
+        self._clock = clock
+        self._start: float | None = None
+        self._frames: set[int] = set()
+        self._tracks: dict[int, dict[str, list]] = {}
+        self._closed = False
+
+    @property
+    def closed(self) -> bool:
+        """True after close()."""
+        return self._closed
+
+    def mark_frame(self, frame_index: int) -> None:
+        """Count a processed frame (call it for frames without people too; write() calls it)."""
+        if self._start is None:
+            self._start = self._clock()
+        self._frames.add(int(frame_index))
+
+    def write(self, frame_index: int, time_s: float, track_id: int, raw55: np.ndarray,
+              filtered55: np.ndarray, ambiguous: bool, joints3d: np.ndarray, *,
+              centroid_px: tuple[float, float] | None = None) -> None:
+        """Record one track in one frame. centroid_px (x, y) pixels is required here.
+        Raises SinkInputError on bad input, a missing centroid, or when closed."""
+        if self._closed:
+            raise SinkInputError(f"JSON summary {self.path.name} is closed")
+        raw = check_pose("raw55", raw55)
+        filtered = check_pose("filtered55", filtered55)
+        check_joints(joints3d)
+        if centroid_px is None:
+            raise SinkInputError("the JSON summary needs centroid_px (x, y) in pixels")
+        centroid = np.asarray(centroid_px, dtype=np.float64)
+        if centroid.shape != (2,) or not np.all(np.isfinite(centroid)):
+            raise SinkInputError(f"centroid_px must be two finite numbers, got {centroid_px!r}")
+        self.mark_frame(frame_index)
+        track = self._tracks.setdefault(int(track_id), {
+            "frames": [], "time_s": [], "centroid_px": [], "heading_deg": [],
+            "heading_norm": [], "ambiguous": [], "pose": []})
+        track["frames"].append(int(frame_index))
+        track["time_s"].append(round(float(time_s), _DECIMALS))
+        track["centroid_px"].append(np.round(centroid, 3).tolist())
+        track["heading_deg"].append(
+            round(math.degrees(math.atan2(filtered[1], filtered[0])), _DECIMALS))
+        track["heading_norm"].append(round(math.hypot(raw[0], raw[1]), _DECIMALS))
+        track["ambiguous"].append(bool(ambiguous))
+        track["pose"].append(np.round(filtered, _DECIMALS).tolist())
+
+    def summary(self) -> dict:
+        """The summary document as it stands (see the module docstring)."""
+        wall = 0.0 if self._start is None else self._clock() - self._start
+        frames = len(self._frames)
+        tracks = []
+        for track_id in sorted(self._tracks):
+            track = self._tracks[track_id]
+            heading = np.radians(track["heading_deg"])
+            mean = math.degrees(math.atan2(np.sin(heading).mean(), np.cos(heading).mean()))
+            tracks.append({
+                "id": track_id, "first_frame": track["frames"][0],
+                "last_frame": track["frames"][-1], "n_frames": len(track["frames"]),
+                **track,
+                "ambiguous_frames": int(sum(track["ambiguous"])),
+                "heading_mean_deg": round(mean, _DECIMALS),
+            })
+        return {"format": FORMAT, "version": VERSION, "frames": frames,
+                "fps": round(frames / wall, 3) if wall > 0 else 0.0,
+                "video_fps": self.video_fps, "wall_time_s": round(wall, 3), "tracks": tracks}
+
+    def save(self) -> None:
+        """Write the summary so far, atomically."""
+        write_json_atomically(self.path, self.summary())
+
+    def close(self) -> None:
+        """Write the summary; idempotent."""
+        if self._closed:
+            return
+        self.save()
+        self._closed = True
+
+    def __enter__(self) -> "JsonSummarySink":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
