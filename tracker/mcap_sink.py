@@ -141,10 +141,8 @@ def scene_update_schema() -> dict:
         "type": _enum("foxglove.SceneEntityDeletionType", {"MATCHING_ID": 0, "ALL": 1}),
         "id": _STRING,
     })
-    schema = _object(SCENE_SCHEMA_NAME, {"deletions": _array(deletion),
-                                         "entities": _array(entity)},
-                     "An update to the entities displayed in a 3D scene")
-    return schema
+    return _object(SCENE_SCHEMA_NAME, {"deletions": _array(deletion), "entities": _array(entity)},
+                   "An update to the entities displayed in a 3D scene")
 
 
 def tracked_pose_schema() -> dict:
@@ -210,9 +208,10 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
     spheres = [{"pose": {"position": p, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
                 "size": {"x": JOINT_DIAMETER_M, "y": JOINT_DIAMETER_M, "z": JOINT_DIAMETER_M},
                 "color": colour} for p in _point_dicts(joints)]
-    label_position = joints[:, :].max(axis=0) * [0, 0, 1] + joints.mean(axis=0) * [1, 1, 0]
-    label_pose = _identity_pose()
-    label_pose["position"] = _point_dicts(label_position[None] + [0.0, 0.0, 0.25])[0]
+    centre = joints.mean(axis=0)
+    label_pose = _identity_pose()  # the label floats 25 cm above the highest joint
+    label_pose["position"] = _point_dicts(np.array([[centre[0], centre[1],
+                                                     joints[:, 2].max() + 0.25]]))[0]
     return {
         "timestamp": _timestamp(time_ns),
         "frame_id": WORLD_FRAME,

@@ -27,18 +27,24 @@ import time
 import weakref
 from pathlib import Path
 
+import warnings
+
 import tornado.httpserver
 import tornado.netutil
 import tornado.web
 import zmq
-from meshcat.servers.zmqserver import (
-    VIEWER_HTML,
-    VIEWER_ROOT,
-    StaticFileHandlerNoCache,
-    WebSocketHandler,
-    ZMQWebSocketBridge,
-)
 from zmq.eventloop.zmqstream import ZMQStream
+
+with warnings.catch_warnings():
+    # meshcat 0.3.2 imports zmq.eventloop.ioloop, deprecated (and unused) on pyzmq >= 17.
+    warnings.simplefilter("ignore", DeprecationWarning)
+    from meshcat.servers.zmqserver import (
+        VIEWER_HTML,
+        VIEWER_ROOT,
+        StaticFileHandlerNoCache,
+        WebSocketHandler,
+        ZMQWebSocketBridge,
+    )
 
 LOOPBACK = "127.0.0.1"
 
