@@ -31,13 +31,19 @@ BODY_LICENSE_NOTE = (
 _ARRAYS = ("vertices", "faces", "patch_start", "joint_names", "joint_parents", "joint_heads",
            "joint_tails", "weight_index", "weight_value")
 #: Bones that keep the mesh's rest orientation (no swing onto the BVH): the pelvis bones,
-#: whose BVH directions (hips to hip joints) do not describe the pelvis' orientation.
-_NO_SWING = ("Hips", "LHipJoint", "RHipJoint")
+#: whose BVH directions (hips to hip joints) do not describe the pelvis' orientation, and the
+#: collar bones: the CMU rest collar points ~14 degrees up, and swinging the mesh's collar
+#: that way raises the shoulder skin into a visible ridge. Their child bones (legs, arms) are
+#: still aligned exactly; only the hip and shoulder joint positions follow the mesh.
+_NO_SWING = ("Hips", "LHipJoint", "RHipJoint", "LeftShoulder", "RightShoulder")
 #: Bones whose cross-section grows less with girth (exponent on girth_scale).
 _SMALL_GIRTH = {"Neck": 0.5, "Neck1": 0.4, "Head": 0.25, "LeftHand": 0.3, "RightHand": 0.3,
                 "LeftFingerBase": 0.3, "RightFingerBase": 0.3, "LeftHandIndex1": 0.3,
                 "RightHandIndex1": 0.3, "LThumb": 0.3, "RThumb": 0.3, "LeftFoot": 0.3,
                 "RightFoot": 0.3, "LeftToeBase": 0.3, "RightToeBase": 0.3}
+#: Collar bones span the shoulder width, which grows with girth, not with height: they scale
+#: by girth_scale in every direction (else a broader torso swallows the shoulder joints).
+_GIRTH_ONLY = ("LeftShoulder", "RightShoulder")
 _UP = np.array([0.0, 1.0, 0.0])
 
 
@@ -134,7 +140,7 @@ def _validated(path: Path, d: dict) -> BodyModel:
 class BodyShape:
     """Body-shape variation. height_scale stretches every bone along its length (stature and
     limb lengths); girth_scale scales across bones (torso and limb thickness; head, hands and
-    feet less). 1.0 = the MakeHuman base body (1.67 m)."""
+    feet less) and the collar bones (shoulder width). 1.0 = the MakeHuman base body (1.67 m)."""
 
     height_scale: float = 1.0
     girth_scale: float = 1.0
@@ -236,7 +242,8 @@ class Skinner:
             u = A[j] @ (b.tails[j] - b.heads[j])
             u = _UP if name in _NO_SWING else u / np.linalg.norm(u)
             girth = s.girth_scale ** _SMALL_GIRTH.get(name, 1.0)
-            S = s.height_scale * np.outer(u, u) + girth * (np.eye(3) - np.outer(u, u))
+            along = girth if name in _GIRTH_ONLY else s.height_scale
+            S = along * np.outer(u, u) + girth * (np.eye(3) - np.outer(u, u))
             C[j] = S @ A[j]
             p = b.parents[j]
             offsets[j] = b.heads[j] if p < 0 else C[p] @ (b.heads[j] - b.heads[p])
