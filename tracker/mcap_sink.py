@@ -24,10 +24,12 @@ from __future__ import annotations
 import io
 import json
 import math
+import warnings
 import weakref
 from collections.abc import Mapping
 from pathlib import Path
 
+import mcap
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
@@ -292,6 +294,10 @@ class McapSink:
         self._flush_every = int(flush_every_frames)
         stream = _WriteThrough(io.FileIO(self.path, "w"))
         writer = Writer(stream, chunk_size=chunk_size, compression=kinds[compression])
+        if not hasattr(writer, "flush"):  # Writer.flush() arrived in mcap 1.6
+            warnings.warn(f"mcap {getattr(mcap, '__version__', '?')} has no "
+                          "Writer.flush(): chunks close by size only (install mcap>=1.6)",
+                          stacklevel=2)
         self._state = {"writer": writer, "stream": stream, "done": False}
         # Runs at interpreter exit (e.g. after an uncaught exception) if close() was not called.
         self._finalizer = weakref.finalize(self, _finish, self._state)
@@ -389,8 +395,9 @@ class McapSink:
         self._shown = set(self._entities)
         self._entities = {}
         self._frames_since_flush += 1
-        if self._frames_since_flush >= self._flush_every:
-            self._state["writer"].flush()  # closes the chunk: it is now safe from a crash
+        writer = self._state["writer"]
+        if self._frames_since_flush >= self._flush_every and hasattr(writer, "flush"):
+            writer.flush()  # closes the chunk: it is now safe from a crash
             self._frames_since_flush = 0
 
     def close(self) -> None:
