@@ -1,0 +1,175 @@
+"""Pose Kalman filter: less jitter, no jump at +-180, ambiguous frames trusted less, RTS smoothing."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+from tracker.filtering import (FilterError, PoseKalmanFilter, angles_to_pose, pose_to_angles,
+                               wrap_deg)
+
+FPS = 30.0
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_blas_thread():
+    """108x108 products are too small to share: with OpenBLAS threads on a busy 2-core machine
+    these tests ran 8x slower (25 s instead of 3 s). The track command should do the same."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
+def true_angles(frames: int, seed: int = 0) -> np.ndarray:
+    """Smooth angle trajectories (frames, 54) deg: sinusoids of 0.2-0.8 Hz, amplitude 10-40 deg
+    (accelerations up to 1000 deg/s^2, as in motion capture), heading turning at 45 deg/s."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames)[:, None] / FPS
+    freq, amp, phase = rng.uniform(0.2, 0.8, 54), rng.uniform(10, 40, 54), rng.uniform(0, 6, 54)
+    angles = amp * np.sin(2 * np.pi * freq * t + phase)
+    angles[:, 0] = 45.0 * t[:, 0]
+    return angles
+
+
+def noisy_poses(angles: np.ndarray, std: float, seed: int = 1) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return angles_to_pose(angles + rng.normal(0.0, std, angles.shape))
+
+
+def angle_error(poses: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Wrapped error (T, 54) deg between poses (T, 55) and true angles (T, 54)."""
+    return wrap_deg(pose_to_angles(poses)[0] - angles)
+
+
+def jitter(poses: np.ndarray) -> float:
+    """Mean |second difference| over frames and angles, deg."""
+    angles = np.unwrap(np.radians(pose_to_angles(poses)[0]), axis=0)
+    return float(np.mean(np.abs(np.diff(np.degrees(angles), 2, axis=0))))
+
+
+def run(kf: PoseKalmanFilter, poses: np.ndarray) -> tuple[np.ndarray, list[bool]]:
+    outputs = [kf.step(p) for p in poses]
+    return np.array([o[0] for o in outputs]), [o[1] for o in outputs]
+
+
+def test_pose_angle_conversions_round_trip():
+    angles = wrap_deg(np.random.default_rng(0).uniform(-400, 400, (5, 54)))
+    poses = angles_to_pose(angles)
+    back, norm = pose_to_angles(poses)
+    assert np.allclose(wrap_deg(back - angles), 0, atol=1e-9)
+    assert np.allclose(norm, 1.0)
+    assert wrap_deg(np.array([180.0, -180.0, 540.0, -179.0])).tolist() == [180, 180, 180, -179]
+
+
+def test_filter_reduces_error_and_jitter_on_noisy_trajectory():
+    truth = true_angles(150)
+    raw = noisy_poses(truth, std=6.0)
+    filtered, flags = run(PoseKalmanFilter(FPS), raw)
+    raw_rms = np.sqrt(np.mean(angle_error(raw, truth)[30:] ** 2))
+    filtered_rms = np.sqrt(np.mean(angle_error(filtered, truth)[30:] ** 2))
+    assert filtered_rms < 0.8 * raw_rms
+    assert jitter(filtered) < 0.4 * jitter(raw)
+    assert not any(flags)
+
+
+def test_outputs_keep_the_55_d_layout():
+    filtered, _ = run(PoseKalmanFilter(FPS), noisy_poses(true_angles(40) * 6, std=20.0))
+    assert filtered.shape == (40, 55)
+    assert np.allclose(np.hypot(filtered[:, 0], filtered[:, 1]), 1.0)
+    assert (filtered[:, 2:] > -180).all() and (filtered[:, 2:] <= 180).all()
+
+
+def test_heading_and_joint_crossing_180_do_not_jump():
+    frames = 80
+    truth = np.zeros((frames, 54))
+    truth[:, 0] = 90 + 3.0 * np.arange(frames)       # heading passes +180 -> -180 at frame 30
+    truth[:, 7] = -120 - 2.0 * np.arange(frames)     # a joint angle passes -180 -> +180 at 30
+    filtered, _ = run(PoseKalmanFilter(FPS), angles_to_pose(wrap_deg(truth)))
+    error = angle_error(filtered, truth)
+    # The filter starts at rate 0 and needs ~20 frames to lock on to the ramps; after that a
+    # wrong unwrap would show as a 360 deg error or a jump.
+    assert np.abs(error[20:]).max() < 1.0
+    steps = np.abs(wrap_deg(np.diff(pose_to_angles(filtered)[0], axis=0)))
+    assert steps[:, 0].max() < 4.0 and steps[:, 7].max() < 3.0
+
+
+def test_ambiguous_frame_is_flagged_and_trusted_less():
+    steady = angles_to_pose(np.zeros((20, 54)))
+    outlier_angles = np.zeros(54)
+    outlier_angles[0], outlier_angles[1:] = 90.0, 20.0
+    outlier = angles_to_pose(outlier_angles)
+    deviation = {}
+    for norm in (1.0, 0.3):
+        kf = PoseKalmanFilter(FPS, ambiguity_threshold=0.5)
+        run(kf, steady)
+        raw = outlier.copy()
+        raw[:2] *= norm
+        filtered, ambiguous = kf.step(raw)
+        assert ambiguous == (norm < 0.5)
+        deviation[norm] = np.abs(pose_to_angles(filtered)[0])
+    assert deviation[0.3][0] < deviation[1.0][0] / 3      # heading: R x 25
+    assert deviation[0.3][1:].max() < deviation[1.0][1:].min() / 1.5   # other angles: R x 4
+
+
+def test_rts_smoother_beats_forward_filter():
+    truth = true_angles(120, seed=3)
+    raw = noisy_poses(truth, std=6.0, seed=4)
+    forward, _ = run(PoseKalmanFilter(FPS), raw)
+    smoothed = PoseKalmanFilter(FPS).rts_smooth(raw)
+    assert smoothed.shape == (120, 55)
+    forward_rms = np.sqrt(np.mean(angle_error(forward, truth) ** 2))
+    smoothed_rms = np.sqrt(np.mean(angle_error(smoothed, truth) ** 2))
+    assert smoothed_rms < 0.85 * forward_rms
+    assert jitter(smoothed) < jitter(forward)
+
+
+def test_windowed_smoothing_matches_one_pass():
+    raw = noisy_poses(true_angles(90, seed=5), std=6.0, seed=6)
+    raw[28:33, :2] *= 0.2  # ambiguous frames near a window boundary
+    kf = PoseKalmanFilter(FPS)
+    one_pass = kf.rts_smooth(raw, window=1000)
+    windowed = kf.rts_smooth(raw, window=30, lag=30)
+    assert np.abs(angle_error(windowed, pose_to_angles(one_pass)[0])).max() < 0.05
+    no_lag = kf.rts_smooth(raw, window=30, lag=0)
+    assert np.abs(angle_error(no_lag, pose_to_angles(one_pass)[0])).max() > 0.5
+
+
+def test_smoothing_leaves_the_step_state_alone():
+    raw = noisy_poses(true_angles(30), std=6.0)
+    a, b = PoseKalmanFilter(FPS), PoseKalmanFilter(FPS)
+    run(a, raw[:10])
+    run(b, raw[:10])
+    a.rts_smooth(raw)
+    assert np.array_equal(a.step(raw[10])[0], b.step(raw[10])[0])
+
+
+def test_reset_starts_a_new_track_at_the_measurement():
+    kf = PoseKalmanFilter(FPS)
+    run(kf, angles_to_pose(np.zeros((10, 54))))
+    kf.reset()
+    target = np.full(54, 45.0)
+    assert np.allclose(pose_to_angles(kf.step(angles_to_pose(target))[0])[0], target)
+
+
+def test_noise_model_from_arrays_changes_the_filter():
+    raw = noisy_poses(true_angles(60), std=6.0)
+    default, _ = run(PoseKalmanFilter(FPS), raw)
+    trusting, _ = run(PoseKalmanFilter(FPS, R=np.full(54, 0.01), q=np.full(54, 1e10)), raw)
+    assert np.abs(angle_error(trusting, pose_to_angles(raw)[0])).max() < 0.5
+    assert np.abs(angle_error(default, pose_to_angles(raw)[0])).max() > 2.0
+
+
+@pytest.mark.parametrize("bad, message", [
+    (np.zeros(54), r"shape \(55,\)"),
+    (np.r_[1.0, 0.0, np.full(52, 0.0), np.nan], "non-finite entries at \\[54\\]"),
+])
+def test_bad_pose_vectors_are_refused(bad, message):
+    with pytest.raises(FilterError, match=message):
+        PoseKalmanFilter(FPS).step(bad)
+
+
+@pytest.mark.parametrize("options", [{"fps": 0.0}, {"R": np.ones(10)}, {"R": -np.eye(54)},
+                                     {"q": -1.0}, {"ambiguous_heading_factor": 0.5}])
+def test_bad_settings_are_refused(options):
+    settings = {"fps": FPS, **options}
+    with pytest.raises(FilterError):
+        PoseKalmanFilter(**settings)
