@@ -96,7 +96,8 @@ def test_silhouettes_of_two_crossing_people_keep_ids():
     for t in range(5 + 36):
         frame = bg.copy()
         if t >= 5:  # the people walk in after the background warm-up
-            for x, colour in ((30 + 4 * (t - 5), (40, 200, 40)), (170 - 4 * (t - 5), (200, 40, 200))):
+            walked = 4 * (t - 5)
+            for x, colour in ((30 + walked, (40, 200, 40)), (170 - walked, (200, 40, 200))):
                 cv2.ellipse(frame, (x, 62), (9, 40), 0, 0, 360, colour, -1)
         frame = cv2.add(frame, rng.integers(0, 8, frame.shape, dtype=np.uint8))
         for track_id, person in associator.update(extractor(frame)):

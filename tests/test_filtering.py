@@ -1,4 +1,4 @@
-"""Pose Kalman filter: less jitter, no jump at +-180, ambiguous frames trusted less, RTS smoothing."""
+"""Pose Kalman filter: less jitter, no jump at +-180, ambiguous frames trusted less, RTS."""
 from __future__ import annotations
 
 import numpy as np

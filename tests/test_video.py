@@ -82,7 +82,8 @@ def test_grayscale_video_gives_three_equal_channels(tmp_path):
     frames = list(open_video(write_video(tmp_path / "gray.mp4", gray)))
     image = frames[2].image
     assert image.shape == (64, 96, 3)
-    assert np.array_equal(image[..., 0], image[..., 1]) and np.array_equal(image[..., 1], image[..., 2])
+    assert np.array_equal(image[..., 0], image[..., 1])
+    assert np.array_equal(image[..., 1], image[..., 2])
     assert abs(float(image.mean()) - 80) < 4
 
 

@@ -5,7 +5,8 @@ track predicts where it is now (constant velocity), a cost matrix compares predi
 detections, and the Hungarian algorithm (scipy's linear_sum_assignment) pairs them. Costs are in
 units of the track's size, so the same gates work for near and far people:
 
-    cost = |centroid - predicted| / sqrt(track area) + size_weight * |ln(detection area / track area)|
+    cost = |centroid - predicted| / sqrt(track area)
+           + size_weight * |ln(detection area / track area)|
 
 A pair is refused (gated) when the distance exceeds ``max_distance`` sizes (widened by one size per
 missed frame while a track coasts) or the areas differ by more than ``max_area_ratio``.

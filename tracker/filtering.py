@@ -134,7 +134,8 @@ class PoseKalmanFilter:
         if raw.shape != (POSE_DIM,):
             raise FilterError(f"pose vector must have shape (55,), got {raw.shape}")
         if not np.isfinite(raw).all():
-            raise FilterError(f"pose vector has non-finite entries at {np.flatnonzero(~np.isfinite(raw)).tolist()}")
+            bad = np.flatnonzero(~np.isfinite(raw)).tolist()
+            raise FilterError(f"pose vector has non-finite entries at {bad}")
         angles, norm = pose_to_angles(raw)
         ambiguous = bool(norm < self.ambiguity_threshold)
         return angles, (self.R_ambiguous if ambiguous else self.R), ambiguous

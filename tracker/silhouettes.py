@@ -44,8 +44,9 @@ class BackgroundSubtractor:
     who stands still becomes background after about ln(background_ratio) / ln(1 - 1/history)
     frames (0.7 and 500: ~180 frames, 6 s at 30 fps; MOG2's default 0.9 would give ~50).
     Lower values keep still people longer but treat a flickering background as foreground.
-    ``var_threshold``: MOG2's squared Mahalanobis distance for foreground. ``warmup_frames``: frames used only to learn the
-    background (fast, at MOG2's rate 1/frames seen), during which :attr:`ready` is False.
+    ``var_threshold``: MOG2's squared Mahalanobis distance for foreground. ``warmup_frames``:
+    frames used only to learn the background (fast, at MOG2's rate 1/frames seen), during which
+    :attr:`ready` is False.
     ``learning_rate``: the rate after warm-up; None means 1/history (MOG2's own automatic rate
     would still be 1/frames seen, which swallows a person standing still within a second);
     0 freezes the model after warm-up (static camera and light).
@@ -173,11 +174,12 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int], min_area_fractio
     areas = np.array([cv2.contourArea(c) for c in contours])
     # contourArea runs through boundary pixel centres, so it undercounts by about half the
     # perimeter; the gate only needs to reject clutter, the reported area is counted exactly.
-    outers = [i for i in np.flatnonzero(parents == -1) if areas[i] >= min_area_fraction * image_area]
-    big_holes = [i for i in np.flatnonzero(parents != -1) if areas[i] > max_hole_fraction * image_area]
-    people = [_person_from_contour(contours, outer, [contours[h] for h in big_holes
-                                                     if parents[h] == outer], mask.shape, frame_size)
-              for outer in outers]
+    outers = np.flatnonzero((parents == -1) & (areas >= min_area_fraction * image_area))
+    big_holes = np.flatnonzero((parents != -1) & (areas > max_hole_fraction * image_area))
+    people = []
+    for outer in outers:
+        holes = [contours[h] for h in big_holes if parents[h] == outer]
+        people.append(_person_from_contour(contours, outer, holes, mask.shape, frame_size))
     return sorted((p for p in people if p is not None), key=lambda p: -p.area)
 
 

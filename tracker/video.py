@@ -66,7 +66,7 @@ def _why_unopenable(path: Path) -> str:
     if boxes is None:
         return "is not a video OpenCV can decode (unknown format or not a video file)"
     if b"moov" not in boxes:
-        return "is a truncated MP4: its index ('moov' box) is missing, the file was probably cut off"
+        return "is a truncated MP4: its index ('moov' box) is missing (file cut off?)"
     if boxes.get(b"mdat", 0) == 0:
         return "contains no video frames"
     return "is an MP4 OpenCV cannot decode (no supported video stream)"
@@ -145,7 +145,8 @@ class VideoSource:
         """Up to ``count`` frames (BGR uint8 (H, W, 3)) evenly spaced over the selected range,
         e.g. to estimate the empty background. Frames that fail to decode are skipped."""
         end = self.end_index if self.end_index is not None else self.start_index + count
-        indices = np.unique(np.linspace(self.start_index, end - 1, max(count, 1)).round().astype(int))
+        indices = np.linspace(self.start_index, end - 1, max(count, 1)).round().astype(int)
+        indices = np.unique(indices)
         capture = _open_capture(self.path)
         images = []
         try:
