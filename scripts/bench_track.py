@@ -1,0 +1,124 @@
+"""Benchmark `track` on one 640x480 single-person video: decode-only fps vs tracking fps.
+
+    python scripts/bench_track.py                      # renders out/bench/walk640.mp4 once
+    python scripts/bench_track.py --video my.mp4
+
+Prints, from one run on the same video: decode-only fps, `track` fps end to end (decode,
+silhouettes, descriptors, regression, filter, MCAP + JSON outputs; no --view), their ratio,
+the per-frame cost of each stage, and resident memory sampled along the video (flat = no leak).
+One core: BLAS limited to one thread, as the `track` command does.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model  # noqa: E402
+from tracker.json_summary import JsonSummarySink  # noqa: E402
+from tracker.mcap_sink import McapSink  # noqa: E402
+from tracker.pipeline import PoseTracker  # noqa: E402
+from tracker.silhouettes import median_background  # noqa: E402
+from tracker.video import open_video  # noqa: E402
+
+
+def _rss_mb() -> float:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def _make_video(path: Path, frames: int) -> None:
+    from sequences.bvh import read_bvh
+    from sequences.spiral import spiral_walk
+    from sequences.video import Actor, write_video
+    bvh = ROOT.parent / "shared" / "data" / "cmu" / "bvh" / "07_12.bvh"
+    if not bvh.is_file():
+        sys.exit(f"bench_track: {bvh} not found; pass --video")
+    motion = spiral_walk(read_bvh(bvh), 30.0, n_frames=frames)
+    print(f"rendering {frames} frames of 640x480 video to {path} ...", file=sys.stderr)
+    write_video(path, [Actor(motion)], size=(480, 640), noise_sigma=2.0)
+
+
+def _decode_fps(video: Path) -> tuple[float, int]:
+    source = open_video(video)
+    start = time.perf_counter()
+    n = sum(1 for _ in source)
+    return n / (time.perf_counter() - start), n
+
+
+def _track(video: Path, model_path: Path, workdir: Path):
+    """The `track` loop with MCAP and JSON outputs; returns fps, stage ms, memory samples."""
+    model = load_pose_model(model_path)
+    source = open_video(video)
+    stages = {"decode": 0.0, "outputs": 0.0}
+    memory = []
+    start = time.perf_counter()
+    tracker = PoseTracker(model, source.fps, (source.width, source.height))
+    tracker.prime(median_background(source.sample_frames(25)))
+    with McapSink(workdir / "bench.mcap") as mcap, \
+            JsonSummarySink(workdir / "bench.json", source.fps) as summary:
+        frames = 0
+        clock = time.perf_counter()
+        for index, time_s, frame in source:
+            stages["decode"] += time.perf_counter() - clock
+            poses = tracker.process(index, time_s, frame)
+            clock = time.perf_counter()
+            summary.mark_frame(index)
+            for p in poses:
+                for sink in (mcap, summary):
+                    sink.write(p.frame_index, p.time_s, p.track_id, p.raw, p.filtered,
+                               p.ambiguous, p.joints_m, centroid_px=p.centroid_px)
+            stages["outputs"] += time.perf_counter() - clock
+            frames += 1
+            if frames % 200 == 0:
+                memory.append((frames, _rss_mb()))
+            clock = time.perf_counter()
+    elapsed = time.perf_counter() - start
+    stages.update(tracker.stage_seconds)
+    return frames / elapsed, {k: 1000 * v / frames for k, v in stages.items()}, memory, frames
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--video", type=Path, default=None, help="640x480 single-person video")
+    ap.add_argument("--frames", type=int, default=1200, help="frames to render if no --video")
+    ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)
+    args = ap.parse_args(argv)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    video = args.video
+    if video is None:
+        video = ROOT / "out" / "bench" / "walk640.mp4"
+        if not video.is_file():
+            video.parent.mkdir(parents=True, exist_ok=True)
+            _make_video(video, args.frames)
+    with threadpool_limits(1), tempfile.TemporaryDirectory() as tmp:
+        decode_fps, n = _decode_fps(video)
+        track_fps, stage_ms, memory, frames = _track(video, args.model, Path(tmp))
+    print(f"video: {video} ({n} frames)")
+    print(f"decode only : {decode_fps:8.1f} fps")
+    print(f"track       : {track_fps:8.1f} fps   (ratio track/decode {track_fps / decode_fps:.2f};"
+          f" target >= 150 fps)")
+    print("per-frame cost of each stage (ms):")
+    for stage, ms in sorted(stage_ms.items(), key=lambda kv: -kv[1]):
+        print(f"  {stage:12s} {ms:7.3f}")
+    print("resident memory (MB) by frames done: " +
+          ", ".join(f"{f}: {m:.0f}" for f, m in memory))
+    if len(memory) >= 2:
+        print(f"memory growth from frame {memory[0][0]} to {memory[-1][0]}: "
+              f"{memory[-1][1] - memory[0][1]:+.1f} MB")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

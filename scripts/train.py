@@ -1,0 +1,85 @@
+"""Train the default model from CMU motion capture and write it (npz, no pickle).
+
+    python scripts/train.py --bvh-dir ../shared/data/cmu/bvh \
+        --out regressor/models/default_model.npz
+
+Steps (cached under --cache, so a re-run only redoes what changed): render the training set
+(held-out trials excluded), fit the shape-context codebook, compute descriptors, fit the
+stacked kernel RVM, estimate the Kalman filter's noise models on validation trials.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+from regressor.descriptor import DescriptorSettings  # noqa: E402
+from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model  # noqa: E402
+from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,  # noqa: E402
+                               build_dataset, training_files)
+from tracker.training import (TrainingOptions, cached_descriptors, dataset_descriptors,  # noqa: E402
+                              fit_dataset_codebook, train_pose_model)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
+    ap.add_argument("--cache", type=Path, default=Path("cache"))
+    ap.add_argument("--out", type=Path, default=DEFAULT_MODEL_PATH)
+    ap.add_argument("--views", type=int, default=DatasetConfig.views_per_trial)
+    ap.add_argument("--stack", type=int, default=TrainingOptions.stack_depth)
+    ap.add_argument("--n-fit", type=int, default=TrainingOptions.n_fit)
+    ap.add_argument("--width-scale", type=float, default=TrainingOptions.width_scale)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args(argv)
+    log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
+    start = time.perf_counter()
+    try:
+        config = DatasetConfig(views_per_trial=args.views, seed=args.seed)
+        files = training_files(args.bvh_dir)
+        log(f"data set: {len(files)} trials x {args.views} views (held out: "
+            f"{', '.join(HELD_OUT_TRIALS)})")
+        data = build_dataset(files, config, args.cache / "dataset", workers=args.workers,
+                             progress=lambda t, d, n: log(f"  rendered {t} [{d}/{n}]"))
+        log(f"  {len(data)} silhouettes ({time.perf_counter() - start:.0f} s so far)")
+        settings = DescriptorSettings()
+
+        def compute():
+            log("codebook and descriptors ...")
+            codebook = fit_dataset_codebook(data, settings, seed=args.seed)
+            X = dataset_descriptors(data.masks, settings, codebook, workers=args.workers,
+                                    progress=lambda d, n: log(f"  descriptors {d}/{n}")
+                                    if d % 10000 < 500 else None)
+            return X, codebook
+
+        X, codebook = cached_descriptors(args.cache, f"v1-{config.digest()}", compute)
+        log(f"  descriptors ready ({time.perf_counter() - start:.0f} s so far)")
+        options = TrainingOptions(stack_depth=args.stack, n_fit=args.n_fit,
+                                  width_scale=args.width_scale, seed=args.seed)
+        with threadpool_limits(args.workers):
+            model, report = train_pose_model(data, X, codebook, settings, options,
+                                             config.fps, log=log)
+        model.description = {"data": "CMU motion capture (mocap.cs.cmu.edu), rendered",
+                             "trials": data.trials, "held_out": list(HELD_OUT_TRIALS),
+                             "dataset": json.loads(json.dumps(config.__dict__)),
+                             "options": options.__dict__, "validation": report}
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        save_pose_model(args.out, model)
+    except (OSError, DatasetError, ValueError) as exc:
+        print(f"train: error: {exc}", file=sys.stderr)
+        return 1
+    total = time.perf_counter() - start
+    print(json.dumps({"model": str(args.out), "size_bytes": args.out.stat().st_size,
+                      "total_seconds": round(total, 1), **report}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
