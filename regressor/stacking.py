@@ -1,0 +1,89 @@
+"""Stacked past-frame descriptors: the regressor input at frame t is [x_t, x_{t-1}, ..., x_{t-k+1}].
+
+Frames before the start of a sequence are padded by repeating the sequence's first frame, so no
+descriptor ever leaks across a sequence boundary. k = 1 is the paper's per-frame regressor.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+class StackingInputError(ValueError):
+    """Bad descriptors, sequence labels or depth given to stacking."""
+
+
+def _check_depth(k) -> int:
+    if not (int(k) == k and k >= 1):
+        raise StackingInputError(f"stacking depth k={k!r}; expected an integer >= 1")
+    return int(k)
+
+
+def sequence_starts_to_ids(starts, n: int) -> np.ndarray:
+    """Sequence id per frame (n,) from the sorted first-row indices of each sequence (must start at 0)."""
+    starts = np.asarray(starts, dtype=np.int64).ravel()
+    if starts.size == 0 or starts[0] != 0 or np.any(np.diff(starts) <= 0) or starts[-1] >= max(n, 1):
+        raise StackingInputError(f"sequence_starts {starts.tolist()} must be increasing, start at 0 and be < {n}")
+    ids = np.zeros(n, np.int64)
+    ids[starts[1:]] = 1
+    return np.cumsum(ids)
+
+
+def stack_frames(X, k: int, sequence_ids=None, sequence_starts=None) -> np.ndarray:
+    """Stack each frame with its k-1 predecessors in the same sequence.
+
+    X: (N, D) descriptors in time order. sequence_ids: (N,) label per frame (a new sequence
+    starts wherever the label changes), or sequence_starts: first row of each sequence; neither
+    means one sequence. Returns (N, k*D): row t is [x_t, x_{t-1}, ..., x_{t-k+1}], with frames
+    before a sequence's start replaced by its first frame.
+    """
+    X = np.asarray(X, dtype=np.float64)
+    k = _check_depth(k)
+    if X.ndim != 2:
+        raise StackingInputError(f"X must be (N, D); got shape {X.shape}")
+    N = X.shape[0]
+    if sequence_ids is not None and sequence_starts is not None:
+        raise StackingInputError("give sequence_ids or sequence_starts, not both")
+    if sequence_starts is not None:
+        ids = sequence_starts_to_ids(sequence_starts, N)
+    elif sequence_ids is not None:
+        ids = np.asarray(sequence_ids).ravel()
+        if ids.shape != (N,):
+            raise StackingInputError(f"sequence_ids has shape {np.shape(sequence_ids)}; expected ({N},)")
+    else:
+        ids = np.zeros(N, np.int64)
+    # first[t] = index of the first frame of t's sequence (a run of equal labels).
+    new_run = np.ones(N, bool)
+    new_run[1:] = ids[1:] != ids[:-1]
+    first = np.maximum.accumulate(np.where(new_run, np.arange(N), 0))
+    t = np.arange(N)[:, None] - np.arange(k)[None, :]          # (N, k) source frames
+    src = np.maximum(t, first[:, None])
+    return X[src].reshape(N, k * X.shape[1])
+
+
+class FrameStacker:
+    """Streaming stacking for one track: holds its last k descriptors.
+
+    push(x (D,)) -> (k*D,) stacked vector [x_t, x_{t-1}, ...]; the first push pads with x itself,
+    matching stack_frames at a sequence start. reset() starts a new sequence.
+    """
+
+    def __init__(self, k: int):
+        self.k = _check_depth(k)
+        self._buffer: np.ndarray | None = None             # (k, D), newest first
+
+    def reset(self) -> None:
+        """Forget the history (the next push starts a new sequence)."""
+        self._buffer = None
+
+    def push(self, x) -> np.ndarray:
+        """Add descriptor x (D,) and return the stacked vector (k*D,)."""
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim != 1:
+            raise StackingInputError(f"push expects one descriptor (D,); got shape {x.shape}")
+        if self._buffer is None:
+            self._buffer = np.repeat(x[None, :], self.k, axis=0)
+        elif self._buffer.shape[1] != x.shape[0]:
+            raise StackingInputError(f"descriptor has {x.shape[0]} values; this track's have {self._buffer.shape[1]}")
+        else:
+            self._buffer = np.vstack([x[None, :], self._buffer[:-1]])
+        return self._buffer.reshape(-1).copy()
