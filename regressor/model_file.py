@@ -1,0 +1,262 @@
+"""Model files: one versioned, checksummed .npz of plain arrays (no pickle), validated on load.
+
+A file holds named parts (arrays, numbers, strings). The parts this module knows are checked
+for type, shape, mutual consistency and finite values whenever they are present:
+
+    codebook_centres (C, D) float, codebook_sigma () float > 0    descriptor codebook
+    descriptor_*     () numbers/strings                          descriptor settings
+    stack_depth      () int >= 1                                  stacked frames k
+    transform        () str                                       descriptor preprocessing
+    basis            () "linear" | "gaussian"
+    width            () float > 0 (NaN allowed only for the linear basis: no kernel)
+    centres          (R, k*D) float (Gaussian basis; (0, 0) or absent for linear)
+    relevance        (R,) int >= 0                                kept basis indices
+    coef             (R, K) float; intercept (K,) float            weights and offset
+    output_mean, output_std (K,) float (std > 0)                 output scaling
+    measurement_covariance (P, P) symmetric or (P,) diagonal; process_noise (P,) or (P, P) >= 0
+    description      () str, a JSON document describing the training data
+
+Other parts are stored and returned as they are (numbers and strings only). Two reserved
+entries are added on save: ``format_version`` and ``checksum`` (sha256 over every part's name,
+dtype, shape and bytes), so a changed, truncated or foreign file is refused with ModelFileError.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+FORMAT_VERSION = 1
+SUPPORTED_VERSIONS = (1,)
+_RESERVED = ("format_version", "checksum")
+BASIS_KINDS = ("linear", "gaussian")
+
+
+class ModelFileError(ValueError):
+    """A model file (or the parts given to save_model) failed validation; the message names the file."""
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """A loaded model file. ``parts`` maps every stored name to its array; the typed fields are
+    the known parts (None when the file lacks them). Mapping access (m["coef"], m.get(...),
+    "coef" in m) reads ``parts``."""
+
+    path: str
+    format_version: int
+    parts: dict = field(repr=False)
+    stack_depth: int | None = None
+    basis: str | None = None
+    width: float | None = None
+    centres: np.ndarray | None = field(default=None, repr=False)
+    relevance: np.ndarray | None = field(default=None, repr=False)
+    coef: np.ndarray | None = field(default=None, repr=False)
+    intercept: np.ndarray | None = field(default=None, repr=False)
+    output_mean: np.ndarray | None = field(default=None, repr=False)
+    output_std: np.ndarray | None = field(default=None, repr=False)
+    codebook_centres: np.ndarray | None = field(default=None, repr=False)
+    codebook_sigma: float | None = None
+    measurement_covariance: np.ndarray | None = field(default=None, repr=False)
+    process_noise: np.ndarray | None = field(default=None, repr=False)
+    description: dict | None = None
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.parts[name]
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.parts
+
+    def get(self, name: str, default=None):
+        """The stored array called ``name``, or ``default``."""
+        return self.parts.get(name, default)
+
+    def keys(self):
+        """Names of the stored parts (without the reserved entries)."""
+        return self.parts.keys()
+
+
+def checksum(parts: Mapping[str, np.ndarray]) -> str:
+    """sha256 hex digest over the parts' names, dtypes, shapes and bytes, in name order."""
+    h = hashlib.sha256()
+    for name in sorted(parts):
+        a = np.ascontiguousarray(parts[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _as_array(name: str, value) -> np.ndarray:
+    if isinstance(value, dict):
+        value = json.dumps(value, sort_keys=True)
+    a = np.asarray(value)
+    if a.dtype.kind not in "biufU":
+        raise ModelFileError(f"part {name!r} has dtype {a.dtype}; only numbers and strings can be stored")
+    return a
+
+
+def save_model(path: str | Path, parts: Mapping | None = None, /, **more) -> Path:
+    """Validate the parts and write them to ``path`` (.npz) with FORMAT_VERSION and a checksum.
+
+    parts / more: name -> array, number, str or (for ``description``) a JSON-able dict. The file
+    is written to a temporary name and renamed, so a crash never leaves half a model.
+    """
+    path = Path(path)
+    merged = {**(dict(parts) if parts is not None else {}), **more}
+    bad = [k for k in merged if k in _RESERVED]
+    if bad:
+        raise ModelFileError(f"{path}: part names {bad} are reserved")
+    arrays = {k: _as_array(k, v) for k, v in merged.items()}
+    _validate(str(path), arrays)
+    out = dict(arrays, format_version=np.int64(FORMAT_VERSION), checksum=np.str_(checksum(arrays)))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".npz", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez_compressed(fh, **out)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def load_model(path: str | Path) -> ModelFile:
+    """Read and validate a model file; ModelFileError naming the file and the problem if the
+    file is missing, not an .npz, pickled, from an unsupported version, altered (checksum) or
+    inconsistent."""
+    where = str(path)
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+    except FileNotFoundError:
+        raise ModelFileError(f"{where}: model file not found") from None
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
+        raise ModelFileError(f"{where}: not a readable model file ({exc})") from None
+    if "format_version" not in arrays:
+        raise ModelFileError(f"{where}: no format_version; not a model file")
+    version = arrays.pop("format_version")
+    if version.shape != () or version.dtype.kind not in "iu" or int(version) not in SUPPORTED_VERSIONS:
+        raise ModelFileError(f"{where}: format version {version!r} is not supported (supported: {SUPPORTED_VERSIONS})")
+    stored = arrays.pop("checksum", None)
+    if stored is None:
+        raise ModelFileError(f"{where}: no checksum; refusing an unverifiable model file")
+    if str(stored) != checksum(arrays):
+        raise ModelFileError(f"{where}: checksum mismatch; the file was altered or corrupted")
+    for k, a in arrays.items():
+        if a.dtype.kind not in "biufU":
+            raise ModelFileError(f"{where}: part {k!r} has dtype {a.dtype}")
+    _validate(where, arrays)
+    return _typed(where, int(version), arrays)
+
+
+def _scalar(a: np.ndarray | None, kind: type):
+    return None if a is None else kind(a.item())
+
+
+def _typed(where: str, version: int, p: dict) -> ModelFile:
+    desc = p.get("description")
+    width = _scalar(p.get("width"), float)
+    return ModelFile(
+        path=where, format_version=version, parts=p,
+        stack_depth=_scalar(p.get("stack_depth"), int), basis=_scalar(p.get("basis"), str),
+        width=None if width is None or np.isnan(width) else width,
+        centres=p.get("centres") if p.get("centres") is None or p["centres"].size else None,
+        relevance=p.get("relevance"), coef=p.get("coef"), intercept=p.get("intercept"),
+        output_mean=p.get("output_mean"), output_std=p.get("output_std"),
+        codebook_centres=p.get("codebook_centres"), codebook_sigma=_scalar(p.get("codebook_sigma"), float),
+        measurement_covariance=p.get("measurement_covariance"), process_noise=p.get("process_noise"),
+        description=None if desc is None else json.loads(str(desc)))
+
+
+def _validate(where: str, p: Mapping[str, np.ndarray]) -> None:
+    """Check the known parts that are present; raise ModelFileError on the first problem."""
+    def fail(problem: str):
+        raise ModelFileError(f"{where}: invalid model: {problem}")
+
+    def need(name: str, ndim: int, kinds: str = "f") -> np.ndarray | None:
+        a = p.get(name)
+        if a is None:
+            return None
+        if a.ndim != ndim or a.dtype.kind not in kinds:
+            fail(f"{name} must be a {ndim}-D array of kind {kinds!r}; got shape {a.shape} dtype {a.dtype}")
+        return a
+
+    basis = need("basis", 0, "U")
+    if basis is not None and str(basis) not in BASIS_KINDS:
+        fail(f"basis {str(basis)!r} is not one of {BASIS_KINDS}")
+    for name, a in p.items():  # finite floats everywhere (width may be NaN for a linear basis)
+        if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+            if not (name == "width" and basis is not None and str(basis) == "linear" and np.isnan(a).all()):
+                fail(f"{name} has NaN or infinite values")
+    k = need("stack_depth", 0, "iu")
+    if k is not None and int(k) < 1:
+        fail(f"stack_depth {int(k)} must be >= 1")
+    need("transform", 0, "U")
+    width = need("width", 0, "f")
+    if width is not None and basis is not None and str(basis) == "gaussian" and not float(width) > 0:
+        fail(f"kernel width {float(width)} must be > 0")
+    coef, intercept = need("coef", 2), need("intercept", 1)
+    R = None if coef is None else coef.shape[0]
+    K = None if coef is None else coef.shape[1]
+    if intercept is not None and K is not None and intercept.shape != (K,):
+        fail(f"intercept {intercept.shape} does not match coef {coef.shape}")
+    for name in ("output_mean", "output_std"):
+        a = need(name, 1)
+        if a is not None and K is not None and a.shape != (K,):
+            fail(f"{name} {a.shape} does not match {K} outputs")
+    if p.get("output_std") is not None and np.any(p["output_std"] <= 0):
+        fail("output_std must be > 0")
+    relevance = need("relevance", 1, "iu")
+    if relevance is not None:
+        if R is not None and relevance.shape != (R,):
+            fail(f"relevance {relevance.shape} does not match coef {coef.shape}")
+        if relevance.size and relevance.min() < 0:
+            fail("relevance has negative indices")
+    centres = need("centres", 2)
+    if centres is not None and centres.size and R is not None and centres.shape[0] != R:
+        fail(f"centres {centres.shape} does not match coef {coef.shape}")
+    if basis is not None and str(basis) == "gaussian" and coef is not None and (centres is None or centres.shape[0] != R):
+        fail("a Gaussian basis needs one centre per weight row")
+    cb = need("codebook_centres", 2)
+    sigma = need("codebook_sigma", 0)
+    if sigma is not None and not float(sigma) > 0:
+        fail("codebook_sigma must be > 0")
+    if centres is not None and centres.size and cb is not None and k is not None and \
+            centres.shape[1] != int(k) * cb.shape[0]:
+        fail(f"centres have {centres.shape[1]} columns; stack_depth {int(k)} x {cb.shape[0]} codebook centres expected")
+    _validate_noise(p, fail)
+    desc = need("description", 0, "U")
+    if desc is not None:
+        try:
+            json.loads(str(desc))
+        except json.JSONDecodeError as exc:
+            fail(f"description is not JSON ({exc})")
+    for name, a in p.items():
+        if name.startswith("descriptor_") and a.shape != ():
+            fail(f"descriptor setting {name} must be a single number or string; got shape {a.shape}")
+
+
+def _validate_noise(p: Mapping[str, np.ndarray], fail) -> None:
+    R = p.get("measurement_covariance")
+    if R is not None:
+        if R.dtype.kind != "f" or R.ndim not in (1, 2) or (R.ndim == 2 and R.shape[0] != R.shape[1]):
+            fail(f"measurement_covariance must be (P, P) or (P,) floats; got {R.shape} {R.dtype}")
+        if R.ndim == 2 and not np.allclose(R, R.T, rtol=1e-9, atol=1e-12 * max(1.0, float(np.abs(R).max(initial=0)))):
+            fail("measurement_covariance is not symmetric")
+        if (np.diag(R) if R.ndim == 2 else R).min(initial=1.0) <= 0:
+            fail("measurement_covariance has non-positive variances")
+    q = p.get("process_noise")
+    if q is not None:
+        if q.dtype.kind != "f" or q.ndim > 2:
+            fail(f"process_noise must be a float scalar, (P,) or (P, P); got {q.shape} {q.dtype}")
+        if (np.diag(q) if q.ndim == 2 else q).min(initial=0.0) < 0:
+            fail("process_noise has negative variances")
+        if R is not None and q.ndim >= 1 and q.shape[0] != R.shape[0]:
+            fail(f"process_noise {q.shape} and measurement_covariance {R.shape} disagree on P")
