@@ -29,6 +29,10 @@ class RegressorInputError(ValueError):
     """Bad input to a regressor (shape, dtype, non-finite values, unknown option)."""
 
 
+class RegressorTypeError(RegressorInputError, TypeError):
+    """Input that is not numbers at all (e.g. objects in X)."""
+
+
 class NotFittedError(ValueError, AttributeError):
     """``predict`` (or a learned attribute) was used before ``fit``."""
 
@@ -63,8 +67,11 @@ def design_matrix(X: np.ndarray, kind: str, centres: np.ndarray | None, width: f
     return gaussian_design(X, centres, width)
 
 
-def validate_X(X, n_features: int | None = None, name: str = "X") -> np.ndarray:
-    """Check X is a finite 2-D real array (N, D) (D = n_features if given); return it as float64."""
+def validate_X(X, n_features: int | None = None, name: str = "X", owner: str = "the model") -> np.ndarray:
+    """Check X is a finite 2-D real array (N, D) (D = n_features if given); return it as float64.
+
+    Messages include scikit-learn's standard phrases so its estimator checks recognise them.
+    """
     if hasattr(X, "toarray") or hasattr(X, "tocsr"):
         raise TypeError(f"{name}: sparse input is not supported; pass a dense array (X.toarray())")
     try:
@@ -72,18 +79,20 @@ def validate_X(X, n_features: int | None = None, name: str = "X") -> np.ndarray:
     except Exception as exc:  # ragged lists etc.
         raise RegressorInputError(f"{name} is not an array: {exc}") from None
     if np.iscomplexobj(arr):
-        raise RegressorInputError(f"{name} has complex values; pass real numbers")
+        raise RegressorInputError(f"{name}: Complex data not supported; pass real numbers")
     try:
         arr = arr.astype(np.float64, copy=False)
-    except (TypeError, ValueError):
-        raise RegressorInputError(f"{name} has dtype {arr.dtype}, which is not numeric") from None
+    except (TypeError, ValueError) as exc:
+        raise RegressorTypeError(f"{name} has dtype {arr.dtype}, which is not numeric ({exc})") from None
     if arr.ndim != 2:
         raise RegressorInputError(f"{name} must be 2-D (n_samples, n_features); got shape {arr.shape}. "
-                                  "Reshape a single sample with X.reshape(1, -1)")
-    if arr.shape[0] < 1 or arr.shape[1] < 1:
-        raise RegressorInputError(f"{name} has shape {arr.shape}: needs at least 1 sample and 1 feature")
+                                  "Reshape your data: X.reshape(1, -1) for a single sample")
+    if arr.shape[0] < 1:
+        raise RegressorInputError(f"{name}: found array with 0 sample(s) (shape={arr.shape}) while a minimum of 1 is required.")
+    if arr.shape[1] < 1:
+        raise RegressorInputError(f"{name}: found array with 0 feature(s) (shape={arr.shape}) while a minimum of 1 is required.")
     if n_features is not None and arr.shape[1] != n_features:
-        raise RegressorInputError(f"{name} has {arr.shape[1]} features but the model was fitted on {n_features}")
+        raise RegressorInputError(f"{name} has {arr.shape[1]} features, but {owner} is expecting {n_features} features as input")
     if not np.all(np.isfinite(arr)):
         raise RegressorInputError(f"{name} contains NaN or infinity")
     return arr
@@ -93,15 +102,16 @@ def validate_Xy(X, y) -> tuple[np.ndarray, np.ndarray, bool]:
     """Validate training data: X (N, D), y (N,) or (N, K). Returns (X, Y as (N, K), y_was_1d)."""
     X = validate_X(X)
     if y is None:
-        raise RegressorInputError("y is None; a regressor needs targets")
-    y_ndim = np.ndim(y)
+        raise RegressorInputError("this regressor requires y to be passed, but the target y is None")
+    y = np.asarray(y)
+    y_ndim = y.ndim
     if y_ndim not in (1, 2):
         raise RegressorInputError(f"y must be 1-D (N,) or 2-D (N, K); got shape {np.shape(y)}")
     Y = validate_X(np.reshape(y, (-1, 1)) if y_ndim == 1 else y, name="y")
     if Y.shape[0] != X.shape[0]:
         raise RegressorInputError(f"X has {X.shape[0]} samples but y has {Y.shape[0]}")
     if X.shape[0] < 2:
-        raise RegressorInputError(f"need at least 2 training samples; got X of shape {X.shape}")
+        raise RegressorInputError(f"need at least 2 training samples; got n_samples=1 (X of shape {X.shape})")
     return X, Y, y_ndim == 1
 
 
@@ -176,7 +186,7 @@ class BasisRegressor:
     def predict(self, X) -> np.ndarray:
         """Predict y for X (N, D): (N, K), or (N,) if fitted on a 1-D y."""
         self._check_fitted()
-        X = validate_X(X, self.n_features_in_)
+        X = validate_X(X, self.n_features_in_, owner=type(self).__name__)
         if self.basis == "linear":
             Phi = X[:, self.relevance_]
         else:

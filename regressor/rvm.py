@@ -34,7 +34,9 @@ _REFRESH = 50          # steps between exact recomputations (and noise re-estima
 
 def _log_gain(alpha: np.ndarray, s: np.ndarray, qsum: np.ndarray, K: int) -> np.ndarray:
     """l(alpha) above: the log marginal likelihood contributed by bases with precision alpha."""
-    return 0.5 * (K * np.log(alpha / (alpha + s)) + qsum / (alpha + s))
+    with np.errstate(divide="ignore", invalid="ignore"):   # s <= 0 only from round-off: no gain
+        out = 0.5 * (K * np.log(alpha / (alpha + s)) + qsum / (alpha + s))
+    return np.where(np.isfinite(out), out, -np.inf)
 
 
 class _Posterior:
