@@ -87,18 +87,19 @@ def contiguous_folds(n: int, n_folds: int) -> list[np.ndarray]:
     return [b for b in np.array_split(np.arange(n), n_folds)]
 
 
-def cross_validated_error(make_model: Callable[[], object], X: np.ndarray, Y: np.ndarray,
-                          folds: list[np.ndarray], error: Callable = mean_point_error) -> float:
-    """Mean over folds of error(model fitted without the fold, predicted on the fold).
+def cross_validate(make_model: Callable[[], object], X: np.ndarray, Y: np.ndarray,
+                   folds: list[np.ndarray], error: Callable = mean_point_error) -> tuple[float, list]:
+    """Fit make_model() without each fold and score it on the fold.
 
-    make_model() returns an unfitted estimator; X (N, D), Y (N, K); folds: index arrays.
-    Errors are weighted by fold size (so the result is a per-frame mean).
+    X (N, D), Y (N, K); folds: index arrays. Returns (error averaged over held-out frames, i.e.
+    fold errors weighted by fold size; the fitted models, one per fold).
     """
-    total, count = 0.0, 0
+    total, count, models = 0.0, 0, []
     for hold in folds:
         train = np.ones(len(X), bool)
         train[hold] = False
         model = make_model().fit(X[train], Y[train])
         total += error(model.predict(X[hold]), Y[hold]) * len(hold)
         count += len(hold)
-    return total / count
+        models.append(model)
+    return total / count, models

@@ -1,0 +1,131 @@
+"""Reproduce the paper's regressors on its released data (train split only; test = spiral walk).
+
+    python scripts/reproduce_paper.py --data ../shared/data/ankur/ankurDataPoseSilhouette.mat --json out.json
+
+Every hyperparameter (descriptor transform, damping, kernel width, RVM noise and cost, stacking
+depth) is chosen by blocked cross-validation on the 1927 training frames (5 contiguous blocks);
+the RVM picks the lowest-error setting whose fold models keep <= 10% of their training frames.
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import time
+
+import numpy as np
+import scipy.io
+
+from regressor.dls import DLSRegressor
+from regressor.metrics import contiguous_folds, cross_validate, mean_point_error, point_jitter
+from regressor.rvm import RVMRegressor
+from regressor.stacking import stack_frames
+
+TRAIN_STARTS = [0, 100, 336, 405, 471, 1530, 1768]   # the 7 training sequences (README)
+RV_BUDGET = 0.10                                     # kernel RVM: keep <= 10% of training frames
+
+
+class MeanPose:
+    """Predicts the mean training pose (the trivial baseline)."""
+    n_basis_ = 0
+
+    def fit(self, X, Y):
+        self.mean_ = Y.mean(0)
+        return self
+
+    def predict(self, X):
+        return np.tile(self.mean_, (len(X), 1))
+
+
+class NearestNeighbours:
+    """Mean pose of the k nearest training descriptors (Euclidean); keeps every training frame."""
+
+    def __init__(self, k: int = 3):
+        self.k = k
+
+    def fit(self, X, Y):
+        self.X_, self.Y_, self.n_basis_ = X, Y, len(X)
+        return self
+
+    def predict(self, X):
+        d2 = (X * X).sum(1)[:, None] - 2 * X @ self.X_.T + (self.X_ * self.X_).sum(1)[None]
+        return self.Y_[np.argsort(d2, axis=1)[:, :self.k]].mean(1)
+
+
+def choose(make, grid, X, Y, folds, budget=None, log=print):
+    """The grid point (dict) with the lowest CV error; with a budget, among those whose fold
+    models keep <= budget of their training rows (else the sparsest)."""
+    results = []
+    for params in grid:
+        err, models = cross_validate(lambda: make(**params), X, Y, folds)
+        frac = max(m.n_basis_ / (len(X) - len(f)) for m, f in zip(models, folds))
+        log(f"    {params}: cv error {err:.3f}, kept {100 * frac:.1f}%")
+        results.append((err, frac, params))
+    ok = [r for r in results if budget is None or r[1] <= budget] or [min(results, key=lambda r: r[1])]
+    return min(ok, key=lambda r: r[0])[2]
+
+
+def grid(**axes):
+    return [dict(zip(axes, v)) for v in itertools.product(*axes.values())]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--data", required=True, help="ankurDataPoseSilhouette.mat")
+    ap.add_argument("--json", help="write the results here")
+    args = ap.parse_args()
+    d = scipy.io.loadmat(args.data)
+    Xraw, Y, Xraw_test, Y_test = d["Y"], d["Z"], d["Y_test"], d["Z_test"]
+    folds = contiguous_folds(len(Xraw), 5)
+
+    print("choosing hyperparameters on the training set (5 contiguous blocks)")
+    transforms = {"none": lambda A: A, "sqrt": np.sqrt}
+    tname = min(transforms, key=lambda t: cross_validate(
+        lambda: DLSRegressor("gaussian", lam=1e-2, width_scale=0.5), transforms[t](Xraw), Y, folds)[0])
+    X, X_test = transforms[tname](Xraw), transforms[tname](Xraw_test)
+    print(f"  descriptor transform: {tname}")
+    print("  linear DLS"); lin = choose(lambda **p: DLSRegressor("linear", **p), grid(lam=[1e-4, 1e-3, 1e-2, 1e-1]), X, Y, folds)
+    print("  linear RVM"); lrvm = choose(lambda **p: RVMRegressor("linear", output_scale="common", **p),
+                                        grid(min_gain=[0.0, 50.0, 200.0]), X, Y, folds)
+    print("  kernel DLS"); kdls = choose(lambda **p: DLSRegressor("gaussian", **p),
+                                        grid(width_scale=[0.25, 0.5, 1.0], lam=[1e-3, 1e-2]), X, Y, folds)
+    print("  kernel RVM"); krvm = choose(lambda **p: RVMRegressor("gaussian", output_scale="common", **p),
+                                        grid(width_scale=[kdls["width_scale"]], noise=[0.03, 0.1],
+                                             min_gain=[100.0, 200.0, 400.0]), X, Y, folds, budget=RV_BUDGET)
+    stacked = {k: stack_frames(X, k, sequence_starts=TRAIN_STARTS) for k in (2, 3, 4)}
+    print("  stacking depth")
+    depth = min(stacked, key=lambda k: cross_validate(
+        lambda: RVMRegressor("gaussian", output_scale="common", **krvm), stacked[k], Y, folds)[0])
+    print(f"    k = {depth}")
+
+    methods = {
+        "mean_pose": (MeanPose(), 1), "knn": (NearestNeighbours(3), 1),
+        "linear_dls": (DLSRegressor("linear", **lin), 1),
+        "linear_rvm": (RVMRegressor("linear", output_scale="common", **lrvm), 1),
+        "kernel_dls": (DLSRegressor("gaussian", **kdls), 1),
+        "kernel_rvm": (RVMRegressor("gaussian", output_scale="common", **krvm), 1),
+        "kernel_rvm_stacked": (RVMRegressor("gaussian", output_scale="common", **krvm), depth),
+    }
+    report = {"n_train": int(len(X)), "ground_truth_jitter": point_jitter(Y_test),
+              "descriptor_transform": tname, "stack_depth": depth,
+              "hyperparameters": {"linear_dls": lin, "linear_rvm": lrvm, "kernel_dls": kdls, "kernel_rvm": krvm},
+              "methods": {}}
+    print(f"\n{'method':20s} {'error':>7s} {'jitter':>7s} {'n_basis':>8s} {'fit s':>7s}")
+    for name, (model, k) in methods.items():
+        A, B = stack_frames(X, k, sequence_starts=TRAIN_STARTS), stack_frames(X_test, k)
+        start = time.perf_counter()
+        model.fit(A, Y)
+        seconds = time.perf_counter() - start
+        P = model.predict(B)
+        row = {"error": mean_point_error(P, Y_test), "jitter": point_jitter(P),
+               "n_basis": int(model.n_basis_), "fit_seconds": seconds}
+        report["methods"][name] = row
+        print(f"{name:20s} {row['error']:7.3f} {row['jitter']:7.3f} {row['n_basis']:8d} {seconds:7.2f}")
+    print(f"{'ground truth':20s} {'':7s} {report['ground_truth_jitter']:7.3f}")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(report, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
