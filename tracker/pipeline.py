@@ -7,13 +7,14 @@ descriptor, stack_depth, predict(stacked) -> raw 55-D pose; plus the filter's no
 from __future__ import annotations
 
 import time
-from collections import defaultdict, deque
+from collections import defaultdict
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
 from regressor.edges import SilhouetteError as DescriptorSilhouetteError
+from regressor.stacking import FrameStacker
 from .association import Associator
 from .filtering import PoseKalmanFilter
 from .silhouettes import PersonMask, SilhouetteExtractor
@@ -54,7 +55,7 @@ class TrackedPose:
 class _TrackState:
     """What the tracker keeps per track id: its descriptor history and its filter."""
 
-    history: deque
+    stacker: FrameStacker
     kalman: PoseKalmanFilter
     raw: list = field(default_factory=list)
 
@@ -106,7 +107,7 @@ class PoseTracker:
             kalman = PoseKalmanFilter(self.fps, R=self.estimator.measurement_covariance,
                                       q=self.estimator.process_noise,
                                       ambiguity_threshold=self.ambiguity_threshold)
-            self.tracks[track_id] = _TrackState(deque(maxlen=self.estimator.stack_depth), kalman)
+            self.tracks[track_id] = _TrackState(FrameStacker(self.estimator.stack_depth), kalman)
         return self.tracks[track_id]
 
     def _pose(self, track_id: int, person: PersonMask, frame_index: int,
@@ -118,8 +119,7 @@ class PoseTracker:
         except DescriptorSilhouetteError:
             return None                       # a sliver or speck: no pose this frame
         clock = self._lap("descriptor", clock)
-        state.history.appendleft(descriptor)
-        raw = self.estimator.predict(stacked_history(state.history, self.estimator.stack_depth))
+        raw = self.estimator.predict(state.stacker.push(descriptor))
         clock = self._lap("regression", clock)
         filtered, ambiguous = state.kalman.step(raw)
         state.raw.append(raw)
@@ -137,9 +137,3 @@ class PoseTracker:
         self.stage_seconds[stage] += now - since
         return now
 
-
-def stacked_history(history: deque, depth: int) -> np.ndarray:
-    """[x_t, x_{t-1}, ..., x_{t-k+1}] (k*D,) from a history whose newest item is first; a
-    history shorter than k repeats its oldest descriptor (as training pads sequence starts)."""
-    items = list(history) + [history[-1]] * (depth - len(history))
-    return np.concatenate(items)

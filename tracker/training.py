@@ -179,8 +179,8 @@ def train_pose_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     val = np.isin(trials, VALIDATION_TRIALS)
     if not val.any() or val.all():
         raise ValueError("validation trials must be a proper subset of the training trials")
-    Xs = stack_frames(transform_descriptors(X, options.transform), dataset.sequence,
-                      options.stack_depth)
+    Xs = stack_frames(transform_descriptors(X, options.transform), options.stack_depth,
+                      sequence_ids=dataset.sequence)
     train_rows = np.flatnonzero(~val)
     fit_rows = train_rows[np.linspace(0, len(train_rows) - 1,
                                       min(options.n_fit, len(train_rows))).astype(int)]

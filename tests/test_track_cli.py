@@ -1,0 +1,251 @@
+"""The `track` command: bad input gives one line and a non-zero exit; real videos get tracked.
+
+Every case runs the real command in a subprocess, as a user would, and checks stderr for a
+single line and no traceback. The end-to-end cases use the shipped default model on videos
+rendered from the body model with known poses.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from regressor.pose_model import DEFAULT_MODEL_PATH
+from sequences.bvh import Motion, read_bvh
+from sequences.pose_vector import heading_deg
+from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES, CMU_REST_OFFSETS
+from sequences.video import Actor, load_truth, write_video
+from tracker.mcap_repair import recover_mcap
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _track(*args, cwd=None, timeout=120):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run([sys.executable, "-m", "tracker.cli", *map(str, args)], cwd=cwd,
+                          env=env, capture_output=True, text=True, timeout=timeout)
+
+
+def _assert_one_line_error(result, *needles):
+    assert result.returncode != 0
+    err = result.stderr.strip()
+    assert "Traceback" not in result.stderr
+    assert len(err.splitlines()) == 1, err
+    for needle in needles:
+        assert needle in err, err
+
+
+def _walker(T: int, step: float = 0.6, fps: float = 30.0) -> Motion:
+    """A walking-like motion: legs and arms swing, moving along +X."""
+    J = len(CMU_JOINT_NAMES)
+    euler = np.zeros((T, J, 3))
+    phase = np.arange(T) * 2 * np.pi / 30
+    for name, amp in (("LeftUpLeg", 25), ("RightUpLeg", -25), ("LeftArm", -20),
+                      ("RightArm", 20)):
+        euler[:, CMU_JOINT_NAMES.index(name), 2] = amp * np.sin(phase)
+    for name, z in (("LeftArm", -70), ("RightArm", 70)):   # arms down from the T-pose
+        euler[:, CMU_JOINT_NAMES.index(name), 0] = z
+    euler[:, 0, 1] = 90.0                                   # facing +X, the walking direction
+    channels = [["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]]
+    channels += [["Zrotation", "Yrotation", "Xrotation"]] * (J - 1)
+    root = np.column_stack([step * np.arange(T), np.full(T, 17.0), np.zeros(T)])
+    return Motion(names=list(CMU_JOINT_NAMES), parents=CMU_PARENTS.copy(),
+                  offsets=CMU_REST_OFFSETS.copy(), end_sites=CMU_REST_END_SITES.copy(),
+                  channels=channels, euler_deg=euler, root_position=root, fps=fps,
+                  source="walker")
+
+
+@pytest.fixture(scope="module")
+def walk_video(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("video") / "walk.mp4"
+    write_video(path, [Actor(_walker(60))], size=(240, 320), noise_sigma=2.0, seed=3)
+    return path
+
+
+def _noise_video(path: Path, frames: int, size=(120, 160), color=True) -> Path:
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30.0,
+                             (size[1], size[0]), color)
+    rng = np.random.default_rng(0)
+    scene = rng.integers(60, 200, (*size, 3) if color else size, dtype=np.uint8)
+    for _ in range(frames):
+        writer.write(np.clip(scene + rng.normal(0, 2, scene.shape), 0, 255).astype(np.uint8))
+    writer.release()
+    return path
+
+
+# ------------------------------------------------------------------ bad input, one line each
+
+
+def test_missing_video(tmp_path):
+    _assert_one_line_error(_track(tmp_path / "nope.mp4", cwd=tmp_path), "nope.mp4", "no such")
+
+
+def test_file_that_is_not_a_video(tmp_path):
+    fake = tmp_path / "notes.mp4"
+    fake.write_text("these are not video frames\n" * 100)
+    _assert_one_line_error(_track(fake, cwd=tmp_path), "notes.mp4")
+
+
+def test_truncated_mp4(tmp_path, walk_video):
+    cut = tmp_path / "cut.mp4"
+    data = walk_video.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    _assert_one_line_error(_track(cut, cwd=tmp_path), "cut.mp4")
+
+
+def test_zero_frames(tmp_path):
+    empty = _noise_video(tmp_path / "empty.mp4", frames=0)
+    _assert_one_line_error(_track(empty, cwd=tmp_path), "empty.mp4")
+
+
+def test_tiny_resolution_is_refused(tmp_path):
+    tiny = _noise_video(tmp_path / "tiny.mp4", frames=5, size=(8, 8))
+    _assert_one_line_error(_track(tiny, cwd=tmp_path), "tiny.mp4", "small")
+
+
+def test_missing_model(tmp_path, walk_video):
+    _assert_one_line_error(_track(walk_video, "--model", tmp_path / "none.npz", cwd=tmp_path),
+                           "none.npz")
+
+
+def test_unreadable_model(tmp_path, walk_video):
+    bad = tmp_path / "junk.npz"
+    bad.write_bytes(os.urandom(2000))
+    _assert_one_line_error(_track(walk_video, "--model", bad, cwd=tmp_path), "junk.npz")
+
+
+def test_tampered_model(tmp_path, walk_video):
+    with np.load(DEFAULT_MODEL_PATH, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["coef"] = arrays["coef"] * 1.01          # a quiet edit, checksum left as it was
+    tampered = tmp_path / "tampered.npz"
+    np.savez(tampered, **arrays)
+    _assert_one_line_error(_track(walk_video, "--model", tampered, cwd=tmp_path),
+                           "tampered.npz")
+
+
+def test_output_path_that_cannot_be_written(tmp_path, walk_video):
+    _assert_one_line_error(_track(walk_video, "--out", tmp_path / "no" / "such" / "x.mcap",
+                                  cwd=tmp_path), "x.mcap")
+    _assert_one_line_error(_track(walk_video, "--json", tmp_path, cwd=tmp_path), "--json")
+
+
+def test_absurd_options(tmp_path, walk_video):
+    _assert_one_line_error(_track(walk_video, "--max-people", "0", cwd=tmp_path), "--max-people")
+    _assert_one_line_error(_track(walk_video, "--start", "5", "--end", "2", cwd=tmp_path),
+                           "--end")
+    _assert_one_line_error(_track(walk_video, "--start", "-1", cwd=tmp_path), "--start")
+    _assert_one_line_error(_track(walk_video, "--start", "999", cwd=tmp_path), "past the end")
+    _assert_one_line_error(_track(walk_video, "--bogus", cwd=tmp_path), "--bogus")
+
+
+# ------------------------------------------------------------------ odd but valid videos
+
+
+def test_nobody_in_view(tmp_path):
+    empty_scene = _noise_video(tmp_path / "scene.mp4", frames=40)
+    result = _track(empty_scene, "--json", tmp_path / "s.json", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["frames"] == 40 and summary["tracks"] == []
+
+
+def test_grayscale_and_large_videos_run(tmp_path):
+    grey = _noise_video(tmp_path / "grey.mp4", frames=10, color=False)
+    assert _track(grey, "--json", tmp_path / "g.json", cwd=tmp_path).returncode == 0
+    large = _noise_video(tmp_path / "large.mp4", frames=3, size=(2160, 3840))
+    result = _track(large, "--json", tmp_path / "l.json", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert json.loads((tmp_path / "l.json").read_text())["frames"] == 3
+
+
+# ------------------------------------------------------------------ end to end
+
+
+def test_end_to_end_on_a_rendered_walk(tmp_path, walk_video):
+    out, js, bvh = tmp_path / "walk.mcap", tmp_path / "walk.json", tmp_path / "bvh"
+    result = _track(walk_video, "--out", out, "--json", js, "--bvh", bvh, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(js.read_text())
+    assert summary["frames"] == 60
+    assert len(summary["tracks"]) == 1
+    track = summary["tracks"][0]
+    assert len(track["frames"]) >= 40                 # all but the first few frames
+    assert np.array(track["pose"]).shape == (len(track["frames"]), 55)
+    # The MCAP reads back with CRCs checked, one pose message per tracked frame.
+    with open(out, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        topics = [channel.topic for _, channel, _ in reader.iter_messages()]
+    assert topics.count("/pose") == len(track["frames"])
+    assert topics.count("/skeleton") >= len(track["frames"])
+    # The BVH parses back with our reader, one frame per tracked frame.
+    files = sorted(bvh.glob("*.bvh"))
+    assert len(files) == 1
+    motion = read_bvh(files[0], fps=None)
+    assert motion.n_frames == track["frames"][-1] - track["frames"][0] + 1
+    # Heading: the walker goes sideways past the camera (heading about +90 degrees); the
+    # filtered estimate must agree in most frames (front/back flips are allowed, not sideways).
+    truth = heading_deg(load_truth(walk_video)["pose"][track["frames"], 0])
+    diff = np.abs((np.array(track["heading_deg"]) - truth + 180) % 360 - 180)
+    assert np.median(diff) < 45
+
+
+def test_two_people_get_two_stable_tracks(tmp_path):
+    video = tmp_path / "two.mp4"
+    actors = [Actor(_walker(50, step=0.3), offset_m=(-2.5, 0.0)),
+              Actor(_walker(50, step=0.3), offset_m=(2.0, 0.0))]
+    write_video(video, actors, size=(240, 320), noise_sigma=2.0, seed=4)
+    js = tmp_path / "two.json"
+    result = _track(video, "--json", js, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    tracks = json.loads(js.read_text())["tracks"]
+    assert len(tracks) == 2
+    truth = load_truth(video)["centroid_px"]                     # (T, 2 people, 2)
+    people = []
+    for track in tracks:
+        frames = np.array(track["frames"])
+        centroid = np.array(track["centroid_px"])
+        distance = np.linalg.norm(truth[frames] - centroid[:, None, :], axis=2)   # (n, 2)
+        nearest = distance.argmin(axis=1)
+        assert np.all(nearest == nearest[0])                     # one person, all along
+        assert len(frames) >= 35
+        people.append(nearest[0])
+    assert sorted(people) == [0, 1]
+
+
+def test_interrupt_and_kill_leave_a_readable_recording(tmp_path):
+    video = tmp_path / "long.mp4"
+    write_video(video, [Actor(_walker(240, step=0.2))], size=(240, 320), noise_sigma=1.0)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    for sig, name in ((signal.SIGINT, "int"), (signal.SIGKILL, "kill")):
+        out = tmp_path / f"{name}.mcap"
+        proc = subprocess.Popen([sys.executable, "-m", "tracker.cli", str(video), "--out",
+                                 str(out), "--quiet"], env=env, stderr=subprocess.PIPE,
+                                text=True)
+        deadline = time.time() + 60
+        while time.time() < deadline and (not out.exists() or out.stat().st_size < 20000):
+            time.sleep(0.05)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+        assert "Traceback" not in err
+        if sig == signal.SIGINT:
+            assert proc.returncode == 130
+            with open(out, "rb") as f:                           # footer written: seekable
+                poses = sum(1 for _, ch, _ in make_reader(f, validate_crcs=True).iter_messages()
+                            if ch.topic == "/pose")
+            assert poses > 0
+        else:
+            report = recover_mcap(out, tmp_path / "recovered.mcap")
+            assert report.messages > 0
+            with open(tmp_path / "recovered.mcap", "rb") as f:
+                assert sum(1 for _ in make_reader(f, validate_crcs=True).iter_messages()) \
+                    == report.messages
