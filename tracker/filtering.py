@@ -20,10 +20,14 @@ from a silhouette the regressor could not disambiguate (it averaged several head
 and back views). Its R is inflated by ``ambiguous_heading_factor`` (default 25, i.e. 5x the std)
 on the heading and by ``ambiguous_joint_factor`` (default 4, 2x the std) on the other angles,
 because a front/back confusion also swaps left and right limbs, but less badly.
+
+The constant-velocity mathematics lives in :class:`ConstantVelocityFilter`, which knows nothing
+of angles: it also filters outputs without wrap-around or heading (e.g. the 63-D 3-D points of
+the paper's data, in their own units). PoseKalmanFilter adds unwrapping and ambiguity to it.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from filterpy.kalman import KalmanFilter
@@ -82,6 +86,134 @@ def _as_covariance(R, name: str) -> np.ndarray:
     return R
 
 
+def _as_matrix(R, dim: int, name: str) -> np.ndarray:
+    """R given as (dim,) variances or (dim, dim) -> a checked (dim, dim) covariance."""
+    R = np.asarray(R, float)
+    if R.shape == (dim,):
+        R = np.diag(R)
+    if R.shape != (dim, dim):
+        raise FilterError(f"{name} must have shape ({dim},) or ({dim}, {dim}), got {R.shape}")
+    if not np.isfinite(R).all() or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() <= 0:
+        raise FilterError(f"{name} must be finite, symmetric and positive definite")
+    return R
+
+
+class ConstantVelocityFilter:
+    """Kalman filter and RTS smoother for ``dim`` values, each with its rate (filterpy).
+
+    State x = [values (dim), rates (dim)] (2 dim,); F, H, Q as in the module docstring with
+    dt = 1/fps. ``R``: measurement covariance, (dim,) variances or (dim, dim), in squared value
+    units. ``q``: acceleration variances, scalar or (dim,), (units/s^2)^2. ``rate_std``: prior
+    std of the rates at the first frame, units/s. Measurements may carry their own R (e.g.
+    inflated for frames known to be unreliable). ``align(z, predicted) -> z``, if given, maps a
+    measurement (dim,) before each update, given the predicted values (dim,): angle filters
+    unwrap it there.
+    """
+
+    def __init__(self, dim: int, fps: float, R, q, rate_std: float,
+                 align: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None):
+        if not (int(dim) == dim and dim >= 1):
+            raise FilterError(f"dim={dim} must be a positive integer")
+        if not (np.isfinite(fps) and fps > 0):
+            raise FilterError(f"fps={fps} must be positive")
+        if not (np.isfinite(rate_std) and rate_std > 0):
+            raise FilterError(f"rate_std={rate_std} must be positive")
+        q = np.broadcast_to(np.asarray(q, float), (int(dim),))
+        if not (np.isfinite(q).all() and (q >= 0).all()):
+            raise FilterError("q (acceleration variances) must be finite and >= 0")
+        self.dim, self.fps, self.dt = int(dim), float(fps), 1.0 / float(fps)
+        self.R = _as_matrix(R, self.dim, "R")
+        self.q = q.copy()
+        self.rate_std = float(rate_std)
+        self.align = align
+        dt, eye = self.dt, np.eye(self.dim)
+        self.F = np.block([[eye, dt * eye], [np.zeros_like(eye), eye]])
+        self.H = np.hstack([eye, np.zeros_like(eye)])
+        self.Q = np.block([[np.diag(q * dt**4 / 4), np.diag(q * dt**3 / 2)],
+                           [np.diag(q * dt**3 / 2), np.diag(q * dt**2)]])
+
+    def start(self, z: np.ndarray, R: np.ndarray | None = None) -> KalmanFilter:
+        """A filterpy filter started at measurement z (dim,) with zero rates."""
+        R = self.R if R is None else R
+        n = self.dim
+        kf = KalmanFilter(dim_x=2 * n, dim_z=n)
+        kf.F, kf.H, kf.Q, kf.R = self.F, self.H, self.Q, self.R
+        kf.x = np.concatenate([np.asarray(z, float), np.zeros(n)])[:, None]
+        kf.P = np.zeros((2 * n, 2 * n))
+        kf.P[:n, :n] = R
+        kf.P[n:, n:] = np.eye(n) * self.rate_std**2
+        return kf
+
+    def advance(self, kf: KalmanFilter, z: np.ndarray, R: np.ndarray | None = None) -> None:
+        """One predict + update of kf with measurement z (dim,) (aligned to the prediction)."""
+        kf.predict()
+        z = np.asarray(z, float)
+        if self.align is not None:
+            z = self.align(z, kf.x[: self.dim, 0])
+        kf.update(z[:, None], R=self.R if R is None else R)
+
+    def filter(self, zs: np.ndarray, Rs: Sequence | None = None) -> np.ndarray:
+        """Forward-filtered values (T, dim) of measurements zs (T, dim); Rs: per-frame R or None."""
+        zs = self._check_sequence(zs)
+        out = np.empty_like(zs)
+        kf = None
+        for t, z in enumerate(zs):
+            R = None if Rs is None else Rs[t]
+            if kf is None:
+                kf = self.start(z, R)
+            else:
+                self.advance(kf, z, R)
+            out[t] = kf.x[: self.dim, 0]
+        return out
+
+    def smooth(self, zs: np.ndarray, Rs: Sequence | None = None, window: int = 256,
+               lag: int = 64) -> np.ndarray:
+        """Forward filter then Rauch-Tung-Striebel smoothing: values (T, dim) of zs (T, dim).
+
+        filterpy's smoother keeps four (T, 2 dim, 2 dim) arrays, so long sequences are smoothed
+        in windows of ``window`` frames, each run on ``lag`` further frames whose influence on
+        the window has decayed (exact up to that decay).
+        """
+        zs = self._check_sequence(zs)
+        if window < 1 or lag < 0:
+            raise FilterError(f"window={window} must be >= 1 and lag={lag} >= 0")
+        smoothed = np.empty_like(zs)
+        kf = None
+        for start in range(0, len(zs), window):
+            stop = min(start + window + lag, len(zs))
+            xs, ps = [], []
+            for t in range(start, stop):
+                R = None if Rs is None else Rs[t]
+                if kf is None:
+                    kf = self.start(zs[t], R)
+                else:
+                    self.advance(kf, zs[t], R)
+                xs.append(kf.x.copy())
+                ps.append(kf.P.copy())
+                if len(xs) == window:
+                    resume = (kf.x.copy(), kf.P.copy())  # the next window continues from here
+            x_smooth, _, _, _ = kf.rts_smoother(np.array(xs), np.array(ps), Fs=[self.F] * len(xs),
+                                                Qs=[self.Q] * len(xs))
+            end = min(start + window, len(zs))
+            smoothed[start:end] = x_smooth[: end - start, : self.dim, 0]
+            if stop > start + window:
+                kf.x, kf.P = resume
+        return smoothed
+
+    def _check_sequence(self, zs) -> np.ndarray:
+        zs = np.asarray(zs, float)
+        if zs.ndim != 2 or zs.shape[1] != self.dim or len(zs) == 0:
+            raise FilterError(f"measurements must have shape (T, {self.dim}), got {zs.shape}")
+        if not np.isfinite(zs).all():
+            raise FilterError("measurements contain NaN or infinity")
+        return zs
+
+
+def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
+    """Angles z (deg) shifted by whole turns to lie within 180 deg of predicted."""
+    return predicted + wrap_deg(z - predicted)
+
+
 class PoseKalmanFilter:
     """Per-track Kalman filter over the 54 pose angles (see the module docstring).
 
@@ -98,35 +230,18 @@ class PoseKalmanFilter:
             raise FilterError(f"fps={fps} must be positive")
         if min(ambiguous_heading_factor, ambiguous_joint_factor) < 1 or ambiguity_threshold < 0:
             raise FilterError("ambiguous factors must be >= 1 and ambiguity_threshold >= 0")
-        q = np.broadcast_to(np.asarray(DEFAULT_ACCEL_STD**2 if q is None else q, float),
-                            (N_ANGLES,))
-        if not (np.isfinite(q).all() and (q >= 0).all()):
-            raise FilterError("q (acceleration variances) must be finite and >= 0")
-        self.fps = float(fps)
-        self.dt = 1.0 / self.fps
-        self.R = _as_covariance(R, "R")
+        self.cv = ConstantVelocityFilter(N_ANGLES, fps, _as_covariance(R, "R"),
+                                         DEFAULT_ACCEL_STD**2 if q is None else q, rate_std,
+                                         align=_unwrap_against)
+        self.fps, self.dt, self.R = self.cv.fps, self.cv.dt, self.cv.R
+        self.F, self.H, self.Q = self.cv.F, self.cv.H, self.cv.Q
         inflate = np.full(N_ANGLES, np.sqrt(ambiguous_joint_factor))
         inflate[0] = np.sqrt(ambiguous_heading_factor)
         # Scaling std per angle keeps correlations: R_amb = D R D with D = diag(sqrt(factor)).
         self.R_ambiguous = self.R * np.outer(inflate, inflate)
         self.ambiguity_threshold = ambiguity_threshold
         self.rate_std = rate_std
-        dt, eye = self.dt, np.eye(N_ANGLES)
-        self.F = np.block([[eye, dt * eye], [np.zeros_like(eye), eye]])
-        self.H = np.hstack([eye, np.zeros_like(eye)])
-        self.Q = np.block([[np.diag(q * dt**4 / 4), np.diag(q * dt**3 / 2)],
-                           [np.diag(q * dt**3 / 2), np.diag(q * dt**2)]])
         self._kf: KalmanFilter | None = None
-
-    def _new_filter(self, angles: np.ndarray, R: np.ndarray) -> KalmanFilter:
-        """A filterpy filter started at ``angles`` (54,) deg with zero rates."""
-        kf = KalmanFilter(dim_x=2 * N_ANGLES, dim_z=N_ANGLES)
-        kf.F, kf.H, kf.Q, kf.R = self.F, self.H, self.Q, self.R
-        kf.x = np.concatenate([angles, np.zeros(N_ANGLES)])[:, None]
-        kf.P = np.zeros((2 * N_ANGLES, 2 * N_ANGLES))
-        kf.P[:N_ANGLES, :N_ANGLES] = R
-        kf.P[N_ANGLES:, N_ANGLES:] = np.eye(N_ANGLES) * self.rate_std**2
-        return kf
 
     def _measure(self, raw55) -> tuple[np.ndarray, np.ndarray, bool]:
         """Check one raw pose; returns (angles (54,), R to use, ambiguous)."""
@@ -140,13 +255,6 @@ class PoseKalmanFilter:
         ambiguous = bool(norm < self.ambiguity_threshold)
         return angles, (self.R_ambiguous if ambiguous else self.R), ambiguous
 
-    def _predict_update(self, kf: KalmanFilter, angles: np.ndarray, R: np.ndarray) -> None:
-        """One filter step with the measurement unwrapped to within 180 deg of the prediction."""
-        kf.predict()
-        predicted = kf.x[:N_ANGLES, 0]
-        z = predicted + wrap_deg(angles - predicted)
-        kf.update(z[:, None], R=R)
-
     def reset(self) -> None:
         """Forget the track: the next :meth:`step` starts afresh."""
         self._kf = None
@@ -155,13 +263,20 @@ class PoseKalmanFilter:
         """Filter one raw regressor output (55,) -> (filtered pose (55,), ambiguous flag)."""
         angles, R, ambiguous = self._measure(raw55)
         if self._kf is None:
-            self._kf = self._new_filter(angles, R)
+            self._kf = self.cv.start(angles, R)
         else:
-            self._predict_update(self._kf, angles, R)
+            self.cv.advance(self._kf, angles, R)
             # Shifting angles by whole turns changes nothing (measurements are unwrapped against
             # the prediction) and keeps the state bounded on long clips.
             self._kf.x[:N_ANGLES] -= 360.0 * np.round(self._kf.x[:N_ANGLES] / 360.0)
         return angles_to_pose(self._kf.x[:N_ANGLES, 0]), ambiguous
+
+    def filter(self, raws: Sequence | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Forward-filter a whole track: raws (T, 55) -> (filtered poses (T, 55), ambiguous
+        flags (T,) bool). Same results as :meth:`step` frame by frame from a reset; does not
+        touch the state used by :meth:`step`."""
+        angles, Rs, ambiguous = self._measure_all(raws, "filter")
+        return angles_to_pose(self.cv.filter(angles, Rs)), ambiguous
 
     def rts_smooth(self, raws: Sequence | np.ndarray, window: int = 256,
                    lag: int = 64) -> np.ndarray:
@@ -173,30 +288,15 @@ class PoseKalmanFilter:
         ``lag`` further frames whose influence on the window has decayed (exact up to that
         decay; the tests bound it).
         """
-        raws = np.asarray(raws, float)
-        if raws.ndim != 2 or raws.shape[1] != POSE_DIM or len(raws) == 0:
-            raise FilterError(f"rts_smooth needs poses of shape (T, 55), got {raws.shape}")
         if window < 1 or lag < 0:
             raise FilterError(f"window={window} must be >= 1 and lag={lag} >= 0")
-        measurements = [self._measure(raw) for raw in raws]
-        smoothed = np.empty((len(raws), N_ANGLES))
-        kf = None
-        for start in range(0, len(raws), window):
-            stop = min(start + window + lag, len(raws))
-            xs, ps = [], []
-            for angles, R, _ in measurements[start:stop]:
-                if kf is None:
-                    kf = self._new_filter(angles, R)
-                else:
-                    self._predict_update(kf, angles, R)
-                xs.append(kf.x.copy())
-                ps.append(kf.P.copy())
-                if len(xs) == window:
-                    resume = (kf.x.copy(), kf.P.copy())  # the next window continues from here
-            x_smooth, _, _, _ = kf.rts_smoother(np.array(xs), np.array(ps), Fs=[self.F] * len(xs),
-                                                Qs=[self.Q] * len(xs))
-            end = min(start + window, len(raws))
-            smoothed[start:end] = x_smooth[: end - start, :N_ANGLES, 0]
-            if stop > start + window:
-                kf.x, kf.P = resume
-        return angles_to_pose(smoothed)
+        angles, Rs, _ = self._measure_all(raws, "rts_smooth")
+        return angles_to_pose(self.cv.smooth(angles, Rs, window=window, lag=lag))
+
+    def _measure_all(self, raws, name: str) -> tuple[np.ndarray, list, np.ndarray]:
+        raws = np.asarray(raws, float)
+        if raws.ndim != 2 or raws.shape[1] != POSE_DIM or len(raws) == 0:
+            raise FilterError(f"{name} needs poses of shape (T, 55), got {raws.shape}")
+        measured = [self._measure(raw) for raw in raws]
+        return (np.array([m[0] for m in measured]), [m[1] for m in measured],
+                np.array([m[2] for m in measured], bool))
