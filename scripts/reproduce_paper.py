@@ -4,7 +4,8 @@
 
 Every hyperparameter (descriptor transform, damping, kernel width, RVM noise and cost, stacking
 depth) is chosen by blocked cross-validation on the 1927 training frames (5 contiguous blocks);
-the RVM picks the lowest-error setting whose fold models keep <= 10% of their training frames.
+the RVMs pick the lowest-error setting within a sparsity budget (kernel: fold models keep <= 10%
+of their training frames; linear: <= 30% of the features).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from regressor.stacking import stack_frames
 
 TRAIN_STARTS = [0, 100, 336, 405, 471, 1530, 1768]   # the 7 training sequences (README)
 RV_BUDGET = 0.10                                     # kernel RVM: keep <= 10% of training frames
+FEATURE_BUDGET = 0.30                                # linear RVM: keep <= 30 of the 100 features
 
 
 class MeanPose:
@@ -52,13 +54,14 @@ class NearestNeighbours:
         return self.Y_[np.argsort(d2, axis=1)[:, :self.k]].mean(1)
 
 
-def choose(make, grid, X, Y, folds, budget=None, log=print):
+def choose(make, grid, X, Y, folds, budget=None, features=False, log=print):
     """The grid point (dict) with the lowest CV error; with a budget, among those whose fold
-    models keep <= budget of their training rows (else the sparsest)."""
+    models keep <= budget of their candidate bases (training rows, or features if features)
+    (else the sparsest)."""
     results = []
     for params in grid:
         err, models = cross_validate(lambda: make(**params), X, Y, folds)
-        frac = max(m.n_basis_ / (len(X) - len(f)) for m, f in zip(models, folds))
+        frac = max(m.n_basis_ / (X.shape[1] if features else len(X) - len(f)) for m, f in zip(models, folds))
         log(f"    {params}: cv error {err:.3f}, kept {100 * frac:.1f}%")
         results.append((err, frac, params))
     ok = [r for r in results if budget is None or r[1] <= budget] or [min(results, key=lambda r: r[1])]
@@ -84,14 +87,15 @@ def main() -> None:
         lambda: DLSRegressor("gaussian", lam=1e-2, width_scale=0.5), transforms[t](Xraw), Y, folds)[0])
     X, X_test = transforms[tname](Xraw), transforms[tname](Xraw_test)
     print(f"  descriptor transform: {tname}")
-    print("  linear DLS"); lin = choose(lambda **p: DLSRegressor("linear", **p), grid(lam=[1e-4, 1e-3, 1e-2, 1e-1]), X, Y, folds)
+    print("  linear DLS"); lin = choose(lambda **p: DLSRegressor("linear", **p), grid(lam=[1e-3, 1e-2, 1e-1, 1.0]), X, Y, folds)
     print("  linear RVM"); lrvm = choose(lambda **p: RVMRegressor("linear", output_scale="common", **p),
-                                        grid(min_gain=[0.0, 50.0, 200.0]), X, Y, folds)
+                                        grid(min_gain=[300.0, 1000.0, 3000.0]), X, Y, folds,
+                                        budget=FEATURE_BUDGET, features=True)
     print("  kernel DLS"); kdls = choose(lambda **p: DLSRegressor("gaussian", **p),
                                         grid(width_scale=[0.25, 0.5, 1.0], lam=[1e-3, 1e-2]), X, Y, folds)
     print("  kernel RVM"); krvm = choose(lambda **p: RVMRegressor("gaussian", output_scale="common", **p),
-                                        grid(width_scale=[kdls["width_scale"]], noise=[0.03, 0.1],
-                                             min_gain=[100.0, 200.0, 400.0]), X, Y, folds, budget=RV_BUDGET)
+                                        grid(width_scale=[kdls["width_scale"]], noise=[0.03, 0.05, 0.1],
+                                             min_gain=[200.0, 400.0, 800.0]), X, Y, folds, budget=RV_BUDGET)
     stacked = {k: stack_frames(X, k, sequence_starts=TRAIN_STARTS) for k in (2, 3, 4)}
     print("  stacking depth")
     depth = min(stacked, key=lambda k: cross_validate(
