@@ -1,0 +1,381 @@
+"""Accuracy and jitter of pose estimates over whole sequences: four methods against ground truth.
+
+Methods, all on the same frames:
+  per_frame  a k = 1 regressor, frame by frame (the paper's regressor);
+  stacked    the stacked (k > 1) regressor's raw output;
+  kalman     stacked + the forward Kalman filter (what ``track`` streams);
+  smoothed   stacked + Rauch-Tung-Striebel smoothing (``track --smooth``).
+
+Sequences come in two kinds. Joint angles (units "deg"): a CMU BVH motion rendered with our body
+from a fixed camera (optionally as a spiral walk), estimates as 55-D pose vectors, compared as 54
+angles (heading from (cos, sin), then the 53 joint angles). 3-D points (units "units"): the
+paper's released spiral walk, 63-D, regressors trained on its training split here.
+
+Measures (regressor.metrics, DESIGN.md): error (mean angular / point error), jitter (mean
+|second difference|) beside the truth's own, acceleration error (jitter of estimate - truth),
+heading RMS (angles only), error per body part (angles) or per point (points).
+"""
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import scipy.io
+
+from regressor.metrics import (acceleration_error, angle_jitter, angular_error,
+                               contiguous_folds, mean_point_error, point_jitter, rms_per_angle,
+                               wrap_degrees)
+from regressor.pose_model import PoseModel
+from regressor.rvm import RVMRegressor
+from regressor.stacking import stack_frames
+from sequences.body import Skinner, ground_sequence, load_body, sample_body_shapes
+from sequences.bvh import read_bvh
+from sequences.pose_vector import PART_OF_ENTRY, motion_to_pose_vectors
+from sequences.render import silhouette_mask
+from sequences.spiral import line_of_sight_azimuth, spiral_walk
+from sequences.video import Actor, fitted_camera, load_truth, write_video
+from .filtering import ConstantVelocityFilter, PoseKalmanFilter, pose_to_angles
+from .pipeline import PoseTracker
+from .silhouettes import median_background
+from .video import open_video
+
+METHODS = ("per_frame", "stacked", "kalman", "smoothed")
+ANKUR_TRAIN_STARTS = (0, 100, 336, 405, 471, 1530, 1768)   # the 7 training sequences (README)
+LARGE_HEADING_ERROR_DEG = 45.0   # a heading error this large is a wrong view, not noise
+_CROP_MARGIN_PX = 2
+_BACKGROUND_SAMPLES = 25
+
+
+class EvaluationError(ValueError):
+    """An input the evaluation cannot use (file, option, sequence); one-line message."""
+
+
+@dataclass
+class EvaluatedSequence:
+    """Estimates of every method on one sequence, aligned frame by frame with the truth.
+
+    units: "deg" (truth and estimates are (T, 55) pose vectors) or "units" ((T, 3P) points);
+    estimates: method name -> array shaped like truth; heading_norm: (T,) ||(cos, sin)|| of the
+    stacked raw estimate (angles only, else None); ambiguous: (T,) bool, heading_norm below the
+    filter's threshold (angles only); ambiguous_per_frame: the same for the per_frame
+    estimate's own heading norm; settings: how the sequence and methods were made.
+    """
+
+    name: str
+    units: str
+    truth: np.ndarray
+    estimates: dict[str, np.ndarray]
+    heading_norm: np.ndarray | None = None
+    ambiguous: np.ndarray | None = None
+    ambiguous_per_frame: np.ndarray | None = None
+    settings: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FilterOptions:
+    """Kalman settings for pose sequences. r_scale/q_scale multiply the model's measurement
+    covariance (deg^2) and process noise ((deg/s^2)^2); the rest are PoseKalmanFilter's."""
+
+    ambiguity_threshold: float = 0.5
+    ambiguous_heading_factor: float = 25.0
+    ambiguous_joint_factor: float = 4.0
+    r_scale: float = 1.0
+    q_scale: float = 1.0
+
+    def make(self, model: PoseModel, fps: float) -> PoseKalmanFilter:
+        """A PoseKalmanFilter with the model's noise models, scaled."""
+        return PoseKalmanFilter(fps, R=model.measurement_covariance * self.r_scale,
+                                q=model.process_noise * self.q_scale,
+                                ambiguity_threshold=self.ambiguity_threshold,
+                                ambiguous_heading_factor=self.ambiguous_heading_factor,
+                                ambiguous_joint_factor=self.ambiguous_joint_factor)
+
+
+@dataclass(frozen=True)
+class CameraOptions:
+    """The fixed camera and video: size (height, width) px, azimuth/elevation degrees, distance
+    metres, fps, body shape and noise seed, sensor noise (grey levels, videos only)."""
+
+    size: tuple[int, int] = (240, 320)
+    azimuth_deg: float = 0.0
+    elevation_deg: float = 8.0
+    distance_m: float = 9.0
+    fps: float = 30.0
+    seed: int = 0
+    noise_sigma: float = 2.0
+
+
+@dataclass(frozen=True)
+class AnkurOptions:
+    """Regressor and filter settings for the paper's data, chosen on its training split only.
+
+    Kernel RVM (regressor.rvm, "common" output scale) on sqrt descriptors; stack_depth: k of
+    the stacked method. The filter's R is the covariance of held-out residuals over cv_folds
+    contiguous training blocks (diagonal), times r_scale; q is the variance of the training
+    poses' second differences (times fps^4, q_scale): nominal fps, the data has no time base.
+    """
+
+    width_scale: float = 0.5
+    noise: float = 0.03
+    min_gain: float = 100.0
+    stack_depth: int = 3
+    cv_folds: int = 3
+    fps: float = 30.0
+    r_scale: float = 1.0
+    q_scale: float = 1.0
+
+
+# ---------------------------------------------------------------- measures
+
+def pose_angles(poses: np.ndarray) -> np.ndarray:
+    """Pose vectors (T, 55) -> the 54 compared angles (T, 54) deg: heading, then entries 2..54."""
+    return pose_to_angles(np.asarray(poses, float))[0]
+
+
+def angle_parts() -> list[str]:
+    """Body part of each of the 54 compared angles (heading, torso, head, arms, legs)."""
+    return ["heading"] + list(PART_OF_ENTRY[2:])
+
+
+def measure_angles(est: np.ndarray, truth: np.ndarray) -> dict:
+    """Measures of estimated pose vectors est (T, 55) against truth (T, 55); degrees."""
+    a, b = pose_angles(est), pose_angles(truth)
+    err = np.abs(wrap_degrees(a - b))                       # (T, 54)
+    parts = np.array(angle_parts())
+    return {"error": angular_error(a, b), "jitter": angle_jitter(a),
+            "accel_error": acceleration_error(a, b),
+            "heading_rms_deg": float(rms_per_angle(a[:, :1], b[:, :1])[0]),
+            "per_part": {p: float(err[:, parts == p].mean()) for p in dict.fromkeys(parts)}}
+
+
+def measure_points(est: np.ndarray, truth: np.ndarray) -> dict:
+    """Measures of estimated points est (T, 3P) against truth (T, 3P); data units."""
+    dist = np.linalg.norm((est - truth).reshape(len(est), -1, 3), axis=2)   # (T, P)
+    return {"error": mean_point_error(est, truth), "jitter": point_jitter(est),
+            "accel_error": point_jitter(est - truth),
+            "per_part": {f"point {j}": float(d) for j, d in enumerate(dist.mean(0))}}
+
+
+def evaluate(seq: EvaluatedSequence) -> dict:
+    """The evaluation record (JSON-ready): sequence, frames, units, ground_truth_jitter, methods
+    {name: error, jitter, accel_error, [heading_rms_deg], per_part}, and for angles the
+    ambiguity analysis of :func:`heading_ambiguity`."""
+    angles = seq.units == "deg"
+    measure = measure_angles if angles else measure_points
+    out = {"sequence": seq.name, "frames": int(len(seq.truth)), "units": seq.units,
+           "ground_truth_jitter": (angle_jitter(pose_angles(seq.truth)) if angles
+                                   else point_jitter(seq.truth)),
+           "methods": {m: measure(seq.estimates[m], seq.truth) for m in METHODS
+                       if m in seq.estimates}}
+    if angles and seq.ambiguous is not None:
+        flags = {"per_frame": seq.ambiguous_per_frame, "stacked": seq.ambiguous,
+                 "kalman": seq.ambiguous}
+        out["ambiguity"] = {m: heading_ambiguity(seq.estimates[m], seq.truth, flags[m])
+                            for m in flags if m in seq.estimates and flags[m] is not None}
+    out["settings"] = seq.settings
+    return out
+
+
+def heading_errors(est: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Wrapped heading error (T,) deg of pose vectors est (T, 55) against truth (T, 55)."""
+    return wrap_degrees(pose_angles(est)[:, 0] - pose_angles(truth)[:, 0])
+
+
+def heading_ambiguity(est: np.ndarray, truth: np.ndarray, ambiguous: np.ndarray,
+                      large_deg: float = LARGE_HEADING_ERROR_DEG) -> dict:
+    """Do ambiguous frames carry the large heading errors? est, truth (T, 55); ambiguous (T,)
+    bool. Returns counts and shares: ambiguous frames, frames with |heading error| > large_deg,
+    the share of those that are ambiguous, and heading RMS (deg) in each kind of frame."""
+    err = np.abs(heading_errors(est, truth))
+    amb = np.asarray(ambiguous, bool)
+    large = err > large_deg
+
+    def rms(sel):
+        return float(np.sqrt((err[sel] ** 2).mean())) if sel.any() else None
+
+    return {"frames": int(len(err)), "ambiguous_frames": int(amb.sum()),
+            "ambiguous_share": float(amb.mean()), "large_deg": large_deg,
+            "large_error_frames": int(large.sum()),
+            "large_errors_in_ambiguous": int((large & amb).sum()),
+            "share_of_large_in_ambiguous": float((large & amb).sum() / large.sum())
+            if large.any() else None,
+            "heading_rms_ambiguous_deg": rms(amb), "heading_rms_unambiguous_deg": rms(~amb)}
+
+
+# ---------------------------------------------------------------- the paper's data
+
+def load_ankur(path: str | Path) -> dict[str, np.ndarray]:
+    """The paper's data: Y (1927, 100), Z (1927, 63), Y_test (418, 100), Z_test (418, 63)."""
+    try:
+        d = scipy.io.loadmat(str(path))
+        data = {k: np.asarray(d[k], float) for k in ("Y", "Z", "Y_test", "Z_test")}
+    except (OSError, ValueError, KeyError) as exc:
+        raise EvaluationError(f"{path}: not the paper's data file ({exc})") from exc
+    if data["Y"].shape[0] != data["Z"].shape[0] or data["Z"].shape[1] % 3:
+        raise EvaluationError(f"{path}: descriptor and pose rows do not match")
+    return data
+
+
+def _ankur_regressor(o: AnkurOptions) -> RVMRegressor:
+    return RVMRegressor("gaussian", output_scale="common", width_scale=o.width_scale,
+                        noise=o.noise, min_gain=o.min_gain)
+
+
+def ankur_noise_models(X: np.ndarray, Z: np.ndarray, o: AnkurOptions) -> tuple[np.ndarray, np.ndarray]:
+    """Filter noise from the training split only: R (63,) held-out residual variances over
+    o.cv_folds contiguous blocks of stacked descriptors X (N, kD); q (63,) variance of the
+    poses' within-sequence second differences, times fps^4 ((units/s^2)^2)."""
+    residuals = np.empty_like(Z)
+    for hold in contiguous_folds(len(X), o.cv_folds):
+        train = np.ones(len(X), bool)
+        train[hold] = False
+        residuals[hold] = _ankur_regressor(o).fit(X[train], Z[train]).predict(X[hold]) - Z[hold]
+    ids = np.cumsum(np.isin(np.arange(len(Z)), ANKUR_TRAIN_STARTS)) - 1
+    d2 = Z[2:] - 2 * Z[1:-1] + Z[:-2]
+    same = (ids[2:] == ids[:-2])                     # second differences inside one sequence
+    q = d2[same].var(axis=0) * o.fps**4
+    return residuals.var(axis=0) * o.r_scale, q * o.q_scale
+
+
+def ankur_sequence(path: str | Path, options: AnkurOptions = AnkurOptions(),
+                   frames: int | None = None) -> EvaluatedSequence:
+    """Train on the paper's training split and estimate its test spiral walk with every method.
+    frames: evaluate only the first frames of the test sequence (tests)."""
+    d = load_ankur(path)
+    X, Xt = np.sqrt(d["Y"]), np.sqrt(d["Y_test"][:frames])
+    Z, Zt = d["Z"], d["Z_test"][:frames]
+    k = options.stack_depth
+    Xk = stack_frames(X, k, sequence_starts=list(ANKUR_TRAIN_STARTS))
+    per_frame = _ankur_regressor(options).fit(X, Z).predict(Xt)
+    stacked_model = _ankur_regressor(options).fit(Xk, Z)
+    stacked = stacked_model.predict(stack_frames(Xt, k))
+    R, q = ankur_noise_models(Xk, Z, options)
+    cv = ConstantVelocityFilter(Z.shape[1], options.fps, R, q, rate_std=float(np.sqrt(q.mean())))
+    return EvaluatedSequence(
+        "ankur spiral walk (test)", "units", Zt,
+        {"per_frame": per_frame, "stacked": stacked, "kalman": cv.filter(stacked),
+         "smoothed": cv.smooth(stacked)},
+        settings={"source": str(path), "regressor": "kernel RVM on sqrt descriptors",
+                  **options.__dict__, "relevance_vectors": int(stacked_model.n_basis_)})
+
+
+# ---------------------------------------------------------------- rendered CMU motion
+
+def cmu_motion(bvh: str | Path, spiral_deg_per_s: float | None, fps: float = 30.0):
+    """A BVH motion at fps, optionally turned into a spiral walk (sequences.spiral)."""
+    motion = read_bvh(bvh, fps=fps)
+    return spiral_walk(motion, spiral_deg_per_s) if spiral_deg_per_s else motion
+
+
+def render_silhouettes(motion, camera: CameraOptions) -> tuple[list[np.ndarray], np.ndarray]:
+    """Silhouettes of the motion from the fixed camera a video of it would use (same body
+    shape, ground path, camera fit as sequences.video.write_video), each cropped to the person.
+
+    Returns (masks: list of (h, w) bool crops, truth pose vectors (T, 55) relative to the line
+    of sight)."""
+    body = load_body()
+    shape = sample_body_shapes(1, seed=camera.seed)[0]
+    skinner = Skinner(body, offsets=motion.offsets, names=motion.names,
+                      end_sites=motion.end_sites, shape=shape)
+    root = skinner.root_from_bvh(motion.root_position)
+    verts = skinner.pose(motion.local_rotations(), root)
+    grounded = ground_sequence(verts)
+    hips = root + (grounded[0, 0] - verts[0, 0])
+    cam = fitted_camera(grounded[:, ::7].reshape(-1, 3), camera.size, camera.azimuth_deg,
+                        camera.elevation_deg, camera.distance_m)
+    truth = motion_to_pose_vectors(motion, line_of_sight_azimuth(hips, cam.position))
+    masks = []
+    for t, v in enumerate(grounded):
+        mask = silhouette_mask(v, body.faces, body.patch_start, cam)
+        ys, xs = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
+        if not len(ys):
+            raise EvaluationError(f"{motion.source}: frame {t} leaves the camera's view")
+        m = _CROP_MARGIN_PX
+        masks.append(np.pad(mask[ys[0]:ys[-1] + 1, xs[0]:xs[-1] + 1], m))
+    return masks, truth
+
+
+def _model_poses(model: PoseModel, masks: list[np.ndarray]) -> np.ndarray:
+    """Raw poses (T, 55) of one sequence of masks by a model, stacking its own descriptors."""
+    X = np.array([model.describe(m) for m in masks])
+    return model.predict_batch(stack_frames(X, model.stack_depth))
+
+
+def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: PoseModel,
+                      spiral_deg_per_s: float | None = None, camera: CameraOptions = CameraOptions(),
+                      filt: FilterOptions = FilterOptions(), frames: int | None = None,
+                      ) -> EvaluatedSequence:
+    """A CMU motion rendered from a fixed camera, estimated by each method from its silhouettes
+    directly (no video, no background subtraction). frames: keep only the first frames."""
+    motion = cmu_motion(bvh, spiral_deg_per_s, camera.fps)
+    if frames is not None:
+        motion = replace(motion, euler_deg=motion.euler_deg[:frames],
+                         root_position=motion.root_position[:frames])
+    masks, truth = render_silhouettes(motion, camera)
+    raw = _model_poses(stacked_model, masks)
+    name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
+    return _pose_sequence(name, truth, _model_poses(per_frame_model, masks), raw,
+                          filt.make(stacked_model, camera.fps), filt,
+                          {"path": "rendered silhouettes", "camera": camera.__dict__})
+
+
+def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, filt: FilterOptions,
+                   settings: dict, kalman=None) -> EvaluatedSequence:
+    filtered, ambiguous = kf.filter(raw)
+    return EvaluatedSequence(
+        name, "deg", truth,
+        {"per_frame": per_frame, "stacked": raw,
+         "kalman": filtered if kalman is None else kalman, "smoothed": kf.rts_smooth(raw)},
+        heading_norm=pose_to_angles(raw)[1], ambiguous=ambiguous,
+        ambiguous_per_frame=pose_to_angles(per_frame)[1] < filt.ambiguity_threshold,
+        settings={**settings, "filter": filt.__dict__})
+
+
+def track_video(video: Path, model: PoseModel, ambiguity_threshold: float):
+    """Run the ``track`` pipeline on a one-person video: (frame indices (n,), raw (n, 55),
+    filtered (n, 55), the track's PoseKalmanFilter) of its longest track."""
+    source = open_video(video)
+    tracker = PoseTracker(model, source.fps, (source.width, source.height), max_people=1,
+                          ambiguity_threshold=ambiguity_threshold)
+    tracker.prime(median_background(source.sample_frames(_BACKGROUND_SAMPLES)))
+    by_track: dict[int, list] = {}
+    for index, time_s, frame in source:
+        for pose in tracker.process(index, time_s, frame):
+            by_track.setdefault(pose.track_id, []).append(pose)
+    if not by_track:
+        raise EvaluationError(f"{video}: nobody was tracked")
+    track_id = max(by_track, key=lambda t: len(by_track[t]))
+    poses = by_track[track_id]
+    return (np.array([p.frame_index for p in poses]), np.array([p.raw for p in poses]),
+            np.array([p.filtered for p in poses]), tracker.tracks[track_id].kalman)
+
+
+def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: PoseModel,
+                   spiral_deg_per_s: float | None = None, camera: CameraOptions = CameraOptions(),
+                   filt: FilterOptions = FilterOptions(), frames: int | None = None,
+                   video: Path | None = None) -> EvaluatedSequence:
+    """The motion written as an mp4 (sequences.video) and run through the real ``track``
+    pipeline (background subtraction, association, stacking, filter); kalman is the pipeline's
+    own filtered output, so only filt.ambiguity_threshold applies to it. Evaluated on the frames
+    of the longest track that both models tracked. video: where to write (default temporary)."""
+    motion = cmu_motion(bvh, spiral_deg_per_s, camera.fps)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(video) if video is not None else Path(tmp) / "evaluation.mp4"
+        write_video(path, [Actor(motion, shape=sample_body_shapes(1, seed=camera.seed)[0])],
+                    size=camera.size, fps=camera.fps, azimuth_deg=camera.azimuth_deg,
+                    elevation_deg=camera.elevation_deg, distance_m=camera.distance_m,
+                    noise_sigma=camera.noise_sigma, seed=camera.seed, n_frames=frames)
+        truth = load_truth(path)["pose"][:, 0]
+        idx, raw, filtered, kf = track_video(path, stacked_model, filt.ambiguity_threshold)
+        idx1, raw1, _, _ = track_video(path, per_frame_model, filt.ambiguity_threshold)
+    common, a, b = np.intersect1d(idx, idx1, return_indices=True)
+    if len(common) < 3:
+        raise EvaluationError(f"{bvh}: fewer than 3 frames were tracked")
+    name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
+    seq = _pose_sequence(name, truth[common], raw1[b], raw[a], kf, filt,
+                         {"path": "video through track", "camera": camera.__dict__,
+                          "frames_in_video": int(len(truth)), "frames_tracked": int(len(common))},
+                         kalman=filtered[a])
+    return seq
