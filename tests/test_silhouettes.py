@@ -151,7 +151,8 @@ def test_component_reproduced_exactly_at_equal_resolution():
     blobs = cv2.GaussianBlur(rng.random((60, 80)).astype(np.float32), (0, 0), 2.5) > 0.5
     mask = blobs.astype(np.uint8) * 255
     count, labels = cv2.connectedComponents(mask, connectivity=8)
-    people = person_masks(mask, (80, 60), min_area_fraction=0.0, max_hole_fraction=0.0)
+    people = person_masks(mask, (80, 60), min_area_fraction=0.0, max_hole_fraction=0.0,
+                          merge_fragments=False)
     assert len(people) == count - 1
     for person in people:
         x, y, w, h = person.bbox
@@ -195,3 +196,21 @@ def test_bad_settings_are_refused(options):
 def test_gray_frame_array_is_refused():
     with pytest.raises(SilhouetteError, match=r"BGR uint8 \(H, W, 3\)"):
         BackgroundSubtractor().apply(np.zeros((48, 64), np.uint8))
+
+
+def test_person_cut_at_the_waist_is_joined_into_one():
+    mask = np.zeros((120, 160), np.uint8)
+    mask[10:50, 70:90] = 255          # upper body
+    mask[54:110, 72:88] = 255         # legs, 4 px below: subtraction lost the waist
+    mask[20:100, 10:25] = 255         # another person, side by side: stays separate
+    people = person_masks(mask, (160, 120), min_area_fraction=0.01)
+    assert len(people) == 2
+    joined = max(people, key=lambda p: p.bbox[3] * p.bbox[2] if p.bbox[0] > 50 else 0)
+    assert joined.bbox == (70, 10, 20, 100)
+    # The gap is bridged: one outline, every row of the person has foreground.
+    assert joined.mask.any(axis=1).all()
+    contours, _ = cv2.findContours(joined.mask.astype(np.uint8), cv2.RETR_EXTERNAL,
+                                   cv2.CHAIN_APPROX_SIMPLE)
+    assert len(contours) == 1
+    separate = person_masks(mask, (160, 120), min_area_fraction=0.01, merge_fragments=False)
+    assert len(separate) == 3

@@ -192,11 +192,26 @@ def test_end_to_end_on_a_rendered_walk(tmp_path, walk_video):
     assert len(files) == 1
     motion = read_bvh(files[0], fps=None)
     assert motion.n_frames == track["frames"][-1] - track["frames"][0] + 1
-    # Heading: the walker goes sideways past the camera (heading about +90 degrees); the
-    # filtered estimate must agree in most frames (front/back flips are allowed, not sideways).
-    truth = heading_deg(load_truth(walk_video)["pose"][track["frames"], 0])
-    diff = np.abs((np.array(track["heading_deg"]) - truth + 180) % 360 - 180)
-    assert np.median(diff) < 45
+
+
+def test_accuracy_on_held_out_real_walk(tmp_path, cmu_bvh_dir):
+    """16_11 (never trained on) seen from 60 degrees: joint angles and heading near the truth."""
+    video = tmp_path / "16_11.mp4"
+    write_video(video, [Actor(read_bvh(cmu_bvh_dir / "16_11.bvh"))], size=(240, 320),
+                azimuth_deg=60.0, noise_sigma=2.0, seed=3, n_frames=90)
+    js = tmp_path / "16_11.json"
+    result = _track(video, "--json", js, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    (track,) = json.loads(js.read_text())["tracks"]
+    frames = np.array(track["frames"])
+    assert len(frames) >= 85
+    pose = np.array(track["pose"])
+    truth = load_truth(video)["pose"][frames, 0]
+    joint_error = np.abs((pose[:, 2:] - truth[:, 2:] + 180) % 360 - 180).mean()
+    heading_error = np.abs((heading_deg(pose) - heading_deg(truth) + 180) % 360 - 180)
+    # Measured 5.8 deg and a 7 deg median heading error; a broken pipeline gives 25+ and ~90.
+    assert joint_error < 10.0
+    assert np.median(heading_error) < 30.0
 
 
 def test_two_people_get_two_stable_tracks(tmp_path):

@@ -111,7 +111,8 @@ def _open_sinks(args, source, model) -> tuple[list, list]:
         if args.json is not None:
             later.append(JsonSummarySink(args.json, source.fps))
         if args.bvh is not None:
-            later.append(BVHSink(args.bvh, source.fps, prefix=args.video.stem))
+            # Tracks of a few frames are subtraction glitches, not people worth a file.
+            later.append(BVHSink(args.bvh, source.fps, prefix=args.video.stem, min_frames=5))
         if args.view:
             from .meshcat_view import MeshcatView  # deferred: starts a server process
             streaming.append(MeshcatView())
@@ -203,6 +204,11 @@ def _print_summary(args, source, tracker, frames, elapsed, interrupted) -> None:
 def main(argv=None) -> int:
     """Entry point of the ``track`` console script."""
     args = build_parser().parse_args(argv)
+    if not os.environ.get("TRACK_DEBUG"):
+        # FFmpeg's own complaints ("moov atom not found") would repeat our one-line error in
+        # its words; both variables are read when the first video is opened.
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+        os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
     # SIGTERM stops like Ctrl-C: outputs are closed, not cut off.
     signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:

@@ -152,7 +152,8 @@ def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5) -> np.ndar
 
 
 def person_masks(mask: np.ndarray, frame_size: tuple[int, int], min_area_fraction: float = 0.003,
-                 max_hole_fraction: float = 0.002) -> list[PersonMask]:
+                 max_hole_fraction: float = 0.002, merge_fragments: bool = True
+                 ) -> list[PersonMask]:
     """Split a cleaned foreground mask into one :class:`PersonMask` per 8-connected component.
 
     ``mask``: uint8 (h, w) at the working size, 255 = foreground. ``frame_size``: (width, height)
@@ -161,6 +162,8 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int], min_area_fractio
     are dropped as clutter. ``max_hole_fraction``: holes (enclosed background) up to this fraction
     of the image are filled as subtraction dropouts; larger ones are kept, because a gap such as
     between an arm on the hip and the torso is real background the pose depends on.
+    ``merge_fragments``: join components that look like pieces of one person (see
+    :func:`_fragment_groups`); False gives exactly one person per component.
     Returns people sorted by area, largest first. Two people touching form one component.
     """
     height, width = mask.shape
@@ -176,27 +179,67 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int], min_area_fractio
     # perimeter; the gate only needs to reject clutter, the reported area is counted exactly.
     outers = np.flatnonzero((parents == -1) & (areas >= min_area_fraction * image_area))
     big_holes = np.flatnonzero((parents != -1) & (areas > max_hole_fraction * image_area))
+    rects = np.array([cv2.boundingRect(contours[o]) for o in outers]).reshape(-1, 4)
     people = []
-    for outer in outers:
-        holes = [contours[h] for h in big_holes if parents[h] == outer]
-        people.append(_person_from_contour(contours, outer, holes, mask.shape, frame_size))
+    groups = _fragment_groups(rects) if merge_fragments else [[i] for i in range(len(rects))]
+    for group in groups:
+        members = [int(outers[g]) for g in group]
+        holes = [contours[h] for h in big_holes if parents[h] in members]
+        people.append(_person_from_contours(contours, members, holes, mask.shape, frame_size))
     return sorted((p for p in people if p is not None), key=lambda p: -p.area)
 
 
-def _person_from_contour(contours, outer: int, holes: list[np.ndarray], shape: tuple[int, int],
-                         frame_size: tuple[int, int]) -> PersonMask | None:
-    """Rasterize one component (minus its kept holes) and scale it to frame pixels."""
+def _fragment_groups(rects: np.ndarray, min_overlap: float = 0.5,
+                     max_gap: float = 0.25) -> list[list[int]]:
+    """Group the components (bounding rects (n, 4) x, y, w, h px) that are pieces of one
+    person: where skin or clothes match the background, subtraction can cut a person in two
+    at the waist or neck. Two pieces belong together when their x-ranges overlap by at least
+    min_overlap of the narrower one and the vertical gap between them is at most max_gap of
+    the taller one. (People side by side do not overlap in x; one standing behind another
+    usually touches and is one component anyway.)"""
+    n = len(rects)
+    group = list(range(n))
+
+    def root(i: int) -> int:
+        while group[i] != i:
+            i = group[i]
+        return i
+
+    x0, y0 = rects[:, 0], rects[:, 1]
+    x1, y1 = x0 + rects[:, 2], y0 + rects[:, 3]
+    overlap = np.minimum(x1[:, None], x1[None, :]) - np.maximum(x0[:, None], x0[None, :])
+    narrower = np.minimum(rects[:, 2][:, None], rects[:, 2][None, :])
+    gap = np.maximum(y0[:, None], y0[None, :]) - np.minimum(y1[:, None], y1[None, :])
+    taller = np.maximum(rects[:, 3][:, None], rects[:, 3][None, :])
+    joined = (overlap >= min_overlap * narrower) & (gap <= max_gap * taller)
+    for i, j in zip(*np.nonzero(np.triu(joined, 1))):
+        group[root(int(j))] = root(int(i))
+    groups: dict[int, list[int]] = {}
+    for i in range(n):
+        groups.setdefault(root(i), []).append(i)
+    return list(groups.values())
+
+
+def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
+                          shape: tuple[int, int], frame_size: tuple[int, int]
+                          ) -> PersonMask | None:
+    """Rasterize one person (its component pieces minus their kept holes) and scale it to
+    frame pixels. Pieces of one person are joined across the gap between them."""
     height, width = shape
     frame_width, frame_height = frame_size
     sx, sy = frame_width / width, frame_height / height
-    x, y, w, h = cv2.boundingRect(contours[outer])
+    pts = np.vstack([contours[m].reshape(-1, 2) for m in members])
+    x, y, w, h = cv2.boundingRect(pts)
     crop = np.zeros((h, w), np.uint8)
-    cv2.drawContours(crop, contours, outer, 255, cv2.FILLED, offset=(-x, -y))
+    for m in members:
+        cv2.drawContours(crop, contours, m, 255, cv2.FILLED, offset=(-x, -y))
     if holes:
         # A hole's contour runs through the foreground pixels around it: erase the inside,
         # then restore that rim.
         cv2.drawContours(crop, holes, -1, 0, cv2.FILLED, offset=(-x, -y))
         cv2.drawContours(crop, holes, -1, 255, 1, offset=(-x, -y))
+    if len(members) > 1:
+        crop = _bridge_vertical_gaps(crop, [cv2.boundingRect(contours[m]) for m in members])
     x0, y0 = int(round(x * sx)), int(round(y * sy))
     x1 = min(frame_width, int(round((x + w) * sx)))
     y1 = min(frame_height, int(round((y + h) * sy)))
@@ -208,6 +251,18 @@ def _person_from_contour(contours, outer: int, holes: list[np.ndarray], shape: t
         return None
     centroid = (x0 + moments["m10"] / moments["m00"], y0 + moments["m01"] / moments["m00"])
     return PersonMask(crop > 0, (x0, y0, x1 - x0, y1 - y0), centroid, int(moments["m00"]))
+
+
+def _bridge_vertical_gaps(crop: np.ndarray, rects) -> np.ndarray:
+    """Close the vertical gaps between pieces with a vertical closing just taller than the
+    widest gap (padded, so background open to the crop's edge is never filled)."""
+    tops = sorted((r[1], r[1] + r[3]) for r in rects)
+    widest = max([0] + [b_top - a_bottom for (_, a_bottom), (b_top, _) in zip(tops, tops[1:])])
+    k = int(widest) + 3
+    padded = cv2.copyMakeBorder(crop, k, k, 0, 0, cv2.BORDER_CONSTANT, value=0)
+    kernel = np.ones((k, 1), np.uint8)
+    closed = cv2.morphologyEx(padded, cv2.MORPH_CLOSE, kernel)
+    return closed[k:-k]
 
 
 class SilhouetteExtractor:
