@@ -1,0 +1,157 @@
+"""Evaluation reports: a text table, and a markdown page with matplotlib plots (PNG).
+
+matplotlib is an optional extra ("report") and is imported only when plots are drawn. Plots:
+heading over time with the (cos, sin) norm beneath and ambiguous frames marked (the paper's
+figure 7, angle sequences only), error per body part per method (its figure 5), and jitter per
+method beside the ground truth's.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .evaluation import METHODS, EvaluatedSequence, pose_angles
+
+
+class ReportError(RuntimeError):
+    """The report cannot be drawn (matplotlib missing) or written."""
+
+
+def format_table(result: dict) -> str:
+    """The methods' measures as a fixed-width text table (result: evaluation.evaluate())."""
+    angles = result["units"] == "deg"
+    cols = ["error", "jitter", "accel_error"] + (["heading_rms_deg"] if angles else [])
+    lines = [f"{result['sequence']}: {result['frames']} frames, units {result['units']}",
+             f"{'method':10s}" + "".join(f"{c:>16s}" for c in cols)]
+    for name, m in result["methods"].items():
+        lines.append(f"{name:10s}" + "".join(f"{m[c]:16.3f}" for c in cols))
+    lines.append(f"{'truth':10s}{'':16s}{result['ground_truth_jitter']:16.3f}")
+    return "\n".join(lines)
+
+
+def markdown_table(result: dict) -> str:
+    """The same measures as a markdown table."""
+    angles = result["units"] == "deg"
+    cols = ["error", "jitter", "accel_error"] + (["heading_rms_deg"] if angles else [])
+    rows = ["| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    for name, m in result["methods"].items():
+        rows.append(f"| {name} | " + " | ".join(f"{m[c]:.3f}" for c in cols) + " |")
+    rows.append("| ground truth | | " + f"{result['ground_truth_jitter']:.3f} |"
+                + " |" * (len(cols) - 2))
+    return "\n".join(rows)
+
+
+def ambiguity_table(result: dict) -> str:
+    """Markdown table of the heading-ambiguity analysis (angle sequences)."""
+    rows = ["| estimate | ambiguous frames | frames with abs(heading error) > "
+            f"{next(iter(result['ambiguity'].values()))['large_deg']:g} deg | of which ambiguous"
+            " | heading RMS ambiguous / unambiguous (deg) |", "|---|---|---|---|---|"]
+    for name, a in result["ambiguity"].items():
+        share = a["share_of_large_in_ambiguous"]
+        rms = [a["heading_rms_ambiguous_deg"], a["heading_rms_unambiguous_deg"]]
+        rows.append(f"| {name} | {a['ambiguous_frames']}/{a['frames']} "
+                    f"({100 * a['ambiguous_share']:.0f}%) | {a['large_error_frames']} | "
+                    f"{a['large_errors_in_ambiguous']} "
+                    f"({'-' if share is None else f'{100 * share:.0f}%'}) | "
+                    + " / ".join("-" if r is None else f"{r:.1f}" for r in rms) + " |")
+    return "\n".join(rows)
+
+
+def _pyplot():
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as exc:
+        raise ReportError("plots need matplotlib: pip install 'silhouette-pose[report]'") from exc
+    return plt
+
+
+def plot_heading(seq: EvaluatedSequence, path: Path, threshold: float) -> None:
+    """Heading (deg) over frames, true vs stacked raw vs kalman, ambiguous frames shaded; the
+    raw (cos, sin) norm beneath with the ambiguity threshold."""
+    plt = _pyplot()
+    t = np.arange(len(seq.truth))
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 6), sharex=True,
+                                      gridspec_kw={"height_ratios": [2, 1]})
+    for ax in (top, bottom):
+        for f in np.flatnonzero(seq.ambiguous):
+            ax.axvspan(f - 0.5, f + 0.5, color="0.88", lw=0)
+    top.plot(t, pose_angles(seq.truth)[:, 0], "k.", ms=3, label="true")
+    top.plot(t, pose_angles(seq.estimates["stacked"])[:, 0], "C1.", ms=3, label="stacked (raw)")
+    top.plot(t, pose_angles(seq.estimates["kalman"])[:, 0], "C0.", ms=3, label="kalman")
+    top.set_ylabel("heading (deg)")
+    top.set_ylim(-185, 185)
+    top.legend(loc="upper right", fontsize=8, title="grey: ambiguous frames", title_fontsize=8)
+    bottom.plot(t, seq.heading_norm, "C1-", lw=1)
+    bottom.axhline(threshold, color="r", ls="--", lw=1, label=f"threshold {threshold:g}")
+    bottom.set_ylabel("norm of (cos, sin)")
+    bottom.set_xlabel("frame")
+    bottom.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def plot_parts(result: dict, path: Path) -> None:
+    """Mean error per body part (angles) or per point, one bar group per part, bar per method."""
+    plt = _pyplot()
+    methods = list(result["methods"])
+    parts = list(result["methods"][methods[0]]["per_part"])
+    fig, ax = plt.subplots(figsize=(max(8, 0.45 * len(parts) * len(methods) / 2), 4))
+    width = 0.8 / len(methods)
+    x = np.arange(len(parts))
+    for i, m in enumerate(methods):
+        ax.bar(x + i * width, [result["methods"][m]["per_part"][p] for p in parts], width, label=m)
+    ax.set_xticks(x + 0.4 - width / 2, parts, rotation=45 if len(parts) > 8 else 0, ha="right"
+                  if len(parts) > 8 else "center", fontsize=8)
+    ax.set_ylabel(f"mean error ({result['units']})")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def plot_jitter(result: dict, path: Path) -> None:
+    """Jitter per method with the ground truth's own jitter as a reference line."""
+    plt = _pyplot()
+    methods = list(result["methods"])
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    ax.bar(methods, [result["methods"][m]["jitter"] for m in methods], color="C0")
+    gt = result["ground_truth_jitter"]
+    ax.axhline(gt, color="k", ls="--", lw=1, label=f"ground truth {gt:.3f}")
+    ax.axhline(2 * gt, color="r", ls=":", lw=1, label="2x ground truth")
+    ax.set_ylabel(f"jitter (mean |2nd difference|, {result['units']})")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def write_report(folder: str | Path, seq: EvaluatedSequence, result: dict) -> Path:
+    """Write README.md, the PNG plots and result.json into folder; returns the README's path."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    angles = result["units"] == "deg"
+    plot_parts(result, folder / "parts.png")
+    plot_jitter(result, folder / "jitter.png")
+    text = [f"# Evaluation: {result['sequence']}", "",
+            f"{result['frames']} frames; errors in {result['units']}. Methods: "
+            + ", ".join(m for m in METHODS if m in result["methods"]) + ".", "",
+            markdown_table(result), ""]
+    if angles:
+        threshold = result["settings"]["filter"]["ambiguity_threshold"]
+        plot_heading(seq, folder / "heading.png", threshold)
+        text += ["## Heading and ambiguity", "",
+                 "Heading over time (top) and the raw (cos, sin) norm (bottom); grey frames "
+                 "are ambiguous (norm below the threshold).", "", "![heading](heading.png)", "",
+                 ambiguity_table(result), ""]
+    text += ["## Error per body part", "", "![parts](parts.png)", "",
+             "## Jitter", "", "![jitter](jitter.png)", "",
+             "## Settings", "", "```json", json.dumps(result["settings"], indent=1), "```", ""]
+    (folder / "result.json").write_text(json.dumps(result, indent=1))
+    readme = folder / "README.md"
+    readme.write_text("\n".join(text))
+    return readme
