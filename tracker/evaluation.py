@@ -236,7 +236,10 @@ def ankur_noise_models(X: np.ndarray, Z: np.ndarray, o: AnkurOptions) -> tuple[n
     d2 = Z[2:] - 2 * Z[1:-1] + Z[:-2]
     same = (ids[2:] == ids[:-2])                     # second differences inside one sequence
     q = d2[same].var(axis=0) * o.fps**4
-    return residuals.var(axis=0) * o.r_scale, q * o.q_scale
+    # Coordinates the data holds fixed (the root point) have no residual: keep R positive.
+    R = residuals.var(axis=0)
+    R = np.maximum(R, 1e-6 * R.max())
+    return R * o.r_scale, q * o.q_scale
 
 
 def ankur_sequence(path: str | Path, options: AnkurOptions = AnkurOptions(),
