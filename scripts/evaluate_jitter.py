@@ -53,7 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--ambiguity-threshold", type=float, default=FilterOptions.ambiguity_threshold)
     ap.add_argument("--heading-factor", type=float, default=FilterOptions.ambiguous_heading_factor)
     ap.add_argument("--joint-factor", type=float, default=FilterOptions.ambiguous_joint_factor)
-    ap.add_argument("--r-scale", type=float, default=1.0, help="multiply the filter's R")
+    ap.add_argument("--r-scale", type=float, help="multiply the filter's R (default 1; --ankur: "
+                    "chosen on the training split)")
     ap.add_argument("--q-scale", type=float, default=1.0, help="multiply the filter's q")
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     ap.add_argument("--report", type=Path, metavar="DIR", help="write a markdown report")
@@ -69,7 +70,7 @@ def main(argv=None) -> int:
                                                               q_scale=args.q_scale), args.frames)
             else:
                 filt = FilterOptions(args.ambiguity_threshold, args.heading_factor,
-                                     args.joint_factor, args.r_scale, args.q_scale)
+                                     args.joint_factor, args.r_scale or 1.0, args.q_scale)
                 models = load_pose_model(args.model), load_pose_model(args.per_frame_model)
                 make = video_sequence if args.through_video else rendered_sequence
                 extra = {"video": args.video} if args.through_video else {}

@@ -129,7 +129,7 @@ def test_end_to_end_on_rendered_frames_with_report(cmu_bvh_dir, tmp_path):
 
 
 def test_end_to_end_on_the_papers_data(ankur_mat):
-    options = AnkurOptions(noise=0.1, min_gain=400.0, cv_folds=2)
+    options = AnkurOptions(noise=0.1, min_gain=400.0, cv_folds=2, r_scale=1.0)
     result = evaluate(ankur_sequence(ankur_mat, options, frames=60))
     m = result["methods"]
     assert result["units"] == "units" and result["frames"] == 60

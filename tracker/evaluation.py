@@ -113,7 +113,8 @@ class AnkurOptions:
 
     Kernel RVM (regressor.rvm, "common" output scale) on sqrt descriptors; stack_depth: k of
     the stacked method. The filter's R is the covariance of held-out residuals over cv_folds
-    contiguous training blocks (diagonal), times r_scale; q is the variance of the training
+    contiguous training blocks (diagonal), times r_scale (None: chosen on the training split,
+    see ankur_noise_models); q is the variance of the training
     poses' second differences (times fps^4, q_scale): nominal fps, the data has no time base.
     """
 
@@ -123,8 +124,11 @@ class AnkurOptions:
     stack_depth: int = 3
     cv_folds: int = 3
     fps: float = 30.0
-    r_scale: float = 1.0
+    r_scale: float | None = None
     q_scale: float = 1.0
+
+
+R_SCALES = (0.1, 0.25, 0.5, 1.0, 2.0)   # candidate scalings of the paper data's filter R
 
 
 # ---------------------------------------------------------------- measures
@@ -223,23 +227,34 @@ def _ankur_regressor(o: AnkurOptions) -> RVMRegressor:
                         noise=o.noise, min_gain=o.min_gain)
 
 
-def ankur_noise_models(X: np.ndarray, Z: np.ndarray, o: AnkurOptions) -> tuple[np.ndarray, np.ndarray]:
+def ankur_noise_models(X: np.ndarray, Z: np.ndarray, o: AnkurOptions) -> tuple[np.ndarray, np.ndarray, float]:
     """Filter noise from the training split only: R (63,) held-out residual variances over
     o.cv_folds contiguous blocks of stacked descriptors X (N, kD); q (63,) variance of the
-    poses' within-sequence second differences, times fps^4 ((units/s^2)^2)."""
-    residuals = np.empty_like(Z)
+    poses' within-sequence second differences, times fps^4 ((units/s^2)^2). R is scaled by
+    o.r_scale, or if that is None by the value of R_SCALES whose filter, run over each training
+    sequence's held-out estimates, gives the lowest point error. Returns (R, q, r_scale)."""
+    held_out = np.empty_like(Z)
     for hold in contiguous_folds(len(X), o.cv_folds):
         train = np.ones(len(X), bool)
         train[hold] = False
-        residuals[hold] = _ankur_regressor(o).fit(X[train], Z[train]).predict(X[hold]) - Z[hold]
+        held_out[hold] = _ankur_regressor(o).fit(X[train], Z[train]).predict(X[hold])
     ids = np.cumsum(np.isin(np.arange(len(Z)), ANKUR_TRAIN_STARTS)) - 1
     d2 = Z[2:] - 2 * Z[1:-1] + Z[:-2]
     same = (ids[2:] == ids[:-2])                     # second differences inside one sequence
-    q = d2[same].var(axis=0) * o.fps**4
+    q = d2[same].var(axis=0) * o.fps**4 * o.q_scale
     # Coordinates the data holds fixed (the root point) have no residual: keep R positive.
-    R = residuals.var(axis=0)
+    R = (held_out - Z).var(axis=0)
     R = np.maximum(R, 1e-6 * R.max())
-    return R * o.r_scale, q * o.q_scale
+    if o.r_scale is not None:
+        return R * o.r_scale, q, o.r_scale
+
+    def cv_error(scale: float) -> float:
+        cv = ConstantVelocityFilter(Z.shape[1], o.fps, R * scale, q, float(np.sqrt(q.mean())))
+        filtered = np.vstack([cv.filter(held_out[ids == i]) for i in np.unique(ids)])
+        return mean_point_error(filtered, Z)
+
+    best = min(R_SCALES, key=cv_error)
+    return R * best, q, best
 
 
 def ankur_sequence(path: str | Path, options: AnkurOptions = AnkurOptions(),
@@ -254,14 +269,14 @@ def ankur_sequence(path: str | Path, options: AnkurOptions = AnkurOptions(),
     per_frame = _ankur_regressor(options).fit(X, Z).predict(Xt)
     stacked_model = _ankur_regressor(options).fit(Xk, Z)
     stacked = stacked_model.predict(stack_frames(Xt, k))
-    R, q = ankur_noise_models(Xk, Z, options)
+    R, q, r_scale = ankur_noise_models(Xk, Z, options)
     cv = ConstantVelocityFilter(Z.shape[1], options.fps, R, q, rate_std=float(np.sqrt(q.mean())))
     return EvaluatedSequence(
         "ankur spiral walk (test)", "units", Zt,
         {"per_frame": per_frame, "stacked": stacked, "kalman": cv.filter(stacked),
          "smoothed": cv.smooth(stacked)},
         settings={"source": str(path), "regressor": "kernel RVM on sqrt descriptors",
-                  **options.__dict__, "relevance_vectors": int(stacked_model.n_basis_)})
+                  **options.__dict__, "chosen_r_scale": r_scale, "relevance_vectors": int(stacked_model.n_basis_)})
 
 
 # ---------------------------------------------------------------- rendered CMU motion
