@@ -38,8 +38,8 @@ def main() -> None:
     ap.add_argument("--data", required=True)
     ap.add_argument("--point", type=int, default=8, help="body point whose 3 outputs the peers fit")
     ap.add_argument("--width-scale", type=float, default=0.5)
-    ap.add_argument("--noise", type=float, default=0.1)
-    ap.add_argument("--min-gain", type=float, default=200.0)
+    ap.add_argument("--noise", type=float, default=0.05)
+    ap.add_argument("--min-gain", type=float, default=400.0)
     args = ap.parse_args()
     d = scipy.io.loadmat(args.data)
     X, Y, Xt, Yt = np.sqrt(d["Y"]), d["Z"], np.sqrt(d["Y_test"]), d["Z_test"]

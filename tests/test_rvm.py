@@ -58,3 +58,15 @@ def test_rvm_predictions_match_dls_on_the_same_sparse_problem():
     rvm = RVMRegressor(basis="linear").fit(X, Y)
     dls = DLSRegressor(basis="linear", lam=1e-8).fit(X, Y)
     np.testing.assert_allclose(rvm.predict(X), dls.predict(X), atol=0.01)
+
+
+def test_kernel_rvm_on_the_paper_data_is_sparse_and_beats_ridge(ankur_mat):
+    import scipy.io
+
+    from regressor.metrics import mean_point_error
+    d = scipy.io.loadmat(ankur_mat)
+    X, Y, Xt, Yt = np.sqrt(d["Y"][::2]), d["Z"][::2], np.sqrt(d["Y_test"]), d["Z_test"]
+    rvm = RVMRegressor("gaussian", noise=0.05, width_scale=0.5, output_scale="common", min_gain=200.0).fit(X, Y)
+    linear = DLSRegressor("linear", lam=0.1).fit(X, Y)
+    assert rvm.n_basis_ < 0.15 * len(X)
+    assert mean_point_error(rvm.predict(Xt), Yt) < 0.85 * mean_point_error(linear.predict(Xt), Yt)
