@@ -141,10 +141,7 @@ def _write(sinks, pose: TrackedPose, filtered=None) -> None:
 
 def _smooth_tracks(tracker: PoseTracker, records: dict[int, list[TrackedPose]], sinks) -> None:
     """RTS-smooth every track's raw poses and feed them to the offline sinks in frame order."""
-    smoothed = {}
-    for track_id, poses in records.items():
-        raws = np.array([p.raw for p in poses])
-        smoothed[track_id] = tracker.tracks[track_id].kalman.rts_smooth(raws)
+    smoothed = {track_id: tracker.smoothed_track(track_id) for track_id in records}
     order = sorted((p.frame_index, tid, i) for tid, ps in records.items() for i, p in enumerate(ps))
     for _, track_id, i in order:
         _write(sinks, records[track_id][i], smoothed[track_id][i])
@@ -195,7 +192,7 @@ def _print_summary(args, source, tracker, frames, elapsed, interrupted) -> None:
     print(f"{args.video.name}: {state} {frames} frames ({source.width}x{source.height}, "
           f"{source.fps:g} fps video) at {fps:.0f} frames/s; {len(tracker.tracks)} track(s)")
     for track_id, state_ in sorted(tracker.tracks.items()):
-        print(f"  track {track_id}: {len(state_.raw)} frames")
+        print(f"  track {track_id}: {len(state_.measured)} frames")
     for path, what in ((args.out, "MCAP"), (args.json, "JSON"), (args.bvh, "BVH folder")):
         if path is not None:
             print(f"  {what}: {path}")

@@ -38,6 +38,7 @@ from sequences.spiral import line_of_sight_azimuth, spiral_walk
 from sequences.video import Actor, fitted_camera, load_truth, write_video
 from .filtering import ConstantVelocityFilter, PoseKalmanFilter, pose_to_angles
 from .pipeline import PoseTracker
+from .travel import TravelDirection, resolve_front_back
 from .silhouettes import median_background
 from .video import open_video
 
@@ -287,12 +288,13 @@ def cmu_motion(bvh: str | Path, spiral_deg_per_s: float | None, fps: float = 30.
     return spiral_walk(motion, spiral_deg_per_s) if spiral_deg_per_s else motion
 
 
-def render_silhouettes(motion, camera: CameraOptions) -> tuple[list[np.ndarray], np.ndarray]:
+def render_silhouettes(motion, camera: CameraOptions
+                       ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Silhouettes of the motion from the fixed camera a video of it would use (same body
     shape, ground path, camera fit as sequences.video.write_video), each cropped to the person.
 
     Returns (masks: list of (h, w) bool crops, truth pose vectors (T, 55) relative to the line
-    of sight)."""
+    of sight, image track (T, 2): each silhouette's centroid column and height in pixels)."""
     body = load_body()
     shape = sample_body_shapes(1, seed=camera.seed)[0]
     skinner = Skinner(body, offsets=motion.offsets, names=motion.names,
@@ -304,7 +306,7 @@ def render_silhouettes(motion, camera: CameraOptions) -> tuple[list[np.ndarray],
     cam = fitted_camera(grounded[:, ::7].reshape(-1, 3), camera.size, camera.azimuth_deg,
                         camera.elevation_deg, camera.distance_m)
     truth = motion_to_pose_vectors(motion, line_of_sight_azimuth(hips, cam.position))
-    masks = []
+    masks, image_track = [], []
     for t, v in enumerate(grounded):
         mask = silhouette_mask(v, body.faces, body.patch_start, cam)
         ys, xs = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
@@ -312,7 +314,8 @@ def render_silhouettes(motion, camera: CameraOptions) -> tuple[list[np.ndarray],
             raise EvaluationError(f"{motion.source}: frame {t} leaves the camera's view")
         m = _CROP_MARGIN_PX
         masks.append(np.pad(mask[ys[0]:ys[-1] + 1, xs[0]:xs[-1] + 1], m))
-    return masks, truth
+        image_track.append((np.nonzero(mask)[1].mean(), ys[-1] - ys[0] + 1))
+    return masks, truth, np.array(image_track, dtype=np.float64)
 
 
 def _model_poses(model: PoseModel, masks: list[np.ndarray]) -> np.ndarray:
@@ -331,21 +334,32 @@ def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model
     if frames is not None:
         motion = replace(motion, euler_deg=motion.euler_deg[:frames],
                          root_position=motion.root_position[:frames])
-    masks, truth = render_silhouettes(motion, camera)
+    masks, truth, image_track = render_silhouettes(motion, camera)
     raw = _model_poses(stacked_model, masks)
     name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
+    # As the tracker does: while the person walks, the direction of travel settles front/back.
+    travel = TravelDirection(camera.fps, camera.size[1])
+    headings = [travel.push(u, h) for u, h in image_track]
+    measured = np.array([resolve_front_back(r, t) for r, t in zip(raw, headings)])
+    settled = np.array([t is not None for t in headings])
     return _pose_sequence(name, truth, _model_poses(per_frame_model, masks), raw,
                           filt.make(stacked_model, camera.fps), filt,
-                          {"path": "rendered silhouettes", "camera": camera.__dict__})
+                          {"path": "rendered silhouettes", "camera": camera.__dict__},
+                          measured=measured, settled=settled)
 
 
 def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, filt: FilterOptions,
-                   settings: dict, kalman=None) -> EvaluatedSequence:
-    filtered, ambiguous = kf.filter(raw)
+                   settings: dict, kalman=None, measured=None, settled=None
+                   ) -> EvaluatedSequence:
+    """measured, settled: the filter's inputs (raw with front/back settled by travel) and
+    which frames were settled; None = raw as it is, none settled."""
+    measured = raw if measured is None else measured
+    filtered, ambiguous = kf.filter(measured, heading_settled=settled)
     return EvaluatedSequence(
         name, "deg", truth,
         {"per_frame": per_frame, "stacked": raw,
-         "kalman": filtered if kalman is None else kalman, "smoothed": kf.rts_smooth(raw)},
+         "kalman": filtered if kalman is None else kalman,
+         "smoothed": kf.rts_smooth(measured, heading_settled=settled)},
         heading_norm=pose_to_angles(raw)[1], ambiguous=ambiguous,
         ambiguous_per_frame=pose_to_angles(per_frame)[1] < filt.ambiguity_threshold,
         settings={**settings, "filter": filt.__dict__})
@@ -353,7 +367,8 @@ def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, filt: Filt
 
 def track_video(video: Path, model: PoseModel, ambiguity_threshold: float):
     """Run the ``track`` pipeline on a one-person video: (frame indices (n,), raw (n, 55),
-    filtered (n, 55), the track's PoseKalmanFilter) of its longest track."""
+    filtered (n, 55), the track's PoseKalmanFilter, the filter's inputs (n, 55) and which of
+    them had front/back settled by travel (n,)) of its longest track."""
     source = open_video(video)
     tracker = PoseTracker(model, source.fps, (source.width, source.height), max_people=1,
                           ambiguity_threshold=ambiguity_threshold)
@@ -366,8 +381,10 @@ def track_video(video: Path, model: PoseModel, ambiguity_threshold: float):
         raise EvaluationError(f"{video}: nobody was tracked")
     track_id = max(by_track, key=lambda t: len(by_track[t]))
     poses = by_track[track_id]
+    state = tracker.tracks[track_id]
     return (np.array([p.frame_index for p in poses]), np.array([p.raw for p in poses]),
-            np.array([p.filtered for p in poses]), tracker.tracks[track_id].kalman)
+            np.array([p.filtered for p in poses]), state.kalman, np.array(state.measured),
+            np.array(state.settled, bool))
 
 
 def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: PoseModel,
@@ -386,8 +403,9 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
                     elevation_deg=camera.elevation_deg, distance_m=camera.distance_m,
                     noise_sigma=camera.noise_sigma, seed=camera.seed, n_frames=frames)
         truth = load_truth(path)["pose"][:, 0]
-        idx, raw, filtered, kf = track_video(path, stacked_model, filt.ambiguity_threshold)
-        idx1, raw1, _, _ = track_video(path, per_frame_model, filt.ambiguity_threshold)
+        idx, raw, filtered, kf, measured, settled = track_video(path, stacked_model,
+                                                                filt.ambiguity_threshold)
+        idx1, raw1 = track_video(path, per_frame_model, filt.ambiguity_threshold)[:2]
     common, a, b = np.intersect1d(idx, idx1, return_indices=True)
     if len(common) < 3:
         raise EvaluationError(f"{bvh}: fewer than 3 frames were tracked")
@@ -395,5 +413,5 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
     seq = _pose_sequence(name, truth[common], raw1[b], raw[a], kf, filt,
                          {"path": "video through track", "camera": camera.__dict__,
                           "frames_in_video": int(len(truth)), "frames_tracked": int(len(common))},
-                         kalman=filtered[a])
+                         kalman=filtered[a], measured=measured[a], settled=settled[a])
     return seq

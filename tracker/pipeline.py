@@ -19,6 +19,7 @@ from .association import Associator
 from .filtering import PoseKalmanFilter
 from .silhouettes import PersonMask, SilhouetteExtractor
 from .skeleton_geometry import ground_position_from_image, pose_joints_m
+from .travel import TravelDirection, resolve_front_back
 
 
 class PoseEstimator(Protocol):
@@ -57,7 +58,9 @@ class _TrackState:
 
     stacker: FrameStacker
     kalman: PoseKalmanFilter
-    raw: list = field(default_factory=list)
+    travel: TravelDirection
+    measured: list = field(default_factory=list)    # (55,) filter inputs, for smoothing
+    settled: list = field(default_factory=list)     # heading settled by travel, per frame
 
 
 class PoseTracker:
@@ -107,7 +110,8 @@ class PoseTracker:
             kalman = PoseKalmanFilter(self.fps, R=self.estimator.measurement_covariance,
                                       q=self.estimator.process_noise,
                                       ambiguity_threshold=self.ambiguity_threshold)
-            self.tracks[track_id] = _TrackState(FrameStacker(self.estimator.stack_depth), kalman)
+            self.tracks[track_id] = _TrackState(FrameStacker(self.estimator.stack_depth), kalman,
+                                                TravelDirection(self.fps, self.frame_size[0]))
         return self.tracks[track_id]
 
     def _pose(self, track_id: int, person: PersonMask, frame_index: int,
@@ -121,8 +125,12 @@ class PoseTracker:
         clock = self._lap("descriptor", clock)
         raw = self.estimator.predict(state.stacker.push(descriptor))
         clock = self._lap("regression", clock)
-        filtered, ambiguous = state.kalman.step(raw)
-        state.raw.append(raw)
+        # While the person walks, the direction of travel picks between front and back views.
+        travel = state.travel.push(person.centroid[0], person.bbox[3])
+        measured = resolve_front_back(raw, travel)
+        filtered, ambiguous = state.kalman.step(measured, heading_settled=travel is not None)
+        state.measured.append(measured)
+        state.settled.append(travel is not None)
         clock = self._lap("filter", clock)
         w, h = self.frame_size
         ground = ground_position_from_image(person.centroid, person.bbox[3], w, h)
@@ -137,3 +145,7 @@ class PoseTracker:
         self.stage_seconds[stage] += now - since
         return now
 
+    def smoothed_track(self, track_id: int) -> np.ndarray:
+        """RTS-smoothed poses (n, 55) of every frame of a track so far (offline use)."""
+        state = self.tracks[track_id]
+        return state.kalman.rts_smooth(np.array(state.measured), heading_settled=state.settled)
