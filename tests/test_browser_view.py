@@ -52,3 +52,37 @@ def test_chromium_shows_the_skeleton_in_its_track_colour(tmp_path):
     colour = track_colour(TRACK)
     assert _colour_pixels(empty, colour) < 20
     assert _colour_pixels(drawn, colour) > 300
+
+
+def test_track_view_serves_the_live_skeleton_to_a_browser(tmp_path):
+    """`track --view` on a rendered walk: while it plays, Chromium shows the skeleton of
+    track 0 in its colour; when it ends, the viewer's port is closed."""
+    import os
+    import socket
+    import sys
+
+    from sequences.video import Actor, write_video
+    from tests.test_track_cli import _walker
+
+    video = tmp_path / "walk.mp4"
+    write_video(video, [Actor(_walker(240, step=0.2))], size=(240, 320), noise_sigma=1.0)
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.Popen([sys.executable, "-m", "tracker.cli", str(video), "--view",
+                             "--quiet", "--out", str(tmp_path / "v.mcap")],
+                            env={**os.environ, "PYTHONPATH": str(root)},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert line.startswith("meshcat viewer: http://127.0.0.1:"), line
+        url = line.split(": ", 1)[1].strip()
+        drawn = _screenshot(url, tmp_path / "track.png", tmp_path / "profile")
+        assert proc.poll() is None, "track ended before the screenshot: not played in real time"
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert _colour_pixels(drawn, track_colour(0)) > 300
+    port = int(url.split(":")[2].split("/")[0])
+    with socket.socket() as s:
+        assert s.connect_ex(("127.0.0.1", port)) != 0      # server gone with the command

@@ -52,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--bvh", type=Path, metavar="DIR", help="write one BVH per track here")
     ap.add_argument("--json", type=Path, metavar="FILE", help="write a JSON summary")
     ap.add_argument("--view", action="store_true", help="live 3-D skeletons in meshcat "
-                    "(browser, 127.0.0.1)")
+                    "(browser, 127.0.0.1), played at the video's own speed")
     ap.add_argument("--smooth", action="store_true", help="RTS-smooth each whole track for "
                     "the JSON and BVH outputs (offline use)")
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH, help="model file "
@@ -162,6 +162,10 @@ def run(args) -> int:
     frames, interrupted, started = 0, False, time.perf_counter()
     try:
         for index, time_s, frame in source:
+            if args.view:   # tracking outruns the video: show it at its own speed
+                ahead = (time_s - args.start) - (time.perf_counter() - started)
+                if ahead > 0:
+                    time.sleep(ahead)
             poses = tracker.process(index, time_s, frame)
             for summary in summaries:       # frames with nobody in view count too
                 summary.mark_frame(index)
