@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from tracker.filtering import PoseKalmanFilter
-from tracker.travel import TravelDirection, resolve_front_back, travel_heading
+from tracker.travel import TravelDirection, fuse_heading, resolve_front_back, travel_heading
 
 FPS, WIDTH = 30.0, 640
 CENTRE = (WIDTH - 1) / 2
@@ -72,16 +72,29 @@ def test_front_back_flip_follows_the_direction_of_travel():
     assert np.allclose(resolve_front_back(_raw(170.0, 0.3), None), _raw(170.0, 0.3))
 
 
-def test_settled_ambiguous_heading_is_trusted_like_a_clear_one():
-    """After a run at heading 0, one ambiguous frame reads 60: settled, the filter follows it
-    as far as a clear frame would; unsettled, its inflated R keeps the filter near 0."""
-    def last_heading(settled: bool, norm: float) -> float:
+def test_fused_heading_lies_between_by_inverse_variance():
+    fused, variance = fuse_heading(_raw(170.0, 0.3), travel_deg=-170.0, raw_variance=100.0,
+                                   travel_std_deg=10.0)
+    # Equal variances: halfway across the +-180 seam, not through 0.
+    assert abs(np.degrees(np.arctan2(fused[1], fused[0]))) == pytest.approx(180.0)
+    assert variance == pytest.approx(50.0)
+    assert np.hypot(fused[0], fused[1]) == pytest.approx(0.3)
+    fused, _ = fuse_heading(_raw(0.0, 0.9), travel_deg=40.0, raw_variance=300.0,
+                            travel_std_deg=10.0)
+    assert np.degrees(np.arctan2(fused[1], fused[0])) == pytest.approx(30.0)
+
+
+def test_heading_variance_overrides_the_ambiguity_inflation():
+    """After a run at heading 0, one ambiguous frame reads 60. With its own heading variance
+    (as after fusing the direction of travel) the filter follows it as far as a clear frame of
+    that variance; with the model's inflated R it stays near 0."""
+    def last_heading(norm: float, variance=None) -> float:
         kf = PoseKalmanFilter(FPS, R=np.full(54, 100.0), q=1e4, ambiguity_threshold=0.5)
         for _ in range(10):
             kf.step(_raw(0.0, 0.9))
-        out, _ = kf.step(_raw(60.0, norm), heading_settled=settled)
+        out, _ = kf.step(_raw(60.0, norm), heading_variance=variance)
         return float(np.degrees(np.arctan2(out[1], out[0])))
-    clear, settled, unsettled = last_heading(False, 0.9), last_heading(True, 0.3), \
-        last_heading(False, 0.3)
-    assert settled == pytest.approx(clear)
-    assert unsettled < 0.3 * settled
+    clear, given, inflated = last_heading(0.9), last_heading(0.3, 100.0), last_heading(0.3)
+    assert given == pytest.approx(clear)
+    assert inflated < 0.3 * given
+    assert last_heading(0.9, 25.0) > clear            # a smaller variance pulls harder

@@ -38,7 +38,7 @@ from sequences.spiral import line_of_sight_azimuth, spiral_walk
 from sequences.video import Actor, fitted_camera, load_truth, write_video
 from .filtering import ConstantVelocityFilter, PoseKalmanFilter, pose_to_angles
 from .pipeline import PoseTracker
-from .travel import TravelDirection, resolve_front_back
+from .travel import TravelDirection, fuse_heading, resolve_front_back
 from .silhouettes import median_background
 from .video import open_video
 
@@ -337,29 +337,33 @@ def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model
     masks, truth, image_track = render_silhouettes(motion, camera)
     raw = _model_poses(stacked_model, masks)
     name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
-    # As the tracker does: while the person walks, the direction of travel settles front/back.
+    # As the tracker does: while the person walks, the direction of travel settles front/back
+    # and is fused with the regressor's heading.
+    kf = filt.make(stacked_model, camera.fps)
     travel = TravelDirection(camera.fps, camera.size[1])
-    headings = [travel.push(u, h) for u, h in image_track]
-    measured = np.array([resolve_front_back(r, t) for r, t in zip(raw, headings)])
-    settled = np.array([t is not None for t in headings])
-    return _pose_sequence(name, truth, _model_poses(per_frame_model, masks), raw,
-                          filt.make(stacked_model, camera.fps), filt,
+    measured, variance = raw.copy(), np.full(len(raw), np.nan)
+    for t, (u, h) in enumerate(image_track):
+        heading = travel.push(u, h)
+        if heading is not None:
+            measured[t], variance[t] = fuse_heading(resolve_front_back(raw[t], heading),
+                                                    heading, float(kf.R[0, 0]))
+    return _pose_sequence(name, truth, _model_poses(per_frame_model, masks), raw, kf, filt,
                           {"path": "rendered silhouettes", "camera": camera.__dict__},
-                          measured=measured, settled=settled)
+                          measured=measured, heading_variance=variance)
 
 
 def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, filt: FilterOptions,
-                   settings: dict, kalman=None, measured=None, settled=None
+                   settings: dict, kalman=None, measured=None, heading_variance=None
                    ) -> EvaluatedSequence:
-    """measured, settled: the filter's inputs (raw with front/back settled by travel) and
-    which frames were settled; None = raw as it is, none settled."""
+    """measured, heading_variance: the filter's inputs (raw with the direction of travel
+    fused in) and their heading variances (NaN: the model's); None = raw as it is."""
     measured = raw if measured is None else measured
-    filtered, ambiguous = kf.filter(measured, heading_settled=settled)
+    filtered, ambiguous = kf.filter(measured, heading_variance=heading_variance)
     return EvaluatedSequence(
         name, "deg", truth,
         {"per_frame": per_frame, "stacked": raw,
          "kalman": filtered if kalman is None else kalman,
-         "smoothed": kf.rts_smooth(measured, heading_settled=settled)},
+         "smoothed": kf.rts_smooth(measured, heading_variance=heading_variance)},
         heading_norm=pose_to_angles(raw)[1], ambiguous=ambiguous,
         ambiguous_per_frame=pose_to_angles(per_frame)[1] < filt.ambiguity_threshold,
         settings={**settings, "filter": filt.__dict__})
@@ -368,7 +372,8 @@ def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, filt: Filt
 def track_video(video: Path, model: PoseModel, ambiguity_threshold: float):
     """Run the ``track`` pipeline on a one-person video: (frame indices (n,), raw (n, 55),
     filtered (n, 55), the track's PoseKalmanFilter, the filter's inputs (n, 55) and which of
-    them had front/back settled by travel (n,)) of its longest track."""
+    them had the direction of travel fused in: heading variances (n,), NaN where not) of its
+    longest track."""
     source = open_video(video)
     tracker = PoseTracker(model, source.fps, (source.width, source.height), max_people=1,
                           ambiguity_threshold=ambiguity_threshold)
@@ -384,7 +389,7 @@ def track_video(video: Path, model: PoseModel, ambiguity_threshold: float):
     state = tracker.tracks[track_id]
     return (np.array([p.frame_index for p in poses]), np.array([p.raw for p in poses]),
             np.array([p.filtered for p in poses]), state.kalman, np.array(state.measured),
-            np.array(state.settled, bool))
+            np.array(state.heading_variance, float))
 
 
 def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: PoseModel,
@@ -403,8 +408,8 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
                     elevation_deg=camera.elevation_deg, distance_m=camera.distance_m,
                     noise_sigma=camera.noise_sigma, seed=camera.seed, n_frames=frames)
         truth = load_truth(path)["pose"][:, 0]
-        idx, raw, filtered, kf, measured, settled = track_video(path, stacked_model,
-                                                                filt.ambiguity_threshold)
+        idx, raw, filtered, kf, measured, variance = track_video(path, stacked_model,
+                                                                 filt.ambiguity_threshold)
         idx1, raw1 = track_video(path, per_frame_model, filt.ambiguity_threshold)[:2]
     common, a, b = np.intersect1d(idx, idx1, return_indices=True)
     if len(common) < 3:
@@ -413,5 +418,6 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
     seq = _pose_sequence(name, truth[common], raw1[b], raw[a], kf, filt,
                          {"path": "video through track", "camera": camera.__dict__,
                           "frames_in_video": int(len(truth)), "frames_tracked": int(len(common))},
-                         kalman=filtered[a], measured=measured[a], settled=settled[a])
+                         kalman=filtered[a], measured=measured[a],
+                         heading_variance=variance[a])
     return seq

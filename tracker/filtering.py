@@ -239,17 +239,16 @@ class PoseKalmanFilter:
         inflate[0] = np.sqrt(ambiguous_heading_factor)
         # Scaling std per angle keeps correlations: R_amb = D R D with D = diag(sqrt(factor)).
         self.R_ambiguous = self.R * np.outer(inflate, inflate)
-        # An ambiguous frame whose front/back choice was settled from outside (the direction of
-        # travel, tracker/travel.py) keeps a normal heading R; its joint angles stay inflated.
-        inflate[0] = 1.0
-        self.R_settled = self.R * np.outer(inflate, inflate)
         self.ambiguity_threshold = ambiguity_threshold
         self.rate_std = rate_std
         self._kf: KalmanFilter | None = None
 
-    def _measure(self, raw55, heading_settled: bool = False
+    def _measure(self, raw55, heading_variance: float | None = None
                  ) -> tuple[np.ndarray, np.ndarray, bool]:
-        """Check one raw pose; returns (angles (54,), R to use, ambiguous)."""
+        """Check one raw pose; returns (angles (54,), R to use, ambiguous). heading_variance
+        (deg^2): the heading's measurement variance for this frame, replacing R's (e.g. after
+        fusing the direction of travel, tracker/travel.py); None keeps R's, inflated when the
+        frame is ambiguous."""
         raw = np.asarray(raw55, float)
         if raw.shape != (POSE_DIM,):
             raise FilterError(f"pose vector must have shape (55,), got {raw.shape}")
@@ -258,19 +257,24 @@ class PoseKalmanFilter:
             raise FilterError(f"pose vector has non-finite entries at {bad}")
         angles, norm = pose_to_angles(raw)
         ambiguous = bool(norm < self.ambiguity_threshold)
-        if not ambiguous:
-            return angles, self.R, False
-        return angles, (self.R_settled if heading_settled else self.R_ambiguous), True
+        R = self.R_ambiguous if ambiguous else self.R
+        if heading_variance is not None and np.isfinite(heading_variance):
+            if not heading_variance > 0:
+                raise FilterError(f"heading_variance must be > 0, got {heading_variance}")
+            # Rescale the heading's row and column: its correlations with the joints are kept.
+            scale = np.ones(N_ANGLES)
+            scale[0] = np.sqrt(heading_variance / R[0, 0])
+            R = R * np.outer(scale, scale)
+        return angles, R, ambiguous
 
     def reset(self) -> None:
         """Forget the track: the next :meth:`step` starts afresh."""
         self._kf = None
 
-    def step(self, raw55, heading_settled: bool = False) -> tuple[np.ndarray, bool]:
+    def step(self, raw55, heading_variance: float | None = None) -> tuple[np.ndarray, bool]:
         """Filter one raw regressor output (55,) -> (filtered pose (55,), ambiguous flag).
-        heading_settled: the heading's front/back was decided from outside the silhouette, so
-        an ambiguous frame's heading is not inflated."""
-        angles, R, ambiguous = self._measure(raw55, heading_settled)
+        heading_variance: this frame's heading variance (deg^2), see _measure."""
+        angles, R, ambiguous = self._measure(raw55, heading_variance)
         if self._kf is None:
             self._kf = self.cv.start(angles, R)
         else:
@@ -280,17 +284,18 @@ class PoseKalmanFilter:
             self._kf.x[:N_ANGLES] -= 360.0 * np.round(self._kf.x[:N_ANGLES] / 360.0)
         return angles_to_pose(self._kf.x[:N_ANGLES, 0]), ambiguous
 
-    def filter(self, raws: Sequence | np.ndarray, heading_settled=None
+    def filter(self, raws: Sequence | np.ndarray, heading_variance=None
                ) -> tuple[np.ndarray, np.ndarray]:
         """Forward-filter a whole track: raws (T, 55) -> (filtered poses (T, 55), ambiguous
-        flags (T,) bool). heading_settled: (T,) bool as in :meth:`step`, None = all False.
+        flags (T,) bool). heading_variance: (T,) deg^2 as in :meth:`step`, NaN where none;
+        None = none at all.
         Same results as :meth:`step` frame by frame from a reset; does not touch the state
         used by :meth:`step`."""
-        angles, Rs, ambiguous = self._measure_all(raws, "filter", heading_settled)
+        angles, Rs, ambiguous = self._measure_all(raws, "filter", heading_variance)
         return angles_to_pose(self.cv.filter(angles, Rs)), ambiguous
 
     def rts_smooth(self, raws: Sequence | np.ndarray, window: int = 256,
-                   lag: int = 64, heading_settled=None) -> np.ndarray:
+                   lag: int = 64, heading_variance=None) -> np.ndarray:
         """Forward filter then Rauch-Tung-Striebel smoothing (filterpy) of a whole track.
 
         ``raws``: (T, 55) raw poses. Returns smoothed poses (T, 55). Does not touch the state
@@ -301,19 +306,19 @@ class PoseKalmanFilter:
         """
         if window < 1 or lag < 0:
             raise FilterError(f"window={window} must be >= 1 and lag={lag} >= 0")
-        angles, Rs, _ = self._measure_all(raws, "rts_smooth", heading_settled)
+        angles, Rs, _ = self._measure_all(raws, "rts_smooth", heading_variance)
         return angles_to_pose(self.cv.smooth(angles, Rs, window=window, lag=lag))
 
-    def _measure_all(self, raws, name: str, heading_settled=None
+    def _measure_all(self, raws, name: str, heading_variance=None
                      ) -> tuple[np.ndarray, list, np.ndarray]:
         raws = np.asarray(raws, float)
         if raws.ndim != 2 or raws.shape[1] != POSE_DIM or len(raws) == 0:
             raise FilterError(f"{name} needs poses of shape (T, 55), got {raws.shape}")
-        settled = np.zeros(len(raws), bool) if heading_settled is None else \
-            np.asarray(heading_settled, bool)
-        if settled.shape != (len(raws),):
-            raise FilterError(f"{name}: heading_settled must be ({len(raws)},), got "
-                              f"{settled.shape}")
-        measured = [self._measure(raw, s) for raw, s in zip(raws, settled)]
+        variances = np.full(len(raws), np.nan) if heading_variance is None else \
+            np.asarray(heading_variance, float)
+        if variances.shape != (len(raws),):
+            raise FilterError(f"{name}: heading_variance must be ({len(raws)},), got "
+                              f"{variances.shape}")
+        measured = [self._measure(raw, v) for raw, v in zip(raws, variances)]
         return (np.array([m[0] for m in measured]), [m[1] for m in measured],
                 np.array([m[2] for m in measured], bool))

@@ -19,7 +19,7 @@ from .association import Associator
 from .filtering import PoseKalmanFilter
 from .silhouettes import PersonMask, SilhouetteExtractor
 from .skeleton_geometry import ground_position_from_image, pose_joints_m
-from .travel import TravelDirection, resolve_front_back
+from .travel import TravelDirection, fuse_heading, resolve_front_back
 
 
 class PoseEstimator(Protocol):
@@ -60,7 +60,7 @@ class _TrackState:
     kalman: PoseKalmanFilter
     travel: TravelDirection
     measured: list = field(default_factory=list)    # (55,) filter inputs, for smoothing
-    settled: list = field(default_factory=list)     # heading settled by travel, per frame
+    heading_variance: list = field(default_factory=list)   # deg^2 per frame, NaN = model's
 
 
 class PoseTracker:
@@ -125,12 +125,12 @@ class PoseTracker:
         clock = self._lap("descriptor", clock)
         raw = self.estimator.predict(state.stacker.push(descriptor))
         clock = self._lap("regression", clock)
-        # While the person walks, the direction of travel picks between front and back views.
-        travel = state.travel.push(person.centroid[0], person.bbox[3])
-        measured = resolve_front_back(raw, travel)
-        filtered, ambiguous = state.kalman.step(measured, heading_settled=travel is not None)
+        # While the person walks, the direction of travel picks between front and back views
+        # and is fused with the regressor's heading.
+        measured, variance = self._with_travel(state, raw, person)
+        filtered, ambiguous = state.kalman.step(measured, heading_variance=variance)
         state.measured.append(measured)
-        state.settled.append(travel is not None)
+        state.heading_variance.append(np.nan if variance is None else variance)
         clock = self._lap("filter", clock)
         w, h = self.frame_size
         ground = ground_position_from_image(person.centroid, person.bbox[3], w, h)
@@ -140,6 +140,16 @@ class PoseTracker:
                            person.centroid, person.bbox, joints)
 
 
+    @staticmethod
+    def _with_travel(state: _TrackState, raw: np.ndarray, person: PersonMask):
+        """(filter input (55,), its heading variance deg^2 or None) from the raw pose and the
+        direction of travel, if the person is moving."""
+        travel = state.travel.push(person.centroid[0], person.bbox[3])
+        if travel is None:
+            return raw, None
+        return fuse_heading(resolve_front_back(raw, travel), travel,
+                            float(state.kalman.R[0, 0]))
+
     def _lap(self, stage: str, since: float) -> float:
         now = time.perf_counter()
         self.stage_seconds[stage] += now - since
@@ -148,4 +158,5 @@ class PoseTracker:
     def smoothed_track(self, track_id: int) -> np.ndarray:
         """RTS-smoothed poses (n, 55) of every frame of a track so far (offline use)."""
         state = self.tracks[track_id]
-        return state.kalman.rts_smooth(np.array(state.measured), heading_settled=state.settled)
+        return state.kalman.rts_smooth(np.array(state.measured),
+                                       heading_variance=np.array(state.heading_variance))

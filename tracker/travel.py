@@ -32,6 +32,7 @@ import numpy as np
 DEFAULT_FOV_DEG = 60.0          # horizontal field of view assumed for the focal length
 DEFAULT_WINDOW = 15             # frames fitted (0.5 s at 30 fps): smooths the gait's bobbing
 DEFAULT_MIN_SPEED = 0.15        # body heights per second (a slow walk is ~0.6)
+TRAVEL_STD_DEG = 25.0           # error of the travel direction as a heading, see fuse_heading
 
 
 def travel_heading(u_px: np.ndarray, height_px: np.ndarray, fps: float, frame_width: int,
@@ -91,3 +92,21 @@ def resolve_front_back(raw: np.ndarray, travel_deg: float | None) -> np.ndarray:
     if off > 90.0:
         out[:2] = -out[:2]
     return out
+
+
+def fuse_heading(raw: np.ndarray, travel_deg: float, raw_variance: float,
+                 travel_std_deg: float = TRAVEL_STD_DEG) -> tuple[np.ndarray, float]:
+    """Combine the regressor's heading (raw (55,), front/back already settled, variance
+    raw_variance deg^2) with the direction of travel (degrees, std travel_std_deg) by inverse
+    variance weighting on the circle: the same as two Kalman updates with independent errors.
+    Returns (raw with the fused heading, same (cos, sin) norm; fused variance deg^2).
+    travel_std_deg: measured on the sample walk's true boxes, the travel direction's error
+    has median 13.5 and 90th percentile 38 degrees (walking forwards)."""
+    out = np.array(raw, dtype=np.float64, copy=True)
+    norm = math.hypot(out[0], out[1])
+    heading = math.degrees(math.atan2(out[1], out[0]))
+    w_raw, w_travel = 1.0 / raw_variance, 1.0 / travel_std_deg ** 2
+    delta = (travel_deg - heading + 180.0) % 360.0 - 180.0
+    fused = math.radians(heading + delta * w_travel / (w_raw + w_travel))
+    out[0], out[1] = norm * math.cos(fused), norm * math.sin(fused)
+    return out, 1.0 / (w_raw + w_travel)
