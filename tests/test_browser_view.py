@@ -64,8 +64,8 @@ def test_track_view_serves_the_live_skeleton_to_a_browser(tmp_path):
     from sequences.video import Actor, write_video
     from tests.test_track_cli import _walker
 
-    video = tmp_path / "walk.mp4"
-    write_video(video, [Actor(_walker(240, step=0.2))], size=(240, 320), noise_sigma=1.0)
+    video = tmp_path / "walk.mp4"          # 15 s: played in real time, outlasts the screenshot
+    write_video(video, [Actor(_walker(450, step=0.1))], size=(240, 320), noise_sigma=1.0)
     root = Path(__file__).resolve().parents[1]
     proc = subprocess.Popen([sys.executable, "-m", "tracker.cli", str(video), "--view",
                              "--quiet", "--out", str(tmp_path / "v.mcap")],

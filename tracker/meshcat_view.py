@@ -93,6 +93,10 @@ class MeshcatView:
         self._radius = float(joint_radius_m)
         self._frame: int | None = None
         self._last_frame: dict[int, int] = {}  # track id -> last frame it was drawn in
+        # Ground point (x, 0, z) metres under the first person's first root: subtracted from
+        # every skeleton, so people appear near the viewer's origin, where its camera looks,
+        # rather than metres away at their camera-relative positions.
+        self._anchor: np.ndarray | None = None
         self._closed = False
         try:
             with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL itself
@@ -125,12 +129,16 @@ class MeshcatView:
     def write(self, frame_index: int, time_s: float, track_id: int, raw55: np.ndarray,
               filtered55: np.ndarray, ambiguous: bool, joints3d: np.ndarray, *,
               centroid_px: tuple[float, float] | None = None) -> None:
-        """Draw track ``track_id`` at joints3d (18, 3) metres (Y up); other arguments are
+        """Draw track ``track_id`` at joints3d (18, 3) metres (Y up), shifted so the first
+        person drawn starts above the viewer's origin; other arguments are
         accepted for the common sink interface. Raises SinkInputError on bad joints or when
         closed; zmq.Again when the server does not answer within 10 s."""
         if self._closed:
             raise SinkInputError("meshcat view is closed")
-        joints = y_up_to_z_up(check_joints(joints3d))
+        joints = check_joints(joints3d)
+        if self._anchor is None:
+            self._anchor = np.array([joints[0, 0], 0.0, joints[0, 2]])
+        joints = y_up_to_z_up(joints - self._anchor)
         frame_index, track_id = int(frame_index), int(track_id)
         if frame_index != self._frame:
             self._remove_absent_tracks()
