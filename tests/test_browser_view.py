@@ -18,12 +18,15 @@ pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="needs Chromium (apt-ge
 TRACK = 6  # pink in the palette: unlike the blue sky, grey grid and red/green/blue axes
 
 
-def _screenshot(url: str, out: Path, profile: Path) -> np.ndarray:
-    """Render ``url`` headless and return the screenshot as (H, W, 3) uint8 RGB."""
+def _screenshot(url: str, out: Path, profile: Path, live: bool = False) -> np.ndarray:
+    """Render ``url`` headless and return the screenshot as (H, W, 3) uint8 RGB. live: the page
+    keeps receiving updates, so it never goes idle: shoot after a wall-clock delay instead of
+    a virtual-time budget (which waits for idleness)."""
+    wait = "--timeout=5000" if live else "--virtual-time-budget=8000"
     command = [
         CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
         "--disable-background-networking", "--no-first-run", f"--user-data-dir={profile}",
-        "--window-size=800,600", "--virtual-time-budget=8000", f"--screenshot={out}", url,
+        "--window-size=800,600", wait, f"--screenshot={out}", url,
     ]
     result = subprocess.run(command, capture_output=True, text=True, timeout=180)
     assert out.is_file(), f"chromium wrote no screenshot (code {result.returncode}): " \
@@ -75,7 +78,7 @@ def test_track_view_serves_the_live_skeleton_to_a_browser(tmp_path):
         line = proc.stdout.readline()
         assert line.startswith("meshcat viewer: http://127.0.0.1:"), line
         url = line.split(": ", 1)[1].strip()
-        drawn = _screenshot(url, tmp_path / "track.png", tmp_path / "profile")
+        drawn = _screenshot(url, tmp_path / "track.png", tmp_path / "profile", live=True)
         assert proc.poll() is None, "track ended before the screenshot: not played in real time"
         _, err = proc.communicate(timeout=60)
     finally:
