@@ -264,3 +264,19 @@ def test_interrupt_and_kill_leave_a_readable_recording(tmp_path):
             with open(tmp_path / "recovered.mcap", "rb") as f:
                 assert sum(1 for _ in make_reader(f, validate_crcs=True).iter_messages()) \
                     == report.messages
+
+
+def test_smooth_gives_smoother_tracks_than_the_forward_filter(tmp_path, walk_video):
+    plain, smooth = tmp_path / "plain.json", tmp_path / "smooth.json"
+    assert _track(walk_video, "--json", plain, cwd=tmp_path).returncode == 0
+    result = _track(walk_video, "--json", smooth, "--smooth", "--bvh", tmp_path / "b",
+                    cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    (a,), (b,) = (json.loads(p.read_text())["tracks"] for p in (plain, smooth))
+    assert a["frames"] == b["frames"]
+    pa, pb = np.array(a["pose"])[:, 2:], np.array(b["pose"])[:, 2:]
+
+    def jitter(p):
+        return np.abs((np.diff(p, 2, axis=0) + 180) % 360 - 180).mean()
+    assert jitter(pb) < 0.5 * jitter(pa)
+    assert len(list((tmp_path / "b").glob("*.bvh"))) == 1
