@@ -26,6 +26,12 @@ def output_error(P: np.ndarray, T: np.ndarray) -> float:
     return float(np.abs(P - T).mean())
 
 
+def show(row, ours_s: float) -> None:
+    """Print one result row as soon as it is measured."""
+    name, err, kept, secs = row
+    print(f"{name:64s} {err:6.3f} {kept:5d} {secs:8.1f} {secs / ours_s:7.1f}", flush=True)
+
+
 def fit_per_output(make, Phi_or_X, Y):
     """Fit one single-output model per column of Y (N, n); returns (models, seconds)."""
     start = time.perf_counter()
@@ -53,8 +59,12 @@ def main() -> None:
     ours = RVMRegressor("gaussian", noise=args.noise, width=width, output_scale="common",
                         min_gain=args.min_gain).fit(X, Y)
     ours_s = time.perf_counter() - start
+    print(f"test error of output {args.output} (mean |error|, data units), kept examples, fit seconds "
+          "for all 63 outputs (rough: shared 2-core machine)", flush=True)
+    print(f"{'method':64s} {'error':>6s} {'kept':>5s} {'fit s':>8s} {'x ours':>7s}", flush=True)
     rows.append(("ours: RVMRegressor (all 63 outputs, measured)", output_error(ours.predict(Xt)[:, args.output], Yt[:, args.output]),
                  ours.n_basis_, ours_s))
+    show(rows[-1], ours_s)
 
     warnings.simplefilter("ignore")
     Phi, Phit = gaussian_design(X, X, width), gaussian_design(Xt, X, width)
@@ -65,6 +75,7 @@ def main() -> None:
         P = np.column_stack([m.predict(Xt) for m in models])
         n_rv = len(set().union(*(map(tuple, m.relevance_vectors_) for m in models)))
         rows.append(("sklearn-rvm EMRVR (1 output; time x63 extrapolated)", output_error(P[:, 0], Yt[:, args.output]), n_rv, s * scale))
+        show(rows[-1], ours_s)
     except Exception as exc:  # report exactly why the peer could not run
         print(f"sklearn-rvm EMRVR unavailable: {type(exc).__name__}: {exc}")
     from sklearn.linear_model import ARDRegression
@@ -72,12 +83,8 @@ def main() -> None:
     P = np.column_stack([m.predict(Phit) for m in models])
     kept = np.any([np.abs(m.coef_) > 1e-12 * np.abs(m.coef_).max(initial=1) for m in models], axis=0).sum()
     rows.append(("scikit-learn ARDRegression (1 output; time x63 extrapolated)", output_error(P[:, 0], Yt[:, args.output]), int(kept), s * scale))
+    show(rows[-1], ours_s)
 
-    print(f"test error of output {args.output} (mean |error|, data units), kept examples, fit seconds "
-          "for all 63 outputs (rough: shared 2-core machine)")
-    print(f"{'method':64s} {'error':>6s} {'kept':>5s} {'fit s':>8s} {'x ours':>7s}")
-    for name, err, kept, secs in rows:
-        print(f"{name:64s} {err:6.3f} {kept:5d} {secs:8.1f} {secs / ours_s:7.1f}")
 
 
 if __name__ == "__main__":
