@@ -4,11 +4,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sequences.bvh import Motion, write_bvh
+from sequences.bvh import write_bvh
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError, build_dataset,
                                load_trial, render_trial, training_files, view_settings)
 from sequences.pose_vector import heading_deg
-from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES, CMU_REST_OFFSETS
+from sequences.skeleton import CMU_JOINT_NAMES
+from tests.synthetic import cmu_motion
 
 SMALL = dict(views_per_trial=2, person_px=48.0, mask_size=(64, 64))
 
@@ -18,12 +19,7 @@ def _write_trial(folder, name: str, T: int = 6, swing: float = 20.0):
     J = len(CMU_JOINT_NAMES)
     euler = np.zeros((T, J, 3))
     euler[:, CMU_JOINT_NAMES.index("LeftUpLeg"), 2] = swing * np.sin(np.arange(T))
-    channels = [["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]]
-    channels += [["Zrotation", "Yrotation", "Xrotation"]] * (J - 1)
-    motion = Motion(names=list(CMU_JOINT_NAMES), parents=CMU_PARENTS.copy(),
-                    offsets=CMU_REST_OFFSETS.copy(), end_sites=CMU_REST_END_SITES.copy(),
-                    channels=channels, euler_deg=euler,
-                    root_position=np.tile([0.0, 17.0, 0.0], (T, 1)), fps=30.0)
+    motion = cmu_motion(euler, np.tile([0.0, 17.0, 0.0], (T, 1)))
     path = folder / f"{name}.bvh"
     write_bvh(path, motion)
     return path

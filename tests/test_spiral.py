@@ -6,7 +6,8 @@ import pytest
 
 from sequences.bvh import Motion, read_bvh
 from sequences.pose_vector import heading_deg, motion_to_pose_vectors
-from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES, CMU_REST_OFFSETS
+from sequences.skeleton import CMU_JOINT_NAMES
+from tests.synthetic import cmu_motion
 from sequences.spiral import SpiralError, find_loop, line_of_sight_azimuth, spiral_walk
 
 FPS = 30.0
@@ -21,12 +22,7 @@ def _synthetic_walk(T: int = 90, period: int = 30) -> Motion:
     euler[:, left, 2] = 25 * np.sin(phase)          # X rotation (last channel): leg swing
     euler[:, right, 2] = -25 * np.sin(phase)
     root = np.column_stack([np.zeros(T), 17 + 0.3 * np.cos(2 * phase), 0.5 * np.arange(T)])
-    channels = [["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]]
-    channels += [["Zrotation", "Yrotation", "Xrotation"]] * (J - 1)
-    return Motion(names=list(CMU_JOINT_NAMES), parents=CMU_PARENTS.copy(),
-                  offsets=CMU_REST_OFFSETS.copy(), end_sites=CMU_REST_END_SITES.copy(),
-                  channels=channels, euler_deg=euler, root_position=root, fps=FPS,
-                  source="synthetic")
+    return cmu_motion(euler, root, fps=FPS)
 
 
 def _heading_sweep(motion: Motion) -> float:

@@ -22,7 +22,8 @@ from mcap.reader import make_reader
 from regressor.pose_model import DEFAULT_MODEL_PATH
 from sequences.bvh import Motion, read_bvh
 from sequences.pose_vector import heading_deg
-from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES, CMU_REST_OFFSETS
+from sequences.skeleton import CMU_JOINT_NAMES
+from tests.synthetic import cmu_motion
 from sequences.video import Actor, load_truth, write_video
 from tracker.mcap_repair import recover_mcap
 
@@ -55,13 +56,8 @@ def _walker(T: int, step: float = 0.6, fps: float = 30.0) -> Motion:
     for name, z in (("LeftArm", -70), ("RightArm", 70)):   # arms down from the T-pose
         euler[:, CMU_JOINT_NAMES.index(name), 0] = z
     euler[:, 0, 1] = 90.0                                   # facing +X, the walking direction
-    channels = [["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]]
-    channels += [["Zrotation", "Yrotation", "Xrotation"]] * (J - 1)
     root = np.column_stack([step * np.arange(T), np.full(T, 17.0), np.zeros(T)])
-    return Motion(names=list(CMU_JOINT_NAMES), parents=CMU_PARENTS.copy(),
-                  offsets=CMU_REST_OFFSETS.copy(), end_sites=CMU_REST_END_SITES.copy(),
-                  channels=channels, euler_deg=euler, root_position=root, fps=fps,
-                  source="walker")
+    return cmu_motion(euler, root, fps=fps, source="walker")
 
 
 @pytest.fixture(scope="module")

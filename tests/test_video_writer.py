@@ -7,7 +7,8 @@ import pytest
 
 from sequences.bvh import Motion
 from sequences.pose_vector import heading_deg
-from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES, CMU_REST_OFFSETS
+from sequences.skeleton import CMU_JOINT_NAMES
+from tests.synthetic import cmu_motion
 from sequences.video import (Actor, VideoWriteError, load_truth, textured_background,
                              write_video)
 
@@ -18,13 +19,8 @@ def _walker(T: int = 8, step: float = 1.0, fps: float = 30.0) -> Motion:
     J = len(CMU_JOINT_NAMES)
     euler = np.zeros((T, J, 3))
     euler[:, CMU_JOINT_NAMES.index("LeftUpLeg"), 2] = 20 * np.sin(np.arange(T) / 2)
-    channels = [["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]]
-    channels += [["Zrotation", "Yrotation", "Xrotation"]] * (J - 1)
     root = np.column_stack([step * np.arange(T), np.full(T, 17.0), np.zeros(T)])
-    return Motion(names=list(CMU_JOINT_NAMES), parents=CMU_PARENTS.copy(),
-                  offsets=CMU_REST_OFFSETS.copy(), end_sites=CMU_REST_END_SITES.copy(),
-                  channels=channels, euler_deg=euler, root_position=root, fps=fps,
-                  source="walker")
+    return cmu_motion(euler, root, fps=fps, source="walker")
 
 
 def _read_all(path):

@@ -17,7 +17,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
 from .bvh_sink import BVHSink
