@@ -30,12 +30,12 @@ from regressor.metrics import (acceleration_error, angle_jitter, angular_error,
 from regressor.pose_model import PoseModel
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
-from sequences.body import Skinner, ground_sequence, load_body, sample_body_shapes
+from sequences.body import sample_body_shapes
 from sequences.bvh import read_bvh
 from sequences.pose_vector import PART_OF_ENTRY, motion_to_pose_vectors
 from sequences.render import silhouette_mask
 from sequences.spiral import line_of_sight_azimuth, spiral_walk
-from sequences.video import Actor, fitted_camera, load_truth, write_video
+from sequences.video import Actor, load_truth, posed_sequences, scene_camera, write_video
 from .filtering import ConstantVelocityFilter, PoseKalmanFilter, pose_to_angles
 from .pipeline import PoseTracker
 from .travel import TravelDirection, fuse_heading, resolve_front_back
@@ -295,16 +295,11 @@ def render_silhouettes(motion, camera: CameraOptions
 
     Returns (masks: list of (h, w) bool crops, truth pose vectors (T, 55) relative to the line
     of sight, image track (T, 2): each silhouette's centroid column and height in pixels)."""
-    body = load_body()
-    shape = sample_body_shapes(1, seed=camera.seed)[0]
-    skinner = Skinner(body, offsets=motion.offsets, names=motion.names,
-                      end_sites=motion.end_sites, shape=shape)
-    root = skinner.root_from_bvh(motion.root_position)
-    verts = skinner.pose(motion.local_rotations(), root)
-    grounded = ground_sequence(verts)
-    hips = root + (grounded[0, 0] - verts[0, 0])
-    cam = fitted_camera(grounded[:, ::7].reshape(-1, 3), camera.size, camera.azimuth_deg,
-                        camera.elevation_deg, camera.distance_m)
+    actor = Actor(motion, shape=sample_body_shapes(1, seed=camera.seed)[0])
+    body, posed = posed_sequences([actor], motion.n_frames)
+    grounded, hips = posed[0]
+    cam = scene_camera(posed, camera.size, camera.azimuth_deg, camera.elevation_deg,
+                       camera.distance_m)
     truth = motion_to_pose_vectors(motion, line_of_sight_azimuth(hips, cam.position))
     masks, image_track = [], []
     for t, v in enumerate(grounded):
