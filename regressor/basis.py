@@ -21,11 +21,13 @@ import inspect
 
 import numpy as np
 
+from .errors import SilhouettePoseError
+
 BASIS_KINDS = ("linear", "gaussian")
 _WIDTH_SAMPLE = 2000  # rows used to estimate the mean squared distance (deterministic: evenly spaced)
 
 
-class RegressorInputError(ValueError):
+class RegressorInputError(SilhouettePoseError, ValueError):
     """Bad input to a regressor (shape, dtype, non-finite values, unknown option)."""
 
 
@@ -33,7 +35,7 @@ class RegressorTypeError(RegressorInputError, TypeError):
     """Input that is not numbers at all (e.g. objects in X)."""
 
 
-class NotFittedError(ValueError, AttributeError):
+class NotFittedError(SilhouettePoseError, ValueError, AttributeError):
     """``predict`` (or a learned attribute) was used before ``fit``."""
 
 

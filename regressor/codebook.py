@@ -10,8 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .basis import squared_distances
+from .errors import SilhouettePoseError
 
-class CodebookError(ValueError):
+
+class CodebookError(SilhouettePoseError, ValueError):
     """A codebook's arrays, or the data given to fit or use one, are malformed."""
 
 
@@ -58,12 +61,6 @@ class Codebook:
         if sigma.shape != () or not np.issubdtype(sigma.dtype, np.floating):
             raise CodebookError(f"{prefix}sigma must be a float scalar, got shape {sigma.shape} dtype {sigma.dtype}")
         return cls(np.asarray(arrays[prefix + "centres"], dtype=np.float64), float(sigma))
-
-
-def squared_distances(x: np.ndarray, centres: np.ndarray) -> np.ndarray:
-    """Squared Euclidean distances (N, K) between rows of x (N, D) and centres (K, D), >= 0."""
-    d2 = (x * x).sum(axis=1)[:, None] - 2.0 * (x @ centres.T) + (centres * centres).sum(axis=1)[None, :]
-    return np.maximum(d2, 0.0)
 
 
 def _kmeans_plus_plus(x: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:

@@ -15,6 +15,8 @@ from regressor.codebook import Codebook, CodebookError, fit_codebook, soft_histo
 from regressor.edges import DegenerateSilhouetteError, SilhouetteError, sample_edge_points
 from regressor.shape_context import shape_contexts
 
+from .errors import SilhouettePoseError
+
 __all__ = [
     "Codebook",
     "CodebookError",
@@ -32,7 +34,7 @@ __all__ = [
 Progress = Callable[[int], None]
 
 
-class DescriptorSettingsError(ValueError):
+class DescriptorSettingsError(SilhouettePoseError, ValueError):
     """A descriptor setting is out of range, or stored settings are malformed."""
 
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from .errors import SilhouettePoseError
+
 # A person's silhouette is never thinner than this fraction of its length (ratio of the smaller to
 # the larger standard deviation of its edge points). A 1-pixel line, straight or diagonal, scores
 # below 0.02; a standing person with arms down scores about 0.2.
@@ -20,7 +22,7 @@ MIN_EDGE_PIXELS = 10
 MIN_HOLE_PERIMETER = 8.0
 
 
-class SilhouetteError(ValueError):
+class SilhouetteError(SilhouettePoseError, ValueError):
     """The input is not a usable silhouette mask (wrong shape or type)."""
 
 

@@ -1,7 +1,7 @@
 """Error and jitter measures (DESIGN.md), and blocked cross-validation for choosing hyperparameters.
 
 Points: (T, 3P) arrays, x y z interleaved (point j is columns 3j..3j+2), in the data's units.
-Angles: (T, A) arrays in degrees; differences are wrapped to [-180, 180).
+Angles: (T, A) arrays in degrees; differences are wrapped to (-180, 180] (regressor.angles.wrap_deg).
 Every measure is computed per frame and then averaged over frames.
 """
 from __future__ import annotations
@@ -10,8 +10,11 @@ from typing import Callable
 
 import numpy as np
 
+from .angles import wrap_deg
+from .errors import SilhouettePoseError
 
-class MetricInputError(ValueError):
+
+class MetricInputError(SilhouettePoseError, ValueError):
     """Arrays given to a metric have the wrong shape or non-finite values."""
 
 
@@ -32,11 +35,6 @@ def _as_points(P: np.ndarray) -> np.ndarray:
     return P.reshape(P.shape[0], -1, 3)
 
 
-def wrap_degrees(a: np.ndarray) -> np.ndarray:
-    """Wrap angles (any shape, degrees) to [-180, 180)."""
-    return (np.asarray(a, dtype=np.float64) + 180.0) % 360.0 - 180.0
-
-
 def mean_point_error(est, true) -> float:
     """Mean over frames of the mean over points of ||est - true||; est, true (T, 3P). Data units."""
     est, true = _check(est, true, "mean_point_error", points=True)
@@ -53,18 +51,18 @@ def point_jitter(P) -> float:
 def angular_error(est, true) -> float:
     """The paper's eq. 5: mean over frames of the mean over angles of |wrap(est - true)|; degrees."""
     est, true = _check(est, true, "angular_error")
-    return float(np.abs(wrap_degrees(est - true)).mean())
+    return float(np.abs(wrap_deg(est - true)).mean())
 
 
 def rms_per_angle(est, true) -> np.ndarray:
     """RMS over frames of wrap(est - true) for each angle: (T, A) -> (A,), degrees."""
     est, true = _check(est, true, "rms_per_angle")
-    return np.sqrt((wrap_degrees(est - true) ** 2).mean(0))
+    return np.sqrt((wrap_deg(est - true) ** 2).mean(0))
 
 
 def _angle_second_difference(A: np.ndarray) -> np.ndarray:
     # Wrap each first difference, so a step across +-180 counts as the short way round.
-    d1 = wrap_degrees(np.diff(A, axis=0))
+    d1 = wrap_deg(np.diff(A, axis=0))
     return np.diff(d1, axis=0)
 
 
@@ -77,7 +75,7 @@ def angle_jitter(A) -> float:
 def acceleration_error(est, true) -> float:
     """angle_jitter of the wrapped difference wrap(est - true); est, true (T >= 3, n) degrees."""
     est, true = _check(est, true, "acceleration_error", min_frames=3)
-    return float(np.abs(_angle_second_difference(wrap_degrees(est - true))).mean())
+    return float(np.abs(_angle_second_difference(wrap_deg(est - true))).mean())
 
 
 def contiguous_folds(n: int, n_folds: int) -> list[np.ndarray]:

@@ -33,39 +33,26 @@ from typing import Mapping
 
 import numpy as np
 
+from .errors import SilhouettePoseError
+
 FORMAT_VERSION = 1
 SUPPORTED_VERSIONS = (1,)
 _RESERVED = ("format_version", "checksum")
 BASIS_KINDS = ("linear", "gaussian")
 
 
-class ModelFileError(ValueError):
+class ModelFileError(SilhouettePoseError, ValueError):
     """A model file (or the parts given to save_model) failed validation; the message names the file."""
 
 
 @dataclass(frozen=True)
 class ModelFile:
-    """A loaded model file. ``parts`` maps every stored name to its array; the typed fields are
-    the known parts (None when the file lacks them). Mapping access (m["coef"], m.get(...),
-    "coef" in m) reads ``parts``."""
+    """A loaded model file: ``parts`` maps every stored name to its array. Mapping access
+    (m["coef"], m.get(...), "coef" in m) reads ``parts``."""
 
     path: str
     format_version: int
     parts: dict = field(repr=False)
-    stack_depth: int | None = None
-    basis: str | None = None
-    width: float | None = None
-    centres: np.ndarray | None = field(default=None, repr=False)
-    relevance: np.ndarray | None = field(default=None, repr=False)
-    coef: np.ndarray | None = field(default=None, repr=False)
-    intercept: np.ndarray | None = field(default=None, repr=False)
-    output_mean: np.ndarray | None = field(default=None, repr=False)
-    output_std: np.ndarray | None = field(default=None, repr=False)
-    codebook_centres: np.ndarray | None = field(default=None, repr=False)
-    codebook_sigma: float | None = None
-    measurement_covariance: np.ndarray | None = field(default=None, repr=False)
-    process_noise: np.ndarray | None = field(default=None, repr=False)
-    description: dict | None = None
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.parts[name]
@@ -153,26 +140,7 @@ def load_model(path: str | Path) -> ModelFile:
         if a.dtype.kind not in "biufU":
             raise ModelFileError(f"{where}: part {k!r} has dtype {a.dtype}")
     _validate(where, arrays)
-    return _typed(where, int(version), arrays)
-
-
-def _scalar(a: np.ndarray | None, kind: type):
-    return None if a is None else kind(a.item())
-
-
-def _typed(where: str, version: int, p: dict) -> ModelFile:
-    desc = p.get("description")
-    width = _scalar(p.get("width"), float)
-    return ModelFile(
-        path=where, format_version=version, parts=p,
-        stack_depth=_scalar(p.get("stack_depth"), int), basis=_scalar(p.get("basis"), str),
-        width=None if width is None or np.isnan(width) else width,
-        centres=p.get("centres") if p.get("centres") is None or p["centres"].size else None,
-        relevance=p.get("relevance"), coef=p.get("coef"), intercept=p.get("intercept"),
-        output_mean=p.get("output_mean"), output_std=p.get("output_std"),
-        codebook_centres=p.get("codebook_centres"), codebook_sigma=_scalar(p.get("codebook_sigma"), float),
-        measurement_covariance=p.get("measurement_covariance"), process_noise=p.get("process_noise"),
-        description=None if desc is None else json.loads(str(desc)))
+    return ModelFile(where, int(version), arrays)
 
 
 def _validate(where: str, p: Mapping[str, np.ndarray]) -> None:

@@ -10,8 +10,8 @@ the regressor predicts wrap(angle - centre), so an angle whose range straddles +
 (shoulders, in Euler angles) is continuous for the regressor. predict() adds the centres back
 and wraps to (-180, 180].
 
-Output layout is the pose vector's (sequences/pose_vector.py, not imported here: regressor is
-self-contained): [cos, sin] of the heading, then 53 angles in degrees.
+Output layout is the pose vector's (regressor/angles.py; sequences/pose_vector.py documents it):
+[cos, sin] of the heading, then 53 angles in degrees.
 """
 from __future__ import annotations
 
@@ -21,19 +21,22 @@ from pathlib import Path
 
 import numpy as np
 
+from .angles import N_ANGLES, POSE_DIM, wrap_deg
 from .basis import gaussian_design
 from .codebook import Codebook, CodebookError
 from .descriptor import DescriptorSettings, DescriptorSettingsError, descriptor_for_mask
 from .model_file import ModelFileError, load_model, save_model
+from .errors import SilhouettePoseError
 
 DEFAULT_MODEL_PATH = Path(__file__).resolve().parent / "models" / "default_model.npz"
-POSE_DIM = 55
-N_ANGLES = 54                      # heading + 53 joint angles, the filter's state
 TRANSFORMS = ("none", "sqrt")      # sqrt: Hellinger-like, tames the dominant histogram bins
 MODEL_KIND = "silhouette-pose"
+#: Raw heading norm below which a frame is ambiguous, for model files that do not store the
+#: threshold they were trained with (all written before it was stored used this value).
+DEFAULT_AMBIGUITY_THRESHOLD = 0.5
 
 
-class PoseModelError(ValueError):
+class PoseModelError(SilhouettePoseError, ValueError):
     """A model file that is missing, unreadable, tampered with or inconsistent."""
 
 
@@ -45,7 +48,9 @@ class PoseModel:
     centres: (R, k*D) kernel centres (Gaussian basis) or None (linear basis, then relevance:
     (R,) kept feature indices); width: kernel width; coef: (R, 55); intercept: (55,);
     angle_centre_deg: (53,); measurement_covariance: (54, 54) deg^2 (filter R, angle order:
-    heading then the 53 angles); process_noise: (54,) (deg/s^2)^2 (filter q).
+    heading then the 53 angles); process_noise: (54,) (deg/s^2)^2 (filter q);
+    ambiguity_threshold: raw heading norm below which a frame counts as ambiguous, as used to
+    estimate measurement_covariance (the tracker uses it unless told otherwise).
     """
 
     settings: DescriptorSettings
@@ -61,6 +66,7 @@ class PoseModel:
     angle_centre_deg: np.ndarray
     measurement_covariance: np.ndarray
     process_noise: np.ndarray
+    ambiguity_threshold: float = DEFAULT_AMBIGUITY_THRESHOLD
     description: dict = field(default_factory=dict)
 
     @property
@@ -89,7 +95,7 @@ class PoseModel:
         else:
             Phi = X[:, self.relevance]
         Y = Phi @ self.coef + self.intercept
-        Y[:, 2:] = (Y[:, 2:] + self.angle_centre_deg + 180.0) % 360.0 - 180.0
+        Y[:, 2:] = wrap_deg(Y[:, 2:] + self.angle_centre_deg)
         return Y
 
     def summary(self) -> dict:
@@ -120,6 +126,7 @@ def save_pose_model(path: str | Path, model: PoseModel) -> None:
         "angle_centre_deg": model.angle_centre_deg,
         "measurement_covariance": model.measurement_covariance,
         "process_noise": model.process_noise,
+        "ambiguity_threshold": np.float64(model.ambiguity_threshold),
         "description": np.str_(json.dumps(model.description, sort_keys=True)),
     }
     save_model(path, arrays)
@@ -145,6 +152,7 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
             angle_centre_deg=a["angle_centre_deg"].astype(np.float64),
             measurement_covariance=a["measurement_covariance"].astype(np.float64),
             process_noise=a["process_noise"].astype(np.float64),
+            ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
             description=json.loads(str(a["description"])))
     except PoseModelError:
         raise
@@ -182,6 +190,7 @@ def _validate(path: Path, m: PoseModel) -> None:
     if m.centres is not None:
         arrays.append(m.centres)
     checks.append((all(np.isfinite(x).all() for x in arrays), "non-finite values"))
+    checks.append((0.0 <= m.ambiguity_threshold <= 1.0, "ambiguity threshold must be in [0, 1]"))
     for ok, problem in checks:
         if not ok:
             raise PoseModelError(f"{path}: invalid model: {problem}")

@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import SilhouettePoseError
 
-class StackingInputError(ValueError):
+
+class StackingInputError(SilhouettePoseError, ValueError):
     """Bad descriptors, sequence labels or depth given to stacking."""
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy loads its BLAS
@@ -17,11 +16,10 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy loads its BLAS
 import cv2
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from regressor.codebook import soft_histogram  # noqa: E402
-from regressor.descriptor import DescriptorSettings, descriptor_for_mask, fit_codebook_for_masks  # noqa: E402
-from regressor.edges import sample_edge_points  # noqa: E402
-from regressor.shape_context import shape_contexts  # noqa: E402
+from regressor.codebook import soft_histogram
+from regressor.descriptor import DescriptorSettings, descriptor_for_mask, fit_codebook_for_masks
+from regressor.edges import sample_edge_points
+from regressor.shape_context import shape_contexts
 
 
 def _limb(mask: np.ndarray, start: np.ndarray, angle_deg: float, length: float, width: float) -> np.ndarray:

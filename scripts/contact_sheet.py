@@ -10,18 +10,16 @@ so taller or broader shapes look taller or broader.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
+import cv2
+import numpy as np
 
-from sequences.body import BodyShape, Skinner, load_body  # noqa: E402
-from sequences.bvh import read_bvh  # noqa: E402
-from sequences.render import look_at_camera, shaded_render, silhouette_mask  # noqa: E402
+from sequences.body import BodyShape, Skinner, load_body
+from sequences.bvh import read_bvh
+from sequences.render import look_at_camera, shaded_render, silhouette_mask
 
 SHAPES = (BodyShape(0.9, 0.85), BodyShape(1.0, 1.0), BodyShape(1.1, 1.3))
 TILE = (170, 115)                      # height, width in pixels

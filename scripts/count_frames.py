@@ -12,9 +12,8 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from sequences.bvh import BVHError, read_bvh  # noqa: E402
+from sequences.bvh import BVHError, read_bvh
 
 
 def main(argv: list[str] | None = None) -> int:

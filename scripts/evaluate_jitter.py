@@ -14,18 +14,15 @@ import json
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from threadpoolctl import threadpool_limits  # noqa: E402
+from threadpoolctl import threadpool_limits
 
-from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model  # noqa: E402
-from sequences.bvh import BVHError  # noqa: E402
-from sequences.spiral import SpiralError  # noqa: E402
-from tracker.evaluation import (AnkurOptions, CameraOptions, EvaluationError,  # noqa: E402
-                                FilterOptions, ankur_sequence, evaluate, rendered_sequence,
-                                video_sequence)
-from tracker.filtering import FilterError  # noqa: E402
-from tracker.report import format_table, write_report  # noqa: E402
+from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+from regressor.errors import SilhouettePoseError
+from tracker import TrackerSettings
+from tracker.offline.evaluation import (AnkurOptions, CameraOptions, ankur_sequence, evaluate,
+                                        rendered_sequence, video_sequence)
+from tracker.offline.report import format_table, write_report
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
 
@@ -50,9 +47,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--per-frame-model", type=Path, default=PER_FRAME_MODEL, help="k=1 model")
     ap.add_argument("--size", type=_size, default=(240, 320), help="WIDTHxHEIGHT (320x240)")
     ap.add_argument("--frames", type=int, help="evaluate only the first N frames")
-    ap.add_argument("--ambiguity-threshold", type=float, default=FilterOptions.ambiguity_threshold)
-    ap.add_argument("--heading-factor", type=float, default=FilterOptions.ambiguous_heading_factor)
-    ap.add_argument("--joint-factor", type=float, default=FilterOptions.ambiguous_joint_factor)
+    ap.add_argument("--ambiguity-threshold", type=float, help="default: the model's")
+    ap.add_argument("--heading-factor", type=float,
+                    default=TrackerSettings.ambiguous_heading_factor)
+    ap.add_argument("--joint-factor", type=float, default=TrackerSettings.ambiguous_joint_factor)
     ap.add_argument("--r-scale", type=float, help="multiply the filter's R (default 1; --ankur: "
                     "chosen on the training split)")
     ap.add_argument("--q-scale", type=float, default=1.0, help="multiply the filter's q")
@@ -69,21 +67,22 @@ def main(argv=None) -> int:
                 seq = ankur_sequence(args.ankur, AnkurOptions(r_scale=args.r_scale,
                                                               q_scale=args.q_scale), args.frames)
             else:
-                filt = FilterOptions(args.ambiguity_threshold, args.heading_factor,
-                                     args.joint_factor, args.r_scale or 1.0, args.q_scale)
+                settings = TrackerSettings(ambiguity_threshold=args.ambiguity_threshold,
+                                           ambiguous_heading_factor=args.heading_factor,
+                                           ambiguous_joint_factor=args.joint_factor,
+                                           r_scale=args.r_scale or 1.0, q_scale=args.q_scale)
                 models = load_pose_model(args.model), load_pose_model(args.per_frame_model)
                 make = video_sequence if args.through_video else rendered_sequence
                 extra = {"video": args.video} if args.through_video else {}
                 seq = make(args.bvh, *models, args.spiral, CameraOptions(size=args.size),
-                           filt, args.frames, **extra)
+                           settings, args.frames, **extra)
         result = evaluate(seq)
         print(format_table(result))
         if args.json:
             args.json.write_text(json.dumps(result, indent=1))
         if args.report:
             print(f"report: {write_report(args.report, seq, result)}")
-    except (OSError, EvaluationError, PoseModelError, BVHError, SpiralError, FilterError,
-            ValueError) as exc:
+    except (OSError, SilhouettePoseError, ValueError) as exc:
         print(f"evaluate_jitter: error: {exc}", file=sys.stderr)
         return 1
     return 0

@@ -12,12 +12,11 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sequences.body import sample_body_shapes  # noqa: E402
-from sequences.bvh import BVHError, read_bvh  # noqa: E402
-from sequences.spiral import SpiralError, spiral_walk  # noqa: E402
-from sequences.video import Actor, VideoWriteError, write_video  # noqa: E402
+from sequences.body import sample_body_shapes
+from sequences.bvh import BVHError, read_bvh
+from sequences.spiral import SpiralError, spiral_walk
+from sequences.video import Actor, VideoWriteError, write_video
 
 
 def _size(text: str) -> tuple[int, int]:

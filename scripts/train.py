@@ -15,15 +15,14 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from threadpoolctl import threadpool_limits  # noqa: E402
+from threadpoolctl import threadpool_limits
 
-from regressor.descriptor import DescriptorSettings  # noqa: E402
-from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model  # noqa: E402
-from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,  # noqa: E402
+from regressor.descriptor import DescriptorSettings
+from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model
+from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files)
-from tracker.training import (TrainingOptions, cached_descriptors, dataset_descriptors,  # noqa: E402
+from tracker.offline.training import (TrainingOptions, cached_descriptors, dataset_descriptors,
                               fit_dataset_codebook, train_pose_model)
 
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from sequences.skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES,
                                 CMU_REST_OFFSETS, CMU_UNIT_M)
+from regressor.errors import SilhouettePoseError
 
 BODY_FORMAT_VERSION = 1
 DEFAULT_BODY_PATH = Path(__file__).resolve().parent / "data" / "body.npz"
@@ -47,11 +48,11 @@ _GIRTH_ONLY = ("LeftShoulder", "RightShoulder")
 _UP = np.array([0.0, 1.0, 0.0])
 
 
-class BodyFileError(ValueError):
+class BodyFileError(SilhouettePoseError, ValueError):
     """The body file is missing, of another format version, or fails validation."""
 
 
-class BodyPoseError(ValueError):
+class BodyPoseError(SilhouettePoseError, ValueError):
     """Bad input to posing: wrong array shapes, non-finite values, unknown joints or shapes."""
 
 

@@ -15,12 +15,14 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from regressor.errors import SilhouettePoseError
+
 _POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 _ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
 _TOKEN = re.compile(r"[{}]|[^\s{}]+")
 
 
-class BVHError(ValueError):
+class BVHError(SilhouettePoseError, ValueError):
     """A malformed or unsupported BVH file; the message names the file and line."""
 
 

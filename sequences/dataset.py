@@ -24,6 +24,8 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
+from regressor.errors import SilhouettePoseError
+
 from .body import BodyShape, Skinner, load_body
 from .bvh import read_bvh
 from .pose_vector import POSE_DIM, motion_to_pose_vectors
@@ -37,7 +39,7 @@ CACHE_FORMAT_VERSION = 1
 _FRAMES_PER_BATCH = 64          # frames skinned at once: bounds memory at ~T*V*12 floats
 
 
-class DatasetError(ValueError):
+class DatasetError(SilhouettePoseError, ValueError):
     """Bad data-set options, missing trials, or an unreadable cache file."""
 
 

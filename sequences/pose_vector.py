@@ -25,18 +25,20 @@ import warnings
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from regressor.angles import POSE_DIM, wrap_deg
+from regressor.errors import SilhouettePoseError
+
 from .bvh import Motion
 from .skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, FOLDED, POSE_JOINT_PART,
                        POSE_JOINTS, pose_joint_indices)
 
-POSE_DIM = 55
 #: Entries that are angles in degrees (all but the heading's cos and sin).
 ANGLE_SLICE = slice(2, POSE_DIM)
 _ROOT_ORDER = "YXZ"    # R_root = Ry(yaw) @ Rx(tilt_x) @ Rz(tilt_z), intrinsic
 _JOINT_ORDER = "ZYX"   # R = Rz @ Ry @ Rx, intrinsic, as the CMU BVH channels
 
 
-class PoseVectorError(ValueError):
+class PoseVectorError(SilhouettePoseError, ValueError):
     """Pose vectors or a skeleton of the wrong shape or content."""
 
 
@@ -90,12 +92,6 @@ def _azimuth(camera_azimuth_deg, T: int) -> np.ndarray:
     return az
 
 
-def _wrap_deg(angle: np.ndarray) -> np.ndarray:
-    """Angles wrapped to (-180, 180]."""
-    wrapped = np.mod(angle + 180.0, 360.0) - 180.0
-    return np.where(wrapped <= -180.0, wrapped + 360.0, wrapped)
-
-
 def _as_euler(rotation: Rotation, order: str) -> np.ndarray:
     # Near gimbal lock scipy warns and sets the third angle to zero; the angles still give the
     # same rotation, which is all the conversions need.
@@ -116,7 +112,7 @@ def _joint_index(names) -> dict[str, int]:
 def heading_deg(vectors: np.ndarray) -> np.ndarray:
     """Heading (T,) in degrees in (-180, 180] from pose vectors (T, 55): atan2(sin, cos)."""
     v = _as_vectors(vectors)
-    return _wrap_deg(np.degrees(np.arctan2(v[:, 1], v[:, 0])))
+    return wrap_deg(np.degrees(np.arctan2(v[:, 1], v[:, 0])))
 
 
 def heading_norm(vectors: np.ndarray) -> np.ndarray:

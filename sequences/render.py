@@ -19,11 +19,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from regressor.errors import SilhouettePoseError
+
 _SHIFT = 3                 # fillPoly fixed-point fraction bits: 1/8 pixel vertex precision
 _NEAR_M = 0.05             # triangles with a vertex nearer than this to the camera are dropped
 
 
-class RenderError(ValueError):
+class RenderError(SilhouettePoseError, ValueError):
     """Bad camera or render input (shapes, non-finite values, impossible settings)."""
 
 

@@ -20,6 +20,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from regressor.angles import wrap_deg
+from regressor.errors import SilhouettePoseError
+
 from .bvh import Motion
 from .pose_vector import motion_to_pose_vectors
 
@@ -28,16 +31,12 @@ _MIN_LOOP_SECONDS = 0.6      # shorter loops repeat a single step and look mecha
 _RAMP = (0.75, 1.25)         # turning-rate ramp (fraction of the mean rate) that makes a spiral
 
 
-class SpiralError(ValueError):
+class SpiralError(SilhouettePoseError, ValueError):
     """A motion that cannot be turned into a spiral walk (too short, bad options)."""
 
 
 def _root_index(motion: Motion) -> int:
     return int(np.flatnonzero(np.asarray(motion.parents) < 0)[0])
-
-
-def _wrap_deg(a: np.ndarray) -> np.ndarray:
-    return (np.asarray(a) + 180.0) % 360.0 - 180.0
 
 
 def _pieces(motion: Motion):
@@ -56,7 +55,7 @@ def _pieces(motion: Motion):
     # Ry(-yaw) applied to (x, z): x' = c x - s z, z' = s x + c z
     local_step = np.stack([c * step_world[:, 0] - s * step_world[:, 1],
                            s * step_world[:, 0] + c * step_world[:, 1]], axis=1)
-    yaw_rate = _wrap_deg(np.diff(yaw))
+    yaw_rate = wrap_deg(np.diff(yaw))
     local_step = np.vstack([local_step, local_step[-1:]])
     yaw_rate = np.append(yaw_rate, yaw_rate[-1])
     return yaw, np.stack([tilt_x, tilt_z], axis=1), local_step, yaw_rate, pos[:, 1].copy()
@@ -78,8 +77,8 @@ def find_loop(motion: Motion, min_seconds: float = _MIN_LOOP_SECONDS) -> tuple[i
     pose = vectors[:-1]
     nxt = vectors[1:]
     # Pairwise wrapped distance over all (i, j) pairs: (T-1, T-1), small enough for mocap clips.
-    d = np.abs(_wrap_deg(pose[:, None, :] - pose[None, :, :])).mean(axis=2)
-    d += np.abs(_wrap_deg(nxt[:, None, :] - nxt[None, :, :])).mean(axis=2)
+    d = np.abs(wrap_deg(pose[:, None, :] - pose[None, :, :])).mean(axis=2)
+    d += np.abs(wrap_deg(nxt[:, None, :] - nxt[None, :, :])).mean(axis=2)
     i_idx, j_idx = np.indices(d.shape)
     d[j_idx - i_idx < gap] = np.inf
     i, j = np.unravel_index(np.argmin(d), d.shape)

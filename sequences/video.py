@@ -19,6 +19,8 @@ from typing import Callable, Sequence
 import cv2
 import numpy as np
 
+from regressor.errors import SilhouettePoseError
+
 from .body import BodyShape, Skinner, ground_sequence, load_body
 from .bvh import Motion
 from .pose_vector import POSE_DIM, motion_to_pose_vectors
@@ -30,7 +32,7 @@ _MARGIN = 0.08                 # fraction of the image kept free around the peop
 _COLOURS = ((205, 170, 150), (120, 150, 200), (170, 200, 140), (210, 190, 110))
 
 
-class VideoWriteError(ValueError):
+class VideoWriteError(SilhouettePoseError, ValueError):
     """Bad video options or an output that cannot be written."""
 
 

@@ -9,8 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.meshcat_view import MeshcatView
-from tracker.skeleton_geometry import pose_joints_m, track_colour
+from tracker.sinks.meshcat_view import MeshcatView
+from tracker.sinks.geometry import pose_joints_m, track_colour
+from tracker import TrackedPose
 
 CHROMIUM = "/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else shutil.which("chromium")
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="needs Chromium (apt-get install chromium)")
@@ -50,7 +51,7 @@ def test_chromium_shows_the_skeleton_in_its_track_colour(tmp_path):
     joints = pose_joints_m(np.r_[1.0, np.zeros(54)][None])[0] + [0.0, 0.95, 0.0]
     with MeshcatView(print_url=False) as view:
         empty = _screenshot(view.web_url, tmp_path / "empty.png", tmp_path / "profile1")
-        view.write(0, 0.0, TRACK, np.zeros(55), np.zeros(55), False, joints)
+        view.write(TrackedPose(0, 0.0, TRACK, np.zeros(55), np.zeros(55), False, joints))
         drawn = _screenshot(view.web_url, tmp_path / "skeleton.png", tmp_path / "profile2")
     colour = track_colour(TRACK)
     assert _colour_pixels(empty, colour) < 20

@@ -9,8 +9,9 @@ import pytest
 from sequences.bvh import read_bvh
 from sequences.pose_vector import joint_positions, motion_to_pose_vectors
 from sequences.skeleton import CMU_UNIT_M
-from tracker.bvh_sink import BVHSink
-from tracker.skeleton_geometry import SinkInputError, pose_joints_m
+from tracker.sinks.bvh import BVHSink
+from tracker.sinks.geometry import SinkInputError, pose_joints_m
+from tracker import TrackedPose
 
 FPS = 25.0
 
@@ -42,8 +43,8 @@ def _write_tracks(directory, frames_by_track: dict[int, np.ndarray], **kwargs):
             for track, (frames, vectors, joints) in inputs.items():
                 (hit,) = np.flatnonzero(frames == frame)[:1].tolist() or [None]
                 if hit is not None:
-                    sink.write(frame, frame / FPS, track, vectors[hit] * 1.3, vectors[hit],
-                               False, joints[hit])
+                    sink.write(TrackedPose(frame, frame / FPS, track, vectors[hit] * 1.3, vectors[hit],
+                               False, joints[hit]))
     return sink, inputs
 
 
@@ -84,15 +85,15 @@ def test_short_tracks_are_skipped_and_errors_are_specific(tmp_path):
     assert not (tmp_path / "track_3.bvh").exists()
     pose, joints = np.r_[1.0, np.zeros(54)], np.zeros((18, 3))
     sink = BVHSink(tmp_path / "new", FPS)
-    sink.write(3, 0.12, 1, pose, pose, False, joints)
+    sink.write(TrackedPose(3, 0.12, 1, pose, pose, False, joints))
     with pytest.raises(SinkInputError, match="does not follow"):
-        sink.write(3, 0.12, 1, pose, pose, False, joints)
+        sink.write(TrackedPose(3, 0.12, 1, pose, pose, False, joints))
     with pytest.raises(SinkInputError, match="filtered55"):
-        sink.write(4, 0.16, 1, pose, pose[:54], False, joints)
+        sink.write(TrackedPose(4, 0.16, 1, pose, pose[:54], False, joints))
     sink.close()
     sink.close()
     with pytest.raises(SinkInputError, match="closed"):
-        sink.write(5, 0.2, 1, pose, pose, False, joints)
+        sink.write(TrackedPose(5, 0.2, 1, pose, pose, False, joints))
     with pytest.raises(SinkInputError, match="fps"):
         BVHSink(tmp_path, 0.0)
 
@@ -103,8 +104,8 @@ def test_a_cmu_file_can_be_the_template(tmp_path, cmu_bvh_dir):
     vectors = _poses(12, seed=9)
     with BVHSink(tmp_path, 30.0, template=template) as sink:
         for frame, vector in enumerate(vectors):
-            sink.write(frame, frame / 30.0, 1, vector, vector, False,
-                       pose_joints_m(vector[None], template)[0])
+            sink.write(TrackedPose(frame, frame / 30.0, 1, vector, vector, False,
+                       pose_joints_m(vector[None], template)[0]))
     motion = read_bvh(sink.paths[1], fps=None, drop_tpose=False)
     assert motion.names == template.names
     np.testing.assert_allclose(motion.offsets, template.offsets, atol=1e-6)

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
-from tracker.filtering import (FilterError, PoseKalmanFilter, angles_to_pose, pose_to_angles,
-                               wrap_deg)
+from regressor.angles import angles_to_pose, heading_norm, pose_angles, wrap_deg
+from tracker.filtering import FilterError, PoseKalmanFilter
 
 FPS = 30.0
 
@@ -37,12 +37,12 @@ def noisy_poses(angles: np.ndarray, std: float, seed: int = 1) -> np.ndarray:
 
 def angle_error(poses: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """Wrapped error (T, 54) deg between poses (T, 55) and true angles (T, 54)."""
-    return wrap_deg(pose_to_angles(poses)[0] - angles)
+    return wrap_deg(pose_angles(poses) - angles)
 
 
 def jitter(poses: np.ndarray) -> float:
     """Mean |second difference| over frames and angles, deg."""
-    angles = np.unwrap(np.radians(pose_to_angles(poses)[0]), axis=0)
+    angles = np.unwrap(np.radians(pose_angles(poses)), axis=0)
     return float(np.mean(np.abs(np.diff(np.degrees(angles), 2, axis=0))))
 
 
@@ -54,7 +54,7 @@ def run(kf: PoseKalmanFilter, poses: np.ndarray) -> tuple[np.ndarray, list[bool]
 def test_pose_angle_conversions_round_trip():
     angles = wrap_deg(np.random.default_rng(0).uniform(-400, 400, (5, 54)))
     poses = angles_to_pose(angles)
-    back, norm = pose_to_angles(poses)
+    back, norm = pose_angles(poses), heading_norm(poses)
     assert np.allclose(wrap_deg(back - angles), 0, atol=1e-9)
     assert np.allclose(norm, 1.0)
     assert wrap_deg(np.array([180.0, -180.0, 540.0, -179.0])).tolist() == [180, 180, 180, -179]
@@ -88,7 +88,7 @@ def test_heading_and_joint_crossing_180_do_not_jump():
     # The filter starts at rate 0 and needs ~20 frames to lock on to the ramps; after that a
     # wrong unwrap would show as a 360 deg error or a jump.
     assert np.abs(error[20:]).max() < 1.0
-    steps = np.abs(wrap_deg(np.diff(pose_to_angles(filtered)[0], axis=0)))
+    steps = np.abs(wrap_deg(np.diff(pose_angles(filtered), axis=0)))
     assert steps[:, 0].max() < 4.0 and steps[:, 7].max() < 3.0
 
 
@@ -105,7 +105,7 @@ def test_ambiguous_frame_is_flagged_and_trusted_less():
         raw[:2] *= norm
         filtered, ambiguous = kf.step(raw)
         assert ambiguous == (norm < 0.5)
-        deviation[norm] = np.abs(pose_to_angles(filtered)[0])
+        deviation[norm] = np.abs(pose_angles(filtered))
     assert deviation[0.3][0] < deviation[1.0][0] / 3      # heading: R x 25
     assert deviation[0.3][1:].max() < deviation[1.0][1:].min() / 1.5   # other angles: R x 4
 
@@ -128,9 +128,9 @@ def test_windowed_smoothing_matches_one_pass():
     kf = PoseKalmanFilter(FPS)
     one_pass = kf.rts_smooth(raw, window=1000)
     windowed = kf.rts_smooth(raw, window=30, lag=30)
-    assert np.abs(angle_error(windowed, pose_to_angles(one_pass)[0])).max() < 0.05
+    assert np.abs(angle_error(windowed, pose_angles(one_pass))).max() < 0.05
     no_lag = kf.rts_smooth(raw, window=30, lag=0)
-    assert np.abs(angle_error(no_lag, pose_to_angles(one_pass)[0])).max() > 0.5
+    assert np.abs(angle_error(no_lag, pose_angles(one_pass))).max() > 0.5
 
 
 def test_smoothing_leaves_the_step_state_alone():
@@ -147,15 +147,15 @@ def test_reset_starts_a_new_track_at_the_measurement():
     run(kf, angles_to_pose(np.zeros((10, 54))))
     kf.reset()
     target = np.full(54, 45.0)
-    assert np.allclose(pose_to_angles(kf.step(angles_to_pose(target))[0])[0], target)
+    assert np.allclose(pose_angles(kf.step(angles_to_pose(target))[0]), target)
 
 
 def test_noise_model_from_arrays_changes_the_filter():
     raw = noisy_poses(true_angles(60), std=6.0)
     default, _ = run(PoseKalmanFilter(FPS), raw)
     trusting, _ = run(PoseKalmanFilter(FPS, R=np.full(54, 0.01), q=np.full(54, 1e10)), raw)
-    assert np.abs(angle_error(trusting, pose_to_angles(raw)[0])).max() < 0.5
-    assert np.abs(angle_error(default, pose_to_angles(raw)[0])).max() > 2.0
+    assert np.abs(angle_error(trusting, pose_angles(raw))).max() < 0.5
+    assert np.abs(angle_error(default, pose_angles(raw))).max() > 2.0
 
 
 @pytest.mark.parametrize("bad, message", [

@@ -8,8 +8,9 @@ import os
 import numpy as np
 import pytest
 
-from tracker.json_summary import JsonSummarySink, write_json_atomically
-from tracker.skeleton_geometry import SinkInputError
+from tracker.sinks.json_summary import JsonSummarySink, write_json_atomically
+from tracker.sinks.geometry import SinkInputError
+from tracker import TrackedPose
 
 JOINTS = np.zeros((18, 3))
 
@@ -36,14 +37,14 @@ def test_summary_lists_tracks_with_filtered_values_and_speed(tmp_path):
     path = tmp_path / "summary.json"
     with JsonSummarySink(path, video_fps=25.0, clock=clock) as sink:
         for frame in range(10):
-            sink.mark_frame(frame)  # frames 0..9 processed, people only in 2..7
+            sink.end_frame(frame)  # frames 0..9 processed, people only in 2..7
             if 2 <= frame <= 7:
-                sink.write(frame, frame / 25.0, 3, _pose(170.0 + 4 * frame, 0.3, 1.0),
+                sink.write(TrackedPose(frame, frame / 25.0, 3, _pose(170.0 + 4 * frame, 0.3, 1.0),
                            _pose(175.0 + 4 * frame, 1.0, 2.0), frame == 4, JOINTS,
-                           centroid_px=(10.0 * frame, 20.0))
+                           centroid_px=(10.0 * frame, 20.0)))
             if frame == 5:
-                sink.write(frame, 0.2, 1, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
-                           centroid_px=(1.0, 2.0))
+                sink.write(TrackedPose(frame, 0.2, 1, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
+                           centroid_px=(1.0, 2.0)))
             clock.now += 0.5
     summary = json.loads(path.read_text())
     assert (summary["frames"], summary["video_fps"]) == (10, 25.0)
@@ -66,13 +67,13 @@ def test_write_needs_a_centroid_and_valid_vectors(tmp_path):
     sink = JsonSummarySink(tmp_path / "s.json", 25.0)
     good = _pose(0, 1, 0)
     with pytest.raises(SinkInputError, match="centroid_px"):
-        sink.write(0, 0.0, 1, good, good, False, JOINTS)
+        sink.write(TrackedPose(0, 0.0, 1, good, good, False, JOINTS))
     with pytest.raises(SinkInputError, match="raw55"):
-        sink.write(0, 0.0, 1, np.full(55, np.inf), good, False, JOINTS, centroid_px=(1, 2))
+        sink.write(TrackedPose(0, 0.0, 1, np.full(55, np.inf), good, False, JOINTS, centroid_px=(1, 2)))
     sink.close()
     sink.close()
     with pytest.raises(SinkInputError, match="closed"):
-        sink.write(1, 0.0, 1, good, good, False, JOINTS, centroid_px=(1, 2))
+        sink.write(TrackedPose(1, 0.0, 1, good, good, False, JOINTS, centroid_px=(1, 2)))
     assert json.loads((tmp_path / "s.json").read_text())["tracks"] == []
 
 

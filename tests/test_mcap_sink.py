@@ -17,9 +17,10 @@ from mcap.reader import NonSeekingReader, make_reader
 from mcap.stream_reader import StreamReader
 
 from sequences.pose_vector import pose_vector_names
-from tracker.mcap_repair import McapRecoveryError, recover_mcap
-from tracker.mcap_sink import McapSink, SinkInputError
-from tracker.skeleton_geometry import pose_joints_m
+from tracker.sinks.mcap_repair import McapRecoveryError, recover_mcap
+from tracker.sinks.mcap import McapSink, SinkInputError
+from tracker.sinks.geometry import pose_joints_m
+from tracker import TrackedPose
 
 ROOT = Path(__file__).resolve().parents[1]
 FPS = 25.0
@@ -43,8 +44,8 @@ def _record(path: Path, frames: int = 20, **kwargs) -> dict[int, list[int]]:
         for frame in range(frames):
             for track in (1, 2) if frame < frames // 2 else (1,):
                 raw = _pose(rng)
-                sink.write(frame, frame / FPS, track, raw, raw * 0.5, frame % 3 == 0,
-                           joints + [track, 0.0, 0.0], centroid_px=(100.0 + frame, 50.0))
+                sink.write(TrackedPose(frame, frame / FPS, track, raw, raw * 0.5, frame % 3 == 0,
+                           joints + [track, 0.0, 0.0], centroid_px=(100.0 + frame, 50.0)))
                 seen[track].append(frame)
     return seen
 
@@ -156,7 +157,7 @@ def test_pose_message_holds_named_values_times_in_ns_and_headings(tmp_path):
     raw, filtered = _pose(rng), _pose(rng)
     joints = pose_joints_m(np.r_[1.0, np.zeros(54)][None])[0]
     with McapSink(path) as sink:
-        sink.write(12, 0.48, 5, raw, filtered, True, joints)
+        sink.write(TrackedPose(12, 0.48, 5, raw, filtered, True, joints))
     (_, _, message), = [m for m in _messages(path) if m[1].topic == "/pose"]
     body = json.loads(message.data)
     assert message.log_time == message.publish_time == 480_000_000
@@ -175,8 +176,8 @@ def test_exception_inside_with_block_still_writes_the_footer(tmp_path):
     joints = np.zeros((18, 3))
     with pytest.raises(RuntimeError):
         with McapSink(path) as sink:
-            sink.write(0, 0.0, 1, np.r_[1.0, np.zeros(54)], np.r_[1.0, np.zeros(54)], False,
-                       joints)
+            sink.write(TrackedPose(0, 0.0, 1, np.r_[1.0, np.zeros(54)], np.r_[1.0, np.zeros(54)], False,
+                       joints))
             raise RuntimeError("tracking failed")
     assert len(_messages(path)) == 2  # footer and summary present: the seeking reader works
 
@@ -185,29 +186,30 @@ def test_bad_input_and_use_after_close_raise_specific_errors(tmp_path):
     sink = McapSink(tmp_path / "run.mcap")
     good = np.r_[1.0, np.zeros(54)]
     with pytest.raises(SinkInputError, match="raw55"):
-        sink.write(0, 0.0, 1, np.zeros(54), good, False, np.zeros((18, 3)))
+        sink.write(TrackedPose(0, 0.0, 1, np.zeros(54), good, False, np.zeros((18, 3))))
     with pytest.raises(SinkInputError, match="filtered55"):
-        sink.write(0, 0.0, 1, good, np.full(55, np.nan), False, np.zeros((18, 3)))
+        sink.write(TrackedPose(0, 0.0, 1, good, np.full(55, np.nan), False, np.zeros((18, 3))))
     with pytest.raises(SinkInputError, match="joints3d"):
-        sink.write(0, 0.0, 1, good, good, False, np.zeros((17, 3)))
-    sink.write(3, 0.1, 1, good, good, False, np.zeros((18, 3)))
+        sink.write(TrackedPose(0, 0.0, 1, good, good, False, np.zeros((17, 3))))
+    sink.write(TrackedPose(3, 0.1, 1, good, good, False, np.zeros((18, 3))))
     with pytest.raises(SinkInputError, match="backwards"):
-        sink.write(2, 0.1, 1, good, good, False, np.zeros((18, 3)))
+        sink.write(TrackedPose(2, 0.1, 1, good, good, False, np.zeros((18, 3))))
     sink.close()
     sink.close()  # idempotent
     with pytest.raises(SinkInputError, match="closed"):
-        sink.write(4, 0.2, 1, good, good, False, np.zeros((18, 3)))
+        sink.write(TrackedPose(4, 0.2, 1, good, good, False, np.zeros((18, 3))))
 
 
 _SLOW_WRITER = textwrap.dedent("""
     import sys, time
     import numpy as np
-    from tracker.mcap_sink import McapSink
+    from tracker import TrackedPose
+    from tracker.sinks.mcap import McapSink
     pose = np.r_[1.0, np.zeros(54)]
     with McapSink(sys.argv[1], flush_every_frames=int(sys.argv[2]),
                   chunk_size=int(sys.argv[3])) as sink:
         for frame in range(10_000):
-            sink.write(frame, frame / 25.0, 1, pose, pose, False, np.zeros((18, 3)))
+            sink.write(TrackedPose(frame, frame / 25.0, 1, pose, pose, False, np.zeros((18, 3))))
             print(frame, flush=True)
             time.sleep(0.01)
 """)

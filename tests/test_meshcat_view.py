@@ -17,9 +17,11 @@ import pytest
 import umsgpack
 import zmq
 
-from tracker.meshcat_server import ViewerServer
-from tracker.meshcat_view import MeshcatView, joint_spheres
-from tracker.skeleton_geometry import (
+from tracker.sinks.meshcat_server import ViewerServer
+from tracker.video import focal_length_px
+from tracker.sinks.meshcat_view import MeshcatView, joint_spheres
+from tracker import TrackedPose
+from tracker.sinks.geometry import (
     BONE_INDEX,
     SinkInputError,
     bone_segments,
@@ -108,13 +110,14 @@ def test_server_is_gone_after_close():
 _PARENT = textwrap.dedent("""
     import sys, time
     import numpy as np
-    from tracker.meshcat_view import MeshcatView
+    from tracker import TrackedPose
+    from tracker.sinks.meshcat_view import MeshcatView
     with MeshcatView(print_url=False) as view:
         print(view.server.pid, flush=True)
         frame = 0
         while True:
-            view.write(frame, frame / 25.0, 1, np.zeros(55), np.zeros(55), False,
-                       np.zeros((18, 3)))
+            view.write(TrackedPose(frame, frame / 25.0, 1, np.zeros(55), np.zeros(55), False,
+                       np.zeros((18, 3))))
             frame += 1
             time.sleep(0.02)
 """)
@@ -179,21 +182,21 @@ def _scene_paths(zmq_url: str) -> list[str]:
 
 def test_view_draws_each_track_and_removes_tracks_that_left():
     with MeshcatView(print_url=False) as view:
-        view.write(0, 0.0, 1, POSE, POSE, False, JOINTS)
-        view.write(0, 0.0, 2, POSE, POSE, False, JOINTS + [1.0, 0.0, 0.0])
+        view.write(TrackedPose(0, 0.0, 1, POSE, POSE, False, JOINTS))
+        view.write(TrackedPose(0, 0.0, 2, POSE, POSE, False, JOINTS + [1.0, 0.0, 0.0]))
         paths = _scene_paths(view.server.zmq_url)
         assert {p for p in paths if "skeletons" in p} == {
             f"/meshcat/skeletons/track-{t}/{part}" for t in (1, 2) for part in ("bones", "joints")}
-        view.write(1, 0.04, 1, POSE, POSE, False, JOINTS)
-        view.write(2, 0.08, 1, POSE, POSE, False, JOINTS)  # frame 1 ended without track 2
+        view.write(TrackedPose(1, 0.04, 1, POSE, POSE, False, JOINTS))
+        view.write(TrackedPose(2, 0.08, 1, POSE, POSE, False, JOINTS))  # frame 1 ended without track 2
         paths = _scene_paths(view.server.zmq_url)
         assert {p for p in paths if "skeletons" in p} == {
             "/meshcat/skeletons/track-1/bones", "/meshcat/skeletons/track-1/joints"}
         with pytest.raises(SinkInputError, match="joints3d"):
-            view.write(3, 0.12, 1, POSE, POSE, False, np.zeros((18, 2)))
+            view.write(TrackedPose(3, 0.12, 1, POSE, POSE, False, np.zeros((18, 2))))
     assert view.closed and _gone(view.server.pid)
     with pytest.raises(SinkInputError, match="closed"):
-        view.write(4, 0.16, 1, POSE, POSE, False, JOINTS)
+        view.write(TrackedPose(4, 0.16, 1, POSE, POSE, False, JOINTS))
 
 
 def test_joint_spheres_are_closed_meshes_of_the_right_radius():
@@ -228,7 +231,7 @@ def test_ground_position_from_image_follows_the_pinhole_model():
     # A 170-px silhouette in a 640-px-wide frame with a 90-degree field of view: f = 320 px,
     # so a 1.7-m person is 3.2 m away; 160 px right of the centre is 1.6 m to the right.
     position = ground_position_from_image(np.array([[480.0, 240.0]]), np.array([170.0]),
-                                          640, 480, horizontal_fov_deg=90.0)
+                                          640, 480, focal_px=focal_length_px(640, 90.0))
     np.testing.assert_allclose(position, [[1.6, 0.95, -3.2]])
     with pytest.raises(SinkInputError, match="bbox_height_px"):
         ground_position_from_image(np.array([[1.0, 1.0]]), np.array([0.0]), 640, 480)

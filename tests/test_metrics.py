@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from regressor.metrics import (MetricInputError, acceleration_error, angle_jitter, angular_error,
-                               contiguous_folds, mean_point_error, point_jitter, rms_per_angle,
-                               wrap_degrees)
+                               contiguous_folds, mean_point_error, point_jitter, rms_per_angle)
+from regressor.angles import wrap_deg
 
 
 def test_mean_point_error_is_mean_euclidean_distance():
@@ -27,7 +27,7 @@ def test_angular_error_wraps_at_180():
     assert angular_error(est, true) == pytest.approx((2.0 + 10.0) / 2)
     np.testing.assert_allclose(rms_per_angle(np.array([[170.0], [0.0]]), np.array([[-170.0], [0.0]])),
                                [np.sqrt(20.0 ** 2 / 2)])
-    assert wrap_degrees(540.0) == pytest.approx(-180.0)
+    assert wrap_deg(540.0) == pytest.approx(180.0)     # the one convention: (-180, 180]
 
 
 def test_angle_jitter_crossing_180_is_smooth():
@@ -41,7 +41,7 @@ def test_acceleration_error_measures_the_jitter_of_the_error():
     assert acceleration_error(true + 30.0, true) == pytest.approx(0.0)
     est = true.copy()
     est[4] += 5.0
-    assert acceleration_error(wrap_degrees(est), wrap_degrees(true)) == pytest.approx((5 + 10 + 5) / 7)
+    assert acceleration_error(wrap_deg(est), wrap_deg(true)) == pytest.approx((5 + 10 + 5) / 7)
 
 
 def test_bad_inputs_are_refused():

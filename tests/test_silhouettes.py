@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.silhouettes import (BackgroundSubtractor, PersonMask, SilhouetteError,
+from tracker.silhouettes import (BackgroundSubtractor, PersonMask, ExtractionError,
                                  SilhouetteExtractor, clean_mask, median_background, person_masks)
 
 
@@ -182,19 +182,19 @@ def test_clean_mask_drops_specks_and_joins_gaps():
 def test_frame_size_change_is_refused():
     subtractor = BackgroundSubtractor()
     subtractor.apply(np.zeros((48, 64, 3), np.uint8))
-    with pytest.raises(SilhouetteError, match="frame size changed from 64x48 to 32x48"):
+    with pytest.raises(ExtractionError, match="frame size changed from 64x48 to 32x48"):
         subtractor.apply(np.zeros((48, 32, 3), np.uint8))
 
 
 @pytest.mark.parametrize("options", [{"working_width": 8}, {"history": 0},
                                      {"background_ratio": 1.5}, {"learning_rate": 2.0}])
 def test_bad_settings_are_refused(options):
-    with pytest.raises(SilhouetteError):
+    with pytest.raises(ExtractionError):
         BackgroundSubtractor(**options)
 
 
 def test_gray_frame_array_is_refused():
-    with pytest.raises(SilhouetteError, match=r"BGR uint8 \(H, W, 3\)"):
+    with pytest.raises(ExtractionError, match=r"BGR uint8 \(H, W, 3\)"):
         BackgroundSubtractor().apply(np.zeros((48, 64), np.uint8))
 
 

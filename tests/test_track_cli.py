@@ -25,7 +25,7 @@ from sequences.pose_vector import heading_deg
 from sequences.skeleton import CMU_JOINT_NAMES
 from tests.synthetic import cmu_motion
 from sequences.video import Actor, load_truth, write_video
-from tracker.mcap_repair import recover_mcap
+from tracker.sinks.mcap_repair import recover_mcap
 
 ROOT = Path(__file__).resolve().parents[1]
 

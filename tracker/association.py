@@ -23,6 +23,8 @@ from typing import Protocol, TypeVar
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from regressor.errors import SilhouettePoseError
+
 
 class Detection(Protocol):
     """Anything with a centroid (x, y) px and an area px, e.g. silhouettes.PersonMask."""
@@ -34,7 +36,7 @@ class Detection(Protocol):
 D = TypeVar("D", bound=Detection)
 
 
-class AssociationError(ValueError):
+class AssociationError(SilhouettePoseError, ValueError):
     """Bad association settings or detections; one-line message naming the problem."""
 
 

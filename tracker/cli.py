@@ -14,26 +14,22 @@ import math
 import os
 import signal
 import sys
-import time
 from pathlib import Path
 
+from threadpoolctl import threadpool_limits
 
-from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
-from .bvh_sink import BVHSink
-from .filtering import FilterError
-from .json_summary import JsonSummarySink
-from .mcap_sink import McapSink
-from .pipeline import PoseTracker, TrackedPose
+from regressor.errors import SilhouettePoseError
+from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+from .pipeline import PoseTracker, TrackerSettings
 from .progress import Progress
-from .silhouettes import median_background
-from .skeleton_geometry import SinkInputError
-from .video import VideoError, open_video
+from .run import TrackRun, track_video
+from .sinks import open_sinks
+from .video import open_video
 
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
-_BACKGROUND_SAMPLES = 25        # frames spread over the video for the median background
 
 
-class TrackError(Exception):
+class TrackError(SilhouettePoseError):
     """A problem the user can fix (options, paths); printed as one line."""
 
 
@@ -94,56 +90,37 @@ def _check_options(args) -> None:
             raise TrackError(f"--bvh {args.bvh}: not writable")
 
 
-def _open_sinks(args, source, model) -> tuple[list, list]:
-    """(streaming sinks fed every frame, offline sinks fed at the end when --smooth)."""
-    streaming, offline = [], []
-    try:
-        if args.out is not None:
-            streaming.append(McapSink(args.out, metadata={
-                "video": {"path": str(args.video), "fps": source.fps,
-                          "width": source.width, "height": source.height},
-                "model": {"path": str(args.model), **model.summary()},
-                "settings": {"smooth": args.smooth, "max_people": args.max_people,
-                             "start_s": args.start, "end_s": args.end,
-                             "note": "MCAP holds filtered (not smoothed) poses"}}))
-        later = offline if args.smooth else streaming
-        if args.json is not None:
-            later.append(JsonSummarySink(args.json, source.fps))
-        if args.bvh is not None:
-            # Tracks of a few frames are subtraction glitches, not people worth a file.
-            later.append(BVHSink(args.bvh, source.fps, prefix=args.video.stem, min_frames=5))
-        if args.view:
-            from .meshcat_view import MeshcatView  # deferred: starts a server process
-            streaming.append(MeshcatView())
-    except BaseException:
-        _close_all(streaming + offline)
-        raise
-    return streaming, offline
+def _sink_factories(args, source, model) -> tuple[list, list]:
+    """(factories of the sinks fed every frame, of those fed smoothed tracks at the end when
+    --smooth). One entry per output option: adding an output is adding a line here."""
+    def mcap():
+        from .sinks.mcap import McapSink
+        return McapSink(args.out, metadata={
+            "video": {"path": str(args.video), "fps": source.fps,
+                      "width": source.width, "height": source.height},
+            "model": {"path": str(args.model), **model.summary()},
+            "settings": {"smooth": args.smooth, "max_people": args.max_people,
+                         "start_s": args.start, "end_s": args.end,
+                         "note": "MCAP holds filtered (not smoothed) poses"}})
 
+    def json_summary():
+        from .sinks.json_summary import JsonSummarySink
+        return JsonSummarySink(args.json, source.fps)
 
-def _close_all(sinks) -> list[str]:
-    problems = []
-    for sink in sinks:
-        try:
-            sink.close()
-        except Exception as exc:  # keep closing the others: each holds the user's results
-            problems.append(f"{type(sink).__name__}: {exc}")
-    return problems
+    def bvh():
+        from .sinks.bvh import BVHSink
+        # Tracks of a few frames are subtraction glitches, not people worth a file.
+        return BVHSink(args.bvh, source.fps, prefix=args.video.stem, min_frames=5)
 
+    def view():
+        from .sinks.meshcat_view import MeshcatView  # deferred: starts a server process
+        return MeshcatView(realtime=True)    # tracking outruns the video: play at its speed
 
-def _write(sinks, pose: TrackedPose, filtered=None) -> None:
-    for sink in sinks:
-        sink.write(pose.frame_index, pose.time_s, pose.track_id, pose.raw,
-                   pose.filtered if filtered is None else filtered, pose.ambiguous,
-                   pose.joints_m, centroid_px=pose.centroid_px)
-
-
-def _smooth_tracks(tracker: PoseTracker, records: dict[int, list[TrackedPose]], sinks) -> None:
-    """RTS-smooth every track's raw poses and feed them to the offline sinks in frame order."""
-    smoothed = {track_id: tracker.smoothed_track(track_id) for track_id in records}
-    order = sorted((p.frame_index, tid, i) for tid, ps in records.items() for i, p in enumerate(ps))
-    for _, track_id, i in order:
-        _write(sinks, records[track_id][i], smoothed[track_id][i])
+    outputs = [(args.out, mcap, False), (args.json, json_summary, True),
+               (args.bvh, bvh, True), (args.view or None, view, False)]
+    chosen = [(make, smoothable and args.smooth) for option, make, smoothable in outputs
+              if option is not None]
+    return [m for m, later in chosen if not later], [m for m, later in chosen if later]
 
 
 def run(args) -> int:
@@ -151,50 +128,23 @@ def run(args) -> int:
     _check_options(args)
     model = load_pose_model(args.model)
     source = open_video(args.video, start_s=args.start, end_s=args.end)
-    streaming, offline = _open_sinks(args, source, model)
-    tracker = PoseTracker(model, source.fps, (source.width, source.height),
-                          max_people=args.max_people)
-    tracker.prime(median_background(source.sample_frames(_BACKGROUND_SAMPLES)))
-    records: dict[int, list[TrackedPose]] = {}
-    summaries = [s for s in streaming + offline if isinstance(s, JsonSummarySink)]
-    progress = Progress(source.expected_frames(), quiet=args.quiet)
-    frames, interrupted, started = 0, False, time.perf_counter()
-    try:
-        for index, time_s, frame in source:
-            if args.view:   # tracking outruns the video: show it at its own speed
-                ahead = (time_s - args.start) - (time.perf_counter() - started)
-                if ahead > 0:
-                    time.sleep(ahead)
-            poses = tracker.process(index, time_s, frame)
-            for summary in summaries:       # frames with nobody in view count too
-                summary.mark_frame(index)
-            for pose in poses:
-                _write(streaming, pose)
-                if args.smooth:
-                    records.setdefault(pose.track_id, []).append(pose)
-            frames += 1
-            progress.update(len(poses))
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        progress.close()
-        if not interrupted and args.smooth:
-            _smooth_tracks(tracker, records, offline)
-        problems = _close_all(streaming + offline)
-    elapsed = time.perf_counter() - started
-    if problems:
-        raise TrackError("could not finish outputs: " + "; ".join(problems))
+    streaming, smoothed = _sink_factories(args, source, model)
+    sinks = open_sinks(streaming + smoothed)
+    tracker = PoseTracker(model, source.fps, TrackerSettings(max_people=args.max_people))
+    result = track_video(source, tracker, sinks[:len(streaming)],
+                         Progress(source.expected_frames(), quiet=args.quiet),
+                         smoothed_sinks=sinks[len(streaming):])
     if not args.quiet:
-        _print_summary(args, source, tracker, frames, elapsed, interrupted)
-    return EXIT_INTERRUPTED if interrupted else 0
+        _print_summary(args, source, result)
+    return EXIT_INTERRUPTED if result.interrupted else 0
 
 
-def _print_summary(args, source, tracker, frames, elapsed, interrupted) -> None:
-    state = "interrupted after" if interrupted else "tracked"
-    fps = frames / elapsed if elapsed > 0 else 0.0
-    print(f"{args.video.name}: {state} {frames} frames ({source.width}x{source.height}, "
-          f"{source.fps:g} fps video) at {fps:.0f} frames/s; {len(tracker.tracks)} track(s)")
-    for track_id, state_ in sorted(tracker.tracks.items()):
+def _print_summary(args, source, result: TrackRun) -> None:
+    state = "interrupted after" if result.interrupted else "tracked"
+    tracks = result.tracker.tracks
+    print(f"{args.video.name}: {state} {result.frames} frames ({source.width}x{source.height}, "
+          f"{source.fps:g} fps video) at {result.fps:.0f} frames/s; {len(tracks)} track(s)")
+    for track_id, state_ in sorted(tracks.items()):
         print(f"  track {track_id}: {len(state_.measured)} frames")
     for path, what in ((args.out, "MCAP"), (args.json, "JSON"), (args.bvh, "BVH folder")):
         if path is not None:
@@ -212,17 +162,11 @@ def main(argv=None) -> int:
     # SIGTERM stops like Ctrl-C: outputs are closed, not cut off.
     signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:                      # pragma: no cover - declared dependency
-        threadpool_limits = None
-    try:
         # One BLAS thread: the per-frame matrices are small, and threads cost more than they
         # save (a filter step took 8.7 ms with default threads, 0.5 ms with one).
-        if threadpool_limits is not None:
-            with threadpool_limits(1):
-                return run(args)
-        return run(args)
-    except (TrackError, VideoError, PoseModelError, SinkInputError, FilterError) as exc:
+        with threadpool_limits(1):
+            return run(args)
+    except SilhouettePoseError as exc:
         print(f"track: error: {exc}", file=sys.stderr)
         return EXIT_ERROR
     except OSError as exc:

@@ -32,42 +32,18 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
-from sequences.pose_vector import POSE_DIM
+from regressor.angles import N_ANGLES, POSE_DIM, angles_to_pose, heading_norm, pose_angles, wrap_deg
+from regressor.pose_model import DEFAULT_AMBIGUITY_THRESHOLD
+from regressor.errors import SilhouettePoseError
 
-N_ANGLES = 54
 DEFAULT_ACCEL_STD = 1000.0        # deg/s^2
 DEFAULT_JOINT_STD = 6.0           # deg
 DEFAULT_HEADING_STD = 20.0        # deg
 DEFAULT_RATE_STD = 90.0           # deg/s, prior on angular rates when a track starts
 
 
-class FilterError(ValueError):
+class FilterError(SilhouettePoseError, ValueError):
     """Bad filter settings or pose vectors; one-line message naming the problem."""
-
-
-def wrap_deg(angles: np.ndarray) -> np.ndarray:
-    """Angles in degrees, any shape -> the same angles in (-180, 180]."""
-    return 180.0 - np.mod(180.0 - np.asarray(angles, float), 360.0)
-
-
-def pose_to_angles(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pose vectors (..., 55) -> (angles (..., 54) deg, heading norm (...)).
-
-    angles[..., 0] = atan2(sin, cos) heading; angles[..., 1:] = raw[..., 2:55].
-    """
-    raw = np.asarray(raw, float)
-    heading = np.degrees(np.arctan2(raw[..., 1], raw[..., 0]))
-    return (np.concatenate([heading[..., None], raw[..., 2:]], axis=-1),
-            np.hypot(raw[..., 0], raw[..., 1]))
-
-
-def angles_to_pose(angles: np.ndarray) -> np.ndarray:
-    """Angles (..., 54) deg -> pose vectors (..., 55): heading as unit (cos, sin), the rest
-    wrapped to (-180, 180]."""
-    angles = np.asarray(angles, float)
-    heading = np.radians(angles[..., 0])
-    return np.concatenate([np.cos(heading)[..., None], np.sin(heading)[..., None],
-                           wrap_deg(angles[..., 1:])], axis=-1)
 
 
 def _as_covariance(R, name: str) -> np.ndarray:
@@ -218,12 +194,13 @@ class PoseKalmanFilter:
     """Per-track Kalman filter over the 54 pose angles (see the module docstring).
 
     ``fps``: frames per second (dt = 1/fps). ``R``: measurement covariance, (54,) variances or
-    (54, 54), deg^2, angle order as :func:`pose_to_angles`. ``q``: acceleration variances, scalar
+    (54, 54), deg^2, angle order as :func:`regressor.angles.pose_angles`. ``q``: acceleration variances, scalar
     or (54,), (deg/s^2)^2. ``ambiguity_threshold``: heading norm below which a frame is ambiguous.
     ``rate_std``: prior std of the angular rates at the first frame, deg/s.
     """
 
-    def __init__(self, fps: float, R=None, q=None, ambiguity_threshold: float = 0.5,
+    def __init__(self, fps: float, R=None, q=None,
+                 ambiguity_threshold: float = DEFAULT_AMBIGUITY_THRESHOLD,
                  ambiguous_heading_factor: float = 25.0, ambiguous_joint_factor: float = 4.0,
                  rate_std: float = DEFAULT_RATE_STD):
         if not (np.isfinite(fps) and fps > 0):
@@ -243,6 +220,11 @@ class PoseKalmanFilter:
         self.rate_std = rate_std
         self._kf: KalmanFilter | None = None
 
+    @property
+    def heading_variance(self) -> float:
+        """The heading's measurement variance R[0, 0] (deg^2) on an unambiguous frame."""
+        return float(self.R[0, 0])
+
     def _measure(self, raw55, heading_variance: float | None = None
                  ) -> tuple[np.ndarray, np.ndarray, bool]:
         """Check one raw pose; returns (angles (54,), R to use, ambiguous). heading_variance
@@ -255,7 +237,7 @@ class PoseKalmanFilter:
         if not np.isfinite(raw).all():
             bad = np.flatnonzero(~np.isfinite(raw)).tolist()
             raise FilterError(f"pose vector has non-finite entries at {bad}")
-        angles, norm = pose_to_angles(raw)
+        angles, norm = pose_angles(raw), heading_norm(raw)
         ambiguous = bool(norm < self.ambiguity_threshold)
         R = self.R_ambiguous if ambiguous else self.R
         if heading_variance is not None and np.isfinite(heading_variance):

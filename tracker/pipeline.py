@@ -2,24 +2,71 @@
 
 Reads like DESIGN.md's data flow, one stage a line (see PoseTracker.process). The regressor side
 is an estimator object (regressor.pose_model.PoseModel) with three things: describe(mask) ->
-descriptor, stack_depth, predict(stacked) -> raw 55-D pose; plus the filter's noise models.
+descriptor, stack_depth, predict(stacked) -> raw 55-D pose; plus the filter's noise models and
+the ambiguity threshold it was trained with. Every stage is injectable: the silhouette
+extractor, the associator and the filter factory (norfair's ``filter_factory``).
 """
 from __future__ import annotations
 
 import time
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
-from regressor.edges import SilhouetteError as DescriptorSilhouetteError
+from regressor.edges import SilhouetteError
 from regressor.stacking import FrameStacker
 from .association import Associator
 from .filtering import PoseKalmanFilter
 from .silhouettes import PersonMask, SilhouetteExtractor
-from .skeleton_geometry import ground_position_from_image, pose_joints_m
-from .travel import TravelDirection, fuse_heading, resolve_front_back
+from .sinks.geometry import ground_position_from_image, pose_joints_m
+from .travel import TravelDirection, settle_heading
+from .video import ASSUMED_FOV_DEG, focal_length_px
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """The tracker's run-time choices, in one place (the ``track`` command, the evaluation and
+    the benchmark all build one).
+
+    max_people: keep at most this many (largest) people per frame, None = all.
+    ambiguity_threshold: raw heading norm below which a frame is ambiguous; None = the one the
+    model was trained with (PoseModel.ambiguity_threshold). ambiguous_heading_factor,
+    ambiguous_joint_factor: R inflation on ambiguous frames (PoseKalmanFilter). r_scale, q_scale:
+    multiply the model's measurement covariance R and process noise q. background_samples:
+    frames spread over the video for the median background. fov_deg: the horizontal field of
+    view assumed for the focal length (direction of travel, ground position).
+    """
+
+    max_people: int | None = None
+    ambiguity_threshold: float | None = None
+    ambiguous_heading_factor: float = 25.0
+    ambiguous_joint_factor: float = 4.0
+    r_scale: float = 1.0
+    q_scale: float = 1.0
+    background_samples: int = 25
+    fov_deg: float = ASSUMED_FOV_DEG
+
+    def threshold(self, estimator) -> float:
+        """The ambiguity threshold in use: this setting, else the estimator's own."""
+        if self.ambiguity_threshold is not None:
+            return self.ambiguity_threshold
+        return estimator.ambiguity_threshold
+
+
+def kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
+                   ) -> Callable[[float], PoseKalmanFilter]:
+    """The default filter factory: fps -> a PoseKalmanFilter with the estimator's noise models
+    (scaled by settings.r_scale / q_scale) and the settings' ambiguity handling."""
+    def make(fps: float) -> PoseKalmanFilter:
+        return PoseKalmanFilter(fps, R=estimator.measurement_covariance * settings.r_scale,
+                                q=estimator.process_noise * settings.q_scale,
+                                ambiguity_threshold=settings.threshold(estimator),
+                                ambiguous_heading_factor=settings.ambiguous_heading_factor,
+                                ambiguous_joint_factor=settings.ambiguous_joint_factor)
+    return make
 
 
 class PoseEstimator(Protocol):
@@ -28,18 +75,30 @@ class PoseEstimator(Protocol):
     stack_depth: int
     measurement_covariance: np.ndarray      # (54, 54) deg^2, filter R
     process_noise: np.ndarray               # (54,) (deg/s^2)^2, filter q
+    ambiguity_threshold: float              # raw heading norm it was trained with
 
     def describe(self, mask: np.ndarray) -> np.ndarray: ...        # (H, W) bool -> (D,)
 
     def predict(self, stacked: np.ndarray) -> np.ndarray: ...      # (k*D,) -> (55,)
 
 
+class PoseFilter(Protocol):
+    """What the tracker needs of a per-track filter (PoseKalmanFilter is one)."""
+
+    heading_variance: float                 # deg^2, the heading's measurement variance
+
+    def step(self, raw55: np.ndarray, heading_variance: float | None = None
+             ) -> tuple[np.ndarray, bool]: ...    # (55,) -> (filtered (55,), ambiguous)
+
+    def rts_smooth(self, raws: np.ndarray, heading_variance=None) -> np.ndarray: ...
+
+
 @dataclass
 class TrackedPose:
-    """One person in one frame. raw/filtered: (55,) pose vectors (degrees; heading as cos,
-    sin); ambiguous: raw heading norm below the threshold; centroid_px: (x, y) pixels;
-    bbox_px: (x, y, w, h) pixels; joints_m: (18, 3) metres, Y up, for drawing (root placed on
-    an approximate ground position from the image)."""
+    """One person in one frame: what every sink is given. raw/filtered: (55,) pose vectors
+    (degrees; heading as cos, sin); ambiguous: raw heading norm below the threshold; joints_m:
+    (18, 3) metres, Y up, for drawing (root placed on an approximate ground position from the
+    image); centroid_px: (x, y) pixels; bbox_px: (x, y, w, h) pixels (None when unknown)."""
 
     frame_index: int
     time_s: float
@@ -47,9 +106,9 @@ class TrackedPose:
     raw: np.ndarray
     filtered: np.ndarray
     ambiguous: bool
-    centroid_px: tuple[float, float]
-    bbox_px: tuple[int, int, int, int]
     joints_m: np.ndarray
+    centroid_px: tuple[float, float] | None = None
+    bbox_px: tuple[int, int, int, int] | None = None
 
 
 @dataclass
@@ -57,7 +116,7 @@ class _TrackState:
     """What the tracker keeps per track id: its descriptor history and its filter."""
 
     stacker: FrameStacker
-    kalman: PoseKalmanFilter
+    kalman: PoseFilter
     travel: TravelDirection
     measured: list = field(default_factory=list)    # (55,) filter inputs, for smoothing
     heading_variance: list = field(default_factory=list)   # deg^2 per frame, NaN = model's
@@ -66,22 +125,26 @@ class _TrackState:
 class PoseTracker:
     """Tracks every person of a static-camera video (frames fed in order).
 
-    estimator: a PoseEstimator; fps: video frame rate; frame_size: (width, height) pixels;
-    max_people: keep at most this many (largest) people per frame, None = all;
-    ambiguity_threshold: raw heading norm below which a frame is flagged ambiguous.
+    estimator: a PoseEstimator; fps: video frame rate; settings: TrackerSettings; extractor:
+    frame -> people (default SilhouetteExtractor); associator: people -> track ids (default
+    Associator); filter_factory: fps -> a PoseFilter per new track (default
+    kalman_factory(estimator, settings)). The frame size (height, width) is taken from the
+    background given to prime() or the first frame.
     """
 
-    def __init__(self, estimator: PoseEstimator, fps: float, frame_size: tuple[int, int],
-                 max_people: int | None = None, ambiguity_threshold: float = 0.5,
+    def __init__(self, estimator: PoseEstimator, fps: float,
+                 settings: TrackerSettings = TrackerSettings(),
                  extractor: SilhouetteExtractor | None = None,
-                 associator: Associator | None = None):
+                 associator: Associator | None = None,
+                 filter_factory: Callable[[float], PoseFilter] | None = None):
         self.estimator = estimator
         self.fps = float(fps)
-        self.frame_size = frame_size
-        self.max_people = max_people
-        self.ambiguity_threshold = ambiguity_threshold
+        self.settings = settings
         self.extractor = extractor or SilhouetteExtractor()
         self.associator = associator or Associator()
+        self.filter_factory = filter_factory or kalman_factory(estimator, settings)
+        self.frame_shape: tuple[int, int] | None = None      # (height, width) pixels
+        self._focal_px = 0.0
         self.tracks: dict[int, _TrackState] = {}
         #: Seconds spent per stage so far (silhouettes, association, descriptor, regression,
         #: filter, skeleton), for benchmarks; perf_counter calls cost ~0.1 us each.
@@ -89,12 +152,19 @@ class PoseTracker:
 
     def prime(self, background: np.ndarray) -> None:
         """Learn the empty scene from a background estimate (BGR uint8 (H, W, 3))."""
+        self._set_frame_shape(background)
         self.extractor.prime(background)
+
+    def _set_frame_shape(self, frame: np.ndarray) -> None:
+        if self.frame_shape is None:
+            self.frame_shape = tuple(frame.shape[:2])
+            self._focal_px = focal_length_px(self.frame_shape[1], self.settings.fov_deg)
 
     def process(self, frame_index: int, time_s: float, frame: np.ndarray) -> list[TrackedPose]:
         """Track one frame (BGR uint8 (H, W, 3)); returns a pose per person in view."""
+        self._set_frame_shape(frame)
         clock = time.perf_counter()
-        people = self.extractor(frame)[: self.max_people]
+        people = self.extractor(frame)[: self.settings.max_people]
         clock = self._lap("silhouettes", clock)
         matches = self.associator.update(people)
         self._lap("association", clock)
@@ -107,11 +177,9 @@ class PoseTracker:
 
     def _state(self, track_id: int) -> _TrackState:
         if track_id not in self.tracks:
-            kalman = PoseKalmanFilter(self.fps, R=self.estimator.measurement_covariance,
-                                      q=self.estimator.process_noise,
-                                      ambiguity_threshold=self.ambiguity_threshold)
-            self.tracks[track_id] = _TrackState(FrameStacker(self.estimator.stack_depth), kalman,
-                                                TravelDirection(self.fps, self.frame_size[0]))
+            travel = TravelDirection(self.fps, self.frame_shape[1], focal_px=self._focal_px)
+            self.tracks[track_id] = _TrackState(FrameStacker(self.estimator.stack_depth),
+                                                self.filter_factory(self.fps), travel)
         return self.tracks[track_id]
 
     def _pose(self, track_id: int, person: PersonMask, frame_index: int,
@@ -120,7 +188,7 @@ class PoseTracker:
         clock = time.perf_counter()
         try:
             descriptor = self.estimator.describe(person.mask)
-        except DescriptorSilhouetteError:
+        except SilhouetteError:
             return None                       # a sliver or speck: no pose this frame
         clock = self._lap("descriptor", clock)
         raw = self.estimator.predict(state.stacker.push(descriptor))
@@ -132,23 +200,20 @@ class PoseTracker:
         state.measured.append(measured)
         state.heading_variance.append(np.nan if variance is None else variance)
         clock = self._lap("filter", clock)
-        w, h = self.frame_size
-        ground = ground_position_from_image(person.centroid, person.bbox[3], w, h)
+        h, w = self.frame_shape
+        ground = ground_position_from_image(person.centroid, person.bbox[3], w, h,
+                                            focal_px=self._focal_px)
         joints = pose_joints_m(filtered[None], root_position_m=ground[None])[0]
         self._lap("skeleton", clock)
-        return TrackedPose(frame_index, time_s, track_id, raw, filtered, ambiguous,
-                           person.centroid, person.bbox, joints)
-
+        return TrackedPose(frame_index, time_s, track_id, raw, filtered, ambiguous, joints,
+                           person.centroid, person.bbox)
 
     @staticmethod
     def _with_travel(state: _TrackState, raw: np.ndarray, person: PersonMask):
         """(filter input (55,), its heading variance deg^2 or None) from the raw pose and the
         direction of travel, if the person is moving."""
         travel = state.travel.push(person.centroid[0], person.bbox[3])
-        if travel is None:
-            return raw, None
-        return fuse_heading(resolve_front_back(raw, travel), travel,
-                            float(state.kalman.R[0, 0]))
+        return settle_heading(raw, travel, state.kalman.heading_variance)
 
     def _lap(self, stage: str, since: float) -> float:
         now = time.perf_counter()

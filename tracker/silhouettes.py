@@ -12,11 +12,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from regressor.errors import SilhouettePoseError
+
 # MOG2 marks foreground 255 and shadow 127; anything above this threshold is foreground proper.
 _FOREGROUND_LEVEL = 200
 
 
-class SilhouetteError(ValueError):
+class ExtractionError(SilhouettePoseError, ValueError):
     """Bad settings or frames for silhouette extraction; one-line message naming the problem."""
 
 
@@ -57,14 +59,14 @@ class BackgroundSubtractor:
                  detect_shadows: bool = True, warmup_frames: int = 15,
                  learning_rate: float | None = None):
         if working_width < 16:
-            raise SilhouetteError(f"working_width={working_width} must be at least 16 px")
+            raise ExtractionError(f"working_width={working_width} must be at least 16 px")
         if history < 1 or warmup_frames < 0:
-            raise SilhouetteError(f"history={history} must be >= 1 and warmup_frames="
+            raise ExtractionError(f"history={history} must be >= 1 and warmup_frames="
                                   f"{warmup_frames} >= 0")
         if not 0.0 < background_ratio < 1.0:
-            raise SilhouetteError(f"background_ratio={background_ratio} must be in (0, 1)")
+            raise ExtractionError(f"background_ratio={background_ratio} must be in (0, 1)")
         if learning_rate is not None and not 0.0 <= learning_rate <= 1.0:
-            raise SilhouetteError(f"learning_rate={learning_rate} must be in [0, 1]")
+            raise ExtractionError(f"learning_rate={learning_rate} must be in [0, 1]")
         self.working_width = working_width
         self.warmup_frames = warmup_frames
         self.learning_rate = 1.0 / history if learning_rate is None else learning_rate
@@ -102,13 +104,13 @@ class BackgroundSubtractor:
         All frames given to one subtractor must have the same size.
         """
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
-            raise SilhouetteError(f"frame must be BGR uint8 (H, W, 3), got {frame.dtype} "
+            raise ExtractionError(f"frame must be BGR uint8 (H, W, 3), got {frame.dtype} "
                                   f"{frame.shape}")
         size = (frame.shape[1], frame.shape[0])
         if self._frame_size is None:
             self._frame_size = size
         elif size != self._frame_size:
-            raise SilhouetteError(f"frame size changed from {self._frame_size[0]}x"
+            raise ExtractionError(f"frame size changed from {self._frame_size[0]}x"
                                   f"{self._frame_size[1]} to {size[0]}x{size[1]}")
         work = self.working_size(*size)
         small = frame if work == size else cv2.resize(frame, work, interpolation=cv2.INTER_AREA)
@@ -126,10 +128,10 @@ def median_background(frames: list[np.ndarray]) -> np.ndarray:
     still for more than half of them.
     """
     if not frames:
-        raise SilhouetteError("median_background needs at least one frame")
+        raise ExtractionError("median_background needs at least one frame")
     shapes = {f.shape for f in frames}
     if len(shapes) != 1:
-        raise SilhouetteError(f"median_background frames differ in shape: {sorted(shapes)}")
+        raise ExtractionError(f"median_background frames differ in shape: {sorted(shapes)}")
     return np.median(np.stack(frames), axis=0).astype(np.uint8)
 
 

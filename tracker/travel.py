@@ -29,41 +29,46 @@ from collections import deque
 
 import numpy as np
 
-DEFAULT_FOV_DEG = 60.0          # horizontal field of view assumed for the focal length
+from regressor.angles import wrap_deg
+
+from .video import focal_length_px
+
 DEFAULT_WINDOW = 15             # frames fitted (0.5 s at 30 fps): smooths the gait's bobbing
 DEFAULT_MIN_SPEED = 0.15        # body heights per second (a slow walk is ~0.6)
 TRAVEL_STD_DEG = 25.0           # error of the travel direction as a heading, see fuse_heading
 
 
 def travel_heading(u_px: np.ndarray, height_px: np.ndarray, fps: float, frame_width: int,
-                   fov_deg: float = DEFAULT_FOV_DEG) -> tuple[float, float]:
+                   focal_px: float | None = None) -> tuple[float, float]:
     """Heading of travel (degrees, pose-vector convention relative to the line of sight) and
     speed (body heights per second) from the last n frames' centroid columns u_px (n,) and
-    silhouette heights height_px (n,), by least-squares slopes over the window."""
+    silhouette heights height_px (n,), by least-squares slopes over the window. focal_px: the
+    camera's focal length in pixels (None: tracker.video.focal_length_px(frame_width))."""
     u = np.asarray(u_px, dtype=np.float64)
     log_h = np.log(np.asarray(height_px, dtype=np.float64))
     t = (np.arange(len(u)) - (len(u) - 1) / 2.0) / fps
     denom = float(t @ t)
     du, dlogh = float(t @ (u - u.mean())) / denom, float(t @ (log_h - log_h.mean())) / denom
-    f = 0.5 * frame_width / math.tan(math.radians(fov_deg) / 2.0)
+    f = focal_length_px(frame_width) if focal_px is None else focal_px
     offset = u[-1] - 0.5 * (frame_width - 1)
     lateral = du - offset * dlogh                     # x Z/f
     approach = f * dlogh                              # x Z/f
     heading = math.degrees(math.atan2(lateral, approach) + math.atan2(offset, f))
     speed = math.hypot(lateral, approach) / height_px[-1]     # heights per second
-    return (heading + 180.0) % 360.0 - 180.0, speed
+    return float(wrap_deg(heading)), speed
 
 
 class TravelDirection:
     """Per-track rolling estimate of the direction of travel (see the module docstring).
 
     fps: video frame rate; frame_width: pixels; window: frames fitted; min_speed: body heights
-    per second below which there is no estimate.
+    per second below which there is no estimate; focal_px: as travel_heading.
     """
 
     def __init__(self, fps: float, frame_width: int, window: int = DEFAULT_WINDOW,
-                 min_speed: float = DEFAULT_MIN_SPEED, fov_deg: float = DEFAULT_FOV_DEG):
-        self.fps, self.frame_width, self.fov_deg = float(fps), int(frame_width), fov_deg
+                 min_speed: float = DEFAULT_MIN_SPEED, focal_px: float | None = None):
+        self.fps, self.frame_width = float(fps), int(frame_width)
+        self.focal_px = focal_length_px(frame_width) if focal_px is None else focal_px
         self.min_speed = min_speed
         self._u: deque = deque(maxlen=window)
         self._h: deque = deque(maxlen=window)
@@ -76,7 +81,7 @@ class TravelDirection:
         if len(self._u) < self._u.maxlen:
             return None
         heading, speed = travel_heading(np.array(self._u), np.array(self._h), self.fps,
-                                        self.frame_width, self.fov_deg)
+                                        self.frame_width, self.focal_px)
         return heading if speed >= self.min_speed else None
 
 
@@ -88,7 +93,7 @@ def resolve_front_back(raw: np.ndarray, travel_deg: float | None) -> np.ndarray:
     if travel_deg is None:
         return out
     heading = math.degrees(math.atan2(out[1], out[0]))
-    off = abs((heading - travel_deg + 180.0) % 360.0 - 180.0)
+    off = abs(float(wrap_deg(heading - travel_deg)))
     if off > 90.0:
         out[:2] = -out[:2]
     return out
@@ -106,7 +111,18 @@ def fuse_heading(raw: np.ndarray, travel_deg: float, raw_variance: float,
     norm = math.hypot(out[0], out[1])
     heading = math.degrees(math.atan2(out[1], out[0]))
     w_raw, w_travel = 1.0 / raw_variance, 1.0 / travel_std_deg ** 2
-    delta = (travel_deg - heading + 180.0) % 360.0 - 180.0
+    delta = float(wrap_deg(travel_deg - heading))
     fused = math.radians(heading + delta * w_travel / (w_raw + w_travel))
     out[0], out[1] = norm * math.cos(fused), norm * math.sin(fused)
     return out, 1.0 / (w_raw + w_travel)
+
+
+def settle_heading(raw: np.ndarray, travel_deg: float | None, raw_variance: float
+                   ) -> tuple[np.ndarray, float | None]:
+    """The filter's input for one frame: raw (55,) with front/back settled by the direction of
+    travel (degrees, None when the person is not walking) and fused with it; returns (pose
+    (55,), its heading variance deg^2, or None to keep the filter's own). raw_variance: the
+    filter's heading variance (deg^2). The one place the tracker and the evaluation do this."""
+    if travel_deg is None:
+        return raw, None
+    return fuse_heading(resolve_front_back(raw, travel_deg), travel_deg, raw_variance)

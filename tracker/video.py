@@ -15,13 +15,24 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+from regressor.errors import SilhouettePoseError
+
 MIN_SIDE_PX = 16
 # Longer than any camera or 8K video; beyond this a file is almost certainly damaged metadata.
 MAX_SIDE_PX = 16384
 MAX_FPS = 1000.0
+#: Horizontal field of view (degrees) assumed for a video's camera when its focal length matters
+#: (direction of travel, ground position); a typical phone or webcam lens.
+ASSUMED_FOV_DEG = 60.0
 
 
-class VideoError(ValueError):
+def focal_length_px(frame_width_px: int, fov_deg: float = ASSUMED_FOV_DEG) -> float:
+    """Pinhole focal length in pixels of a camera with this horizontal field of view:
+    f = (W / 2) / tan(fov / 2)."""
+    return 0.5 * frame_width_px / math.tan(math.radians(fov_deg) / 2.0)
+
+
+class VideoError(SilhouettePoseError, ValueError):
     """A video file that cannot be used; the message is one line and names the file."""
 
 

@@ -15,7 +15,7 @@ Log and publish times are the video time in nanoseconds.
 Crash safety: messages go into small compressed chunks (``chunk_size`` bytes, and a chunk is
 closed at least every ``flush_every_frames`` frames); every finished chunk is handed to the
 operating system at once, so a killed process leaves a file whose finished chunks are intact
-(read it back with ``tracker.mcap_repair.recover_mcap``). ``close()`` writes the summary and
+(read it back with ``tracker.sinks.mcap_repair.recover_mcap``). ``close()`` writes the summary and
 footer; it runs on leaving a ``with`` block (also on exceptions and Ctrl-C) and, failing that,
 at interpreter exit.
 """
@@ -24,17 +24,16 @@ from __future__ import annotations
 import io
 import json
 import math
-import warnings
 import weakref
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import mcap
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from sequences.pose_vector import pose_vector_names
-from tracker.skeleton_geometry import (
+from tracker.sinks.geometry import (
     SinkInputError,
     bone_segments,
     check_joints,
@@ -42,6 +41,9 @@ from tracker.skeleton_geometry import (
     track_colour,
     y_up_to_z_up,
 )
+
+if TYPE_CHECKING:
+    from ..pipeline import TrackedPose
 
 POSE_TOPIC = "/pose"
 SKELETON_TOPIC = "/skeleton"
@@ -105,38 +107,26 @@ def scene_update_schema() -> dict:
     """
     point3 = _vector3("foxglove.Point3")
     index_list = _array({"type": "integer", "minimum": 0})
+    # The skeleton uses lines, spheres and texts; the other primitive lists are always empty.
+    empty = _array({"type": "object"})
     primitives = {
-        "arrows": _object("foxglove.ArrowPrimitive", {
-            "pose": _pose(), "shaft_length": _NUMBER, "shaft_diameter": _NUMBER,
-            "head_length": _NUMBER, "head_diameter": _NUMBER, "color": _colour()}),
-        "cubes": _object("foxglove.CubePrimitive", {
-            "pose": _pose(), "size": _vector3(), "color": _colour()}),
+        "arrows": empty, "cubes": empty, "cylinders": empty, "triangles": empty, "models": empty,
         "spheres": _object("foxglove.SpherePrimitive", {
             "pose": _pose(), "size": _vector3(), "color": _colour()}),
-        "cylinders": _object("foxglove.CylinderPrimitive", {
-            "pose": _pose(), "size": _vector3(), "bottom_scale": _NUMBER, "top_scale": _NUMBER,
-            "color": _colour()}),
         "lines": _object("foxglove.LinePrimitive", {
             "type": _enum("foxglove.LineType", {"LINE_STRIP": 0, "LINE_LOOP": 1, "LINE_LIST": 2}),
             "pose": _pose(), "thickness": {"type": "number", "minimum": 0},
             "scale_invariant": _BOOLEAN, "points": _array(point3), "color": _colour(),
             "colors": _array(_colour()), "indices": index_list}),
-        "triangles": _object("foxglove.TriangleListPrimitive", {
-            "pose": _pose(), "points": _array(point3), "color": _colour(),
-            "colors": _array(_colour()), "indices": index_list}),
         "texts": _object("foxglove.TextPrimitive", {
             "pose": _pose(), "billboard": _BOOLEAN, "font_size": _NUMBER,
             "scale_invariant": _BOOLEAN, "color": _colour(), "text": _STRING}),
-        "models": _object("foxglove.ModelPrimitive", {
-            "pose": _pose(), "scale": _vector3(), "color": _colour(), "override_color": _BOOLEAN,
-            "url": _STRING, "media_type": _STRING,
-            "data": {"type": "string", "contentEncoding": "base64"}}),
     }
     entity = _object("foxglove.SceneEntity", {
         "timestamp": _time(), "frame_id": _STRING, "id": _STRING,
         "lifetime": _time("duration"), "frame_locked": _BOOLEAN,
         "metadata": _array(_object("foxglove.KeyValuePair", {"key": _STRING, "value": _STRING})),
-        **{name: _array(item) for name, item in primitives.items()},
+        **{name: item if item is empty else _array(item) for name, item in primitives.items()},
     }, "A visual element in a 3D scene; replaces any prior entity with the same id")
     deletion = _object("foxglove.SceneEntityDeletion", {
         "timestamp": _time(),
@@ -294,10 +284,6 @@ class McapSink:
         self._flush_every = int(flush_every_frames)
         stream = _WriteThrough(io.FileIO(self.path, "w"))
         writer = Writer(stream, chunk_size=chunk_size, compression=kinds[compression])
-        if not hasattr(writer, "flush"):  # Writer.flush() arrived in mcap 1.6
-            warnings.warn(f"mcap {getattr(mcap, '__version__', '?')} has no "
-                          "Writer.flush(): chunks close by size only (install mcap>=1.6)",
-                          stacklevel=2)
         self._state = {"writer": writer, "stream": stream, "done": False}
         # Runs at interpreter exit (e.g. after an uncaught exception) if close() was not called.
         self._finalizer = weakref.finalize(self, _finish, self._state)
@@ -322,30 +308,21 @@ class McapSink:
         """True once the footer has been written."""
         return self._state["done"]
 
-    def write(
-        self,
-        frame_index: int,
-        time_s: float,
-        track_id: int,
-        raw55: np.ndarray,
-        filtered55: np.ndarray,
-        ambiguous: bool,
-        joints3d: np.ndarray,
-        *,
-        centroid_px: tuple[float, float] | None = None,
-    ) -> None:
+    def write(self, pose: TrackedPose) -> None:
         """Record one track in one frame.
 
-        frame_index: video frame (>= 0, non-decreasing across calls); time_s: video time in
-        seconds (>= 0); raw55, filtered55: (55,) pose vectors; joints3d: (18, 3) metres, Y-up
-        (drawn as given); centroid_px: optional (x, y) pixels. Raises SinkInputError on bad
-        input or when the sink is closed.
+        pose.frame_index: video frame (>= 0, non-decreasing across calls); pose.time_s: video
+        time in seconds (>= 0); raw, filtered: (55,) pose vectors; joints_m: (18, 3) metres,
+        Y-up (drawn as given); centroid_px: optional (x, y) pixels. Raises SinkInputError on
+        bad input or when the sink is closed.
         """
+        frame_index, time_s, track_id = pose.frame_index, pose.time_s, pose.track_id
+        ambiguous, centroid_px = pose.ambiguous, pose.centroid_px
         if self.closed:
             raise SinkInputError(f"MCAP sink {self.path.name} is closed")
-        raw = check_pose("raw55", raw55)
-        filtered = check_pose("filtered55", filtered55)
-        joints = check_joints(joints3d)
+        raw = check_pose("raw55", pose.raw)
+        filtered = check_pose("filtered55", pose.filtered)
+        joints = check_joints(pose.joints_m)
         if not (math.isfinite(time_s) and time_s >= 0):
             raise SinkInputError(f"time_s must be a finite number >= 0, got {time_s}")
         frame_index, track_id = int(frame_index), int(track_id)
@@ -369,6 +346,10 @@ class McapSink:
             message["centroid_px"] = [float(c) for c in centroid_px]
         self._add(self._pose_channel, time_ns, message)
         self._entities[track_id] = skeleton_entity(track_id, time_ns, joints, bool(ambiguous))
+
+    def end_frame(self, frame_index: int) -> None:
+        """Nothing here: a frame's scene update is written when the next frame's first pose
+        arrives, or on close."""
 
     def add_metadata(self, name: str, values: Mapping[str, object]) -> None:
         """Add a metadata record (e.g. results known only at the end)."""
@@ -396,7 +377,7 @@ class McapSink:
         self._entities = {}
         self._frames_since_flush += 1
         writer = self._state["writer"]
-        if self._frames_since_flush >= self._flush_every and hasattr(writer, "flush"):
+        if self._frames_since_flush >= self._flush_every:
             writer.flush()  # closes the chunk: it is now safe from a crash
             self._frames_since_flush = 0
 

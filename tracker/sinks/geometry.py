@@ -12,12 +12,13 @@ Conventions:
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from sequences.pose_vector import joint_positions
 from sequences.skeleton import BONES_FOR_DRAWING, CMU_UNIT_M, POSE_JOINTS
+
+from ..video import focal_length_px
+from regressor.errors import SilhouettePoseError
 
 N_JOINTS = len(POSE_JOINTS)
 
@@ -43,7 +44,7 @@ TRACK_PALETTE: np.ndarray = np.array([
 TRACK_PALETTE.flags.writeable = False
 
 
-class SinkInputError(ValueError):
+class SinkInputError(SilhouettePoseError, ValueError):
     """A sink was given data of the wrong shape, type or value (message names the argument)."""
 
 
@@ -116,14 +117,14 @@ def ground_position_from_image(
     frame_width_px: int,
     frame_height_px: int,
     person_height_m: float = 1.7,
-    horizontal_fov_deg: float = 60.0,
+    focal_px: float | None = None,
     hip_height_m: float = 0.95,
 ) -> np.ndarray:
     """Approximate root (hip) positions in metres from image-plane measurements.
 
     A pinhole camera at the origin looks along -Z with Y up (image x along +X, image y down
-    along -Y). The focal length f = (W / 2) / tan(fov / 2) px follows from the assumed horizontal
-    field of view; the distance d = f * person_height_m / bbox_height_px from the assumed body
+    along -Y). The focal length f px is focal_px, by default
+    ``tracker.video.focal_length_px(W)`` from the assumed horizontal field of view; the distance d = f * person_height_m / bbox_height_px from the assumed body
     height. The root is put at lateral position X = (cx - W/2) * d / f, at height hip_height_m and
     depth Z = -d. Only the image-plane motion is measured; depth is as good as the assumed height.
 
@@ -138,7 +139,8 @@ def ground_position_from_image(
         raise SinkInputError(f"frame size must be positive, got {frame_width_px}x{frame_height_px}")
     if not np.all(height > 0):
         raise SinkInputError("bbox_height_px must be positive")
-    focal_px = 0.5 * frame_width_px / math.tan(math.radians(horizontal_fov_deg) / 2.0)
+    if focal_px is None:
+        focal_px = focal_length_px(frame_width_px)
     distance = focal_px * person_height_m / height
     lateral = (centroid[..., 0] - 0.5 * frame_width_px) * distance / focal_px
     return np.stack([lateral, np.full_like(lateral, hip_height_m), -distance], axis=-1)

@@ -22,8 +22,10 @@ from mcap.records import Channel, Footer, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
 from mcap.writer import CompressionType, Writer
 
+from regressor.errors import SilhouettePoseError
 
-class McapRecoveryError(ValueError):
+
+class McapRecoveryError(SilhouettePoseError, ValueError):
     """The source cannot be recovered at all (e.g. not an MCAP file); message names the file."""
 
 

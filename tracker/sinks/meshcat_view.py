@@ -5,25 +5,30 @@ small spheres (one merged triangle mesh), in the track's colour, updated on ever
 Tracks that were not written in the previous frame are removed. Positions are drawn as given
 (metres, Y up in, converted to meshcat's Z-up world).
 
-The view talks to a :class:`tracker.meshcat_server.ViewerServer` (127.0.0.1 only) through
+The view talks to a :class:`tracker.sinks.meshcat_server.ViewerServer` (127.0.0.1 only) through
 meshcat's ``Visualizer``; by default it starts its own server and stops it on ``close()``.
 """
 from __future__ import annotations
 
 import contextlib
 import io
+import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 import zmq
 
-from tracker.meshcat_server import ViewerServer
-from tracker.skeleton_geometry import (
+from tracker.sinks.meshcat_server import ViewerServer
+from tracker.sinks.geometry import (
     SinkInputError,
     bone_segments,
     check_joints,
     track_colour,
     y_up_to_z_up,
 )
+
+if TYPE_CHECKING:
+    from ..pipeline import TrackedPose
 
 _REPLY_TIMEOUT_MS = 10_000  # a dead server must not hang the tracker forever
 
@@ -76,13 +81,14 @@ class MeshcatView:
     joint_radius_m: sphere radius at each joint. camera_position_m: where the browser's camera
     starts, metres in the Z-up world (default: in front of a subject at heading 0, seen from
     the video camera's side, a little to the right and above); it orbits the origin. None keeps
-    meshcat's default. print_url: print the page's address on start.
+    meshcat's default. print_url: print the page's address on start. realtime: draw each pose
+    no sooner than its video time after the first (play at the video's own speed).
     Attributes: web_url (open it in a browser).
     """
 
     def __init__(self, server: ViewerServer | None = None, joint_radius_m: float = 0.04,
                  camera_position_m: tuple[float, float, float] | None = (0.8, -3.5, 1.4),
-                 print_url: bool = True):
+                 print_url: bool = True, realtime: bool = False):
         import meshcat  # deferred: it pulls in IPython and PIL, needed only for the live view
         import meshcat.geometry
 
@@ -98,6 +104,8 @@ class MeshcatView:
         # rather than metres away at their camera-relative positions.
         self._anchor: np.ndarray | None = None
         self._closed = False
+        self._realtime = realtime
+        self._clock_start: tuple[float, float] | None = None   # (video s, wall s) of pose 1
         try:
             with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL itself
                 self._vis = meshcat.Visualizer(zmq_url=self.server.zmq_url)
@@ -126,16 +134,17 @@ class MeshcatView:
         """True after close()."""
         return self._closed
 
-    def write(self, frame_index: int, time_s: float, track_id: int, raw55: np.ndarray,
-              filtered55: np.ndarray, ambiguous: bool, joints3d: np.ndarray, *,
-              centroid_px: tuple[float, float] | None = None) -> None:
-        """Draw track ``track_id`` at joints3d (18, 3) metres (Y up), shifted so the first
-        person drawn starts above the viewer's origin; other arguments are
-        accepted for the common sink interface. Raises SinkInputError on bad joints or when
-        closed; zmq.Again when the server does not answer within 10 s."""
+    def write(self, pose: TrackedPose) -> None:
+        """Draw track ``pose.track_id`` at pose.joints_m (18, 3) metres (Y up), shifted so the
+        first person drawn starts above the viewer's origin; with ``realtime``, not before the
+        pose's video time has passed since the first pose. Raises SinkInputError on bad joints
+        or when closed; zmq.Again when the server does not answer within 10 s."""
         if self._closed:
             raise SinkInputError("meshcat view is closed")
-        joints = check_joints(joints3d)
+        joints = check_joints(pose.joints_m)
+        frame_index, track_id = pose.frame_index, pose.track_id
+        if self._realtime:
+            self._wait_until(pose.time_s)
         if self._anchor is None:
             self._anchor = np.array([joints[0, 0], 0.0, joints[0, 2]])
         joints = y_up_to_z_up(joints - self._anchor)
@@ -152,6 +161,19 @@ class MeshcatView:
         node["joints"].set_object(g.TriangularMeshGeometry(vertices, faces),
                                   g.MeshLambertMaterial(color=colour))
         self._last_frame[track_id] = frame_index
+
+    def _wait_until(self, time_s: float) -> None:
+        """Sleep until time_s of video has passed (wall clock) since the first pose drawn:
+        tracking outruns the video, and the view is played at its own speed."""
+        now = time.perf_counter()
+        if self._clock_start is None:
+            self._clock_start = (time_s, now)
+        ahead = (time_s - self._clock_start[0]) - (now - self._clock_start[1])
+        if ahead > 0:
+            time.sleep(ahead)
+
+    def end_frame(self, frame_index: int) -> None:
+        """Nothing per frame: tracks absent from a frame are removed when the next one starts."""
 
     def _remove_absent_tracks(self) -> None:
         """Delete skeletons of tracks not drawn in the frame that just ended."""

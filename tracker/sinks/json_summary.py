@@ -28,10 +28,14 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tracker.skeleton_geometry import SinkInputError, check_joints, check_pose
+from tracker.sinks.geometry import SinkInputError, check_joints, check_pose
+
+if TYPE_CHECKING:
+    from ..pipeline import TrackedPose
 
 FORMAT = "silhouette-pose tracking summary"
 VERSION = 1
@@ -82,28 +86,28 @@ class JsonSummarySink:
         """True after close()."""
         return self._closed
 
-    def mark_frame(self, frame_index: int) -> None:
-        """Count a processed frame (call it for frames without people too; write() calls it)."""
+    def end_frame(self, frame_index: int) -> None:
+        """Count a processed frame (called for frames without people too; write() calls it)."""
         if self._start is None:
             self._start = self._clock()
         self._frames.add(int(frame_index))
 
-    def write(self, frame_index: int, time_s: float, track_id: int, raw55: np.ndarray,
-              filtered55: np.ndarray, ambiguous: bool, joints3d: np.ndarray, *,
-              centroid_px: tuple[float, float] | None = None) -> None:
-        """Record one track in one frame. centroid_px (x, y) pixels is required here.
+    def write(self, pose: TrackedPose) -> None:
+        """Record one track in one frame. pose.centroid_px (x, y) pixels is required here.
         Raises SinkInputError on bad input, a missing centroid, or when closed."""
         if self._closed:
             raise SinkInputError(f"JSON summary {self.path.name} is closed")
-        raw = check_pose("raw55", raw55)
-        filtered = check_pose("filtered55", filtered55)
-        check_joints(joints3d)
+        frame_index, time_s, track_id = pose.frame_index, pose.time_s, pose.track_id
+        ambiguous, centroid_px = pose.ambiguous, pose.centroid_px
+        raw = check_pose("raw55", pose.raw)
+        filtered = check_pose("filtered55", pose.filtered)
+        check_joints(pose.joints_m)
         if centroid_px is None:
             raise SinkInputError("the JSON summary needs centroid_px (x, y) in pixels")
         centroid = np.asarray(centroid_px, dtype=np.float64)
         if centroid.shape != (2,) or not np.all(np.isfinite(centroid)):
             raise SinkInputError(f"centroid_px must be two finite numbers, got {centroid_px!r}")
-        self.mark_frame(frame_index)
+        self.end_frame(frame_index)
         track = self._tracks.setdefault(int(track_id), {
             "frames": [], "time_s": [], "centroid_px": [], "heading_deg": [],
             "heading_norm": [], "ambiguous": [], "pose": []})

@@ -5,7 +5,7 @@ Angles: the filtered pose vectors, converted by ``sequences.pose_vector.pose_vec
 
 Root translation: the tracker does not measure where a person is in 3-D. The BVH root follows
 the Hips position of the ``joints3d`` given to ``write`` (metres, converted to CMU units), so it
-is whatever placement the caller chose: with ``tracker.skeleton_geometry.ground_position_from_image``
+is whatever placement the caller chose: with ``tracker.sinks.geometry.ground_position_from_image``
 it is the image-plane motion turned into an approximate ground-plane position (lateral position
 and depth from an assumed body height and field of view; hips at a fixed height); with
 root-relative joints it stays at the origin.
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,7 +33,10 @@ from sequences.skeleton import (
     CMU_REST_OFFSETS,
     CMU_UNIT_M,
 )
-from tracker.skeleton_geometry import SinkInputError, check_joints, check_pose
+from tracker.sinks.geometry import SinkInputError, check_joints, check_pose
+
+if TYPE_CHECKING:
+    from ..pipeline import TrackedPose
 
 _ROOT_CHANNELS = ["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]
 _JOINT_CHANNELS = ["Zrotation", "Yrotation", "Xrotation"]
@@ -88,22 +92,25 @@ class BVHSink:
         """True after close()."""
         return self._closed
 
-    def write(self, frame_index: int, time_s: float, track_id: int, raw55: np.ndarray,
-              filtered55: np.ndarray, ambiguous: bool, joints3d: np.ndarray, *,
-              centroid_px: tuple[float, float] | None = None) -> None:
-        """Keep filtered55 (55,) and the Hips position joints3d[0] (metres) of this track and
-        frame. Frame indices of a track must increase. Raises SinkInputError on bad input."""
+    def write(self, pose: TrackedPose) -> None:
+        """Keep pose.filtered (55,) and the Hips position pose.joints_m[0] (metres) of this
+        track and frame. Frame indices of a track must increase. Raises SinkInputError on bad
+        input."""
         if self._closed:
             raise SinkInputError("BVH sink is closed")
-        pose = check_pose("filtered55", filtered55)
-        joints = check_joints(joints3d)
+        frame_index, track_id = pose.frame_index, pose.track_id
+        filtered = check_pose("filtered55", pose.filtered)
+        joints = check_joints(pose.joints_m)
         frames, poses, roots = self._tracks.setdefault(int(track_id), ([], [], []))
         if frames and int(frame_index) <= frames[-1]:
             raise SinkInputError(f"track {track_id}: frame_index {frame_index} does not follow "
                                  f"{frames[-1]}")
         frames.append(int(frame_index))
-        poses.append(pose)
+        poses.append(filtered)
         roots.append(joints[0])
+
+    def end_frame(self, frame_index: int) -> None:
+        """Nothing per frame: files are written on close."""
 
     def motion(self, track_id: int) -> Motion:
         """The Motion that close() writes for ``track_id`` (KeyError if never written)."""

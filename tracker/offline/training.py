@@ -1,7 +1,8 @@
 """Training the default model from motion capture: data set -> codebook -> descriptors -> regressor.
 
-Lives in ``tracker`` because it is the one package allowed to use both ``sequences`` (renders
-of motion capture) and ``regressor`` (descriptors, regressors, model files). scripts/train.py
+Lives in ``tracker.offline`` because tracker is the one package allowed to use both
+``sequences`` (renders of motion capture) and ``regressor`` (descriptors, regressors, model
+files); nothing online imports it. scripts/train.py
 is the command; this module holds the steps, each a function with cached results.
 """
 from __future__ import annotations
@@ -15,10 +16,11 @@ from typing import Callable
 
 import numpy as np
 
+from regressor.angles import pose_angles, wrap_deg
 from regressor.codebook import Codebook
 from regressor.descriptor import (DescriptorSettings, descriptors_for_masks,
                                   fit_codebook_for_masks)
-from regressor.pose_model import PoseModel, transform_descriptors
+from regressor.pose_model import DEFAULT_AMBIGUITY_THRESHOLD, PoseModel, transform_descriptors
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
 from sequences.dataset import Dataset
@@ -100,19 +102,8 @@ def angle_centres(pose: np.ndarray) -> np.ndarray:
 def regression_targets(pose: np.ndarray, centre_deg: np.ndarray) -> np.ndarray:
     """Targets (N, 55): heading (cos, sin) as is, angles as wrap(angle - centre) in degrees."""
     out = np.array(pose, dtype=np.float64, copy=True)
-    out[:, 2:] = (out[:, 2:] - centre_deg + 180.0) % 360.0 - 180.0
+    out[:, 2:] = wrap_deg(out[:, 2:] - centre_deg)
     return out
-
-
-def pose_angles(pose: np.ndarray) -> np.ndarray:
-    """The filter's 54 angles (N, 54) in degrees: heading (atan2), then the 53 angles."""
-    heading = np.degrees(np.arctan2(pose[:, 1], pose[:, 0]))
-    return np.column_stack([heading, pose[:, 2:]])
-
-
-def wrapped(d: np.ndarray) -> np.ndarray:
-    """Angle differences wrapped to [-180, 180) degrees."""
-    return (d + 180.0) % 360.0 - 180.0
 
 
 def measurement_noise(predicted: np.ndarray, truth: np.ndarray, norm_threshold: float
@@ -120,7 +111,7 @@ def measurement_noise(predicted: np.ndarray, truth: np.ndarray, norm_threshold: 
     """Filter measurement covariance (54, 54) deg^2 from validation residuals of unambiguous
     frames (raw heading norm >= threshold), and facts about ambiguous frames: how much larger
     their residuals are (variance ratios for heading and joints), used to inflate R there."""
-    residual = wrapped(pose_angles(predicted) - pose_angles(truth))
+    residual = wrap_deg(pose_angles(predicted) - pose_angles(truth))
     norm = np.hypot(predicted[:, 0], predicted[:, 1])
     clear = norm >= norm_threshold
     if clear.sum() < 100:
@@ -139,7 +130,7 @@ def process_noise(pose: np.ndarray, sequence: np.ndarray, fps: float) -> np.ndar
     """Acceleration variances (54,) (deg/s^2)^2 of the true angles over consecutive frames of
     each sequence (second differences, wrapped, times fps^2)."""
     angles = pose_angles(pose)
-    first = wrapped(angles[1:] - angles[:-1])
+    first = wrap_deg(angles[1:] - angles[:-1])
     same = sequence[1:] == sequence[:-1]
     accel = first[1:] - first[:-1]
     valid = same[1:] & same[:-1]
@@ -166,7 +157,7 @@ class TrainingOptions:
     transform: str = "sqrt"
     width_scale: float = 1.0
     noise: float | None = None
-    ambiguity_threshold: float = 0.5
+    ambiguity_threshold: float = DEFAULT_AMBIGUITY_THRESHOLD
     seed: int = 0
 
 
@@ -197,13 +188,14 @@ def train_pose_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                       transform=options.transform, basis="gaussian", width=rvm.width_,
                       centres=rvm.centres_, relevance=rvm.relevance_, coef=rvm.coef_,
                       intercept=rvm.intercept_, angle_centre_deg=centre,
-                      measurement_covariance=np.eye(54), process_noise=np.ones(54))
+                      measurement_covariance=np.eye(54), process_noise=np.ones(54),
+                      ambiguity_threshold=options.ambiguity_threshold)
     val_rows = np.flatnonzero(val)
     predicted = model.predict_batch(Xs[val_rows])
     R, facts = measurement_noise(predicted, dataset.pose[val_rows], options.ambiguity_threshold)
     model.measurement_covariance = R
     model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
-    errors = np.abs(wrapped(pose_angles(predicted) - pose_angles(dataset.pose[val_rows])))
+    errors = np.abs(wrap_deg(pose_angles(predicted) - pose_angles(dataset.pose[val_rows])))
     report = {"n_train_rows": int(len(train_rows)), "n_fit": int(len(fit_rows)),
               "n_validation_rows": int(len(val_rows)), "relevance_vectors": int(rvm.n_basis_),
               "fit_seconds": round(fit_seconds, 1),

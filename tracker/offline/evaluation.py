@@ -18,15 +18,15 @@ heading RMS (angles only), error per body part (angles) or per point (points).
 from __future__ import annotations
 
 import tempfile
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import scipy.io
 
+from regressor.angles import heading_norm, pose_angles, wrap_deg
 from regressor.metrics import (acceleration_error, angle_jitter, angular_error,
-                               contiguous_folds, mean_point_error, point_jitter, rms_per_angle,
-                               wrap_degrees)
+                               contiguous_folds, mean_point_error, point_jitter, rms_per_angle)
 from regressor.pose_model import PoseModel
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
@@ -36,20 +36,21 @@ from sequences.pose_vector import PART_OF_ENTRY, motion_to_pose_vectors
 from sequences.render import silhouette_mask
 from sequences.spiral import line_of_sight_azimuth, spiral_walk
 from sequences.video import Actor, load_truth, posed_sequences, scene_camera, write_video
-from .filtering import ConstantVelocityFilter, PoseKalmanFilter, pose_to_angles
-from .pipeline import PoseTracker
-from .travel import TravelDirection, fuse_heading, resolve_front_back
-from .silhouettes import median_background
-from .video import open_video
+from regressor.errors import SilhouettePoseError
+from ..filtering import ConstantVelocityFilter, PoseKalmanFilter
+from ..pipeline import PoseTracker, TrackerSettings, kalman_factory
+from ..run import track_video
+from ..sinks import PoseRecorder
+from ..travel import TravelDirection, settle_heading
+from ..video import focal_length_px, open_video
 
 METHODS = ("per_frame", "stacked", "kalman", "smoothed")
 ANKUR_TRAIN_STARTS = (0, 100, 336, 405, 471, 1530, 1768)   # the 7 training sequences (README)
 LARGE_HEADING_ERROR_DEG = 45.0   # a heading error this large is a wrong view, not noise
 _CROP_MARGIN_PX = 2
-_BACKGROUND_SAMPLES = 25
 
 
-class EvaluationError(ValueError):
+class EvaluationError(SilhouettePoseError, ValueError):
     """An input the evaluation cannot use (file, option, sequence); one-line message."""
 
 
@@ -75,31 +76,11 @@ class EvaluatedSequence:
 
 
 @dataclass(frozen=True)
-class FilterOptions:
-    """Kalman settings for pose sequences. r_scale/q_scale multiply the model's measurement
-    covariance (deg^2) and process noise ((deg/s^2)^2); the rest are PoseKalmanFilter's."""
-
-    ambiguity_threshold: float = 0.5
-    ambiguous_heading_factor: float = 25.0
-    ambiguous_joint_factor: float = 4.0
-    r_scale: float = 1.0
-    q_scale: float = 1.0
-
-    def make(self, model: PoseModel, fps: float) -> PoseKalmanFilter:
-        """A PoseKalmanFilter with the model's noise models, scaled."""
-        return PoseKalmanFilter(fps, R=model.measurement_covariance * self.r_scale,
-                                q=model.process_noise * self.q_scale,
-                                ambiguity_threshold=self.ambiguity_threshold,
-                                ambiguous_heading_factor=self.ambiguous_heading_factor,
-                                ambiguous_joint_factor=self.ambiguous_joint_factor)
-
-
-@dataclass(frozen=True)
 class CameraOptions:
     """The fixed camera and video: size (height, width) px, azimuth/elevation degrees, distance
     metres, fps, body shape and noise seed, sensor noise (grey levels, videos only)."""
 
-    size: tuple[int, int] = (240, 320)
+    size: tuple[int, int] = (240, 320)        # (height, width), numpy order, as everywhere
     azimuth_deg: float = 0.0
     elevation_deg: float = 8.0
     distance_m: float = 9.0
@@ -134,11 +115,6 @@ R_SCALES = (0.1, 0.25, 0.5, 1.0, 2.0)   # candidate scalings of the paper data's
 
 # ---------------------------------------------------------------- measures
 
-def pose_angles(poses: np.ndarray) -> np.ndarray:
-    """Pose vectors (T, 55) -> the 54 compared angles (T, 54) deg: heading, then entries 2..54."""
-    return pose_to_angles(np.asarray(poses, float))[0]
-
-
 def angle_parts() -> list[str]:
     """Body part of each of the 54 compared angles (heading, torso, head, arms, legs)."""
     return ["heading"] + list(PART_OF_ENTRY[2:])
@@ -147,7 +123,7 @@ def angle_parts() -> list[str]:
 def measure_angles(est: np.ndarray, truth: np.ndarray) -> dict:
     """Measures of estimated pose vectors est (T, 55) against truth (T, 55); degrees."""
     a, b = pose_angles(est), pose_angles(truth)
-    err = np.abs(wrap_degrees(a - b))                       # (T, 54)
+    err = np.abs(wrap_deg(a - b))                       # (T, 54)
     parts = np.array(angle_parts())
     return {"error": angular_error(a, b), "jitter": angle_jitter(a),
             "accel_error": acceleration_error(a, b),
@@ -185,7 +161,7 @@ def evaluate(seq: EvaluatedSequence) -> dict:
 
 def heading_errors(est: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """Wrapped heading error (T,) deg of pose vectors est (T, 55) against truth (T, 55)."""
-    return wrap_degrees(pose_angles(est)[:, 0] - pose_angles(truth)[:, 0])
+    return wrap_deg(pose_angles(est)[:, 0] - pose_angles(truth)[:, 0])
 
 
 def heading_ambiguity(est: np.ndarray, truth: np.ndarray, ambiguous: np.ndarray,
@@ -321,7 +297,7 @@ def _model_poses(model: PoseModel, masks: list[np.ndarray]) -> np.ndarray:
 
 def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: PoseModel,
                       spiral_deg_per_s: float | None = None, camera: CameraOptions = CameraOptions(),
-                      filt: FilterOptions = FilterOptions(), frames: int | None = None,
+                      settings: TrackerSettings = TrackerSettings(), frames: int | None = None,
                       ) -> EvaluatedSequence:
     """A CMU motion rendered from a fixed camera, estimated by each method from its silhouettes
     directly (no video, no background subtraction). frames: keep only the first frames."""
@@ -334,24 +310,26 @@ def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model
     name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
     # As the tracker does: while the person walks, the direction of travel settles front/back
     # and is fused with the regressor's heading.
-    kf = filt.make(stacked_model, camera.fps)
-    travel = TravelDirection(camera.fps, camera.size[1])
+    kf = kalman_factory(stacked_model, settings)(camera.fps)
+    width = camera.size[1]
+    travel = TravelDirection(camera.fps, width, focal_px=focal_length_px(width, settings.fov_deg))
     measured, variance = raw.copy(), np.full(len(raw), np.nan)
     for t, (u, h) in enumerate(image_track):
-        heading = travel.push(u, h)
-        if heading is not None:
-            measured[t], variance[t] = fuse_heading(resolve_front_back(raw[t], heading),
-                                                    heading, float(kf.R[0, 0]))
-    return _pose_sequence(name, truth, _model_poses(per_frame_model, masks), raw, kf, filt,
+        pose, v = settle_heading(raw[t], travel.push(u, h), kf.heading_variance)
+        if v is not None:
+            measured[t], variance[t] = pose, v
+    return _pose_sequence(name, truth, _model_poses(per_frame_model, masks), raw, kf,
+                          settings.threshold(stacked_model), settings,
                           {"path": "rendered silhouettes", "camera": camera.__dict__},
                           measured=measured, heading_variance=variance)
 
 
-def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, filt: FilterOptions,
-                   settings: dict, kalman=None, measured=None, heading_variance=None
-                   ) -> EvaluatedSequence:
-    """measured, heading_variance: the filter's inputs (raw with the direction of travel
-    fused in) and their heading variances (NaN: the model's); None = raw as it is."""
+def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, threshold: float,
+                   tracker_settings: TrackerSettings, settings: dict, kalman=None,
+                   measured=None, heading_variance=None) -> EvaluatedSequence:
+    """threshold: the ambiguity threshold in use. measured, heading_variance: the filter's
+    inputs (raw with the direction of travel fused in) and their heading variances (NaN: the
+    model's); None = raw as it is."""
     measured = raw if measured is None else measured
     filtered, ambiguous = kf.filter(measured, heading_variance=heading_variance)
     return EvaluatedSequence(
@@ -359,24 +337,22 @@ def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, filt: Filt
         {"per_frame": per_frame, "stacked": raw,
          "kalman": filtered if kalman is None else kalman,
          "smoothed": kf.rts_smooth(measured, heading_variance=heading_variance)},
-        heading_norm=pose_to_angles(raw)[1], ambiguous=ambiguous,
-        ambiguous_per_frame=pose_to_angles(per_frame)[1] < filt.ambiguity_threshold,
-        settings={**settings, "filter": filt.__dict__})
+        heading_norm=heading_norm(raw), ambiguous=ambiguous,
+        ambiguous_per_frame=heading_norm(per_frame) < threshold,
+        settings={**settings, "filter": {**asdict(tracker_settings),
+                                         "ambiguity_threshold": threshold}})
 
 
-def track_video(video: Path, model: PoseModel, ambiguity_threshold: float):
-    """Run the ``track`` pipeline on a one-person video: (frame indices (n,), raw (n, 55),
-    filtered (n, 55), the track's PoseKalmanFilter, the filter's inputs (n, 55) and which of
-    them had the direction of travel fused in: heading variances (n,), NaN where not) of its
-    longest track."""
+def _track_longest(video: Path, model: PoseModel, settings: TrackerSettings):
+    """Run the ``track`` loop (tracker.run.track_video) on a one-person video: (frame indices
+    (n,), raw (n, 55), filtered (n, 55), the track's filter, the filter's inputs (n, 55) and
+    which of them had the direction of travel fused in: heading variances (n,), NaN where not)
+    of its longest track."""
+    recorder = PoseRecorder()
     source = open_video(video)
-    tracker = PoseTracker(model, source.fps, (source.width, source.height), max_people=1,
-                          ambiguity_threshold=ambiguity_threshold)
-    tracker.prime(median_background(source.sample_frames(_BACKGROUND_SAMPLES)))
-    by_track: dict[int, list] = {}
-    for index, time_s, frame in source:
-        for pose in tracker.process(index, time_s, frame):
-            by_track.setdefault(pose.track_id, []).append(pose)
+    tracker = PoseTracker(model, source.fps, replace(settings, max_people=1))
+    track_video(source, tracker, [recorder])
+    by_track = recorder.by_track()
     if not by_track:
         raise EvaluationError(f"{video}: nobody was tracked")
     track_id = max(by_track, key=lambda t: len(by_track[t]))
@@ -389,12 +365,12 @@ def track_video(video: Path, model: PoseModel, ambiguity_threshold: float):
 
 def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: PoseModel,
                    spiral_deg_per_s: float | None = None, camera: CameraOptions = CameraOptions(),
-                   filt: FilterOptions = FilterOptions(), frames: int | None = None,
+                   settings: TrackerSettings = TrackerSettings(), frames: int | None = None,
                    video: Path | None = None) -> EvaluatedSequence:
-    """The motion written as an mp4 (sequences.video) and run through the real ``track``
-    pipeline (background subtraction, association, stacking, filter); kalman is the pipeline's
-    own filtered output, so only filt.ambiguity_threshold applies to it. Evaluated on the frames
-    of the longest track that both models tracked. video: where to write (default temporary)."""
+    """The motion written as an mp4 (sequences.video) and run through the real ``track`` loop
+    (background subtraction, association, stacking, filter) with these settings (at most one
+    person); kalman is the pipeline's own filtered output. Evaluated on the frames of the
+    longest track that both models tracked. video: where to write (default temporary)."""
     motion = cmu_motion(bvh, spiral_deg_per_s, camera.fps)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(video) if video is not None else Path(tmp) / "evaluation.mp4"
@@ -403,14 +379,14 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
                     elevation_deg=camera.elevation_deg, distance_m=camera.distance_m,
                     noise_sigma=camera.noise_sigma, seed=camera.seed, n_frames=frames)
         truth = load_truth(path)["pose"][:, 0]
-        idx, raw, filtered, kf, measured, variance = track_video(path, stacked_model,
-                                                                 filt.ambiguity_threshold)
-        idx1, raw1 = track_video(path, per_frame_model, filt.ambiguity_threshold)[:2]
+        idx, raw, filtered, kf, measured, variance = _track_longest(path, stacked_model, settings)
+        idx1, raw1 = _track_longest(path, per_frame_model, settings)[:2]
     common, a, b = np.intersect1d(idx, idx1, return_indices=True)
     if len(common) < 3:
         raise EvaluationError(f"{bvh}: fewer than 3 frames were tracked")
     name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
-    seq = _pose_sequence(name, truth[common], raw1[b], raw[a], kf, filt,
+    seq = _pose_sequence(name, truth[common], raw1[b], raw[a], kf,
+                         settings.threshold(stacked_model), settings,
                          {"path": "video through track", "camera": camera.__dict__,
                           "frames_in_video": int(len(truth)), "frames_tracked": int(len(common))},
                          kalman=filtered[a], measured=measured[a],

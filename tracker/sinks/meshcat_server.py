@@ -11,7 +11,7 @@ operating system picks, and the child process exits when:
   (the parent holds the only write end of that pipe);
 - it receives SIGINT or SIGTERM itself (Ctrl-C in a terminal reaches the whole process group).
 
-Run as ``python -m tracker.meshcat_server`` it is the child: it prints ``zmq_url=...`` and
+Run as ``python -m tracker.sinks.meshcat_server`` it is the child: it prints ``zmq_url=...`` and
 ``web_url=...`` lines and serves until one of the above happens.
 """
 from __future__ import annotations
@@ -35,6 +35,8 @@ import tornado.web
 import zmq
 from zmq.eventloop.zmqstream import ZMQStream
 
+from regressor.errors import SilhouettePoseError
+
 with warnings.catch_warnings():
     # meshcat 0.3.2 imports zmq.eventloop.ioloop, deprecated (and unused) on pyzmq >= 17.
     warnings.simplefilter("ignore", DeprecationWarning)
@@ -49,7 +51,7 @@ with warnings.catch_warnings():
 LOOPBACK = "127.0.0.1"
 
 
-class ViewerServerError(RuntimeError):
+class ViewerServerError(SilhouettePoseError, RuntimeError):
     """The meshcat server could not be started (message says why)."""
 
 
@@ -146,7 +148,7 @@ class ViewerServer:
         # could fill up and block it; the file tells why a start-up failed.
         self._log = tempfile.TemporaryFile()
         self._proc = subprocess.Popen(
-            [sys.executable, "-u", "-m", "tracker.meshcat_server"],
+            [sys.executable, "-u", "-m", "tracker.sinks.meshcat_server"],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._log, env=env,
             bufsize=0)  # unbuffered: select() on stdout must see every line not yet read
         self.pid = self._proc.pid

@@ -12,10 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .evaluation import METHODS, EvaluatedSequence, pose_angles
+from regressor.angles import pose_angles
+from regressor.errors import SilhouettePoseError
+
+from .evaluation import METHODS, EvaluatedSequence
 
 
-class ReportError(RuntimeError):
+class ReportError(SilhouettePoseError, RuntimeError):
     """The report cannot be drawn (matplotlib missing) or written."""
 
 

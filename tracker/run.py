@@ -1,0 +1,106 @@
+"""THE tracking loop: open the video, learn its background, track every frame, feed the sinks.
+
+Used by the ``track`` command, the evaluation's through-video path and scripts/bench_track.py,
+so all three measure the same thing. From a notebook::
+
+    from tracker import PoseRecorder, track_video
+    recorder = PoseRecorder()
+    track_video("sequences/data/sample_spiral_walk.mp4", sinks=[recorder])
+    poses = recorder.poses          # TrackedPose per person per frame: .filtered (55,), ...
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from regressor.errors import SilhouettePoseError
+from .pipeline import PoseTracker
+from .silhouettes import median_background
+from .sinks import PoseRecorder, Sink, close_sinks
+from .video import VideoSource, open_video
+
+
+class OutputError(SilhouettePoseError, RuntimeError):
+    """Some outputs could not be finished; the message lists them."""
+
+
+@dataclass
+class TrackRun:
+    """What a run did: frames processed, wall time (seconds, from priming to closed outputs),
+    interrupted by Ctrl-C (or SIGTERM turned into it), and the tracker used."""
+
+    frames: int
+    elapsed_s: float
+    interrupted: bool
+    tracker: PoseTracker
+
+    @property
+    def fps(self) -> float:
+        """Frames processed per second of wall time."""
+        return self.frames / self.elapsed_s if self.elapsed_s > 0 else 0.0
+
+
+def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = None,
+                sinks: Sequence[Sink] = (), progress=None,
+                smoothed_sinks: Sequence[Sink] = ()) -> TrackRun:
+    """Track every frame of ``source`` (an opened video or a path) into ``sinks``.
+
+    tracker: a PoseTracker (None: the shipped model with default settings). progress: an
+    object with update(people_in_view) and close(), e.g. tracker.progress.Progress.
+    smoothed_sinks: fed at the end with each whole track RTS-smoothed (``track --smooth``),
+    in frame order. Every sink's end_frame() is called after each frame. All sinks are closed
+    on return, also on Ctrl-C, which stops the loop (the result says interrupted); OutputError
+    if some could not be closed. tracker.stage_seconds gains "decode" and "outputs".
+    """
+    if not isinstance(source, VideoSource):
+        source = open_video(source)
+    if tracker is None:
+        from regressor.pose_model import load_pose_model
+        tracker = PoseTracker(load_pose_model(), source.fps)
+    recorder = PoseRecorder() if smoothed_sinks else None
+    streaming = list(sinks) + ([recorder] if recorder else [])
+    frames, interrupted, started = 0, False, time.perf_counter()
+    stages = tracker.stage_seconds
+    try:
+        tracker.prime(median_background(source.sample_frames(tracker.settings.background_samples)))
+        clock = time.perf_counter()
+        for index, time_s, frame in source:
+            stages["decode"] += time.perf_counter() - clock
+            poses = tracker.process(index, time_s, frame)
+            clock = time.perf_counter()
+            for sink in streaming:
+                for pose in poses:
+                    sink.write(pose)
+            for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
+                sink.end_frame(index)
+            stages["outputs"] += time.perf_counter() - clock
+            frames += 1
+            if progress is not None:
+                progress.update(len(poses))
+            clock = time.perf_counter()
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        if progress is not None:
+            progress.close()
+        try:
+            if recorder is not None and not interrupted:
+                _write_smoothed(tracker, recorder, smoothed_sinks)
+        finally:
+            problems = close_sinks(list(sinks) + list(smoothed_sinks))
+    if problems:
+        raise OutputError("could not finish outputs: " + "; ".join(problems))
+    return TrackRun(frames, time.perf_counter() - started, interrupted, tracker)
+
+
+def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]) -> None:
+    """RTS-smooth every track's poses and feed them to the sinks in frame order."""
+    records = recorder.by_track()
+    smoothed = {track_id: tracker.smoothed_track(track_id) for track_id in records}
+    order = sorted((p.frame_index, tid, i) for tid, ps in records.items() for i, p in enumerate(ps))
+    for _, track_id, i in order:
+        pose = replace(records[track_id][i], filtered=smoothed[track_id][i])
+        for sink in sinks:
+            sink.write(pose)

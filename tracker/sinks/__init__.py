@@ -1,0 +1,77 @@
+"""Outputs of the tracker: every sink takes the same three calls (the :class:`Sink` protocol).
+
+    write(pose)            one person in one frame (a tracker.pipeline.TrackedPose)
+    end_frame(frame_index) after every frame, with people in it or not
+    close()                finish the output (idempotent); also on Ctrl-C
+
+Sinks: McapSink (mcap.py), BVHSink (bvh.py), JsonSummarySink (json_summary.py), MeshcatView
+(meshcat_view.py), and PoseRecorder here (keeps the poses in memory, e.g. in a notebook).
+``open_sinks`` opens several, closing those already open if one fails; ``close_sinks`` closes
+them all, collecting the problems instead of stopping at the first.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    from ..pipeline import TrackedPose
+
+
+class Sink(Protocol):
+    """Where tracked poses go (see the module docstring)."""
+
+    def write(self, pose: TrackedPose) -> None: ...
+
+    def end_frame(self, frame_index: int) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class PoseRecorder:
+    """A sink that keeps every pose: ``poses`` (list of TrackedPose, in order) and
+    ``by_track()`` (track id -> its poses)."""
+
+    def __init__(self):
+        self.poses: list[TrackedPose] = []
+
+    def write(self, pose: TrackedPose) -> None:
+        """Keep the pose."""
+        self.poses.append(pose)
+
+    def end_frame(self, frame_index: int) -> None:
+        """Nothing to do per frame."""
+
+    def close(self) -> None:
+        """Nothing to finish."""
+
+    def by_track(self) -> dict[int, list[TrackedPose]]:
+        """Track id -> its poses in frame order."""
+        tracks: dict[int, list[TrackedPose]] = {}
+        for pose in self.poses:
+            tracks.setdefault(pose.track_id, []).append(pose)
+        return tracks
+
+
+def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
+    """Call each factory in turn; if one fails, close the sinks already opened and re-raise."""
+    opened: list[Sink] = []
+    try:
+        for make in factories:
+            opened.append(make())
+    except BaseException:
+        close_sinks(opened)
+        raise
+    return opened
+
+
+def close_sinks(sinks: Iterable[Sink]) -> list[str]:
+    """Close every sink, even when some fail (each holds the user's results); returns one
+    "Kind: message" line per failure."""
+    problems = []
+    for sink in sinks:
+        try:
+            sink.close()
+        except Exception as exc:
+            problems.append(f"{type(sink).__name__}: {exc}")
+    return problems
