@@ -52,14 +52,7 @@ def _as_covariance(R, name: str) -> np.ndarray:
         std = np.full(N_ANGLES, DEFAULT_JOINT_STD)
         std[0] = DEFAULT_HEADING_STD
         return np.diag(std**2)
-    R = np.asarray(R, float)
-    if R.shape == (N_ANGLES,):
-        R = np.diag(R)
-    if R.shape != (N_ANGLES, N_ANGLES):
-        raise FilterError(f"{name} must have shape (54,) or (54, 54), got {R.shape}")
-    if not np.isfinite(R).all() or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() <= 0:
-        raise FilterError(f"{name} must be finite, symmetric and positive definite")
-    return R
+    return _as_matrix(R, N_ANGLES, name)
 
 
 def _as_matrix(R, dim: int, name: str) -> np.ndarray:
