@@ -9,6 +9,9 @@ from conftest import SHARED
 from sequences.pose2sim import (VIEWS, Camera, Pose2SimError, load_trial, project_points,
                                 project_reference, read_calibration, read_trc,
                                 reference_flexion, reference_heading_deg, video_frames)
+from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
+                                         subject_rows, view_measures)
+from sequences.pose_vector import pose_vector_names
 
 TRIAL = SHARED / "data" / "pose2sim" / "balancing"
 #: The data's README: true heading relative to each camera, roughly (degrees).
@@ -105,3 +108,49 @@ def test_frames_without_reference_are_refused(trial):
         reference_flexion(trial, [5, 100])
     with pytest.raises(Pose2SimError, match="no view"):
         project_reference("cam09", [0], trial)
+
+
+# ---------------------------------------------------------------- measures against the reference
+
+def _poses_with_heading(heading_deg_: np.ndarray, knee_deg: float = 0.0) -> np.ndarray:
+    v = np.zeros((len(heading_deg_), 55))
+    v[:, 0], v[:, 1] = np.cos(np.radians(heading_deg_)), np.sin(np.radians(heading_deg_))
+    v[:, pose_vector_names().index("LeftLeg_z")] = knee_deg
+    return v
+
+
+def test_subject_is_the_box_holding_the_mid_hip_nearest_its_centre():
+    frames = np.array([0, 0, 1, 1, 2])
+    boxes = np.array([[0, 0, 10, 10], [0, 0, 100, 100], [50, 50, 10, 10],
+                      [0, 0, 100, 100], [200, 200, 5, 5]])
+    hips = np.full((5, 2), 5.0)
+    assert subject_rows(frames, boxes, hips).tolist() == [0, 3]
+
+
+def test_reference_headings_are_consistent_across_views(trial):
+    frames = video_frames(trial)
+    assert reference_cross_view_check(trial, frames, VIEWS) < 1e-6
+    poses = {v: _poses_with_heading(reference_heading_deg(trial, v, frames)) for v in VIEWS}
+    cross = cross_view_measures(trial, frames, poses)
+    assert cross["heading_rms_deg"] < 1e-6
+    assert cross["body_angle_disagreement_deg"] == 0.0
+    assert len(cross["pairs"]) == 6
+
+
+def test_one_view_shifted_by_90_degrees_shows_in_three_pairs(trial):
+    frames = video_frames(trial)[:10]
+    poses = {v: _poses_with_heading(reference_heading_deg(trial, v, frames)) for v in VIEWS}
+    poses["cam02"] = _poses_with_heading(reference_heading_deg(trial, "cam02", frames) + 90)
+    cross = cross_view_measures(trial, frames, poses)
+    assert cross["heading_rms_deg"] == pytest.approx(90 * np.sqrt(3 / 6))
+    assert cross["heading_rms_per_pair"]["cam01-cam03"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_view_measures_of_the_reference_heading_and_a_straight_body(trial):
+    frames = video_frames(trial)
+    ref = reference_flexion(trial, frames)
+    out = view_measures(trial, "cam03", frames,
+                        _poses_with_heading(reference_heading_deg(trial, "cam03", frames)))
+    assert out["heading"]["rms_deg"] < 1e-6 and out["heading"]["within_45"] == 1.0
+    assert out["flexion"]["error_per_angle"] == pytest.approx(np.abs(ref).mean(axis=0))
+    assert out["flexion"]["corr"] == 0.0            # a straight body does not move
