@@ -221,7 +221,11 @@ def project_points(points_trc, camera: Camera) -> np.ndarray:
 
 def project_reference(view: str, frames, trial: Trial | None = None) -> np.ndarray:
     """The reference keypoints (T, 21, 2) in pixels of a view's video at video frames (T,).
-    trial: a loaded Trial (default: load_trial() from the shared data)."""
+    trial: a loaded Trial (default: load_trial() from the shared data).
+
+    Pixels are those of the calibration's image (camera.size, 1088x1920). The cam01 and cam02
+    videos are 1080 px wide: how their 8 px were cut is not known, so their x may be off by
+    up to 8 px (the overlays look right)."""
     trial = load_trial() if trial is None else trial
     return project_points(trial.points(frames), trial.camera(view))
 

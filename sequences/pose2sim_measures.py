@@ -68,7 +68,8 @@ def cross_view_measures(trial: Trial, frames, poses_by_view: dict[str, np.ndarra
     error wrap((h_i - h_j) - (az_j - az_i)) and the mean over the 53 body angles of
     |wrap(a_i - a_j)|. Returns {"frames", "pairs", "heading_rms_deg" (random headings would
     give RANDOM_HEADING_RMS_DEG), "heading_rms_per_pair", "body_angle_disagreement_deg",
-    "body_angle_disagreement_per_pair"}."""
+    "body_angle_disagreement_per_pair"}. A flat output agrees with itself across views:
+    read the disagreement beside the body angles' motion, not alone."""
     frames = np.asarray(frames, dtype=np.int64)
     views = sorted(poses_by_view)
     az = {v: camera_azimuth_deg(trial, v, frames) for v in views}
