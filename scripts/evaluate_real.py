@@ -1,0 +1,176 @@
+"""Evaluate the tracker on a real video with a 3-D reference: Pose2Sim's balancing trial.
+
+    python scripts/evaluate_real.py [--trial ../shared/data/pose2sim/balancing] [--model FILE]
+        [--max-people N] [--json OUT]
+
+Runs ``track``'s pipeline on each of the four views and prints, per view, knee and elbow flexion
+error and correlation against the reference (beside a constant at the reference's own mean
+flexion), heading error against the reference, the number of tracks, and across views the
+heading consistency (heading differences against camera azimuth differences) and disagreement of
+the 53 body angles. In each view the subject is, per frame, the tracked person whose box holds
+the reference's projected mid-hip (another person walks behind in cam02; background subtraction
+splits the subject into several tracks in some views).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
+from sequences.measures import MeasureError
+from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, load_trial,
+                                project_reference)
+from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
+                                         subject_rows, view_measures)
+
+_BACKGROUND_SAMPLES = 25        # as the track command
+_MID_HIP = [0, 6]               # RHip, LHip in the reference's keypoints
+
+
+class ViewTrack(NamedTuple):
+    """Every pose the tracker output on one video, one row per (frame, person): frames (n,)
+    int video frame indices, filtered and raw (n, 55) pose vectors, track_ids (n,) int,
+    bbox_px (n, 4) (x, y, w, h) pixels."""
+
+    frames: np.ndarray
+    filtered: np.ndarray
+    raw: np.ndarray
+    track_ids: np.ndarray
+    bbox_px: np.ndarray
+
+
+def _track_view(video: Path, model, max_people: int | None) -> ViewTrack:
+    """Run the tracker on one video as the ``track`` command does. The one place that knows the
+    tracker's API (being refactored: tomorrow tracker.run.track_video)."""
+    from tracker.pipeline import PoseTracker
+    from tracker.silhouettes import median_background
+    from tracker.video import open_video
+
+    source = open_video(video)
+    tracker = PoseTracker(model, source.fps, (source.width, source.height),
+                          max_people=max_people)
+    tracker.prime(median_background(source.sample_frames(_BACKGROUND_SAMPLES)))
+    poses = [p for index, time_s, frame in source for p in tracker.process(index, time_s, frame)]
+    if not poses:
+        raise Pose2SimError(f"{video}: nobody was tracked")
+    return ViewTrack(np.array([p.frame_index for p in poses]),
+                     np.array([p.filtered for p in poses]), np.array([p.raw for p in poses]),
+                     np.array([p.track_id for p in poses]),
+                     np.array([p.bbox_px for p in poses], dtype=float))
+
+
+def evaluate_view(trial: Trial, view: str, track: ViewTrack) -> tuple[dict, np.ndarray]:
+    """Measures of one view's subject (filtered and raw poses) and the subject's rows."""
+    hips = project_reference(view, track.frames, trial)[:, _MID_HIP].mean(axis=1)
+    rows = subject_rows(track.frames, track.bbox_px, hips)
+    frames = track.frames[rows]
+    out = {"tracks": int(len(np.unique(track.track_ids))),
+           "subject_tracks": int(len(np.unique(track.track_ids[rows]))),
+           "filtered": view_measures(trial, view, frames, track.filtered[rows]),
+           "raw": view_measures(trial, view, frames, track.raw[rows])}
+    return out, rows
+
+
+def evaluate(trial: Trial, model, max_people: int | None) -> dict:
+    """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view."""
+    per_view, subject = {}, {}
+    for view in VIEWS:
+        track = _track_view(trial.video(view), model, max_people)
+        per_view[view], rows = evaluate_view(trial, view, track)
+        subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows])
+    common = subject[VIEWS[0]][0]
+    for view in VIEWS[1:]:
+        common = np.intersect1d(common, subject[view][0])
+    cross = {}
+    for kind, col in (("filtered", 1), ("raw", 2)):
+        poses = {v: subject[v][col][np.isin(subject[v][0], common)] for v in VIEWS}
+        cross[kind] = cross_view_measures(trial, common, poses)
+    return {"trial": str(trial.root), "views": per_view, "mean": _means(per_view),
+            "cross_view": cross, "common_frames": int(len(common)),
+            "reference_cross_view_heading_rms_deg": reference_cross_view_check(trial, common,
+                                                                                VIEWS)}
+
+
+def _means(per_view: dict) -> dict:
+    """Means over views of the filtered poses' per-angle flexion and heading figures."""
+    def mean(get):
+        return np.mean([get(r["filtered"]) for r in per_view.values()], axis=0).tolist()
+
+    return {"flexion_error_per_angle": mean(lambda m: m["flexion"]["error_per_angle"]),
+            "flexion_error": mean(lambda m: m["flexion"]["error"]),
+            "flexion_corr_per_angle": mean(lambda m: m["flexion"]["corr_per_angle"]),
+            "constant_flexion_error": mean(lambda m: m["flexion"]["truth_mean_error_mean"]),
+            "heading_within_45": mean(lambda m: m["heading"]["within_45"]),
+            "heading_rms_deg": mean(lambda m: m["heading"]["rms_deg"])}
+
+
+def _row(label: str, tracks: str, frames: str, err, err_mean, const, corr, within, rms) -> str:
+    return (f"{label:6} {tracks:>3} {frames:>3} | " + " ".join(f"{e:5.1f}" for e in err)
+            + f" {err_mean:5.1f} {const:5.1f} | " + " ".join(f"{c:5.2f}" for c in corr)
+            + f" | {within:5.2f} {rms:4.0f}")
+
+
+def format_table(result: dict) -> str:
+    """The evaluation as a plain-text table (filtered poses)."""
+    short = " ".join(f"{s:>5}" for s in ("Lkn", "Rkn", "Lel", "Rel"))
+    head = (f"{'':14} | {'flexion error (deg)':^35} | {'flexion corr.':^23} | heading\n"
+            f"{'view':6} {'trk':>3} {'frm':>3} | {short} {'mean':>5} {'const':>5} | {short} "
+            f"| {'<=45':>5} {'RMS':>4}")
+    lines = [head, "-" * len(head.splitlines()[1])]
+    for view, r in result["views"].items():
+        f, h = r["filtered"]["flexion"], r["filtered"]["heading"]
+        lines.append(_row(view, str(r["tracks"]), str(r["filtered"]["frames"]),
+                          f["error_per_angle"], f["error"], f["truth_mean_error_mean"],
+                          f["corr_per_angle"], h["within_45"], h["rms_deg"]))
+    m = result["mean"]
+    lines.append(_row("mean", "", "", m["flexion_error_per_angle"], m["flexion_error"],
+                      m["constant_flexion_error"], m["flexion_corr_per_angle"],
+                      m["heading_within_45"], m["heading_rms_deg"]))
+    for kind in ("filtered", "raw"):
+        c = result["cross_view"][kind]
+        lines.append(f"cross-view ({kind}, {c['frames']} common frames): heading RMS "
+                     f"{c['heading_rms_deg']:.0f} deg (random headings "
+                     f"{c['random_heading_rms_deg']:.0f}); 53 body angles disagree by "
+                     f"{c['body_angle_disagreement_deg']:.1f} deg")
+    raw = [r["raw"]["flexion"]["error"] for r in result["views"].values()]
+    lines.append(f"raw poses: flexion error {np.mean(raw):.1f} deg (mean over views). "
+                 f"const: a constant at the reference's own mean flexion; trk: tracks in the "
+                 f"view; frm: frames with the subject tracked")
+    return "\n".join(lines)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL, help="the balancing trial "
+                    "folder (default: ../shared/data/pose2sim/balancing beside the repo)")
+    ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH, help="model file")
+    ap.add_argument("--max-people", type=int, default=None, metavar="N",
+                    help="track at most N people per frame (default: all, as track)")
+    ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
+    return ap
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        trial, model = load_trial(args.trial), load_pose_model(args.model)
+        with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
+            result = evaluate(trial, model, args.max_people)
+    except (Pose2SimError, PoseModelError, MeasureError) as exc:
+        print(f"evaluate_real: error: {exc}", file=sys.stderr)
+        return 1
+    result["model"] = str(args.model)
+    print(format_table(result))
+    if args.json:
+        args.json.write_text(json.dumps(result, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

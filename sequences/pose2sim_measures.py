@@ -1,0 +1,97 @@
+"""Estimated poses of Pose2Sim's balancing trial judged against its 3-D reference.
+
+Per view: knee and elbow flexion against the reference's (beside a constant at the reference's
+own mean), and the heading against the reference heading relative to that camera. Across views:
+the same body is seen by four cameras at known azimuths, so at each instant the estimated
+headings of views i and j must differ by az_j - az_i, and the 53 body angles must agree.
+
+Poses are (T, 55) pose vectors (sequences.pose_vector), one per video frame listed in
+``frames`` (T,) int; angles in degrees.
+"""
+from __future__ import annotations
+
+from itertools import combinations
+
+import numpy as np
+
+from .measures import BODY_ANGLES, flexion_deg, flexion_measures
+from .pose2sim import Trial, camera_azimuth_deg, reference_flexion, reference_heading_deg
+from .pose_vector import _wrap_deg, heading_deg
+
+WITHIN_DEG = 45.0                 # a heading error this large is a wrong view, not noise
+RANDOM_HEADING_RMS_DEG = 180.0 / np.sqrt(3.0)   # RMS of a uniformly random heading error
+
+
+def _rms(x) -> float:
+    return float(np.sqrt(np.mean(np.square(x))))
+
+
+def subject_rows(frames, bbox_px, hips_px) -> np.ndarray:
+    """Which tracker outputs are the subject. frames (n,) int: video frame of each output (one
+    per person and frame); bbox_px (n, 4): (x, y, w, h) pixels; hips_px (n, 2): the reference's
+    projected mid-hip at that frame. Returns row indices (m,), at most one per frame, in frame
+    order: among the rows whose box holds the mid-hip, the one whose box centre is nearest it;
+    frames where no box holds it are left out."""
+    frames = np.asarray(frames, dtype=np.int64)
+    x, y, w, h = np.asarray(bbox_px, dtype=np.float64).T
+    hx, hy = np.asarray(hips_px, dtype=np.float64).T
+    inside = (hx >= x) & (hx <= x + w) & (hy >= y) & (hy <= y + h)
+    dist = np.hypot(x + w / 2 - hx, y + h / 2 - hy)
+    order = np.lexsort((dist, ~inside, frames))
+    _, first = np.unique(frames[order], return_index=True)
+    best = order[first]
+    return best[inside[best]]
+
+
+def heading_measures(estimate_deg, reference_deg) -> dict:
+    """Heading estimate (T,) against reference (T,), degrees: "rms_deg", "median_abs_deg",
+    "within_45" (fraction of frames with |error| <= 45)."""
+    err = np.abs(_wrap_deg(np.asarray(estimate_deg, float) - np.asarray(reference_deg, float)))
+    return {"rms_deg": _rms(err), "median_abs_deg": float(np.median(err)),
+            "within_45": float((err <= WITHIN_DEG).mean())}
+
+
+def view_measures(trial: Trial, view: str, frames, poses) -> dict:
+    """One view's estimated poses (T >= 2, 55) at video frames (T,) against the reference:
+    {"frames", "flexion": sequences.measures.flexion_measures (its "truth_mean_error" is the
+    constant reference-mean flexion's error), "heading": heading_measures}."""
+    frames = np.asarray(frames, dtype=np.int64)
+    return {"frames": int(len(frames)),
+            "flexion": flexion_measures(flexion_deg(poses), reference_flexion(trial, frames)),
+            "heading": heading_measures(heading_deg(poses),
+                                        reference_heading_deg(trial, view, frames))}
+
+
+def cross_view_measures(trial: Trial, frames, poses_by_view: dict[str, np.ndarray]) -> dict:
+    """Consistency of the views' estimates at the same video frames (T,): poses_by_view maps
+    each view to (T, 55). For every pair of views (i, j) and frame, the heading difference
+    error wrap((h_i - h_j) - (az_j - az_i)) and the mean over the 53 body angles of
+    |wrap(a_i - a_j)|. Returns {"frames", "pairs", "heading_rms_deg" (random headings would
+    give RANDOM_HEADING_RMS_DEG), "heading_rms_per_pair", "body_angle_disagreement_deg",
+    "body_angle_disagreement_per_pair"}. A flat output agrees with itself across views:
+    read the disagreement beside the body angles' motion, not alone."""
+    frames = np.asarray(frames, dtype=np.int64)
+    views = sorted(poses_by_view)
+    az = {v: camera_azimuth_deg(trial, v, frames) for v in views}
+    head = {v: heading_deg(poses_by_view[v]) for v in views}
+    body = {v: np.asarray(poses_by_view[v], float)[:, BODY_ANGLES] for v in views}
+    pairs = list(combinations(views, 2))
+    h_err = np.array([_wrap_deg((head[i] - head[j]) - (az[j] - az[i])) for i, j in pairs])
+    b_err = np.array([np.abs(_wrap_deg(body[i] - body[j])).mean(axis=1) for i, j in pairs])
+    names = [f"{i}-{j}" for i, j in pairs]
+    return {"frames": int(len(frames)), "pairs": names,
+            "heading_rms_deg": _rms(h_err),
+            "heading_rms_per_pair": dict(zip(names, np.sqrt((h_err ** 2).mean(axis=1)).tolist())),
+            "random_heading_rms_deg": RANDOM_HEADING_RMS_DEG,
+            "body_angle_disagreement_deg": float(b_err.mean()),
+            "body_angle_disagreement_per_pair": dict(zip(names, b_err.mean(axis=1).tolist()))}
+
+
+def reference_cross_view_check(trial: Trial, frames, views) -> float:
+    """Cross-view heading RMS (degrees) of the reference headings themselves: 0 up to rounding,
+    a check that heading and azimuth conventions agree."""
+    frames = np.asarray(frames, dtype=np.int64)
+    ref = {v: reference_heading_deg(trial, v, frames) for v in views}
+    az = {v: camera_azimuth_deg(trial, v, frames) for v in views}
+    return _rms([_wrap_deg((ref[i] - ref[j]) - (az[j] - az[i]))
+                 for i, j in combinations(sorted(views), 2)])
