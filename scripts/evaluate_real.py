@@ -29,7 +29,6 @@ from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, load
 from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
                                          subject_rows, view_measures)
 
-_BACKGROUND_SAMPLES = 25        # as the track command
 _MID_HIP = [0, 6]               # RHip, LHip in the reference's keypoints
 
 
@@ -46,17 +45,16 @@ class ViewTrack(NamedTuple):
 
 
 def _track_view(video: Path, model, max_people: int | None) -> ViewTrack:
-    """Run the tracker on one video as the ``track`` command does. The one place that knows the
-    tracker's API (being refactored: tomorrow tracker.run.track_video)."""
-    from tracker.pipeline import PoseTracker
-    from tracker.silhouettes import median_background
+    """Run the tracker on one video as the ``track`` command does (tracker.run.track_video)."""
+    from tracker import PoseRecorder, PoseTracker, track_video
+    from tracker.pipeline import TrackerSettings
     from tracker.video import open_video
 
     source = open_video(video)
-    tracker = PoseTracker(model, source.fps, (source.width, source.height),
-                          max_people=max_people)
-    tracker.prime(median_background(source.sample_frames(_BACKGROUND_SAMPLES)))
-    poses = [p for index, time_s, frame in source for p in tracker.process(index, time_s, frame)]
+    recorder = PoseRecorder()
+    track_video(source, PoseTracker(model, source.fps, TrackerSettings(max_people=max_people)),
+                sinks=[recorder])
+    poses = recorder.poses
     if not poses:
         raise Pose2SimError(f"{video}: nobody was tracked")
     return ViewTrack(np.array([p.frame_index for p in poses]),

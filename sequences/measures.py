@@ -18,7 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .pose_vector import POSE_DIM, _wrap_deg, heading_deg, joint_positions, pose_vector_names
+from regressor.angles import POSE_DIM, wrap_deg
+
+from .pose_vector import heading_deg, joint_positions, pose_vector_names
 from .skeleton import CMU_UNIT_M, POSE_JOINTS
 
 #: Columns of the pose vector holding the 53 body (joint) angles: all but the heading pair.
@@ -80,7 +82,7 @@ def body_angle_error(estimate, truth) -> float:
 
     estimate, truth: (T, 55) pose vectors. The heading is not included (see heading_errors)."""
     est, tru = _pair(estimate, truth)
-    return float(np.abs(_wrap_deg(est[:, BODY_ANGLES] - tru[:, BODY_ANGLES])).mean())
+    return float(np.abs(wrap_deg(est[:, BODY_ANGLES] - tru[:, BODY_ANGLES])).mean())
 
 
 def constant_error(truth, constant_pose) -> float:
@@ -100,7 +102,7 @@ def skill(error: float, baseline_error: float) -> float:
 def heading_errors(estimate, truth) -> np.ndarray:
     """Heading error (T,) degrees in (-180, 180] of pose vectors estimate, truth (T, 55)."""
     est, tru = _pair(estimate, truth)
-    return _wrap_deg(heading_deg(est) - heading_deg(tru))
+    return wrap_deg(heading_deg(est) - heading_deg(tru))
 
 
 # ---------------------------------------------------------------- correlation
@@ -116,7 +118,7 @@ def unwrap_about_mean(angles) -> np.ndarray:
     circular mean, so a motion across +-180 is continuous (T, A)."""
     a = np.asarray(angles, dtype=np.float64)
     mean = circular_mean_deg(a)
-    return mean + _wrap_deg(a - mean)
+    return mean + wrap_deg(a - mean)
 
 
 def correlation(a, b) -> np.ndarray:

@@ -24,8 +24,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from regressor.angles import wrap_deg
+
 from .measures import flexion_from_points
-from .pose_vector import _wrap_deg
+
 
 #: The trial folder in the shared data, beside the repository (as the tests look for it).
 DEFAULT_TRIAL = (Path(os.environ.get("SILHOUETTE_POSE_SHARED",
@@ -264,7 +266,7 @@ def camera_azimuth_deg(trial: Trial, view: str, frames) -> np.ndarray:
 def reference_heading_deg(trial: Trial, view: str, frames) -> np.ndarray:
     """The reference body heading (T,) degrees in (-180, 180] relative to a view's camera at
     video frames (T,), as pose vectors give it: yaw - camera azimuth (0 = facing the camera)."""
-    return _wrap_deg(body_yaw_deg(trial, frames) - camera_azimuth_deg(trial, view, frames))
+    return wrap_deg(body_yaw_deg(trial, frames) - camera_azimuth_deg(trial, view, frames))
 
 
 def video_frames(trial: Trial) -> np.ndarray:

@@ -16,7 +16,9 @@ import numpy as np
 
 from .measures import BODY_ANGLES, flexion_deg, flexion_measures
 from .pose2sim import Trial, camera_azimuth_deg, reference_flexion, reference_heading_deg
-from .pose_vector import _wrap_deg, heading_deg
+from regressor.angles import wrap_deg
+
+from .pose_vector import heading_deg
 
 WITHIN_DEG = 45.0                 # a heading error this large is a wrong view, not noise
 RANDOM_HEADING_RMS_DEG = 180.0 / np.sqrt(3.0)   # RMS of a uniformly random heading error
@@ -46,7 +48,7 @@ def subject_rows(frames, bbox_px, hips_px) -> np.ndarray:
 def heading_measures(estimate_deg, reference_deg) -> dict:
     """Heading estimate (T,) against reference (T,), degrees: "rms_deg", "median_abs_deg",
     "within_45" (fraction of frames with |error| <= 45)."""
-    err = np.abs(_wrap_deg(np.asarray(estimate_deg, float) - np.asarray(reference_deg, float)))
+    err = np.abs(wrap_deg(np.asarray(estimate_deg, float) - np.asarray(reference_deg, float)))
     return {"rms_deg": _rms(err), "median_abs_deg": float(np.median(err)),
             "within_45": float((err <= WITHIN_DEG).mean())}
 
@@ -76,8 +78,8 @@ def cross_view_measures(trial: Trial, frames, poses_by_view: dict[str, np.ndarra
     head = {v: heading_deg(poses_by_view[v]) for v in views}
     body = {v: np.asarray(poses_by_view[v], float)[:, BODY_ANGLES] for v in views}
     pairs = list(combinations(views, 2))
-    h_err = np.array([_wrap_deg((head[i] - head[j]) - (az[j] - az[i])) for i, j in pairs])
-    b_err = np.array([np.abs(_wrap_deg(body[i] - body[j])).mean(axis=1) for i, j in pairs])
+    h_err = np.array([wrap_deg((head[i] - head[j]) - (az[j] - az[i])) for i, j in pairs])
+    b_err = np.array([np.abs(wrap_deg(body[i] - body[j])).mean(axis=1) for i, j in pairs])
     names = [f"{i}-{j}" for i, j in pairs]
     return {"frames": int(len(frames)), "pairs": names,
             "heading_rms_deg": _rms(h_err),
@@ -93,5 +95,5 @@ def reference_cross_view_check(trial: Trial, frames, views) -> float:
     frames = np.asarray(frames, dtype=np.int64)
     ref = {v: reference_heading_deg(trial, v, frames) for v in views}
     az = {v: camera_azimuth_deg(trial, v, frames) for v in views}
-    return _rms([_wrap_deg((ref[i] - ref[j]) - (az[j] - az[i]))
+    return _rms([wrap_deg((ref[i] - ref[j]) - (az[j] - az[i]))
                  for i, j in combinations(sorted(views), 2)])
