@@ -14,6 +14,7 @@ from tracker.offline.evaluation import (AnkurOptions, EvaluatedSequence, angle_p
                                 rendered_sequence)
 from regressor.angles import angles_to_pose
 from tracker.filtering import ConstantVelocityFilter, FilterError
+from tracker.offline.report import format_table
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
 
@@ -90,6 +91,38 @@ def test_heading_ambiguity_counts_large_errors_in_ambiguous_frames():
     assert a["share_of_large_in_ambiguous"] == pytest.approx(0.75)
     assert a["heading_rms_ambiguous_deg"] == pytest.approx(np.sqrt(3 * 180.0**2 / 4))
     assert a["heading_rms_unambiguous_deg"] == pytest.approx(np.sqrt((60.0**2 + 10.0**2) / 6))
+
+
+def _walk_like_truth(T: int = 60) -> np.ndarray:
+    """Pose vectors (T, 55) whose body angles swing sinusoidally (degrees), heading fixed."""
+    t = np.arange(T)[:, None]
+    angles = 20.0 * np.sin(t / 5.0 + np.arange(54)[None] * 0.3)
+    angles[:, 0] = 30.0
+    return poses(angles)
+
+
+def test_honest_measures_tell_a_constant_output_from_a_tracking_one():
+    truth = _walk_like_truth()
+    constant = truth.mean(axis=0)
+    seq = EvaluatedSequence("hand-made", "deg", truth,
+                            {"kalman": truth.copy(), "stacked": np.tile(constant, (len(truth), 1))},
+                            constant=constant)
+    result = evaluate(seq)
+    perfect, flat = result["methods"]["kalman"], result["methods"]["stacked"]
+    assert perfect["skill"] == pytest.approx(1.0) and perfect["top_angles"]["mean"] == pytest.approx(1.0)
+    assert perfect["mpjpe_mm"] == pytest.approx(0.0, abs=1e-6)
+    assert flat["skill"] == pytest.approx(0.0, abs=1e-9) and flat["top_angles"]["mean"] == 0.0
+    table = format_table(result)
+    assert "constant" in table and "skill" in table and "corr8" in table
+
+
+def test_point_sequences_get_a_constant_baseline_and_skill():
+    rng = np.random.default_rng(1)
+    truth = rng.normal(size=(30, 9))
+    seq = EvaluatedSequence("points", "units", truth, {"kalman": truth + 0.0},
+                            constant=truth.mean(axis=0))
+    m = evaluate(seq)["methods"]["kalman"]
+    assert m["skill"] == pytest.approx(1.0) and m["constant_error"] > 0
 
 
 def test_constant_velocity_filter_reduces_noise_on_points():

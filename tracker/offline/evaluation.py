@@ -31,6 +31,7 @@ from regressor.pose_model import PoseModel
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
 from sequences.body import sample_body_shapes
+from sequences.measures import DEFAULT_TOP_ANGLES, correlation, pose_measures, skill
 from sequences.bvh import read_bvh
 from sequences.pose_vector import PART_OF_ENTRY, motion_to_pose_vectors
 from sequences.render import silhouette_mask
@@ -62,7 +63,9 @@ class EvaluatedSequence:
     estimates: method name -> array shaped like truth; heading_norm: (T,) ||(cos, sin)|| of the
     stacked raw estimate (angles only, else None); ambiguous: (T,) bool, heading_norm below the
     filter's threshold (angles only); ambiguous_per_frame: the same for the per_frame
-    estimate's own heading norm; settings: how the sequence and methods were made.
+    estimate's own heading norm; constant: the constant baseline every method is judged
+    against, the training set's mean pose ((55,) or (3P,)); settings: how the sequence and
+    methods were made.
     """
 
     name: str
@@ -72,6 +75,7 @@ class EvaluatedSequence:
     heading_norm: np.ndarray | None = None
     ambiguous: np.ndarray | None = None
     ambiguous_per_frame: np.ndarray | None = None
+    constant: np.ndarray | None = None
     settings: dict = field(default_factory=dict)
 
 
@@ -139,6 +143,31 @@ def measure_points(est: np.ndarray, truth: np.ndarray) -> dict:
             "per_part": {f"point {j}": float(d) for j, d in enumerate(dist.mean(0))}}
 
 
+def constant_pose(model: PoseModel) -> np.ndarray:
+    """The model's training-mean pose (55,): heading straight at the camera (its heading is
+    never judged: the measures give the constant the true heading), the circular mean of
+    every training angle."""
+    return np.concatenate([[1.0, 0.0], model.angle_centre_deg])
+
+
+def honest_measures(seq: EvaluatedSequence, estimate: np.ndarray) -> dict:
+    """The measures a flat output cannot fake, for one method's estimate (shaped like
+    seq.truth), beside seq.constant: angles: sequences.measures.pose_measures (skill, the
+    correlation of the 8 most-moving angles, knee/elbow flexion, MPJPE/PA-MPJPE mm); points:
+    the constant's mean point error, skill and the correlation of the 8 most-moving
+    coordinates. Empty when the sequence has no constant."""
+    if seq.constant is None:
+        return {}
+    if seq.units == "deg":
+        return pose_measures(estimate, seq.truth, seq.constant)
+    const_error = mean_point_error(np.broadcast_to(seq.constant, seq.truth.shape), seq.truth)
+    error = mean_point_error(estimate, seq.truth)
+    top = np.argsort(seq.truth.std(axis=0))[::-1][:DEFAULT_TOP_ANGLES]
+    r = correlation(estimate[:, top], seq.truth[:, top])
+    return {"constant_error": const_error, "skill": skill(error, const_error),
+            "top_coordinates": {"per_coordinate": r.tolist(), "mean": float(r.mean())}}
+
+
 def evaluate(seq: EvaluatedSequence) -> dict:
     """The evaluation record (JSON-ready): sequence, frames, units, ground_truth_jitter, methods
     {name: error, jitter, accel_error, [heading_rms_deg], per_part}, and for angles the
@@ -148,8 +177,9 @@ def evaluate(seq: EvaluatedSequence) -> dict:
     out = {"sequence": seq.name, "frames": int(len(seq.truth)), "units": seq.units,
            "ground_truth_jitter": (angle_jitter(pose_angles(seq.truth)) if angles
                                    else point_jitter(seq.truth)),
-           "methods": {m: measure(seq.estimates[m], seq.truth) for m in METHODS
-                       if m in seq.estimates}}
+           "methods": {m: {**measure(seq.estimates[m], seq.truth),
+                           **honest_measures(seq, seq.estimates[m])}
+                       for m in METHODS if m in seq.estimates}}
     if angles and seq.ambiguous is not None:
         flags = {"per_frame": seq.ambiguous_per_frame, "stacked": seq.ambiguous,
                  "kalman": seq.ambiguous}
@@ -251,7 +281,7 @@ def ankur_sequence(path: str | Path, options: AnkurOptions = AnkurOptions(),
     return EvaluatedSequence(
         "ankur spiral walk (test)", "units", Zt,
         {"per_frame": per_frame, "stacked": stacked, "kalman": cv.filter(stacked),
-         "smoothed": cv.smooth(stacked)},
+         "smoothed": cv.smooth(stacked)}, constant=Z.mean(axis=0),
         settings={"source": str(path), "regressor": "kernel RVM on sqrt descriptors",
                   **options.__dict__, "chosen_r_scale": r_scale, "relevance_vectors": int(stacked_model.n_basis_)})
 
@@ -321,13 +351,14 @@ def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model
     return _pose_sequence(name, truth, _model_poses(per_frame_model, masks), raw, kf,
                           settings.threshold(stacked_model), settings,
                           {"path": "rendered silhouettes", "camera": camera.__dict__},
-                          measured=measured, heading_variance=variance)
+                          measured=measured, heading_variance=variance,
+                          constant=constant_pose(stacked_model))
 
 
 def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, threshold: float,
                    tracker_settings: TrackerSettings, settings: dict, kalman=None,
-                   measured=None, heading_variance=None) -> EvaluatedSequence:
-    """threshold: the ambiguity threshold in use. measured, heading_variance: the filter's
+                   measured=None, heading_variance=None, constant=None) -> EvaluatedSequence:
+    """threshold: the ambiguity threshold in use; constant: the constant baseline (55,). measured, heading_variance: the filter's
     inputs (raw with the direction of travel fused in) and their heading variances (NaN: the
     model's); None = raw as it is."""
     measured = raw if measured is None else measured
@@ -338,7 +369,7 @@ def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, threshold:
          "kalman": filtered if kalman is None else kalman,
          "smoothed": kf.rts_smooth(measured, heading_variance=heading_variance)},
         heading_norm=heading_norm(raw), ambiguous=ambiguous,
-        ambiguous_per_frame=heading_norm(per_frame) < threshold,
+        ambiguous_per_frame=heading_norm(per_frame) < threshold, constant=constant,
         settings={**settings, "filter": {**asdict(tracker_settings),
                                          "ambiguity_threshold": threshold}})
 
@@ -390,5 +421,5 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
                          {"path": "video through track", "camera": camera.__dict__,
                           "frames_in_video": int(len(truth)), "frames_tracked": int(len(common))},
                          kalman=filtered[a], measured=measured[a],
-                         heading_variance=variance[a])
+                         heading_variance=variance[a], constant=constant_pose(stacked_model))
     return seq

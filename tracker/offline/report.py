@@ -22,28 +22,88 @@ class ReportError(SilhouettePoseError, RuntimeError):
     """The report cannot be drawn (matplotlib missing) or written."""
 
 
+#: Columns of the tables: (key, header, how to read it from a method's measures). The honest
+#: measures stand beside the mean error: a flat output scores a small error, not a high skill.
+_COMMON = [("error", "error", lambda m: m["error"]), ("jitter", "jitter", lambda m: m["jitter"]),
+           ("accel_error", "accel_error", lambda m: m["accel_error"])]
+_ANGLE_COLUMNS = _COMMON + [
+    ("heading_rms_deg", "heading_rms", lambda m: m["heading_rms_deg"]),
+    ("skill", "skill", lambda m: m.get("skill")),
+    ("corr8", "corr8", lambda m: m["top_angles"]["mean"] if "top_angles" in m else None),
+    ("flexion", "flex_err", lambda m: m["flexion"]["error"] if "flexion" in m else None),
+    ("flexion_corr", "flex_corr", lambda m: m["flexion"]["corr"] if "flexion" in m else None),
+    ("mpjpe_mm", "mpjpe_mm", lambda m: m.get("mpjpe_mm")),
+    ("pa_mpjpe_mm", "pa_mpjpe_mm", lambda m: m.get("pa_mpjpe_mm"))]
+_POINT_COLUMNS = _COMMON + [
+    ("skill", "skill", lambda m: m.get("skill")),
+    ("corr8", "corr8", lambda m: m["top_coordinates"]["mean"] if "top_coordinates" in m
+     else None)]
+
+
+def _columns(result: dict) -> list:
+    return _ANGLE_COLUMNS if result["units"] == "deg" else _POINT_COLUMNS
+
+
+def _constant_row(result: dict) -> dict | None:
+    """The constant baseline's figures, read off any method's measures (same for all)."""
+    m = next(iter(result["methods"].values()))
+    if "constant_error_deg" in m:       # angles: the error column is over all 54 angles
+        return {"error": None, "body_error": m["constant_error_deg"], "skill": 0.0,
+                "flexion": m["flexion"]["truth_mean_error_mean"],
+                "mpjpe_mm": m["constant_mpjpe_mm"], "pa_mpjpe_mm": m["constant_pa_mpjpe_mm"]}
+    if "constant_error" in m:
+        return {"error": m["constant_error"], "skill": 0.0}
+    return None
+
+
+def _cell(value, width: int = 12) -> str:
+    return f"{'-':>{width}s}" if value is None else f"{value:{width}.3f}"
+
+
 def format_table(result: dict) -> str:
-    """The methods' measures as a fixed-width text table (result: evaluation.evaluate())."""
-    angles = result["units"] == "deg"
-    cols = ["error", "jitter", "accel_error"] + (["heading_rms_deg"] if angles else [])
+    """The methods' measures as a fixed-width text table (result: evaluation.evaluate()),
+    with the constant baseline's row where there is one."""
+    cols = _columns(result)
     lines = [f"{result['sequence']}: {result['frames']} frames, units {result['units']}",
-             f"{'method':10s}" + "".join(f"{c:>16s}" for c in cols)]
+             f"{'method':10s}" + "".join(f"{h:>12s}" for _, h, _ in cols)]
     for name, m in result["methods"].items():
-        lines.append(f"{name:10s}" + "".join(f"{m[c]:16.3f}" for c in cols))
-    lines.append(f"{'truth':10s}{'':16s}{result['ground_truth_jitter']:16.3f}")
+        lines.append(f"{name:10s}" + "".join(_cell(get(m)) for _, _, get in cols))
+    lines.append(f"{'truth':10s}{'':12s}{result['ground_truth_jitter']:12.3f}")
+    const = _constant_row(result)
+    if const is not None:
+        lines.append(f"{'constant':10s}" + "".join(_cell(const.get(k)) for k, _, _ in cols))
+    lines.extend(_angle_notes(result))
     return "\n".join(lines)
 
 
+def _angle_notes(result: dict) -> list[str]:
+    m = next(iter(result["methods"].values()))
+    if "error_deg" not in m:
+        return []
+    body = ", ".join(f"{name} {v['error_deg']:.2f}" for name, v in result["methods"].items())
+    return [f"53 body angles' error (the skill's): {body}; constant "
+            f"{m['constant_error_deg']:.2f}. flex_err: knee/elbow flexion error; the constant "
+            f"row's is the truth's own mean flexion (the training-mean pose's scores "
+            f"{m['flexion']['constant_error_mean']:.2f})"]
+
+
 def markdown_table(result: dict) -> str:
-    """The same measures as a markdown table."""
-    angles = result["units"] == "deg"
-    cols = ["error", "jitter", "accel_error"] + (["heading_rms_deg"] if angles else [])
-    rows = ["| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    """The same measures as a markdown table, with the constant baseline's row."""
+    cols = _columns(result)
+    rows = ["| method | " + " | ".join(h for _, h, _ in cols) + " |",
+            "|---" * (len(cols) + 1) + "|"]
+
+    def fmt(v):
+        return "" if v is None else f"{v:.3f}"
     for name, m in result["methods"].items():
-        rows.append(f"| {name} | " + " | ".join(f"{m[c]:.3f}" for c in cols) + " |")
+        rows.append(f"| {name} | " + " | ".join(fmt(get(m)) for _, _, get in cols) + " |")
     rows.append("| ground truth | | " + f"{result['ground_truth_jitter']:.3f} |"
                 + " |" * (len(cols) - 2))
-    return "\n".join(rows)
+    const = _constant_row(result)
+    if const is not None:
+        rows.append("| constant (training mean) | "
+                    + " | ".join(fmt(const.get(k)) for k, _, _ in cols) + " |")
+    return "\n".join(rows + ["", *_angle_notes(result)])
 
 
 def ambiguity_table(result: dict) -> str:
