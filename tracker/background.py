@@ -63,7 +63,7 @@ def fill_holes(mask: np.ndarray) -> np.ndarray:
     return filled
 
 
-def frame_gain(frame: np.ndarray, background: np.ndarray, step: int = 4) -> np.ndarray:
+def frame_gain(frame: np.ndarray, background: np.ndarray, step: int = 8) -> np.ndarray:
     """Per-channel brightness gain (3,) of frame over background (both BGR uint8 (h, w, 3)):
     the median ratio on every ``step``-th pixel; people cover a minority of the image, so a
     global change of light or exposure shows as a gain away from 1."""

@@ -118,3 +118,36 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
                if f.index in wanted]
     keypoints = project_reference(view, [f.index for f in tracked], trial)
     return silhouette_measures(tracked, keypoints, dilate_px, pad)
+
+
+def legacy_extractor(frames) -> "SilhouetteExtractor":
+    """The extractor as it was before the clip background (issue 11): MOG2 primed with the
+    median of the sampled frames, shadows dropped, no brightness, lighting or zone handling."""
+    from .silhouettes import SilhouetteExtractor, median_background
+    extractor = SilhouetteExtractor(keep_enclosed_shadow=False, drop_lighting=False,
+                                    refine=False, normalise_brightness=False)
+    extractor.prime(median_background(list(frames)))
+    return extractor
+
+
+def clip_extractor(frames) -> "SilhouetteExtractor":
+    """Today's default extractor primed with the sampled frames (clip background)."""
+    from .silhouettes import SilhouetteExtractor
+    extractor = SilhouetteExtractor()
+    extractor.prime(frames)
+    return extractor
+
+
+EXTRACTORS = {"before": legacy_extractor, "after": clip_extractor}
+
+
+def format_table(results: dict[str, dict[str, dict]]) -> str:
+    """{label: {view: silhouette_measures dict}} as a plain-text table."""
+    lines = [f"{'':7} {'view':6} {'coverage':>8} {'spill':>6} {'spill90':>7} {'tracks':>6} "
+             f"{'subj.trk':>8} {'main-track frames':>17}"]
+    for label, views in results.items():
+        for view, r in views.items():
+            lines.append(f"{label:7} {view:6} {r['coverage']:8.1%} {r['spill']:6.1%} "
+                         f"{r['spill_p90']:7.1%} {r['tracks']:6d} {r['subject_tracks']:8d} "
+                         f"{r['main_track_fraction']:17.0%}")
+    return "\n".join(lines)

@@ -136,13 +136,20 @@ class BackgroundSubtractor:
                                   f"{self._frame_size[1]} to {size[0]}x{size[1]}")
         work = self.working_size(*size)
         small = frame if work == size else cv2.resize(frame, work, interpolation=cv2.INTER_AREA)
+        saturated = None
         if self.reference is not None and self.normalise_brightness:
             gain = frame_gain(small, self.reference)
             if np.abs(gain - 1).max() > _MIN_GAIN_CHANGE:
+                # Where the brighter light clips the background, the frame cannot be undone:
+                # such pixels are background, not a blob.
+                expected = cv2.multiply(self.reference, tuple(float(g) for g in gain) + (0.0,))
+                saturated = (expected.max(axis=2) >= 250) & (small.max(axis=2) >= 250)
                 small = cv2.multiply(small, tuple(float(1 / g) for g in gain) + (0.0,),
                                      dtype=cv2.CV_8U)
         rate = -1.0 if not self.ready else self.learning_rate
         raw = self._model.apply(small, learningRate=rate)
+        if saturated is not None:
+            raw[saturated] = 0
         self.frames_seen += 1
         return small, raw
 
@@ -298,10 +305,14 @@ def enclosed_shadow(foreground: np.ndarray, shadow: np.ndarray) -> np.ndarray:
     (h, w)) has foreground (bool (h, w)) both above and below it in its column. Dark clothing
     (shorts between torso and legs, a dark shirt under the head) is enclosed so; a shadow cast
     on the ground is not, since nothing of the body stands below it in the image. Whole-image
-    cumulative maxima, no per-pixel Python."""
-    above = np.maximum.accumulate(foreground, axis=0)
-    below = np.maximum.accumulate(foreground[::-1], axis=0)[::-1]
-    return (shadow & above & below).astype(np.uint8) * 255
+    operations (first and last foreground row per column), no per-pixel Python."""
+    if not shadow.any():
+        return np.zeros(shadow.shape, np.uint8)
+    height = foreground.shape[0]
+    top = np.where(foreground.any(axis=0), foreground.argmax(axis=0), height)     # (w,)
+    bottom = height - 1 - foreground[::-1].argmax(axis=0)                        # (w,)
+    rows = np.arange(height)[:, None]
+    return (shadow & (rows > top) & (rows < bottom)).astype(np.uint8) * 255
 
 
 def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndarray,
