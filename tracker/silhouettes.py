@@ -13,9 +13,13 @@ import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
+from .background import ClipBackground, clean_plate, clip_background, frame_gain
 
 # MOG2 marks foreground 255 and shadow 127; anything above this threshold is foreground proper.
 _FOREGROUND_LEVEL = 200
+_SHADOW_LEVEL = 127
+# A global brightness gain further than this from 1 is undone before subtraction.
+_MIN_GAIN_CHANGE = 0.03
 
 
 class ExtractionError(SilhouettePoseError, ValueError):
@@ -52,12 +56,14 @@ class BackgroundSubtractor:
     ``learning_rate``: the rate after warm-up; None means 1/history (MOG2's own automatic rate
     would still be 1/frames seen, which swallows a person standing still within a second);
     0 freezes the model after warm-up (static camera and light).
+    ``normalise_brightness``: undo global brightness changes against the primed background
+    (see :meth:`subtract`).
     """
 
     def __init__(self, working_width: int = 320, history: int = 500,
                  background_ratio: float = 0.7, var_threshold: float = 16.0,
                  detect_shadows: bool = True, warmup_frames: int = 15,
-                 learning_rate: float | None = None):
+                 learning_rate: float | None = None, normalise_brightness: bool = True):
         if working_width < 16:
             raise ExtractionError(f"working_width={working_width} must be at least 16 px")
         if history < 1 or warmup_frames < 0:
@@ -70,6 +76,9 @@ class BackgroundSubtractor:
         self.working_width = working_width
         self.warmup_frames = warmup_frames
         self.learning_rate = 1.0 / history if learning_rate is None else learning_rate
+        self.normalise_brightness = normalise_brightness
+        #: Background at working size the brightness gain is measured against (set by prime).
+        self.reference: np.ndarray | None = None
         self.frames_seen = 0
         self._frame_size: tuple[int, int] | None = None
         self._model = cv2.createBackgroundSubtractorMOG2(
@@ -96,6 +105,8 @@ class BackgroundSubtractor:
         """
         for _ in range(max(self.warmup_frames - self.frames_seen, 1)):
             self.apply(background)
+        size = self.working_size(background.shape[1], background.shape[0])
+        self.reference = cv2.resize(background, size, interpolation=cv2.INTER_AREA)
 
     def apply(self, frame: np.ndarray) -> np.ndarray:
         """Update the model with ``frame`` (BGR uint8 (H, W, 3)) and return its foreground mask.
@@ -103,6 +114,18 @@ class BackgroundSubtractor:
         Returns uint8 (h, w) at :meth:`working_size`, 255 = foreground, 0 = background or shadow.
         All frames given to one subtractor must have the same size.
         """
+        _, raw = self.subtract(frame)
+        _, foreground = cv2.threshold(raw, _FOREGROUND_LEVEL, 255, cv2.THRESH_BINARY)
+        return foreground
+
+    def subtract(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Update the model with ``frame`` (BGR uint8 (H, W, 3)); returns (the frame at
+        :meth:`working_size`, brightness-normalised, BGR uint8 (h, w, 3); MOG2's raw mask
+        uint8 (h, w): 255 foreground, 127 shadow, 0 background).
+
+        Once a :attr:`reference` background is set (by :meth:`prime`), a global brightness
+        change (clouds, auto-exposure) is undone first: the frame is divided by its median
+        per-channel gain over the reference when that is more than 3 % away from 1."""
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise ExtractionError(f"frame must be BGR uint8 (H, W, 3), got {frame.dtype} "
                                   f"{frame.shape}")
@@ -114,11 +137,22 @@ class BackgroundSubtractor:
                                   f"{self._frame_size[1]} to {size[0]}x{size[1]}")
         work = self.working_size(*size)
         small = frame if work == size else cv2.resize(frame, work, interpolation=cv2.INTER_AREA)
+        saturated = None
+        if self.reference is not None and self.normalise_brightness:
+            gain = frame_gain(small, self.reference)
+            if np.abs(gain - 1).max() > _MIN_GAIN_CHANGE:
+                # Where the brighter light clips the background, the frame cannot be undone:
+                # such pixels are background, not a blob.
+                expected = cv2.multiply(self.reference, tuple(float(g) for g in gain) + (0.0,))
+                saturated = (expected.max(axis=2) >= 250) & (small.max(axis=2) >= 250)
+                small = cv2.multiply(small, tuple(float(1 / g) for g in gain) + (0.0,),
+                                     dtype=cv2.CV_8U)
         rate = -1.0 if not self.ready else self.learning_rate
         raw = self._model.apply(small, learningRate=rate)
+        if saturated is not None:
+            raw[saturated] = 0
         self.frames_seen += 1
-        _, foreground = cv2.threshold(raw, _FOREGROUND_LEVEL, 255, cv2.THRESH_BINARY)
-        return foreground
+        return small, raw
 
 
 def median_background(frames: list[np.ndarray]) -> np.ndarray:
@@ -267,31 +301,166 @@ def _bridge_vertical_gaps(crop: np.ndarray, rects) -> np.ndarray:
     return closed[k:-k]
 
 
+def enclosed_shadow(foreground: np.ndarray, shadow: np.ndarray) -> np.ndarray:
+    """The shadow pixels that lie inside a body: uint8 (h, w) 255 where ``shadow`` (bool
+    (h, w)) has foreground (bool (h, w)) both above and below it in its column. Dark clothing
+    (shorts between torso and legs, a dark shirt under the head) is enclosed so; a shadow cast
+    on the ground is not, since nothing of the body stands below it in the image. Whole-image
+    operations (first and last foreground row per column), no per-pixel Python."""
+    if not shadow.any():
+        return np.zeros(shadow.shape, np.uint8)
+    height = foreground.shape[0]
+    top = np.where(foreground.any(axis=0), foreground.argmax(axis=0), height)     # (w,)
+    bottom = height - 1 - foreground[::-1].argmax(axis=0)                        # (w,)
+    rows = np.arange(height)[:, None]
+    return (shadow & (rows > top) & (rows < bottom)).astype(np.uint8) * 255
+
+
+def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndarray,
+                        min_correlation: float = 0.85, max_ratio_spread: float = 0.08,
+                        min_area: int = 0) -> np.ndarray:
+    """Remove from ``mask`` (uint8 (h, w), 255 = foreground) the blobs where the frame is the
+    background under other light (frame and background BGR uint8 (h, w, 3)): inside the blob
+    either the grey levels correlate above ``min_correlation`` (same texture, only brightness
+    and contrast changed), or every pixel and channel changed by the same factor (the median
+    absolute deviation of log(frame / background) is under ``max_ratio_spread``: a plain
+    surface lit differently, or a soft shadow). A person in front of the background does
+    neither. Blobs under ``min_area`` px are left to the area gate. Returns a new mask."""
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    out = mask.copy()
+    for contour in contours:
+        x, y, w, h = cv2.boundingRect(contour)
+        if w * h < max(min_area, 16):
+            continue
+        blob = np.zeros((h, w), np.uint8)
+        cv2.drawContours(blob, [contour], -1, 255, cv2.FILLED, offset=(-x, -y))
+        inside = blob > 0
+        f = frame[y:y + h, x:x + w][inside].astype(np.float32) + 4.0          # (n, 3)
+        b = background[y:y + h, x:x + w][inside].astype(np.float32) + 4.0
+        log_ratio = np.log(f / b)
+        spread = float(np.median(np.abs(log_ratio - np.median(log_ratio))))
+        fg, bg = f.mean(axis=1) - f.mean(), b.mean(axis=1) - b.mean()
+        denominator = float(np.sqrt((fg * fg).sum() * (bg * bg).sum()))
+        correlation = float((fg * bg).sum()) / denominator if denominator > 0 else 0.0
+        if correlation > min_correlation or spread < max_ratio_spread:
+            out[y:y + h, x:x + w][inside] = 0
+    return out
+
+
+def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone: np.ndarray,
+                   min_seed_area: int = 20, margin: float = 0.1, max_side_px: int = 112
+                   ) -> np.ndarray:
+    """Decide person or background by colour where the background model is unreliable.
+
+    ``mask``: uint8 (h, w) foreground, 255 = person; ``frame``: BGR uint8 (h, w, 3); ``shadow``
+    and ``zone``: bool (h, w), MOG2's shadow pixels and the background's unreliable zone
+    (:func:`tracker.background.clip_background`). Each blob of mask | zone that touches the zone
+    and has at least ``min_seed_area`` px of foreground outside it (a person is there and
+    moving) is re-segmented inside its box (padded by ``margin``) with OpenCV's grabCut, on a
+    copy shrunk to ``max_side_px``: foreground outside the zone is sure person, background
+    outside it sure background (shadow: probable background), the zone probable person; the
+    colour models then take the ghost of where the person stood out, and fill in the still
+    torso the background model had absorbed. Returns a new mask."""
+    both = cv2.bitwise_or(mask, zone.astype(np.uint8) * 255)
+    contours, _ = cv2.findContours(both, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    out = mask.copy()
+    height, width = mask.shape
+    for contour in contours:
+        x, y, w, h = cv2.boundingRect(contour)
+        pad = int(round(margin * max(w, h))) + 2
+        x0, y0 = max(x - pad, 0), max(y - pad, 0)
+        x1, y1 = min(x + w + pad, width), min(y + h + pad, height)
+        sure = (mask[y0:y1, x0:x1] > 0) & ~zone[y0:y1, x0:x1]
+        if not zone[y:y + h, x:x + w].any() or np.count_nonzero(sure) < min_seed_area:
+            continue
+        labels = np.full(sure.shape, cv2.GC_BGD, np.uint8)
+        labels[shadow[y0:y1, x0:x1]] = cv2.GC_PR_BGD
+        labels[zone[y0:y1, x0:x1]] = cv2.GC_PR_FGD
+        labels[sure] = cv2.GC_FGD
+        out[y0:y1, x0:x1] = _grabcut(frame[y0:y1, x0:x1], labels, max_side_px)
+    return out
+
+
+def _grabcut(crop: np.ndarray, labels: np.ndarray, max_side_px: int) -> np.ndarray:
+    """grabCut (2 iterations) of a BGR crop seeded by GC_* labels (same (h, w)), on a copy
+    shrunk to max_side_px; uint8 (h, w) 255 = person at the crop's size."""
+    h, w = labels.shape
+    scale = min(1.0, max_side_px / max(h, w))
+    small = (max(1, round(w * scale)), max(1, round(h * scale)))
+    image = cv2.resize(crop, small, interpolation=cv2.INTER_AREA)
+    seeds = cv2.resize(labels, small, interpolation=cv2.INTER_NEAREST)
+    try:
+        cv2.grabCut(image, seeds, None, np.zeros((1, 65)), np.zeros((1, 65)), 2,
+                    cv2.GC_INIT_WITH_MASK)
+    except cv2.error:                     # no sure background or person in the box: keep it
+        seeds = cv2.resize(labels, small, interpolation=cv2.INTER_NEAREST)
+    person = ((seeds == cv2.GC_FGD) | (seeds == cv2.GC_PR_FGD)).astype(np.uint8) * 255
+    person = cv2.resize(person, (w, h), interpolation=cv2.INTER_LINEAR)
+    return np.where(person > 127, 255, 0).astype(np.uint8)
+
+
 class SilhouetteExtractor:
     """Frame -> list of :class:`PersonMask`: subtraction, cleaning and splitting in one call.
 
     Keyword arguments go to :class:`BackgroundSubtractor`; ``open_px`` and ``close_px`` to
     :func:`clean_mask` (working-resolution px); ``min_area_fraction`` and ``max_hole_fraction``
-    to :func:`person_masks`.
+    to :func:`person_masks`. ``keep_enclosed_shadow``: shadow pixels inside a body's outline
+    count as person (dark clothing; :func:`enclosed_shadow`). ``drop_lighting``: drop blobs
+    that are the background under other light (:func:`drop_lighting_blobs`). ``refine``:
+    re-segment people by colour where the background is unreliable (:func:`refine_in_zone`;
+    only after :meth:`prime` with frames of the clip).
     """
 
     def __init__(self, open_px: int = 3, close_px: int = 5, min_area_fraction: float = 0.003,
-                 max_hole_fraction: float = 0.002, **subtractor_options):
+                 max_hole_fraction: float = 0.002, keep_enclosed_shadow: bool = True,
+                 drop_lighting: bool = True, refine: bool = True, **subtractor_options):
         self.subtractor = BackgroundSubtractor(**subtractor_options)
         self.open_px, self.close_px = open_px, close_px
         self.min_area_fraction = min_area_fraction
         self.max_hole_fraction = max_hole_fraction
+        self.keep_enclosed_shadow = keep_enclosed_shadow
+        self.drop_lighting = drop_lighting
+        self.refine = refine
+        self.background: ClipBackground | None = None
 
-    def prime(self, background: np.ndarray) -> None:
-        """Learn the empty scene first; see :meth:`BackgroundSubtractor.prime`."""
-        self.subtractor.prime(background)
+    def prime(self, background) -> None:
+        """Learn the scene before the first frame. ``background``: either an image of the empty
+        scene (a clean plate, BGR uint8 (H, W, 3), e.g. ``--background IMAGE`` or
+        :func:`median_background`), trusted everywhere; or frames spread over the clip (a list
+        or (N, H, W, 3) array, e.g. ``VideoSource.sample_frames(25)``), from which
+        :func:`tracker.background.clip_background` estimates the scene and where it cannot be
+        trusted (a person who never leaves the spot). See :meth:`BackgroundSubtractor.prime`."""
+        if isinstance(background, np.ndarray) and background.ndim == 3:
+            self.subtractor.prime(background)
+            self.background = clean_plate(self.subtractor.reference)
+            return
+        frames = list(background)
+        if not frames:
+            raise ExtractionError("prime needs a background image or at least one frame")
+        height, width = frames[0].shape[:2]
+        size = self.subtractor.working_size(width, height)
+        estimate = clip_background(np.stack([
+            cv2.resize(f, size, interpolation=cv2.INTER_AREA) for f in frames]))
+        self.subtractor.prime(cv2.resize(estimate.image, (width, height),
+                                         interpolation=cv2.INTER_LINEAR))
+        self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
 
     def __call__(self, frame: np.ndarray) -> list[PersonMask]:
         """People in ``frame`` (BGR uint8 (H, W, 3)); [] while the background is warming up."""
         learning_only = not self.subtractor.ready
-        foreground = self.subtractor.apply(frame)
+        small, raw = self.subtractor.subtract(frame)
         if learning_only:
             return []
-        cleaned = clean_mask(foreground, self.open_px, self.close_px)
+        foreground = raw > _FOREGROUND_LEVEL
+        shadow = raw == _SHADOW_LEVEL
+        mask = foreground.astype(np.uint8) * 255
+        if self.keep_enclosed_shadow:
+            mask |= enclosed_shadow(foreground, shadow)
+        cleaned = clean_mask(mask, self.open_px, self.close_px)
+        if self.drop_lighting and self.background is not None:
+            cleaned = drop_lighting_blobs(cleaned, small, self.background.image,
+                                          min_area=int(self.min_area_fraction * cleaned.size))
+        if self.refine and self.background is not None and self.background.unreliable.any():
+            cleaned = refine_in_zone(cleaned, small, shadow, self.background.unreliable)
         return person_masks(cleaned, (frame.shape[1], frame.shape[0]), self.min_area_fraction,
                             self.max_hole_fraction)

@@ -1,0 +1,80 @@
+"""Silhouettes on real frames (Pose2Sim, a person who never leaves the spot) and on rendered
+scenes with a global brightness step and with two people passing close."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from sequences.video import textured_background
+from tracker.association import Associator
+from tracker.silhouette_evaluation import (clip_extractor, legacy_extractor, silhouette_measures,
+                                           track_masks)
+from tracker.silhouettes import SilhouetteExtractor
+
+DATA = Path(__file__).parent / "data" / "pose2sim"
+
+
+def balancing_frames() -> tuple[np.ndarray, np.ndarray]:
+    """16 frames (16, 192, 108, 3) of Pose2Sim's cam01 and their keypoints (16, 21, 2) px."""
+    mosaic = cv2.imread(str(DATA / "cam01_16frames.jpg"))
+    frames = np.stack([mosaic[r * 192:(r + 1) * 192, c * 108:(c + 1) * 108]
+                       for r in range(2) for c in range(8)])
+    keypoints = np.loadtxt(DATA / "cam01_16frames_keypoints.txt").reshape(16, 21, 2)
+    return frames, keypoints
+
+
+def test_still_person_on_real_frames_is_one_person_shaped_mask():
+    frames, keypoints = balancing_frames()
+    tracked = track_masks(enumerate(frames), clip_extractor(frames))
+    after = silhouette_measures(tracked, keypoints)
+    assert after["coverage"] >= 0.9 and after["spill"] <= 0.15
+    assert after["tracks"] == 1 and after["main_track_fraction"] == 1.0
+    # The median background holds the person: holes, ghost limbs, pieces tracked apart.
+    before = silhouette_measures(track_masks(enumerate(frames), legacy_extractor(frames)),
+                                 keypoints)
+    assert before["coverage"] < 0.75 and before["tracks"] > 3
+
+
+def person_scene(bg: np.ndarray, x: int, rng: np.random.Generator, gain: float = 1.0,
+                 others: tuple[int, ...] = ()) -> np.ndarray:
+    """The rendered scene bg (BGR) with a person-like figure at column x (and at each of
+    others), lit by gain, with sensor noise."""
+    frame = bg.copy()
+    for cx, colour in [(x, (60, 90, 200))] + [(o, (200, 160, 60)) for o in others]:
+        cv2.ellipse(frame, (cx, 140), (14, 55), 0, 0, 360, colour, -1)
+        cv2.circle(frame, (cx, 72), 12, colour, -1)
+    frame = cv2.multiply(frame, (gain, gain, gain, 0.0))
+    return cv2.add(frame, rng.integers(0, 6, frame.shape, dtype=np.uint8))
+
+
+def test_global_brightness_step_of_30_percent_gives_no_false_blob():
+    rng = np.random.default_rng(0)
+    bg = cv2.cvtColor(textured_background((240, 320), seed=3), cv2.COLOR_RGB2BGR)
+    walk = [person_scene(bg, 40 + 6 * t, rng, gain=1.0 if t < 20 else 1.3) for t in range(40)]
+    extractor = SilhouetteExtractor()
+    extractor.prime(walk[:20:2])
+    for t, frame in enumerate(walk):
+        people = extractor(frame)
+        assert len(people) == 1, f"frame {t}: {len(people)} blobs"
+        assert abs(people[0].centroid[0] - (40 + 6 * t)) < 6
+        assert people[0].area < 4 * 110 * 28
+
+
+def test_two_people_passing_close_keep_their_identities():
+    rng = np.random.default_rng(1)
+    bg = cv2.cvtColor(textured_background((240, 320), seed=4), cv2.COLOR_RGB2BGR)
+    # Blue walks right, yellow left; at their closest they pass 2 px apart.
+    scenes = [person_scene(bg, 40 + 6 * t, rng, others=(280 - 6 * t,)) for t in range(40)]
+    extractor, associator = SilhouetteExtractor(), Associator()
+    extractor.prime(scenes[::4])
+    ids = {}
+    for t, frame in enumerate(scenes):
+        for track_id, person in associator.update(extractor(frame)):
+            blue = person.centroid[0] < 160 if t < 20 else person.centroid[0] > 160
+            ids.setdefault("blue" if blue else "yellow", []).append((t, track_id))
+    for name in ("blue", "yellow"):
+        before = {i for t, i in ids[name] if t < 15}
+        after = {i for t, i in ids[name] if t >= 25}
+        assert len(before) == 1 and before == after, f"{name}: {ids[name]}"

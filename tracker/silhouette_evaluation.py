@@ -1,0 +1,153 @@
+"""How good are the silhouettes of a real video? Coverage and spill against projected keypoints.
+
+On a video whose subject has 2-D reference keypoints per frame (e.g. Pose2Sim's balancing trial,
+``sequences.pose2sim.project_reference``), the extractor and the associator run exactly as in
+``tracker.pipeline.PoseTracker.process`` (people -> track ids); the pose regression is skipped,
+since it does not change the masks or the track ids. Measures per view:
+
+- ``coverage``: fraction of keypoints (over all frames) inside the subject's mask dilated by
+  ``dilate_px`` px; a frame where the subject's track has no mask covers none.
+- ``spill``: mean over the frames with a mask of (mask area outside the keypoints' bounding box
+  padded by ``pad`` x its height on every side) / (padded box area).
+- ``tracks``: track ids in the view; ``subject_tracks``: those whose masks hold a keypoint;
+  ``main_track_fraction``: fraction of frames in which the subject's main track (the one whose
+  masks hold the most keypoints) has a mask.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .association import Associator
+from .silhouettes import PersonMask
+
+
+@dataclass(frozen=True)
+class FramePeople:
+    """One frame's tracked people: (track_id, PersonMask) pairs."""
+
+    index: int
+    people: list[tuple[int, PersonMask]]
+
+
+def track_masks(frames: Iterable[tuple[int, np.ndarray]], extractor: Callable,
+                associator: Associator | None = None) -> list[FramePeople]:
+    """Run ``extractor`` (frame BGR uint8 -> list of PersonMask) and the associator on
+    (index, frame) pairs in order, as PoseTracker.process does; every frame's tracked people."""
+    associator = associator or Associator()
+    return [FramePeople(index, associator.update(extractor(image))) for index, image in frames]
+
+
+def keypoints_inside(person: PersonMask, points_px: np.ndarray, dilate_px: int = 3) -> np.ndarray:
+    """(K,) bool: which points (K, 2) px (x, y) fall on the person's mask dilated by dilate_px."""
+    x, y, w, h = person.bbox
+    mask = person.mask.astype(np.uint8)
+    if dilate_px > 0:
+        mask = cv2.copyMakeBorder(mask, dilate_px, dilate_px, dilate_px, dilate_px,
+                                  cv2.BORDER_CONSTANT, value=0)
+        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * dilate_px + 1,) * 2)
+        mask = cv2.dilate(mask, kernel)
+        x, y = x - dilate_px, y - dilate_px
+    col = np.floor(points_px[:, 0]).astype(int) - x
+    row = np.floor(points_px[:, 1]).astype(int) - y
+    ok = (col >= 0) & (row >= 0) & (col < mask.shape[1]) & (row < mask.shape[0])
+    inside = np.zeros(len(points_px), bool)
+    inside[ok] = mask[row[ok], col[ok]] > 0
+    return inside
+
+
+def spill(person: PersonMask, points_px: np.ndarray, pad: float = 0.1) -> float:
+    """Mask area outside the points' (K, 2) px bounding box, padded by pad x the box height on
+    every side, divided by the padded box's area."""
+    lo, hi = points_px.min(axis=0), points_px.max(axis=0)
+    margin = pad * (hi[1] - lo[1])
+    bx0, by0 = np.floor(lo - margin).astype(int)
+    bx1, by1 = np.ceil(hi + margin).astype(int)
+    x, y, w, h = person.bbox
+    inner = person.mask[max(by0 - y, 0):max(by1 - y, 0), max(bx0 - x, 0):max(bx1 - x, 0)]
+    outside = person.area - int(np.count_nonzero(inner))
+    return outside / float((bx1 - bx0) * (by1 - by0))
+
+
+def silhouette_measures(tracked: list[FramePeople], keypoints_px: np.ndarray,
+                        dilate_px: int = 3, pad: float = 0.1) -> dict:
+    """Coverage, spill and track counts (module docstring) of tracked people against keypoints
+    (T, K, 2) px, one row per entry of ``tracked``. Returns a JSON-ready dict."""
+    if len(tracked) != len(keypoints_px):
+        raise ValueError(f"{len(tracked)} tracked frames for {len(keypoints_px)} keypoint rows")
+    held: dict[int, int] = {}
+    inside: dict[tuple[int, int], np.ndarray] = {}
+    for t, (frame, points) in enumerate(zip(tracked, keypoints_px)):
+        for track_id, person in frame.people:
+            inside[t, track_id] = keypoints_inside(person, points, dilate_px)
+            held[track_id] = held.get(track_id, 0) + int(inside[t, track_id].sum())
+    all_ids = {tid for frame in tracked for tid, _ in frame.people}
+    if not held or max(held.values()) == 0:
+        return {"frames": len(tracked), "coverage": 0.0, "spill": float("nan"),
+                "tracks": len(all_ids), "subject_tracks": 0, "main_track_fraction": 0.0}
+    main = max(held, key=held.get)
+    covered, spills, present = 0, [], 0
+    for t, (frame, points) in enumerate(zip(tracked, keypoints_px)):
+        for track_id, person in frame.people:
+            if track_id == main:
+                present += 1
+                covered += int(inside[t, track_id].sum())
+                spills.append(spill(person, points, pad))
+    return {"frames": len(tracked), "coverage": covered / keypoints_px[:, :, 0].size,
+            "spill": float(np.mean(spills)), "spill_p90": float(np.percentile(spills, 90)),
+            "tracks": len(all_ids), "subject_tracks": sum(1 for n in held.values() if n > 0),
+            "main_track_fraction": present / len(tracked)}
+
+
+def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: int = 25,
+                           dilate_px: int = 3, pad: float = 0.1) -> dict:
+    """Silhouette measures of one view of a Pose2Sim trial (sequences.pose2sim.Trial).
+
+    ``make_extractor(sample_frames) -> extractor``: builds a primed extractor from ``samples``
+    frames spread over the video (as the ``track`` command samples them)."""
+    from sequences.pose2sim import project_reference, video_frames
+    from .video import open_video
+
+    source = open_video(trial.video(view))
+    extractor = make_extractor(source.sample_frames(samples))
+    wanted = set(int(i) for i in video_frames(trial))
+    tracked = [f for f in track_masks(((i, im) for i, _, im in source), extractor)
+               if f.index in wanted]
+    keypoints = project_reference(view, [f.index for f in tracked], trial)
+    return silhouette_measures(tracked, keypoints, dilate_px, pad)
+
+
+def legacy_extractor(frames) -> "SilhouetteExtractor":
+    """The extractor as it was before the clip background (issue 11): MOG2 primed with the
+    median of the sampled frames, shadows dropped, no brightness, lighting or zone handling."""
+    from .silhouettes import SilhouetteExtractor, median_background
+    extractor = SilhouetteExtractor(keep_enclosed_shadow=False, drop_lighting=False,
+                                    refine=False, normalise_brightness=False)
+    extractor.prime(median_background(list(frames)))
+    return extractor
+
+
+def clip_extractor(frames) -> "SilhouetteExtractor":
+    """Today's default extractor primed with the sampled frames (clip background)."""
+    from .silhouettes import SilhouetteExtractor
+    extractor = SilhouetteExtractor()
+    extractor.prime(frames)
+    return extractor
+
+
+EXTRACTORS = {"before": legacy_extractor, "after": clip_extractor}
+
+
+def format_table(results: dict[str, dict[str, dict]]) -> str:
+    """{label: {view: silhouette_measures dict}} as a plain-text table."""
+    lines = [f"{'':7} {'view':6} {'coverage':>8} {'spill':>6} {'spill90':>7} {'tracks':>6} "
+             f"{'subj.trk':>8} {'main-track frames':>17}"]
+    for label, views in results.items():
+        for view, r in views.items():
+            lines.append(f"{label:7} {view:6} {r['coverage']:8.1%} {r['spill']:6.1%} "
+                         f"{r['spill_p90']:7.1%} {r['tracks']:6d} {r['subject_tracks']:8d} "
+                         f"{r['main_track_fraction']:17.0%}")
+    return "\n".join(lines)
