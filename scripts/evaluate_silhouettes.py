@@ -8,7 +8,7 @@ Projects the reference keypoints into each view and prints, per extractor and vi
 padded by 10 % of its height, over the box area; mean and 90th percentile), tracks, tracks
 holding the subject, and the fraction of frames the subject's main track covers. "before" is
 the extractor as it was (median background, shadows dropped), "after" today's default primed
-with frames of the clip. Measures: tracker.silhouette_evaluation.
+with frames of the clip. Measures: tracker.offline.silhouette_evaluation.
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 from sequences.pose2sim import DEFAULT_TRIAL, VIEWS, Pose2SimError, load_trial
-from tracker.silhouette_evaluation import EXTRACTORS, evaluate_pose2sim_view, format_table
+from tracker.offline.silhouette_evaluation import EXTRACTORS, evaluate_pose2sim_view, format_table
 
 
 def main(argv=None) -> int:

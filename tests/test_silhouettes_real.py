@@ -9,7 +9,7 @@ import numpy as np
 
 from sequences.video import textured_background
 from tracker.association import Associator
-from tracker.silhouette_evaluation import (clip_extractor, legacy_extractor, silhouette_measures,
+from tracker.offline.silhouette_evaluation import (clip_extractor, legacy_extractor, silhouette_measures,
                                            track_masks)
 from tracker.silhouettes import SilhouetteExtractor
 

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .association import Associator
-from .silhouettes import PersonMask
+from ..association import Associator
+from ..silhouettes import PersonMask
 
 
 @dataclass(frozen=True)
@@ -109,7 +109,7 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
     ``make_extractor(sample_frames) -> extractor``: builds a primed extractor from ``samples``
     frames spread over the video (as the ``track`` command samples them)."""
     from sequences.pose2sim import project_reference, video_frames
-    from .video import open_video
+    from ..video import open_video
 
     source = open_video(trial.video(view))
     extractor = make_extractor(source.sample_frames(samples))
@@ -123,7 +123,7 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
 def legacy_extractor(frames) -> "SilhouetteExtractor":
     """The extractor as it was before the clip background (issue 11): MOG2 primed with the
     median of the sampled frames, shadows dropped, no brightness, lighting or zone handling."""
-    from .silhouettes import SilhouetteExtractor, median_background
+    from ..silhouettes import SilhouetteExtractor, median_background
     extractor = SilhouetteExtractor(keep_enclosed_shadow=False, drop_lighting=False,
                                     refine=False, normalise_brightness=False)
     extractor.prime(median_background(list(frames)))
@@ -132,7 +132,7 @@ def legacy_extractor(frames) -> "SilhouetteExtractor":
 
 def clip_extractor(frames) -> "SilhouetteExtractor":
     """Today's default extractor primed with the sampled frames (clip background)."""
-    from .silhouettes import SilhouetteExtractor
+    from ..silhouettes import SilhouetteExtractor
     extractor = SilhouetteExtractor()
     extractor.prime(frames)
     return extractor
