@@ -24,6 +24,7 @@ at interpreter exit.
 """
 from __future__ import annotations
 
+import functools
 import io
 import json
 import math
@@ -220,13 +221,21 @@ def _z_to(directions: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
-def _poses(positions: np.ndarray, quaternions: np.ndarray | None = None) -> list[dict]:
-    if quaternions is None:
-        quaternions = np.tile([0.0, 0.0, 0.0, 1.0], (len(positions), 1))
-    rows = np.round(np.hstack([positions, quaternions]), _DECIMALS).tolist()
-    return [{"position": {"x": px, "y": py, "z": pz},
-             "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}
-            for px, py, pz, qx, qy, qz, qw in rows]
+_NO_TURN = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+_GEOMETRY_DECIMALS = 3   # 1 mm and 1e-3 of a quaternion: below what a drawing shows
+
+
+@functools.lru_cache(maxsize=128)
+def _body_style(track_id: int, ambiguous: bool) -> tuple[list, list, dict, str]:
+    """Per bone and per sphere (18 joints, head) colour dicts, the label's colour and text
+    (the same for every frame of a track; shared by its messages, which are only read)."""
+    colours = body_colours(track_id)
+    alpha = AMBIGUOUS_ALPHA if ambiguous else 1.0
+    r, g, b = track_colour(track_id)
+    return (_colour_dicts(colours[BONE_SIDE], alpha),
+            _colour_dicts(colours[np.r_[JOINT_SIDE, 0]], alpha),
+            {"r": r, "g": g, "b": b, "a": 1.0},
+            f"track {track_id}" + (" (ambiguous)" if ambiguous else ""))
 
 
 def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool) -> dict:
@@ -239,26 +248,33 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
     frames are translucent and labelled "(ambiguous)".
     """
     joints = y_up_to_z_up(joints3d)
-    colours = body_colours(track_id)
-    alpha = AMBIGUOUS_ALPHA if ambiguous else 1.0
+    bone_colours, sphere_colours, label_colour, text = _body_style(int(track_id), bool(ambiguous))
     starts, ends = joints[BONE_INDEX[:, 0]], joints[BONE_INDEX[:, 1]]
-    lengths = np.linalg.norm(ends - starts, axis=1)
-    keep = lengths > 1e-6
-    axes = (ends - starts)[keep] / lengths[keep, None]
-    cylinders = [{"pose": pose, "size": {"x": BONE_THICKNESS_M, "y": BONE_THICKNESS_M, "z": length},
-                  "bottom_scale": 1.0, "top_scale": 1.0, "color": colour}
-                 for pose, length, colour in zip(
-                     _poses((starts[keep] + ends[keep]) / 2, _z_to(axes)),
-                     np.round(lengths[keep], _DECIMALS).tolist(),
-                     _colour_dicts(colours[BONE_SIDE[keep]], alpha))]
+    vectors = ends - starts
+    lengths = np.sqrt(np.einsum("ij,ij->i", vectors, vectors))
+    keep = np.flatnonzero(lengths > 1e-6)
+    axes = vectors[keep] / lengths[keep, None]
     neck_to_head = joints[3] - joints[2]
     head = joints[3] + HEAD_DIAMETER_M / 2 * neck_to_head / max(np.linalg.norm(neck_to_head), 1e-9)
-    sizes = [JOINT_DIAMETER_M] * len(joints) + [HEAD_DIAMETER_M]
-    spheres = [{"pose": pose, "size": {"x": d, "y": d, "z": d}, "color": colour}
-               for pose, d, colour in zip(_poses(np.vstack([joints, head])), sizes,
-                                          _colour_dicts(colours[np.r_[JOINT_SIDE, 0]], alpha))]
-    label_pose = _poses(np.array([[head[0], head[1], joints[:, 2].max() + 0.35]]))[0]
-    r, g, b = track_colour(track_id)
+    label = [head[0], head[1], joints[:, 2].max() + 0.35]
+    n = len(keep)
+    numbers = np.round(np.concatenate([((starts + ends) / 2)[keep].ravel(), _z_to(axes).ravel(),
+                                       lengths[keep], joints.ravel(), head, label]),
+                       _GEOMETRY_DECIMALS).tolist()
+    mid, turn, length = numbers[:3 * n], numbers[3 * n:7 * n], numbers[7 * n:8 * n]
+    points = numbers[8 * n:]
+    thick, joint_d = BONE_THICKNESS_M, JOINT_DIAMETER_M
+    cylinders = [{"pose": {"position": {"x": mid[3 * i], "y": mid[3 * i + 1], "z": mid[3 * i + 2]},
+                           "orientation": {"x": turn[4 * i], "y": turn[4 * i + 1],
+                                           "z": turn[4 * i + 2], "w": turn[4 * i + 3]}},
+                  "size": {"x": thick, "y": thick, "z": length[i]},
+                  "bottom_scale": 1.0, "top_scale": 1.0, "color": bone_colours[k]}
+                 for i, k in enumerate(keep.tolist())]
+    spheres = [{"pose": {"position": {"x": points[3 * i], "y": points[3 * i + 1],
+                                      "z": points[3 * i + 2]}, "orientation": _NO_TURN},
+                "size": {"x": d, "y": d, "z": d}, "color": sphere_colours[i]}
+               for i, d in enumerate([joint_d] * len(joints) + [HEAD_DIAMETER_M])]
+    x, y, z = points[-3:]
     return {
         "timestamp": _timestamp(time_ns),
         "frame_id": WORLD_FRAME,
@@ -270,9 +286,9 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
         "arrows": [], "cubes": [], "lines": [], "triangles": [], "models": [],
         "spheres": spheres,
         "cylinders": cylinders,
-        "texts": [{"pose": label_pose, "billboard": True, "font_size": 0.15,
-                   "scale_invariant": False, "color": {"r": r, "g": g, "b": b, "a": 1.0},
-                   "text": f"track {track_id}" + (" (ambiguous)" if ambiguous else "")}],
+        "texts": [{"pose": {"position": {"x": x, "y": y, "z": z}, "orientation": _NO_TURN},
+                   "billboard": True, "font_size": 0.15, "scale_invariant": False,
+                   "color": label_colour, "text": text}],
     }
 
 
@@ -471,7 +487,7 @@ class McapSink:
             self._frames_since_flush = 0
 
     def _trail(self, track_id: int) -> dict:
-        samples = np.array(self._trails[track_id])
+        samples = np.array(self._trails[track_id])[::-1][::3][::-1]   # every 3rd, newest kept
         ages = (samples[-1, 0] - samples[:, 0]) / TRAIL_S
         return trail_entity(track_id, self._frame_ns, samples[:, 1:], ages)
 

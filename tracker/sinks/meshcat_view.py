@@ -59,11 +59,6 @@ _LABEL_SIZE_M = (0.8, 0.2)
 _TRAIL_WIDTH_M = 0.07
 
 
-def _hex(rgb) -> int:
-    r, g, b = (int(round(255 * c)) for c in rgb)
-    return (r << 16) | (g << 8) | b
-
-
 def _transform(rotation: np.ndarray | None = None, translation=(0.0, 0.0, 0.0)) -> np.ndarray:
     matrix = np.eye(4)
     if rotation is not None:
