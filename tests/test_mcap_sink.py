@@ -19,7 +19,8 @@ from mcap.stream_reader import StreamReader
 from sequences.pose_vector import pose_vector_names
 from tracker.sinks.mcap_repair import McapRecoveryError, recover_mcap
 from tracker.sinks.mcap import McapSink, SinkInputError
-from tracker.sinks.geometry import pose_joints_m
+from sequences.skeleton import POSE_JOINTS
+from tracker.sinks.geometry import CENTRE, LEFT, RIGHT, body_colours, pose_joints_m
 from tracker import TrackedPose
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -141,14 +142,57 @@ def test_scene_draws_one_entity_per_track_and_deletes_tracks_that_left(tmp_path)
     scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/skeleton"]
     assert [sorted(e["id"] for e in u["entities"]) for u in scenes] == \
         [["track-1", "track-2"]] * 4 + [["track-1"]] * 4
-    assert [d["id"] for d in scenes[4]["deletions"]] == ["track-2"]
+    assert [d["id"] for d in scenes[4]["deletions"]] == ["track-2", "trail-2"]
     assert all(not u["deletions"] for i, u in enumerate(scenes) if i != 4)
     entity = scenes[0]["entities"][0]
     assert entity["frame_id"] == "world"
-    assert len(entity["spheres"]) == 18
-    assert entity["lines"][0]["type"] == 2 and len(entity["lines"][0]["points"]) == 2 * 17
+    assert len(entity["spheres"]) == 18 + 1                      # joints and a head ball
+    assert len(entity["cylinders"]) == 17 - 3                   # bones of non-zero length
     colours = {json.dumps(e["spheres"][0]["color"]) for e in scenes[0]["entities"]}
     assert len(colours) == 2  # one colour per track
+
+
+def test_bodies_have_side_colours_and_ambiguous_frames_are_translucent(tmp_path):
+    path = tmp_path / "run.mcap"
+    _record(path, frames=4)                     # frames 0 and 3 ambiguous
+    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/skeleton"]
+    for frame, update in enumerate(scenes):
+        entity = update["entities"][0]
+        colours = body_colours(int(entity["id"].split("-")[1]))
+        spheres = [(c["r"], c["g"], c["b"]) for c in (s["color"] for s in entity["spheres"])]
+        for side, name in ((LEFT, "LeftHand"), (RIGHT, "RightHand"), (CENTRE, "Head")):
+            np.testing.assert_allclose(spheres[POSE_JOINTS.index(name)], colours[side], atol=1e-3)
+        alphas = {s["color"]["a"] for s in entity["spheres"] + entity["cylinders"]}
+        assert alphas == ({0.5} if frame % 3 == 0 else {1.0})
+        assert entity["texts"][0]["text"].endswith("(ambiguous)") == (frame % 3 == 0)
+
+
+def test_trails_follow_the_pelvis_and_fade(tmp_path):
+    path = tmp_path / "run.mcap"
+    _record(path, frames=25)
+    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/skeleton"]
+    with_trails = [i for i, u in enumerate(scenes)
+                   if any(e["id"].startswith("trail-") for e in u["entities"])]
+    assert with_trails == [10, 20]
+    trail = next(e for e in scenes[20]["entities"] if e["id"] == "trail-1")["lines"][0]
+    assert trail["type"] == 0 and len(trail["points"]) == 7      # every 3rd of frames 0..20
+    alphas = [c["a"] for c in trail["colors"]]
+    assert alphas == sorted(alphas) and alphas[-1] == 1.0 and alphas[0] < 1.0
+    assert all(p["z"] < 0.01 for p in trail["points"])          # on the ground
+
+
+def test_every_scene_update_validates_against_foxglove_official_schema(tmp_path):
+    """Foxglove's own SceneUpdate schema (@foxglove/schemas 2.1.0, vendored under tests/data)."""
+    jsonschema = pytest.importorskip("jsonschema")
+    official = json.loads((ROOT / "tests" / "data" / "foxglove" / "SceneUpdate.json").read_text())
+    path = tmp_path / "run.mcap"
+    _record(path, frames=25)
+    validator = jsonschema.Draft7Validator(official)
+    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/skeleton"]
+    assert len(scenes) == 25
+    for update in scenes:
+        errors = sorted(validator.iter_errors(update), key=str)
+        assert not errors, errors[0]
 
 
 def test_pose_message_holds_named_values_times_in_ns_and_headings(tmp_path):

@@ -19,7 +19,10 @@ import zmq
 
 from tracker.sinks.meshcat_server import ViewerServer
 from tracker.video import focal_length_px
-from tracker.sinks.meshcat_view import MeshcatView, joint_spheres
+from tracker.sinks.body_mesh import body_mesh, joint_spheres
+from tracker.sinks.framing import Framing
+from tracker.sinks.meshcat_view import MeshcatView, smooth_path, trail_ribbon
+from sequences.skeleton import POSE_JOINTS
 from tracker import TrackedPose
 from tracker.sinks.geometry import (
     BONE_INDEX,
@@ -31,6 +34,7 @@ from tracker.sinks.geometry import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
+POSE_JOINT_INDEX = {name: i for i, name in enumerate(POSE_JOINTS)}
 POSE = np.r_[1.0, np.zeros(54)]
 JOINTS = pose_joints_m(POSE[None])[0] + [0.0, 0.95, 0.0]
 LOOPBACK_HEX = "0100007F"  # 127.0.0.1 as /proc/net/tcp writes it
@@ -180,23 +184,80 @@ def _scene_paths(zmq_url: str) -> list[str]:
     return [c["path"] for c in commands if c["type"] == "set_object"]
 
 
+def _track_paths(zmq_url: str) -> set[str]:
+    return {p.split("/people/")[1] for p in _scene_paths(zmq_url)
+            if "/people/tracks/" in p or "/people/trails/" in p}
+
+
 def test_view_draws_each_track_and_removes_tracks_that_left():
-    with MeshcatView(print_url=False) as view:
+    with MeshcatView(print_url=False, trail_every=1) as view:
         view.write(TrackedPose(0, 0.0, 1, POSE, POSE, False, JOINTS))
-        view.write(TrackedPose(0, 0.0, 2, POSE, POSE, False, JOINTS + [1.0, 0.0, 0.0]))
-        paths = _scene_paths(view.server.zmq_url)
-        assert {p for p in paths if "skeletons" in p} == {
-            f"/meshcat/skeletons/track-{t}/{part}" for t in (1, 2) for part in ("bones", "joints")}
-        view.write(TrackedPose(1, 0.04, 1, POSE, POSE, False, JOINTS))
-        view.write(TrackedPose(2, 0.08, 1, POSE, POSE, False, JOINTS))  # frame 1 ended without track 2
-        paths = _scene_paths(view.server.zmq_url)
-        assert {p for p in paths if "skeletons" in p} == {
-            "/meshcat/skeletons/track-1/bones", "/meshcat/skeletons/track-1/joints"}
+        view.write(TrackedPose(0, 0.0, 2, POSE, POSE, True, JOINTS + [1.0, 0.0, 0.0]))
+        view.end_frame(0)
+        view.write(TrackedPose(1, 0.04, 1, POSE, POSE, False, JOINTS + [0.05, 0.0, 0.0]))
+        view.write(TrackedPose(1, 0.04, 2, POSE, POSE, True, JOINTS + [1.05, 0.0, 0.0]))
+        view.end_frame(1)
+        assert _track_paths(view.server.zmq_url) == {
+            f"{kind}/track-{t}{part}" for t in (1, 2) for kind, part in
+            (("tracks", "/body"), ("tracks", "/label"), ("trails", ""))}
+        view.write(TrackedPose(2, 0.08, 1, POSE, POSE, False, JOINTS))
+        view.write(TrackedPose(3, 0.12, 1, POSE, POSE, False, JOINTS))  # frame 2 ended without track 2
+        assert _track_paths(view.server.zmq_url) == {
+            "tracks/track-1/body", "tracks/track-1/label", "trails/track-1"}
         with pytest.raises(SinkInputError, match="joints3d"):
-            view.write(TrackedPose(3, 0.12, 1, POSE, POSE, False, np.zeros((18, 2))))
+            view.write(TrackedPose(4, 0.16, 1, POSE, POSE, False, np.zeros((18, 2))))
     assert view.closed and _gone(view.server.pid)
     with pytest.raises(SinkInputError, match="closed"):
-        view.write(TrackedPose(4, 0.16, 1, POSE, POSE, False, JOINTS))
+        view.write(TrackedPose(5, 0.2, 1, POSE, POSE, False, JOINTS))
+
+
+def test_body_mesh_colours_each_side_and_closes_every_bone():
+    colours = np.array([[0.5, 0.5, 0.5], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    joints = y_up_to_z_up(JOINTS)
+    vertices, faces, vertex_colours = body_mesh(joints, colours)
+    assert len(vertices) == len(vertex_colours) and faces.max() == len(vertices) - 1
+    left = vertices[np.all(vertex_colours == colours[1], axis=1)]
+    right = vertices[np.all(vertex_colours == colours[2], axis=1)]
+    # Each side's colour lies on that side's hand, not on the other one.
+    left_hand, right_hand = joints[POSE_JOINT_INDEX["LeftHand"]], joints[POSE_JOINT_INDEX["RightHand"]]
+    assert np.linalg.norm(left - left_hand, axis=1).min() < 0.06
+    assert np.linalg.norm(right - right_hand, axis=1).min() < 0.06
+    assert np.linalg.norm(left - right_hand, axis=1).min() > 0.1
+    assert vertices[:, 2].max() > joints[:, 2].max() + 0.15      # the head ball on top
+
+
+def test_framing_keeps_every_person_and_the_screen_in_view():
+    framing = Framing()
+    people = np.array([[-2.0, 6.0, 0.95], [2.5, 8.0, 0.95]])
+    for step in range(60):                                       # 2 s at 30 fps
+        framing.update(people + [0.02 * step, 0.0, 0.0], step / 30)
+    camera = framing.look_at + framing.camera_offset
+    half_h = np.radians(framing.vertical_fov_deg) / 2
+    half_w = np.arctan(np.tan(half_h) * framing.aspect)
+    forward = -framing.view_direction
+    right = np.array([1.0, 0.0, 0.0])
+    up = np.cross(right, forward)
+    screen = framing.look_at + framing.screen_centre
+    width, height = framing.screen_size_m
+    points = [p + [0.02 * 59, 0, dz] for p in people for dz in (-0.95, 1.0)]
+    points += [screen + [sx * width / 2, 0, sz * height / 2] for sx in (-1, 1) for sz in (-1, 1)]
+    for point in points:
+        ray = point - camera
+        depth = ray @ forward
+        assert abs(np.arctan2(ray @ right, depth)) < half_w, point
+        assert abs(np.arctan2(ray @ up, depth)) < half_h, point
+    assert framing.vertical_fov_deg == pytest.approx(2 * np.degrees(np.arctan(
+        np.tan(np.radians(30)) * 0.75)))                         # the video's, 60 deg wide, 4:3
+
+
+def test_trail_ribbon_fades_from_the_track_colour_into_the_ground():
+    path = np.column_stack([np.linspace(0, 2, 20), np.zeros(20)])
+    vertices, faces, colours = trail_ribbon(path, np.linspace(1, 0, 20), (1.0, 0.0, 0.0))
+    assert vertices.shape == (40, 3) and faces.shape == (38, 3)
+    np.testing.assert_allclose(colours[-1], [1.0, 0.0, 0.0])
+    assert colours[0, 1] > 0.8                                  # the oldest end: ground grey
+    noisy = path + np.random.default_rng(0).normal(0, 0.05, path.shape)
+    assert np.abs(smooth_path(noisy, 9)[3:-3, 1]).mean() < np.abs(noisy[3:-3, 1]).mean() / 2
 
 
 def test_joint_spheres_are_closed_meshes_of_the_right_radius():

@@ -146,6 +146,8 @@ class PoseTracker:
         self.frame_shape: tuple[int, int] | None = None      # (height, width) pixels
         self._focal_px = 0.0
         self.tracks: dict[int, _TrackState] = {}
+        #: Track id -> silhouette of each person in the frame processed last (for drawing).
+        self.people: dict[int, PersonMask] = {}
         #: Seconds spent per stage so far (silhouettes, association, descriptor, regression,
         #: filter, skeleton), for benchmarks; perf_counter calls cost ~0.1 us each.
         self.stage_seconds: dict[str, float] = defaultdict(float)
@@ -167,6 +169,7 @@ class PoseTracker:
         people = self.extractor(frame)[: self.settings.max_people]
         clock = self._lap("silhouettes", clock)
         matches = self.associator.update(people)
+        self.people = dict(matches)
         self._lap("association", clock)
         out = []
         for track_id, person in matches:

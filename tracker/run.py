@@ -49,7 +49,9 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
 
     tracker: a PoseTracker (None: the shipped model with default settings). progress: an
     object with update(people_in_view) and close(), e.g. tracker.progress.Progress.
-    smoothed_sinks: fed at the end with each whole track RTS-smoothed (``track --smooth``),
+    Sinks with a ``write_frame(frame_index, time_s, frame, people)`` method also get each
+    frame (BGR uint8 (H, W, 3), not to be modified) and its people (track id -> PersonMask),
+    after its poses. smoothed_sinks: fed at the end with each whole track RTS-smoothed (``track --smooth``),
     in frame order. Every sink's end_frame() is called after each frame. All sinks are closed
     on return, also on Ctrl-C, which stops the loop (the result says interrupted); OutputError
     if some could not be closed. tracker.stage_seconds gains "decode" and "outputs".
@@ -61,6 +63,9 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         tracker = PoseTracker(load_pose_model(), source.fps)
     recorder = PoseRecorder() if smoothed_sinks else None
     streaming = list(sinks) + ([recorder] if recorder else [])
+    # Sinks that show the video (the live view) also get every frame and its silhouettes; they
+    # shrink the few frames they show themselves, so this costs nothing when there is none.
+    watching = [sink for sink in streaming if hasattr(sink, "write_frame")]
     frames, interrupted, started = 0, False, time.perf_counter()
     stages = tracker.stage_seconds
     try:
@@ -73,6 +78,8 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
             for sink in streaming:
                 for pose in poses:
                     sink.write(pose)
+            for sink in watching:
+                sink.write_frame(index, time_s, frame, tracker.people)
             for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
                 sink.end_frame(index)
             stages["outputs"] += time.perf_counter() - clock

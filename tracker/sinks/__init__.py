@@ -4,6 +4,9 @@
     end_frame(frame_index) after every frame, with people in it or not
     close()                finish the output (idempotent); also on Ctrl-C
 
+Optional, for sinks that show the video (MeshcatView): write_frame(frame_index, time_s, frame,
+people), after the frame's poses: the frame (BGR uint8, read only) and track id -> PersonMask.
+
 Sinks: McapSink (mcap.py), BVHSink (bvh.py), JsonSummarySink (json_summary.py), MeshcatView
 (meshcat_view.py), and PoseRecorder here (keeps the poses in memory, e.g. in a notebook).
 ``open_sinks`` opens several, closing those already open if one fails; ``close_sinks`` closes

@@ -12,6 +12,8 @@ Conventions:
 """
 from __future__ import annotations
 
+import colorsys
+
 import numpy as np
 
 from sequences.pose_vector import joint_positions
@@ -44,6 +46,18 @@ TRACK_PALETTE: np.ndarray = np.array([
 TRACK_PALETTE.flags.writeable = False
 
 
+#: Body sides: every pose joint and drawn bone is on the centre line (hips, spine, neck, head),
+#: the left or the right side of the body.
+CENTRE, LEFT, RIGHT = 0, 1, 2
+#: (18,) int side of each pose joint; (B,) side of each drawn bone (that of its child joint).
+JOINT_SIDE: np.ndarray = np.array([LEFT if name.startswith("Left") else
+                                   RIGHT if name.startswith("Right") else CENTRE
+                                   for name in POSE_JOINTS], dtype=np.int64)
+BONE_SIDE: np.ndarray = JOINT_SIDE[BONE_INDEX[:, 1]]
+JOINT_SIDE.flags.writeable = False
+BONE_SIDE.flags.writeable = False
+
+
 class SinkInputError(SilhouettePoseError, ValueError):
     """A sink was given data of the wrong shape, type or value (message names the argument)."""
 
@@ -52,6 +66,22 @@ def track_colour(track_id: int) -> tuple[float, float, float]:
     """Colour (r, g, b) in [0, 1] of track ``track_id`` (palette entry ``track_id mod 8``)."""
     r, g, b = TRACK_PALETTE[int(track_id) % len(TRACK_PALETTE)]
     return float(r), float(g), float(b)
+
+
+#: Hue turn (degrees) from a track's colour to its LEFT (+) and RIGHT (-) side colours.
+SIDE_HUE_TURN_DEG = 40.0
+
+
+def body_colours(track_id: int) -> np.ndarray:
+    """Colours (3, 3) RGB in [0, 1] of track ``track_id``'s body, rows indexed by side: CENTRE
+    the track colour, LEFT and RIGHT its hue turned by +/- SIDE_HUE_TURN_DEG (red: orange left,
+    magenta right). Hue survives shading and translucency, so the sides stay apart in any
+    light and a swap of sides shows at a glance."""
+    colour = track_colour(track_id)
+    h, s, v = colorsys.rgb_to_hsv(*colour)
+    turn = SIDE_HUE_TURN_DEG / 360.0
+    sides = [colorsys.hsv_to_rgb((h + t) % 1.0, s, v) for t in (turn, -turn)]
+    return np.array([colour, *sides])
 
 
 def check_joints(joints3d: np.ndarray) -> np.ndarray:

@@ -7,8 +7,11 @@ Channels (JSON messages, JSON-schema schemas):
   values keyed by ``sequences.pose_vector.pose_vector_names()`` (Foxglove plots them by name,
   e.g. ``/pose.filtered.pose.LeftArm_z``).
 - ``/skeleton`` (schema ``foxglove.SceneUpdate``): one message per frame, one entity per track
-  (id ``track-<id>``, frame ``world``, Z-up, metres): bones as a line list, joints as spheres, a
-  text label; entities of tracks absent from the frame are deleted.
+  (id ``track-<id>``, frame ``world``, Z-up, metres) drawn as the live view draws it: a cylinder
+  per bone, a sphere per joint and a head ball in the side colours (geometry.body_colours),
+  translucent in ambiguous frames, and a text label; every TRAIL_EVERY frames also each track's
+  pelvis path over the last TRAIL_S seconds (id ``trail-<id>``), a line strip fading with age.
+  Entities of tracks absent from the frame are deleted.
 - Metadata records (e.g. ``video``, ``model``, ``settings``) given to the constructor.
 Log and publish times are the video time in nanoseconds.
 
@@ -21,10 +24,12 @@ at interpreter exit.
 """
 from __future__ import annotations
 
+import functools
 import io
 import json
 import math
 import weakref
+from collections import deque
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -34,8 +39,11 @@ from mcap.writer import CompressionType, Writer
 
 from sequences.pose_vector import pose_vector_names
 from tracker.sinks.geometry import (
+    BONE_INDEX,
+    BONE_SIDE,
+    JOINT_SIDE,
     SinkInputError,
-    bone_segments,
+    body_colours,
     check_joints,
     check_pose,
     track_colour,
@@ -51,8 +59,15 @@ POSE_SCHEMA_NAME = "silhouette_pose.TrackedPose"
 SCENE_SCHEMA_NAME = "foxglove.SceneUpdate"
 WORLD_FRAME = "world"
 #: Drawing sizes in metres.
-BONE_THICKNESS_M = 0.025
-JOINT_DIAMETER_M = 0.06
+BONE_THICKNESS_M = 0.07
+JOINT_DIAMETER_M = 0.1
+HEAD_DIAMETER_M = 0.22
+TRAIL_THICKNESS_M = 0.06
+#: Opacity of bodies in ambiguous frames.
+AMBIGUOUS_ALPHA = 0.5
+#: A track's trail (pelvis path) covers this many seconds and is redrawn every TRAIL_EVERY frames.
+TRAIL_S = 8.0
+TRAIL_EVERY = 10
 _DECIMALS = 6  # JSON rounding: 1e-6 degrees or units is far below any estimate's accuracy
 
 
@@ -107,12 +122,15 @@ def scene_update_schema() -> dict:
     """
     point3 = _vector3("foxglove.Point3")
     index_list = _array({"type": "integer", "minimum": 0})
-    # The skeleton uses lines, spheres and texts; the other primitive lists are always empty.
+    # Bodies use cylinders, spheres and texts, trails lines; the other lists are always empty.
     empty = _array({"type": "object"})
     primitives = {
-        "arrows": empty, "cubes": empty, "cylinders": empty, "triangles": empty, "models": empty,
+        "arrows": empty, "cubes": empty, "triangles": empty, "models": empty,
         "spheres": _object("foxglove.SpherePrimitive", {
             "pose": _pose(), "size": _vector3(), "color": _colour()}),
+        "cylinders": _object("foxglove.CylinderPrimitive", {
+            "pose": _pose(), "size": _vector3(), "bottom_scale": _NUMBER, "top_scale": _NUMBER,
+            "color": _colour()}),
         "lines": _object("foxglove.LinePrimitive", {
             "type": _enum("foxglove.LineType", {"LINE_STRIP": 0, "LINE_LOOP": 1, "LINE_LIST": 2}),
             "pose": _pose(), "thickness": {"type": "number", "minimum": 0},
@@ -187,23 +205,76 @@ def _point_dicts(points: np.ndarray) -> list[dict]:
     return [{"x": x, "y": y, "z": z} for x, y, z in rounded]
 
 
-def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool) -> dict:
-    """A ``foxglove.SceneEntity`` drawing one track's skeleton.
+def _colour_dicts(rgb: np.ndarray, alpha) -> list[dict]:
+    """(N, 3) RGB and (N,) or scalar alpha -> foxglove.Color dicts."""
+    rgba = np.column_stack([rgb, np.broadcast_to(alpha, (len(rgb),))])
+    return [{"r": r, "g": g, "b": b, "a": a} for r, g, b, a in np.round(rgba, 3).tolist()]
 
-    joints3d: (18, 3) metres, Y-up (converted here to the Z-up ``world`` frame). Bones are one
-    LINE_LIST line primitive, joints one sphere each, plus a text label above the head.
+
+def _z_to(directions: np.ndarray) -> np.ndarray:
+    """Quaternions (N, 4) (x, y, z, w) turning +Z onto the unit vectors ``directions`` (N, 3)
+    (a foxglove cylinder's axis is its local Z)."""
+    x, y, z = directions.T
+    q = np.column_stack([-y, x, np.zeros_like(x), 1.0 + z])
+    flip = q[:, 3] < 1e-9                     # pointing down -Z: half a turn about X
+    q[flip] = [1.0, 0.0, 0.0, 0.0]
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+_NO_TURN = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+_GEOMETRY_DECIMALS = 3   # 1 mm and 1e-3 of a quaternion: below what a drawing shows
+
+
+@functools.lru_cache(maxsize=128)
+def _body_style(track_id: int, ambiguous: bool) -> tuple[list, list, dict, str]:
+    """Per bone and per sphere (18 joints, head) colour dicts, the label's colour and text
+    (the same for every frame of a track; shared by its messages, which are only read)."""
+    colours = body_colours(track_id)
+    alpha = AMBIGUOUS_ALPHA if ambiguous else 1.0
+    r, g, b = track_colour(track_id)
+    return (_colour_dicts(colours[BONE_SIDE], alpha),
+            _colour_dicts(colours[np.r_[JOINT_SIDE, 0]], alpha),
+            {"r": r, "g": g, "b": b, "a": 1.0},
+            f"track {track_id}" + (" (ambiguous)" if ambiguous else ""))
+
+
+def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool) -> dict:
+    """A ``foxglove.SceneEntity`` drawing one track's body as the live view does.
+
+    joints3d: (18, 3) metres, Y-up (converted here to the Z-up ``world`` frame). A cylinder per
+    bone of non-zero length and a sphere per joint, in the side colours of
+    geometry.body_colours (track colour on the centre line, its hue turned one way on the left
+    and the other on the right), a head ball, and a text label above the head. Ambiguous
+    frames are translucent and labelled "(ambiguous)".
     """
     joints = y_up_to_z_up(joints3d)
-    r, g, b = track_colour(track_id)
-    colour = {"r": r, "g": g, "b": b, "a": 1.0}
-    segments = bone_segments(joints).reshape(-1, 3)
-    spheres = [{"pose": {"position": p, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
-                "size": {"x": JOINT_DIAMETER_M, "y": JOINT_DIAMETER_M, "z": JOINT_DIAMETER_M},
-                "color": colour} for p in _point_dicts(joints)]
-    centre = joints.mean(axis=0)
-    label_pose = _identity_pose()  # the label floats 25 cm above the highest joint
-    label_pose["position"] = _point_dicts(np.array([[centre[0], centre[1],
-                                                     joints[:, 2].max() + 0.25]]))[0]
+    bone_colours, sphere_colours, label_colour, text = _body_style(int(track_id), bool(ambiguous))
+    starts, ends = joints[BONE_INDEX[:, 0]], joints[BONE_INDEX[:, 1]]
+    vectors = ends - starts
+    lengths = np.sqrt(np.einsum("ij,ij->i", vectors, vectors))
+    keep = np.flatnonzero(lengths > 1e-6)
+    axes = vectors[keep] / lengths[keep, None]
+    neck_to_head = joints[3] - joints[2]
+    head = joints[3] + HEAD_DIAMETER_M / 2 * neck_to_head / max(np.linalg.norm(neck_to_head), 1e-9)
+    label = [head[0], head[1], joints[:, 2].max() + 0.35]
+    n = len(keep)
+    numbers = np.round(np.concatenate([((starts + ends) / 2)[keep].ravel(), _z_to(axes).ravel(),
+                                       lengths[keep], joints.ravel(), head, label]),
+                       _GEOMETRY_DECIMALS).tolist()
+    mid, turn, length = numbers[:3 * n], numbers[3 * n:7 * n], numbers[7 * n:8 * n]
+    points = numbers[8 * n:]
+    thick, joint_d = BONE_THICKNESS_M, JOINT_DIAMETER_M
+    cylinders = [{"pose": {"position": {"x": mid[3 * i], "y": mid[3 * i + 1], "z": mid[3 * i + 2]},
+                           "orientation": {"x": turn[4 * i], "y": turn[4 * i + 1],
+                                           "z": turn[4 * i + 2], "w": turn[4 * i + 3]}},
+                  "size": {"x": thick, "y": thick, "z": length[i]},
+                  "bottom_scale": 1.0, "top_scale": 1.0, "color": bone_colours[k]}
+                 for i, k in enumerate(keep.tolist())]
+    spheres = [{"pose": {"position": {"x": points[3 * i], "y": points[3 * i + 1],
+                                      "z": points[3 * i + 2]}, "orientation": _NO_TURN},
+                "size": {"x": d, "y": d, "z": d}, "color": sphere_colours[i]}
+               for i, d in enumerate([joint_d] * len(joints) + [HEAD_DIAMETER_M])]
+    x, y, z = points[-3:]
     return {
         "timestamp": _timestamp(time_ns),
         "frame_id": WORLD_FRAME,
@@ -212,13 +283,35 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
         "frame_locked": False,
         "metadata": [{"key": "track_id", "value": str(track_id)},
                      {"key": "ambiguous", "value": str(bool(ambiguous)).lower()}],
-        "arrows": [], "cubes": [], "cylinders": [], "triangles": [], "models": [],
+        "arrows": [], "cubes": [], "lines": [], "triangles": [], "models": [],
         "spheres": spheres,
-        "lines": [{"type": 2, "pose": _identity_pose(), "thickness": BONE_THICKNESS_M,
-                   "scale_invariant": False, "points": _point_dicts(segments),
-                   "color": colour, "colors": [], "indices": []}],
-        "texts": [{"pose": label_pose, "billboard": True, "font_size": 0.15,
-                   "scale_invariant": False, "color": colour, "text": f"track {track_id}"}],
+        "cylinders": cylinders,
+        "texts": [{"pose": {"position": {"x": x, "y": y, "z": z}, "orientation": _NO_TURN},
+                   "billboard": True, "font_size": 0.15, "scale_invariant": False,
+                   "color": label_colour, "text": text}],
+    }
+
+
+def trail_entity(track_id: int, time_ns: int, path_m: np.ndarray, ages: np.ndarray) -> dict:
+    """A ``foxglove.SceneEntity`` (id ``trail-<id>``) drawing a track's pelvis path on the
+    ground as a line strip in the track colour, fading out with age.
+
+    path_m: (N, 2) ground positions, Z-up world metres; ages: (N,) in [0, 1], 0 = newest
+    (opaque), 1 = oldest (transparent).
+    """
+    points = np.column_stack([path_m, np.full(len(path_m), 0.005)])
+    rgb = np.tile(track_colour(track_id), (len(points), 1))
+    return {
+        "timestamp": _timestamp(time_ns), "frame_id": WORLD_FRAME, "id": f"trail-{track_id}",
+        "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
+        "metadata": [{"key": "track_id", "value": str(track_id)}],
+        "arrows": [], "cubes": [], "spheres": [], "cylinders": [], "triangles": [],
+        "models": [], "texts": [],
+        "lines": [{"type": 0, "pose": _identity_pose(), "thickness": TRAIL_THICKNESS_M,
+                   "scale_invariant": False, "points": _point_dicts(points),
+                   "color": {"r": rgb[0, 0], "g": rgb[0, 1], "b": rgb[0, 2], "a": 1.0},
+                   "colors": _colour_dicts(rgb, 1.0 - np.clip(ages, 0.0, 1.0)),
+                   "indices": []}],
     }
 
 
@@ -301,6 +394,7 @@ class McapSink:
         self._entities: dict[int, dict] = {}
         self._shown: set[int] = set()  # track ids drawn in the last written scene update
         self._frames_since_flush = 0
+        self._trails: dict[int, deque] = {}   # track id -> (time s, x, y) of its root
         self.messages_written = 0
 
     @property
@@ -346,6 +440,10 @@ class McapSink:
             message["centroid_px"] = [float(c) for c in centroid_px]
         self._add(self._pose_channel, time_ns, message)
         self._entities[track_id] = skeleton_entity(track_id, time_ns, joints, bool(ambiguous))
+        trail = self._trails.setdefault(track_id, deque())
+        trail.append((time_s, joints[0, 0], -joints[0, 2]))     # the root on the Z-up ground
+        while trail[0][0] < time_s - TRAIL_S:
+            trail.popleft()
 
     def end_frame(self, frame_index: int) -> None:
         """Nothing here: a frame's scene update is written when the next frame's first pose
@@ -368,9 +466,16 @@ class McapSink:
             return
         stamp = _timestamp(self._frame_ns)
         gone = sorted(self._shown - set(self._entities))
+        entities = [self._entities[t] for t in sorted(self._entities)]
+        if self._frame % TRAIL_EVERY == 0:
+            entities += [self._trail(t) for t in sorted(self._entities)
+                         if len(self._trails[t]) >= 2]
+        for track_id in gone:
+            self._trails.pop(track_id, None)
         update = {
-            "deletions": [{"timestamp": stamp, "type": 0, "id": f"track-{t}"} for t in gone],
-            "entities": [self._entities[t] for t in sorted(self._entities)],
+            "deletions": [{"timestamp": stamp, "type": 0, "id": f"{kind}-{t}"}
+                          for t in gone for kind in ("track", "trail")],
+            "entities": entities,
         }
         self._add(self._scene_channel, self._frame_ns, update)
         self._shown = set(self._entities)
@@ -380,6 +485,11 @@ class McapSink:
         if self._frames_since_flush >= self._flush_every:
             writer.flush()  # closes the chunk: it is now safe from a crash
             self._frames_since_flush = 0
+
+    def _trail(self, track_id: int) -> dict:
+        samples = np.array(self._trails[track_id])[::-1][::3][::-1]   # every 3rd, newest kept
+        ages = (samples[-1, 0] - samples[:, 0]) / TRAIL_S
+        return trail_entity(track_id, self._frame_ns, samples[:, 1:], ages)
 
     def close(self) -> None:
         """Write the last frame's scene, the summary and the footer; idempotent."""

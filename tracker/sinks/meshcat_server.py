@@ -32,6 +32,7 @@ import warnings
 import tornado.httpserver
 import tornado.netutil
 import tornado.web
+import tornado.websocket
 import zmq
 from zmq.eventloop.zmqstream import ZMQStream
 
@@ -70,6 +71,13 @@ class _LoopbackApplication(tornado.web.Application):
         return server
 
 
+class _PageSocket(WebSocketHandler):
+    """meshcat's WebSocket handler, whose page may already have been dropped on closing."""
+
+    def on_close(self):
+        self.bridge.websocket_pool.discard(self)
+
+
 class LoopbackBridge(ZMQWebSocketBridge):
     """meshcat's ZMQ/WebSocket bridge with both sockets on 127.0.0.1 and OS-chosen ports."""
 
@@ -82,8 +90,18 @@ class LoopbackBridge(ZMQWebSocketBridge):
         return _LoopbackApplication([
             (r"/static/(.*)", StaticFileHandlerNoCache,
              {"path": VIEWER_ROOT, "default_filename": VIEWER_HTML}),
-            (r"/", WebSocketHandler, {"bridge": self}),
+            (r"/", _PageSocket, {"bridge": self}),
         ])
+
+    def forward_to_websockets(self, frames):
+        """As meshcat's, but a page closed while a command is sent is dropped: meshcat's would
+        raise, the command would go unanswered and the tracker would give up on the server."""
+        data = frames[2]
+        for websocket in list(self.websocket_pool):
+            try:
+                websocket.write_message(data, binary=True)
+            except tornado.websocket.WebSocketClosedError:
+                self.websocket_pool.discard(websocket)
 
     def setup_zmq(self, url):
         socket = self.context.socket(zmq.REP)

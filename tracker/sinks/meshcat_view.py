@@ -1,94 +1,158 @@
-"""Live 3-D view of the tracked skeletons in a browser, through meshcat.
+"""Live 3-D view of the tracked people in a browser, through meshcat.
 
-One skeleton per track under ``/skeletons/track-<id>``: bones as line segments and joints as
-small spheres (one merged triangle mesh), in the track's colour, updated on every ``write``.
-Tracks that were not written in the previous frame are removed. Positions are drawn as given
-(metres, Y up in, converted to meshcat's Z-up world).
+What the page shows (Z-up metres, tracker.sinks.geometry conventions):
+- each track's body as solid geometry (a cylinder per bone, a sphere per joint, a head ball):
+  the centre line in the track colour, the LEFT and RIGHT sides in its hue turned one way and
+  the other (geometry.body_colours: red track, orange left, magenta right), so a left/right swap
+  shows at a glance; a label "track N" above the head. Ambiguous frames
+  (TrackedPose.ambiguous) are drawn translucent and labelled "track N (ambiguous)".
+- the pelvis path of each track as a ribbon on the ground, fading over ``trail_s`` seconds.
+- the video beside the people: a small copy of the current frame with each silhouette outlined
+  in its track colour (video_panel.py), on a screen with a dark bezel, ``video_fps`` times a
+  second.
+- a camera looking the way the video camera does (the tracker's assumed field of view), from
+  above and behind it, that follows the people (framing.py): the whole scene is shifted so the
+  people stay in the middle, so the orbit controls stay the user's, and a page opened at any
+  time shows every person in view.
 
-The view talks to a :class:`tracker.sinks.meshcat_server.ViewerServer` (127.0.0.1 only) through
-meshcat's ``Visualizer``; by default it starts its own server and stops it on ``close()``.
+Scene paths: ``/people`` (shifted by the follow) holds ``ground``, ``tracks/track-<id>/body``,
+``tracks/track-<id>/label`` and ``trails/track-<id>``; ``/video`` holds the screen. Tracks not
+written in the previous frame are removed. The view talks to a
+:class:`tracker.sinks.meshcat_server.ViewerServer` (127.0.0.1 only) through meshcat's
+``Visualizer``; by default it starts its own server and stops it on ``close()``.
 """
 from __future__ import annotations
 
+import base64
 import contextlib
+import functools
 import io
 import time
+from collections import deque
+from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
 import zmq
 
+from tracker.sinks.body_mesh import body_mesh
+from tracker.sinks.framing import Framing
 from tracker.sinks.meshcat_server import ViewerServer
 from tracker.sinks.geometry import (
     SinkInputError,
-    bone_segments,
+    body_colours,
     check_joints,
     track_colour,
     y_up_to_z_up,
 )
+from tracker.sinks.video_panel import encode_jpeg, encode_png, label_image, panel_image
 
 if TYPE_CHECKING:
     from ..pipeline import TrackedPose
+    from ..silhouettes import PersonMask
 
 _REPLY_TIMEOUT_MS = 10_000  # a dead server must not hang the tracker forever
+#: Colours of the scene (0xRRGGBB): ground, grid lines, the video screen's bezel.
+GROUND_COLOUR, GRID_COLOUR, BEZEL_COLOUR = 0xE4E6EA, 0xB4B8C0, 0x1F2938
+_GROUND_RGB = np.array([0xE4, 0xE6, 0xEA]) / 255.0
+_LABEL_SIZE_M = (0.8, 0.2)
+_TRAIL_WIDTH_M = 0.07
 
 
-def _icosphere() -> tuple[np.ndarray, np.ndarray]:
-    """Unit icosahedron subdivided once: vertices (42, 3) on the unit sphere, faces (80, 3)."""
-    t = (1.0 + 5.0 ** 0.5) / 2.0
-    vertices = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                         [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]],
-                        dtype=np.float64)
-    faces = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
-                      [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
-                      [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
-                      [8, 6, 7], [9, 8, 1]])
-    # Split each triangle into four through its edge midpoints (shared midpoints merged).
-    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
-    unique, inverse = np.unique(edges, axis=0, return_inverse=True)
-    mid = len(vertices) + inverse.reshape(3, -1).T  # (20, 3): midpoints of edges 01, 12, 20
-    vertices = np.concatenate([vertices, vertices[unique].mean(axis=1)])
-    a, b, c = faces.T
-    ab, bc, ca = mid.T
-    faces = np.concatenate([np.stack(f, axis=1) for f in
-                            ((a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca))])
-    return vertices / np.linalg.norm(vertices, axis=1, keepdims=True), faces
+def _transform(rotation: np.ndarray | None = None, translation=(0.0, 0.0, 0.0)) -> np.ndarray:
+    matrix = np.eye(4)
+    if rotation is not None:
+        matrix[:3, :3] = rotation
+    matrix[:3, 3] = translation
+    return matrix
 
 
-_SPHERE_VERTICES, _SPHERE_FACES = _icosphere()
+def trail_ribbon(points: np.ndarray, ages: np.ndarray, colour, width_m: float = _TRAIL_WIDTH_M
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A flat ribbon along a ground path, fading into the ground colour with age.
 
-
-def joint_spheres(joints: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """One triangle mesh of a sphere around every joint.
-
-    joints: (N, 3) metres. Returns vertices (N * 42, 3) float32 and faces (N * 80, 3) uint32.
+    points: (N, 2) ground positions, metres, N >= 2; ages: (N,) in [0, 1], 0 = newest (full
+    colour), 1 = oldest (ground colour); colour: RGB in [0, 1]. Returns vertices (2N, 3)
+    float32 at z = 5 mm, faces (2(N-1), 3) uint32, vertex colours (2N, 3) float32.
     """
-    n = len(joints)
-    vertices = joints[:, None, :] + radius_m * _SPHERE_VERTICES[None]
-    faces = _SPHERE_FACES[None] + len(_SPHERE_VERTICES) * np.arange(n)[:, None, None]
-    return vertices.reshape(-1, 3).astype(np.float32), faces.reshape(-1, 3).astype(np.uint32)
+    tangent = np.gradient(points, axis=0)
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-9)
+    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]]) * (width_m / 2)
+    ground = np.column_stack([points, np.full(len(points), 0.005)])
+    side = np.column_stack([normal, np.zeros(len(points))])
+    vertices = np.stack([ground - side, ground + side], axis=1).reshape(-1, 3)
+    i = 2 * np.arange(len(points) - 1)
+    faces = np.concatenate([np.stack([i, i + 2, i + 1], 1), np.stack([i + 1, i + 2, i + 3], 1)])
+    fade = np.clip(ages, 0.0, 1.0)[:, None]
+    colours = (1 - fade) * np.asarray(colour) + fade * _GROUND_RGB
+    return (vertices.astype(np.float32), faces.astype(np.uint32),
+            np.repeat(colours, 2, axis=0).astype(np.float32))
 
 
-def _hex(track_id: int) -> int:
-    r, g, b = (int(round(255 * c)) for c in track_colour(track_id))
-    return (r << 16) | (g << 8) | b
+@functools.cache
+def _meshcat_extras():
+    """meshcat element types that meshcat 0.3.2 lacks: (PlaneGeometry, JpegImage). Built on
+    first use: importing meshcat is deferred (it pulls in IPython)."""
+    import meshcat.geometry as g
+
+    class PlaneGeometry(g.Geometry):
+        """three.js PlaneGeometry: width along X, height along Y, facing +Z."""
+
+        def __init__(self, width: float, height: float):
+            super().__init__()
+            self.width, self.height = float(width), float(height)
+
+        def lower(self, object_data):
+            return {"uuid": self.uuid, "type": "PlaneGeometry", "width": self.width,
+                    "height": self.height, "widthSegments": 1, "heightSegments": 1}
+
+    class JpegImage(g.Image):
+        """A JPEG for an ImageTexture (meshcat's PngImage only sends PNGs)."""
+
+        def __init__(self, data: bytes):
+            super().__init__()
+            self.data = data
+
+        def lower(self, object_data):
+            return {"uuid": self.uuid, "url": "data:image/jpeg;base64," +
+                    base64.b64encode(self.data).decode("ascii")}
+
+    return PlaneGeometry, JpegImage
+
+
+def _plane(width: float, height: float):
+    return _meshcat_extras()[0](width, height)
+
+
+def smooth_path(points: np.ndarray, window: int) -> np.ndarray:
+    """Moving average of a path (N, 2) over ``window`` samples (shorter at the ends, where
+    the end points are kept): the root's ground position jitters with the silhouette's box."""
+    n = len(points)
+    half = min(window // 2, (n - 1) // 2)
+    if half < 1:
+        return points
+    cumulative = np.vstack([np.zeros((1, points.shape[1])), np.cumsum(points, axis=0)])
+    index = np.arange(n)
+    reach = np.minimum(np.minimum(index, n - 1 - index), half)   # symmetric, shrinking at ends
+    return (cumulative[index + reach + 1] - cumulative[index - reach]) / (2 * reach + 1)[:, None]
 
 
 class MeshcatView:
-    """Live skeleton view (see the module docstring).
+    """Live view of the tracked people (see the module docstring).
 
     server: a running ViewerServer to draw into; None starts one (owned: stopped by close()).
-    joint_radius_m: sphere radius at each joint. camera_position_m: where the browser's camera
-    starts, metres in the Z-up world (default: in front of a subject at heading 0, seen from
-    the video camera's side, a little to the right and above); it orbits the origin. None keeps
-    meshcat's default. print_url: print the page's address on start. realtime: draw each pose
-    no sooner than its video time after the first (play at the video's own speed).
-    Attributes: web_url (open it in a browser).
+    print_url: print the page's address on start. realtime: draw each frame no sooner than its
+    video time after the first (play at the video's own speed). video_fps: screen updates a
+    second (0: no screen); video_width_px: width of the copy of the frame sent. trail_s: seconds
+    of pelvis path drawn; trail_every: redraw each trail every this many frames.
+    framing: a framing.Framing (default: the tracker's assumed field of view, 4:3).
+    Attributes: web_url (open it in a browser); frames_drawn, draw_seconds (time spent
+    sending, not waiting), screens_drawn.
     """
 
-    def __init__(self, server: ViewerServer | None = None, joint_radius_m: float = 0.04,
-                 camera_position_m: tuple[float, float, float] | None = (0.8, -3.5, 1.4),
-                 print_url: bool = True, realtime: bool = False):
+    def __init__(self, server: ViewerServer | None = None, print_url: bool = True,
+                 realtime: bool = False, video_fps: float = 5.0, video_width_px: int = 256,
+                 trail_s: float = 8.0, trail_every: int = 5, framing: Framing | None = None):
         import meshcat  # deferred: it pulls in IPython and PIL, needed only for the live view
         import meshcat.geometry
 
@@ -96,16 +160,21 @@ class MeshcatView:
         self._owns_server = server is None
         self.server = ViewerServer() if server is None else server
         self.web_url = self.server.web_url
-        self._radius = float(joint_radius_m)
+        self.framing = framing or Framing()
         self._frame: int | None = None
         self._last_frame: dict[int, int] = {}  # track id -> last frame it was drawn in
-        # Ground point (x, 0, z) metres under the first person's first root: subtracted from
-        # every skeleton, so people appear near the viewer's origin, where its camera looks,
-        # rather than metres away at their camera-relative positions.
-        self._anchor: np.ndarray | None = None
+        self._labels: dict[int, str] = {}      # track id -> label text on screen
+        self._trails: dict[int, deque] = {}    # track id -> (time s, x, y) of its pelvis
+        self._roots: list[np.ndarray] = []     # roots drawn in the current frame (Z-up)
+        self._frame_time_s, self._frame_done = 0.0, False
         self._closed = False
         self._realtime = realtime
-        self._clock_start: tuple[float, float] | None = None   # (video s, wall s) of pose 1
+        self._clock_start: tuple[float, float] | None = None   # (video s, wall s) of frame 1
+        self._video_interval_s = 1.0 / video_fps if video_fps > 0 else float("inf")
+        self._video_width_px = int(video_width_px)
+        self._last_screen_s = -float("inf")
+        self._trail_s, self._trail_every = float(trail_s), max(1, int(trail_every))
+        self.frames_drawn, self.screens_drawn, self.draw_seconds = 0, 0, 0.0
         try:
             with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL itself
                 self._vis = meshcat.Visualizer(zmq_url=self.server.zmq_url)
@@ -113,54 +182,159 @@ class MeshcatView:
             socket.setsockopt(zmq.RCVTIMEO, _REPLY_TIMEOUT_MS)
             socket.setsockopt(zmq.SNDTIMEO, _REPLY_TIMEOUT_MS)
             socket.setsockopt(zmq.LINGER, 0)
-            self._vis["skeletons"].delete()
-            if camera_position_m is not None:
-                self._place_camera(camera_position_m)
+            self._set_stage()
         except BaseException:
             self.close()
             raise
         if print_url:
             print(f"meshcat viewer: {self.web_url}")
 
-    def _place_camera(self, position: tuple[float, float, float]) -> None:
+    # ------------------------------------------------------------ scene set-up
+
+    def _set_stage(self) -> None:
+        """Light background, our own ground (it moves with the people group), the camera."""
+        g, vis = self._g, self._vis
+        vis["people"].delete()
+        vis["video"].delete()
+        for path in ("/Grid", "/Axes"):
+            vis[path].set_property("visible", False)
+        vis["/Background"].set_property("top_color", [0.97, 0.98, 1.0])
+        vis["/Background"].set_property("bottom_color", [0.78, 0.83, 0.9])
+        vis["people/ground/plane"].set_object(_plane(200.0, 200.0),
+                                              g.MeshBasicMaterial(color=GROUND_COLOUR))
+        ticks = np.arange(-30.0, 30.5, 1.0)
+        lines = np.concatenate([[[t, -30, 0.01], [t, 30, 0.01]] for t in ticks] +
+                               [[[-30, t, 0.01], [30, t, 0.01]] for t in ticks])
+        vis["people/ground/grid"].set_object(g.LineSegments(
+            g.PointsGeometry(lines.T.astype(np.float32)), g.LineBasicMaterial(color=GRID_COLOUR)))
+        fov = self.framing.vertical_fov_deg
+        vis["/Cameras/default"].set_transform(np.eye(4))
+        vis["/Cameras/default/rotated"].set_object(
+            g.PerspectiveCamera(fov=fov, aspect=self.framing.aspect, near=0.05, far=200.0))
+        self._place_camera()
+        self._follow()
+
+    def _place_camera(self) -> None:
         # meshcat's camera lives in a frame rotated to three.js's Y-up convention:
-        # Z-up (x, y, z) is (x, z, -y) there.
-        x, y, z = (float(c) for c in position)
-        self._vis["/Cameras/default"].set_transform(np.eye(4))
+        # Z-up (x, y, z) is (x, z, -y) there. It orbits the origin, where the people are kept.
+        x, y, z = (float(c) for c in self.framing.camera_offset)
         self._vis["/Cameras/default/rotated/<object>"].set_property("position", [x, z, -y])
+        self._place_screen()
+
+    def _place_screen(self) -> None:
+        rotation = self.framing.facing_rotation()
+        centre = self.framing.screen_centre
+        width, height = self.framing.screen_size_m
+        g = self._g
+        self._vis["video"].set_transform(_transform(rotation, centre))
+        self._vis["video/bezel"].set_object(_plane(width + 0.08, height + 0.08),
+                                            g.MeshBasicMaterial(color=BEZEL_COLOUR))
+        self._vis["video/bezel"].set_transform(_transform(translation=(0, 0, -0.005)))
+
+    def _follow(self) -> None:
+        self._vis["people"].set_transform(_transform(translation=-self.framing.look_at))
 
     @property
     def closed(self) -> bool:
         """True after close()."""
         return self._closed
 
+    # ------------------------------------------------------------ per frame
+
     def write(self, pose: TrackedPose) -> None:
-        """Draw track ``pose.track_id`` at pose.joints_m (18, 3) metres (Y up), shifted so the
-        first person drawn starts above the viewer's origin; with ``realtime``, not before the
-        pose's video time has passed since the first pose. Raises SinkInputError on bad joints
-        or when closed; zmq.Again when the server does not answer within 10 s."""
+        """Draw track ``pose.track_id`` at pose.joints_m (18, 3) metres (Y up); with
+        ``realtime``, not before the pose's video time has passed since the first frame.
+        Raises SinkInputError on bad joints or when closed; zmq.Again when the server does not
+        answer within 10 s."""
         if self._closed:
             raise SinkInputError("meshcat view is closed")
-        joints = check_joints(pose.joints_m)
-        frame_index, track_id = pose.frame_index, pose.track_id
+        joints = y_up_to_z_up(check_joints(pose.joints_m))
+        frame_index, track_id = int(pose.frame_index), int(pose.track_id)
         if self._realtime:
             self._wait_until(pose.time_s)
-        if self._anchor is None:
-            self._anchor = np.array([joints[0, 0], 0.0, joints[0, 2]])
-        joints = y_up_to_z_up(joints - self._anchor)
-        frame_index, track_id = int(frame_index), int(track_id)
+        clock = time.perf_counter()
         if frame_index != self._frame:
-            self._remove_absent_tracks()
-            self._frame = frame_index
-        node = self._vis["skeletons"][f"track-{track_id}"]
-        g, colour = self._g, _hex(track_id)
-        segments = bone_segments(joints).reshape(-1, 3).T.astype(np.float32)  # (3, 2B)
-        node["bones"].set_object(g.LineSegments(g.PointsGeometry(segments),
-                                                g.LineBasicMaterial(color=colour, linewidth=3)))
-        vertices, faces = joint_spheres(joints, self._radius)
-        node["joints"].set_object(g.TriangularMeshGeometry(vertices, faces),
-                                  g.MeshLambertMaterial(color=colour))
+            self._finish_frame()
+            self._frame, self._frame_time_s, self._frame_done = frame_index, pose.time_s, False
+        node = self._vis["people/tracks"][f"track-{track_id}"]
+        g = self._g
+        vertices, faces, colours = body_mesh(joints, body_colours(track_id))
+        material = g.MeshLambertMaterial(vertexColors=True, opacity=0.5 if pose.ambiguous else 1.0)
+        node["body"].set_object(g.TriangularMeshGeometry(vertices, faces, colours), material)
+        self._draw_label(node["label"], track_id, joints, bool(pose.ambiguous))
+        trail = self._trails.setdefault(track_id, deque())
+        trail.append((float(pose.time_s), joints[0, 0], joints[0, 1]))
+        while trail and trail[0][0] < pose.time_s - self._trail_s:
+            trail.popleft()
+        if frame_index % self._trail_every == 0:
+            self._draw_trail(track_id, trail)
+        self._roots.append(joints[0])
         self._last_frame[track_id] = frame_index
+        self.draw_seconds += time.perf_counter() - clock
+
+    def _draw_label(self, node, track_id: int, joints: np.ndarray, ambiguous: bool) -> None:
+        text = f"track {track_id}" + (" (ambiguous)" if ambiguous else "")
+        if self._labels.get(track_id) != text:
+            g = self._g
+            png = encode_png(label_image(text, track_colour(track_id)))
+            node.set_object(_plane(*_LABEL_SIZE_M), g.MeshBasicMaterial(
+                map=g.ImageTexture(g.PngImage(png)), transparent=True))
+            self._labels[track_id] = text
+        top = joints[:, 2].max() + 0.3
+        head = joints[3]
+        node.set_transform(_transform(self.framing.facing_rotation(), (head[0], head[1], top)))
+
+    def _draw_trail(self, track_id: int, trail: deque) -> None:
+        node = self._vis["people/trails"][f"track-{track_id}"]
+        if len(trail) < 2:
+            return
+        samples = np.array(trail)
+        ages = (samples[-1, 0] - samples[:, 0]) / self._trail_s
+        vertices, faces, colours = trail_ribbon(smooth_path(samples[:, 1:], 9), ages,
+                                                track_colour(track_id))
+        g = self._g
+        node.set_object(g.TriangularMeshGeometry(vertices, faces, colours),
+                        g.MeshBasicMaterial(vertexColors=True))
+
+    def _finish_frame(self) -> None:
+        """Follow the people drawn in the frame just finished and remove the tracks that were
+        not drawn in it."""
+        if self._frame is None or self._frame_done:
+            return
+        self._frame_done = True
+        if self._roots:
+            if self.framing.update(np.array(self._roots), self._frame_time_s):
+                self._place_camera()
+            self._follow()
+            self.frames_drawn += 1
+        self._roots = []
+        gone = [t for t, f in self._last_frame.items() if f != self._frame]
+        for track_id in gone:
+            self._vis["people/tracks"][f"track-{track_id}"].delete()
+            self._vis["people/trails"][f"track-{track_id}"].delete()
+            for kept in (self._last_frame, self._labels, self._trails):
+                kept.pop(track_id, None)
+
+    def write_frame(self, frame_index: int, time_s: float, frame: np.ndarray,
+                    people: Mapping[int, PersonMask]) -> None:
+        """Show the video frame (BGR uint8 (H, W, 3)) with its people's outlines, if
+        1 / video_fps seconds of video have passed since the last one shown; with
+        ``realtime``, not before its video time."""
+        if self._closed:
+            raise SinkInputError("meshcat view is closed")
+        if self._realtime:
+            self._wait_until(time_s)
+        if time_s - self._last_screen_s < self._video_interval_s:
+            return
+        clock = time.perf_counter()
+        self._last_screen_s = time_s
+        g = self._g
+        jpeg = encode_jpeg(panel_image(frame, people, self._video_width_px))
+        self._vis["video/frame"].set_object(
+            _plane(*self.framing.screen_size_m),
+            g.MeshBasicMaterial(map=g.ImageTexture(_meshcat_extras()[1](jpeg))))
+        self.screens_drawn += 1
+        self.draw_seconds += time.perf_counter() - clock
 
     def _wait_until(self, time_s: float) -> None:
         """Sleep until time_s of video has passed (wall clock) since the first pose drawn:
@@ -173,14 +347,11 @@ class MeshcatView:
             time.sleep(ahead)
 
     def end_frame(self, frame_index: int) -> None:
-        """Nothing per frame: tracks absent from a frame are removed when the next one starts."""
-
-    def _remove_absent_tracks(self) -> None:
-        """Delete skeletons of tracks not drawn in the frame that just ended."""
-        gone = [t for t, f in self._last_frame.items() if f != self._frame]
-        for track_id in gone:
-            self._vis["skeletons"][f"track-{track_id}"].delete()
-            del self._last_frame[track_id]
+        """Follow the frame's people with the camera; remove the tracks absent from it (also
+        done when a pose of a later frame is written without end_frame)."""
+        clock = time.perf_counter()
+        self._finish_frame()
+        self.draw_seconds += time.perf_counter() - clock
 
     def close(self) -> None:
         """Disconnect, and stop the server if this view started it; idempotent."""
