@@ -19,7 +19,7 @@ import zmq
 
 from tracker.sinks.meshcat_server import ViewerServer
 from tracker.video import focal_length_px
-from tracker.sinks.meshcat_view import MeshcatView, joint_spheres
+from tracker.sinks.meshcat_view import MeshcatView, ViewLostWarning, joint_spheres
 from tracker import TrackedPose
 from tracker.sinks.geometry import (
     BONE_INDEX,
@@ -197,6 +197,31 @@ def test_view_draws_each_track_and_removes_tracks_that_left():
     assert view.closed and _gone(view.server.pid)
     with pytest.raises(SinkInputError, match="closed"):
         view.write(TrackedPose(4, 0.16, 1, POSE, POSE, False, JOINTS))
+
+
+def test_a_killed_server_gives_one_warning_and_tracking_goes_on():
+    with MeshcatView(print_url=False) as view:
+        view.write(TrackedPose(0, 0.0, 1, POSE, POSE, False, JOINTS))
+        os.kill(view.server.pid, signal.SIGKILL)
+        started = time.monotonic()
+        with pytest.warns(ViewLostWarning, match="meshcat viewer stopped") as caught:
+            for frame in range(1, 6):
+                view.write(TrackedPose(frame, frame / 25, 1, POSE, POSE, False, JOINTS))
+        assert len(caught) == 1
+        assert time.monotonic() - started < 2.0         # not a 10 s hang per frame
+
+
+def test_a_stalled_server_drops_frames_within_a_second():
+    with MeshcatView(print_url=False) as view:
+        os.kill(view.server.pid, signal.SIGSTOP)
+        try:
+            started = time.monotonic()
+            view.write(TrackedPose(0, 0.0, 1, POSE, POSE, False, JOINTS))   # no exception
+            assert time.monotonic() - started < 2.0
+        finally:
+            os.kill(view.server.pid, signal.SIGCONT)
+        view.write(TrackedPose(1, 0.04, 1, POSE, POSE, False, JOINTS))      # still drawing
+        assert any("skeletons" in p for p in _scene_paths(view.server.zmq_url))
 
 
 def test_joint_spheres_are_closed_meshes_of_the_right_radius():

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import io
 import time
+import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -30,7 +31,13 @@ from tracker.sinks.geometry import (
 if TYPE_CHECKING:
     from ..pipeline import TrackedPose
 
-_REPLY_TIMEOUT_MS = 10_000  # a dead server must not hang the tracker forever
+# A dead server must not hang the tracker: after this long without an answer the frame is
+# dropped (the server is slow) or the view is given up (the server process is gone).
+_REPLY_TIMEOUT_MS = 1_000
+
+
+class ViewLostWarning(UserWarning):
+    """The meshcat server stopped; tracking goes on without the live view (one line)."""
 
 
 def _icosphere() -> tuple[np.ndarray, np.ndarray]:
@@ -104,6 +111,7 @@ class MeshcatView:
         # rather than metres away at their camera-relative positions.
         self._anchor: np.ndarray | None = None
         self._closed = False
+        self._lost = False          # the server stopped: writes do nothing
         self._realtime = realtime
         self._clock_start: tuple[float, float] | None = None   # (video s, wall s) of pose 1
         try:
@@ -113,6 +121,9 @@ class MeshcatView:
             socket.setsockopt(zmq.RCVTIMEO, _REPLY_TIMEOUT_MS)
             socket.setsockopt(zmq.SNDTIMEO, _REPLY_TIMEOUT_MS)
             socket.setsockopt(zmq.LINGER, 0)
+            # After a timeout, send the next request anyway and ignore a late answer.
+            socket.setsockopt(zmq.REQ_RELAXED, 1)
+            socket.setsockopt(zmq.REQ_CORRELATE, 1)
             self._vis["skeletons"].delete()
             if camera_position_m is not None:
                 self._place_camera(camera_position_m)
@@ -138,10 +149,28 @@ class MeshcatView:
         """Draw track ``pose.track_id`` at pose.joints_m (18, 3) metres (Y up), shifted so the
         first person drawn starts above the viewer's origin; with ``realtime``, not before the
         pose's video time has passed since the first pose. Raises SinkInputError on bad joints
-        or when closed; zmq.Again when the server does not answer within 10 s."""
+        or when closed. If the server process has stopped, warns once (ViewLostWarning) and
+        draws nothing from then on; a frame the server does not answer within 1 s is dropped."""
         if self._closed:
             raise SinkInputError("meshcat view is closed")
         joints = check_joints(pose.joints_m)
+        if self._lost or not self._server_alive():
+            return
+        try:
+            self._draw(pose, joints)
+        except zmq.Again:
+            self._server_alive()        # dead: warned; alive but slow: this frame is dropped
+
+    def _server_alive(self) -> bool:
+        """False (after one ViewLostWarning) once the server process has exited."""
+        if not self._lost and not self.server.running:
+            self._lost = True
+            warnings.warn(f"the meshcat viewer stopped (server process {self.server.pid} "
+                          f"exited); tracking goes on without the live view", ViewLostWarning,
+                          stacklevel=3)
+        return not self._lost
+
+    def _draw(self, pose: TrackedPose, joints: np.ndarray) -> None:
         frame_index, track_id = pose.frame_index, pose.track_id
         if self._realtime:
             self._wait_until(pose.time_s)
