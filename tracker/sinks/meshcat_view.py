@@ -34,6 +34,7 @@ if TYPE_CHECKING:
 # A dead server must not hang the tracker: after this long without an answer the frame is
 # dropped (the server is slow) or the view is given up (the server process is gone).
 _REPLY_TIMEOUT_MS = 1_000
+_STARTUP_TIMEOUT_MS = 10_000
 
 
 class ViewLostWarning(UserWarning):
@@ -118,8 +119,8 @@ class MeshcatView:
             with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL itself
                 self._vis = meshcat.Visualizer(zmq_url=self.server.zmq_url)
             socket = self._vis.window.zmq_socket
-            socket.setsockopt(zmq.RCVTIMEO, _REPLY_TIMEOUT_MS)
-            socket.setsockopt(zmq.SNDTIMEO, _REPLY_TIMEOUT_MS)
+            socket.setsockopt(zmq.RCVTIMEO, _STARTUP_TIMEOUT_MS)   # a just-started server
+            socket.setsockopt(zmq.SNDTIMEO, _STARTUP_TIMEOUT_MS)
             socket.setsockopt(zmq.LINGER, 0)
             # After a timeout, send the next request anyway and ignore a late answer.
             socket.setsockopt(zmq.REQ_RELAXED, 1)
@@ -127,6 +128,8 @@ class MeshcatView:
             self._vis["skeletons"].delete()
             if camera_position_m is not None:
                 self._place_camera(camera_position_m)
+            socket.setsockopt(zmq.RCVTIMEO, _REPLY_TIMEOUT_MS)
+            socket.setsockopt(zmq.SNDTIMEO, _REPLY_TIMEOUT_MS)
         except BaseException:
             self.close()
             raise
