@@ -18,7 +18,11 @@ for type, shape, mutual consistency and finite values whenever they are present:
 
 Other parts are stored and returned as they are (numbers and strings only). Two reserved
 entries are added on save: ``format_version`` and ``checksum`` (sha256 over every part's name,
-dtype, shape and bytes), so a changed, truncated or foreign file is refused with ModelFileError.
+dtype, shape and bytes), so a damaged, truncated or foreign file is refused with ModelFileError.
+The checksum is stored in the file it checks: it catches accidents (a cut-off download, a
+corrupted disk, an array edited by mistake), not deliberate tampering, since whoever changes the
+arrays can store their new checksum too. Use model files only from sources you trust; loading
+never runs code from them (no pickle).
 """
 from __future__ import annotations
 
@@ -120,6 +124,16 @@ def load_model(path: str | Path) -> ModelFile:
     inconsistent."""
     where = str(path)
     try:
+        with open(path, "rb") as fh:
+            magic = fh.read(4)
+    except FileNotFoundError:
+        raise ModelFileError(f"{where}: model file not found") from None
+    except OSError as exc:
+        raise ModelFileError(f"{where}: cannot read the model file ({exc.strerror})") from None
+    if magic != b"PK\x03\x04":          # every .npz is a zip archive
+        raise ModelFileError(f"{where}: not a model file (a model is an .npz archive written "
+                             f"by save_model; this file is not an .npz at all)")
+    try:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
     except FileNotFoundError:
@@ -135,7 +149,9 @@ def load_model(path: str | Path) -> ModelFile:
     if stored is None:
         raise ModelFileError(f"{where}: no checksum; refusing an unverifiable model file")
     if str(stored) != checksum(arrays):
-        raise ModelFileError(f"{where}: checksum mismatch; the file was altered or corrupted")
+        raise ModelFileError(f"{where}: checksum mismatch: the file was damaged or changed after "
+                             f"it was saved (the checksum catches accidents, not deliberate "
+                             f"tampering; use model files only from sources you trust)")
     for k, a in arrays.items():
         if a.dtype.kind not in "biufU":
             raise ModelFileError(f"{where}: part {k!r} has dtype {a.dtype}")

@@ -17,6 +17,7 @@ from mcap.reader import NonSeekingReader, make_reader
 from mcap.stream_reader import StreamReader
 
 from sequences.pose_vector import pose_vector_names
+from tracker.sinks.files import partial_path
 from tracker.sinks.mcap_repair import McapRecoveryError, recover_mcap
 from tracker.sinks.mcap import McapSink, SinkInputError
 from sequences.skeleton import POSE_JOINTS
@@ -277,20 +278,22 @@ def _wait_for_frame(proc: subprocess.Popen, frame: int) -> int:
     raise AssertionError("writer too slow")
 
 
-def test_sigkill_leaves_every_flushed_frame_recoverable(tmp_path):
+def test_sigkill_leaves_every_flushed_frame_recoverable_and_the_old_file_intact(tmp_path):
     path, repaired = tmp_path / "killed.mcap", tmp_path / "repaired.mcap"
+    path.write_bytes(b"the previous recording")
     flush_every = 4
     proc = _start_slow_writer(path, flush_every)
     last_printed = _wait_for_frame(proc, 25)
     proc.kill()
     proc.wait()
+    assert path.read_bytes() == b"the previous recording"      # replaced only when complete
     # Frames 0 .. F*floor(k/F)-1 were in closed chunks when write(k) returned.
     durable = flush_every * (last_printed // flush_every)
     # The raw file has no footer: the streaming reader yields the whole chunks, then stops.
-    with open(path, "rb") as stream, pytest.raises(Exception):
+    with open(partial_path(path), "rb") as stream, pytest.raises(Exception):
         for _ in StreamReader(stream, validate_crcs=True).records:
             pass
-    report = recover_mcap(path, repaired)
+    report = recover_mcap(partial_path(path), repaired)
     assert not report.complete
     frames = [json.loads(m.data)["frame_index"] for s, c, m in _messages(repaired)
               if c.topic == "/pose"]
@@ -307,7 +310,7 @@ def test_sigkill_keeps_chunks_closed_by_size(tmp_path):
     last_printed = _wait_for_frame(proc, 15)
     proc.kill()
     proc.wait()
-    recover_mcap(path, repaired)
+    recover_mcap(partial_path(path), repaired)
     frames = [json.loads(m.data)["frame_index"] for s, c, m in _messages(repaired)
               if c.topic == "/pose"]
     assert frames[: last_printed + 1] == list(range(last_printed + 1))

@@ -21,7 +21,7 @@ from tracker.sinks.meshcat_server import ViewerServer
 from tracker.video import focal_length_px
 from tracker.sinks.body_mesh import body_mesh, joint_spheres
 from tracker.sinks.framing import Framing
-from tracker.sinks.meshcat_view import MeshcatView, smooth_path, trail_ribbon
+from tracker.sinks.meshcat_view import MeshcatView, ViewLostWarning, smooth_path, trail_ribbon
 from sequences.skeleton import POSE_JOINTS
 from tracker import TrackedPose
 from tracker.sinks.geometry import (
@@ -258,6 +258,31 @@ def test_trail_ribbon_fades_from_the_track_colour_into_the_ground():
     assert colours[0, 1] > 0.8                                  # the oldest end: ground grey
     noisy = path + np.random.default_rng(0).normal(0, 0.05, path.shape)
     assert np.abs(smooth_path(noisy, 9)[3:-3, 1]).mean() < np.abs(noisy[3:-3, 1]).mean() / 2
+
+
+def test_a_killed_server_gives_one_warning_and_tracking_goes_on():
+    with MeshcatView(print_url=False) as view:
+        view.write(TrackedPose(0, 0.0, 1, POSE, POSE, False, JOINTS))
+        os.kill(view.server.pid, signal.SIGKILL)
+        started = time.monotonic()
+        with pytest.warns(ViewLostWarning, match="meshcat viewer stopped") as caught:
+            for frame in range(1, 6):
+                view.write(TrackedPose(frame, frame / 25, 1, POSE, POSE, False, JOINTS))
+        assert len(caught) == 1
+        assert time.monotonic() - started < 2.0         # not a 10 s hang per frame
+
+
+def test_a_stalled_server_drops_frames_within_a_second():
+    with MeshcatView(print_url=False) as view:
+        os.kill(view.server.pid, signal.SIGSTOP)
+        try:
+            started = time.monotonic()
+            view.write(TrackedPose(0, 0.0, 1, POSE, POSE, False, JOINTS))   # no exception
+            assert time.monotonic() - started < 2.0
+        finally:
+            os.kill(view.server.pid, signal.SIGCONT)
+        view.write(TrackedPose(1, 0.04, 1, POSE, POSE, False, JOINTS))      # still drawing
+        assert any("/people/tracks/track-1" in p for p in _scene_paths(view.server.zmq_url))
 
 
 def test_joint_spheres_are_closed_meshes_of_the_right_radius():

@@ -102,5 +102,23 @@ def test_missing_and_pickled_files_are_refused(tmp_path):
     with pytest.raises(ModelFileError):
         load_model(path)
     (tmp_path / "junk.npz").write_bytes(b"not a zip")
-    with pytest.raises(ModelFileError, match="not a readable"):
+    with pytest.raises(ModelFileError, match="not a model file"):
         load_model(tmp_path / "junk.npz")
+
+
+def test_a_text_file_is_not_a_model_file_rather_than_pickled_data(tmp_path):
+    text = tmp_path / "notes.txt"
+    text.write_text("a plain text file given as --model\n" * 20)
+    with pytest.raises(ModelFileError, match="not a model file") as caught:
+        load_model(text)
+    assert "pickle" not in str(caught.value)
+
+
+def test_checksum_error_says_it_catches_accidents_not_tampering(tmp_path):
+    path = save_model(tmp_path / "m.npz", coef=np.ones((2, 3)), intercept=np.zeros(3))
+    with np.load(path, allow_pickle=False) as npz:
+        raw = {k: npz[k] for k in npz.files}
+    raw["coef"] = raw["coef"] * 2
+    np.savez(path, **raw)
+    with pytest.raises(ModelFileError, match="not deliberate tampering"):
+        load_model(path)

@@ -5,26 +5,24 @@
 
 Without --out/--json/--bvh/--view it records to VIDEO_STEM.mcap in the current folder. Errors
 (bad video, model, options or output paths) print one line and exit non-zero; Ctrl-C stops
-cleanly, keeping every output written so far valid.
+cleanly, keeping every output written so far valid. Outputs never overwrite the input or each
+other, and an existing output is replaced only once its new version is complete.
+
+Only the standard library is imported at module level: numpy, OpenCV and the model are imported
+inside main(), where Ctrl-C during those first seconds is caught like any other.
 """
 from __future__ import annotations
 
 import argparse
 import math
 import os
+import re
 import signal
 import sys
+import warnings
 from pathlib import Path
 
-from threadpoolctl import threadpool_limits
-
 from regressor.errors import SilhouettePoseError
-from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-from .pipeline import PoseTracker, TrackerSettings
-from .progress import Progress
-from .run import TrackRun, track_video
-from .sinks import open_sinks
-from .video import open_video
 
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
 
@@ -50,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "(browser, 127.0.0.1), played at the video's own speed")
     ap.add_argument("--smooth", action="store_true", help="RTS-smooth each whole track for "
                     "the JSON and BVH outputs (offline use)")
-    ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH, help="model file "
+    ap.add_argument("--model", type=Path, default=None, help="model file "
                     "(default: the shipped model)")
     ap.add_argument("--max-people", type=int, default=None, metavar="N",
                     help="track at most N people per frame (largest first)")
@@ -60,15 +58,27 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+# Past any video (about 3 years): larger values are typing mistakes, and 1e308 s would
+# overflow the frame arithmetic.
+MAX_TIME_S = 1e8
+
+
 def _check_options(args) -> None:
+    """Refuse bad options and output paths before anything is written (TrackError, one line)."""
     if args.max_people is not None and not 1 <= args.max_people <= 100:
         raise TrackError(f"--max-people must be between 1 and 100, got {args.max_people}")
-    if not (math.isfinite(args.start) and args.start >= 0):
-        raise TrackError(f"--start must be a time in seconds >= 0, got {args.start}")
-    if args.end is not None and not (math.isfinite(args.end) and args.end > args.start):
-        raise TrackError(f"--end must be after --start ({args.start} s), got {args.end}")
+    if not (math.isfinite(args.start) and 0 <= args.start <= MAX_TIME_S):
+        raise TrackError(f"--start must be a time in seconds between 0 and {MAX_TIME_S:g}, "
+                         f"got {args.start}")
+    if args.end is not None and not (math.isfinite(args.end) and args.start < args.end
+                                     <= MAX_TIME_S):
+        raise TrackError(f"--end must be after --start ({args.start} s) and at most "
+                         f"{MAX_TIME_S:g} s, got {args.end}")
     if args.out is None and args.json is None and args.bvh is None and not args.view:
         args.out = Path(args.video.stem + ".mcap")
+        if _same_file(args.out, args.video):
+            raise TrackError(f"the default output {args.out} would be the input video; choose "
+                             f"an output with --out")
     for path, what in ((args.out, "--out"), (args.json, "--json")):
         if path is None:
             continue
@@ -77,8 +87,11 @@ def _check_options(args) -> None:
         folder = path.parent if str(path.parent) else Path(".")
         if not folder.is_dir():
             raise TrackError(f"{what} {path}: folder {folder} does not exist")
-        if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        written_in_place = path.exists() and not path.is_file()     # /dev/null, a FIFO
+        if (not written_in_place and not os.access(folder, os.W_OK)) or \
+                (path.exists() and not os.access(path, os.W_OK)):
             raise TrackError(f"{what} {path}: not writable")
+    _check_collisions(args)
     if args.bvh is not None:
         if args.bvh.exists() and not args.bvh.is_dir():
             raise TrackError(f"--bvh {args.bvh} exists and is not a folder")
@@ -88,6 +101,38 @@ def _check_options(args) -> None:
             raise TrackError(f"--bvh {args.bvh}: cannot create folder ({exc.strerror})")
         if not os.access(args.bvh, os.W_OK):
             raise TrackError(f"--bvh {args.bvh}: not writable")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    from .sinks.files import OutputPathError, check_distinct
+    try:
+        check_distinct([("", a), ("", b)])
+    except OutputPathError:
+        return True
+    return False
+
+
+def _check_collisions(args) -> None:
+    """No output (nor the file it is written as until complete) may be the input video or
+    another output, also through a relative path, a symlink or a hard link."""
+    from .sinks.files import check_distinct, partial_path
+    named = [("the input video", args.video)]
+    for path, what in ((args.out, "--out"), (args.json, "--json")):
+        if path is not None:
+            named += [(what, path), (f"{what}'s temporary file", partial_path(path))]
+    if args.bvh is not None:
+        named.append(("the --bvh folder", args.bvh))
+        bvh_names = re.compile(rf"\.?{re.escape(args.video.stem)}(_\d+\.bvh(\.partial)?|"
+                               rf"\.bvh\.lock)")
+        for what, path in named[:]:
+            if path.name and bvh_names.fullmatch(path.name) and \
+                    _same_file(path.parent if str(path.parent) else Path("."), args.bvh):
+                raise TrackError(f"{what} {path} may be overwritten by the BVH files in "
+                                 f"--bvh {args.bvh}; choose another name or folder")
+    try:
+        check_distinct(named)
+    except SilhouettePoseError as exc:
+        raise TrackError(str(exc)) from None
 
 
 def _sink_factories(args, source, model) -> tuple[list, list]:
@@ -125,12 +170,33 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
 
 def run(args) -> int:
     """Track args.video into the chosen outputs; returns the exit code."""
+    # Imported before threadpool_limits, which limits only the BLAS libraries already loaded.
+    from threadpoolctl import threadpool_limits
+
+    from . import pipeline  # noqa: F401 (loads numpy, scipy, filterpy, OpenCV)
+    # One BLAS thread: the per-frame matrices are small, and threads cost more than they save
+    # (a filter step took 8.7 ms with default threads, 0.5 ms with one).
+    with threadpool_limits(1):
+        return _run(args)
+
+
+def _run(args) -> int:
+    from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+    from .pipeline import PoseTracker, TrackerSettings
+    from .progress import Progress
+    from .run import track_video
+    from .sinks import open_sinks
+    from .video import open_video
+
     _check_options(args)
+    args.model = args.model or DEFAULT_MODEL_PATH
     model = load_pose_model(args.model)
     source = open_video(args.video, start_s=args.start, end_s=args.end)
     streaming, smoothed = _sink_factories(args, source, model)
     sinks = open_sinks(streaming + smoothed)
-    tracker = PoseTracker(model, source.fps, TrackerSettings(max_people=args.max_people))
+    # Per-track histories are kept only for --smooth: without it memory stays flat.
+    settings = TrackerSettings(max_people=args.max_people, keep_history=args.smooth)
+    tracker = PoseTracker(model, source.fps, settings)
     result = track_video(source, tracker, sinks[:len(streaming)],
                          Progress(source.expected_frames(), quiet=args.quiet),
                          smoothed_sinks=sinks[len(streaming):])
@@ -139,32 +205,37 @@ def run(args) -> int:
     return EXIT_INTERRUPTED if result.interrupted else 0
 
 
-def _print_summary(args, source, result: TrackRun) -> None:
+def _print_summary(args, source, result) -> None:
     state = "interrupted after" if result.interrupted else "tracked"
     tracks = result.tracker.tracks
     print(f"{args.video.name}: {state} {result.frames} frames ({source.width}x{source.height}, "
           f"{source.fps:g} fps video) at {result.fps:.0f} frames/s; {len(tracks)} track(s)")
     for track_id, state_ in sorted(tracks.items()):
-        print(f"  track {track_id}: {len(state_.measured)} frames")
+        print(f"  track {track_id}: {state_.frames} frames")
     for path, what in ((args.out, "MCAP"), (args.json, "JSON"), (args.bvh, "BVH folder")):
         if path is not None:
             print(f"  {what}: {path}")
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """warnings.showwarning for the command: "track: warning: ..." without the source line."""
+    print(f"track: warning: {message}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     """Entry point of the ``track`` console script."""
-    args = build_parser().parse_args(argv)
-    if not os.environ.get("TRACK_DEBUG"):
-        # FFmpeg's own complaints ("moov atom not found") would repeat our one-line error in
-        # its words; both variables are read when the first video is opened.
-        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
-        os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
-    # SIGTERM stops like Ctrl-C: outputs are closed, not cut off.
-    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    # SIGTERM and SIGHUP (terminal closed) stop like Ctrl-C: outputs are closed, not cut off.
+    for number in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(number, signal.default_int_handler)
     try:
-        # One BLAS thread: the per-frame matrices are small, and threads cost more than they
-        # save (a filter step took 8.7 ms with default threads, 0.5 ms with one).
-        with threadpool_limits(1):
+        args = build_parser().parse_args(argv)
+        if not os.environ.get("TRACK_DEBUG"):
+            # FFmpeg's own complaints ("moov atom not found") would repeat our one-line error
+            # in its words; both variables are read when the first video is opened.
+            os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+            os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
             return run(args)
     except SilhouettePoseError as exc:
         print(f"track: error: {exc}", file=sys.stderr)
@@ -172,7 +243,7 @@ def main(argv=None) -> int:
     except OSError as exc:
         print(f"track: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return EXIT_ERROR
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:            # also during the first second's imports
         print("track: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except Exception as exc:  # never a traceback for the user; TRACK_DEBUG=1 shows it

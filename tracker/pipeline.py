@@ -23,7 +23,7 @@ from .filtering import PoseKalmanFilter
 from .silhouettes import PersonMask, SilhouetteExtractor
 from .sinks.geometry import ground_position_from_image, pose_joints_m
 from .travel import TravelDirection, settle_heading
-from .video import ASSUMED_FOV_DEG, focal_length_px
+from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 
 
 @dataclass(frozen=True)
@@ -37,7 +37,9 @@ class TrackerSettings:
     ambiguous_joint_factor: R inflation on ambiguous frames (PoseKalmanFilter). r_scale, q_scale:
     multiply the model's measurement covariance R and process noise q. background_samples:
     frames spread over the video for the median background. fov_deg: the horizontal field of
-    view assumed for the focal length (direction of travel, ground position).
+    view assumed for the focal length (direction of travel, ground position). keep_history:
+    keep every track's filter inputs for PoseTracker.smoothed_track (about 0.6 KB per person
+    per frame, so memory grows with the video); ``track`` keeps them only for --smooth.
     """
 
     max_people: int | None = None
@@ -48,6 +50,7 @@ class TrackerSettings:
     q_scale: float = 1.0
     background_samples: int = 25
     fov_deg: float = ASSUMED_FOV_DEG
+    keep_history: bool = True
 
     def threshold(self, estimator) -> float:
         """The ambiguity threshold in use: this setting, else the estimator's own."""
@@ -120,6 +123,7 @@ class _TrackState:
     travel: TravelDirection
     measured: list = field(default_factory=list)    # (55,) filter inputs, for smoothing
     heading_variance: list = field(default_factory=list)   # deg^2 per frame, NaN = model's
+    frames: int = 0                                  # frames with a pose
 
 
 class PoseTracker:
@@ -129,7 +133,8 @@ class PoseTracker:
     frame -> people (default SilhouetteExtractor); associator: people -> track ids (default
     Associator); filter_factory: fps -> a PoseFilter per new track (default
     kalman_factory(estimator, settings)). The frame size (height, width) is taken from the
-    background given to prime() or the first frame.
+    background given to prime() or the first frame. With the default extractor, a colourless
+    background (black-and-white video) turns shadow detection off (see prime()).
     """
 
     def __init__(self, estimator: PoseEstimator, fps: float,
@@ -141,6 +146,7 @@ class PoseTracker:
         self.fps = float(fps)
         self.settings = settings
         self.extractor = extractor or SilhouetteExtractor()
+        self._default_extractor = extractor is None
         self.associator = associator or Associator()
         self.filter_factory = filter_factory or kalman_factory(estimator, settings)
         self.frame_shape: tuple[int, int] | None = None      # (height, width) pixels
@@ -154,6 +160,11 @@ class PoseTracker:
 
     def prime(self, background: np.ndarray) -> None:
         """Learn the empty scene from a background estimate (BGR uint8 (H, W, 3))."""
+        if self._default_extractor and colourless(background):
+            # MOG2 calls a pixel shadow when it is a darker shade of the background's colour;
+            # without colour every darker pixel is, and a person darker than the scene is cut
+            # into pieces (the sample walk in gray: 11 tracks instead of 1).
+            self.extractor = SilhouetteExtractor(detect_shadows=False)
         self._set_frame_shape(background)
         self.extractor.prime(background)
 
@@ -200,8 +211,10 @@ class PoseTracker:
         # and is fused with the regressor's heading.
         measured, variance = self._with_travel(state, raw, person)
         filtered, ambiguous = state.kalman.step(measured, heading_variance=variance)
-        state.measured.append(measured)
-        state.heading_variance.append(np.nan if variance is None else variance)
+        state.frames += 1
+        if self.settings.keep_history:
+            state.measured.append(measured)
+            state.heading_variance.append(np.nan if variance is None else variance)
         clock = self._lap("filter", clock)
         h, w = self.frame_shape
         ground = ground_position_from_image(person.centroid, person.bbox[3], w, h,
@@ -224,7 +237,10 @@ class PoseTracker:
         return now
 
     def smoothed_track(self, track_id: int) -> np.ndarray:
-        """RTS-smoothed poses (n, 55) of every frame of a track so far (offline use)."""
+        """RTS-smoothed poses (n, 55) of every frame of a track so far (offline use; needs
+        settings.keep_history)."""
         state = self.tracks[track_id]
+        if not self.settings.keep_history:
+            raise ValueError("smoothed_track needs TrackerSettings(keep_history=True)")
         return state.kalman.rts_smooth(np.array(state.measured),
                                        heading_variance=np.array(state.heading_variance))

@@ -10,10 +10,16 @@ so all three measure the same thing. From a notebook::
 """
 from __future__ import annotations
 
+import contextlib
+import signal
+import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+
+import cv2
+import numpy as np
 
 from regressor.errors import SilhouettePoseError
 from .pipeline import PoseTracker
@@ -53,14 +59,19 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     frame (BGR uint8 (H, W, 3), not to be modified) and its people (track id -> PersonMask),
     after its poses. smoothed_sinks: fed at the end with each whole track RTS-smoothed (``track --smooth``),
     in frame order. Every sink's end_frame() is called after each frame. All sinks are closed
-    on return, also on Ctrl-C, which stops the loop (the result says interrupted); OutputError
-    if some could not be closed. tracker.stage_seconds gains "decode" and "outputs".
+    on return, also on Ctrl-C, which stops the loop (the result says interrupted); while they
+    are being closed, further Ctrl-C, SIGTERM and SIGHUP are held back (and mark the run
+    interrupted), so a second Ctrl-C cannot cut an output short. OutputError if some could not
+    be closed. tracker.stage_seconds gains "background" (sampling the video and priming, the
+    start-up cost), "decode" and "outputs".
     """
     if not isinstance(source, VideoSource):
         source = open_video(source)
     if tracker is None:
         from regressor.pose_model import load_pose_model
         tracker = PoseTracker(load_pose_model(), source.fps)
+    if smoothed_sinks and not tracker.settings.keep_history:
+        raise ValueError("smoothed_sinks need a tracker with TrackerSettings(keep_history=True)")
     recorder = PoseRecorder() if smoothed_sinks else None
     streaming = list(sinks) + ([recorder] if recorder else [])
     # Sinks that show the video (the live view) also get every frame and its silhouettes; they
@@ -69,7 +80,8 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     frames, interrupted, started = 0, False, time.perf_counter()
     stages = tracker.stage_seconds
     try:
-        tracker.prime(median_background(source.sample_frames(tracker.settings.background_samples)))
+        tracker.prime(_background(source, tracker))
+        stages["background"] += time.perf_counter() - started
         clock = time.perf_counter()
         for index, time_s, frame in source:
             stages["decode"] += time.perf_counter() - clock
@@ -90,16 +102,50 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        if progress is not None:
-            progress.close()
-        try:
-            if recorder is not None and not interrupted:
-                _write_smoothed(tracker, recorder, smoothed_sinks)
-        finally:
-            problems = close_sinks(list(sinks) + list(smoothed_sinks))
+        with _signals_held() as held:
+            if progress is not None:
+                progress.close()
+            try:
+                if recorder is not None and not interrupted:
+                    _write_smoothed(tracker, recorder, smoothed_sinks)
+            finally:
+                problems = close_sinks(list(sinks) + list(smoothed_sinks))
+        interrupted = interrupted or bool(held)
     if problems:
         raise OutputError("could not finish outputs: " + "; ".join(problems))
     return TrackRun(frames, time.perf_counter() - started, interrupted, tracker)
+
+
+def _background(source: VideoSource, tracker: PoseTracker) -> np.ndarray:
+    """The empty scene (BGR uint8 at the frame size): the median of frames spread over the
+    video, taken at the extractor's working size (a 4K video needs no 25 full frames in memory)
+    and scaled back up, which the extractor shrinks again."""
+    full = (source.width, source.height)
+    subtractor = getattr(tracker.extractor, "subtractor", None)
+    size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full
+    background = median_background(source.sample_frames(tracker.settings.background_samples,
+                                                        size=size))
+    if size != full:
+        background = cv2.resize(background, full, interpolation=cv2.INTER_CUBIC)
+    return background
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[list[int]]:
+    """Hold back Ctrl-C, SIGTERM and SIGHUP inside the block (main thread only; elsewhere
+    Python delivers no signals anyway); yields the list of those received meanwhile."""
+    held: list[int] = []
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            handler = signal.getsignal(number)
+            if handler is not None and handler != signal.SIG_IGN:
+                previous[number] = signal.signal(number, lambda n, _: held.append(n))
+    try:
+        yield held
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]) -> None:

@@ -24,12 +24,24 @@ MAX_FPS = 1000.0
 #: Horizontal field of view (degrees) assumed for a video's camera when its focal length matters
 #: (direction of travel, ground position); a typical phone or webcam lens.
 ASSUMED_FOV_DEG = 60.0
+#: Background samples at most this many frames apart are read by decoding straight through
+#: rather than by seeking (x264's default key-frame interval is 250 frames).
+SEQUENTIAL_SPACING = 250
 
 
 def focal_length_px(frame_width_px: int, fov_deg: float = ASSUMED_FOV_DEG) -> float:
     """Pinhole focal length in pixels of a camera with this horizontal field of view:
     f = (W / 2) / tan(fov / 2)."""
     return 0.5 * frame_width_px / math.tan(math.radians(fov_deg) / 2.0)
+
+
+def colourless(image: np.ndarray, max_chroma_std: float = 1.5) -> bool:
+    """True when a BGR uint8 (H, W, 3) image carries no colour: a grayscale video (decoded to
+    three equal channels) or a black-and-white one stored in colour (at most a constant tint).
+    Measured by the spread over the image of its chroma (standard deviations of Cr and Cb,
+    levels): 0.0 on such videos, 10-19 on the sample and the Pose2Sim views."""
+    chroma = cv2.cvtColor(image, cv2.COLOR_BGR2YCrCb)[..., 1:].reshape(-1, 2)
+    return bool(np.all(chroma.std(axis=0) < max_chroma_std))
 
 
 class VideoError(SilhouettePoseError, ValueError):
@@ -145,29 +157,53 @@ class VideoSource:
             capture.release()
 
 
-    def _prepare(self, image: np.ndarray) -> np.ndarray:
-        """A decoded image -> BGR uint8 at this source's (width, height)."""
+    def _prepare(self, image: np.ndarray, size: tuple[int, int] | None = None) -> np.ndarray:
+        """A decoded image -> BGR uint8 at ``size`` (width, height; default this source's)."""
         image = _as_bgr(image)
-        if (self.width, self.height) != (self.source_width, self.source_height):
-            image = cv2.resize(image, (self.width, self.height), interpolation=cv2.INTER_AREA)
+        size = size or (self.width, self.height)
+        if size != (image.shape[1], image.shape[0]):
+            image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
         return image
 
-    def sample_frames(self, count: int) -> list[np.ndarray]:
+    def sample_frames(self, count: int, size: tuple[int, int] | None = None
+                      ) -> list[np.ndarray]:
         """Up to ``count`` frames (BGR uint8 (H, W, 3)) evenly spaced over the selected range,
-        e.g. to estimate the empty background. Frames that fail to decode are skipped."""
+        e.g. to estimate the empty background; ``size`` (width, height) px shrinks them
+        (INTER_AREA), so a 4K video does not hold 25 full frames. Decoding stops at the first
+        frame that fails.
+
+        Samples up to SEQUENTIAL_SPACING frames apart are read in one pass (grab() every frame,
+        retrieve() only those kept): a seek decodes from the previous key frame, so on H.264
+        with long key-frame intervals 25 seeks cost far more than reading straight through.
+        Sparser samples (long videos) are reached by seeking.
+        """
         end = self.end_index if self.end_index is not None else self.start_index + count
         indices = np.linspace(self.start_index, end - 1, max(count, 1)).round().astype(int)
         indices = np.unique(indices)
+        spacing = (indices[-1] - indices[0]) / max(len(indices) - 1, 1)
         capture = _open_capture(self.path)
         images = []
         try:
+            if spacing <= SEQUENTIAL_SPACING:
+                if _seek(capture, int(indices[0])) != indices[0]:
+                    return images
+                wanted = set(indices.tolist())
+                for index in range(int(indices[0]), int(indices[-1]) + 1):
+                    if not capture.grab():
+                        break
+                    if index in wanted:
+                        ok, image = capture.retrieve()
+                        if not ok or image is None:
+                            break
+                        images.append(self._prepare(image, size))
+                return images
             for index in indices:
                 if _seek(capture, int(index)) != index:
                     break
                 ok, image = capture.read()
                 if not ok or image is None:
                     break
-                images.append(self._prepare(image))
+                images.append(self._prepare(image, size))
         finally:
             capture.release()
         return images
@@ -258,15 +294,20 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
     if not (math.isfinite(rate) and 0.0 < rate <= MAX_FPS):
         raise VideoError(f"{path}: frame rate {rate} is unusable; pass fps= to state it")
     frame_count = int(count) if math.isfinite(count) and count >= 1 else None
-    if start_s < 0 or (end_s is not None and end_s <= start_s):
+    if not (math.isfinite(start_s) and start_s >= 0) or \
+            (end_s is not None and not end_s > start_s):
         raise VideoError(f"{path}: bad time range start_s={start_s}, end_s={end_s}")
-    start_index = int(math.floor(start_s * rate + 1e-9))
+    # Frame numbers of absurd times are capped, not overflowed (1e308 s * fps is infinite).
+    start_index = int(math.floor(min(start_s * rate, 2.0 ** 62) + 1e-9))
     end_index = frame_count
     if end_s is not None:
-        end_index = int(math.ceil(end_s * rate - 1e-9))
+        end_index = int(math.ceil(min(end_s * rate, 2.0 ** 62) - 1e-9))
         end_index = end_index if frame_count is None else min(frame_count, end_index)
     if frame_count is not None and start_index >= frame_count:
         raise VideoError(f"{path}: start_s={start_s} is past the end "
                          f"({frame_count} frames at {rate:g} fps)")
+    if end_index is not None and end_index <= start_index:
+        raise VideoError(f"{path}: no frames in the chosen time range ({start_s:g} s to "
+                         f"{end_s:g} s at {rate:g} fps)")
     size = _scaled_size(width, height, max_side)
     return VideoSource(path, rate, frame_count, (width, height), size, start_index, end_index)

@@ -14,7 +14,10 @@ Frames: BVH frame i is video frame ``first_frame + i`` at the ``fps`` given, for
 the track's first to its last; frames where the track was not written (missed detections,
 skipped frames) repeat the last written pose and root. A track with fewer than ``min_frames``
 written frames gets no file. Nothing is written before close(): the MCAP recording is the
-crash-safe record.
+crash-safe record. Each file is written as ``NAME.partial`` and renamed when complete (a file cut
+short by a full disk is removed, an existing NAME is left as it was); while the sink is open,
+a lock file ``.PREFIX.bvh.lock`` in the folder makes a second sink on the same folder and prefix
+(another ``track`` run) fail at once.
 """
 from __future__ import annotations
 
@@ -33,6 +36,7 @@ from sequences.skeleton import (
     CMU_REST_OFFSETS,
     CMU_UNIT_M,
 )
+from tracker.sinks.files import LockFile, write_beside
 from tracker.sinks.geometry import SinkInputError, check_joints, check_pose
 
 if TYPE_CHECKING:
@@ -86,6 +90,8 @@ class BVHSink:
         self._tracks: dict[int, tuple[list[int], list[np.ndarray], list[np.ndarray]]] = {}
         self.paths: dict[int, Path] = {}
         self._closed = False
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self._lock = LockFile(self.directory / f".{prefix}.bvh.lock")
 
     @property
     def closed(self) -> bool:
@@ -129,13 +135,16 @@ class BVHSink:
         if self._closed:
             return
         self._closed = True
-        self.directory.mkdir(parents=True, exist_ok=True)
-        for track_id in sorted(self._tracks):
-            if len(self._tracks[track_id][0]) < self.min_frames:
-                continue
-            path = self.directory / f"{self.prefix}_{track_id}.bvh"
-            write_bvh(path, self.motion(track_id))
-            self.paths[track_id] = path
+        try:
+            for track_id in sorted(self._tracks):
+                if len(self._tracks[track_id][0]) < self.min_frames:
+                    continue
+                path = self.directory / f"{self.prefix}_{track_id}.bvh"
+                motion = self.motion(track_id)
+                write_beside(path, lambda partial: write_bvh(partial, motion))
+                self.paths[track_id] = path
+        finally:
+            self._lock.release()
 
     def __enter__(self) -> "BVHSink":
         return self

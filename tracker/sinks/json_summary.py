@@ -16,15 +16,14 @@ Layout (format version 1)::
                  "heading_mean_deg": float,  # circular mean of the filtered heading
                  "pose": [[55 filtered values]]}]}
 
-The file is replaced atomically (written to a temporary file in the same folder, flushed to
-disk, then renamed), so a reader never sees half a summary.
+The file is replaced atomically (written to ``PATH.partial``, locked from the sink's creation
+so that a second run on the same output fails at once, flushed to disk, then renamed), so a
+reader never sees half a summary and an existing summary is replaced only by a complete one.
 """
 from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -32,6 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from tracker.sinks.files import OutputFile, write_beside
 from tracker.sinks.geometry import SinkInputError, check_joints, check_pose
 
 if TYPE_CHECKING:
@@ -43,23 +43,12 @@ _DECIMALS = 6
 
 
 def write_json_atomically(path: str | Path, document: dict) -> None:
-    """Write ``document`` as JSON to ``path`` via a temporary file and a rename.
+    """Write ``document`` as JSON to ``path`` beside it and rename when complete.
 
     Raises ValueError (from json) for NaN or infinite values rather than writing invalid JSON.
     """
-    path = Path(path)
     text = json.dumps(document, allow_nan=False, separators=(",", ":"))
-    handle = tempfile.NamedTemporaryFile("w", encoding="utf-8", dir=path.parent,
-                                         prefix=f".{path.name}.", suffix=".tmp", delete=False)
-    try:
-        with handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(handle.name, path)
-    except BaseException:
-        Path(handle.name).unlink(missing_ok=True)
-        raise
+    write_beside(path, lambda partial: partial.write_text(text, encoding="utf-8"))
 
 
 class JsonSummarySink:
@@ -80,6 +69,7 @@ class JsonSummarySink:
         self._frames: set[int] = set()
         self._tracks: dict[int, dict[str, list]] = {}
         self._closed = False
+        self._file = OutputFile(self.path)     # PATH.partial, locked until close()
 
     @property
     def closed(self) -> bool:
@@ -145,11 +135,18 @@ class JsonSummarySink:
         write_json_atomically(self.path, self.summary())
 
     def close(self) -> None:
-        """Write the summary; idempotent."""
+        """Write the summary and put it in place; idempotent. If that fails, the partial file
+        is removed and an existing summary is left as it was."""
         if self._closed:
             return
-        self.save()
         self._closed = True
+        try:
+            text = json.dumps(self.summary(), allow_nan=False, separators=(",", ":"))
+            self._file.write(text.encode("utf-8"))
+            self._file.commit()
+        except BaseException:
+            self._file.discard()
+            raise
 
     def __enter__(self) -> "JsonSummarySink":
         return self

@@ -18,14 +18,16 @@ Log and publish times are the video time in nanoseconds.
 Crash safety: messages go into small compressed chunks (``chunk_size`` bytes, and a chunk is
 closed at least every ``flush_every_frames`` frames); every finished chunk is handed to the
 operating system at once, so a killed process leaves a file whose finished chunks are intact
-(read it back with ``tracker.sinks.mcap_repair.recover_mcap``). ``close()`` writes the summary and
-footer; it runs on leaving a ``with`` block (also on exceptions and Ctrl-C) and, failing that,
-at interpreter exit.
+(read it back with ``tracker.sinks.mcap_repair.recover_mcap``). The file is written as
+``PATH.partial`` (locked: one writer at a time) and renamed onto PATH once complete, so an
+existing PATH is replaced only by a finished recording (tracker/sinks/files.py). ``close()``
+writes the summary and footer and renames; it runs on leaving a ``with`` block (also on
+exceptions and Ctrl-C) and, failing that, at interpreter exit. If the footer cannot be written
+(disk full), the partial file stays for recover_mcap.
 """
 from __future__ import annotations
 
 import functools
-import io
 import json
 import math
 import weakref
@@ -38,6 +40,7 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from sequences.pose_vector import pose_vector_names
+from tracker.sinks.files import OutputFile
 from tracker.sinks.geometry import (
     BONE_INDEX,
     BONE_SIDE,
@@ -328,31 +331,24 @@ def _metadata_strings(name: str, values: Mapping[str, object]) -> dict[str, str]
 
 # ---------------------------------------------------------------- the sink
 
-class _WriteThrough(io.BufferedWriter):
-    """A buffered file that hands every write to the OS at once, so that a finished chunk
-    survives a SIGKILL of the process (the mcap Writer writes whole records, never per message)."""
-
-    def write(self, data) -> int:  # noqa: D102 (file protocol)
-        count = super().write(data)
-        self.flush()
-        return count
-
-
 def _finish(state: dict) -> None:
-    """Write summary and footer and close the file, once (shared by close() and the finalizer)."""
+    """Write summary and footer and put the file in place, once (shared by close() and the
+    finalizer). If that fails, the partial file is kept for recover_mcap."""
     if state["done"]:
         return
     state["done"] = True
     try:
         state["writer"].finish()
-    finally:
-        state["stream"].close()
+    except BaseException:
+        state["stream"].discard(keep=True)
+        raise
+    state["stream"].commit()
 
 
 class McapSink:
     """Record tracked poses and skeletons into an MCAP file (see the module docstring).
 
-    path: output file (overwritten). metadata: name -> {key: value} records (values that are not
+    path: output file (replaced once the recording is complete). metadata: name -> {key: value} records (values that are not
     strings are stored as JSON), e.g. {"video": {...}, "model": {...}, "settings": {...}}.
     chunk_size: uncompressed bytes per chunk. flush_every_frames: a chunk is also closed after
     this many frames, bounding what a crash can lose. compression: "zstd", "lz4" or "none".
@@ -375,11 +371,27 @@ class McapSink:
         self.path = Path(path)
         self._names = pose_vector_names()
         self._flush_every = int(flush_every_frames)
-        stream = _WriteThrough(io.FileIO(self.path, "w"))
+        # Written to PATH.partial under a lock, renamed onto PATH by close() (files.py).
+        stream = OutputFile(self.path)
         writer = Writer(stream, chunk_size=chunk_size, compression=kinds[compression])
         self._state = {"writer": writer, "stream": stream, "done": False}
+        try:
+            self._start(writer, metadata)
+        except BaseException:
+            self._state["done"] = True
+            stream.discard()
+            raise
         # Runs at interpreter exit (e.g. after an uncaught exception) if close() was not called.
         self._finalizer = weakref.finalize(self, _finish, self._state)
+        self._frame: int | None = None  # frame whose scene update is being collected
+        self._frame_ns = 0
+        self._entities: dict[int, dict] = {}
+        self._shown: set[int] = set()  # track ids drawn in the last written scene update
+        self._frames_since_flush = 0
+        self._trails: dict[int, deque] = {}   # track id -> (time s, x, y) of its root
+        self.messages_written = 0
+
+    def _start(self, writer: Writer, metadata) -> None:
         writer.start(profile="", library="silhouette-pose tracker")
         for name, values in (metadata or {}).items():
             writer.add_metadata(str(name), _metadata_strings(str(name), values))
@@ -389,17 +401,10 @@ class McapSink:
             SCENE_SCHEMA_NAME, "jsonschema", _to_bytes(scene_update_schema()))
         self._pose_channel = writer.register_channel(POSE_TOPIC, "json", pose_schema)
         self._scene_channel = writer.register_channel(SKELETON_TOPIC, "json", scene_schema)
-        self._frame: int | None = None  # frame whose scene update is being collected
-        self._frame_ns = 0
-        self._entities: dict[int, dict] = {}
-        self._shown: set[int] = set()  # track ids drawn in the last written scene update
-        self._frames_since_flush = 0
-        self._trails: dict[int, deque] = {}   # track id -> (time s, x, y) of its root
-        self.messages_written = 0
 
     @property
     def closed(self) -> bool:
-        """True once the footer has been written."""
+        """True once the footer has been written (or writing it failed)."""
         return self._state["done"]
 
     def write(self, pose: TrackedPose) -> None:

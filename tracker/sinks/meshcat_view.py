@@ -28,6 +28,7 @@ import contextlib
 import functools
 import io
 import time
+import warnings
 from collections import deque
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
@@ -51,12 +52,19 @@ if TYPE_CHECKING:
     from ..pipeline import TrackedPose
     from ..silhouettes import PersonMask
 
-_REPLY_TIMEOUT_MS = 10_000  # a dead server must not hang the tracker forever
+# A dead server must not hang the tracker: after this long without an answer the frame is
+# dropped (the server is slow) or the view is given up (the server process is gone).
+_REPLY_TIMEOUT_MS = 1_000
+_STARTUP_TIMEOUT_MS = 10_000
 #: Colours of the scene (0xRRGGBB): ground, grid lines, the video screen's bezel.
 GROUND_COLOUR, GRID_COLOUR, BEZEL_COLOUR = 0xE4E6EA, 0xB4B8C0, 0x1F2938
 _GROUND_RGB = np.array([0xE4, 0xE6, 0xEA]) / 255.0
 _LABEL_SIZE_M = (0.8, 0.2)
 _TRAIL_WIDTH_M = 0.07
+
+
+class ViewLostWarning(UserWarning):
+    """The meshcat server stopped; tracking goes on without the live view (one line)."""
 
 
 def _transform(rotation: np.ndarray | None = None, translation=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -168,6 +176,7 @@ class MeshcatView:
         self._roots: list[np.ndarray] = []     # roots drawn in the current frame (Z-up)
         self._frame_time_s, self._frame_done = 0.0, False
         self._closed = False
+        self._lost = False          # the server stopped: writes do nothing
         self._realtime = realtime
         self._clock_start: tuple[float, float] | None = None   # (video s, wall s) of frame 1
         self._video_interval_s = 1.0 / video_fps if video_fps > 0 else float("inf")
@@ -179,10 +188,15 @@ class MeshcatView:
             with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL itself
                 self._vis = meshcat.Visualizer(zmq_url=self.server.zmq_url)
             socket = self._vis.window.zmq_socket
+            socket.setsockopt(zmq.RCVTIMEO, _STARTUP_TIMEOUT_MS)   # a just-started server
+            socket.setsockopt(zmq.SNDTIMEO, _STARTUP_TIMEOUT_MS)
+            socket.setsockopt(zmq.LINGER, 0)
+            # After a timeout, send the next request anyway and ignore a late answer.
+            socket.setsockopt(zmq.REQ_RELAXED, 1)
+            socket.setsockopt(zmq.REQ_CORRELATE, 1)
+            self._set_stage()
             socket.setsockopt(zmq.RCVTIMEO, _REPLY_TIMEOUT_MS)
             socket.setsockopt(zmq.SNDTIMEO, _REPLY_TIMEOUT_MS)
-            socket.setsockopt(zmq.LINGER, 0)
-            self._set_stage()
         except BaseException:
             self.close()
             raise
@@ -244,11 +258,33 @@ class MeshcatView:
     def write(self, pose: TrackedPose) -> None:
         """Draw track ``pose.track_id`` at pose.joints_m (18, 3) metres (Y up); with
         ``realtime``, not before the pose's video time has passed since the first frame.
-        Raises SinkInputError on bad joints or when closed; zmq.Again when the server does not
-        answer within 10 s."""
+        Raises SinkInputError on bad joints or when closed. If the server process has stopped,
+        warns once (ViewLostWarning) and draws nothing from then on; a frame the server does
+        not answer within 1 s is dropped."""
         if self._closed:
             raise SinkInputError("meshcat view is closed")
         joints = y_up_to_z_up(check_joints(pose.joints_m))
+        self._send(self._draw, pose, joints)
+
+    def _send(self, draw, *args) -> None:
+        """draw(*args) unless the server is gone; a zmq timeout drops this frame's drawing."""
+        if self._lost or not self._server_alive():
+            return
+        try:
+            draw(*args)
+        except zmq.Again:
+            self._server_alive()        # dead: warned; alive but slow: this frame is dropped
+
+    def _server_alive(self) -> bool:
+        """False (after one ViewLostWarning) once the server process has exited."""
+        if not self._lost and not self.server.running:
+            self._lost = True
+            warnings.warn(f"the meshcat viewer stopped (server process {self.server.pid} "
+                          f"exited); tracking goes on without the live view", ViewLostWarning,
+                          stacklevel=4)
+        return not self._lost
+
+    def _draw(self, pose: TrackedPose, joints: np.ndarray) -> None:
         frame_index, track_id = int(pose.frame_index), int(pose.track_id)
         if self._realtime:
             self._wait_until(pose.time_s)
@@ -326,8 +362,11 @@ class MeshcatView:
             self._wait_until(time_s)
         if time_s - self._last_screen_s < self._video_interval_s:
             return
-        clock = time.perf_counter()
         self._last_screen_s = time_s
+        self._send(self._draw_screen, frame, people)
+
+    def _draw_screen(self, frame: np.ndarray, people: Mapping[int, PersonMask]) -> None:
+        clock = time.perf_counter()
         g = self._g
         jpeg = encode_jpeg(panel_image(frame, people, self._video_width_px))
         self._vis["video/frame"].set_object(
@@ -350,7 +389,7 @@ class MeshcatView:
         """Follow the frame's people with the camera; remove the tracks absent from it (also
         done when a pose of a later frame is written without end_frame)."""
         clock = time.perf_counter()
-        self._finish_frame()
+        self._send(self._finish_frame)
         self.draw_seconds += time.perf_counter() - clock
 
     def close(self) -> None:

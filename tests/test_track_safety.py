@@ -1,0 +1,323 @@
+"""Issue 8: `track` never loses the user's data, fails cleanly, and keeps memory and start-up low.
+
+Each numbered case of the issue has a test here or beside the code it concerns (named in the
+docstring). In-process (tracker.cli.main) unless a real process is the point (signals during
+start-up).
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from regressor.pose_model import load_pose_model
+from sequences.video import Actor, write_video
+from tests.test_track_cli import (_assert_one_line_error, _noise_video, _track, _track_process,
+                                  _walker)
+from tracker import PoseTracker, TrackerSettings, track_video
+from tracker.run import _background
+from tracker.sinks.bvh import BVHSink
+from tracker.sinks.files import OutputBusyError, OutputWriteError, partial_path
+from tracker.sinks.json_summary import JsonSummarySink
+from tracker.sinks.mcap import McapSink
+from tracker.video import open_video
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("walk") / "walk.mp4"
+    write_video(path, [Actor(_walker(40))], size=(240, 320), noise_sigma=2.0, seed=3)
+    return path
+
+
+@pytest.fixture()
+def video(tmp_path) -> Path:
+    """A short video in tmp_path (the refusals happen before it is decoded)."""
+    return _noise_video(tmp_path / "v.mp4", frames=5)
+
+
+def _refused_and_intact(result, video: Path, before: bytes, *needles) -> None:
+    _assert_one_line_error(result, *needles)
+    assert video.read_bytes() == before
+
+
+# ------------------------------------------------------------------ 1-4: outputs that collide
+
+
+@pytest.mark.parametrize("spelling", ["same", "relative", "symlink", "hardlink"])
+@pytest.mark.parametrize("option", ["--out", "--json"])
+def test_an_output_that_is_the_input_video_is_refused(tmp_path, video, option, spelling):
+    """Cases 1 and 2."""
+    before = video.read_bytes()
+    (tmp_path / "sub").mkdir()
+    target = {"same": "v.mp4", "relative": "sub/../v.mp4", "symlink": "link.mp4",
+              "hardlink": "hard.mp4"}[spelling]
+    if spelling == "symlink":
+        (tmp_path / "link.mp4").symlink_to(video)
+    if spelling == "hardlink":
+        os.link(video, tmp_path / "hard.mp4")
+    result = _track("v.mp4", option, target, cwd=tmp_path)
+    _refused_and_intact(result, video, before, option, "input video")
+
+
+@pytest.mark.parametrize("options", [["--json", "x", "--out", "x"],
+                                     ["--bvh", "x", "--out", "x"],
+                                     ["--bvh", ".", "--json", "v_1.bvh"],
+                                     ["--out", "x.mcap", "--json", "x.mcap.partial"]],
+                         ids=["json-is-out", "bvh-folder-is-out", "json-in-bvh-names",
+                              "json-is-out-partial"])
+def test_outputs_that_are_one_another_are_refused_before_writing(tmp_path, video, options):
+    """Case 3."""
+    result = _track(video, *options, cwd=tmp_path)
+    _assert_one_line_error(result, "--")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v.mp4"]      # nothing written
+
+
+def test_the_default_output_of_a_video_named_mcap_is_refused(tmp_path):
+    """Case 4: `track clip.mcap` would record into clip.mcap."""
+    clip = _noise_video(tmp_path / "clip.mp4", frames=5).rename(tmp_path / "clip.mcap")
+    before = clip.read_bytes()
+    _refused_and_intact(_track("clip.mcap", cwd=tmp_path), clip, before, "default output",
+                        "--out")
+
+
+# ------------------------------------------------------------------ 5: one writer per output
+
+
+def test_a_second_run_on_the_same_outputs_fails_at_once(tmp_path, video):
+    """Case 5: the first run's sinks hold the locks; the second gets one line, quickly."""
+    out, js, bvh = tmp_path / "o.mcap", tmp_path / "o.json", tmp_path / "b"
+    first = [McapSink(out), JsonSummarySink(js, 30.0), BVHSink(bvh, 30.0, prefix="v")]
+    try:
+        for options in (["--out", out], ["--json", js], ["--bvh", bvh]):
+            started = time.monotonic()
+            result = _track(video, *options, cwd=tmp_path)
+            _assert_one_line_error(result, "another track run")
+            assert time.monotonic() - started < 5
+    finally:
+        for sink in first:
+            sink.close()
+    with open(out, "rb") as f:                     # the first run's file is not corrupted
+        assert make_reader(f, validate_crcs=True).get_summary() is not None
+    assert json.loads(js.read_text())["frames"] == 0
+    with pytest.raises(OutputBusyError):           # the library refuses too
+        with McapSink(out):
+            McapSink(out)
+
+
+def test_an_existing_output_is_replaced_only_when_the_new_one_is_complete(tmp_path):
+    out = tmp_path / "o.mcap"
+    out.write_bytes(b"old recording")
+    sink = McapSink(out)
+    assert out.read_bytes() == b"old recording" and partial_path(out).exists()
+    sink.close()
+    assert not partial_path(out).exists()
+    with open(out, "rb") as f:
+        assert make_reader(f, validate_crcs=True).get_summary() is not None
+
+
+# ------------------------------------------------------------------ 6: a full disk
+
+
+def _fill_disk(sink_file) -> None:
+    """From now on, writes through this OutputFile fail with ENOSPC (as on a full disk)."""
+    full = os.open("/dev/full", os.O_WRONLY)
+    os.dup2(full, sink_file._fd)
+    os.close(full)
+
+
+def test_out_dev_full_gives_one_line_naming_the_file(tmp_path, walk):
+    """Case 6: no empty file name, no finalizer traceback at exit (a real process)."""
+    result = _track_process(walk, "--out", "/dev/full", "--quiet", cwd=tmp_path)
+    assert result.returncode == 1
+    _assert_one_line_error(result, "/dev/full", "No space left")
+    assert "Exception ignored" not in result.stderr
+
+
+def test_a_disk_filling_mid_recording_keeps_the_old_file_and_the_partial_one(tmp_path):
+    """Case 6: MCAP cut by a full disk: one error naming the file, the old file intact, what
+    was recorded left in NAME.partial for recover_mcap."""
+    out = tmp_path / "o.mcap"
+    out.write_bytes(b"old recording")
+    sink = McapSink(out)
+    _fill_disk(sink._state["stream"])
+    with pytest.raises(OutputWriteError, match="o.mcap: No space left"):
+        sink.close()
+    assert out.read_bytes() == b"old recording"
+    assert partial_path(out).exists()
+
+
+def test_a_bvh_or_json_cut_by_a_full_disk_is_not_left_looking_valid(tmp_path, monkeypatch):
+    """Case 6: the partial file is removed, an existing file is left as it was."""
+    bvh = BVHSink(tmp_path, 30.0, prefix="t")
+    pose = np.r_[1.0, np.zeros(54)]
+    from tracker import TrackedPose
+    for frame in range(3):
+        bvh.write(TrackedPose(frame, frame / 30, 1, pose, pose, False, np.zeros((18, 3))))
+    (tmp_path / "t_1.bvh").write_text("old")
+
+    def half_then_full(path, motion):
+        Path(path).write_text("HIERARCHY\nROOT Hips\n")
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr("tracker.sinks.bvh.write_bvh", half_then_full)
+    with pytest.raises(OutputWriteError, match="t_1.bvh: No space left"):
+        bvh.close()
+    assert (tmp_path / "t_1.bvh").read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t_1.bvh"]     # no partial, no lock
+    js = JsonSummarySink(tmp_path / "s.json", 30.0)
+    _fill_disk(js._file)
+    with pytest.raises(OutputWriteError, match="s.json: No space left"):
+        js.close()
+    assert not (tmp_path / "s.json").exists() and not partial_path(tmp_path / "s.json").exists()
+
+
+# ------------------------------------------------------------------ 7-9: signals
+
+
+def test_ctrl_c_during_start_up_gives_no_traceback(tmp_path, walk):
+    """Case 7: while numpy, OpenCV and the model are imported (a real process). The first
+    ~0.1 s is Python's own start-up (site), before any of our code runs. Exit 130; or death
+    by SIGINT (-2, which a shell also reports as 130) when the interrupt passed through an
+    extension module's initialisation, which makes CPython re-raise it at exit."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    for delay in (0.2, 0.5):
+        proc = subprocess.Popen([sys.executable, "-m", "tracker.cli", str(walk), "--json",
+                                 str(tmp_path / "s.json")], env=env, stderr=subprocess.PIPE,
+                                text=True, cwd=tmp_path)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        assert "Traceback" not in err, err
+        assert proc.returncode in (130, -signal.SIGINT), err
+        assert err.strip() == "track: interrupted", err
+
+
+class _InterruptedWhileClosing:
+    """A sink whose close() is hit by a second Ctrl-C (as a user pressing twice)."""
+
+    def write(self, pose):
+        pass
+
+    def end_frame(self, frame_index):
+        if frame_index == 5:
+            raise KeyboardInterrupt            # the first Ctrl-C, during the loop
+
+    def close(self):
+        os.kill(os.getpid(), signal.SIGINT)    # the second one, while outputs close
+        time.sleep(0.05)                       # delivered here, between two bytecodes
+
+
+def test_a_second_ctrl_c_while_closing_does_not_lose_the_json_or_bvh(tmp_path, walk):
+    """Case 8: the JSON and BVH sinks closed after the interrupted one are still written."""
+    js, bvh = JsonSummarySink(tmp_path / "s.json", 30.0), BVHSink(tmp_path / "b", 30.0)
+    result = track_video(walk, sinks=[_InterruptedWhileClosing(), js, bvh])
+    assert result.interrupted and result.frames == 5
+    assert json.loads((tmp_path / "s.json").read_text())["frames"] == 6
+    assert js.closed and bvh.closed
+
+
+# ------------------------------------------------------------------ 10, 11: odd input
+
+
+@pytest.mark.parametrize("options, needle", [
+    (["--start", "1e308"], "--start"), (["--end", "1e308"], "--end"),
+    (["--end", "1e-12"], "no frames in the chosen time range")],
+    ids=["start-1e308", "end-1e308", "end-1e-12"])
+def test_absurd_times_are_option_errors(tmp_path, walk, options, needle):
+    """Case 10."""
+    result = _track(walk, *options, "--json", tmp_path / "s.json", cwd=tmp_path)
+    assert result.returncode == 1
+    _assert_one_line_error(result, needle)
+    assert "OverflowError" not in result.stderr
+
+
+def test_a_cut_off_avi_gives_a_one_line_warning(tmp_path):
+    """Case 11: tracked up to the cut, one "track: warning:" line, no Python source line."""
+    avi = tmp_path / "a.avi"
+    writer = cv2.VideoWriter(str(avi), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (160, 120))
+    scene = np.random.default_rng(0).integers(60, 200, (120, 160, 3), dtype=np.uint8)
+    for _ in range(40):
+        writer.write(scene)
+    writer.release()
+    data = avi.read_bytes()
+    (tmp_path / "cut.avi").write_bytes(data[: len(data) // 2])
+    result = _track("cut.avi", "--json", "s.json", "--quiet", cwd=tmp_path)
+    assert result.returncode == 0
+    assert result.stderr.strip().startswith("track: warning: cut.avi: decoding stopped")
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+# ------------------------------------------------------------------ 15-18: resources
+
+
+def test_without_smoothing_the_tracker_keeps_no_per_frame_history(walk):
+    """Case 15: memory flat over a long video (`track` keeps histories only for --smooth)."""
+    tracker = PoseTracker(load_pose_model(), 30.0, TrackerSettings(keep_history=False))
+    track_video(walk, tracker)
+    (state,) = tracker.tracks.values()
+    assert state.frames >= 30 and state.measured == [] and state.heading_variance == []
+    with pytest.raises(ValueError, match="keep_history"):
+        track_video(walk, tracker, smoothed_sinks=[JsonSummarySink(walk.with_suffix(".j"), 30)])
+
+
+def test_a_4k_video_is_tracked_with_its_background_sampled_at_the_working_size(tmp_path):
+    """Case 16: no 25 full 4K frames in memory (peak was 2.18 GB), and the video runs."""
+    large = tmp_path / "large.mp4"
+    writer = cv2.VideoWriter(str(large), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (3840, 2160))
+    scene = np.random.default_rng(0).integers(60, 200, (2160, 3840, 3), dtype=np.uint8)
+    for shift in range(4):
+        writer.write(np.roll(scene, shift, axis=1))
+    writer.release()
+    source = open_video(large)
+    tracker = PoseTracker(load_pose_model(), source.fps)
+    tracemalloc.start()
+    try:
+        background = _background(source, tracker)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert background.shape == (2160, 3840, 3)
+    assert peak < 120e6                        # a few full frames at most (25 MB each)
+    result = _track(large, "--json", tmp_path / "l.json", "--quiet", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert json.loads((tmp_path / "l.json").read_text())["frames"] == 4
+
+
+def test_background_samples_are_read_in_one_pass_not_by_seeking(walk, monkeypatch):
+    """Case 17: a seek decodes from a key frame (seconds on long-GOP H.264); a short clip is
+    sampled with one sequential pass and gives the frames a seek would."""
+    import tracker.video as video_module
+    seeks = []
+    real = video_module._seek
+    monkeypatch.setattr(video_module, "_seek", lambda cap, i: seeks.append(i) or real(cap, i))
+    source = open_video(walk)
+    frames = source.sample_frames(25)
+    assert seeks == [0]
+    wanted = np.linspace(0, 39, 25).round().astype(int)
+    decoded = [image for index, _, image in source]
+    assert all(np.array_equal(f, decoded[i]) for f, i in zip(frames, np.unique(wanted)))
+
+
+def test_grayscale_video_gives_the_same_single_track_as_colour(tmp_path, walk):
+    """Case 18: without colour, MOG2 took the person for a shadow and cut them up."""
+    capture, grey = cv2.VideoCapture(str(walk)), tmp_path / "grey.mp4"
+    writer = cv2.VideoWriter(str(grey), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (320, 240),
+                             False)
+    while (frame := capture.read()[1]) is not None:
+        writer.write(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY))
+    writer.release()
+    result = _track(grey, "--json", tmp_path / "g.json", "--quiet", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert len(json.loads((tmp_path / "g.json").read_text())["tracks"]) == 1

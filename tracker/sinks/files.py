@@ -1,0 +1,224 @@
+"""Output files that never destroy data: distinct paths, one writer at a time, replace when done.
+
+- :func:`check_distinct` refuses, before anything is written, an output that is (after symlinks,
+  relative paths and hard links) the input or another output.
+- :class:`OutputFile` writes ``NAME.partial`` beside ``NAME`` under an exclusive lock (a second
+  run on the same output fails at once with :class:`OutputBusyError`) and renames it onto
+  ``NAME`` only by :meth:`OutputFile.commit`, once it is complete. A crash leaves ``NAME`` as it
+  was and the new data in ``NAME.partial``. A destination that exists and is not a regular file
+  (``/dev/null``, a FIFO) is written in place.
+- :func:`write_beside` does the same for a file written in one go by a function of a path.
+- :class:`LockFile` holds such a lock on a lock file of its own (a BVH folder's set of files).
+- Every failure to write is an :class:`OutputWriteError` naming the file.
+"""
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from regressor.errors import SilhouettePoseError
+
+PARTIAL_SUFFIX = ".partial"
+
+
+class OutputPathError(SilhouettePoseError, ValueError):
+    """An output path that would overwrite the input or another output; one line."""
+
+
+class OutputBusyError(SilhouettePoseError, RuntimeError):
+    """Another process is writing the same output; one line naming the file."""
+
+
+class OutputWriteError(SilhouettePoseError, RuntimeError):
+    """Writing an output failed (disk full, I/O error); one line naming the file."""
+
+
+def partial_path(path: str | Path) -> Path:
+    """Where ``path`` is written until it is complete: ``NAME.partial`` beside it."""
+    path = Path(path)
+    return path.with_name(path.name + PARTIAL_SUFFIX)
+
+
+def _identity(path: Path) -> tuple:
+    """What makes two paths the same file: (device, inode) of an existing file, else the
+    absolute path with symlinks resolved."""
+    try:
+        status = os.stat(path)
+        return ("inode", status.st_dev, status.st_ino)
+    except OSError:
+        return ("path", os.path.realpath(path))
+
+
+def check_distinct(named: Iterable[tuple[str, Path]]) -> None:
+    """Refuse two of ``named`` (description, path) that are the same file.
+
+    The first entries are the inputs (e.g. ("the input video", path)); an output's description
+    says which option it came from (e.g. "--out"). OutputPathError says which two collide.
+    """
+    seen: dict[tuple, tuple[str, Path]] = {}
+    for what, path in named:
+        key = _identity(Path(path))
+        if key in seen:
+            other, other_path = seen[key]
+            raise OutputPathError(f"{what} {path} is the same file as {other} {other_path}; "
+                                  f"choose another file name (nothing was written)")
+        seen[key] = (what, Path(path))
+
+
+def _open_locked(path: Path, flags: int) -> int:
+    """Open (creating) ``path`` and take an exclusive lock on it without waiting; returns the
+    descriptor. OutputBusyError if another process holds the lock."""
+    for _ in range(10):
+        fd = os.open(path, flags | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise OutputBusyError(f"{path}: another track run is writing this output; wait for "
+                                  f"it to finish or choose another file name") from None
+        except BaseException:
+            os.close(fd)
+            raise
+        # The lock holder may have renamed or removed the file between our open and our lock:
+        # then we locked a file nobody will look at, so start again on the current one.
+        with contextlib.suppress(FileNotFoundError):
+            if os.stat(path).st_ino == os.fstat(fd).st_ino:
+                return fd
+        os.close(fd)
+    raise OutputBusyError(f"{path}: kept changing while being locked; another track run is "
+                          f"writing this output")
+
+
+class OutputFile:
+    """A binary output written beside ``path`` and renamed onto it by commit() (see the module
+    docstring). File protocol for writers: write(bytes) (everything handed to the operating
+    system at once, so finished records survive a kill), tell(), flush(), close() (= commit()).
+    Attributes: path (destination), written_path (where the bytes go now), committed.
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self._in_place = self.path.exists() and not self.path.is_file()
+        self.written_path = self.path if self._in_place else partial_path(self.path)
+        try:
+            if self._in_place:
+                self._fd = os.open(self.path, os.O_WRONLY)
+            else:
+                self._fd = _open_locked(self.written_path, os.O_WRONLY)
+                os.ftruncate(self._fd, 0)   # a partial file of an earlier run that died
+        except OSError as exc:
+            raise OutputWriteError(f"{self.written_path}: cannot write ({exc.strerror})") from None
+        self._offset = 0
+        self.committed = False
+
+    @property
+    def closed(self) -> bool:
+        """True once committed or discarded."""
+        return self._fd < 0
+
+    def write(self, data) -> int:
+        """Write all of ``data``; OutputWriteError naming the file on failure."""
+        view = memoryview(data).cast("B")
+        done = 0
+        try:
+            while done < len(view):
+                done += os.write(self._fd, view[done:])
+        except OSError as exc:
+            raise OutputWriteError(f"{self.path}: {exc.strerror or exc}") from None
+        self._offset += done
+        return done
+
+    def tell(self) -> int:
+        """Bytes written so far."""
+        return self._offset
+
+    def flush(self) -> None:
+        """Nothing is buffered here: write() hands every byte to the operating system."""
+
+    def commit(self) -> None:
+        """Flush to disk and rename onto the destination (replacing it); idempotent."""
+        if self.closed:
+            return
+        try:
+            if not self._in_place:
+                os.fsync(self._fd)
+                os.replace(self.written_path, self.path)
+                _sync_folder(self.path.parent)
+        except OSError as exc:
+            self.discard(keep=True)
+            raise OutputWriteError(f"{self.path}: could not be finished ({exc.strerror}); the "
+                                   f"data written is in {self.written_path}") from None
+        self._release()
+        self.committed = True
+
+    close = commit
+
+    def discard(self, keep: bool = False) -> None:
+        """Stop without touching the destination; remove the partial file unless ``keep``."""
+        if self.closed:
+            return
+        self._release()
+        if not keep and not self._in_place:
+            with contextlib.suppress(OSError):
+                os.unlink(self.written_path)
+
+    def _release(self) -> None:
+        fd, self._fd = self._fd, -1
+        os.close(fd)   # also releases the lock
+
+
+def _sync_folder(folder: Path) -> None:
+    """Make a rename in ``folder`` durable (best effort: not every file system allows it)."""
+    with contextlib.suppress(OSError):
+        fd = os.open(folder if str(folder) else ".", os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def write_beside(path: str | Path, write: Callable[[Path], None]) -> None:
+    """Call ``write(partial path)``, flush that file to disk and rename it onto ``path``; on
+    failure the partial file is removed and ``path`` is left as it was (OutputWriteError naming
+    the file)."""
+    path = Path(path)
+    partial = partial_path(path)
+    try:
+        write(partial)
+        fd = os.open(partial, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(partial, path)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(partial)
+        if isinstance(exc, OSError):
+            raise OutputWriteError(f"{path}: {exc.strerror or exc}") from None
+        raise
+    _sync_folder(path.parent)
+
+
+class LockFile:
+    """An exclusive lock held on ``path`` (created, removed by release()) while a set of
+    outputs is written; OutputBusyError at once if another process holds it."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        try:
+            self._fd = _open_locked(self.path, os.O_RDWR)
+        except OSError as exc:
+            raise OutputWriteError(f"{self.path}: cannot create ({exc.strerror})") from None
+
+    def release(self) -> None:
+        """Remove the lock file and release the lock; idempotent."""
+        if self._fd < 0:
+            return
+        with contextlib.suppress(OSError):
+            os.unlink(self.path)
+        fd, self._fd = self._fd, -1
+        os.close(fd)
