@@ -31,6 +31,12 @@ def format_table(result: dict) -> str:
     for name, m in result["methods"].items():
         lines.append(f"{name:10s}" + "".join(f"{m[c]:16.3f}" for c in cols))
     lines.append(f"{'truth':10s}{'':16s}{result['ground_truth_jitter']:16.3f}")
+    if "runner_up" in result:
+        r = result["runner_up"]
+        lines.append(f"runner-up front/back hypothesis: shown on {r['runner_up_shown_ambiguous']}"
+                     f" of {r['ambiguous_frames']} ambiguous frames, the true one (nearer the "
+                     f"truth than the chosen) on {r['runner_up_true_ambiguous']}; on all frames "
+                     f"shown {r['runner_up_shown']}, true {r['runner_up_true']}")
     return "\n".join(lines)
 
 
