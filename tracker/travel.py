@@ -1,4 +1,4 @@
-"""Direction of travel from the image, to settle the silhouette's front/back ambiguity.
+"""Direction of travel from the image: evidence on the silhouette's front/back ambiguity.
 
 A silhouette seen from the front looks much like one seen from the back, so on ambiguous frames
 the regressor's heading may be the right one or 180 degrees off. A walking person moves the
@@ -14,13 +14,12 @@ would have if walking forwards (0 = towards the camera, +90 = towards image righ
 so no body size is assumed; f comes from an assumed field of view, which only stretches the
 angle, not which half-plane it is in, and a half-plane is all the front/back choice needs.
 
-Only a front/back hint, and only while the person moves faster than ``min_speed`` (body heights
-per second), so people standing, dancing or turning on the spot keep the regressor's own heading.
-It is applied to every moving frame, not just the ones flagged ambiguous: the regressor is
-sometimes confidently flipped (norm above the threshold, heading 150 degrees off). Someone
-walking backwards is the case it gets wrong. Tuned on CMU 07_12 as a 30 deg/s spiral walk
-(held out of training, and not the 16_11 evaluation sequence): heading RMS of the filtered
-track 56 -> 24 degrees; applying it to ambiguous frames only gave 56.
+Only while the person moves faster than ``min_speed`` (body heights per second). It is soft
+evidence for the front/back hypotheses (tracker/hypotheses.py), never an override: people do
+not always face where they go. travel_likelihood uses the motion capture's distribution of
+(facing - travel) (FACING_TRAVEL_PRIOR: forwards mostly, backwards and sideways too), and
+fuse_with_prior fuses the travel direction into a hypothesis's heading with the offset that
+hypothesis implies (travel + ~180 for one walking backwards).
 """
 from __future__ import annotations
 
@@ -136,20 +135,6 @@ def fuse_with_prior(raw: np.ndarray, travel_deg: float, raw_variance: float,
                         math.sqrt(travel_std_deg ** 2 + spread))
 
 
-def resolve_front_back(raw: np.ndarray, travel_deg: float | None) -> np.ndarray:
-    """raw (55,) pose vector with its heading turned by 180 degrees when the turned heading is
-    nearer the direction of travel (degrees) than the regressor's; raw unchanged (a copy) when
-    there is no direction of travel. The (cos, sin) norm, the ambiguity measure, is kept."""
-    out = np.array(raw, dtype=np.float64, copy=True)
-    if travel_deg is None:
-        return out
-    heading = math.degrees(math.atan2(out[1], out[0]))
-    off = abs(float(wrap_deg(heading - travel_deg)))
-    if off > 90.0:
-        out[:2] = -out[:2]
-    return out
-
-
 def fuse_heading(raw: np.ndarray, travel_deg: float, raw_variance: float,
                  travel_std_deg: float = TRAVEL_STD_DEG) -> tuple[np.ndarray, float]:
     """Combine the regressor's heading (raw (55,), front/back already settled, variance
@@ -166,14 +151,3 @@ def fuse_heading(raw: np.ndarray, travel_deg: float, raw_variance: float,
     fused = math.radians(heading + delta * w_travel / (w_raw + w_travel))
     out[0], out[1] = norm * math.cos(fused), norm * math.sin(fused)
     return out, 1.0 / (w_raw + w_travel)
-
-
-def settle_heading(raw: np.ndarray, travel_deg: float | None, raw_variance: float
-                   ) -> tuple[np.ndarray, float | None]:
-    """The filter's input for one frame: raw (55,) with front/back settled by the direction of
-    travel (degrees, None when the person is not walking) and fused with it; returns (pose
-    (55,), its heading variance deg^2, or None to keep the filter's own). raw_variance: the
-    filter's heading variance (deg^2). The one place the tracker and the evaluation do this."""
-    if travel_deg is None:
-        return raw, None
-    return fuse_heading(resolve_front_back(raw, travel_deg), travel_deg, raw_variance)
