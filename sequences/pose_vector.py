@@ -267,3 +267,55 @@ def joint_positions(vectors: np.ndarray, template: Motion | np.ndarray | None = 
     local = pose_vectors_to_local_rotations(v, camera_azimuth_deg, names)
     positions, _ = forward_kinematics(offsets, parents, local, root_position)
     return positions[:, pose_joint_indices(names)]
+
+
+def _front_back_permutation() -> tuple[np.ndarray, np.ndarray]:
+    """(index (55,) int, sign (55,)) of the front/back flip: flipped = sign * v[index]."""
+    names = pose_vector_names()
+    position = {name: i for i, name in enumerate(names)}
+
+    def other_side(name: str) -> str:
+        for a, b in (("Left", "Right"), ("Right", "Left")):
+            if name.startswith(a):
+                return b + name[len(a):]
+        return name
+
+    index = np.array([position[other_side(name)] for name in names], dtype=np.int64)
+    sign = np.ones(POSE_DIM)
+    sign[0] = -1.0                                   # cos(180 - h) = -cos h; sin unchanged
+    sign[3] = -1.0                                   # Hips_z
+    for i, name in enumerate(names[4:], start=4):
+        if name.endswith(("_z", "_y")):
+            sign[i] = -1.0
+    return index, sign
+
+
+_FLIP_INDEX, _FLIP_SIGN = _front_back_permutation()
+
+
+def front_back_flip(vectors: np.ndarray) -> np.ndarray:
+    """The pose whose silhouette matches: the body mirrored in depth along the line of sight.
+
+    vectors: (55,) or (T, 55) pose vectors; returns the same shape. A silhouette (a projection
+    along the line of sight) cannot tell a body from its reflection D = diag(1, 1, -1) in depth
+    (camera frame, z along the line of sight, reflection plane through the root). Writing
+    D = Ry(180) @ Mx with Mx = diag(-1, 1, 1) the body's left/right mirror, the reflected body is
+    a proper pose of the mirrored skeleton (left and right bones exchanged, Mx @ offset):
+    every global rotation G becomes D @ G @ Mx, hence
+    - root: Ry(yaw) Rx(a) Rz(b) -> Ry(180 - yaw) Rx(a) Rz(-b): heading h -> 180 - h,
+      i.e. (cos, sin) -> (-cos, sin) with the norm (the ambiguity measure) kept; Hips_x kept,
+      Hips_z negated;
+    - every other joint: local rotation L -> Mx @ L @ Mx, which for R = Rz(z) Ry(y) Rx(x) is
+      Rz(-z) Ry(-y) Rx(x); and left and right joints exchange their angles.
+    Seen from the front (h = 0) this is h + 180 with left and right exchanged, the paper's
+    front/back confusion; seen in profile (h = 90) the heading stays and only the limbs swap
+    (which leg is nearer the camera). It is a signed permutation, so flipping twice is the
+    identity exactly.
+    """
+    v = np.asarray(vectors, dtype=np.float64)
+    if v.shape[-1:] != (POSE_DIM,) or v.ndim > 2:
+        raise PoseVectorError(f"pose vectors must have shape (55,) or (T, 55), got {v.shape}")
+    out = v[..., _FLIP_INDEX] * _FLIP_SIGN
+    angles = out[..., ANGLE_SLICE]
+    angles[angles == -180.0] = 180.0               # negated 180 back into (-180, 180]
+    return out

@@ -1,11 +1,11 @@
-"""Direction of travel from the image, and front/back settling of the regressor's heading."""
+"""Direction of travel from the image, and its fusion with a heading."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from tracker.filtering import PoseKalmanFilter
-from tracker.travel import TravelDirection, fuse_heading, resolve_front_back, travel_heading
+from tracker.travel import TravelDirection, fuse_heading, travel_heading
 
 FPS, WIDTH = 30.0, 640
 CENTRE = (WIDTH - 1) / 2
@@ -60,16 +60,6 @@ def _raw(heading_deg: float, norm: float) -> np.ndarray:
     raw[0], raw[1] = norm * np.cos(np.radians(heading_deg)), norm * np.sin(np.radians(heading_deg))
     raw[2:] = 7.0
     return raw
-
-
-def test_front_back_flip_follows_the_direction_of_travel():
-    flipped = resolve_front_back(_raw(170.0, 0.3), travel_deg=-5.0)
-    assert np.degrees(np.arctan2(flipped[1], flipped[0])) == pytest.approx(-10.0)
-    assert np.hypot(flipped[0], flipped[1]) == pytest.approx(0.3)      # ambiguity kept
-    assert np.array_equal(flipped[2:], _raw(170.0, 0.3)[2:])           # joints untouched
-    kept = resolve_front_back(_raw(20.0, 0.9), travel_deg=-5.0)
-    assert np.allclose(kept, _raw(20.0, 0.9))
-    assert np.allclose(resolve_front_back(_raw(170.0, 0.3), None), _raw(170.0, 0.3))
 
 
 def test_fused_heading_lies_between_by_inverse_variance():

@@ -242,6 +242,32 @@ class PoseKalmanFilter:
             R = R * np.outer(scale, scale)
         return angles, R, ambiguous
 
+    def log_likelihoods(self, raws, heading_variance=None) -> np.ndarray:
+        """Innovation log-likelihoods (K,) of candidate raw poses raws (K, 55) for the next
+        frame: log N(z_k - H x_pred; 0, H P_pred H' + R_k), z_k the angles unwrapped against the
+        prediction, R_k as :meth:`step` would use (inflated on ambiguous frames; heading_variance
+        (K,) deg^2, NaN = R's, as step's). Does not change the filter; zeros before its first
+        step (nothing to predict from)."""
+        raws = np.asarray(raws, float)
+        if self._kf is None:
+            return np.zeros(len(raws))
+        kf = self._kf
+        x_pred = (self.F @ kf.x)[:N_ANGLES, 0]
+        P_pred = (self.F @ kf.P @ self.F.T + self.Q)[:N_ANGLES, :N_ANGLES]
+        out = np.empty(len(raws))
+        factors: dict[int, tuple] = {}
+        variances = np.full(len(raws), np.nan) if heading_variance is None else heading_variance
+        for k, (raw, variance) in enumerate(zip(raws, variances)):
+            angles, R, _ = self._measure(raw, variance)
+            key = (id(R) if not np.isfinite(variance) else float(variance), R[0, 0])
+            if key not in factors:
+                L = np.linalg.cholesky(P_pred + R)
+                factors[key] = (L, 2.0 * np.log(np.diag(L)).sum())
+            L, logdet = factors[key]
+            w = np.linalg.solve(L, wrap_deg(angles - x_pred))
+            out[k] = -0.5 * (w @ w + logdet + N_ANGLES * np.log(2.0 * np.pi))
+        return out
+
     def reset(self) -> None:
         """Forget the track: the next :meth:`step` starts afresh."""
         self._kf = None

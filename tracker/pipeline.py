@@ -2,9 +2,12 @@
 
 Reads like DESIGN.md's data flow, one stage a line (see PoseTracker.process). The regressor side
 is an estimator object (regressor.pose_model.PoseModel) with three things: describe(mask) ->
-descriptor, stack_depth, predict(stacked) -> raw 55-D pose; plus the filter's noise models and
-the ambiguity threshold it was trained with. Every stage is injectable: the silhouette
-extractor, the associator and the filter factory (norfair's ``filter_factory``).
+descriptor, stack_depth, predict(stacked) -> raw 55-D pose (or, for a mixture of experts,
+predict_hypotheses(stacked, m) -> (poses (m, 55), probabilities (m,))); plus the filter's noise
+models and the ambiguity threshold it was trained with. Front/back is decided per track by
+tracker.hypotheses.FrontBackTracker (one filter from the factory per hypothesis). Every stage
+is injectable: the silhouette extractor, the associator and the filter factory (norfair's
+``filter_factory``).
 """
 from __future__ import annotations
 
@@ -20,9 +23,10 @@ from regressor.edges import SilhouetteError
 from regressor.stacking import FrameStacker
 from .association import Associator
 from .filtering import PoseKalmanFilter
+from .hypotheses import FrontBackTracker, propose
 from .silhouettes import PersonMask, SilhouetteExtractor
 from .sinks.geometry import ground_position_from_image, pose_joints_m
-from .travel import TravelDirection, settle_heading
+from .travel import TravelDirection
 from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 
 
@@ -101,7 +105,9 @@ class TrackedPose:
     """One person in one frame: what every sink is given. raw/filtered: (55,) pose vectors
     (degrees; heading as cos, sin); ambiguous: raw heading norm below the threshold; joints_m:
     (18, 3) metres, Y up, for drawing (root placed on an approximate ground position from the
-    image); centroid_px: (x, y) pixels; bbox_px: (x, y, w, h) pixels (None when unknown)."""
+    image); centroid_px: (x, y) pixels; bbox_px: (x, y, w, h) pixels (None when unknown);
+    runner_up: (55,) the filtered pose of the next most probable front/back hypothesis and
+    runner_up_probability, when that is close (tracker.hypotheses.CLOSE_PROBABILITY), else None."""
 
     frame_index: int
     time_s: float
@@ -112,17 +118,19 @@ class TrackedPose:
     joints_m: np.ndarray
     centroid_px: tuple[float, float] | None = None
     bbox_px: tuple[int, int, int, int] | None = None
+    runner_up: np.ndarray | None = None
+    runner_up_probability: float | None = None
 
 
 @dataclass
 class _TrackState:
-    """What the tracker keeps per track id: its descriptor history and its filter."""
+    """What the tracker keeps per track id: its descriptor history, its front/back hypotheses
+    (one filter each) and its direction of travel."""
 
     stacker: FrameStacker
-    kalman: PoseFilter
+    hypotheses: FrontBackTracker
     travel: TravelDirection
-    measured: list = field(default_factory=list)    # (55,) filter inputs, for smoothing
-    heading_variance: list = field(default_factory=list)   # deg^2 per frame, NaN = model's
+    measured: list = field(default_factory=list)    # (55,) raw poses (keep_history only)
     frames: int = 0                                  # frames with a pose
 
 
@@ -192,8 +200,10 @@ class PoseTracker:
     def _state(self, track_id: int) -> _TrackState:
         if track_id not in self.tracks:
             travel = TravelDirection(self.fps, self.frame_shape[1], focal_px=self._focal_px)
-            self.tracks[track_id] = _TrackState(FrameStacker(self.estimator.stack_depth),
-                                                self.filter_factory(self.fps), travel)
+            self.tracks[track_id] = _TrackState(
+                FrameStacker(self.estimator.stack_depth),
+                FrontBackTracker(self.filter_factory, self.fps,
+                                 keep_history=self.settings.keep_history), travel)
         return self.tracks[track_id]
 
     def _pose(self, track_id: int, person: PersonMask, frame_index: int,
@@ -205,31 +215,24 @@ class PoseTracker:
         except SilhouetteError:
             return None                       # a sliver or speck: no pose this frame
         clock = self._lap("descriptor", clock)
-        raw = self.estimator.predict(state.stacker.push(descriptor))
+        hypotheses = propose(self.estimator, state.stacker.push(descriptor))
         clock = self._lap("regression", clock)
-        # While the person walks, the direction of travel picks between front and back views
-        # and is fused with the regressor's heading.
-        measured, variance = self._with_travel(state, raw, person)
-        filtered, ambiguous = state.kalman.step(measured, heading_variance=variance)
+        # Front/back hypotheses over time; the direction of travel is soft evidence.
+        travel = state.travel.push(person.centroid[0], person.bbox[3])
+        decision = state.hypotheses.step(hypotheses, travel)
+        filtered, ambiguous = decision.filtered, decision.ambiguous
         state.frames += 1
         if self.settings.keep_history:
-            state.measured.append(measured)
-            state.heading_variance.append(np.nan if variance is None else variance)
+            state.measured.append(hypotheses.raw)
         clock = self._lap("filter", clock)
         h, w = self.frame_shape
         ground = ground_position_from_image(person.centroid, person.bbox[3], w, h,
                                             focal_px=self._focal_px)
         joints = pose_joints_m(filtered[None], root_position_m=ground[None])[0]
         self._lap("skeleton", clock)
-        return TrackedPose(frame_index, time_s, track_id, raw, filtered, ambiguous, joints,
-                           person.centroid, person.bbox)
-
-    @staticmethod
-    def _with_travel(state: _TrackState, raw: np.ndarray, person: PersonMask):
-        """(filter input (55,), its heading variance deg^2 or None) from the raw pose and the
-        direction of travel, if the person is moving."""
-        travel = state.travel.push(person.centroid[0], person.bbox[3])
-        return settle_heading(raw, travel, state.kalman.heading_variance)
+        return TrackedPose(frame_index, time_s, track_id, hypotheses.raw, filtered, ambiguous,
+                           joints, person.centroid, person.bbox, decision.runner_up,
+                           decision.runner_up_probability)
 
     def _lap(self, stage: str, since: float) -> float:
         now = time.perf_counter()
@@ -238,9 +241,8 @@ class PoseTracker:
 
     def smoothed_track(self, track_id: int) -> np.ndarray:
         """RTS-smoothed poses (n, 55) of every frame of a track so far (offline use; needs
-        settings.keep_history)."""
-        state = self.tracks[track_id]
+        settings.keep_history), on the most probable (Viterbi) sequence of front/back
+        hypotheses."""
         if not self.settings.keep_history:
             raise ValueError("smoothed_track needs TrackerSettings(keep_history=True)")
-        return state.kalman.rts_smooth(np.array(state.measured),
-                                       heading_variance=np.array(state.heading_variance))
+        return self.tracks[track_id].hypotheses.smoothed()

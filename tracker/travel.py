@@ -1,4 +1,4 @@
-"""Direction of travel from the image, to settle the silhouette's front/back ambiguity.
+"""Direction of travel from the image: evidence on the silhouette's front/back ambiguity.
 
 A silhouette seen from the front looks much like one seen from the back, so on ambiguous frames
 the regressor's heading may be the right one or 180 degrees off. A walking person moves the
@@ -14,13 +14,12 @@ would have if walking forwards (0 = towards the camera, +90 = towards image righ
 so no body size is assumed; f comes from an assumed field of view, which only stretches the
 angle, not which half-plane it is in, and a half-plane is all the front/back choice needs.
 
-Only a front/back hint, and only while the person moves faster than ``min_speed`` (body heights
-per second), so people standing, dancing or turning on the spot keep the regressor's own heading.
-It is applied to every moving frame, not just the ones flagged ambiguous: the regressor is
-sometimes confidently flipped (norm above the threshold, heading 150 degrees off). Someone
-walking backwards is the case it gets wrong. Tuned on CMU 07_12 as a 30 deg/s spiral walk
-(held out of training, and not the 16_11 evaluation sequence): heading RMS of the filtered
-track 56 -> 24 degrees; applying it to ambiguous frames only gave 56.
+Only while the person moves faster than ``min_speed`` (body heights per second). It is soft
+evidence for the front/back hypotheses (tracker/hypotheses.py), never an override: people do
+not always face where they go. travel_likelihood uses the motion capture's distribution of
+(facing - travel) (FACING_TRAVEL_PRIOR: forwards mostly, backwards and sideways too), and
+fuse_with_prior fuses the travel direction into a hypothesis's heading with the offset that
+hypothesis implies (travel + ~180 for one walking backwards).
 """
 from __future__ import annotations
 
@@ -36,6 +35,16 @@ from .video import focal_length_px
 DEFAULT_WINDOW = 15             # frames fitted (0.5 s at 30 fps): smooths the gait's bobbing
 DEFAULT_MIN_SPEED = 0.15        # body heights per second (a slow walk is ~0.6)
 TRAVEL_STD_DEG = 25.0           # error of the travel direction as a heading, see fuse_heading
+
+#: P(facing - direction of travel falls in a 30-degree bin), bins centred on 0, 30, ..., 180,
+#: ..., 330 (= -30) degrees: every frame where the root moves faster than DEFAULT_MIN_SPEED
+#: (travel fitted over DEFAULT_WINDOW frames at 30 fps, as TravelDirection does) of all 99 CMU
+#: trials of ../shared/data/cmu (18,261 frames: walks, runs, forward, backward 06_06/06_07 and
+#: sideways 06_08/06_09 dribbling, dance). Measured by scripts/learn_hypothesis_priors.py.
+#: Forwards (within 45 degrees) 0.69, backwards (within 15 of 180) 0.079, sideways ~0.03 a bin.
+FACING_TRAVEL_PRIOR = np.array([0.4415, 0.1530, 0.0580, 0.0226, 0.0130, 0.0283, 0.0791, 0.0296,
+                                0.0203, 0.0257, 0.0308, 0.0981])
+_PRIOR_BIN_DEG = 360.0 / len(FACING_TRAVEL_PRIOR)
 
 
 def travel_heading(u_px: np.ndarray, height_px: np.ndarray, fps: float, frame_width: int,
@@ -85,18 +94,45 @@ class TravelDirection:
         return heading if speed >= self.min_speed else None
 
 
-def resolve_front_back(raw: np.ndarray, travel_deg: float | None) -> np.ndarray:
-    """raw (55,) pose vector with its heading turned by 180 degrees when the turned heading is
-    nearer the direction of travel (degrees) than the regressor's; raw unchanged (a copy) when
-    there is no direction of travel. The (cos, sin) norm, the ambiguity measure, is kept."""
-    out = np.array(raw, dtype=np.float64, copy=True)
-    if travel_deg is None:
-        return out
-    heading = math.degrees(math.atan2(out[1], out[0]))
-    off = abs(float(wrap_deg(heading - travel_deg)))
-    if off > 90.0:
-        out[:2] = -out[:2]
-    return out
+def travel_likelihood(heading_deg, travel_deg: float,
+                      travel_std_deg: float = TRAVEL_STD_DEG) -> np.ndarray:
+    """p(the image shows travel in direction travel_deg | the body's heading is heading_deg),
+    relative to a uniform density (1 = no information): the mocap distribution of (facing -
+    travel), FACING_TRAVEL_PRIOR, seen through the image estimate's error (a von Mises of std
+    travel_std_deg, widened by the bins' own width). heading_deg: any shape; degrees, the pose
+    vector's convention (as travel_heading). Soft: walking backwards is 0.079 / 0.44 as likely
+    as forwards per observation, never impossible."""
+    centres = np.radians(np.arange(len(FACING_TRAVEL_PRIOR)) * _PRIOR_BIN_DEG)
+    std = np.radians(math.hypot(travel_std_deg, _PRIOR_BIN_DEG / math.sqrt(12.0)))
+    kappa = 1.0 / std ** 2
+    delta = np.radians(np.asarray(heading_deg, dtype=np.float64) - travel_deg)
+    # von Mises density relative to uniform: exp(kappa cos(d)) / I0(kappa)
+    vm = np.exp(kappa * (np.cos(delta[..., None] - centres) - 1.0)) / np.i0(kappa) \
+        * math.exp(kappa)
+    return vm @ FACING_TRAVEL_PRIOR
+
+
+def fuse_with_prior(raw: np.ndarray, travel_deg: float, raw_variance: float,
+                    travel_std_deg: float = TRAVEL_STD_DEG) -> tuple[np.ndarray, float]:
+    """Fuse the direction of travel into one hypothesis's heading without assuming the body
+    faces it. The (facing - travel) offset is unknown: its posterior over FACING_TRAVEL_PRIOR's
+    bins given this heading (prior times N(heading - travel - offset; 0, raw_variance +
+    travel_std_deg^2)) is moment-matched to one direction, travel + its circular mean offset,
+    whose variance adds the offsets' spread to travel_std_deg^2; then fuse_heading. A hypothesis
+    facing away from a backwards walker's travel is fused with travel + ~180, one facing across
+    it barely at all (its offset is uncertain). raw (55,); raw_variance deg^2. Returns (pose
+    (55,), fused variance deg^2)."""
+    heading = math.degrees(math.atan2(raw[1], raw[0]))
+    offsets = np.arange(len(FACING_TRAVEL_PRIOR)) * _PRIOR_BIN_DEG
+    miss = wrap_deg(heading - travel_deg - offsets)
+    log_w = np.log(FACING_TRAVEL_PRIOR) - 0.5 * miss ** 2 / (raw_variance + travel_std_deg ** 2)
+    w = np.exp(log_w - log_w.max())
+    w /= w.sum()
+    mean = math.degrees(math.atan2(w @ np.sin(np.radians(offsets)),
+                                   w @ np.cos(np.radians(offsets))))
+    spread = float(w @ wrap_deg(offsets - mean) ** 2)
+    return fuse_heading(raw, travel_deg + mean, raw_variance,
+                        math.sqrt(travel_std_deg ** 2 + spread))
 
 
 def fuse_heading(raw: np.ndarray, travel_deg: float, raw_variance: float,
@@ -115,14 +151,3 @@ def fuse_heading(raw: np.ndarray, travel_deg: float, raw_variance: float,
     fused = math.radians(heading + delta * w_travel / (w_raw + w_travel))
     out[0], out[1] = norm * math.cos(fused), norm * math.sin(fused)
     return out, 1.0 / (w_raw + w_travel)
-
-
-def settle_heading(raw: np.ndarray, travel_deg: float | None, raw_variance: float
-                   ) -> tuple[np.ndarray, float | None]:
-    """The filter's input for one frame: raw (55,) with front/back settled by the direction of
-    travel (degrees, None when the person is not walking) and fused with it; returns (pose
-    (55,), its heading variance deg^2, or None to keep the filter's own). raw_variance: the
-    filter's heading variance (deg^2). The one place the tracker and the evaluation do this."""
-    if travel_deg is None:
-        return raw, None
-    return fuse_heading(resolve_front_back(raw, travel_deg), travel_deg, raw_variance)

@@ -38,11 +38,12 @@ from sequences.render import silhouette_mask
 from sequences.spiral import line_of_sight_azimuth, spiral_walk
 from sequences.video import Actor, load_truth, posed_sequences, scene_camera, write_video
 from regressor.errors import SilhouettePoseError
-from ..filtering import ConstantVelocityFilter, PoseKalmanFilter
+from ..filtering import ConstantVelocityFilter
+from ..hypotheses import FrontBackTracker, propose_batch
 from ..pipeline import PoseTracker, TrackerSettings, kalman_factory
 from ..run import track_video
 from ..sinks import PoseRecorder
-from ..travel import TravelDirection, settle_heading
+from ..travel import TravelDirection
 from ..video import focal_length_px, open_video
 
 METHODS = ("per_frame", "stacked", "kalman", "smoothed")
@@ -63,9 +64,10 @@ class EvaluatedSequence:
     estimates: method name -> array shaped like truth; heading_norm: (T,) ||(cos, sin)|| of the
     stacked raw estimate (angles only, else None); ambiguous: (T,) bool, heading_norm below the
     filter's threshold (angles only); ambiguous_per_frame: the same for the per_frame
-    estimate's own heading norm; constant: the constant baseline every method is judged
-    against, the training set's mean pose ((55,) or (3P,)); settings: how the sequence and
-    methods were made.
+    estimate's own heading norm; runner_up: (T, 55) the filter's runner-up front/back
+    hypothesis where it was close, NaN elsewhere, runner_up_probability (T,) (NaN likewise);
+    constant: the constant baseline every method is judged against, the training set's mean
+    pose ((55,) or (3P,)); settings: how the sequence and methods were made.
     """
 
     name: str
@@ -75,6 +77,8 @@ class EvaluatedSequence:
     heading_norm: np.ndarray | None = None
     ambiguous: np.ndarray | None = None
     ambiguous_per_frame: np.ndarray | None = None
+    runner_up: np.ndarray | None = None
+    runner_up_probability: np.ndarray | None = None
     constant: np.ndarray | None = None
     settings: dict = field(default_factory=dict)
 
@@ -185,6 +189,9 @@ def evaluate(seq: EvaluatedSequence) -> dict:
                  "kalman": seq.ambiguous}
         out["ambiguity"] = {m: heading_ambiguity(seq.estimates[m], seq.truth, flags[m])
                             for m in flags if m in seq.estimates and flags[m] is not None}
+        if seq.runner_up is not None:
+            out["runner_up"] = runner_up_analysis(seq.estimates["kalman"], seq.runner_up,
+                                                  seq.truth, seq.ambiguous)
     out["settings"] = seq.settings
     return out
 
@@ -213,6 +220,29 @@ def heading_ambiguity(est: np.ndarray, truth: np.ndarray, ambiguous: np.ndarray,
             "share_of_large_in_ambiguous": float((large & amb).sum() / large.sum())
             if large.any() else None,
             "heading_rms_ambiguous_deg": rms(amb), "heading_rms_unambiguous_deg": rms(~amb)}
+
+
+def runner_up_analysis(chosen: np.ndarray, runner_up: np.ndarray, truth: np.ndarray,
+                       ambiguous: np.ndarray) -> dict:
+    """How often the runner-up hypothesis was the true one. chosen, truth (T, 55); runner_up
+    (T, 55), NaN rows where none was reported (not close); ambiguous (T,) bool. "True": nearer
+    the truth than the chosen pose (mean absolute error over the 54 angles). Counts on
+    ambiguous frames and on all frames; heading RMS if the better of the two had been taken."""
+    shown = np.isfinite(runner_up).all(axis=1)
+    amb = np.asarray(ambiguous, bool)
+    t = pose_angles(truth)
+    err_c = np.abs(wrap_deg(pose_angles(chosen) - t)).mean(axis=1)
+    alt = np.where(shown[:, None], runner_up, chosen)
+    err_r = np.abs(wrap_deg(pose_angles(alt) - t)).mean(axis=1)
+    true_alt = shown & (err_r < err_c)
+    best = np.where(true_alt[:, None], alt, chosen)
+    return {"ambiguous_frames": int(amb.sum()),
+            "runner_up_shown_ambiguous": int((shown & amb).sum()),
+            "runner_up_true_ambiguous": int((true_alt & amb).sum()),
+            "runner_up_shown": int(shown.sum()), "runner_up_true": int(true_alt.sum()),
+            "share_true_when_shown_ambiguous": float((true_alt & amb).sum() / (shown & amb).sum())
+            if (shown & amb).any() else None,
+            "heading_rms_best_of_two_deg": float(np.sqrt((heading_errors(best, truth) ** 2).mean()))}
 
 
 # ---------------------------------------------------------------- the paper's data
@@ -336,62 +366,65 @@ def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model
         motion = replace(motion, euler_deg=motion.euler_deg[:frames],
                          root_position=motion.root_position[:frames])
     masks, truth, image_track = render_silhouettes(motion, camera)
-    raw = _model_poses(stacked_model, masks)
+    X = np.array([stacked_model.describe(m) for m in masks])
+    hypotheses = propose_batch(stacked_model, stack_frames(X, stacked_model.stack_depth))
     name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
-    # As the tracker does: while the person walks, the direction of travel settles front/back
-    # and is fused with the regressor's heading.
-    kf = kalman_factory(stacked_model, settings)(camera.fps)
+    # As the tracker does: front/back hypotheses over time, the direction of travel as soft
+    # evidence while the person moves.
+    bank = FrontBackTracker(kalman_factory(stacked_model, settings), camera.fps)
     width = camera.size[1]
     travel = TravelDirection(camera.fps, width, focal_px=focal_length_px(width, settings.fov_deg))
-    measured, variance = raw.copy(), np.full(len(raw), np.nan)
-    for t, (u, h) in enumerate(image_track):
-        pose, v = settle_heading(raw[t], travel.push(u, h), kf.heading_variance)
-        if v is not None:
-            measured[t], variance[t] = pose, v
-    return _pose_sequence(name, truth, _model_poses(per_frame_model, masks), raw, kf,
+    decisions = [bank.step(h, travel.push(u, hgt))
+                 for h, (u, hgt) in zip(hypotheses, image_track)]
+    return _pose_sequence(name, truth, _model_poses(per_frame_model, masks),
+                          np.array([h.raw for h in hypotheses]),
+                          np.array([d.filtered for d in decisions]), bank.smoothed(),
+                          np.array([d.ambiguous for d in decisions]),
+                          *_runner_ups([(d.runner_up, d.runner_up_probability) for d in decisions]),
                           settings.threshold(stacked_model), settings,
                           {"path": "rendered silhouettes", "camera": camera.__dict__},
-                          measured=measured, heading_variance=variance,
                           constant=constant_pose(stacked_model))
 
 
-def _pose_sequence(name, truth, per_frame, raw, kf: PoseKalmanFilter, threshold: float,
-                   tracker_settings: TrackerSettings, settings: dict, kalman=None,
-                   measured=None, heading_variance=None, constant=None) -> EvaluatedSequence:
-    """threshold: the ambiguity threshold in use; constant: the constant baseline (55,). measured, heading_variance: the filter's
-    inputs (raw with the direction of travel fused in) and their heading variances (NaN: the
-    model's); None = raw as it is."""
-    measured = raw if measured is None else measured
-    filtered, ambiguous = kf.filter(measured, heading_variance=heading_variance)
+def _runner_ups(pairs) -> tuple[np.ndarray, np.ndarray]:
+    """(runner-up poses (T, 55), probabilities (T,)), NaN where none, from (pose, p) pairs."""
+    poses = np.array([np.full(55, np.nan) if pose is None else pose for pose, _ in pairs])
+    return poses, np.array([np.nan if p is None else p for _, p in pairs])
+
+
+def _pose_sequence(name, truth, per_frame, raw, filtered, smoothed, ambiguous, runner_up,
+                   runner_up_probability, threshold: float,
+                   tracker_settings: TrackerSettings, settings: dict,
+                   constant: np.ndarray | None = None) -> EvaluatedSequence:
+    """threshold: the ambiguity threshold in use; filtered, smoothed (T, 55): the tracker's
+    online and --smooth outputs; ambiguous (T,) bool; constant: the constant baseline (55,)."""
     return EvaluatedSequence(
         name, "deg", truth,
-        {"per_frame": per_frame, "stacked": raw,
-         "kalman": filtered if kalman is None else kalman,
-         "smoothed": kf.rts_smooth(measured, heading_variance=heading_variance)},
-        heading_norm=heading_norm(raw), ambiguous=ambiguous,
-        ambiguous_per_frame=heading_norm(per_frame) < threshold, constant=constant,
+        {"per_frame": per_frame, "stacked": raw, "kalman": filtered, "smoothed": smoothed},
+        heading_norm=heading_norm(raw), ambiguous=np.asarray(ambiguous, bool),
+        ambiguous_per_frame=heading_norm(per_frame) < threshold,
+        runner_up=runner_up, runner_up_probability=runner_up_probability, constant=constant,
         settings={**settings, "filter": {**asdict(tracker_settings),
                                          "ambiguity_threshold": threshold}})
 
 
 def _track_longest(video: Path, model: PoseModel, settings: TrackerSettings):
     """Run the ``track`` loop (tracker.run.track_video) on a one-person video: (frame indices
-    (n,), raw (n, 55), filtered (n, 55), the track's filter, the filter's inputs (n, 55) and
-    which of them had the direction of travel fused in: heading variances (n,), NaN where not)
-    of its longest track."""
+    (n,), raw (n, 55), filtered (n, 55), smoothed (n, 55), ambiguous (n,), runner-up poses
+    (n, 55) and probabilities (n,), NaN where none) of its longest track."""
     recorder = PoseRecorder()
     source = open_video(video)
-    tracker = PoseTracker(model, source.fps, replace(settings, max_people=1))
+    tracker = PoseTracker(model, source.fps, replace(settings, max_people=1, keep_history=True))
     track_video(source, tracker, [recorder])
     by_track = recorder.by_track()
     if not by_track:
         raise EvaluationError(f"{video}: nobody was tracked")
     track_id = max(by_track, key=lambda t: len(by_track[t]))
     poses = by_track[track_id]
-    state = tracker.tracks[track_id]
     return (np.array([p.frame_index for p in poses]), np.array([p.raw for p in poses]),
-            np.array([p.filtered for p in poses]), state.kalman, np.array(state.measured),
-            np.array(state.heading_variance, float))
+            np.array([p.filtered for p in poses]), tracker.smoothed_track(track_id),
+            np.array([p.ambiguous for p in poses]),
+            *_runner_ups([(p.runner_up, p.runner_up_probability) for p in poses]))
 
 
 def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: PoseModel,
@@ -410,16 +443,17 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
                     elevation_deg=camera.elevation_deg, distance_m=camera.distance_m,
                     noise_sigma=camera.noise_sigma, seed=camera.seed, n_frames=frames)
         truth = load_truth(path)["pose"][:, 0]
-        idx, raw, filtered, kf, measured, variance = _track_longest(path, stacked_model, settings)
+        idx, raw, filtered, smoothed, ambiguous, alt, alt_p = _track_longest(path, stacked_model,
+                                                                             settings)
         idx1, raw1 = _track_longest(path, per_frame_model, settings)[:2]
     common, a, b = np.intersect1d(idx, idx1, return_indices=True)
     if len(common) < 3:
         raise EvaluationError(f"{bvh}: fewer than 3 frames were tracked")
     name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
-    seq = _pose_sequence(name, truth[common], raw1[b], raw[a], kf,
-                         settings.threshold(stacked_model), settings,
+    seq = _pose_sequence(name, truth[common], raw1[b], raw[a], filtered[a], smoothed[a],
+                         ambiguous[a], alt[a], alt_p[a], settings.threshold(stacked_model),
+                         settings,
                          {"path": "video through track", "camera": camera.__dict__,
                           "frames_in_video": int(len(truth)), "frames_tracked": int(len(common))},
-                         kalman=filtered[a], measured=measured[a],
-                         heading_variance=variance[a], constant=constant_pose(stacked_model))
+                         constant=constant_pose(stacked_model))
     return seq

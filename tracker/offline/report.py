@@ -73,6 +73,12 @@ def format_table(result: dict) -> str:
     if const is not None:
         lines.append(f"{'constant':10s}" + "".join(_cell(const.get(k)) for k, _, _ in cols))
     lines.extend(_angle_notes(result))
+    if "runner_up" in result:
+        r = result["runner_up"]
+        lines.append(f"runner-up front/back hypothesis: shown on {r['runner_up_shown_ambiguous']}"
+                     f" of {r['ambiguous_frames']} ambiguous frames, the true one (nearer the "
+                     f"truth than the chosen) on {r['runner_up_true_ambiguous']}; on all frames "
+                     f"shown {r['runner_up_shown']}, true {r['runner_up_true']}")
     return "\n".join(lines)
 
 

@@ -14,7 +14,10 @@ Layout (format version 1)::
                                            # (the filtered one is 1 by construction)
                  "ambiguous": [bool], "ambiguous_frames": int,
                  "heading_mean_deg": float,  # circular mean of the filtered heading
-                 "pose": [[55 filtered values]]}]}
+                 "pose": [[55 filtered values]],
+                 "runner_up": [{"frame": int, "probability": float, "heading_deg": float,
+                                "pose": [55 values]}]}]}   # the next most probable front/back
+                                # hypothesis (filtered), on the frames where it was close
 
 The file is replaced atomically (written to ``PATH.partial``, locked from the sink's creation
 so that a second run on the same output fails at once, flushed to disk, then renamed), so a
@@ -100,7 +103,7 @@ class JsonSummarySink:
         self.end_frame(frame_index)
         track = self._tracks.setdefault(int(track_id), {
             "frames": [], "time_s": [], "centroid_px": [], "heading_deg": [],
-            "heading_norm": [], "ambiguous": [], "pose": []})
+            "heading_norm": [], "ambiguous": [], "pose": [], "runner_up": []})
         track["frames"].append(int(frame_index))
         track["time_s"].append(round(float(time_s), _DECIMALS))
         track["centroid_px"].append(np.round(centroid, 3).tolist())
@@ -109,6 +112,13 @@ class JsonSummarySink:
         track["heading_norm"].append(round(math.hypot(raw[0], raw[1]), _DECIMALS))
         track["ambiguous"].append(bool(ambiguous))
         track["pose"].append(np.round(filtered, _DECIMALS).tolist())
+        if getattr(pose, "runner_up", None) is not None:
+            alt = check_pose("runner_up55", pose.runner_up)
+            track["runner_up"].append({
+                "frame": int(frame_index),
+                "probability": round(float(pose.runner_up_probability), _DECIMALS),
+                "heading_deg": round(math.degrees(math.atan2(alt[1], alt[0])), _DECIMALS),
+                "pose": np.round(alt, _DECIMALS).tolist()})
 
     def summary(self) -> dict:
         """The summary document as it stands (see the module docstring)."""

@@ -177,6 +177,12 @@ def tracked_pose_schema() -> dict:
         "raw": estimate,
         "filtered": estimate,
     }, "One tracked person's pose in one video frame")
+    schema["properties"]["runner_up"] = {
+        **estimate, "description": "the next most probable front/back hypothesis, filtered, "
+                                   "when it is close (tracker.hypotheses.CLOSE_PROBABILITY)"}
+    schema["properties"]["runner_up_probability"] = {
+        "type": "number", "minimum": 0, "maximum": 1,
+        "description": "probability of runner_up (present with it)"}
     schema["properties"]["centroid_px"] = {
         "type": "array", "items": _NUMBER, "minItems": 2, "maxItems": 2,
         "description": "silhouette centroid (x, y) in pixels, when known"}
@@ -443,6 +449,10 @@ class McapSink:
         }
         if centroid_px is not None:
             message["centroid_px"] = [float(c) for c in centroid_px]
+        if getattr(pose, "runner_up", None) is not None:
+            message["runner_up"] = _estimate(check_pose("runner_up55", pose.runner_up),
+                                             self._names)
+            message["runner_up_probability"] = round(float(pose.runner_up_probability), 4)
         self._add(self._pose_channel, time_ns, message)
         self._entities[track_id] = skeleton_entity(track_id, time_ns, joints, bool(ambiguous))
         trail = self._trails.setdefault(track_id, deque())

@@ -1,0 +1,48 @@
+"""Learn the front/back hypotheses' priors: (facing - travel) from all CMU trials, and the
+regressor's flip statistics on its validation trials rendered as spiral walks.
+
+    python scripts/learn_hypothesis_priors.py [--cmu ../shared/data/cmu/bvh] [--model FILE]
+
+Prints the values that tracker/travel.py (FACING_TRAVEL_PRIOR) and tracker/hypotheses.py
+(SWITCH_PROBABILITY, RAW_NEARER_BY_NORM) hold.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from threadpoolctl import threadpool_limits
+
+from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+from tracker.offline.hypothesis_priors import facing_travel_histogram, regressor_flip_statistics
+from tracker.offline.training import VALIDATION_TRIALS
+
+CMU = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cmu" / "bvh"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cmu", type=Path, default=CMU)
+    ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)
+    ap.add_argument("--skip-regressor", action="store_true")
+    args = ap.parse_args(argv)
+    files = sorted(args.cmu.glob("*.bvh"))
+    prior, per_file = facing_travel_histogram(files)
+    moving = {k: v for k, v in per_file.items() if v}
+    print(f"facing - travel over {sum(moving.values())} moving frames of {len(moving)} trials "
+          f"(bins of 30 deg centred on 0, 30, ..., -30):")
+    print("[" + ", ".join(f"{p:.4f}" for p in prior) + "]")
+    for stem in ("06_06", "06_07", "06_08", "06_09"):
+        one, _ = facing_travel_histogram([args.cmu / f"{stem}.bvh"])
+        print(stem, "[" + ", ".join(f"{p:.2f}" for p in one) + "]")
+    if not args.skip_regressor:
+        with threadpool_limits(1):
+            stats = regressor_flip_statistics(load_pose_model(args.model),
+                                              [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS])
+        print(json.dumps(stats, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

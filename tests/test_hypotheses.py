@@ -1,0 +1,110 @@
+"""Front/back hypotheses over time (tracker.hypotheses) and the soft direction of travel."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from regressor.angles import pose_angles, wrap_deg
+from sequences.pose_vector import front_back_flip
+from tracker.filtering import PoseKalmanFilter
+from tracker.hypotheses import (FrontBackTracker, _with_flips, propose,
+                                transition_matrix)
+from tracker.travel import FACING_TRAVEL_PRIOR, fuse_with_prior, travel_likelihood
+
+FPS = 30.0
+
+
+def _pose(heading_deg: float, norm: float = 1.0, seed: int = 0) -> np.ndarray:
+    """A pose with asymmetric limbs (so its flip differs beyond the heading)."""
+    rng = np.random.default_rng(seed)
+    v = np.concatenate([[0.0, 0.0], rng.uniform(-40, 40, 53)])
+    h = np.radians(heading_deg)
+    v[0], v[1] = norm * np.cos(h), norm * np.sin(h)
+    return v
+
+
+def _factory(fps):
+    return PoseKalmanFilter(fps)
+
+
+def _run(truth_headings, flipped, norms, travel=None, seed=1):
+    """Feed the tracker a regressor that outputs the truth (plus noise) or its flip."""
+    rng = np.random.default_rng(seed)
+    bank = FrontBackTracker(_factory, FPS)
+    body = _pose(0.0, seed=7)
+    out = []
+    for t, h in enumerate(truth_headings):
+        true = body.copy()
+        true[0], true[1] = norms[t] * np.cos(np.radians(h)), norms[t] * np.sin(np.radians(h))
+        raw = true + np.concatenate([[0, 0], rng.normal(0, 3, 53)])
+        if flipped[t]:
+            raw = front_back_flip(raw)
+        out.append(bank.step(_with_flips(raw[None], np.ones(1)),
+                             None if travel is None else travel[t]))
+    return bank, out
+
+
+def test_soft_travel_likelihood_prefers_forwards_but_allows_backwards_and_sideways():
+    assert FACING_TRAVEL_PRIOR.sum() == pytest.approx(1.0, abs=1e-3)
+    grid = np.linspace(-180, 180, 721)[:-1]
+    assert travel_likelihood(grid, 40.0).mean() == pytest.approx(1.0, abs=1e-6)
+    forwards, backwards, sideways = travel_likelihood(np.array([40.0, 220.0, 130.0]), 40.0)
+    assert forwards > 2.5 and forwards > 4 * backwards
+    assert backwards > sideways > 0.2          # never excluded
+
+
+def test_fusing_travel_keeps_a_backwards_hypothesis_backwards():
+    fused, variance = fuse_with_prior(_pose(178.0), travel_deg=0.0, raw_variance=400.0)
+    assert abs(wrap_deg(np.degrees(np.arctan2(fused[1], fused[0])) - 180.0)) < 5.0
+    assert variance < 400.0
+    forwards, _ = fuse_with_prior(_pose(20.0), travel_deg=0.0, raw_variance=400.0)
+    assert np.degrees(np.arctan2(forwards[1], forwards[0])) < 20.0
+
+
+def test_hypotheses_are_the_pose_and_its_flip_and_a_mixture_adds_its_experts():
+    raw = _pose(10.0, norm=0.4)
+    h = _with_flips(raw[None], np.ones(1))
+    assert h.poses.shape == (2, 55) and np.array_equal(h.raw, raw)
+    np.testing.assert_allclose(h.poses[1], front_back_flip(h.poses[0]))
+
+    class Mixture:
+        def predict_hypotheses(self, stacked, m):
+            return np.array([_pose(10.0, 0.9), _pose(-60.0, 0.5)]), np.array([0.7, 0.3])
+
+    h = propose(Mixture(), np.zeros(6))
+    assert h.poses.shape == (4, 55) and h.log_evidence[0] > h.log_evidence[2]
+    A = transition_matrix(4)
+    np.testing.assert_allclose(A.sum(axis=1), 1.0)
+    bank = FrontBackTracker(_factory, FPS)
+    for _ in range(3):
+        decision = bank.step(h)
+    assert 0 <= decision.state < 4 and len(bank.viterbi_path()) == 3
+
+
+def test_a_person_walking_backwards_ends_up_facing_the_right_way():
+    """Walking away from the camera while facing it (travel 180, heading 0): the regressor is
+    ambiguous and flips often at first, then mostly right; the soft travel evidence (which
+    prefers forwards) must give way."""
+    T = 150
+    rng = np.random.default_rng(3)
+    truth = np.zeros(T)
+    flipped = np.where(np.arange(T) < 40, rng.random(T) < 0.5, rng.random(T) < 0.15)
+    norms = np.where(np.arange(T) < 40, 0.2, 0.7)
+    bank, out = _run(truth, flipped, norms, travel=np.full(T, 180.0))
+    late = np.array([pose_angles(d.filtered)[0] for d in out[-30:]])
+    assert np.all(np.abs(wrap_deg(late)) < 30.0)
+    smoothed = pose_angles(bank.smoothed())[:, 0]
+    assert np.mean(np.abs(wrap_deg(smoothed[40:])) < 30.0) > 0.9
+
+
+def test_a_turn_on_the_spot_is_followed_through_the_regressor_flips():
+    """Turning on the spot at 60 deg/s, no travel: regressor flips on 20% of frames."""
+    T = 180
+    rng = np.random.default_rng(4)
+    truth = wrap_deg(np.arange(T) * 60.0 / FPS)
+    flipped = rng.random(T) < 0.2
+    bank, out = _run(truth, flipped, np.full(T, 0.8))
+    err = np.abs(wrap_deg(np.array([pose_angles(d.filtered)[0] for d in out]) - truth))
+    assert np.mean(err[10:] < 30.0) > 0.9
+    path = bank.viterbi_path()
+    assert np.mean(path.astype(bool) == flipped) > 0.9

@@ -1,0 +1,101 @@
+"""Learning the front/back hypotheses' priors (tracker/hypotheses.py, tracker/travel.py) from data.
+
+- facing_travel_histogram: from motion capture, the distribution of (facing - direction of
+  travel) over every frame where the root moves: how likely a moving body faces its direction
+  of travel (forwards), away from it (backwards) or across it (sideways).
+- regressor_flip_statistics: from a model's raw outputs on rendered validation trials, how
+  often the raw pose is nearer the truth than its front/back flip, as a function of the
+  (cos, sin) norm, and how often that changes from one frame to the next (the HMM's switching
+  probability: a true heading change of ~180 degrees within a frame does not happen, so the
+  only switches are the regressor's).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from regressor.angles import heading_norm, pose_angles, wrap_deg
+from sequences.bvh import read_bvh
+from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_vectors
+from sequences.skeleton import CMU_UNIT_M
+from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW
+from .evaluation import CameraOptions, _model_poses, cmu_motion, render_silhouettes
+
+BODY_HEIGHT_M = 1.7
+BIN_DEG = 30.0
+
+
+def facing_minus_travel(bvh: str | Path, fps: float = 30.0, window: int = DEFAULT_WINDOW,
+                        min_speed: float = DEFAULT_MIN_SPEED) -> np.ndarray:
+    """(facing - travel) in degrees (n,) at the frames of a BVH motion where the root moves
+    faster than min_speed body heights per second, travel by least-squares slopes of the root's
+    ground position over ``window`` frames (as tracker.travel), facing = the root's yaw."""
+    motion = read_bvh(bvh, fps=fps)
+    if motion.n_frames < window:
+        return np.empty(0)
+    facing = heading_deg(motion_to_pose_vectors(motion, 0.0))
+    xz = motion.root_position[:, [0, 2]] * CMU_UNIT_M / BODY_HEIGHT_M      # body heights
+    t = (np.arange(window) - (window - 1) / 2.0) / fps
+    kernel = t / (t @ t)
+    vx = np.convolve(xz[:, 0], kernel[::-1], mode="valid")
+    vz = np.convolve(xz[:, 1], kernel[::-1], mode="valid")
+    centre = np.arange(window - 1, motion.n_frames)     # causal: the window's last frame
+    moving = np.hypot(vx, vz) >= min_speed
+    travel = np.degrees(np.arctan2(vx, vz))
+    return wrap_deg(facing[centre] - travel)[moving]
+
+
+def facing_travel_histogram(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.ndarray, dict]:
+    """Probabilities (360 / bin_deg,) of (facing - travel) in bins centred on 0, bin_deg, ...
+    (wrapped), over all moving frames of all files; and moving frames per file."""
+    n_bins = int(round(360.0 / bin_deg))
+    counts, per_file = np.zeros(n_bins), {}
+    for path in bvh_files:
+        delta = facing_minus_travel(path)
+        per_file[Path(path).stem] = int(len(delta))
+        bins = np.round(wrap_deg(delta) / bin_deg).astype(int) % n_bins
+        counts += np.bincount(bins, minlength=n_bins)
+    return counts / counts.sum(), per_file
+
+
+def raw_is_nearer(raw: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """(T,) bool: raw pose (T, 55) is nearer the truth than its front/back flip (mean absolute
+    wrapped error over the 54 angles)."""
+    t = pose_angles(truth)
+    err = np.abs(wrap_deg(pose_angles(raw) - t)).mean(axis=1)
+    err_flip = np.abs(wrap_deg(pose_angles(front_back_flip(raw)) - t)).mean(axis=1)
+    return err <= err_flip
+
+
+def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
+                              frames: int | None = 300,
+                              norm_edges=(0.0, 0.2, 0.4, 0.6, 0.8, 1.0, np.inf)) -> dict:
+    """The model's raw outputs on each BVH rendered as a spiral walk (all headings): per norm
+    bin the fraction of frames whose raw pose is nearer the truth than its flip, and the rate
+    per frame at which that changes (the switching probability)."""
+    nearer, norms, pairs = [], [], []
+    for path in bvh_files:
+        motion = cmu_motion(path, spiral_deg_per_s)
+        if frames is not None:
+            motion = replace(motion, euler_deg=motion.euler_deg[:frames],
+                             root_position=motion.root_position[:frames])
+        masks, truth, _ = render_silhouettes(motion, CameraOptions())
+        raw = _model_poses(model, masks)
+        ok = raw_is_nearer(raw, truth)
+        nearer.append(ok)
+        norms.append(heading_norm(raw))
+        pairs.append(np.stack([ok[:-1], ok[1:]], axis=1))
+    ok, n, pair = np.concatenate(nearer), np.concatenate(norms), np.concatenate(pairs)
+    was_raw, was_flip = pair[:, 0], ~pair[:, 0]
+    edges = np.asarray(norm_edges, float)
+    which = np.clip(np.searchsorted(edges, n, side="right") - 1, 0, len(edges) - 2)
+    return {"frames": int(len(ok)), "raw_nearer": float(ok.mean()),
+            "switch_rate": float((pair[:, 0] != pair[:, 1]).mean()),
+            "p_raw_to_flip": float((~pair[was_raw, 1]).mean()),
+            "p_flip_to_raw": float(pair[was_flip, 1].mean()) if was_flip.any() else None,
+            "norm_edges": edges.tolist(),
+            "raw_nearer_per_bin": [float(ok[which == b].mean()) if (which == b).any() else None
+                                   for b in range(len(edges) - 1)],
+            "frames_per_bin": np.bincount(which, minlength=len(edges) - 1).tolist()}
