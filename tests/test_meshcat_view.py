@@ -211,6 +211,20 @@ def test_view_draws_each_track_and_removes_tracks_that_left():
         view.write(TrackedPose(5, 0.2, 1, POSE, POSE, False, JOINTS))
 
 
+def test_a_close_runner_up_hypothesis_is_drawn_as_a_ghost_and_removed_when_not():
+    flipped = POSE.copy()
+    flipped[0] = -flipped[0]
+    with MeshcatView(print_url=False) as view:
+        view.write(TrackedPose(0, 0.0, 1, POSE, POSE, True, JOINTS, runner_up=flipped,
+                               runner_up_probability=0.4))
+        view.end_frame(0)
+        assert "tracks/track-1/ghost" in _track_paths(view.server.zmq_url)
+        view.write(TrackedPose(1, 0.04, 1, POSE, POSE, False, JOINTS))
+        view.end_frame(1)
+        paths = _track_paths(view.server.zmq_url)
+        assert "tracks/track-1/body" in paths and "tracks/track-1/ghost" not in paths
+
+
 def test_body_mesh_colours_each_side_and_closes_every_bone():
     colours = np.array([[0.5, 0.5, 0.5], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     joints = y_up_to_z_up(JOINTS)

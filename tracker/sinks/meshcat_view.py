@@ -5,7 +5,9 @@ What the page shows (Z-up metres, tracker.sinks.geometry conventions):
   the centre line in the track colour, the LEFT and RIGHT sides in its hue turned one way and
   the other (geometry.body_colours: red track, orange left, magenta right), so a left/right swap
   shows at a glance; a label "track N" above the head. Ambiguous frames
-  (TrackedPose.ambiguous) are drawn translucent and labelled "track N (ambiguous)".
+  (TrackedPose.ambiguous) are drawn translucent and labelled "track N (ambiguous)"; when the
+  runner-up front/back hypothesis is close (TrackedPose.runner_up), it is drawn as a faint
+  ghost body at the same root, fainter the less probable it is.
 - the pelvis path of each track as a ribbon on the ground, fading over ``trail_s`` seconds.
 - the video beside the people: a small copy of the current frame with each silhouette outlined
   in its track colour (video_panel.py), on a screen with a dark bezel, ``video_fps`` times a
@@ -16,7 +18,7 @@ What the page shows (Z-up metres, tracker.sinks.geometry conventions):
   time shows every person in view.
 
 Scene paths: ``/people`` (shifted by the follow) holds ``ground``, ``tracks/track-<id>/body``,
-``tracks/track-<id>/label`` and ``trails/track-<id>``; ``/video`` holds the screen. Tracks not
+``tracks/track-<id>/label``, ``tracks/track-<id>/ghost`` and ``trails/track-<id>``; ``/video`` holds the screen. Tracks not
 written in the previous frame are removed. The view talks to a
 :class:`tracker.sinks.meshcat_server.ViewerServer` (127.0.0.1 only) through meshcat's
 ``Visualizer``; by default it starts its own server and stops it on ``close()``.
@@ -43,6 +45,7 @@ from tracker.sinks.geometry import (
     SinkInputError,
     body_colours,
     check_joints,
+    pose_joints_m,
     track_colour,
     y_up_to_z_up,
 )
@@ -173,6 +176,7 @@ class MeshcatView:
         self._last_frame: dict[int, int] = {}  # track id -> last frame it was drawn in
         self._labels: dict[int, str] = {}      # track id -> label text on screen
         self._trails: dict[int, deque] = {}    # track id -> (time s, x, y) of its pelvis
+        self._ghosts: set[int] = set()         # tracks whose runner-up hypothesis is drawn
         self._roots: list[np.ndarray] = []     # roots drawn in the current frame (Z-up)
         self._frame_time_s, self._frame_done = 0.0, False
         self._closed = False
@@ -298,6 +302,7 @@ class MeshcatView:
         material = g.MeshLambertMaterial(vertexColors=True, opacity=0.5 if pose.ambiguous else 1.0)
         node["body"].set_object(g.TriangularMeshGeometry(vertices, faces, colours), material)
         self._draw_label(node["label"], track_id, joints, bool(pose.ambiguous))
+        self._draw_ghost(node["ghost"], track_id, pose)
         trail = self._trails.setdefault(track_id, deque())
         trail.append((float(pose.time_s), joints[0, 0], joints[0, 1]))
         while trail and trail[0][0] < pose.time_s - self._trail_s:
@@ -319,6 +324,24 @@ class MeshcatView:
         top = joints[:, 2].max() + 0.3
         head = joints[3]
         node.set_transform(_transform(self.framing.facing_rotation(), (head[0], head[1], top)))
+
+    def _draw_ghost(self, node, track_id: int, pose: TrackedPose) -> None:
+        """The runner-up front/back hypothesis, when the tracker says it is close, as a faint
+        body at the same root (opacity grows with its probability); removed when not close."""
+        if pose.runner_up is None:
+            if track_id in self._ghosts:
+                node.delete()
+                self._ghosts.discard(track_id)
+            return
+        root = np.asarray(pose.joints_m, np.float64)[:1]
+        ghost = y_up_to_z_up(pose_joints_m(np.asarray(pose.runner_up)[None],
+                                           root_position_m=root)[0])
+        vertices, faces, colours = body_mesh(ghost, body_colours(track_id))
+        opacity = 0.1 + 0.3 * float(pose.runner_up_probability or 0.0)
+        g = self._g
+        node.set_object(g.TriangularMeshGeometry(vertices, faces, colours),
+                        g.MeshLambertMaterial(vertexColors=True, opacity=opacity))
+        self._ghosts.add(track_id)
 
     def _draw_trail(self, track_id: int, trail: deque) -> None:
         node = self._vis["people/trails"][f"track-{track_id}"]
@@ -348,6 +371,7 @@ class MeshcatView:
         for track_id in gone:
             self._vis["people/tracks"][f"track-{track_id}"].delete()
             self._vis["people/trails"][f"track-{track_id}"].delete()
+            self._ghosts.discard(track_id)
             for kept in (self._last_frame, self._labels, self._trails):
                 kept.pop(track_id, None)
 
