@@ -313,3 +313,45 @@ def test_smooth_gives_smoother_tracks_than_the_forward_filter(tmp_path, walk_vid
         return np.abs((np.diff(p, 2, axis=0) + 180) % 360 - 180).mean()
     assert jitter(pb) < 0.5 * jitter(pa)
     assert len(list((tmp_path / "b").glob("*.bvh"))) == 1
+
+
+# ------------------------------------------------------------------ --background (clean plate)
+
+
+def _plate(walk_video: Path, path: Path, size=(320, 240)) -> Path:
+    """The walk video's empty scene (textured_background, seed 3), written as an image."""
+    from sequences.video import textured_background
+    scene = cv2.cvtColor(textured_background((240, 320), seed=3), cv2.COLOR_RGB2BGR)
+    cv2.imwrite(str(path), cv2.resize(scene, size, interpolation=cv2.INTER_AREA))
+    return path
+
+
+def test_background_image_is_used_as_the_clean_plate(tmp_path, walk_video):
+    plate = _plate(walk_video, tmp_path / "plate.png")
+    js = tmp_path / "w.json"
+    result = _track(walk_video, "--background", plate, "--json", js, "--quiet", cwd=tmp_path)
+    assert result.returncode == 0 and result.stderr == "", result.stderr
+    assert len(json.loads(js.read_text())["tracks"]) == 1
+
+
+def test_background_image_of_another_size_is_resized_with_one_warning(tmp_path, walk_video):
+    plate = _plate(walk_video, tmp_path / "half.jpg", size=(160, 120))
+    result = _track(walk_video, "--background", plate, "--json", tmp_path / "w.json", "--quiet",
+                    cwd=tmp_path)
+    assert result.returncode == 0
+    assert result.stderr.strip().splitlines() == [
+        f"track: warning: --background {plate} is 160x120; resized to the video's 320x240"]
+
+
+def test_missing_or_corrupt_background_image_is_one_line_error(tmp_path, walk_video):
+    missing = _track(walk_video, "--background", tmp_path / "none.png", "--json",
+                     tmp_path / "a.json", cwd=tmp_path)
+    assert missing.returncode == 1
+    _assert_one_line_error(missing, "--background", "none.png", "no such file")
+    corrupt = tmp_path / "broken.png"
+    corrupt.write_bytes(b"\x89PNG\r\n\x1a\n" + b"not really" * 20)
+    broken = _track(walk_video, "--background", corrupt, "--json", tmp_path / "b.json",
+                    cwd=tmp_path)
+    assert broken.returncode == 1
+    _assert_one_line_error(broken, "--background", "broken.png", "not an image")
+    assert not (tmp_path / "a.json").exists() and not (tmp_path / "b.json").exists()

@@ -1,7 +1,7 @@
 """The ``track`` command: 3-D poses of the people in a static-camera video.
 
     track VIDEO [--out FILE.mcap] [--bvh DIR] [--json FILE] [--view] [--smooth] [--model FILE]
-          [--max-people N] [--start S] [--end S] [--quiet]
+          [--background IMAGE] [--max-people N] [--start S] [--end S] [--quiet]
 
 Without --out/--json/--bvh/--view it records to VIDEO_STEM.mcap in the current folder. Errors
 (bad video, model, options or output paths) print one line and exit non-zero; Ctrl-C stops
@@ -50,6 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "the JSON and BVH outputs (offline use)")
     ap.add_argument("--model", type=Path, default=None, help="model file "
                     "(default: the shipped model)")
+    ap.add_argument("--background", type=Path, metavar="IMAGE", help="an image of the empty "
+                    "scene (clean plate) from the same camera (default: learned from the video)")
     ap.add_argument("--max-people", type=int, default=None, metavar="N",
                     help="track at most N people per frame (largest first)")
     ap.add_argument("--start", type=float, default=0.0, metavar="S", help="start at S seconds")
@@ -74,6 +76,8 @@ def _check_options(args) -> None:
                                      <= MAX_TIME_S):
         raise TrackError(f"--end must be after --start ({args.start} s) and at most "
                          f"{MAX_TIME_S:g} s, got {args.end}")
+    if args.background is not None and not args.background.is_file():
+        raise TrackError(f"--background {args.background}: no such file")
     if args.out is None and args.json is None and args.bvh is None and not args.view:
         args.out = Path(args.video.stem + ".mcap")
         if _same_file(args.out, args.video):
@@ -192,6 +196,7 @@ def _run(args) -> int:
     args.model = args.model or DEFAULT_MODEL_PATH
     model = load_pose_model(args.model)
     source = open_video(args.video, start_s=args.start, end_s=args.end)
+    plate = _load_background(args.background, source) if args.background else None
     streaming, smoothed = _sink_factories(args, source, model)
     sinks = open_sinks(streaming + smoothed)
     # Per-track histories are kept only for --smooth: without it memory stays flat.
@@ -199,10 +204,28 @@ def _run(args) -> int:
     tracker = PoseTracker(model, source.fps, settings)
     result = track_video(source, tracker, sinks[:len(streaming)],
                          Progress(source.expected_frames(), quiet=args.quiet),
-                         smoothed_sinks=sinks[len(streaming):])
+                         smoothed_sinks=sinks[len(streaming):], background=plate)
     if not args.quiet:
         _print_summary(args, source, result)
     return EXIT_INTERRUPTED if result.interrupted else 0
+
+
+def _load_background(path: Path, source):
+    """The --background image as BGR uint8 at the video's size (TrackError if unreadable; a
+    one-line warning when it has to be resized)."""
+    import cv2
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if image is None:
+        raise TrackError(f"--background {path}: not an image OpenCV can read (PNG, JPEG, ...)")
+    size = (source.width, source.height)
+    if (image.shape[1], image.shape[0]) != size:
+        if abs(image.shape[1] / image.shape[0] - size[0] / size[1]) > 0.02 * size[0] / size[1]:
+            raise TrackError(f"--background {path} is {image.shape[1]}x{image.shape[0]}, the "
+                             f"video {size[0]}x{size[1]}: not the same view")
+        warnings.warn(f"--background {path} is {image.shape[1]}x{image.shape[0]}; resized to "
+                      f"the video's {size[0]}x{size[1]}")
+        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+    return image
 
 
 def _print_summary(args, source, result) -> None:

@@ -50,7 +50,8 @@ class TrackRun:
 
 def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = None,
                 sinks: Sequence[Sink] = (), progress=None,
-                smoothed_sinks: Sequence[Sink] = ()) -> TrackRun:
+                smoothed_sinks: Sequence[Sink] = (), background: np.ndarray | None = None
+                ) -> TrackRun:
     """Track every frame of ``source`` (an opened video or a path) into ``sinks``.
 
     tracker: a PoseTracker (None: the shipped model with default settings). progress: an
@@ -62,8 +63,10 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     on return, also on Ctrl-C, which stops the loop (the result says interrupted); while they
     are being closed, further Ctrl-C, SIGTERM and SIGHUP are held back (and mark the run
     interrupted), so a second Ctrl-C cannot cut an output short. OutputError if some could not
-    be closed. tracker.stage_seconds gains "background" (sampling the video and priming, the
-    start-up cost), "decode" and "outputs".
+    be closed. background: an image of the empty scene (a clean plate, BGR uint8 at the video's
+    size, ``track --background``), trusted everywhere; None learns the scene from frames spread
+    over the video (see :func:`_prime`). tracker.stage_seconds gains "background" (sampling the
+    video and priming, the start-up cost), "decode" and "outputs".
     """
     if not isinstance(source, VideoSource):
         source = open_video(source)
@@ -80,7 +83,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     frames, interrupted, started = 0, False, time.perf_counter()
     stages = tracker.stage_seconds
     try:
-        tracker.prime(_background(source, tracker))
+        _prime(source, tracker, background)
         stages["background"] += time.perf_counter() - started
         clock = time.perf_counter()
         for index, time_s, frame in source:
@@ -116,18 +119,39 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     return TrackRun(frames, time.perf_counter() - started, interrupted, tracker)
 
 
-def _background(source: VideoSource, tracker: PoseTracker) -> np.ndarray:
-    """The empty scene (BGR uint8 at the frame size): the median of frames spread over the
-    video, taken at the extractor's working size (a 4K video needs no 25 full frames in memory)
-    and scaled back up, which the extractor shrinks again."""
+def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | None) -> None:
+    """Teach the tracker the empty scene: the clean plate ``background`` when given; otherwise
+    the median of frames spread over the video, taken at the extractor's working size (a 4K
+    video needs no 25 full frames in memory) and scaled back up, plus, for an extractor that
+    can use them (``learn_zone``), the same frames to find where that median shows a person who
+    never leaves the spot (tracker.background.clip_background)."""
+    if background is not None:
+        tracker.prime(background)
+        return
+    median, frames = _sampled_background(source, tracker)
+    tracker.prime(median)
+    learn_zone = getattr(tracker.extractor, "learn_zone", None)
+    if learn_zone is not None:
+        learn_zone(frames)
+
+
+def _sampled_background(source: VideoSource, tracker: PoseTracker
+                        ) -> tuple[np.ndarray, list[np.ndarray]]:
+    """(the median of frames spread over the video, BGR uint8 at the frame size; those frames
+    at the extractor's working size)."""
     full = (source.width, source.height)
     subtractor = getattr(tracker.extractor, "subtractor", None)
     size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full
-    background = median_background(source.sample_frames(tracker.settings.background_samples,
-                                                        size=size))
+    frames = source.sample_frames(tracker.settings.background_samples, size=size)
+    median = median_background(frames)
     if size != full:
-        background = cv2.resize(background, full, interpolation=cv2.INTER_CUBIC)
-    return background
+        median = cv2.resize(median, full, interpolation=cv2.INTER_CUBIC)
+    return median, frames
+
+
+def _background(source: VideoSource, tracker: PoseTracker) -> np.ndarray:
+    """The median of frames spread over the video (BGR uint8 at the frame size)."""
+    return _sampled_background(source, tracker)[0]
 
 
 @contextlib.contextmanager

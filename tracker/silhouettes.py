@@ -437,13 +437,29 @@ class SilhouetteExtractor:
         frames = list(background)
         if not frames:
             raise ExtractionError("prime needs a background image or at least one frame")
+        small = self._working_frames(frames)
+        estimate = clip_background(small)
         height, width = frames[0].shape[:2]
-        size = self.subtractor.working_size(width, height)
-        estimate = clip_background(np.stack([
-            cv2.resize(f, size, interpolation=cv2.INTER_AREA) for f in frames]))
         self.subtractor.prime(cv2.resize(estimate.image, (width, height),
                                          interpolation=cv2.INTER_LINEAR))
         self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
+
+    def learn_zone(self, frames) -> None:
+        """After :meth:`prime` with the clip's median image, mark where that background cannot
+        be trusted, from the same frames (list or (N, H, W, 3) BGR uint8, any size that shrinks
+        to the working size, e.g. ``sample_frames(25, size=working size)``): what priming with
+        the frames does, without learning the median twice."""
+        if self.subtractor.reference is None:
+            raise ExtractionError("learn_zone needs prime() with a background image first")
+        estimate = clip_background(self._working_frames(list(frames)))
+        self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
+
+    def _working_frames(self, frames: list) -> np.ndarray:
+        """Frames (each BGR uint8 (H, W, 3)) shrunk to the working size, (N, h, w, 3)."""
+        height, width = frames[0].shape[:2]
+        size = self.subtractor.working_size(width, height)
+        return np.stack([f if (f.shape[1], f.shape[0]) == size else
+                         cv2.resize(f, size, interpolation=cv2.INTER_AREA) for f in frames])
 
     def __call__(self, frame: np.ndarray) -> list[PersonMask]:
         """People in ``frame`` (BGR uint8 (H, W, 3)); [] while the background is warming up."""
