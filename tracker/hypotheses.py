@@ -226,7 +226,7 @@ class FrontBackTracker:
         used, out = set(), []
         for i in predecessor:
             f = self.filters[int(i)]
-            out.append(copy.deepcopy(f) if int(i) in used else f)
+            out.append(_clone(f) if int(i) in used else f)
             used.add(int(i))
         return out
 
@@ -259,6 +259,12 @@ class FrontBackTracker:
         """RTS-smoothed poses (T, 55) of the Viterbi path's hypotheses (``--smooth``)."""
         poses, variances = self.chosen_poses()
         return self.filter_factory(self.fps).rts_smooth(poses, heading_variance=variances)
+
+
+def _clone(f):
+    """An independent copy of a filter: its own ``copy()`` when it has one (PoseKalmanFilter's
+    copies two arrays), else a deep copy."""
+    return f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
 
 
 def _logsumexp(x: np.ndarray, axis=None) -> np.ndarray:
