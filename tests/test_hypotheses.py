@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 from regressor.angles import pose_angles, wrap_deg
 from sequences.pose_vector import front_back_flip
@@ -12,6 +13,13 @@ from tracker.hypotheses import (FrontBackTracker, _with_flips, propose,
 from tracker.travel import FACING_TRAVEL_PRIOR, fuse_with_prior, travel_likelihood
 
 FPS = 30.0
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_blas_thread():
+    """One BLAS thread, as track uses: the filters' small products only lose by sharing."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
 
 
 def _pose(heading_deg: float, norm: float = 1.0, seed: int = 0) -> np.ndarray:
