@@ -63,8 +63,9 @@ SWITCH_PROBABILITY = (0.115, 0.207)
 #: up facing the right way: 83.8 deg against 86.2 with (1/15, 1), the first version's. Pairs
 #: with a larger travel weight or a smaller evidence weight score better there (0.5, 0.4: 81.6,
 #: mostly on forward walkers) but let the travel prior overrule a backward walker for good.
-#: The mocap agrees with ~0.1: a moving body's (facing - travel) quadrant is re-drawn about
-#: 0.06 times a frame (scripts/learn_hypothesis_priors.py data, all CMU trials).
+#: The mocap agrees with ~0.1: on the CMU trials of FACING_TRAVEL_PRIOR, a moving body's
+#: (facing - travel) quadrant is re-drawn about 0.06 times a frame (a one-off measurement from
+#: the autocorrelation of the quadrant at lags 1-30 frames; the script does not print it yet).
 TRAVEL_WEIGHT = 0.1
 EVIDENCE_WEIGHT = 0.8
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
