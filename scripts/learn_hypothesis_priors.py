@@ -2,9 +2,11 @@
 regressor's flip statistics on its validation trials rendered as spiral walks.
 
     python scripts/learn_hypothesis_priors.py [--cmu ../shared/data/cmu/bvh] [--model FILE]
+        [--skip-regressor] [--weights]
 
 Prints the values that tracker/travel.py (FACING_TRAVEL_PRIOR) and tracker/hypotheses.py
-(SWITCH_PROBABILITY, RAW_NEARER_BY_NORM) hold.
+(SWITCH_PROBABILITY, RAW_NEARER_BY_NORM; with --weights TRAVEL_WEIGHT and EVIDENCE_WEIGHT,
+which should be chosen after the others are in place) hold.
 """
 from __future__ import annotations
 
@@ -15,7 +17,10 @@ from pathlib import Path
 from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-from tracker.offline.hypothesis_priors import facing_travel_histogram, regressor_flip_statistics
+import numpy as np
+
+from tracker.offline.hypothesis_priors import (choose_weights, facing_travel_histogram,
+                                               regressor_flip_statistics, validation_renders)
 from tracker.offline.training import VALIDATION_TRIALS
 
 CMU = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cmu" / "bvh"
@@ -26,6 +31,8 @@ def main(argv=None) -> int:
     ap.add_argument("--cmu", type=Path, default=CMU)
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)
     ap.add_argument("--skip-regressor", action="store_true")
+    ap.add_argument("--weights", action="store_true",
+                    help="also choose TRAVEL_WEIGHT and EVIDENCE_WEIGHT on validation renders")
     args = ap.parse_args(argv)
     files = sorted(args.cmu.glob("*.bvh"))
     prior, per_file = facing_travel_histogram(files)
@@ -41,7 +48,20 @@ def main(argv=None) -> int:
             stats = regressor_flip_statistics(load_pose_model(args.model),
                                               [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS])
         print(json.dumps(stats, indent=1))
+    if args.weights:
+        _choose_weights(load_pose_model(args.model),
+                        [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS + ("07_12",)])
     return 0
+
+
+def _choose_weights(model, files) -> None:
+    with threadpool_limits(1):
+        renders = validation_renders(model, files)
+        best, table = choose_weights(model, renders)
+    print("mean filtered heading RMS (deg) over", len(renders), "validation renders:")
+    for (tw, ew), rms in table.items():
+        print(f"  travel_weight {tw:.3f} evidence_weight {ew:.2f}: {np.mean(list(rms.values())):.1f}")
+    print(f"TRAVEL_WEIGHT = {best[0]:.3g}\nEVIDENCE_WEIGHT = {best[1]:.3g}")
 
 
 if __name__ == "__main__":

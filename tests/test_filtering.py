@@ -173,3 +173,28 @@ def test_bad_settings_are_refused(options):
     settings = {"fps": FPS, **options}
     with pytest.raises(FilterError):
         PoseKalmanFilter(**settings)
+
+
+def test_step_matches_the_filterpy_filter_with_heading_variances():
+    poses = noisy_poses(true_angles(60), std=5.0)
+    variances = np.where(np.arange(60) % 4 == 0, 300.0, np.nan)
+    kf = PoseKalmanFilter(FPS)
+    stepped = np.array([kf.step(p, None if np.isnan(v) else v)[0]
+                        for p, v in zip(poses, variances)])
+    batch, _ = PoseKalmanFilter(FPS).filter(poses, variances)
+    np.testing.assert_allclose(pose_angles(stepped), pose_angles(batch), atol=1e-8)
+
+
+def test_copy_is_independent_and_scoring_leaves_the_state_alone():
+    poses = noisy_poses(true_angles(12), std=5.0)
+    a = PoseKalmanFilter(FPS)
+    for p in poses[:10]:
+        a.step(p)
+    before = a.log_likelihoods(poses[10:12])
+    b = a.copy()
+    b.step(poses[11])
+    np.testing.assert_array_equal(a.log_likelihoods(poses[10:12]), before)
+    fresh = PoseKalmanFilter(FPS)
+    for p in poses[:10]:
+        fresh.step(p)
+    assert np.array_equal(a.step(poses[10])[0], fresh.step(poses[10])[0])

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 from regressor.angles import pose_angles, wrap_deg
 from sequences.pose_vector import front_back_flip
@@ -12,6 +13,13 @@ from tracker.hypotheses import (FrontBackTracker, _with_flips, propose,
 from tracker.travel import FACING_TRAVEL_PRIOR, fuse_with_prior, travel_likelihood
 
 FPS = 30.0
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_blas_thread():
+    """One BLAS thread, as track uses: the filters' small products only lose by sharing."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
 
 
 def _pose(heading_deg: float, norm: float = 1.0, seed: int = 0) -> np.ndarray:
@@ -108,3 +116,28 @@ def test_a_turn_on_the_spot_is_followed_through_the_regressor_flips():
     assert np.mean(err[10:] < 30.0) > 0.9
     path = bank.viterbi_path()
     assert np.mean(path.astype(bool) == flipped) > 0.9
+
+
+def test_evidence_weight_tempers_the_regressors_evidence():
+    """Exponent 0: the regressor's norm evidence is ignored and raw and flip start even."""
+    h = _with_flips(_pose(10.0, norm=0.7)[None], np.ones(1))
+    assert h.log_evidence[0] != h.log_evidence[1]
+    flat = FrontBackTracker(_factory, FPS, evidence_weight=0.0).step(h)
+    assert flat.probability == pytest.approx(transition_matrix(2)[1, 0] /
+                                             (transition_matrix(2)[1, 0] + transition_matrix(2)[0, 1]))
+    full = FrontBackTracker(_factory, FPS, evidence_weight=1.0).step(h)
+    assert full.probability > flat.probability
+
+
+def test_weights_are_chosen_by_replaying_the_tracker_on_validation_renders(cmu_bvh_dir):
+    from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+    from tracker.offline.hypothesis_priors import choose_weights, validation_renders
+    model = load_pose_model(DEFAULT_MODEL_PATH)
+    renders = validation_renders(model, [cmu_bvh_dir / "07_12.bvh"], frames=24)
+    assert sorted(renders) == ["07_12 fixed", "07_12 fixed reversed", "07_12 spiral",
+                               "07_12 spiral reversed"]
+    forwards, backwards = (renders[f"07_12 fixed{s}"]["truth"] for s in ("", " reversed"))
+    assert len(forwards) == len(backwards) == 24
+    best, table = choose_weights(model, renders, travel_weights=(0.1, 1.0), evidence_weights=(0.5,))
+    assert best in table and len(table) == 2
+    assert all(0 <= rms <= 180 for rms in table[best].values())

@@ -21,8 +21,10 @@ a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter ban
   n says how often its raw pose, not the flip, is the nearer one (RAW_NEARER_BY_NORM, validation
   renders), turned into a likelihood ratio P(raw | n) / P(raw). The direction of travel's, while
   the person moves: tracker.travel.travel_likelihood (the mocap distribution of facing minus
-  travel: backwards and sideways walking are less likely than forwards, never excluded), counted
-  once per travel window (TRAVEL_WEIGHT per frame: overlapping windows are one observation).
+  travel: backwards and sideways walking are less likely than forwards, never excluded).
+  Consecutive frames' evidence is correlated (stacked descriptors share frames; travel windows
+  overlap), so each is tempered by an exponent per frame, EVIDENCE_WEIGHT for the regressor's
+  and TRAVEL_WEIGHT for travel's, chosen on validation renders (see those constants).
 
 Online the chosen pose is the most probable state's filtered pose; the runner-up and its
 probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
@@ -38,7 +40,7 @@ import numpy as np
 
 from regressor.angles import heading_norm
 from sequences.pose_vector import front_back_flip
-from .travel import DEFAULT_WINDOW, fuse_with_prior, travel_likelihood
+from .travel import fuse_with_prior, travel_likelihood
 
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
 #: [RAW_NEARER_NORM_EDGES[b], RAW_NEARER_NORM_EDGES[b + 1])); and over all frames. Measured on
@@ -52,7 +54,20 @@ RAW_NEARER_OVERALL = 0.647
 #: (P(raw -> flip), P(flip -> raw)): how often the nearer of the two changes from one frame to
 #: the next (30 fps), same data: the regressor's flips, not the body's.
 SWITCH_PROBABILITY = (0.115, 0.207)
-TRAVEL_WEIGHT = 1.0 / DEFAULT_WINDOW     # exponent of the travel likelihood per frame
+#: Exponents per frame of the travel likelihood and of the regressor's evidence (log
+#: likelihoods are multiplied by them). Chosen among the pairs of
+#: tracker.offline.hypothesis_priors.choose_weights (scripts/learn_hypothesis_priors.py
+#: --weights) by the mean filtered heading RMS over the validation trials and 07_12 rendered as
+#: spiral walks and from a fixed camera, as recorded and time-reversed (backward walks), keeping
+#: only pairs under which the hand-made backward walker of tests/test_hypotheses.py still ends
+#: up facing the right way: 83.8 deg against 86.2 with (1/15, 1), the first version's. Pairs
+#: with a larger travel weight or a smaller evidence weight score better there (0.5, 0.4: 81.6,
+#: mostly on forward walkers) but let the travel prior overrule a backward walker for good.
+#: The mocap agrees with ~0.1: on the CMU trials of FACING_TRAVEL_PRIOR, a moving body's
+#: (facing - travel) quadrant is re-drawn about 0.06 times a frame (a one-off measurement from
+#: the autocorrelation of the quadrant at lags 1-30 frames; the script does not print it yet).
+TRAVEL_WEIGHT = 0.1
+EVIDENCE_WEIGHT = 0.8
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
 DEFAULT_EXPERTS = 3                      # experts asked of a mixture model's predict_hypotheses
 _FLOOR = 1e-3                            # no evidence is ever certain
@@ -164,8 +179,9 @@ class FrontBackTracker:
 
     filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; its ``log_likelihoods``
     is used when it has one, else hypotheses are scored by their evidence only); fps: frames
-    per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; travel_weight: exponent of
-    the travel likelihood per frame; keep_history: keep every frame's hypotheses for
+    per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; travel_weight and
+    evidence_weight: exponents per frame of the travel likelihood and of the regressor's
+    evidence; keep_history: keep every frame's hypotheses for
     viterbi_path/smoothed (memory grows with the track; off when nothing needs smoothing).
     """
 
@@ -173,18 +189,20 @@ class FrontBackTracker:
     fps: float
     switch: tuple[float, float] = SWITCH_PROBABILITY
     travel_weight: float = TRAVEL_WEIGHT
+    evidence_weight: float = EVIDENCE_WEIGHT
     fuse_travel: bool = True
     keep_history: bool = True
     filters: list = field(default_factory=list)
     log_alpha: np.ndarray | None = None
     history: list[_Frame] = field(default_factory=list)
+    _log_A: tuple | None = field(default=None, repr=False)
 
     def step(self, hypotheses: Hypotheses, travel_deg: float | None = None) -> Decision:
         """Take one frame's hypotheses and the direction of travel (degrees, None when the
         person is not moving); returns the decision."""
         poses = hypotheses.poses
         K = len(poses)
-        evidence = hypotheses.log_evidence.copy()
+        evidence = self.evidence_weight * hypotheses.log_evidence
         variances = np.full(K, np.nan)
         if travel_deg is not None:
             headings = np.degrees(np.arctan2(poses[:, 1], poses[:, 0]))
@@ -194,7 +212,7 @@ class FrontBackTracker:
                 fused = [fuse_with_prior(pose, travel_deg, raw_variance) for pose in poses]
                 poses = np.array([f[0] for f in fused])
                 variances = np.array([f[1] for f in fused])
-        log_A = np.log(transition_matrix(K, self.switch))
+        log_A = self._log_transitions(K)
         if self.log_alpha is None or len(self.filters) != K:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
             stationary = np.linalg.matrix_power(np.exp(log_A), 256)[0]
@@ -220,13 +238,20 @@ class FrontBackTracker:
             decision.runner_up_probability = float(prob[order[1]])
         return decision
 
+    def _log_transitions(self, K: int) -> np.ndarray:
+        """log A (K, K) for the current switch probabilities, computed once."""
+        key = (K, tuple(self.switch))
+        if self._log_A is None or self._log_A[0] != key:
+            self._log_A = (key, np.log(transition_matrix(K, self.switch)))
+        return self._log_A[1]
+
     def _continue(self, predecessor: np.ndarray) -> list:
         """Filters for the new states: state j continues predecessor[j]'s filter (a copy when
         two states continue the same one; copies are made before any filter steps)."""
         used, out = set(), []
         for i in predecessor:
             f = self.filters[int(i)]
-            out.append(copy.deepcopy(f) if int(i) in used else f)
+            out.append(_clone(f) if int(i) in used else f)
             used.add(int(i))
         return out
 
@@ -259,6 +284,12 @@ class FrontBackTracker:
         """RTS-smoothed poses (T, 55) of the Viterbi path's hypotheses (``--smooth``)."""
         poses, variances = self.chosen_poses()
         return self.filter_factory(self.fps).rts_smooth(poses, heading_variance=variances)
+
+
+def _clone(f):
+    """An independent copy of a filter: its own ``copy()`` when it has one (PoseKalmanFilter's
+    copies two arrays), else a deep copy."""
+    return f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
 
 
 def _logsumexp(x: np.ndarray, axis=None) -> np.ndarray:

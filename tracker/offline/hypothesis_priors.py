@@ -8,6 +8,9 @@
   (cos, sin) norm, and how often that changes from one frame to the next (the HMM's switching
   probability: a true heading change of ~180 degrees within a frame does not happen, so the
   only switches are the regressor's).
+- choose_weights: the exponents per frame of the travel likelihood and of the regressor's
+  evidence (consecutive frames' evidence is correlated), by replaying the tracker over the
+  validation trials rendered as spirals and from a fixed camera, forwards and time-reversed.
 """
 from __future__ import annotations
 
@@ -19,8 +22,13 @@ import numpy as np
 from regressor.angles import heading_norm, pose_angles, wrap_deg
 from sequences.bvh import read_bvh
 from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_vectors
+from regressor.stacking import stack_frames
 from sequences.skeleton import CMU_UNIT_M
-from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW
+from sequences.spiral import spiral_walk
+from ..hypotheses import FrontBackTracker, propose_batch
+from ..pipeline import kalman_factory
+from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW, TravelDirection
+from ..video import focal_length_px
 from .evaluation import CameraOptions, _model_poses, cmu_motion, render_silhouettes
 
 BODY_HEIGHT_M = 1.7
@@ -99,3 +107,63 @@ def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
             "raw_nearer_per_bin": [float(ok[which == b].mean()) if (which == b).any() else None
                                    for b in range(len(edges) - 1)],
             "frames_per_bin": np.bincount(which, minlength=len(edges) - 1).tolist()}
+
+
+def validation_renders(model, bvh_files, spiral_deg_per_s: float = 30.0,
+                       frames: int | None = 600, camera: CameraOptions = CameraOptions()
+                       ) -> dict[str, dict]:
+    """Each BVH rendered as a spiral walk and from the fixed camera, as recorded and
+    time-reversed (a forward walk played backwards is a backward walk, the rarer case the
+    travel evidence must not overrule): name -> {"hypotheses": list of Hypotheses,
+    "image_track": (T, 2), "truth": (T, 55)}, the model's hypotheses frame by frame."""
+    renders = {}
+    for path in bvh_files:
+        for spiral in (spiral_deg_per_s, None):
+            for reverse in (False, True):
+                motion = read_bvh(path, fps=camera.fps)
+                if reverse:
+                    motion = replace(motion, euler_deg=motion.euler_deg[::-1].copy(),
+                                     root_position=motion.root_position[::-1].copy())
+                if spiral:
+                    motion = spiral_walk(motion, spiral)
+                if frames is not None:
+                    motion = replace(motion, euler_deg=motion.euler_deg[:frames],
+                                     root_position=motion.root_position[:frames])
+                masks, truth, image_track = render_silhouettes(motion, camera)
+                X = np.array([model.describe(m) for m in masks])
+                name = f"{Path(path).stem} {'spiral' if spiral else 'fixed'}" \
+                       f"{' reversed' if reverse else ''}"
+                renders[name] = {"hypotheses": propose_batch(model, stack_frames(X, model.stack_depth)),
+                                 "image_track": image_track, "truth": truth}
+    return renders
+
+
+def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOptions(),
+                       **tracker_options) -> float:
+    """Filtered heading RMS (deg) of FrontBackTracker (with tracker_options, e.g.
+    travel_weight, evidence_weight) over one of validation_renders' sequences."""
+    bank = FrontBackTracker(kalman_factory(model), camera.fps, keep_history=False,
+                            **tracker_options)
+    width = camera.size[1]
+    travel = TravelDirection(camera.fps, width, focal_px=focal_length_px(width))
+    filtered = np.array([bank.step(h, travel.push(u, height)).filtered
+                         for h, (u, height) in zip(render["hypotheses"], render["image_track"])])
+    err = wrap_deg(pose_angles(filtered)[:, 0] - pose_angles(render["truth"])[:, 0])
+    return float(np.sqrt(np.mean(err ** 2)))
+
+
+def choose_weights(model, renders: dict, travel_weights=(1 / 15, 0.1, 0.2, 0.5),
+                   evidence_weights=(0.4, 0.6, 0.8, 1.0)) -> tuple[tuple[float, float], dict]:
+    """The (travel_weight, evidence_weight) pair with the lowest mean filtered heading RMS
+    over renders (validation_renders); and every pair -> per-sequence RMS table. The caller
+    should still check the pair against a backward walker (tracker/hypotheses.py
+    TRAVEL_WEIGHT): time-reversed renders are hard for the regressor too, so they barely
+    weigh against a strong travel prior."""
+    table = {}
+    for tw in travel_weights:
+        for ew in evidence_weights:
+            table[(tw, ew)] = {name: replay_heading_rms(model, r, travel_weight=tw,
+                                                        evidence_weight=ew)
+                               for name, r in renders.items()}
+    best = min(table, key=lambda k: np.mean(list(table[k].values())))
+    return best, table
