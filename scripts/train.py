@@ -22,7 +22,7 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 from regressor.descriptor import DescriptorSettings  # noqa: E402
 from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model  # noqa: E402
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,  # noqa: E402
-                               build_dataset, training_files)
+                               build_dataset, training_files, views_by_rows)
 from tracker.training import (TrainingOptions, cached_descriptors, dataset_descriptors,  # noqa: E402
                               fit_dataset_codebook, train_pose_model)
 
@@ -36,6 +36,10 @@ def main(argv=None) -> int:
     ap.add_argument("--stack", type=int, default=TrainingOptions.stack_depth)
     ap.add_argument("--n-fit", type=int, default=TrainingOptions.n_fit)
     ap.add_argument("--width-scale", type=float, default=TrainingOptions.width_scale)
+    ap.add_argument("--rows-per-trial", type=int, default=None,
+                    help="views per trial chosen to give about this many silhouettes per trial "
+                         "(1..--max-views; overrides --views)")
+    ap.add_argument("--max-views", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args(argv)
@@ -46,8 +50,11 @@ def main(argv=None) -> int:
         files = training_files(args.bvh_dir)
         log(f"data set: {len(files)} trials x {args.views} views (held out: "
             f"{', '.join(HELD_OUT_TRIALS)})")
+        views = (views_by_rows(files, config, args.rows_per_trial, args.max_views)
+                 if args.rows_per_trial else None)
         data = build_dataset(files, config, args.cache / "dataset", workers=args.workers,
-                             progress=lambda t, d, n: log(f"  rendered {t} [{d}/{n}]"))
+                             progress=lambda t, d, n: log(f"  rendered {t} [{d}/{n}]"),
+                             views=views)
         log(f"  {len(data)} silhouettes ({time.perf_counter() - start:.0f} s so far)")
         settings = DescriptorSettings()
 
