@@ -25,6 +25,8 @@ from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,  # 
                                build_dataset, training_files, views_by_rows)
 from tracker.training import (TrainingOptions, cached_descriptors, dataset_descriptors,  # noqa: E402
                               fit_dataset_codebook, train_pose_model)
+from tracker.training import (MixtureOptions, descriptor_cache_key, fit_noisy_codebook,  # noqa: E402
+                              noisy_dataset_descriptors, train_mixture_model)
 
 
 def main(argv=None) -> int:
@@ -42,6 +44,14 @@ def main(argv=None) -> int:
     ap.add_argument("--max-views", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--regressor", choices=("mixture", "rvm"), default="mixture",
+                    help="mixture of kernel experts (default) or the single RVM baseline")
+    ap.add_argument("--clean", action="store_true",
+                    help="train on the clean renders (default: video-like silhouettes, "
+                         "sequences.mask_noise)")
+    ap.add_argument("--experts", type=int, default=MixtureOptions.n_experts)
+    ap.add_argument("--centres", type=int, default=MixtureOptions.n_centres)
+    ap.add_argument("--lam", type=float, default=MixtureOptions.lam)
     args = ap.parse_args(argv)
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     start = time.perf_counter()
@@ -60,19 +70,37 @@ def main(argv=None) -> int:
 
         def compute():
             log("codebook and descriptors ...")
-            codebook = fit_dataset_codebook(data, settings, seed=args.seed)
-            X = dataset_descriptors(data.masks, settings, codebook, workers=args.workers,
-                                    progress=lambda d, n: log(f"  descriptors {d}/{n}")
-                                    if d % 10000 < 500 else None)
+            every = (lambda d, n: log(f"  descriptors {d}/{n} ({time.perf_counter() - start:.0f} s)")
+                     if d % 10000 < 500 else None)
+            if args.clean:
+                codebook = fit_dataset_codebook(data, settings, seed=args.seed)
+                X = dataset_descriptors(data.masks, settings, codebook, workers=args.workers,
+                                        progress=every)
+            else:
+                codebook = fit_noisy_codebook(data, settings, seed=args.seed)
+                X = noisy_dataset_descriptors(data.masks, settings, codebook, seed=args.seed,
+                                              workers=args.workers, progress=every)
             return X, codebook
 
-        X, codebook = cached_descriptors(args.cache, f"v1-{config.digest()}", compute)
+        key = (f"v1-{config.digest()}" if views is None and args.clean else
+               descriptor_cache_key(config, views, noisy=not args.clean))
+        X, codebook = cached_descriptors(args.cache, key, compute)
         log(f"  descriptors ready ({time.perf_counter() - start:.0f} s so far)")
-        options = TrainingOptions(stack_depth=args.stack, n_fit=args.n_fit,
-                                  width_scale=args.width_scale, seed=args.seed)
-        with threadpool_limits(args.workers):
-            model, report = train_pose_model(data, X, codebook, settings, options,
-                                             config.fps, log=log)
+        if args.regressor == "rvm":
+            options = TrainingOptions(stack_depth=args.stack, n_fit=args.n_fit,
+                                      width_scale=args.width_scale, seed=args.seed)
+            with threadpool_limits(args.workers):
+                model, report = train_pose_model(data, X, codebook, settings, options,
+                                                 config.fps, log=log)
+        else:
+            options = MixtureOptions(stack_depth=args.stack, n_experts=args.experts,
+                                     n_centres=args.centres, lam=args.lam, seed=args.seed,
+                                     **({"width_scale": args.width_scale}
+                                        if args.width_scale != TrainingOptions.width_scale else {}))
+            with threadpool_limits(args.workers):
+                model, report = train_mixture_model(data, X, codebook, settings, options,
+                                                    config.fps, log=log)
+        report["noise_aware"] = not args.clean
         model.description = {"data": "CMU motion capture (mocap.cs.cmu.edu), rendered",
                              "trials": data.trials, "held_out": list(HELD_OUT_TRIALS),
                              "dataset": json.loads(json.dumps(config.__dict__)),
