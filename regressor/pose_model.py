@@ -221,7 +221,7 @@ def _validate(path: Path, m: PoseModel) -> None:
 
 # ----------------------------------------------------------------------------- mixture files
 # A mixture model file (model_kind MIXTURE_KIND) holds the experts' kernel centres and weights
-# concatenated in the single regressor's parts (centres (R, k*D) float32, coef (R, 55),
+# concatenated in the single regressor's parts (centres (R, k*D), coef (R, 55), both float32,
 # relevance = 0..R-1), so the generic checks of regressor.model_file apply to them, and the
 # rest under "mixture_": expert_offsets (E+1,) rows of each expert in centres/coef,
 # expert_width (E,), expert_intercept (E, 55), partition_centres (E, 55), the gate's centres
@@ -243,7 +243,8 @@ def _mixture_arrays(model: PoseModel) -> dict:
         "width": np.float64(np.median([e.width_ for e in experts])),
         "centres": np.vstack([e.centres_ for e in experts]).astype(np.float32),
         "relevance": np.arange(offsets[-1], dtype=np.int64),
-        "coef": np.vstack([e.coef_ for e in experts]), "intercept": np.zeros(POSE_DIM),
+        "coef": np.vstack([e.coef_ for e in experts]).astype(np.float32),
+        "intercept": np.zeros(POSE_DIM),
         "angle_centre_deg": model.angle_centre_deg,
         "measurement_covariance": model.measurement_covariance,
         "process_noise": model.process_noise,
