@@ -30,6 +30,7 @@ import inspect
 import numpy as np
 import scipy.linalg
 import scipy.optimize
+import scipy.sparse
 
 from .basis import (NotFittedError, RegressorInputError, default_width, gaussian_design,
                     squared_distances, validate_X)
@@ -69,27 +70,32 @@ class Estimator:
 
 def kmeans(X: np.ndarray, k: int, seed: int = 0, iterations: int = 25,
            sample: int = 20000) -> np.ndarray:
-    """k-means centres (k, D) of rows X (N, D): k-means++ start on at most ``sample`` rows,
-    Lloyd iterations on them, deterministic in seed. Empty clusters are re-seeded at the row
+    """k-means centres (k, D) of rows X (N, D): k-means++ start (on at most 4,000 of them),
+    Lloyd iterations on at most ``sample`` rows, deterministic in seed. Empty clusters are re-seeded at the row
     farthest from its centre."""
     X = np.asarray(X, dtype=np.float64)
     rng = np.random.default_rng(seed)
     if len(X) > sample:
         X = X[np.sort(rng.choice(len(X), sample, replace=False))]
     k = min(k, len(X))
+    # k-means++ seeding on at most 4,000 rows, squared norms computed once.
+    seed_rows = X if len(X) <= 4000 else X[np.sort(rng.choice(len(X), 4000, replace=False))]
+    norms = (seed_rows * seed_rows).sum(axis=1)
     centres = np.empty((k, X.shape[1]))
-    centres[0] = X[rng.integers(len(X))]
-    d2 = squared_distances(X, centres[:1])[:, 0]
+    centres[0] = seed_rows[rng.integers(len(seed_rows))]
+    d2 = np.maximum(norms - 2 * seed_rows @ centres[0] + centres[0] @ centres[0], 0)
     for j in range(1, k):
         p = d2 / d2.sum() if d2.sum() > 0 else None
-        centres[j] = X[rng.choice(len(X), p=p)]
-        d2 = np.minimum(d2, squared_distances(X, centres[j:j + 1])[:, 0])
+        centres[j] = seed_rows[rng.choice(len(seed_rows), p=p)]
+        d2 = np.minimum(d2, np.maximum(norms - 2 * seed_rows @ centres[j]
+                                       + centres[j] @ centres[j], 0))
     for _ in range(iterations):
         D = squared_distances(X, centres)
         label = D.argmin(axis=1)
-        new = np.zeros_like(centres)
         counts = np.bincount(label, minlength=k)
-        np.add.at(new, label, X)
+        # Sums per cluster as a sparse product (np.add.at is ~50x slower at this size).
+        new = np.asarray(scipy.sparse.csr_matrix(
+            (np.ones(len(X)), (label, np.arange(len(X)))), shape=(k, len(X))) @ X)
         empty = counts == 0
         new[~empty] /= counts[~empty, None]
         if empty.any():
@@ -124,7 +130,8 @@ class DampedKernelRegressor(Estimator):
         Y = np.asarray(Y, dtype=np.float64)
         Y2 = Y[:, None] if Y.ndim == 1 else Y
         self.width_ = default_width(X, self.width_scale)
-        self.centres_ = kmeans(X, self.n_centres, seed=self.seed, iterations=10)
+        self.centres_ = kmeans(X, self.n_centres, seed=self.seed, iterations=8,
+                              sample=10000)
         Phi = gaussian_design(X, self.centres_, self.width_)
         w = np.ones(len(X)) if sample_weight is None else np.asarray(sample_weight, float)
         sw = w / w.sum()
@@ -177,7 +184,8 @@ class SoftmaxGate(Estimator):
         C = int(labels.max()) + 1 if n_classes is None else int(n_classes)
         self.n_classes_ = C
         self.width_ = default_width(X, self.width_scale)
-        self.centres_ = kmeans(X, self.n_centres, seed=self.seed, iterations=10)
+        self.centres_ = kmeans(X, self.n_centres, seed=self.seed, iterations=8,
+                              sample=10000)
         raw = gaussian_design(X, self.centres_, self.width_)
         self.feature_mean_ = raw.mean(axis=0)
         self.feature_std_ = raw.std(axis=0) + 1e-6

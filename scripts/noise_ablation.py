@@ -74,7 +74,7 @@ def main(argv=None) -> int:
         Xs = stack_frames(transform_descriptors(X, "sqrt"), 3, sequence_ids=seq)
         with threadpool_limits(2):
             mix = MixtureRegressor(n_experts=args.experts).fit(
-                Xs[~val], Y[~val], partition_space(Y[~val], 30.0))
+                Xs[~val], Y[~val], partition_space(Y[~val], 3.0, Y[~val, 2:].std(axis=0)))
         res = {}
         for t, (idx, D) in videos.items():
             p = mix.predict(stack_frames(transform_descriptors(D, "sqrt"), 3))

@@ -102,11 +102,22 @@ def main(argv=None) -> int:
         "experts": [dict(n_experts=e) for e in (1, 4, 8, 16, 24)],
         "curve": [dict(rows=n) for n in (2000, 4000, 8000, 16000, 32000, 0)],
         "centres": [dict(n_centres=c) for c in (200, 400, 800)],
-        "heading": [dict(heading_scale=h) for h in (0.0, 30.0, 100.0)] + [dict(overlap=0.0), dict(overlap=0.5)],
+        "space": [dict(), dict(space="joint"), dict(space="descriptor")],
+        "partition": [dict(heading_scale=h) for h in (1.0, 3.0, 6.0)] +
+                     [dict(standardise=False, heading_scale=30.0), dict(overlap=0.0),
+                      dict(overlap=0.5)],
     }
+    def space(o, Xt, Yt):
+        Z = partition_space(Yt, o["heading_scale"],
+                            Yt[:, 2:].std(axis=0) if o["standardise"] else None)
+        if o["space"] == "pose":
+            return Z
+        S = (Xt - Xt.mean(0)) / (Xt.std(0) + 1e-9) * np.sqrt(Z.shape[1] / Xt.shape[1])
+        return S if o["space"] == "descriptor" else np.hstack([Z, o["descriptor_weight"] * S])
+
     results = []
-    base = dict(stack_depth=3, n_experts=12, overlap=0.2, n_centres=400, width_scale=0.25,
-                lam=0.01, heading_scale=30.0, rows=0)
+    base = dict(space="pose", descriptor_weight=1.0, stack_depth=3, n_experts=12, overlap=0.2, n_centres=400, width_scale=0.25,
+                lam=0.01, heading_scale=3.0, standardise=True, rows=0)
     for grid in args.grid.split(","):
         for change in grids[grid]:
             o = {**base, **change}
@@ -120,7 +131,7 @@ def main(argv=None) -> int:
                 mix = MixtureRegressor(n_experts=o["n_experts"], overlap=o["overlap"],
                                        n_centres=o["n_centres"], width_scale=o["width_scale"],
                                        lam=o["lam"]).fit(
-                    Xs[train], Y[train], partition_space(Y[train], o["heading_scale"]))
+                    Xs[train], Y[train], space(o, Xs[train], Y[train]))
             fit_s = time.perf_counter() - start
 
             def poses(Z):

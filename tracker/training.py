@@ -284,8 +284,8 @@ def descriptor_cache_key(config, views: dict | None, noisy: bool) -> str:
 class MixtureOptions:
     """Choices of the mixture model (regressor.mixture.MixtureRegressor). stack_depth: k;
     n_experts, overlap, n_centres, width_scale, lam: the experts; gate_*: the gate;
-    heading_scale: weight of the heading's (cos, sin) against the joint angles (degrees) in
-    the pose space that is partitioned; top_experts: experts evaluated per frame."""
+    heading_scale, standardise: the pose space that is partitioned (partition_space);
+    top_experts: experts evaluated per frame."""
 
     stack_depth: int = 3
     transform: str = "sqrt"
@@ -297,17 +297,24 @@ class MixtureOptions:
     gate_centres: int = 300
     gate_width_scale: float = 0.5
     gate_l2: float = 1e-4
-    heading_scale: float = 30.0
+    heading_scale: float = 3.0
+    standardise: bool = True
     top_experts: int = 2
     ambiguity_threshold: float = 0.5
     seed: int = 0
 
 
-def partition_space(targets: np.ndarray, heading_scale: float) -> np.ndarray:
+def partition_space(targets: np.ndarray, heading_scale: float,
+                    angle_std: np.ndarray | None = None) -> np.ndarray:
     """The pose embedding the mixture partitions: regression targets (N, 55) with the
-    heading's (cos, sin) times heading_scale, angles (degrees about their centres) as they are."""
+    heading's (cos, sin) times heading_scale, angles (degrees about their centres) divided by
+    angle_std (53,) (their spread over the training rows; None: by 1, degrees as they are).
+    Standardised angles keep the few wide-ranging angles (climbing, dance) from deciding the
+    partition alone; the heading weight then sets how much experts split by viewpoint."""
     Z = np.array(targets, dtype=np.float64, copy=True)
     Z[:, :2] *= heading_scale
+    if angle_std is not None:
+        Z[:, 2:] /= np.maximum(angle_std, 1e-3)
     return Z
 
 
@@ -344,7 +351,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     train_rows, val_rows = np.flatnonzero(~val), np.flatnonzero(val)
     centre = angle_centres(dataset.pose[~val])
     Y = regression_targets(dataset.pose, centre)
-    Z = partition_space(Y, options.heading_scale)
+    Z = partition_space(Y, options.heading_scale,
+                        Y[train_rows, 2:].std(axis=0) if options.standardise else None)
     log(f"fitting a mixture of {options.n_experts} experts on all {len(train_rows)} training "
         f"rows (k = {options.stack_depth}, {Xs.shape[1]}-D input) ...")
     start = time.perf_counter()
