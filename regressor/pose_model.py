@@ -224,7 +224,7 @@ def _validate(path: Path, m: PoseModel) -> None:
 # concatenated in the single regressor's parts (centres (R, k*D), coef (R, 55), both float32,
 # relevance = 0..R-1), so the generic checks of regressor.model_file apply to them, and the
 # rest under "mixture_": expert_offsets (E+1,) rows of each expert in centres/coef,
-# expert_width (E,), expert_intercept (E, 55), partition_centres (E, 55), the gate's centres
+# expert_width (E,), expert_intercept (E, 55), partition_centres (E, dZ), the gate's centres
 # (G, k*D) float32, width, feature_mean/std (G,) and weights (G+1, E), top_experts.
 
 
@@ -292,8 +292,8 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
             or not float(a["mixture_gate_width"]) > 0:
         fail("gate parts have inconsistent shapes")
     partition = a["mixture_partition_centres"].astype(np.float64)
-    if partition.shape != (E, POSE_DIM):
-        fail("partition centres must be (experts, 55)")
+    if partition.ndim != 2 or len(partition) != E:
+        fail("partition centres must have one row per expert")
     params = json.loads(str(a["mixture_params"]))
     mix = MixtureRegressor(**params)
     mix.experts_ = []

@@ -28,7 +28,7 @@ from regressor.stacking import stack_frames  # noqa: E402
 from sequences.dataset import DatasetConfig, build_dataset, training_files, views_by_rows  # noqa: E402
 from sequences.video import load_truth  # noqa: E402
 from tracker.training import (VALIDATION_TRIALS, angle_centres, angle_measures,  # noqa: E402
-                              dataset_descriptors, descriptor_cache_key, partition_space,
+                              MixtureOptions, dataset_descriptors, descriptor_cache_key, mixture_space,
                               regression_targets)
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from select_mixture import VIDEO_TRIALS, video_descriptors  # noqa: E402
@@ -74,7 +74,7 @@ def main(argv=None) -> int:
         Xs = stack_frames(transform_descriptors(X, "sqrt"), 3, sequence_ids=seq)
         with threadpool_limits(2):
             mix = MixtureRegressor(n_experts=args.experts).fit(
-                Xs[~val], Y[~val], partition_space(Y[~val], 3.0, Y[~val, 2:].std(axis=0)))
+                Xs[~val], Y[~val], mixture_space(MixtureOptions(), Xs, Y, np.flatnonzero(~val))[~val])
         res = {}
         for t, (idx, D) in videos.items():
             p = mix.predict(stack_frames(transform_descriptors(D, "sqrt"), 3))

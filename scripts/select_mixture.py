@@ -100,6 +100,8 @@ def main(argv=None) -> int:
         "width": [dict(width_scale=w) for w in (0.1, 0.25, 0.5)] +
                  [dict(lam=l) for l in (1e-3, 1e-1)],
         "experts": [dict(n_experts=e) for e in (1, 4, 8, 16, 24)],
+        "pick": [dict(n_experts=24), dict(width_scale=0.1), dict(stack_depth=2),
+                 dict(lam=0.1), dict(n_centres=800)],
         "curve": [dict(rows=n) for n in (2000, 4000, 8000, 16000, 32000, 0)],
         "centres": [dict(n_centres=c) for c in (200, 400, 800)],
         "space": [dict(), dict(space="joint"), dict(space="descriptor")],
@@ -116,7 +118,7 @@ def main(argv=None) -> int:
         return S if o["space"] == "descriptor" else np.hstack([Z, o["descriptor_weight"] * S])
 
     results = []
-    base = dict(space="pose", descriptor_weight=1.0, stack_depth=3, n_experts=12, overlap=0.2, n_centres=400, width_scale=0.25,
+    base = dict(space="descriptor", descriptor_weight=1.0, stack_depth=3, n_experts=12, overlap=0.2, n_centres=400, width_scale=0.25,
                 lam=0.01, heading_scale=3.0, standardise=True, rows=0)
     for grid in args.grid.split(","):
         for change in grids[grid]:

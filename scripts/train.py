@@ -52,6 +52,8 @@ def main(argv=None) -> int:
     ap.add_argument("--experts", type=int, default=MixtureOptions.n_experts)
     ap.add_argument("--centres", type=int, default=MixtureOptions.n_centres)
     ap.add_argument("--lam", type=float, default=MixtureOptions.lam)
+    ap.add_argument("--partition", choices=("descriptor", "pose", "joint"),
+                    default=MixtureOptions.partition)
     args = ap.parse_args(argv)
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     start = time.perf_counter()
@@ -95,6 +97,7 @@ def main(argv=None) -> int:
         else:
             options = MixtureOptions(stack_depth=args.stack, n_experts=args.experts,
                                      n_centres=args.centres, lam=args.lam, seed=args.seed,
+                                     partition=args.partition,
                                      **({"width_scale": args.width_scale}
                                         if args.width_scale != TrainingOptions.width_scale else {}))
             with threadpool_limits(args.workers):

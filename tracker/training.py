@@ -284,8 +284,9 @@ def descriptor_cache_key(config, views: dict | None, noisy: bool) -> str:
 class MixtureOptions:
     """Choices of the mixture model (regressor.mixture.MixtureRegressor). stack_depth: k;
     n_experts, overlap, n_centres, width_scale, lam: the experts; gate_*: the gate;
-    heading_scale, standardise: the pose space that is partitioned (partition_space);
-    top_experts: experts evaluated per frame."""
+    partition: what k-means splits into experts: "pose" (partition_space, with heading_scale
+    and standardise), "descriptor" (standardised stacked descriptors) or "joint" (both);
+    chosen by validation (scripts/select_mixture.py --grid space): "descriptor"; top_experts: experts evaluated per frame."""
 
     stack_depth: int = 3
     transform: str = "sqrt"
@@ -297,6 +298,7 @@ class MixtureOptions:
     gate_centres: int = 300
     gate_width_scale: float = 0.5
     gate_l2: float = 1e-4
+    partition: str = "descriptor"
     heading_scale: float = 3.0
     standardise: bool = True
     top_experts: int = 2
@@ -316,6 +318,20 @@ def partition_space(targets: np.ndarray, heading_scale: float,
     if angle_std is not None:
         Z[:, 2:] /= np.maximum(angle_std, 1e-3)
     return Z
+
+
+def mixture_space(options: MixtureOptions, Xs: np.ndarray, Y: np.ndarray,
+                  train_rows: np.ndarray) -> np.ndarray:
+    """The rows (N, dZ) k-means partitions into experts (MixtureOptions.partition): pose
+    (partition_space), standardised stacked descriptors scaled to the pose block's total
+    variance, or both side by side."""
+    Z = partition_space(Y, options.heading_scale,
+                        Y[train_rows, 2:].std(axis=0) if options.standardise else None)
+    if options.partition == "pose":
+        return Z
+    mean, std = Xs[train_rows].mean(axis=0), Xs[train_rows].std(axis=0) + 1e-9
+    S = (Xs - mean) / std * np.sqrt(Z.shape[1] / Xs.shape[1])
+    return S if options.partition == "descriptor" else np.hstack([Z, S])
 
 
 def angle_measures(predicted: np.ndarray, truth: np.ndarray, constant_deg: np.ndarray,
@@ -351,8 +367,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     train_rows, val_rows = np.flatnonzero(~val), np.flatnonzero(val)
     centre = angle_centres(dataset.pose[~val])
     Y = regression_targets(dataset.pose, centre)
-    Z = partition_space(Y, options.heading_scale,
-                        Y[train_rows, 2:].std(axis=0) if options.standardise else None)
+    Z = mixture_space(options, Xs, Y, train_rows)
     log(f"fitting a mixture of {options.n_experts} experts on all {len(train_rows)} training "
         f"rows (k = {options.stack_depth}, {Xs.shape[1]}-D input) ...")
     start = time.perf_counter()
@@ -376,8 +391,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
     errors = np.abs(wrapped(pose_angles(predicted) - pose_angles(dataset.pose[val_rows])))
     gate_val = mixture.predict_proba(Xs[val_rows]).argmax(axis=1)
-    true_val = np.argmin(((Z[val_rows][:, None] - mixture.partition_centres_[None]) ** 2).sum(-1),
-                         axis=1)
+    true_val = np.argmin(((Z[val_rows][:, None] - mixture.partition_centres_[None]) ** 2
+                          ).sum(-1), axis=1)
     report = {"n_train_rows": int(len(train_rows)), "n_fit": int(len(train_rows)),
               "n_validation_rows": int(len(val_rows)), "experts": int(len(mixture.experts_)),
               "expert_rows": [int(r) for r in mixture.expert_rows_],
