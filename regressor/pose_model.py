@@ -221,11 +221,12 @@ def _validate(path: Path, m: PoseModel) -> None:
 
 # ----------------------------------------------------------------------------- mixture files
 # A mixture model file (model_kind MIXTURE_KIND) holds the experts' kernel centres and weights
-# concatenated in the single regressor's parts (centres (R, k*D), coef (R, 55), both float32,
+# concatenated in the single regressor's parts (centres (R, k*D) float16: descriptors need
+# no more than 3 digits, and it halves the file; coef (R, 55) float32;
 # relevance = 0..R-1), so the generic checks of regressor.model_file apply to them, and the
 # rest under "mixture_": expert_offsets (E+1,) rows of each expert in centres/coef,
 # expert_width (E,), expert_intercept (E, 55), partition_centres (E, dZ), the gate's centres
-# (G, k*D) float32, width, feature_mean/std (G,) and weights (G+1, E), top_experts.
+# (G, k*D) float16, width, feature_mean/std (G,) and weights (G+1, E), top_experts.
 
 
 def _mixture_arrays(model: PoseModel) -> dict:
@@ -241,7 +242,7 @@ def _mixture_arrays(model: PoseModel) -> dict:
         "stack_depth": np.int64(model.stack_depth), "transform": np.str_(model.transform),
         "basis": np.str_("gaussian"),
         "width": np.float64(np.median([e.width_ for e in experts])),
-        "centres": np.vstack([e.centres_ for e in experts]).astype(np.float32),
+        "centres": np.vstack([e.centres_ for e in experts]).astype(np.float16),
         "relevance": np.arange(offsets[-1], dtype=np.int64),
         "coef": np.vstack([e.coef_ for e in experts]).astype(np.float32),
         "intercept": np.zeros(POSE_DIM),
@@ -253,7 +254,7 @@ def _mixture_arrays(model: PoseModel) -> dict:
         "mixture_expert_width": np.array([e.width_ for e in experts], dtype=np.float64),
         "mixture_expert_intercept": np.vstack([e.intercept_ for e in experts]),
         "mixture_partition_centres": np.asarray(mix.partition_centres_, dtype=np.float64),
-        "mixture_gate_centres": gate.centres_.astype(np.float32),
+        "mixture_gate_centres": gate.centres_.astype(np.float16),
         "mixture_gate_width": np.float64(gate.width_),
         "mixture_gate_feature_mean": gate.feature_mean_,
         "mixture_gate_feature_std": gate.feature_std_,

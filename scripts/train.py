@@ -17,6 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 from regressor.descriptor import DescriptorSettings  # noqa: E402
@@ -110,6 +111,15 @@ def main(argv=None) -> int:
                              "options": options.__dict__, "validation": report}
         args.out.parent.mkdir(parents=True, exist_ok=True)
         save_pose_model(args.out, model)
+        if model.mixture is not None:       # the file stores centres as float16: check it
+            from regressor.pose_model import load_pose_model, transform_descriptors
+            from regressor.stacking import stack_frames
+            rows = slice(0, len(X), max(1, len(X) // 500))
+            probe = stack_frames(transform_descriptors(X, model.transform), model.stack_depth,
+                                 sequence_ids=data.sequence)[rows]
+            diff = np.abs((load_pose_model(args.out).predict_batch(probe)[:, 2:]
+                           - model.predict_batch(probe)[:, 2:] + 180.0) % 360.0 - 180.0)
+            report["file_round_trip_max_deg"] = round(float(diff.max()), 3)
     except (OSError, DatasetError, ValueError) as exc:
         print(f"train: error: {exc}", file=sys.stderr)
         return 1

@@ -93,12 +93,12 @@ def test_mixture_model_file_round_trip(tmp_path):
     save_pose_model(path, model)
     loaded = load_pose_model(path)
     assert loaded.mixture is not None and len(loaded.mixture.experts_) == 3
-    # Centres are stored as float32: predictions agree to float32 precision.
-    np.testing.assert_allclose(loaded.predict_batch(x[:20]), model.predict_batch(x[:20]),
-                               atol=1e-3)
+    # Centres are stored as float16, weights as float32: predictions agree closely.
+    a, b = loaded.predict_batch(x[:20]), model.predict_batch(x[:20])
+    assert np.abs(a - b).max() < 0.02 * np.abs(b).max()
     p0, w0 = model.predict_hypotheses(x[:20], 2)
     p1, w1 = loaded.predict_hypotheses(x[:20], 2)
-    np.testing.assert_allclose(w1, w0, atol=1e-4)
+    np.testing.assert_allclose(w1, w0, atol=1e-2)
     assert loaded.summary()["basis"] == "mixture" and loaded.description["source"] == "synthetic"
     assert loaded.predict(x[0]).shape == (55,)
 
@@ -130,7 +130,8 @@ def test_inconsistent_mixture_file_is_refused(tmp_path):
 
 def test_single_rvm_model_still_gives_one_hypothesis():
     from regressor.pose_model import DEFAULT_MODEL_PATH
-    model = load_pose_model(DEFAULT_MODEL_PATH)
+    model = load_pose_model(DEFAULT_MODEL_PATH.with_name("per_frame_model.npz"))   # one RVM
+    assert model.mixture is None
     x = np.full((2, model.stack_depth * model.descriptor_length), 0.5)
     poses, prob = model.predict_hypotheses(x, 3)
     assert poses.shape == (2, 1, 55) and np.all(prob == 1)
