@@ -39,9 +39,9 @@ def main(argv=None) -> int:
     ap.add_argument("--stack", type=int, default=TrainingOptions.stack_depth)
     ap.add_argument("--n-fit", type=int, default=TrainingOptions.n_fit)
     ap.add_argument("--width-scale", type=float, default=TrainingOptions.width_scale)
-    ap.add_argument("--rows-per-trial", type=int, default=None,
+    ap.add_argument("--rows-per-trial", type=int, default=800,
                     help="views per trial chosen to give about this many silhouettes per trial "
-                         "(1..--max-views; overrides --views)")
+                         "(1..--max-views); 0: --views for every trial")
     ap.add_argument("--max-views", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
