@@ -103,6 +103,7 @@ def main(argv=None) -> int:
         "pick": [dict(n_experts=24), dict(width_scale=0.1), dict(stack_depth=2),
                  dict(lam=0.1), dict(n_centres=800)],
         "curve": [dict(rows=n) for n in (2000, 4000, 8000, 16000, 32000, 0)],
+        "more": [dict(n_experts=24, width_scale=0.5), dict(n_experts=24, stack_depth=4)],
         "curve24": [dict(n_experts=24, rows=n) for n in (4000, 16000)],
         "centres": [dict(n_centres=c) for c in (200, 400, 800)],
         "space": [dict(), dict(space="joint"), dict(space="descriptor")],

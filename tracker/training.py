@@ -23,7 +23,7 @@ from regressor.pose_model import PoseModel, transform_descriptors
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
 from sequences.dataset import Dataset
-from sequences.mask_noise import MaskNoise
+from sequences.mask_noise import MaskNoise, degrade_all
 
 _CHUNK = 500                     # masks per worker task
 _SHARED: dict = {}               # masks handed to forked workers (copy-on-write, not pickled)
@@ -85,7 +85,6 @@ def extractor_cleaner(canvas: np.ndarray, shape: tuple[int, int]) -> np.ndarray 
 def noisy_masks(masks, seed: int, noise=None, start: int = 0) -> list[np.ndarray]:
     """Video-like versions (sequences.mask_noise.degrade, with the extractor's cleaning) of
     masks[i], i = 0.., each seeded by (seed, start + i)."""
-    from sequences.mask_noise import MaskNoise, degrade_all
     return degrade_all(masks, seed, noise or MaskNoise(), extractor_cleaner, start=start)
 
 
