@@ -25,6 +25,7 @@ from .angles import N_ANGLES, POSE_DIM, wrap_deg
 from .basis import gaussian_design
 from .codebook import Codebook, CodebookError
 from .descriptor import DescriptorSettings, DescriptorSettingsError, descriptor_for_mask
+from .mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate
 from .model_file import ModelFileError, load_model, save_model
 from .errors import SilhouettePoseError
 
@@ -34,6 +35,7 @@ MODEL_KIND = "silhouette-pose"
 #: Raw heading norm below which a frame is ambiguous, for model files that do not store the
 #: threshold they were trained with (all written before it was stored used this value).
 DEFAULT_AMBIGUITY_THRESHOLD = 0.5
+MIXTURE_KIND = "silhouette-pose-mixture"    # a mixture of experts (regressor.mixture)
 
 
 class PoseModelError(SilhouettePoseError, ValueError):
@@ -68,6 +70,7 @@ class PoseModel:
     process_noise: np.ndarray
     ambiguity_threshold: float = DEFAULT_AMBIGUITY_THRESHOLD
     description: dict = field(default_factory=dict)
+    mixture: MixtureRegressor | None = None     # when set, it regresses instead of coef
 
     @property
     def descriptor_length(self) -> int:
@@ -90,16 +93,36 @@ class PoseModel:
         if X.ndim != 2 or X.shape[1] != self.stack_depth * self.descriptor_length:
             raise PoseModelError(f"stacked descriptors must be (N, {self.stack_depth} x "
                                  f"{self.descriptor_length}), got {X.shape}")
-        if self.basis == "gaussian":
-            Phi = gaussian_design(X, self.centres, self.width)
+        if self.mixture is not None:
+            Y = self.mixture.predict(X)
+        elif self.basis == "gaussian":
+            Y = gaussian_design(X, self.centres, self.width) @ self.coef + self.intercept
         else:
-            Phi = X[:, self.relevance]
-        Y = Phi @ self.coef + self.intercept
+            Y = X[:, self.relevance] @ self.coef + self.intercept
         Y[:, 2:] = wrap_deg(Y[:, 2:] + self.angle_centre_deg)
         return Y
 
+    def predict_hypotheses(self, stacked: np.ndarray, m: int = 2) -> tuple[np.ndarray, np.ndarray]:
+        """Up to m raw poses per row with probabilities: (poses (N, m', 55), probabilities
+        (N, m')), most probable first, from stacked descriptors (N, k*D). A single regressor
+        gives one hypothesis with probability 1."""
+        X = np.asarray(stacked, dtype=np.float64)
+        if self.mixture is None:
+            return self.predict_batch(X)[:, None], np.ones((len(X), 1))
+        if X.ndim != 2 or X.shape[1] != self.stack_depth * self.descriptor_length:
+            raise PoseModelError(f"stacked descriptors must be (N, {self.stack_depth} x "
+                                 f"{self.descriptor_length}), got {X.shape}")
+        poses, prob = self.mixture.predict_hypotheses(X, m)
+        poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
+        return poses, prob
+
     def summary(self) -> dict:
         """Plain facts for metadata and logs."""
+        if self.mixture is not None:
+            return {"basis": "mixture", "experts": len(self.mixture.experts_),
+                    "n_basis": int(sum(len(e.centres_) for e in self.mixture.experts_)),
+                    "stack_depth": self.stack_depth, "transform": self.transform,
+                    "training": self.description}
         return {"basis": self.basis, "n_basis": int(len(self.coef)),
                 "stack_depth": self.stack_depth, "transform": self.transform,
                 "training": self.description}
@@ -114,6 +137,9 @@ def transform_descriptors(X: np.ndarray, transform: str) -> np.ndarray:
 
 def save_pose_model(path: str | Path, model: PoseModel) -> None:
     """Write the model as one versioned, checksummed .npz (no pickle)."""
+    if model.mixture is not None:
+        save_model(path, _mixture_arrays(model))
+        return
     arrays = {
         **model.codebook.to_arrays(), **model.settings.to_arrays(),
         "model_kind": np.str_(MODEL_KIND),
@@ -138,6 +164,10 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
     path = Path(path)
     try:
         a = load_model(path)
+        if str(a.get("model_kind", "")) == MIXTURE_KIND:
+            model = _mixture_from_arrays(path, a)
+            _validate(path, model)
+            return model
         if str(a.get("model_kind", "")) != MODEL_KIND:
             raise PoseModelError(f"{path}: not a silhouette-pose model file")
         settings = DescriptorSettings.from_arrays(a)
@@ -196,3 +226,108 @@ def _validate(path: Path, m: PoseModel) -> None:
             raise PoseModelError(f"{path}: invalid model: {problem}")
     if np.any(np.linalg.eigvalsh(m.measurement_covariance) <= 0) or np.any(m.process_noise < 0):
         raise PoseModelError(f"{path}: invalid model: noise models are not positive")
+
+
+# ----------------------------------------------------------------------------- mixture files
+# A mixture model file (model_kind MIXTURE_KIND) holds the experts' kernel centres and weights
+# concatenated in the single regressor's parts (centres (R, k*D) float16: descriptors need
+# no more than 3 digits, and it halves the file; coef (R, 55) float32;
+# relevance = 0..R-1), so the generic checks of regressor.model_file apply to them, and the
+# rest under "mixture_": expert_offsets (E+1,) rows of each expert in centres/coef,
+# expert_width (E,), expert_intercept (E, 55), partition_centres (E, dZ), the gate's centres
+# (G, k*D) float16, width, feature_mean/std (G,) and weights (G+1, E), top_experts.
+
+
+def _mixture_arrays(model: PoseModel) -> dict:
+    mix = model.mixture
+    experts = mix.experts_
+    if not all(isinstance(e, DampedKernelRegressor) for e in experts):
+        raise PoseModelError("only mixtures of DampedKernelRegressor experts can be saved")
+    offsets = np.cumsum([0] + [len(e.centres_) for e in experts]).astype(np.int64)
+    gate = mix.gate_
+    return {
+        **model.codebook.to_arrays(), **model.settings.to_arrays(),
+        "model_kind": np.str_(MIXTURE_KIND),
+        "stack_depth": np.int64(model.stack_depth), "transform": np.str_(model.transform),
+        "basis": np.str_("gaussian"),
+        "width": np.float64(np.median([e.width_ for e in experts])),
+        "centres": np.vstack([e.centres_ for e in experts]).astype(np.float16),
+        "relevance": np.arange(offsets[-1], dtype=np.int64),
+        "coef": np.vstack([e.coef_ for e in experts]).astype(np.float32),
+        "intercept": np.zeros(POSE_DIM),
+        "angle_centre_deg": model.angle_centre_deg,
+        "measurement_covariance": model.measurement_covariance,
+        "process_noise": model.process_noise,
+        "ambiguity_threshold": np.float64(model.ambiguity_threshold),
+        "description": np.str_(json.dumps(model.description, sort_keys=True)),
+        "mixture_expert_offsets": offsets,
+        "mixture_expert_width": np.array([e.width_ for e in experts], dtype=np.float64),
+        "mixture_expert_intercept": np.vstack([e.intercept_ for e in experts]),
+        "mixture_partition_centres": np.asarray(mix.partition_centres_, dtype=np.float64),
+        "mixture_gate_centres": gate.centres_.astype(np.float16),
+        "mixture_gate_width": np.float64(gate.width_),
+        "mixture_gate_feature_mean": gate.feature_mean_,
+        "mixture_gate_feature_std": gate.feature_std_,
+        "mixture_gate_weights": gate.weights_,
+        "mixture_top_experts": np.int64(mix.top_experts),
+        "mixture_params": np.str_(json.dumps(mix.get_params(), sort_keys=True)),
+    }
+
+
+def _mixture_from_arrays(path: Path, a) -> PoseModel:
+    """Rebuild a mixture model from its file's parts, checking their shapes agree."""
+    def fail(problem: str):
+        raise PoseModelError(f"{path}: invalid model: {problem}")
+
+    settings = DescriptorSettings.from_arrays(a)
+    codebook = Codebook.from_arrays(a)
+    k = int(a["stack_depth"])
+    kD = k * codebook.n_centres
+    centres = a["centres"].astype(np.float64)
+    coef = a["coef"].astype(np.float64)
+    offsets = a["mixture_expert_offsets"].astype(np.int64)
+    width = a["mixture_expert_width"].astype(np.float64)
+    intercept = a["mixture_expert_intercept"].astype(np.float64)
+    E = len(width)
+    if E < 1 or offsets.shape != (E + 1,) or offsets[0] != 0 or offsets[-1] != len(coef) \
+            or np.any(np.diff(offsets) < 1):
+        fail("expert offsets do not split the centres into experts")
+    if intercept.shape != (E, POSE_DIM) or np.any(width <= 0) or centres.shape != (len(coef), kD):
+        fail("expert widths, offsets or centres have inconsistent shapes")
+    gate_centres = a["mixture_gate_centres"].astype(np.float64)
+    G = len(gate_centres)
+    weights = a["mixture_gate_weights"].astype(np.float64)
+    mean, std = a["mixture_gate_feature_mean"], a["mixture_gate_feature_std"]
+    if gate_centres.ndim != 2 or gate_centres.shape[1] != kD or weights.shape != (G + 1, E) \
+            or mean.shape != (G,) or std.shape != (G,) or np.any(std <= 0) \
+            or not float(a["mixture_gate_width"]) > 0:
+        fail("gate parts have inconsistent shapes")
+    partition = a["mixture_partition_centres"].astype(np.float64)
+    if partition.ndim != 2 or len(partition) != E:
+        fail("partition centres must have one row per expert")
+    params = json.loads(str(a["mixture_params"]))
+    mix = MixtureRegressor(**params)
+    mix.experts_ = []
+    for e in range(E):
+        ex = DampedKernelRegressor(n_centres=int(offsets[e + 1] - offsets[e]))
+        ex.centres_ = centres[offsets[e]:offsets[e + 1]]
+        ex.coef_ = coef[offsets[e]:offsets[e + 1]]
+        ex.width_, ex.intercept_, ex.n_features_in_ = float(width[e]), intercept[e], kD
+        mix.experts_.append(ex)
+    gate = SoftmaxGate(n_centres=G)
+    gate.centres_, gate.width_ = gate_centres, float(a["mixture_gate_width"])
+    gate.feature_mean_, gate.feature_std_ = mean.astype(np.float64), std.astype(np.float64)
+    gate.weights_, gate.n_classes_, gate.n_features_in_ = weights, E, kD
+    mix.gate_, mix.partition_centres_ = gate, partition
+    mix.expert_rows_ = np.zeros(E, np.int64)
+    mix.top_experts = int(a["mixture_top_experts"])
+    mix.n_features_in_, mix.n_outputs_ = kD, POSE_DIM
+    return PoseModel(
+        settings=settings, codebook=codebook, stack_depth=k, transform=str(a["transform"]),
+        basis="gaussian", width=float(a["width"]), centres=centres,
+        relevance=a["relevance"].astype(np.int64), coef=coef, intercept=np.zeros(POSE_DIM),
+        angle_centre_deg=a["angle_centre_deg"].astype(np.float64),
+        measurement_covariance=a["measurement_covariance"].astype(np.float64),
+        process_noise=a["process_noise"].astype(np.float64),
+        ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
+        description=json.loads(str(a["description"])), mixture=mix)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
-                               build_dataset, training_files)
+                               build_dataset, training_files, views_by_rows)
 
 
 def main(argv=None) -> int:
@@ -22,6 +22,10 @@ def main(argv=None) -> int:
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
     ap.add_argument("--cache", type=Path, default=Path("cache/dataset"))
     ap.add_argument("--views", type=int, default=DatasetConfig.views_per_trial)
+    ap.add_argument("--rows-per-trial", type=int, default=800,
+                    help="views per trial chosen to give about this many silhouettes per trial "
+                         "(1..--max-views); 0: --views for every trial")
+    ap.add_argument("--max-views", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2, help="rendering processes")
     args = ap.parse_args(argv)
@@ -29,10 +33,14 @@ def main(argv=None) -> int:
         config = DatasetConfig(views_per_trial=args.views, seed=args.seed)
         files = training_files(args.bvh_dir)
         print(f"{len(files)} training trials (held out: {', '.join(HELD_OUT_TRIALS)}), "
-              f"{args.views} views each", file=sys.stderr)
+              + (f"about {args.rows_per_trial} silhouettes each" if args.rows_per_trial
+                 else f"{args.views} views each"), file=sys.stderr)
         start = time.perf_counter()
+        views = (views_by_rows(files, config, args.rows_per_trial, args.max_views)
+                 if args.rows_per_trial else None)
         data = build_dataset(files, config, args.cache, workers=args.workers,
-                             progress=lambda t, d, n: print(f"  [{d}/{n}] {t}", file=sys.stderr))
+                             progress=lambda t, d, n: print(f"  [{d}/{n}] {t}", file=sys.stderr),
+                             views=views)
     except (OSError, DatasetError) as exc:
         print(f"build_dataset: error: {exc}", file=sys.stderr)
         return 1

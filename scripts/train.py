@@ -16,14 +16,19 @@ import time
 from pathlib import Path
 
 
+import numpy as np
 from threadpoolctl import threadpool_limits
 
+from regressor.angles import wrap_deg
 from regressor.descriptor import DescriptorSettings
 from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
-                               build_dataset, training_files)
-from tracker.offline.training import (TrainingOptions, cached_descriptors, dataset_descriptors,
-                              fit_dataset_codebook, train_pose_model)
+                               build_dataset, training_files, views_by_rows)
+from tracker.offline.training import (MixtureOptions, TrainingOptions, cached_descriptors,
+                                      dataset_descriptors, descriptor_cache_key,
+                                      fit_dataset_codebook, fit_noisy_codebook,
+                                      noisy_dataset_descriptors, train_mixture_model,
+                                      train_pose_model)
 
 
 def main(argv=None) -> int:
@@ -35,8 +40,22 @@ def main(argv=None) -> int:
     ap.add_argument("--stack", type=int, default=TrainingOptions.stack_depth)
     ap.add_argument("--n-fit", type=int, default=TrainingOptions.n_fit)
     ap.add_argument("--width-scale", type=float, default=TrainingOptions.width_scale)
+    ap.add_argument("--rows-per-trial", type=int, default=800,
+                    help="views per trial chosen to give about this many silhouettes per trial "
+                         "(1..--max-views); 0: --views for every trial")
+    ap.add_argument("--max-views", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--regressor", choices=("mixture", "rvm"), default="mixture",
+                    help="mixture of kernel experts (default) or the single RVM baseline")
+    ap.add_argument("--clean", action="store_true",
+                    help="train on the clean renders (default: video-like silhouettes, "
+                         "sequences.mask_noise)")
+    ap.add_argument("--experts", type=int, default=MixtureOptions.n_experts)
+    ap.add_argument("--centres", type=int, default=MixtureOptions.n_centres)
+    ap.add_argument("--lam", type=float, default=MixtureOptions.lam)
+    ap.add_argument("--partition", choices=("descriptor", "pose", "joint"),
+                    default=MixtureOptions.partition)
     args = ap.parse_args(argv)
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     start = time.perf_counter()
@@ -45,32 +64,63 @@ def main(argv=None) -> int:
         files = training_files(args.bvh_dir)
         log(f"data set: {len(files)} trials x {args.views} views (held out: "
             f"{', '.join(HELD_OUT_TRIALS)})")
+        views = (views_by_rows(files, config, args.rows_per_trial, args.max_views)
+                 if args.rows_per_trial else None)
         data = build_dataset(files, config, args.cache / "dataset", workers=args.workers,
-                             progress=lambda t, d, n: log(f"  rendered {t} [{d}/{n}]"))
+                             progress=lambda t, d, n: log(f"  rendered {t} [{d}/{n}]"),
+                             views=views)
         log(f"  {len(data)} silhouettes ({time.perf_counter() - start:.0f} s so far)")
         settings = DescriptorSettings()
 
         def compute():
             log("codebook and descriptors ...")
-            codebook = fit_dataset_codebook(data, settings, seed=args.seed)
-            X = dataset_descriptors(data.masks, settings, codebook, workers=args.workers,
-                                    progress=lambda d, n: log(f"  descriptors {d}/{n}")
-                                    if d % 10000 < 500 else None)
+            every = (lambda d, n: log(f"  descriptors {d}/{n} ({time.perf_counter() - start:.0f} s)")
+                     if d % 10000 < 500 else None)
+            if args.clean:
+                codebook = fit_dataset_codebook(data, settings, seed=args.seed)
+                X = dataset_descriptors(data.masks, settings, codebook, workers=args.workers,
+                                        progress=every)
+            else:
+                codebook = fit_noisy_codebook(data, settings, seed=args.seed)
+                X = noisy_dataset_descriptors(data.masks, settings, codebook, seed=args.seed,
+                                              workers=args.workers, progress=every)
             return X, codebook
 
-        X, codebook = cached_descriptors(args.cache, f"v1-{config.digest()}", compute)
+        key = (f"v1-{config.digest()}" if views is None and args.clean else
+               descriptor_cache_key(config, views, noisy=not args.clean))
+        X, codebook = cached_descriptors(args.cache, key, compute)
         log(f"  descriptors ready ({time.perf_counter() - start:.0f} s so far)")
-        options = TrainingOptions(stack_depth=args.stack, n_fit=args.n_fit,
-                                  width_scale=args.width_scale, seed=args.seed)
-        with threadpool_limits(args.workers):
-            model, report = train_pose_model(data, X, codebook, settings, options,
-                                             config.fps, log=log)
+        if args.regressor == "rvm":
+            options = TrainingOptions(stack_depth=args.stack, n_fit=args.n_fit,
+                                      width_scale=args.width_scale, seed=args.seed)
+            with threadpool_limits(args.workers):
+                model, report = train_pose_model(data, X, codebook, settings, options,
+                                                 config.fps, log=log)
+        else:
+            options = MixtureOptions(stack_depth=args.stack, n_experts=args.experts,
+                                     n_centres=args.centres, lam=args.lam, seed=args.seed,
+                                     partition=args.partition,
+                                     **({"width_scale": args.width_scale}
+                                        if args.width_scale != TrainingOptions.width_scale else {}))
+            with threadpool_limits(args.workers):
+                model, report = train_mixture_model(data, X, codebook, settings, options,
+                                                    config.fps, log=log)
+        report["noise_aware"] = not args.clean
         model.description = {"data": "CMU motion capture (mocap.cs.cmu.edu), rendered",
                              "trials": data.trials, "held_out": list(HELD_OUT_TRIALS),
                              "dataset": json.loads(json.dumps(config.__dict__)),
                              "options": options.__dict__, "validation": report}
         args.out.parent.mkdir(parents=True, exist_ok=True)
         save_pose_model(args.out, model)
+        if model.mixture is not None:       # the file stores centres as float16: check it
+            from regressor.pose_model import load_pose_model, transform_descriptors
+            from regressor.stacking import stack_frames
+            rows = slice(0, len(X), max(1, len(X) // 500))
+            probe = stack_frames(transform_descriptors(X, model.transform), model.stack_depth,
+                                 sequence_ids=data.sequence)[rows]
+            diff = np.abs(wrap_deg(load_pose_model(args.out).predict_batch(probe)[:, 2:]
+                                   - model.predict_batch(probe)[:, 2:]))
+            report["file_round_trip_max_deg"] = round(float(diff.max()), 3)
     except (OSError, DatasetError, ValueError) as exc:
         print(f"train: error: {exc}", file=sys.stderr)
         return 1

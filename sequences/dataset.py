@@ -18,7 +18,7 @@ import hashlib
 import json
 import zlib
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
 
@@ -32,8 +32,10 @@ from .pose_vector import POSE_DIM, motion_to_pose_vectors
 from .render import centred_camera, silhouette_mask
 
 #: Trials that training never sees; evaluation and demos use them. 16_11 is the curved walk
-#: used for spiral-walk evaluation; the others keep one example of each kind of motion out.
-HELD_OUT_TRIALS = ("16_11", "07_12", "09_11", "06_14", "141_16")
+#: used for spiral-walk evaluation; the others keep one example of each kind of motion out;
+#: 06_06 (backward dribble) and 06_08 (sideways dribble) evaluate motion whose direction of
+#: travel is not the direction the body faces.
+HELD_OUT_TRIALS = ("16_11", "07_12", "09_11", "06_14", "141_16", "06_06", "06_08")
 
 CACHE_FORMAT_VERSION = 1
 _FRAMES_PER_BATCH = 64          # frames skinned at once: bounds memory at ~T*V*12 floats
@@ -139,6 +141,28 @@ def training_files(bvh_dir: str | Path, held_out: Sequence[str] = HELD_OUT_TRIAL
     if not files:
         raise DatasetError(f"no training BVH files in {bvh_dir}")
     return files
+
+
+def bvh_frame_count(path: str | Path) -> int:
+    """Frames of a BVH file at its own rate, from its 'Frames:' header line (no parsing)."""
+    with open(path, "r", errors="replace") as f:
+        for line in f:
+            if line.strip().startswith("Frames:"):
+                return int(line.split(":", 1)[1])
+    raise DatasetError(f"{path}: no 'Frames:' line")
+
+
+def views_by_rows(bvh_files: Iterable[str | Path], config: DatasetConfig, rows_per_trial: int,
+                  max_views: int = 12, min_views: int = 1) -> dict[str, int]:
+    """Views per trial so that each trial gives about rows_per_trial silhouettes at config.fps:
+    short trials (walks, runs: 100-150 frames) get many views (every heading seen), long ones
+    (several minutes of climbing) few. Trial name -> views, clipped to min_views..max_views."""
+    out = {}
+    for p in bvh_files:
+        frames = bvh_frame_count(p) * config.fps / 120.0      # CMU files are 120 fps
+        out[trial_name(p)] = int(np.clip(round(rows_per_trial / max(frames, 1.0)),
+                                         min_views, max_views))
+    return out
 
 
 def _view_rng(seed: int, trial: str, view: int) -> np.random.Generator:
@@ -260,14 +284,16 @@ def _render_and_cache(args) -> str:
 
 def build_dataset(bvh_files: Iterable[str | Path], config: DatasetConfig = DatasetConfig(),
                   cache_dir: str | Path = "cache/dataset", workers: int = 1,
-                  progress: Callable[[str, int, int], None] | None = None) -> Dataset:
+                  progress: Callable[[str, int, int], None] | None = None,
+                  views: dict[str, int] | None = None) -> Dataset:
     """Render (or load from cache) every view of every trial and concatenate them.
 
     bvh_files: the trials to use (e.g. training_files(dir)); held-out trials are refused, so a
     training set can never include them by accident (use render_trial for evaluation).
     workers: processes rendering trials in parallel. progress(trial, done, total) is called as
-    each trial becomes available. Returns a Dataset whose sequence ids are numbered in the order
-    of bvh_files x views.
+    each trial becomes available. views: trial name -> views_per_trial for that trial (e.g.
+    views_by_rows), overriding config's; each trial is cached under its own settings. Returns
+    a Dataset whose sequence ids are numbered in the order of bvh_files x views.
     """
     files = [Path(p) for p in bvh_files]
     leaked = sorted({trial_name(p) for p in files} & set(HELD_OUT_TRIALS))
@@ -278,8 +304,14 @@ def build_dataset(bvh_files: Iterable[str | Path], config: DatasetConfig = Datas
         raise DatasetError(f"BVH files not found: {missing}")
     cache = Path(cache_dir)
     cache.mkdir(parents=True, exist_ok=True)
-    todo = [(p, config, _cache_path(cache, trial_name(p), config)) for p in files
-            if not _cache_path(cache, trial_name(p), config).is_file()]
+    configs = {trial_name(p): (replace(config, views_per_trial=views[trial_name(p)])
+                               if views and trial_name(p) in views else config) for p in files}
+    cached = {trial_name(p): _cache_path(cache, trial_name(p), configs[trial_name(p)])
+              for p in files}
+    todo = [(p, configs[trial_name(p)], cached[trial_name(p)]) for p in files
+            if not cached[trial_name(p)].is_file()]
+    # Longest trials first, so the pool's last tasks are short ones.
+    todo.sort(key=lambda job: -bvh_frame_count(job[0]) * job[1].views_per_trial)
     done = len(files) - len(todo)
     if todo:
         if workers > 1:
@@ -294,7 +326,7 @@ def build_dataset(bvh_files: Iterable[str | Path], config: DatasetConfig = Datas
                 done += 1
                 if progress:
                     progress(trial_name(job[0]), done, len(files))
-    return _concatenate([load_trial(_cache_path(cache, trial_name(p), config)) for p in files])
+    return _concatenate([load_trial(cached[trial_name(p)]) for p in files])
 
 
 def _concatenate(trials: list[TrialViews]) -> Dataset:

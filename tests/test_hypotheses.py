@@ -76,8 +76,10 @@ def test_hypotheses_are_the_pose_and_its_flip_and_a_mixture_adds_its_experts():
     np.testing.assert_allclose(h.poses[1], front_back_flip(h.poses[0]))
 
     class Mixture:
-        def predict_hypotheses(self, stacked, m):
-            return np.array([_pose(10.0, 0.9), _pose(-60.0, 0.5)]), np.array([0.7, 0.3])
+        def predict_hypotheses(self, stacked, m):      # PoseModel's contract: rows (N, k*D)
+            n = len(stacked)
+            poses = np.array([_pose(10.0, 0.9), _pose(-60.0, 0.5)])
+            return np.repeat(poses[None], n, axis=0), np.tile([0.7, 0.3], (n, 1))
 
     h = propose(Mixture(), np.zeros(6))
     assert h.poses.shape == (4, 55) and h.log_evidence[0] > h.log_evidence[2]

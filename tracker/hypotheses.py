@@ -124,19 +124,19 @@ def _with_flips(poses: np.ndarray, gate: np.ndarray) -> Hypotheses:
 
 def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS) -> Hypotheses:
     """The hypotheses of one frame from a stacked descriptor (k*D,): the estimator's
-    ``predict_hypotheses(stacked, n_experts) -> (poses (m, 55), probabilities (m,))`` if it has
-    one (a mixture of experts), else its ``predict``; each pose and its front/back flip."""
-    if hasattr(estimator, "predict_hypotheses"):
-        poses, gate = estimator.predict_hypotheses(stacked, n_experts)
-        return _with_flips(np.asarray(poses, float), np.asarray(gate, float))
-    return _with_flips(np.asarray(estimator.predict(stacked), float)[None], np.ones(1))
+    ``predict_hypotheses(stacked (N, k*D), n_experts) -> (poses (N, m, 55), probabilities
+    (N, m))`` if it has one (regressor.pose_model.PoseModel: a mixture's top experts, or a
+    single regressor's one pose), else its ``predict``; each pose and its front/back flip."""
+    return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts)[0]
 
 
 def propose_batch(estimator, stacked: np.ndarray,
                   n_experts: int = DEFAULT_EXPERTS) -> list[Hypotheses]:
     """:func:`propose` for stacked descriptors (N, k*D) at once (offline evaluation)."""
     if hasattr(estimator, "predict_hypotheses"):
-        return [propose(estimator, row, n_experts) for row in stacked]
+        poses, gate = estimator.predict_hypotheses(stacked, n_experts)
+        return [_with_flips(np.asarray(p, float), np.asarray(g, float))
+                for p, g in zip(poses, gate)]
     raws = estimator.predict_batch(stacked)
     return [_with_flips(raw[None], np.ones(1)) for raw in raws]
 

@@ -408,7 +408,7 @@ def _pose_sequence(name, truth, per_frame, raw, filtered, smoothed, ambiguous, r
                                          "ambiguity_threshold": threshold}})
 
 
-def _track_longest(video: Path, model: PoseModel, settings: TrackerSettings):
+def track_longest(video: Path, model: PoseModel, settings: TrackerSettings):
     """Run the ``track`` loop (tracker.run.track_video) on a one-person video: (frame indices
     (n,), raw (n, 55), filtered (n, 55), smoothed (n, 55), ambiguous (n,), runner-up poses
     (n, 55) and probabilities (n,), NaN where none) of its longest track."""
@@ -443,9 +443,9 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
                     elevation_deg=camera.elevation_deg, distance_m=camera.distance_m,
                     noise_sigma=camera.noise_sigma, seed=camera.seed, n_frames=frames)
         truth = load_truth(path)["pose"][:, 0]
-        idx, raw, filtered, smoothed, ambiguous, alt, alt_p = _track_longest(path, stacked_model,
+        idx, raw, filtered, smoothed, ambiguous, alt, alt_p = track_longest(path, stacked_model,
                                                                              settings)
-        idx1, raw1 = _track_longest(path, per_frame_model, settings)[:2]
+        idx1, raw1 = track_longest(path, per_frame_model, settings)[:2]
     common, a, b = np.intersect1d(idx, idx1, return_indices=True)
     if len(common) < 3:
         raise EvaluationError(f"{bvh}: fewer than 3 frames were tracked")

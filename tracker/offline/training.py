@@ -8,6 +8,7 @@ is the command; this module holds the steps, each a function with cached results
 from __future__ import annotations
 
 import hashlib
+import json
 import multiprocessing
 import time
 from dataclasses import dataclass
@@ -24,6 +25,8 @@ from regressor.pose_model import DEFAULT_AMBIGUITY_THRESHOLD, PoseModel, transfo
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
 from sequences.dataset import Dataset
+from sequences.measures import body_angle_error, constant_error, skill, top_angle_correlation
+from sequences.mask_noise import MaskNoise, degrade_all
 
 _CHUNK = 500                     # masks per worker task
 _SHARED: dict = {}               # masks handed to forked workers (copy-on-write, not pickled)
@@ -68,6 +71,59 @@ def dataset_descriptors(masks: np.ndarray, settings: DescriptorSettings, codeboo
     finally:
         _SHARED.clear()
     return out
+
+
+# ----------------------------------------------------------------------------- noise-aware masks
+# (issue 9: train on silhouettes that look like the tracker's own; see sequences.mask_noise)
+
+
+def extractor_cleaner(canvas: np.ndarray, shape: tuple[int, int]) -> np.ndarray | None:
+    """The tracker's own mask cleaning and splitting on a foreground canvas (uint8, 255 =
+    foreground): clean_mask, then person_masks; the largest person's crop (bool) or None."""
+    from .silhouettes import clean_mask, person_masks
+    people = person_masks(clean_mask(canvas), (shape[1], shape[0]))
+    return people[0].mask if people else None
+
+
+def noisy_masks(masks, seed: int, noise=None, start: int = 0) -> list[np.ndarray]:
+    """Video-like versions (sequences.mask_noise.degrade, with the extractor's cleaning) of
+    masks[i], i = 0.., each seeded by (seed, start + i)."""
+    return degrade_all(masks, seed, noise or MaskNoise(), extractor_cleaner, start=start)
+
+
+def _noisy_descriptor_chunk(args) -> np.ndarray:
+    start, stop, settings, codebook, seed = args
+    masks = noisy_masks(_SHARED["masks"][start:stop], seed, start=start)
+    return descriptors_for_masks(masks, settings, codebook)
+
+
+def noisy_dataset_descriptors(masks: np.ndarray, settings: DescriptorSettings, codebook: Codebook,
+                              seed: int = 0, workers: int = 2,
+                              progress: Callable[[int, int], None] | None = None) -> np.ndarray:
+    """Descriptors (N, K) of video-like versions of masks (N, H, W) (noisy_masks), by
+    ``workers`` forked processes; reproducible whatever the number of workers."""
+    chunks = [(s, min(s + _CHUNK, len(masks)), settings, codebook, seed)
+              for s in range(0, len(masks), _CHUNK)]
+    out = np.empty((len(masks), codebook.n_centres))
+    _SHARED["masks"] = masks
+    try:
+        with multiprocessing.get_context("fork").Pool(max(1, workers)) as pool:
+            for (start, stop, *_), rows in zip(chunks, pool.imap(_noisy_descriptor_chunk, chunks)):
+                out[start:stop] = rows
+                if progress:
+                    progress(stop, len(masks))
+    finally:
+        _SHARED.clear()
+    return out
+
+
+def fit_noisy_codebook(dataset: Dataset, settings: DescriptorSettings, n_centres: int = 100,
+                       n_masks: int = 2000, seed: int = 0) -> Codebook:
+    """As fit_dataset_codebook, on video-like versions of the drawn masks."""
+    rng = np.random.default_rng(seed)
+    pick = np.sort(rng.choice(len(dataset), size=min(n_masks, len(dataset)), replace=False))
+    masks = [noisy_masks(dataset.masks[i:i + 1], seed, start=int(i))[0] for i in pick]
+    return fit_codebook_for_masks(masks, settings, n_centres=n_centres, seed=seed)
 
 
 def codebook_digest(codebook: Codebook, settings: DescriptorSettings) -> str:
@@ -201,5 +257,136 @@ def train_pose_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               "fit_seconds": round(fit_seconds, 1),
               "validation_joint_error_deg": round(float(errors[:, 1:].mean()), 2),
               "validation_heading_rms_deg": round(float(np.sqrt((errors[:, 0] ** 2).mean())), 2),
+              **{k: round(v, 3) for k, v in facts.items()}}
+    return model, report
+
+
+# ----------------------------------------------------------------------------- mixture of experts
+# (issue 9: a mixture of kernel experts on all the training rows; regressor.mixture)
+
+
+def descriptor_cache_key(config, views: dict | None, noisy: bool) -> str:
+    """Cache key of a data set's descriptors: render settings, views per trial, noise."""
+    text = json.dumps({"config": config.digest(), "views": views or {}, "noisy": noisy,
+                       "noise": repr(MaskNoise()) if noisy else ""}, sort_keys=True)
+    return "v2-" + hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+@dataclass
+class MixtureOptions:
+    """Choices of the mixture model (regressor.mixture.MixtureRegressor). stack_depth: k;
+    n_experts, overlap, n_centres, width_scale, lam: the experts; gate_*: the gate;
+    partition: what k-means splits into experts: "pose" (partition_space, with heading_scale
+    and standardise), "descriptor" (standardised stacked descriptors) or "joint" (both);
+    chosen by validation (scripts/select_mixture.py --grid space): "descriptor"; top_experts: experts evaluated per frame."""
+
+    stack_depth: int = 3
+    transform: str = "sqrt"
+    n_experts: int = 12
+    overlap: float = 0.2
+    n_centres: int = 400
+    width_scale: float = 0.25
+    lam: float = 0.01
+    gate_centres: int = 300
+    gate_width_scale: float = 0.5
+    gate_l2: float = 1e-4
+    partition: str = "descriptor"
+    heading_scale: float = 3.0
+    standardise: bool = True
+    top_experts: int = 2
+    ambiguity_threshold: float = 0.5
+    seed: int = 0
+
+
+def partition_space(targets: np.ndarray, heading_scale: float,
+                    angle_std: np.ndarray | None = None) -> np.ndarray:
+    """The pose embedding the mixture partitions: regression targets (N, 55) with the
+    heading's (cos, sin) times heading_scale, angles (degrees about their centres) divided by
+    angle_std (53,) (their spread over the training rows; None: by 1, degrees as they are).
+    Standardised angles keep the few wide-ranging angles (climbing, dance) from deciding the
+    partition alone; the heading weight then sets how much experts split by viewpoint."""
+    Z = np.array(targets, dtype=np.float64, copy=True)
+    Z[:, :2] *= heading_scale
+    if angle_std is not None:
+        Z[:, 2:] /= np.maximum(angle_std, 1e-3)
+    return Z
+
+
+def mixture_space(options: MixtureOptions, Xs: np.ndarray, Y: np.ndarray,
+                  train_rows: np.ndarray) -> np.ndarray:
+    """The rows (N, dZ) k-means partitions into experts (MixtureOptions.partition): pose
+    (partition_space), standardised stacked descriptors scaled to the pose block's total
+    variance, or both side by side."""
+    Z = partition_space(Y, options.heading_scale,
+                        Y[train_rows, 2:].std(axis=0) if options.standardise else None)
+    if options.partition == "pose":
+        return Z
+    mean, std = Xs[train_rows].mean(axis=0), Xs[train_rows].std(axis=0) + 1e-9
+    S = (Xs - mean) / std * np.sqrt(Z.shape[1] / Xs.shape[1])
+    return S if options.partition == "descriptor" else np.hstack([Z, S])
+
+
+def angle_measures(predicted: np.ndarray, truth: np.ndarray, constant_deg: np.ndarray,
+                   n_moving: int = 8) -> dict:
+    """err53 (mean |wrapped error| of the 53 joint angles, deg), const (the same for the
+    constant pose constant_deg (53,)), skill = 1 - err/const, corr8 (mean correlation with the
+    truth of the n_moving angles that move most in the truth)."""
+    constant = np.concatenate([[1.0, 0.0], constant_deg])
+    err, const = body_angle_error(predicted, truth), constant_error(truth, constant)
+    corr = top_angle_correlation(predicted, truth, n_moving)["mean"]
+    return {"err53": round(err, 3), "const": round(const, 3), "skill": round(skill(err, const), 3),
+            "corr8": round(corr, 3)}
+
+
+def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
+                        settings: DescriptorSettings, options: MixtureOptions, fps: float,
+                        log: Callable[[str], None] = print) -> tuple[PoseModel, dict]:
+    """Fit the mixture of experts on every training row's stacked descriptor (validation
+    trials excluded) and derive the filter's noise models on the validation trials; returns
+    the model and a report of validation figures."""
+    from regressor.mixture import MixtureRegressor
+    trials = np.asarray(dataset.trial_of_sequence)[dataset.sequence]
+    val = np.isin(trials, VALIDATION_TRIALS)
+    if not val.any() or val.all():
+        raise ValueError("validation trials must be a proper subset of the training trials")
+    Xs = stack_frames(transform_descriptors(X, options.transform), options.stack_depth,
+                      sequence_ids=dataset.sequence)
+    train_rows, val_rows = np.flatnonzero(~val), np.flatnonzero(val)
+    centre = angle_centres(dataset.pose[~val])
+    Y = regression_targets(dataset.pose, centre)
+    Z = mixture_space(options, Xs, Y, train_rows)
+    log(f"fitting a mixture of {options.n_experts} experts on all {len(train_rows)} training "
+        f"rows (k = {options.stack_depth}, {Xs.shape[1]}-D input) ...")
+    start = time.perf_counter()
+    mixture = MixtureRegressor(
+        n_experts=options.n_experts, overlap=options.overlap, n_centres=options.n_centres,
+        width_scale=options.width_scale, lam=options.lam, gate_centres=options.gate_centres,
+        gate_width_scale=options.gate_width_scale, gate_l2=options.gate_l2,
+        top_experts=options.top_experts, seed=options.seed)
+    mixture.fit(Xs[train_rows], Y[train_rows], Z[train_rows], log=log)
+    fit_seconds = time.perf_counter() - start
+    log(f"  fitted in {fit_seconds:.1f} s")
+    model = PoseModel(settings=settings, codebook=codebook, stack_depth=options.stack_depth,
+                      transform=options.transform, basis="gaussian", width=None, centres=None,
+                      relevance=np.zeros(0, np.int64), coef=np.zeros((0, 55)),
+                      intercept=np.zeros(55), angle_centre_deg=centre,
+                      measurement_covariance=np.eye(54), process_noise=np.ones(54),
+                      mixture=mixture)
+    predicted = model.predict_batch(Xs[val_rows])
+    R, facts = measurement_noise(predicted, dataset.pose[val_rows], options.ambiguity_threshold)
+    model.measurement_covariance = R
+    model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
+    errors = np.abs(wrap_deg(pose_angles(predicted) - pose_angles(dataset.pose[val_rows])))
+    gate_val = mixture.predict_proba(Xs[val_rows]).argmax(axis=1)
+    true_val = np.argmin(((Z[val_rows][:, None] - mixture.partition_centres_[None]) ** 2
+                          ).sum(-1), axis=1)
+    report = {"n_train_rows": int(len(train_rows)), "n_fit": int(len(train_rows)),
+              "n_validation_rows": int(len(val_rows)), "experts": int(len(mixture.experts_)),
+              "expert_rows": [int(r) for r in mixture.expert_rows_],
+              "fit_seconds": round(fit_seconds, 1),
+              "validation_joint_error_deg": round(float(errors[:, 1:].mean()), 2),
+              "validation_heading_rms_deg": round(float(np.sqrt((errors[:, 0] ** 2).mean())), 2),
+              "validation_gate_accuracy": round(float((gate_val == true_val).mean()), 3),
+              "validation": angle_measures(predicted, dataset.pose[val_rows], centre),
               **{k: round(v, 3) for k, v in facts.items()}}
     return model, report

@@ -1,0 +1,105 @@
+"""Does the output follow the body? Models side by side on spiral-walk videos through `track`.
+
+    python scripts/evaluate_accuracy.py --model shipped=regressor/models/default_model.npz \
+        --model new=FILE [--trials 16_11 02_02 08_03] [--json out.json]
+
+For each trial a 320x240 video is rendered as a 30 deg/s spiral walk (the shipped sample's
+settings; 16_11 uses the shipped sample itself) into --video-dir (reused when present), run
+through the tracker (background subtraction, stacking, Kalman filter) and compared with its
+ground truth on the tracked frames. Measures (issue 9), for the raw per-frame regressor output
+and the filtered output that `track` streams:
+
+  err53   mean |wrapped error| of the 53 joint angles, degrees
+  const   the same for a constant pose: the FIRST model's training-mean pose (its angle centres)
+  skill   1 - err53 / const
+  corr8   mean correlation with the truth of the 8 angles that move most in the truth
+  flex    mean |error| of knee and elbow flexion (angle between the bones, forward kinematics
+          on the CMU skeleton), degrees; flexC: the constant pose's; flexM: the truth's own mean
+          flexion's (a constant that knows each sequence's average)
+  head    heading RMS error, degrees
+  mpjpe   mean per-joint position error, millimetres (root-aligned)
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from threadpoolctl import threadpool_limits
+
+from regressor.pose_model import load_pose_model
+from sequences.body import sample_body_shapes
+from sequences.measures import pose_measures
+from sequences.video import Actor, load_truth, write_video
+from tracker.offline.evaluation import CameraOptions, cmu_motion, constant_pose, track_longest
+from tracker.pipeline import TrackerSettings
+
+REPO = Path(__file__).resolve().parents[1]
+SAMPLE = REPO / "sequences" / "data" / "sample_spiral_walk.mp4"
+
+
+def measures(est, truth, constant) -> dict:
+    """The module docstring's measures of poses est (T, 55) against truth (T, 55), beside a
+    constant pose (55,) (sequences.measures.pose_measures, flattened for the table)."""
+    m = pose_measures(est, truth, constant)
+    return {"err53": m["error_deg"], "const": m["constant_error_deg"], "skill": m["skill"],
+            "corr8": m["top_angles"]["mean"], "flex": m["flexion"]["error"],
+            "flexC": m["flexion"]["constant_error_mean"],
+            "flexM": m["flexion"]["truth_mean_error_mean"], "flex_corr": m["flexion"]["corr"],
+            "head": m["heading_rms_deg"], "mpjpe": m["mpjpe_mm"]}
+
+
+def trial_video(trial: str, bvh_dir: Path, video_dir: Path) -> Path:
+    """The spiral-walk video of a trial (the shipped sample for 16_11), rendered once."""
+    if trial == "16_11":
+        return SAMPLE
+    path = video_dir / f"{trial}_spiral30.mp4"
+    if not path.is_file():
+        cam = CameraOptions()
+        motion = cmu_motion(bvh_dir / f"{trial}.bvh", 30.0, cam.fps)
+        write_video(path, [Actor(motion, shape=sample_body_shapes(1, seed=cam.seed)[0])],
+                    size=cam.size, fps=cam.fps, azimuth_deg=cam.azimuth_deg,
+                    elevation_deg=cam.elevation_deg, distance_m=cam.distance_m,
+                    noise_sigma=cam.noise_sigma, seed=cam.seed)
+    return path
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--model", action="append", required=True, help="NAME=FILE (repeatable)")
+    ap.add_argument("--trials", nargs="+", default=["16_11", "02_02", "08_03"])
+    ap.add_argument("--bvh-dir", type=Path, default=REPO.parent / "shared/data/cmu/bvh")
+    ap.add_argument("--video-dir", type=Path, default=Path("cache/videos"))
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args(argv)
+    models = [(n, load_pose_model(p)) for n, p in (m.split("=", 1) for m in args.model)]
+    constant = constant_pose(models[0][1])
+    args.video_dir.mkdir(parents=True, exist_ok=True)
+    results = []
+    cols = ("err53", "const", "skill", "corr8", "flex", "flexC", "flexM", "flex_corr", "head",
+            "mpjpe")
+    print(f"{'trial':7s} {'model':14s} {'output':8s} " + " ".join(f"{c:>9s}" for c in cols)
+          + "      fps")
+    with threadpool_limits(1):
+        for trial in args.trials:
+            video = trial_video(trial, args.bvh_dir, args.video_dir)
+            truth_all = load_truth(video)["pose"][:, 0]
+            for name, model in models:
+                start = time.perf_counter()
+                idx, raw, filtered = track_longest(video, model, TrackerSettings())[:3]
+                fps = len(truth_all) / (time.perf_counter() - start)
+                for output, est in (("raw", raw), ("filtered", filtered)):
+                    m = measures(est, truth_all[idx], constant)
+                    results.append({"trial": trial, "model": name, "output": output,
+                                    "frames": int(len(idx)), "fps": fps, **m})
+                    print(f"{trial:7s} {name:14s} {output:8s} "
+                          + " ".join(f"{m[c]:9.3f}" for c in cols) + f" {fps:8.0f}", flush=True)
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

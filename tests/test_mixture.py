@@ -1,0 +1,148 @@
+"""Mixture of experts (regressor.mixture): known modes, the gate, model files, video-like masks."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from regressor.codebook import Codebook
+from regressor.descriptor import DescriptorSettings
+from regressor.mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate, kmeans
+from regressor.pose_model import (PoseModel, PoseModelError, load_pose_model,
+                                  save_pose_model)
+
+SMALL = dict(n_centres=40, gate_centres=30, gate_l2=1e-2, overlap=0.0)
+
+
+def _two_modes(n=1200, seed=0):
+    """Descriptors x (n, 6) that say nothing about which of two poses (front / back) made
+    them, plus one output that x does determine."""
+    rng = np.random.default_rng(seed)
+    x = rng.normal(0, 1, (n, 6))
+    mode = rng.integers(0, 2, n)
+    y = np.column_stack([np.where(mode == 1, 3.0, -3.0), np.sin(x[:, 1])])
+    return x, y, mode
+
+
+def test_two_poses_with_one_descriptor_give_both_hypotheses_near_half():
+    x, y, _ = _two_modes()
+    mix = MixtureRegressor(n_experts=2, **{**SMALL, "gate_l2": 0.1}).fit(x, y)
+    x = _two_modes(seed=9)[0]                        # new silhouettes
+    poses, prob = mix.predict_hypotheses(x[:50], 2)
+    assert poses.shape == (50, 2, 2) and prob.shape == (50, 2)
+    np.testing.assert_allclose(prob.sum(axis=1), 1.0)
+    assert np.all(np.abs(prob - 0.5) < 0.15)
+    # The two hypotheses are the two poses, not their average.
+    np.testing.assert_allclose(np.sort(poses[:, :, 0], axis=1), [[-3.0, 3.0]] * 50, atol=0.3)
+    # Each expert still follows the part of the pose the descriptor determines.
+    assert np.corrcoef(poses[:, 0, 1], np.sin(x[:50, 1]))[0, 1] > 0.8
+    # predict() is the most probable hypothesis.
+    np.testing.assert_allclose(mix.predict(x[:50]), poses[:, 0])
+
+
+def test_distinct_descriptors_pick_their_expert():
+    rng = np.random.default_rng(1)
+    mode = rng.integers(0, 3, 1500)
+    x = rng.normal(0, 0.3, (1500, 4)) + np.eye(4)[mode] * 3.0
+    y = np.column_stack([mode * 10.0 + x[:, 0], np.cos(x[:, 1])])
+    mix = MixtureRegressor(n_experts=3, **SMALL).fit(x, y)
+    poses, prob = mix.predict_hypotheses(x, 3)
+    assert np.mean(prob[:, 0] > 0.9) > 0.95
+    assert np.abs(mix.predict(x)[:, 0] - y[:, 0]).mean() < 0.5
+
+
+def test_gate_learns_separable_classes_and_is_a_distribution():
+    rng = np.random.default_rng(2)
+    labels = rng.integers(0, 4, 800)
+    x = rng.normal(0, 0.5, (800, 3)) + np.array([[0, 0, 0], [4, 0, 0], [0, 4, 0], [0, 0, 4]])[labels]
+    gate = SoftmaxGate(n_centres=20, l2=1e-3).fit(x, labels, n_classes=4)
+    P = gate.predict_proba(x)
+    assert P.shape == (800, 4) and np.allclose(P.sum(axis=1), 1) and np.all(P >= 0)
+    assert (gate.predict(x) == labels).mean() > 0.97
+
+
+def test_estimator_conventions():
+    mix = MixtureRegressor(n_experts=3, lam=0.5)
+    assert mix.get_params()["lam"] == 0.5 and not hasattr(mix, "gate_")
+    assert mix.set_params(n_experts=4) is mix and mix.n_experts == 4
+    with pytest.raises(ValueError, match="not fitted"):
+        mix.predict(np.zeros((1, 3)))
+    x = np.random.default_rng(3).normal(size=(200, 3))
+    reg = DampedKernelRegressor(n_centres=20)
+    assert reg.fit(x, x[:, 0] ** 2) is reg and reg.predict(x).shape == (200,)
+    assert kmeans(x, 5).shape == (5, 3)
+
+
+def _mixture_model(k=2, D=4):
+    rng = np.random.default_rng(4)
+    x = rng.normal(0, 1, (600, k * D))
+    y = np.column_stack([np.cos(x[:, 0]), np.sin(x[:, 0]), 10 * rng.normal(size=(600, 53))])
+    mix = MixtureRegressor(n_experts=3, **SMALL).fit(x, y)
+    settings = DescriptorSettings()
+    model = PoseModel(settings=settings, codebook=Codebook(rng.random((D, settings.context_size)), 0.2),
+                      stack_depth=k, transform="sqrt", basis="gaussian", width=None, centres=None,
+                      relevance=np.zeros(0, np.int64), coef=np.zeros((0, 55)),
+                      intercept=np.zeros(55), angle_centre_deg=rng.uniform(-20, 20, 53),
+                      measurement_covariance=np.eye(54), process_noise=np.ones(54),
+                      description={"source": "synthetic"}, mixture=mix)
+    return model, x
+
+
+def test_mixture_model_file_round_trip(tmp_path):
+    model, x = _mixture_model()
+    path = tmp_path / "mixture.npz"
+    save_pose_model(path, model)
+    loaded = load_pose_model(path)
+    assert loaded.mixture is not None and len(loaded.mixture.experts_) == 3
+    # Centres are stored as float16, weights as float32: predictions agree closely.
+    a, b = loaded.predict_batch(x[:20]), model.predict_batch(x[:20])
+    assert np.abs(a - b).max() < 0.02 * np.abs(b).max()
+    p0, w0 = model.predict_hypotheses(x[:20], 2)
+    p1, w1 = loaded.predict_hypotheses(x[:20], 2)
+    np.testing.assert_allclose(w1, w0, atol=1e-2)
+    assert loaded.summary()["basis"] == "mixture" and loaded.description["source"] == "synthetic"
+    assert loaded.predict(x[0]).shape == (55,)
+
+
+def test_tampered_mixture_file_is_refused(tmp_path):
+    model, _ = _mixture_model()
+    path = tmp_path / "mixture.npz"
+    save_pose_model(path, model)
+    with np.load(path, allow_pickle=False) as z:
+        raw = {k: z[k] for k in z.files}
+    raw["mixture_gate_weights"] = raw["mixture_gate_weights"] * 1.0001
+    np.savez(path, **raw)
+    with pytest.raises(PoseModelError, match="checksum"):
+        load_pose_model(path)
+
+
+def test_inconsistent_mixture_file_is_refused(tmp_path):
+    from regressor.model_file import save_model
+    model, _ = _mixture_model()
+    path = tmp_path / "mixture.npz"
+    save_pose_model(path, model)
+    with np.load(path, allow_pickle=False) as z:
+        raw = {k: z[k] for k in z.files if k not in ("format_version", "checksum")}
+    raw["mixture_expert_offsets"] = raw["mixture_expert_offsets"][:-1]   # re-checksummed
+    save_model(path, raw)
+    with pytest.raises(PoseModelError, match="expert offsets"):
+        load_pose_model(path)
+
+
+def test_single_rvm_model_still_gives_one_hypothesis():
+    from regressor.pose_model import DEFAULT_MODEL_PATH
+    model = load_pose_model(DEFAULT_MODEL_PATH.with_name("per_frame_model.npz"))   # one RVM
+    assert model.mixture is None
+    x = np.full((2, model.stack_depth * model.descriptor_length), 0.5)
+    poses, prob = model.predict_hypotheses(x, 3)
+    assert poses.shape == (2, 1, 55) and np.all(prob == 1)
+
+
+def test_mask_noise_is_reproducible_and_video_like():
+    from sequences.mask_noise import MaskNoise, degrade
+    mask = np.zeros((200, 120), bool)
+    mask[20:180, 40:80] = True                       # a body
+    mask[60:120, 25:40] = True                       # an arm, 0 px from it
+    a = degrade(mask, np.random.default_rng(5), MaskNoise(height_px=(100, 100)))
+    b = degrade(mask, np.random.default_rng(5), MaskNoise(height_px=(100, 100)))
+    assert np.array_equal(a, b)
+    assert 95 <= a.shape[0] <= 112                   # shrunk to ~100 px (dilated a little)
