@@ -18,6 +18,7 @@ import numpy as np
 import scipy.io
 
 from regressor.dls import DLSRegressor
+from regressor.mixture import MixtureRegressor
 from regressor.metrics import contiguous_folds, cross_validate, mean_point_error, point_jitter
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
@@ -53,6 +54,21 @@ class NearestNeighbours:
     def predict(self, X):
         d2 = (X * X).sum(1)[:, None] - 2 * X @ self.X_.T + (self.X_ * self.X_).sum(1)[None]
         return self.Y_[np.argsort(d2, axis=1)[:, :self.k]].mean(1)
+
+
+class MixtureRVM(MixtureRegressor):
+    """The mixture of RVM experts (regressor.mixture, after Agarwal & Triggs 2005): each expert
+    a kernel RVM with the single kernel RVM's chosen settings (rvm_params), and the count of
+    basis functions its experts keep, as the table reports for every method."""
+
+    rvm_params: dict = {}
+
+    def _new_expert(self, e: int):
+        return RVMRegressor("gaussian", output_scale="common", **self.rvm_params)
+
+    @property
+    def n_basis_(self) -> int:
+        return int(sum(e.n_basis_ for e in self.experts_))
 
 
 def choose(make, grid, X, Y, folds, budget=None, features=False, log=print):
@@ -97,6 +113,10 @@ def main() -> None:
     print("  kernel RVM"); krvm = choose(lambda **p: RVMRegressor("gaussian", output_scale="common", **p),
                                         grid(width_scale=[kdls["width_scale"]], noise=[0.03, 0.05, 0.1],
                                              min_gain=[200.0, 400.0, 800.0]), X, Y, folds, budget=RV_BUDGET)
+    print("  mixture of RVM experts")
+    MixtureRVM.rvm_params = krvm
+    mix = choose(lambda **p: MixtureRVM(expert="rvm", rvm_rows=len(X), **p),
+                 grid(n_experts=[2, 4, 8], overlap=[0.2]), X, Y, folds)
     stacked = {k: stack_frames(X, k, sequence_starts=TRAIN_STARTS) for k in (2, 3, 4)}
     print("  stacking depth")
     depth = min(stacked, key=lambda k: cross_validate(
@@ -110,10 +130,12 @@ def main() -> None:
         "kernel_dls": (DLSRegressor("gaussian", **kdls), 1),
         "kernel_rvm": (RVMRegressor("gaussian", output_scale="common", **krvm), 1),
         "kernel_rvm_stacked": (RVMRegressor("gaussian", output_scale="common", **krvm), depth),
+        "mixture_rvm": (MixtureRVM(expert="rvm", rvm_rows=len(X), **mix), 1),
     }
     report = {"n_train": int(len(X)), "ground_truth_jitter": point_jitter(Y_test),
               "descriptor_transform": tname, "stack_depth": depth,
-              "hyperparameters": {"linear_dls": lin, "linear_rvm": lrvm, "kernel_dls": kdls, "kernel_rvm": krvm},
+              "hyperparameters": {"linear_dls": lin, "linear_rvm": lrvm, "kernel_dls": kdls, "kernel_rvm": krvm,
+                                  "mixture_rvm": mix},
               "methods": {}}
     # Beside each error: the mean training pose's error and skill = 1 - error / that, and the
     # correlation of the 8 most-moving coordinates (a flat output scores 0 there).
