@@ -20,7 +20,8 @@ from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 import numpy as np
 
 from tracker.offline.hypothesis_priors import (choose_weights, facing_travel_histogram,
-                                               regressor_flip_statistics, validation_renders)
+                                               regressor_flip_statistics, replay_heading_rms,
+                                               top_experts, validation_renders)
 from tracker.offline.training import VALIDATION_TRIALS
 
 CMU = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cmu" / "bvh"
@@ -33,6 +34,13 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-regressor", action="store_true")
     ap.add_argument("--weights", action="store_true",
                     help="also choose TRAVEL_WEIGHT and EVIDENCE_WEIGHT on validation renders")
+    ap.add_argument("--travel-weights", type=str, default=None,
+                    help="comma-separated travel weights to try with --weights (default: "
+                         "choose_weights'; split the grid to run it on several cores)")
+    ap.add_argument("--experts", type=str, default=None,
+                    help="comma-separated numbers of a mixture's experts (DEFAULT_EXPERTS) to "
+                         "compare by filtered heading RMS on the same validation renders, with "
+                         "the current TRAVEL_WEIGHT and EVIDENCE_WEIGHT")
     args = ap.parse_args(argv)
     files = sorted(args.cmu.glob("*.bvh"))
     prior, per_file = facing_travel_histogram(files)
@@ -48,16 +56,31 @@ def main(argv=None) -> int:
             stats = regressor_flip_statistics(load_pose_model(args.model),
                                               [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS])
         print(json.dumps(stats, indent=1))
+    files = [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS + ("07_12",)]
     if args.weights:
-        _choose_weights(load_pose_model(args.model),
-                        [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS + ("07_12",)])
+        tws = None if args.travel_weights is None else \
+            tuple(float(x) for x in args.travel_weights.split(","))
+        _choose_weights(load_pose_model(args.model), files, tws)
+    if args.experts:
+        _compare_experts(load_pose_model(args.model), files,
+                         [int(x) for x in args.experts.split(",")])
     return 0
 
 
-def _choose_weights(model, files) -> None:
+def _compare_experts(model, files, counts) -> None:
+    with threadpool_limits(1):
+        renders = validation_renders(model, files, n_experts=max(counts))
+        for m in counts:
+            rms = [replay_heading_rms(model, top_experts(r, m)) for r in renders.values()]
+            print(f"experts {m}: mean filtered heading RMS {np.mean(rms):.1f} deg over "
+                  f"{len(rms)} validation renders", flush=True)
+
+
+def _choose_weights(model, files, travel_weights=None) -> None:
     with threadpool_limits(1):
         renders = validation_renders(model, files)
-        best, table = choose_weights(model, renders)
+        kw = {} if travel_weights is None else {"travel_weights": travel_weights}
+        best, table = choose_weights(model, renders, **kw)
     print("mean filtered heading RMS (deg) over", len(renders), "validation renders:")
     for (tw, ew), rms in table.items():
         print(f"  travel_weight {tw:.3f} evidence_weight {ew:.2f}: {np.mean(list(rms.values())):.1f}")

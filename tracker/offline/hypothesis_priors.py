@@ -25,7 +25,7 @@ from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_v
 from regressor.stacking import stack_frames
 from sequences.skeleton import CMU_UNIT_M
 from sequences.spiral import spiral_walk
-from ..hypotheses import FrontBackTracker, propose_batch
+from ..hypotheses import DEFAULT_EXPERTS, FrontBackTracker, Hypotheses, propose_batch
 from ..pipeline import kalman_factory
 from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW, TravelDirection
 from ..video import focal_length_px
@@ -79,10 +79,14 @@ def raw_is_nearer(raw: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
                               frames: int | None = 300,
-                              norm_edges=(0.0, 0.2, 0.4, 0.6, 0.8, 1.0, np.inf)) -> dict:
+                              norm_edges=(0.0, 0.2, 0.4, 0.6, 0.8, 1.0, np.inf),
+                              n_experts: int = DEFAULT_EXPERTS) -> dict:
     """The model's raw outputs on each BVH rendered as a spiral walk (all headings): per norm
     bin the fraction of frames whose raw pose is nearer the truth than its flip, and the rate
-    per frame at which that changes (the switching probability)."""
+    per frame at which that changes (the switching probability). For a mixture (a model with
+    ``predict_hypotheses``) each of the top n_experts experts' poses counts as a raw pose, as
+    each gets its own evidence in tracker.hypotheses; switches are counted per expert slot
+    (slot i at t -> slot i at t + 1) and pooled."""
     nearer, norms, pairs = [], [], []
     for path in bvh_files:
         motion = cmu_motion(path, spiral_deg_per_s)
@@ -90,11 +94,11 @@ def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
             motion = replace(motion, euler_deg=motion.euler_deg[:frames],
                              root_position=motion.root_position[:frames])
         masks, truth, _ = render_silhouettes(motion, CameraOptions())
-        raw = _model_poses(model, masks)
-        ok = raw_is_nearer(raw, truth)
-        nearer.append(ok)
-        norms.append(heading_norm(raw))
-        pairs.append(np.stack([ok[:-1], ok[1:]], axis=1))
+        for raw in _slot_poses(model, masks, n_experts):
+            ok = raw_is_nearer(raw, truth)
+            nearer.append(ok)
+            norms.append(heading_norm(raw))
+            pairs.append(np.stack([ok[:-1], ok[1:]], axis=1))
     ok, n, pair = np.concatenate(nearer), np.concatenate(norms), np.concatenate(pairs)
     was_raw, was_flip = pair[:, 0], ~pair[:, 0]
     edges = np.asarray(norm_edges, float)
@@ -109,9 +113,18 @@ def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
             "frames_per_bin": np.bincount(which, minlength=len(edges) - 1).tolist()}
 
 
+def _slot_poses(model, masks, n_experts: int) -> list[np.ndarray]:
+    """Raw poses (T, 55) per expert slot: the top n_experts of a mixture, else the one pose."""
+    if not hasattr(model, "predict_hypotheses"):
+        return [_model_poses(model, masks)]
+    X = np.array([model.describe(m) for m in masks])
+    poses, _ = model.predict_hypotheses(stack_frames(X, model.stack_depth), n_experts)
+    return [poses[:, i] for i in range(poses.shape[1])]
+
+
 def validation_renders(model, bvh_files, spiral_deg_per_s: float = 30.0,
-                       frames: int | None = 600, camera: CameraOptions = CameraOptions()
-                       ) -> dict[str, dict]:
+                       frames: int | None = 600, camera: CameraOptions = CameraOptions(),
+                       n_experts: int = DEFAULT_EXPERTS) -> dict[str, dict]:
     """Each BVH rendered as a spiral walk and from the fixed camera, as recorded and
     time-reversed (a forward walk played backwards is a backward walk, the rarer case the
     travel evidence must not overrule): name -> {"hypotheses": list of Hypotheses,
@@ -133,9 +146,20 @@ def validation_renders(model, bvh_files, spiral_deg_per_s: float = 30.0,
                 X = np.array([model.describe(m) for m in masks])
                 name = f"{Path(path).stem} {'spiral' if spiral else 'fixed'}" \
                        f"{' reversed' if reverse else ''}"
-                renders[name] = {"hypotheses": propose_batch(model, stack_frames(X, model.stack_depth)),
+                renders[name] = {"hypotheses": propose_batch(model, stack_frames(X, model.stack_depth),
+                                                             n_experts),
                                  "image_track": image_track, "truth": truth}
     return renders
+
+
+def top_experts(render: dict, n_experts: int) -> dict:
+    """A validation render with only the hypotheses of its top n_experts experts (the first
+    2 n_experts: each pose and its flip). The gate probabilities are not renormalised over
+    the n_experts, which changes every state's evidence by the same amount per frame, so
+    the tracker's posteriors are as if the model had been asked for n_experts."""
+    k = 2 * n_experts
+    return {**render, "hypotheses": [Hypotheses(h.poses[:k], h.log_evidence[:k], h.raw)
+                                     for h in render["hypotheses"]]}
 
 
 def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOptions(),
