@@ -217,22 +217,29 @@ class TrainingOptions:
     seed: int = 0
 
 
+def _training_arrays(dataset: Dataset, X: np.ndarray, transform: str, stack_depth: int):
+    """What every regressor is fitted on: (validation mask (N,) bool: rows of
+    VALIDATION_TRIALS, never fitted; stacked transformed descriptors (N, k*D); the training
+    rows' circular mean angles (53,) deg; regression targets (N, 55))."""
+    trials = np.asarray(dataset.trial_of_sequence)[dataset.sequence]
+    val = np.isin(trials, VALIDATION_TRIALS)
+    if not val.any() or val.all():
+        raise ValueError("validation trials must be a proper subset of the training trials")
+    Xs = stack_frames(transform_descriptors(X, transform), stack_depth,
+                      sequence_ids=dataset.sequence)
+    centre = angle_centres(dataset.pose[~val])
+    return val, Xs, centre, regression_targets(dataset.pose, centre)
+
+
 def train_pose_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                      settings: DescriptorSettings, options: TrainingOptions, fps: float,
                      log: Callable[[str], None] = print) -> tuple[PoseModel, dict]:
     """Fit the stacked kernel RVM on the data set's descriptors X (N, D) and derive the
     filter's noise models; returns the model and a report of validation figures."""
-    trials = np.asarray(dataset.trial_of_sequence)[dataset.sequence]
-    val = np.isin(trials, VALIDATION_TRIALS)
-    if not val.any() or val.all():
-        raise ValueError("validation trials must be a proper subset of the training trials")
-    Xs = stack_frames(transform_descriptors(X, options.transform), options.stack_depth,
-                      sequence_ids=dataset.sequence)
+    val, Xs, centre, Y = _training_arrays(dataset, X, options.transform, options.stack_depth)
     train_rows = np.flatnonzero(~val)
     fit_rows = train_rows[np.linspace(0, len(train_rows) - 1,
                                       min(options.n_fit, len(train_rows))).astype(int)]
-    centre = angle_centres(dataset.pose[~val])
-    Y = regression_targets(dataset.pose, centre)
     log(f"fitting kernel RVM on {len(fit_rows)} of {len(train_rows)} training rows "
         f"(k = {options.stack_depth}, {Xs.shape[1]}-D input) ...")
     start = time.perf_counter()
@@ -345,15 +352,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     trials excluded) and derive the filter's noise models on the validation trials; returns
     the model and a report of validation figures."""
     from regressor.mixture import MixtureRegressor
-    trials = np.asarray(dataset.trial_of_sequence)[dataset.sequence]
-    val = np.isin(trials, VALIDATION_TRIALS)
-    if not val.any() or val.all():
-        raise ValueError("validation trials must be a proper subset of the training trials")
-    Xs = stack_frames(transform_descriptors(X, options.transform), options.stack_depth,
-                      sequence_ids=dataset.sequence)
+    val, Xs, centre, Y = _training_arrays(dataset, X, options.transform, options.stack_depth)
     train_rows, val_rows = np.flatnonzero(~val), np.flatnonzero(val)
-    centre = angle_centres(dataset.pose[~val])
-    Y = regression_targets(dataset.pose, centre)
     Z = mixture_space(options, Xs, Y, train_rows)
     log(f"fitting a mixture of {options.n_experts} experts on all {len(train_rows)} training "
         f"rows (k = {options.stack_depth}, {Xs.shape[1]}-D input) ...")
