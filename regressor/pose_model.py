@@ -89,10 +89,7 @@ class PoseModel:
 
     def predict_batch(self, stacked: np.ndarray) -> np.ndarray:
         """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D)."""
-        X = np.asarray(stacked, dtype=np.float64)
-        if X.ndim != 2 or X.shape[1] != self.stack_depth * self.descriptor_length:
-            raise PoseModelError(f"stacked descriptors must be (N, {self.stack_depth} x "
-                                 f"{self.descriptor_length}), got {X.shape}")
+        X = self._stacked(stacked)
         if self.mixture is not None:
             Y = self.mixture.predict(X)
         elif self.basis == "gaussian":
@@ -102,16 +99,21 @@ class PoseModel:
         Y[:, 2:] = wrap_deg(Y[:, 2:] + self.angle_centre_deg)
         return Y
 
+    def _stacked(self, stacked) -> np.ndarray:
+        """stacked as float (N, k*D), or PoseModelError naming the expected shape."""
+        X = np.asarray(stacked, dtype=np.float64)
+        if X.ndim != 2 or X.shape[1] != self.stack_depth * self.descriptor_length:
+            raise PoseModelError(f"stacked descriptors must be (N, {self.stack_depth} x "
+                                 f"{self.descriptor_length}), got {X.shape}")
+        return X
+
     def predict_hypotheses(self, stacked: np.ndarray, m: int = 2) -> tuple[np.ndarray, np.ndarray]:
         """Up to m raw poses per row with probabilities: (poses (N, m', 55), probabilities
         (N, m')), most probable first, from stacked descriptors (N, k*D). A single regressor
         gives one hypothesis with probability 1."""
-        X = np.asarray(stacked, dtype=np.float64)
+        X = self._stacked(stacked)
         if self.mixture is None:
             return self.predict_batch(X)[:, None], np.ones((len(X), 1))
-        if X.ndim != 2 or X.shape[1] != self.stack_depth * self.descriptor_length:
-            raise PoseModelError(f"stacked descriptors must be (N, {self.stack_depth} x "
-                                 f"{self.descriptor_length}), got {X.shape}")
         poses, prob = self.mixture.predict_hypotheses(X, m)
         poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
         return poses, prob

@@ -30,10 +30,10 @@ from pathlib import Path
 from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import load_pose_model
-from sequences.body import sample_body_shapes
 from sequences.measures import pose_measures
-from sequences.video import Actor, load_truth, write_video
-from tracker.offline.evaluation import CameraOptions, cmu_motion, constant_pose, track_longest
+from sequences.video import load_truth
+from tracker.offline.evaluation import (CameraOptions, cmu_motion, constant_pose, track_longest,
+                                        write_camera_video)
 from tracker.pipeline import TrackerSettings
 
 REPO = Path(__file__).resolve().parents[1]
@@ -58,11 +58,7 @@ def trial_video(trial: str, bvh_dir: Path, video_dir: Path) -> Path:
     path = video_dir / f"{trial}_spiral30.mp4"
     if not path.is_file():
         cam = CameraOptions()
-        motion = cmu_motion(bvh_dir / f"{trial}.bvh", 30.0, cam.fps)
-        write_video(path, [Actor(motion, shape=sample_body_shapes(1, seed=cam.seed)[0])],
-                    size=cam.size, fps=cam.fps, azimuth_deg=cam.azimuth_deg,
-                    elevation_deg=cam.elevation_deg, distance_m=cam.distance_m,
-                    noise_sigma=cam.noise_sigma, seed=cam.seed)
+        write_camera_video(path, cmu_motion(bvh_dir / f"{trial}.bvh", 30.0, cam.fps), cam)
     return path
 
 

@@ -427,6 +427,16 @@ def track_longest(video: Path, model: PoseModel, settings: TrackerSettings):
             *_runner_ups([(p.runner_up, p.runner_up_probability) for p in poses]))
 
 
+def write_camera_video(path: str | Path, motion, camera: CameraOptions = CameraOptions(),
+                       frames: int | None = None) -> None:
+    """Write the motion as an mp4 (and its truth file) seen by the fixed camera (body shape
+    and noise from camera.seed); frames: only the first frames."""
+    write_video(path, [Actor(motion, shape=sample_body_shapes(1, seed=camera.seed)[0])],
+                size=camera.size, fps=camera.fps, azimuth_deg=camera.azimuth_deg,
+                elevation_deg=camera.elevation_deg, distance_m=camera.distance_m,
+                noise_sigma=camera.noise_sigma, seed=camera.seed, n_frames=frames)
+
+
 def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: PoseModel,
                    spiral_deg_per_s: float | None = None, camera: CameraOptions = CameraOptions(),
                    settings: TrackerSettings = TrackerSettings(), frames: int | None = None,
@@ -438,10 +448,7 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
     motion = cmu_motion(bvh, spiral_deg_per_s, camera.fps)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(video) if video is not None else Path(tmp) / "evaluation.mp4"
-        write_video(path, [Actor(motion, shape=sample_body_shapes(1, seed=camera.seed)[0])],
-                    size=camera.size, fps=camera.fps, azimuth_deg=camera.azimuth_deg,
-                    elevation_deg=camera.elevation_deg, distance_m=camera.distance_m,
-                    noise_sigma=camera.noise_sigma, seed=camera.seed, n_frames=frames)
+        write_camera_video(path, motion, camera, frames)
         truth = load_truth(path)["pose"][:, 0]
         idx, raw, filtered, smoothed, ambiguous, alt, alt_p = track_longest(path, stacked_model,
                                                                              settings)

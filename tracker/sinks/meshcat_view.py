@@ -297,10 +297,7 @@ class MeshcatView:
             self._finish_frame()
             self._frame, self._frame_time_s, self._frame_done = frame_index, pose.time_s, False
         node = self._vis["people/tracks"][f"track-{track_id}"]
-        g = self._g
-        vertices, faces, colours = body_mesh(joints, body_colours(track_id))
-        material = g.MeshLambertMaterial(vertexColors=True, opacity=0.5 if pose.ambiguous else 1.0)
-        node["body"].set_object(g.TriangularMeshGeometry(vertices, faces, colours), material)
+        self._set_body(node["body"], joints, track_id, 0.5 if pose.ambiguous else 1.0)
         self._draw_label(node["label"], track_id, joints, bool(pose.ambiguous))
         self._draw_ghost(node["ghost"], track_id, pose)
         trail = self._trails.setdefault(track_id, deque())
@@ -336,12 +333,16 @@ class MeshcatView:
         root = np.asarray(pose.joints_m, np.float64)[:1]
         ghost = y_up_to_z_up(pose_joints_m(np.asarray(pose.runner_up)[None],
                                            root_position_m=root)[0])
-        vertices, faces, colours = body_mesh(ghost, body_colours(track_id))
-        opacity = 0.1 + 0.3 * float(pose.runner_up_probability or 0.0)
+        self._set_body(node, ghost, track_id,
+                       0.1 + 0.3 * float(pose.runner_up_probability or 0.0))
+        self._ghosts.add(track_id)
+
+    def _set_body(self, node, joints: np.ndarray, track_id: int, opacity: float) -> None:
+        """Draw a solid body at joints (18, 3) metres, Z up, in the track's side colours."""
         g = self._g
+        vertices, faces, colours = body_mesh(joints, body_colours(track_id))
         node.set_object(g.TriangularMeshGeometry(vertices, faces, colours),
                         g.MeshLambertMaterial(vertexColors=True, opacity=opacity))
-        self._ghosts.add(track_id)
 
     def _draw_trail(self, track_id: int, trail: deque) -> None:
         node = self._vis["people/trails"][f"track-{track_id}"]
