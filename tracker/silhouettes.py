@@ -348,7 +348,7 @@ def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndar
 
 
 def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone: np.ndarray,
-                   min_seed_area: int = 20, margin: float = 0.1, max_side_px: int = 112
+                   min_seed_area: int = 20, margin: float = 0.1, max_side_px: int = 224
                    ) -> np.ndarray:
     """Decide person or background by colour where the background model is unreliable.
 
@@ -357,10 +357,11 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
     (:func:`tracker.background.clip_background`). Each blob of mask | zone that touches the zone
     and has at least ``min_seed_area`` px of foreground outside it (a person is there and
     moving) is re-segmented inside its box (padded by ``margin``) with OpenCV's grabCut, on a
-    copy shrunk to ``max_side_px``: foreground outside the zone is sure person, background
-    outside it sure background (shadow: probable background), the zone probable person; the
-    colour models then take the ghost of where the person stood out, and fill in the still
-    torso the background model had absorbed. Returns a new mask."""
+    copy shrunk to ``max_side_px`` (224: a leg ~8 px wide at working size keeps ~5 px; at 112
+    grabCut lost the standing leg): foreground is sure person (also inside the zone, where the
+    background model still sees most of a standing leg), background outside the zone sure
+    background (shadow: probable background), the rest of the zone probable person; the colour
+    models then fill in the still torso the background model had absorbed. Returns a new mask."""
     both = cv2.bitwise_or(mask, zone.astype(np.uint8) * 255)
     contours, _ = cv2.findContours(both, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     out = mask.copy()
@@ -370,13 +371,14 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
         pad = int(round(margin * max(w, h))) + 2
         x0, y0 = max(x - pad, 0), max(y - pad, 0)
         x1, y1 = min(x + w + pad, width), min(y + h + pad, height)
-        sure = (mask[y0:y1, x0:x1] > 0) & ~zone[y0:y1, x0:x1]
-        if not zone[y:y + h, x:x + w].any() or np.count_nonzero(sure) < min_seed_area:
+        found = mask[y0:y1, x0:x1] > 0
+        if (not zone[y:y + h, x:x + w].any()
+                or np.count_nonzero(found & ~zone[y0:y1, x0:x1]) < min_seed_area):
             continue
-        labels = np.full(sure.shape, cv2.GC_BGD, np.uint8)
+        labels = np.full(found.shape, cv2.GC_BGD, np.uint8)
         labels[shadow[y0:y1, x0:x1]] = cv2.GC_PR_BGD
         labels[zone[y0:y1, x0:x1]] = cv2.GC_PR_FGD
-        labels[sure] = cv2.GC_FGD
+        labels[found] = cv2.GC_FGD
         out[y0:y1, x0:x1] = _grabcut(frame[y0:y1, x0:x1], labels, max_side_px)
     return out
 
