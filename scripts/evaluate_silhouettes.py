@@ -7,8 +7,8 @@ Projects the reference keypoints into each view and prints, per extractor and vi
 (keypoints on the subject's mask dilated by 3 px), spill (mask area outside the keypoints' box
 padded by 10 % of its height, over the box area; mean and 90th percentile), tracks, tracks
 holding the subject, and the fraction of frames the subject's main track covers. "before" is
-the extractor as it was (median background, shadows dropped), "after" today's default primed
-with frames of the clip. Measures: tracker.offline.silhouette_evaluation.
+the extractor and associator as they were (median background, shadows dropped, area gate
+always on), "after" today's defaults, the extractor primed with frames of the clip. Measures: tracker.offline.silhouette_evaluation.
 """
 from __future__ import annotations
 
@@ -18,7 +18,8 @@ import sys
 from pathlib import Path
 
 from sequences.pose2sim import DEFAULT_TRIAL, VIEWS, Pose2SimError, load_trial
-from tracker.offline.silhouette_evaluation import EXTRACTORS, evaluate_pose2sim_view, format_table
+from tracker.offline.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, evaluate_pose2sim_view,
+                                                   format_table)
 
 
 def main(argv=None) -> int:
@@ -31,7 +32,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     try:
         trial = load_trial(args.trial)
-        results = {label: {view: evaluate_pose2sim_view(trial, view, EXTRACTORS[label])
+        results = {label: {view: evaluate_pose2sim_view(trial, view, EXTRACTORS[label],
+                                                        make_associator=ASSOCIATORS[label])
                            for view in args.views} for label in args.extractor}
     except Pose2SimError as exc:
         print(f"evaluate_silhouettes: error: {exc}", file=sys.stderr)

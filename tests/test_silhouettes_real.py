@@ -9,8 +9,9 @@ import numpy as np
 
 from sequences.video import textured_background
 from tracker.association import Associator
-from tracker.offline.silhouette_evaluation import (clip_extractor, legacy_extractor, silhouette_measures,
-                                           track_masks)
+from tracker.offline.silhouette_evaluation import (clip_extractor, legacy_associator,
+                                                   legacy_extractor, silhouette_measures,
+                                                   track_masks)
 from tracker.silhouettes import SilhouetteExtractor
 
 DATA = Path(__file__).parent / "data" / "pose2sim"
@@ -32,8 +33,8 @@ def test_still_person_on_real_frames_is_one_person_shaped_mask():
     assert after["coverage"] >= 0.9 and after["spill"] <= 0.15
     assert after["tracks"] == 1 and after["main_track_fraction"] == 1.0
     # The median background holds the person: holes, ghost limbs, pieces tracked apart.
-    before = silhouette_measures(track_masks(enumerate(frames), legacy_extractor(frames)),
-                                 keypoints)
+    before = silhouette_measures(track_masks(enumerate(frames), legacy_extractor(frames),
+                                             legacy_associator()), keypoints)
     assert before["coverage"] < 0.75 and before["tracks"] > 3
 
 

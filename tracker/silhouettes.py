@@ -188,8 +188,8 @@ def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5) -> np.ndar
 
 
 def person_masks(mask: np.ndarray, frame_size: tuple[int, int], min_area_fraction: float = 0.003,
-                 max_hole_fraction: float = 0.002, merge_fragments: bool = True
-                 ) -> list[PersonMask]:
+                 max_hole_fraction: float = 0.002, merge_fragments: bool = True,
+                 max_fragment_area: float = 0.15) -> list[PersonMask]:
     """Split a cleaned foreground mask into one :class:`PersonMask` per 8-connected component.
 
     ``mask``: uint8 (h, w) at the working size, 255 = foreground. ``frame_size``: (width, height)
@@ -199,7 +199,8 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int], min_area_fractio
     of the image are filled as subtraction dropouts; larger ones are kept, because a gap such as
     between an arm on the hip and the torso is real background the pose depends on.
     ``merge_fragments``: join components that look like pieces of one person (see
-    :func:`_fragment_groups`); False gives exactly one person per component.
+    :func:`_fragment_groups`, which also gets ``max_fragment_area``; 0 joins only pieces
+    stacked one above the other); False gives exactly one person per component.
     Returns people sorted by area, largest first. Two people touching form one component.
     """
     height, width = mask.shape
@@ -217,7 +218,8 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int], min_area_fractio
     big_holes = np.flatnonzero((parents != -1) & (areas > max_hole_fraction * image_area))
     rects = np.array([cv2.boundingRect(contours[o]) for o in outers]).reshape(-1, 4)
     people = []
-    groups = _fragment_groups(rects) if merge_fragments else [[i] for i in range(len(rects))]
+    groups = (_fragment_groups(rects, areas[outers], max_fragment_area=max_fragment_area)
+              if merge_fragments else [[i] for i in range(len(rects))])
     for group in groups:
         members = [int(outers[g]) for g in group]
         holes = [contours[h] for h in big_holes if parents[h] in members]
@@ -225,14 +227,18 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int], min_area_fractio
     return sorted((p for p in people if p is not None), key=lambda p: -p.area)
 
 
-def _fragment_groups(rects: np.ndarray, min_overlap: float = 0.5,
-                     max_gap: float = 0.25) -> list[list[int]]:
-    """Group the components (bounding rects (n, 4) x, y, w, h px) that are pieces of one
-    person: where skin or clothes match the background, subtraction can cut a person in two
-    at the waist or neck. Two pieces belong together when their x-ranges overlap by at least
-    min_overlap of the narrower one and the vertical gap between them is at most max_gap of
-    the taller one. (People side by side do not overlap in x; one standing behind another
-    usually touches and is one component anyway.)"""
+def _fragment_groups(rects: np.ndarray, areas: np.ndarray | None = None,
+                     min_overlap: float = 0.5, max_gap: float = 0.25,
+                     max_fragment_area: float = 0.15) -> list[list[int]]:
+    """Group the components (bounding rects (n, 4) x, y, w, h px; areas (n,) px) that are
+    pieces of one person: where skin or clothes match the background, subtraction can cut a
+    person in two at the waist or neck, or leave a foot or a hand apart. Two pieces belong
+    together when their x-ranges overlap by at least min_overlap of the narrower one and the
+    vertical gap between them is at most max_gap of the taller one; or when the smaller has at
+    most max_fragment_area of the larger's area, lies no more than max_gap of the larger's
+    height from its box on every side, and its centre is not above the larger's top (a foot, a
+    hand, a floor blob at the feet). (People side by side do not overlap in x and are of like
+    size; one standing behind another usually touches and is one component anyway.)"""
     n = len(rects)
     group = list(range(n))
 
@@ -248,6 +254,13 @@ def _fragment_groups(rects: np.ndarray, min_overlap: float = 0.5,
     gap = np.maximum(y0[:, None], y0[None, :]) - np.minimum(y1[:, None], y1[None, :])
     taller = np.maximum(rects[:, 3][:, None], rects[:, 3][None, :])
     joined = (overlap >= min_overlap * narrower) & (gap <= max_gap * taller)
+    if areas is not None:
+        reach = max_gap * taller
+        small = areas[:, None] <= max_fragment_area * areas[None, :]      # i a fragment of j
+        near = (-overlap <= reach) & (gap <= reach)
+        below_top = (y0 + rects[:, 3] / 2)[:, None] >= y0[None, :]
+        fragment = small & near & below_top
+        joined |= fragment | fragment.T
     for i, j in zip(*np.nonzero(np.triu(joined, 1))):
         group[root(int(j))] = root(int(i))
     groups: dict[int, list[int]] = {}
@@ -405,8 +418,8 @@ class SilhouetteExtractor:
     """Frame -> list of :class:`PersonMask`: subtraction, cleaning and splitting in one call.
 
     Keyword arguments go to :class:`BackgroundSubtractor`; ``open_px`` and ``close_px`` to
-    :func:`clean_mask` (working-resolution px); ``min_area_fraction`` and ``max_hole_fraction``
-    to :func:`person_masks`. ``keep_enclosed_shadow``: shadow pixels inside a body's outline
+    :func:`clean_mask` (working-resolution px); ``min_area_fraction``, ``max_hole_fraction`` and
+    ``max_fragment_area`` to :func:`person_masks`. ``keep_enclosed_shadow``: shadow pixels inside a body's outline
     count as person (dark clothing; :func:`enclosed_shadow`). ``drop_lighting``: drop blobs
     that are the background under other light (:func:`drop_lighting_blobs`). ``refine``:
     re-segment people by colour where the background is unreliable (:func:`refine_in_zone`;
@@ -414,12 +427,14 @@ class SilhouetteExtractor:
     """
 
     def __init__(self, open_px: int = 3, close_px: int = 5, min_area_fraction: float = 0.003,
-                 max_hole_fraction: float = 0.002, keep_enclosed_shadow: bool = True,
+                 max_hole_fraction: float = 0.002, max_fragment_area: float = 0.15,
+                 keep_enclosed_shadow: bool = True,
                  drop_lighting: bool = True, refine: bool = True, **subtractor_options):
         self.subtractor = BackgroundSubtractor(**subtractor_options)
         self.open_px, self.close_px = open_px, close_px
         self.min_area_fraction = min_area_fraction
         self.max_hole_fraction = max_hole_fraction
+        self.max_fragment_area = max_fragment_area
         self.keep_enclosed_shadow = keep_enclosed_shadow
         self.drop_lighting = drop_lighting
         self.refine = refine
@@ -473,7 +488,9 @@ class SilhouetteExtractor:
         shadow = raw == _SHADOW_LEVEL
         mask = foreground.astype(np.uint8) * 255
         if self.keep_enclosed_shadow:
-            mask |= enclosed_shadow(foreground, shadow)
+            # Bodies enclose shadow, specks (flicker on a window, noise on the ceiling) do not.
+            solid = clean_mask(mask, self.open_px, 1) > 0
+            mask |= enclosed_shadow(solid, shadow)
         cleaned = clean_mask(mask, self.open_px, self.close_px)
         if self.drop_lighting and self.background is not None:
             cleaned = drop_lighting_blobs(cleaned, small, self.background.image,
@@ -481,4 +498,5 @@ class SilhouetteExtractor:
         if self.refine and self.background is not None and self.background.unreliable.any():
             cleaned = refine_in_zone(cleaned, small, shadow, self.background.unreliable)
         return person_masks(cleaned, (frame.shape[1], frame.shape[0]), self.min_area_fraction,
-                            self.max_hole_fraction)
+                            self.max_hole_fraction,
+                            max_fragment_area=self.max_fragment_area)

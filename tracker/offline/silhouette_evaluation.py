@@ -35,9 +35,10 @@ class FramePeople:
 
 def track_masks(frames: Iterable[tuple[int, np.ndarray]], extractor: Callable,
                 associator: Associator | None = None) -> list[FramePeople]:
-    """Run ``extractor`` (frame BGR uint8 -> list of PersonMask) and the associator on
-    (index, frame) pairs in order, as PoseTracker.process does; every frame's tracked people."""
-    associator = associator or Associator()
+    """Run ``extractor`` (frame BGR uint8 -> list of PersonMask) and the associator (default:
+    PoseTracker's) on (index, frame) pairs in order, as PoseTracker.process does; every frame's
+    tracked people."""
+    associator = associator or default_associator()
     return [FramePeople(index, associator.update(extractor(image))) for index, image in frames]
 
 
@@ -103,18 +104,21 @@ def silhouette_measures(tracked: list[FramePeople], keypoints_px: np.ndarray,
 
 
 def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: int = 25,
-                           dilate_px: int = 3, pad: float = 0.1) -> dict:
+                           dilate_px: int = 3, pad: float = 0.1,
+                           make_associator: Callable[[], Associator] | None = None) -> dict:
     """Silhouette measures of one view of a Pose2Sim trial (sequences.pose2sim.Trial).
 
     ``make_extractor(sample_frames) -> extractor``: builds a primed extractor from ``samples``
-    frames spread over the video (as the ``track`` command samples them)."""
+    frames spread over the video (as the ``track`` command samples them);
+    ``make_associator() -> Associator`` (default :func:`default_associator`)."""
     from sequences.pose2sim import project_reference, video_frames
     from ..video import open_video
 
     source = open_video(trial.video(view))
     extractor = make_extractor(source.sample_frames(samples))
     wanted = set(int(i) for i in video_frames(trial))
-    tracked = [f for f in track_masks(((i, im) for i, _, im in source), extractor)
+    associator = (make_associator or default_associator)()
+    tracked = [f for f in track_masks(((i, im) for i, _, im in source), extractor, associator)
                if f.index in wanted]
     keypoints = project_reference(view, [f.index for f in tracked], trial)
     return silhouette_measures(tracked, keypoints, dilate_px, pad)
@@ -122,10 +126,12 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
 
 def legacy_extractor(frames) -> "SilhouetteExtractor":
     """The extractor as it was before the clip background (issue 11): MOG2 primed with the
-    median of the sampled frames, shadows dropped, no brightness, lighting or zone handling."""
+    median of the sampled frames, shadows dropped, no brightness, lighting or zone handling,
+    only pieces stacked one above the other joined into one person."""
     from ..silhouettes import SilhouetteExtractor, median_background
     extractor = SilhouetteExtractor(keep_enclosed_shadow=False, drop_lighting=False,
-                                    refine=False, normalise_brightness=False)
+                                    refine=False, normalise_brightness=False,
+                                    max_fragment_area=0.0)
     extractor.prime(median_background(list(frames)))
     return extractor
 
@@ -138,7 +144,19 @@ def clip_extractor(frames) -> "SilhouetteExtractor":
     return extractor
 
 
+def default_associator() -> Associator:
+    """The associator PoseTracker builds by default."""
+    return Associator()
+
+
+def legacy_associator() -> Associator:
+    """The associator as it was before issue 11: no boxes (the area gate always applies),
+    every detection a track at once."""
+    return Associator(use_boxes=False, min_hits=1)
+
+
 EXTRACTORS = {"before": legacy_extractor, "after": clip_extractor}
+ASSOCIATORS = {"before": legacy_associator, "after": default_associator}
 
 
 def format_table(results: dict[str, dict[str, dict]]) -> str:
