@@ -169,18 +169,27 @@ def median_background(frames: list[np.ndarray]) -> np.ndarray:
     return np.median(np.stack(frames), axis=0).astype(np.uint8)
 
 
-def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5) -> np.ndarray:
+def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5,
+               restore_px: int = 1) -> np.ndarray:
     """Remove speckle and bridge small gaps in a foreground mask.
 
     ``mask``: uint8 (h, w), 255 = foreground. ``open_px``/``close_px``: elliptical kernel sizes
     (px) of the opening (drops specks) and closing (joins nearby fragments); <= 1 skips a step.
+    ``restore_px``: foreground the opening removed within this many px of what it kept is put
+    back, so thin extremities of a body (toes, wrists: ~3 px at working size) survive while
+    isolated specks do not (0: plain opening).
+    Pose2Sim coverage with 1 instead of 0: 95.0 -> 96.7 % (cam01), 94.0 -> 95.0 % (cam02).
     Returns uint8 (h, w), 255 = foreground. Holes are filled later, per person, in
     :func:`person_masks`.
     """
     cleaned = mask
     if open_px > 1:
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (open_px, open_px))
-        cleaned = cv2.morphologyEx(cleaned, cv2.MORPH_OPEN, kernel)
+        opened = cv2.morphologyEx(cleaned, cv2.MORPH_OPEN, kernel)
+        if restore_px > 0:
+            near = cv2.dilate(opened, np.ones((3, 3), np.uint8), iterations=restore_px)
+            opened = cv2.bitwise_or(opened, cv2.bitwise_and(near, cleaned))
+        cleaned = opened
     if close_px > 1:
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (close_px, close_px))
         cleaned = cv2.morphologyEx(cleaned, cv2.MORPH_CLOSE, kernel)
@@ -361,7 +370,7 @@ def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndar
 
 
 def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone: np.ndarray,
-                   min_seed_area: int = 20, margin: float = 0.1, max_side_px: int = 224
+                   min_seed_area: int = 20, margin: float = 0.1, max_side_px: int = 400
                    ) -> np.ndarray:
     """Decide person or background by colour where the background model is unreliable.
 
@@ -370,8 +379,10 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
     (:func:`tracker.background.clip_background`). Each blob of mask | zone that touches the zone
     and has at least ``min_seed_area`` px of foreground outside it (a person is there and
     moving) is re-segmented inside its box (padded by ``margin``) with OpenCV's grabCut, on a
-    copy shrunk to ``max_side_px`` (224: a leg ~8 px wide at working size keeps ~5 px; at 112
-    grabCut lost the standing leg): foreground is sure person (also inside the zone, where the
+    copy shrunk to at most ``max_side_px`` (400: a person at the default working size is not
+    shrunk; at 112 a leg ~8 px wide kept ~3 px and grabCut lost the standing leg, at 224 the
+    toes and wrists; a 100-frame 320x569 Pose2Sim view then costs ~0.1 s per frame):
+    foreground is sure person (also inside the zone, where the
     background model still sees most of a standing leg), background outside the zone sure
     background (shadow: probable background), the rest of the zone probable person; the colour
     models then fill in the still torso the background model had absorbed. Returns a new mask."""
@@ -417,21 +428,22 @@ def _grabcut(crop: np.ndarray, labels: np.ndarray, max_side_px: int) -> np.ndarr
 class SilhouetteExtractor:
     """Frame -> list of :class:`PersonMask`: subtraction, cleaning and splitting in one call.
 
-    Keyword arguments go to :class:`BackgroundSubtractor`; ``open_px`` and ``close_px`` to
-    :func:`clean_mask` (working-resolution px); ``min_area_fraction``, ``max_hole_fraction`` and
-    ``max_fragment_area`` to :func:`person_masks`. ``keep_enclosed_shadow``: shadow pixels inside a body's outline
-    count as person (dark clothing; :func:`enclosed_shadow`). ``drop_lighting``: drop blobs
+    Keyword arguments go to :class:`BackgroundSubtractor`; ``open_px``, ``close_px`` and
+    ``restore_px`` to :func:`clean_mask` (working-resolution px); ``min_area_fraction``,
+    ``max_hole_fraction`` and ``max_fragment_area`` to :func:`person_masks`.
+    ``keep_enclosed_shadow``: shadow pixels inside a body's outline (enclosed by solid
+    foreground, not by specks) count as person (dark clothing; :func:`enclosed_shadow`). ``drop_lighting``: drop blobs
     that are the background under other light (:func:`drop_lighting_blobs`). ``refine``:
     re-segment people by colour where the background is unreliable (:func:`refine_in_zone`;
     only after :meth:`prime` with frames of the clip).
     """
 
-    def __init__(self, open_px: int = 3, close_px: int = 5, min_area_fraction: float = 0.003,
-                 max_hole_fraction: float = 0.002, max_fragment_area: float = 0.15,
-                 keep_enclosed_shadow: bool = True,
+    def __init__(self, open_px: int = 3, close_px: int = 5, restore_px: int = 1,
+                 min_area_fraction: float = 0.003, max_hole_fraction: float = 0.002,
+                 max_fragment_area: float = 0.15, keep_enclosed_shadow: bool = True,
                  drop_lighting: bool = True, refine: bool = True, **subtractor_options):
         self.subtractor = BackgroundSubtractor(**subtractor_options)
-        self.open_px, self.close_px = open_px, close_px
+        self.open_px, self.close_px, self.restore_px = open_px, close_px, restore_px
         self.min_area_fraction = min_area_fraction
         self.max_hole_fraction = max_hole_fraction
         self.max_fragment_area = max_fragment_area
@@ -489,9 +501,9 @@ class SilhouetteExtractor:
         mask = foreground.astype(np.uint8) * 255
         if self.keep_enclosed_shadow:
             # Bodies enclose shadow, specks (flicker on a window, noise on the ceiling) do not.
-            solid = clean_mask(mask, self.open_px, 1) > 0
+            solid = clean_mask(mask, self.open_px, 1, self.restore_px) > 0
             mask |= enclosed_shadow(solid, shadow)
-        cleaned = clean_mask(mask, self.open_px, self.close_px)
+        cleaned = clean_mask(mask, self.open_px, self.close_px, self.restore_px)
         if self.drop_lighting and self.background is not None:
             cleaned = drop_lighting_blobs(cleaned, small, self.background.image,
                                           min_area=int(self.min_area_fraction * cleaned.size))

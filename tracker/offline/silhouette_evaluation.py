@@ -127,11 +127,11 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
 def legacy_extractor(frames) -> "SilhouetteExtractor":
     """The extractor as it was before the clip background (issue 11): MOG2 primed with the
     median of the sampled frames, shadows dropped, no brightness, lighting or zone handling,
-    only pieces stacked one above the other joined into one person."""
+    a plain opening, only pieces stacked one above the other joined into one person."""
     from ..silhouettes import SilhouetteExtractor, median_background
     extractor = SilhouetteExtractor(keep_enclosed_shadow=False, drop_lighting=False,
                                     refine=False, normalise_brightness=False,
-                                    max_fragment_area=0.0)
+                                    max_fragment_area=0.0, restore_px=0)
     extractor.prime(median_background(list(frames)))
     return extractor
 
