@@ -106,3 +106,42 @@ def test_silhouettes_of_two_crossing_people_keep_ids():
     left, right = sorted((0, 1), key=lambda track_id: first_seen[track_id])
     assert first_seen[left] < 50 and last_seen[left] > 150
     assert first_seen[right] > 150 and last_seen[right] < 50
+
+
+@dataclass
+class Box:
+    centroid: tuple[float, float]
+    area: int
+    bbox: tuple[int, int, int, int]
+
+
+def test_silhouette_that_grows_in_place_keeps_its_id():
+    # A standing person whose legs the extractor finds only from frame 5 on: the area
+    # triples and the centroid drops, but the box still holds the old one.
+    associator = Associator(max_area_ratio=1.8)
+    upper = Box((100, 80), 2000, (80, 40, 40, 80))
+    whole = Box((100, 120), 6000, (80, 40, 40, 160))
+    ids = [ids_of(associator.update([upper if t < 5 else whole])) for t in range(10)]
+    assert ids == [[0]] * 10
+    # A blob of that size elsewhere is someone else.
+    elsewhere = Box((400, 120), 18000, (340, 40, 120, 160))
+    assert ids_of(associator.update([whole, elsewhere])) == [0, 1]
+
+
+def test_short_lived_small_blob_beside_a_person_gets_no_track():
+    associator = Associator(min_hits=3)
+    person = Box((100, 120), 6000, (80, 40, 40, 160))
+    blob = Box((160, 190), 300, (150, 180, 20, 20))      # light on the floor at the feet
+    seen = [ids_of(associator.update([person, blob] if t in (3, 4) else [person]))
+            for t in range(8)]
+    assert seen == [[0]] * 8
+    # A small blob that stays three frames running is something: it becomes a track.
+    seen = [ids_of(associator.update([person, blob])) for _ in range(4)]
+    assert seen == [[0], [0], [0, 1], [0, 1]]
+
+
+def test_first_people_and_people_as_big_get_an_id_at_once():
+    associator = Associator(min_hits=3)
+    assert ids_of(associator.update([Box((50, 50), 300, (40, 40, 20, 20))])) == [0]
+    big = Box((300, 120), 6000, (280, 40, 40, 160))
+    assert ids_of(associator.update([Box((51, 50), 300, (41, 40, 20, 20)), big])) == [0, 1]

@@ -214,3 +214,39 @@ def test_person_cut_at_the_waist_is_joined_into_one():
     assert len(contours) == 1
     separate = person_masks(mask, (160, 120), min_area_fraction=0.01, merge_fragments=False)
     assert len(separate) == 3
+
+
+def test_fragment_below_and_beside_a_person_joins_it():
+    mask = np.zeros((120, 160), np.uint8)
+    mask[10:90, 70:90] = 255          # a person, legs lost below the knee on one side
+    mask[95:105, 58:68] = 255         # a foot below and to the left: no x-overlap
+    mask[40:48, 94:102] = 255         # a hand beside the hip, 4 px off
+    mask[20:100, 10:25] = 255         # another person, side by side: stays separate
+    people = person_masks(mask, (160, 120), min_area_fraction=0.002)
+    assert len(people) == 2
+    person = max(people, key=lambda p: p.bbox[0])
+    assert person.bbox == (58, 10, 44, 95)
+    assert person.area == 80 * 20 + 100 + 64
+    # The old rule (pieces stacked above one another only) leaves the foot and the hand apart.
+    assert len(person_masks(mask, (160, 120), min_area_fraction=0.002,
+                            max_fragment_area=0.0)) == 4
+
+
+def test_fragment_far_from_a_person_or_as_big_stays_apart():
+    mask = np.zeros((120, 200), np.uint8)
+    mask[10:90, 70:90] = 255          # a person 80 px tall
+    mask[100:110, 20:30] = 255        # a blob 40 px left of the feet: beyond a quarter height
+    mask[10:90, 95:115] = 255         # a second person 5 px beside: as big, not a fragment
+    people = person_masks(mask, (200, 120), min_area_fraction=0.002)
+    assert len(people) == 3
+
+
+def test_cleaning_keeps_the_outline_and_drops_isolated_specks():
+    mask = np.zeros((60, 60), np.uint8)
+    mask[10:50, 20:35] = 255          # a leg: the opening shaves its corners
+    mask[48:50, 35:37] = 255          # the tip of a toe, 2 px thick: the opening removes it
+    mask[5:7, 50:52] = 255            # a speck of that size on its own
+    cleaned = clean_mask(mask, close_px=1)
+    assert np.array_equal(cleaned[:, :45], mask[:, :45]) and not cleaned[5:7, 50:52].any()
+    plain = clean_mask(mask, close_px=1, restore_px=0)
+    assert not plain[10, 20] and not plain[48:50, 36].any() and not plain[5:7, 50:52].any()
