@@ -382,9 +382,10 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
     and has at least ``min_seed_area`` px of foreground outside it (a person is there and
     moving) is re-segmented inside its box (padded by ``margin``) with OpenCV's grabCut, on a
     copy shrunk to at most ``max_side_px`` (400: a person at the default working size is not
-    shrunk; at 112 a leg ~8 px wide kept ~3 px and grabCut lost the standing leg, at 224
-    Pose2Sim coverage was 0.4-2.5 points lower; at 400 this costs 67-76 ms per frame on the
-    320x569 Pose2Sim views, on a loaded machine): foreground is sure person (also inside the
+    shrunk; at 112 a leg ~8 px wide kept ~3 px and grabCut lost the standing leg; at 224,
+    about 1.6x faster, Pose2Sim coverage was 2.2 points lower on cam03, 0.7 higher on cam02,
+    within 0.6 on the others; at 400 this costs 67-76 ms per frame on the 320x569 Pose2Sim
+    views, on a loaded machine): foreground is sure person (also inside the
     zone, where the background model still sees most of a standing leg), background outside
     the zone sure background (shadow: probable background), the rest of the zone probable
     person; the colour models then fill in the still torso the background model had absorbed.
