@@ -312,37 +312,10 @@ def front_back_flip(vectors: np.ndarray) -> np.ndarray:
     (which leg is nearer the camera). It is a signed permutation, so flipping twice is the
     identity exactly.
     """
-    v = _check_flip_input(vectors)
+    v = np.asarray(vectors, dtype=np.float64)
+    if v.shape[-1:] != (POSE_DIM,) or v.ndim > 2:
+        raise PoseVectorError(f"pose vectors must have shape (55,) or (T, 55), got {v.shape}")
     out = v[..., _FLIP_INDEX] * _FLIP_SIGN
     angles = out[..., ANGLE_SLICE]
     angles[angles == -180.0] = 180.0               # negated 180 back into (-180, 180]
     return out
-
-
-def heading_reflection(vectors: np.ndarray) -> np.ndarray:
-    """The heading part of front_back_flip alone: h -> 180 - h ((cos, sin) -> (-cos, sin), norm
-    kept), every body angle as it is. vectors: (55,) or (T, 55); returns the same shape.
-    front_back_flip(v) == heading_reflection(body_mirror(v)). Not a silhouette symmetry on its
-    own: the tracker uses it because the regressor's heading and limb errors are nearly
-    independent (tracker/hypotheses.py)."""
-    out = np.array(_check_flip_input(vectors), dtype=np.float64, copy=True)
-    out[..., 0] = -out[..., 0]
-    return out
-
-
-def body_mirror(vectors: np.ndarray) -> np.ndarray:
-    """The body part of front_back_flip alone: left and right exchanged and mirrored (the
-    body reflected in its own sagittal plane), the heading kept. vectors: (55,) or (T, 55);
-    returns the same shape. Seen in profile this is front_back_flip itself (which leg is
-    nearer the camera)."""
-    v = _check_flip_input(vectors)
-    out = front_back_flip(v)
-    out[..., :2] = v[..., :2]
-    return out
-
-
-def _check_flip_input(vectors: np.ndarray) -> np.ndarray:
-    v = np.asarray(vectors, dtype=np.float64)
-    if v.shape[-1:] != (POSE_DIM,) or v.ndim > 2:
-        raise PoseVectorError(f"pose vectors must have shape (55,) or (T, 55), got {v.shape}")
-    return v

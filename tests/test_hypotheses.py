@@ -6,10 +6,10 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from regressor.angles import pose_angles, wrap_deg
-from sequences.pose_vector import body_mirror, front_back_flip, heading_reflection
+from sequences.pose_vector import front_back_flip
 from tracker.filtering import PoseKalmanFilter
-from tracker.hypotheses import (RAW_NEARER_BY_NORM, RAW_NEARER_NORM_EDGES, FrontBackTracker,
-                                _with_alternatives, propose, transition_matrix)
+from tracker.hypotheses import (FrontBackTracker, _with_flips, propose,
+                                transition_matrix)
 from tracker.travel import FACING_TRAVEL_PRIOR, fuse_with_prior, travel_likelihood
 
 FPS = 30.0
@@ -47,7 +47,7 @@ def _run(truth_headings, flipped, norms, travel=None, seed=1):
         raw = true + np.concatenate([[0, 0], rng.normal(0, 3, 53)])
         if flipped[t]:
             raw = front_back_flip(raw)
-        out.append(bank.step(_with_alternatives(raw[None], np.ones(1)),
+        out.append(bank.step(_with_flips(raw[None], np.ones(1)),
                              None if travel is None else travel[t]))
     return bank, out
 
@@ -69,15 +69,11 @@ def test_fusing_travel_keeps_a_backwards_hypothesis_backwards():
     assert np.degrees(np.arctan2(forwards[1], forwards[0])) < 20.0
 
 
-def test_hypotheses_are_the_pose_its_reflection_mirror_and_flip_and_a_mixture_adds_experts():
+def test_hypotheses_are_the_pose_and_its_flip_and_a_mixture_adds_its_experts():
     raw = _pose(10.0, norm=0.4)
-    h = _with_alternatives(raw[None], np.ones(1))
-    assert h.poses.shape == (4, 55) and np.array_equal(h.raw, raw)
-    np.testing.assert_allclose(h.poses[1], heading_reflection(h.poses[0]))
-    np.testing.assert_allclose(h.poses[2], body_mirror(h.poses[0]))
-    np.testing.assert_allclose(h.poses[3], front_back_flip(h.poses[0]))
-    # the heading evidence is shared by the limb alternatives
-    assert h.log_evidence[0] == h.log_evidence[2] and h.log_evidence[1] == h.log_evidence[3]
+    h = _with_flips(raw[None], np.ones(1))
+    assert h.poses.shape == (2, 55) and np.array_equal(h.raw, raw)
+    np.testing.assert_allclose(h.poses[1], front_back_flip(h.poses[0]))
 
     class Mixture:
         def predict_hypotheses(self, stacked, m):      # PoseModel's contract: rows (N, k*D)
@@ -86,28 +82,24 @@ def test_hypotheses_are_the_pose_its_reflection_mirror_and_flip_and_a_mixture_ad
             return np.repeat(poses[None], n, axis=0), np.tile([0.7, 0.3], (n, 1))
 
     h = propose(Mixture(), np.zeros(6))
-    assert h.poses.shape == (8, 55) and h.log_evidence[0] > h.log_evidence[4]
-    A = transition_matrix(8)
+    assert h.poses.shape == (4, 55) and h.log_evidence[0] > h.log_evidence[2]
+    A = transition_matrix(4)
     np.testing.assert_allclose(A.sum(axis=1), 1.0)
-    # independent heading and limb chains: P(raw heading stays) is the same whatever the limbs
-    np.testing.assert_allclose(A[0, 0] + A[0, 2], A[2, 2] + A[2, 0])
     bank = FrontBackTracker(_factory, FPS)
     for _ in range(3):
         decision = bank.step(h)
-    assert 0 <= decision.state < 8 and len(bank.viterbi_path()) == 3
+    assert 0 <= decision.state < 4 and len(bank.viterbi_path()) == 3
 
 
 def test_a_person_walking_backwards_ends_up_facing_the_right_way():
     """Walking away from the camera while facing it (travel 180, heading 0): the regressor is
-    ambiguous and flips often at first (low norm), then mostly right with the norm at which
-    the learned tables trust its heading most; the soft travel evidence (which prefers
-    forwards) must give way."""
+    ambiguous and flips often at first, then mostly right; the soft travel evidence (which
+    prefers forwards) must give way."""
     T = 150
     rng = np.random.default_rng(3)
     truth = np.zeros(T)
     flipped = np.where(np.arange(T) < 40, rng.random(T) < 0.5, rng.random(T) < 0.15)
-    confident = RAW_NEARER_NORM_EDGES[int(np.argmax(RAW_NEARER_BY_NORM))] + 0.1
-    norms = np.where(np.arange(T) < 40, 0.2, confident)
+    norms = np.where(np.arange(T) < 40, 0.2, 0.7)
     bank, out = _run(truth, flipped, norms, travel=np.full(T, 180.0))
     late = np.array([pose_angles(d.filtered)[0] for d in out[-30:]])
     assert np.all(np.abs(wrap_deg(late)) < 30.0)
@@ -125,22 +117,16 @@ def test_a_turn_on_the_spot_is_followed_through_the_regressor_flips():
     err = np.abs(wrap_deg(np.array([pose_angles(d.filtered)[0] for d in out]) - truth))
     assert np.mean(err[10:] < 30.0) > 0.9
     path = bank.viterbi_path()
-    limbs_mirrored = (path // 2) % 2 == 1           # state 2 l + f: the flip mirrors the limbs
-    assert np.mean(limbs_mirrored == flipped) > 0.9
+    assert np.mean(path.astype(bool) == flipped) > 0.9
 
 
 def test_evidence_weight_tempers_the_regressors_evidence():
-    """Exponent 0: the regressor's norm evidence is ignored and the states start at the
-    chains' stationary distribution; exponent 1 raises the raw pose where its norm favours it."""
-    best_bin = int(np.argmax(RAW_NEARER_BY_NORM))
-    norm = RAW_NEARER_NORM_EDGES[best_bin] + 0.1
-    h = _with_alternatives(_pose(10.0, norm=norm)[None], np.ones(1))
+    """Exponent 0: the regressor's norm evidence is ignored and raw and flip start even."""
+    h = _with_flips(_pose(10.0, norm=0.7)[None], np.ones(1))
     assert h.log_evidence[0] != h.log_evidence[1]
     flat = FrontBackTracker(_factory, FPS, evidence_weight=0.0).step(h)
-    A = transition_matrix(4)
-    stationary = np.linalg.matrix_power(A, 512)[0]
-    assert flat.state == int(np.argmax(stationary))
-    assert flat.probability == pytest.approx(stationary.max())
+    assert flat.probability == pytest.approx(transition_matrix(2)[1, 0] /
+                                             (transition_matrix(2)[1, 0] + transition_matrix(2)[0, 1]))
     full = FrontBackTracker(_factory, FPS, evidence_weight=1.0).step(h)
     assert full.probability > flat.probability
 

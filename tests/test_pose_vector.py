@@ -6,8 +6,7 @@ import pytest
 
 from sequences.bvh import Motion, matrices_to_euler, read_bvh, write_bvh
 from sequences.pose_vector import (ANGLE_SLICE, PART_OF_ENTRY, POSE_DIM, PoseVectorError,
-                                   angle_mask, body_mirror, forward_kinematics, front_back_flip,
-                                   heading_reflection,
+                                   angle_mask, forward_kinematics, front_back_flip,
                                    heading_deg, heading_norm,
                                    joint_positions, motion_to_pose_vectors,
                                    pose_vector_names, pose_vectors_to_local_rotations,
@@ -260,21 +259,6 @@ def test_front_back_flip_twice_is_the_identity_and_frontal_flip_is_plus_180():
     np.testing.assert_array_equal(front_back_flip(v[0]), front_back_flip(v)[0])
     with pytest.raises(PoseVectorError):
         front_back_flip(np.zeros(54))
-
-
-def test_the_flip_is_a_heading_reflection_of_the_body_mirror():
-    v = _random_vectors(40, seed=5)
-    np.testing.assert_array_equal(heading_reflection(body_mirror(v)), front_back_flip(v))
-    np.testing.assert_array_equal(body_mirror(heading_reflection(v)), front_back_flip(v))
-    for part in (heading_reflection, body_mirror):
-        np.testing.assert_array_equal(part(part(v)), v)
-    # the mirror keeps the heading and moves only limbs; the reflection the reverse
-    np.testing.assert_array_equal(body_mirror(v)[:, :2], v[:, :2])
-    assert not np.allclose(body_mirror(v)[:, 4:], v[:, 4:])
-    np.testing.assert_array_equal(heading_reflection(v)[:, 2:], v[:, 2:])
-    np.testing.assert_allclose(heading_deg(heading_reflection(_rest_vector(30.0))), 150.0)
-    with pytest.raises(PoseVectorError):
-        body_mirror(np.zeros((2, 3, 55)))
 
 
 def test_flipped_random_pose_is_the_depth_reflection_of_the_body():

@@ -1,39 +1,30 @@
 """Front/back hypotheses carried over time: which of the regressor's poses is the true one.
 
 A silhouette cannot tell a body from its reflection in depth (sequences.pose_vector.
-front_back_flip: heading h -> 180 - h, left and right exchanged). The regressor's errors do not
-keep to that pairing, though: on validation spirals its heading is nearer the truth than the
-reflected heading in 64 % of frames and its limbs nearer than the mirrored limbs in 74 %, and
-the two agree hardly more often than if independent (58-62 %). So the flip is split in its two
-parts, sequences.pose_vector.heading_reflection and body_mirror, and each frame the regressor
-proposes four hypotheses per pose (:func:`propose`): the pose, its heading reflected, its body
-mirrored, and both (the flip); for a mixture of experts with ``predict_hypotheses(stacked, m)``,
-four per expert. The tracker keeps a discrete state per track, s_t in {0..K-1}: which hypothesis
-of frame t is the truth, in a hidden Markov model (one Kalman filter per state, as in a GPB /
-IMM filter bank):
+front_back_flip: heading h -> 180 - h, left and right exchanged). So each frame the regressor
+proposes K hypotheses (:func:`propose`): its pose and that pose's flip, or, for a mixture of
+experts with ``predict_hypotheses(stacked, m)``, each expert's pose and its flip. The tracker
+keeps a discrete state per track, s_t in {0..K-1}: which hypothesis of frame t is the truth, in
+a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter bank):
 
     alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
 
-- A: the switching probabilities, a product of two two-state chains, heading (raw or
-  reflected) and limbs (raw or mirrored). The body does not turn ~180 degrees or swap its legs
-  within a frame, so the states switch where the regressor's errors do: how often the nearer of
-  raw and alternative changes from one frame to the next on the validation trials rendered as
-  spiral walks (HEADING_SWITCH_PROBABILITY, LIMB_SWITCH_PROBABILITY, learned by
-  scripts/learn_hypothesis_priors.py). Their stationary distribution is the prior that the
-  raw part is right.
+- A: the switching probabilities. The body's heading does not change by ~180 degrees within a
+  frame, so the state switches only where the regressor's flips do: P(raw -> flip) and
+  P(flip -> raw) from one frame to the next on the validation trials rendered as spiral walks
+  (SWITCH_PROBABILITY, learned by scripts/learn_hypothesis_priors.py).
 - N(...): the innovation likelihood of hypothesis j under the filter of the predecessor i
   (PoseKalmanFilter.log_likelihoods, 54 angles). Filter j continues the best predecessor's
   filter, updated with hypothesis j. A pose consistent with the track's past explains it well;
-  a regressor error is explained by switching state, not by a jump of the body.
+  a regressor flip is explained by switching state, not by a jump of the body.
 - e_t(j): the evidence for j that the frame itself gives. The regressor's: the (cos, sin) norm
-  n says how often its raw heading, not the reflected one, is the nearer (RAW_NEARER_BY_NORM,
-  validation renders), turned into a likelihood ratio P(raw | n) / P(raw). The direction of
-  travel's, while the person moves: tracker.travel.travel_likelihood (the mocap distribution of
-  facing minus travel: backwards and sideways walking are less likely than forwards, never
-  excluded). Consecutive frames' evidence is correlated (stacked descriptors share frames;
-  travel windows overlap), so each is tempered by an exponent per frame, EVIDENCE_WEIGHT for
-  the regressor's and TRAVEL_WEIGHT for travel's, chosen on validation renders (see those
-  constants).
+  n says how often its raw pose, not the flip, is the nearer one (RAW_NEARER_BY_NORM, validation
+  renders), turned into a likelihood ratio P(raw | n) / P(raw). The direction of travel's, while
+  the person moves: tracker.travel.travel_likelihood (the mocap distribution of facing minus
+  travel: backwards and sideways walking are less likely than forwards, never excluded).
+  Consecutive frames' evidence is correlated (stacked descriptors share frames; travel windows
+  overlap), so each is tempered by an exponent per frame, EVIDENCE_WEIGHT for the regressor's
+  and TRAVEL_WEIGHT for travel's, chosen on validation renders (see those constants).
 
 Online the chosen pose is the most probable state's filtered pose; the runner-up and its
 probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
@@ -48,42 +39,43 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from regressor.angles import heading_norm
-from sequences.pose_vector import body_mirror, heading_reflection
+from sequences.pose_vector import front_back_flip
 from .travel import fuse_with_prior, travel_likelihood
 
-#: P(the raw heading is nearer the truth than the reflected one | raw heading norm in
+#: P(the raw pose is nearer the truth than its flip | raw heading norm in
 #: [RAW_NEARER_NORM_EDGES[b], RAW_NEARER_NORM_EDGES[b + 1])); and over all frames. Measured on
 #: the default model's validation trials (02_02, 08_03, 05_02, 06_10, 09_04, 02_05) rendered as
-#: 30 deg/s spiral walks, 300 frames each, the top expert's pose, by
-#: scripts/learn_hypothesis_priors.py on 2026-12-01 (1800 frames; raw limbs nearer than mirrored
-#: in 72 %, the two agree in 59 %). The norm carries little of it.
+#: 30 deg/s spiral walks, 300 frames each, by scripts/learn_hypothesis_priors.py.
+#: "Nearer": smaller mean absolute error over the 54 angles. For the mixture of 24 experts
+#: (default since issue 9) each of the top DEFAULT_EXPERTS experts' poses counts as a raw pose
+#: and switches are counted per expert slot, pooled; with DEFAULT_EXPERTS = 1 that is the top
+#: expert's pose (1800 frames; over the top 3: by norm (0.656, 0.624, 0.708, 0.718, 0.711,
+#: 0.665), overall 0.684, switch (0.099, 0.215)). Re-learned 2026-12-01
+#: with `python scripts/learn_hypothesis_priors.py` (old, single RVM: by norm (0.622, 0.661,
+#: 0.631, 0.720, 0.612, 0.508), overall 0.647, switch (0.115, 0.207)). The norm carries
+#: little of it: in profile the flip only swaps the limbs, which the regressor often confuses.
 RAW_NEARER_NORM_EDGES = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
-RAW_NEARER_BY_NORM = (0.522, 0.513, 0.547, 0.545, 0.587, 0.646)
-RAW_NEARER_OVERALL = 0.571
-#: (P(raw -> alternative), P(alternative -> raw)) per frame (30 fps) for the heading (raw or
-#: reflected) and for the limbs (raw or mirrored): how often the nearer of the two changes from
-#: one frame to the next, same data: the regressor's errors, not the body's motion.
-HEADING_SWITCH_PROBABILITY = (0.109, 0.148)
-LIMB_SWITCH_PROBABILITY = (0.073, 0.187)
+RAW_NEARER_BY_NORM = (0.700, 0.591, 0.689, 0.700, 0.769, 0.668)
+RAW_NEARER_OVERALL = 0.682
+#: (P(raw -> flip), P(flip -> raw)): how often the nearer of the two changes from one frame to
+#: the next (30 fps), same data: the regressor's flips, not the body's.
+SWITCH_PROBABILITY = (0.079, 0.170)
 #: Exponents per frame of the travel likelihood and of the regressor's evidence (log
 #: likelihoods are multiplied by them). Chosen by the mean filtered heading RMS over the
 #: validation trials and 07_12 rendered as spiral walks and from a fixed camera, as recorded
 #: and time-reversed (backward walks; tracker.offline.hypothesis_priors.validation_renders,
 #: replay_heading_rms), keeping only pairs under which the hand-made backward walker of
-#: tests/test_hypotheses.py still ends up facing the right way. Chosen 2026-12-01 for the split
-#: hypotheses with `python scripts/learn_hypothesis_priors.py --skip-regressor --weights
-#: --travel-weights 0.02,0.04,0.1` (evidence weights 0.4-1.0): (0.02, 0.6) 79.1 deg, (0.02,
-#: 1.0) 79.5, (0.04, 1.0) 79.8, (0.1, 1.0) 80.7, evidence 0.4 83.1-83.6; the coupled flip (two
-#: states per pose) had 79.5 at its best pair (0.04, 1.0). Over the same 28 renders with
-#: (0.04, 1.0) splitting the flip lowered the 53 body angles' error 9.197 -> 9.059 deg and
-#: raised the correlation of the 8 most-moving angles 0.185 -> 0.242 (forward renders 0.199
-#: -> 0.271; heading there 56.6 -> 49.0 deg, time-reversed renders worse).
-TRAVEL_WEIGHT = 0.02
-EVIDENCE_WEIGHT = 0.6
+#: tests/test_hypotheses.py still ends up facing the right way. Re-chosen 2026-12-01 for the
+#: mixture (DEFAULT_EXPERTS = 1, the tables above): of choose_weights' grid only travel weight
+#: 1/15 with evidence weight >= 0.8 kept the backward walker under the top-3 tables and none
+#: under the top-1 tables, so a finer travel weight was tried with the same replay (a one-off
+#: driver, not the script's --weights): (1/15, 1.0) 79.6 deg, (1/15, 0.8) 80.6 (both lose the
+#: backward walker); (0.05, 1.2) 79.4, (0.04, 1.0) 79.5: the latter, inside the backward
+#: walker's region (travel weight <= 0.04 keeps it for evidence weights 0.8-1.2). Old values (single RVM): 0.1, 0.8 (83.8 deg there).
+TRAVEL_WEIGHT = 0.04
+EVIDENCE_WEIGHT = 1.0
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
-#: Hypotheses per pose: raw, heading reflected, body mirrored, both (state 4 i + 2 limb + head).
-STATES_PER_POSE = 4
-#: Experts asked of a mixture model's predict_hypotheses (STATES_PER_POSE states each). On the
+#: Experts asked of a mixture model's predict_hypotheses (2 states each: pose and flip). On the
 #: same 28 validation renders (top-3 tables, travel weight 1/15), mean filtered heading RMS:
 #: 1 expert 81.8 / 83.0 deg (evidence weight 1.0 / 0.8), 2 experts 83.0 / 85.5, 3 experts
 #: 85.8 / 89.2: the other experts' poses add wrong headings more often than right ones.
@@ -129,21 +121,16 @@ def deaveraged_heading(poses: np.ndarray) -> np.ndarray:
     return out
 
 
-def _with_alternatives(poses: np.ndarray, gate: np.ndarray) -> Hypotheses:
-    """Each pose (m, 55) with gate probability (m,) -> STATES_PER_POSE m hypotheses (per pose:
-    itself, heading reflected, body mirrored, both = its front/back flip), headings de-averaged
-    (deaveraged_heading); raw stays the regressor's first pose. The evidence is the gate's and
-    the heading norm's; the limbs' prior is in the transitions (their stationary distribution)."""
+def _with_flips(poses: np.ndarray, gate: np.ndarray) -> Hypotheses:
+    """Each pose (m, 55) with gate probability (m,) -> 2m hypotheses (pose, flip, pose, ...),
+    headings de-averaged (deaveraged_heading); raw stays the regressor's first pose."""
     raw = poses[0]
     poses = deaveraged_heading(poses)
     p_raw = raw_probability(heading_norm(poses))
-    heading = np.log(np.stack([p_raw / RAW_NEARER_OVERALL,
-                               (1 - p_raw) / (1 - RAW_NEARER_OVERALL)], 1))     # (m, 2)
-    mirrored = body_mirror(poses)
-    four = np.stack([poses, heading_reflection(poses), mirrored, heading_reflection(mirrored)],
-                    axis=1).reshape(-1, poses.shape[-1])
-    evidence = np.log(np.maximum(gate, _FLOOR))[:, None] + np.tile(heading, (1, 2))
-    return Hypotheses(four, evidence.reshape(-1), raw)
+    ratio = np.stack([p_raw / RAW_NEARER_OVERALL, (1 - p_raw) / (1 - RAW_NEARER_OVERALL)], 1)
+    both = np.stack([poses, front_back_flip(poses)], axis=1).reshape(-1, poses.shape[-1])
+    evidence = np.log(np.maximum(gate, _FLOOR))[:, None] + np.log(ratio)
+    return Hypotheses(both, evidence.reshape(-1), raw)
 
 
 def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS) -> Hypotheses:
@@ -159,23 +146,20 @@ def propose_batch(estimator, stacked: np.ndarray,
     """:func:`propose` for stacked descriptors (N, k*D) at once (offline evaluation)."""
     if hasattr(estimator, "predict_hypotheses"):
         poses, gate = estimator.predict_hypotheses(stacked, n_experts)
-        return [_with_alternatives(np.asarray(p, float), np.asarray(g, float))
+        return [_with_flips(np.asarray(p, float), np.asarray(g, float))
                 for p, g in zip(poses, gate)]
     raws = estimator.predict_batch(stacked)
-    return [_with_alternatives(raw[None], np.ones(1)) for raw in raws]
+    return [_with_flips(raw[None], np.ones(1)) for raw in raws]
 
 
-def transition_matrix(K: int, heading_switch=HEADING_SWITCH_PROBABILITY,
-                      limb_switch=LIMB_SWITCH_PROBABILITY) -> np.ndarray:
-    """A (K, K): states are (expert slot i, limbs mirrored l, heading reflected f) as
-    k = 4 i + 2 l + f. The heading and limb parts are learned two-state chains (each switch =
-    (P(raw -> alternative), P(alternative -> raw))), independent; the slot part is uniform,
-    since a mixture's experts are listed by gate probability, not by identity."""
-    def chain(switch):
-        a, b = switch
-        return np.array([[1 - a, a], [b, 1 - b]])
-    m = K // STATES_PER_POSE
-    return np.kron(np.full((m, m), 1.0 / m), np.kron(chain(limb_switch), chain(heading_switch)))
+def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
+    """A (K, K): states are (expert slot i, flipped f) as k = 2 i + f. The flip part is
+    learned (switch = (P(raw -> flip), P(flip -> raw))); the slot part is uniform, since a
+    mixture's experts are listed by gate probability, not by identity."""
+    a, b = switch
+    flip = np.array([[1 - a, a], [b, 1 - b]])
+    m = K // 2
+    return np.kron(np.full((m, m), 1.0 / m), flip)
 
 
 @dataclass
@@ -206,8 +190,7 @@ class FrontBackTracker:
 
     filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; its ``log_likelihoods``
     is used when it has one, else hypotheses are scored by their evidence only); fps: frames
-    per second; heading_switch, limb_switch: (P(raw -> alternative), P(alternative -> raw)) per
-    frame (transition_matrix); travel_weight and
+    per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; travel_weight and
     evidence_weight: exponents per frame of the travel likelihood and of the regressor's
     evidence; keep_history: keep every frame's hypotheses for
     viterbi_path/smoothed (memory grows with the track; off when nothing needs smoothing).
@@ -215,8 +198,7 @@ class FrontBackTracker:
 
     filter_factory: Callable[[float], object]
     fps: float
-    heading_switch: tuple[float, float] = HEADING_SWITCH_PROBABILITY
-    limb_switch: tuple[float, float] = LIMB_SWITCH_PROBABILITY
+    switch: tuple[float, float] = SWITCH_PROBABILITY
     travel_weight: float = TRAVEL_WEIGHT
     evidence_weight: float = EVIDENCE_WEIGHT
     fuse_travel: bool = True
@@ -269,10 +251,9 @@ class FrontBackTracker:
 
     def _log_transitions(self, K: int) -> np.ndarray:
         """log A (K, K) for the current switch probabilities, computed once."""
-        key = (K, tuple(self.heading_switch), tuple(self.limb_switch))
+        key = (K, tuple(self.switch))
         if self._log_A is None or self._log_A[0] != key:
-            self._log_A = (key, np.log(transition_matrix(K, self.heading_switch,
-                                                         self.limb_switch)))
+            self._log_A = (key, np.log(transition_matrix(K, self.switch)))
         return self._log_A[1]
 
     def _continue(self, predecessor: np.ndarray) -> list:
@@ -291,7 +272,7 @@ class FrontBackTracker:
             return np.zeros(0, dtype=np.int64)
         first = self.history[0]
         K = len(first.poses)
-        log_A = self._log_transitions(K)
+        log_A = np.log(transition_matrix(K, self.switch))
         delta = np.log(np.linalg.matrix_power(np.exp(log_A), 256)[0]) + first.evidence
         back = []
         for frame in self.history[1:]:

@@ -4,11 +4,10 @@
   travel) over every frame where the root moves: how likely a moving body faces its direction
   of travel (forwards), away from it (backwards) or across it (sideways).
 - regressor_flip_statistics: from a model's raw outputs on rendered validation trials, how
-  often the raw heading is nearer the truth than the reflected heading, as a function of the
-  (cos, sin) norm, how often the raw limbs are nearer than the mirrored limbs, and how often
-  each changes from one frame to the next (the HMM's switching probabilities: a true heading
-  change of ~180 degrees or a swap of the legs within a frame does not happen, so the only
-  switches are the regressor's).
+  often the raw pose is nearer the truth than its front/back flip, as a function of the
+  (cos, sin) norm, and how often that changes from one frame to the next (the HMM's switching
+  probability: a true heading change of ~180 degrees within a frame does not happen, so the
+  only switches are the regressor's).
 - choose_weights: the exponents per frame of the travel likelihood and of the regressor's
   evidence (consecutive frames' evidence is correlated), by replaying the tracker over the
   validation trials rendered as spirals and from a fixed camera, forwards and time-reversed.
@@ -22,13 +21,11 @@ import numpy as np
 
 from regressor.angles import heading_norm, pose_angles, wrap_deg
 from sequences.bvh import read_bvh
-from sequences.pose_vector import (body_mirror, heading_deg, heading_reflection,
-                                   motion_to_pose_vectors)
+from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_vectors
 from regressor.stacking import stack_frames
 from sequences.skeleton import CMU_UNIT_M
 from sequences.spiral import spiral_walk
-from ..hypotheses import (DEFAULT_EXPERTS, STATES_PER_POSE, FrontBackTracker, Hypotheses,
-                          propose_batch)
+from ..hypotheses import DEFAULT_EXPERTS, FrontBackTracker, Hypotheses, propose_batch
 from ..pipeline import kalman_factory
 from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW, TravelDirection
 from ..video import focal_length_px
@@ -71,27 +68,13 @@ def facing_travel_histogram(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.nda
     return counts / counts.sum(), per_file
 
 
-def heading_is_nearer(raw: np.ndarray, truth: np.ndarray) -> np.ndarray:
-    """(T,) bool: the heading of raw poses (T, 55) is nearer the truth's than the reflected
-    heading (sequences.pose_vector.heading_reflection)."""
-    t = pose_angles(truth)[:, 0]
-    err = np.abs(wrap_deg(pose_angles(raw)[:, 0] - t))
-    return err <= np.abs(wrap_deg(pose_angles(heading_reflection(raw))[:, 0] - t))
-
-
-def limbs_are_nearer(raw: np.ndarray, truth: np.ndarray) -> np.ndarray:
-    """(T,) bool: the 53 body angles of raw poses (T, 55) are nearer the truth's than the
-    mirrored body's (sequences.pose_vector.body_mirror; mean absolute wrapped error)."""
-    t = pose_angles(truth)[:, 1:]
-    err = np.abs(wrap_deg(pose_angles(raw)[:, 1:] - t)).mean(axis=1)
-    return err <= np.abs(wrap_deg(pose_angles(body_mirror(raw))[:, 1:] - t)).mean(axis=1)
-
-
-def _switches(pairs: np.ndarray) -> tuple[float, float | None]:
-    """(P(raw -> alternative), P(alternative -> raw)) from (n, 2) bool pairs (t, t + 1)."""
-    was_raw = pairs[:, 0]
-    return (float((~pairs[was_raw, 1]).mean()),
-            float(pairs[~was_raw, 1].mean()) if (~was_raw).any() else None)
+def raw_is_nearer(raw: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """(T,) bool: raw pose (T, 55) is nearer the truth than its front/back flip (mean absolute
+    wrapped error over the 54 angles)."""
+    t = pose_angles(truth)
+    err = np.abs(wrap_deg(pose_angles(raw) - t)).mean(axis=1)
+    err_flip = np.abs(wrap_deg(pose_angles(front_back_flip(raw)) - t)).mean(axis=1)
+    return err <= err_flip
 
 
 def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
@@ -99,13 +82,12 @@ def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
                               norm_edges=(0.0, 0.2, 0.4, 0.6, 0.8, 1.0, np.inf),
                               n_experts: int = DEFAULT_EXPERTS) -> dict:
     """The model's raw outputs on each BVH rendered as a spiral walk (all headings): per norm
-    bin the fraction of frames whose raw heading is nearer the truth than the reflected one;
-    overall the fraction whose raw limbs are nearer than the mirrored ones; and the rates per
-    frame at which each changes (the switching probabilities). For a mixture (a model with
+    bin the fraction of frames whose raw pose is nearer the truth than its flip, and the rate
+    per frame at which that changes (the switching probability). For a mixture (a model with
     ``predict_hypotheses``) each of the top n_experts experts' poses counts as a raw pose, as
     each gets its own evidence in tracker.hypotheses; switches are counted per expert slot
     (slot i at t -> slot i at t + 1) and pooled."""
-    heading, limbs, norms, heading_pairs, limb_pairs = [], [], [], [], []
+    nearer, norms, pairs = [], [], []
     for path in bvh_files:
         motion = cmu_motion(path, spiral_deg_per_s)
         if frames is not None:
@@ -113,24 +95,21 @@ def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
                              root_position=motion.root_position[:frames])
         masks, truth, _ = render_silhouettes(motion, CameraOptions())
         for raw in _slot_poses(model, masks, n_experts):
-            h, l = heading_is_nearer(raw, truth), limbs_are_nearer(raw, truth)
-            heading.append(h)
-            limbs.append(l)
+            ok = raw_is_nearer(raw, truth)
+            nearer.append(ok)
             norms.append(heading_norm(raw))
-            heading_pairs.append(np.stack([h[:-1], h[1:]], axis=1))
-            limb_pairs.append(np.stack([l[:-1], l[1:]], axis=1))
-    ok, n = np.concatenate(heading), np.concatenate(norms)
-    limbs_ok = np.concatenate(limbs)
+            pairs.append(np.stack([ok[:-1], ok[1:]], axis=1))
+    ok, n, pair = np.concatenate(nearer), np.concatenate(norms), np.concatenate(pairs)
+    was_raw, was_flip = pair[:, 0], ~pair[:, 0]
     edges = np.asarray(norm_edges, float)
     which = np.clip(np.searchsorted(edges, n, side="right") - 1, 0, len(edges) - 2)
-    return {"frames": int(len(ok)), "raw_heading_nearer": float(ok.mean()),
-            "raw_limbs_nearer": float(limbs_ok.mean()),
-            "agree": float((ok == limbs_ok).mean()),
-            "heading_switch": _switches(np.concatenate(heading_pairs)),
-            "limb_switch": _switches(np.concatenate(limb_pairs)),
+    return {"frames": int(len(ok)), "raw_nearer": float(ok.mean()),
+            "switch_rate": float((pair[:, 0] != pair[:, 1]).mean()),
+            "p_raw_to_flip": float((~pair[was_raw, 1]).mean()),
+            "p_flip_to_raw": float(pair[was_flip, 1].mean()) if was_flip.any() else None,
             "norm_edges": edges.tolist(),
-            "raw_heading_nearer_per_bin": [float(ok[which == b].mean()) if (which == b).any()
-                                           else None for b in range(len(edges) - 1)],
+            "raw_nearer_per_bin": [float(ok[which == b].mean()) if (which == b).any() else None
+                                   for b in range(len(edges) - 1)],
             "frames_per_bin": np.bincount(which, minlength=len(edges) - 1).tolist()}
 
 
@@ -175,10 +154,10 @@ def validation_renders(model, bvh_files, spiral_deg_per_s: float = 30.0,
 
 def top_experts(render: dict, n_experts: int) -> dict:
     """A validation render with only the hypotheses of its top n_experts experts (the first
-    STATES_PER_POSE n_experts: each pose and its alternatives). The gate probabilities are not renormalised over
+    2 n_experts: each pose and its flip). The gate probabilities are not renormalised over
     the n_experts, which changes every state's evidence by the same amount per frame, so
     the tracker's posteriors are as if the model had been asked for n_experts."""
-    k = STATES_PER_POSE * n_experts
+    k = 2 * n_experts
     return {**render, "hypotheses": [Hypotheses(h.poses[:k], h.log_evidence[:k], h.raw)
                                      for h in render["hypotheses"]]}
 
