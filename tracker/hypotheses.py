@@ -26,6 +26,17 @@ a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter ban
   overlap), so each is tempered by an exponent per frame, EVIDENCE_WEIGHT for the regressor's
   and TRAVEL_WEIGHT for travel's, chosen on validation renders (see those constants).
 
+Tried and reverted (2026-12-01, commit 4862a54): splitting the flip into its heading part (h ->
+180 - h) and its limb part (left/right mirrored) as two independent chains, four states per
+pose, because the regressor's heading and limb errors are nearly independent (on validation
+spirals its heading is nearer than the reflected one in 58 % of frames, its limbs nearer than
+the mirrored ones in 72 %, the two agreeing in 59 %). On the 28 validation renders it lowered
+the 53 body angles' error 9.197 -> 9.059 deg and raised corr8 0.185 -> 0.242 at equal heading
+RMS (79.1 vs 79.5), but on held-out sequences it lost: heading RMS 06_06 fixed 51 -> 152,
+06_08 spiral 43 -> 73, Pose2Sim cross-view 97 -> 120, and 06_06's corr8 0.18 -> 0.12. Coupled,
+the limbs' innovations (72 % right) carry the heading with them; split, the heading's own
+evidence is too weak and the travel prior turns backward walkers round.
+
 Online the chosen pose is the most probable state's filtered pose; the runner-up and its
 probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
 picks one hypothesis per frame and the Rauch-Tung-Striebel smoother runs over them.
