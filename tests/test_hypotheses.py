@@ -8,7 +8,7 @@ from threadpoolctl import threadpool_limits
 from regressor.angles import pose_angles, wrap_deg
 from sequences.pose_vector import front_back_flip
 from tracker.filtering import PoseKalmanFilter
-from tracker.hypotheses import (FrontBackTracker, _with_flips, propose,
+from tracker.hypotheses import (FrontBackTracker, Hypotheses, _with_flips, propose,
                                 transition_matrix)
 from tracker.travel import FACING_TRAVEL_PRIOR, fuse_with_prior, travel_likelihood
 
@@ -118,6 +118,43 @@ def test_a_turn_on_the_spot_is_followed_through_the_regressor_flips():
     assert np.mean(err[10:] < 30.0) > 0.9
     path = bank.viterbi_path()
     assert np.mean(path.astype(bool) == flipped) > 0.9
+
+
+def test_body_angles_follow_the_regressors_own_pose_when_the_chain_chooses_the_flip():
+    """The chain decides the heading; with a limb filter the output's 53 body angles are the
+    filtered raw pose's, not the chosen flip's mirrored limbs (tracker.hypotheses, "Limbs")."""
+    rng = np.random.default_rng(5)
+    body = _pose(30.0, norm=0.9, seed=8)
+    frames = []
+    for _ in range(60):
+        raw = body + np.concatenate([[0, 0], rng.normal(0, 2, 53)])
+        h = _with_flips(raw[None], np.ones(1))
+        frames.append(Hypotheses(h.poses, np.array([-4.0, 0.0]), raw))   # evidence: the flip
+    split = FrontBackTracker(_factory, FPS, limb_filter_factory=_factory)
+    coupled = FrontBackTracker(_factory, FPS)
+    late_split = [split.step(h) for h in frames][-10:]
+    late_coupled = [coupled.step(h) for h in frames][-10:]
+    flip = front_back_flip(body)
+    for d_split, d_coupled in zip(late_split, late_coupled):
+        assert d_split.state == d_coupled.state == 1                     # the flip was chosen
+        np.testing.assert_allclose(d_split.filtered[:2], d_coupled.filtered[:2])
+        assert np.abs(wrap_deg(d_split.filtered[2:] - body[2:])).mean() < 2.0
+        assert np.abs(wrap_deg(d_coupled.filtered[2:] - flip[2:])).mean() < 2.0
+    smoothed = split.smoothed()
+    assert np.abs(wrap_deg(smoothed[-10:, 2:] - body[2:])).mean() < 2.0
+    np.testing.assert_allclose(smoothed[:, :2], coupled.smoothed()[:, :2])
+
+
+def test_the_trackers_limb_filter_trusts_the_regressor_more_than_the_chains_filters():
+    from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+    from tracker.pipeline import LIMB_R_SCALE, TrackerSettings, front_back_tracker
+    model = load_pose_model(DEFAULT_MODEL_PATH)
+    bank = front_back_tracker(model, FPS, TrackerSettings(r_scale=2.0))
+    chain, limbs = bank.filter_factory(FPS), bank.limb_filter_factory(FPS)
+    np.testing.assert_allclose(limbs.R, chain.R * LIMB_R_SCALE)
+    np.testing.assert_allclose(chain.R, model.measurement_covariance * 2.0)
+    custom = front_back_tracker(model, FPS, filter_factory=_factory)
+    assert custom.limb_filter_factory is None and custom.filter_factory is _factory
 
 
 def test_evidence_weight_tempers_the_regressors_evidence():

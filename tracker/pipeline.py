@@ -14,7 +14,7 @@ from __future__ import annotations
 import time
 from collections import defaultdict
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -30,6 +30,22 @@ from .travel import TravelDirection
 from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 
 
+#: The body angles' filter (tracker.hypotheses, "Limbs") takes as measurement noise only the
+#: white part of the regressor's error. The model's R is the covariance of its whole validation
+#: residual, but that residual is mostly a slow bias (the same pose misread for many frames):
+#: half the variance of its frame-to-frame change is 7.5 % of its variance on the validation
+#: renders (10-13 % on track's inputs from five spiral-walk videos), and a filter that takes
+#: the bias for white noise lags the gait. Chosen on the 28 validation renders of
+#: scripts/learn_hypothesis_priors.py (6 validation trials and 07_12, spiral and fixed camera,
+#: as recorded and reversed; heading from the chain in every case), mean over renders of the
+#: 53 body angles' error / correlation of the 8 most-moving angles / mean |second difference|
+#: (jitter, deg): chain's own limbs 9.197 / 0.185 / 1.20; this filter with limb_r_scale 1.0:
+#: 9.064 / 0.244 / 0.96, 0.3: 9.044 / 0.261 / 1.16, 0.1: 9.043 / 0.269 / 1.34, 0.05: 9.044 /
+#: 0.271 / 1.46; the raw poses 9.005 / 0.266 / 2.28 (2026-12-01, a one-off driver). 0.1: as
+#: accurate as the raw poses with 40 % less jitter.
+LIMB_R_SCALE = 0.1
+
+
 @dataclass(frozen=True)
 class TrackerSettings:
     """The tracker's run-time choices, in one place (the ``track`` command, the evaluation and
@@ -39,7 +55,9 @@ class TrackerSettings:
     ambiguity_threshold: raw heading norm below which a frame is ambiguous; None = the one the
     model was trained with (PoseModel.ambiguity_threshold). ambiguous_heading_factor,
     ambiguous_joint_factor: R inflation on ambiguous frames (PoseKalmanFilter). r_scale, q_scale:
-    multiply the model's measurement covariance R and process noise q. background_samples:
+    multiply the model's measurement covariance R and process noise q. limb_r_scale: further
+    multiplies R for the filter of the output's body angles (LIMB_R_SCALE, limb_kalman_factory);
+    background_samples:
     frames spread over the video for the median background. fov_deg: the horizontal field of
     view assumed for the focal length (direction of travel, ground position). keep_history:
     keep every track's filter inputs for PoseTracker.smoothed_track (about 0.6 KB per person
@@ -52,6 +70,7 @@ class TrackerSettings:
     ambiguous_joint_factor: float = 4.0
     r_scale: float = 1.0
     q_scale: float = 1.0
+    limb_r_scale: float = LIMB_R_SCALE
     background_samples: int = 25
     fov_deg: float = ASSUMED_FOV_DEG
     keep_history: bool = True
@@ -74,6 +93,27 @@ def kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
                                 ambiguous_heading_factor=settings.ambiguous_heading_factor,
                                 ambiguous_joint_factor=settings.ambiguous_joint_factor)
     return make
+
+
+def limb_kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
+                        ) -> Callable[[float], PoseKalmanFilter]:
+    """fps -> the PoseKalmanFilter of the output's body angles: kalman_factory's with R
+    further scaled by settings.limb_r_scale (LIMB_R_SCALE)."""
+    return kalman_factory(estimator, replace(settings,
+                                             r_scale=settings.r_scale * settings.limb_r_scale))
+
+
+def front_back_tracker(estimator, fps: float, settings: TrackerSettings = TrackerSettings(),
+                       filter_factory: Callable[[float], PoseFilter] | None = None,
+                       ) -> FrontBackTracker:
+    """A track's front/back hypotheses as the tracker runs them: one kalman_factory filter per
+    hypothesis and the body angles from limb_kalman_factory's filter; with a custom
+    filter_factory, that factory's filters give the whole pose (no separate limb filter)."""
+    if filter_factory is None:
+        return FrontBackTracker(kalman_factory(estimator, settings), fps,
+                                keep_history=settings.keep_history,
+                                limb_filter_factory=limb_kalman_factory(estimator, settings))
+    return FrontBackTracker(filter_factory, fps, keep_history=settings.keep_history)
 
 
 class PoseEstimator(Protocol):
@@ -156,6 +196,7 @@ class PoseTracker:
         self.extractor = extractor or SilhouetteExtractor()
         self._default_extractor = extractor is None
         self.associator = associator or Associator()
+        self.custom_filter_factory = filter_factory
         self.filter_factory = filter_factory or kalman_factory(estimator, settings)
         self.frame_shape: tuple[int, int] | None = None      # (height, width) pixels
         self._focal_px = 0.0
@@ -202,8 +243,8 @@ class PoseTracker:
             travel = TravelDirection(self.fps, self.frame_shape[1], focal_px=self._focal_px)
             self.tracks[track_id] = _TrackState(
                 FrameStacker(self.estimator.stack_depth),
-                FrontBackTracker(self.filter_factory, self.fps,
-                                 keep_history=self.settings.keep_history), travel)
+                front_back_tracker(self.estimator, self.fps, self.settings,
+                                   self.custom_filter_factory), travel)
         return self.tracks[track_id]
 
     def _pose(self, track_id: int, person: PersonMask, frame_index: int,

@@ -39,8 +39,8 @@ from sequences.spiral import line_of_sight_azimuth, spiral_walk
 from sequences.video import Actor, load_truth, posed_sequences, scene_camera, write_video
 from regressor.errors import SilhouettePoseError
 from ..filtering import ConstantVelocityFilter
-from ..hypotheses import FrontBackTracker, propose_batch
-from ..pipeline import PoseTracker, TrackerSettings, kalman_factory
+from ..hypotheses import propose_batch
+from ..pipeline import PoseTracker, TrackerSettings, front_back_tracker
 from ..run import track_video
 from ..sinks import PoseRecorder
 from ..travel import TravelDirection
@@ -371,7 +371,7 @@ def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model
     name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
     # As the tracker does: front/back hypotheses over time, the direction of travel as soft
     # evidence while the person moves.
-    bank = FrontBackTracker(kalman_factory(stacked_model, settings), camera.fps)
+    bank = front_back_tracker(stacked_model, camera.fps, replace(settings, keep_history=True))
     width = camera.size[1]
     travel = TravelDirection(camera.fps, width, focal_px=focal_length_px(width, settings.fov_deg))
     decisions = [bank.step(h, travel.push(u, hgt))
