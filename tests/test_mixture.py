@@ -146,3 +146,20 @@ def test_mask_noise_is_reproducible_and_video_like():
     b = degrade(mask, np.random.default_rng(5), MaskNoise(height_px=(100, 100)))
     assert np.array_equal(a, b)
     assert 95 <= a.shape[0] <= 112                   # shrunk to ~100 px (dilated a little)
+
+
+def test_training_masks_pass_through_the_trackers_own_cleaning():
+    """tracker.offline.training.noisy_masks wires the extractor's cleaning into degrade: the
+    crops are reproducible per row, person-sized, and a separate speck never survives as the
+    person (the cleaning keeps the largest person)."""
+    from tracker.offline.training import noisy_masks
+    mask = np.zeros((224, 224), bool)
+    mask[30:190, 90:130] = True                      # a body
+    mask[70:130, 75:90] = True                       # an arm
+    masks = np.stack([mask, mask])
+    a, b = noisy_masks(masks, seed=3), noisy_masks(masks, seed=3)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    assert not np.array_equal(a[0], a[1])            # each row its own noise
+    for crop in a:
+        assert crop.dtype == bool and 55 <= crop.shape[0] <= 160
+        assert crop.mean() > 0.3                     # the body fills its box: not a speck

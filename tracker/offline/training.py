@@ -80,7 +80,7 @@ def dataset_descriptors(masks: np.ndarray, settings: DescriptorSettings, codeboo
 def extractor_cleaner(canvas: np.ndarray, shape: tuple[int, int]) -> np.ndarray | None:
     """The tracker's own mask cleaning and splitting on a foreground canvas (uint8, 255 =
     foreground): clean_mask, then person_masks; the largest person's crop (bool) or None."""
-    from .silhouettes import clean_mask, person_masks
+    from ..silhouettes import clean_mask, person_masks
     people = person_masks(clean_mask(canvas), (shape[1], shape[0]))
     return people[0].mask if people else None
 
