@@ -79,3 +79,26 @@ def test_two_people_passing_close_keep_their_identities():
         before = {i for t, i in ids[name] if t < 15}
         after = {i for t, i in ids[name] if t >= 25}
         assert len(before) == 1 and before == after, f"{name}: {ids[name]}"
+
+
+def union_mask(people, shape: tuple[int, int]) -> np.ndarray:
+    """bool (H, W): every PersonMask of one frame pasted into the frame."""
+    out = np.zeros(shape, bool)
+    for person in people:
+        x, y, w, h = person.bbox
+        out[y:y + h, x:x + w] |= person.mask
+    return out
+
+
+def test_kept_colour_models_cut_real_frames_as_learning_every_frame_does():
+    frames, keypoints = balancing_frames()
+    every, kept = SilhouetteExtractor(refine_relearn_every=1), SilhouetteExtractor()
+    every.prime(frames)
+    kept.prime(frames)
+    for t, frame in enumerate(frames):
+        a, b = union_mask(every(frame), frame.shape[:2]), union_mask(kept(frame), frame.shape[:2])
+        assert np.count_nonzero(a ^ b) <= 0.05 * np.count_nonzero(a), f"frame {t}"
+    # The models are learned in one frame of five; grabCut still cuts every frame.
+    assert every.refiner.kept == 0 and every.refiner.learned >= len(frames)
+    assert kept.refiner.learned <= every.refiner.learned // 3
+    assert kept.refiner.learned + kept.refiner.kept == every.refiner.learned
