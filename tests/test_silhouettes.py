@@ -301,3 +301,16 @@ def test_zone_refiner_learning_every_frame_is_refine_in_zone():
 def test_bad_zone_refiner_settings_are_refused(options):
     with pytest.raises(ExtractionError):
         ZoneRefiner(**options)
+
+
+def test_box_without_background_keeps_its_seeds_and_learns_again_next_frame():
+    frame = background(120, 100, seed=7)
+    zone = np.ones((100, 120), bool)
+    zone[:, :30] = False                          # the only pixels outside the zone are person
+    mask = np.zeros((100, 120), np.uint8)
+    mask[:, :30] = 255
+    refiner = ZoneRefiner()
+    for _ in range(2):
+        out = refiner(mask, frame, np.zeros_like(zone), zone)
+        assert (out > 0).all()                    # grabCut cannot run: foreground and zone kept
+    assert (refiner.learned, refiner.kept) == (2, 0)

@@ -389,8 +389,7 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
     the background model still sees most of a standing leg), background outside the zone sure
     background (shadow: probable background), the rest of the zone probable person; the colour
     models then fill in the still torso the background model had absorbed. Returns a new mask.
-    :class:`ZoneRefiner` does the same and reuses a box's result while its foreground barely
-    changes."""
+    :class:`ZoneRefiner` does the same, keeping grabCut's colour models between frames."""
     out = mask.copy()
     for x0, y0, x1, y1 in zone_boxes(mask, zone, min_seed_area, margin):
         labels = _zone_labels(mask[y0:y1, x0:x1] > 0, shadow[y0:y1, x0:x1],
@@ -496,7 +495,8 @@ class ZoneRefiner:
             previous = self._reusable(box)
             if previous is None:
                 cut, bgd, fgd = _grabcut_models(frame[y0:y1, x0:x1], labels, self.max_side_px)
-                models.append(_ColourModels(box, bgd, fgd))
+                if bgd is not None:           # nothing learned: learn again next frame
+                    models.append(_ColourModels(box, bgd, fgd))
                 self.learned += 1
             else:
                 cut, _, _ = _grabcut_models(frame[y0:y1, x0:x1], labels, self.max_side_px,
@@ -531,7 +531,8 @@ def _grabcut_models(crop: np.ndarray, labels: np.ndarray, max_side_px: int,
     max_side_px. Without ``models``: colour models learned from the seeds, 2 iterations, their
     k-means started from OpenCV's random generator reset to ``seed``; with (background, person)
     float64 (1, 65) GMMs: one cut with them frozen. Returns (uint8 (h, w) 255 = person at the
-    crop's size, the background and person models used)."""
+    crop's size, the background and person models used; both None when grabCut could not
+    run)."""
     h, w = labels.shape
     scale = min(1.0, max_side_px / max(h, w))
     small = (max(1, round(w * scale)), max(1, round(h * scale)))
@@ -549,6 +550,7 @@ def _grabcut_models(crop: np.ndarray, labels: np.ndarray, max_side_px: int,
         cv2.grabCut(image, seeds, None, bgd, fgd, iterations, mode)
     except cv2.error:                     # no sure background or person in the box: keep it
         seeds = cv2.resize(labels, small, interpolation=cv2.INTER_NEAREST)
+        bgd = fgd = None
     person = ((seeds == cv2.GC_FGD) | (seeds == cv2.GC_PR_FGD)).astype(np.uint8) * 255
     person = cv2.resize(person, (w, h), interpolation=cv2.INTER_LINEAR)
     return np.where(person > 127, 255, 0).astype(np.uint8), bgd, fgd
@@ -561,8 +563,9 @@ class SilhouetteExtractor:
     ``restore_px`` to :func:`clean_mask` (working-resolution px); ``min_area_fraction``,
     ``max_hole_fraction`` and ``max_fragment_area`` to :func:`person_masks`.
     ``keep_enclosed_shadow``: shadow pixels inside a body's outline (enclosed by solid
-    foreground, not by specks) count as person (dark clothing; :func:`enclosed_shadow`). ``drop_lighting``: drop blobs
-    that are the background under other light (:func:`drop_lighting_blobs`). ``refine``:
+    foreground, not by specks) count as person (dark clothing; :func:`enclosed_shadow`).
+    ``drop_lighting``: drop blobs that are the background under other light
+    (:func:`drop_lighting_blobs`). ``refine``:
     re-segment people by colour where the background is unreliable (:func:`refine_in_zone`;
     only after :meth:`prime` with frames of the clip), learning grabCut's colour models every
     ``refine_relearn_every`` frames (:class:`ZoneRefiner`; 1: every frame).
