@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from tracker.silhouettes import (BackgroundSubtractor, PersonMask, ExtractionError,
-                                 SilhouetteExtractor, clean_mask, median_background, person_masks)
+                                 SilhouetteExtractor, ZoneRefiner, clean_mask, median_background,
+                                 person_masks, refine_in_zone)
 
 
 def background(width: int, height: int, seed: int = 0) -> np.ndarray:
@@ -250,3 +251,66 @@ def test_cleaning_keeps_the_outline_and_drops_isolated_specks():
     assert np.array_equal(cleaned[:, :45], mask[:, :45]) and not cleaned[5:7, 50:52].any()
     plain = clean_mask(mask, close_px=1, restore_px=0)
     assert not plain[10, 20] and not plain[48:50, 36].any() and not plain[5:7, 50:52].any()
+
+
+def arm_scene(bg: np.ndarray, arm_left: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A still red torso over the textured ``bg`` with one arm out to the left or the right,
+    legs below: (frame BGR uint8 (240, 320, 3), the arm's truth bool (240, 320))."""
+    frame, arm = bg.copy(), np.zeros(bg.shape[:2], np.uint8)
+    cv2.rectangle(frame, (140, 60), (180, 150), (30, 30, 200), -1)           # torso
+    cv2.rectangle(frame, (145, 150), (175, 220), (30, 30, 200), -1)          # legs
+    x0, x1 = (90, 140) if arm_left else (180, 230)
+    cv2.rectangle(arm, (x0, 70), (x1, 82), 255, -1)
+    frame[arm > 0] = (30, 30, 200)
+    return frame, arm > 0
+
+
+def test_kept_colour_models_still_follow_an_arm_that_moved():
+    bg = background(320, 240, seed=5)
+    zone = np.zeros((240, 320), bool)
+    zone[50:160, 80:240] = True                   # where the median showed the person
+    legs = np.zeros((240, 320), np.uint8)
+    legs[160:221, 145:176] = 255                  # moving, so the subtractor sees them
+    refiner = ZoneRefiner(relearn_every=5)
+    shadow = np.zeros_like(zone)
+    for arm_left in (True, False):
+        frame, arm = arm_scene(bg, arm_left)
+        person = refiner(legs, frame, shadow, zone) > 0
+        other_side = arm_scene(bg, not arm_left)[1]
+        assert person[arm].mean() > 0.9 and person[other_side].mean() < 0.1, arm_left
+        assert person[70:140, 145:175].all()      # the still torso, filled in by colour
+    assert (refiner.learned, refiner.kept) == (1, 1)
+
+
+def test_zone_refiner_learning_every_frame_is_refine_in_zone():
+    bg = background(320, 240, seed=6)
+    zone = np.zeros((240, 320), bool)
+    zone[50:160, 80:240] = True
+    legs = np.zeros((240, 320), np.uint8)
+    legs[160:221, 145:176] = 255
+    shadow = np.zeros_like(zone)
+    refiner = ZoneRefiner(relearn_every=1)
+    for arm_left in (True, False, True):
+        frame = arm_scene(bg, arm_left)[0]
+        assert np.array_equal(refiner(legs, frame, shadow, zone),
+                              refine_in_zone(legs, frame, shadow, zone))
+    assert refiner.kept == 0
+
+
+@pytest.mark.parametrize("options", [{"relearn_every": 0}, {"min_iou": 1.5}])
+def test_bad_zone_refiner_settings_are_refused(options):
+    with pytest.raises(ExtractionError):
+        ZoneRefiner(**options)
+
+
+def test_box_without_background_keeps_its_seeds_and_learns_again_next_frame():
+    frame = background(120, 100, seed=7)
+    zone = np.ones((100, 120), bool)
+    zone[:, :30] = False                          # the only pixels outside the zone are person
+    mask = np.zeros((100, 120), np.uint8)
+    mask[:, :30] = 255
+    refiner = ZoneRefiner()
+    for _ in range(2):
+        out = refiner(mask, frame, np.zeros_like(zone), zone)
+        assert (out > 0).all()                    # grabCut cannot run: foreground and zone kept
+    assert (refiner.learned, refiner.kept) == (2, 0)

@@ -79,3 +79,41 @@ def test_two_people_passing_close_keep_their_identities():
         before = {i for t, i in ids[name] if t < 15}
         after = {i for t, i in ids[name] if t >= 25}
         assert len(before) == 1 and before == after, f"{name}: {ids[name]}"
+
+
+def union_mask(people, shape: tuple[int, int]) -> np.ndarray:
+    """bool (H, W): every PersonMask of one frame pasted into the frame."""
+    out = np.zeros(shape, bool)
+    for person in people:
+        x, y, w, h = person.bbox
+        out[y:y + h, x:x + w] |= person.mask
+    return out
+
+
+def test_kept_colour_models_cut_real_frames_as_learning_every_frame_does():
+    frames, keypoints = balancing_frames()
+    every, kept = SilhouetteExtractor(refine_relearn_every=1), SilhouetteExtractor()
+    every.prime(frames)
+    kept.prime(frames)
+    for t, frame in enumerate(frames):
+        a, b = union_mask(every(frame), frame.shape[:2]), union_mask(kept(frame), frame.shape[:2])
+        assert np.count_nonzero(a ^ b) <= 0.05 * np.count_nonzero(a), f"frame {t}"
+    # The models are learned in one frame of three; grabCut still cuts every frame.
+    assert every.refiner.kept == 0 and every.refiner.learned >= len(frames)
+    assert kept.refiner.learned <= every.refiner.learned // 2
+    assert kept.refiner.learned + kept.refiner.kept == every.refiner.learned
+
+
+def test_real_frames_give_the_same_masks_whatever_ran_before():
+    frames, _ = balancing_frames()
+
+    def masks() -> list[np.ndarray]:
+        extractor = SilhouetteExtractor(refine_relearn_every=1)
+        extractor.prime(frames)
+        return [union_mask(extractor(f), f.shape[:2]) for f in frames]
+
+    first = masks()
+    cv2.setRNGSeed(12345)                 # another user of OpenCV's generator ran in between
+    cv2.kmeans(np.random.default_rng(0).random((50, 3), dtype=np.float32), 4, None,
+               (cv2.TERM_CRITERIA_MAX_ITER, 5, 0), 1, cv2.KMEANS_RANDOM_CENTERS)
+    assert all(np.array_equal(a, b) for a, b in zip(first, masks()))

@@ -380,53 +380,185 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
     and ``zone``: bool (h, w), MOG2's shadow pixels and the background's unreliable zone
     (:func:`tracker.background.clip_background`). Each blob of mask | zone that touches the zone
     and has at least ``min_seed_area`` px of foreground outside it (a person is there and
-    moving) is re-segmented inside its box (padded by ``margin``) with OpenCV's grabCut, on a
-    copy shrunk to at most ``max_side_px`` (400: a person at the default working size is not
-    shrunk; at 112 a leg ~8 px wide kept ~3 px and grabCut lost the standing leg; at 224,
-    about 1.6x faster, Pose2Sim coverage was 2.2 points lower on cam03, 0.7 higher on cam02,
-    within 0.6 on the others; at 400 this costs 67-76 ms per frame on the 320x569 Pose2Sim
-    views, on a loaded machine): foreground is sure person (also inside the
-    zone, where the background model still sees most of a standing leg), background outside
-    the zone sure background (shadow: probable background), the rest of the zone probable
-    person; the colour models then fill in the still torso the background model had absorbed.
-    Returns a new mask."""
+    moving) is re-segmented inside its box (padded by ``margin``; :func:`zone_boxes`) with
+    OpenCV's grabCut, on a copy shrunk to at most ``max_side_px`` (400: a person at the default
+    working size is not shrunk; at 112 a leg ~8 px wide kept ~3 px and grabCut lost the standing
+    leg; at 224, about 1.6x faster, Pose2Sim coverage was 2.2 points lower on cam03, 0.7 higher
+    on cam02, within 0.6 on the others; at 400 this costs 67-76 ms per frame on the 320x569
+    Pose2Sim views, on a loaded machine): foreground is sure person (also inside the zone, where
+    the background model still sees most of a standing leg), background outside the zone sure
+    background (shadow: probable background), the rest of the zone probable person; the colour
+    models then fill in the still torso the background model had absorbed. Returns a new mask.
+    :class:`ZoneRefiner` does the same, keeping grabCut's colour models between frames."""
+    out = mask.copy()
+    for x0, y0, x1, y1 in zone_boxes(mask, zone, min_seed_area, margin):
+        labels = _zone_labels(mask[y0:y1, x0:x1] > 0, shadow[y0:y1, x0:x1],
+                              zone[y0:y1, x0:x1])
+        out[y0:y1, x0:x1] = _grabcut(frame[y0:y1, x0:x1], labels, max_side_px)
+    return out
+
+
+def zone_boxes(mask: np.ndarray, zone: np.ndarray, min_seed_area: int = 20,
+               margin: float = 0.1) -> list[tuple[int, int, int, int]]:
+    """Boxes (x0, y0, x1, y1) px, end exclusive, that :func:`refine_in_zone` re-segments: one per
+    blob of ``mask`` (uint8 (h, w), 255 = person) | ``zone`` (bool (h, w)) that touches the zone
+    and has at least ``min_seed_area`` px of foreground outside it, padded by ``margin`` x its
+    longer side + 2 px and clipped to the image."""
     both = cv2.bitwise_or(mask, zone.astype(np.uint8) * 255)
     contours, _ = cv2.findContours(both, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    out = mask.copy()
     height, width = mask.shape
+    boxes = []
     for contour in contours:
         x, y, w, h = cv2.boundingRect(contour)
         pad = int(round(margin * max(w, h))) + 2
         x0, y0 = max(x - pad, 0), max(y - pad, 0)
         x1, y1 = min(x + w + pad, width), min(y + h + pad, height)
-        found = mask[y0:y1, x0:x1] > 0
-        if (not zone[y:y + h, x:x + w].any()
-                or np.count_nonzero(found & ~zone[y0:y1, x0:x1]) < min_seed_area):
-            continue
-        labels = np.full(found.shape, cv2.GC_BGD, np.uint8)
-        labels[shadow[y0:y1, x0:x1]] = cv2.GC_PR_BGD
-        labels[zone[y0:y1, x0:x1]] = cv2.GC_PR_FGD
-        labels[found] = cv2.GC_FGD
-        out[y0:y1, x0:x1] = _grabcut(frame[y0:y1, x0:x1], labels, max_side_px)
-    return out
+        if (zone[y:y + h, x:x + w].any() and np.count_nonzero(
+                (mask[y0:y1, x0:x1] > 0) & ~zone[y0:y1, x0:x1]) >= min_seed_area):
+            boxes.append((x0, y0, x1, y1))
+    return boxes
+
+
+def _zone_labels(found: np.ndarray, shadow: np.ndarray, zone: np.ndarray) -> np.ndarray:
+    """grabCut seeds (h, w) uint8 GC_* from one box's foreground, shadow and zone (bool (h, w)):
+    foreground sure person, the rest of the zone probable person, shadow outside it probable
+    background, everything else sure background."""
+    labels = np.full(found.shape, cv2.GC_BGD, np.uint8)
+    labels[shadow] = cv2.GC_PR_BGD
+    labels[zone] = cv2.GC_PR_FGD
+    labels[found] = cv2.GC_FGD
+    return labels
+
+
+@dataclass(frozen=True)
+class _ColourModels:
+    """grabCut's colour models learned in one box: ``box`` (x0, y0, x1, y1) px; ``background``
+    and ``person``: float64 (1, 65), OpenCV's 5-component GMMs; ``used``: frames cut with them
+    since they were learned."""
+
+    box: tuple[int, int, int, int]
+    background: np.ndarray
+    person: np.ndarray
+    used: int = 0
+
+
+def _box_iou(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> float:
+    """Intersection over union of two boxes (x0, y0, x1, y1)."""
+    w = max(0, min(a[2], b[2]) - max(a[0], b[0]))
+    h = max(0, min(a[3], b[3]) - max(a[1], b[1]))
+    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - w * h
+    return w * h / union if union > 0 else 0.0
+
+
+class ZoneRefiner:
+    """:func:`refine_in_zone` for a video: grabCut's colour models are learned in a box every
+    ``relearn_every`` frames; in between, the box is cut with the models kept from the previous
+    frame's box it overlaps most (IoU at least ``min_iou``).
+
+    The cut itself still runs every frame on that frame's pixels, so a limb that moves is
+    followed; only the colour models, which change little while the same person stands in
+    front of the same background, are kept. Learning them (k-means, then two rounds of
+    re-estimation) is most of grabCut's cost: on a 386x225 Pose2Sim box 47 ms learning and
+    cutting against 18 ms cutting with kept models, the two masks differing in 1 % of the
+    pixels. ``relearn_every`` 1 learns every frame, as :func:`refine_in_zone`; on the Pose2Sim
+    views (silhouettes of cam01 91 ms per frame learning every frame, 63 at 3, 55 at 5)
+    coverage and spill stay within a keypoint or two of learning every frame, as do different
+    seeds, but at 5 cam02 fell to 1994 of 2100 keypoints (94.95 %) for two seeds of four, at 3
+    it kept 1995-1998 for all four. Not cutting at all in two frames of three (the last mask
+    kept in the zone, today's foreground added) was faster still but leaves a moved limb where
+    it was: cam02 fell to 1990 (94.8 %) while cam03 rose to 1973 on stale masks; reusing the
+    mask only where the foreground barely changed (under 5 % of its area) reused 1 box in 101 on
+    cam03, whose window flicker changes 10-15 % of it from frame to frame.
+    Other arguments: those of :func:`refine_in_zone`.
+    ``learned`` and ``kept`` count the boxes cut each way.
+    """
+
+    def __init__(self, relearn_every: int = 3, min_iou: float = 0.5, min_seed_area: int = 20,
+                 margin: float = 0.1, max_side_px: int = 400):
+        if relearn_every < 1 or not 0.0 <= min_iou <= 1.0:
+            raise ExtractionError(f"ZoneRefiner: relearn_every={relearn_every} must be >= 1 "
+                                  f"and min_iou={min_iou} in [0, 1]")
+        self.relearn_every, self.min_iou = relearn_every, min_iou
+        self.min_seed_area, self.margin, self.max_side_px = min_seed_area, margin, max_side_px
+        self.learned = 0
+        self.kept = 0
+        self._models: list[_ColourModels] = []
+
+    def reset(self) -> None:
+        """Forget the kept colour models (a new scene or background)."""
+        self._models = []
+
+    def __call__(self, mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray,
+                 zone: np.ndarray) -> np.ndarray:
+        """As :func:`refine_in_zone` (same arguments and result), for the next frame."""
+        out = mask.copy()
+        models = []
+        for box in zone_boxes(mask, zone, self.min_seed_area, self.margin):
+            x0, y0, x1, y1 = box
+            labels = _zone_labels(mask[y0:y1, x0:x1] > 0, shadow[y0:y1, x0:x1],
+                                  zone[y0:y1, x0:x1])
+            previous = self._reusable(box)
+            if previous is None:
+                cut, bgd, fgd = _grabcut_models(frame[y0:y1, x0:x1], labels, self.max_side_px)
+                if bgd is not None:           # nothing learned: learn again next frame
+                    models.append(_ColourModels(box, bgd, fgd))
+                self.learned += 1
+            else:
+                cut, _, _ = _grabcut_models(frame[y0:y1, x0:x1], labels, self.max_side_px,
+                                            (previous.background, previous.person))
+                models.append(_ColourModels(box, previous.background, previous.person,
+                                            previous.used + 1))
+                self.kept += 1
+            out[y0:y1, x0:x1] = cut
+        self._models = models
+        return out
+
+    def _reusable(self, box: tuple[int, int, int, int]) -> _ColourModels | None:
+        """The kept models to cut this box with, or None when they must be learned."""
+        if not self._models:
+            return None
+        best = max(self._models, key=lambda m: _box_iou(m.box, box))
+        if best.used + 1 >= self.relearn_every or _box_iou(best.box, box) < self.min_iou:
+            return None
+        return best
 
 
 def _grabcut(crop: np.ndarray, labels: np.ndarray, max_side_px: int) -> np.ndarray:
     """grabCut (2 iterations) of a BGR crop seeded by GC_* labels (same (h, w)), on a copy
     shrunk to max_side_px; uint8 (h, w) 255 = person at the crop's size."""
+    return _grabcut_models(crop, labels, max_side_px)[0]
+
+
+def _grabcut_models(crop: np.ndarray, labels: np.ndarray, max_side_px: int,
+                    models: tuple[np.ndarray, np.ndarray] | None = None, seed: int = 0
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """grabCut of a BGR crop seeded by GC_* labels (same (h, w)), on a copy shrunk to
+    max_side_px. Without ``models``: colour models learned from the seeds, 2 iterations, their
+    k-means started from OpenCV's random generator reset to ``seed``; with (background, person)
+    float64 (1, 65) GMMs: one cut with them frozen. Returns (uint8 (h, w) 255 = person at the
+    crop's size, the background and person models used; both None when grabCut could not
+    run)."""
     h, w = labels.shape
     scale = min(1.0, max_side_px / max(h, w))
     small = (max(1, round(w * scale)), max(1, round(h * scale)))
     image = cv2.resize(crop, small, interpolation=cv2.INTER_AREA)
     seeds = cv2.resize(labels, small, interpolation=cv2.INTER_NEAREST)
+    if models is None:
+        # grabCut's k-means draws from OpenCV's process-wide generator: unseeded, a view's masks
+        # depended on what ran before (Pose2Sim cam02 1994 or 1995 keypoints covered).
+        cv2.setRNGSeed(seed)
+        bgd, fgd, iterations, mode = np.zeros((1, 65)), np.zeros((1, 65)), 2, cv2.GC_INIT_WITH_MASK
+    else:
+        bgd, fgd = models[0].copy(), models[1].copy()
+        iterations, mode = 1, cv2.GC_EVAL_FREEZE_MODEL
     try:
-        cv2.grabCut(image, seeds, None, np.zeros((1, 65)), np.zeros((1, 65)), 2,
-                    cv2.GC_INIT_WITH_MASK)
+        cv2.grabCut(image, seeds, None, bgd, fgd, iterations, mode)
     except cv2.error:                     # no sure background or person in the box: keep it
         seeds = cv2.resize(labels, small, interpolation=cv2.INTER_NEAREST)
+        bgd = fgd = None
     person = ((seeds == cv2.GC_FGD) | (seeds == cv2.GC_PR_FGD)).astype(np.uint8) * 255
     person = cv2.resize(person, (w, h), interpolation=cv2.INTER_LINEAR)
-    return np.where(person > 127, 255, 0).astype(np.uint8)
+    return np.where(person > 127, 255, 0).astype(np.uint8), bgd, fgd
 
 
 class SilhouetteExtractor:
@@ -436,16 +568,20 @@ class SilhouetteExtractor:
     ``restore_px`` to :func:`clean_mask` (working-resolution px); ``min_area_fraction``,
     ``max_hole_fraction`` and ``max_fragment_area`` to :func:`person_masks`.
     ``keep_enclosed_shadow``: shadow pixels inside a body's outline (enclosed by solid
-    foreground, not by specks) count as person (dark clothing; :func:`enclosed_shadow`). ``drop_lighting``: drop blobs
-    that are the background under other light (:func:`drop_lighting_blobs`). ``refine``:
+    foreground, not by specks) count as person (dark clothing; :func:`enclosed_shadow`).
+    ``drop_lighting``: drop blobs that are the background under other light
+    (:func:`drop_lighting_blobs`). ``refine``:
     re-segment people by colour where the background is unreliable (:func:`refine_in_zone`;
-    only after :meth:`prime` with frames of the clip).
+    only after :meth:`prime` with frames of the clip), learning grabCut's colour models every
+    ``refine_relearn_every`` frames (:class:`ZoneRefiner`; 1: every frame).
     """
 
     def __init__(self, open_px: int = 3, close_px: int = 5, restore_px: int = 1,
                  min_area_fraction: float = 0.003, max_hole_fraction: float = 0.002,
                  max_fragment_area: float = 0.15, keep_enclosed_shadow: bool = True,
-                 drop_lighting: bool = True, refine: bool = True, **subtractor_options):
+                 drop_lighting: bool = True, refine: bool = True,
+                 refine_relearn_every: int = 3,
+                 **subtractor_options):
         self.subtractor = BackgroundSubtractor(**subtractor_options)
         self.open_px, self.close_px, self.restore_px = open_px, close_px, restore_px
         self.min_area_fraction = min_area_fraction
@@ -454,6 +590,7 @@ class SilhouetteExtractor:
         self.keep_enclosed_shadow = keep_enclosed_shadow
         self.drop_lighting = drop_lighting
         self.refine = refine
+        self.refiner = ZoneRefiner(refine_relearn_every)
         self.background: ClipBackground | None = None
 
     def prime(self, background) -> None:
@@ -466,6 +603,7 @@ class SilhouetteExtractor:
         if isinstance(background, np.ndarray) and background.ndim == 3:
             self.subtractor.prime(background)
             self.background = clean_plate(self.subtractor.reference)
+            self.refiner.reset()
             return
         frames = list(background)
         if not frames:
@@ -476,6 +614,7 @@ class SilhouetteExtractor:
         self.subtractor.prime(cv2.resize(estimate.image, (width, height),
                                          interpolation=cv2.INTER_LINEAR))
         self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
+        self.refiner.reset()
 
     def learn_zone(self, frames) -> None:
         """After :meth:`prime` with the clip's median image, mark where that background cannot
@@ -486,6 +625,7 @@ class SilhouetteExtractor:
             raise ExtractionError("learn_zone needs prime() with a background image first")
         estimate = clip_background(self._working_frames(list(frames)))
         self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
+        self.refiner.reset()
 
     def _working_frames(self, frames: list) -> np.ndarray:
         """Frames (each BGR uint8 (H, W, 3)) shrunk to the working size, (N, h, w, 3)."""
@@ -512,7 +652,7 @@ class SilhouetteExtractor:
             cleaned = drop_lighting_blobs(cleaned, small, self.background.image,
                                           min_area=int(self.min_area_fraction * cleaned.size))
         if self.refine and self.background is not None and self.background.unreliable.any():
-            cleaned = refine_in_zone(cleaned, small, shadow, self.background.unreliable)
+            cleaned = self.refiner(cleaned, small, shadow, self.background.unreliable)
         return person_masks(cleaned, (frame.shape[1], frame.shape[0]), self.min_area_fraction,
                             self.max_hole_fraction,
                             max_fragment_area=self.max_fragment_area)
