@@ -9,7 +9,10 @@ for type, shape, mutual consistency and finite values whenever they are present:
     transform        () str                                       descriptor preprocessing
     basis            () "linear" | "gaussian"
     width            () float > 0 (NaN allowed only for the linear basis: no kernel)
-    centres          (R, k*D) float (Gaussian basis; (0, 0) or absent for linear)
+    centres          (R, k*D) float (Gaussian basis; (0, 0) or absent for linear); (R, P) with
+                     a projection
+    layout_grid      () int: D = codebook centres + layout_grid^2 (absent: 0)
+    projection       (k*D, P) float: the stacked input's projection
     relevance        (R,) int >= 0                                kept basis indices
     coef             (R, K) float; intercept (K,) float            weights and offset
     output_mean, output_std (K,) float (std > 0)                 output scaling
@@ -212,9 +215,20 @@ def _validate(where: str, p: Mapping[str, np.ndarray]) -> None:
     sigma = need("codebook_sigma", 0)
     if sigma is not None and not float(sigma) > 0:
         fail("codebook_sigma must be > 0")
-    if centres is not None and centres.size and cb is not None and k is not None and \
-            centres.shape[1] != int(k) * cb.shape[0]:
-        fail(f"centres have {centres.shape[1]} columns; stack_depth {int(k)} x {cb.shape[0]} codebook centres expected")
+    grid = need("layout_grid", 0, "iu")
+    layout = 0 if grid is None else int(grid) ** 2
+    projection = need("projection", 2)
+    if projection is not None and cb is not None and k is not None and \
+            projection.shape[0] != int(k) * (cb.shape[0] + layout):
+        fail(f"projection has {projection.shape[0]} rows; stack_depth {int(k)} x "
+             f"({cb.shape[0]} codebook centres + {layout} layout cells) expected")
+    if centres is not None and centres.size and projection is not None and \
+            centres.shape[1] != projection.shape[1]:
+        fail(f"centres have {centres.shape[1]} columns; the projection gives {projection.shape[1]}")
+    if centres is not None and centres.size and projection is None and cb is not None and \
+            k is not None and centres.shape[1] != int(k) * (cb.shape[0] + layout):
+        fail(f"centres have {centres.shape[1]} columns; stack_depth {int(k)} x "
+             f"({cb.shape[0]} codebook centres + {layout} layout cells) expected")
     _validate_noise(p, fail)
     desc = need("description", 0, "U")
     if desc is not None:

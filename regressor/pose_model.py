@@ -10,6 +10,13 @@ the regressor predicts wrap(angle - centre), so an angle whose range straddles +
 (shoulders, in Euler angles) is continuous for the regressor. predict() adds the centres back
 and wraps to (-180, 180].
 
+Input: each frame's descriptor is the transformed histogram of shape contexts (D_h =
+codebook.n_centres values) followed, when layout_grid > 0, by the silhouette's layout
+(regressor.layout, layout_grid^2 values) times layout_weight (which balances the two blocks'
+spreads, so the kernel weighs both); D = D_h + layout_grid^2. k frames are stacked (k*D), and,
+when the model has a projection, centred and projected onto P principal directions of the
+training rows (k*D -> P) before the regressor: this keeps a long input cheap and the file small.
+
 Output layout is the pose vector's (regressor/angles.py; sequences/pose_vector.py documents it):
 [cos, sin] of the heading, then 53 angles in degrees.
 """
@@ -25,6 +32,7 @@ from .angles import N_ANGLES, POSE_DIM, wrap_deg
 from .basis import gaussian_design
 from .codebook import Codebook, CodebookError
 from .descriptor import DescriptorSettings, DescriptorSettingsError, descriptor_for_mask
+from .layout import MAX_GRID, silhouette_layout
 from .mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate
 from .model_file import ModelFileError, load_model, save_model
 from .errors import SilhouettePoseError
@@ -53,6 +61,9 @@ class PoseModel:
     heading then the 53 angles); process_noise: (54,) (deg/s^2)^2 (filter q);
     ambiguity_threshold: raw heading norm below which a frame counts as ambiguous, as used to
     estimate measurement_covariance (the tracker uses it unless told otherwise).
+    layout_grid, layout_weight: the layout block of each frame's descriptor (0: none);
+    projection (k*D, P), projection_mean (k*D,): the stacked input's projection (None: the
+    regressor sees the k*D values; centres then have P columns instead of k*D).
     """
 
     settings: DescriptorSettings
@@ -71,17 +82,31 @@ class PoseModel:
     ambiguity_threshold: float = DEFAULT_AMBIGUITY_THRESHOLD
     description: dict = field(default_factory=dict)
     mixture: MixtureRegressor | None = None     # when set, it regresses instead of coef
+    layout_grid: int = 0
+    layout_weight: float = 0.0
+    projection: np.ndarray | None = None
+    projection_mean: np.ndarray | None = None
 
     @property
     def descriptor_length(self) -> int:
         """D, the length of one frame's descriptor."""
-        return self.codebook.n_centres
+        return self.codebook.n_centres + self.layout_grid ** 2
+
+    @property
+    def input_length(self) -> int:
+        """What the regressor sees per row: P with a projection, else k*D."""
+        if self.projection is not None:
+            return int(self.projection.shape[1])
+        return self.stack_depth * self.descriptor_length
 
     def describe(self, mask: np.ndarray) -> np.ndarray:
-        """Transformed descriptor (D,) of a silhouette mask (H, W) bool. Raises
+        """Descriptor (D,) of a silhouette mask (H, W) bool: the transformed histogram of
+        shape contexts, then the weighted layout (module docstring). Raises
         regressor.edges.SilhouetteError (DegenerateSilhouetteError) for unusable masks."""
-        return transform_descriptors(descriptor_for_mask(mask, self.settings, self.codebook),
-                                     self.transform)
+        histogram = descriptor_for_mask(mask, self.settings, self.codebook)
+        layout = silhouette_layout(mask, self.layout_grid) if self.layout_grid else None
+        return frame_descriptors(histogram[None], self.transform,
+                                 None if layout is None else layout[None], self.layout_weight)[0]
 
     def predict(self, stacked: np.ndarray) -> np.ndarray:
         """Raw pose (55,) from one stacked, transformed descriptor (k*D,)."""
@@ -100,11 +125,14 @@ class PoseModel:
         return Y
 
     def _stacked(self, stacked) -> np.ndarray:
-        """stacked as float (N, k*D), or PoseModelError naming the expected shape."""
+        """stacked (N, k*D) as the regressor's float input (N, input_length), projected when
+        the model has a projection; PoseModelError naming the expected shape."""
         X = np.asarray(stacked, dtype=np.float64)
         if X.ndim != 2 or X.shape[1] != self.stack_depth * self.descriptor_length:
             raise PoseModelError(f"stacked descriptors must be (N, {self.stack_depth} x "
                                  f"{self.descriptor_length}), got {X.shape}")
+        if self.projection is not None:
+            X = (X - self.projection_mean) @ self.projection
         return X
 
     def predict_hypotheses(self, stacked: np.ndarray, m: int = 2) -> tuple[np.ndarray, np.ndarray]:
@@ -137,6 +165,42 @@ def transform_descriptors(X: np.ndarray, transform: str) -> np.ndarray:
     return np.asarray(X, dtype=np.float64)
 
 
+def frame_descriptors(histograms: np.ndarray, transform: str, layouts: np.ndarray | None = None,
+                      layout_weight: float = 0.0) -> np.ndarray:
+    """Per-frame descriptors (N, D) as PoseModel.describe makes them: shape-context histograms
+    (N, D_h) transformed, then layouts (N, G^2) times layout_weight (None: histograms only)."""
+    H = transform_descriptors(histograms, transform)
+    if layouts is None:
+        return H
+    return np.hstack([H, float(layout_weight) * np.asarray(layouts, dtype=np.float64)])
+
+
+def _input_arrays(model: PoseModel) -> dict:
+    """The file parts of the input's layout block and projection (none for models without)."""
+    out = {}
+    if model.layout_grid:
+        out.update(layout_grid=np.int64(model.layout_grid),
+                   layout_weight=np.float64(model.layout_weight))
+    if model.projection is not None:
+        out.update(projection=np.asarray(model.projection, dtype=np.float32),
+                   projection_mean=np.asarray(model.projection_mean, dtype=np.float64))
+    return out
+
+
+def _input_from_arrays(a) -> dict:
+    """PoseModel keyword arguments for the input parts of a file (absent: none)."""
+    grid = int(a["layout_grid"]) if "layout_grid" in a else 0
+    out = {"layout_grid": grid,
+           "layout_weight": float(a["layout_weight"]) if "layout_weight" in a else 0.0}
+    if "projection" in a:
+        if a["projection"].ndim != 2:
+            raise ValueError(f"projection must be 2-D, got shape {a['projection'].shape}")
+        out["projection"] = a["projection"].astype(np.float64)
+        out["projection_mean"] = (a["projection_mean"].astype(np.float64)
+                                  if "projection_mean" in a else None)
+    return out
+
+
 def save_pose_model(path: str | Path, model: PoseModel) -> None:
     """Write the model as one versioned, checksummed .npz (no pickle)."""
     if model.mixture is not None:
@@ -156,6 +220,7 @@ def save_pose_model(path: str | Path, model: PoseModel) -> None:
         "process_noise": model.process_noise,
         "ambiguity_threshold": np.float64(model.ambiguity_threshold),
         "description": np.str_(json.dumps(model.description, sort_keys=True)),
+        **_input_arrays(model),
     }
     save_model(path, arrays)
 
@@ -185,7 +250,7 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
             measurement_covariance=a["measurement_covariance"].astype(np.float64),
             process_noise=a["process_noise"].astype(np.float64),
             ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
-            description=json.loads(str(a["description"])))
+            description=json.loads(str(a["description"])), **_input_from_arrays(a))
     except PoseModelError:
         raise
     except ModelFileError as exc:
@@ -199,7 +264,18 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
 def _validate(path: Path, m: PoseModel) -> None:
     D, k = m.descriptor_length, m.stack_depth
     R = len(m.coef)
+    kD = m.input_length
     checks = [
+        (0 <= m.layout_grid <= MAX_GRID, f"layout grid {m.layout_grid} out of range 0..{MAX_GRID}"),
+        (not m.layout_grid or (np.isfinite(m.layout_weight) and m.layout_weight > 0),
+         "the layout weight must be > 0"),
+        (m.projection is None or (m.projection.ndim == 2 and m.projection.shape[0] == k * D
+                                  and 1 <= m.projection.shape[1] <= k * D
+                                  and m.projection_mean is not None
+                                  and m.projection_mean.shape == (k * D,)
+                                  and np.isfinite(m.projection).all()
+                                  and np.isfinite(m.projection_mean).all()),
+         f"the projection must be ({k * D}, P) with a ({k * D},) mean"),
         (1 <= k <= 16, f"stack depth {k} out of range 1..16"),
         (m.transform in TRANSFORMS, f"unknown descriptor transform {m.transform!r}"),
         (m.basis in ("gaussian", "linear"), f"unknown basis {m.basis!r}"),
@@ -212,12 +288,12 @@ def _validate(path: Path, m: PoseModel) -> None:
         (m.process_noise.shape == (N_ANGLES,), "process noise must be (54,)"),
     ]
     if m.basis == "gaussian":
-        checks += [(m.centres is not None and m.centres.shape == (R, k * D),
-                    f"kernel centres must be ({R}, {k * D})"),
+        checks += [(m.centres is not None and m.centres.shape == (R, kD),
+                    f"kernel centres must be ({R}, {kD})"),
                    (m.width is not None and m.width > 0, "kernel width must be > 0")]
     else:
         checks += [(m.relevance.shape == (R,) and m.relevance.min() >= 0
-                    and m.relevance.max() < k * D, "kept features out of range")]
+                    and m.relevance.max() < kD, "kept features out of range")]
     arrays = [m.coef, m.intercept, m.angle_centre_deg, m.measurement_covariance, m.process_noise]
     if m.centres is not None:
         arrays.append(m.centres)
@@ -262,6 +338,7 @@ def _mixture_arrays(model: PoseModel) -> dict:
         "process_noise": model.process_noise,
         "ambiguity_threshold": np.float64(model.ambiguity_threshold),
         "description": np.str_(json.dumps(model.description, sort_keys=True)),
+        **_input_arrays(model),
         "mixture_expert_offsets": offsets,
         "mixture_expert_width": np.array([e.width_ for e in experts], dtype=np.float64),
         "mixture_expert_intercept": np.vstack([e.intercept_ for e in experts]),
@@ -284,7 +361,9 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
     settings = DescriptorSettings.from_arrays(a)
     codebook = Codebook.from_arrays(a)
     k = int(a["stack_depth"])
-    kD = k * codebook.n_centres
+    inputs = _input_from_arrays(a)
+    kD = (inputs["projection"].shape[1] if inputs.get("projection") is not None
+          else k * (codebook.n_centres + inputs["layout_grid"] ** 2))
     centres = a["centres"].astype(np.float64)
     coef = a["coef"].astype(np.float64)
     offsets = a["mixture_expert_offsets"].astype(np.int64)
@@ -332,4 +411,4 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         measurement_covariance=a["measurement_covariance"].astype(np.float64),
         process_noise=a["process_noise"].astype(np.float64),
         ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
-        description=json.loads(str(a["description"])), mixture=mix)
+        description=json.loads(str(a["description"])), mixture=mix, **inputs)

@@ -72,7 +72,7 @@ def main(argv=None) -> int:
         Xs = stack_frames(transform_descriptors(X, "sqrt"), 3, sequence_ids=seq)
         with threadpool_limits(2):
             mix = MixtureRegressor(n_experts=args.experts).fit(
-                Xs[~val], Y[~val], mixture_space(MixtureOptions(), Xs, Y, np.flatnonzero(~val))[~val])
+                Xs[~val], Y[~val], mixture_space(MixtureOptions(partition="descriptor"), Xs, Y, np.flatnonzero(~val))[~val])
         res = {}
         for t, (idx, D) in videos.items():
             p = mix.predict(stack_frames(transform_descriptors(D, "sqrt"), 3))

@@ -25,6 +25,7 @@ from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files, views_by_rows)
 from tracker.offline.training import (MixtureOptions, TrainingOptions, cached_descriptors,
+                                      cached_layouts, noisy_dataset_layouts,
                                       dataset_descriptors, descriptor_cache_key,
                                       fit_dataset_codebook, fit_noisy_codebook,
                                       noisy_dataset_descriptors, train_mixture_model,
@@ -54,8 +55,13 @@ def main(argv=None) -> int:
     ap.add_argument("--experts", type=int, default=MixtureOptions.n_experts)
     ap.add_argument("--centres", type=int, default=MixtureOptions.n_centres)
     ap.add_argument("--lam", type=float, default=MixtureOptions.lam)
-    ap.add_argument("--partition", choices=("descriptor", "pose", "joint"),
+    ap.add_argument("--partition", choices=("input", "descriptor", "pose", "joint"),
                     default=MixtureOptions.partition)
+    ap.add_argument("--layout-grid", type=int, default=MixtureOptions.layout_grid,
+                    help="silhouette layout cells per side added to each frame's descriptor "
+                         "(regressor.layout; 0: shape contexts only)")
+    ap.add_argument("--components", type=int, default=MixtureOptions.components,
+                    help="principal directions the stacked input is projected on (0: none)")
     args = ap.parse_args(argv)
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     start = time.perf_counter()
@@ -90,6 +96,16 @@ def main(argv=None) -> int:
                descriptor_cache_key(config, views, noisy=not args.clean))
         X, codebook = cached_descriptors(args.cache, key, compute)
         log(f"  descriptors ready ({time.perf_counter() - start:.0f} s so far)")
+        layouts = None
+        if args.regressor == "mixture" and args.layout_grid:
+            if args.clean:
+                raise ValueError("--layout-grid needs the video-like masks (drop --clean, "
+                                 "or pass --layout-grid 0)")
+            layouts = cached_layouts(
+                args.cache, key, args.layout_grid,
+                lambda: noisy_dataset_layouts(data.masks, args.layout_grid, seed=args.seed,
+                                              workers=args.workers))
+            log(f"  layouts ready ({time.perf_counter() - start:.0f} s so far)")
         if args.regressor == "rvm":
             options = TrainingOptions(stack_depth=args.stack, n_fit=args.n_fit,
                                       width_scale=args.width_scale, seed=args.seed)
@@ -99,12 +115,13 @@ def main(argv=None) -> int:
         else:
             options = MixtureOptions(stack_depth=args.stack, n_experts=args.experts,
                                      n_centres=args.centres, lam=args.lam, seed=args.seed,
-                                     partition=args.partition,
+                                     partition=args.partition, layout_grid=args.layout_grid,
+                                     components=args.components,
                                      **({"width_scale": args.width_scale}
                                         if args.width_scale != TrainingOptions.width_scale else {}))
             with threadpool_limits(args.workers):
                 model, report = train_mixture_model(data, X, codebook, settings, options,
-                                                    config.fps, log=log)
+                                                    config.fps, log=log, layouts=layouts)
         report["noise_aware"] = not args.clean
         model.description = {"data": "CMU motion capture (mocap.cs.cmu.edu), rendered",
                              "trials": data.trials, "held_out": list(HELD_OUT_TRIALS),
@@ -113,11 +130,12 @@ def main(argv=None) -> int:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         save_pose_model(args.out, model)
         if model.mixture is not None:       # the file stores centres as float16: check it
-            from regressor.pose_model import load_pose_model, transform_descriptors
+            from regressor.pose_model import frame_descriptors, load_pose_model
             from regressor.stacking import stack_frames
             rows = slice(0, len(X), max(1, len(X) // 500))
-            probe = stack_frames(transform_descriptors(X, model.transform), model.stack_depth,
-                                 sequence_ids=data.sequence)[rows]
+            probe = stack_frames(frame_descriptors(X, model.transform, layouts,
+                                                   model.layout_weight),
+                                 model.stack_depth, sequence_ids=data.sequence)[rows]
             diff = np.abs(wrap_deg(load_pose_model(args.out).predict_batch(probe)[:, 2:]
                                    - model.predict_batch(probe)[:, 2:]))
             report["file_round_trip_max_deg"] = round(float(diff.max()), 3)
