@@ -24,8 +24,8 @@ from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
 from sequences.measures import MeasureError
-from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, load_trial,
-                                project_reference)
+from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, camera_roll_deg,
+                                load_trial, project_reference)
 from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
                                          subject_rows, view_measures)
 
@@ -44,15 +44,17 @@ class ViewTrack(NamedTuple):
     bbox_px: np.ndarray
 
 
-def _track_view(video: Path, model, max_people: int | None) -> ViewTrack:
-    """Run the tracker on one video as the ``track`` command does (tracker.run.track_video)."""
+def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.0) -> ViewTrack:
+    """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
+    with ``--roll roll_deg``."""
     from tracker import PoseRecorder, PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
     from tracker.video import open_video
 
     source = open_video(video)
     recorder = PoseRecorder()
-    track_video(source, PoseTracker(model, source.fps, TrackerSettings(max_people=max_people)),
+    track_video(source, PoseTracker(model, source.fps, TrackerSettings(max_people=max_people,
+                                                                       roll_deg=roll_deg)),
                 sinks=[recorder])
     poses = recorder.poses
     if not poses:
@@ -75,12 +77,15 @@ def evaluate_view(trial: Trial, view: str, track: ViewTrack) -> tuple[dict, np.n
     return out, rows
 
 
-def evaluate(trial: Trial, model, max_people: int | None) -> dict:
-    """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view."""
+def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False) -> dict:
+    """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
+    roll: track each view with its camera's roll from the calibration (``track --roll``)."""
     per_view, subject = {}, {}
     for view in VIEWS:
-        track = _track_view(trial.video(view), model, max_people)
+        roll_deg = camera_roll_deg(trial, view) if roll else 0.0
+        track = _track_view(trial.video(view), model, max_people, roll_deg)
         per_view[view], rows = evaluate_view(trial, view, track)
+        per_view[view]["roll_deg"] = round(roll_deg, 1)
         subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows])
     common = subject[VIEWS[0]][0]
     for view in VIEWS[1:]:
@@ -140,6 +145,10 @@ def format_table(result: dict) -> str:
     lines.append(f"raw poses: flexion error {np.mean(raw):.1f} deg (mean over views). "
                  f"const: a constant at the reference's own mean flexion; trk: tracks in the "
                  f"view; frm: frames with the subject tracked")
+    rolls = [result["views"][v].get("roll_deg", 0.0) for v in result["views"]]
+    if any(rolls):
+        lines.append("tracked with the cameras' roll (track --roll, degrees): "
+                     + ", ".join(f"{v} {r:g}" for v, r in zip(result["views"], rolls)))
     return "\n".join(lines)
 
 
@@ -150,6 +159,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH, help="model file")
     ap.add_argument("--max-people", type=int, default=None, metavar="N",
                     help="track at most N people per frame (default: all, as track)")
+    ap.add_argument("--roll", choices=("none", "calibration"), default="none",
+                    help="track each view with its camera's roll from the calibration "
+                         "(track --roll), or without (the default, as track)")
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     return ap
 
@@ -159,7 +171,7 @@ def main(argv=None) -> int:
     try:
         trial, model = load_trial(args.trial), load_pose_model(args.model)
         with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
-            result = evaluate(trial, model, args.max_people)
+            result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration")
     except (Pose2SimError, PoseModelError, MeasureError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1

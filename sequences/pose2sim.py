@@ -269,6 +269,18 @@ def reference_heading_deg(trial: Trial, view: str, frames) -> np.ndarray:
     return wrap_deg(body_yaw_deg(trial, frames) - camera_azimuth_deg(trial, view, frames))
 
 
+def camera_roll_deg(trial: Trial, view: str) -> float:
+    """How far the scene's vertical leans clockwise in a view's image, degrees (the ``track
+    --roll`` value): the image angle of a 0.5 m vertical segment standing on the subject's
+    mid-hip, projected through the calibration (distortion included), averaged over the
+    reference's frames. A camera rolled anticlockwise gives a positive value."""
+    lh, rh = np.moveaxis(_keypoints(trial, video_frames(trial), ("LHip", "RHip")), 1, 0)
+    hip = (lh + rh) / 2
+    camera = trial.camera(view)
+    d = project_points(hip + np.array([0.0, 0.5, 0.0]), camera) - project_points(hip, camera)
+    return float(np.degrees(np.arctan2(d[:, 0], -d[:, 1])).mean())
+
+
 def video_frames(trial: Trial) -> np.ndarray:
     """Video frame indices (N,) that have a reference."""
     return trial.reference.frames - TRC_FRAME_OFFSET

@@ -172,7 +172,10 @@ def test_output_path_that_cannot_be_written(tmp_path, walk_video):
     (["--start", "-1"], "--start"),
     (["--start", "999"], "past the end"),
     (["--bogus"], "--bogus"),
-], ids=["max-people-0", "end-before-start", "negative-start", "start-past-end", "unknown"])
+    (["--roll", "135"], "--roll"),
+    (["--roll", "nan"], "--roll"),
+], ids=["max-people-0", "end-before-start", "negative-start", "start-past-end", "unknown",
+        "roll-135", "roll-nan"])
 def test_absurd_options(tmp_path, walk_video, options, needle):
     _assert_one_line_error(_track(walk_video, *options, cwd=tmp_path), needle)
 

@@ -23,6 +23,7 @@ import warnings
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
+from .roll import MAX_ROLL_DEG
 
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
 
@@ -56,6 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="track at most N people per frame (largest first)")
     ap.add_argument("--start", type=float, default=0.0, metavar="S", help="start at S seconds")
     ap.add_argument("--end", type=float, default=None, metavar="S", help="stop at S seconds")
+    ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
+                    help="the camera's roll: how far the scene's vertical leans clockwise in "
+                         "the image, degrees (silhouettes are turned upright; default 0)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
 
@@ -69,6 +73,9 @@ def _check_options(args) -> None:
     """Refuse bad options and output paths before anything is written (TrackError, one line)."""
     if args.max_people is not None and not 1 <= args.max_people <= 100:
         raise TrackError(f"--max-people must be between 1 and 100, got {args.max_people}")
+    if not (math.isfinite(args.roll) and abs(args.roll) <= MAX_ROLL_DEG):
+        raise TrackError(f"--roll must be between -{MAX_ROLL_DEG:g} and {MAX_ROLL_DEG:g} "
+                         f"degrees, got {args.roll}")
     if not (math.isfinite(args.start) and 0 <= args.start <= MAX_TIME_S):
         raise TrackError(f"--start must be a time in seconds between 0 and {MAX_TIME_S:g}, "
                          f"got {args.start}")
@@ -200,7 +207,8 @@ def _run(args) -> int:
     streaming, smoothed = _sink_factories(args, source, model)
     sinks = open_sinks(streaming + smoothed)
     # Per-track histories are kept only for --smooth: without it memory stays flat.
-    settings = TrackerSettings(max_people=args.max_people, keep_history=args.smooth)
+    settings = TrackerSettings(max_people=args.max_people, keep_history=args.smooth,
+                               roll_deg=args.roll)
     tracker = PoseTracker(model, source.fps, settings)
     result = track_video(source, tracker, sinks[:len(streaming)],
                          Progress(source.expected_frames(), quiet=args.quiet),

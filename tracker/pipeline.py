@@ -22,6 +22,7 @@ import numpy as np
 from regressor.edges import SilhouetteError
 from regressor.stacking import FrameStacker
 from .association import Associator
+from .roll import upright_mask
 from .filtering import PoseKalmanFilter
 from .hypotheses import FrontBackTracker, propose
 from .silhouettes import PersonMask, SilhouetteExtractor
@@ -57,6 +58,8 @@ class TrackerSettings:
     ambiguous_joint_factor: R inflation on ambiguous frames (PoseKalmanFilter). r_scale, q_scale:
     multiply the model's measurement covariance R and process noise q. limb_r_scale: further
     multiplies R for the filter of the output's body angles (LIMB_R_SCALE, limb_kalman_factory);
+    roll_deg: the camera's roll (tracker.roll.upright_mask: how far the scene's vertical leans
+    clockwise in the image, degrees); silhouettes are turned upright before they are described.
     background_samples:
     frames spread over the video for the median background. fov_deg: the horizontal field of
     view assumed for the focal length (direction of travel, ground position). keep_history:
@@ -71,6 +74,7 @@ class TrackerSettings:
     r_scale: float = 1.0
     q_scale: float = 1.0
     limb_r_scale: float = LIMB_R_SCALE
+    roll_deg: float = 0.0
     background_samples: int = 25
     fov_deg: float = ASSUMED_FOV_DEG
     keep_history: bool = True
@@ -252,7 +256,7 @@ class PoseTracker:
         state = self._state(track_id)
         clock = time.perf_counter()
         try:
-            descriptor = self.estimator.describe(person.mask)
+            descriptor = self.estimator.describe(upright_mask(person.mask, self.settings.roll_deg))
         except SilhouetteError:
             return None                       # a sliver or speck: no pose this frame
         clock = self._lap("descriptor", clock)
