@@ -122,3 +122,17 @@ def test_a_projection_that_does_not_fit_the_input_is_refused(tmp_path):
         _write_unchecked(path, bad)
         with pytest.raises(PoseModelError, match="projection"):
             load_pose_model(path)
+
+
+def test_training_layouts_describe_the_same_noisy_masks_as_the_descriptors():
+    """Row i's layout comes from the video-like mask seeded (seed, i), as its descriptor
+    does (tracker.offline.training), whatever the number of workers."""
+    from tracker.offline.training import noisy_dataset_layouts, noisy_masks
+    masks = np.stack([_figure(scale=2)[:224, :224] for _ in range(3)])
+    L1 = noisy_dataset_layouts(masks, 8, seed=2, workers=1)
+    L2 = noisy_dataset_layouts(masks, 8, seed=2, workers=2)
+    np.testing.assert_array_equal(L1, L2)
+    for i in range(3):
+        mask = noisy_masks(masks[i:i + 1], 2, start=i)[0]
+        np.testing.assert_allclose(L1[i], silhouette_layout(mask, 8))
+    assert not np.allclose(L1[0], L1[1])                  # each row its own noise

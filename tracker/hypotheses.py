@@ -49,8 +49,8 @@ heading beats its reflection in only 57 % of validation frames, the raw limbs be
 mirrored ones in 72 %, nearly independently), so following them swapped good limbs for
 mirrored ones; and the chain's filters take the regressor's whole residual variance as white
 noise, while ~92 % of it is slow bias the filter cannot remove, so they smoothed the gait away
-(lag). Measured on track's own inputs (five spiral-walk videos, correlation of the 8 most-moving
-angles, raw / chain / this): 16_11 0.25 / 0.20 / 0.25, 02_02 0.37 / 0.21 / 0.38,
+(lag). Measured on track's own inputs (five spiral-walk videos, the shape-context mixture of
+2026-12-01 before the layout block, correlation of the 8 most-moving angles, raw / chain / this): 16_11 0.25 / 0.20 / 0.25, 02_02 0.37 / 0.21 / 0.38,
 08_03 0.39 / 0.11 / 0.41, 06_06 0.20 / 0.14 / 0.19, 06_08 0.24 / 0.24 / 0.27.
 """
 from __future__ import annotations

@@ -104,13 +104,20 @@ def noisy_dataset_descriptors(masks: np.ndarray, settings: DescriptorSettings, c
                               progress: Callable[[int, int], None] | None = None) -> np.ndarray:
     """Descriptors (N, K) of video-like versions of masks (N, H, W) (noisy_masks), by
     ``workers`` forked processes; reproducible whatever the number of workers."""
-    chunks = [(s, min(s + _CHUNK, len(masks)), settings, codebook, seed)
-              for s in range(0, len(masks), _CHUNK)]
-    out = np.empty((len(masks), codebook.n_centres))
+    return _pooled_rows(masks, _noisy_descriptor_chunk, (settings, codebook, seed),
+                        codebook.n_centres, workers, progress)
+
+
+def _pooled_rows(masks: np.ndarray, task, args: tuple, width: int, workers: int,
+                 progress: Callable[[int, int], None] | None) -> np.ndarray:
+    """Rows (N, width), task((start, stop, *args)) -> rows start:stop, over chunks of masks
+    in ``workers`` forked processes (the masks are shared copy-on-write, not pickled)."""
+    chunks = [(s, min(s + _CHUNK, len(masks)), *args) for s in range(0, len(masks), _CHUNK)]
+    out = np.empty((len(masks), width))
     _SHARED["masks"] = masks
     try:
         with multiprocessing.get_context("fork").Pool(max(1, workers)) as pool:
-            for (start, stop, *_), rows in zip(chunks, pool.imap(_noisy_descriptor_chunk, chunks)):
+            for (start, stop, *_), rows in zip(chunks, pool.imap(task, chunks)):
                 out[start:stop] = rows
                 if progress:
                     progress(stop, len(masks))
@@ -129,19 +136,7 @@ def noisy_dataset_layouts(masks: np.ndarray, grid: int, seed: int = 0, workers: 
     """Layouts (N, grid^2) (regressor.layout) of the same video-like masks as
     noisy_dataset_descriptors (same seeds, so row i's layout and descriptor describe one
     mask), by ``workers`` forked processes."""
-    chunks = [(s, min(s + _CHUNK, len(masks)), grid, seed)
-              for s in range(0, len(masks), _CHUNK)]
-    out = np.empty((len(masks), grid * grid))
-    _SHARED["masks"] = masks
-    try:
-        with multiprocessing.get_context("fork").Pool(max(1, workers)) as pool:
-            for (start, stop, *_), rows in zip(chunks, pool.imap(_noisy_layout_chunk, chunks)):
-                out[start:stop] = rows
-                if progress:
-                    progress(stop, len(masks))
-    finally:
-        _SHARED.clear()
-    return out
+    return _pooled_rows(masks, _noisy_layout_chunk, (grid, seed), grid * grid, workers, progress)
 
 
 def cached_layouts(cache_dir: str | Path, key: str, grid: int,
