@@ -68,22 +68,25 @@ from .travel import fuse_with_prior, travel_likelihood
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
 #: [RAW_NEARER_NORM_EDGES[b], RAW_NEARER_NORM_EDGES[b + 1])); and over all frames. Measured on
 #: the default model's validation trials (02_02, 08_03, 05_02, 06_10, 09_04, 02_05) rendered as
-#: 30 deg/s spiral walks, 300 frames each, by scripts/learn_hypothesis_priors.py.
+#: 30 deg/s spiral walks, 300 frames each, the masks made video-like as in training
+#: (tracker.offline.hypothesis_priors.video_like), by scripts/learn_hypothesis_priors.py.
 #: "Nearer": smaller mean absolute error over the 54 angles. For the mixture of 24 experts
 #: (default since issue 9) each of the top DEFAULT_EXPERTS experts' poses counts as a raw pose
 #: and switches are counted per expert slot, pooled; with DEFAULT_EXPERTS = 1 that is the top
 #: expert's pose (1800 frames). Re-learned 2026-12-01 for the model with the silhouette layout
-#: (regressor.layout) with `python scripts/learn_hypothesis_priors.py` (the shape-context-only
-#: mixture before it: by norm (0.700, 0.591, 0.689, 0.700, 0.769, 0.668), overall 0.682, switch
-#: (0.079, 0.170); the single RVM: (0.622, 0.661, 0.631, 0.720, 0.612, 0.508), 0.647, (0.115,
-#: 0.207)). The norm carries little of it: in profile the flip only swaps the limbs, which the
+#: (regressor.layout) with `python scripts/learn_hypothesis_priors.py`; on the crisp renders
+#: (before video_like) the same model gave (0.569, 0.674, 0.685, 0.666, 0.676, 0.760), 0.691,
+#: switch (0.073, 0.164), the shape-context-only mixture before it (0.700, 0.591, 0.689, 0.700,
+#: 0.769, 0.668), 0.682, (0.079, 0.170); the single RVM (0.622, 0.661, 0.631, 0.720, 0.612,
+#: 0.508), 0.647, (0.115, 0.207). Bins hold 116-376 frames, so differences of a few points
+#: between them are noise. The norm carries little of it: in profile the flip only swaps the limbs, which the
 #: regressor often confuses.
 RAW_NEARER_NORM_EDGES = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
-RAW_NEARER_BY_NORM = (0.569, 0.674, 0.685, 0.666, 0.676, 0.760)
-RAW_NEARER_OVERALL = 0.691
+RAW_NEARER_BY_NORM = (0.672, 0.617, 0.646, 0.703, 0.744, 0.688)
+RAW_NEARER_OVERALL = 0.681
 #: (P(raw -> flip), P(flip -> raw)): how often the nearer of the two changes from one frame to
 #: the next (30 fps), same data: the regressor's flips, not the body's.
-SWITCH_PROBABILITY = (0.073, 0.164)
+SWITCH_PROBABILITY = (0.117, 0.248)
 #: Exponents per frame of the travel likelihood and of the regressor's evidence (log
 #: likelihoods are multiplied by them). Chosen by the mean filtered heading RMS over the
 #: validation trials and 07_12 rendered as spiral walks and from a fixed camera, as recorded
@@ -97,12 +100,11 @@ SWITCH_PROBABILITY = (0.073, 0.164)
 #: backward walker); (0.05, 1.2) 79.4, (0.04, 1.0) 79.5: the latter, inside the backward
 #: walker's region (travel weight <= 0.04 keeps it for evidence weights 0.8-1.2). Old values (single RVM): 0.1, 0.8 (83.8 deg there).
 #: Kept for the model with the silhouette layout (2026-12-01, a one-off driver over the same 28
-#: renders, limbs as the tracker filters them): with its re-learned tables (0.04, 1.0) 76.1
-#: deg (forward renders 59.3, time-reversed 92.8), (0.02, 1.0) 75.8, (0.1, 1.0) 76.7, (0.04,
-#: 0.6) 79.1; with the previous model's tables 81.7, with a flat table (norm ignored) 84.8.
-#: With these tables the hand-made backward walker needs confident frames (norm >= 1) to
-#: overrule the travel prior: at norm 0.6-1.0 the raw pose is no more often right than on
-#: average, so those frames carry no evidence.
+#: renders made video-like, limbs as the tracker filters them): with these tables (0.04, 1.0)
+#: 72.0 deg (forward renders 50.1, time-reversed 93.8), (0.02, 1.0) 71.8, (0.1, 1.0) 72.7,
+#: (0.04, 0.6) 72.6, (1/15, 0.8) 72.5; with the tables learned on crisp renders 72.8 at (0.04,
+#: 1.0), with a flat table (norm ignored) 75.3. The backward walker of tests/test_hypotheses.py
+#: ends facing the right way under these tables.
 TRAVEL_WEIGHT = 0.04
 EVIDENCE_WEIGHT = 1.0
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on

@@ -77,16 +77,28 @@ def raw_is_nearer(raw: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return err <= err_flip
 
 
+def video_like(masks: np.ndarray, on: bool = True, seed: int = 0) -> list | np.ndarray:
+    """The rendered masks (T, H, W) as the tracker's extractor gives them from video
+    (tracker.offline.training.noisy_masks, as the model was trained on), or as they are when
+    on is False. Priors learned on crisp renders would describe inputs the model never sees
+    in use: the layout block reads their open gaps differently (README, "Accuracy")."""
+    if not on:
+        return masks
+    from .training import noisy_masks
+    return noisy_masks(masks, seed)
+
+
 def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
                               frames: int | None = 300,
                               norm_edges=(0.0, 0.2, 0.4, 0.6, 0.8, 1.0, np.inf),
-                              n_experts: int = DEFAULT_EXPERTS) -> dict:
+                              n_experts: int = DEFAULT_EXPERTS, video: bool = True) -> dict:
     """The model's raw outputs on each BVH rendered as a spiral walk (all headings): per norm
     bin the fraction of frames whose raw pose is nearer the truth than its flip, and the rate
     per frame at which that changes (the switching probability). For a mixture (a model with
     ``predict_hypotheses``) each of the top n_experts experts' poses counts as a raw pose, as
     each gets its own evidence in tracker.hypotheses; switches are counted per expert slot
-    (slot i at t -> slot i at t + 1) and pooled."""
+    (slot i at t -> slot i at t + 1) and pooled. video: describe video-like masks
+    (video_like)."""
     nearer, norms, pairs = [], [], []
     for path in bvh_files:
         motion = cmu_motion(path, spiral_deg_per_s)
@@ -94,7 +106,7 @@ def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
             motion = replace(motion, euler_deg=motion.euler_deg[:frames],
                              root_position=motion.root_position[:frames])
         masks, truth, _ = render_silhouettes(motion, CameraOptions())
-        for raw in _slot_poses(model, masks, n_experts):
+        for raw in _slot_poses(model, video_like(masks, video), n_experts):
             ok = raw_is_nearer(raw, truth)
             nearer.append(ok)
             norms.append(heading_norm(raw))
@@ -124,11 +136,12 @@ def _slot_poses(model, masks, n_experts: int) -> list[np.ndarray]:
 
 def validation_renders(model, bvh_files, spiral_deg_per_s: float = 30.0,
                        frames: int | None = 600, camera: CameraOptions = CameraOptions(),
-                       n_experts: int = DEFAULT_EXPERTS) -> dict[str, dict]:
+                       n_experts: int = DEFAULT_EXPERTS, video: bool = True) -> dict[str, dict]:
     """Each BVH rendered as a spiral walk and from the fixed camera, as recorded and
     time-reversed (a forward walk played backwards is a backward walk, the rarer case the
     travel evidence must not overrule): name -> {"hypotheses": list of Hypotheses,
-    "image_track": (T, 2), "truth": (T, 55)}, the model's hypotheses frame by frame."""
+    "image_track": (T, 2), "truth": (T, 55)}, the model's hypotheses frame by frame. video:
+    the model sees video-like masks (video_like)."""
     renders = {}
     for path in bvh_files:
         for spiral in (spiral_deg_per_s, None):
@@ -143,7 +156,7 @@ def validation_renders(model, bvh_files, spiral_deg_per_s: float = 30.0,
                     motion = replace(motion, euler_deg=motion.euler_deg[:frames],
                                      root_position=motion.root_position[:frames])
                 masks, truth, image_track = render_silhouettes(motion, camera)
-                X = np.array([model.describe(m) for m in masks])
+                X = np.array([model.describe(m) for m in video_like(masks, video)])
                 name = f"{Path(path).stem} {'spiral' if spiral else 'fixed'}" \
                        f"{' reversed' if reverse else ''}"
                 renders[name] = {"hypotheses": propose_batch(model, stack_frames(X, model.stack_depth),
