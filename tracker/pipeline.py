@@ -107,17 +107,24 @@ def limb_kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
                                              r_scale=settings.r_scale * settings.limb_r_scale))
 
 
+def filter_factories(estimator, settings: TrackerSettings = TrackerSettings(),
+                     filter_factory: Callable[[float], PoseFilter] | None = None,
+                     ) -> tuple[Callable[[float], PoseFilter], Callable[[float], PoseFilter] | None]:
+    """(the front/back hypotheses' filter factory, the body angles' filter factory) as the
+    tracker runs them: kalman_factory and limb_kalman_factory; with a custom filter_factory,
+    that factory and None (its filters give the whole pose, no separate limb filter)."""
+    if filter_factory is not None:
+        return filter_factory, None
+    return kalman_factory(estimator, settings), limb_kalman_factory(estimator, settings)
+
+
 def front_back_tracker(estimator, fps: float, settings: TrackerSettings = TrackerSettings(),
                        filter_factory: Callable[[float], PoseFilter] | None = None,
                        ) -> FrontBackTracker:
-    """A track's front/back hypotheses as the tracker runs them: one kalman_factory filter per
-    hypothesis and the body angles from limb_kalman_factory's filter; with a custom
-    filter_factory, that factory's filters give the whole pose (no separate limb filter)."""
-    if filter_factory is None:
-        return FrontBackTracker(kalman_factory(estimator, settings), fps,
-                                keep_history=settings.keep_history,
-                                limb_filter_factory=limb_kalman_factory(estimator, settings))
-    return FrontBackTracker(filter_factory, fps, keep_history=settings.keep_history)
+    """A track's front/back hypotheses with the filters of filter_factories."""
+    chain, limbs = filter_factories(estimator, settings, filter_factory)
+    return FrontBackTracker(chain, fps, keep_history=settings.keep_history,
+                            limb_filter_factory=limbs)
 
 
 class PoseEstimator(Protocol):
@@ -183,8 +190,9 @@ class PoseTracker:
 
     estimator: a PoseEstimator; fps: video frame rate; settings: TrackerSettings; extractor:
     frame -> people (default SilhouetteExtractor); associator: people -> track ids (default
-    Associator); filter_factory: fps -> a PoseFilter per new track (default
-    kalman_factory(estimator, settings)). The frame size (height, width) is taken from the
+    Associator); filter_factory: fps -> a PoseFilter per front/back hypothesis of a track
+    (default kalman_factory(estimator, settings), with the body angles from
+    limb_kalman_factory's filter; a custom one gives the whole pose: filter_factories). The frame size (height, width) is taken from the
     background given to prime() or the first frame. With the default extractor, a colourless
     background (black-and-white video) turns shadow detection off (see prime()).
     """
@@ -200,8 +208,8 @@ class PoseTracker:
         self.extractor = extractor or SilhouetteExtractor()
         self._default_extractor = extractor is None
         self.associator = associator or Associator()
-        self.custom_filter_factory = filter_factory
-        self.filter_factory = filter_factory or kalman_factory(estimator, settings)
+        self.filter_factory, self.limb_filter_factory = filter_factories(estimator, settings,
+                                                                         filter_factory)
         self.frame_shape: tuple[int, int] | None = None      # (height, width) pixels
         self._focal_px = 0.0
         self.tracks: dict[int, _TrackState] = {}
@@ -247,8 +255,9 @@ class PoseTracker:
             travel = TravelDirection(self.fps, self.frame_shape[1], focal_px=self._focal_px)
             self.tracks[track_id] = _TrackState(
                 FrameStacker(self.estimator.stack_depth),
-                front_back_tracker(self.estimator, self.fps, self.settings,
-                                   self.custom_filter_factory), travel)
+                FrontBackTracker(self.filter_factory, self.fps,
+                                 keep_history=self.settings.keep_history,
+                                 limb_filter_factory=self.limb_filter_factory), travel)
         return self.tracks[track_id]
 
     def _pose(self, track_id: int, person: PersonMask, frame_index: int,
