@@ -219,15 +219,21 @@ class PoseTracker:
         #: filter, skeleton), for benchmarks; perf_counter calls cost ~0.1 us each.
         self.stage_seconds: dict[str, float] = defaultdict(float)
 
-    def prime(self, background: np.ndarray) -> None:
-        """Learn the empty scene from a background estimate (BGR uint8 (H, W, 3))."""
+    def prime(self, background: np.ndarray, frame_size: tuple[int, int] | None = None) -> None:
+        """Learn the empty scene from a background estimate (BGR uint8 (H, W, 3)): at the
+        frames' size, or at the extractor's working size for frames of ``frame_size`` (width,
+        height) px (SilhouetteExtractor.prime)."""
         if self._default_extractor and colourless(background):
             # MOG2 calls a pixel shadow when it is a darker shade of the background's colour;
             # without colour every darker pixel is, and a person darker than the scene is cut
             # into pieces (the sample walk in gray: 11 tracks instead of 1).
             self.extractor = SilhouetteExtractor(detect_shadows=False)
-        self._set_frame_shape(background)
-        self.extractor.prime(background)
+        if frame_size is None:
+            self._set_frame_shape(background)
+            self.extractor.prime(background)
+        else:
+            self._set_frame_shape(np.empty((frame_size[1], frame_size[0], 0), np.uint8))
+            self.extractor.prime(background, frame_size=frame_size)
 
     def _set_frame_shape(self, frame: np.ndarray) -> None:
         if self.frame_shape is None:

@@ -122,29 +122,34 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
 def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | None) -> None:
     """Teach the tracker the empty scene: the clean plate ``background`` when given; otherwise
     the median of frames spread over the video, taken at the extractor's working size (a 4K
-    video needs no 25 full frames in memory) and scaled back up, plus, for an extractor that
+    video needs no 25 full frames in memory) and given at that size (scaling it up and back down
+    would blur it: SilhouetteExtractor.prime), plus, for an extractor that
     can use them (``learn_zone``), the same frames to find where that median shows a person who
     never leaves the spot (tracker.background.clip_background)."""
     if background is not None:
         tracker.prime(background)
         return
-    median, frames = _sampled_background(source, tracker)
-    tracker.prime(median)
+    median, frames = _sampled_background(source, tracker, full_size=False)
+    full = (source.width, source.height)
+    if (median.shape[1], median.shape[0]) == full:
+        tracker.prime(median)
+    else:
+        tracker.prime(median, frame_size=full)
     learn_zone = getattr(tracker.extractor, "learn_zone", None)
     if learn_zone is not None:
         learn_zone(frames)
 
 
-def _sampled_background(source: VideoSource, tracker: PoseTracker
+def _sampled_background(source: VideoSource, tracker: PoseTracker, full_size: bool = True
                         ) -> tuple[np.ndarray, list[np.ndarray]]:
-    """(the median of frames spread over the video, BGR uint8 at the frame size; those frames
-    at the extractor's working size)."""
+    """(the median of frames spread over the video, BGR uint8 at the frame size, or at the
+    extractor's working size when not full_size; those frames at the working size)."""
     full = (source.width, source.height)
     subtractor = getattr(tracker.extractor, "subtractor", None)
     size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full
     frames = source.sample_frames(tracker.settings.background_samples, size=size)
     median = median_background(frames)
-    if size != full:
+    if full_size and size != full:
         median = cv2.resize(median, full, interpolation=cv2.INTER_CUBIC)
     return median, frames
 

@@ -14,12 +14,15 @@ import numpy as np
 
 from regressor.errors import SilhouettePoseError
 from .background import ClipBackground, clean_plate, clip_background, frame_gain
+from .noise_floor import choose_var_min
 
 # MOG2 marks foreground 255 and shadow 127; anything above this threshold is foreground proper.
 _FOREGROUND_LEVEL = 200
 _SHADOW_LEVEL = 127
 # A global brightness gain further than this from 1 is undone before subtraction.
 _MIN_GAIN_CHANGE = 0.03
+# OpenCV MOG2's default cap on a pixel's variance (grey levels squared).
+_MOG2_VAR_MAX = 75.0
 
 
 class ExtractionError(SilhouettePoseError, ValueError):
@@ -57,13 +60,16 @@ class BackgroundSubtractor:
     would still be 1/frames seen, which swallows a person standing still within a second);
     0 freezes the model after warm-up (static camera and light).
     ``normalise_brightness``: undo global brightness changes against the primed background
-    (see :meth:`subtract`).
+    (see :meth:`subtract`). ``var_min``: MOG2's floor on each pixel's variance, grey levels
+    squared (its default 4 suits a clean camera; a compressed video needs more, see
+    :mod:`tracker.noise_floor` and :meth:`retune`).
     """
 
     def __init__(self, working_width: int = 320, history: int = 500,
                  background_ratio: float = 0.7, var_threshold: float = 16.0,
                  detect_shadows: bool = True, warmup_frames: int = 15,
-                 learning_rate: float | None = None, normalise_brightness: bool = True):
+                 learning_rate: float | None = None, normalise_brightness: bool = True,
+                 var_min: float = 4.0):
         if working_width < 16:
             raise ExtractionError(f"working_width={working_width} must be at least 16 px")
         if history < 1 or warmup_frames < 0:
@@ -73,6 +79,7 @@ class BackgroundSubtractor:
             raise ExtractionError(f"background_ratio={background_ratio} must be in (0, 1)")
         if learning_rate is not None and not 0.0 <= learning_rate <= 1.0:
             raise ExtractionError(f"learning_rate={learning_rate} must be in [0, 1]")
+        _check_var_min(var_min)
         self.working_width = working_width
         self.warmup_frames = warmup_frames
         self.learning_rate = 1.0 / history if learning_rate is None else learning_rate
@@ -81,9 +88,33 @@ class BackgroundSubtractor:
         self.reference: np.ndarray | None = None
         self.frames_seen = 0
         self._frame_size: tuple[int, int] | None = None
-        self._model = cv2.createBackgroundSubtractorMOG2(
-            history=history, varThreshold=var_threshold, detectShadows=detect_shadows)
-        self._model.setBackgroundRatio(background_ratio)
+        self._mog2_options = dict(history=history, varThreshold=var_threshold,
+                                  detectShadows=detect_shadows)
+        self._background_ratio = background_ratio
+        self.var_min = float(var_min)
+        self._model = self.new_model(self.var_min)
+
+    def new_model(self, var_min: float):
+        """A fresh, unprimed OpenCV MOG2 with this subtractor's settings and variance floor
+        ``var_min`` (grey levels squared)."""
+        model = cv2.createBackgroundSubtractorMOG2(**self._mog2_options)
+        model.setBackgroundRatio(self._background_ratio)
+        model.setVarMin(float(var_min))
+        # MOG2 starts a new Gaussian at varInit (15 by default): below the floor it would
+        # start tighter than the floor allows.
+        model.setVarInit(max(model.getVarInit(), float(var_min)))
+        return model
+
+    def retune(self, var_min: float) -> None:
+        """Rebuild the background model with variance floor ``var_min`` (grey levels squared)
+        and re-learn the primed :attr:`reference` as :meth:`prime` did."""
+        if self.reference is None:
+            raise ExtractionError("retune needs prime() first")
+        _check_var_min(var_min)
+        self.var_min = float(var_min)
+        self._model = self.new_model(self.var_min)
+        for _ in range(max(self.warmup_frames, 1)):
+            self._model.apply(self.reference, learningRate=-1.0)
 
     @property
     def ready(self) -> bool:
@@ -96,17 +127,44 @@ class BackgroundSubtractor:
             return width, height
         return self.working_width, max(1, round(height * self.working_width / width))
 
-    def prime(self, background: np.ndarray) -> None:
+    def prime(self, background: np.ndarray, frame_size: tuple[int, int] | None = None) -> None:
         """Learn the background from an image of the empty scene (BGR uint8 (H, W, 3)).
+
+        frame_size: None when ``background`` is at the size of the frames to come; else the
+        frames' (width, height) px, and ``background`` is already at :meth:`working_size` for
+        them (a median of shrunk frames: scaling it up and back down would blur it, and a
+        blurred background makes every textured pixel of a sharp frame differ from it; Pose2Sim
+        1920x1080 views: 3-4x more specks in the foreground).
 
         Feeds it ``max(warmup_frames, 1)`` times at MOG2's fast start-up rate, after which the
         model is :attr:`ready`. With the :func:`median_background` of frames spread over a video
         this avoids the "ghost" a person present during a warm-up on live frames leaves behind.
         """
+        if background.ndim != 3 or background.shape[2] != 3 or background.dtype != np.uint8:
+            raise ExtractionError(f"background must be BGR uint8 (H, W, 3), got "
+                                  f"{background.dtype} {background.shape}")
+        given = (background.shape[1], background.shape[0])
+        if frame_size is None:
+            frame_size = given
+            work = self.working_size(*given)
+            small = background if work == given else cv2.resize(background, work,
+                                                                 interpolation=cv2.INTER_AREA)
+        else:
+            frame_size = (int(frame_size[0]), int(frame_size[1]))
+            if given != self.working_size(*frame_size):
+                raise ExtractionError(f"a background for {frame_size[0]}x{frame_size[1]} frames "
+                                      f"must be {self.working_size(*frame_size)} px at working "
+                                      f"size, got {given[0]}x{given[1]}")
+            small = background
+        if self._frame_size is None:
+            self._frame_size = frame_size
+        elif frame_size != self._frame_size:
+            raise ExtractionError(f"frame size changed from {self._frame_size[0]}x"
+                                  f"{self._frame_size[1]} to {frame_size[0]}x{frame_size[1]}")
         for _ in range(max(self.warmup_frames - self.frames_seen, 1)):
-            self.apply(background)
-        size = self.working_size(background.shape[1], background.shape[0])
-        self.reference = cv2.resize(background, size, interpolation=cv2.INTER_AREA)
+            self._model.apply(small, learningRate=-1.0 if not self.ready else self.learning_rate)
+            self.frames_seen += 1
+        self.reference = small.copy()
 
     def apply(self, frame: np.ndarray) -> np.ndarray:
         """Update the model with ``frame`` (BGR uint8 (H, W, 3)) and return its foreground mask.
@@ -153,6 +211,13 @@ class BackgroundSubtractor:
             raw[saturated] = 0
         self.frames_seen += 1
         return small, raw
+
+
+def _check_var_min(var_min: float) -> None:
+    # MOG2 caps each variance at varMax (75 by default): a floor above it means nothing.
+    if not (np.isfinite(var_min) and 0.0 < var_min <= _MOG2_VAR_MAX):
+        raise ExtractionError(f"var_min={var_min} must be in (0, {_MOG2_VAR_MAX:g}] grey levels "
+                              "squared")
 
 
 def median_background(frames: list[np.ndarray]) -> np.ndarray:
@@ -574,15 +639,20 @@ class SilhouetteExtractor:
     re-segment people by colour where the background is unreliable (:func:`refine_in_zone`;
     only after :meth:`prime` with frames of the clip), learning grabCut's colour models every
     ``refine_relearn_every`` frames (:class:`ZoneRefiner`; 1: every frame).
+    ``adapt_noise_floor``: when frames of the clip are given (:meth:`prime` with frames,
+    :meth:`learn_zone`), raise the background model's variance floor until its foreground on
+    them is no longer speckled (:func:`tracker.noise_floor.choose_var_min`; compressed video);
+    an explicit ``var_min`` keyword turns it off.
     """
 
     def __init__(self, open_px: int = 3, close_px: int = 5, restore_px: int = 1,
                  min_area_fraction: float = 0.003, max_hole_fraction: float = 0.002,
                  max_fragment_area: float = 0.15, keep_enclosed_shadow: bool = True,
                  drop_lighting: bool = True, refine: bool = True,
-                 refine_relearn_every: int = 3,
+                 refine_relearn_every: int = 3, adapt_noise_floor: bool = True,
                  **subtractor_options):
         self.subtractor = BackgroundSubtractor(**subtractor_options)
+        self.adapt_noise_floor = adapt_noise_floor and "var_min" not in subtractor_options
         self.open_px, self.close_px, self.restore_px = open_px, close_px, restore_px
         self.min_area_fraction = min_area_fraction
         self.max_hole_fraction = max_hole_fraction
@@ -593,15 +663,17 @@ class SilhouetteExtractor:
         self.refiner = ZoneRefiner(refine_relearn_every)
         self.background: ClipBackground | None = None
 
-    def prime(self, background) -> None:
+    def prime(self, background, frame_size: tuple[int, int] | None = None) -> None:
         """Learn the scene before the first frame. ``background``: either an image of the empty
         scene (a clean plate, BGR uint8 (H, W, 3), e.g. ``--background IMAGE`` or
-        :func:`median_background`), trusted everywhere; or frames spread over the clip (a list
-        or (N, H, W, 3) array, e.g. ``VideoSource.sample_frames(25)``), from which
+        :func:`median_background`; at the working size when ``frame_size``, the frames' (width,
+        height) px, is given: :meth:`BackgroundSubtractor.prime`), trusted everywhere; or
+        frames spread over the clip (a list or (N, H, W, 3) array, e.g.
+        ``VideoSource.sample_frames(25)``, frame_size unused), from which
         :func:`tracker.background.clip_background` estimates the scene and where it cannot be
         trusted (a person who never leaves the spot). See :meth:`BackgroundSubtractor.prime`."""
         if isinstance(background, np.ndarray) and background.ndim == 3:
-            self.subtractor.prime(background)
+            self.subtractor.prime(background, frame_size)
             self.background = clean_plate(self.subtractor.reference)
             self.refiner.reset()
             return
@@ -611,19 +683,31 @@ class SilhouetteExtractor:
         small = self._working_frames(frames)
         estimate = clip_background(small)
         height, width = frames[0].shape[:2]
-        self.subtractor.prime(cv2.resize(estimate.image, (width, height),
-                                         interpolation=cv2.INTER_LINEAR))
+        self.subtractor.prime(estimate.image, frame_size=(width, height))
+        self._adapt_noise_floor(small)
         self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
         self.refiner.reset()
+
+    def _adapt_noise_floor(self, small: np.ndarray) -> None:
+        """Retune the primed subtractor's variance floor on working-size frames (N, h, w, 3)."""
+        if not self.adapt_noise_floor:
+            return
+        sub = self.subtractor
+        var_min = choose_var_min(sub.new_model, sub.reference, small, sub.warmup_frames)
+        if var_min != sub.var_min:
+            sub.retune(var_min)
 
     def learn_zone(self, frames) -> None:
         """After :meth:`prime` with the clip's median image, mark where that background cannot
         be trusted, from the same frames (list or (N, H, W, 3) BGR uint8, any size that shrinks
         to the working size, e.g. ``sample_frames(25, size=working size)``): what priming with
-        the frames does, without learning the median twice."""
+        the frames does, without learning the median twice (the variance floor is chosen on
+        them too, which re-learns the background: call it before the first frame)."""
         if self.subtractor.reference is None:
             raise ExtractionError("learn_zone needs prime() with a background image first")
-        estimate = clip_background(self._working_frames(list(frames)))
+        small = self._working_frames(list(frames))
+        estimate = clip_background(small)
+        self._adapt_noise_floor(small)
         self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
         self.refiner.reset()
 

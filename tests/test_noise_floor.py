@@ -1,0 +1,113 @@
+"""The background model's noise floor (tracker.noise_floor) and sharp priming at working size."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from tracker.noise_floor import choose_var_min, speck_ratio
+from tracker.silhouettes import BackgroundSubtractor, ExtractionError, SilhouetteExtractor
+
+
+def textured(width: int, height: int, seed: int = 0, blur: float = 1.0) -> np.ndarray:
+    """A static, finely textured scene, BGR uint8 (height, width, 3)."""
+    rng = np.random.default_rng(seed)
+    return cv2.GaussianBlur(rng.integers(0, 256, (height, width, 3), dtype=np.uint8), (0, 0), blur)
+
+
+def frames_with_person(bg: np.ndarray, noise_sigma: float, n: int, seed: int = 1) -> list:
+    """n frames of bg with a solid block moving across and Gaussian noise of noise_sigma
+    grey levels (a stand-in for sensor and compression noise)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        frame = bg.astype(np.float32)
+        x = 20 + 8 * i
+        frame[40:110, x:x + 20] = (40, 190, 70)
+        frame += rng.normal(0.0, noise_sigma, frame.shape)
+        out.append(np.clip(frame, 0, 255).astype(np.uint8))
+    return out
+
+
+def primed_model(subtractor: BackgroundSubtractor, var_min: float, reference: np.ndarray):
+    model = subtractor.new_model(var_min)
+    for _ in range(subtractor.warmup_frames):
+        model.apply(reference, learningRate=-1.0)
+    return model
+
+
+def test_speck_ratio_counts_isolated_pixels_against_solid_foreground():
+    bg = textured(160, 120)
+    sub = BackgroundSubtractor()
+    clean = frames_with_person(bg, 0.0, 4)
+    assert speck_ratio(primed_model(sub, 4.0, bg), clean) < 0.02
+    noisy = frames_with_person(bg, 6.0, 4)
+    assert speck_ratio(primed_model(sub, 4.0, bg), noisy) > 0.2
+    assert speck_ratio(primed_model(sub, 4.0, bg), [bg, bg]) == 0.0
+
+
+def test_noisier_clips_get_a_higher_floor():
+    bg = textured(160, 120)
+    sub = BackgroundSubtractor()
+    quiet = choose_var_min(sub.new_model, bg, frames_with_person(bg, 1.0, 6), sub.warmup_frames)
+    loud = choose_var_min(sub.new_model, bg, frames_with_person(bg, 6.0, 6), sub.warmup_frames)
+    assert quiet == 4.0
+    assert loud > 4.0
+    # the chosen floor leaves the noisy clip's foreground solid
+    assert speck_ratio(primed_model(sub, loud, bg), frames_with_person(bg, 6.0, 6)) <= 0.15
+    with pytest.raises(ValueError, match="ladder is empty"):
+        choose_var_min(sub.new_model, bg, [bg], 1, ladder=())
+
+
+def test_extractor_adapts_its_floor_to_the_clip_unless_told():
+    bg = textured(160, 120)
+    frames = frames_with_person(bg, 6.0, 12)
+    adapted = SilhouetteExtractor()
+    adapted.prime(frames)
+    assert adapted.subtractor.var_min > 4.0
+    fixed = SilhouetteExtractor(var_min=4.0)
+    fixed.prime(frames)
+    assert fixed.subtractor.var_min == 4.0
+    # and the floor pays: the adapted extractor's person is not inflated by the noise halo
+    people = adapted(frames[5])
+    assert len(people) == 1 and abs(people[0].area - 70 * 20) < 0.15 * 70 * 20
+
+
+@pytest.mark.parametrize("var_min", [0.0, -1.0, 80.0, float("nan")])
+def test_absurd_floors_are_refused(var_min):
+    with pytest.raises(ExtractionError, match="var_min"):
+        BackgroundSubtractor(var_min=var_min)
+
+
+def test_priming_at_working_size_keeps_the_background_sharp():
+    """A 640 px video works at 320 px: the median of shrunk frames given as is, not scaled up
+    and back down, so texture does not read as foreground."""
+    full = textured(640, 480, blur=0.7)
+    small = cv2.resize(full, (320, 240), interpolation=cv2.INTER_AREA)
+    round_trip = cv2.resize(cv2.resize(small, (640, 480), interpolation=cv2.INTER_CUBIC),
+                            (320, 240), interpolation=cv2.INTER_AREA)
+    sharp, blurred = BackgroundSubtractor(), BackgroundSubtractor()
+    sharp.prime(small, frame_size=(640, 480))
+    blurred.prime(cv2.resize(small, (640, 480), interpolation=cv2.INTER_CUBIC))
+    assert np.array_equal(sharp.reference, small)
+    assert not np.array_equal(blurred.reference, small)
+    assert np.abs(blurred.reference.astype(int) - round_trip).max() <= 1
+    assert sharp.ready
+    spill_sharp = np.count_nonzero(sharp.apply(full))
+    spill_blurred = np.count_nonzero(blurred.apply(full))
+    assert spill_sharp < 0.01 * small.shape[0] * small.shape[1] < spill_blurred
+
+
+def test_priming_at_working_size_checks_the_size():
+    sub = BackgroundSubtractor()
+    with pytest.raises(ExtractionError, match="must be .* at working size"):
+        sub.prime(np.zeros((100, 100, 3), np.uint8), frame_size=(640, 480))
+    sub.prime(np.zeros((240, 320, 3), np.uint8), frame_size=(640, 480))
+    sub.apply(np.zeros((480, 640, 3), np.uint8))              # the frames' size is accepted
+    with pytest.raises(ExtractionError, match="frame size changed"):
+        sub.apply(np.zeros((240, 320, 3), np.uint8))
+
+
+def test_retune_needs_a_primed_background():
+    with pytest.raises(ExtractionError, match="prime"):
+        BackgroundSubtractor().retune(9.0)

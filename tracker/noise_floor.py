@@ -1,0 +1,85 @@
+"""The background model's noise floor, chosen per clip from how speckled its foreground is.
+
+MOG2 calls a pixel foreground when it is more than sqrt(var_threshold) standard deviations from
+the background, and a background primed from one image (a clean plate or the clip's median) has
+every variance at MOG2's floor ``varMin`` (4 grey levels squared by default). That floor suits a
+clean camera. A compressed video is not clean: around a moving person, a low-bitrate codec
+(mp4v at 320x240, as our own evaluation videos and the shipped sample) smears the background
+texture by more than 8 grey levels, so MOG2 marks a speckled halo 2-3 px thick around the body.
+After cleaning, the halo closes the gaps between the legs and between an arm and the torso and
+makes the silhouette ~45 % larger than the body (measured on the spiral-walk videos against
+their true renders), and the regressor reads every pose as the same blob.
+
+The halo is mostly specks: isolated foreground pixels that a 3 px opening removes. Their share
+of the solid foreground is a measure of the noise that needs no ground truth. Measured on 25
+frames sampled over each clip, background primed from their median (scripts: the closing note
+of this change), specks per pixel of opened foreground for floors 4 / 9 / 16 / 25 / 36:
+
+    Pose2Sim cam01..cam04 (real, 1080x1920 shrunk to 320 px wide)
+        0.13-0.24 / 0.07-0.10 / 0.04-0.07 / 0.03-0.07 / 0.03-0.07   -> 9
+    spiral-walk videos 02_02, 08_03 (mp4v 320x240)
+        1.36-1.39 / 0.26-0.27 / 0.06 / 0.04 / 0.03                    -> 16
+    shipped sample 16_11 (mp4v 320x240)      0.60 / 0.12 / 0.03 / 0.02 / 0.02   -> 16
+    16 JPEG tiles of Pose2Sim cam01 (tests/data, 108x192)
+        0.65 / 0.34 / 0.21 / 0.18 / 0.17                              -> 16
+
+Some specks stay whatever the floor (JPEG blocks, a person's small movements): only those a
+higher floor still removes are noise. :func:`choose_var_min` takes the lowest floor of a ladder
+whose specks exceed the top rung's by at most ``max_excess_specks``.
+"""
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+import cv2
+import numpy as np
+
+#: MOG2 variance floors tried, grey levels squared (MOG2's own default is 4).
+VAR_MIN_LADDER: tuple[float, ...] = (4.0, 9.0, 16.0, 25.0, 36.0)
+#: Specks per pixel of opened foreground allowed above what the ladder's top rung leaves.
+MAX_EXCESS_SPECKS = 0.05
+
+_FOREGROUND_LEVEL = 200          # MOG2: 255 foreground, 127 shadow, 0 background
+_OPEN_KERNEL = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
+
+
+def speck_ratio(model, frames: Sequence[np.ndarray]) -> float:
+    """Specks per pixel of solid foreground when a primed MOG2 ``model`` (not updated: learning
+    rate 0) looks at ``frames`` (each BGR uint8 (h, w, 3) at the model's size). Specks are
+    foreground pixels a 3 px elliptical opening removes. Returns 0.0 when nothing is foreground
+    at all, inf when only specks are."""
+    specks = solid = 0
+    for frame in frames:
+        foreground = (model.apply(frame, learningRate=0.0) > _FOREGROUND_LEVEL).astype(np.uint8)
+        opened = cv2.morphologyEx(foreground, cv2.MORPH_OPEN, _OPEN_KERNEL)
+        specks += int(foreground.sum()) - int(opened.sum())
+        solid += int(opened.sum())
+    if solid == 0:
+        return 0.0 if specks == 0 else float("inf")
+    return specks / solid
+
+
+def choose_var_min(make_model: Callable[[float], object], reference: np.ndarray,
+                   frames: Sequence[np.ndarray], warmup_frames: int,
+                   ladder: Sequence[float] = VAR_MIN_LADDER,
+                   max_excess_specks: float = MAX_EXCESS_SPECKS) -> float:
+    """The lowest MOG2 variance floor (grey levels squared) in ``ladder`` whose foreground on
+    ``frames`` has at most ``max_excess_specks`` more specks (:func:`speck_ratio`) than the
+    ladder's top rung: the specks a higher floor would still remove are noise; those left at
+    the top are not (JPEG blocks, a person's small movements) and no floor should chase them.
+    make_model(var_min) builds a fresh MOG2 with the subtractor's other settings; each is
+    primed with ``reference`` (BGR uint8 (h, w, 3), the background at working size)
+    ``warmup_frames`` times, as BackgroundSubtractor.prime does; frames: BGR uint8 at the same
+    size, spread over the clip. A few hundred MOG2 applications at working size: ~0.1 s."""
+    if not len(ladder):
+        raise ValueError("the variance floor ladder is empty")
+    ratios = []
+    for var_min in ladder:
+        model = make_model(float(var_min))
+        for _ in range(max(warmup_frames, 1)):
+            model.apply(reference, learningRate=-1.0)
+        ratios.append(speck_ratio(model, frames))
+    for var_min, ratio in zip(ladder, ratios):
+        if ratio - ratios[-1] <= max_excess_specks:
+            return float(var_min)
+    return float(ladder[-1])
