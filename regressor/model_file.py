@@ -13,6 +13,8 @@ for type, shape, mutual consistency and finite values whenever they are present:
                      a projection
     layout_grid      () int: D = codebook centres + layout_grid^2 (absent: 0)
     projection       (k*D, P) float: the stacked input's projection
+    canonical_direction (55,) float: optional; the model regresses canonical members of
+                     {pose, front/back flip} (regressor.pose_model.PoseModel)
     relevance        (R,) int >= 0                                kept basis indices
     coef             (R, K) float; intercept (K,) float            weights and offset
     output_mean, output_std (K,) float (std > 0)                 output scaling
@@ -229,6 +231,9 @@ def _validate(where: str, p: Mapping[str, np.ndarray]) -> None:
             k is not None and centres.shape[1] != int(k) * (cb.shape[0] + layout):
         fail(f"centres have {centres.shape[1]} columns; stack_depth {int(k)} x "
              f"({cb.shape[0]} codebook centres + {layout} layout cells) expected")
+    direction = need("canonical_direction", 1)
+    if direction is not None and (direction.shape != (55,) or not np.linalg.norm(direction) > 0):
+        fail(f"canonical_direction must be 55 values, not all zero; got shape {direction.shape}")
     _validate_noise(p, fail)
     desc = need("description", 0, "U")
     if desc is not None:

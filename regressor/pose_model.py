@@ -64,6 +64,9 @@ class PoseModel:
     layout_grid, layout_weight: the layout block of each frame's descriptor (0: none);
     projection (k*D, P), projection_mean (k*D,): the stacked input's projection (None: the
     regressor sees the k*D values; centres then have P columns instead of k*D).
+    canonical_direction (55,): set when the model was fitted on each pose's canonical member
+    of {pose, front/back flip} (sequences.pose_vector.canonical_member): its raw pose may be
+    either body, and the tracker's front/back chain picks the member, limbs included.
     """
 
     settings: DescriptorSettings
@@ -86,6 +89,7 @@ class PoseModel:
     layout_weight: float = 0.0
     projection: np.ndarray | None = None
     projection_mean: np.ndarray | None = None
+    canonical_direction: np.ndarray | None = None
 
     @property
     def descriptor_length(self) -> int:
@@ -184,6 +188,8 @@ def _input_arrays(model: PoseModel) -> dict:
     if model.projection is not None:
         out.update(projection=np.asarray(model.projection, dtype=np.float32),
                    projection_mean=np.asarray(model.projection_mean, dtype=np.float64))
+    if model.canonical_direction is not None:
+        out["canonical_direction"] = np.asarray(model.canonical_direction, dtype=np.float64)
     return out
 
 
@@ -198,6 +204,8 @@ def _input_from_arrays(a) -> dict:
         out["projection"] = a["projection"].astype(np.float64)
         out["projection_mean"] = (a["projection_mean"].astype(np.float64)
                                   if "projection_mean" in a else None)
+    if "canonical_direction" in a:
+        out["canonical_direction"] = a["canonical_direction"].astype(np.float64)
     return out
 
 

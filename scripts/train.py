@@ -60,6 +60,10 @@ def main(argv=None) -> int:
     ap.add_argument("--layout-grid", type=int, default=MixtureOptions.layout_grid,
                     help="silhouette layout cells per side added to each frame's descriptor "
                          "(regressor.layout; 0: shape contexts only)")
+    ap.add_argument("--canonical", action=argparse.BooleanOptionalAction,
+                    default=MixtureOptions.canonical,
+                    help="fit each pose's canonical member of {pose, front/back flip} "
+                         "(the tracker's chain then picks the member, limbs included)")
     ap.add_argument("--components", type=int, default=MixtureOptions.components,
                     help="principal directions the stacked input is projected on (0: none)")
     args = ap.parse_args(argv)
@@ -116,7 +120,7 @@ def main(argv=None) -> int:
             options = MixtureOptions(stack_depth=args.stack, n_experts=args.experts,
                                      n_centres=args.centres, lam=args.lam, seed=args.seed,
                                      partition=args.partition, layout_grid=args.layout_grid,
-                                     components=args.components,
+                                     components=args.components, canonical=args.canonical,
                                      **({"width_scale": args.width_scale}
                                         if args.width_scale != TrainingOptions.width_scale else {}))
             with threadpool_limits(args.workers):

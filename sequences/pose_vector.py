@@ -319,3 +319,28 @@ def front_back_flip(vectors: np.ndarray) -> np.ndarray:
     angles = out[..., ANGLE_SLICE]
     angles[angles == -180.0] = 180.0               # negated 180 back into (-180, 180]
     return out
+
+
+def flip_odd_part(vectors: np.ndarray) -> np.ndarray:
+    """The part of pose vectors (55,) or (T, 55) that front_back_flip negates: (v - flip(v))/2,
+    angle differences wrapped to (-180, 180] first (degrees; heading entries unitless).
+    flip_odd_part(front_back_flip(v)) == -flip_odd_part(v)."""
+    v = np.asarray(vectors, dtype=np.float64)
+    f = front_back_flip(v)
+    odd = (v - f) / 2.0
+    odd[..., ANGLE_SLICE] = wrap_deg(v[..., ANGLE_SLICE] - f[..., ANGLE_SLICE]) / 2.0
+    return odd
+
+
+def canonical_member(vectors: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Of each pose and its front/back flip (one silhouette, two bodies), the one whose
+    flip_odd_part has a non-negative projection on ``direction`` (55,): a choice that is the
+    same for both members, so a regressor trained on it never sees one silhouette with two
+    targets and does not average them (issue 9: in profile, which leg is forward).
+    vectors: (55,) or (T, 55); returns the same shape."""
+    v = np.asarray(vectors, dtype=np.float64)
+    d = np.asarray(direction, dtype=np.float64)
+    if d.shape != (POSE_DIM,) or not np.isfinite(d).all():
+        raise PoseVectorError(f"direction must be {POSE_DIM} finite values, got shape {d.shape}")
+    keep = flip_odd_part(v) @ d >= 0.0
+    return np.where(keep[..., None], v, front_back_flip(v))

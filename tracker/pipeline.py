@@ -112,10 +112,14 @@ def filter_factories(estimator, settings: TrackerSettings = TrackerSettings(),
                      ) -> tuple[Callable[[float], PoseFilter], Callable[[float], PoseFilter] | None]:
     """(the front/back hypotheses' filter factory, the body angles' filter factory) as the
     tracker runs them: kalman_factory and limb_kalman_factory; with a custom filter_factory,
-    that factory and None (its filters give the whole pose, no separate limb filter)."""
+    that factory and None (its filters give the whole pose, no separate limb filter). A model
+    fitted on canonical members (PoseModel.canonical_direction) gets no limb filter either: its
+    raw limbs may be the other body's, and the chain's choice of member is the limbs' too."""
     if filter_factory is not None:
         return filter_factory, None
-    return kalman_factory(estimator, settings), limb_kalman_factory(estimator, settings)
+    limbs = (None if getattr(estimator, "canonical_direction", None) is not None
+             else limb_kalman_factory(estimator, settings))
+    return kalman_factory(estimator, settings), limbs
 
 
 def front_back_tracker(estimator, fps: float, settings: TrackerSettings = TrackerSettings(),

@@ -29,6 +29,7 @@ from regressor.stacking import stack_frames
 from sequences.dataset import Dataset
 from sequences.measures import body_angle_error, constant_error, skill, top_angle_correlation
 from sequences.mask_noise import MaskNoise, degrade_all
+from sequences.pose_vector import canonical_member, flip_odd_part
 
 _CHUNK = 500                     # masks per worker task
 _SHARED: dict = {}               # masks handed to forked workers (copy-on-write, not pickled)
@@ -281,16 +282,33 @@ def validation_mask(dataset: Dataset) -> np.ndarray:
 
 
 def _training_arrays(dataset: Dataset, X: np.ndarray, transform: str, stack_depth: int,
-                     layouts: np.ndarray | None = None, layout_weight: float = 0.0):
+                     layouts: np.ndarray | None = None, layout_weight: float = 0.0,
+                     pose: np.ndarray | None = None):
     """What every regressor is fitted on: (validation mask (N,) bool: rows of
     VALIDATION_TRIALS, never fitted; stacked per-frame descriptors (N, k*D)
     (regressor.pose_model.frame_descriptors of the histograms X and the layouts); the training
-    rows' circular mean angles (53,) deg; regression targets (N, 55))."""
+    rows' circular mean angles (53,) deg; regression targets (N, 55)). pose: the target poses
+    (N, 55) when not the data set's own (canonical members)."""
     val = validation_mask(dataset)
     Xs = stack_frames(frame_descriptors(X, transform, layouts, layout_weight), stack_depth,
                       sequence_ids=dataset.sequence)
-    centre = angle_centres(dataset.pose[~val])
-    return val, Xs, centre, regression_targets(dataset.pose, centre)
+    pose = dataset.pose if pose is None else pose
+    centre = angle_centres(pose[~val])
+    return val, Xs, centre, regression_targets(pose, centre)
+
+
+def canonical_direction(pose: np.ndarray, max_rows: int = 20000, seed: int = 0) -> np.ndarray:
+    """The direction (55,) unit, that sequences.pose_vector.canonical_member projects on: the
+    first principal direction (about zero) of the poses' flip-odd parts (N, 55 -> at most
+    max_rows drawn, seeded), so that the members of a pair differ most along it and few poses
+    sit near the boundary where the choice changes (1 in 9 training rows within 5 units).
+    Its sign makes the largest component positive."""
+    rows = np.asarray(pose, dtype=np.float64)
+    if len(rows) > max_rows:
+        rows = rows[np.sort(np.random.default_rng(seed).choice(len(rows), max_rows, replace=False))]
+    _, _, Vt = np.linalg.svd(flip_odd_part(rows), full_matrices=False)
+    u = Vt[0]
+    return u if u[np.argmax(np.abs(u))] > 0 else -u
 
 
 def train_pose_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
@@ -351,7 +369,9 @@ class MixtureOptions:
     their own variances, where standardising would blow up the noisy last ones);
     top_experts: experts evaluated per frame. layout_grid: the layout block (regressor.layout;
     0: shape contexts only, the paper's descriptor); components: principal directions the
-    stacked input is projected on (0: none).
+    stacked input is projected on (0: none). canonical: fit each pose's canonical member
+    (canonical_direction; the tracker's front/back chain then picks the member, limbs
+    included) instead of the pose itself.
 
     Chosen on the validation trials (issue 9, one-off drivers on the cached training rows,
     correlation of the 8 most-moving angles over the 6 validation trials; kernel ridge on 2,000
@@ -377,6 +397,7 @@ class MixtureOptions:
     standardise: bool = True
     top_experts: int = 2
     ambiguity_threshold: float = 0.5
+    canonical: bool = False
     seed: int = 0
 
 
@@ -440,8 +461,16 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         fit = ~validation_mask(dataset)
         weight = (block_spread(transform_descriptors(X[fit], options.transform))
                   / max(block_spread(layouts[fit]), 1e-12))
+    direction = truth = None
+    if options.canonical:
+        fit_rows = ~validation_mask(dataset)
+        direction = canonical_direction(dataset.pose[fit_rows], seed=options.seed)
+        truth = canonical_member(dataset.pose, direction)
+        log(f"canonical members: {np.mean(np.any(truth != dataset.pose, axis=1)):.1%} of rows "
+            "flipped")
     val, Xs, centre, Y = _training_arrays(dataset, X, options.transform, options.stack_depth,
-                                          layouts if grid else None, weight)
+                                          layouts if grid else None, weight, pose=truth)
+    truth = dataset.pose if truth is None else truth
     train_rows, val_rows = np.flatnonzero(~val), np.flatnonzero(val)
     projection_mean = projection = None
     Xin = Xs
@@ -468,12 +497,15 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                       intercept=np.zeros(55), angle_centre_deg=centre,
                       measurement_covariance=np.eye(54), process_noise=np.ones(54),
                       mixture=mixture, layout_grid=grid, layout_weight=weight,
-                      projection=projection, projection_mean=projection_mean)
+                      projection=projection, projection_mean=projection_mean,
+                      canonical_direction=direction)
     predicted = model.predict_batch(Xs[val_rows])
-    R, facts = measurement_noise(predicted, dataset.pose[val_rows], options.ambiguity_threshold)
+    # A canonical model's error is measured against the canonical members, as its output is
+    # the chain's hypothesis, not yet the decision.
+    R, facts = measurement_noise(predicted, truth[val_rows], options.ambiguity_threshold)
     model.measurement_covariance = R
     model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
-    errors = np.abs(wrap_deg(pose_angles(predicted) - pose_angles(dataset.pose[val_rows])))
+    errors = np.abs(wrap_deg(pose_angles(predicted) - pose_angles(truth[val_rows])))
     gate_val = mixture.predict_proba(Xin[val_rows]).argmax(axis=1)
     true_val = np.argmin(((Z[val_rows][:, None] - mixture.partition_centres_[None]) ** 2
                           ).sum(-1), axis=1)
@@ -485,6 +517,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               "validation_heading_rms_deg": round(float(np.sqrt((errors[:, 0] ** 2).mean())), 2),
               "validation_gate_accuracy": round(float((gate_val == true_val).mean()), 3),
               "layout_weight": round(weight, 4),
-              "validation": angle_measures(predicted, dataset.pose[val_rows], centre),
+              "validation": angle_measures(predicted, truth[val_rows], centre),
+              "canonical": bool(options.canonical),
               **{k: round(v, 3) for k, v in facts.items()}}
     return model, report
