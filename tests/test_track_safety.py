@@ -186,6 +186,16 @@ def test_a_bvh_or_json_cut_by_a_full_disk_is_not_left_looking_valid(tmp_path, mo
 # ------------------------------------------------------------------ 7-9: signals
 
 
+def test_the_command_module_imports_only_the_standard_library():
+    """What makes the start-up Ctrl-C safe: numpy and OpenCV load inside main(), where the
+    interrupt is caught; a module-level import of tracker.roll once loaded OpenCV before."""
+    code = ("import sys, tracker.cli; "
+            "print(sorted(m for m in ('cv2', 'numpy', 'scipy') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)}, check=True).stdout
+    assert out.strip() == "[]"
+
+
 def test_ctrl_c_during_start_up_gives_no_traceback(tmp_path, walk):
     """Case 7: while numpy, OpenCV and the model are imported (a real process). The first
     ~0.1 s is Python's own start-up (site), before any of our code runs. Exit 130; or death

@@ -23,7 +23,6 @@ import warnings
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
-from .roll import MAX_ROLL_DEG
 
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
 
@@ -63,6 +62,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
 
+
+# --roll beyond a quarter turn means the camera is upside down or the sign is wrong. Defined
+# here, not in tracker.roll, which imports OpenCV: a Ctrl-C during that import, before main()
+# catches it, printed a traceback (test_ctrl_c_during_start_up_gives_no_traceback).
+MAX_ROLL_DEG = 90.0
 
 # Past any video (about 3 years): larger values are typing mistakes, and 1e308 s would
 # overflow the frame arithmetic.

@@ -11,8 +11,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-MAX_ROLL_DEG = 90.0
-
 
 def upright_mask(mask: np.ndarray, roll_deg: float) -> np.ndarray:
     """The silhouette mask (h, w) bool turned by roll_deg degrees anticlockwise on screen, on a
