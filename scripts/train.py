@@ -24,8 +24,8 @@ from regressor.descriptor import DescriptorSettings
 from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files, views_by_rows)
-from tracker.offline.training import (MixtureOptions, TrainingOptions, cached_descriptors,
-                                      cached_layouts, noisy_dataset_layouts,
+from tracker.offline.training import (CANONICAL_RULES, MixtureOptions, TrainingOptions,
+                                      cached_descriptors, cached_layouts, noisy_dataset_layouts,
                                       dataset_descriptors, descriptor_cache_key,
                                       fit_dataset_codebook, fit_noisy_codebook,
                                       noisy_dataset_descriptors, train_mixture_model,
@@ -60,10 +60,11 @@ def main(argv=None) -> int:
     ap.add_argument("--layout-grid", type=int, default=MixtureOptions.layout_grid,
                     help="silhouette layout cells per side added to each frame's descriptor "
                          "(regressor.layout; 0: shape contexts only)")
-    ap.add_argument("--canonical", action=argparse.BooleanOptionalAction,
-                    default=MixtureOptions.canonical,
-                    help="fit each pose's canonical member of {pose, front/back flip} "
-                         "(the tracker's chain then picks the member, limbs included)")
+    ap.add_argument("--canonical", choices=CANONICAL_RULES, default=MixtureOptions.canonical,
+                    help="fit each pose's canonical member of {pose, front/back flip}: the "
+                         "side of the limbs' principal flip direction, or the one facing the "
+                         "camera's half (the tracker's chain then picks the member, limbs "
+                         "included); default none")
     ap.add_argument("--components", type=int, default=MixtureOptions.components,
                     help="principal directions the stacked input is projected on (0: none)")
     args = ap.parse_args(argv)

@@ -74,3 +74,13 @@ def test_the_tracker_takes_a_canonical_models_limbs_from_the_chain():
     assert filter_factories(model, TrackerSettings())[1] is not None
     canonical = replace(model, canonical_direction=np.ones(55))
     assert filter_factories(canonical, TrackerSettings())[1] is None
+
+
+def test_the_facing_rule_keeps_the_member_facing_the_camera():
+    """train.py --canonical facing: direction e0, i.e. the heading cosine's sign."""
+    v = _random_vectors(300, seed=7)
+    c = canonical_member(v, np.eye(55)[0])
+    assert np.all(c[:, 0] >= 0)
+    back = v[:, 0] < 0
+    np.testing.assert_allclose(c[back], front_back_flip(v[back]))
+    np.testing.assert_allclose(c[~back], v[~back])

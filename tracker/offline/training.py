@@ -297,6 +297,10 @@ def _training_arrays(dataset: Dataset, X: np.ndarray, transform: str, stack_dept
     return val, Xs, centre, regression_targets(pose, centre)
 
 
+#: MixtureOptions.canonical's choices.
+CANONICAL_RULES = ("none", "limbs", "facing")
+
+
 def canonical_direction(pose: np.ndarray, max_rows: int = 20000, seed: int = 0) -> np.ndarray:
     """The direction (55,) unit, that sequences.pose_vector.canonical_member projects on: the
     first principal direction (about zero) of the poses' flip-odd parts (N, 55 -> at most
@@ -369,9 +373,12 @@ class MixtureOptions:
     their own variances, where standardising would blow up the noisy last ones);
     top_experts: experts evaluated per frame. layout_grid: the layout block (regressor.layout;
     0: shape contexts only, the paper's descriptor); components: principal directions the
-    stacked input is projected on (0: none). canonical: fit each pose's canonical member
-    (canonical_direction; the tracker's front/back chain then picks the member, limbs
-    included) instead of the pose itself.
+    stacked input is projected on (0: none). canonical: fit each pose's canonical member of
+    {pose, front/back flip} instead of the pose itself (the tracker's front/back chain then
+    picks the member, limbs included): "none"; "limbs", the side of canonical_direction (the
+    flip-odd parts' first principal direction: in profile, which leg is forward); "facing",
+    the member facing the camera's half (heading cosine >= 0: the choice changes only in
+    profile, where the heading itself passes through 90 degrees).
 
     Chosen on the validation trials (issue 9, one-off drivers on the cached training rows,
     correlation of the 8 most-moving angles over the 6 validation trials; kernel ridge on 2,000
@@ -397,7 +404,7 @@ class MixtureOptions:
     standardise: bool = True
     top_experts: int = 2
     ambiguity_threshold: float = 0.5
-    canonical: bool = False
+    canonical: str = "none"
     seed: int = 0
 
 
@@ -462,9 +469,12 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         weight = (block_spread(transform_descriptors(X[fit], options.transform))
                   / max(block_spread(layouts[fit]), 1e-12))
     direction = truth = None
-    if options.canonical:
+    if options.canonical not in CANONICAL_RULES:
+        raise ValueError(f"canonical {options.canonical!r} is not one of {CANONICAL_RULES}")
+    if options.canonical != "none":
         fit_rows = ~validation_mask(dataset)
-        direction = canonical_direction(dataset.pose[fit_rows], seed=options.seed)
+        direction = (canonical_direction(dataset.pose[fit_rows], seed=options.seed)
+                     if options.canonical == "limbs" else np.eye(55)[0])
         truth = canonical_member(dataset.pose, direction)
         log(f"canonical members: {np.mean(np.any(truth != dataset.pose, axis=1)):.1%} of rows "
             "flipped")
@@ -518,6 +528,6 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               "validation_gate_accuracy": round(float((gate_val == true_val).mean()), 3),
               "layout_weight": round(weight, 4),
               "validation": angle_measures(predicted, truth[val_rows], centre),
-              "canonical": bool(options.canonical),
+              "canonical": options.canonical,
               **{k: round(v, 3) for k, v in facts.items()}}
     return model, report
