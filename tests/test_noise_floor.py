@@ -111,3 +111,22 @@ def test_priming_at_working_size_checks_the_size():
 def test_retune_needs_a_primed_background():
     with pytest.raises(ExtractionError, match="prime"):
         BackgroundSubtractor().retune(9.0)
+
+
+@pytest.mark.parametrize("sigma", [6.0, 12.0])
+def test_an_empty_scene_of_pure_noise_gets_a_floor_that_quiets_it(sigma):
+    """No body, only noise. At sigma 6 grey levels the low floors give nothing but specks; at
+    12 the lowest makes nearly the whole frame solid foreground, with few specks left to count
+    (the growth bound catches it)."""
+    bg = np.full((120, 160, 3), 128, np.uint8)
+    rng = np.random.default_rng(2)
+    frames = [np.clip(bg + rng.normal(0, sigma, bg.shape), 0, 255).astype(np.uint8)
+              for _ in range(4)]
+    sub = BackgroundSubtractor()
+    chosen = choose_var_min(sub.new_model, bg, frames, sub.warmup_frames)
+    assert chosen > 9.0
+    model = primed_model(sub, chosen, bg)
+    foreground = np.mean([(model.apply(f, learningRate=0.0) > 200).mean() for f in frames])
+    lowest = primed_model(sub, 4.0, bg)
+    assert foreground < 0.5 * np.mean([(lowest.apply(f, learningRate=0.0) > 200).mean()
+                                       for f in frames])

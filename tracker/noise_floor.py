@@ -38,48 +38,68 @@ import numpy as np
 VAR_MIN_LADDER: tuple[float, ...] = (4.0, 9.0, 16.0, 25.0, 36.0)
 #: Specks per pixel of opened foreground allowed above what the ladder's top rung leaves.
 MAX_EXCESS_SPECKS = 0.05
+#: Foreground allowed, as a multiple of what the ladder's top rung leaves.
+MAX_FOREGROUND_GROWTH = 2.0
 
 _FOREGROUND_LEVEL = 200          # MOG2: 255 foreground, 127 shadow, 0 background
 _OPEN_KERNEL = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
 
 
-def speck_ratio(model, frames: Sequence[np.ndarray]) -> float:
-    """Specks per pixel of solid foreground when a primed MOG2 ``model`` (not updated: learning
-    rate 0) looks at ``frames`` (each BGR uint8 (h, w, 3) at the model's size). Specks are
-    foreground pixels a 3 px elliptical opening removes. Returns 0.0 when nothing is foreground
-    at all, inf when only specks are."""
+def foreground_counts(model, frames: Sequence[np.ndarray]) -> tuple[int, int]:
+    """(specks, solid) pixel counts summed over ``frames`` (each BGR uint8 (h, w, 3) at the
+    model's size) when a primed MOG2 ``model`` (not updated: learning rate 0) looks at them.
+    Specks are foreground pixels a 3 px elliptical opening removes, solid the rest."""
     specks = solid = 0
     for frame in frames:
         foreground = (model.apply(frame, learningRate=0.0) > _FOREGROUND_LEVEL).astype(np.uint8)
-        opened = cv2.morphologyEx(foreground, cv2.MORPH_OPEN, _OPEN_KERNEL)
-        specks += int(foreground.sum()) - int(opened.sum())
-        solid += int(opened.sum())
+        kept = int(cv2.morphologyEx(foreground, cv2.MORPH_OPEN, _OPEN_KERNEL).sum())
+        specks += int(foreground.sum()) - kept
+        solid += kept
+    return specks, solid
+
+
+def _ratio(specks: int, solid: int) -> float:
     if solid == 0:
         return 0.0 if specks == 0 else float("inf")
     return specks / solid
 
 
+def speck_ratio(model, frames: Sequence[np.ndarray]) -> float:
+    """Specks per pixel of solid foreground (foreground_counts); 0.0 when nothing is
+    foreground at all, inf when only specks are."""
+    return _ratio(*foreground_counts(model, frames))
+
+
 def choose_var_min(make_model: Callable[[float], object], reference: np.ndarray,
                    frames: Sequence[np.ndarray], warmup_frames: int,
                    ladder: Sequence[float] = VAR_MIN_LADDER,
-                   max_excess_specks: float = MAX_EXCESS_SPECKS) -> float:
+                   max_excess_specks: float = MAX_EXCESS_SPECKS,
+                   max_growth: float = MAX_FOREGROUND_GROWTH) -> float:
     """The lowest MOG2 variance floor (grey levels squared) in ``ladder`` whose foreground on
     ``frames`` has at most ``max_excess_specks`` more specks (:func:`speck_ratio`) than the
-    ladder's top rung: the specks a higher floor would still remove are noise; those left at
-    the top are not (JPEG blocks, a person's small movements) and no floor should chase them.
-    make_model(var_min) builds a fresh MOG2 with the subtractor's other settings; each is
-    primed with ``reference`` (BGR uint8 (h, w, 3), the background at working size)
+    ladder's top rung, and at most ``max_growth`` times the top rung's foreground. The specks a
+    higher floor would still remove are noise; those left at the top are not (JPEG blocks, a
+    person's small movements) and no floor should chase them. The growth bound catches noise so
+    strong that a low floor makes nearly the whole frame solid foreground (no specks left to
+    count). make_model(var_min) builds a fresh MOG2 with the subtractor's other settings; each
+    is primed with ``reference`` (BGR uint8 (h, w, 3), the background at working size)
     ``warmup_frames`` times, as BackgroundSubtractor.prime does; frames: BGR uint8 at the same
-    size, spread over the clip. A few hundred MOG2 applications at working size: ~0.1 s."""
+    size, spread over the clip. A few hundred MOG2 applications at working size: ~0.1 s.
+    Frames with nothing solid at the top rung, only specks (an empty, noisy scene), get the
+    top rung."""
     if not len(ladder):
         raise ValueError("the variance floor ladder is empty")
-    ratios = []
+    counts = []
     for var_min in ladder:
         model = make_model(float(var_min))
         for _ in range(max(warmup_frames, 1)):
             model.apply(reference, learningRate=-1.0)
-        ratios.append(speck_ratio(model, frames))
-    for var_min, ratio in zip(ladder, ratios):
-        if ratio - ratios[-1] <= max_excess_specks:
+        counts.append(foreground_counts(model, frames))
+    top_ratio, top_total = _ratio(*counts[-1]), sum(counts[-1])
+    if not np.isfinite(top_ratio):           # only specks even at the top: all noise, no body
+        return float(ladder[-1])
+    for var_min, (specks, solid) in zip(ladder, counts):
+        if (_ratio(specks, solid) - top_ratio <= max_excess_specks
+                and specks + solid <= max_growth * max(top_total, 1)):
             return float(var_min)
     return float(ladder[-1])
