@@ -12,8 +12,9 @@ their true renders), and the regressor reads every pose as the same blob.
 
 The halo is mostly specks: isolated foreground pixels that a 3 px opening removes. Their share
 of the solid foreground is a measure of the noise that needs no ground truth. Measured on 25
-frames sampled over each clip, background primed from their median (scripts: the closing note
-of this change), specks per pixel of opened foreground for floors 4 / 9 / 16 / 25 / 36:
+frames sampled over each clip, background primed from their median (a one-off driver calling
+speck_ratio on each rung, 2026-12-01), specks per pixel of opened foreground for floors
+4 / 9 / 16 / 25 / 36:
 
     Pose2Sim cam01..cam04 (real, 1080x1920 shrunk to 320 px wide)
         0.13-0.24 / 0.07-0.10 / 0.04-0.07 / 0.03-0.07 / 0.03-0.07   -> 9
@@ -25,7 +26,9 @@ of this change), specks per pixel of opened foreground for floors 4 / 9 / 16 / 2
 
 Some specks stay whatever the floor (JPEG blocks, a person's small movements): only those a
 higher floor still removes are noise. :func:`choose_var_min` takes the lowest floor of a ladder
-whose specks exceed the top rung's by at most ``max_excess_specks``.
+whose specks exceed the top rung's by at most ``max_excess_specks`` and whose foreground is at
+most ``max_growth`` times the top rung's (strong noise can make a low floor's foreground one
+solid sheet with few specks left to count).
 """
 from __future__ import annotations
 
