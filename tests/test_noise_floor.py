@@ -29,34 +29,34 @@ def frames_with_person(bg: np.ndarray, noise_sigma: float, n: int, seed: int = 1
     return out
 
 
-def primed_model(subtractor: BackgroundSubtractor, var_min: float, reference: np.ndarray):
-    model = subtractor.new_model(var_min)
-    for _ in range(subtractor.warmup_frames):
-        model.apply(reference, learningRate=-1.0)
-    return model
+def primed_on(bg: np.ndarray) -> BackgroundSubtractor:
+    """A subtractor primed with bg (its reference for primed_model)."""
+    sub = BackgroundSubtractor()
+    sub.prime(bg)
+    return sub
 
 
 def test_speck_ratio_counts_isolated_pixels_against_solid_foreground():
     bg = textured(160, 120)
-    sub = BackgroundSubtractor()
+    sub = primed_on(bg)
     clean = frames_with_person(bg, 0.0, 4)
-    assert speck_ratio(primed_model(sub, 4.0, bg), clean) < 0.02
+    assert speck_ratio(sub.primed_model(4.0), clean) < 0.02
     noisy = frames_with_person(bg, 6.0, 4)
-    assert speck_ratio(primed_model(sub, 4.0, bg), noisy) > 0.2
-    assert speck_ratio(primed_model(sub, 4.0, bg), [bg, bg]) == 0.0
+    assert speck_ratio(sub.primed_model(4.0), noisy) > 0.2
+    assert speck_ratio(sub.primed_model(4.0), [bg, bg]) == 0.0
 
 
 def test_noisier_clips_get_a_higher_floor():
     bg = textured(160, 120)
-    sub = BackgroundSubtractor()
-    quiet = choose_var_min(sub.new_model, bg, frames_with_person(bg, 1.0, 6), sub.warmup_frames)
-    loud = choose_var_min(sub.new_model, bg, frames_with_person(bg, 6.0, 6), sub.warmup_frames)
+    sub = primed_on(bg)
+    quiet = choose_var_min(sub.primed_model, frames_with_person(bg, 1.0, 6))
+    loud = choose_var_min(sub.primed_model, frames_with_person(bg, 6.0, 6))
     assert quiet == 4.0
     assert loud > 4.0
     # the chosen floor leaves the noisy clip's foreground solid
-    assert speck_ratio(primed_model(sub, loud, bg), frames_with_person(bg, 6.0, 6)) <= 0.15
+    assert speck_ratio(sub.primed_model(loud), frames_with_person(bg, 6.0, 6)) <= 0.15
     with pytest.raises(ValueError, match="ladder is empty"):
-        choose_var_min(sub.new_model, bg, [bg], 1, ladder=())
+        choose_var_min(sub.primed_model, [bg], ladder=())
 
 
 def test_extractor_adapts_its_floor_to_the_clip_unless_told():
@@ -111,6 +111,8 @@ def test_priming_at_working_size_checks_the_size():
 def test_retune_needs_a_primed_background():
     with pytest.raises(ExtractionError, match="prime"):
         BackgroundSubtractor().retune(9.0)
+    with pytest.raises(ExtractionError, match="prime"):
+        BackgroundSubtractor().primed_model(9.0)
 
 
 @pytest.mark.parametrize("sigma", [6.0, 12.0])
@@ -122,11 +124,11 @@ def test_an_empty_scene_of_pure_noise_gets_a_floor_that_quiets_it(sigma):
     rng = np.random.default_rng(2)
     frames = [np.clip(bg + rng.normal(0, sigma, bg.shape), 0, 255).astype(np.uint8)
               for _ in range(4)]
-    sub = BackgroundSubtractor()
-    chosen = choose_var_min(sub.new_model, bg, frames, sub.warmup_frames)
+    sub = primed_on(bg)
+    chosen = choose_var_min(sub.primed_model, frames)
     assert chosen > 9.0
-    model = primed_model(sub, chosen, bg)
+    model = sub.primed_model(chosen)
     foreground = np.mean([(model.apply(f, learningRate=0.0) > 200).mean() for f in frames])
-    lowest = primed_model(sub, 4.0, bg)
+    lowest = sub.primed_model(4.0)
     assert foreground < 0.5 * np.mean([(lowest.apply(f, learningRate=0.0) > 200).mean()
                                        for f in frames])

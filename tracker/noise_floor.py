@@ -73,8 +73,7 @@ def speck_ratio(model, frames: Sequence[np.ndarray]) -> float:
     return _ratio(*foreground_counts(model, frames))
 
 
-def choose_var_min(make_model: Callable[[float], object], reference: np.ndarray,
-                   frames: Sequence[np.ndarray], warmup_frames: int,
+def choose_var_min(make_primed_model: Callable[[float], object], frames: Sequence[np.ndarray],
                    ladder: Sequence[float] = VAR_MIN_LADDER,
                    max_excess_specks: float = MAX_EXCESS_SPECKS,
                    max_growth: float = MAX_FOREGROUND_GROWTH) -> float:
@@ -84,20 +83,14 @@ def choose_var_min(make_model: Callable[[float], object], reference: np.ndarray,
     higher floor would still remove are noise; those left at the top are not (JPEG blocks, a
     person's small movements) and no floor should chase them. The growth bound catches noise so
     strong that a low floor makes nearly the whole frame solid foreground (no specks left to
-    count). make_model(var_min) builds a fresh MOG2 with the subtractor's other settings; each
-    is primed with ``reference`` (BGR uint8 (h, w, 3), the background at working size)
-    ``warmup_frames`` times, as BackgroundSubtractor.prime does; frames: BGR uint8 at the same
-    size, spread over the clip. A few hundred MOG2 applications at working size: ~0.1 s.
-    Frames with nothing solid at the top rung, only specks (an empty, noisy scene), get the
-    top rung."""
+    count). make_primed_model(var_min): a fresh MOG2 with the subtractor's other settings that
+    has learned the background (BackgroundSubtractor.primed_model); frames: BGR uint8 at the
+    working size, spread over the clip. A few hundred MOG2 applications at working size:
+    ~0.1 s. Frames with nothing solid at the top rung, only specks (an empty, noisy scene), get
+    the top rung."""
     if not len(ladder):
         raise ValueError("the variance floor ladder is empty")
-    counts = []
-    for var_min in ladder:
-        model = make_model(float(var_min))
-        for _ in range(max(warmup_frames, 1)):
-            model.apply(reference, learningRate=-1.0)
-        counts.append(foreground_counts(model, frames))
+    counts = [foreground_counts(make_primed_model(float(var_min)), frames) for var_min in ladder]
     top_ratio, top_total = _ratio(*counts[-1]), sum(counts[-1])
     if not np.isfinite(top_ratio):           # only specks even at the top: all noise, no body
         return float(ladder[-1])

@@ -233,20 +233,21 @@ class PoseTracker:
             # into pieces (the sample walk in gray: 11 tracks instead of 1).
             self.extractor = SilhouetteExtractor(detect_shadows=False)
         if frame_size is None:
-            self._set_frame_shape(background)
+            self._set_frame_shape(background.shape[:2])
             self.extractor.prime(background)
         else:
-            self._set_frame_shape(np.empty((frame_size[1], frame_size[0], 0), np.uint8))
+            self._set_frame_shape((frame_size[1], frame_size[0]))
             self.extractor.prime(background, frame_size=frame_size)
 
-    def _set_frame_shape(self, frame: np.ndarray) -> None:
+    def _set_frame_shape(self, shape: tuple[int, int]) -> None:
+        """Remember the frames' (height, width) px, and the focal length it implies, once."""
         if self.frame_shape is None:
-            self.frame_shape = tuple(frame.shape[:2])
+            self.frame_shape = (int(shape[0]), int(shape[1]))
             self._focal_px = focal_length_px(self.frame_shape[1], self.settings.fov_deg)
 
     def process(self, frame_index: int, time_s: float, frame: np.ndarray) -> list[TrackedPose]:
         """Track one frame (BGR uint8 (H, W, 3)); returns a pose per person in view."""
-        self._set_frame_shape(frame)
+        self._set_frame_shape(frame.shape[:2])
         clock = time.perf_counter()
         people = self.extractor(frame)[: self.settings.max_people]
         clock = self._lap("silhouettes", clock)

@@ -105,6 +105,16 @@ class BackgroundSubtractor:
         model.setVarInit(max(model.getVarInit(), float(var_min)))
         return model
 
+    def primed_model(self, var_min: float):
+        """A fresh MOG2 (:meth:`new_model`) that has learned the primed :attr:`reference` as
+        :meth:`prime` teaches it: ``max(warmup_frames, 1)`` times at MOG2's start-up rate."""
+        if self.reference is None:
+            raise ExtractionError("a primed model needs prime() first")
+        model = self.new_model(var_min)
+        for _ in range(max(self.warmup_frames, 1)):
+            model.apply(self.reference, learningRate=-1.0)
+        return model
+
     def retune(self, var_min: float) -> None:
         """Rebuild the background model with variance floor ``var_min`` (grey levels squared)
         and re-learn the primed :attr:`reference` as :meth:`prime` did."""
@@ -112,9 +122,7 @@ class BackgroundSubtractor:
             raise ExtractionError("retune needs prime() first")
         _check_var_min(var_min)
         self.var_min = float(var_min)
-        self._model = self.new_model(self.var_min)
-        for _ in range(max(self.warmup_frames, 1)):
-            self._model.apply(self.reference, learningRate=-1.0)
+        self._model = self.primed_model(self.var_min)
 
     @property
     def ready(self) -> bool:
@@ -156,15 +164,19 @@ class BackgroundSubtractor:
                                       f"must be {self.working_size(*frame_size)} px at working "
                                       f"size, got {given[0]}x{given[1]}")
             small = background
-        if self._frame_size is None:
-            self._frame_size = frame_size
-        elif frame_size != self._frame_size:
-            raise ExtractionError(f"frame size changed from {self._frame_size[0]}x"
-                                  f"{self._frame_size[1]} to {frame_size[0]}x{frame_size[1]}")
+        self._check_frame_size(frame_size)
         for _ in range(max(self.warmup_frames - self.frames_seen, 1)):
             self._model.apply(small, learningRate=-1.0 if not self.ready else self.learning_rate)
             self.frames_seen += 1
         self.reference = small.copy()
+
+    def _check_frame_size(self, size: tuple[int, int]) -> None:
+        """Remember the frames' (width, height) px on first use; refuse any other size later."""
+        if self._frame_size is None:
+            self._frame_size = size
+        elif size != self._frame_size:
+            raise ExtractionError(f"frame size changed from {self._frame_size[0]}x"
+                                  f"{self._frame_size[1]} to {size[0]}x{size[1]}")
 
     def apply(self, frame: np.ndarray) -> np.ndarray:
         """Update the model with ``frame`` (BGR uint8 (H, W, 3)) and return its foreground mask.
@@ -188,11 +200,7 @@ class BackgroundSubtractor:
             raise ExtractionError(f"frame must be BGR uint8 (H, W, 3), got {frame.dtype} "
                                   f"{frame.shape}")
         size = (frame.shape[1], frame.shape[0])
-        if self._frame_size is None:
-            self._frame_size = size
-        elif size != self._frame_size:
-            raise ExtractionError(f"frame size changed from {self._frame_size[0]}x"
-                                  f"{self._frame_size[1]} to {size[0]}x{size[1]}")
+        self._check_frame_size(size)
         work = self.working_size(*size)
         small = frame if work == size else cv2.resize(frame, work, interpolation=cv2.INTER_AREA)
         saturated = None
@@ -693,7 +701,7 @@ class SilhouetteExtractor:
         if not self.adapt_noise_floor:
             return
         sub = self.subtractor
-        var_min = choose_var_min(sub.new_model, sub.reference, small, sub.warmup_frames)
+        var_min = choose_var_min(sub.primed_model, small)
         if var_min != sub.var_min:
             sub.retune(var_min)
 

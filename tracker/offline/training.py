@@ -459,21 +459,20 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     the model and a report of validation figures. layouts (N, layout_grid^2): the layouts of
     the masks X describes (noisy_dataset_layouts), needed when options.layout_grid > 0."""
     from regressor.mixture import MixtureRegressor
+    if options.canonical not in CANONICAL_RULES:
+        raise ValueError(f"canonical {options.canonical!r} is not one of {CANONICAL_RULES}")
     grid = int(options.layout_grid)
+    fit = ~validation_mask(dataset)
     weight = 0.0
     if grid:
         if layouts is None or np.shape(layouts) != (len(X), grid * grid):
             raise ValueError(f"layout_grid {grid} needs layouts of shape ({len(X)}, {grid * grid})")
         # The layout block scaled to the histogram block's spread, so the kernel weighs both.
-        fit = ~validation_mask(dataset)
         weight = (block_spread(transform_descriptors(X[fit], options.transform))
                   / max(block_spread(layouts[fit]), 1e-12))
     direction = truth = None
-    if options.canonical not in CANONICAL_RULES:
-        raise ValueError(f"canonical {options.canonical!r} is not one of {CANONICAL_RULES}")
     if options.canonical != "none":
-        fit_rows = ~validation_mask(dataset)
-        direction = (canonical_direction(dataset.pose[fit_rows], seed=options.seed)
+        direction = (canonical_direction(dataset.pose[fit], seed=options.seed)
                      if options.canonical == "limbs" else np.eye(55)[0])
         truth = canonical_member(dataset.pose, direction)
         log(f"canonical members: {np.mean(np.any(truth != dataset.pose, axis=1)):.1%} of rows "
