@@ -157,6 +157,35 @@ def test_the_trackers_limb_filter_trusts_the_regressor_more_than_the_chains_filt
     assert custom.limb_filter_factory is None and custom.filter_factory is _factory
 
 
+def test_the_heading_filter_follows_a_short_confident_misreading_less():
+    """HEADING_Q_SCALE scales the heading's process noise only. After a steady back view
+    (150 deg), half a second of raw headings swings to a front view (10 deg) and back, as the
+    regressor did on the shipped sample: the model's own q follows the swing almost all the
+    way (about 165 deg off), the scaled one goes less than 0.75 of that."""
+    from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+    from tracker.pipeline import HEADING_Q_SCALE, TrackerSettings, kalman_factory
+    model = load_pose_model(DEFAULT_MODEL_PATH)
+    stiff = kalman_factory(model)(FPS)
+    loose = kalman_factory(model, TrackerSettings(heading_q_scale=1.0))(FPS)
+    expected = model.process_noise.copy()
+    expected[0] *= HEADING_Q_SCALE
+    np.testing.assert_allclose(stiff.cv.q, expected)
+    np.testing.assert_allclose(loose.cv.q, model.process_noise)
+    swing = np.concatenate([np.full(60, 150.0), np.linspace(150, 10, 6)[1:], np.full(8, 10.0),
+                            np.linspace(10, 150, 6)[1:], np.full(20, 150.0)])
+    body = _pose(0.0, norm=0.8, seed=3)
+    raws = []
+    for h in swing:
+        raw = body.copy()
+        raw[0], raw[1] = 0.8 * np.cos(np.radians(h)), 0.8 * np.sin(np.radians(h))
+        raws.append(raw)
+    worst = {}
+    for name, f in (("stiff", stiff), ("loose", loose)):
+        out = np.array([pose_angles(f.step(r)[0])[0] for r in raws])
+        worst[name] = np.abs(wrap_deg(out[60:] - 150.0)).max()
+    assert worst["loose"] > 150.0 and worst["stiff"] < 0.75 * worst["loose"]
+
+
 def test_evidence_weight_tempers_the_regressors_evidence():
     """Exponent 0: the regressor's norm evidence is ignored and raw and flip start even."""
     h = _with_flips(_pose(10.0, norm=0.7)[None], np.ones(1))
