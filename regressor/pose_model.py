@@ -19,6 +19,14 @@ training rows (k*D -> P) before the regressor: this keeps a long input cheap and
 
 Output layout is the pose vector's (regressor/angles.py; sequences/pose_vector.py documents it):
 [cos, sin] of the heading, then 53 angles in degrees.
+
+A mixture model may carry a limb head (:class:`LimbHead`): the same experts (centres, widths,
+gate) with a second set of weights fitted on each pose's canonical member of {pose, front/back
+flip} (sequences.pose_vector.canonical_member). The main head must average a silhouette's two
+bodies where it cannot tell them apart (in profile, which leg is forward); the limb head never
+sees one silhouette with two targets, so its limbs are one body's or the other's, and the
+tracker takes the member that agrees with the heading it decided (tracker/hypotheses.py,
+"Limbs").
 """
 from __future__ import annotations
 
@@ -51,6 +59,20 @@ class PoseModelError(SilhouettePoseError, ValueError):
 
 
 @dataclass
+class LimbHead:
+    """A mixture's second set of expert weights (module docstring): coef (R, 55) in the
+    experts' row order (regressor.mixture experts' centres concatenated), expert_intercept
+    (E, 55), angle_centre_deg (53,) the centres its angles were regressed around, and
+    canonical_direction (55,) the rule its targets' members were chosen by
+    (sequences.pose_vector.canonical_member)."""
+
+    coef: np.ndarray
+    expert_intercept: np.ndarray
+    angle_centre_deg: np.ndarray
+    canonical_direction: np.ndarray
+
+
+@dataclass
 class PoseModel:
     """A trained model (see the module docstring). Shapes: D = codebook.n_centres descriptor
     length, k = stack_depth, R retained basis functions.
@@ -67,6 +89,8 @@ class PoseModel:
     canonical_direction (55,): set when the model was fitted on each pose's canonical member
     of {pose, front/back flip} (sequences.pose_vector.canonical_member): its raw pose may be
     either body, and the tracker's front/back chain picks the member, limbs included.
+    limb_head: a mixture's canonical limb head (:class:`LimbHead`, :meth:`predict_limbs`), or
+    None.
     """
 
     settings: DescriptorSettings
@@ -90,6 +114,7 @@ class PoseModel:
     projection: np.ndarray | None = None
     projection_mean: np.ndarray | None = None
     canonical_direction: np.ndarray | None = None
+    limb_head: LimbHead | None = None
 
     @property
     def descriptor_length(self) -> int:
@@ -149,6 +174,25 @@ class PoseModel:
         poses, prob = self.mixture.predict_hypotheses(X, m)
         poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
         return poses, prob
+
+    def predict_limbs(self, stacked: np.ndarray) -> np.ndarray | None:
+        """The limb head's poses (N, 55) from stacked descriptors (N, k*D): for each row, the
+        gate's most probable expert with the head's weights, a canonical member (either body
+        of the silhouette; its heading picks which). None without a limb head."""
+        head = self.limb_head
+        if head is None or self.mixture is None:
+            return None
+        X = self._stacked(stacked)
+        top = self.mixture.predict_proba(X).argmax(axis=1)
+        offsets = np.cumsum([0] + [len(e.centres_) for e in self.mixture.experts_])
+        out = np.empty((len(X), POSE_DIM))
+        for e in np.unique(top):
+            rows = np.flatnonzero(top == e)
+            expert = self.mixture.experts_[e]
+            out[rows] = (gaussian_design(X[rows], expert.centres_, expert.width_)
+                         @ head.coef[offsets[e]:offsets[e + 1]] + head.expert_intercept[e])
+        out[:, 2:] = wrap_deg(out[:, 2:] + head.angle_centre_deg)
+        return out
 
     def summary(self) -> dict:
         """Plain facts for metadata and logs."""
@@ -358,7 +402,40 @@ def _mixture_arrays(model: PoseModel) -> dict:
         "mixture_gate_weights": gate.weights_,
         "mixture_top_experts": np.int64(mix.top_experts),
         "mixture_params": np.str_(json.dumps(mix.get_params(), sort_keys=True)),
+        **_limb_head_arrays(model.limb_head),
     }
+
+
+def _limb_head_arrays(head: LimbHead | None) -> dict:
+    """The file parts of a limb head (coef float32, as the main head's), none without one."""
+    if head is None:
+        return {}
+    return {"limbs_coef": np.asarray(head.coef, dtype=np.float32),
+            "limbs_expert_intercept": np.asarray(head.expert_intercept, dtype=np.float64),
+            "limbs_angle_centre_deg": np.asarray(head.angle_centre_deg, dtype=np.float64),
+            "limbs_canonical_direction": np.asarray(head.canonical_direction, dtype=np.float64)}
+
+
+def _limb_head_from_arrays(a, n_rows: int, n_experts: int) -> LimbHead | None:
+    """A file's limb head (None when it has none), its shapes checked against the experts'
+    n_rows centres and n_experts; PoseModelError-ready ValueError otherwise."""
+    names = ("limbs_coef", "limbs_expert_intercept", "limbs_angle_centre_deg",
+             "limbs_canonical_direction")
+    present = [n in a for n in names]
+    if not any(present):
+        return None
+    if not all(present):
+        raise ValueError("limb head is incomplete")
+    head = LimbHead(*(a[n].astype(np.float64) for n in names))
+    if head.coef.shape != (n_rows, POSE_DIM) \
+            or head.expert_intercept.shape != (n_experts, POSE_DIM) \
+            or head.angle_centre_deg.shape != (POSE_DIM - 2,) \
+            or head.canonical_direction.shape != (POSE_DIM,):
+        raise ValueError("limb head shapes do not match the experts")
+    if not all(np.isfinite(x).all() for x in (head.coef, head.expert_intercept,
+                                               head.angle_centre_deg, head.canonical_direction)):
+        raise ValueError("limb head has non-finite values")
+    return head
 
 
 def _mixture_from_arrays(path: Path, a) -> PoseModel:
@@ -411,6 +488,10 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
     mix.expert_rows_ = np.zeros(E, np.int64)
     mix.top_experts = int(a["mixture_top_experts"])
     mix.n_features_in_, mix.n_outputs_ = kD, POSE_DIM
+    try:
+        limb_head = _limb_head_from_arrays(a, len(coef), E)
+    except ValueError as exc:
+        fail(str(exc))
     return PoseModel(
         settings=settings, codebook=codebook, stack_depth=k, transform=str(a["transform"]),
         basis="gaussian", width=float(a["width"]), centres=centres,
@@ -419,4 +500,5 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         measurement_covariance=a["measurement_covariance"].astype(np.float64),
         process_noise=a["process_noise"].astype(np.float64),
         ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
-        description=json.loads(str(a["description"])), mixture=mix, **inputs)
+        description=json.loads(str(a["description"])), mixture=mix, limb_head=limb_head,
+        **inputs)

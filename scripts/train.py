@@ -65,6 +65,10 @@ def main(argv=None) -> int:
                          "side of the limbs' principal flip direction, or the one facing the "
                          "camera's half (the tracker's chain then picks the member, limbs "
                          "included); default none")
+    ap.add_argument("--limb-head", choices=CANONICAL_RULES, default=None,
+                    help="also fit the experts on each pose's canonical member by this rule, "
+                         "for the tracker's limbs (regressor.pose_model.LimbHead); default "
+                         f"{MixtureOptions.limb_head}, none with --canonical")
     ap.add_argument("--components", type=int, default=MixtureOptions.components,
                     help="principal directions the stacked input is projected on (0: none)")
     args = ap.parse_args(argv)
@@ -122,6 +126,7 @@ def main(argv=None) -> int:
                                      n_centres=args.centres, lam=args.lam, seed=args.seed,
                                      partition=args.partition, layout_grid=args.layout_grid,
                                      components=args.components, canonical=args.canonical,
+                                     limb_head=_limb_head(args),
                                      **({"width_scale": args.width_scale}
                                         if args.width_scale != TrainingOptions.width_scale else {}))
             with threadpool_limits(args.workers):
@@ -151,6 +156,13 @@ def main(argv=None) -> int:
     print(json.dumps({"model": str(args.out), "size_bytes": args.out.stat().st_size,
                       "total_seconds": round(total, 1), **report}, indent=1))
     return 0
+
+
+def _limb_head(args) -> str:
+    """--limb-head as given, else the default, which is "none" for a canonical model."""
+    if args.limb_head is not None:
+        return args.limb_head
+    return "none" if args.canonical != "none" else MixtureOptions.limb_head
 
 
 if __name__ == "__main__":

@@ -186,6 +186,38 @@ def test_the_heading_filter_follows_a_short_confident_misreading_less():
     assert worst["loose"] > 150.0 and worst["stiff"] < 0.75 * worst["loose"]
 
 
+def test_pick_member_takes_the_member_nearer_the_heading():
+    from tracker.hypotheses import pick_member
+    pose = _pose(60.0, seed=2)
+    flip = front_back_flip(pose)                       # heading 120, limbs exchanged
+    np.testing.assert_allclose(pick_member(pose, 50.0), pose)
+    np.testing.assert_allclose(pick_member(pose, 130.0), flip)
+    both = pick_member(np.array([pose, pose]), np.array([170.0, -10.0]))
+    np.testing.assert_allclose(both, [flip, pose])
+
+
+def test_body_angles_follow_the_limb_heads_member_that_agrees_with_the_decided_heading():
+    """The own pose averages the two bodies (its limbs are zero); the limb head gives the
+    other body's member (the flip of the truth). The chain decides the heading (30 deg, the
+    evidence is for it), so the output's body angles are the truth's, not the member's."""
+    rng = np.random.default_rng(6)
+    body = _pose(30.0, norm=0.9, seed=9)
+    averaged = np.concatenate([body[:2], np.zeros(53)])
+    member = front_back_flip(body)
+    with_head = FrontBackTracker(_factory, FPS, limb_filter_factory=_factory)
+    without = FrontBackTracker(_factory, FPS, limb_filter_factory=_factory)
+    for _ in range(60):
+        noise = np.concatenate([[0, 0], rng.normal(0, 1, 53)])
+        h = _with_flips((averaged + noise)[None], np.ones(1), member + noise)
+        h = Hypotheses(h.poses, np.array([0.0, -4.0]), h.raw, h.limbs)
+        a, b = with_head.step(h), without.step(Hypotheses(h.poses, h.log_evidence, h.raw))
+    assert abs(wrap_deg(pose_angles(a.filtered)[0] - 30.0)) < 5.0
+    assert np.abs(wrap_deg(a.filtered[2:] - body[2:])).mean() < 2.0
+    assert np.abs(b.filtered[2:]).mean() < 2.0 < np.abs(body[2:]).mean()
+    smoothed = with_head.smoothed()
+    assert np.abs(wrap_deg(smoothed[-10:, 2:] - body[2:])).mean() < 2.0
+
+
 def test_evidence_weight_tempers_the_regressors_evidence():
     """Exponent 0: the regressor's norm evidence is ignored and raw and flip start even."""
     h = _with_flips(_pose(10.0, norm=0.7)[None], np.ones(1))

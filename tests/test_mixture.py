@@ -128,6 +128,70 @@ def test_inconsistent_mixture_file_is_refused(tmp_path):
         load_pose_model(path)
 
 
+def _with_limb_head(model, x, seed=5):
+    """The model's mixture refitted with a limb head as training does: partitioned on the
+    inputs, one joint fit on [own targets, canonical members' targets] split back
+    (tracker.offline.training.split_expert_outputs). Returns (mixture, head, members)."""
+    from regressor.pose_model import LimbHead
+    from sequences.pose_vector import canonical_member
+    from tracker.offline.training import split_expert_outputs
+    rng = np.random.default_rng(seed)
+    own = model.mixture.predict(x)
+    members = canonical_member(own + np.concatenate([[0, 0], rng.normal(0, 1, 53)]),
+                               np.eye(55)[0])
+    joint = MixtureRegressor(n_experts=3, **SMALL).fit(x, np.hstack([own, members]), x)
+    coef, intercept = split_expert_outputs(joint, 55)
+    return joint, LimbHead(coef, intercept, np.zeros(53), np.eye(55)[0]), members
+
+
+def test_a_joint_fit_splits_into_the_own_head_and_the_limb_head():
+    """Ridge columns are independent and the experts' centres and gate depend on the inputs
+    only, so the split joint fit is the plain fit plus a second head fitted on the members."""
+    model, x = _mixture_model()
+    joint, head, members = _with_limb_head(model, x)
+    own = model.mixture.predict(x)
+    plain = MixtureRegressor(n_experts=3, **SMALL).fit(x, own, x)
+    np.testing.assert_allclose(joint.predict(x), plain.predict(x), atol=1e-8)
+    assert joint.n_outputs_ == 55 and all(e.coef_.shape[1] == 55 for e in joint.experts_)
+    alone = MixtureRegressor(n_experts=3, **SMALL).fit(x, members, x)
+    offsets = np.cumsum([0] + [len(e.centres_) for e in alone.experts_])
+    for e, expert in enumerate(alone.experts_):
+        np.testing.assert_allclose(head.coef[offsets[e]:offsets[e + 1]], expert.coef_,
+                                   atol=1e-6)
+        np.testing.assert_allclose(head.expert_intercept[e], expert.intercept_, atol=1e-6)
+
+
+def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
+    from regressor.model_file import save_model
+    model, x = _mixture_model()
+    model.mixture, model.limb_head, _ = _with_limb_head(model, x)
+    assert _mixture_model()[0].predict_limbs(x[:3]) is None        # no head, no limbs
+    path = tmp_path / "mixture.npz"
+    save_pose_model(path, model)
+    loaded = load_pose_model(path)
+    np.testing.assert_allclose(loaded.limb_head.canonical_direction, np.eye(55)[0])
+    a, b = loaded.predict_limbs(x[:20]), model.predict_limbs(x[:20])
+    assert a.shape == (20, 55) and np.abs(a - b).max() < 0.02 * np.abs(b).max()
+    # Each row's limbs are its top expert's with the head's weights, the head's centres added.
+    e = int(model.mixture.predict_proba(x[:1]).argmax())
+    expert, head = model.mixture.experts_[e], model.limb_head
+    start = sum(len(x.centres_) for x in model.mixture.experts_[:e])
+    from regressor.basis import gaussian_design
+    manual = (gaussian_design(x[:1], expert.centres_, expert.width_)
+              @ head.coef[start:start + len(expert.centres_)] + head.expert_intercept[e])[0]
+    np.testing.assert_allclose(model.predict_limbs(x[:1])[0, :2], manual[:2])
+    with np.load(path, allow_pickle=False) as z:
+        raw = {k: z[k] for k in z.files if k not in ("format_version", "checksum")}
+    for broken, match in (({"limbs_coef": raw["limbs_coef"][:-1]}, "limb head shapes"),
+                          ({"limbs_coef": None}, "limb head is incomplete"),
+                          ({"limbs_expert_intercept": raw["limbs_expert_intercept"][:2]},
+                           "limb head shapes")):
+        parts = {k: v for k, v in {**raw, **broken}.items() if v is not None}
+        save_model(path, parts)                                   # re-checksummed
+        with pytest.raises(PoseModelError, match=match):
+            load_pose_model(path)
+
+
 def test_single_rvm_model_still_gives_one_hypothesis():
     from regressor.pose_model import DEFAULT_MODEL_PATH
     model = load_pose_model(DEFAULT_MODEL_PATH.with_name("per_frame_model.npz"))   # one RVM

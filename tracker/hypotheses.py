@@ -52,6 +52,13 @@ noise, while ~92 % of it is slow bias the filter cannot remove, so they smoothed
 (lag). Measured on track's own inputs (five spiral-walk videos, the shape-context mixture of
 2026-12-01 before the layout block, correlation of the 8 most-moving angles, raw / chain / this): 16_11 0.25 / 0.20 / 0.25, 02_02 0.37 / 0.21 / 0.38,
 08_03 0.39 / 0.11 / 0.41, 06_06 0.20 / 0.14 / 0.19, 06_08 0.24 / 0.24 / 0.27.
+
+With a limb head (regressor.pose_model.LimbHead, Hypotheses.limbs) that filter's input is not the
+regressor's own pose but the limb head's canonical member or its flip, whichever has the
+heading nearer the heading the chain decided (pick_member). The own pose averages a
+silhouette's two bodies where it cannot tell them apart (in profile, which leg is forward); the
+limb head gives one of them, and the decided heading says which. Offline (``--smooth``) the
+members are picked by the smoothed heading.
 """
 from __future__ import annotations
 
@@ -120,11 +127,25 @@ _FLOOR = 1e-3                            # no evidence is ever certain
 @dataclass
 class Hypotheses:
     """One frame's candidate poses: poses (K, 55); log_evidence (K,) the regressor's evidence
-    for each (log likelihood ratios); raw (55,) the regressor's own (first) pose."""
+    for each (log likelihood ratios); raw (55,) the regressor's own (first) pose; limbs (55,)
+    the model's limb head's pose (a canonical member, module docstring "Limbs") or None."""
 
     poses: np.ndarray
     log_evidence: np.ndarray
     raw: np.ndarray
+    limbs: np.ndarray | None = None
+
+
+def pick_member(limbs: np.ndarray, heading_deg) -> np.ndarray:
+    """Of each canonical pose (55,) or (T, 55) and its front/back flip, the one whose heading
+    is nearer heading_deg (scalar or (T,), degrees); same shape as limbs."""
+    limbs = np.asarray(limbs, dtype=np.float64)
+    flipped = front_back_flip(limbs)
+    h = np.radians(np.asarray(heading_deg, dtype=np.float64))
+    target = np.stack([np.cos(h), np.sin(h)], axis=-1)
+    # Nearer heading = larger cosine with the target direction (norms do not matter).
+    keep = (limbs[..., :2] * target).sum(-1) >= (flipped[..., :2] * target).sum(-1)
+    return np.where(np.asarray(keep)[..., None], limbs, flipped)
 
 
 def raw_probability(norm) -> np.ndarray:
@@ -154,16 +175,18 @@ def deaveraged_heading(poses: np.ndarray) -> np.ndarray:
     return out
 
 
-def _with_flips(poses: np.ndarray, gate: np.ndarray) -> Hypotheses:
+def _with_flips(poses: np.ndarray, gate: np.ndarray, limbs: np.ndarray | None = None
+                ) -> Hypotheses:
     """Each pose (m, 55) with gate probability (m,) -> 2m hypotheses (pose, flip, pose, ...),
-    headings de-averaged (deaveraged_heading); raw stays the regressor's first pose."""
+    headings de-averaged (deaveraged_heading); raw stays the regressor's first pose; limbs
+    (55,) the limb head's pose or None, passed on."""
     raw = poses[0]
     poses = deaveraged_heading(poses)
     p_raw = raw_probability(heading_norm(poses))
     ratio = np.stack([p_raw / RAW_NEARER_OVERALL, (1 - p_raw) / (1 - RAW_NEARER_OVERALL)], 1)
     both = np.stack([poses, front_back_flip(poses)], axis=1).reshape(-1, poses.shape[-1])
     evidence = np.log(np.maximum(gate, _FLOOR))[:, None] + np.log(ratio)
-    return Hypotheses(both, evidence.reshape(-1), raw)
+    return Hypotheses(both, evidence.reshape(-1), raw, limbs)
 
 
 def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS) -> Hypotheses:
@@ -179,8 +202,12 @@ def propose_batch(estimator, stacked: np.ndarray,
     """:func:`propose` for stacked descriptors (N, k*D) at once (offline evaluation)."""
     if hasattr(estimator, "predict_hypotheses"):
         poses, gate = estimator.predict_hypotheses(stacked, n_experts)
-        return [_with_flips(np.asarray(p, float), np.asarray(g, float))
-                for p, g in zip(poses, gate)]
+        limbs = (estimator.predict_limbs(stacked) if hasattr(estimator, "predict_limbs")
+                 else None)
+        if limbs is None:
+            limbs = [None] * len(poses)
+        return [_with_flips(np.asarray(p, float), np.asarray(g, float), lb)
+                for p, g, lb in zip(poses, gate, limbs)]
     raws = estimator.predict_batch(stacked)
     return [_with_flips(raw[None], np.ones(1)) for raw in raws]
 
@@ -216,6 +243,7 @@ class _Frame:
     link: np.ndarray | None      # (K, K) log A + innovation log-likelihoods, None at t = 0
     heading_variance: np.ndarray  # (K,) deg^2 of travel-fused headings, NaN = the filter's
     raw: np.ndarray              # (55,) the regressor's own pose (the limb filter's input)
+    limbs: np.ndarray | None     # (55,) the limb head's pose, picked by heading, or None
 
 
 @dataclass
@@ -229,7 +257,8 @@ class FrontBackTracker:
     evidence; keep_history: keep every frame's hypotheses for
     viterbi_path/smoothed (memory grows with the track; off when nothing needs smoothing);
     limb_filter_factory: fps -> a pose filter for the output's body angles, stepped on each
-    frame's raw pose (module docstring, "Limbs"); None: the chosen state's body angles.
+    frame's raw pose, or on its limb head's member that agrees with the decided heading
+    (module docstring, "Limbs"); None: the chosen state's body angles.
     """
 
     filter_factory: Callable[[float], object]
@@ -276,7 +305,9 @@ class FrontBackTracker:
         self.log_alpha -= _logsumexp(self.log_alpha)
         if self.keep_history:
             self.history.append(_Frame(poses.copy(), evidence, link, variances,
-                                       np.array(hypotheses.raw, dtype=np.float64)))
+                                       np.array(hypotheses.raw, dtype=np.float64),
+                                       None if hypotheses.limbs is None
+                                       else np.array(hypotheses.limbs, dtype=np.float64)))
         outputs = [f.step(pose, heading_variance=None if np.isnan(v) else float(v))
                    for f, pose, v in zip(self.filters, poses, variances)]
         prob = np.exp(self.log_alpha)
@@ -286,7 +317,10 @@ class FrontBackTracker:
         if self.limb_filter_factory is not None:
             if self.limb_filter is None:
                 self.limb_filter = self.limb_filter_factory(self.fps)
-            filtered = with_body_angles(filtered, self.limb_filter.step(hypotheses.raw)[0])
+            source = (hypotheses.raw if hypotheses.limbs is None
+                      else pick_member(hypotheses.limbs, np.degrees(np.arctan2(filtered[1],
+                                                                             filtered[0]))))
+            filtered = with_body_angles(filtered, self.limb_filter.step(source)[0])
         decision = Decision(filtered, bool(outputs[best][1]), best, float(prob[best]))
         if K > 1 and prob[order[1]] >= CLOSE_PROBABILITY:
             decision.runner_up = outputs[order[1]][0]
@@ -337,11 +371,15 @@ class FrontBackTracker:
 
     def smoothed(self) -> np.ndarray:
         """RTS-smoothed poses (T, 55) of the Viterbi path's hypotheses (``--smooth``); with a
-        limb_filter_factory, the body angles are its RTS smoothing of the raw poses."""
+        limb_filter_factory, the body angles are its RTS smoothing of the raw poses (of the
+        limb head's members picked by the smoothed heading, when every frame has them)."""
         poses, variances = self.chosen_poses()
         out = self.filter_factory(self.fps).rts_smooth(poses, heading_variance=variances)
         if self.limb_filter_factory is not None and len(out):
             raws = np.array([frame.raw for frame in self.history])
+            if all(frame.limbs is not None for frame in self.history):
+                raws = pick_member(np.array([frame.limbs for frame in self.history]),
+                                   np.degrees(np.arctan2(out[:, 1], out[:, 0])))
             out = with_body_angles(out, self.limb_filter_factory(self.fps).rts_smooth(raws))
         return out
 

@@ -171,7 +171,7 @@ def top_experts(render: dict, n_experts: int) -> dict:
     the n_experts, which changes every state's evidence by the same amount per frame, so
     the tracker's posteriors are as if the model had been asked for n_experts."""
     k = 2 * n_experts
-    return {**render, "hypotheses": [Hypotheses(h.poses[:k], h.log_evidence[:k], h.raw)
+    return {**render, "hypotheses": [Hypotheses(h.poses[:k], h.log_evidence[:k], h.raw, h.limbs)
                                      for h in render["hypotheses"]]}
 
 

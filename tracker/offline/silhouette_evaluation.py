@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from ..association import Associator
-from ..silhouettes import PersonMask
+from ..silhouettes import PersonMask, SilhouetteExtractor
 
 
 @dataclass(frozen=True)

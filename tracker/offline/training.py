@@ -17,13 +17,13 @@ from typing import Callable
 
 import numpy as np
 
-from regressor.angles import pose_angles, wrap_deg
+from regressor.angles import POSE_DIM, pose_angles, wrap_deg
 from regressor.codebook import Codebook
 from regressor.descriptor import (DescriptorSettings, descriptors_for_masks,
                                   fit_codebook_for_masks)
 from regressor.layout import layouts_for_masks
-from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, PoseModel, frame_descriptors,
-                                  transform_descriptors)
+from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
+                                  frame_descriptors, transform_descriptors)
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
 from sequences.dataset import Dataset
@@ -378,7 +378,13 @@ class MixtureOptions:
     picks the member, limbs included): "none"; "limbs", the side of canonical_direction (the
     flip-odd parts' first principal direction: in profile, which leg is forward); "facing",
     the member facing the camera's half (heading cosine >= 0: the choice changes only in
-    profile, where the heading itself passes through 90 degrees).
+    profile, where the heading itself passes through 90 degrees). limb_head: also fit the
+    same experts on each pose's canonical member by that rule (regressor.pose_model.LimbHead;
+    the tracker's limb filter takes the member that agrees with its decided heading); "none"
+    for no limb head; only for a model whose own targets are not canonical. "facing" was
+    chosen on the five validation videos through ``track`` (filtered corr8 02_02 / 08_03 /
+    05_02 / 09_04 / 02_05 without 0.489 / 0.646 / 0.014 / 0.309 / 0.328, with 0.613 / 0.702 /
+    0.014 / 0.313 / 0.335; 2026-12-01).
 
     Chosen on the validation trials (issue 9, one-off drivers on the cached training rows,
     correlation of the 8 most-moving angles over the 6 validation trials; kernel ridge on 2,000
@@ -405,6 +411,7 @@ class MixtureOptions:
     top_experts: int = 2
     ambiguity_threshold: float = 0.5
     canonical: str = "none"
+    limb_head: str = "facing"
     seed: int = 0
 
 
@@ -461,6 +468,11 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     from regressor.mixture import MixtureRegressor
     if options.canonical not in CANONICAL_RULES:
         raise ValueError(f"canonical {options.canonical!r} is not one of {CANONICAL_RULES}")
+    if options.limb_head not in CANONICAL_RULES:
+        raise ValueError(f"limb_head {options.limb_head!r} is not one of {CANONICAL_RULES}")
+    if options.limb_head != "none" and options.canonical != "none":
+        raise ValueError("a model fitted on canonical members takes no limb head "
+                         "(limb_head must be 'none')")
     grid = int(options.layout_grid)
     fit = ~validation_mask(dataset)
     weight = 0.0
@@ -472,8 +484,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                   / max(block_spread(layouts[fit]), 1e-12))
     direction = truth = None
     if options.canonical != "none":
-        direction = (canonical_direction(dataset.pose[fit], seed=options.seed)
-                     if options.canonical == "limbs" else np.eye(55)[0])
+        direction = _rule_direction(options.canonical, dataset.pose[fit], options.seed)
         truth = canonical_member(dataset.pose, direction)
         log(f"canonical members: {np.mean(np.any(truth != dataset.pose, axis=1)):.1%} of rows "
             "flipped")
@@ -497,7 +508,22 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         width_scale=options.width_scale, lam=options.lam, gate_centres=options.gate_centres,
         gate_width_scale=options.gate_width_scale, gate_l2=options.gate_l2,
         top_experts=options.top_experts, seed=options.seed)
-    mixture.fit(Xin[train_rows], Y[train_rows], Z[train_rows], log=log)
+    head_direction = head_truth = None
+    targets = Y
+    if options.limb_head != "none":
+        # The same experts (centres depend on the inputs only) with a second set of weights:
+        # one fit on both target sets, split afterwards (ridge columns are independent).
+        head_direction = _rule_direction(options.limb_head, dataset.pose[fit], options.seed)
+        head_truth = canonical_member(dataset.pose, head_direction)
+        head_centre = angle_centres(head_truth[~val])
+        targets = np.hstack([Y, regression_targets(head_truth, head_centre)])
+        flipped = np.mean(np.any(head_truth != dataset.pose, axis=1))
+        log(f"limb head ({options.limb_head}): {flipped:.1%} of rows flipped")
+    mixture.fit(Xin[train_rows], targets[train_rows], Z[train_rows], log=log)
+    limb_head = None
+    if head_truth is not None:
+        coef, intercept = split_expert_outputs(mixture, POSE_DIM)
+        limb_head = LimbHead(coef, intercept, head_centre, head_direction)
     fit_seconds = time.perf_counter() - start
     log(f"  fitted in {fit_seconds:.1f} s")
     model = PoseModel(settings=settings, codebook=codebook, stack_depth=options.stack_depth,
@@ -507,7 +533,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                       measurement_covariance=np.eye(54), process_noise=np.ones(54),
                       mixture=mixture, layout_grid=grid, layout_weight=weight,
                       projection=projection, projection_mean=projection_mean,
-                      canonical_direction=direction)
+                      canonical_direction=direction, limb_head=limb_head)
     predicted = model.predict_batch(Xs[val_rows])
     # A canonical model's error is measured against the canonical members, as its output is
     # the chain's hypothesis, not yet the decision.
@@ -527,6 +553,33 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               "validation_gate_accuracy": round(float((gate_val == true_val).mean()), 3),
               "layout_weight": round(weight, 4),
               "validation": angle_measures(predicted, truth[val_rows], centre),
-              "canonical": options.canonical,
+              "canonical": options.canonical, "limb_head": options.limb_head,
               **{k: round(v, 3) for k, v in facts.items()}}
+    if limb_head is not None:
+        # The head's member picked by the true heading: what the tracker gets when its chain
+        # decides the heading right.
+        from tracker.hypotheses import pick_member
+        members = pick_member(model.predict_limbs(Xs[val_rows]),
+                              np.degrees(np.arctan2(truth[val_rows, 1], truth[val_rows, 0])))
+        report["validation_limb_head"] = angle_measures(members, truth[val_rows], centre)
     return model, report
+
+
+def _rule_direction(rule: str, pose: np.ndarray, seed: int) -> np.ndarray:
+    """The canonical_member direction (55,) of a CANONICAL_RULES rule ("limbs" or "facing")
+    for training poses (N, 55)."""
+    return canonical_direction(pose, seed=seed) if rule == "limbs" else np.eye(POSE_DIM)[0]
+
+
+def split_expert_outputs(mixture, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cut a fitted mixture of DampedKernelRegressor experts back to its first n_outputs
+    outputs; returns the rest: (coef (R, K - n_outputs) with the experts' rows concatenated
+    in order, intercepts (E, K - n_outputs))."""
+    coefs, intercepts = [], []
+    for expert in mixture.experts_:
+        coefs.append(expert.coef_[:, n_outputs:])
+        intercepts.append(expert.intercept_[n_outputs:])
+        expert.coef_ = np.ascontiguousarray(expert.coef_[:, :n_outputs])
+        expert.intercept_ = expert.intercept_[:n_outputs].copy()
+    mixture.n_outputs_ = n_outputs
+    return np.vstack(coefs), np.vstack(intercepts)
