@@ -23,10 +23,10 @@ Output layout is the pose vector's (regressor/angles.py; sequences/pose_vector.p
 A mixture model may carry a limb head (:class:`LimbHead`): the same experts (centres, widths,
 gate) with a second set of weights fitted on each pose's canonical member of {pose, front/back
 flip} (sequences.pose_vector.canonical_member). The main head must average a silhouette's two
-bodies where it cannot tell them apart (in profile, which leg is forward); the limb head never
-sees one silhouette with two targets, so its limbs are one body's or the other's, and the
-tracker takes the member that agrees with the heading it decided (tracker/hypotheses.py,
-"Limbs").
+bodies where it cannot tell them apart (in profile, which leg is forward); the limb head sees
+one silhouette with one target except near its rule's boundary (for "facing", exactly in
+profile), so its limbs are one body's or the other's, and the tracker takes the member that
+agrees with the heading it decided (tracker/hypotheses.py, "Limbs").
 """
 from __future__ import annotations
 
@@ -258,6 +258,8 @@ def save_pose_model(path: str | Path, model: PoseModel) -> None:
     if model.mixture is not None:
         save_model(path, _mixture_arrays(model))
         return
+    if model.limb_head is not None:
+        raise PoseModelError("only a mixture model can carry a limb head")
     arrays = {
         **model.codebook.to_arrays(), **model.settings.to_arrays(),
         "model_kind": np.str_(MODEL_KIND),
@@ -289,6 +291,8 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
             return model
         if str(a.get("model_kind", "")) != MODEL_KIND:
             raise PoseModelError(f"{path}: not a silhouette-pose model file")
+        if any(name.startswith("limbs_") for name in a.parts):
+            raise PoseModelError(f"{path}: invalid model: only a mixture can carry a limb head")
         settings = DescriptorSettings.from_arrays(a)
         codebook = Codebook.from_arrays(a)
         model = PoseModel(
@@ -365,7 +369,9 @@ def _validate(path: Path, m: PoseModel) -> None:
 # relevance = 0..R-1), so the generic checks of regressor.model_file apply to them, and the
 # rest under "mixture_": expert_offsets (E+1,) rows of each expert in centres/coef,
 # expert_width (E,), expert_intercept (E, 55), partition_centres (E, dZ), the gate's centres
-# (G, k*D) float16, width, feature_mean/std (G,) and weights (G+1, E), top_experts.
+# (G, k*D) float16, width, feature_mean/std (G,) and weights (G+1, E), top_experts; and,
+# with a limb head, under "limbs_": coef (R, 55) float32 (rows as coef's), expert_intercept
+# (E, 55), angle_centre_deg (53,), canonical_direction (55,).
 
 
 def _mixture_arrays(model: PoseModel) -> dict:
@@ -435,6 +441,10 @@ def _limb_head_from_arrays(a, n_rows: int, n_experts: int) -> LimbHead | None:
     if not all(np.isfinite(x).all() for x in (head.coef, head.expert_intercept,
                                                head.angle_centre_deg, head.canonical_direction)):
         raise ValueError("limb head has non-finite values")
+    if np.any(np.abs(head.angle_centre_deg) > 180.0) \
+            or not abs(np.linalg.norm(head.canonical_direction) - 1.0) < 1e-6:
+        raise ValueError("limb head centres must be angles in [-180, 180] and its direction a "
+                         "unit vector")
     return head
 
 
@@ -492,6 +502,8 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         limb_head = _limb_head_from_arrays(a, len(coef), E)
     except ValueError as exc:
         fail(str(exc))
+    if limb_head is not None and "canonical_direction" in a:
+        fail("a model fitted on canonical members takes no limb head")
     return PoseModel(
         settings=settings, codebook=codebook, stack_depth=k, transform=str(a["transform"]),
         basis="gaussian", width=float(a["width"]), centres=centres,

@@ -72,6 +72,11 @@ def main(argv=None) -> int:
     ap.add_argument("--components", type=int, default=MixtureOptions.components,
                     help="principal directions the stacked input is projected on (0: none)")
     args = ap.parse_args(argv)
+    if args.limb_head not in (None, "none"):
+        if args.regressor != "mixture":
+            ap.error("--limb-head needs the mixture regressor")
+        if args.canonical != "none":
+            ap.error("a model fitted on canonical members (--canonical) takes no --limb-head")
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     start = time.perf_counter()
     try:
@@ -146,9 +151,14 @@ def main(argv=None) -> int:
             probe = stack_frames(frame_descriptors(X, model.transform, layouts,
                                                    model.layout_weight),
                                  model.stack_depth, sequence_ids=data.sequence)[rows]
-            diff = np.abs(wrap_deg(load_pose_model(args.out).predict_batch(probe)[:, 2:]
+            loaded = load_pose_model(args.out)
+            diff = np.abs(wrap_deg(loaded.predict_batch(probe)[:, 2:]
                                    - model.predict_batch(probe)[:, 2:]))
             report["file_round_trip_max_deg"] = round(float(diff.max()), 3)
+            if model.limb_head is not None:
+                diff = np.abs(wrap_deg(loaded.predict_limbs(probe)[:, 2:]
+                                       - model.predict_limbs(probe)[:, 2:]))
+                report["limb_head_round_trip_max_deg"] = round(float(diff.max()), 3)
     except (OSError, DatasetError, ValueError) as exc:
         print(f"train: error: {exc}", file=sys.stderr)
         return 1

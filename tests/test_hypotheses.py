@@ -197,24 +197,28 @@ def test_pick_member_takes_the_member_nearer_the_heading():
 
 
 def test_body_angles_follow_the_limb_heads_member_that_agrees_with_the_decided_heading():
-    """The own pose averages the two bodies (its limbs are zero); the limb head gives the
-    other body's member (the flip of the truth). The chain decides the heading (30 deg, the
-    evidence is for it), so the output's body angles are the truth's, not the member's."""
+    """The body faces 150 deg. The regressor's own pose reads the flip's heading (30 deg) and
+    averages the two bodies (its limbs are zero); the limb head gives the canonical member
+    (the flip, facing the camera's half). The evidence is for the flip of the own pose, so the
+    chain decides 150: the output's body angles must be the body's, i.e. the member's flip
+    (picking by the own pose's heading would give the member's mirrored limbs)."""
     rng = np.random.default_rng(6)
-    body = _pose(30.0, norm=0.9, seed=9)
-    averaged = np.concatenate([body[:2], np.zeros(53)])
-    member = front_back_flip(body)
+    body = _pose(150.0, norm=0.9, seed=9)
+    member = front_back_flip(body)                                    # heading 30
+    averaged = np.concatenate([member[:2], np.zeros(53)])
     with_head = FrontBackTracker(_factory, FPS, limb_filter_factory=_factory)
     without = FrontBackTracker(_factory, FPS, limb_filter_factory=_factory)
     for _ in range(60):
         noise = np.concatenate([[0, 0], rng.normal(0, 1, 53)])
         h = _with_flips((averaged + noise)[None], np.ones(1), member + noise)
-        h = Hypotheses(h.poses, np.array([0.0, -4.0]), h.raw, h.limbs)
+        h = Hypotheses(h.poses, np.array([-4.0, 0.0]), h.raw, h.limbs)
         a, b = with_head.step(h), without.step(Hypotheses(h.poses, h.log_evidence, h.raw))
-    assert abs(wrap_deg(pose_angles(a.filtered)[0] - 30.0)) < 5.0
+    assert abs(wrap_deg(pose_angles(a.filtered)[0] - 150.0)) < 5.0
     assert np.abs(wrap_deg(a.filtered[2:] - body[2:])).mean() < 2.0
+    assert np.abs(wrap_deg(a.filtered[2:] - member[2:])).mean() > 10.0
     assert np.abs(b.filtered[2:]).mean() < 2.0 < np.abs(body[2:]).mean()
     smoothed = with_head.smoothed()
+    assert abs(wrap_deg(pose_angles(smoothed[-1])[0] - 150.0)) < 5.0
     assert np.abs(wrap_deg(smoothed[-10:, 2:] - body[2:])).mean() < 2.0
 
 

@@ -131,7 +131,8 @@ def test_inconsistent_mixture_file_is_refused(tmp_path):
 def _with_limb_head(model, x, seed=5):
     """The model's mixture refitted with a limb head as training does: partitioned on the
     inputs, one joint fit on [own targets, canonical members' targets] split back
-    (tracker.offline.training.split_expert_outputs). Returns (mixture, head, members)."""
+    (tracker.offline.training.split_expert_outputs), the head's angles about non-zero centres.
+    Returns (mixture, head, members: the head's regression targets (N, 55))."""
     from regressor.pose_model import LimbHead
     from sequences.pose_vector import canonical_member
     from tracker.offline.training import split_expert_outputs
@@ -141,7 +142,7 @@ def _with_limb_head(model, x, seed=5):
                                np.eye(55)[0])
     joint = MixtureRegressor(n_experts=3, **SMALL).fit(x, np.hstack([own, members]), x)
     coef, intercept = split_expert_outputs(joint, 55)
-    return joint, LimbHead(coef, intercept, np.zeros(53), np.eye(55)[0]), members
+    return joint, LimbHead(coef, intercept, rng.uniform(-30, 30, 53), np.eye(55)[0]), members
 
 
 def test_a_joint_fit_splits_into_the_own_head_and_the_limb_head():
@@ -162,34 +163,54 @@ def test_a_joint_fit_splits_into_the_own_head_and_the_limb_head():
 
 
 def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
+    from regressor.angles import wrap_deg
     from regressor.model_file import save_model
     model, x = _mixture_model()
-    model.mixture, model.limb_head, _ = _with_limb_head(model, x)
+    model.mixture, model.limb_head, members = _with_limb_head(model, x)
     assert _mixture_model()[0].predict_limbs(x[:3]) is None        # no head, no limbs
+    # Each row's limbs: the head's own fit (the mixture fitted on the members alone, same
+    # experts), its centres added.
+    alone = MixtureRegressor(n_experts=3, **SMALL).fit(x, members, x)
+    expected = alone.predict(x[:50])
+    expected[:, 2:] = wrap_deg(expected[:, 2:] + model.limb_head.angle_centre_deg)
+    np.testing.assert_allclose(model.predict_limbs(x[:50]), expected, atol=1e-6)
     path = tmp_path / "mixture.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)
     np.testing.assert_allclose(loaded.limb_head.canonical_direction, np.eye(55)[0])
-    a, b = loaded.predict_limbs(x[:20]), model.predict_limbs(x[:20])
-    assert a.shape == (20, 55) and np.abs(a - b).max() < 0.02 * np.abs(b).max()
-    # Each row's limbs are its top expert's with the head's weights, the head's centres added.
-    e = int(model.mixture.predict_proba(x[:1]).argmax())
-    expert, head = model.mixture.experts_[e], model.limb_head
-    start = sum(len(x.centres_) for x in model.mixture.experts_[:e])
-    from regressor.basis import gaussian_design
-    manual = (gaussian_design(x[:1], expert.centres_, expert.width_)
-              @ head.coef[start:start + len(expert.centres_)] + head.expert_intercept[e])[0]
-    np.testing.assert_allclose(model.predict_limbs(x[:1])[0, :2], manual[:2])
+    a = loaded.predict_limbs(x[:50])                        # float16 centres, float32 weights
+    assert a.shape == (50, 55)
+    assert np.abs(wrap_deg(a[:, 2:] - expected[:, 2:])).max() < 0.02 * np.abs(members).max()
     with np.load(path, allow_pickle=False) as z:
         raw = {k: z[k] for k in z.files if k not in ("format_version", "checksum")}
     for broken, match in (({"limbs_coef": raw["limbs_coef"][:-1]}, "limb head shapes"),
                           ({"limbs_coef": None}, "limb head is incomplete"),
                           ({"limbs_expert_intercept": raw["limbs_expert_intercept"][:2]},
-                           "limb head shapes")):
+                           "limb head shapes"),
+                          ({"limbs_canonical_direction": 2 * np.eye(55)[0]}, "unit vector"),
+                          ({"canonical_direction": np.eye(55)[0]}, "takes no limb head")):
         parts = {k: v for k, v in {**raw, **broken}.items() if v is not None}
         save_model(path, parts)                                   # re-checksummed
         with pytest.raises(PoseModelError, match=match):
             load_pose_model(path)
+
+
+def test_only_a_mixture_carries_a_limb_head(tmp_path):
+    from regressor.model_file import save_model
+    from regressor.pose_model import DEFAULT_MODEL_PATH
+    mixture, x = _mixture_model()
+    _, head, _ = _with_limb_head(mixture, x)
+    single = load_pose_model(DEFAULT_MODEL_PATH.parent / "per_frame_model.npz")
+    single.limb_head = head
+    with pytest.raises(PoseModelError, match="only a mixture"):
+        save_pose_model(tmp_path / "single.npz", single)
+    single.limb_head = None
+    save_pose_model(tmp_path / "single.npz", single)
+    with np.load(tmp_path / "single.npz", allow_pickle=False) as z:
+        raw = {k: z[k] for k in z.files if k not in ("format_version", "checksum")}
+    save_model(tmp_path / "single.npz", {**raw, "limbs_coef": np.zeros((3, 7), np.float32)})
+    with pytest.raises(PoseModelError, match="only a mixture"):
+        load_pose_model(tmp_path / "single.npz")
 
 
 def test_single_rvm_model_still_gives_one_hypothesis():

@@ -557,11 +557,12 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               **{k: round(v, 3) for k, v in facts.items()}}
     if limb_head is not None:
         # The head's member picked by the true heading: what the tracker gets when its chain
-        # decides the heading right.
+        # decides the heading right (an upper bound, hence the name).
         from tracker.hypotheses import pick_member
         members = pick_member(model.predict_limbs(Xs[val_rows]),
                               np.degrees(np.arctan2(truth[val_rows, 1], truth[val_rows, 0])))
-        report["validation_limb_head"] = angle_measures(members, truth[val_rows], centre)
+        report["validation_limb_head_at_true_heading"] = angle_measures(members, truth[val_rows],
+                                                                        centre)
     return model, report
 
 
@@ -574,7 +575,14 @@ def _rule_direction(rule: str, pose: np.ndarray, seed: int) -> np.ndarray:
 def split_expert_outputs(mixture, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
     """Cut a fitted mixture of DampedKernelRegressor experts back to its first n_outputs
     outputs; returns the rest: (coef (R, K - n_outputs) with the experts' rows concatenated
-    in order, intercepts (E, K - n_outputs))."""
+    in order, intercepts (E, K - n_outputs)). Only for ridge experts: their centres depend on
+    the inputs alone, so the cut experts are what fitting the first outputs alone gives."""
+    from regressor.mixture import DampedKernelRegressor
+    if not all(isinstance(e, DampedKernelRegressor) for e in mixture.experts_):
+        raise ValueError("only a mixture of DampedKernelRegressor experts can be split")
+    if mixture.n_outputs_ <= n_outputs:
+        raise ValueError(f"the mixture has {mixture.n_outputs_} outputs, not more than "
+                         f"{n_outputs}")
     coefs, intercepts = [], []
     for expert in mixture.experts_:
         coefs.append(expert.coef_[:, n_outputs:])
