@@ -245,7 +245,7 @@ class _Frame:
     evidence: np.ndarray         # (K,) log
     link: np.ndarray | None      # (K, K) log A + innovation log-likelihoods, None at t = 0
     heading_variance: np.ndarray  # (K,) deg^2 of travel-fused headings, NaN = the filter's
-    raw: np.ndarray              # (55,) the regressor's own pose (the limb filter's input)
+    raw: np.ndarray              # (55,) the regressor's own pose (limb input without a head)
     limbs: np.ndarray | None     # (55,) the limb head's pose (before picking), or None
 
 
