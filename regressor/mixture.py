@@ -306,13 +306,15 @@ class MixtureRegressor(Estimator):
         self._check_fitted("gate_")
         return self.gate_.predict_proba(X)
 
-    def predict_hypotheses(self, X, m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def predict_hypotheses(self, X, m: int | None = None, proba: np.ndarray | None = None
+                           ) -> tuple[np.ndarray, np.ndarray]:
         """The m most probable experts' poses for each row: (poses (N, m, K), probabilities
-        (N, m), most probable first; probabilities are the gate's, renormalised over the m)."""
+        (N, m), most probable first; probabilities are the gate's, renormalised over the m).
+        proba: the gate's predict_proba(X) (N, E) when the caller has it already."""
         self._check_fitted("gate_")
         X = validate_X(X, self.n_features_in_)
         m = min(self.top_experts if m is None else int(m), len(self.experts_))
-        P = self.gate_.predict_proba(X)
+        P = self.gate_.predict_proba(X) if proba is None else proba
         order = np.argsort(-P, axis=1, kind="stable")[:, :m]
         prob = np.take_along_axis(P, order, axis=1)
         prob = prob / np.maximum(prob.sum(axis=1, keepdims=True), 1e-300)

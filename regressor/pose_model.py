@@ -143,7 +143,10 @@ class PoseModel:
 
     def predict_batch(self, stacked: np.ndarray) -> np.ndarray:
         """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D)."""
-        X = self._stacked(stacked)
+        return self._regress(self._stacked(stacked))
+
+    def _regress(self, X: np.ndarray) -> np.ndarray:
+        """Raw poses (N, 55) from the regressor's input (N, input_length) (:meth:`_stacked`)."""
         if self.mixture is not None:
             Y = self.mixture.predict(X)
         elif self.basis == "gaussian":
@@ -168,22 +171,42 @@ class PoseModel:
         """Up to m raw poses per row with probabilities: (poses (N, m', 55), probabilities
         (N, m')), most probable first, from stacked descriptors (N, k*D). A single regressor
         gives one hypothesis with probability 1."""
-        X = self._stacked(stacked)
-        if self.mixture is None:
-            return self.predict_batch(X)[:, None], np.ones((len(X), 1))
-        poses, prob = self.mixture.predict_hypotheses(X, m)
-        poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
+        poses, prob, _ = self._hypotheses(self._stacked(stacked), m, with_limbs=False)
         return poses, prob
 
     def predict_limbs(self, stacked: np.ndarray) -> np.ndarray | None:
         """The limb head's poses (N, 55) from stacked descriptors (N, k*D): for each row, the
         gate's most probable expert with the head's weights, a canonical member (either body
         of the silhouette; its heading picks which). None without a limb head."""
-        head = self.limb_head
-        if head is None or self.mixture is None:
+        if self.limb_head is None or self.mixture is None:
             return None
         X = self._stacked(stacked)
-        top = self.mixture.predict_proba(X).argmax(axis=1)
+        return self._limbs(X, self.mixture.predict_proba(X).argmax(axis=1))
+
+    def predict_hypotheses_and_limbs(self, stacked: np.ndarray, m: int = 2
+                                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """:meth:`predict_hypotheses` and :meth:`predict_limbs` in one pass (the tracker's
+        per-frame call): the input is projected and the gate evaluated once. Returns (poses
+        (N, m', 55), probabilities (N, m'), limbs (N, 55) or None)."""
+        return self._hypotheses(self._stacked(stacked), m, with_limbs=True)
+
+    def _hypotheses(self, X: np.ndarray, m: int, with_limbs: bool
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """(poses, probabilities, limbs or None) from the regressor's input X (N,
+        input_length); limbs only when asked and the model has a head."""
+        if self.mixture is None:
+            return self._regress(X)[:, None], np.ones((len(X), 1)), None
+        gate = self.mixture.predict_proba(X)
+        poses, prob = self.mixture.predict_hypotheses(X, m, proba=gate)
+        poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
+        limbs = (self._limbs(X, gate.argmax(axis=1))
+                 if with_limbs and self.limb_head is not None else None)
+        return poses, prob, limbs
+
+    def _limbs(self, X: np.ndarray, top: np.ndarray) -> np.ndarray:
+        """The limb head's poses (N, 55) from the regressor's input X (N, input_length), each
+        row by its expert top (N,) int."""
+        head = self.limb_head
         offsets = np.cumsum([0] + [len(e.centres_) for e in self.mixture.experts_])
         out = np.empty((len(X), POSE_DIM))
         for e in np.unique(top):

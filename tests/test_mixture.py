@@ -164,7 +164,7 @@ def test_a_joint_fit_splits_into_the_own_head_and_the_limb_head():
 
 def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
     from regressor.angles import wrap_deg
-    from regressor.model_file import save_model
+    from regressor.model_file import load_model, save_model
     model, x = _mixture_model()
     model.mixture, model.limb_head, members = _with_limb_head(model, x)
     assert _mixture_model()[0].predict_limbs(x[:3]) is None        # no head, no limbs
@@ -174,6 +174,12 @@ def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
     expected = alone.predict(x[:50])
     expected[:, 2:] = wrap_deg(expected[:, 2:] + model.limb_head.angle_centre_deg)
     np.testing.assert_allclose(model.predict_limbs(x[:50]), expected, atol=1e-6)
+    # the tracker's one-pass call gives the same as the two separate ones
+    poses, prob, limbs = model.predict_hypotheses_and_limbs(x[:50], 2)
+    p0, w0 = model.predict_hypotheses(x[:50], 2)
+    np.testing.assert_array_equal(poses, p0)
+    np.testing.assert_array_equal(prob, w0)
+    np.testing.assert_array_equal(limbs, model.predict_limbs(x[:50]))
     path = tmp_path / "mixture.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)
@@ -181,8 +187,7 @@ def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
     a = loaded.predict_limbs(x[:50])                        # float16 centres, float32 weights
     assert a.shape == (50, 55)
     assert np.abs(wrap_deg(a[:, 2:] - expected[:, 2:])).max() < 0.02 * np.abs(members).max()
-    with np.load(path, allow_pickle=False) as z:
-        raw = {k: z[k] for k in z.files if k not in ("format_version", "checksum")}
+    raw = dict(load_model(path).parts)
     for broken, match in (({"limbs_coef": raw["limbs_coef"][:-1]}, "limb head shapes"),
                           ({"limbs_coef": None}, "limb head is incomplete"),
                           ({"limbs_expert_intercept": raw["limbs_expert_intercept"][:2]},
@@ -196,7 +201,7 @@ def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
 
 
 def test_only_a_mixture_carries_a_limb_head(tmp_path):
-    from regressor.model_file import save_model
+    from regressor.model_file import load_model, save_model
     from regressor.pose_model import DEFAULT_MODEL_PATH
     mixture, x = _mixture_model()
     _, head, _ = _with_limb_head(mixture, x)
@@ -206,8 +211,7 @@ def test_only_a_mixture_carries_a_limb_head(tmp_path):
         save_pose_model(tmp_path / "single.npz", single)
     single.limb_head = None
     save_pose_model(tmp_path / "single.npz", single)
-    with np.load(tmp_path / "single.npz", allow_pickle=False) as z:
-        raw = {k: z[k] for k in z.files if k not in ("format_version", "checksum")}
+    raw = dict(load_model(tmp_path / "single.npz").parts)
     save_model(tmp_path / "single.npz", {**raw, "limbs_coef": np.zeros((3, 7), np.float32)})
     with pytest.raises(PoseModelError, match="only a mixture"):
         load_pose_model(tmp_path / "single.npz")

@@ -72,7 +72,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from regressor.angles import heading_norm
-from sequences.pose_vector import front_back_flip
+from sequences.pose_vector import front_back_flip, heading_deg
 from .travel import fuse_with_prior, travel_likelihood
 
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
@@ -196,7 +196,8 @@ def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS) ->
     """The hypotheses of one frame from a stacked descriptor (k*D,): the estimator's
     ``predict_hypotheses(stacked (N, k*D), n_experts) -> (poses (N, m, 55), probabilities
     (N, m))`` if it has one (regressor.pose_model.PoseModel: a mixture's top experts, or a
-    single regressor's one pose), else its ``predict``; each pose and its front/back flip."""
+    single regressor's one pose; with ``predict_hypotheses_and_limbs``, also its limb head's
+    pose), else its ``predict``; each pose and its front/back flip."""
     return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts)[0]
 
 
@@ -204,9 +205,10 @@ def propose_batch(estimator, stacked: np.ndarray,
                   n_experts: int = DEFAULT_EXPERTS) -> list[Hypotheses]:
     """:func:`propose` for stacked descriptors (N, k*D) at once (offline evaluation)."""
     if hasattr(estimator, "predict_hypotheses"):
-        poses, gate = estimator.predict_hypotheses(stacked, n_experts)
-        limbs = (estimator.predict_limbs(stacked) if hasattr(estimator, "predict_limbs")
-                 else None)
+        if hasattr(estimator, "predict_hypotheses_and_limbs"):
+            poses, gate, limbs = estimator.predict_hypotheses_and_limbs(stacked, n_experts)
+        else:
+            (poses, gate), limbs = estimator.predict_hypotheses(stacked, n_experts), None
         if limbs is None:
             limbs = [None] * len(poses)
         return [_with_flips(np.asarray(p, float), np.asarray(g, float), lb)
@@ -321,8 +323,7 @@ class FrontBackTracker:
             if self.limb_filter is None:
                 self.limb_filter = self.limb_filter_factory(self.fps)
             source = (hypotheses.raw if hypotheses.limbs is None
-                      else pick_member(hypotheses.limbs, np.degrees(np.arctan2(filtered[1],
-                                                                             filtered[0]))))
+                      else pick_member(hypotheses.limbs, heading_deg(filtered[None])[0]))
             # The limb filter measures the decided heading, not the source's: its R couples
             # heading and joints, and a heading innovation would pull the limbs.
             source = with_body_angles(filtered, source)
@@ -386,7 +387,7 @@ class FrontBackTracker:
             raws = np.array([frame.raw for frame in self.history])
             if all(frame.limbs is not None for frame in self.history):
                 raws = pick_member(np.array([frame.limbs for frame in self.history]),
-                                   np.degrees(np.arctan2(out[:, 1], out[:, 0])))
+                                   heading_deg(out))
             raws = with_body_angles(out, raws)          # the decided heading, as online
             out = with_body_angles(out, self.limb_filter_factory(self.fps).rts_smooth(raws))
         return out
