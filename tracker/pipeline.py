@@ -216,8 +216,9 @@ class PoseTracker:
     frame -> people (default SilhouetteExtractor); associator: people -> track ids (default
     Associator); filter_factory: fps -> a PoseFilter per front/back hypothesis of a track
     (default kalman_factory(estimator, settings), with the body angles from
-    limb_kalman_factory's filter; a custom one gives the whole pose: filter_factories). The frame size (height, width) is taken from the
-    background given to prime() or the first frame. With the default extractor, a colourless
+    limb_kalman_factory's filter; a custom one gives the whole pose: filter_factories). The
+    frame size (height, width) is taken from the background given to prime() or the first
+    frame. With the default extractor, a colourless
     background (black-and-white video) turns shadow detection off (see prime()).
     """
 

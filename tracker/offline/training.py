@@ -29,7 +29,7 @@ from regressor.stacking import stack_frames
 from sequences.dataset import Dataset
 from sequences.measures import body_angle_error, constant_error, skill, top_angle_correlation
 from sequences.mask_noise import MaskNoise, degrade_all
-from sequences.pose_vector import canonical_member, flip_odd_part
+from sequences.pose_vector import canonical_member, flip_odd_part, heading_deg
 
 _CHUNK = 500                     # masks per worker task
 _SHARED: dict = {}               # masks handed to forked workers (copy-on-write, not pickled)
@@ -484,10 +484,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                   / max(block_spread(layouts[fit]), 1e-12))
     direction = truth = None
     if options.canonical != "none":
-        direction = _rule_direction(options.canonical, dataset.pose[fit], options.seed)
-        truth = canonical_member(dataset.pose, direction)
-        log(f"canonical members: {np.mean(np.any(truth != dataset.pose, axis=1)):.1%} of rows "
-            "flipped")
+        direction, truth = _canonical_targets(options.canonical, dataset.pose, fit,
+                                              options.seed, "canonical members", log)
     val, Xs, centre, Y = _training_arrays(dataset, X, options.transform, options.stack_depth,
                                           layouts if grid else None, weight, pose=truth)
     truth = dataset.pose if truth is None else truth
@@ -513,12 +511,11 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     if options.limb_head != "none":
         # The same experts (centres depend on the inputs only) with a second set of weights:
         # one fit on both target sets, split afterwards (ridge columns are independent).
-        head_direction = _rule_direction(options.limb_head, dataset.pose[fit], options.seed)
-        head_truth = canonical_member(dataset.pose, head_direction)
+        head_direction, head_truth = _canonical_targets(
+            options.limb_head, dataset.pose, fit, options.seed,
+            f"limb head ({options.limb_head})", log)
         head_centre = angle_centres(head_truth[~val])
         targets = np.hstack([Y, regression_targets(head_truth, head_centre)])
-        flipped = np.mean(np.any(head_truth != dataset.pose, axis=1))
-        log(f"limb head ({options.limb_head}): {flipped:.1%} of rows flipped")
     mixture.fit(Xin[train_rows], targets[train_rows], Z[train_rows], log=log)
     limb_head = None
     if head_truth is not None:
@@ -559,17 +556,22 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         # The head's member picked by the true heading: what the tracker gets when its chain
         # decides the heading right (an upper bound, hence the name).
         from tracker.hypotheses import pick_member
-        members = pick_member(model.predict_limbs(Xs[val_rows]),
-                              np.degrees(np.arctan2(truth[val_rows, 1], truth[val_rows, 0])))
+        members = pick_member(model.predict_limbs(Xs[val_rows]), heading_deg(truth[val_rows]))
         report["validation_limb_head_at_true_heading"] = angle_measures(members, truth[val_rows],
                                                                         centre)
     return model, report
 
 
-def _rule_direction(rule: str, pose: np.ndarray, seed: int) -> np.ndarray:
-    """The canonical_member direction (55,) of a CANONICAL_RULES rule ("limbs" or "facing")
-    for training poses (N, 55)."""
-    return canonical_direction(pose, seed=seed) if rule == "limbs" else np.eye(POSE_DIM)[0]
+def _canonical_targets(rule: str, pose: np.ndarray, fit: np.ndarray, seed: int, what: str,
+                       log: Callable[[str], None]) -> tuple[np.ndarray, np.ndarray]:
+    """(the canonical_member direction (55,) of a CANONICAL_RULES rule, "limbs" (learned on
+    the fitted rows ``fit`` (N,) bool) or "facing"; every pose's member (N, 55)), logging how
+    many rows the rule flips under the label ``what``."""
+    direction = (canonical_direction(pose[fit], seed=seed) if rule == "limbs"
+                 else np.eye(POSE_DIM)[0])
+    members = canonical_member(pose, direction)
+    log(f"{what}: {np.mean(np.any(members != pose, axis=1)):.1%} of rows flipped")
+    return direction, members
 
 
 def split_expert_outputs(mixture, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
