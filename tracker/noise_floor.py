@@ -44,7 +44,9 @@ MAX_EXCESS_SPECKS = 0.05
 #: Foreground allowed, as a multiple of what the ladder's top rung leaves.
 MAX_FOREGROUND_GROWTH = 2.0
 
-_FOREGROUND_LEVEL = 200          # MOG2: 255 foreground, 127 shadow, 0 background
+#: MOG2 marks foreground 255, shadow 127 and background 0: above this is foreground proper
+#: (the silhouette extractor's threshold too).
+FOREGROUND_LEVEL = 200
 _OPEN_KERNEL = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
 
 
@@ -54,7 +56,7 @@ def foreground_counts(model, frames: Sequence[np.ndarray]) -> tuple[int, int]:
     Specks are foreground pixels a 3 px elliptical opening removes, solid the rest."""
     specks = solid = 0
     for frame in frames:
-        foreground = (model.apply(frame, learningRate=0.0) > _FOREGROUND_LEVEL).astype(np.uint8)
+        foreground = (model.apply(frame, learningRate=0.0) > FOREGROUND_LEVEL).astype(np.uint8)
         kept = int(cv2.morphologyEx(foreground, cv2.MORPH_OPEN, _OPEN_KERNEL).sum())
         specks += int(foreground.sum()) - kept
         solid += kept

@@ -14,11 +14,9 @@ import numpy as np
 
 from regressor.errors import SilhouettePoseError
 from .background import ClipBackground, clean_plate, clip_background, frame_gain
-from .noise_floor import choose_var_min
+from .noise_floor import FOREGROUND_LEVEL as _FOREGROUND_LEVEL, choose_var_min
 
-# MOG2 marks foreground 255 and shadow 127; anything above this threshold is foreground proper.
-_FOREGROUND_LEVEL = 200
-_SHADOW_LEVEL = 127
+_SHADOW_LEVEL = 127              # MOG2's mark for shadow (foreground: _FOREGROUND_LEVEL)
 # A global brightness gain further than this from 1 is undone before subtraction.
 _MIN_GAIN_CHANGE = 0.03
 # OpenCV MOG2's default cap on a pixel's variance (grey levels squared).
