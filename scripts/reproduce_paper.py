@@ -131,6 +131,9 @@ def main() -> None:
         "kernel_rvm": (RVMRegressor("gaussian", output_scale="common", **krvm), 1),
         "kernel_rvm_stacked": (RVMRegressor("gaussian", output_scale="common", **krvm), depth),
         "mixture_rvm": (MixtureRVM(expert="rvm", rvm_rows=len(X), **mix), 1),
+        # The mixture with the stacked input at the depth chosen above (the tracker's regressor
+        # sees stacked descriptors too), its experts and gate as chosen for one frame.
+        "mixture_rvm_stacked": (MixtureRVM(expert="rvm", rvm_rows=len(X), **mix), depth),
     }
     report = {"n_train": int(len(X)), "ground_truth_jitter": point_jitter(Y_test),
               "descriptor_transform": tname, "stack_depth": depth,

@@ -69,6 +69,9 @@ def main(argv=None) -> int:
                     help="also fit the experts on each pose's canonical member by this rule, "
                          "for the tracker's limbs (regressor.pose_model.LimbHead); default "
                          f"{MixtureOptions.limb_head}, none with --canonical")
+    ap.add_argument("--heading-index-rows", type=int, default=MixtureOptions.heading_index_rows,
+                    help="training rows kept for the nearest-neighbour heading "
+                         "(regressor.heading_index; 0: none)")
     ap.add_argument("--components", type=int, default=MixtureOptions.components,
                     help="principal directions the stacked input is projected on (0: none)")
     args = ap.parse_args(argv)
@@ -77,6 +80,8 @@ def main(argv=None) -> int:
             ap.error("--limb-head needs the mixture regressor")
         if args.canonical != "none":
             ap.error("a model fitted on canonical members (--canonical) takes no --limb-head")
+    if args.heading_index_rows < 0:
+        ap.error(f"--heading-index-rows must be >= 0, got {args.heading_index_rows}")
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     start = time.perf_counter()
     try:
@@ -132,6 +137,7 @@ def main(argv=None) -> int:
                                      partition=args.partition, layout_grid=args.layout_grid,
                                      components=args.components, canonical=args.canonical,
                                      limb_head=_limb_head(args),
+                                     heading_index_rows=args.heading_index_rows,
                                      **({"width_scale": args.width_scale}
                                         if args.width_scale != TrainingOptions.width_scale else {}))
             with threadpool_limits(args.workers):

@@ -19,6 +19,7 @@ import numpy as np
 
 from regressor.angles import POSE_DIM, pose_angles, wrap_deg
 from regressor.codebook import Codebook
+from regressor.heading_index import build_heading_index
 from regressor.descriptor import (DescriptorSettings, descriptors_for_masks,
                                   fit_codebook_for_masks)
 from regressor.layout import layouts_for_masks
@@ -384,7 +385,10 @@ class MixtureOptions:
     for no limb head; only for a model whose own targets are not canonical. "facing" was
     chosen on the five validation videos through ``track`` (filtered corr8 02_02 / 08_03 /
     05_02 / 09_04 / 02_05 without 0.489 / 0.646 / 0.014 / 0.309 / 0.328, with 0.613 / 0.702 /
-    0.014 / 0.313 / 0.335; 2026-12-01).
+    0.014 / 0.313 / 0.335; 2026-12-01). heading_index_*: the nearest-neighbour heading
+    (regressor.heading_index; rows 0: none): that many training rows drawn at random, their
+    first dims input components, k neighbours, used where the folded heading is within
+    limit_deg of facing the camera or its back (chosen there on the validation videos).
 
     Chosen on the validation trials (issue 9, one-off drivers on the cached training rows,
     correlation of the 8 most-moving angles over the 6 validation trials; kernel ridge on 2,000
@@ -412,6 +416,10 @@ class MixtureOptions:
     ambiguity_threshold: float = 0.5
     canonical: str = "none"
     limb_head: str = "facing"
+    heading_index_rows: int = 16000
+    heading_index_dims: int = 50
+    heading_index_k: int = 20
+    heading_index_limit_deg: float = 45.0
     seed: int = 0
 
 
@@ -521,6 +529,12 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     if head_truth is not None:
         coef, intercept = split_expert_outputs(mixture, POSE_DIM)
         limb_head = LimbHead(coef, intercept, head_centre, head_direction)
+    heading_index = None
+    if options.heading_index_rows:
+        heading_index = build_heading_index(
+            Xin[train_rows], heading_deg(dataset.pose[train_rows]), options.heading_index_rows,
+            options.heading_index_dims, options.heading_index_k,
+            options.heading_index_limit_deg, seed=options.seed)
     fit_seconds = time.perf_counter() - start
     log(f"  fitted in {fit_seconds:.1f} s")
     model = PoseModel(settings=settings, codebook=codebook, stack_depth=options.stack_depth,
@@ -530,11 +544,20 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                       measurement_covariance=np.eye(54), process_noise=np.ones(54),
                       mixture=mixture, layout_grid=grid, layout_weight=weight,
                       projection=projection, projection_mean=projection_mean,
-                      canonical_direction=direction, limb_head=limb_head)
+                      canonical_direction=direction, limb_head=limb_head,
+                      heading_index=heading_index)
     predicted = model.predict_batch(Xs[val_rows])
+    # R from the experts' own heading: its heading entry is mostly front/back confusions
+    # (which the tracker's chain, not the filter, handles); the index's heading commits to a
+    # side and would inflate it (validation videos through track: heading RMS 30.2 with that R,
+    # 27.9 with this one). The heading filter's q (tracker.pipeline.HEADING_Q_SCALE) was
+    # chosen with this R too.
+    model.heading_index = None
+    experts_own = model.predict_batch(Xs[val_rows])
+    model.heading_index = heading_index
     # A canonical model's error is measured against the canonical members, as its output is
     # the chain's hypothesis, not yet the decision.
-    R, facts = measurement_noise(predicted, truth[val_rows], options.ambiguity_threshold)
+    R, facts = measurement_noise(experts_own, truth[val_rows], options.ambiguity_threshold)
     model.measurement_covariance = R
     model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
     errors = np.abs(wrap_deg(pose_angles(predicted) - pose_angles(truth[val_rows])))

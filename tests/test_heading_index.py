@@ -1,0 +1,131 @@
+"""The nearest-neighbour heading (regressor.heading_index) and its place in a mixture model."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from regressor.heading_index import (HeadingIndex, build_heading_index, fold_heading_deg,
+                                     unfold_heading_deg, with_heading)
+from regressor.model_file import load_model, save_model
+from regressor.pose_model import PoseModelError, load_pose_model, save_pose_model
+from sequences.pose_vector import front_back_flip, heading_deg
+from tests.test_mixture import _mixture_model
+
+
+def test_fold_maps_a_heading_and_its_front_back_partner_to_one_value():
+    h = np.linspace(-179.5, 180.0, 720)
+    f = fold_heading_deg(h)
+    assert np.all(np.abs(f) <= 90.0)
+    np.testing.assert_allclose(f, fold_heading_deg(180.0 - h), atol=1e-9)
+    # The partner is the front/back flip's heading (sequences.pose_vector).
+    pose = np.zeros((len(h), 55))
+    pose[:, 0], pose[:, 1] = np.cos(np.radians(h)), np.sin(np.radians(h))
+    np.testing.assert_allclose(fold_heading_deg(heading_deg(front_back_flip(pose))), f, atol=1e-6)
+    # Front-side headings are their own fold; back-side ones unfold back to themselves.
+    np.testing.assert_allclose(unfold_heading_deg(f, h), np.where(h == 180.0, 180.0, h), atol=1e-9)
+
+
+def test_with_heading_keeps_each_poses_side_norm_and_angles():
+    rng = np.random.default_rng(0)
+    poses = rng.normal(0, 20, (6, 2, 55))
+    h = np.array([[10.0, 170.0], [-30.0, -150.0], [80.0, 100.0], [0.0, 180.0], [45, -45], [120, 60]])
+    norm = rng.uniform(0.2, 1.2, (6, 2))
+    poses[..., 0], poses[..., 1] = norm * np.cos(np.radians(h)), norm * np.sin(np.radians(h))
+    folded = np.array([20.0, -40.0, 70.0, 5.0, 30.0, -10.0])
+    out = with_heading(poses, folded)
+    got = heading_deg(out.reshape(-1, 55)).reshape(6, 2)
+    expected = unfold_heading_deg(folded[:, None], h)
+    np.testing.assert_allclose(got, expected, atol=1e-9)
+    assert np.all((np.abs(got) <= 90) == (np.abs(h) <= 90))          # each keeps its side
+    np.testing.assert_allclose(np.hypot(out[..., 0], out[..., 1]), norm, atol=1e-12)
+    np.testing.assert_array_equal(out[..., 2:], poses[..., 2:])
+
+
+def test_index_finds_the_heading_of_nearby_training_rows_and_stays_out_of_profile():
+    rng = np.random.default_rng(1)
+    # Inputs that encode the folded heading (a circle in two components) plus noise columns.
+    heading = rng.uniform(-180, 180, 4000)
+    f = np.radians(fold_heading_deg(heading))
+    X = np.column_stack([np.cos(2 * f), np.sin(2 * f), 0.01 * rng.normal(size=(4000, 3))])
+    index = build_heading_index(X, heading, rows=3000, dims=2, k=9, limit_deg=45.0)
+    assert index.inputs.shape == (3000, 2) and index.dims == 2
+    query = np.radians(np.array([-40.0, -5.0, 30.0, 60.0]))
+    Q = np.column_stack([np.cos(2 * query), np.sin(2 * query), np.zeros((4, 3))])
+    np.testing.assert_allclose(index.folded(Q), np.degrees(query), atol=2.0)
+    # Hypotheses on both sides get the neighbours' heading on their own side within the limit
+    # (|folded| < 45); near profile (60) the regressor's own heading is kept.
+    poses = np.zeros((4, 2, 55))
+    own = np.array([[-20.0, -160.0], [0.0, 180.0], [10.0, 170.0], [75.0, 105.0]])
+    poses[..., 0], poses[..., 1] = np.cos(np.radians(own)), np.sin(np.radians(own))
+    got = heading_deg(index.apply(poses, Q).reshape(-1, 55)).reshape(4, 2)
+    np.testing.assert_allclose(got[0], [-40.0, -140.0], atol=2.0)
+    np.testing.assert_allclose(np.abs(got[1]), [5.0, 175.0], atol=2.0)
+    np.testing.assert_allclose(got[2], [30.0, 150.0], atol=2.0)
+    np.testing.assert_allclose(got[3], own[3], atol=1e-9)
+
+
+def test_bad_index_settings_are_refused():
+    with pytest.raises(ValueError, match="heading index"):
+        build_heading_index(np.zeros((5, 3)), np.zeros(5), rows=5, dims=2, k=0)
+    with pytest.raises(ValueError, match="heading index"):
+        build_heading_index(np.zeros((5, 3)), np.zeros(5), rows=5, dims=2, k=3, limit_deg=120)
+
+
+def _indexed_model():
+    model, x = _mixture_model()
+    heading = np.degrees(np.arctan2(np.sin(x[:, 0]), np.cos(x[:, 0])))
+    model.heading_index = build_heading_index(x, heading, rows=400, dims=3, k=5,
+                                              limit_deg=90.0)
+    return model, x
+
+
+def test_mixture_model_with_an_index_round_trips_and_uses_it(tmp_path):
+    model, x = _indexed_model()
+    poses, prob = model.predict_hypotheses(x[:30], 2)
+    model_without = _mixture_model()[0]
+    own, _ = model_without.predict_hypotheses(x[:30], 2)
+    np.testing.assert_allclose(poses[..., 2:], own[..., 2:], atol=1e-9)   # limbs untouched
+    expected = with_heading(own, model.heading_index.folded(x[:30]))
+    np.testing.assert_allclose(poses[..., :2], expected[..., :2], atol=1e-9)
+    np.testing.assert_allclose(model.predict_batch(x[:30])[:, :2], poses[:, 0, :2], atol=1e-9)
+    path = tmp_path / "indexed.npz"
+    save_pose_model(path, model)
+    loaded = load_pose_model(path)
+    assert loaded.heading_index is not None and loaded.heading_index.k == 5
+    np.testing.assert_allclose(loaded.heading_index.folded_deg, model.heading_index.folded_deg,
+                               atol=1e-4)
+    a, _ = loaded.predict_hypotheses(x[:30], 2)
+    assert np.abs(heading_deg(a[:, 0]) - heading_deg(poses[:, 0])).max() < 1.0
+
+
+def test_a_broken_index_is_refused(tmp_path):
+    model, _ = _indexed_model()
+    path = tmp_path / "indexed.npz"
+    save_pose_model(path, model)
+    raw = {k: v for k, v in load_model(path).parts.items()}
+    for broken, match in (({"heading_index_k": None}, "heading index is incomplete"),
+                          ({"heading_index_inputs": raw["heading_index_inputs"][:, :0]},
+                           "heading index shapes"),
+                          ({"heading_index_folded_deg": raw["heading_index_folded_deg"][:-1]},
+                           "heading index shapes"),
+                          ({"heading_index_folded_deg": raw["heading_index_folded_deg"] + 200},
+                           "within \\+-90"),
+                          ({"heading_index_limit_deg": np.float64(0.0)}, "limit")):
+        parts = {k: v for k, v in {**raw, **broken}.items() if v is not None}
+        save_model(path, parts)                                    # re-checksummed
+        with pytest.raises(PoseModelError, match=match):
+            load_pose_model(path)
+
+
+def test_only_a_mixture_carries_an_index(tmp_path):
+    from regressor.pose_model import DEFAULT_MODEL_PATH
+    single = load_pose_model(DEFAULT_MODEL_PATH.parent / "per_frame_model.npz")
+    single.heading_index = HeadingIndex(np.zeros((3, 2)), np.zeros(3), 1)
+    with pytest.raises(PoseModelError, match="only a mixture"):
+        save_pose_model(tmp_path / "single.npz", single)
+    single.heading_index = None
+    save_pose_model(tmp_path / "single.npz", single)
+    raw = dict(load_model(tmp_path / "single.npz").parts)
+    save_model(tmp_path / "single.npz", {**raw, "heading_index_k": np.int64(3)})
+    with pytest.raises(PoseModelError, match="only a mixture"):
+        load_pose_model(tmp_path / "single.npz")
