@@ -149,7 +149,8 @@ class PoseModel:
         return self.predict_batch(np.asarray(stacked, dtype=np.float64)[None])[0]
 
     def predict_batch(self, stacked: np.ndarray) -> np.ndarray:
-        """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D)."""
+        """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D) (with a heading
+        index, its heading where it applies: the regressor's output as the tracker gets it)."""
         return self._regress(self._stacked(stacked))
 
     def _regress(self, X: np.ndarray) -> np.ndarray:
@@ -485,7 +486,11 @@ def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
         raise ValueError("heading index is incomplete")
     inputs = a["heading_index_inputs"].astype(np.float32)
     folded = a["heading_index_folded_deg"].astype(np.float64)
-    k, limit = int(a["heading_index_k"]), float(a["heading_index_limit_deg"])
+    k, limit = np.asarray(a["heading_index_k"]), np.asarray(a["heading_index_limit_deg"])
+    if k.shape != () or not np.issubdtype(k.dtype, np.integer) or limit.shape != () \
+            or not np.issubdtype(limit.dtype, np.floating):
+        raise ValueError("heading index k must be one integer and its limit one number")
+    k, limit = int(k), float(limit)
     if inputs.ndim != 2 or not 1 <= inputs.shape[1] <= input_length or len(inputs) < 1 \
             or folded.shape != (len(inputs),):
         raise ValueError("heading index shapes do not match the regressor's input")

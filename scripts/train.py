@@ -71,7 +71,7 @@ def main(argv=None) -> int:
                          f"{MixtureOptions.limb_head}, none with --canonical")
     ap.add_argument("--heading-index-rows", type=int, default=MixtureOptions.heading_index_rows,
                     help="training rows kept for the nearest-neighbour heading "
-                         "(regressor.heading_index; 0: none)")
+                         "(regressor.heading_index; needs --components >= 50; 0: none)")
     ap.add_argument("--components", type=int, default=MixtureOptions.components,
                     help="principal directions the stacked input is projected on (0: none)")
     args = ap.parse_args(argv)

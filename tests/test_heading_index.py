@@ -129,3 +129,35 @@ def test_only_a_mixture_carries_an_index(tmp_path):
     save_model(tmp_path / "single.npz", {**raw, "heading_index_k": np.int64(3)})
     with pytest.raises(PoseModelError, match="only a mixture"):
         load_pose_model(tmp_path / "single.npz")
+
+
+def test_neighbours_split_between_left_and_right_profile_leave_the_heading_alone():
+    # Half the neighbours near +88, half near -88: the median (~0) is supported by none.
+    index = HeadingIndex(np.zeros((10, 1)), np.r_[np.full(5, 88.0), np.full(5, -88.0)], k=10)
+    assert abs(index.folded(np.zeros((1, 1)))[0]) < 45.0
+    pose = np.zeros((1, 55))
+    pose[0, 0], pose[0, 1] = np.cos(np.radians(80.0)), np.sin(np.radians(80.0))
+    np.testing.assert_array_equal(index.apply(pose, np.zeros((1, 1))), pose)
+    # The same median with most neighbours facing is applied.
+    index = HeadingIndex(np.zeros((10, 1)), np.r_[np.full(7, 10.0), np.full(3, 88.0)], k=10)
+    assert heading_deg(index.apply(pose, np.zeros((1, 1))))[0] == pytest.approx(10.0)
+
+
+def test_long_queries_go_in_blocks_with_the_same_answer():
+    rng = np.random.default_rng(3)
+    index = HeadingIndex(rng.normal(size=(500, 4)), rng.uniform(-90, 90, 500), k=7)
+    X = rng.normal(size=(700, 4))
+    whole = index.folded(X)
+    np.testing.assert_array_equal(whole[600:], index.folded(X[600:]))
+    with pytest.raises(ValueError, match="integer k"):
+        HeadingIndex(np.zeros((3, 2)), np.zeros(3), 2.5)
+
+
+def test_a_non_integer_k_in_a_file_is_refused(tmp_path):
+    model, _ = _indexed_model()
+    path = tmp_path / "indexed.npz"
+    save_pose_model(path, model)
+    raw = dict(load_model(path).parts)
+    save_model(path, {**raw, "heading_index_k": np.float64(2.7)})
+    with pytest.raises(PoseModelError, match="one integer"):
+        load_pose_model(path)

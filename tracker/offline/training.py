@@ -388,7 +388,8 @@ class MixtureOptions:
     0.014 / 0.313 / 0.335; 2026-12-01). heading_index_*: the nearest-neighbour heading
     (regressor.heading_index; rows 0: none): that many training rows drawn at random, their
     first dims input components, k neighbours, used where the folded heading is within
-    limit_deg of facing the camera or its back (chosen there on the validation videos).
+    limit_deg of facing the camera or its back (chosen there on the validation videos); it
+    needs the projection (components >= heading_index_dims).
 
     Chosen on the validation trials (issue 9, one-off drivers on the cached training rows,
     correlation of the 8 most-moving angles over the 6 validation trials; kernel ridge on 2,000
@@ -531,6 +532,10 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         limb_head = LimbHead(coef, intercept, head_centre, head_direction)
     heading_index = None
     if options.heading_index_rows:
+        if projection is None or options.heading_index_dims > Xin.shape[1]:
+            raise ValueError(f"a heading index compares the first {options.heading_index_dims} "
+                             f"principal components of the input: it needs components >= that "
+                             f"(got {options.components}; or no index: heading_index_rows 0)")
         heading_index = build_heading_index(
             Xin[train_rows], heading_deg(dataset.pose[train_rows]), options.heading_index_rows,
             options.heading_index_dims, options.heading_index_k,
