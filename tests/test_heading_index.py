@@ -28,7 +28,8 @@ def test_fold_maps_a_heading_and_its_front_back_partner_to_one_value():
 def test_with_heading_keeps_each_poses_side_norm_and_angles():
     rng = np.random.default_rng(0)
     poses = rng.normal(0, 20, (6, 2, 55))
-    h = np.array([[10.0, 170.0], [-30.0, -150.0], [80.0, 100.0], [0.0, 180.0], [45, -45], [120, 60]])
+    h = np.array([[10.0, 170.0], [-30.0, -150.0], [80.0, 100.0], [0.0, 180.0], [45, -45],
+                  [120, 60]])
     norm = rng.uniform(0.2, 1.2, (6, 2))
     poses[..., 0], poses[..., 1] = norm * np.cos(np.radians(h)), norm * np.sin(np.radians(h))
     folded = np.array([20.0, -40.0, 70.0, 5.0, 30.0, -10.0])

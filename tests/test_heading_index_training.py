@@ -1,0 +1,69 @@
+"""train_mixture_model builds the heading index, and the filter's R ignores it (synthetic data)."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from regressor.codebook import Codebook
+from regressor.descriptor import DescriptorSettings
+from regressor.stacking import stack_frames
+from sequences.dataset import Dataset
+from tracker.offline.training import (MixtureOptions, frame_descriptors, measurement_noise,
+                                      train_mixture_model, validation_mask)
+
+
+def _dataset(seed=0):
+    rng = np.random.default_rng(seed)
+    trials = ["02_02", "08_03", "t1", "t2", "t3", "t4"]        # two validation trials
+    n = 100
+    heading = np.concatenate([np.cumsum(rng.normal(0, 4, n)) + rng.uniform(-180, 180)
+                              for _ in trials])
+    pose = np.zeros((len(heading), 55))
+    pose[:, 0], pose[:, 1] = np.cos(np.radians(heading)), np.sin(np.radians(heading))
+    pose[:, 2:] = rng.normal(0, 10, (len(heading), 53))
+    # Histograms that say the heading (non-negative, as the sqrt transform needs).
+    X = np.column_stack([1.2 + pose[:, 0], 1.2 + pose[:, 1], np.ones(len(heading)),
+                         np.ones(len(heading))]) + rng.uniform(0, 0.05, (len(heading), 4))
+    data = Dataset(masks=np.zeros((len(heading), 1, 1), bool), pose=pose,
+                   sequence=np.repeat(np.arange(len(trials)), n),
+                   frame=np.tile(np.arange(n), len(trials)),
+                   azimuth_deg=np.zeros(len(heading)), elevation_deg=np.zeros(len(heading)),
+                   trials=trials, trial_of_sequence=trials)
+    settings = DescriptorSettings()
+    codebook = Codebook(rng.random((4, settings.context_size)), 0.2)
+    return data, X, codebook, settings
+
+
+def _options(**kw):
+    return MixtureOptions(n_experts=2, n_centres=20, gate_centres=20, layout_grid=0,
+                          components=6, limb_head="none", heading_index_rows=150,
+                          heading_index_dims=4, heading_index_k=5, **kw)
+
+
+def test_training_builds_the_index_and_takes_R_from_the_experts_own_heading():
+    data, X, codebook, settings = _dataset()
+    model, _ = train_mixture_model(data, X, codebook, settings, _options(), 30.0,
+                                        log=lambda m: None)
+    index = model.heading_index
+    assert index is not None and index.inputs.shape == (150, 4) and index.k == 5
+    assert np.all(np.abs(index.folded_deg) <= 90)
+    # R: the experts' own heading on the validation rows, not the index's.
+    val = validation_mask(data)
+    Xs = stack_frames(frame_descriptors(X, model.transform), model.stack_depth,
+                      sequence_ids=data.sequence)[val]
+    model.heading_index = None
+    R, _ = measurement_noise(model.predict_batch(Xs), data.pose[val], 0.5)
+    np.testing.assert_allclose(model.measurement_covariance, R)
+
+
+def test_no_index_when_asked_and_none_without_a_projection():
+    data, X, codebook, settings = _dataset()
+    model, _ = train_mixture_model(data, X, codebook, settings,
+                                   replace(_options(), heading_index_rows=0), 30.0,
+                                   log=lambda m: None)
+    assert model.heading_index is None
+    with pytest.raises(ValueError, match="heading index"):
+        train_mixture_model(data, X, codebook, settings, replace(_options(), components=0),
+                            30.0, log=lambda m: None)
