@@ -139,9 +139,8 @@ def build_heading_index(inputs: np.ndarray, heading_deg: np.ndarray, rows: int, 
     dims) with their headings (N,) degrees, comparing the first ``dims`` columns."""
     inputs = np.asarray(inputs)
     n = len(inputs)
-    if n == 0 or dims < 1 or k < 1 or rows < 1 or not 0 < limit_deg <= 90:
-        raise ValueError("a heading index needs rows, dims and k >= 1, limit_deg in (0, 90] "
-                         "and some training rows")
+    if n == 0 or dims < 1 or rows < 1:        # k and the limit: HeadingIndex checks them
+        raise ValueError("a heading index needs rows and dims >= 1 and some training rows")
     pick = (np.arange(n) if n <= rows
             else np.sort(np.random.default_rng(seed).choice(n, rows, replace=False)))
     return HeadingIndex(inputs[pick, :dims], fold_heading_deg(np.asarray(heading_deg)[pick]), k,

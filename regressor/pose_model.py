@@ -477,13 +477,9 @@ def _heading_index_arrays(index: HeadingIndex | None) -> dict:
 def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
     """A file's heading index (None when it has none), checked against the regressor's input
     length; PoseModelError-ready ValueError otherwise."""
-    names = ("heading_index_inputs", "heading_index_folded_deg", "heading_index_k",
-             "heading_index_limit_deg")
-    present = [n in a for n in names]
-    if not any(present):
+    if not _has_parts(a, ("heading_index_inputs", "heading_index_folded_deg", "heading_index_k",
+                          "heading_index_limit_deg"), "heading index"):
         return None
-    if not all(present):
-        raise ValueError("heading index is incomplete")
     inputs = a["heading_index_inputs"].astype(np.float32)
     folded = a["heading_index_folded_deg"].astype(np.float64)
     k, limit = np.asarray(a["heading_index_k"]), np.asarray(a["heading_index_limit_deg"])
@@ -495,10 +491,19 @@ def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
             or folded.shape != (len(inputs),):
         raise ValueError("heading index shapes do not match the regressor's input")
     if not (np.isfinite(inputs).all() and np.isfinite(folded).all()) \
-            or np.any(np.abs(folded) > 90.0) or k < 1 or not 0.0 < limit <= 90.0:
-        raise ValueError("heading index must hold finite inputs, folded headings within +-90 "
-                         "degrees, k >= 1 and a limit in (0, 90]")
-    return HeadingIndex(inputs, folded, k, limit)
+            or np.any(np.abs(folded) > 90.0):
+        raise ValueError("heading index must hold finite inputs and folded headings within "
+                         "+-90 degrees")
+    return HeadingIndex(inputs, folded, k, limit)     # which checks k and the limit
+
+
+def _has_parts(a, names: tuple[str, ...], what: str) -> bool:
+    """Whether a model file holds the optional block of parts ``names`` (all or none of them;
+    a partial block is a PoseModelError-ready ValueError naming ``what``)."""
+    present = [n in a for n in names]
+    if any(present) and not all(present):
+        raise ValueError(f"{what} is incomplete")
+    return all(present)
 
 
 def _limb_head_from_arrays(a, n_rows: int, n_experts: int) -> LimbHead | None:
@@ -506,11 +511,8 @@ def _limb_head_from_arrays(a, n_rows: int, n_experts: int) -> LimbHead | None:
     n_rows centres and n_experts; PoseModelError-ready ValueError otherwise."""
     names = ("limbs_coef", "limbs_expert_intercept", "limbs_angle_centre_deg",
              "limbs_canonical_direction")
-    present = [n in a for n in names]
-    if not any(present):
+    if not _has_parts(a, names, "limb head"):
         return None
-    if not all(present):
-        raise ValueError("limb head is incomplete")
     head = LimbHead(*(a[n].astype(np.float64) for n in names))
     if head.coef.shape != (n_rows, POSE_DIM) \
             or head.expert_intercept.shape != (n_experts, POSE_DIM) \

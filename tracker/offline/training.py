@@ -549,17 +549,17 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                       measurement_covariance=np.eye(54), process_noise=np.ones(54),
                       mixture=mixture, layout_grid=grid, layout_weight=weight,
                       projection=projection, projection_mean=projection_mean,
-                      canonical_direction=direction, limb_head=limb_head,
-                      heading_index=heading_index)
-    predicted = model.predict_batch(Xs[val_rows])
+                      canonical_direction=direction, limb_head=limb_head)
     # R from the experts' own heading: its heading entry is mostly front/back confusions
     # (which the tracker's chain, not the filter, handles); the index's heading commits to a
     # side and would inflate it (validation videos through track: heading RMS 30.2 with that R,
     # 27.9 with this one). The heading filter's q (tracker.pipeline.HEADING_Q_SCALE) was
     # chosen with this R too.
-    model.heading_index = None
     experts_own = model.predict_batch(Xs[val_rows])
     model.heading_index = heading_index
+    # The model's output (predict_batch with the index): the index changes the heading only.
+    predicted = (experts_own if heading_index is None
+                 else heading_index.apply(experts_own, Xin[val_rows]))
     # A canonical model's error is measured against the canonical members, as its output is
     # the chain's hypothesis, not yet the decision.
     R, facts = measurement_noise(experts_own, truth[val_rows], options.ambiguity_threshold)
