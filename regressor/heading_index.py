@@ -80,6 +80,7 @@ class HeadingIndex:
                              f"(0, 90], got k = {self.k}, limit_deg = {self.limit_deg}")
         self.k = int(self.k)
         self._squared = (self.inputs.astype(np.float64) ** 2).sum(axis=1).astype(np.float32)
+        self._typical: dict = {}
 
     @property
     def dims(self) -> int:
@@ -88,19 +89,59 @@ class HeadingIndex:
 
     def neighbours(self, X: np.ndarray) -> np.ndarray:
         """The folded headings (N, k) degrees of each row's k nearest training rows (Euclidean
-        on the first P columns); X (N, >= P) regressor inputs. Queries go in blocks, so a long
+        on the first P columns); X (N, >= P) regressor inputs."""
+        return self.folded_deg[self._nearest(X)[0]]
+
+    def distance(self, X: np.ndarray) -> np.ndarray:
+        """The mean Euclidean distance (N,) from each row of X (N, >= P) to its k nearest
+        training rows, in the projected input's units."""
+        return np.sqrt(self._nearest(X)[1]).mean(axis=1)
+
+    def typical_distance(self, percentile: float = 99.0, sample: int = 2000) -> float:
+        """The percentile of :meth:`distance` over the index's own rows, each left out of its
+        own neighbours (a seeded sample of at most ``sample`` rows; computed once)."""
+        key = (float(percentile), int(sample))
+        if key not in self._typical:
+            rows = self.inputs
+            if len(rows) > sample:
+                rows = rows[np.sort(np.random.default_rng(0).choice(len(rows), sample,
+                                                                    replace=False))]
+            d2 = self._nearest(rows, extra=1)[1]
+            # Each row is its own nearest neighbour (distance ~0): drop it.
+            self._typical[key] = float(np.percentile(np.sqrt(d2[:, 1:]).mean(axis=1),
+                                                     percentile))
+        return self._typical[key]
+
+    def novelty(self, X: np.ndarray) -> np.ndarray:
+        """How unlike the training silhouettes each row of X (N, >= P) is: :meth:`distance`
+        over the training rows' own 99th percentile (:meth:`typical_distance`), (N,). Above 1
+        the regressor extrapolates: every frame of the rendered validation videos is below 1,
+        most frames of the real Pose2Sim video are above it (README, "Accuracy")."""
+        return self.distance(X) / max(self.typical_distance(), 1e-12)
+
+    def _nearest(self, X: np.ndarray, extra: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """(indices (N, k'), squared distances (N, k') ascending) of the k' = k + extra
+        nearest training rows of each row of X (N, >= P). Queries go in blocks, so a long
         sequence never holds more than a block's distances to every training row."""
         Q = np.asarray(X, dtype=np.float32)[:, :self.dims]
-        k = min(self.k, len(self.inputs))
-        out = np.empty((len(Q), k))
+        if Q.shape[1] != self.dims:
+            raise ValueError(f"the heading index compares {self.dims} input columns, got "
+                             f"{Q.shape[1]}")
+        k = min(self.k + extra, len(self.inputs))
+        index, dist2 = np.empty((len(Q), k), dtype=np.int64), np.empty((len(Q), k))
         for start in range(0, len(Q), _QUERY_BLOCK):
             q = Q[start:start + _QUERY_BLOCK]
-            # |a - q|^2 without the query's own norm (the same for every training row).
             d2 = self._squared[None] - 2.0 * (q @ self.inputs.T)
             nearest = (np.argpartition(d2, k - 1, axis=1)[:, :k] if k < len(self.inputs)
                        else np.broadcast_to(np.arange(k), (len(q), k)))
-            out[start:start + len(q)] = self.folded_deg[nearest]
-        return out
+            near_d2 = np.take_along_axis(d2, nearest, axis=1)
+            order = np.argsort(near_d2, axis=1)
+            index[start:start + len(q)] = np.take_along_axis(nearest, order, axis=1)
+            # Adding the query's own norm back; float32 rounding can leave tiny negatives.
+            dist2[start:start + len(q)] = np.maximum(
+                np.take_along_axis(near_d2, order, axis=1)
+                + (q.astype(np.float64) ** 2).sum(axis=1)[:, None], 0.0)
+        return index, dist2
 
     def folded(self, X: np.ndarray) -> np.ndarray:
         """The median folded heading (N,) degrees of each row's k nearest training rows."""

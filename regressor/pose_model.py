@@ -184,6 +184,16 @@ class PoseModel:
         poses, prob, _ = self._hypotheses(self._stacked(stacked), m, with_limbs=False)
         return poses, prob
 
+    def novelty(self, stacked: np.ndarray) -> np.ndarray:
+        """How unlike the training silhouettes each row of stacked descriptors (N, k*D) is,
+        (N,): the heading index's mean distance to its nearest training rows over their own
+        99th percentile (regressor.heading_index.HeadingIndex.novelty); above 1 the regressor
+        extrapolates. NaN (unknown) for a model without a heading index."""
+        X = self._stacked(stacked)
+        if self.heading_index is None:
+            return np.full(len(X), np.nan)
+        return self.heading_index.novelty(X)
+
     def predict_limbs(self, stacked: np.ndarray) -> np.ndarray | None:
         """The limb head's poses (N, 55) from stacked descriptors (N, k*D): for each row, the
         gate's most probable expert with the head's weights, a canonical member (either body

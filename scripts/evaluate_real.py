@@ -1,13 +1,14 @@
 """Evaluate the tracker on a real video with a 3-D reference: Pose2Sim's balancing trial.
 
     python scripts/evaluate_real.py [--trial ../shared/data/pose2sim/balancing] [--model FILE]
-        [--max-people N] [--json OUT]
+        [--max-people N] [--roll calibration] [--json OUT] [--masks PNG]
 
 Runs ``track``'s pipeline on each of the four views and prints, per view, knee and elbow flexion
 error and correlation against the reference (beside a constant at the reference's own mean
 flexion), heading error against the reference, the number of tracks, and across views the
 heading consistency (heading differences against camera azimuth differences) and disagreement of
-the 53 body angles. In each view the subject is, per frame, the tracked person whose box holds
+the 53 body angles, and the novelty of the subject's silhouettes (how unlike the training
+silhouettes they are: PoseModel.novelty; --masks draws them). In each view the subject is, per frame, the tracked person whose box holds
 the reference's projected mid-hip (another person walks behind in cam02; background subtraction
 splits the subject into several tracks in some views).
 """
@@ -23,7 +24,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
-from sequences.measures import MeasureError
+from sequences.measures import MeasureError, novelty_summary
 from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, camera_roll_deg,
                                 load_trial, project_reference)
 from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
@@ -35,34 +36,54 @@ _MID_HIP = [0, 6]               # RHip, LHip in the reference's keypoints
 class ViewTrack(NamedTuple):
     """Every pose the tracker output on one video, one row per (frame, person): frames (n,)
     int video frame indices, filtered and raw (n, 55) pose vectors, track_ids (n,) int,
-    bbox_px (n, 4) (x, y, w, h) pixels."""
+    bbox_px (n, 4) (x, y, w, h) pixels, novelty (n,) (PoseModel.novelty; NaN if unknown)."""
 
     frames: np.ndarray
     filtered: np.ndarray
     raw: np.ndarray
     track_ids: np.ndarray
     bbox_px: np.ndarray
+    novelty: np.ndarray
+    tiles: list | None = None
 
 
-def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.0) -> ViewTrack:
+_TILE_PX = 160                  # height of a mask in the --masks contact sheet
+
+
+def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.0,
+                keep_masks: bool = False) -> ViewTrack:
     """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
-    with ``--roll roll_deg``."""
+    with ``--roll roll_deg``; keep_masks: also keep each pose's silhouette as the regressor saw
+    it (upright), scaled to _TILE_PX rows (ViewTrack.tiles, uint8)."""
+    import cv2
+
     from tracker import PoseRecorder, PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
+    from tracker.roll import upright_mask
     from tracker.video import open_video
 
     source = open_video(video)
-    recorder = PoseRecorder()
-    track_video(source, PoseTracker(model, source.fps, TrackerSettings(max_people=max_people,
-                                                                       roll_deg=roll_deg)),
-                sinks=[recorder])
+    tracker = PoseTracker(model, source.fps, TrackerSettings(max_people=max_people,
+                                                             roll_deg=roll_deg, novelty=True))
+    recorder, tiles = PoseRecorder(), []
+
+    class MaskRecorder(PoseRecorder):
+        def write(self, pose) -> None:
+            mask = upright_mask(tracker.people[pose.track_id].mask, roll_deg).astype(np.uint8)
+            width = max(1, round(mask.shape[1] * _TILE_PX / mask.shape[0]))
+            tiles.append(cv2.resize(mask * 255, (width, _TILE_PX),
+                                    interpolation=cv2.INTER_NEAREST))
+
+    track_video(source, tracker, sinks=[recorder] + ([MaskRecorder()] if keep_masks else []))
     poses = recorder.poses
     if not poses:
         raise Pose2SimError(f"{video}: nobody was tracked")
     return ViewTrack(np.array([p.frame_index for p in poses]),
                      np.array([p.filtered for p in poses]), np.array([p.raw for p in poses]),
                      np.array([p.track_id for p in poses]),
-                     np.array([p.bbox_px for p in poses], dtype=float))
+                     np.array([p.bbox_px for p in poses], dtype=float),
+                     np.array([np.nan if p.novelty is None else p.novelty for p in poses]),
+                     tiles if keep_masks else None)
 
 
 def evaluate_view(trial: Trial, view: str, track: ViewTrack) -> tuple[dict, np.ndarray]:
@@ -73,23 +94,35 @@ def evaluate_view(trial: Trial, view: str, track: ViewTrack) -> tuple[dict, np.n
     out = {"tracks": int(len(np.unique(track.track_ids))),
            "subject_tracks": int(len(np.unique(track.track_ids[rows]))),
            "filtered": view_measures(trial, view, frames, track.filtered[rows]),
-           "raw": view_measures(trial, view, frames, track.raw[rows])}
+           "raw": view_measures(trial, view, frames, track.raw[rows]),
+           "novelty": novelty_summary(track.novelty[rows])}
     return out, rows
 
 
-def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False) -> dict:
+
+def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
+             masks_out: Path | None = None) -> dict:
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
-    roll: track each view with its camera's roll from the calibration (``track --roll``)."""
-    per_view, subject = {}, {}
+    roll: track each view with its camera's roll from the calibration (``track --roll``).
+    masks_out: also write a PNG of the subject's silhouettes as the regressor saw them, 8
+    frames spread over the clip per view (one row per view)."""
+    per_view, subject, sheet = {}, {}, []
     for view in VIEWS:
         roll_deg = camera_roll_deg(trial, view) if roll else 0.0
-        track = _track_view(trial.video(view), model, max_people, roll_deg)
+        track = _track_view(trial.video(view), model, max_people, roll_deg,
+                            keep_masks=masks_out is not None)
         per_view[view], rows = evaluate_view(trial, view, track)
+        if masks_out is not None:
+            subject_at = np.arange(len(track.frames))[rows]      # rows: the subject's
+            picked = subject_at[np.linspace(0, len(subject_at) - 1, 8).astype(int)]
+            sheet.append([track.tiles[i] for i in picked])
         per_view[view]["roll_deg"] = round(roll_deg, 1)
         subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows])
     common = subject[VIEWS[0]][0]
     for view in VIEWS[1:]:
         common = np.intersect1d(common, subject[view][0])
+    if masks_out is not None:
+        write_mask_sheet(masks_out, sheet)
     cross = {}
     for kind, col in (("filtered", 1), ("raw", 2)):
         poses = {v: subject[v][col][np.isin(subject[v][0], common)] for v in VIEWS}
@@ -98,6 +131,20 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False) ->
             "cross_view": cross, "common_frames": int(len(common)),
             "reference_cross_view_heading_rms_deg": reference_cross_view_check(trial, common,
                                                                                 VIEWS)}
+
+
+def write_mask_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
+    """rows of uint8 masks (each _TILE_PX tall) -> one PNG, a grey border round each mask;
+    Pose2SimError if it cannot be written."""
+    import cv2
+
+    lines = [np.hstack([np.pad(t, 3, constant_values=128) for t in row]) for row in rows]
+    width = max(line.shape[1] for line in lines)
+    image = np.vstack([np.pad(line, ((0, 0), (0, width - line.shape[1])), constant_values=60)
+                       for line in lines])
+    if not cv2.imwrite(str(path), image):
+        raise Pose2SimError(f"{path}: cannot write the mask sheet (a .png path in an existing "
+                            f"folder?)")
 
 
 def _means(per_view: dict) -> dict:
@@ -145,6 +192,14 @@ def format_table(result: dict) -> str:
     lines.append(f"raw poses: flexion error {np.mean(raw):.1f} deg (mean over views). "
                  f"const: a constant at the reference's own mean flexion; trk: tracks in the "
                  f"view; frm: frames with the subject tracked")
+    novel = {v: r.get("novelty", {}) for v, r in result["views"].items()}
+    if all(n.get("median") is not None for n in novel.values()):
+        lines.append("novelty (distance to the training silhouettes over their own 99th "
+                     "percentile; above 1 the regressor extrapolates): median "
+                     + ", ".join(f"{v} {n['median']:.2f}" for v, n in novel.items())
+                     + "; frames above 1: "
+                     + ", ".join(f"{v} {100 * n['share_above_1']:.0f} %"
+                                 for v, n in novel.items()))
     rolls = [result["views"][v].get("roll_deg", 0.0) for v in result["views"]]
     if any(rolls):
         lines.append("tracked with the cameras' roll (track --roll, degrees): "
@@ -163,15 +218,21 @@ def build_parser() -> argparse.ArgumentParser:
                     help="track each view with its camera's roll from the calibration "
                          "(track --roll), or without (the default, as track)")
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
+    ap.add_argument("--masks", type=Path, metavar="PNG", help="write the subject's "
+                    "silhouettes as the regressor saw them, 8 frames per view, as a PNG")
     return ap
 
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    if args.masks and args.json and args.masks.resolve() == args.json.resolve():
+        print("evaluate_real: error: --masks and --json name the same file", file=sys.stderr)
+        return 1
     try:
         trial, model = load_trial(args.trial), load_pose_model(args.model)
         with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
-            result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration")
+            result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration",
+                              masks_out=args.masks)
     except (Pose2SimError, PoseModelError, MeasureError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1

@@ -318,3 +318,15 @@ def pose_measures(estimate, truth, constant_pose, m: int = DEFAULT_TOP_ANGLES,
         "constant_mpjpe_mm": mpjpe(j_const, j_tru),
         "constant_pa_mpjpe_mm": pa_mpjpe(j_const, j_tru),
     }
+
+
+def novelty_summary(novelty) -> dict:
+    """Per-frame novelty (n,) (regressor.pose_model.PoseModel.novelty: distance to the
+    training silhouettes over their own 99th percentile; NaN where unknown) summarised:
+    {"median", "share_above_1"} (share of known frames above 1, where the regressor
+    extrapolates); both None when no frame is known."""
+    known = np.asarray(novelty, dtype=float).reshape(-1)
+    known = known[np.isfinite(known)]
+    if not len(known):
+        return {"median": None, "share_above_1": None}
+    return {"median": float(np.median(known)), "share_above_1": float((known > 1.0).mean())}

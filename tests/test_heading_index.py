@@ -162,3 +162,32 @@ def test_a_non_integer_k_in_a_file_is_refused(tmp_path):
     save_model(path, {**raw, "heading_index_k": np.float64(2.7)})
     with pytest.raises(PoseModelError, match="one integer"):
         load_pose_model(path)
+
+
+def test_novelty_is_low_near_training_rows_and_high_far_from_them():
+    """Novelty: mean distance to the k nearest training rows over the rows' own 99th
+    percentile (each row left out of its own neighbours)."""
+    rng = np.random.default_rng(4)
+    rows = rng.normal(0, 1, (600, 4))
+    index = HeadingIndex(rows, np.zeros(600), k=5)
+    typical = index.typical_distance()
+    own = np.sqrt(((rows[:, None] - rows[None]) ** 2).sum(-1))
+    np.fill_diagonal(own, np.inf)
+    expected = np.percentile(np.sort(own, axis=1)[:, :5].mean(axis=1), 99)
+    assert typical == pytest.approx(expected, rel=1e-4)
+    near = rows[:50] + rng.normal(0, 0.01, (50, 4))
+    far = rows[:50] + 6.0
+    assert np.median(index.novelty(near)) < 0.7 and (index.novelty(far) > 1.5).all()
+    np.testing.assert_allclose(index.distance(rows[:3]),
+                               np.sort(np.sqrt(((rows[:3, None] - rows[None]) ** 2).sum(-1)),
+                                       axis=1)[:, :5].mean(axis=1), rtol=1e-4, atol=1e-4)
+    with pytest.raises(ValueError, match="4 input columns"):
+        index.novelty(rows[:3, :2])
+
+
+def test_a_model_reports_novelty_only_with_an_index():
+    model, x = _indexed_model()
+    n = model.novelty(x[:20])
+    assert n.shape == (20,) and np.isfinite(n).all() and np.median(n) < 1.0
+    assert (model.novelty(x[:20] + 50.0) > 1.0).all()
+    assert np.isnan(_mixture_model()[0].novelty(x[:5])).all()

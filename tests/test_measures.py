@@ -184,3 +184,10 @@ def test_bad_shapes_are_refused_with_a_clear_error():
     bad[1, 5] = np.nan
     with pytest.raises(MeasureError, match="NaN"):
         pose_measures(bad, _rest(3), _rest()[0])
+
+
+def test_novelty_summary_counts_frames_beyond_the_training_rows():
+    from sequences.measures import novelty_summary
+    s = novelty_summary([0.5, 0.9, 1.2, np.nan, 3.0])
+    assert s == {"median": pytest.approx(1.05), "share_above_1": pytest.approx(0.5)}
+    assert novelty_summary([np.nan]) == {"median": None, "share_above_1": None}

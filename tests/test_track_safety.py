@@ -331,3 +331,19 @@ def test_grayscale_video_gives_the_same_single_track_as_colour(tmp_path, walk):
     result = _track(grey, "--json", tmp_path / "g.json", "--quiet", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     assert len(json.loads((tmp_path / "g.json").read_text())["tracks"]) == 1
+
+
+def test_novelty_is_reported_per_pose_only_when_asked(walk):
+    """TrackerSettings(novelty=True) gives each pose the model's novelty (the evaluations use
+    it); track leaves it off (one more nearest-neighbour query per frame)."""
+    from tracker import PoseRecorder
+    for asked in (False, True):
+        recorder = PoseRecorder()
+        track_video(walk, PoseTracker(load_pose_model(), 30.0, TrackerSettings(novelty=asked)),
+                    sinks=[recorder])
+        values = [p.novelty for p in recorder.poses]
+        assert len(values) >= 30
+        if asked:
+            assert all(isinstance(v, float) and np.isfinite(v) and v > 0 for v in values)
+        else:
+            assert all(v is None for v in values)

@@ -79,6 +79,9 @@ class TrackerSettings:
     view assumed for the focal length (direction of travel, ground position). keep_history:
     keep every track's filter inputs for PoseTracker.smoothed_track (about 0.6 KB per person
     per frame, so memory grows with the video); ``track`` keeps them only for --smooth.
+    novelty: give each pose the estimator's novelty (PoseModel.novelty: how unlike the
+    training silhouettes its input is; one more nearest-neighbour query per frame, so off by
+    default; the evaluations turn it on).
     """
 
     max_people: int | None = None
@@ -93,6 +96,7 @@ class TrackerSettings:
     background_samples: int = 25
     fov_deg: float = ASSUMED_FOV_DEG
     keep_history: bool = True
+    novelty: bool = False
 
     def threshold(self, estimator) -> float:
         """The ambiguity threshold in use: this setting, else the estimator's own."""
@@ -182,7 +186,9 @@ class TrackedPose:
     (18, 3) metres, Y up, for drawing (root placed on an approximate ground position from the
     image); centroid_px: (x, y) pixels; bbox_px: (x, y, w, h) pixels (None when unknown);
     runner_up: (55,) the filtered pose of the next most probable front/back hypothesis and
-    runner_up_probability, when that is close (tracker.hypotheses.CLOSE_PROBABILITY), else None."""
+    runner_up_probability, when that is close (tracker.hypotheses.CLOSE_PROBABILITY), else None;
+    novelty: how unlike the training silhouettes the frame's input is (PoseModel.novelty, above
+    1: the regressor extrapolates), with TrackerSettings(novelty=True), else None."""
 
     frame_index: int
     time_s: float
@@ -195,6 +201,7 @@ class TrackedPose:
     bbox_px: tuple[int, int, int, int] | None = None
     runner_up: np.ndarray | None = None
     runner_up_probability: float | None = None
+    novelty: float | None = None
 
 
 @dataclass
@@ -301,7 +308,10 @@ class PoseTracker:
         except SilhouetteError:
             return None                       # a sliver or speck: no pose this frame
         clock = self._lap("descriptor", clock)
-        hypotheses = propose(self.estimator, state.stacker.push(descriptor))
+        stacked = state.stacker.push(descriptor)
+        hypotheses = propose(self.estimator, stacked)
+        novelty = (float(self.estimator.novelty(np.asarray(stacked, float)[None])[0])
+                   if self.settings.novelty and hasattr(self.estimator, "novelty") else None)
         clock = self._lap("regression", clock)
         # Front/back hypotheses over time; the direction of travel is soft evidence.
         travel = state.travel.push(person.centroid[0], person.bbox[3])
@@ -318,7 +328,7 @@ class PoseTracker:
         self._lap("skeleton", clock)
         return TrackedPose(frame_index, time_s, track_id, hypotheses.raw, filtered, ambiguous,
                            joints, person.centroid, person.bbox, decision.runner_up,
-                           decision.runner_up_probability)
+                           decision.runner_up_probability, novelty)
 
     def _lap(self, stage: str, since: float) -> float:
         now = time.perf_counter()
