@@ -37,6 +37,17 @@ RMS (79.1 vs 79.5), but on held-out sequences it lost: heading RMS 06_06 fixed 5
 the limbs' innovations (72 % right) carry the heading with them; split, the heading's own
 evidence is too weak and the travel prior turns backward walkers round.
 
+Tried and not adopted (2026-12-02, a one-off patch): hypotheses carrying the limb head's member
+that agrees with each hypothesis's heading as their body angles (so the flip also swaps the
+limbs and the limbs' continuity helps decide the side in profile, where picking the member by
+the decided heading errs: with the member picked by the true heading, corr8 would rise 0.546 ->
+0.616 on the sample, 0.600 -> 0.685 on 02_02, 0.682 -> 0.726 on 08_03). On the five validation
+videos it helped (filtered heading 28.0 -> 27.7, corr8 0.392 -> 0.407, 08_03 0.682 -> 0.717),
+but on the 28 validation renders it lost (filtered heading 59.5 -> 62.4, corr8 0.361 -> 0.339):
+backward walks, which it turned round (02_02 spiral reversed 25 -> 76 degrees, 09_04 22 -> 83,
+07_12 29 -> 109). Flip tables re-learned for it (raw nearer 0.62, switches 0.17 / 0.27) were
+worse still online (validation videos filtered heading 38.6-47.7).
+
 Online the chosen pose is the most probable state's filtered pose; the runner-up and its
 probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
 picks one hypothesis per frame and the Rauch-Tung-Striebel smoother runs over them.

@@ -68,7 +68,11 @@ class TrackerSettings:
     max_people: keep at most this many (largest) people per frame, None = all.
     ambiguity_threshold: raw heading norm below which a frame is ambiguous; None = the one the
     model was trained with (PoseModel.ambiguity_threshold). ambiguous_heading_factor,
-    ambiguous_joint_factor: R inflation on ambiguous frames (PoseKalmanFilter). r_scale, q_scale:
+    ambiguous_joint_factor: R inflation on ambiguous frames (PoseKalmanFilter; with the front/back
+    chain the heading's inflation makes a 180-degree jump cheap for its filters, but lowering it
+    did not help on validation: factor 25 / 4 / 1 gave mean filtered heading 59.5 / 51.2 / 56.1
+    degrees on the 28 validation renders, 28.0 / 32.3 / 30.3 on the five validation videos,
+    2026-12-02). r_scale, q_scale:
     multiply the model's measurement covariance R and process noise q; heading_q_scale further
     multiplies the heading's q (HEADING_Q_SCALE). limb_r_scale: further
     multiplies R for the filter of the output's body angles (LIMB_R_SCALE, limb_kalman_factory);
