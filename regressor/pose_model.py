@@ -187,8 +187,9 @@ class PoseModel:
     def novelty(self, stacked: np.ndarray) -> np.ndarray:
         """How unlike the training silhouettes each row of stacked descriptors (N, k*D) is,
         (N,): the heading index's mean distance to its nearest training rows over their own
-        99th percentile (regressor.heading_index.HeadingIndex.novelty); above 1 the regressor
-        extrapolates. NaN (unknown) for a model without a heading index."""
+        99th percentile (regressor.heading_index.HeadingIndex.novelty; about 1 % of training
+        rows are above 1, inputs well above it are extrapolation). NaN (unknown) for a model
+        without a heading index."""
         X = self._stacked(stacked)
         if self.heading_index is None:
             return np.full(len(X), np.nan)

@@ -18,6 +18,9 @@ and the filtered output that `track` streams:
           flexion's (a constant that knows each sequence's average)
   head    heading RMS error, degrees
   mpjpe   mean per-joint position error, millimetres (root-aligned)
+
+and, per trial and model, the inputs' novelty (PoseModel.novelty: distance to the training
+silhouettes over their own 99th percentile; fps includes its extra query per frame).
 """
 from __future__ import annotations
 
@@ -27,10 +30,11 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import load_pose_model
-from sequences.measures import pose_measures
+from sequences.measures import novelty_summary, pose_measures
 from sequences.video import load_truth
 from tracker.offline.evaluation import (CameraOptions, cmu_motion, constant_pose, track_longest,
                                         write_camera_video)
@@ -84,14 +88,21 @@ def main(argv=None) -> int:
             truth_all = load_truth(video)["pose"][:, 0]
             for name, model in models:
                 start = time.perf_counter()
-                idx, raw, filtered = track_longest(video, model, TrackerSettings())[:3]
+                tracked = track_longest(video, model, TrackerSettings(novelty=True))
+                idx, raw, filtered, novelty = *tracked[:3], tracked[7]
                 fps = len(truth_all) / (time.perf_counter() - start)
+                novel = novelty_summary(novelty)
                 for output, est in (("raw", raw), ("filtered", filtered)):
                     m = measures(est, truth_all[idx], constant)
                     results.append({"trial": trial, "model": name, "output": output,
-                                    "frames": int(len(idx)), "fps": fps, **m})
+                                    "frames": int(len(idx)), "fps": fps, **m,
+                                    "novelty": novel})
                     print(f"{trial:7s} {name:14s} {output:8s} "
                           + " ".join(f"{m[c]:9.3f}" for c in cols) + f" {fps:8.0f}", flush=True)
+                if novel["median"] is not None:
+                    print(f"{trial:7s} {name:14s} novelty: median {novel['median']:.2f}, max "
+                          f"{np.nanmax(novelty):.2f}, above 1 in "
+                          f"{100 * novel['share_above_1']:.1f} % of frames", flush=True)
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))
     return 0

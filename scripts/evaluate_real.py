@@ -8,9 +8,10 @@ error and correlation against the reference (beside a constant at the reference'
 flexion), heading error against the reference, the number of tracks, and across views the
 heading consistency (heading differences against camera azimuth differences) and disagreement of
 the 53 body angles, and the novelty of the subject's silhouettes (how unlike the training
-silhouettes they are: PoseModel.novelty; --masks draws them). In each view the subject is, per frame, the tracked person whose box holds
-the reference's projected mid-hip (another person walks behind in cam02; background subtraction
-splits the subject into several tracks in some views).
+silhouettes they are: PoseModel.novelty; --masks draws them). In each view the subject is, per
+frame, the tracked person whose box holds the reference's projected mid-hip (another person
+walks behind in cam02; background subtraction splits the subject into several tracks in some
+views).
 """
 from __future__ import annotations
 
@@ -44,37 +45,53 @@ class ViewTrack(NamedTuple):
     track_ids: np.ndarray
     bbox_px: np.ndarray
     novelty: np.ndarray
-    tiles: list | None = None
+    tiles: dict | None = None
 
 
 _TILE_PX = 160                  # height of a mask in the --masks contact sheet
 
 
+class _MaskTiles:
+    """A sink keeping each person's silhouette as the regressor saw it (upright), scaled to
+    _TILE_PX rows: tiles[(frame index, track id)] uint8 (tracker.run.track_video's
+    write_frame hook)."""
+
+    def __init__(self, roll_deg: float):
+        self.roll_deg, self.tiles = roll_deg, {}
+
+    def write(self, pose) -> None:
+        """Poses come with write_frame's people."""
+
+    def write_frame(self, frame_index: int, time_s: float, frame, people: dict) -> None:
+        import cv2
+
+        from tracker.roll import upright_mask
+        for track_id, person in people.items():
+            mask = upright_mask(person.mask, self.roll_deg).astype(np.uint8) * 255
+            width = max(1, round(mask.shape[1] * _TILE_PX / mask.shape[0]))
+            self.tiles[(frame_index, track_id)] = cv2.resize(mask, (width, _TILE_PX),
+                                                             interpolation=cv2.INTER_NEAREST)
+
+    def end_frame(self, frame_index: int) -> None:
+        """Nothing to do per frame."""
+
+    def close(self) -> None:
+        """Nothing to finish."""
+
+
 def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.0,
                 keep_masks: bool = False) -> ViewTrack:
     """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
-    with ``--roll roll_deg``; keep_masks: also keep each pose's silhouette as the regressor saw
-    it (upright), scaled to _TILE_PX rows (ViewTrack.tiles, uint8)."""
-    import cv2
-
+    with ``--roll roll_deg``; keep_masks: also keep the silhouettes (ViewTrack.tiles)."""
     from tracker import PoseRecorder, PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
-    from tracker.roll import upright_mask
     from tracker.video import open_video
 
     source = open_video(video)
     tracker = PoseTracker(model, source.fps, TrackerSettings(max_people=max_people,
                                                              roll_deg=roll_deg, novelty=True))
-    recorder, tiles = PoseRecorder(), []
-
-    class MaskRecorder(PoseRecorder):
-        def write(self, pose) -> None:
-            mask = upright_mask(tracker.people[pose.track_id].mask, roll_deg).astype(np.uint8)
-            width = max(1, round(mask.shape[1] * _TILE_PX / mask.shape[0]))
-            tiles.append(cv2.resize(mask * 255, (width, _TILE_PX),
-                                    interpolation=cv2.INTER_NEAREST))
-
-    track_video(source, tracker, sinks=[recorder] + ([MaskRecorder()] if keep_masks else []))
+    recorder, masks = PoseRecorder(), _MaskTiles(roll_deg)
+    track_video(source, tracker, sinks=[recorder] + ([masks] if keep_masks else []))
     poses = recorder.poses
     if not poses:
         raise Pose2SimError(f"{video}: nobody was tracked")
@@ -83,7 +100,7 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
                      np.array([p.track_id for p in poses]),
                      np.array([p.bbox_px for p in poses], dtype=float),
                      np.array([np.nan if p.novelty is None else p.novelty for p in poses]),
-                     tiles if keep_masks else None)
+                     masks.tiles if keep_masks else None)
 
 
 def evaluate_view(trial: Trial, view: str, track: ViewTrack) -> tuple[dict, np.ndarray]:
@@ -99,30 +116,27 @@ def evaluate_view(trial: Trial, view: str, track: ViewTrack) -> tuple[dict, np.n
     return out, rows
 
 
-
 def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
-             masks_out: Path | None = None) -> dict:
+             sheet: list | None = None) -> dict:
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
-    masks_out: also write a PNG of the subject's silhouettes as the regressor saw them, 8
-    frames spread over the clip per view (one row per view)."""
-    per_view, subject, sheet = {}, {}, []
+    sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
+    at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them)."""
+    per_view, subject = {}, {}
     for view in VIEWS:
         roll_deg = camera_roll_deg(trial, view) if roll else 0.0
         track = _track_view(trial.video(view), model, max_people, roll_deg,
-                            keep_masks=masks_out is not None)
+                            keep_masks=sheet is not None)
         per_view[view], rows = evaluate_view(trial, view, track)
-        if masks_out is not None:
-            subject_at = np.arange(len(track.frames))[rows]      # rows: the subject's
-            picked = subject_at[np.linspace(0, len(subject_at) - 1, 8).astype(int)]
-            sheet.append([track.tiles[i] for i in picked])
+        if sheet is not None:
+            picked = rows[np.linspace(0, len(rows) - 1, 8).astype(int)]
+            sheet.append([track.tiles[(int(track.frames[i]), int(track.track_ids[i]))]
+                          for i in picked])
         per_view[view]["roll_deg"] = round(roll_deg, 1)
         subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows])
     common = subject[VIEWS[0]][0]
     for view in VIEWS[1:]:
         common = np.intersect1d(common, subject[view][0])
-    if masks_out is not None:
-        write_mask_sheet(masks_out, sheet)
     cross = {}
     for kind, col in (("filtered", 1), ("raw", 2)):
         poses = {v: subject[v][col][np.isin(subject[v][0], common)] for v in VIEWS}
@@ -142,9 +156,12 @@ def write_mask_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
     width = max(line.shape[1] for line in lines)
     image = np.vstack([np.pad(line, ((0, 0), (0, width - line.shape[1])), constant_values=60)
                        for line in lines])
-    if not cv2.imwrite(str(path), image):
-        raise Pose2SimError(f"{path}: cannot write the mask sheet (a .png path in an existing "
-                            f"folder?)")
+    try:
+        written = cv2.imwrite(str(path), image)
+    except cv2.error:
+        written = False
+    if not written:
+        raise Pose2SimError(f"{path}: cannot write the mask sheet")
 
 
 def _means(per_view: dict) -> dict:
@@ -195,7 +212,7 @@ def format_table(result: dict) -> str:
     novel = {v: r.get("novelty", {}) for v, r in result["views"].items()}
     if all(n.get("median") is not None for n in novel.values()):
         lines.append("novelty (distance to the training silhouettes over their own 99th "
-                     "percentile; above 1 the regressor extrapolates): median "
+                     "percentile; 1 % of training rows are above 1): median "
                      + ", ".join(f"{v} {n['median']:.2f}" for v, n in novel.items())
                      + "; frames above 1: "
                      + ", ".join(f"{v} {100 * n['share_above_1']:.0f} %"
@@ -225,14 +242,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    if args.masks and args.json and args.masks.resolve() == args.json.resolve():
-        print("evaluate_real: error: --masks and --json name the same file", file=sys.stderr)
+    problem = _masks_path_problem(args.masks, args.json)
+    if problem:
+        print(f"evaluate_real: error: {problem}", file=sys.stderr)
         return 1
+    sheet = [] if args.masks else None
     try:
         trial, model = load_trial(args.trial), load_pose_model(args.model)
         with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
             result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration",
-                              masks_out=args.masks)
+                              sheet=sheet)
     except (Pose2SimError, PoseModelError, MeasureError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
@@ -240,7 +259,26 @@ def main(argv=None) -> int:
     print(format_table(result))
     if args.json:
         args.json.write_text(json.dumps(result, indent=1))
+    if args.masks:
+        try:
+            write_mask_sheet(args.masks, sheet)
+        except Pose2SimError as exc:
+            print(f"evaluate_real: error: {exc}", file=sys.stderr)
+            return 1
     return 0
+
+
+def _masks_path_problem(masks: Path | None, json_out: Path | None) -> str | None:
+    """Why --masks cannot be written (checked before a minute of tracking), or None."""
+    if masks is None:
+        return None
+    if masks.suffix.lower() != ".png":
+        return f"--masks {masks}: the mask sheet is a PNG, give a .png path"
+    if not masks.resolve().parent.is_dir():
+        return f"--masks {masks}: no folder {masks.resolve().parent}"
+    if json_out is not None and masks.resolve() == json_out.resolve():
+        return "--masks and --json name the same file"
+    return None
 
 
 if __name__ == "__main__":

@@ -191,3 +191,13 @@ def test_a_model_reports_novelty_only_with_an_index():
     assert n.shape == (20,) and np.isfinite(n).all() and np.median(n) < 1.0
     assert (model.novelty(x[:20] + 50.0) > 1.0).all()
     assert np.isnan(_mixture_model()[0].novelty(x[:5])).all()
+
+
+def test_typical_distance_leaves_each_row_out_also_with_duplicates_and_few_rows():
+    rows = np.repeat(np.random.default_rng(5).normal(0, 1, (40, 3)), 2, axis=0)  # each twice
+    index = HeadingIndex(rows, np.zeros(80), k=3)
+    own = np.sqrt(((rows[:, None] - rows[None]) ** 2).sum(-1))
+    np.fill_diagonal(own, np.inf)
+    expected = np.percentile(np.sort(own, axis=1)[:, :3].mean(axis=1), 99)
+    assert index.typical_distance() == pytest.approx(expected, rel=1e-4)
+    assert np.isnan(HeadingIndex(rows[:3], np.zeros(3), k=3).typical_distance())

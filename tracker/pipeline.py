@@ -85,7 +85,8 @@ class TrackerSettings:
     per frame, so memory grows with the video); ``track`` keeps them only for --smooth.
     novelty: give each pose the estimator's novelty (PoseModel.novelty: how unlike the
     training silhouettes its input is; one more nearest-neighbour query per frame, so off by
-    default; the evaluations turn it on).
+    default; scripts/evaluate_real.py and evaluate_accuracy.py turn it on). An estimator
+    without ``novelty`` gives None.
     """
 
     max_people: int | None = None
@@ -191,8 +192,8 @@ class TrackedPose:
     image); centroid_px: (x, y) pixels; bbox_px: (x, y, w, h) pixels (None when unknown);
     runner_up: (55,) the filtered pose of the next most probable front/back hypothesis and
     runner_up_probability, when that is close (tracker.hypotheses.CLOSE_PROBABILITY), else None;
-    novelty: how unlike the training silhouettes the frame's input is (PoseModel.novelty, above
-    1: the regressor extrapolates), with TrackerSettings(novelty=True), else None."""
+    novelty: how unlike the training silhouettes the frame's input is (PoseModel.novelty; about
+    1 % of training rows are above 1), with TrackerSettings(novelty=True), else None."""
 
     frame_index: int
     time_s: float

@@ -411,7 +411,8 @@ def _pose_sequence(name, truth, per_frame, raw, filtered, smoothed, ambiguous, r
 def track_longest(video: Path, model: PoseModel, settings: TrackerSettings):
     """Run the ``track`` loop (tracker.run.track_video) on a one-person video: (frame indices
     (n,), raw (n, 55), filtered (n, 55), smoothed (n, 55), ambiguous (n,), runner-up poses
-    (n, 55) and probabilities (n,), NaN where none) of its longest track."""
+    (n, 55) and probabilities (n,), NaN where none, novelty (n,), NaN unless
+    settings.novelty) of its longest track."""
     recorder = PoseRecorder()
     source = open_video(video)
     tracker = PoseTracker(model, source.fps, replace(settings, max_people=1, keep_history=True))
@@ -424,7 +425,8 @@ def track_longest(video: Path, model: PoseModel, settings: TrackerSettings):
     return (np.array([p.frame_index for p in poses]), np.array([p.raw for p in poses]),
             np.array([p.filtered for p in poses]), tracker.smoothed_track(track_id),
             np.array([p.ambiguous for p in poses]),
-            *_runner_ups([(p.runner_up, p.runner_up_probability) for p in poses]))
+            *_runner_ups([(p.runner_up, p.runner_up_probability) for p in poses]),
+            np.array([np.nan if p.novelty is None else p.novelty for p in poses]))
 
 
 def write_camera_video(path: str | Path, motion, camera: CameraOptions = CameraOptions(),
@@ -451,7 +453,7 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
         write_camera_video(path, motion, camera, frames)
         truth = load_truth(path)["pose"][:, 0]
         idx, raw, filtered, smoothed, ambiguous, alt, alt_p = track_longest(path, stacked_model,
-                                                                             settings)
+                                                                             settings)[:7]
         idx1, raw1 = track_longest(path, per_frame_model, settings)[:2]
     common, a, b = np.intersect1d(idx, idx1, return_indices=True)
     if len(common) < 3:

@@ -1,0 +1,46 @@
+"""scripts/evaluate_real.py's --masks: refused before any tracking when it cannot be written,
+and the sheet it writes."""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+_SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "evaluate_real.py"
+
+
+@pytest.fixture(scope="module")
+def evaluate_real():
+    spec = importlib.util.spec_from_file_location("evaluate_real", _SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_unwritable_mask_sheets_are_refused_in_one_line_before_tracking(evaluate_real, tmp_path,
+                                                                        capsys):
+    check = evaluate_real._masks_path_problem
+    assert check(None, None) is None and check(tmp_path / "m.png", tmp_path / "r.json") is None
+    assert "PNG" in check(tmp_path / "m.jpg", None)
+    assert "no folder" in check(tmp_path / "missing" / "m.png", None)
+    assert "same file" in check(tmp_path / "m.png", tmp_path / "m.png")
+    # main refuses at once, without the trial (a missing trial would fail later).
+    assert evaluate_real.main(["--trial", str(tmp_path / "none"), "--masks",
+                               str(tmp_path / "m")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("evaluate_real: error: --masks") and "\n" not in err
+
+
+def test_the_mask_sheet_has_one_row_per_view(evaluate_real, tmp_path):
+    tile = np.zeros((evaluate_real._TILE_PX, 40), np.uint8)
+    tile[20:140, 10:30] = 255
+    path = tmp_path / "sheet.png"
+    evaluate_real.write_mask_sheet(path, [[tile] * 8, [tile[:, :30]] * 8])
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    assert image.shape == (2 * (evaluate_real._TILE_PX + 6), 8 * 46)
+    assert (image == 255).sum() == 16 * 120 * 20
+    with pytest.raises(evaluate_real.Pose2SimError, match="cannot write"):
+        evaluate_real.write_mask_sheet(tmp_path / "no" / "sheet.png", [[tile]])
