@@ -153,14 +153,20 @@ def main(argv=None) -> int:
         if model.mixture is not None:       # the file stores centres as float16: check it
             from regressor.pose_model import frame_descriptors, load_pose_model
             from regressor.stacking import stack_frames
+            from sequences.pose_vector import heading_deg
             rows = slice(0, len(X), max(1, len(X) // 500))
             probe = stack_frames(frame_descriptors(X, model.transform, layouts,
                                                    model.layout_weight),
                                  model.stack_depth, sequence_ids=data.sequence)[rows]
             loaded = load_pose_model(args.out)
-            diff = np.abs(wrap_deg(loaded.predict_batch(probe)[:, 2:]
-                                   - model.predict_batch(probe)[:, 2:]))
+            before, after = model.predict_batch(probe), loaded.predict_batch(probe)
+            diff = np.abs(wrap_deg(after[:, 2:] - before[:, 2:]))
             report["file_round_trip_max_deg"] = round(float(diff.max()), 3)
+            # The heading too: the index's inputs are stored as float16, which can change a
+            # query's neighbours.
+            diff = np.abs(wrap_deg(heading_deg(after) - heading_deg(before)))
+            report["heading_round_trip_deg"] = {"median": round(float(np.median(diff)), 3),
+                                                "max": round(float(diff.max()), 3)}
             if model.limb_head is not None:
                 diff = np.abs(wrap_deg(loaded.predict_limbs(probe)[:, 2:]
                                        - model.predict_limbs(probe)[:, 2:]))
