@@ -46,7 +46,11 @@ videos it helped (filtered heading 28.0 -> 27.7, corr8 0.392 -> 0.407, 08_03 0.6
 but on the 28 validation renders it lost (filtered heading 59.5 -> 62.4, corr8 0.361 -> 0.339):
 backward walks, which it turned round (02_02 spiral reversed 25 -> 76 degrees, 09_04 22 -> 83,
 07_12 29 -> 109). Flip tables re-learned for it (raw nearer 0.62, switches 0.17 / 0.27) were
-worse still online (validation videos filtered heading 38.6-47.7).
+worse still online (validation videos filtered heading 38.6-47.7). Also tried then: the chain's
+heading variance scaled by 0.35 (its R is mostly front/back confusions, which the states already
+model; a smaller one should make a 75-degree innovation cost more than a switch, as at 16_11's
+frames 212-227, where the chosen filter ramps to the flip's heading): worse on both sets
+(videos 28.0 -> 31.2 degrees, corr8 0.392 -> 0.359; renders 59.5 -> 60.4, 0.361 -> 0.341).
 
 Online the chosen pose is the most probable state's filtered pose; the runner-up and its
 probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
