@@ -106,8 +106,7 @@ class HeadingIndex:
             n = len(self.inputs)
             if n <= self.k:
                 return float("nan")
-            pick = (np.arange(n) if n <= sample
-                    else np.sort(np.random.default_rng(0).choice(n, sample, replace=False)))
+            pick = _random_rows(n, sample, seed=0)
             index, d2 = self._nearest(self.inputs[pick], extra=1)
             # Leave each row out: drop its own entry (distance ~0), or the farthest of the
             # k + 1 when an exact duplicate took its place.
@@ -190,7 +189,14 @@ def build_heading_index(inputs: np.ndarray, heading_deg: np.ndarray, rows: int, 
     n = len(inputs)
     if n == 0 or dims < 1 or rows < 1:        # k and the limit: HeadingIndex checks them
         raise ValueError("a heading index needs rows and dims >= 1 and some training rows")
-    pick = (np.arange(n) if n <= rows
-            else np.sort(np.random.default_rng(seed).choice(n, rows, replace=False)))
+    pick = _random_rows(n, rows, seed)
     return HeadingIndex(inputs[pick, :dims], fold_heading_deg(np.asarray(heading_deg)[pick]), k,
                         limit_deg)
+
+
+def _random_rows(n: int, at_most: int, seed: int) -> np.ndarray:
+    """Sorted indices of at most ``at_most`` of n rows, drawn at random (seeded); all n
+    rows when there are no more."""
+    if n <= at_most:
+        return np.arange(n)
+    return np.sort(np.random.default_rng(seed).choice(n, at_most, replace=False))

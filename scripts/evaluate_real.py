@@ -30,6 +30,7 @@ from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, came
                                 load_trial, project_reference)
 from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
                                          subject_rows, view_measures)
+from tracker.sinks import PoseRecorder
 
 _MID_HIP = [0, 6]               # RHip, LHip in the reference's keypoints
 
@@ -51,16 +52,14 @@ class ViewTrack(NamedTuple):
 _TILE_PX = 160                  # height of a mask in the --masks contact sheet
 
 
-class _MaskTiles:
-    """A sink keeping each person's silhouette as the regressor saw it (upright), scaled to
-    _TILE_PX rows: tiles[(frame index, track id)] uint8 (tracker.run.track_video's
-    write_frame hook)."""
+class _MaskRecorder(PoseRecorder):
+    """PoseRecorder that also keeps each person's silhouette as the regressor saw it
+    (upright), scaled to _TILE_PX rows: tiles[(frame index, track id)] uint8, from
+    tracker.run.track_video's write_frame hook."""
 
     def __init__(self, roll_deg: float):
+        super().__init__()
         self.roll_deg, self.tiles = roll_deg, {}
-
-    def write(self, pose) -> None:
-        """Poses come with write_frame's people."""
 
     def write_frame(self, frame_index: int, time_s: float, frame, people: dict) -> None:
         import cv2
@@ -72,26 +71,20 @@ class _MaskTiles:
             self.tiles[(frame_index, track_id)] = cv2.resize(mask, (width, _TILE_PX),
                                                              interpolation=cv2.INTER_NEAREST)
 
-    def end_frame(self, frame_index: int) -> None:
-        """Nothing to do per frame."""
-
-    def close(self) -> None:
-        """Nothing to finish."""
-
 
 def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.0,
                 keep_masks: bool = False) -> ViewTrack:
     """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
     with ``--roll roll_deg``; keep_masks: also keep the silhouettes (ViewTrack.tiles)."""
-    from tracker import PoseRecorder, PoseTracker, track_video
+    from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
     from tracker.video import open_video
 
     source = open_video(video)
     tracker = PoseTracker(model, source.fps, TrackerSettings(max_people=max_people,
                                                              roll_deg=roll_deg, novelty=True))
-    recorder, masks = PoseRecorder(), _MaskTiles(roll_deg)
-    track_video(source, tracker, sinks=[recorder] + ([masks] if keep_masks else []))
+    recorder = _MaskRecorder(roll_deg) if keep_masks else PoseRecorder()
+    track_video(source, tracker, sinks=[recorder])
     poses = recorder.poses
     if not poses:
         raise Pose2SimError(f"{video}: nobody was tracked")
@@ -100,7 +93,7 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
                      np.array([p.track_id for p in poses]),
                      np.array([p.bbox_px for p in poses], dtype=float),
                      np.array([np.nan if p.novelty is None else p.novelty for p in poses]),
-                     masks.tiles if keep_masks else None)
+                     recorder.tiles if keep_masks else None)
 
 
 def evaluate_view(trial: Trial, view: str, track: ViewTrack) -> tuple[dict, np.ndarray]:

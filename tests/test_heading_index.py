@@ -164,17 +164,21 @@ def test_a_non_integer_k_in_a_file_is_refused(tmp_path):
         load_pose_model(path)
 
 
+def _leave_one_out_p99(rows: np.ndarray, k: int) -> float:
+    """By brute force: the 99th percentile over rows of the mean distance to the k nearest
+    other rows."""
+    own = np.sqrt(((rows[:, None] - rows[None]) ** 2).sum(-1))
+    np.fill_diagonal(own, np.inf)
+    return float(np.percentile(np.sort(own, axis=1)[:, :k].mean(axis=1), 99))
+
+
 def test_novelty_is_low_near_training_rows_and_high_far_from_them():
     """Novelty: mean distance to the k nearest training rows over the rows' own 99th
     percentile (each row left out of its own neighbours)."""
     rng = np.random.default_rng(4)
     rows = rng.normal(0, 1, (600, 4))
     index = HeadingIndex(rows, np.zeros(600), k=5)
-    typical = index.typical_distance()
-    own = np.sqrt(((rows[:, None] - rows[None]) ** 2).sum(-1))
-    np.fill_diagonal(own, np.inf)
-    expected = np.percentile(np.sort(own, axis=1)[:, :5].mean(axis=1), 99)
-    assert typical == pytest.approx(expected, rel=1e-4)
+    assert index.typical_distance() == pytest.approx(_leave_one_out_p99(rows, 5), rel=1e-4)
     near = rows[:50] + rng.normal(0, 0.01, (50, 4))
     far = rows[:50] + 6.0
     assert np.median(index.novelty(near)) < 0.7 and (index.novelty(far) > 1.5).all()
@@ -196,8 +200,5 @@ def test_a_model_reports_novelty_only_with_an_index():
 def test_typical_distance_leaves_each_row_out_also_with_duplicates_and_few_rows():
     rows = np.repeat(np.random.default_rng(5).normal(0, 1, (40, 3)), 2, axis=0)  # each twice
     index = HeadingIndex(rows, np.zeros(80), k=3)
-    own = np.sqrt(((rows[:, None] - rows[None]) ** 2).sum(-1))
-    np.fill_diagonal(own, np.inf)
-    expected = np.percentile(np.sort(own, axis=1)[:, :3].mean(axis=1), 99)
-    assert index.typical_distance() == pytest.approx(expected, rel=1e-4)
+    assert index.typical_distance() == pytest.approx(_leave_one_out_p99(rows, 3), rel=1e-4)
     assert np.isnan(HeadingIndex(rows[:3], np.zeros(3), k=3).typical_distance())
