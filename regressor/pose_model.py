@@ -28,6 +28,11 @@ one silhouette with one target except near its rule's boundary (for "facing", ex
 profile), so its limbs are one body's or the other's, and the tracker takes the member that
 agrees with the heading it decided (tracker/hypotheses.py, "Limbs").
 
+Its limbs may instead come from a limb network (regressor.limb_net.LimbNet): an ensemble of
+small neural networks on the same input and the same canonical targets, fitted on every
+training row (:attr:`PoseModel.limb_net`; it takes precedence over a limb head, and training
+fits one or the other).
+
 A mixture model may also carry a heading index (regressor.heading_index.HeadingIndex): training
 rows' projected inputs and folded headings; its nearest neighbours' heading replaces the
 experts' away from profile (the experts' is off by 19-41 degrees folded RMS on the validation
@@ -50,6 +55,7 @@ from .mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate
 from .model_file import ModelFileError, load_model, save_model
 from .errors import SilhouettePoseError
 from .heading_index import HeadingIndex
+from .limb_net import LimbNet
 
 DEFAULT_MODEL_PATH = Path(__file__).resolve().parent / "models" / "default_model.npz"
 TRANSFORMS = ("none", "sqrt")      # sqrt: Hellinger-like, tames the dominant histogram bins
@@ -96,7 +102,8 @@ class PoseModel:
     of {pose, front/back flip} (sequences.pose_vector.canonical_member): its raw pose may be
     either body, and the tracker's front/back chain picks the member, limbs included.
     limb_head: a mixture's canonical limb head (:class:`LimbHead`, :meth:`predict_limbs`), or
-    None. heading_index: a mixture's nearest-neighbour heading (module docstring), or None.
+    None. limb_net: a mixture's limb network (regressor.limb_net.LimbNet), used for the limbs
+    instead of limb_head, or None. heading_index: a mixture's nearest-neighbour heading (module docstring), or None.
     """
 
     settings: DescriptorSettings
@@ -122,6 +129,7 @@ class PoseModel:
     canonical_direction: np.ndarray | None = None
     limb_head: LimbHead | None = None
     heading_index: HeadingIndex | None = None
+    limb_net: LimbNet | None = None
 
     @property
     def descriptor_length(self) -> int:
@@ -199,10 +207,19 @@ class PoseModel:
         """The limb head's poses (N, 55) from stacked descriptors (N, k*D): for each row, the
         gate's most probable expert with the head's weights, a canonical member (either body
         of the silhouette; its heading picks which). None without a limb head."""
-        if self.limb_head is None or self.mixture is None:
+        if not self.has_limbs:
             return None
         X = self._stacked(stacked)
+        if self.limb_net is not None:
+            return self.limb_net.predict(X)
         return self._limbs(X, self.mixture.predict_proba(X).argmax(axis=1))
+
+    @property
+    def has_limbs(self) -> bool:
+        """Whether the model gives canonical limbs (a limb network, or a mixture's limb
+        head)."""
+        return self.limb_net is not None or (self.limb_head is not None
+                                             and self.mixture is not None)
 
     def predict_hypotheses_and_limbs(self, stacked: np.ndarray, m: int = 2
                                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -222,8 +239,11 @@ class PoseModel:
         if self.heading_index is not None:
             poses = self.heading_index.apply(poses, X)
         poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
-        limbs = (self._limbs(X, gate.argmax(axis=1))
-                 if with_limbs and self.limb_head is not None else None)
+        limbs = None
+        if with_limbs and self.limb_net is not None:
+            limbs = self.limb_net.predict(X)
+        elif with_limbs and self.limb_head is not None:
+            limbs = self._limbs(X, gate.argmax(axis=1))
         return poses, prob, limbs
 
     def _limbs(self, X: np.ndarray, top: np.ndarray) -> np.ndarray:
@@ -308,6 +328,8 @@ def save_pose_model(path: str | Path, model: PoseModel) -> None:
         raise PoseModelError("only a mixture model can carry a limb head")
     if model.heading_index is not None:
         raise PoseModelError("only a mixture model can carry a heading index")
+    if model.limb_net is not None:
+        raise PoseModelError("only a mixture model can carry a limb network")
     arrays = {
         **model.codebook.to_arrays(), **model.settings.to_arrays(),
         "model_kind": np.str_(MODEL_KIND),
@@ -339,7 +361,7 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
             return model
         if str(a.get("model_kind", "")) != MODEL_KIND:
             raise PoseModelError(f"{path}: not a silhouette-pose model file")
-        if any(name.startswith("limbs_") for name in a.parts):
+        if any(name.startswith(("limbs_", "limb_net_")) for name in a.parts):
             raise PoseModelError(f"{path}: invalid model: only a mixture can carry a limb head")
         if any(name.startswith("heading_index_") for name in a.parts):
             raise PoseModelError(f"{path}: invalid model: only a mixture can carry a heading "
@@ -461,6 +483,7 @@ def _mixture_arrays(model: PoseModel) -> dict:
         "mixture_params": np.str_(json.dumps(mix.get_params(), sort_keys=True)),
         **_limb_head_arrays(model.limb_head),
         **_heading_index_arrays(model.heading_index),
+        **(model.limb_net.to_arrays() if model.limb_net is not None else {}),
     }
 
 
@@ -593,10 +616,13 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
     try:
         limb_head = _limb_head_from_arrays(a, len(coef), E)
         heading_index = _heading_index_from_arrays(a, kD)
+        limb_net = LimbNet.from_arrays(a)
     except ValueError as exc:
         fail(str(exc))
-    if limb_head is not None and "canonical_direction" in a:
-        fail("a model fitted on canonical members takes no limb head")
+    if limb_net is not None and limb_net.input_length != kD:
+        fail(f"the limb network takes {limb_net.input_length} inputs, the regressor {kD}")
+    if (limb_head is not None or limb_net is not None) and "canonical_direction" in a:
+        fail("a model fitted on canonical members takes no limb head or network")
     return PoseModel(
         settings=settings, codebook=codebook, stack_depth=k, transform=str(a["transform"]),
         basis="gaussian", width=float(a["width"]), centres=centres,
@@ -606,4 +632,4 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         process_noise=a["process_noise"].astype(np.float64),
         ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
         description=json.loads(str(a["description"])), mixture=mix, limb_head=limb_head,
-        heading_index=heading_index, **inputs)
+        heading_index=heading_index, limb_net=limb_net, **inputs)

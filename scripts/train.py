@@ -69,6 +69,10 @@ def main(argv=None) -> int:
                     help="also fit the experts on each pose's canonical member by this rule, "
                          "for the tracker's limbs (regressor.pose_model.LimbHead); default "
                          f"{MixtureOptions.limb_head}, none with --canonical")
+    ap.add_argument("--limb-nets", type=int, default=MixtureOptions.limb_net_members,
+                    help="fit the limb head as an ensemble of this many neural networks "
+                         "(regressor.limb_net; needs scikit-learn) instead of a second set of "
+                         "expert weights (0)")
     ap.add_argument("--heading-index-rows", type=int, default=MixtureOptions.heading_index_rows,
                     help="training rows kept for the nearest-neighbour heading "
                          "(regressor.heading_index; needs --components >= 50; 0: none)")
@@ -80,6 +84,10 @@ def main(argv=None) -> int:
             ap.error("--limb-head needs the mixture regressor")
         if args.canonical != "none":
             ap.error("a model fitted on canonical members (--canonical) takes no --limb-head")
+    if not 0 <= args.limb_nets <= 16:
+        ap.error(f"--limb-nets must be in 0..16, got {args.limb_nets}")
+    if args.limb_nets and (args.regressor != "mixture" or _limb_head(args) == "none"):
+        ap.error("--limb-nets needs the mixture regressor with a limb head")
     if args.heading_index_rows < 0:
         ap.error(f"--heading-index-rows must be >= 0, got {args.heading_index_rows}")
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
@@ -138,6 +146,7 @@ def main(argv=None) -> int:
                                      components=args.components, canonical=args.canonical,
                                      limb_head=_limb_head(args),
                                      heading_index_rows=args.heading_index_rows,
+                                     limb_net_members=args.limb_nets,
                                      **({"width_scale": args.width_scale}
                                         if args.width_scale != TrainingOptions.width_scale else {}))
             with threadpool_limits(args.workers):
@@ -167,7 +176,7 @@ def main(argv=None) -> int:
             diff = np.abs(wrap_deg(heading_deg(after) - heading_deg(before)))
             report["heading_round_trip_deg"] = {"median": round(float(np.median(diff)), 3),
                                                 "max": round(float(diff.max()), 3)}
-            if model.limb_head is not None:
+            if model.has_limbs:
                 diff = np.abs(wrap_deg(loaded.predict_limbs(probe)[:, 2:]
                                        - model.predict_limbs(probe)[:, 2:]))
                 report["limb_head_round_trip_max_deg"] = round(float(diff.max()), 3)

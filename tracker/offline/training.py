@@ -23,6 +23,7 @@ from regressor.heading_index import build_heading_index
 from regressor.descriptor import (DescriptorSettings, descriptors_for_masks,
                                   fit_codebook_for_masks)
 from regressor.layout import layouts_for_masks
+from regressor.limb_net import fit_limb_net
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
                                   frame_descriptors, transform_descriptors)
 from regressor.rvm import RVMRegressor
@@ -421,6 +422,9 @@ class MixtureOptions:
     heading_index_dims: int = 50
     heading_index_k: int = 20
     heading_index_limit_deg: float = 45.0
+    limb_net_members: int = 0
+    limb_net_hidden: tuple[int, ...] = (512, 256)
+    limb_net_alpha: float = 1e-3
     seed: int = 0
 
 
@@ -517,6 +521,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         top_experts=options.top_experts, seed=options.seed)
     head_direction = head_truth = None
     targets = Y
+    use_net = options.limb_head != "none" and options.limb_net_members > 0
     if options.limb_head != "none":
         # The same experts (centres depend on the inputs only) with a second set of weights:
         # one fit on both target sets, split afterwards (ridge columns are independent).
@@ -524,10 +529,18 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
             options.limb_head, dataset.pose, fit, options.seed,
             f"limb head ({options.limb_head})", log)
         head_centre = angle_centres(head_truth[~val])
-        targets = np.hstack([Y, regression_targets(head_truth, head_centre)])
+        if not use_net:
+            targets = np.hstack([Y, regression_targets(head_truth, head_centre)])
     mixture.fit(Xin[train_rows], targets[train_rows], Z[train_rows], log=log)
-    limb_head = None
-    if head_truth is not None:
+    limb_head = limb_net = None
+    if use_net:
+        log(f"fitting {options.limb_net_members} limb networks "
+            f"{'x'.join(map(str, options.limb_net_hidden))} on all {len(train_rows)} rows ...")
+        limb_net = fit_limb_net(Xin[train_rows], head_truth[train_rows], head_centre,
+                                head_direction, members=options.limb_net_members,
+                                hidden=options.limb_net_hidden, alpha=options.limb_net_alpha,
+                                seed=options.seed, log=log)
+    elif head_truth is not None:
         coef, intercept = split_expert_outputs(mixture, POSE_DIM)
         limb_head = LimbHead(coef, intercept, head_centre, head_direction)
     heading_index = None
@@ -549,7 +562,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                       measurement_covariance=np.eye(54), process_noise=np.ones(54),
                       mixture=mixture, layout_grid=grid, layout_weight=weight,
                       projection=projection, projection_mean=projection_mean,
-                      canonical_direction=direction, limb_head=limb_head)
+                      canonical_direction=direction, limb_head=limb_head,
+                      limb_net=limb_net)
     # R from the experts' own heading: its heading entry is mostly front/back confusions
     # (which the tracker's chain, not the filter, handles); the index's heading commits to a
     # side and would inflate it (validation videos through track: heading RMS 30.2 with that R,
@@ -579,8 +593,9 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               "layout_weight": round(weight, 4),
               "validation": angle_measures(predicted, truth[val_rows], centre),
               "canonical": options.canonical, "limb_head": options.limb_head,
+              "limb_net_members": options.limb_net_members,
               **{k: round(v, 3) for k, v in facts.items()}}
-    if limb_head is not None:
+    if model.has_limbs:
         # The head's member picked by the true heading: what the tracker gets when its chain
         # decides the heading right (an upper bound, hence the name).
         from tracker.hypotheses import pick_member

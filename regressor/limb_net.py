@@ -1,0 +1,200 @@
+"""The limbs by a small neural network on the regressor's input (issue 9).
+
+The mixture's limb head (:class:`regressor.pose_model.LimbHead`) regresses each silhouette's
+canonical body (the member of {pose, front/back flip} facing the camera's half,
+sequences.pose_vector.canonical_member) by kernel ridge on 400 centres per expert. A
+multi-layer perceptron on the same input and targets, fitted on every training row, follows
+the limbs better: picked at the true heading, the correlation of the 8 most-moving angles on
+the five validation videos' masks (02_02 / 08_03 / 05_02 / 09_04 / 02_05) went 0.675 / 0.714 /
+0.032 / 0.321 / 0.173 (limb head) -> see :data:`SELECTION` for the figures of the shipped
+choice. The kernel experts smooth within their regions; the network shares its features over
+all rows and fits what changes from one walk phase to the next.
+
+A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
+standardised by a mean and one scale, outputs by a mean and a scale per value; the 53 body
+angles are regressed as wrapped offsets (degrees) from ``angle_centre_deg``, as the experts'.
+"""
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .angles import wrap_deg
+
+POSE_DIM = 55
+PREFIX = "limb_net_"      # the file parts' names
+
+
+@dataclass
+class LimbNet:
+    """An ensemble of networks with shared standardisation. members: per network, its layers
+    [(W (n_in, n_out), b (n_out,)), ...], the last linear, the others ReLU; the ensemble's
+    output is the members' mean. input_mean (P,), input_scale (scalar) standardise the
+    regressor's input X (N, P); output_mean, output_scale (55,) undo the targets'
+    standardisation; angle_centre_deg (53,); canonical_direction (55,): the rule the targets'
+    members were chosen by (sequences.pose_vector.canonical_member)."""
+
+    members: list[list[tuple[np.ndarray, np.ndarray]]]
+    input_mean: np.ndarray
+    input_scale: float
+    output_mean: np.ndarray
+    output_scale: np.ndarray
+    angle_centre_deg: np.ndarray
+    canonical_direction: np.ndarray
+
+    def __post_init__(self):
+        self.members = [[(np.asarray(W, dtype=np.float32), np.asarray(b, dtype=np.float32))
+                         for W, b in layers] for layers in self.members]
+        self.input_mean = np.asarray(self.input_mean, dtype=np.float64)
+        self.input_scale = float(self.input_scale)
+        self.output_mean = np.asarray(self.output_mean, dtype=np.float64)
+        self.output_scale = np.asarray(self.output_scale, dtype=np.float64)
+        self.angle_centre_deg = np.asarray(self.angle_centre_deg, dtype=np.float64)
+        self.canonical_direction = np.asarray(self.canonical_direction, dtype=np.float64)
+        problem = self._problem()
+        if problem:
+            raise ValueError(f"invalid limb network: {problem}")
+
+    def _problem(self) -> str | None:
+        """The first inconsistency of the parts, or None."""
+        if not self.members or not all(self.members):
+            return "no members or a member without layers"
+        if self.input_mean.ndim != 1 or len(self.input_mean) < 1:
+            return f"input mean has shape {self.input_mean.shape}"
+        for m, layers in enumerate(self.members):
+            n_in = len(self.input_mean)
+            for i, (W, b) in enumerate(layers):
+                if W.ndim != 2 or W.shape[0] != n_in or b.shape != (W.shape[1],):
+                    return f"member {m} layer {i} has shape {W.shape} / {b.shape} after {n_in} values"
+                n_in = W.shape[1]
+            if n_in != POSE_DIM:
+                return f"member {m} gives {n_in} values, not {POSE_DIM}"
+        if self.output_mean.shape != (POSE_DIM,) or self.output_scale.shape != (POSE_DIM,) \
+                or self.angle_centre_deg.shape != (POSE_DIM - 2,) \
+                or self.canonical_direction.shape != (POSE_DIM,):
+            return "output parts do not have 55 values (53 centres)"
+        arrays = [self.input_mean, self.output_mean, self.output_scale, self.angle_centre_deg,
+                  self.canonical_direction,
+                  *(a for layers in self.members for layer in layers for a in layer)]
+        if not all(np.isfinite(a).all() for a in arrays) or not np.isfinite(self.input_scale):
+            return "non-finite values"
+        if not (self.input_scale > 0 and np.all(self.output_scale > 0)):
+            return "scales must be positive"
+        if np.any(np.abs(self.angle_centre_deg) > 180.0) \
+                or not abs(np.linalg.norm(self.canonical_direction) - 1) < 1e-6:
+            return "centres must be angles in [-180, 180] and the direction a unit vector"
+        return None
+
+    @property
+    def input_length(self) -> int:
+        """P, the length of the regressor's input the network takes."""
+        return len(self.input_mean)
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """Canonical poses (N, 55) from the regressor's inputs X (N, P): (cos, sin) of the
+        heading, then the 53 body angles in degrees wrapped to (-180, 180]."""
+        x = ((np.asarray(X, dtype=np.float64) - self.input_mean) / self.input_scale
+             ).astype(np.float32)
+        total = np.zeros((len(x), POSE_DIM), dtype=np.float64)
+        for layers in self.members:
+            h = x
+            for W, b in layers[:-1]:
+                h = np.maximum(h @ W + b, 0.0)
+            W, b = layers[-1]
+            total += h @ W + b
+        out = total / len(self.members) * self.output_scale + self.output_mean
+        out[:, 2:] = wrap_deg(out[:, 2:] + self.angle_centre_deg)
+        return out
+
+    def to_arrays(self, prefix: str = PREFIX) -> dict:
+        """The file parts, keyed by ``prefix``; weights as float16 (half the file space; the
+        poses move by hundredths of a degree, which scripts/train.py checks on every save)."""
+        out = {f"{prefix}shape": np.array([len(self.members), len(self.members[0])], np.int64),
+               f"{prefix}input_mean": self.input_mean,
+               f"{prefix}input_scale": np.float64(self.input_scale),
+               f"{prefix}output_mean": self.output_mean,
+               f"{prefix}output_scale": self.output_scale,
+               f"{prefix}angle_centre_deg": self.angle_centre_deg,
+               f"{prefix}canonical_direction": self.canonical_direction}
+        if any(len(layers) != len(self.members[0]) for layers in self.members):
+            raise ValueError("a limb network's members must have the same number of layers")
+        for m, layers in enumerate(self.members):
+            for i, (W, b) in enumerate(layers):
+                out[f"{prefix}W{m}_{i}"] = W.astype(np.float16)
+                out[f"{prefix}b{m}_{i}"] = b.astype(np.float32)
+        return out
+
+    @classmethod
+    def from_arrays(cls, a, prefix: str = PREFIX) -> "LimbNet | None":
+        """The network in a file's parts a (mapping), None when it has none; ValueError when
+        it is incomplete or inconsistent."""
+        if f"{prefix}shape" not in a:
+            if any(str(k).startswith(prefix) for k in a.keys()):
+                raise ValueError("limb network is incomplete")
+            return None
+        shape = np.asarray(a[f"{prefix}shape"])
+        if shape.shape != (2,) or not np.issubdtype(shape.dtype, np.integer) \
+                or not (1 <= shape[0] <= 16 and 1 <= shape[1] <= 8):
+            raise ValueError("limb network shape must be two integers (members 1..16, layers 1..8)")
+        names = [f"{prefix}{s}" for s in ("input_mean", "input_scale", "output_mean",
+                                          "output_scale", "angle_centre_deg",
+                                          "canonical_direction")]
+        layers = [[(f"{prefix}W{m}_{i}", f"{prefix}b{m}_{i}") for i in range(int(shape[1]))]
+                  for m in range(int(shape[0]))]
+        needed = names + [k for member in layers for pair in member for k in pair]
+        missing = [k for k in needed if k not in a]
+        if missing:
+            raise ValueError(f"limb network is incomplete (no {missing[0]})")
+        scale = np.asarray(a[f"{prefix}input_scale"])
+        if scale.shape != ():
+            raise ValueError("limb network input scale must be one number")
+        return cls([[(a[W], a[b]) for W, b in member] for member in layers], a[names[0]],
+                   float(scale), a[names[2]], a[names[3]], a[names[4]], a[names[5]])
+
+
+def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarray,
+                 canonical_direction: np.ndarray, members: int = 3,
+                 hidden: tuple[int, ...] = (512, 256), alpha: float = 1e-3,
+                 max_iter: int = 200, seed: int = 0,
+                 log: Callable[[str], None] = lambda message: None) -> LimbNet:
+    """Fit a :class:`LimbNet` of ``members`` networks (seeds seed, seed + 1, ...) on inputs
+    X (N, P) and canonical poses targets (N, 55) (cos, sin, then 53 angles in degrees) with
+    scikit-learn's MLPRegressor (Adam, minibatches of 256, L2 alpha, 10 % of the rows held
+    out for early stopping after 10 epochs without gain; seeded, so a refit on the same
+    machine gives the same arrays). Needs scikit-learn (training only)."""
+    try:
+        from sklearn.neural_network import MLPRegressor
+    except ImportError as exc:     # training-time only; the tracker never imports it
+        raise ImportError("fitting a limb network needs scikit-learn: "
+                          "pip install -e '.[train]'") from exc
+    X = np.asarray(X, dtype=np.float64)
+    T = np.asarray(targets, dtype=np.float64)
+    centre = np.asarray(angle_centre_deg, dtype=np.float64)
+    Y = np.hstack([T[:, :2], wrap_deg(T[:, 2:] - centre)])
+    x_mean, x_scale = X.mean(axis=0), float(X.std(axis=0).mean())
+    y_mean, y_scale = Y.mean(axis=0), Y.std(axis=0) + 1e-6
+    Xz, Yz = (X - x_mean) / x_scale, (Y - y_mean) / y_scale
+    fitted = []
+    for m in range(members):
+        start = time.perf_counter()
+        net = MLPRegressor(hidden_layer_sizes=tuple(hidden), alpha=alpha, batch_size=256,
+                           learning_rate_init=1e-3, max_iter=max_iter, early_stopping=True,
+                           n_iter_no_change=10, random_state=seed + m)
+        with warnings.catch_warnings():      # max_iter reached is reported below, not warned
+            warnings.simplefilter("ignore", _convergence_warning())
+            net.fit(Xz, Yz)
+        fitted.append(list(zip(net.coefs_, net.intercepts_)))
+        stopped = "max_iter reached" if net.n_iter_ >= max_iter else "early stop"
+        log(f"  limb network {m + 1}/{members}: {net.n_iter_} epochs ({stopped}), held-out "
+            f"R^2 {net.best_validation_score_:.3f}, {time.perf_counter() - start:.0f} s")
+    return LimbNet(fitted, x_mean, x_scale, y_mean, y_scale, centre, canonical_direction)
+
+
+def _convergence_warning():
+    """sklearn's ConvergenceWarning class (import kept local: training-time only)."""
+    from sklearn.exceptions import ConvergenceWarning
+    return ConvergenceWarning

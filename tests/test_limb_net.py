@@ -1,0 +1,125 @@
+"""The limb network (regressor.limb_net): fitting, prediction, model files, refusals."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("sklearn")
+
+from regressor.angles import wrap_deg                       # noqa: E402
+from regressor.limb_net import LimbNet, fit_limb_net        # noqa: E402
+from regressor.pose_model import PoseModelError, load_pose_model, save_pose_model  # noqa: E402
+
+
+def _synthetic(n=3000, P=6, seed=0):
+    """Inputs (n, P) and canonical poses (n, 55) that are smooth non-linear functions of them:
+    a heading (cos, sin), and angles around 170 degrees that cross +-180 (the wrap)."""
+    rng = np.random.default_rng(seed)
+    X = rng.normal(0, 1, (n, P))
+    h = np.arctan2(X[:, 1], np.abs(X[:, 0]) + 0.5)          # facing the camera's half
+    angles = 170.0 + 20.0 * np.tanh(X[:, 2:3] * X[:, 3:4]) + 5.0 * np.sin(X[:, 4:5]) \
+        + 0.0 * np.arange(53)
+    Y = np.column_stack([np.cos(h), np.sin(h), wrap_deg(angles)])
+    return X, Y
+
+
+def _fitted(members=2, **kw):
+    X, Y = _synthetic()
+    centre = np.full(53, 170.0)
+    return fit_limb_net(X, Y, centre, np.eye(55)[0], members=members, hidden=(32, 16),
+                        max_iter=60, **kw), X, Y
+
+
+def test_a_network_learns_a_non_linear_map_across_the_wrap():
+    net, X, Y = _fitted()
+    Xt, Yt = _synthetic(500, seed=1)                        # new rows
+    out = net.predict(Xt)
+    assert out.shape == (500, 55)
+    err = np.abs(wrap_deg(out[:, 2:] - Yt[:, 2:])).mean()
+    spread = np.abs(wrap_deg(Yt[:, 2:] - 170.0)).mean()
+    assert err < 0.3 * spread                               # far better than the centre
+    assert np.all(np.abs(out[:, 2:]) <= 180.0)              # wrapped
+    assert np.corrcoef(out[:, 1], Yt[:, 1])[0, 1] > 0.9
+
+
+def test_the_ensemble_is_the_mean_of_its_members_and_a_refit_is_identical():
+    net, X, _ = _fitted(members=2)
+    parts = [LimbNet([m], net.input_mean, net.input_scale, net.output_mean, net.output_scale,
+                     net.angle_centre_deg, net.canonical_direction) for m in net.members]
+    off = [wrap_deg(p.predict(X[:50])[:, 2:] - 170.0) for p in parts]
+    np.testing.assert_allclose(wrap_deg(net.predict(X[:50])[:, 2:] - 170.0),
+                               (off[0] + off[1]) / 2, atol=1e-4)
+    assert not np.allclose(off[0], off[1])                  # two different seeds
+    again, _, _ = _fitted(members=2)
+    for a, b in zip(net.members, again.members):
+        for (W, bias), (W2, bias2) in zip(a, b):
+            np.testing.assert_array_equal(W, W2)
+            np.testing.assert_array_equal(bias, bias2)
+
+
+def test_file_parts_round_trip_and_broken_parts_are_refused():
+    net, X, _ = _fitted()
+    parts = net.to_arrays()
+    assert parts["limb_net_W0_0"].dtype == np.float16       # half the space
+    back = LimbNet.from_arrays(parts)
+    assert np.abs(wrap_deg(back.predict(X[:200])[:, 2:] - net.predict(X[:200])[:, 2:])).max() < 0.1
+    assert LimbNet.from_arrays({"something_else": np.zeros(1)}) is None
+    for broken, match in (({"limb_net_W1_0": None}, "incomplete"),
+                          ({"limb_net_shape": np.array([2.0, 3.0])}, "two integers"),
+                          ({"limb_net_W0_1": parts["limb_net_W0_1"][:-1]}, "layer 1"),
+                          ({"limb_net_b1_2": np.full(55, np.nan, np.float32)}, "non-finite"),
+                          ({"limb_net_output_scale": -parts["limb_net_output_scale"]}, "positive"),
+                          ({"limb_net_canonical_direction": 2 * np.eye(55)[0]}, "unit vector")):
+        bad = {k: v for k, v in {**parts, **broken}.items() if v is not None}
+        with pytest.raises(ValueError, match=match):
+            LimbNet.from_arrays(bad)
+
+
+def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp_path):
+    from test_mixture import _mixture_model
+    from regressor.model_file import load_model, save_model
+    model, x = _mixture_model()                              # input length 8
+    rng = np.random.default_rng(3)
+    targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),
+                               wrap_deg(40 * np.tanh(x[:, :1]) + rng.normal(0, 1, (len(x), 53)))])
+    model.limb_net = fit_limb_net(x, targets, np.zeros(53), np.eye(55)[0], members=1,
+                                  hidden=(16,), max_iter=40)
+    assert model.has_limbs
+    np.testing.assert_allclose(model.predict_limbs(x[:20]), model.limb_net.predict(x[:20]))
+    _, _, limbs = model.predict_hypotheses_and_limbs(x[:20], 2)
+    np.testing.assert_array_equal(limbs, model.predict_limbs(x[:20]))
+    path = tmp_path / "net.npz"
+    save_pose_model(path, model)
+    loaded = load_pose_model(path)
+    assert np.abs(wrap_deg(loaded.predict_limbs(x[:20])[:, 2:]
+                           - model.predict_limbs(x[:20])[:, 2:])).max() < 0.1
+    raw = dict(load_model(path).parts)
+    # a network for another input length, or an incomplete one, is refused at load
+    other = fit_limb_net(x[:, :5], targets, np.zeros(53), np.eye(55)[0], members=1,
+                         hidden=(4,), max_iter=5)
+    for broken, match in ((other.to_arrays(), "takes 5 inputs"),
+                          ({"limb_net_b0_1": None}, "limb network is incomplete"),
+                          ({"canonical_direction": np.eye(55)[0]}, "takes no limb head")):
+        parts = {k: v for k, v in {**raw, **broken}.items() if v is not None}
+        save_model(path, parts)                              # re-checksummed
+        with pytest.raises(PoseModelError, match=match):
+            load_pose_model(path)
+    from test_mixture import _mixture_model as fresh
+    plain, _ = fresh()
+    assert not plain.has_limbs and plain.predict_limbs(x[:3]) is None
+
+
+def test_only_a_mixture_carries_a_limb_network(tmp_path):
+    from regressor.model_file import load_model, save_model
+    from regressor.pose_model import DEFAULT_MODEL_PATH
+    net, _, _ = _fitted(members=1)
+    single = load_pose_model(DEFAULT_MODEL_PATH.parent / "per_frame_model.npz")
+    single.limb_net = net
+    with pytest.raises(PoseModelError, match="only a mixture"):
+        save_pose_model(tmp_path / "single.npz", single)
+    single.limb_net = None
+    save_pose_model(tmp_path / "single.npz", single)
+    raw = dict(load_model(tmp_path / "single.npz").parts)
+    save_model(tmp_path / "single.npz", {**raw, **net.to_arrays()})
+    with pytest.raises(PoseModelError, match="only a mixture"):
+        load_pose_model(tmp_path / "single.npz")
