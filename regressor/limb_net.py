@@ -1,14 +1,22 @@
-"""The limbs by a small neural network on the regressor's input (issue 9).
+"""The limbs by an ensemble of small neural networks on the regressor's input (issue 9).
 
 The mixture's limb head (:class:`regressor.pose_model.LimbHead`) regresses each silhouette's
 canonical body (the member of {pose, front/back flip} facing the camera's half,
-sequences.pose_vector.canonical_member) by kernel ridge on 400 centres per expert. A
-multi-layer perceptron on the same input and targets, fitted on every training row, follows
-the limbs better: picked at the true heading, the correlation of the 8 most-moving angles on
-the five validation videos' masks (02_02 / 08_03 / 05_02 / 09_04 / 02_05) went 0.675 / 0.714 /
-0.032 / 0.321 / 0.173 (limb head) -> see :data:`SELECTION` for the figures of the shipped
-choice. The kernel experts smooth within their regions; the network shares its features over
-all rows and fits what changes from one walk phase to the next.
+sequences.pose_vector.canonical_member) by kernel ridge on 400 centres per expert: each expert
+sees its own region and smooths within it. A multi-layer perceptron on the same input and
+targets shares its features over all 67,036 training rows. Seeded networks differ a lot from
+one another (the validation videos' correlation of the 8 most-moving angles at the true
+heading moved by up to 0.17 between two seeds), so several are averaged.
+
+Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 2026-12-02:
+- At the true heading (the member picked by the truth; one-off driver on the masks ``track``
+  extracts): limb head 0.675 / 0.714 / 0.032 / 0.321 / 0.173 (mean 0.383); one network
+  (512, 256) 0.412 and 0.373 for two seeds, their mean 0.716 / 0.759 / 0.034 / 0.408 / 0.229
+  (0.430). (1024, 512) 0.398, L2 1e-2 0.399, the first 100 components 0.39-0.41.
+- Through ``track`` (filtered, mean over the five: corr8, err53; the heading is the
+  chain's and does not change): limb head 0.392, 8.68; 2 networks 0.418, 8.37; 3 0.423,
+  8.15; 4 0.430, 8.06. The default model has 4 (9.8 MB; the limb head's weights it replaces
+  took 1.7 MB, each network takes 0.5 MB as float16).
 
 A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
 standardised by a mean and one scale, outputs by a mean and a scale per value; the 53 body

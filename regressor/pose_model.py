@@ -204,9 +204,10 @@ class PoseModel:
         return self.heading_index.novelty(X)
 
     def predict_limbs(self, stacked: np.ndarray) -> np.ndarray | None:
-        """The limb head's poses (N, 55) from stacked descriptors (N, k*D): for each row, the
-        gate's most probable expert with the head's weights, a canonical member (either body
-        of the silhouette; its heading picks which). None without a limb head."""
+        """Canonical poses (N, 55) for the limbs from stacked descriptors (N, k*D): the limb
+        network's (:attr:`limb_net`) or, without one, the limb head's (for each row, the gate's
+        most probable expert with the head's weights); either body of the silhouette, its
+        heading picks which. None without either."""
         if not self.has_limbs:
             return None
         X = self._stacked(stacked)
@@ -444,7 +445,8 @@ def _validate(path: Path, m: PoseModel) -> None:
 # expert_width (E,), expert_intercept (E, 55), partition_centres (E, dZ), the gate's centres
 # (G, k*D) float16, width, feature_mean/std (G,) and weights (G+1, E), top_experts; and,
 # with a limb head, under "limbs_": coef (R, 55) float32 (rows as coef's), expert_intercept
-# (E, 55), angle_centre_deg (53,), canonical_direction (55,).
+# (E, 55), angle_centre_deg (53,), canonical_direction (55,); with a limb network, under
+# "limb_net_" (regressor.limb_net.LimbNet.to_arrays).
 
 
 def _mixture_arrays(model: PoseModel) -> dict:

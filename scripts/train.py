@@ -69,10 +69,11 @@ def main(argv=None) -> int:
                     help="also fit the experts on each pose's canonical member by this rule, "
                          "for the tracker's limbs (regressor.pose_model.LimbHead); default "
                          f"{MixtureOptions.limb_head}, none with --canonical")
-    ap.add_argument("--limb-nets", type=int, default=MixtureOptions.limb_net_members,
+    ap.add_argument("--limb-nets", type=int, default=None,
                     help="fit the limb head as an ensemble of this many neural networks "
-                         "(regressor.limb_net; needs scikit-learn) instead of a second set of "
-                         "expert weights (0)")
+                         "(regressor.limb_net; needs scikit-learn: pip install -e '.[train]'); "
+                         "0: a second set of expert weights instead; default "
+                         f"{MixtureOptions.limb_net_members} with a limb head")
     ap.add_argument("--heading-index-rows", type=int, default=MixtureOptions.heading_index_rows,
                     help="training rows kept for the nearest-neighbour heading "
                          "(regressor.heading_index; needs --components >= 50; 0: none)")
@@ -84,10 +85,15 @@ def main(argv=None) -> int:
             ap.error("--limb-head needs the mixture regressor")
         if args.canonical != "none":
             ap.error("a model fitted on canonical members (--canonical) takes no --limb-head")
-    if not 0 <= args.limb_nets <= 16:
-        ap.error(f"--limb-nets must be in 0..16, got {args.limb_nets}")
-    if args.limb_nets and (args.regressor != "mixture" or _limb_head(args) == "none"):
-        ap.error("--limb-nets needs the mixture regressor with a limb head")
+    if args.limb_nets is not None:
+        if not 0 <= args.limb_nets <= 16:
+            ap.error(f"--limb-nets must be in 0..16, got {args.limb_nets}")
+        if args.limb_nets and (args.regressor != "mixture" or _limb_head(args) == "none"):
+            ap.error("--limb-nets needs the mixture regressor with a limb head")
+    elif args.regressor == "mixture" and _limb_head(args) != "none":
+        args.limb_nets = MixtureOptions.limb_net_members
+    else:
+        args.limb_nets = 0
     if args.heading_index_rows < 0:
         ap.error(f"--heading-index-rows must be >= 0, got {args.heading_index_rows}")
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731

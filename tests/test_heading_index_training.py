@@ -67,3 +67,33 @@ def test_no_index_when_asked_and_none_without_a_projection():
     with pytest.raises(ValueError, match="heading index"):
         train_mixture_model(data, X, codebook, settings, replace(_options(), components=0),
                             30.0, log=lambda m: None)
+
+
+def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
+    pytest.importorskip("sklearn")
+    from sequences.pose_vector import canonical_member
+    data, X, codebook, settings = _dataset()
+    logged = []
+    model, report = train_mixture_model(
+        data, X, codebook, settings,
+        replace(_options(), limb_head="facing", limb_net_members=2, limb_net_hidden=(8,)),
+        30.0, log=logged.append)
+    assert model.limb_head is None and model.limb_net is not None
+    assert len(model.limb_net.members) == 2 and model.limb_net.input_length == 6
+    assert sum(m.startswith("  limb network ") for m in logged) == 2     # a line per network
+    assert "validation_limb_head_at_true_heading" in report
+    # Its outputs are canonical members: headings facing the camera's half, as its targets.
+    val = validation_mask(data)
+    Xs = stack_frames(frame_descriptors(X, model.transform), model.stack_depth,
+                      sequence_ids=data.sequence)
+    limbs = model.predict_limbs(Xs)
+    assert (limbs[:, 0] > 0).mean() > 0.9
+    np.testing.assert_allclose(model.limb_net.canonical_direction, np.eye(55)[0])
+    targets = canonical_member(data.pose[~val], np.eye(55)[0])
+    assert (targets[:, 0] >= 0).all()
+    # Without networks the experts' limb head as before.
+    plain, _ = train_mixture_model(data, X, codebook, settings,
+                                   replace(_options(), limb_head="facing",
+                                           limb_net_members=0), 30.0,
+                                   log=lambda m: None)
+    assert plain.limb_head is not None and plain.limb_net is None

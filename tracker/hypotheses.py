@@ -68,7 +68,9 @@ noise, while ~92 % of it is slow bias the filter cannot remove, so they smoothed
 2026-12-01 before the layout block, correlation of the 8 most-moving angles, raw / chain / this): 16_11 0.25 / 0.20 / 0.25, 02_02 0.37 / 0.21 / 0.38,
 08_03 0.39 / 0.11 / 0.41, 06_06 0.20 / 0.14 / 0.19, 06_08 0.24 / 0.24 / 0.27.
 
-With a limb head (regressor.pose_model.LimbHead, Hypotheses.limbs) that filter's input is not the
+With limbs from the model (its limb networks, regressor.limb_net, or its limb head,
+regressor.pose_model.LimbHead: PoseModel.predict_limbs, Hypotheses.limbs; "the limb head"
+below) that filter's input is not the
 regressor's own pose but the limb head's canonical member or its flip, whichever has the
 heading nearer the heading the chain decided (pick_member). The own pose averages a
 silhouette's two bodies where it cannot tell them apart (in profile, which leg is forward); the

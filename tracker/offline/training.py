@@ -390,7 +390,12 @@ class MixtureOptions:
     (regressor.heading_index; rows 0: none): that many training rows drawn at random, their
     first dims input components, k neighbours, used where the folded heading is within
     limit_deg of facing the camera or its back (chosen there on the validation videos); it
-    needs the projection (components >= heading_index_dims).
+    needs the projection (components >= heading_index_dims). limb_net_*: with a limb head,
+    fit it as an ensemble of that many neural networks (regressor.limb_net; hidden layer
+    sizes, L2 alpha) on every training row instead of a second set of expert weights (0: the
+    experts' weights). 4 networks (512, 256) were chosen on the five validation videos
+    through ``track`` (filtered corr8 mean 0.392 with the experts' limb head; 2 / 3 / 4
+    networks 0.418 / 0.423 / 0.430) and the 28 validation renders (0.361 -> 0.427 with 4).
 
     Chosen on the validation trials (issue 9, one-off drivers on the cached training rows,
     correlation of the 8 most-moving angles over the 6 validation trials; kernel ridge on 2,000
@@ -422,7 +427,7 @@ class MixtureOptions:
     heading_index_dims: int = 50
     heading_index_k: int = 20
     heading_index_limit_deg: float = 45.0
-    limb_net_members: int = 0
+    limb_net_members: int = 4
     limb_net_hidden: tuple[int, ...] = (512, 256)
     limb_net_alpha: float = 1e-3
     seed: int = 0
