@@ -51,6 +51,16 @@ heading variance scaled by 0.35 (its R is mostly front/back confusions, which th
 model; a smaller one should make a 75-degree innovation cost more than a switch, as at 16_11's
 frames 212-227, where the chosen filter ramps to the flip's heading): worse on both sets
 (videos 28.0 -> 31.2 degrees, corr8 0.392 -> 0.359; renders 59.5 -> 60.4, 0.361 -> 0.341).
+Later the same day, with the limb networks (a one-off patch): a front/back classifier, a ReLU
+network (200 -> 512 -> 256 -> 1) on the regressor's input fitted on the training rows to say
+whether the heading faces the camera's half (91.6 % right on its held-out tenth), its log-odds
+(probability clipped to 0.05-0.95) in place of the heading-norm table as each hypothesis's
+side evidence. Per frame it is right more often than the raw heading's side on the validation
+videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05: 0.80 / 0.86 / 0.65 / 0.75 / 0.57 against 0.71 /
+0.74 / 0.57 / 0.57 / 0.53), but it is confident where it is wrong (05_02: |p - 0.5| > 0.4 on 95 %
+of frames, right on 67 %): through ``track`` the filtered / smoothed heading went 28.0 / 25.1 ->
+31.9 / 32.4 (weight 1; 0.5: 34.3 / 31.8), 05_02 28.9 -> 58.9, though 02_02 15.6 -> 13.2 and
+corr8 0.430 -> 0.438. It needs calibration on video-like inputs before it can be evidence.
 
 Online the chosen pose is the most probable state's filtered pose; the runner-up and its
 probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
