@@ -4,7 +4,7 @@ The mixture's limb head (:class:`regressor.pose_model.LimbHead`) regresses each 
 canonical body (the member of {pose, front/back flip} facing the camera's half,
 sequences.pose_vector.canonical_member) by kernel ridge on 400 centres per expert: each expert
 sees its own region and smooths within it. A multi-layer perceptron on the same input and
-targets shares its features over all 67,036 training rows. Seeded networks differ a lot from
+targets shares its features over all the training rows. Seeded networks differ a lot from
 one another (the validation videos' correlation of the 8 most-moving angles at the true
 heading moved by up to 0.17 between two seeds), so several are averaged.
 
@@ -31,10 +31,12 @@ from typing import Callable
 
 import numpy as np
 
-from .angles import wrap_deg
+from .angles import POSE_DIM, wrap_deg
 
-POSE_DIM = 55
-PREFIX = "limb_net_"      # the file parts' names
+PREFIX = "limb_net_"        # the file parts' names
+MAX_MEMBERS, MAX_LAYERS = 16, 8
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
 
 
 @dataclass
@@ -55,6 +57,13 @@ class LimbNet:
     canonical_direction: np.ndarray
 
     def __post_init__(self):
+        for layers in self.members:
+            for W, b in layers:
+                # a float64 value beyond float32's range would turn into inf in the cast
+                if not all(np.all(np.abs(np.asarray(a, dtype=np.float64)) <= _FLOAT32_MAX)
+                           for a in (W, b)):
+                    raise ValueError("invalid limb network: weights out of float32 range or "
+                                     "not finite")
         self.members = [[(np.asarray(W, dtype=np.float32), np.asarray(b, dtype=np.float32))
                          for W, b in layers] for layers in self.members]
         self.input_mean = np.asarray(self.input_mean, dtype=np.float64)
@@ -71,13 +80,19 @@ class LimbNet:
         """The first inconsistency of the parts, or None."""
         if not self.members or not all(self.members):
             return "no members or a member without layers"
+        if len(self.members) > MAX_MEMBERS \
+                or any(len(layers) != len(self.members[0]) for layers in self.members) \
+                or len(self.members[0]) > MAX_LAYERS:
+            return (f"members must be 1..{MAX_MEMBERS} networks of the same 1..{MAX_LAYERS} "
+                    f"layers")
         if self.input_mean.ndim != 1 or len(self.input_mean) < 1:
             return f"input mean has shape {self.input_mean.shape}"
         for m, layers in enumerate(self.members):
             n_in = len(self.input_mean)
             for i, (W, b) in enumerate(layers):
                 if W.ndim != 2 or W.shape[0] != n_in or b.shape != (W.shape[1],):
-                    return f"member {m} layer {i} has shape {W.shape} / {b.shape} after {n_in} values"
+                    return (f"member {m} layer {i} has shape {W.shape} / {b.shape} after "
+                            f"{n_in} values")
                 n_in = W.shape[1]
             if n_in != POSE_DIM:
                 return f"member {m} gives {n_in} values, not {POSE_DIM}"
@@ -95,6 +110,13 @@ class LimbNet:
         if np.any(np.abs(self.angle_centre_deg) > 180.0) \
                 or not abs(np.linalg.norm(self.canonical_direction) - 1) < 1e-6:
             return "centres must be angles in [-180, 180] and the direction a unit vector"
+        # A probe on typical inputs (the regressor's are centred, of order 1): absurd but
+        # finite parts (a tiny scale, a huge mean) overflow there.
+        probe = np.vstack([np.zeros_like(self.input_mean), np.ones_like(self.input_mean),
+                           self.input_mean])
+        with np.errstate(all="ignore"):
+            if not np.isfinite(self.predict(probe)).all():
+                return "it gives non-finite poses"
         return None
 
     @property
@@ -120,7 +142,8 @@ class LimbNet:
 
     def to_arrays(self, prefix: str = PREFIX) -> dict:
         """The file parts, keyed by ``prefix``; weights as float16 (half the file space; the
-        poses move by hundredths of a degree, which scripts/train.py checks on every save)."""
+        poses move by hundredths of a degree: scripts/train.py reports the largest change on
+        its probe rows as limbs_round_trip_max_deg)."""
         out = {f"{prefix}shape": np.array([len(self.members), len(self.members[0])], np.int64),
                f"{prefix}input_mean": self.input_mean,
                f"{prefix}input_scale": np.float64(self.input_scale),
@@ -128,8 +151,6 @@ class LimbNet:
                f"{prefix}output_scale": self.output_scale,
                f"{prefix}angle_centre_deg": self.angle_centre_deg,
                f"{prefix}canonical_direction": self.canonical_direction}
-        if any(len(layers) != len(self.members[0]) for layers in self.members):
-            raise ValueError("a limb network's members must have the same number of layers")
         for m, layers in enumerate(self.members):
             for i, (W, b) in enumerate(layers):
                 out[f"{prefix}W{m}_{i}"] = W.astype(np.float16)
@@ -146,8 +167,9 @@ class LimbNet:
             return None
         shape = np.asarray(a[f"{prefix}shape"])
         if shape.shape != (2,) or not np.issubdtype(shape.dtype, np.integer) \
-                or not (1 <= shape[0] <= 16 and 1 <= shape[1] <= 8):
-            raise ValueError("limb network shape must be two integers (members 1..16, layers 1..8)")
+                or not (1 <= shape[0] <= MAX_MEMBERS and 1 <= shape[1] <= MAX_LAYERS):
+            raise ValueError(f"limb network shape must be two integers (members "
+                             f"1..{MAX_MEMBERS}, layers 1..{MAX_LAYERS})")
         names = [f"{prefix}{s}" for s in ("input_mean", "input_scale", "output_mean",
                                           "output_scale", "angle_centre_deg",
                                           "canonical_direction")]
@@ -157,6 +179,14 @@ class LimbNet:
         missing = [k for k in needed if k not in a]
         if missing:
             raise ValueError(f"limb network is incomplete (no {missing[0]})")
+        extra = sorted(k for k in map(str, a.keys())
+                       if k.startswith(prefix) and k not in needed and k != f"{prefix}shape")
+        if extra:
+            raise ValueError(f"limb network has a part its shape does not declare ({extra[0]})")
+        for k in needed:
+            if np.asarray(a[k]).dtype.kind != "f":
+                raise ValueError(f"limb network part {k} must hold floats, not "
+                                 f"{np.asarray(a[k]).dtype}")
         scale = np.asarray(a[f"{prefix}input_scale"])
         if scale.shape != ():
             raise ValueError("limb network input scale must be one number")
@@ -174,11 +204,10 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
     scikit-learn's MLPRegressor (Adam, minibatches of 256, L2 alpha, 10 % of the rows held
     out for early stopping after 10 epochs without gain; seeded, so a refit on the same
     machine gives the same arrays). Needs scikit-learn (training only)."""
-    try:
-        from sklearn.neural_network import MLPRegressor
-    except ImportError as exc:     # training-time only; the tracker never imports it
-        raise ImportError("fitting a limb network needs scikit-learn: "
-                          "pip install -e '.[train]'") from exc
+    if not 1 <= members <= MAX_MEMBERS or not 1 <= len(hidden) + 1 <= MAX_LAYERS:
+        raise ValueError(f"a limb network has 1..{MAX_MEMBERS} members and 0..{MAX_LAYERS - 1} "
+                         f"hidden layers, got {members} and {len(hidden)}")
+    MLPRegressor = _mlp_regressor()
     X = np.asarray(X, dtype=np.float64)
     T = np.asarray(targets, dtype=np.float64)
     centre = np.asarray(angle_centre_deg, dtype=np.float64)
@@ -200,6 +229,23 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
         log(f"  limb network {m + 1}/{members}: {net.n_iter_} epochs ({stopped}), held-out "
             f"R^2 {net.best_validation_score_:.3f}, {time.perf_counter() - start:.0f} s")
     return LimbNet(fitted, x_mean, x_scale, y_mean, y_scale, centre, canonical_direction)
+
+
+def _mlp_regressor():
+    """scikit-learn's MLPRegressor class; ValueError with the install hint without it (the
+    import is kept local: training needs scikit-learn, the tracker never does)."""
+    try:
+        from sklearn.neural_network import MLPRegressor
+    except ImportError:
+        raise ValueError("fitting limb networks needs scikit-learn: pip install -e '.[train]' "
+                         "(or train with --limb-nets 0)") from None
+    return MLPRegressor
+
+
+def require_training_dependencies() -> None:
+    """Raise the ValueError of :func:`_mlp_regressor` now when scikit-learn is missing, so
+    training stops before its slow steps rather than after them."""
+    _mlp_regressor()
 
 
 def _convergence_warning():

@@ -145,6 +145,9 @@ def load_model(path: str | Path) -> ModelFile:
         raise ModelFileError(f"{where}: model file not found") from None
     except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
         raise ModelFileError(f"{where}: not a readable model file ({exc})") from None
+    except MemoryError:                 # a part whose header declares an absurd size
+        raise ModelFileError(f"{where}: not a readable model file (a part declares more data "
+                             f"than fits in memory)") from None
     if "format_version" not in arrays:
         raise ModelFileError(f"{where}: no format_version; not a model file")
     version = arrays.pop("format_version")

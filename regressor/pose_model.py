@@ -30,8 +30,8 @@ agrees with the heading it decided (tracker/hypotheses.py, "Limbs").
 
 Its limbs may instead come from a limb network (regressor.limb_net.LimbNet): an ensemble of
 small neural networks on the same input and the same canonical targets, fitted on every
-training row (:attr:`PoseModel.limb_net`; it takes precedence over a limb head, and training
-fits one or the other).
+training row (:attr:`PoseModel.limb_net`; a model carries a limb head or a limb network, not
+both).
 
 A mixture model may also carry a heading index (regressor.heading_index.HeadingIndex): training
 rows' projected inputs and folded headings; its nearest neighbours' heading replaces the
@@ -103,7 +103,8 @@ class PoseModel:
     either body, and the tracker's front/back chain picks the member, limbs included.
     limb_head: a mixture's canonical limb head (:class:`LimbHead`, :meth:`predict_limbs`), or
     None. limb_net: a mixture's limb network (regressor.limb_net.LimbNet), used for the limbs
-    instead of limb_head, or None. heading_index: a mixture's nearest-neighbour heading (module docstring), or None.
+    instead of a limb head (a model has one or neither), or None. heading_index: a mixture's
+    nearest-neighbour heading (module docstring), or None.
     """
 
     settings: DescriptorSettings
@@ -323,7 +324,13 @@ def _input_from_arrays(a) -> dict:
 def save_pose_model(path: str | Path, model: PoseModel) -> None:
     """Write the model as one versioned, checksummed .npz (no pickle)."""
     if model.mixture is not None:
-        save_model(path, _mixture_arrays(model))
+        if model.limb_head is not None and model.limb_net is not None:
+            raise PoseModelError("a model carries a limb head or a limb network, not both")
+        try:
+            arrays = _mixture_arrays(model)
+        except ValueError as exc:
+            raise PoseModelError(f"cannot save the model: {exc}") from None
+        save_model(path, arrays)
         return
     if model.limb_head is not None:
         raise PoseModelError("only a mixture model can carry a limb head")
@@ -363,7 +370,8 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
         if str(a.get("model_kind", "")) != MODEL_KIND:
             raise PoseModelError(f"{path}: not a silhouette-pose model file")
         if any(name.startswith(("limbs_", "limb_net_")) for name in a.parts):
-            raise PoseModelError(f"{path}: invalid model: only a mixture can carry a limb head")
+            raise PoseModelError(f"{path}: invalid model: only a mixture can carry a limb head "
+                                 f"or network")
         if any(name.startswith("heading_index_") for name in a.parts):
             raise PoseModelError(f"{path}: invalid model: only a mixture can carry a heading "
                                  "index")
@@ -621,6 +629,8 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         limb_net = LimbNet.from_arrays(a)
     except ValueError as exc:
         fail(str(exc))
+    if limb_net is not None and limb_head is not None:
+        fail("a model carries a limb head or a limb network, not both")
     if limb_net is not None and limb_net.input_length != kD:
         fail(f"the limb network takes {limb_net.input_length} inputs, the regressor {kD}")
     if (limb_head is not None or limb_net is not None) and "canonical_direction" in a:

@@ -21,6 +21,7 @@ from threadpoolctl import threadpool_limits
 
 from regressor.angles import wrap_deg
 from regressor.descriptor import DescriptorSettings
+from regressor.limb_net import require_training_dependencies
 from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files, views_by_rows)
@@ -94,6 +95,11 @@ def main(argv=None) -> int:
         args.limb_nets = MixtureOptions.limb_net_members
     else:
         args.limb_nets = 0
+    if args.limb_nets:
+        try:       # before the slow steps, not after them
+            require_training_dependencies()
+        except ValueError as exc:
+            ap.error(str(exc))
     if args.heading_index_rows < 0:
         ap.error(f"--heading-index-rows must be >= 0, got {args.heading_index_rows}")
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
@@ -185,7 +191,7 @@ def main(argv=None) -> int:
             if model.has_limbs:
                 diff = np.abs(wrap_deg(loaded.predict_limbs(probe)[:, 2:]
                                        - model.predict_limbs(probe)[:, 2:]))
-                report["limb_head_round_trip_max_deg"] = round(float(diff.max()), 3)
+                report["limbs_round_trip_max_deg"] = round(float(diff.max()), 3)
     except (OSError, DatasetError, ValueError) as exc:
         print(f"train: error: {exc}", file=sys.stderr)
         return 1

@@ -89,8 +89,10 @@ def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
     limbs = model.predict_limbs(Xs)
     assert (limbs[:, 0] > 0).mean() > 0.9
     np.testing.assert_allclose(model.limb_net.canonical_direction, np.eye(55)[0])
-    targets = canonical_member(data.pose[~val], np.eye(55)[0])
-    assert (targets[:, 0] >= 0).all()
+    # ... and they follow the validation rows' canonical members better than their mean does
+    members = canonical_member(data.pose[val], np.eye(55)[0])
+    err = np.abs(limbs[val, 1] - members[:, 1]).mean()
+    assert err < np.abs(members[:, 1] - members[:, 1].mean()).mean()
     # Without networks the experts' limb head as before.
     plain, _ = train_mixture_model(data, X, codebook, settings,
                                    replace(_options(), limb_head="facing",

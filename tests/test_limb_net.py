@@ -67,12 +67,52 @@ def test_file_parts_round_trip_and_broken_parts_are_refused():
     for broken, match in (({"limb_net_W1_0": None}, "incomplete"),
                           ({"limb_net_shape": np.array([2.0, 3.0])}, "two integers"),
                           ({"limb_net_W0_1": parts["limb_net_W0_1"][:-1]}, "layer 1"),
-                          ({"limb_net_b1_2": np.full(55, np.nan, np.float32)}, "non-finite"),
+                          ({"limb_net_b1_2": np.full(55, np.nan, np.float32)}, "not finite"),
+                          ({"limb_net_W0_0": parts["limb_net_W0_0"].astype(np.float64) * 1e300},
+                           "float32 range"),
+                          ({"limb_net_input_scale": np.float64(1e-320)}, "non-finite poses"),
+                          ({"limb_net_input_mean": parts["limb_net_input_mean"] + 1e300},
+                           "non-finite poses"),
+                          ({"limb_net_W9_9": parts["limb_net_W0_0"]}, "does not declare"),
+                          ({"limb_net_shape": np.array([1, 3])}, "does not declare"),
+                          ({"limb_net_input_scale": np.str_("0.5")}, "must hold floats"),
+                          ({"limb_net_W0_0": parts["limb_net_W0_0"] > 0}, "must hold floats"),
                           ({"limb_net_output_scale": -parts["limb_net_output_scale"]}, "positive"),
                           ({"limb_net_canonical_direction": 2 * np.eye(55)[0]}, "unit vector")):
         bad = {k: v for k, v in {**parts, **broken}.items() if v is not None}
         with pytest.raises(ValueError, match=match):
             LimbNet.from_arrays(bad)
+
+
+def test_members_must_have_the_same_layers_and_be_few():
+    net, _, _ = _fitted(members=2)
+    parts = (net.input_mean, net.input_scale, net.output_mean, net.output_scale,
+             net.angle_centre_deg, net.canonical_direction)
+    with pytest.raises(ValueError, match="same"):
+        LimbNet([net.members[0], net.members[1][:1] + net.members[1][1:]] +
+                [[(np.zeros((6, 55)), np.zeros(55))]], *parts)
+    with pytest.raises(ValueError, match="same"):
+        LimbNet([net.members[0]] * 17, *parts)
+    with pytest.raises(ValueError, match="members"):
+        fit_limb_net(np.zeros((10, 6)), np.zeros((10, 55)), np.zeros(53), np.eye(55)[0],
+                     members=0)
+
+
+def test_the_tracker_never_imports_scikit_learn():
+    """Only training needs scikit-learn: loading the shipped model and predicting does not."""
+    import subprocess
+    import sys
+    code = ("import sys, numpy as np\n"
+            "import tracker.cli, tracker.pipeline\n"
+            "from regressor.pose_model import load_pose_model, DEFAULT_MODEL_PATH\n"
+            "m = load_pose_model(DEFAULT_MODEL_PATH)\n"
+            "x = np.full((2, m.stack_depth * m.descriptor_length), 0.1)\n"
+            "assert m.predict_hypotheses_and_limbs(x, 2)[2].shape == (2, 55)\n"
+            "print(len(m.limb_net.members), 'sklearn' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["4", "False"]          # the default's 4 networks
 
 
 def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp_path):
@@ -97,7 +137,13 @@ def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp
     # a network for another input length, or an incomplete one, is refused at load
     other = fit_limb_net(x[:, :5], targets, np.zeros(53), np.eye(55)[0], members=1,
                          hidden=(4,), max_iter=5)
+    from test_mixture import _with_limb_head
+    _, head, _ = _with_limb_head(model, x)
+    both = {**raw, "limbs_coef": head.coef, "limbs_expert_intercept": head.expert_intercept,
+            "limbs_angle_centre_deg": head.angle_centre_deg,
+            "limbs_canonical_direction": head.canonical_direction}
     for broken, match in ((other.to_arrays(), "takes 5 inputs"),
+                          (both, "not both"),
                           ({"limb_net_b0_1": None}, "limb network is incomplete"),
                           ({"canonical_direction": np.eye(55)[0]}, "takes no limb head")):
         parts = {k: v for k, v in {**raw, **broken}.items() if v is not None}

@@ -23,7 +23,7 @@ from regressor.heading_index import build_heading_index
 from regressor.descriptor import (DescriptorSettings, descriptors_for_masks,
                                   fit_codebook_for_masks)
 from regressor.layout import layouts_for_masks
-from regressor.limb_net import fit_limb_net
+from regressor.limb_net import MAX_MEMBERS, fit_limb_net, require_training_dependencies
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
                                   frame_descriptors, transform_descriptors)
 from regressor.rvm import RVMRegressor
@@ -507,6 +507,12 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     val, Xs, centre, Y = _training_arrays(dataset, X, options.transform, options.stack_depth,
                                           layouts if grid else None, weight, pose=truth)
     truth = dataset.pose if truth is None else truth
+    if not 0 <= options.limb_net_members <= MAX_MEMBERS:
+        raise ValueError(f"limb_net_members must be in 0..{MAX_MEMBERS}, got "
+                         f"{options.limb_net_members}")
+    use_net = options.limb_head != "none" and options.limb_net_members > 0
+    if use_net:
+        require_training_dependencies()
     train_rows, val_rows = np.flatnonzero(~val), np.flatnonzero(val)
     projection_mean = projection = None
     Xin = Xs
@@ -526,7 +532,6 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         top_experts=options.top_experts, seed=options.seed)
     head_direction = head_truth = None
     targets = Y
-    use_net = options.limb_head != "none" and options.limb_net_members > 0
     if options.limb_head != "none":
         # The same experts (centres depend on the inputs only) with a second set of weights:
         # one fit on both target sets, split afterwards (ridge columns are independent).
@@ -540,7 +545,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     limb_head = limb_net = None
     if use_net:
         log(f"fitting {options.limb_net_members} limb networks "
-            f"{'x'.join(map(str, options.limb_net_hidden))} on all {len(train_rows)} rows ...")
+            f"{'x'.join(map(str, options.limb_net_hidden))} on the {len(train_rows)} training "
+            f"rows (a tenth of them held out for early stopping) ...")
         limb_net = fit_limb_net(Xin[train_rows], head_truth[train_rows], head_centre,
                                 head_direction, members=options.limb_net_members,
                                 hidden=options.limb_net_hidden, alpha=options.limb_net_alpha,
@@ -598,7 +604,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               "layout_weight": round(weight, 4),
               "validation": angle_measures(predicted, truth[val_rows], centre),
               "canonical": options.canonical, "limb_head": options.limb_head,
-              "limb_net_members": options.limb_net_members,
+              "limb_net_members": options.limb_net_members if use_net else 0,
               **{k: round(v, 3) for k, v in facts.items()}}
     if model.has_limbs:
         # The head's member picked by the true heading: what the tracker gets when its chain
