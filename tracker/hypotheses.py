@@ -59,7 +59,8 @@ side evidence. Per frame it is right more often than the raw heading's side on t
 videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05: 0.80 / 0.86 / 0.65 / 0.75 / 0.57 against 0.71 /
 0.74 / 0.57 / 0.57 / 0.53), but it is confident where it is wrong (05_02: |p - 0.5| > 0.4 on 95 %
 of frames, right on 67 %): through ``track`` the filtered / smoothed heading went 28.0 / 25.1 ->
-31.9 / 32.4 (weight 1; 0.5: 34.3 / 31.8), 05_02 28.9 -> 58.9, though 02_02 15.6 -> 13.2 and
+31.9 / 32.4 (weight 1; 0.5: 34.3 / 31.8; added to the heading-norm evidence with weight 0.3
+instead of replacing it: 33.7 / 32.0), 05_02 28.9 -> 58.9, though 02_02 15.6 -> 13.2 and
 corr8 0.430 -> 0.438. It needs calibration on video-like inputs before it can be evidence.
 
 Online the chosen pose is the most probable state's filtered pose; the runner-up and its
