@@ -62,6 +62,10 @@ of frames, right on 67 %): through ``track`` the filtered / smoothed heading wen
 31.9 / 32.4 (weight 1; 0.5: 34.3 / 31.8; added to the heading-norm evidence with weight 0.3
 instead of replacing it: 33.7 / 32.0), 05_02 28.9 -> 58.9, though 02_02 15.6 -> 13.2 and
 corr8 0.430 -> 0.438. It needs calibration on video-like inputs before it can be evidence.
+Also tried then: near profile (folded decided heading beyond 60 or 30 degrees) taking the limb
+member nearer the limb filter's predicted body angles instead of the decided heading's side:
+it locks onto mirrored legs (08_03 filtered corr8 0.693 -> 0.487 / 0.449; 02_02 0.656 -> 0.650
+/ 0.508).
 
 Online the chosen pose is the most probable state's filtered pose; the runner-up and its
 probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
