@@ -29,8 +29,8 @@ profile), so its limbs are one body's or the other's, and the tracker takes the 
 agrees with the heading it decided (tracker/hypotheses.py, "Limbs").
 
 Its limbs may instead come from a limb network (regressor.limb_net.LimbNet): an ensemble of
-small neural networks on the same input and the same canonical targets, fitted on every
-training row (:attr:`PoseModel.limb_net`; a model carries a limb head or a limb network, not
+small neural networks on the same input and the same canonical targets, fitted on all the
+training rows (:attr:`PoseModel.limb_net`; a model carries a limb head or a limb network, not
 both).
 
 A mixture model may also carry a heading index (regressor.heading_index.HeadingIndex): training

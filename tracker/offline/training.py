@@ -392,7 +392,8 @@ class MixtureOptions:
     limit_deg of facing the camera or its back (chosen there on the validation videos); it
     needs the projection (components >= heading_index_dims). limb_net_*: with a limb head,
     fit it as an ensemble of that many neural networks (regressor.limb_net; hidden layer
-    sizes, L2 alpha) on every training row instead of a second set of expert weights (0: the
+    sizes, L2 alpha) on the training rows (regressor.limb_net.fit_limb_net holds a tenth out
+    for early stopping) instead of a second set of expert weights (0: the
     experts' weights). 4 networks (512, 256) were chosen on the five validation videos
     through ``track`` (filtered corr8 mean 0.392 with the experts' limb head; 2 / 3 / 4
     networks 0.418 / 0.423 / 0.430) and the 28 validation renders (0.361 -> 0.427 with 4).
