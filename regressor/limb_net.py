@@ -31,12 +31,11 @@ from typing import Callable
 
 import numpy as np
 
-from .angles import POSE_DIM, wrap_deg
+from .angles import POSE_DIM, regression_targets, wrap_deg
 
 PREFIX = "limb_net_"        # the file parts' names
 MAX_MEMBERS, MAX_LAYERS = 16, 8
 _FLOAT32_MAX = float(np.finfo(np.float32).max)
-
 
 
 @dataclass
@@ -207,11 +206,10 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
     if not 1 <= members <= MAX_MEMBERS or not 1 <= len(hidden) + 1 <= MAX_LAYERS:
         raise ValueError(f"a limb network has 1..{MAX_MEMBERS} members and 0..{MAX_LAYERS - 1} "
                          f"hidden layers, got {members} and {len(hidden)}")
-    MLPRegressor = _mlp_regressor()
+    MLPRegressor, ConvergenceWarning = _sklearn_classes()
     X = np.asarray(X, dtype=np.float64)
-    T = np.asarray(targets, dtype=np.float64)
     centre = np.asarray(angle_centre_deg, dtype=np.float64)
-    Y = np.hstack([T[:, :2], wrap_deg(T[:, 2:] - centre)])
+    Y = regression_targets(targets, centre)
     x_mean, x_scale = X.mean(axis=0), float(X.std(axis=0).mean())
     y_mean, y_scale = Y.mean(axis=0), Y.std(axis=0) + 1e-6
     Xz, Yz = (X - x_mean) / x_scale, (Y - y_mean) / y_scale
@@ -222,7 +220,7 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
                            learning_rate_init=1e-3, max_iter=max_iter, early_stopping=True,
                            n_iter_no_change=10, random_state=seed + m)
         with warnings.catch_warnings():      # max_iter reached is reported below, not warned
-            warnings.simplefilter("ignore", _convergence_warning())
+            warnings.simplefilter("ignore", ConvergenceWarning)
             net.fit(Xz, Yz)
         fitted.append(list(zip(net.coefs_, net.intercepts_)))
         stopped = "max_iter reached" if net.n_iter_ >= max_iter else "early stop"
@@ -231,24 +229,20 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
     return LimbNet(fitted, x_mean, x_scale, y_mean, y_scale, centre, canonical_direction)
 
 
-def _mlp_regressor():
-    """scikit-learn's MLPRegressor class; ValueError with the install hint without it (the
-    import is kept local: training needs scikit-learn, the tracker never does)."""
+def _sklearn_classes():
+    """scikit-learn's (MLPRegressor, ConvergenceWarning); ValueError with the install hint
+    without it (the import is kept local: training needs scikit-learn, the tracker never
+    does)."""
     try:
+        from sklearn.exceptions import ConvergenceWarning
         from sklearn.neural_network import MLPRegressor
     except ImportError:
         raise ValueError("fitting limb networks needs scikit-learn: pip install -e '.[train]' "
                          "(or train with --limb-nets 0)") from None
-    return MLPRegressor
+    return MLPRegressor, ConvergenceWarning
 
 
 def require_training_dependencies() -> None:
-    """Raise the ValueError of :func:`_mlp_regressor` now when scikit-learn is missing, so
+    """Raise the ValueError of :func:`_sklearn_classes` now when scikit-learn is missing, so
     training stops before its slow steps rather than after them."""
-    _mlp_regressor()
-
-
-def _convergence_warning():
-    """sklearn's ConvergenceWarning class (import kept local: training-time only)."""
-    from sklearn.exceptions import ConvergenceWarning
-    return ConvergenceWarning
+    _sklearn_classes()

@@ -209,12 +209,7 @@ class PoseModel:
         network's (:attr:`limb_net`) or, without one, the limb head's (for each row, the gate's
         most probable expert with the head's weights); either body of the silhouette, its
         heading picks which. None without either."""
-        if not self.has_limbs:
-            return None
-        X = self._stacked(stacked)
-        if self.limb_net is not None:
-            return self.limb_net.predict(X)
-        return self._limbs(X, self.mixture.predict_proba(X).argmax(axis=1))
+        return self._limbs(self._stacked(stacked)) if self.has_limbs else None
 
     @property
     def has_limbs(self) -> bool:
@@ -241,16 +236,18 @@ class PoseModel:
         if self.heading_index is not None:
             poses = self.heading_index.apply(poses, X)
         poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
-        limbs = None
-        if with_limbs and self.limb_net is not None:
-            limbs = self.limb_net.predict(X)
-        elif with_limbs and self.limb_head is not None:
-            limbs = self._limbs(X, gate.argmax(axis=1))
+        limbs = self._limbs(X, gate) if with_limbs and self.has_limbs else None
         return poses, prob, limbs
 
-    def _limbs(self, X: np.ndarray, top: np.ndarray) -> np.ndarray:
-        """The limb head's poses (N, 55) from the regressor's input X (N, input_length), each
-        row by its expert top (N,) int."""
+    def _limbs(self, X: np.ndarray, gate: np.ndarray | None = None) -> np.ndarray:
+        """Canonical poses (N, 55) for the limbs from the regressor's input X (N,
+        input_length): the limb network's, else the limb head's, each row by its gate's most
+        probable expert (gate (N, E) the mixture's probabilities; None: evaluated here)."""
+        if self.limb_net is not None:
+            return self.limb_net.predict(X)
+        if gate is None:
+            gate = self.mixture.predict_proba(X)
+        top = gate.argmax(axis=1)
         head = self.limb_head
         offsets = np.cumsum([0] + [len(e.centres_) for e in self.mixture.experts_])
         out = np.empty((len(X), POSE_DIM))

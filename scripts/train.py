@@ -21,7 +21,7 @@ from threadpoolctl import threadpool_limits
 
 from regressor.angles import wrap_deg
 from regressor.descriptor import DescriptorSettings
-from regressor.limb_net import require_training_dependencies
+from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
 from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files, views_by_rows)
@@ -87,8 +87,8 @@ def main(argv=None) -> int:
         if args.canonical != "none":
             ap.error("a model fitted on canonical members (--canonical) takes no --limb-head")
     if args.limb_nets is not None:
-        if not 0 <= args.limb_nets <= 16:
-            ap.error(f"--limb-nets must be in 0..16, got {args.limb_nets}")
+        if not 0 <= args.limb_nets <= MAX_MEMBERS:
+            ap.error(f"--limb-nets must be in 0..{MAX_MEMBERS}, got {args.limb_nets}")
         if args.limb_nets and (args.regressor != "mixture" or _limb_head(args) == "none"):
             ap.error("--limb-nets needs the mixture regressor with a limb head")
     elif args.regressor == "mixture" and _limb_head(args) != "none":

@@ -156,16 +156,6 @@ def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp
 
 
 def test_only_a_mixture_carries_a_limb_network(tmp_path):
-    from regressor.model_file import load_model, save_model
-    from regressor.pose_model import DEFAULT_MODEL_PATH
+    from test_mixture import assert_only_a_mixture_carries
     net, _, _ = _fitted(members=1)
-    single = load_pose_model(DEFAULT_MODEL_PATH.parent / "per_frame_model.npz")
-    single.limb_net = net
-    with pytest.raises(PoseModelError, match="only a mixture"):
-        save_pose_model(tmp_path / "single.npz", single)
-    single.limb_net = None
-    save_pose_model(tmp_path / "single.npz", single)
-    raw = dict(load_model(tmp_path / "single.npz").parts)
-    save_model(tmp_path / "single.npz", {**raw, **net.to_arrays()})
-    with pytest.raises(PoseModelError, match="only a mixture"):
-        load_pose_model(tmp_path / "single.npz")
+    assert_only_a_mixture_carries(tmp_path, "limb_net", net, net.to_arrays())

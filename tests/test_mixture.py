@@ -200,21 +200,28 @@ def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
             load_pose_model(path)
 
 
-def test_only_a_mixture_carries_a_limb_head(tmp_path):
+def assert_only_a_mixture_carries(tmp_path, attribute: str, value, parts: dict):
+    """The single-RVM model with ``attribute`` set to ``value`` refuses to be saved, and its
+    file with ``parts`` added refuses to load (both: "only a mixture")."""
     from regressor.model_file import load_model, save_model
     from regressor.pose_model import DEFAULT_MODEL_PATH
-    mixture, x = _mixture_model()
-    _, head, _ = _with_limb_head(mixture, x)
     single = load_pose_model(DEFAULT_MODEL_PATH.parent / "per_frame_model.npz")
-    single.limb_head = head
+    setattr(single, attribute, value)
     with pytest.raises(PoseModelError, match="only a mixture"):
         save_pose_model(tmp_path / "single.npz", single)
-    single.limb_head = None
+    setattr(single, attribute, None)
     save_pose_model(tmp_path / "single.npz", single)
     raw = dict(load_model(tmp_path / "single.npz").parts)
-    save_model(tmp_path / "single.npz", {**raw, "limbs_coef": np.zeros((3, 7), np.float32)})
+    save_model(tmp_path / "single.npz", {**raw, **parts})
     with pytest.raises(PoseModelError, match="only a mixture"):
         load_pose_model(tmp_path / "single.npz")
+
+
+def test_only_a_mixture_carries_a_limb_head(tmp_path):
+    mixture, x = _mixture_model()
+    _, head, _ = _with_limb_head(mixture, x)
+    assert_only_a_mixture_carries(tmp_path, "limb_head", head,
+                                  {"limbs_coef": np.zeros((3, 7), np.float32)})
 
 
 def test_single_rvm_model_still_gives_one_hypothesis():

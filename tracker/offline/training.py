@@ -17,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from regressor.angles import POSE_DIM, pose_angles, wrap_deg
+from regressor.angles import POSE_DIM, pose_angles, regression_targets, wrap_deg
 from regressor.codebook import Codebook
 from regressor.heading_index import build_heading_index
 from regressor.descriptor import (DescriptorSettings, descriptors_for_masks,
@@ -210,13 +210,6 @@ def angle_centres(pose: np.ndarray) -> np.ndarray:
     """Circular mean (53,) in degrees of each angle of pose vectors (N, 55)."""
     rad = np.radians(pose[:, 2:])
     return np.degrees(np.arctan2(np.sin(rad).mean(axis=0), np.cos(rad).mean(axis=0)))
-
-
-def regression_targets(pose: np.ndarray, centre_deg: np.ndarray) -> np.ndarray:
-    """Targets (N, 55): heading (cos, sin) as is, angles as wrap(angle - centre) in degrees."""
-    out = np.array(pose, dtype=np.float64, copy=True)
-    out[:, 2:] = wrap_deg(out[:, 2:] - centre_deg)
-    return out
 
 
 def measurement_noise(predicted: np.ndarray, truth: np.ndarray, norm_threshold: float
