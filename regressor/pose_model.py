@@ -56,6 +56,7 @@ from .model_file import ModelFileError, load_model, save_model
 from .errors import SilhouettePoseError
 from .heading_index import HeadingIndex
 from .limb_net import LimbNet
+from .side_classifier import SideClassifier
 
 DEFAULT_MODEL_PATH = Path(__file__).resolve().parent / "models" / "default_model.npz"
 TRANSFORMS = ("none", "sqrt")      # sqrt: Hellinger-like, tames the dominant histogram bins
@@ -104,7 +105,9 @@ class PoseModel:
     limb_head: a mixture's canonical limb head (:class:`LimbHead`, :meth:`predict_limbs`), or
     None. limb_net: a mixture's limb network (regressor.limb_net.LimbNet), used for the limbs
     instead of a limb head (a model has one or neither), or None. heading_index: a mixture's
-    nearest-neighbour heading (module docstring), or None.
+    nearest-neighbour heading (module docstring), or None. side_classifier: a mixture's
+    front/back side classifier (regressor.side_classifier.SideClassifier; needs limbs: the
+    tracker weighs the limbs' canonical member against its flip with it), or None.
     """
 
     settings: DescriptorSettings
@@ -131,6 +134,7 @@ class PoseModel:
     limb_head: LimbHead | None = None
     heading_index: HeadingIndex | None = None
     limb_net: LimbNet | None = None
+    side_classifier: SideClassifier | None = None
 
     @property
     def descriptor_length(self) -> int:
@@ -224,6 +228,17 @@ class PoseModel:
         per-frame call): the input is projected and the gate evaluated once. Returns (poses
         (N, m', 55), probabilities (N, m'), limbs (N, 55) or None)."""
         return self._hypotheses(self._stacked(stacked), m, with_limbs=True)
+
+    def predict_frame(self, stacked: np.ndarray, m: int = 2
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """:meth:`predict_hypotheses_and_limbs` and the side classifier's probability that the
+        body faces the camera's half (N,) (None without a side classifier) in one pass: the
+        tracker's per-frame call."""
+        X = self._stacked(stacked)
+        poses, prob, limbs = self._hypotheses(X, m, with_limbs=True)
+        front = (None if self.side_classifier is None or limbs is None
+                 else self.side_classifier.front_probability(X))
+        return poses, prob, limbs, front
 
     def _hypotheses(self, X: np.ndarray, m: int, with_limbs: bool
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -323,6 +338,8 @@ def save_pose_model(path: str | Path, model: PoseModel) -> None:
     if model.mixture is not None:
         if model.limb_head is not None and model.limb_net is not None:
             raise PoseModelError("a model carries a limb head or a limb network, not both")
+        if model.side_classifier is not None and not model.has_limbs:
+            raise PoseModelError("a side classifier needs the model's limbs")
         try:
             arrays = _mixture_arrays(model)
         except ValueError as exc:
@@ -335,6 +352,8 @@ def save_pose_model(path: str | Path, model: PoseModel) -> None:
         raise PoseModelError("only a mixture model can carry a heading index")
     if model.limb_net is not None:
         raise PoseModelError("only a mixture model can carry a limb network")
+    if model.side_classifier is not None:
+        raise PoseModelError("only a mixture model can carry a side classifier")
     arrays = {
         **model.codebook.to_arrays(), **model.settings.to_arrays(),
         "model_kind": np.str_(MODEL_KIND),
@@ -366,9 +385,9 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
             return model
         if str(a.get("model_kind", "")) != MODEL_KIND:
             raise PoseModelError(f"{path}: not a silhouette-pose model file")
-        if any(name.startswith(("limbs_", "limb_net_")) for name in a.parts):
-            raise PoseModelError(f"{path}: invalid model: only a mixture can carry a limb head "
-                                 f"or network")
+        if any(name.startswith(("limbs_", "limb_net_", "side_net_")) for name in a.parts):
+            raise PoseModelError(f"{path}: invalid model: only a mixture can carry a limb head, "
+                                 f"limb network or side classifier")
         if any(name.startswith("heading_index_") for name in a.parts):
             raise PoseModelError(f"{path}: invalid model: only a mixture can carry a heading "
                                  "index")
@@ -451,7 +470,8 @@ def _validate(path: Path, m: PoseModel) -> None:
 # (G, k*D) float16, width, feature_mean/std (G,) and weights (G+1, E), top_experts; and,
 # with a limb head, under "limbs_": coef (R, 55) float32 (rows as coef's), expert_intercept
 # (E, 55), angle_centre_deg (53,), canonical_direction (55,); with a limb network, under
-# "limb_net_" (regressor.limb_net.LimbNet.to_arrays).
+# "limb_net_" (regressor.limb_net.LimbNet.to_arrays); with a side classifier, under
+# "side_net_" (regressor.side_classifier.SideClassifier.to_arrays).
 
 
 def _mixture_arrays(model: PoseModel) -> dict:
@@ -491,6 +511,7 @@ def _mixture_arrays(model: PoseModel) -> dict:
         **_limb_head_arrays(model.limb_head),
         **_heading_index_arrays(model.heading_index),
         **(model.limb_net.to_arrays() if model.limb_net is not None else {}),
+        **(model.side_classifier.to_arrays() if model.side_classifier is not None else {}),
     }
 
 
@@ -624,8 +645,14 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         limb_head = _limb_head_from_arrays(a, len(coef), E)
         heading_index = _heading_index_from_arrays(a, kD)
         limb_net = LimbNet.from_arrays(a)
+        side_classifier = SideClassifier.from_arrays(a)
     except ValueError as exc:
         fail(str(exc))
+    if side_classifier is not None and limb_net is None and limb_head is None:
+        fail("a side classifier needs the model's limbs")
+    if side_classifier is not None and side_classifier.input_length != kD:
+        fail(f"the side classifier takes {side_classifier.input_length} inputs, the regressor "
+             f"{kD}")
     if limb_net is not None and limb_head is not None:
         fail("a model carries a limb head or a limb network, not both")
     if limb_net is not None and limb_net.input_length != kD:
@@ -641,4 +668,5 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         process_noise=a["process_noise"].astype(np.float64),
         ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
         description=json.loads(str(a["description"])), mixture=mix, limb_head=limb_head,
-        heading_index=heading_index, limb_net=limb_net, **inputs)
+        heading_index=heading_index, limb_net=limb_net, side_classifier=side_classifier,
+        **inputs)

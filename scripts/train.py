@@ -75,6 +75,10 @@ def main(argv=None) -> int:
                          "(regressor.limb_net; needs scikit-learn: pip install -e '.[train]'); "
                          "0: a second set of expert weights instead; default "
                          f"{MixtureOptions.limb_net_members} with a limb head")
+    ap.add_argument("--side-classifier", choices=("on", "off"), default="on",
+                    help="with limbs, also fit the front/back side classifier "
+                         "(regressor.side_classifier; needs scikit-learn); the tracker then "
+                         "carries the limbs' canonical member and its flip; default on")
     ap.add_argument("--heading-index-rows", type=int, default=MixtureOptions.heading_index_rows,
                     help="training rows kept for the nearest-neighbour heading "
                          "(regressor.heading_index; needs --components >= 50; 0: none)")
@@ -95,7 +99,8 @@ def main(argv=None) -> int:
         args.limb_nets = MixtureOptions.limb_net_members
     else:
         args.limb_nets = 0
-    if args.limb_nets:
+    if args.limb_nets or (args.side_classifier == "on" and args.regressor == "mixture"
+                          and _limb_head(args) != "none"):
         try:       # before the slow steps, not after them
             require_training_dependencies()
         except ValueError as exc:
@@ -159,6 +164,7 @@ def main(argv=None) -> int:
                                      limb_head=_limb_head(args),
                                      heading_index_rows=args.heading_index_rows,
                                      limb_net_members=args.limb_nets,
+                                     side_classifier=args.side_classifier == "on",
                                      **({"width_scale": args.width_scale}
                                         if args.width_scale != TrainingOptions.width_scale else {}))
             with threadpool_limits(args.workers):

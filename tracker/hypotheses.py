@@ -67,6 +67,34 @@ member nearer the limb filter's predicted body angles instead of the decided hea
 it locks onto mirrored legs (08_03 filtered corr8 0.693 -> 0.487 / 0.449; 02_02 0.656 -> 0.650
 / 0.508).
 
+Canonical hypotheses (the default model since 2026-12-02: it has limb networks and a side
+classifier, regressor.side_classifier): the two states are the limb networks' canonical member
+and its flip, whole (heading and body angles; :func:`canonical_hypotheses`), not the main
+head's pose and its flip. The main head averages a silhouette's two bodies where it cannot
+tell them apart, so its heading is pulled towards profile (on the shipped sample it stays
+near -90 while the truth goes from -125 to -50); the canonical member commits to one body.
+With the side picked by the truth, its heading RMS on the masks ``track`` extracts is 7.1 /
+8.2 / 12.7 / 10.4 / 25.3 degrees on the five validation videos (02_02 / 08_03 / 05_02 / 09_04
+/ 02_05; held out: 16_11 6.9, 06_06 8.0, 06_08 9.3), against 15.8 / 17.0 / 14.9 / 19.9 / 27.0
+for the main head's pose or its flip. Which member is true changes only where the member's
+rule does (mostly in profile), so the chain's states switch rarely
+(CANONICAL_SWITCH_PROBABILITY); the evidence for a member is the side classifier's
+probability, calibrated on validation renders (CANONICAL_BY_FRONT), and the main head's
+side (CANONICAL_RAW_SIDE_BY_NORM). Chosen on the 28 validation renders (filtered heading RMS
+and corr8, mean; one-off drivers) and the five validation videos through ``track``:
+
+| chain | renders heading / corr8 | videos heading / corr8 |
+| pose and flip (before) | 59.5 / 0.427 | 28.0 / 0.430 |
+| canonical, main head's side only | 56.4 / 0.400 | - |
+| canonical, classifier 512 x 256 (0.47 MB) | 38.6 / 0.524 | 30.7 / 0.412 |
+| canonical, classifier 128 | 44.3 / 0.503 | 24.6 / 0.426 |
+| canonical, classifier 256 x 64 (adopted, 0.13 MB) | 32.8 / 0.557 | 33.3 / 0.427 |
+
+On the videos the walks gain most (02_02 15.6 -> 8.1 degrees, corr8 0.656 -> 0.704; 08_03
+13.2 -> 8.0, 0.693 -> 0.755); the dance 05_02 loses (28.9 -> 47.2: the classifier and the
+member hold the wrong side for long stretches) and 02_05 stays lost (72.3 -> 88.7; 45.3 with
+the 128 classifier: it locks to either side).
+
 Online the chosen pose is the most probable state's filtered pose; the runner-up and its
 probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
 picks one hypothesis per frame and the Rauch-Tung-Striebel smoother runs over them.
@@ -150,6 +178,31 @@ SWITCH_PROBABILITY = (0.117, 0.248)
 TRAVEL_WEIGHT = 0.04
 EVIDENCE_WEIGHT = 1.0
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
+
+#: Canonical hypotheses (a model with limbs and a side classifier; module docstring,
+#: "Canonical hypotheses"). All learned on the 28 validation renders of
+#: scripts/learn_hypothesis_priors.py (validation trials and 07_12, spiral and fixed camera, as
+#: recorded and time-reversed, video-like masks), 2026-12-02, a one-off driver
+#: (/work/tmp/s15/learn_canon.py, calib.py in the session's notes). "True": the member with the
+#: smaller mean absolute error over the 54 angles.
+#: (P(canonical -> flip), P(flip -> canonical)) per frame: how often the truer member changes.
+#: The limb network's canonical member changes body only where its rule does (mostly in
+#: profile), so these are far below SWITCH_PROBABILITY's.
+CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
+#: P(the member on the main head's heading side is the true one | that head's heading norm
+#: in [CANONICAL_RAW_SIDE_EDGES[b], next edge)), and overall: weak, but not nothing.
+CANONICAL_RAW_SIDE_EDGES = (0.0, 0.2, 0.4, 0.6, 0.8)
+CANONICAL_RAW_SIDE_BY_NORM = (0.504, 0.507, 0.538, 0.613, 0.669)
+CANONICAL_RAW_SIDE_OVERALL = 0.578
+#: P(the member the side classifier favours is the true one | its probability for that
+#: member in [CANONICAL_FRONT_EDGES[b], next edge)), and overall. The classifier is
+#: over-confident on renders that are not like its training rows: where it gives a member
+#: less than 0.1, that member is still the true one 4 times in 10 (for the default model's
+#: classifier, 256 x 64 hidden units; right on 67 % of these frames, 90 % of its held-out
+#: training rows).
+CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
+CANONICAL_BY_FRONT = (0.409, 0.599, 0.674, 0.662, 0.661, 0.797)
+CANONICAL_OVERALL = 0.624
 #: Experts asked of a mixture model's predict_hypotheses (2 states each: pose and flip). On the
 #: same 28 validation renders (top-3 tables, travel weight 1/15), mean filtered heading RMS:
 #: 1 expert 81.8 / 83.0 deg (evidence weight 1.0 / 0.8), 2 experts 83.0 / 85.5, 3 experts
@@ -163,12 +216,14 @@ _FLOOR = 1e-3                            # no evidence is ever certain
 class Hypotheses:
     """One frame's candidate poses: poses (K, 55); log_evidence (K,) the regressor's evidence
     for each (log likelihood ratios); raw (55,) the regressor's own (first) pose; limbs (55,)
-    the model's limb head's pose (a canonical member, module docstring "Limbs") or None."""
+    the model's limb head's pose (a canonical member, module docstring "Limbs") or None;
+    canonical: the poses are that member and its flip (:func:`canonical_hypotheses`)."""
 
     poses: np.ndarray
     log_evidence: np.ndarray
     raw: np.ndarray
     limbs: np.ndarray | None = None
+    canonical: bool = False
 
 
 def pick_member(limbs: np.ndarray, heading_deg) -> np.ndarray:
@@ -224,20 +279,72 @@ def _with_flips(poses: np.ndarray, gate: np.ndarray, limbs: np.ndarray | None = 
     return Hypotheses(both, evidence.reshape(-1), raw, limbs)
 
 
+def _table(edges, values, x) -> np.ndarray:
+    """values[b] for x in [edges[b], edges[b + 1]) (beyond the last edge: the last bin),
+    clipped away from 0 and 1."""
+    b = np.searchsorted(edges, np.asarray(x, float), side="right") - 1
+    return np.clip(np.asarray(values)[np.clip(b, 0, len(values) - 1)], _FLOOR, 1.0 - _FLOOR)
+
+
+def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float) -> Hypotheses:
+    """The two hypotheses of a model with limbs and a side classifier: the limbs' canonical
+    member (55,) and its front/back flip, whole (heading and body angles). Evidence (log
+    likelihood ratios): the side of the main head's pose raw (55,) by its heading norm
+    (CANONICAL_RAW_SIDE_BY_NORM), and the side classifier's probability front that the body
+    faces the camera's half (CANONICAL_BY_FRONT)."""
+    limbs = np.asarray(limbs, dtype=np.float64)
+    pair = np.stack([limbs, front_back_flip(limbs)])
+    evidence = np.zeros(2)
+    direction = deaveraged_direction(raw)
+    on_raw_side = 0 if pair[0, :2] @ direction >= pair[1, :2] @ direction else 1
+    p = _table(CANONICAL_RAW_SIDE_EDGES, CANONICAL_RAW_SIDE_BY_NORM, heading_norm(raw))
+    evidence[on_raw_side] += np.log(p / CANONICAL_RAW_SIDE_OVERALL)
+    evidence[1 - on_raw_side] += np.log((1 - p) / (1 - CANONICAL_RAW_SIDE_OVERALL))
+    # the classifier's probability for the canonical member: front if it faces the camera
+    p_member = float(front) if pair[0, 0] >= 0 else 1.0 - float(front)
+    q = _table(CANONICAL_FRONT_EDGES, CANONICAL_BY_FRONT, p_member)
+    evidence += np.log([q / CANONICAL_OVERALL, (1 - q) / (1 - CANONICAL_OVERALL)])
+    return Hypotheses(pair, evidence, np.asarray(raw, dtype=np.float64), limbs, canonical=True)
+
+
+def deaveraged_direction(raw: np.ndarray) -> np.ndarray:
+    """(cos, sin) (2,) of the main head's pose raw (55,) with its heading de-averaged
+    (:func:`deaveraged_heading`)."""
+    return deaveraged_heading(np.asarray(raw, dtype=np.float64)[None])[0, :2]
+
+
+def switch_probability(estimator) -> tuple[float, float]:
+    """The chain's switching probabilities for this estimator's hypotheses: canonical ones
+    (a model with limbs and a side classifier) switch far less often than a pose and its
+    flip."""
+    if getattr(estimator, "side_classifier", None) is not None \
+            and getattr(estimator, "has_limbs", False):
+        return CANONICAL_SWITCH_PROBABILITY
+    return SWITCH_PROBABILITY
+
+
 def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS) -> Hypotheses:
     """The hypotheses of one frame from a stacked descriptor (k*D,): the estimator's
     ``predict_hypotheses(stacked (N, k*D), n_experts) -> (poses (N, m, 55), probabilities
     (N, m))`` if it has one (regressor.pose_model.PoseModel: a mixture's top experts, or a
     single regressor's one pose; with ``predict_hypotheses_and_limbs``, also its limb head's
-    pose), else its ``predict``; each pose and its front/back flip."""
+    pose), else its ``predict``; each pose and its front/back flip. An estimator with
+    ``predict_frame`` (PoseModel) gives all of these and the side classifier's probability
+    in one pass; with a side classifier and limbs, the hypotheses are
+    :func:`canonical_hypotheses` instead."""
     return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts)[0]
 
 
 def propose_batch(estimator, stacked: np.ndarray,
                   n_experts: int = DEFAULT_EXPERTS) -> list[Hypotheses]:
     """:func:`propose` for stacked descriptors (N, k*D) at once (offline evaluation)."""
-    if hasattr(estimator, "predict_hypotheses"):
-        if hasattr(estimator, "predict_hypotheses_and_limbs"):
+    if hasattr(estimator, "predict_frame") or hasattr(estimator, "predict_hypotheses"):
+        if hasattr(estimator, "predict_frame"):
+            poses, gate, limbs, front = estimator.predict_frame(stacked, n_experts)
+            if front is not None and limbs is not None:
+                return [canonical_hypotheses(p[0], lb, f)
+                        for p, lb, f in zip(poses, limbs, front)]
+        elif hasattr(estimator, "predict_hypotheses_and_limbs"):
             poses, gate, limbs = estimator.predict_hypotheses_and_limbs(stacked, n_experts)
         else:
             (poses, gate), limbs = estimator.predict_hypotheses(stacked, n_experts), None

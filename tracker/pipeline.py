@@ -25,7 +25,7 @@ from regressor.stacking import FrameStacker
 from .association import Associator
 from .roll import upright_mask
 from .filtering import PoseKalmanFilter
-from .hypotheses import FrontBackTracker, propose
+from .hypotheses import FrontBackTracker, propose, switch_probability
 from .silhouettes import PersonMask, SilhouetteExtractor
 from .sinks.geometry import ground_position_from_image, pose_joints_m
 from .travel import TravelDirection
@@ -156,8 +156,8 @@ def front_back_tracker(estimator, fps: float, settings: TrackerSettings = Tracke
                        ) -> FrontBackTracker:
     """A track's front/back hypotheses with the filters of filter_factories."""
     chain, limbs = filter_factories(estimator, settings, filter_factory)
-    return FrontBackTracker(chain, fps, keep_history=settings.keep_history,
-                            limb_filter_factory=limbs)
+    return FrontBackTracker(chain, fps, switch=switch_probability(estimator),
+                            keep_history=settings.keep_history, limb_filter_factory=limbs)
 
 
 class PoseEstimator(Protocol):
@@ -300,6 +300,7 @@ class PoseTracker:
             self.tracks[track_id] = _TrackState(
                 FrameStacker(self.estimator.stack_depth),
                 FrontBackTracker(self.filter_factory, self.fps,
+                                 switch=switch_probability(self.estimator),
                                  keep_history=self.settings.keep_history,
                                  limb_filter_factory=self.limb_filter_factory), travel)
         return self.tracks[track_id]

@@ -25,7 +25,8 @@ from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_v
 from regressor.stacking import stack_frames
 from sequences.skeleton import CMU_UNIT_M
 from sequences.spiral import spiral_walk
-from ..hypotheses import DEFAULT_EXPERTS, FrontBackTracker, Hypotheses, propose_batch
+from ..hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, Hypotheses, propose_batch,
+                          switch_probability)
 from ..pipeline import kalman_factory
 from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW, TravelDirection
 from ..video import focal_length_px
@@ -179,6 +180,7 @@ def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOption
                        **tracker_options) -> float:
     """Filtered heading RMS (deg) of FrontBackTracker (with tracker_options, e.g.
     travel_weight, evidence_weight) over one of validation_renders' sequences."""
+    tracker_options.setdefault("switch", switch_probability(model))
     bank = FrontBackTracker(kalman_factory(model), camera.fps, keep_history=False,
                             **tracker_options)
     width = camera.size[1]

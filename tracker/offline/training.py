@@ -24,6 +24,7 @@ from regressor.descriptor import (DescriptorSettings, descriptors_for_masks,
                                   fit_codebook_for_masks)
 from regressor.layout import layouts_for_masks
 from regressor.limb_net import MAX_MEMBERS, fit_limb_net, require_training_dependencies
+from regressor.side_classifier import fit_side_classifier
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
                                   frame_descriptors, transform_descriptors)
 from regressor.rvm import RVMRegressor
@@ -390,6 +391,9 @@ class MixtureOptions:
     experts' weights). 4 networks (512, 256) were chosen on the five validation videos
     through ``track`` (filtered corr8 mean 0.392 with the experts' limb head; 2 / 3 / 4
     networks 0.418 / 0.423 / 0.430) and the 28 validation renders (0.361 -> 0.427 with 4).
+    side_classifier*: with limbs, fit a front/back side classifier (regressor.side_classifier,
+    these hidden layer sizes) on the training rows: the tracker's chain then carries the
+    limbs' canonical member and its flip (tracker.hypotheses.canonical_hypotheses).
 
     Chosen on the validation trials (issue 9, one-off drivers on the cached training rows,
     correlation of the 8 most-moving angles over the 6 validation trials; kernel ridge on 2,000
@@ -424,6 +428,8 @@ class MixtureOptions:
     limb_net_members: int = 4
     limb_net_hidden: tuple[int, ...] = (512, 256)
     limb_net_alpha: float = 1e-3
+    side_classifier: bool = True
+    side_classifier_hidden: tuple[int, ...] = (256, 64)
     seed: int = 0
 
 
@@ -505,7 +511,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         raise ValueError(f"limb_net_members must be in 0..{MAX_MEMBERS}, got "
                          f"{options.limb_net_members}")
     use_net = options.limb_head != "none" and options.limb_net_members > 0
-    if use_net:
+    if use_net or (options.side_classifier and options.limb_head != "none"):
         require_training_dependencies()
     train_rows, val_rows = np.flatnonzero(~val), np.flatnonzero(val)
     projection_mean = projection = None
@@ -548,6 +554,14 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     elif head_truth is not None:
         coef, intercept = split_expert_outputs(mixture, POSE_DIM)
         limb_head = LimbHead(coef, intercept, head_centre, head_direction)
+    side_classifier = None
+    front = np.abs(heading_deg(dataset.pose[train_rows])) <= 90.0
+    if options.side_classifier and head_truth is not None and front.any() and not front.all():
+        log(f"fitting the side classifier {'x'.join(map(str, options.side_classifier_hidden))} "
+            f"on the {len(train_rows)} training rows ...")
+        side_classifier = fit_side_classifier(
+            Xin[train_rows], heading_deg(dataset.pose[train_rows]),
+            hidden=options.side_classifier_hidden, seed=options.seed, log=log)
     heading_index = None
     if options.heading_index_rows:
         if projection is None or options.heading_index_dims > Xin.shape[1]:
@@ -568,7 +582,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                       mixture=mixture, layout_grid=grid, layout_weight=weight,
                       projection=projection, projection_mean=projection_mean,
                       canonical_direction=direction, limb_head=limb_head,
-                      limb_net=limb_net)
+                      limb_net=limb_net, side_classifier=side_classifier)
     # R from the experts' own heading: its heading entry is mostly front/back confusions
     # (which the tracker's chain, not the filter, handles); the index's heading commits to a
     # side and would inflate it (validation videos through track: heading RMS 30.2 with that R,
@@ -599,6 +613,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               "validation": angle_measures(predicted, truth[val_rows], centre),
               "canonical": options.canonical, "limb_head": options.limb_head,
               "limb_net_members": options.limb_net_members if use_net else 0,
+              "side_classifier": side_classifier is not None,
               **{k: round(v, 3) for k, v in facts.items()}}
     if model.has_limbs:
         # The head's member picked by the true heading: what the tracker gets when its chain

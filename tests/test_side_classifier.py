@@ -1,0 +1,178 @@
+"""The front/back side classifier (regressor.side_classifier) and the chain's canonical
+hypotheses (tracker.hypotheses.canonical_hypotheses)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+from regressor.angles import pose_angles, wrap_deg
+from regressor.side_classifier import SideClassifier
+from sequences.pose_vector import front_back_flip
+from tracker.filtering import PoseKalmanFilter
+from tracker.hypotheses import (CANONICAL_SWITCH_PROBABILITY, SWITCH_PROBABILITY,
+                                FrontBackTracker, canonical_hypotheses, switch_probability)
+
+FPS = 30.0
+
+
+def _classifier(seed: int = 0, P: int = 6) -> SideClassifier:
+    """A hand-made classifier: front when the first input is positive (one hidden layer)."""
+    rng = np.random.default_rng(seed)
+    W0 = np.zeros((P, 2))
+    W0[0] = [4.0, -4.0]                       # relu(4 x), relu(-4 x)
+    return SideClassifier([(W0, np.zeros(2)), (np.array([[1.0], [-1.0]]), np.zeros(1))],
+                          np.zeros(P), 1.0)
+
+
+def test_the_probability_follows_the_logit_and_survives_the_file_round_trip():
+    clf = _classifier()
+    X = np.zeros((3, 6))
+    X[:, 0] = [-2.0, 0.0, 2.0]
+    p = clf.front_probability(X)
+    assert p[0] < 0.01 and p[1] == pytest.approx(0.5) and p[2] > 0.99
+    back = SideClassifier.from_arrays(clf.to_arrays())
+    np.testing.assert_allclose(back.front_probability(X), p, atol=1e-3)
+    assert SideClassifier.from_arrays({"other": np.zeros(1)}) is None
+    # absurd inputs give 0 or 1, never NaN
+    assert np.isfinite(clf.front_probability(np.full((1, 6), 1e30))).all()
+
+
+@pytest.mark.parametrize("tamper, message", [
+    (lambda a: a.pop("side_net_W1"), "incomplete"),
+    (lambda a: a.update(side_net_W9=np.zeros((1, 1))), "do not declare"),
+    (lambda a: a.update(side_net_layers=np.int64(0)), "layers"),
+    (lambda a: a.update(side_net_layers=np.float64(2)), "layers"),
+    (lambda a: a.update(side_net_W1=np.zeros((2, 2), np.float16),
+                        side_net_b1=np.zeros(2, np.float32)), "not one logit"),
+    (lambda a: a.update(side_net_W0=np.zeros((5, 2), np.float16)), "shape"),
+    (lambda a: a.update(side_net_b0=np.array([np.nan, 0.0], np.float32)), "not finite"),
+    (lambda a: a.update(side_net_input_scale=np.float64(0.0)), "positive"),
+    (lambda a: a.update(side_net_input_scale=np.zeros(2)), "one number"),
+    (lambda a: a.update(side_net_W0=np.array([["x", "y"]] * 6)), "floats"),
+    (lambda a: a.update(side_net_W0=np.full((6, 2), 1e300)), "float32 range"),
+    (lambda a: a.pop("side_net_layers"), "incomplete"),
+])
+def test_a_tampered_classifier_is_refused_with_a_named_problem(tamper, message):
+    arrays = _classifier().to_arrays()
+    tamper(arrays)
+    with pytest.raises(ValueError, match=message):
+        SideClassifier.from_arrays(arrays)
+
+
+def test_fitting_learns_a_separable_side():
+    pytest.importorskip("sklearn")
+    from regressor.side_classifier import fit_side_classifier
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(2000, 5))
+    heading = np.where(X[:, 1] > 0, 20.0, 160.0) + rng.normal(0, 5, 2000)
+    clf = fit_side_classifier(X, heading, hidden=(16,), seed=0)
+    Xt = rng.normal(size=(200, 5))
+    assert np.mean((clf.front_probability(Xt) > 0.5) == (Xt[:, 1] > 0)) > 0.9
+    with pytest.raises(ValueError, match="both halves"):
+        fit_side_classifier(X, np.zeros(2000))
+
+
+def _body(heading_deg: float, seed: int = 7) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    v = np.concatenate([[0.0, 0.0], rng.uniform(-40, 40, 53)])
+    v[0], v[1] = np.cos(np.radians(heading_deg)), np.sin(np.radians(heading_deg))
+    return v
+
+
+def test_canonical_hypotheses_are_the_member_and_its_flip_weighed_by_the_classifier():
+    member = _body(20.0)                       # faces the camera's half
+    raw = _body(20.0, seed=3)
+    favoured = canonical_hypotheses(raw, member, front=0.97)
+    assert favoured.canonical
+    np.testing.assert_allclose(favoured.poses[0], member)
+    np.testing.assert_allclose(favoured.poses[1], front_back_flip(member))
+    assert favoured.log_evidence[0] > favoured.log_evidence[1]
+    doubted = canonical_hypotheses(raw, member, front=0.03)
+    assert doubted.log_evidence[0] - doubted.log_evidence[1] < \
+        favoured.log_evidence[0] - favoured.log_evidence[1]
+    # the main head's side counts too: the same member, the raw on the other side
+    other = canonical_hypotheses(front_back_flip(raw), member, front=0.5)
+    same = canonical_hypotheses(raw, member, front=0.5)
+    assert same.log_evidence[0] - same.log_evidence[1] > \
+        other.log_evidence[0] - other.log_evidence[1]
+
+
+def test_only_a_model_with_limbs_and_a_side_classifier_switches_canonically():
+    class Plain:
+        pass
+
+    class Canonical:
+        side_classifier, has_limbs = object(), True
+
+    assert switch_probability(Plain()) == SWITCH_PROBABILITY
+    assert switch_probability(Canonical()) == CANONICAL_SWITCH_PROBABILITY
+
+
+def test_a_backward_walker_is_followed_by_a_right_more_often_than_not_classifier():
+    """Walking away from the camera while facing it (travel 180, heading 0), the canonical
+    member is the truth's flip for the first 40 frames, then the truth; the classifier says
+    the member faces the camera with 0.8 on 75 % of frames (0.2 on the rest). The chain must
+    end up facing the right way, and the soft travel evidence must give way."""
+    T, rng = 150, np.random.default_rng(5)
+    truth = _body(0.0)
+    bank = FrontBackTracker(lambda fps: PoseKalmanFilter(fps), FPS,
+                            switch=CANONICAL_SWITCH_PROBABILITY)
+    out = []
+    with threadpool_limits(limits=1, user_api="blas"):
+        for t in range(T):
+            true = truth + np.concatenate([[0, 0], rng.normal(0, 3, 53)])
+            member = front_back_flip(true) if t < 40 else true
+            says_front = rng.random() < 0.75
+            p_member_front = 0.8 if says_front else 0.2
+            front = p_member_front if member[0] >= 0 else 1 - p_member_front
+            out.append(bank.step(canonical_hypotheses(true, member, front), 180.0))
+    late = np.array([pose_angles(d.filtered)[0] for d in out[-30:]])
+    assert np.all(np.abs(wrap_deg(late)) < 30.0)
+    smoothed = pose_angles(bank.smoothed())[:, 0]
+    assert np.mean(np.abs(wrap_deg(smoothed)) < 30.0) > 0.9
+
+
+def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pairs(tmp_path):
+    """Saved and loaded with the model; refused without limbs or for another input length;
+    the tracker's hypotheses become the limbs' member and its flip."""
+    pytest.importorskip("sklearn")
+    from test_mixture import _mixture_model
+    from regressor.limb_net import fit_limb_net
+    from regressor.model_file import load_model, save_model
+    from regressor.pose_model import PoseModelError, load_pose_model, save_pose_model
+    from tracker.hypotheses import propose_batch
+    model, x = _mixture_model()                              # input length 8
+    rng = np.random.default_rng(3)
+    targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),
+                               wrap_deg(40 * np.tanh(x[:, :1]) + rng.normal(0, 1, (len(x), 53)))])
+    model.side_classifier = _classifier(P=8)
+    with pytest.raises(PoseModelError, match="needs the model's limbs"):
+        save_pose_model(tmp_path / "nolimbs.npz", model)
+    model.limb_net = fit_limb_net(x, targets, np.zeros(53), np.eye(55)[0], members=1,
+                                  hidden=(8,), max_iter=20)
+    poses, gate, limbs, front = model.predict_frame(x[:5], 2)
+    np.testing.assert_allclose(front, model.side_classifier.front_probability(x[:5]))
+    hyps = propose_batch(model, x[:5])
+    assert all(h.canonical and len(h.poses) == 2 for h in hyps)
+    np.testing.assert_allclose(hyps[0].poses[0], limbs[0])
+    assert switch_probability(model) == CANONICAL_SWITCH_PROBABILITY
+    path = tmp_path / "side.npz"
+    save_pose_model(path, model)
+    loaded = load_pose_model(path)
+    np.testing.assert_allclose(loaded.predict_frame(x[:5], 2)[3], front, atol=1e-3)
+    raw = dict(load_model(path).parts)
+    for broken, match in (({k: None for k in raw if k.startswith("limb_net_")},
+                           "needs the model's limbs"),
+                          (_classifier(P=5).to_arrays(), "takes 5 inputs"),
+                          ({"side_net_b1": None}, "side classifier is incomplete")):
+        parts = {k: v for k, v in {**raw, **broken}.items() if v is not None}
+        save_model(path, parts)                              # re-checksummed
+        with pytest.raises(PoseModelError, match=match):
+            load_pose_model(path)
+
+
+def test_only_a_mixture_carries_a_side_classifier(tmp_path):
+    from test_mixture import assert_only_a_mixture_carries
+    clf = _classifier()
+    assert_only_a_mixture_carries(tmp_path, "side_classifier", clf, clf.to_arrays())
