@@ -6,7 +6,9 @@ regressor's flip statistics on its validation trials rendered as spiral walks.
 
 Prints the values that tracker/travel.py (FACING_TRAVEL_PRIOR) and tracker/hypotheses.py
 (SWITCH_PROBABILITY, RAW_NEARER_BY_NORM; with --weights TRAVEL_WEIGHT and EVIDENCE_WEIGHT,
-which should be chosen after the others are in place) hold.
+which should be chosen after the others are in place) hold; for a model with limbs and a side
+classifier (the default), also the canonical chain's CANONICAL_* tables on the 28 validation
+renders.
 """
 from __future__ import annotations
 
@@ -19,7 +21,8 @@ from threadpoolctl import threadpool_limits
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 import numpy as np
 
-from tracker.offline.hypothesis_priors import (choose_weights, facing_travel_histogram,
+from tracker.offline.hypothesis_priors import (canonical_statistics, choose_weights,
+                                               facing_travel_histogram,
                                                regressor_flip_statistics, replay_heading_rms,
                                                top_experts, validation_renders)
 from tracker.offline.training import VALIDATION_TRIALS
@@ -57,6 +60,13 @@ def main(argv=None) -> int:
                                               [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS])
         print(json.dumps(stats, indent=1))
     files = [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS + ("07_12",)]
+    model = load_pose_model(args.model)
+    if model.side_classifier is not None and model.has_limbs:
+        # the canonical chain's tables (tracker.hypotheses CANONICAL_*), on the 28 renders
+        with threadpool_limits(1):
+            renders = validation_renders(model, files)
+        print("canonical chain (CANONICAL_*), over", len(renders), "validation renders:")
+        print(json.dumps(canonical_statistics(renders), indent=1))
     if args.weights:
         tws = None if args.travel_weights is None else \
             tuple(float(x) for x in args.travel_weights.split(","))

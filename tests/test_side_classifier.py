@@ -176,3 +176,22 @@ def test_only_a_mixture_carries_a_side_classifier(tmp_path):
     from test_mixture import assert_only_a_mixture_carries
     clf = _classifier()
     assert_only_a_mixture_carries(tmp_path, "side_classifier", clf, clf.to_arrays())
+
+
+def test_canonical_statistics_count_the_true_member_its_switches_and_the_classifier():
+    """Hand-made renders: the member is the truth for 30 frames, then its flip for 30; the
+    classifier gives the true member 0.95."""
+    from tracker.offline.hypothesis_priors import canonical_statistics
+    truth = np.array([_body(20.0)] * 60)
+    hyps = []
+    for t in range(60):
+        member = truth[t] if t < 30 else front_back_flip(truth[t])
+        p_true = 0.95
+        front = p_true if (t < 30) == (member[0] >= 0) else 1 - p_true
+        hyps.append(canonical_hypotheses(truth[t], member, front))
+    stats = canonical_statistics({"one": {"hypotheses": hyps, "truth": truth}})
+    assert stats["canonical_overall"] == pytest.approx(0.5)
+    assert stats["switch_probability"] == [pytest.approx(1 / 30, abs=1e-3), 0.0]
+    assert stats["raw_side_overall"] == 1.0              # the raw is the truth itself
+    assert stats["by_front"][-1] == 1.0 and stats["frames_by_front"][-1] == 30
+    assert stats["by_front"][0] == 0.0 and stats["frames_by_front"][0] == 30

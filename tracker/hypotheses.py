@@ -217,13 +217,15 @@ class Hypotheses:
     """One frame's candidate poses: poses (K, 55); log_evidence (K,) the regressor's evidence
     for each (log likelihood ratios); raw (55,) the regressor's own (first) pose; limbs (55,)
     the model's limb head's pose (a canonical member, module docstring "Limbs") or None;
-    canonical: the poses are that member and its flip (:func:`canonical_hypotheses`)."""
+    canonical: the poses are that member and its flip (:func:`canonical_hypotheses`); front:
+    then the side classifier's probability that the body faces the camera's half."""
 
     poses: np.ndarray
     log_evidence: np.ndarray
     raw: np.ndarray
     limbs: np.ndarray | None = None
     canonical: bool = False
+    front: float | None = None
 
 
 def pick_member(limbs: np.ndarray, heading_deg) -> np.ndarray:
@@ -304,7 +306,8 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float) -> Hy
     p_member = float(front) if pair[0, 0] >= 0 else 1.0 - float(front)
     q = _table(CANONICAL_FRONT_EDGES, CANONICAL_BY_FRONT, p_member)
     evidence += np.log([q / CANONICAL_OVERALL, (1 - q) / (1 - CANONICAL_OVERALL)])
-    return Hypotheses(pair, evidence, np.asarray(raw, dtype=np.float64), limbs, canonical=True)
+    return Hypotheses(pair, evidence, np.asarray(raw, dtype=np.float64), limbs, canonical=True,
+                      front=float(front))
 
 
 def deaveraged_direction(raw: np.ndarray) -> np.ndarray:

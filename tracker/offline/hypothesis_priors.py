@@ -8,6 +8,8 @@
   (cos, sin) norm, and how often that changes from one frame to the next (the HMM's switching
   probability: a true heading change of ~180 degrees within a frame does not happen, so the
   only switches are the regressor's).
+- canonical_statistics: for a model with limbs and a side classifier, the canonical chain's
+  tables (tracker.hypotheses, CANONICAL_*) on the validation renders.
 - choose_weights: the exponents per frame of the travel likelihood and of the regressor's
   evidence (consecutive frames' evidence is correlated), by replaying the tracker over the
   validation trials rendered as spirals and from a fixed camera, forwards and time-reversed.
@@ -174,6 +176,51 @@ def top_experts(render: dict, n_experts: int) -> dict:
     k = 2 * n_experts
     return {**render, "hypotheses": [Hypotheses(h.poses[:k], h.log_evidence[:k], h.raw, h.limbs)
                                      for h in render["hypotheses"]]}
+
+
+def canonical_statistics(renders: dict) -> dict:
+    """The canonical chain's tables (tracker.hypotheses CANONICAL_SWITCH_PROBABILITY,
+    CANONICAL_RAW_SIDE_BY_NORM, CANONICAL_BY_FRONT and their overall rates) from
+    validation_renders of a model with limbs and a side classifier (canonical hypotheses,
+    which keep the classifier's probability). The true member: the nearer the truth over the
+    54 angles (raw_is_nearer)."""
+    from ..hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES,
+                              deaveraged_direction)
+    leave, count = np.zeros(2), np.zeros(2)
+    raw_side, norms, favoured, p_member = [], [], [], []
+    for render in renders.values():
+        hyps = render["hypotheses"]
+        if not all(h.canonical and h.front is not None for h in hyps):
+            raise ValueError("canonical statistics need a model with limbs and a side classifier")
+        member = np.array([h.poses[0] for h in hyps])
+        raw = np.array([h.raw for h in hyps])
+        true = raw_is_nearer(member, render["truth"])          # the member, not its flip
+        state = (~true).astype(int)
+        for a, b in zip(state[:-1], state[1:]):
+            count[a] += 1
+            leave[a] += a != b
+        direction = np.array([deaveraged_direction(r) for r in raw])
+        flip = front_back_flip(member)
+        on_side = (member[:, :2] * direction).sum(1) >= (flip[:, :2] * direction).sum(1)
+        raw_side.append(on_side == true)
+        norms.append(heading_norm(raw))
+        p = np.array([h.front for h in hyps])
+        p_member.append(np.where(member[:, 0] >= 0, p, 1.0 - p))
+        favoured.append(true)
+    def table(edges, x, y):
+        b = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 1)
+        return [round(float(y[b == k].mean()), 3) if np.any(b == k) else None
+                for k in range(len(edges))], [int(np.sum(b == k)) for k in range(len(edges))]
+    raw_side, norms = np.concatenate(raw_side), np.concatenate(norms)
+    favoured, p_member = np.concatenate(favoured), np.concatenate(p_member)
+    by_norm, n_norm = table(CANONICAL_RAW_SIDE_EDGES, norms, raw_side)
+    by_front, n_front = table(CANONICAL_FRONT_EDGES, p_member, favoured)
+    return {"switch_probability": [round(float(leave[0] / max(count[0], 1)), 3),
+                                   round(float(leave[1] / max(count[1], 1)), 3)],
+            "raw_side_by_norm": by_norm, "frames_by_norm": n_norm,
+            "raw_side_overall": round(float(raw_side.mean()), 3),
+            "by_front": by_front, "frames_by_front": n_front,
+            "canonical_overall": round(float(favoured.mean()), 3)}
 
 
 def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOptions(),
