@@ -99,7 +99,8 @@ def test_members_must_have_the_same_layers_and_be_few():
 
 
 def test_the_tracker_never_imports_scikit_learn():
-    """Only training needs scikit-learn: loading the shipped model and predicting does not."""
+    """Only training needs scikit-learn: loading the shipped model and predicting (limbs and
+    the side classifier) does not."""
     import subprocess
     import sys
     code = ("import sys, numpy as np\n"
@@ -108,11 +109,13 @@ def test_the_tracker_never_imports_scikit_learn():
             "m = load_pose_model(DEFAULT_MODEL_PATH)\n"
             "x = np.full((2, m.stack_depth * m.descriptor_length), 0.1)\n"
             "assert m.predict_hypotheses_and_limbs(x, 2)[2].shape == (2, 55)\n"
-            "print(len(m.limb_net.members), 'sklearn' in sys.modules)\n")
+            "front = m.predict_frame(x, 2)[3]\n"
+            "print(len(m.limb_net.members), front.shape == (2,), 'sklearn' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["4", "False"]          # the default's 4 networks
+    # the default's 4 networks and its side classifier
+    assert out.stdout.split() == ["4", "True", "False"]
 
 
 def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp_path):

@@ -201,7 +201,7 @@ CANONICAL_RAW_SIDE_OVERALL = 0.578
 #: classifier, 256 x 64 hidden units; right on 67 % of these frames, 90 % of its held-out
 #: training rows).
 CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
-CANONICAL_BY_FRONT = (0.409, 0.599, 0.674, 0.662, 0.661, 0.797)
+CANONICAL_BY_FRONT = (0.407, 0.634, 0.608, 0.633, 0.654, 0.797)
 CANONICAL_OVERALL = 0.624
 #: Experts asked of a mixture model's predict_hypotheses (2 states each: pose and flip). On the
 #: same 28 validation renders (top-3 tables, travel weight 1/15), mean filtered heading RMS:
