@@ -232,13 +232,21 @@ class PoseModel:
     def predict_frame(self, stacked: np.ndarray, m: int = 2
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
         """:meth:`predict_hypotheses_and_limbs` and the side classifier's probability that the
-        body faces the camera's half (N,) (None without a side classifier) in one pass: the
-        tracker's per-frame call."""
+        body faces the camera's half (N,) (None unless :attr:`gives_canonical_pairs`) in one
+        pass: the tracker's per-frame call."""
         X = self._stacked(stacked)
         poses, prob, limbs = self._hypotheses(X, m, with_limbs=True)
-        front = (None if self.side_classifier is None or limbs is None
-                 else self.side_classifier.front_probability(X))
+        front = (self.side_classifier.front_probability(X) if self.gives_canonical_pairs
+                 else None)
         return poses, prob, limbs, front
+
+    @property
+    def gives_canonical_pairs(self) -> bool:
+        """Whether the tracker's front/back chain carries this model's canonical limbs and
+        their flips (a mixture with limbs and a side classifier; tracker.hypotheses), the one
+        test both the hypotheses and their switching rates go by."""
+        return (self.side_classifier is not None and self.mixture is not None
+                and self.has_limbs)
 
     def _hypotheses(self, X: np.ndarray, m: int, with_limbs: bool
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:

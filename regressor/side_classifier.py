@@ -70,6 +70,15 @@ class SideClassifier:
             return "non-finite values"
         if not self.input_scale > 0:
             return "the input scale must be positive"
+        if any(W.shape[1] < 1 for W, _ in self.layers):
+            return "a layer has no units"
+        # A probe on typical inputs (the regressor's are centred, of order 1): absurd but
+        # finite parts (a tiny scale, a huge mean) overflow there.
+        probe = np.vstack([np.zeros_like(self.input_mean), np.ones_like(self.input_mean),
+                           self.input_mean])
+        with np.errstate(all="ignore"):
+            if not np.isfinite(self._logits(probe)).all():
+                return "it gives non-finite values on typical inputs"
         return None
 
     @property
@@ -79,14 +88,20 @@ class SideClassifier:
 
     def front_probability(self, X: np.ndarray) -> np.ndarray:
         """P(the body faces the camera's half, |heading| <= 90 deg) (N,) from the regressor's
-        inputs X (N, P). Absurd inputs give 0 or 1, never NaN (the logit is clipped)."""
+        inputs X (N, P). Inputs the network cannot evaluate (non-finite, or beyond float32's
+        range) give 0.5: no evidence either way."""
+        with np.errstate(all="ignore"):
+            logit = np.nan_to_num(self._logits(X), nan=0.0)
+            return 1.0 / (1.0 + np.exp(-np.clip(logit, -50.0, 50.0)))
+
+    def _logits(self, X: np.ndarray) -> np.ndarray:
+        """The network's output (N,) (log-odds of facing the camera's half)."""
         h = ((np.asarray(X, dtype=np.float64) - self.input_mean) / self.input_scale
              ).astype(np.float32)
         for W, b in self.layers[:-1]:
             h = np.maximum(h @ W + b, 0.0)
         W, b = self.layers[-1]
-        logit = np.nan_to_num((h @ W + b)[:, 0].astype(np.float64), nan=0.0)
-        return 1.0 / (1.0 + np.exp(-np.clip(logit, -50.0, 50.0)))
+        return (h @ W + b)[:, 0].astype(np.float64)
 
     def to_arrays(self, prefix: str = PREFIX) -> dict:
         """The file parts, keyed by ``prefix``; weights as float16."""

@@ -75,10 +75,11 @@ def main(argv=None) -> int:
                          "(regressor.limb_net; needs scikit-learn: pip install -e '.[train]'); "
                          "0: a second set of expert weights instead; default "
                          f"{MixtureOptions.limb_net_members} with a limb head")
-    ap.add_argument("--side-classifier", choices=("on", "off"), default="on",
+    ap.add_argument("--side-classifier", choices=("on", "off"), default=None,
                     help="with limbs, also fit the front/back side classifier "
                          "(regressor.side_classifier; needs scikit-learn); the tracker then "
-                         "carries the limbs' canonical member and its flip; default on")
+                         "carries the limbs' canonical member and its flip; default on with "
+                         "a limb head, off without")
     ap.add_argument("--heading-index-rows", type=int, default=MixtureOptions.heading_index_rows,
                     help="training rows kept for the nearest-neighbour heading "
                          "(regressor.heading_index; needs --components >= 50; 0: none)")
@@ -99,8 +100,12 @@ def main(argv=None) -> int:
         args.limb_nets = MixtureOptions.limb_net_members
     else:
         args.limb_nets = 0
-    if args.limb_nets or (args.side_classifier == "on" and args.regressor == "mixture"
-                          and _limb_head(args) != "none"):
+    has_limbs = args.regressor == "mixture" and _limb_head(args) != "none"
+    if args.side_classifier == "on" and not has_limbs:
+        ap.error("--side-classifier needs the mixture regressor with a limb head")
+    if args.side_classifier is None:
+        args.side_classifier = "on" if has_limbs else "off"
+    if args.limb_nets or args.side_classifier == "on":
         try:       # before the slow steps, not after them
             require_training_dependencies()
         except ValueError as exc:

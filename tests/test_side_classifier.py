@@ -34,8 +34,10 @@ def test_the_probability_follows_the_logit_and_survives_the_file_round_trip():
     back = SideClassifier.from_arrays(clf.to_arrays())
     np.testing.assert_allclose(back.front_probability(X), p, atol=1e-3)
     assert SideClassifier.from_arrays({"other": np.zeros(1)}) is None
-    # absurd inputs give 0 or 1, never NaN
-    assert np.isfinite(clf.front_probability(np.full((1, 6), 1e30))).all()
+    # large inputs saturate; inputs it cannot evaluate give no evidence (0.5), never NaN
+    assert clf.front_probability(np.full((1, 6), 1e30))[0] > 0.99
+    assert clf.front_probability(np.full((2, 6), [[np.inf], [np.nan]]))[0] == 0.5
+    assert clf.front_probability(np.full((2, 6), [[np.inf], [np.nan]]))[1] == 0.5
 
 
 @pytest.mark.parametrize("tamper, message", [
@@ -52,6 +54,10 @@ def test_the_probability_follows_the_logit_and_survives_the_file_round_trip():
     (lambda a: a.update(side_net_W0=np.array([["x", "y"]] * 6)), "floats"),
     (lambda a: a.update(side_net_W0=np.full((6, 2), 1e300)), "float32 range"),
     (lambda a: a.pop("side_net_layers"), "incomplete"),
+    (lambda a: a.update(side_net_input_scale=np.float64(1e-300)), "typical inputs"),
+    (lambda a: a.update(side_net_input_mean=np.full(6, 1e300)), "typical inputs"),
+    (lambda a: a.update(side_net_W0=np.zeros((6, 0), np.float16), side_net_b0=np.zeros(0),
+                        side_net_W1=np.zeros((0, 1), np.float16)), "no units"),
 ])
 def test_a_tampered_classifier_is_refused_with_a_named_problem(tamper, message):
     arrays = _classifier().to_arrays()
@@ -85,8 +91,13 @@ def test_canonical_hypotheses_are_the_member_and_its_flip_weighed_by_the_classif
     raw = _body(20.0, seed=3)
     favoured = canonical_hypotheses(raw, member, front=0.97)
     assert favoured.canonical
-    np.testing.assert_allclose(favoured.poses[0], member)
+    np.testing.assert_allclose(favoured.poses[0], member)      # raw's norm is 1 here
     np.testing.assert_allclose(favoured.poses[1], front_back_flip(member))
+    # an ambiguous raw (low norm) makes an ambiguous pair: the filters and outputs see it
+    low = raw.copy()
+    low[:2] *= 0.2
+    assert np.linalg.norm(canonical_hypotheses(low, member, 0.5).poses[:, :2], axis=1) == \
+        pytest.approx([0.2, 0.2])
     assert favoured.log_evidence[0] > favoured.log_evidence[1]
     doubted = canonical_hypotheses(raw, member, front=0.03)
     assert doubted.log_evidence[0] - doubted.log_evidence[1] < \
@@ -103,17 +114,18 @@ def test_only_a_model_with_limbs_and_a_side_classifier_switches_canonically():
         pass
 
     class Canonical:
-        side_classifier, has_limbs = object(), True
+        gives_canonical_pairs = True
 
     assert switch_probability(Plain()) == SWITCH_PROBABILITY
     assert switch_probability(Canonical()) == CANONICAL_SWITCH_PROBABILITY
 
 
-def test_a_backward_walker_is_followed_by_a_right_more_often_than_not_classifier():
-    """Walking away from the camera while facing it (travel 180, heading 0), the canonical
-    member is the truth's flip for the first 40 frames, then the truth; the classifier says
-    the member faces the camera with 0.8 on 75 % of frames (0.2 on the rest). The chain must
-    end up facing the right way, and the soft travel evidence must give way."""
+def _backward_walker(classifier_right: float):
+    """Walking away from the camera while facing it (travel 180, heading 0) for 150 frames.
+    The canonical member is the truth's flip for the first 40 frames, then the truth; the
+    main head's pose is ambiguous (norm 0.1) and alternates sides, so it says nothing; the
+    classifier gives the true member 0.95 on a share classifier_right of frames, 0.05 on the
+    rest. Returns (filtered headings of the last 30 frames, smoothed headings), degrees."""
     T, rng = 150, np.random.default_rng(5)
     truth = _body(0.0)
     bank = FrontBackTracker(lambda fps: PoseKalmanFilter(fps), FPS,
@@ -123,14 +135,26 @@ def test_a_backward_walker_is_followed_by_a_right_more_often_than_not_classifier
         for t in range(T):
             true = truth + np.concatenate([[0, 0], rng.normal(0, 3, 53)])
             member = front_back_flip(true) if t < 40 else true
-            says_front = rng.random() < 0.75
-            p_member_front = 0.8 if says_front else 0.2
-            front = p_member_front if member[0] >= 0 else 1 - p_member_front
-            out.append(bank.step(canonical_hypotheses(true, member, front), 180.0))
-    late = np.array([pose_angles(d.filtered)[0] for d in out[-30:]])
+            raw = true if t % 2 else front_back_flip(true)
+            raw[:2] *= 0.1
+            p_true = 0.95 if rng.random() < classifier_right else 0.05
+            p_member = p_true if t >= 40 else 1 - p_true
+            front = p_member if member[0] >= 0 else 1 - p_member
+            out.append(bank.step(canonical_hypotheses(raw, member, front), 180.0))
+    return (np.array([pose_angles(d.filtered)[0] for d in out[-30:]]),
+            pose_angles(bank.smoothed())[:, 0])
+
+
+def test_a_backward_walker_is_turned_the_right_way_by_the_classifier():
+    """The soft travel evidence (which prefers forwards) must give way to a classifier that is
+    right on 75 % of frames; with the classifier inverted (right on 25 %), it does not: the
+    classifier, not the raw side or the travel, decides."""
+    late, smoothed = _backward_walker(0.75)
     assert np.all(np.abs(wrap_deg(late)) < 30.0)
-    smoothed = pose_angles(bank.smoothed())[:, 0]
     assert np.mean(np.abs(wrap_deg(smoothed)) < 30.0) > 0.9
+    late, smoothed = _backward_walker(0.25)
+    assert np.all(np.abs(wrap_deg(late)) > 150.0)
+    assert np.mean(np.abs(wrap_deg(smoothed)) < 30.0) < 0.1
 
 
 def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pairs(tmp_path):
@@ -147,15 +171,21 @@ def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pai
     targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),
                                wrap_deg(40 * np.tanh(x[:, :1]) + rng.normal(0, 1, (len(x), 53)))])
     model.side_classifier = _classifier(P=8)
+    assert not model.gives_canonical_pairs and model.predict_frame(x[:2], 2)[3] is None
     with pytest.raises(PoseModelError, match="needs the model's limbs"):
         save_pose_model(tmp_path / "nolimbs.npz", model)
     model.limb_net = fit_limb_net(x, targets, np.zeros(53), np.eye(55)[0], members=1,
                                   hidden=(8,), max_iter=20)
+    assert model.gives_canonical_pairs
     poses, gate, limbs, front = model.predict_frame(x[:5], 2)
     np.testing.assert_allclose(front, model.side_classifier.front_probability(x[:5]))
     hyps = propose_batch(model, x[:5])
     assert all(h.canonical and len(h.poses) == 2 for h in hyps)
-    np.testing.assert_allclose(hyps[0].poses[0], limbs[0])
+    # the member's body angles and heading direction, with the main head's norm (ambiguity)
+    np.testing.assert_allclose(hyps[0].poses[0, 2:], limbs[0, 2:])
+    direction = hyps[0].poses[0, :2] / np.linalg.norm(hyps[0].poses[0, :2])
+    np.testing.assert_allclose(direction, limbs[0, :2] / np.linalg.norm(limbs[0, :2]))
+    assert np.linalg.norm(hyps[0].poses[0, :2]) == pytest.approx(np.linalg.norm(poses[0, 0, :2]))
     assert switch_probability(model) == CANONICAL_SWITCH_PROBABILITY
     path = tmp_path / "side.npz"
     save_pose_model(path, model)

@@ -189,9 +189,11 @@ CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this p
 #: Canonical hypotheses (a model with limbs and a side classifier; module docstring,
 #: "Canonical hypotheses"). All learned on the 28 validation renders of
 #: scripts/learn_hypothesis_priors.py (validation trials and 07_12, spiral and fixed camera, as
-#: recorded and time-reversed, video-like masks), 2026-12-02, a one-off driver
-#: (/work/tmp/s15/learn_canon.py, calib.py in the session's notes). "True": the member with the
-#: smaller mean absolute error over the 54 angles.
+#: recorded and time-reversed, video-like masks), 2026-12-02, by
+#: tracker.offline.hypothesis_priors.canonical_statistics (`python
+#: scripts/learn_hypothesis_priors.py` prints them for a model with a side classifier). They
+#: belong to the shipped model's classifier: a model trained anew needs them learned again.
+#: "True": the member with the smaller mean absolute error over the 54 angles.
 #: (P(canonical -> flip), P(flip -> canonical)) per frame: how often the truer member changes.
 #: The limb network's canonical member changes body only where its rule does (mostly in
 #: profile), so these are far below SWITCH_PROBABILITY's.
@@ -201,10 +203,11 @@ CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 CANONICAL_RAW_SIDE_EDGES = (0.0, 0.2, 0.4, 0.6, 0.8)
 CANONICAL_RAW_SIDE_BY_NORM = (0.504, 0.507, 0.538, 0.613, 0.669)
 CANONICAL_RAW_SIDE_OVERALL = 0.578
-#: P(the member the side classifier favours is the true one | its probability for that
+#: P(the canonical member is the true one | the side classifier's probability for that
 #: member in [CANONICAL_FRONT_EDGES[b], next edge)), and overall. The classifier is
-#: over-confident on renders that are not like its training rows: where it gives a member
-#: less than 0.1, that member is still the true one 4 times in 10 (for the default model's
+#: over-confident on renders that are not like its training rows: where it gives the member
+#: less than 0.1, the member is still the true one 4 times in 10, and the middle bins barely
+#: differ (0.61-0.65: noise at 227-419 frames each) (for the default model's
 #: classifier, 256 x 64 hidden units; right on 67 % of these frames, 90 % of its held-out
 #: training rows).
 CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
@@ -303,6 +306,11 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float) -> Hy
     faces the camera's half (CANONICAL_BY_FRONT)."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
+    # The member commits to one body, so its (cos, sin) norm is ~1 even where the silhouette
+    # is ambiguous; the main head's norm says how ambiguous it is, and the filters (their R
+    # inflation) and the outputs (the ambiguous flag) read it from the pose.
+    unit = pair[:, :2] / np.maximum(np.linalg.norm(pair[:, :2], axis=1, keepdims=True), 1e-9)
+    pair[:, :2] = unit * heading_norm(raw)
     evidence = np.zeros(2)
     direction = deaveraged_direction(raw)
     on_raw_side = 0 if pair[0, :2] @ direction >= pair[1, :2] @ direction else 1
@@ -327,8 +335,7 @@ def switch_probability(estimator) -> tuple[float, float]:
     """The chain's switching probabilities for this estimator's hypotheses: canonical ones
     (a model with limbs and a side classifier) switch far less often than a pose and its
     flip."""
-    if getattr(estimator, "side_classifier", None) is not None \
-            and getattr(estimator, "has_limbs", False):
+    if getattr(estimator, "gives_canonical_pairs", False):
         return CANONICAL_SWITCH_PROBABILITY
     return SWITCH_PROBABILITY
 

@@ -27,8 +27,7 @@ from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_v
 from regressor.stacking import stack_frames
 from sequences.skeleton import CMU_UNIT_M
 from sequences.spiral import spiral_walk
-from ..hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, Hypotheses, propose_batch,
-                          switch_probability)
+from ..hypotheses import DEFAULT_EXPERTS, FrontBackTracker, propose_batch, switch_probability
 from ..pipeline import kalman_factory
 from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW, TravelDirection
 from ..video import focal_length_px
@@ -174,7 +173,7 @@ def top_experts(render: dict, n_experts: int) -> dict:
     the n_experts, which changes every state's evidence by the same amount per frame, so
     the tracker's posteriors are as if the model had been asked for n_experts."""
     k = 2 * n_experts
-    return {**render, "hypotheses": [Hypotheses(h.poses[:k], h.log_evidence[:k], h.raw, h.limbs)
+    return {**render, "hypotheses": [replace(h, poses=h.poses[:k], log_evidence=h.log_evidence[:k])
                                      for h in render["hypotheses"]]}
 
 
@@ -187,7 +186,7 @@ def canonical_statistics(renders: dict) -> dict:
     from ..hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES,
                               deaveraged_direction)
     leave, count = np.zeros(2), np.zeros(2)
-    raw_side, norms, favoured, p_member = [], [], [], []
+    raw_side, norms, canonical_true, p_member = [], [], [], []
     for render in renders.values():
         hyps = render["hypotheses"]
         if not all(h.canonical and h.front is not None for h in hyps):
@@ -206,21 +205,21 @@ def canonical_statistics(renders: dict) -> dict:
         norms.append(heading_norm(raw))
         p = np.array([h.front for h in hyps])
         p_member.append(np.where(member[:, 0] >= 0, p, 1.0 - p))
-        favoured.append(true)
+        canonical_true.append(true)
     def table(edges, x, y):
         b = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 1)
         return [round(float(y[b == k].mean()), 3) if np.any(b == k) else None
                 for k in range(len(edges))], [int(np.sum(b == k)) for k in range(len(edges))]
     raw_side, norms = np.concatenate(raw_side), np.concatenate(norms)
-    favoured, p_member = np.concatenate(favoured), np.concatenate(p_member)
+    canonical_true, p_member = np.concatenate(canonical_true), np.concatenate(p_member)
     by_norm, n_norm = table(CANONICAL_RAW_SIDE_EDGES, norms, raw_side)
-    by_front, n_front = table(CANONICAL_FRONT_EDGES, p_member, favoured)
+    by_front, n_front = table(CANONICAL_FRONT_EDGES, p_member, canonical_true)
     return {"switch_probability": [round(float(leave[0] / max(count[0], 1)), 3),
                                    round(float(leave[1] / max(count[1], 1)), 3)],
             "raw_side_by_norm": by_norm, "frames_by_norm": n_norm,
             "raw_side_overall": round(float(raw_side.mean()), 3),
             "by_front": by_front, "frames_by_front": n_front,
-            "canonical_overall": round(float(favoured.mean()), 3)}
+            "canonical_overall": round(float(canonical_true.mean()), 3)}
 
 
 def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOptions(),

@@ -556,7 +556,10 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         limb_head = LimbHead(coef, intercept, head_centre, head_direction)
     side_classifier = None
     front = np.abs(heading_deg(dataset.pose[train_rows])) <= 90.0
-    if options.side_classifier and head_truth is not None and front.any() and not front.all():
+    if options.side_classifier and (head_truth is None or front.all() or not front.any()):
+        log("no side classifier: it needs a limb head or networks and training poses facing "
+            "both halves")
+    elif options.side_classifier:
         log(f"fitting the side classifier {'x'.join(map(str, options.side_classifier_hidden))} "
             f"on the {len(train_rows)} training rows ...")
         side_classifier = fit_side_classifier(
