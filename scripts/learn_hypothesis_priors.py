@@ -61,7 +61,7 @@ def main(argv=None) -> int:
         print(json.dumps(stats, indent=1))
     files = [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS + ("07_12",)]
     model = load_pose_model(args.model)
-    if model.side_classifier is not None and model.has_limbs:
+    if not args.skip_regressor and model.gives_canonical_pairs:
         # the canonical chain's tables (tracker.hypotheses CANONICAL_*), on the 28 renders
         with threadpool_limits(1):
             renders = validation_renders(model, files)
