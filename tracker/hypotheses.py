@@ -103,7 +103,12 @@ classifier and the member hold the wrong side for long stretches), 09_04 filtere
 classifier 45.3, with the 256 x 64 one 88.7: it locks to either side). Held out (through-video evaluate_jitter,
 filtered / smoothed heading RMS): 16_11 spiral 24.7 / 14.5 -> 7.9 / 7.4, 06_06 fixed 9.3 / 9.2
 -> 7.0 / 7.2, spiral 19.3 / 11.5 -> 9.4 / 4.8, 06_08 spiral 19.3 / 15.9 -> 14.6 / 13.5, but
-06_08 fixed 33.2 / 26.8 -> 33.4 / 30.1 (a sideways dribble seen from one side).
+06_08 fixed 33.2 / 26.8 -> 33.4 / 30.1 (a sideways dribble seen from one side). Tried and not
+adopted (a one-off patch, 2026-12-02): the main head's side as P(member true | member on the
+main head's side or not, norm bin) over the canonical base rate, instead of over its own base
+rate (which the chain then never sees): filtered heading better, smoothed worse (renders
+36.1 / 27.8 -> 34.3 / 33.5 degrees, smoothed corr8 0.609 -> 0.573; videos 32.1 / 31.1 ->
+30.4 / 31.7, corr8 0.440 both).
 
 Online the chosen pose is the most probable state's filtered pose; the runner-up and its
 probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
