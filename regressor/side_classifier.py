@@ -146,6 +146,12 @@ class SideClassifier:
                    a[f"{prefix}input_mean"], float(scale))
 
 
+def facing_camera(heading_deg: np.ndarray) -> np.ndarray:
+    """The classifier's label (N,) bool: the heading (N,) degrees is in the camera's half
+    (|heading| <= 90)."""
+    return np.abs(np.asarray(heading_deg, dtype=np.float64)) <= 90.0
+
+
 def fit_side_classifier(X: np.ndarray, heading_deg: np.ndarray,
                         hidden: tuple[int, ...] = (128,), alpha: float = 1e-3,
                         max_iter: int = 200, seed: int = 0,
@@ -164,7 +170,7 @@ def fit_side_classifier(X: np.ndarray, heading_deg: np.ndarray,
         raise ValueError("fitting the side classifier needs scikit-learn: "
                          "pip install -e '.[train]'") from None
     X = np.asarray(X, dtype=np.float64)
-    front = (np.abs(np.asarray(heading_deg, dtype=np.float64)) <= 90.0).astype(int)
+    front = facing_camera(heading_deg).astype(int)
     if len(np.unique(front)) < 2:
         raise ValueError("the side classifier needs poses facing both halves")
     x_mean, x_scale = X.mean(axis=0), float(X.std(axis=0).mean())

@@ -250,20 +250,25 @@ def pick_member(limbs: np.ndarray, heading_deg) -> np.ndarray:
     """Of each canonical pose (55,) or (T, 55) and its front/back flip, the one whose heading
     is nearer heading_deg (scalar or (T,), degrees); same shape as limbs."""
     limbs = np.asarray(limbs, dtype=np.float64)
-    flipped = front_back_flip(limbs)
     h = np.radians(np.asarray(heading_deg, dtype=np.float64))
-    target = np.stack([np.cos(h), np.sin(h)], axis=-1)
-    # Nearer heading = larger cosine with the target direction (norms do not matter).
-    keep = (limbs[..., :2] * target).sum(-1) >= (flipped[..., :2] * target).sum(-1)
-    return np.where(np.asarray(keep)[..., None], limbs, flipped)
+    keep = member_on_side(limbs, np.stack([np.cos(h), np.sin(h)], axis=-1))
+    return np.where(np.asarray(keep)[..., None], limbs, front_back_flip(limbs))
+
+
+def member_on_side(members: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Whether each pose (..., 55), not its front/back flip, has the heading nearer the
+    direction (..., 2) (cos, sin): bool (...). Nearer = larger cosine with the direction
+    (norms do not matter)."""
+    members = np.asarray(members, dtype=np.float64)
+    direction = np.asarray(direction, dtype=np.float64)
+    return ((members[..., :2] * direction).sum(-1)
+            >= (front_back_flip(members)[..., :2] * direction).sum(-1))
 
 
 def raw_probability(norm) -> np.ndarray:
     """P(the raw pose, not its flip, is the true view | raw heading norm(s)), from
     RAW_NEARER_BY_NORM (norms beyond the last edge use the last bin)."""
-    b = np.searchsorted(RAW_NEARER_NORM_EDGES, np.asarray(norm, float), side="right") - 1
-    p = np.asarray(RAW_NEARER_BY_NORM)[np.clip(b, 0, len(RAW_NEARER_BY_NORM) - 1)]
-    return np.clip(p, _FLOOR, 1.0 - _FLOOR)
+    return _table(RAW_NEARER_NORM_EDGES, RAW_NEARER_BY_NORM, norm)
 
 
 def deaveraged_heading(poses: np.ndarray) -> np.ndarray:
@@ -299,11 +304,16 @@ def _with_flips(poses: np.ndarray, gate: np.ndarray, limbs: np.ndarray | None = 
     return Hypotheses(both, evidence.reshape(-1), raw, limbs)
 
 
-def _table(edges, values, x) -> np.ndarray:
-    """values[b] for x in [edges[b], edges[b + 1]) (beyond the last edge: the last bin),
-    clipped away from 0 and 1."""
+def bin_index(edges, x) -> np.ndarray:
+    """The bin b of each x with edges[b] <= x < edges[b + 1] (beyond the last edge: the last
+    bin; below the first: the first), as the tables above are binned."""
     b = np.searchsorted(edges, np.asarray(x, float), side="right") - 1
-    return np.clip(np.asarray(values)[np.clip(b, 0, len(values) - 1)], _FLOOR, 1.0 - _FLOOR)
+    return np.clip(b, 0, len(edges) - 1)
+
+
+def _table(edges, values, x) -> np.ndarray:
+    """values[bin_index(edges, x)] (one value per edge), clipped away from 0 and 1."""
+    return np.clip(np.asarray(values)[bin_index(edges, x)], _FLOOR, 1.0 - _FLOOR)
 
 
 def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float) -> Hypotheses:
@@ -317,12 +327,12 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float) -> Hy
     # The member commits to one body, so its (cos, sin) norm is ~1 even where the silhouette
     # is ambiguous; the main head's norm says how ambiguous it is, and the filters (their R
     # inflation) and the outputs (the ambiguous flag) read it from the pose.
+    norm = heading_norm(raw)
     unit = pair[:, :2] / np.maximum(np.linalg.norm(pair[:, :2], axis=1, keepdims=True), 1e-9)
-    pair[:, :2] = unit * heading_norm(raw)
+    pair[:, :2] = unit * norm
     evidence = np.zeros(2)
-    direction = deaveraged_direction(raw)
-    on_raw_side = 0 if pair[0, :2] @ direction >= pair[1, :2] @ direction else 1
-    p = _table(CANONICAL_RAW_SIDE_EDGES, CANONICAL_RAW_SIDE_BY_NORM, heading_norm(raw))
+    on_raw_side = 0 if member_on_side(pair[0], deaveraged_direction(raw)) else 1
+    p = _table(CANONICAL_RAW_SIDE_EDGES, CANONICAL_RAW_SIDE_BY_NORM, norm)
     evidence[on_raw_side] += np.log(p / CANONICAL_RAW_SIDE_OVERALL)
     evidence[1 - on_raw_side] += np.log((1 - p) / (1 - CANONICAL_RAW_SIDE_OVERALL))
     # the classifier's probability for the canonical member: front if it faces the camera

@@ -183,8 +183,8 @@ def canonical_statistics(renders: dict) -> dict:
     validation_renders of a model with limbs and a side classifier (canonical hypotheses,
     which keep the classifier's probability). The true member: the nearer the truth over the
     54 angles (raw_is_nearer)."""
-    from ..hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES,
-                              deaveraged_direction)
+    from ..hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES, bin_index,
+                              deaveraged_heading, member_on_side)
     leave, count = np.zeros(2), np.zeros(2)
     raw_side, norms, canonical_true, p_member = [], [], [], []
     for render in renders.values():
@@ -195,19 +195,18 @@ def canonical_statistics(renders: dict) -> dict:
         raw = np.array([h.raw for h in hyps])
         true = raw_is_nearer(member, render["truth"])          # the member, not its flip
         state = (~true).astype(int)
-        for a, b in zip(state[:-1], state[1:]):
-            count[a] += 1
-            leave[a] += a != b
-        direction = np.array([deaveraged_direction(r) for r in raw])
-        flip = front_back_flip(member)
-        on_side = (member[:, :2] * direction).sum(1) >= (flip[:, :2] * direction).sum(1)
+        for s in (0, 1):                    # frames in state s, and those followed by the other
+            count[s] += np.sum(state[:-1] == s)
+            leave[s] += np.sum((state[:-1] == s) & (state[1:] != s))
+        on_side = member_on_side(member, deaveraged_heading(raw)[:, :2])
         raw_side.append(on_side == true)
         norms.append(heading_norm(raw))
         p = np.array([h.front for h in hyps])
         p_member.append(np.where(member[:, 0] >= 0, p, 1.0 - p))
         canonical_true.append(true)
+
     def table(edges, x, y):
-        b = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 1)
+        b = bin_index(edges, x)
         return [round(float(y[b == k].mean()), 3) if np.any(b == k) else None
                 for k in range(len(edges))], [int(np.sum(b == k)) for k in range(len(edges))]
     raw_side, norms = np.concatenate(raw_side), np.concatenate(norms)

@@ -24,7 +24,7 @@ from regressor.descriptor import (DescriptorSettings, descriptors_for_masks,
                                   fit_codebook_for_masks)
 from regressor.layout import layouts_for_masks
 from regressor.limb_net import MAX_MEMBERS, fit_limb_net, require_training_dependencies
-from regressor.side_classifier import fit_side_classifier
+from regressor.side_classifier import facing_camera, fit_side_classifier
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
                                   frame_descriptors, transform_descriptors)
 from regressor.rvm import RVMRegressor
@@ -555,7 +555,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         coef, intercept = split_expert_outputs(mixture, POSE_DIM)
         limb_head = LimbHead(coef, intercept, head_centre, head_direction)
     side_classifier = None
-    front = np.abs(heading_deg(dataset.pose[train_rows])) <= 90.0
+    train_heading = heading_deg(dataset.pose[train_rows])
+    front = facing_camera(train_heading)
     if options.side_classifier and (head_truth is None or front.all() or not front.any()):
         log("no side classifier: it needs a limb head or networks and training poses facing "
             "both halves")
@@ -563,7 +564,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         log(f"fitting the side classifier {'x'.join(map(str, options.side_classifier_hidden))} "
             f"on the {len(train_rows)} training rows ...")
         side_classifier = fit_side_classifier(
-            Xin[train_rows], heading_deg(dataset.pose[train_rows]),
+            Xin[train_rows], train_heading,
             hidden=options.side_classifier_hidden, seed=options.seed, log=log)
     heading_index = None
     if options.heading_index_rows:
@@ -572,7 +573,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                              f"principal components of the input: it needs components >= that "
                              f"(got {options.components}; or no index: heading_index_rows 0)")
         heading_index = build_heading_index(
-            Xin[train_rows], heading_deg(dataset.pose[train_rows]), options.heading_index_rows,
+            Xin[train_rows], train_heading, options.heading_index_rows,
             options.heading_index_dims, options.heading_index_k,
             options.heading_index_limit_deg, seed=options.seed)
     fit_seconds = time.perf_counter() - start
