@@ -32,10 +32,10 @@ from typing import Callable
 import numpy as np
 
 from .angles import POSE_DIM, regression_targets, wrap_deg
+from .relu_layers import as_float32_layers, check_parts, forward, typical_inputs
 
 PREFIX = "limb_net_"        # the file parts' names
 MAX_MEMBERS, MAX_LAYERS = 16, 8
-_FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 @dataclass
@@ -56,15 +56,7 @@ class LimbNet:
     canonical_direction: np.ndarray
 
     def __post_init__(self):
-        for layers in self.members:
-            for W, b in layers:
-                # a float64 value beyond float32's range would turn into inf in the cast
-                if not all(np.all(np.abs(np.asarray(a, dtype=np.float64)) <= _FLOAT32_MAX)
-                           for a in (W, b)):
-                    raise ValueError("invalid limb network: weights out of float32 range or "
-                                     "not finite")
-        self.members = [[(np.asarray(W, dtype=np.float32), np.asarray(b, dtype=np.float32))
-                         for W, b in layers] for layers in self.members]
+        self.members = [as_float32_layers(layers, "limb network") for layers in self.members]
         self.input_mean = np.asarray(self.input_mean, dtype=np.float64)
         self.input_scale = float(self.input_scale)
         self.output_mean = np.asarray(self.output_mean, dtype=np.float64)
@@ -109,12 +101,9 @@ class LimbNet:
         if np.any(np.abs(self.angle_centre_deg) > 180.0) \
                 or not abs(np.linalg.norm(self.canonical_direction) - 1) < 1e-6:
             return "centres must be angles in [-180, 180] and the direction a unit vector"
-        # A probe on typical inputs (the regressor's are centred, of order 1): absurd but
-        # finite parts (a tiny scale, a huge mean) overflow there.
-        probe = np.vstack([np.zeros_like(self.input_mean), np.ones_like(self.input_mean),
-                           self.input_mean])
+        # absurd but finite parts (a tiny scale, a huge mean) overflow on typical inputs
         with np.errstate(all="ignore"):
-            if not np.isfinite(self.predict(probe)).all():
+            if not np.isfinite(self.predict(typical_inputs(self.input_mean))).all():
                 return "it gives non-finite poses"
         return None
 
@@ -130,11 +119,7 @@ class LimbNet:
              ).astype(np.float32)
         total = np.zeros((len(x), POSE_DIM), dtype=np.float64)
         for layers in self.members:
-            h = x
-            for W, b in layers[:-1]:
-                h = np.maximum(h @ W + b, 0.0)
-            W, b = layers[-1]
-            total += h @ W + b
+            total += forward(x, layers)
         out = total / len(self.members) * self.output_scale + self.output_mean
         out[:, 2:] = wrap_deg(out[:, 2:] + self.angle_centre_deg)
         return out
@@ -175,22 +160,10 @@ class LimbNet:
         layers = [[(f"{prefix}W{m}_{i}", f"{prefix}b{m}_{i}") for i in range(int(shape[1]))]
                   for m in range(int(shape[0]))]
         needed = names + [k for member in layers for pair in member for k in pair]
-        missing = [k for k in needed if k not in a]
-        if missing:
-            raise ValueError(f"limb network is incomplete (no {missing[0]})")
-        extra = sorted(k for k in map(str, a.keys())
-                       if k.startswith(prefix) and k not in needed and k != f"{prefix}shape")
-        if extra:
-            raise ValueError(f"limb network has a part its shape does not declare ({extra[0]})")
-        for k in needed:
-            if np.asarray(a[k]).dtype.kind != "f":
-                raise ValueError(f"limb network part {k} must hold floats, not "
-                                 f"{np.asarray(a[k]).dtype}")
-        scale = np.asarray(a[f"{prefix}input_scale"])
-        if scale.shape != ():
-            raise ValueError("limb network input scale must be one number")
+        scale = check_parts(a, needed, prefix, f"{prefix}shape", "limb network",
+                            "shape does not declare")
         return cls([[(a[W], a[b]) for W, b in member] for member in layers], a[names[0]],
-                   float(scale), a[names[2]], a[names[3]], a[names[4]], a[names[5]])
+                   scale, a[names[2]], a[names[3]], a[names[4]], a[names[5]])
 
 
 def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarray,

@@ -22,9 +22,10 @@ from typing import Callable
 
 import numpy as np
 
+from .relu_layers import as_float32_layers, check_parts, forward, typical_inputs
+
 PREFIX = "side_net_"
 MAX_LAYERS = 8
-_FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 @dataclass
@@ -38,14 +39,7 @@ class SideClassifier:
     input_scale: float
 
     def __post_init__(self):
-        for W, b in self.layers:
-            # a float64 value beyond float32's range would turn into inf in the cast
-            if not all(np.all(np.abs(np.asarray(a, dtype=np.float64)) <= _FLOAT32_MAX)
-                       for a in (W, b)):
-                raise ValueError("invalid side classifier: weights out of float32 range or "
-                                 "not finite")
-        self.layers = [(np.asarray(W, dtype=np.float32), np.asarray(b, dtype=np.float32))
-                       for W, b in self.layers]
+        self.layers = as_float32_layers(self.layers, "side classifier")
         self.input_mean = np.asarray(self.input_mean, dtype=np.float64)
         self.input_scale = float(self.input_scale)
         problem = self._problem()
@@ -72,12 +66,9 @@ class SideClassifier:
             return "the input scale must be positive"
         if any(W.shape[1] < 1 for W, _ in self.layers):
             return "a layer has no units"
-        # A probe on typical inputs (the regressor's are centred, of order 1): absurd but
-        # finite parts (a tiny scale, a huge mean) overflow there.
-        probe = np.vstack([np.zeros_like(self.input_mean), np.ones_like(self.input_mean),
-                           self.input_mean])
+        # absurd but finite parts (a tiny scale, a huge mean) overflow on typical inputs
         with np.errstate(all="ignore"):
-            if not np.isfinite(self._logits(probe)).all():
+            if not np.isfinite(self._logits(typical_inputs(self.input_mean))).all():
                 return "it gives non-finite values on typical inputs"
         return None
 
@@ -98,10 +89,7 @@ class SideClassifier:
         """The network's output (N,) (log-odds of facing the camera's half)."""
         h = ((np.asarray(X, dtype=np.float64) - self.input_mean) / self.input_scale
              ).astype(np.float32)
-        for W, b in self.layers[:-1]:
-            h = np.maximum(h @ W + b, 0.0)
-        W, b = self.layers[-1]
-        return (h @ W + b)[:, 0].astype(np.float64)
+        return forward(h, self.layers)[:, 0].astype(np.float64)
 
     def to_arrays(self, prefix: str = PREFIX) -> dict:
         """The file parts, keyed by ``prefix``; weights as float16."""
@@ -127,23 +115,10 @@ class SideClassifier:
             raise ValueError(f"side classifier layers must be one integer in 1..{MAX_LAYERS}")
         needed = [f"{prefix}input_mean", f"{prefix}input_scale"] + \
             [f"{prefix}{s}{i}" for i in range(int(n)) for s in ("W", "b")]
-        missing = [k for k in needed if k not in a]
-        if missing:
-            raise ValueError(f"side classifier is incomplete (no {missing[0]})")
-        extra = sorted(k for k in map(str, a.keys())
-                       if k.startswith(prefix) and k not in needed and k != f"{prefix}layers")
-        if extra:
-            raise ValueError(f"side classifier has a part its layers do not declare "
-                             f"({extra[0]})")
-        for k in needed:
-            if np.asarray(a[k]).dtype.kind != "f":
-                raise ValueError(f"side classifier part {k} must hold floats, not "
-                                 f"{np.asarray(a[k]).dtype}")
-        scale = np.asarray(a[f"{prefix}input_scale"])
-        if scale.shape != ():
-            raise ValueError("side classifier input scale must be one number")
+        scale = check_parts(a, needed, prefix, f"{prefix}layers", "side classifier",
+                            "layers do not declare")
         return cls([(a[f"{prefix}W{i}"], a[f"{prefix}b{i}"]) for i in range(int(n))],
-                   a[f"{prefix}input_mean"], float(scale))
+                   a[f"{prefix}input_mean"], scale)
 
 
 def facing_camera(heading_deg: np.ndarray) -> np.ndarray:

@@ -1,0 +1,59 @@
+"""Stacks of ReLU layers kept as plain arrays (no pickle): the checks and the forward pass that
+the limb networks (regressor.limb_net) and the side classifier (regressor.side_classifier)
+share. A stack is a list of (W (n_in, n_out), b (n_out,)); every layer but the last is
+followed by a ReLU."""
+from __future__ import annotations
+
+import numpy as np
+
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def as_float32_layers(layers, what: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The layers as float32 arrays; ValueError naming ``what`` when a weight is not finite
+    or beyond float32's range (the cast would turn it into inf)."""
+    for W, b in layers:
+        if not all(np.all(np.abs(np.asarray(a, dtype=np.float64)) <= _FLOAT32_MAX)
+                   for a in (W, b)):
+            raise ValueError(f"invalid {what}: weights out of float32 range or not finite")
+    return [(np.asarray(W, dtype=np.float32), np.asarray(b, dtype=np.float32))
+            for W, b in layers]
+
+
+def forward(x: np.ndarray, layers) -> np.ndarray:
+    """The stack's output for inputs x (N, n_in) (already standardised): (N, n_out)."""
+    h = x
+    for W, b in layers[:-1]:
+        h = np.maximum(h @ W + b, 0.0)
+    W, b = layers[-1]
+    return h @ W + b
+
+
+def check_parts(a, needed: list[str], prefix: str, header: str, what: str,
+                declarer: str) -> float:
+    """Check a file's parts a (mapping) for ``what`` (e.g. "limb network"): every needed part
+    present, no other part under ``prefix`` but ``header`` (the part that declares the
+    others, by ``declarer``, e.g. "shape"), every needed part floats, and the
+    ``{prefix}input_scale`` part one number, which is returned. ValueError naming the first
+    problem."""
+    missing = [k for k in needed if k not in a]
+    if missing:
+        raise ValueError(f"{what} is incomplete (no {missing[0]})")
+    extra = sorted(k for k in map(str, a.keys())
+                   if k.startswith(prefix) and k not in needed and k != header)
+    if extra:
+        raise ValueError(f"{what} has a part its {declarer} ({extra[0]})")
+    for k in needed:
+        if np.asarray(a[k]).dtype.kind != "f":
+            raise ValueError(f"{what} part {k} must hold floats, not {np.asarray(a[k]).dtype}")
+    scale = np.asarray(a[f"{prefix}input_scale"])
+    if scale.shape != ():
+        raise ValueError(f"{what} input scale must be one number")
+    return float(scale)
+
+
+def typical_inputs(input_mean: np.ndarray) -> np.ndarray:
+    """Probe inputs (3, P) like the regressor's (centred, of order 1): zeros, ones and the
+    mean itself. A stack whose parts are absurd but finite (a tiny scale, a huge mean)
+    overflows on them, so loaders refuse it."""
+    return np.vstack([np.zeros_like(input_mean), np.ones_like(input_mean), input_mean])
