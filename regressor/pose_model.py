@@ -56,6 +56,7 @@ from .model_file import ModelFileError, load_model, save_model
 from .errors import SilhouettePoseError
 from .heading_index import HeadingIndex
 from .limb_net import LimbNet
+from .canonical_priors import PREFIX as CANONICAL_PRIOR_PREFIX, CanonicalPriors
 from .side_classifier import SideClassifier
 
 DEFAULT_MODEL_PATH = Path(__file__).resolve().parent / "models" / "default_model.npz"
@@ -108,6 +109,9 @@ class PoseModel:
     nearest-neighbour heading (module docstring), or None. side_classifier: a mixture's
     front/back side classifier (regressor.side_classifier.SideClassifier; needs limbs: the
     tracker weighs the limbs' canonical member against its flip with it), or None.
+    canonical_priors: with a side classifier, how far the tracker trusts that weighing
+    (regressor.canonical_priors.CanonicalPriors, learned on validation renders), or None (the
+    tracker then takes the shipped model's, tracker.hypotheses.DEFAULT_CANONICAL_PRIORS).
     """
 
     settings: DescriptorSettings
@@ -135,6 +139,7 @@ class PoseModel:
     heading_index: HeadingIndex | None = None
     limb_net: LimbNet | None = None
     side_classifier: SideClassifier | None = None
+    canonical_priors: CanonicalPriors | None = None
 
     @property
     def descriptor_length(self) -> int:
@@ -348,6 +353,8 @@ def save_pose_model(path: str | Path, model: PoseModel) -> None:
             raise PoseModelError("a model carries a limb head or a limb network, not both")
         if model.side_classifier is not None and not model.has_limbs:
             raise PoseModelError("a side classifier needs the model's limbs")
+        if model.canonical_priors is not None and model.side_classifier is None:
+            raise PoseModelError("canonical priors need the model's side classifier")
         try:
             arrays = _mixture_arrays(model)
         except ValueError as exc:
@@ -360,8 +367,9 @@ def save_pose_model(path: str | Path, model: PoseModel) -> None:
         raise PoseModelError("only a mixture model can carry a heading index")
     if model.limb_net is not None:
         raise PoseModelError("only a mixture model can carry a limb network")
-    if model.side_classifier is not None:
-        raise PoseModelError("only a mixture model can carry a side classifier")
+    if model.side_classifier is not None or model.canonical_priors is not None:
+        raise PoseModelError("only a mixture model can carry a side classifier or canonical "
+                             "priors")
     arrays = {
         **model.codebook.to_arrays(), **model.settings.to_arrays(),
         "model_kind": np.str_(MODEL_KIND),
@@ -393,9 +401,10 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
             return model
         if str(a.get("model_kind", "")) != MODEL_KIND:
             raise PoseModelError(f"{path}: not a silhouette-pose model file")
-        if any(name.startswith(("limbs_", "limb_net_", "side_net_")) for name in a.parts):
+        if any(name.startswith(("limbs_", "limb_net_", "side_net_", CANONICAL_PRIOR_PREFIX))
+               for name in a.parts):
             raise PoseModelError(f"{path}: invalid model: only a mixture can carry a limb head, "
-                                 f"limb network or side classifier")
+                                 f"limb network, side classifier or canonical priors")
         if any(name.startswith("heading_index_") for name in a.parts):
             raise PoseModelError(f"{path}: invalid model: only a mixture can carry a heading "
                                  "index")
@@ -479,7 +488,8 @@ def _validate(path: Path, m: PoseModel) -> None:
 # with a limb head, under "limbs_": coef (R, 55) float32 (rows as coef's), expert_intercept
 # (E, 55), angle_centre_deg (53,), canonical_direction (55,); with a limb network, under
 # "limb_net_" (regressor.limb_net.LimbNet.to_arrays); with a side classifier, under
-# "side_net_" (regressor.side_classifier.SideClassifier.to_arrays).
+# "side_net_" (regressor.side_classifier.SideClassifier.to_arrays), and with its priors, under
+# "canonical_prior_" (regressor.canonical_priors.CanonicalPriors.to_arrays).
 
 
 def _mixture_arrays(model: PoseModel) -> dict:
@@ -520,6 +530,7 @@ def _mixture_arrays(model: PoseModel) -> dict:
         **_heading_index_arrays(model.heading_index),
         **(model.limb_net.to_arrays() if model.limb_net is not None else {}),
         **(model.side_classifier.to_arrays() if model.side_classifier is not None else {}),
+        **(model.canonical_priors.to_arrays() if model.canonical_priors is not None else {}),
     }
 
 
@@ -654,8 +665,11 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         heading_index = _heading_index_from_arrays(a, kD)
         limb_net = LimbNet.from_arrays(a)
         side_classifier = SideClassifier.from_arrays(a)
+        canonical_priors = CanonicalPriors.from_arrays(a)
     except ValueError as exc:
         fail(str(exc))
+    if canonical_priors is not None and side_classifier is None:
+        fail("canonical priors need a side classifier")
     if side_classifier is not None and limb_net is None and limb_head is None:
         fail("a side classifier needs the model's limbs")
     if side_classifier is not None and side_classifier.input_length != kD:
@@ -677,4 +691,4 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
         description=json.loads(str(a["description"])), mixture=mix, limb_head=limb_head,
         heading_index=heading_index, limb_net=limb_net, side_classifier=side_classifier,
-        **inputs)
+        canonical_priors=canonical_priors, **inputs)

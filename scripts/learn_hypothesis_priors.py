@@ -2,13 +2,14 @@
 regressor's flip statistics on its validation trials rendered as spiral walks.
 
     python scripts/learn_hypothesis_priors.py [--cmu ../shared/data/cmu/bvh] [--model FILE]
-        [--skip-regressor] [--weights]
+        [--skip-regressor] [--weights] [--save OUT]
 
 Prints the values that tracker/travel.py (FACING_TRAVEL_PRIOR) and tracker/hypotheses.py
 (SWITCH_PROBABILITY, RAW_NEARER_BY_NORM; with --weights TRAVEL_WEIGHT and EVIDENCE_WEIGHT,
 which should be chosen after the others are in place) hold; for a model with limbs and a side
-classifier (the default), also the canonical chain's CANONICAL_* tables on the 28 validation
-renders.
+classifier (the default), also the canonical chain's priors on the 28 validation renders
+(regressor.canonical_priors; the model file carries them), and with --save OUT writes the
+model with those priors to OUT (a new file: never the model itself).
 """
 from __future__ import annotations
 
@@ -18,11 +19,12 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
-from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 import numpy as np
 
-from tracker.offline.hypothesis_priors import (canonical_statistics, choose_weights,
-                                               facing_travel_histogram,
+from regressor.pose_model import (DEFAULT_MODEL_PATH, PoseModelError, load_pose_model,
+                                  save_pose_model)
+from tracker.offline.hypothesis_priors import (choose_weights, facing_travel_histogram,
+                                               learn_canonical_priors, prior_files,
                                                regressor_flip_statistics, replay_heading_rms,
                                                top_experts, validation_renders)
 from tracker.offline.training import VALIDATION_TRIALS
@@ -44,9 +46,28 @@ def main(argv=None) -> int:
                     help="comma-separated numbers of a mixture's experts (DEFAULT_EXPERTS) to "
                          "compare by filtered heading RMS on the same validation renders, with "
                          "the current TRAVEL_WEIGHT and EVIDENCE_WEIGHT")
+    ap.add_argument("--save", type=Path, default=None,
+                    help="write the model with the canonical priors learned here to this new "
+                         "file (a model with limbs and a side classifier)")
     args = ap.parse_args(argv)
-    files = sorted(args.cmu.glob("*.bvh"))
-    prior, per_file = facing_travel_histogram(files)
+    if args.save is not None:
+        if args.skip_regressor:
+            ap.error("--save needs the regressor's statistics (drop --skip-regressor)")
+        if args.save.resolve() == args.model.resolve():
+            ap.error(f"--save {args.save} would overwrite the model it reads; give a new file")
+        if args.save.exists():
+            ap.error(f"--save {args.save} exists; give a new file")
+    try:
+        model = load_pose_model(args.model)
+    except PoseModelError as exc:
+        ap.exit(1, f"learn_hypothesis_priors: {exc}\n")
+    try:
+        files = prior_files(args.cmu)
+    except ValueError as exc:
+        ap.error(str(exc))
+    if args.save is not None and not model.gives_canonical_pairs:
+        ap.error(f"--save: {args.model} has no side classifier and limbs, so no canonical priors")
+    prior, per_file = facing_travel_histogram(sorted(args.cmu.glob("*.bvh")))
     moving = {k: v for k, v in per_file.items() if v}
     print(f"facing - travel over {sum(moving.values())} moving frames of {len(moving)} trials "
           f"(bins of 30 deg centred on 0, 30, ..., -30):")
@@ -59,14 +80,20 @@ def main(argv=None) -> int:
             stats = regressor_flip_statistics(load_pose_model(args.model),
                                               [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS])
         print(json.dumps(stats, indent=1))
-    files = [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS + ("07_12",)]
-    model = load_pose_model(args.model)
     if not args.skip_regressor and model.gives_canonical_pairs:
-        # the canonical chain's tables (tracker.hypotheses CANONICAL_*), on the 28 renders
+        # the canonical chain's priors (regressor.canonical_priors), on the 28 renders
         with threadpool_limits(1):
-            renders = validation_renders(model, files)
-        print("canonical chain (CANONICAL_*), over", len(renders), "validation renders:")
-        print(json.dumps(canonical_statistics(renders), indent=1))
+            priors, stats = learn_canonical_priors(model, files)
+        print(f"canonical chain priors over the validation renders (the model carries "
+              f"{'its own' if model.canonical_priors is not None else 'none'}):")
+        print(json.dumps(stats, indent=1))
+        if args.save is not None:
+            model.canonical_priors = priors
+            try:
+                save_pose_model(args.save, model)
+            except (PoseModelError, OSError) as exc:
+                ap.exit(1, f"learn_hypothesis_priors: cannot write {args.save}: {exc}\n")
+            print(f"wrote {args.save}: the model with these priors")
     if args.weights:
         tws = None if args.travel_weights is None else \
             tuple(float(x) for x in args.travel_weights.split(","))

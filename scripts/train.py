@@ -5,7 +5,9 @@
 
 Steps (cached under --cache, so a re-run only redoes what changed): render the training set
 (held-out trials excluded), fit the shape-context codebook, compute descriptors, fit the
-stacked kernel RVM, estimate the Kalman filter's noise models on validation trials.
+stacked kernel RVM, estimate the Kalman filter's noise models on validation trials; for a model
+with limbs and a side classifier (the default), learn the front/back chain's priors on the
+validation trials rendered four ways (regressor.canonical_priors; about 40 s).
 """
 from __future__ import annotations
 
@@ -25,6 +27,7 @@ from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
 from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files, views_by_rows)
+from tracker.offline.hypothesis_priors import learn_canonical_priors, prior_files
 from tracker.offline.training import (CANONICAL_RULES, MixtureOptions, TrainingOptions,
                                       cached_descriptors, cached_layouts, noisy_dataset_layouts,
                                       dataset_descriptors, descriptor_cache_key,
@@ -108,6 +111,8 @@ def main(argv=None) -> int:
     if args.limb_nets or args.side_classifier == "on":
         try:       # before the slow steps, not after them
             require_training_dependencies()
+            if args.side_classifier == "on":
+                prior_files(args.bvh_dir)
         except ValueError as exc:
             ap.error(str(exc))
     if args.heading_index_rows < 0:
@@ -176,6 +181,18 @@ def main(argv=None) -> int:
                 model, report = train_mixture_model(data, X, codebook, settings, options,
                                                     config.fps, log=log, layouts=layouts)
         report["noise_aware"] = not args.clean
+        if model.gives_canonical_pairs:
+            # The tracker's front/back chain weighs this model's canonical pairs by priors
+            # learned on validation renders; the file carries them (regressor.canonical_priors).
+            log("learning the canonical chain's priors on the validation renders ...")
+            at = time.perf_counter()
+            with threadpool_limits(args.workers):
+                model.canonical_priors, stats = learn_canonical_priors(
+                    model, prior_files(args.bvh_dir))
+            report["canonical_priors"] = stats
+            log(f"  canonical priors: switch {stats['switch_probability']}, the canonical member "
+                f"the truer on {stats['canonical_overall']:.3f} of frames "
+                f"({time.perf_counter() - at:.0f} s)")
         model.description = {"data": "CMU motion capture (mocap.cs.cmu.edu), rendered",
                              "trials": data.trials, "held_out": list(HELD_OUT_TRIALS),
                              "dataset": json.loads(json.dumps(config.__dict__)),

@@ -160,6 +160,24 @@ def test_tampered_model(tmp_path, walk_video):
                            "tampered.npz")
 
 
+def test_a_model_without_its_front_back_priors_is_tracked_with_a_warning(tmp_path, walk_video):
+    """A model with a side classifier but no canonical priors (a file from before they were
+    stored) still tracks, with the shipped model's priors and a one-line warning naming it;
+    the shipped model carries its own and gives no such warning."""
+    from regressor.model_file import load_model, save_model
+    parts = {k: v for k, v in load_model(DEFAULT_MODEL_PATH).parts.items()
+             if not k.startswith("canonical_prior_")}
+    assert len(parts) < len(load_model(DEFAULT_MODEL_PATH).parts)
+    older = tmp_path / "older.npz"
+    save_model(older, parts)
+    result = _track(walk_video, "--model", older, "--quiet", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    warning = [line for line in result.stderr.splitlines() if "front/back priors" in line]
+    assert len(warning) == 1 and "older.npz" in warning[0] and "Traceback" not in result.stderr
+    result = _track(walk_video, "--quiet", "--out", tmp_path / "shipped.mcap", cwd=tmp_path)
+    assert result.returncode == 0 and "front/back priors" not in result.stderr
+
+
 def test_output_path_that_cannot_be_written(tmp_path, walk_video):
     _assert_one_line_error(_track(walk_video, "--out", tmp_path / "no" / "such" / "x.mcap",
                                   cwd=tmp_path), "x.mcap")

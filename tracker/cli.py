@@ -206,6 +206,10 @@ def _run(args) -> int:
     _check_options(args)
     args.model = args.model or DEFAULT_MODEL_PATH
     model = load_pose_model(args.model)
+    if model.gives_canonical_pairs and model.canonical_priors is None:
+        warnings.warn(f"{args.model} carries no front/back priors; using the shipped model's, "
+                      f"which may not fit its side classifier (add its own: python "
+                      f"scripts/learn_hypothesis_priors.py --model {args.model} --save NEW.npz)")
     source = open_video(args.video, start_s=args.start, end_s=args.end)
     plate = _load_background(args.background, source) if args.background else None
     streaming, smoothed = _sink_factories(args, source, model)

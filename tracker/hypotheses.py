@@ -80,7 +80,10 @@ for the main head's pose or its flip. Which member is true changes only where th
 rule does (mostly in profile), so the chain's states switch rarely
 (CANONICAL_SWITCH_PROBABILITY); the evidence for a member is the side classifier's
 probability, calibrated on validation renders (CANONICAL_BY_FRONT), and the main head's
-side (CANONICAL_RAW_SIDE_BY_NORM). Chosen on the 28 validation renders (filtered heading RMS
+side (CANONICAL_RAW_SIDE_BY_NORM). These priors belong to a model's networks, so the model
+file carries its own (regressor.canonical_priors: scripts/train.py learns them on the
+validation renders); the CANONICAL_* constants are the shipped model's, taken for a file
+without them (:func:`canonical_priors`). Chosen on the 28 validation renders (filtered heading RMS
 and corr8, mean; one-off drivers) and the five validation videos through ``track``:
 
 | chain | renders heading / corr8 | videos heading / corr8 |
@@ -147,6 +150,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from regressor.angles import heading_norm
+from regressor.canonical_priors import CanonicalPriors
 from sequences.pose_vector import front_back_flip, heading_deg
 from .travel import fuse_with_prior, travel_likelihood
 
@@ -198,9 +202,10 @@ CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this p
 #: "Canonical hypotheses"). All learned on the 28 validation renders of
 #: scripts/learn_hypothesis_priors.py (validation trials and 07_12, spiral and fixed camera, as
 #: recorded and time-reversed, video-like masks), 2026-12-02, by
-#: tracker.offline.hypothesis_priors.canonical_statistics (`python
-#: scripts/learn_hypothesis_priors.py` prints them for a model with a side classifier). They
-#: belong to the shipped model's classifier: a model trained anew needs them learned again.
+#: tracker.offline.hypothesis_priors.canonical_statistics, for the shipped model's networks.
+#: A model file carries its own (PoseModel.canonical_priors, regressor.canonical_priors:
+#: scripts/train.py learns them, `scripts/learn_hypothesis_priors.py --save` adds them to a
+#: file); these are DEFAULT_CANONICAL_PRIORS, taken only for a model file without them.
 #: "True": the member with the smaller mean absolute error over the 54 angles.
 #: (P(canonical -> flip), P(flip -> canonical)) per frame: how often the truer member changes.
 #: The limb network's canonical member changes body only where its rule does (mostly in
@@ -221,6 +226,10 @@ CANONICAL_RAW_SIDE_OVERALL = 0.578
 CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
 CANONICAL_BY_FRONT = (0.407, 0.634, 0.608, 0.633, 0.654, 0.797)
 CANONICAL_OVERALL = 0.624
+DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
+    switch=CANONICAL_SWITCH_PROBABILITY, raw_side_edges=CANONICAL_RAW_SIDE_EDGES,
+    raw_side_by_norm=CANONICAL_RAW_SIDE_BY_NORM, raw_side_overall=CANONICAL_RAW_SIDE_OVERALL,
+    front_edges=CANONICAL_FRONT_EDGES, by_front=CANONICAL_BY_FRONT, overall=CANONICAL_OVERALL)
 #: Experts asked of a mixture model's predict_hypotheses (2 states each: pose and flip). On the
 #: same 28 validation renders (top-3 tables, travel weight 1/15), mean filtered heading RMS:
 #: 1 expert 81.8 / 83.0 deg (evidence weight 1.0 / 0.8), 2 experts 83.0 / 85.5, 3 experts
@@ -316,12 +325,13 @@ def _table(edges, values, x) -> np.ndarray:
     return np.clip(np.asarray(values)[bin_index(edges, x)], _FLOOR, 1.0 - _FLOOR)
 
 
-def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float) -> Hypotheses:
+def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
+                         priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
     """The two hypotheses of a model with limbs and a side classifier: the limbs' canonical
     member (55,) and its front/back flip, whole (heading and body angles). Evidence (log
     likelihood ratios): the side of the main head's pose raw (55,) by its heading norm
-    (CANONICAL_RAW_SIDE_BY_NORM), and the side classifier's probability front that the body
-    faces the camera's half (CANONICAL_BY_FRONT)."""
+    (priors.raw_side_by_norm), and the side classifier's probability front that the body
+    faces the camera's half (priors.by_front); priors: the model's (:func:`canonical_priors`)."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
     # The member commits to one body, so its (cos, sin) norm is ~1 even where the silhouette
@@ -332,13 +342,13 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float) -> Hy
     pair[:, :2] = unit * norm
     evidence = np.zeros(2)
     on_raw_side = 0 if member_on_side(pair[0], deaveraged_direction(raw)) else 1
-    p = _table(CANONICAL_RAW_SIDE_EDGES, CANONICAL_RAW_SIDE_BY_NORM, norm)
-    evidence[on_raw_side] += np.log(p / CANONICAL_RAW_SIDE_OVERALL)
-    evidence[1 - on_raw_side] += np.log((1 - p) / (1 - CANONICAL_RAW_SIDE_OVERALL))
+    p = _table(priors.raw_side_edges, priors.raw_side_by_norm, norm)
+    evidence[on_raw_side] += np.log(p / priors.raw_side_overall)
+    evidence[1 - on_raw_side] += np.log((1 - p) / (1 - priors.raw_side_overall))
     # the classifier's probability for the canonical member: front if it faces the camera
     p_member = float(front) if pair[0, 0] >= 0 else 1.0 - float(front)
-    q = _table(CANONICAL_FRONT_EDGES, CANONICAL_BY_FRONT, p_member)
-    evidence += np.log([q / CANONICAL_OVERALL, (1 - q) / (1 - CANONICAL_OVERALL)])
+    q = _table(priors.front_edges, priors.by_front, p_member)
+    evidence += np.log([q / priors.overall, (1 - q) / (1 - priors.overall)])
     return Hypotheses(pair, evidence, np.asarray(raw, dtype=np.float64), limbs, canonical=True,
                       front=float(front))
 
@@ -349,12 +359,18 @@ def deaveraged_direction(raw: np.ndarray) -> np.ndarray:
     return deaveraged_heading(np.asarray(raw, dtype=np.float64)[None])[0, :2]
 
 
+def canonical_priors(estimator) -> CanonicalPriors:
+    """The priors the chain weighs an estimator's canonical pairs by: its own
+    (PoseModel.canonical_priors) when it carries them, else DEFAULT_CANONICAL_PRIORS."""
+    return getattr(estimator, "canonical_priors", None) or DEFAULT_CANONICAL_PRIORS
+
+
 def switch_probability(estimator) -> tuple[float, float]:
     """The chain's switching probabilities for this estimator's hypotheses: canonical ones
-    (a model with limbs and a side classifier) switch far less often than a pose and its
-    flip."""
+    (a model with limbs and a side classifier; its priors' switch) switch far less often
+    than a pose and its flip."""
     if getattr(estimator, "gives_canonical_pairs", False):
-        return CANONICAL_SWITCH_PROBABILITY
+        return canonical_priors(estimator).switch
     return SWITCH_PROBABILITY
 
 
@@ -377,7 +393,8 @@ def propose_batch(estimator, stacked: np.ndarray,
         if hasattr(estimator, "predict_frame"):
             poses, gate, limbs, front = estimator.predict_frame(stacked, n_experts)
             if front is not None and limbs is not None:
-                return [canonical_hypotheses(p[0], lb, f)
+                priors = canonical_priors(estimator)
+                return [canonical_hypotheses(p[0], lb, f, priors)
                         for p, lb, f in zip(poses, limbs, front)]
         elif hasattr(estimator, "predict_hypotheses_and_limbs"):
             poses, gate, limbs = estimator.predict_hypotheses_and_limbs(stacked, n_experts)

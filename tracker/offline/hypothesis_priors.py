@@ -8,8 +8,9 @@
   (cos, sin) norm, and how often that changes from one frame to the next (the HMM's switching
   probability: a true heading change of ~180 degrees within a frame does not happen, so the
   only switches are the regressor's).
-- canonical_statistics: for a model with limbs and a side classifier, the canonical chain's
-  tables (tracker.hypotheses, CANONICAL_*) on the validation renders.
+- canonical_statistics, learn_canonical_priors: for a model with limbs and a side classifier,
+  the canonical chain's priors (regressor.canonical_priors; tracker.hypotheses CANONICAL_*)
+  on the validation renders.
 - choose_weights: the exponents per frame of the travel likelihood and of the regressor's
   evidence (consecutive frames' evidence is correlated), by replaying the tracker over the
   validation trials rendered as spirals and from a fixed camera, forwards and time-reversed.
@@ -22,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from regressor.angles import heading_norm, pose_angles, wrap_deg
+from regressor.canonical_priors import CanonicalPriors
 from sequences.bvh import read_bvh
 from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_vectors
 from regressor.stacking import stack_frames
@@ -178,8 +180,8 @@ def top_experts(render: dict, n_experts: int) -> dict:
 
 
 def canonical_statistics(renders: dict) -> dict:
-    """The canonical chain's tables (tracker.hypotheses CANONICAL_SWITCH_PROBABILITY,
-    CANONICAL_RAW_SIDE_BY_NORM, CANONICAL_BY_FRONT and their overall rates) from
+    """The canonical chain's tables (regressor.canonical_priors.CanonicalPriors: the switch
+    probabilities, raw_side_by_norm, by_front and their overall rates) from
     validation_renders of a model with limbs and a side classifier (canonical hypotheses,
     which keep the classifier's probability). The true member: the nearer the truth over the
     54 angles (raw_is_nearer)."""
@@ -219,6 +221,29 @@ def canonical_statistics(renders: dict) -> dict:
             "raw_side_overall": round(float(raw_side.mean()), 3),
             "by_front": by_front, "frames_by_front": n_front,
             "canonical_overall": round(float(canonical_true.mean()), 3)}
+
+
+def prior_files(bvh_dir: str | Path) -> list[Path]:
+    """The BVH files the priors are learned on: the training's validation trials and 07_12
+    (held out of training), each rendered four ways by validation_renders: 28 renders."""
+    from .training import VALIDATION_TRIALS
+    files = [Path(bvh_dir) / f"{t}.bvh" for t in VALIDATION_TRIALS + ("07_12",)]
+    missing = [f for f in files if not f.is_file()]
+    if missing:
+        raise ValueError(f"learning the canonical priors needs {missing[0]}")
+    return files
+
+
+def learn_canonical_priors(model, bvh_files) -> tuple[CanonicalPriors, dict]:
+    """The canonical chain's priors for a model with limbs and a side classifier, learned on
+    validation_renders of bvh_files (prior_files), and canonical_statistics' dict they came
+    from (with each bin's frame count)."""
+    from ..hypotheses import CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES
+    if not getattr(model, "gives_canonical_pairs", False):
+        raise ValueError("canonical priors need a model with limbs and a side classifier")
+    stats = canonical_statistics(validation_renders(model, bvh_files))
+    return (CanonicalPriors.from_statistics(stats, CANONICAL_RAW_SIDE_EDGES,
+                                            CANONICAL_FRONT_EDGES), stats)
 
 
 def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOptions(),

@@ -1,0 +1,181 @@
+"""The front/back chain's priors a model carries (regressor.canonical_priors): the file parts,
+their checks, learning them, and the tracker reading a model's own rather than the shipped
+model's."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from regressor.canonical_priors import CanonicalPriors
+from tracker.hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES,
+                                DEFAULT_CANONICAL_PRIORS, canonical_hypotheses,
+                                canonical_priors, switch_probability)
+from test_side_classifier import _body, _classifier
+
+
+def _priors(**changes) -> CanonicalPriors:
+    values = dict(switch=(0.01, 0.02), raw_side_edges=(0.0, 0.5), raw_side_by_norm=(0.5, 0.7),
+                  raw_side_overall=0.6, front_edges=(0.0, 0.5), by_front=(0.2, 0.9),
+                  overall=0.55)
+    values.update(changes)
+    return CanonicalPriors(**values)
+
+
+def test_the_priors_survive_the_file_parts_round_trip():
+    priors = _priors()
+    parts = priors.to_arrays()
+    assert all(k.startswith("canonical_prior_") and v.dtype == np.float64
+               for k, v in parts.items())
+    assert CanonicalPriors.from_arrays(parts) == priors
+    assert CanonicalPriors.from_arrays({"other": np.zeros(1)}) is None
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"switch": (0.1, 1.0)}, "switch must be two probabilities"),
+    ({"switch": (0.1,)}, "switch must be two probabilities"),
+    ({"raw_side_by_norm": (0.5,)}, "one value per edge"),
+    ({"front_edges": (0.1, 0.5)}, "edges must increase from 0"),
+    ({"front_edges": (0.0, 0.0)}, "edges must increase from 0"),
+    ({"by_front": (0.2, 1.5)}, "must hold probabilities"),
+    ({"overall": 1.0}, "strictly between 0 and 1"),
+    ({"raw_side_overall": 0.0}, "strictly between 0 and 1"),
+    ({"by_front": (np.nan, 0.5)}, "non-finite"),
+])
+def test_inconsistent_priors_are_refused_with_a_named_problem(change, message):
+    with pytest.raises(ValueError, match=message):
+        _priors(**change)
+    # and the same from a file's parts
+    parts = {**_priors().to_arrays(),
+             **{f"canonical_prior_{k}": np.asarray(v, dtype=np.float64)
+                for k, v in change.items()}}
+    with pytest.raises(ValueError, match=message):
+        CanonicalPriors.from_arrays(parts)
+
+
+@pytest.mark.parametrize("tamper, message", [
+    (lambda p: p.pop("canonical_prior_overall"), "incomplete"),
+    (lambda p: p.update(canonical_prior_extra=np.zeros(2)), "unknown part"),
+    (lambda p: p.update(canonical_prior_switch=np.array([0, 0], np.int64)), "must hold floats"),
+    (lambda p: p.update(canonical_prior_overall=np.array([0.5, 0.5])), "has shape"),
+    (lambda p: p.update(canonical_prior_by_front=np.float64(0.5)), "has shape"),
+])
+def test_tampered_parts_are_refused(tamper, message):
+    parts = _priors().to_arrays()
+    tamper(parts)
+    with pytest.raises(ValueError, match=message):
+        CanonicalPriors.from_arrays(parts)
+
+
+def test_learned_statistics_become_priors_with_empty_bins_taking_the_overall_rate():
+    stats = {"switch_probability": [0.03, 0.05], "raw_side_by_norm": [None, 0.6, 0.7, 0.8, 0.9],
+             "raw_side_overall": 1.0, "by_front": [0.3, None, 0.5, 0.6, 0.7, 0.8],
+             "canonical_overall": 0.62}
+    priors = CanonicalPriors.from_statistics(stats, CANONICAL_RAW_SIDE_EDGES,
+                                             CANONICAL_FRONT_EDGES)
+    assert priors.switch == (0.03, 0.05)
+    assert priors.raw_side_overall == pytest.approx(0.999)      # never certain
+    assert priors.raw_side_by_norm[0] == pytest.approx(0.999)
+    assert priors.by_front[1] == pytest.approx(0.62) and priors.overall == pytest.approx(0.62)
+
+
+def test_the_shipped_tables_are_the_default_priors():
+    assert DEFAULT_CANONICAL_PRIORS.switch == (0.025, 0.041)
+    assert DEFAULT_CANONICAL_PRIORS.front_edges == CANONICAL_FRONT_EDGES
+
+
+def test_the_chain_weighs_a_pair_by_the_priors_it_is_given():
+    """A classifier that is right only half the time at a given probability carries no
+    evidence; one right 9 times in 10 there does."""
+    member, raw = _body(20.0), _body(20.0, seed=3)
+    blind = _priors(raw_side_by_norm=(0.6, 0.6), by_front=(0.55, 0.55))
+    sure = _priors(raw_side_by_norm=(0.6, 0.6), by_front=(0.1, 0.9))
+    e_blind = canonical_hypotheses(raw, member, 0.97, blind).log_evidence
+    e_sure = canonical_hypotheses(raw, member, 0.97, sure).log_evidence
+    assert e_blind[0] - e_blind[1] == pytest.approx(0.0, abs=1e-9)
+    assert e_sure[0] - e_sure[1] == pytest.approx(np.log(0.9 / 0.55) - np.log(0.1 / 0.45))
+    # the default is the shipped model's
+    np.testing.assert_allclose(canonical_hypotheses(raw, member, 0.97).log_evidence,
+                               canonical_hypotheses(raw, member, 0.97,
+                                                    DEFAULT_CANONICAL_PRIORS).log_evidence)
+
+
+def test_the_tracker_takes_a_models_own_priors_else_the_default():
+    class Model:
+        gives_canonical_pairs = True
+        canonical_priors = None
+
+    model = Model()
+    assert canonical_priors(model) is DEFAULT_CANONICAL_PRIORS
+    assert switch_probability(model) == DEFAULT_CANONICAL_PRIORS.switch
+    model.canonical_priors = _priors()
+    assert canonical_priors(model) is model.canonical_priors
+    assert switch_probability(model) == (0.01, 0.02)
+
+
+def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_path):
+    pytest.importorskip("sklearn")
+    from test_mixture import _mixture_model
+    from regressor.angles import wrap_deg
+    from regressor.limb_net import fit_limb_net
+    from regressor.model_file import load_model, save_model
+    from regressor.pose_model import PoseModelError, load_pose_model, save_pose_model
+    from tracker.hypotheses import propose_batch
+    model, x = _mixture_model()
+    rng = np.random.default_rng(3)
+    targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),
+                               wrap_deg(40 * np.tanh(x[:, :1]) + rng.normal(0, 1, (len(x), 53)))])
+    model.limb_net = fit_limb_net(x, targets, np.zeros(53), np.eye(55)[0], members=1,
+                                  hidden=(8,), max_iter=20)
+    model.canonical_priors = _priors()
+    with pytest.raises(PoseModelError, match="need the model's side classifier"):
+        save_pose_model(tmp_path / "noclf.npz", model)
+    model.side_classifier = _classifier(P=8)
+    path = tmp_path / "priors.npz"
+    save_pose_model(path, model)
+    loaded = load_pose_model(path)
+    assert loaded.canonical_priors == model.canonical_priors
+    # the loaded model's hypotheses are weighed by its own priors, not the default
+    hyps = propose_batch(loaded, x[:3])
+    for h in hyps:
+        again = canonical_hypotheses(h.raw, h.limbs, h.front, model.canonical_priors)
+        np.testing.assert_allclose(h.log_evidence, again.log_evidence)
+    assert switch_probability(loaded) == (0.01, 0.02)
+    # priors without the classifier, or broken, are refused on load
+    raw = dict(load_model(path).parts)
+    for broken, match in (({k: None for k in raw if k.startswith("side_net_")},
+                           "need a side classifier"),
+                          ({"canonical_prior_by_front": np.array([0.5, 2.0])},
+                           "must hold probabilities")):
+        parts = {k: v for k, v in {**raw, **broken}.items() if v is not None}
+        save_model(path, parts)                              # re-checksummed
+        with pytest.raises(PoseModelError, match=match):
+            load_pose_model(path)
+
+
+def test_only_a_mixture_carries_canonical_priors(tmp_path):
+    from test_mixture import assert_only_a_mixture_carries
+    priors = _priors()
+    assert_only_a_mixture_carries(tmp_path, "canonical_priors", priors, priors.to_arrays())
+
+
+def test_learn_hypothesis_priors_never_saves_over_a_model(tmp_path):
+    """--save refuses the model it reads and any existing file, with a one-line usage error
+    before any learning."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[1] / "scripts" / "learn_hypothesis_priors.py"
+    model = tmp_path / "model.npz"
+    model.write_bytes(b"not read")
+    same = tmp_path / "." / "model.npz"                    # the same file, spelled otherwise
+    for save in (model, same):
+        out = subprocess.run([sys.executable, str(script), "--model", str(model), "--save",
+                              str(save)], capture_output=True, text=True, timeout=60)
+        assert out.returncode == 2 and "would overwrite the model" in out.stderr
+        assert "Traceback" not in out.stderr
+    other = tmp_path / "other.npz"
+    other.write_bytes(b"kept")
+    out = subprocess.run([sys.executable, str(script), "--model", str(model), "--save",
+                          str(other)], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and "exists" in out.stderr and other.read_bytes() == b"kept"
+    assert model.read_bytes() == b"not read"
