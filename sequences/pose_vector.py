@@ -164,14 +164,22 @@ def pose_vectors_to_local_rotations(vectors: np.ndarray, camera_azimuth_deg=0.0,
     root_angles = np.stack([yaw, v[:, 2], v[:, 3]], axis=1)
     out[:, index[POSE_JOINTS[0]]] = Rotation.from_euler(_ROOT_ORDER, root_angles,
                                                         degrees=True).as_matrix()
-    for k, joint in enumerate(POSE_JOINTS[1:]):
-        rotation = Rotation.from_euler(_JOINT_ORDER, v[:, 4 + 3 * k: 7 + 3 * k], degrees=True)
-        members = FOLDED.get(joint, (joint,))
-        if len(members) > 1:
-            rotation = Rotation.from_rotvec(rotation.as_rotvec() / len(members))
-        matrix = rotation.as_matrix()
-        for member in members:
-            out[:, index[member]] = matrix
+    # Every joint's rotation in one call (scipy's per-call cost dominates at T = 1, the
+    # tracker's per-frame case); folded joints then take the 1/n power of theirs.
+    joints = POSE_JOINTS[1:]
+    angles = v[:, 4:4 + 3 * len(joints)].reshape(T * len(joints), 3)
+    rotations = Rotation.from_euler(_JOINT_ORDER, angles, degrees=True)
+    matrices = rotations.as_matrix().reshape(T, len(joints), 3, 3)
+    n_members = np.array([len(FOLDED.get(joint, (joint,))) for joint in joints])
+    folded = np.flatnonzero(n_members > 1)
+    if len(folded):
+        rotvec = rotations.as_rotvec().reshape(T, len(joints), 3)[:, folded]
+        matrices[:, folded] = Rotation.from_rotvec(
+            (rotvec / n_members[folded][None, :, None]).reshape(-1, 3)
+        ).as_matrix().reshape(T, len(folded), 3, 3)
+    for k, joint in enumerate(joints):
+        for member in FOLDED.get(joint, (joint,)):
+            out[:, index[member]] = matrices[:, k]
     return out
 
 
