@@ -50,7 +50,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--ambiguity-threshold", type=float, help="default: the model's")
     ap.add_argument("--heading-factor", type=float,
                     default=TrackerSettings.ambiguous_heading_factor)
-    ap.add_argument("--joint-factor", type=float, default=TrackerSettings.ambiguous_joint_factor)
+    ap.add_argument("--joint-factor", type=float, default=None,
+                    help="joints' R inflation on ambiguous frames (default: the model's, "
+                         "tracker.pipeline.TrackerSettings.joint_factor)")
     ap.add_argument("--r-scale", type=float, help="multiply the filter's R (default 1; --ankur: "
                     "chosen on the training split)")
     ap.add_argument("--q-scale", type=float, default=1.0, help="multiply the filter's q")

@@ -120,6 +120,30 @@ def test_only_a_model_with_limbs_and_a_side_classifier_switches_canonically():
     assert switch_probability(Canonical()) == CANONICAL_SWITCH_PROBABILITY
 
 
+def test_the_joints_ambiguity_inflation_is_smaller_for_a_model_that_gives_canonical_pairs():
+    """The canonical member commits to one body on ambiguous frames, the main head averages
+    two: its joints' R is inflated less (TrackerSettings.joint_factor), unless set."""
+    from tracker.pipeline import (AMBIGUOUS_JOINT_FACTOR, CANONICAL_AMBIGUOUS_JOINT_FACTOR,
+                                  TrackerSettings, kalman_factory)
+
+    class Model:
+        gives_canonical_pairs = False
+        process_noise = np.ones(54)
+        measurement_covariance = np.eye(54)
+        ambiguity_threshold = 0.5
+
+    plain, canonical = Model(), Model()
+    canonical.gives_canonical_pairs = True
+    settings = TrackerSettings()
+    assert settings.joint_factor(plain) == AMBIGUOUS_JOINT_FACTOR == 4.0
+    assert settings.joint_factor(canonical) == CANONICAL_AMBIGUOUS_JOINT_FACTOR == 2.0
+    assert TrackerSettings(ambiguous_joint_factor=3.0).joint_factor(canonical) == 3.0
+    # the filters use it: the joints' R on an ambiguous frame
+    for model, factor in ((plain, 4.0), (canonical, 2.0)):
+        f = kalman_factory(model, settings)(FPS)
+        assert f.R_ambiguous[5, 5] == pytest.approx(factor * f.R[5, 5])
+
+
 def _backward_walker(classifier_right: float):
     """Walking away from the camera while facing it (travel 180, heading 0) for 150 frames.
     The canonical member is the truth's flip for the first 40 frames, then the truth; the

@@ -59,6 +59,22 @@ LIMB_R_SCALE = 0.1
 #: 0.001: 37.0 / 34.7 / 30.9 / 28.8 / 30.7, their corr8 unchanged (0.357). 2026-12-01.
 HEADING_Q_SCALE = 0.01
 
+#: The joints' R inflation on ambiguous frames (PoseKalmanFilter's ambiguous_joint_factor).
+#: The main head averages a silhouette's two bodies where it cannot tell them apart, so its
+#: limbs on such frames are worth less (AMBIGUOUS_JOINT_FACTOR). A model that gives canonical
+#: pairs (tracker.hypotheses, "Canonical hypotheses") measures the limb networks' member, which
+#: commits to one body on those frames too: its inflation is smaller. Chosen on the 28
+#: validation renders (one-off driver over the real chain; mean filtered / smoothed heading
+#: RMS, deg, and corr8 of the 8 most-moving angles, filtered) with factor 1 / 1.5 / 2 / 3 / 4:
+#: 33.8 / 32.7 / 32.7 / 35.7 / 36.1, smoothed 28.2 / 27.4 / 26.6 / 27.0 / 27.8, corr8 0.546 /
+#: 0.547 / 0.546 / 0.541 / 0.541; through ``track`` on the five validation videos (02_02 /
+#: 08_03 / 05_02 / 09_04 / 02_05) factor 2 against 4: filtered heading 8.1 / 8.0 / 47.3 /
+#: 14.7 / 68.4 against 8.1 / 8.0 / 56.3 / 19.5 / 68.4 (smoothed mean 27.7 against 31.1), corr8
+#: mean 0.438 against 0.440 (2026-12-02). Where the main head's frames are rarely ambiguous
+#: (the walks 02_02, 08_03) nothing changes.
+AMBIGUOUS_JOINT_FACTOR = 4.0
+CANONICAL_AMBIGUOUS_JOINT_FACTOR = 2.0
+
 
 @dataclass(frozen=True)
 class TrackerSettings:
@@ -68,7 +84,8 @@ class TrackerSettings:
     max_people: keep at most this many (largest) people per frame, None = all.
     ambiguity_threshold: raw heading norm below which a frame is ambiguous; None = the one the
     model was trained with (PoseModel.ambiguity_threshold). ambiguous_heading_factor,
-    ambiguous_joint_factor: R inflation on ambiguous frames (PoseKalmanFilter; with the front/back
+    ambiguous_joint_factor: R inflation on ambiguous frames (PoseKalmanFilter; None for the
+    joints = the estimator's (:meth:`joint_factor`); with the front/back
     chain the heading's inflation makes a 180-degree jump cheap for its filters, but lowering it
     did not help on validation: factor 25 / 4 / 1 gave mean filtered heading 59.5 / 51.2 / 56.1
     degrees on the 28 validation renders, 28.0 / 32.3 / 30.3 on the five validation videos,
@@ -92,7 +109,7 @@ class TrackerSettings:
     max_people: int | None = None
     ambiguity_threshold: float | None = None
     ambiguous_heading_factor: float = 25.0
-    ambiguous_joint_factor: float = 4.0
+    ambiguous_joint_factor: float | None = None
     r_scale: float = 1.0
     q_scale: float = 1.0
     heading_q_scale: float = HEADING_Q_SCALE
@@ -109,6 +126,16 @@ class TrackerSettings:
             return self.ambiguity_threshold
         return estimator.ambiguity_threshold
 
+    def joint_factor(self, estimator) -> float:
+        """The joints' R inflation on ambiguous frames: this setting, else the estimator's
+        (CANONICAL_AMBIGUOUS_JOINT_FACTOR for one that gives canonical pairs,
+        AMBIGUOUS_JOINT_FACTOR otherwise)."""
+        if self.ambiguous_joint_factor is not None:
+            return self.ambiguous_joint_factor
+        if getattr(estimator, "gives_canonical_pairs", False):
+            return CANONICAL_AMBIGUOUS_JOINT_FACTOR
+        return AMBIGUOUS_JOINT_FACTOR
+
 
 def kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
                    ) -> Callable[[float], PoseKalmanFilter]:
@@ -124,7 +151,7 @@ def kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
                                 q=q,
                                 ambiguity_threshold=settings.threshold(estimator),
                                 ambiguous_heading_factor=settings.ambiguous_heading_factor,
-                                ambiguous_joint_factor=settings.ambiguous_joint_factor)
+                                ambiguous_joint_factor=settings.joint_factor(estimator))
     return make
 
 

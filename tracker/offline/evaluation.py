@@ -381,9 +381,14 @@ def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model
                           np.array([d.filtered for d in decisions]), bank.smoothed(),
                           np.array([d.ambiguous for d in decisions]),
                           *_runner_ups([(d.runner_up, d.runner_up_probability) for d in decisions]),
-                          settings.threshold(stacked_model), settings,
+                          settings.threshold(stacked_model), _resolved(settings, stacked_model),
                           {"path": "rendered silhouettes", "camera": camera.__dict__},
                           constant=constant_pose(stacked_model))
+
+
+def _resolved(settings: TrackerSettings, model) -> TrackerSettings:
+    """settings with the model-dependent defaults filled in, as the report records them."""
+    return replace(settings, ambiguous_joint_factor=settings.joint_factor(model))
 
 
 def _runner_ups(pairs) -> tuple[np.ndarray, np.ndarray]:
@@ -461,7 +466,7 @@ def video_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: P
     name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
     seq = _pose_sequence(name, truth[common], raw1[b], raw[a], filtered[a], smoothed[a],
                          ambiguous[a], alt[a], alt_p[a], settings.threshold(stacked_model),
-                         settings,
+                         _resolved(settings, stacked_model),
                          {"path": "video through track", "camera": camera.__dict__,
                           "frames_in_video": int(len(truth)), "frames_tracked": int(len(common))},
                          constant=constant_pose(stacked_model))
