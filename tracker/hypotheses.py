@@ -223,6 +223,17 @@ CANONICAL_RAW_SIDE_OVERALL = 0.578
 #: differ (0.61-0.65: noise at 227-419 frames each) (for the default model's
 #: classifier, 256 x 64 hidden units; right on 67 % of these frames, 90 % of its held-out
 #: training rows).
+#: Tried and not adopted (2026-12-02): the table by the member's |cos heading| too (rows 0 /
+#: 0.2 / 0.4 / 0.6, cells shrunk towards their row's rate by 20 frames). Near profile the
+#: classifier is right only half the time where it is sure (>= 0.9: 0.51 at |cos| < 0.2,
+#: 0.84 at >= 0.6), and with one row the chain holds the member for ~10 frames after the
+#: truth turns through profile, its limbs then the mirrored ones (02_02, 08_03). The 2-D table
+#: gained on validation (28 renders, in-sample for the table: filtered heading 32.7 -> 28.1,
+#: corr8 0.546 -> 0.558; five videos corr8 0.704 / 0.718 / 0.052 / 0.453 / 0.264 -> 0.730 /
+#: 0.786 / 0.067 / 0.453 / 0.252, heading 05_02 47.3 -> 56.9) but lost on the held-out
+#: sequences (evaluate_accuracy, filtered corr8 / heading: 16_11 0.704 / 6.8 -> 0.601 / 12.5,
+#: 06_06 0.496 / 9.4 -> 0.462 / 10.6, 06_08 0.497 / 14.6 -> 0.493 / 15.5): the near-profile
+#: evidence it removes is what holds the right side on the sample's long three-quarter stretch.
 CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
 CANONICAL_BY_FRONT = (0.407, 0.634, 0.608, 0.633, 0.654, 0.797)
 CANONICAL_OVERALL = 0.624
