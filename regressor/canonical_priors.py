@@ -29,8 +29,9 @@ class CanonicalPriors:
     the true one | that head's heading norm in [raw_side_edges[b], next edge)), the last bin
     open-ended; raw_side_overall: the same over all frames. by_front (C,): P(the canonical
     member is the true one | the side classifier's probability for that member in
-    [front_edges[c], next edge)); overall: the same over all frames. Probabilities in
-    [0, 1], the overall rates strictly between; edges increasing from 0."""
+    [front_edges[c], next edge)); overall: the same over all frames. Table probabilities in
+    [0, 1]; the switch and overall rates strictly between 0 and 1; edges increasing from 0
+    (the front edges below 1)."""
 
     switch: tuple[float, float]
     raw_side_edges: tuple[float, ...]
@@ -58,8 +59,10 @@ class CanonicalPriors:
                   self.raw_side_overall, *self.front_edges, *self.by_front, self.overall]
         if not np.isfinite(values).all():
             return "non-finite values"
-        if len(self.switch) != 2 or not all(0.0 <= p < 1.0 for p in self.switch):
-            return f"switch must be two probabilities below 1, got {self.switch}"
+        if len(self.switch) != 2 or not all(0.0 < p < 1.0 for p in self.switch):
+            # 0 would make the flip state unreachable, 1 a certain switch every frame
+            return f"switch must be two probabilities strictly between 0 and 1, got " \
+                   f"{self.switch}"
         for edges, table, name in ((self.raw_side_edges, self.raw_side_by_norm, "raw side"),
                                    (self.front_edges, self.by_front, "front")):
             if len(edges) < 1 or len(table) != len(edges):
@@ -69,6 +72,9 @@ class CanonicalPriors:
                 return f"the {name} edges must increase from 0, got {edges}"
             if not all(0.0 <= p <= 1.0 for p in table):
                 return f"the {name} table must hold probabilities, got {table}"
+        if self.front_edges[-1] >= 1.0:
+            return f"the front edges bin a probability: they must stay below 1, got " \
+                   f"{self.front_edges}"
         if not (0.0 < self.raw_side_overall < 1.0 and 0.0 < self.overall < 1.0):
             return "the overall rates must be strictly between 0 and 1"
         return None
@@ -106,13 +112,15 @@ class CanonicalPriors:
     def from_statistics(cls, stats: dict, raw_side_edges, front_edges) -> "CanonicalPriors":
         """The priors from canonical_statistics' dict (tracker.offline.hypothesis_priors) with
         the edges its tables were binned by. A bin without frames (None) takes the overall
-        rate: no evidence either way. Overall rates of 0 or 1 (a side always right or always
-        wrong on the renders) are taken as 0.001 and 0.999: no evidence is ever certain."""
+        rate: no evidence either way. Overall and switch rates of 0 or 1 (a side always right
+        or always wrong on the renders, a state never left) are taken as 0.001 and 0.999: no
+        evidence is ever certain, and neither state is unreachable."""
         def filled(table, overall):
             return [overall if p is None else p for p in table]
         raw_overall = float(np.clip(stats["raw_side_overall"], _FLOOR, 1.0 - _FLOOR))
         overall = float(np.clip(stats["canonical_overall"], _FLOOR, 1.0 - _FLOOR))
-        return cls(switch=tuple(stats["switch_probability"]),
+        return cls(switch=tuple(float(np.clip(p, _FLOOR, 1.0 - _FLOOR))
+                                for p in stats["switch_probability"]),
                    raw_side_edges=tuple(raw_side_edges),
                    raw_side_by_norm=filled(stats["raw_side_by_norm"], raw_overall),
                    raw_side_overall=raw_overall,

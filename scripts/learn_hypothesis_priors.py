@@ -30,6 +30,7 @@ from tracker.offline.hypothesis_priors import (choose_weights, facing_travel_his
 from tracker.offline.training import VALIDATION_TRIALS
 
 CMU = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cmu" / "bvh"
+TRAVEL_TRIALS = ("06_06", "06_07", "06_08", "06_09")   # their facing - travel is printed
 
 
 def main(argv=None) -> int:
@@ -39,10 +40,10 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-regressor", action="store_true")
     ap.add_argument("--weights", action="store_true",
                     help="also choose TRAVEL_WEIGHT and EVIDENCE_WEIGHT on validation renders")
-    ap.add_argument("--travel-weights", type=str, default=None,
+    ap.add_argument("--travel-weights", type=_numbers(float), default=None,
                     help="comma-separated travel weights to try with --weights (default: "
                          "choose_weights'; split the grid to run it on several cores)")
-    ap.add_argument("--experts", type=str, default=None,
+    ap.add_argument("--experts", type=_numbers(int), default=None,
                     help="comma-separated numbers of a mixture's experts (DEFAULT_EXPERTS) to "
                          "compare by filtered heading RMS on the same validation renders, with "
                          "the current TRAVEL_WEIGHT and EVIDENCE_WEIGHT")
@@ -61,10 +62,15 @@ def main(argv=None) -> int:
         model = load_pose_model(args.model)
     except PoseModelError as exc:
         ap.exit(1, f"learn_hypothesis_priors: {exc}\n")
-    try:
-        files = prior_files(args.cmu)
-    except ValueError as exc:
-        ap.error(str(exc))
+    # Every file the run reads, checked before the slow steps.
+    needed = [args.cmu / f"{stem}.bvh" for stem in TRAVEL_TRIALS]
+    if not args.skip_regressor or args.weights or args.experts:
+        needed += [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS + ("07_12",)]
+    missing = [f for f in needed if not f.is_file()]
+    if missing:
+        ap.error(f"--cmu {args.cmu}: {missing[0].name} not found (the run needs the CMU trials "
+                 f"{', '.join(sorted({f.stem for f in needed}))})")
+    files = prior_files(args.cmu) if len(needed) > len(TRAVEL_TRIALS) else []
     if args.save is not None and not model.gives_canonical_pairs:
         ap.error(f"--save: {args.model} has no side classifier and limbs, so no canonical priors")
     prior, per_file = facing_travel_histogram(sorted(args.cmu.glob("*.bvh")))
@@ -72,7 +78,7 @@ def main(argv=None) -> int:
     print(f"facing - travel over {sum(moving.values())} moving frames of {len(moving)} trials "
           f"(bins of 30 deg centred on 0, 30, ..., -30):")
     print("[" + ", ".join(f"{p:.4f}" for p in prior) + "]")
-    for stem in ("06_06", "06_07", "06_08", "06_09"):
+    for stem in TRAVEL_TRIALS:
         one, _ = facing_travel_histogram([args.cmu / f"{stem}.bvh"])
         print(stem, "[" + ", ".join(f"{p:.2f}" for p in one) + "]")
     if not args.skip_regressor:
@@ -89,19 +95,34 @@ def main(argv=None) -> int:
         print(json.dumps(stats, indent=1))
         if args.save is not None:
             model.canonical_priors = priors
+            if args.save.exists():            # it may have appeared during the run
+                ap.exit(1, f"learn_hypothesis_priors: {args.save} appeared during the run; "
+                           f"not overwritten\n")
             try:
                 save_pose_model(args.save, model)
             except (PoseModelError, OSError) as exc:
                 ap.exit(1, f"learn_hypothesis_priors: cannot write {args.save}: {exc}\n")
             print(f"wrote {args.save}: the model with these priors")
+    # The model as it now is (with the priors learned above when --save wrote them).
     if args.weights:
-        tws = None if args.travel_weights is None else \
-            tuple(float(x) for x in args.travel_weights.split(","))
-        _choose_weights(load_pose_model(args.model), files, tws)
+        _choose_weights(model, files, args.travel_weights)
     if args.experts:
-        _compare_experts(load_pose_model(args.model), files,
-                         [int(x) for x in args.experts.split(",")])
+        _compare_experts(model, files, list(args.experts))
     return 0
+
+
+def _numbers(kind):
+    """An argparse type: comma-separated positive numbers of this kind, as a tuple."""
+    def parse(text: str) -> tuple:
+        try:
+            values = tuple(kind(x) for x in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not comma-separated "
+                                             f"{kind.__name__} values") from None
+        if not all(v > 0 for v in values):
+            raise argparse.ArgumentTypeError(f"{text!r}: every value must be positive")
+        return values
+    return parse
 
 
 def _compare_experts(model, files, counts) -> None:

@@ -24,7 +24,7 @@ from threadpoolctl import threadpool_limits
 from regressor.angles import wrap_deg
 from regressor.descriptor import DescriptorSettings
 from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
-from regressor.pose_model import DEFAULT_MODEL_PATH, save_pose_model
+from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model, save_pose_model
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files, views_by_rows)
 from tracker.offline.hypothesis_priors import learn_canonical_priors, prior_files
@@ -181,26 +181,16 @@ def main(argv=None) -> int:
                 model, report = train_mixture_model(data, X, codebook, settings, options,
                                                     config.fps, log=log, layouts=layouts)
         report["noise_aware"] = not args.clean
-        if model.gives_canonical_pairs:
-            # The tracker's front/back chain weighs this model's canonical pairs by priors
-            # learned on validation renders; the file carries them (regressor.canonical_priors).
-            log("learning the canonical chain's priors on the validation renders ...")
-            at = time.perf_counter()
-            with threadpool_limits(args.workers):
-                model.canonical_priors, stats = learn_canonical_priors(
-                    model, prior_files(args.bvh_dir))
-            report["canonical_priors"] = stats
-            log(f"  canonical priors: switch {stats['switch_probability']}, the canonical member "
-                f"the truer on {stats['canonical_overall']:.3f} of frames "
-                f"({time.perf_counter() - at:.0f} s)")
         model.description = {"data": "CMU motion capture (mocap.cs.cmu.edu), rendered",
                              "trials": data.trials, "held_out": list(HELD_OUT_TRIALS),
                              "dataset": json.loads(json.dumps(config.__dict__)),
                              "options": options.__dict__, "validation": report}
         args.out.parent.mkdir(parents=True, exist_ok=True)
         save_pose_model(args.out, model)
+        if model.gives_canonical_pairs:
+            _learn_priors(args, model, report, log)
         if model.mixture is not None:       # the file stores centres as float16: check it
-            from regressor.pose_model import frame_descriptors, load_pose_model
+            from regressor.pose_model import frame_descriptors
             from regressor.stacking import stack_frames
             from sequences.pose_vector import heading_deg
             rows = slice(0, len(X), max(1, len(X) // 500))
@@ -227,6 +217,30 @@ def main(argv=None) -> int:
     print(json.dumps({"model": str(args.out), "size_bytes": args.out.stat().st_size,
                       "total_seconds": round(total, 1), **report}, indent=1))
     return 0
+
+
+def _learn_priors(args, model, report: dict, log) -> None:
+    """The front/back chain's priors for the model just written to args.out
+    (regressor.canonical_priors), learned on validation renders as ``track`` will see the
+    model: loaded from the file (its centres are float16 there), one BLAS thread. Written
+    into the file; if they cannot be learned, the file stays as it is, with a warning."""
+    log("learning the canonical chain's priors on the validation renders ...")
+    start = time.perf_counter()
+    saved = load_pose_model(args.out)
+    try:
+        with threadpool_limits(1):
+            priors, stats = learn_canonical_priors(saved, prior_files(args.bvh_dir))
+    except ValueError as exc:
+        log(f"train: warning: no canonical priors ({exc}); {args.out} is kept without them "
+            f"(tracker.hypotheses' defaults apply)")
+        return
+    report["canonical_priors"] = stats
+    saved.canonical_priors = model.canonical_priors = priors
+    saved.description["validation"]["canonical_priors"] = stats
+    save_pose_model(args.out, saved)
+    log(f"  canonical priors: switch {stats['switch_probability']}, the canonical member the "
+        f"truer on {stats['canonical_overall']:.3f} of frames "
+        f"({time.perf_counter() - start:.0f} s)")
 
 
 def _limb_head(args) -> str:

@@ -32,6 +32,8 @@ def test_the_priors_survive_the_file_parts_round_trip():
 
 @pytest.mark.parametrize("change, message", [
     ({"switch": (0.1, 1.0)}, "switch must be two probabilities"),
+    ({"switch": (0.0, 0.04)}, "switch must be two probabilities"),
+    ({"front_edges": (0.0, 5.0)}, "must stay below 1"),
     ({"switch": (0.1,)}, "switch must be two probabilities"),
     ({"raw_side_by_norm": (0.5,)}, "one value per edge"),
     ({"front_edges": (0.1, 0.5)}, "edges must increase from 0"),
@@ -67,12 +69,12 @@ def test_tampered_parts_are_refused(tamper, message):
 
 
 def test_learned_statistics_become_priors_with_empty_bins_taking_the_overall_rate():
-    stats = {"switch_probability": [0.03, 0.05], "raw_side_by_norm": [None, 0.6, 0.7, 0.8, 0.9],
+    stats = {"switch_probability": [0.03, 0.0], "raw_side_by_norm": [None, 0.6, 0.7, 0.8, 0.9],
              "raw_side_overall": 1.0, "by_front": [0.3, None, 0.5, 0.6, 0.7, 0.8],
              "canonical_overall": 0.62}
     priors = CanonicalPriors.from_statistics(stats, CANONICAL_RAW_SIDE_EDGES,
                                              CANONICAL_FRONT_EDGES)
-    assert priors.switch == (0.03, 0.05)
+    assert priors.switch == (0.03, 0.001)            # a state never left stays reachable
     assert priors.raw_side_overall == pytest.approx(0.999)      # never certain
     assert priors.raw_side_by_norm[0] == pytest.approx(0.999)
     assert priors.by_front[1] == pytest.approx(0.62) and priors.overall == pytest.approx(0.62)
@@ -179,3 +181,40 @@ def test_learn_hypothesis_priors_never_saves_over_a_model(tmp_path):
                           str(other)], capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and "exists" in out.stderr and other.read_bytes() == b"kept"
     assert model.read_bytes() == b"not read"
+
+
+def test_learn_hypothesis_priors_saves_a_copy_with_the_learned_priors(tmp_path, monkeypatch,
+                                                                      capsys):
+    """--save writes a new model file carrying the priors it learned; the model it read is
+    unchanged. (The learning itself is replaced by a stand-in: it renders 28 sequences.)"""
+    import importlib.util
+    from pathlib import Path
+    from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+    script = Path(__file__).resolve().parents[1] / "scripts" / "learn_hypothesis_priors.py"
+    spec = importlib.util.spec_from_file_location("learn_hypothesis_priors", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    cmu = tmp_path / "cmu"
+    cmu.mkdir()
+    for stem in module.TRAVEL_TRIALS:           # the travel histogram reads these four
+        (cmu / f"{stem}.bvh").write_text("")
+    learned = _priors()
+    monkeypatch.setattr(module, "facing_travel_histogram", lambda files: (np.ones(12) / 12, {}))
+    out = tmp_path / "with_priors.npz"
+    # the regressor's steps need the validation trials: refused up front, nothing written
+    with pytest.raises(SystemExit) as exit_info:
+        module.main(["--cmu", str(cmu), "--save", str(out)])
+    assert exit_info.value.code == 2 and "02_02.bvh not found" in capsys.readouterr().err
+    assert not out.exists()
+    for stem in ("02_02", "08_03", "05_02", "06_10", "09_04", "02_05", "07_12"):
+        (cmu / f"{stem}.bvh").write_text("")
+    monkeypatch.setattr(module, "regressor_flip_statistics", lambda model, files: {})
+    monkeypatch.setattr(module, "learn_canonical_priors", lambda model, files: (learned, {}))
+    before = DEFAULT_MODEL_PATH.read_bytes()
+    assert module.main(["--cmu", str(cmu), "--save", str(out)]) == 0
+    assert load_pose_model(out).canonical_priors == learned
+    assert DEFAULT_MODEL_PATH.read_bytes() == before
+    # and never over an existing file
+    with pytest.raises(SystemExit):
+        module.main(["--cmu", str(cmu), "--save", str(out)])
+    assert load_pose_model(out).canonical_priors == learned

@@ -15,6 +15,7 @@ from tracker.offline.evaluation import (AnkurOptions, EvaluatedSequence, angle_p
 from regressor.angles import angles_to_pose
 from tracker.filtering import ConstantVelocityFilter, FilterError
 from tracker.offline.report import format_table
+from tracker.pipeline import TrackerSettings
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
 
@@ -158,7 +159,12 @@ def test_end_to_end_on_rendered_frames_with_report(cmu_bvh_dir, tmp_path):
     assert "| kalman |" in readme.read_text()
     assert all((tmp_path / f).stat().st_size > 1000 for f in ("heading.png", "parts.png",
                                                                "jitter.png"))
-    assert json.loads((tmp_path / "result.json").read_text())["frames"] == 40
+    saved = json.loads((tmp_path / "result.json").read_text())
+    assert saved["frames"] == 40
+    # the report records the joints' inflation the filters used (the model's: it gives
+    # canonical pairs), not the setting's "model's choice" placeholder
+    assert saved["settings"]["filter"]["ambiguous_joint_factor"] == \
+        TrackerSettings().joint_factor(stacked) == 2.0
     assert "per_frame" in format_table(result)
 
 

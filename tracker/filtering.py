@@ -19,7 +19,9 @@ Ambiguity: a raw pose whose heading norm ||(cos, sin)|| is below ``ambiguity_thr
 from a silhouette the regressor could not disambiguate (it averaged several headings, e.g. front
 and back views). Its R is inflated by ``ambiguous_heading_factor`` (default 25, i.e. 5x the std)
 on the heading and by ``ambiguous_joint_factor`` (default 4, 2x the std) on the other angles,
-because a front/back confusion also swaps left and right limbs, but less badly.
+because a front/back confusion also swaps left and right limbs, but less badly (the tracker
+takes 2 for a model whose hypotheses are the limb networks' canonical member and its flip:
+tracker.pipeline.TrackerSettings.joint_factor).
 
 The constant-velocity mathematics lives in :class:`ConstantVelocityFilter`, which knows nothing
 of angles: it also filters outputs without wrap-around or heading (e.g. the 63-D 3-D points of
