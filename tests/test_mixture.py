@@ -200,6 +200,18 @@ def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
             load_pose_model(path)
 
 
+def assert_refused_when_changed(path, cases) -> None:
+    """For each (changes, match) in cases: the model file at path with its parts updated by
+    changes (a part mapped to None is removed; re-checksummed, so only the model's own
+    checks can refuse it) fails to load with a PoseModelError matching match."""
+    from regressor.model_file import load_model, save_model
+    raw = dict(load_model(path).parts)
+    for changes, match in cases:
+        save_model(path, {k: v for k, v in {**raw, **changes}.items() if v is not None})
+        with pytest.raises(PoseModelError, match=match):
+            load_pose_model(path)
+
+
 def assert_only_a_mixture_carries(tmp_path, attribute: str, value, parts: dict):
     """The single-RVM model with ``attribute`` set to ``value`` refuses to be saved, and its
     file with ``parts`` added refuses to load (both: "only a mixture")."""
