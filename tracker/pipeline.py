@@ -44,7 +44,9 @@ from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 #: (jitter, deg): chain's own limbs 9.197 / 0.185 / 1.20; this filter with limb_r_scale 1.0:
 #: 9.064 / 0.244 / 0.96, 0.3: 9.044 / 0.261 / 1.16, 0.1: 9.043 / 0.269 / 1.34, 0.05: 9.044 /
 #: 0.271 / 1.46; the raw poses 9.005 / 0.266 / 2.28 (2026-12-01, a one-off driver). 0.1: as
-#: accurate as the raw poses with 40 % less jitter.
+#: accurate as the raw poses with 40 % less jitter. Re-checked 2026-12-02 with the side
+#: classifier and the joints' inflation 2 (same renders, corr8 filtered / smoothed): 0.05
+#: 0.545 / 0.604, 0.1 0.546 / 0.609, 0.2 0.545 / 0.612, 0.4 0.540 / 0.608 (heading unchanged).
 LIMB_R_SCALE = 0.1
 
 #: Multiplies the model's heading process noise (q[0]) in every filter. The model's q is the
