@@ -32,7 +32,8 @@ from typing import Callable
 import numpy as np
 
 from .angles import POSE_DIM, regression_targets, wrap_deg
-from .relu_layers import as_float32_layers, check_parts, forward, typical_inputs
+from .relu_layers import (as_float32_layers, check_parts, forward, standardised,
+                          typical_inputs)
 
 PREFIX = "limb_net_"        # the file parts' names
 MAX_MEMBERS, MAX_LAYERS = 16, 8
@@ -115,8 +116,7 @@ class LimbNet:
     def predict(self, X: np.ndarray) -> np.ndarray:
         """Canonical poses (N, 55) from the regressor's inputs X (N, P): (cos, sin) of the
         heading, then the 53 body angles in degrees wrapped to (-180, 180]."""
-        x = ((np.asarray(X, dtype=np.float64) - self.input_mean) / self.input_scale
-             ).astype(np.float32)
+        x = standardised(X, self.input_mean, self.input_scale)
         total = np.zeros((len(x), POSE_DIM), dtype=np.float64)
         for layers in self.members:
             total += forward(x, layers)

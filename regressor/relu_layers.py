@@ -20,6 +20,11 @@ def as_float32_layers(layers, what: str) -> list[tuple[np.ndarray, np.ndarray]]:
             for W, b in layers]
 
 
+def standardised(X: np.ndarray, mean: np.ndarray, scale: float) -> np.ndarray:
+    """Inputs X (N, P) as a stack takes them: (X - mean) / scale, float32 (N, P)."""
+    return ((np.asarray(X, dtype=np.float64) - mean) / scale).astype(np.float32)
+
+
 def forward(x: np.ndarray, layers) -> np.ndarray:
     """The stack's output for inputs x (N, n_in) (already standardised): (N, n_out)."""
     h = x

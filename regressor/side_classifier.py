@@ -22,7 +22,8 @@ from typing import Callable
 
 import numpy as np
 
-from .relu_layers import as_float32_layers, check_parts, forward, typical_inputs
+from .relu_layers import (as_float32_layers, check_parts, forward, standardised,
+                          typical_inputs)
 
 PREFIX = "side_net_"
 MAX_LAYERS = 8
@@ -87,8 +88,7 @@ class SideClassifier:
 
     def _logits(self, X: np.ndarray) -> np.ndarray:
         """The network's output (N,) (log-odds of facing the camera's half)."""
-        h = ((np.asarray(X, dtype=np.float64) - self.input_mean) / self.input_scale
-             ).astype(np.float32)
+        h = standardised(X, self.input_mean, self.input_scale)
         return forward(h, self.layers)[:, 0].astype(np.float64)
 
     def to_arrays(self, prefix: str = PREFIX) -> dict:

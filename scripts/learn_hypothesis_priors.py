@@ -63,14 +63,13 @@ def main(argv=None) -> int:
     except PoseModelError as exc:
         ap.exit(1, f"learn_hypothesis_priors: {exc}\n")
     # Every file the run reads, checked before the slow steps.
-    needed = [args.cmu / f"{stem}.bvh" for stem in TRAVEL_TRIALS]
-    if not args.skip_regressor or args.weights or args.experts:
-        needed += [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS + ("07_12",)]
+    files = (prior_files(args.cmu, check=False)
+             if not args.skip_regressor or args.weights or args.experts else [])
+    needed = [args.cmu / f"{stem}.bvh" for stem in TRAVEL_TRIALS] + files
     missing = [f for f in needed if not f.is_file()]
     if missing:
         ap.error(f"--cmu {args.cmu}: {missing[0].name} not found (the run needs the CMU trials "
                  f"{', '.join(sorted({f.stem for f in needed}))})")
-    files = prior_files(args.cmu) if len(needed) > len(TRAVEL_TRIALS) else []
     if args.save is not None and not model.gives_canonical_pairs:
         ap.error(f"--save: {args.model} has no side classifier and limbs, so no canonical priors")
     prior, per_file = facing_travel_histogram(sorted(args.cmu.glob("*.bvh")))
@@ -83,7 +82,7 @@ def main(argv=None) -> int:
         print(stem, "[" + ", ".join(f"{p:.2f}" for p in one) + "]")
     if not args.skip_regressor:
         with threadpool_limits(1):
-            stats = regressor_flip_statistics(load_pose_model(args.model),
+            stats = regressor_flip_statistics(model,
                                               [args.cmu / f"{t}.bvh" for t in VALIDATION_TRIALS])
         print(json.dumps(stats, indent=1))
     if not args.skip_regressor and model.gives_canonical_pairs:

@@ -360,12 +360,18 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
     p = _table(priors.raw_side_edges, priors.raw_side_by_norm, norm)
     evidence[on_raw_side] += np.log(p / priors.raw_side_overall)
     evidence[1 - on_raw_side] += np.log((1 - p) / (1 - priors.raw_side_overall))
-    # the classifier's probability for the canonical member: front if it faces the camera
-    p_member = float(front) if pair[0, 0] >= 0 else 1.0 - float(front)
-    q = _table(priors.front_edges, priors.by_front, p_member)
+    q = _table(priors.front_edges, priors.by_front, member_probability(pair[0], front))
     evidence += np.log([q / priors.overall, (1 - q) / (1 - priors.overall)])
     return Hypotheses(pair, evidence, np.asarray(raw, dtype=np.float64), limbs, canonical=True,
                       front=float(front))
+
+
+def member_probability(members: np.ndarray, front) -> np.ndarray:
+    """The side classifier's probability for each canonical member (..., 55) itself, from
+    its probability front (...) that the body faces the camera's half: front where the
+    member faces that half (cos >= 0), 1 - front elsewhere."""
+    front = np.asarray(front, dtype=np.float64)
+    return np.where(np.asarray(members)[..., 0] >= 0, front, 1.0 - front)
 
 
 def deaveraged_direction(raw: np.ndarray) -> np.ndarray:

@@ -186,7 +186,7 @@ def canonical_statistics(renders: dict) -> dict:
     which keep the classifier's probability). The true member: the nearer the truth over the
     54 angles (raw_is_nearer)."""
     from ..hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES, bin_index,
-                              deaveraged_heading, member_on_side)
+                              deaveraged_heading, member_on_side, member_probability)
     leave, count = np.zeros(2), np.zeros(2)
     raw_side, norms, canonical_true, p_member = [], [], [], []
     for render in renders.values():
@@ -203,8 +203,7 @@ def canonical_statistics(renders: dict) -> dict:
         on_side = member_on_side(member, deaveraged_heading(raw)[:, :2])
         raw_side.append(on_side == true)
         norms.append(heading_norm(raw))
-        p = np.array([h.front for h in hyps])
-        p_member.append(np.where(member[:, 0] >= 0, p, 1.0 - p))
+        p_member.append(member_probability(member, [h.front for h in hyps]))
         canonical_true.append(true)
 
     def table(edges, x, y):
@@ -223,11 +222,14 @@ def canonical_statistics(renders: dict) -> dict:
             "canonical_overall": round(float(canonical_true.mean()), 3)}
 
 
-def prior_files(bvh_dir: str | Path) -> list[Path]:
+def prior_files(bvh_dir: str | Path, check: bool = True) -> list[Path]:
     """The BVH files the priors are learned on: the training's validation trials and 07_12
-    (held out of training), each rendered four ways by validation_renders: 28 renders."""
+    (held out of training), each rendered four ways by validation_renders: 28 renders.
+    check: ValueError naming the first that is missing."""
     from .training import VALIDATION_TRIALS
     files = [Path(bvh_dir) / f"{t}.bvh" for t in VALIDATION_TRIALS + ("07_12",)]
+    if not check:
+        return files
     missing = [f for f in files if not f.is_file()]
     if missing:
         raise ValueError(f"learning the canonical priors needs {missing[0]}")
