@@ -72,6 +72,13 @@ class PoseModelError(SilhouettePoseError, ValueError):
     """A model file that is missing, unreadable, tampered with or inconsistent."""
 
 
+#: A frame whose novelty (:meth:`PoseModel.novelty`) is above this is unlike the training
+#: silhouettes: about 1 % of the training rows themselves are, no frame of the rendered
+#: validation and test videos is (medians 0.50-0.82, maximum 0.98), and 26-79 % of the real
+#: Pose2Sim views' frames are (README, "Accuracy"), where the poses are no better than a
+#: constant. ``track`` counts such frames per track (the JSON's "unfamiliar_frames").
+UNFAMILIAR_NOVELTY = 1.0
+
 @dataclass
 class LimbHead:
     """A mixture's second set of expert weights (module docstring): coef (R, 55) in the
@@ -549,10 +556,17 @@ def _heading_index_arrays(index: HeadingIndex | None) -> dict:
     without one."""
     if index is None:
         return {}
-    return {"heading_index_inputs": np.asarray(index.inputs, dtype=np.float16),
+    inputs = np.asarray(index.inputs, dtype=np.float16)
+    # novelty's scale, as the index read back from the file (float16 inputs) computes it:
+    # stored, so that loading the model does not take 0.3 s to recompute it
+    typical = HeadingIndex(inputs, index.folded_deg, index.k, index.limit_deg).typical_distance()
+    return {"heading_index_inputs": inputs,
             "heading_index_folded_deg": np.asarray(index.folded_deg, dtype=np.float32),
             "heading_index_k": np.int64(index.k),
-            "heading_index_limit_deg": np.float64(index.limit_deg)}
+            "heading_index_limit_deg": np.float64(index.limit_deg),
+            # unknown (NaN) for an index of k rows or fewer: not stored, as for older files
+            **({"heading_index_typical_distance": np.float64(typical)}
+               if np.isfinite(typical) else {})}
 
 
 def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
@@ -560,6 +574,8 @@ def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
     length; PoseModelError-ready ValueError otherwise."""
     if not _has_parts(a, ("heading_index_inputs", "heading_index_folded_deg", "heading_index_k",
                           "heading_index_limit_deg"), "heading index"):
+        if "heading_index_typical_distance" in a:
+            raise ValueError("heading index is incomplete")
         return None
     inputs = a["heading_index_inputs"].astype(np.float32)
     folded = a["heading_index_folded_deg"].astype(np.float64)
@@ -575,7 +591,13 @@ def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
             or np.any(np.abs(folded) > 90.0):
         raise ValueError("heading index must hold finite inputs and folded headings within "
                          "+-90 degrees")
-    return HeadingIndex(inputs, folded, k, limit)     # which checks k and the limit
+    index = HeadingIndex(inputs, folded, k, limit)     # which checks k and the limit
+    if "heading_index_typical_distance" in a:        # files before 2026-12-02 compute it
+        typical = np.asarray(a["heading_index_typical_distance"])
+        if typical.shape != () or not np.issubdtype(typical.dtype, np.floating):
+            raise ValueError("heading index typical distance must be one number")
+        index.remember_typical_distance(float(typical))
+    return index
 
 
 def _has_parts(a, names: tuple[str, ...], what: str) -> bool:

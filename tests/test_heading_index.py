@@ -202,3 +202,71 @@ def test_typical_distance_leaves_each_row_out_also_with_duplicates_and_few_rows(
     index = HeadingIndex(rows, np.zeros(80), k=3)
     assert index.typical_distance() == pytest.approx(_leave_one_out_p99(rows, 3), rel=1e-4)
     assert np.isnan(HeadingIndex(rows[:3], np.zeros(3), k=3).typical_distance())
+
+
+def test_the_typical_distance_travels_with_the_model_file(tmp_path):
+    """Saved as the index read back from the file computes it (float16 inputs), so loading
+    does not recompute it; a file without it (before 2026-12-02) computes the same value."""
+    model, x = _indexed_model()
+    path = tmp_path / "indexed.npz"
+    save_pose_model(path, model)
+    raw = dict(load_model(path).parts)
+    loaded = load_pose_model(path).heading_index
+    fresh = HeadingIndex(loaded.inputs, loaded.folded_deg, loaded.k, loaded.limit_deg)
+    assert float(raw["heading_index_typical_distance"]) == fresh.typical_distance()
+    assert loaded._typical == {(99.0, 2000): fresh.typical_distance()}   # stored, not computed
+    np.testing.assert_allclose(loaded.novelty(x[:10]), fresh.novelty(x[:10]), rtol=1e-12)
+    save_model(path, {k: v for k, v in raw.items() if k != "heading_index_typical_distance"})
+    older = load_pose_model(path).heading_index
+    assert older._typical == {} and older.typical_distance() == fresh.typical_distance()
+
+
+def test_a_tampered_typical_distance_is_refused(tmp_path):
+    """(NaN and infinite parts the model file itself refuses, for every part.)"""
+    model, _ = _indexed_model()
+    path = tmp_path / "indexed.npz"
+    save_pose_model(path, model)
+    raw = dict(load_model(path).parts)
+    for value, match in ((np.float64(-1.0), "positive and finite"),
+                         (np.float64(0.0), "positive and finite"),
+                         (np.array([1.0, 2.0]), "one number"),
+                         (np.int64(3), "one number")):
+        save_model(path, {**raw, "heading_index_typical_distance": value})
+        with pytest.raises(PoseModelError, match=match):
+            load_pose_model(path)
+    without_index = {k: v for k, v in raw.items()
+                     if not k.startswith("heading_index_") or k.endswith("typical_distance")}
+    save_model(path, without_index)
+    with pytest.raises(PoseModelError, match="heading index is incomplete"):
+        load_pose_model(path)
+
+
+def test_a_small_index_without_a_typical_distance_still_saves_and_loads(tmp_path):
+    model, x = _mixture_model()
+    heading = np.degrees(np.arctan2(np.sin(x[:, 0]), np.cos(x[:, 0])))
+    model.heading_index = build_heading_index(x, heading, rows=4, dims=3, k=5)
+    save_pose_model(tmp_path / "small.npz", model)
+    assert "heading_index_typical_distance" not in load_model(tmp_path / "small.npz").parts
+    assert np.isnan(load_pose_model(tmp_path / "small.npz").novelty(x[:3])).all()
+
+
+def test_a_repeated_small_query_reuses_its_neighbours_and_others_search_again():
+    """The tracker asks for one frame's neighbours twice (heading, novelty): the second time
+    they are remembered, read-only; any other query gets its own, as a fresh index finds."""
+    rng = np.random.default_rng(6)
+    rows = rng.normal(0, 1, (500, 4))
+    index = HeadingIndex(rows, rng.uniform(-90, 90, 500), k=5)
+    fresh = HeadingIndex(rows, index.folded_deg, k=5)
+    q = rows[:2] + 0.1
+    first = index._nearest(q)
+    assert index._nearest(q.copy())[0] is first[0]               # same rows: remembered
+    assert not first[0].flags.writeable and not first[1].flags.writeable
+    np.testing.assert_allclose(index.novelty(q), fresh.novelty(q), rtol=1e-12)
+    other = q + 0.5
+    np.testing.assert_array_equal(index.neighbours(other), fresh.neighbours(other))
+    np.testing.assert_array_equal(index.neighbours(q[:1]), fresh.neighbours(q[:1]))
+    many = rows[:40] + 0.2                                       # more rows than remembered
+    np.testing.assert_allclose(index.distance(many), fresh.distance(many), rtol=1e-12)
+    assert index._nearest(many)[0] is not index._nearest(many)[0]
+    # extra neighbours (typical_distance's) are another query, not the remembered one
+    assert index._nearest(q, extra=1)[0].shape == (2, 6)

@@ -88,3 +88,21 @@ def test_atomic_write_replaces_whole_files_and_leaves_no_temporary(tmp_path):
         write_json_atomically(path, {"a": float("nan")})
     assert json.loads(path.read_text()) == {"a": 2}  # the failed write left the old file
     assert [p.name for p in tmp_path.iterdir()] == ["s.json"]
+
+
+def test_summary_records_novelty_and_counts_unfamiliar_frames(tmp_path):
+    """novelty per frame (None where unknown: none given, or NaN from a model without a
+    heading index); unfamiliar_frames: those above UNFAMILIAR_NOVELTY (1)."""
+    path = tmp_path / "summary.json"
+    given = [0.4, 1.0, 1.7, None, float("nan"), 2.5]
+    with JsonSummarySink(path, video_fps=25.0) as sink:
+        for frame, novelty in enumerate(given):
+            sink.write(TrackedPose(frame, frame / 25.0, 0, _pose(0, 1, 0), _pose(0, 1, 0), False,
+                                   JOINTS, centroid_px=(1.0, 2.0), novelty=novelty))
+        for bad in (-0.1, float("inf")):
+            with pytest.raises(SinkInputError, match="novelty"):
+                sink.write(TrackedPose(9, 0.4, 0, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
+                                       centroid_px=(1.0, 2.0), novelty=bad))
+    (track,) = json.loads(path.read_text())["tracks"]
+    assert track["novelty"] == [0.4, 1.0, 1.7, None, None, 2.5]
+    assert track["unfamiliar_frames"] == 2 and track["n_frames"] == 6

@@ -47,7 +47,8 @@ def _record(path: Path, frames: int = 20, **kwargs) -> dict[int, list[int]]:
             for track in (1, 2) if frame < frames // 2 else (1,):
                 raw = _pose(rng)
                 sink.write(TrackedPose(frame, frame / FPS, track, raw, raw * 0.5, frame % 3 == 0,
-                           joints + [track, 0.0, 0.0], centroid_px=(100.0 + frame, 50.0)))
+                           joints + [track, 0.0, 0.0], centroid_px=(100.0 + frame, 50.0),
+                           novelty=0.25 * frame if track == 1 else None))
                 seen[track].append(frame)
     return seen
 
@@ -344,3 +345,23 @@ def test_ctrl_c_closes_the_file_with_its_footer(tmp_path):
               if c.topic == "/pose"]
     assert statistics.message_count == len(_messages(path))
     assert len(frames) >= 6  # nothing buffered was lost, although no chunk had been flushed
+
+
+def test_pose_messages_carry_the_novelty_when_known(tmp_path):
+    path = tmp_path / "run.mcap"
+    _record(path, frames=6)
+    poses = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/pose"]
+    assert [p["novelty"] for p in poses if p["track_id"] == 1] == [0.25 * f for f in range(6)]
+    assert all("novelty" not in p for p in poses if p["track_id"] == 2)
+    (schema,) = {s.data for s, c, m in _messages(path) if c.topic == "/pose"}
+    assert json.loads(schema)["properties"]["novelty"]["minimum"] == 0
+    joints = pose_joints_m(np.r_[1.0, np.zeros(54)][None])[0]
+    raw = np.r_[1.0, np.zeros(54)]
+    with McapSink(tmp_path / "nan.mcap") as sink:       # NaN: a model without an index
+        sink.write(TrackedPose(0, 0.0, 1, raw, raw, False, joints, novelty=float("nan")))
+        for bad in (-0.5, float("inf")):
+            with pytest.raises(SinkInputError, match="novelty"):
+                sink.write(TrackedPose(1, 0.1, 1, raw, raw, False, joints, novelty=bad))
+    (message,) = [json.loads(m.data) for s, c, m in _messages(tmp_path / "nan.mcap")
+                  if c.topic == "/pose"]
+    assert "novelty" not in message

@@ -6,6 +6,9 @@ start-up).
 """
 from __future__ import annotations
 
+import argparse
+import contextlib
+import io
 import json
 import os
 import signal
@@ -333,10 +336,11 @@ def test_grayscale_video_gives_the_same_single_track_as_colour(tmp_path, walk):
     assert len(json.loads((tmp_path / "g.json").read_text())["tracks"]) == 1
 
 
-def test_novelty_is_reported_per_pose_only_when_asked(walk):
-    """TrackerSettings(novelty=True) gives each pose the model's novelty (the evaluations use
-    it); track leaves it off (one more nearest-neighbour query per frame)."""
+def test_novelty_is_reported_per_pose_by_default_and_unfamiliar_frames_are_counted(walk, tmp_path):
+    """TrackerSettings() gives each pose the model's novelty (TrackerSettings(novelty=False):
+    None) and counts a track's frames above UNFAMILIAR_NOVELTY; the JSON summary records both."""
     from tracker import PoseRecorder
+    from tracker.cli import _print_summary
     for asked in (False, True):
         recorder = PoseRecorder()
         track_video(walk, PoseTracker(load_pose_model(), 30.0, TrackerSettings(novelty=asked)),
@@ -344,6 +348,29 @@ def test_novelty_is_reported_per_pose_only_when_asked(walk):
         values = [p.novelty for p in recorder.poses]
         assert len(values) >= 30
         if asked:
-            assert all(isinstance(v, float) and np.isfinite(v) and v > 0 for v in values)
+            assert all(isinstance(v, float) and np.isfinite(v) and 0 < v < 1 for v in values)
         else:
             assert all(v is None for v in values)
+    # A model that finds every other frame unlike its training silhouettes.
+    model, calls = load_pose_model(), []
+
+    def novelty(stacked):
+        calls.append(len(calls))
+        return np.full(len(stacked), 2.0 if len(calls) % 2 else 0.5)
+    model.novelty = novelty
+    tracker = PoseTracker(model, 30.0)
+    summary = JsonSummarySink(tmp_path / "n.json", 30.0)
+    result = track_video(walk, tracker, sinks=[summary])
+    (state,) = tracker.tracks.values()
+    assert state.frames == len(calls) >= 30 and state.unfamiliar == (len(calls) + 1) // 2
+    (track,) = json.loads((tmp_path / "n.json").read_text())["tracks"]
+    assert track["novelty"][:4] == [2.0, 0.5, 2.0, 0.5]
+    assert track["unfamiliar_frames"] == state.unfamiliar
+    args = argparse.Namespace(video=walk, out=None, json=None, bvh=None)
+    source = argparse.Namespace(width=320, height=240, fps=30.0)
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        _print_summary(args, source, result)
+    assert (f"{state.frames} frames; {state.unfamiliar} of them "
+            f"({state.unfamiliar / state.frames:.0%}) unlike the training silhouettes") \
+        in out.getvalue()

@@ -250,7 +250,10 @@ def _print_summary(args, source, result) -> None:
     print(f"{args.video.name}: {state} {result.frames} frames ({source.width}x{source.height}, "
           f"{source.fps:g} fps video) at {result.fps:.0f} frames/s; {len(tracks)} track(s)")
     for track_id, state_ in sorted(tracks.items()):
-        print(f"  track {track_id}: {state_.frames} frames")
+        unfamiliar = (f"; {state_.unfamiliar} of them ({state_.unfamiliar / state_.frames:.0%}) "
+                      f"unlike the training silhouettes, their poses extrapolated"
+                      if state_.unfamiliar else "")
+        print(f"  track {track_id}: {state_.frames} frames{unfamiliar}")
     for path, what in ((args.out, "MCAP"), (args.json, "JSON"), (args.bvh, "BVH folder")):
         if path is not None:
             print(f"  {what}: {path}")

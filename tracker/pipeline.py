@@ -21,6 +21,7 @@ import numpy as np
 
 from regressor.angles import N_ANGLES
 from regressor.edges import SilhouetteError
+from regressor.pose_model import UNFAMILIAR_NOVELTY
 from regressor.stacking import FrameStacker
 from .association import Associator
 from .roll import upright_mask
@@ -103,9 +104,10 @@ class TrackerSettings:
     keep every track's filter inputs for PoseTracker.smoothed_track (about 0.6 KB per person
     per frame, so memory grows with the video); ``track`` keeps them only for --smooth.
     novelty: give each pose the estimator's novelty (PoseModel.novelty: how unlike the
-    training silhouettes its input is; one more nearest-neighbour query per frame, so off by
-    default; scripts/evaluate_real.py and evaluate_accuracy.py turn it on). An estimator
-    without ``novelty`` gives None.
+    training silhouettes its input is), and count each track's frames above
+    UNFAMILIAR_NOVELTY. For the shipped model it reuses the heading index's nearest
+    neighbours of the frame, so it costs little per frame (about 0.3 s once, at the first
+    frame, for the index's own typical distance). An estimator without ``novelty`` gives None.
     """
 
     max_people: int | None = None
@@ -120,7 +122,7 @@ class TrackerSettings:
     background_samples: int = 25
     fov_deg: float = ASSUMED_FOV_DEG
     keep_history: bool = True
-    novelty: bool = False
+    novelty: bool = True
 
     def threshold(self, estimator) -> float:
         """The ambiguity threshold in use: this setting, else the estimator's own."""
@@ -248,6 +250,7 @@ class _TrackState:
     travel: TravelDirection
     measured: list = field(default_factory=list)    # (55,) raw poses (keep_history only)
     frames: int = 0                                  # frames with a pose
+    unfamiliar: int = 0                              # of them, novelty > UNFAMILIAR_NOVELTY
 
 
 class PoseTracker:
@@ -276,6 +279,9 @@ class PoseTracker:
         self.associator = associator or Associator()
         self.filter_factory, self.limb_filter_factory = filter_factories(estimator, settings,
                                                                          filter_factory)
+        index = getattr(estimator, "heading_index", None)
+        if settings.novelty and index is not None:
+            index.typical_distance()     # novelty's scale, computed once: here, not at frame 1
         self.frame_shape: tuple[int, int] | None = None      # (height, width) pixels
         self._focal_px = 0.0
         self.tracks: dict[int, _TrackState] = {}
@@ -353,6 +359,8 @@ class PoseTracker:
         decision = state.hypotheses.step(hypotheses, travel)
         filtered, ambiguous = decision.filtered, decision.ambiguous
         state.frames += 1
+        if novelty is not None and novelty > UNFAMILIAR_NOVELTY:
+            state.unfamiliar += 1
         if self.settings.keep_history:
             state.measured.append(hypotheses.raw)
         clock = self._lap("filter", clock)

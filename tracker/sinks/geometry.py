@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import colorsys
 
+import math
+
 import numpy as np
 
 from sequences.pose_vector import joint_positions
@@ -95,6 +97,17 @@ def check_joints(joints3d: np.ndarray) -> np.ndarray:
     if not np.all(np.isfinite(joints)):
         raise SinkInputError("joints3d contains NaN or infinite values")
     return joints
+
+
+def known_novelty(value) -> float | None:
+    """A pose's novelty (PoseModel.novelty) as the sinks record it: rounded to 4 decimals,
+    None when unknown (None, or NaN from a model without a heading index); SinkInputError
+    when negative or infinite."""
+    if value is None or math.isnan(float(value)):
+        return None
+    if not (math.isfinite(float(value)) and float(value) >= 0):
+        raise SinkInputError(f"novelty must be a finite number >= 0, got {value}")
+    return round(float(value), 4)
 
 
 def check_pose(name: str, pose: np.ndarray) -> np.ndarray:

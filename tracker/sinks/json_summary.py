@@ -1,5 +1,6 @@
 """JSON summary of a tracking run, for scripts: frames, speed, and per track its frames,
-centroids, headings, ambiguity flags and filtered poses.
+centroids, headings, ambiguity flags, novelty (how unlike the training silhouettes each frame
+is) and filtered poses.
 
 Layout (format version 1)::
 
@@ -13,6 +14,10 @@ Layout (format version 1)::
                  "heading_norm": [float],  # norm of the RAW (cos, sin): the ambiguity measure
                                            # (the filtered one is 1 by construction)
                  "ambiguous": [bool], "ambiguous_frames": int,
+                 "novelty": [float or null],  # how unlike the training silhouettes each
+                                              # frame's is (PoseModel.novelty; null: unknown)
+                 "unfamiliar_frames": int,    # frames with novelty above
+                                              # regressor.pose_model.UNFAMILIAR_NOVELTY (1)
                  "heading_mean_deg": float,  # circular mean of the filtered heading
                  "pose": [[55 filtered values]],
                  "runner_up": [{"frame": int, "probability": float, "heading_deg": float,
@@ -34,8 +39,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from regressor.pose_model import UNFAMILIAR_NOVELTY
 from tracker.sinks.files import OutputFile, write_beside
-from tracker.sinks.geometry import SinkInputError, check_joints, check_pose
+from tracker.sinks.geometry import SinkInputError, check_joints, check_pose, known_novelty
 
 if TYPE_CHECKING:
     from ..pipeline import TrackedPose
@@ -100,10 +106,11 @@ class JsonSummarySink:
         centroid = np.asarray(centroid_px, dtype=np.float64)
         if centroid.shape != (2,) or not np.all(np.isfinite(centroid)):
             raise SinkInputError(f"centroid_px must be two finite numbers, got {centroid_px!r}")
+        novelty = known_novelty(getattr(pose, "novelty", None))
         self.end_frame(frame_index)
         track = self._tracks.setdefault(int(track_id), {
             "frames": [], "time_s": [], "centroid_px": [], "heading_deg": [],
-            "heading_norm": [], "ambiguous": [], "pose": [], "runner_up": []})
+            "heading_norm": [], "ambiguous": [], "novelty": [], "pose": [], "runner_up": []})
         track["frames"].append(int(frame_index))
         track["time_s"].append(round(float(time_s), _DECIMALS))
         track["centroid_px"].append(np.round(centroid, 3).tolist())
@@ -111,6 +118,7 @@ class JsonSummarySink:
             round(math.degrees(math.atan2(filtered[1], filtered[0])), _DECIMALS))
         track["heading_norm"].append(round(math.hypot(raw[0], raw[1]), _DECIMALS))
         track["ambiguous"].append(bool(ambiguous))
+        track["novelty"].append(novelty)
         track["pose"].append(np.round(filtered, _DECIMALS).tolist())
         if getattr(pose, "runner_up", None) is not None:
             alt = check_pose("runner_up55", pose.runner_up)
@@ -134,6 +142,8 @@ class JsonSummarySink:
                 "last_frame": track["frames"][-1], "n_frames": len(track["frames"]),
                 **track,
                 "ambiguous_frames": int(sum(track["ambiguous"])),
+                "unfamiliar_frames": sum(n is not None and n > UNFAMILIAR_NOVELTY
+                                         for n in track["novelty"]),
                 "heading_mean_deg": round(mean, _DECIMALS),
             })
         return {"format": FORMAT, "version": VERSION, "frames": frames,

@@ -2,7 +2,8 @@
 
 Channels (JSON messages, JSON-schema schemas):
 - ``/pose`` (schema ``silhouette_pose.TrackedPose``): one message per track per frame: frame
-  index, time, track id, ambiguous flag, the centroid in pixels when known, and for both the raw
+  index, time, track id, ambiguous flag, the centroid in pixels and the novelty (how unlike the
+  training silhouettes the frame's is: PoseModel.novelty) when known, and for both the raw
   regressor output and the Kalman-filtered pose: heading in degrees, heading norm and the 55
   values keyed by ``sequences.pose_vector.pose_vector_names()`` (Foxglove plots them by name,
   e.g. ``/pose.filtered.pose.LeftArm_z``).
@@ -49,6 +50,7 @@ from tracker.sinks.geometry import (
     body_colours,
     check_joints,
     check_pose,
+    known_novelty,
     track_colour,
     y_up_to_z_up,
 )
@@ -183,6 +185,11 @@ def tracked_pose_schema() -> dict:
     schema["properties"]["runner_up_probability"] = {
         "type": "number", "minimum": 0, "maximum": 1,
         "description": "probability of runner_up (present with it)"}
+    schema["properties"]["novelty"] = {
+        "type": "number", "minimum": 0,
+        "description": "how unlike the training silhouettes the frame's is (about 1 % of "
+                       "training rows are above 1; far above it the pose is extrapolated); "
+                       "absent when unknown"}
     schema["properties"]["centroid_px"] = {
         "type": "array", "items": _NUMBER, "minItems": 2, "maxItems": 2,
         "description": "silhouette centroid (x, y) in pixels, when known"}
@@ -430,6 +437,7 @@ class McapSink:
         joints = check_joints(pose.joints_m)
         if not (math.isfinite(time_s) and time_s >= 0):
             raise SinkInputError(f"time_s must be a finite number >= 0, got {time_s}")
+        novelty = known_novelty(getattr(pose, "novelty", None))
         frame_index, track_id = int(frame_index), int(track_id)
         if frame_index < 0 or track_id < 0:
             raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
@@ -449,6 +457,8 @@ class McapSink:
         }
         if centroid_px is not None:
             message["centroid_px"] = [float(c) for c in centroid_px]
+        if novelty is not None:
+            message["novelty"] = novelty
         if getattr(pose, "runner_up", None) is not None:
             message["runner_up"] = _estimate(check_pose("runner_up55", pose.runner_up),
                                              self._names)
