@@ -17,6 +17,14 @@ Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 20
   chain's and does not change): limb head 0.392, 8.68; 2 networks 0.418, 8.37; 3 0.423,
   8.15; 4 0.430, 8.06. The default model has 4 (9.8 MB; the limb head's weights it replaces
   took 1.7 MB, each network takes 0.5 MB as float16).
+- Richer inputs, tried later that day and not adopted (one network (512, 256) on the training
+  rows, correlation of the 8 most-moving angles of the canonical member on the 6 validation
+  trials' own rows, mean over trials; one-off drivers): the default input 0.552 / 0.556 (two
+  seeds); with a 32 x 32 layout's 200 principal directions added 0.555 / 0.553; with the
+  input of 3 and 6 frames before stacked on (a wider window) 0.552, of 5, 10 and 15 before
+  0.535. The wider windows fit their held-out training rows better (R^2 0.613 against 0.526)
+  but new trials no better: the walks gain a little (0.70 -> 0.72, 0.79 -> 0.82), the others
+  lose.
 
 A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
 standardised by a mean and one scale, outputs by a mean and a scale per value; the 53 body

@@ -9,6 +9,15 @@ evidence for the limb network's canonical member against its flip (tracker.hypot
 "Canonical hypotheses"), through a table that calibrates it on validation renders: on its
 own held-out training rows it is right 9 times in 10, on video-like renders about 7 in 10.
 
+Tried and not adopted (2026-12-02, one-off drivers): on the 6 validation trials' own rows the
+shipped classifier is right on 77.4 % of rows (63 % within 20 degrees of profile); L2 alpha
+0.1 gives 78.2 %, three such networks averaged 80.8 % (log loss 1.13 -> 0.83), a linear
+logistic regression 60.6 %, and early stopping on whole held-out trials stops after the first
+epoch (their log loss rises from then on while the accuracy still climbs). But on the 28
+validation renders the front/back chain is tuned on, the three gave 69.4 % against 68.8 %, and
+through the chain (their own priors learned) the filtered / smoothed heading went 32.7 / 26.6
+-> 34.8 / 32.5 degrees and corr8 0.546 -> 0.534 (alpha 0.1 alone: 37.3 / 33.5, 0.521).
+
 A :class:`SideClassifier` is plain arrays (no pickle): ReLU hidden layers and a linear output
 (one logit), inputs standardised by a mean and one scale. Stored under "side_net_" in a
 mixture model's file (weights as float16).

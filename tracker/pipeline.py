@@ -48,6 +48,8 @@ from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 #: accurate as the raw poses with 40 % less jitter. Re-checked 2026-12-02 with the side
 #: classifier and the joints' inflation 2 (same renders, corr8 filtered / smoothed): 0.05
 #: 0.545 / 0.604, 0.1 0.546 / 0.609, 0.2 0.545 / 0.612, 0.4 0.540 / 0.608 (heading unchanged).
+#: Also tried then: this filter's process noise as the full covariance of the training poses'
+#: angular accelerations (joints coupled, as in a gait) instead of per angle: 0.548 / 0.607.
 LIMB_R_SCALE = 0.1
 
 #: Multiplies the model's heading process noise (q[0]) in every filter. The model's q is the
