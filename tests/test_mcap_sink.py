@@ -365,3 +365,26 @@ def test_pose_messages_carry_the_novelty_when_known(tmp_path):
     (message,) = [json.loads(m.data) for s, c, m in _messages(tmp_path / "nan.mcap")
                   if c.topic == "/pose"]
     assert "novelty" not in message
+
+
+def test_unfamiliar_frames_are_labelled_on_the_skeleton():
+    """Track 1's novelty in _record is 0.25 x frame: above 1 from frame 5 on."""
+    from tracker.sinks.geometry import pose_label
+    assert [pose_label(3, a, u) for a, u in ((False, False), (True, False), (False, True),
+                                             (True, True))] == \
+        ["track 3", "track 3 (ambiguous)", "track 3 (unfamiliar)", "track 3 (ambiguous, unfamiliar)"]
+    raw = np.r_[1.0, np.zeros(54)]
+    assert [TrackedPose(0, 0.0, 1, raw, raw, False, np.zeros((18, 3)), novelty=n).unfamiliar
+            for n in (None, float("nan"), 0.9, 1.0, 1.1)] == [False, False, False, False, True]
+
+
+def test_skeleton_labels_and_metadata_follow_the_novelty(tmp_path):
+    path = tmp_path / "run.mcap"
+    _record(path, frames=8)
+    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/skeleton"]
+    for frame, update in enumerate(scenes):
+        entity = next(e for e in update["entities"] if e["id"] == "track-1")
+        unfamiliar = frame >= 5
+        flags = [n for n, on in (("ambiguous", frame % 3 == 0), ("unfamiliar", unfamiliar)) if on]
+        assert entity["texts"][0]["text"] == "track 1" + (f" ({', '.join(flags)})" if flags else "")
+        assert {"key": "unfamiliar", "value": str(unfamiliar).lower()} in entity["metadata"]

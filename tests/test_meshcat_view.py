@@ -335,3 +335,14 @@ def test_ground_position_from_image_follows_the_pinhole_model():
     np.testing.assert_allclose(position, [[1.6, 0.95, -3.2]])
     with pytest.raises(SinkInputError, match="bbox_height_px"):
         ground_position_from_image(np.array([[1.0, 1.0]]), np.array([0.0]), 640, 480)
+
+
+def test_labels_say_when_a_silhouette_is_unfamiliar():
+    with MeshcatView(print_url=False) as view:
+        for frame, (ambiguous, novelty) in enumerate(((False, 2.0), (True, 1.5), (False, 0.5),
+                                                      (False, None))):
+            view.write(TrackedPose(frame, 0.04 * frame, 1, POSE, POSE, ambiguous, JOINTS,
+                                   novelty=novelty))
+            view.end_frame(frame)
+            assert view._labels[1] == ["track 1 (unfamiliar)", "track 1 (ambiguous, unfamiliar)",
+                                       "track 1", "track 1"][frame]

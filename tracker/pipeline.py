@@ -241,6 +241,12 @@ class TrackedPose:
     runner_up_probability: float | None = None
     novelty: float | None = None
 
+    @property
+    def unfamiliar(self) -> bool:
+        """Whether the frame's silhouette is unlike the training ones (novelty above
+        regressor.pose_model.UNFAMILIAR_NOVELTY; False when unknown)."""
+        return self.novelty is not None and self.novelty > UNFAMILIAR_NOVELTY
+
 
 @dataclass
 class _TrackState:
@@ -361,8 +367,6 @@ class PoseTracker:
         decision = state.hypotheses.step(hypotheses, travel)
         filtered, ambiguous = decision.filtered, decision.ambiguous
         state.frames += 1
-        if novelty is not None and novelty > UNFAMILIAR_NOVELTY:
-            state.unfamiliar += 1
         if self.settings.keep_history:
             state.measured.append(hypotheses.raw)
         clock = self._lap("filter", clock)
@@ -371,9 +375,11 @@ class PoseTracker:
                                             focal_px=self._focal_px)
         joints = pose_joints_m(filtered[None], root_position_m=ground[None])[0]
         self._lap("skeleton", clock)
-        return TrackedPose(frame_index, time_s, track_id, hypotheses.raw, filtered, ambiguous,
+        pose = TrackedPose(frame_index, time_s, track_id, hypotheses.raw, filtered, ambiguous,
                            joints, person.centroid, person.bbox, decision.runner_up,
                            decision.runner_up_probability, novelty)
+        state.unfamiliar += pose.unfamiliar
+        return pose
 
     def _lap(self, stage: str, since: float) -> float:
         now = time.perf_counter()

@@ -99,6 +99,13 @@ def check_joints(joints3d: np.ndarray) -> np.ndarray:
     return joints
 
 
+def pose_label(track_id: int, ambiguous: bool = False, unfamiliar: bool = False) -> str:
+    """The text drawn above a body: "track N", with "(ambiguous)" for an ambiguous frame and
+    "(unfamiliar)" for a silhouette unlike the training ones (TrackedPose.unfamiliar)."""
+    flags = [name for name, on in (("ambiguous", ambiguous), ("unfamiliar", unfamiliar)) if on]
+    return f"track {int(track_id)}" + (f" ({', '.join(flags)})" if flags else "")
+
+
 def known_novelty(value) -> float | None:
     """A pose's novelty (PoseModel.novelty) as the sinks record it: rounded to 4 decimals,
     None when unknown (None, or NaN from a model without a heading index); SinkInputError

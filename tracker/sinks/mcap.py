@@ -51,6 +51,7 @@ from tracker.sinks.geometry import (
     check_joints,
     check_pose,
     known_novelty,
+    pose_label,
     track_colour,
     y_up_to_z_up,
 )
@@ -242,7 +243,8 @@ _GEOMETRY_DECIMALS = 3   # 1 mm and 1e-3 of a quaternion: below what a drawing s
 
 
 @functools.lru_cache(maxsize=128)
-def _body_style(track_id: int, ambiguous: bool) -> tuple[list, list, dict, str]:
+def _body_style(track_id: int, ambiguous: bool, unfamiliar: bool = False
+                ) -> tuple[list, list, dict, str]:
     """Per bone and per sphere (18 joints, head) colour dicts, the label's colour and text
     (the same for every frame of a track; shared by its messages, which are only read)."""
     colours = body_colours(track_id)
@@ -251,20 +253,23 @@ def _body_style(track_id: int, ambiguous: bool) -> tuple[list, list, dict, str]:
     return (_colour_dicts(colours[BONE_SIDE], alpha),
             _colour_dicts(colours[np.r_[JOINT_SIDE, 0]], alpha),
             {"r": r, "g": g, "b": b, "a": 1.0},
-            f"track {track_id}" + (" (ambiguous)" if ambiguous else ""))
+            pose_label(track_id, ambiguous, unfamiliar))
 
 
-def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool) -> dict:
+def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool,
+                    unfamiliar: bool = False) -> dict:
     """A ``foxglove.SceneEntity`` drawing one track's body as the live view does.
 
     joints3d: (18, 3) metres, Y-up (converted here to the Z-up ``world`` frame). A cylinder per
     bone of non-zero length and a sphere per joint, in the side colours of
     geometry.body_colours (track colour on the centre line, its hue turned one way on the left
     and the other on the right), a head ball, and a text label above the head. Ambiguous
-    frames are translucent and labelled "(ambiguous)".
+    frames are translucent and labelled "(ambiguous)"; frames whose silhouette is unlike the
+    training ones (TrackedPose.unfamiliar) are labelled "(unfamiliar)".
     """
     joints = y_up_to_z_up(joints3d)
-    bone_colours, sphere_colours, label_colour, text = _body_style(int(track_id), bool(ambiguous))
+    bone_colours, sphere_colours, label_colour, text = _body_style(int(track_id), bool(ambiguous),
+                                                                   bool(unfamiliar))
     starts, ends = joints[BONE_INDEX[:, 0]], joints[BONE_INDEX[:, 1]]
     vectors = ends - starts
     lengths = np.sqrt(np.einsum("ij,ij->i", vectors, vectors))
@@ -298,7 +303,8 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
         "lifetime": {"sec": 0, "nsec": 0},
         "frame_locked": False,
         "metadata": [{"key": "track_id", "value": str(track_id)},
-                     {"key": "ambiguous", "value": str(bool(ambiguous)).lower()}],
+                     {"key": "ambiguous", "value": str(bool(ambiguous)).lower()},
+                     {"key": "unfamiliar", "value": str(bool(unfamiliar)).lower()}],
         "arrows": [], "cubes": [], "lines": [], "triangles": [], "models": [],
         "spheres": spheres,
         "cylinders": cylinders,
@@ -464,7 +470,8 @@ class McapSink:
                                              self._names)
             message["runner_up_probability"] = round(float(pose.runner_up_probability), 4)
         self._add(self._pose_channel, time_ns, message)
-        self._entities[track_id] = skeleton_entity(track_id, time_ns, joints, bool(ambiguous))
+        self._entities[track_id] = skeleton_entity(track_id, time_ns, joints, bool(ambiguous),
+                                                   bool(getattr(pose, "unfamiliar", False)))
         trail = self._trails.setdefault(track_id, deque())
         trail.append((time_s, joints[0, 0], -joints[0, 2]))     # the root on the Z-up ground
         while trail[0][0] < time_s - TRAIL_S:

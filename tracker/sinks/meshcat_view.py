@@ -5,7 +5,8 @@ What the page shows (Z-up metres, tracker.sinks.geometry conventions):
   the centre line in the track colour, the LEFT and RIGHT sides in its hue turned one way and
   the other (geometry.body_colours: red track, orange left, magenta right), so a left/right swap
   shows at a glance; a label "track N" above the head. Ambiguous frames
-  (TrackedPose.ambiguous) are drawn translucent and labelled "track N (ambiguous)"; when the
+  (TrackedPose.ambiguous) are drawn translucent and labelled "track N (ambiguous)", frames
+  whose silhouette is unlike the training ones (TrackedPose.unfamiliar) "(unfamiliar)"; when the
   runner-up front/back hypothesis is close (TrackedPose.runner_up), it is drawn as a faint
   ghost body at the same root, fainter the less probable it is.
 - the pelvis path of each track as a ribbon on the ground, fading over ``trail_s`` seconds.
@@ -46,6 +47,7 @@ from tracker.sinks.geometry import (
     body_colours,
     check_joints,
     pose_joints_m,
+    pose_label,
     track_colour,
     y_up_to_z_up,
 )
@@ -298,7 +300,9 @@ class MeshcatView:
             self._frame, self._frame_time_s, self._frame_done = frame_index, pose.time_s, False
         node = self._vis["people/tracks"][f"track-{track_id}"]
         self._set_body(node["body"], joints, track_id, 0.5 if pose.ambiguous else 1.0)
-        self._draw_label(node["label"], track_id, joints, bool(pose.ambiguous))
+        self._draw_label(node["label"], track_id, joints,
+                         pose_label(track_id, bool(pose.ambiguous),
+                                    bool(getattr(pose, "unfamiliar", False))))
         self._draw_ghost(node["ghost"], track_id, pose)
         trail = self._trails.setdefault(track_id, deque())
         trail.append((float(pose.time_s), joints[0, 0], joints[0, 1]))
@@ -310,8 +314,7 @@ class MeshcatView:
         self._last_frame[track_id] = frame_index
         self.draw_seconds += time.perf_counter() - clock
 
-    def _draw_label(self, node, track_id: int, joints: np.ndarray, ambiguous: bool) -> None:
-        text = f"track {track_id}" + (" (ambiguous)" if ambiguous else "")
+    def _draw_label(self, node, track_id: int, joints: np.ndarray, text: str) -> None:
         if self._labels.get(track_id) != text:
             g = self._g
             png = encode_png(label_image(text, track_colour(track_id)))
