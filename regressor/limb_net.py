@@ -25,6 +25,14 @@ Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 20
   0.535. The wider windows fit their held-out training rows better (R^2 0.613 against 0.526)
   but new trials no better: the walks gain a little (0.70 -> 0.72, 0.79 -> 0.82), the others
   lose.
+- Averaging at run time with the networks' answer for the mirror image (the mask flipped left
+  to right, the pose mirrored back: sequences.pose_vector.image_mirror), tried the same day
+  and not adopted: on the validation rows the shipped four networks go 0.616 -> 0.644, but
+  through ``track`` (a one-off patch) 02_02 / 08_03 / 05_02 filtered corr8 0.704 / 0.718 /
+  0.052 -> 0.703 / 0.727 / 0.069, and 05_02's heading 47.3 -> 72.6 degrees (the canonical pair
+  the front/back chain weighs is the networks' member), for a second descriptor per frame.
+  Mirror images in training instead (tracker.offline.training.MixtureOptions.limb_net_mirror)
+  cost nothing at run time.
 
 A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
 standardised by a mean and one scale, outputs by a mean and a scale per value; the 53 body

@@ -29,11 +29,41 @@ from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files, views_by_rows)
 from tracker.offline.hypothesis_priors import learn_canonical_priors, prior_files
 from tracker.offline.training import (CANONICAL_RULES, MixtureOptions, TrainingOptions,
-                                      cached_descriptors, cached_layouts, noisy_dataset_layouts,
+                                      cached_descriptors, cached_layouts, codebook_digest,
+                                      noisy_dataset_layouts,
                                       dataset_descriptors, descriptor_cache_key,
                                       fit_dataset_codebook, fit_noisy_codebook,
                                       noisy_dataset_descriptors, train_mixture_model,
                                       train_pose_model)
+
+
+def _mirrored_inputs(args, data, settings, codebook, key: str, start: float, log):
+    """(histograms (N, D), layouts (N, grid^2) or None) of the data set's masks flipped left
+    to right, made and cached as the masks' own are (the codebook's digest in the key, so a
+    new codebook never meets old mirrored descriptors)."""
+    flipped = data.masks[:, :, ::-1]
+    mirror_key = f"{key}-mirror-{codebook_digest(codebook, settings)}"
+
+    def compute():
+        log("mirror images: descriptors ...")
+        every = (lambda d, n: log(f"  mirrored descriptors {d}/{n} "
+                                  f"({time.perf_counter() - start:.0f} s)")
+                 if d % 10000 < 500 else None)
+        if args.clean:
+            return dataset_descriptors(flipped, settings, codebook, workers=args.workers,
+                                       progress=every), codebook
+        return noisy_dataset_descriptors(flipped, settings, codebook, seed=args.seed,
+                                         workers=args.workers, progress=every), codebook
+
+    X_mirror, _ = cached_descriptors(args.cache, mirror_key, compute)
+    layouts = None
+    if args.layout_grid:
+        layouts = cached_layouts(
+            args.cache, mirror_key, args.layout_grid,
+            lambda: noisy_dataset_layouts(flipped, args.layout_grid, seed=args.seed,
+                                          workers=args.workers))
+    log(f"  mirror images ready ({time.perf_counter() - start:.0f} s so far)")
+    return X_mirror, layouts
 
 
 def main(argv=None) -> int:
@@ -78,6 +108,10 @@ def main(argv=None) -> int:
                          "(regressor.limb_net; needs scikit-learn: pip install -e '.[train]'); "
                          "0: a second set of expert weights instead; default "
                          f"{MixtureOptions.limb_net_members} with a limb head")
+    ap.add_argument("--limb-net-mirror", choices=("on", "off"), default="on",
+                    help="fit the limb networks on every training silhouette's mirror image "
+                         "too (the masks flipped left to right; their descriptors are cached "
+                         "beside the others); default on")
     ap.add_argument("--side-classifier", choices=("on", "off"), default=None,
                     help="with limbs, also fit the front/back side classifier "
                          "(regressor.side_classifier; needs scikit-learn); the tracker then "
@@ -160,6 +194,9 @@ def main(argv=None) -> int:
                 lambda: noisy_dataset_layouts(data.masks, args.layout_grid, seed=args.seed,
                                               workers=args.workers))
             log(f"  layouts ready ({time.perf_counter() - start:.0f} s so far)")
+        mirrored = None
+        if args.regressor == "mixture" and args.limb_nets and args.limb_net_mirror == "on":
+            mirrored = _mirrored_inputs(args, data, settings, codebook, key, start, log)
         if args.regressor == "rvm":
             options = TrainingOptions(stack_depth=args.stack, n_fit=args.n_fit,
                                       width_scale=args.width_scale, seed=args.seed)
@@ -174,12 +211,14 @@ def main(argv=None) -> int:
                                      limb_head=_limb_head(args),
                                      heading_index_rows=args.heading_index_rows,
                                      limb_net_members=args.limb_nets,
+                                     limb_net_mirror=args.limb_net_mirror == "on",
                                      side_classifier=args.side_classifier == "on",
                                      **({"width_scale": args.width_scale}
                                         if args.width_scale != TrainingOptions.width_scale else {}))
             with threadpool_limits(args.workers):
                 model, report = train_mixture_model(data, X, codebook, settings, options,
-                                                    config.fps, log=log, layouts=layouts)
+                                                    config.fps, log=log, layouts=layouts,
+                                                    mirrored=mirrored)
         report["noise_aware"] = not args.clean
         model.description = {"data": "CMU motion capture (mocap.cs.cmu.edu), rendered",
                              "trials": data.trials, "held_out": list(HELD_OUT_TRIALS),

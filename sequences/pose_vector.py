@@ -329,6 +329,22 @@ def front_back_flip(vectors: np.ndarray) -> np.ndarray:
     return out
 
 
+def image_mirror(vectors: np.ndarray) -> np.ndarray:
+    """The pose of the body seen in the mirror image (the video flipped left to right).
+
+    vectors: (55,) or (T, 55) pose vectors; returns the same shape. The image's left/right
+    mirror is diag(-1, 1, 1) in the camera frame, the depth reflection of front_back_flip
+    turned 180 degrees about the vertical: the flipped pose with its heading h -> -h, i.e.
+    (cos, sin) -> (cos, -sin) (norm kept), left and right joints exchanged. Mirroring twice is
+    the identity exactly; the member facing the camera's half stays so (cos is kept). The
+    training mirrors its silhouettes with it (tracker.offline.training, limb networks).
+    """
+    out = front_back_flip(vectors)
+    out[..., 0] = -out[..., 0]
+    out[..., 1] = -out[..., 1]
+    return out
+
+
 def flip_odd_part(vectors: np.ndarray) -> np.ndarray:
     """The part of pose vectors (55,) or (T, 55) that front_back_flip negates: (v - flip(v))/2,
     angle differences wrapped to (-180, 180] first (degrees; heading entries unitless).

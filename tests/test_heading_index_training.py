@@ -76,7 +76,8 @@ def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
     logged = []
     model, report = train_mixture_model(
         data, X, codebook, settings,
-        replace(_options(), limb_head="facing", limb_net_members=2, limb_net_hidden=(8,)),
+        replace(_options(), limb_head="facing", limb_net_members=2, limb_net_hidden=(8,),
+                limb_net_mirror=False),
         30.0, log=logged.append)
     assert model.limb_head is None and model.limb_net is not None
     assert len(model.limb_net.members) == 2 and model.limb_net.input_length == 6
@@ -99,3 +100,43 @@ def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
                                            limb_net_members=0), 30.0,
                                    log=lambda m: None)
     assert plain.limb_head is not None and plain.limb_net is None
+
+
+def test_limb_networks_also_fit_every_training_rows_mirror_image(monkeypatch):
+    """With limb_net_mirror the networks see each training row and its mirror image: the
+    mirrored masks' inputs, stacked and projected as the row's own, with the canonical member
+    of the mirrored pose (image_mirror); without the mirrored inputs training refuses."""
+    pytest.importorskip("sklearn")
+    import tracker.offline.training as training
+    from sequences.pose_vector import canonical_member, image_mirror
+    data, X, codebook, settings = _dataset()
+    # The synthetic histograms say the heading as (cos, sin): a mirror image says -heading.
+    X_mirror = X.copy()
+    X_mirror[:, 1] = 2.4 - X[:, 1]
+    options = replace(_options(), limb_head="facing", limb_net_members=1, limb_net_hidden=(8,))
+    with pytest.raises(ValueError, match="mirror"):
+        train_mixture_model(data, X, codebook, settings, options, 30.0, log=lambda m: None)
+    seen = {}
+    real_fit = training.fit_limb_net
+
+    def fit(inputs, targets, *args, **kwargs):
+        seen["inputs"], seen["targets"] = inputs, targets
+        return real_fit(inputs, targets, *args, **kwargs)
+    monkeypatch.setattr(training, "fit_limb_net", fit)
+    logged = []
+    model, _ = train_mixture_model(data, X, codebook, settings, options, 30.0,
+                                   log=logged.append, mirrored=(X_mirror, None))
+    train_rows = np.flatnonzero(~validation_mask(data))
+    n = len(train_rows)
+    assert seen["inputs"].shape == (2 * n, 6) and any("mirror images" in m for m in logged)
+    direction = np.eye(55)[0]
+    np.testing.assert_allclose(seen["targets"][:n], canonical_member(data.pose[train_rows],
+                                                                     direction))
+    np.testing.assert_allclose(seen["targets"][n:],
+                               canonical_member(image_mirror(data.pose[train_rows]), direction))
+    stacked = stack_frames(frame_descriptors(X_mirror, model.transform), model.stack_depth,
+                           sequence_ids=data.sequence)[train_rows]
+    np.testing.assert_allclose(seen["inputs"][n:], model._stacked(stacked), atol=1e-9)
+    with pytest.raises(ValueError, match="mirror"):                 # shapes must match
+        train_mixture_model(data, X, codebook, settings, options, 30.0, log=lambda m: None,
+                            mirrored=(X_mirror[:-1], None))

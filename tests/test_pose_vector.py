@@ -7,6 +7,7 @@ import pytest
 from sequences.bvh import Motion, matrices_to_euler, read_bvh, write_bvh
 from sequences.pose_vector import (ANGLE_SLICE, PART_OF_ENTRY, POSE_DIM, PoseVectorError,
                                    angle_mask, forward_kinematics, front_back_flip,
+                                   image_mirror,
                                    heading_deg, heading_norm,
                                    joint_positions, motion_to_pose_vectors,
                                    pose_vector_names, pose_vectors_to_local_rotations,
@@ -269,6 +270,19 @@ def test_flipped_random_pose_is_the_depth_reflection_of_the_body():
         flipped = _camera_frame(joint_positions(front_back_flip(v), offsets,
                                                 camera_azimuth_deg=az), az)
         np.testing.assert_allclose(flipped, cam[:, POSE_SWAP] * [1.0, 1.0, -1.0], atol=1e-9)
+
+
+def test_image_mirror_is_the_left_right_reflection_of_the_body_in_the_image():
+    offsets = _symmetric_offsets(CMU_REST_OFFSETS)
+    v = _random_vectors(20, seed=5)
+    np.testing.assert_array_equal(image_mirror(image_mirror(v)), v)
+    np.testing.assert_allclose(heading_deg(image_mirror(_rest_vector(30.0))), -30.0)
+    np.testing.assert_allclose(heading_norm(image_mirror(v)), heading_norm(v))
+    for az in (0.0, -70.0):
+        cam = _camera_frame(joint_positions(v, offsets, camera_azimuth_deg=az), az)
+        mirrored = _camera_frame(joint_positions(image_mirror(v), offsets,
+                                                 camera_azimuth_deg=az), az)
+        np.testing.assert_allclose(mirrored, cam[:, POSE_SWAP] * [-1.0, 1.0, 1.0], atol=1e-9)
 
 
 def test_cmu_flipped_poses_give_the_same_silhouette_joints_mirrored_in_depth(cmu_bvh_dir):
