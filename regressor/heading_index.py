@@ -123,12 +123,18 @@ class HeadingIndex:
 
     def remember_typical_distance(self, value: float) -> None:
         """Take ``value`` as the default :meth:`typical_distance` (99th percentile over 2,000
-        rows) instead of computing it (0.3 s for the shipped model's index): a model file
-        stores it. ValueError unless it is a positive finite number."""
+        rows) instead of computing it (0.35 s for the shipped model's index): a model file
+        stores it. ValueError unless it is positive, finite and plausible: within a factor 4
+        of the same percentile over 50 rows (a few milliseconds), so that a tampered value
+        cannot call every frame unfamiliar, or none."""
         value = float(value)
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"a heading index's typical distance must be positive and finite, "
                              f"got {value}")
+        rough = self.typical_distance(sample=50)
+        if np.isfinite(rough) and not rough / 4 <= value <= rough * 4:
+            raise ValueError(f"a heading index's typical distance {value:g} is implausible for "
+                             f"its rows (about {rough:.3g})")
         self._typical[(99.0, 2000)] = value
 
     def novelty(self, X: np.ndarray) -> np.ndarray:
@@ -152,8 +158,9 @@ class HeadingIndex:
         # The tracker queries each frame's input twice (apply, then novelty): the second
         # query of the same rows reuses the first's neighbours instead of searching again.
         key = (k, Q.shape, Q.tobytes()) if len(Q) <= _REMEMBERED_ROWS else None
-        if key is not None and self._last is not None and self._last[0] == key:
-            return self._last[1]
+        last = self._last             # read once (the index's rows are never changed)
+        if key is not None and last is not None and last[0] == key:
+            return last[1]
         index, dist2 = np.empty((len(Q), k), dtype=np.int64), np.empty((len(Q), k))
         for start in range(0, len(Q), _QUERY_BLOCK):
             q = Q[start:start + _QUERY_BLOCK]

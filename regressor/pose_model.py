@@ -79,6 +79,7 @@ class PoseModelError(SilhouettePoseError, ValueError):
 #: constant. ``track`` counts such frames per track (the JSON's "unfamiliar_frames").
 UNFAMILIAR_NOVELTY = 1.0
 
+
 @dataclass
 class LimbHead:
     """A mixture's second set of expert weights (module docstring): coef (R, 55) in the

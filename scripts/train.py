@@ -30,10 +30,10 @@ from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
 from tracker.offline.hypothesis_priors import learn_canonical_priors, prior_files
 from tracker.offline.training import (CANONICAL_RULES, MixtureOptions, TrainingOptions,
                                       cached_descriptors, cached_layouts, codebook_digest,
-                                      noisy_dataset_layouts,
                                       dataset_descriptors, descriptor_cache_key,
                                       fit_dataset_codebook, fit_noisy_codebook,
-                                      noisy_dataset_descriptors, train_mixture_model,
+                                      noisy_dataset_descriptors, noisy_dataset_layouts,
+                                      train_mixture_model,
                                       train_pose_model)
 
 
@@ -211,7 +211,8 @@ def main(argv=None) -> int:
                                      limb_head=_limb_head(args),
                                      heading_index_rows=args.heading_index_rows,
                                      limb_net_members=args.limb_nets,
-                                     limb_net_mirror=args.limb_net_mirror == "on",
+                                     limb_net_mirror=bool(args.limb_nets)
+                                     and args.limb_net_mirror == "on",
                                      side_classifier=args.side_classifier == "on",
                                      **({"width_scale": args.width_scale}
                                         if args.width_scale != TrainingOptions.width_scale else {}))

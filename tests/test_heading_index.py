@@ -214,11 +214,12 @@ def test_the_typical_distance_travels_with_the_model_file(tmp_path):
     loaded = load_pose_model(path).heading_index
     fresh = HeadingIndex(loaded.inputs, loaded.folded_deg, loaded.k, loaded.limit_deg)
     assert float(raw["heading_index_typical_distance"]) == fresh.typical_distance()
-    assert loaded._typical == {(99.0, 2000): fresh.typical_distance()}   # stored, not computed
+    assert loaded._typical[(99.0, 2000)] == fresh.typical_distance()   # stored, not computed
     np.testing.assert_allclose(loaded.novelty(x[:10]), fresh.novelty(x[:10]), rtol=1e-12)
     save_model(path, {k: v for k, v in raw.items() if k != "heading_index_typical_distance"})
     older = load_pose_model(path).heading_index
-    assert older._typical == {} and older.typical_distance() == fresh.typical_distance()
+    assert (99.0, 2000) not in older._typical
+    assert older.typical_distance() == fresh.typical_distance()
 
 
 def test_a_tampered_typical_distance_is_refused(tmp_path):
@@ -230,6 +231,8 @@ def test_a_tampered_typical_distance_is_refused(tmp_path):
     for value, match in ((np.float64(-1.0), "positive and finite"),
                          (np.float64(0.0), "positive and finite"),
                          (np.array([1.0, 2.0]), "one number"),
+                         (np.float64(raw["heading_index_typical_distance"]) * 100, "implausible"),
+                         (np.float64(raw["heading_index_typical_distance"]) / 100, "implausible"),
                          (np.int64(3), "one number")):
         save_model(path, {**raw, "heading_index_typical_distance": value})
         with pytest.raises(PoseModelError, match=match):

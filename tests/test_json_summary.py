@@ -94,15 +94,26 @@ def test_summary_records_novelty_and_counts_unfamiliar_frames(tmp_path):
     """novelty per frame (None where unknown: none given, or NaN from a model without a
     heading index); unfamiliar_frames: those above UNFAMILIAR_NOVELTY (1)."""
     path = tmp_path / "summary.json"
-    given = [0.4, 1.0, 1.7, None, float("nan"), 2.5]
+    given = [0.4, 1.0, 1.7, None, float("nan"), 2.5, 1.00003]
     with JsonSummarySink(path, video_fps=25.0) as sink:
         for frame, novelty in enumerate(given):
             sink.write(TrackedPose(frame, frame / 25.0, 0, _pose(0, 1, 0), _pose(0, 1, 0), False,
                                    JOINTS, centroid_px=(1.0, 2.0), novelty=novelty))
-        for bad in (-0.1, float("inf")):
+        for bad in (-0.1, float("inf"), "high", [1.0, 2.0], True, 10 ** 400):
             with pytest.raises(SinkInputError, match="novelty"):
                 sink.write(TrackedPose(9, 0.4, 0, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
                                        centroid_px=(1.0, 2.0), novelty=bad))
+        # a bad runner-up is refused before anything of the row is written
+        for alt, probability in ((np.zeros(3), 0.5), (_pose(0, 1, 0), None)):
+            with pytest.raises(SinkInputError, match="runner_up"):
+                sink.write(TrackedPose(9, 0.4, 0, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
+                                       centroid_px=(1.0, 2.0), runner_up=alt,
+                                       runner_up_probability=probability))
     (track,) = json.loads(path.read_text())["tracks"]
-    assert track["novelty"] == [0.4, 1.0, 1.7, None, None, 2.5]
-    assert track["unfamiliar_frames"] == 2 and track["n_frames"] == 6
+    # rounded when written, counted by the value itself (1.00003 is above 1, as
+    # TrackedPose.unfamiliar says)
+    assert track["novelty"] == [0.4, 1.0, 1.7, None, None, 2.5, 1.0]
+    assert track["unfamiliar_frames"] == 3 and track["n_frames"] == 7
+    assert TrackedPose(0, 0.0, 0, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
+                       novelty=1.00003).unfamiliar
+    assert all(len(track[k]) == 7 for k in ("frames", "time_s", "pose", "novelty"))

@@ -367,8 +367,7 @@ def test_pose_messages_carry_the_novelty_when_known(tmp_path):
     assert "novelty" not in message
 
 
-def test_unfamiliar_frames_are_labelled_on_the_skeleton():
-    """Track 1's novelty in _record is 0.25 x frame: above 1 from frame 5 on."""
+def test_the_label_and_the_unfamiliar_rule():
     from tracker.sinks.geometry import pose_label
     assert [pose_label(3, a, u) for a, u in ((False, False), (True, False), (False, True),
                                              (True, True))] == \
@@ -379,6 +378,7 @@ def test_unfamiliar_frames_are_labelled_on_the_skeleton():
 
 
 def test_skeleton_labels_and_metadata_follow_the_novelty(tmp_path):
+    """Track 1's novelty in _record is 0.25 x frame: above 1 from frame 5 on."""
     path = tmp_path / "run.mcap"
     _record(path, frames=8)
     scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/skeleton"]
@@ -388,3 +388,25 @@ def test_skeleton_labels_and_metadata_follow_the_novelty(tmp_path):
         flags = [n for n, on in (("ambiguous", frame % 3 == 0), ("unfamiliar", unfamiliar)) if on]
         assert entity["texts"][0]["text"] == "track 1" + (f" ({', '.join(flags)})" if flags else "")
         assert {"key": "unfamiliar", "value": str(unfamiliar).lower()} in entity["metadata"]
+
+
+def test_bad_input_is_refused_before_the_recording_changes(tmp_path):
+    """A bad centroid, runner-up probability or novelty raises SinkInputError and writes
+    nothing: the frame that follows is recorded as if the bad pose had never come."""
+    raw = np.r_[1.0, np.zeros(54)]
+    joints = pose_joints_m(raw[None])[0]
+    with McapSink(tmp_path / "bad.mcap") as sink:
+        sink.write(TrackedPose(0, 0.0, 1, raw, raw, False, joints))
+        for bad in ({"centroid_px": (float("nan"), 1.0)}, {"centroid_px": (1.0,)},
+                    {"runner_up": raw, "runner_up_probability": None},
+                    {"runner_up": raw, "runner_up_probability": 1.5},
+                    {"novelty": "high"}):
+            with pytest.raises(SinkInputError):
+                sink.write(TrackedPose(1, 0.1, 2, raw, raw, False, joints, **bad))
+        sink.write(TrackedPose(1, 0.1, 2, raw, raw, False, joints))
+    poses = [json.loads(m.data) for s, c, m in _messages(tmp_path / "bad.mcap")
+             if c.topic == "/pose"]
+    assert [(p["frame_index"], p["track_id"]) for p in poses] == [(0, 1), (1, 2)]
+    scenes = [json.loads(m.data) for s, c, m in _messages(tmp_path / "bad.mcap")
+              if c.topic == "/skeleton"]
+    assert [[e["id"] for e in u["entities"]] for u in scenes] == [["track-1"], ["track-2"]]

@@ -108,8 +108,9 @@ class TrackerSettings:
     novelty: give each pose the estimator's novelty (PoseModel.novelty: how unlike the
     training silhouettes its input is), and count each track's frames above
     UNFAMILIAR_NOVELTY. For the shipped model it reuses the heading index's nearest
-    neighbours of the frame, so it costs little per frame (about 0.3 s once, at the first
-    frame, for the index's own typical distance). An estimator without ``novelty`` gives None.
+    neighbours of the frame, so it costs little per frame; the index's typical distance comes
+    from the model file (an older file's is computed once, about 0.35 s, when the tracker is
+    made). An estimator without ``novelty`` gives None.
     """
 
     max_people: int | None = None

@@ -13,16 +13,16 @@ Conventions:
 from __future__ import annotations
 
 import colorsys
-
 import math
 
 import numpy as np
 
+from regressor.errors import SilhouettePoseError
+from regressor.pose_model import UNFAMILIAR_NOVELTY
 from sequences.pose_vector import joint_positions
 from sequences.skeleton import BONES_FOR_DRAWING, CMU_UNIT_M, POSE_JOINTS
 
 from ..video import focal_length_px
-from regressor.errors import SilhouettePoseError
 
 N_JOINTS = len(POSE_JOINTS)
 
@@ -107,14 +107,29 @@ def pose_label(track_id: int, ambiguous: bool = False, unfamiliar: bool = False)
 
 
 def known_novelty(value) -> float | None:
-    """A pose's novelty (PoseModel.novelty) as the sinks record it: rounded to 4 decimals,
-    None when unknown (None, or NaN from a model without a heading index); SinkInputError
-    when negative or infinite."""
-    if value is None or math.isnan(float(value)):
+    """A pose's novelty (PoseModel.novelty, a unitless ratio) checked: a float >= 0, or None
+    when unknown (None, or NaN from a model without a heading index); SinkInputError for
+    anything else (negative, infinite, not one number). Sinks round it only when writing."""
+    if value is None:
         return None
-    if not (math.isfinite(float(value)) and float(value) >= 0):
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise SinkInputError(f"novelty must be one number, got {value!r}") from None
+    if isinstance(value, (bool, np.bool_)):
+        raise SinkInputError(f"novelty must be one number, got {value!r}")
+    if math.isnan(number):
+        return None
+    if not (math.isfinite(number) and number >= 0):
         raise SinkInputError(f"novelty must be a finite number >= 0, got {value}")
-    return round(float(value), 4)
+    return number
+
+
+def is_unfamiliar(novelty: float | None) -> bool:
+    """Whether a checked novelty (known_novelty) says the silhouette is unlike the training
+    ones: above regressor.pose_model.UNFAMILIAR_NOVELTY (the rule TrackedPose.unfamiliar
+    applies), False when unknown."""
+    return novelty is not None and novelty > UNFAMILIAR_NOVELTY
 
 
 def check_pose(name: str, pose: np.ndarray) -> np.ndarray:

@@ -39,9 +39,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from regressor.pose_model import UNFAMILIAR_NOVELTY
 from tracker.sinks.files import OutputFile, write_beside
-from tracker.sinks.geometry import SinkInputError, check_joints, check_pose, known_novelty
+from tracker.sinks.geometry import (SinkInputError, check_joints, check_pose, is_unfamiliar,
+                                    known_novelty)
 
 if TYPE_CHECKING:
     from ..pipeline import TrackedPose
@@ -49,6 +49,17 @@ if TYPE_CHECKING:
 FORMAT = "silhouette-pose tracking summary"
 VERSION = 1
 _DECIMALS = 6
+
+
+def _finite_number(name: str, value) -> float:
+    """value as a float; SinkInputError naming ``name`` unless it is one finite number."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise SinkInputError(f"{name} must be one finite number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise SinkInputError(f"{name} must be one finite number, got {value!r}")
+    return number
 
 
 def write_json_atomically(path: str | Path, document: dict) -> None:
@@ -77,6 +88,7 @@ class JsonSummarySink:
         self._start: float | None = None
         self._frames: set[int] = set()
         self._tracks: dict[int, dict[str, list]] = {}
+        self._unfamiliar: dict[int, int] = {}     # per track: frames is_unfamiliar says so
         self._closed = False
         self._file = OutputFile(self.path)     # PATH.partial, locked until close()
 
@@ -107,6 +119,17 @@ class JsonSummarySink:
         if centroid.shape != (2,) or not np.all(np.isfinite(centroid)):
             raise SinkInputError(f"centroid_px must be two finite numbers, got {centroid_px!r}")
         novelty = known_novelty(getattr(pose, "novelty", None))
+        time_s = _finite_number("time_s", time_s)
+        runner_up = None
+        if getattr(pose, "runner_up", None) is not None:
+            alt = check_pose("runner_up55", pose.runner_up)
+            probability = _finite_number("runner_up_probability", pose.runner_up_probability)
+            runner_up = {
+                "frame": int(frame_index),
+                "probability": round(probability, _DECIMALS),
+                "heading_deg": round(math.degrees(math.atan2(alt[1], alt[0])), _DECIMALS),
+                "pose": np.round(alt, _DECIMALS).tolist()}
+        # Everything is checked: from here on the row is written whole.
         self.end_frame(frame_index)
         track = self._tracks.setdefault(int(track_id), {
             "frames": [], "time_s": [], "centroid_px": [], "heading_deg": [],
@@ -118,15 +141,12 @@ class JsonSummarySink:
             round(math.degrees(math.atan2(filtered[1], filtered[0])), _DECIMALS))
         track["heading_norm"].append(round(math.hypot(raw[0], raw[1]), _DECIMALS))
         track["ambiguous"].append(bool(ambiguous))
-        track["novelty"].append(novelty)
+        track["novelty"].append(None if novelty is None else round(novelty, 4))
+        self._unfamiliar[int(track_id)] = (self._unfamiliar.get(int(track_id), 0)
+                                           + is_unfamiliar(novelty))
         track["pose"].append(np.round(filtered, _DECIMALS).tolist())
-        if getattr(pose, "runner_up", None) is not None:
-            alt = check_pose("runner_up55", pose.runner_up)
-            track["runner_up"].append({
-                "frame": int(frame_index),
-                "probability": round(float(pose.runner_up_probability), _DECIMALS),
-                "heading_deg": round(math.degrees(math.atan2(alt[1], alt[0])), _DECIMALS),
-                "pose": np.round(alt, _DECIMALS).tolist()})
+        if runner_up is not None:
+            track["runner_up"].append(runner_up)
 
     def summary(self) -> dict:
         """The summary document as it stands (see the module docstring)."""
@@ -142,8 +162,7 @@ class JsonSummarySink:
                 "last_frame": track["frames"][-1], "n_frames": len(track["frames"]),
                 **track,
                 "ambiguous_frames": int(sum(track["ambiguous"])),
-                "unfamiliar_frames": sum(n is not None and n > UNFAMILIAR_NOVELTY
-                                         for n in track["novelty"]),
+                "unfamiliar_frames": self._unfamiliar.get(track_id, 0),
                 "heading_mean_deg": round(mean, _DECIMALS),
             })
         return {"format": FORMAT, "version": VERSION, "frames": frames,

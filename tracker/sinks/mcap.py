@@ -50,6 +50,7 @@ from tracker.sinks.geometry import (
     body_colours,
     check_joints,
     check_pose,
+    is_unfamiliar,
     known_novelty,
     pose_label,
     track_colour,
@@ -453,25 +454,35 @@ class McapSink:
         if frame_index == self._frame and track_id in self._entities:
             raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
         time_ns = int(round(time_s * 1e9))
-        if frame_index != self._frame:
-            self._write_scene()
-            self._frame, self._frame_ns = frame_index, time_ns
         message = {
             "timestamp": _timestamp(time_ns), "frame_index": frame_index,
             "time_s": float(time_s), "track_id": track_id, "ambiguous": bool(ambiguous),
             "raw": _estimate(raw, self._names), "filtered": _estimate(filtered, self._names),
         }
         if centroid_px is not None:
-            message["centroid_px"] = [float(c) for c in centroid_px]
+            centroid = np.asarray(centroid_px, dtype=np.float64)
+            if centroid.shape != (2,) or not np.all(np.isfinite(centroid)):
+                raise SinkInputError(f"centroid_px must be two finite numbers, got "
+                                     f"{centroid_px!r}")
+            message["centroid_px"] = centroid.tolist()
         if novelty is not None:
-            message["novelty"] = novelty
+            message["novelty"] = round(novelty, 4)
         if getattr(pose, "runner_up", None) is not None:
             message["runner_up"] = _estimate(check_pose("runner_up55", pose.runner_up),
                                              self._names)
-            message["runner_up_probability"] = round(float(pose.runner_up_probability), 4)
+            probability = pose.runner_up_probability
+            if not isinstance(probability, (int, float, np.floating)) \
+                    or not 0.0 <= float(probability) <= 1.0:
+                raise SinkInputError(f"runner_up_probability must be a number in [0, 1], got "
+                                     f"{probability!r}")
+            message["runner_up_probability"] = round(float(probability), 4)
+        # Everything is checked: only now does the sink's state change.
+        if frame_index != self._frame:
+            self._write_scene()
+            self._frame, self._frame_ns = frame_index, time_ns
         self._add(self._pose_channel, time_ns, message)
         self._entities[track_id] = skeleton_entity(track_id, time_ns, joints, bool(ambiguous),
-                                                   bool(getattr(pose, "unfamiliar", False)))
+                                                   is_unfamiliar(novelty))
         trail = self._trails.setdefault(track_id, deque())
         trail.append((time_s, joints[0, 0], -joints[0, 2]))     # the root on the Z-up ground
         while trail[0][0] < time_s - TRAIL_S:

@@ -46,6 +46,8 @@ from tracker.sinks.geometry import (
     SinkInputError,
     body_colours,
     check_joints,
+    is_unfamiliar,
+    known_novelty,
     pose_joints_m,
     pose_label,
     track_colour,
@@ -264,13 +266,14 @@ class MeshcatView:
     def write(self, pose: TrackedPose) -> None:
         """Draw track ``pose.track_id`` at pose.joints_m (18, 3) metres (Y up); with
         ``realtime``, not before the pose's video time has passed since the first frame.
-        Raises SinkInputError on bad joints or when closed. If the server process has stopped,
-        warns once (ViewLostWarning) and draws nothing from then on; a frame the server does
-        not answer within 1 s is dropped."""
+        Raises SinkInputError on bad joints or novelty, or when closed. If the server process
+        has stopped, warns once (ViewLostWarning) and draws nothing from then on; a frame the
+        server does not answer within 1 s is dropped."""
         if self._closed:
             raise SinkInputError("meshcat view is closed")
         joints = y_up_to_z_up(check_joints(pose.joints_m))
-        self._send(self._draw, pose, joints)
+        unfamiliar = is_unfamiliar(known_novelty(getattr(pose, "novelty", None)))
+        self._send(self._draw, pose, joints, unfamiliar)
 
     def _send(self, draw, *args) -> None:
         """draw(*args) unless the server is gone; a zmq timeout drops this frame's drawing."""
@@ -290,7 +293,7 @@ class MeshcatView:
                           stacklevel=4)
         return not self._lost
 
-    def _draw(self, pose: TrackedPose, joints: np.ndarray) -> None:
+    def _draw(self, pose: TrackedPose, joints: np.ndarray, unfamiliar: bool) -> None:
         frame_index, track_id = int(pose.frame_index), int(pose.track_id)
         if self._realtime:
             self._wait_until(pose.time_s)
@@ -301,8 +304,7 @@ class MeshcatView:
         node = self._vis["people/tracks"][f"track-{track_id}"]
         self._set_body(node["body"], joints, track_id, 0.5 if pose.ambiguous else 1.0)
         self._draw_label(node["label"], track_id, joints,
-                         pose_label(track_id, bool(pose.ambiguous),
-                                    bool(getattr(pose, "unfamiliar", False))))
+                         pose_label(track_id, bool(pose.ambiguous), unfamiliar))
         self._draw_ghost(node["ghost"], track_id, pose)
         trail = self._trails.setdefault(track_id, deque())
         trail.append((float(pose.time_s), joints[0, 0], joints[0, 1]))
