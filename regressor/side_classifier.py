@@ -17,6 +17,9 @@ epoch (their log loss rises from then on while the accuracy still climbs). But o
 validation renders the front/back chain is tuned on, the three gave 69.4 % against 68.8 %, and
 through the chain (their own priors learned) the filtered / smoothed heading went 32.7 / 26.6
 -> 34.8 / 32.5 degrees and corr8 0.546 -> 0.534 (alpha 0.1 alone: 37.3 / 33.5, 0.521).
+Fitted on the training rows' mirror images too (as the limb networks are; the label does not
+change under a left/right mirror): 79.0 % on the validation rows, but 61.9 % on the 28 renders
+(68.8 % without), and through the chain 38.5 / 34.4 -> 47.8 / 45.9 degrees: not adopted.
 
 A :class:`SideClassifier` is plain arrays (no pickle): ReLU hidden layers and a linear output
 (one logit), inputs standardised by a mean and one scale. Stored under "side_net_" in a
