@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -140,3 +141,38 @@ def test_limb_networks_also_fit_every_training_rows_mirror_image(monkeypatch):
     with pytest.raises(ValueError, match="mirror"):                 # shapes must match
         train_mixture_model(data, X, codebook, settings, options, 30.0, log=lambda m: None,
                             mirrored=(X_mirror[:-1], None))
+
+
+def test_training_caches_are_written_whole_and_a_damaged_one_is_made_again(tmp_path,
+                                                                          monkeypatch):
+    """A cut-off cache file (as an interrupted run used to leave) is reported in a warning and
+    computed again; a run interrupted while writing leaves no file behind."""
+    from regressor.codebook import Codebook
+    from tracker.offline.training import cached_descriptors, cached_layouts
+    calls = []
+
+    def layouts():
+        calls.append(1)
+        return np.full((3, 4), 0.5)
+    (tmp_path / "layouts-k-g2.npz").write_bytes(b"PK\x03\x04 cut off")
+    with pytest.warns(UserWarning, match="unreadable"):
+        np.testing.assert_allclose(cached_layouts(tmp_path, "k", 2, layouts), 0.5)
+    np.testing.assert_allclose(cached_layouts(tmp_path, "k", 2, layouts), 0.5)   # now cached
+    assert len(calls) == 1
+
+    codebook = Codebook(np.ones((2, 3)), 0.5)
+    real_save = np.savez_compressed
+
+    def cut_off(file, **arrays):                # Ctrl-C halfway through the write
+        Path(file).write_bytes(b"PK\x03\x04 half")
+        raise KeyboardInterrupt
+    monkeypatch.setattr(np, "savez_compressed", cut_off)
+    with pytest.raises(KeyboardInterrupt):
+        cached_descriptors(tmp_path, "d", lambda: (np.zeros((3, 2)), codebook))
+    assert not (tmp_path / "descriptors-d.npz").exists()
+    monkeypatch.setattr(np, "savez_compressed", real_save)
+    X, got = cached_descriptors(tmp_path, "d", lambda: (np.arange(6.0).reshape(3, 2), codebook))
+    X2, got2 = cached_descriptors(tmp_path, "d", lambda: 1 / 0)
+    np.testing.assert_array_equal(X2, X)
+    np.testing.assert_array_equal(got2.centres, codebook.centres)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["descriptors-d.npz", "layouts-k-g2.npz"]

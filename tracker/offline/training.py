@@ -10,7 +10,10 @@ from __future__ import annotations
 import hashlib
 import json
 import multiprocessing
+import os
 import time
+import warnings
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -147,13 +150,39 @@ def cached_layouts(cache_dir: str | Path, key: str, grid: int,
                    compute: Callable[[], np.ndarray]) -> np.ndarray:
     """Layouts (N, grid^2) from cache_dir/layouts-KEY-gGRID.npz, or compute() and store them."""
     path = Path(cache_dir) / f"layouts-{key}-g{grid}.npz"
-    if path.is_file():
-        with np.load(path, allow_pickle=False) as z:
-            return z["L"]
+    cached = _load_cache(path, ("L",))
+    if cached is not None:
+        return cached["L"]
     L = compute()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, L=L.astype(np.float32))
+    _save_cache(path, L=L.astype(np.float32))
     return L
+
+
+def _load_cache(path: Path, names: tuple[str, ...]) -> dict | None:
+    """The arrays ``names`` of a cache file, or None when there is none; a file that cannot
+    be read (cut off by an interrupted run before writes became atomic, or damaged) is
+    reported in one warning and computed again."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {name: z[name] for name in names}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        warnings.warn(f"cache file {path} is unreadable ({type(exc).__name__}: {exc}); "
+                      f"computing it again")
+        return None
+
+
+def _save_cache(path: Path, **arrays) -> None:
+    """Write a cache file whole or not at all: beside it first, then renamed over it, so an
+    interrupted run never leaves a cut-off file that later runs would trip over."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(f"{path.stem}.partial-{os.getpid()}.npz")
+    try:
+        np.savez_compressed(partial, **arrays)
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
 
 
 def block_spread(B: np.ndarray) -> float:
@@ -195,12 +224,11 @@ def cached_descriptors(cache_dir: str | Path, key: str, compute: Callable[[], tu
     """(descriptors, codebook centres, codebook sigma) from cache_dir/descriptors-KEY.npz, or
     computed by compute() -> (X, codebook) and stored there."""
     path = Path(cache_dir) / f"descriptors-{key}.npz"
-    if path.is_file():
-        with np.load(path, allow_pickle=False) as z:
-            return z["X"], Codebook(z["centres"], float(z["sigma"]))
+    cached = _load_cache(path, ("X", "centres", "sigma"))
+    if cached is not None:
+        return cached["X"], Codebook(cached["centres"], float(cached["sigma"]))
     X, codebook = compute()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, X=X, centres=codebook.centres, sigma=np.float64(codebook.sigma))
+    _save_cache(path, X=X, centres=codebook.centres, sigma=np.float64(codebook.sigma))
     return X, codebook
 
 
