@@ -559,8 +559,11 @@ def _heading_index_arrays(index: HeadingIndex | None) -> dict:
         return {}
     inputs = np.asarray(index.inputs, dtype=np.float16)
     # novelty's scale, as the index read back from the file (float16 inputs) computes it:
-    # stored, so that loading the model does not take 0.3 s to recompute it
-    typical = HeadingIndex(inputs, index.folded_deg, index.k, index.limit_deg).typical_distance()
+    # stored, so that loading the model does not take 0.35 s to recompute it. An index that
+    # already holds those inputs (a loaded model saved again) knows it.
+    stored = (index if np.array_equal(index.inputs, inputs.astype(np.float32))
+              else HeadingIndex(inputs, index.folded_deg, index.k, index.limit_deg))
+    typical = stored.typical_distance()
     return {"heading_index_inputs": inputs,
             "heading_index_folded_deg": np.asarray(index.folded_deg, dtype=np.float32),
             "heading_index_k": np.int64(index.k),

@@ -37,6 +37,18 @@ from tracker.offline.training import (CANONICAL_RULES, MixtureOptions, TrainingO
                                       train_pose_model)
 
 
+def _describe(args, masks, settings, codebook, start: float, log, what: str):
+    """Descriptors (N, K) of masks (N, H, W) on the codebook: of the clean masks with
+    --clean, else of their video-like versions; progress logged as ``what``."""
+    every = (lambda d, n: log(f"  {what} {d}/{n} ({time.perf_counter() - start:.0f} s)")
+             if d % 10000 < 500 else None)
+    if args.clean:
+        return dataset_descriptors(masks, settings, codebook, workers=args.workers,
+                                   progress=every)
+    return noisy_dataset_descriptors(masks, settings, codebook, seed=args.seed,
+                                     workers=args.workers, progress=every)
+
+
 def _mirrored_inputs(args, data, settings, codebook, key: str, start: float, log):
     """(histograms (N, D), layouts (N, grid^2) or None) of the data set's masks flipped left
     to right, made and cached as the masks' own are (the codebook's digest in the key, so a
@@ -46,14 +58,8 @@ def _mirrored_inputs(args, data, settings, codebook, key: str, start: float, log
 
     def compute():
         log("mirror images: descriptors ...")
-        every = (lambda d, n: log(f"  mirrored descriptors {d}/{n} "
-                                  f"({time.perf_counter() - start:.0f} s)")
-                 if d % 10000 < 500 else None)
-        if args.clean:
-            return dataset_descriptors(flipped, settings, codebook, workers=args.workers,
-                                       progress=every), codebook
-        return noisy_dataset_descriptors(flipped, settings, codebook, seed=args.seed,
-                                         workers=args.workers, progress=every), codebook
+        return (_describe(args, flipped, settings, codebook, start, log, "mirrored descriptors"),
+                codebook)
 
     X_mirror, _ = cached_descriptors(args.cache, mirror_key, compute)
     layouts = None
@@ -168,17 +174,10 @@ def main(argv=None) -> int:
 
         def compute():
             log("codebook and descriptors ...")
-            every = (lambda d, n: log(f"  descriptors {d}/{n} ({time.perf_counter() - start:.0f} s)")
-                     if d % 10000 < 500 else None)
-            if args.clean:
-                codebook = fit_dataset_codebook(data, settings, seed=args.seed)
-                X = dataset_descriptors(data.masks, settings, codebook, workers=args.workers,
-                                        progress=every)
-            else:
-                codebook = fit_noisy_codebook(data, settings, seed=args.seed)
-                X = noisy_dataset_descriptors(data.masks, settings, codebook, seed=args.seed,
-                                              workers=args.workers, progress=every)
-            return X, codebook
+            fit = fit_dataset_codebook if args.clean else fit_noisy_codebook
+            codebook = fit(data, settings, seed=args.seed)
+            return _describe(args, data.masks, settings, codebook, start, log, "descriptors"), \
+                codebook
 
         key = (f"v1-{config.digest()}" if views is None and args.clean else
                descriptor_cache_key(config, views, noisy=not args.clean))

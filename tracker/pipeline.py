@@ -21,14 +21,13 @@ import numpy as np
 
 from regressor.angles import N_ANGLES
 from regressor.edges import SilhouetteError
-from regressor.pose_model import UNFAMILIAR_NOVELTY
 from regressor.stacking import FrameStacker
 from .association import Associator
 from .roll import upright_mask
 from .filtering import PoseKalmanFilter
 from .hypotheses import FrontBackTracker, propose, switch_probability
 from .silhouettes import PersonMask, SilhouetteExtractor
-from .sinks.geometry import ground_position_from_image, pose_joints_m
+from .sinks.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
 from .travel import TravelDirection
 from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 
@@ -245,8 +244,9 @@ class TrackedPose:
     @property
     def unfamiliar(self) -> bool:
         """Whether the frame's silhouette is unlike the training ones (novelty above
-        regressor.pose_model.UNFAMILIAR_NOVELTY; False when unknown)."""
-        return self.novelty is not None and self.novelty > UNFAMILIAR_NOVELTY
+        regressor.pose_model.UNFAMILIAR_NOVELTY; False when unknown): the sinks' rule,
+        tracker.sinks.geometry.is_unfamiliar."""
+        return is_unfamiliar(self.novelty)
 
 
 @dataclass

@@ -305,6 +305,14 @@ def validation_mask(dataset: Dataset) -> np.ndarray:
     return val
 
 
+def _stacked_rows(dataset: Dataset, X: np.ndarray, transform: str, stack_depth: int,
+                  layouts: np.ndarray | None, layout_weight: float) -> np.ndarray:
+    """Every row's stacked descriptor (N, k*D): regressor.pose_model.frame_descriptors of the
+    histograms X (N, K) and layouts (N, grid^2) or None, stacked within each sequence."""
+    return stack_frames(frame_descriptors(X, transform, layouts, layout_weight), stack_depth,
+                        sequence_ids=dataset.sequence)
+
+
 def _training_arrays(dataset: Dataset, X: np.ndarray, transform: str, stack_depth: int,
                      layouts: np.ndarray | None = None, layout_weight: float = 0.0,
                      pose: np.ndarray | None = None):
@@ -314,8 +322,7 @@ def _training_arrays(dataset: Dataset, X: np.ndarray, transform: str, stack_dept
     rows' circular mean angles (53,) deg; regression targets (N, 55)). pose: the target poses
     (N, 55) when not the data set's own (canonical members)."""
     val = validation_mask(dataset)
-    Xs = stack_frames(frame_descriptors(X, transform, layouts, layout_weight), stack_depth,
-                      sequence_ids=dataset.sequence)
+    Xs = _stacked_rows(dataset, X, transform, stack_depth, layouts, layout_weight)
     pose = dataset.pose if pose is None else pose
     centre = angle_centres(pose[~val])
     return val, Xs, centre, regression_targets(pose, centre)
@@ -597,9 +604,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         if mirror:
             # Each training row's mirror image: its masks' descriptors, stacked and projected
             # as the row's own, and the canonical member of its mirrored pose by the same rule.
-            Xs_m = stack_frames(frame_descriptors(mirrored[0], options.transform,
-                                                  mirrored[1] if grid else None, weight),
-                                options.stack_depth, sequence_ids=dataset.sequence)[train_rows]
+            Xs_m = _stacked_rows(dataset, mirrored[0], options.transform, options.stack_depth,
+                                 mirrored[1] if grid else None, weight)[train_rows]
             if projection is not None:
                 Xs_m = (Xs_m - projection_mean) @ projection
             inputs = np.vstack([inputs, Xs_m])

@@ -126,9 +126,9 @@ def known_novelty(value) -> float | None:
 
 
 def is_unfamiliar(novelty: float | None) -> bool:
-    """Whether a checked novelty (known_novelty) says the silhouette is unlike the training
-    ones: above regressor.pose_model.UNFAMILIAR_NOVELTY (the rule TrackedPose.unfamiliar
-    applies), False when unknown."""
+    """Whether a novelty (a checked one, known_novelty, or a pose's own) says the silhouette
+    is unlike the training ones: above regressor.pose_model.UNFAMILIAR_NOVELTY, False when
+    unknown (None or NaN). TrackedPose.unfamiliar is this rule."""
     return novelty is not None and novelty > UNFAMILIAR_NOVELTY
 
 
