@@ -15,8 +15,11 @@ Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 20
   (0.430). (1024, 512) 0.398, L2 1e-2 0.399, the first 100 components 0.39-0.41.
 - Through ``track`` (filtered, mean over the five: corr8, err53; the heading is the
   chain's and does not change): limb head 0.392, 8.68; 2 networks 0.418, 8.37; 3 0.423,
-  8.15; 4 0.430, 8.06. The default model has 4 (9.8 MB; the limb head's weights it replaces
-  took 1.7 MB, each network takes 0.5 MB as float16).
+  8.15; 4 0.430, 8.06. The default model had 4 (9.8 MB; the limb head's weights it replaces
+  took 1.7 MB, each network took 0.5 MB as float16). Since 2026-12-02 it has 8, their weights
+  stored as int8 (0.22 MB each; LimbNet.to_arrays): on the 6 validation trials' own rows
+  (canonical member, corr8 mean over trials) 4 / 6 / 8 networks 0.647 / 0.654 / 0.659, and
+  the figures of tracker.offline.training.MixtureOptions.
 - Richer inputs, tried later that day and not adopted (one network (512, 256) on the training
   rows, correlation of the 8 most-moving angles of the canonical member on the 6 validation
   trials' own rows, mean over trials; one-off drivers): the default input 0.552 / 0.556 (two
@@ -48,8 +51,8 @@ from typing import Callable
 import numpy as np
 
 from .angles import POSE_DIM, regression_targets, wrap_deg
-from .relu_layers import (as_float32_layers, check_parts, forward, standardised,
-                          typical_inputs)
+from .relu_layers import (as_float32_layers, check_parts, dequantised_int8, forward,
+                          quantised_int8, standardised, typical_inputs)
 
 PREFIX = "limb_net_"        # the file parts' names
 MAX_MEMBERS, MAX_LAYERS = 16, 8
@@ -141,9 +144,14 @@ class LimbNet:
         return out
 
     def to_arrays(self, prefix: str = PREFIX) -> dict:
-        """The file parts, keyed by ``prefix``; weights as float16 (half the file space; the
-        poses move by hundredths of a degree: scripts/train.py reports the largest change on
-        its probe rows as limbs_round_trip_max_deg)."""
+        """The file parts, keyed by ``prefix``; each weight matrix as int8 with a float32
+        scale per output column (``S{m}_{i}``; relu_layers.quantised_int8), half of float16's
+        space. Measured on the 4,509 validation rows with the four networks of 2026-12-02:
+        the poses move by 0.13 deg mean, 0.8 deg at the 99th percentile (float16: hundredths
+        of a degree), and the correlation of the 8 most-moving angles is unchanged (0.6471
+        -> 0.6475); scripts/train.py reports the largest change on its probe rows as
+        limbs_round_trip_max_deg. Files written before that hold float16 weights and no
+        scales; from_arrays reads both."""
         out = {f"{prefix}shape": np.array([len(self.members), len(self.members[0])], np.int64),
                f"{prefix}input_mean": self.input_mean,
                f"{prefix}input_scale": np.float64(self.input_scale),
@@ -153,7 +161,7 @@ class LimbNet:
                f"{prefix}canonical_direction": self.canonical_direction}
         for m, layers in enumerate(self.members):
             for i, (W, b) in enumerate(layers):
-                out[f"{prefix}W{m}_{i}"] = W.astype(np.float16)
+                out[f"{prefix}W{m}_{i}"], out[f"{prefix}S{m}_{i}"] = quantised_int8(W)
                 out[f"{prefix}b{m}_{i}"] = b.astype(np.float32)
         return out
 
@@ -173,49 +181,78 @@ class LimbNet:
         names = [f"{prefix}{s}" for s in ("input_mean", "input_scale", "output_mean",
                                           "output_scale", "angle_centre_deg",
                                           "canonical_direction")]
-        layers = [[(f"{prefix}W{m}_{i}", f"{prefix}b{m}_{i}") for i in range(int(shape[1]))]
-                  for m in range(int(shape[0]))]
-        needed = names + [k for member in layers for pair in member for k in pair]
+        layers = [[(f"{prefix}W{m}_{i}", f"{prefix}b{m}_{i}", f"{prefix}S{m}_{i}")
+                   for i in range(int(shape[1]))] for m in range(int(shape[0]))]
+        # int8 weights with per-column scales (to_arrays), or float16 ones (older files)
+        quantised = f"{prefix}S0_0" in a
+        weights = [k for member in layers for k, _, _ in member]
+        needed = names + [k for member in layers for W, b, S in member
+                          for k in ((W, b, S) if quantised else (W, b))]
         scale = check_parts(a, needed, prefix, f"{prefix}shape", "limb network",
-                            "shape does not declare")
-        return cls([[(a[W], a[b]) for W, b in member] for member in layers], a[names[0]],
-                   scale, a[names[2]], a[names[3]], a[names[4]], a[names[5]])
+                            "shape does not declare", integer=tuple(weights) if quantised else ())
+
+        def weight(W: str, S: str) -> np.ndarray:
+            return dequantised_int8(a[W], a[S], f"limb network part {W}") if quantised else a[W]
+
+        return cls([[(weight(W, S), a[b]) for W, b, S in member] for member in layers],
+                   a[names[0]], scale, a[names[2]], a[names[3]], a[names[4]], a[names[5]])
 
 
 def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarray,
                  canonical_direction: np.ndarray, members: int = 3,
                  hidden: tuple[int, ...] = (512, 256), alpha: float = 1e-3,
-                 max_iter: int = 200, seed: int = 0,
+                 max_iter: int = 200, seed: int = 0, workers: int = 1,
                  log: Callable[[str], None] = lambda message: None) -> LimbNet:
     """Fit a :class:`LimbNet` of ``members`` networks (seeds seed, seed + 1, ...) on inputs
     X (N, P) and canonical poses targets (N, 55) (cos, sin, then 53 angles in degrees) with
     scikit-learn's MLPRegressor (Adam, minibatches of 256, L2 alpha, 10 % of the rows held
     out for early stopping after 10 epochs without gain; seeded, so a refit on the same
-    machine gives the same arrays). Needs scikit-learn (training only)."""
+    machine gives the same arrays). workers: members fitted at once, each in its own process
+    on one thread (the networks are small: two one-thread fits finish in about the time one
+    two-thread fit takes); each member is fitted on one thread whatever ``workers`` is, so
+    the arrays do not depend on it. Needs scikit-learn (training only)."""
     if not 1 <= members <= MAX_MEMBERS or not 1 <= len(hidden) + 1 <= MAX_LAYERS:
         raise ValueError(f"a limb network has 1..{MAX_MEMBERS} members and 0..{MAX_LAYERS - 1} "
                          f"hidden layers, got {members} and {len(hidden)}")
-    MLPRegressor, ConvergenceWarning = _sklearn_classes()
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    _sklearn_classes()                                  # the install hint before any work
     X = np.asarray(X, dtype=np.float64)
     centre = np.asarray(angle_centre_deg, dtype=np.float64)
     Y = regression_targets(targets, centre)
     x_mean, x_scale = X.mean(axis=0), float(X.std(axis=0).mean())
     y_mean, y_scale = Y.mean(axis=0), Y.std(axis=0) + 1e-6
     Xz, Yz = (X - x_mean) / x_scale, (Y - y_mean) / y_scale
-    fitted = []
-    for m in range(members):
-        start = time.perf_counter()
-        net = MLPRegressor(hidden_layer_sizes=tuple(hidden), alpha=alpha, batch_size=256,
-                           learning_rate_init=1e-3, max_iter=max_iter, early_stopping=True,
-                           n_iter_no_change=10, random_state=seed + m)
-        with warnings.catch_warnings():      # max_iter reached is reported below, not warned
-            warnings.simplefilter("ignore", ConvergenceWarning)
-            net.fit(Xz, Yz)
-        fitted.append(list(zip(net.coefs_, net.intercepts_)))
-        stopped = "max_iter reached" if net.n_iter_ >= max_iter else "early stop"
-        log(f"  limb network {m + 1}/{members}: {net.n_iter_} epochs ({stopped}), held-out "
-            f"R^2 {net.best_validation_score_:.3f}, {time.perf_counter() - start:.0f} s")
-    return LimbNet(fitted, x_mean, x_scale, y_mean, y_scale, centre, canonical_direction)
+    seeds = [seed + m for m in range(members)]
+    if workers == 1 or members == 1:
+        fitted = [_fit_member(Xz, Yz, tuple(hidden), alpha, max_iter, s) for s in seeds]
+    else:
+        from joblib import Parallel, delayed            # scikit-learn's own dependency
+        fitted = Parallel(n_jobs=min(workers, members))(
+            delayed(_fit_member)(Xz, Yz, tuple(hidden), alpha, max_iter, s) for s in seeds)
+    for m, (_, epochs, score, seconds) in enumerate(fitted):
+        stopped = "max_iter reached" if epochs >= max_iter else "early stop"
+        log(f"  limb network {m + 1}/{members}: {epochs} epochs ({stopped}), held-out "
+            f"R^2 {score:.3f}, {seconds:.0f} s")
+    return LimbNet([layers for layers, *_ in fitted], x_mean, x_scale, y_mean, y_scale,
+                   centre, canonical_direction)
+
+
+def _fit_member(Xz: np.ndarray, Yz: np.ndarray, hidden: tuple[int, ...], alpha: float,
+                max_iter: int, seed: int) -> tuple[list, int, float, float]:
+    """One network on standardised inputs Xz (N, P) and targets Yz (N, 55), on one thread:
+    (its layers [(W, b), ...], epochs run, best held-out R^2, seconds)."""
+    from threadpoolctl import threadpool_limits
+    MLPRegressor, ConvergenceWarning = _sklearn_classes()
+    start = time.perf_counter()
+    net = MLPRegressor(hidden_layer_sizes=hidden, alpha=alpha, batch_size=256,
+                       learning_rate_init=1e-3, max_iter=max_iter, early_stopping=True,
+                       n_iter_no_change=10, random_state=seed)
+    with warnings.catch_warnings(), threadpool_limits(1):
+        warnings.simplefilter("ignore", ConvergenceWarning)  # max_iter reached is logged
+        net.fit(Xz, Yz)
+    return (list(zip(net.coefs_, net.intercepts_)), int(net.n_iter_),
+            float(net.best_validation_score_), time.perf_counter() - start)
 
 
 def _sklearn_classes():

@@ -20,6 +20,32 @@ def as_float32_layers(layers, what: str) -> list[tuple[np.ndarray, np.ndarray]]:
             for W, b in layers]
 
 
+def quantised_int8(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A weight matrix W (n_in, n_out) as int8 values q and one float32 scale per output
+    column (n_out,), W ~ q * scale: a quarter of float32's file space. Each column's scale is
+    its largest |weight| / 127 (1 for an all-zero column), so every column keeps 8 bits of
+    its own range."""
+    W = np.asarray(W, dtype=np.float64)
+    scale = np.abs(W).max(axis=0) / 127.0
+    scale[scale == 0] = 1.0
+    return np.round(W / scale).astype(np.int8), scale.astype(np.float32)
+
+
+def dequantised_int8(q, scale, what: str) -> np.ndarray:
+    """The float32 weights (n_in, n_out) of quantised_int8's parts q (n_in, n_out) int8 and
+    scale (n_out,); ValueError naming ``what`` when q is not int8 or the scales are not
+    positive finite floats, one per column."""
+    q, scale = np.asarray(q), np.asarray(scale)
+    if q.dtype != np.int8 or q.ndim != 2:
+        raise ValueError(f"{what}: quantised weights must be a matrix of int8, not {q.dtype} "
+                         f"{q.shape}")
+    if scale.dtype.kind != "f" or scale.shape != (q.shape[1],) \
+            or not np.all(np.isfinite(scale) & (scale > 0)):
+        raise ValueError(f"{what}: the weights' scales must be {q.shape[1]} positive finite "
+                         f"floats, one per column")
+    return q.astype(np.float32) * scale.astype(np.float32)
+
+
 def standardised(X: np.ndarray, mean: np.ndarray, scale: float) -> np.ndarray:
     """Inputs X (N, P) as a stack takes them: (X - mean) / scale, float32 (N, P)."""
     return ((np.asarray(X, dtype=np.float64) - mean) / scale).astype(np.float32)
@@ -35,11 +61,12 @@ def forward(x: np.ndarray, layers) -> np.ndarray:
 
 
 def check_parts(a, needed: list[str], prefix: str, header: str, what: str,
-                declarer: str) -> float:
+                declarer: str, integer: tuple[str, ...] = ()) -> float:
     """Check a file's parts a (mapping) for ``what`` (e.g. "limb network"): every needed part
     present, no other part under ``prefix`` but ``header`` (the part that declares the
     others, by ``declarer``, e.g. "shape"), every needed part floats, and the
-    ``{prefix}input_scale`` part one number, which is returned. ValueError naming the first
+    ``{prefix}input_scale`` part one number, which is returned. integer: needed parts that
+    hold int8 instead (quantised weights: quantised_int8). ValueError naming the first
     problem."""
     missing = [k for k in needed if k not in a]
     if missing:
@@ -48,8 +75,11 @@ def check_parts(a, needed: list[str], prefix: str, header: str, what: str,
                    if k.startswith(prefix) and k not in needed and k != header)
     if extra:
         raise ValueError(f"{what} has a part its {declarer} ({extra[0]})")
+    for k in integer:
+        if np.asarray(a[k]).dtype != np.int8:
+            raise ValueError(f"{what} part {k} must hold int8, not {np.asarray(a[k]).dtype}")
     for k in needed:
-        if np.asarray(a[k]).dtype.kind != "f":
+        if k not in integer and np.asarray(a[k]).dtype.kind != "f":
             raise ValueError(f"{what} part {k} must hold floats, not {np.asarray(a[k]).dtype}")
     scale = np.asarray(a[f"{prefix}input_scale"])
     if scale.shape != ():

@@ -218,7 +218,7 @@ def main(argv=None) -> int:
             with threadpool_limits(args.workers):
                 model, report = train_mixture_model(data, X, codebook, settings, options,
                                                     config.fps, log=log, layouts=layouts,
-                                                    mirrored=mirrored)
+                                                    mirrored=mirrored, workers=args.workers)
         report["noise_aware"] = not args.clean
         model.description = {"data": "CMU motion capture (mocap.cs.cmu.edu), rendered",
                              "trials": data.trials, "held_out": list(HELD_OUT_TRIALS),

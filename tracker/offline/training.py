@@ -426,6 +426,13 @@ class MixtureOptions:
     experts' weights). 4 networks (512, 256) were chosen on the five validation videos
     through ``track`` (filtered corr8 mean 0.392 with the experts' limb head; 2 / 3 / 4
     networks 0.418 / 0.423 / 0.430) and the 28 validation renders (0.361 -> 0.427 with 4).
+    8 since 2026-12-02 (int8 weights made room in the 10 MB file; regressor.limb_net):
+    corr8 of the canonical member on the 6 validation trials' own rows 1 / 2 / 4 / 6 / 8
+    networks 0.585 (mean of 8 single seeds) / 0.623 / 0.647 / 0.654 / 0.659; through
+    ``track`` on the five validation videos, filtered corr8 mean 0.450 -> 0.480 (all five
+    higher), on the 28 validation renders 0.554 / 0.575 -> 0.560 / 0.630 (filtered /
+    smoothed; heading RMS 38.5 / 34.4 -> 36.3 / 28.7 there, 26.2 -> 38.5 on the videos, where
+    05_02's whole-track front/back decision went the other way: 21 -> 75 deg).
     limb_net_mirror: fit them on every training row's mirror image too (the masks flipped
     left to right, their poses sequences.pose_vector.image_mirror; train_mixture_model's
     ``mirrored``): the training motions are not left/right symmetric (handedness), and a
@@ -468,7 +475,7 @@ class MixtureOptions:
     heading_index_dims: int = 50
     heading_index_k: int = 20
     heading_index_limit_deg: float = 45.0
-    limb_net_members: int = 4
+    limb_net_members: int = 8
     limb_net_hidden: tuple[int, ...] = (512, 256)
     limb_net_alpha: float = 1e-3
     limb_net_mirror: bool = True
@@ -523,14 +530,16 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                         settings: DescriptorSettings, options: MixtureOptions, fps: float,
                         log: Callable[[str], None] = print,
                         layouts: np.ndarray | None = None,
-                        mirrored: tuple[np.ndarray, np.ndarray | None] | None = None
-                        ) -> tuple[PoseModel, dict]:
+                        mirrored: tuple[np.ndarray, np.ndarray | None] | None = None,
+                        workers: int = 1) -> tuple[PoseModel, dict]:
     """Fit the mixture of experts on every training row's stacked descriptor (validation
     trials excluded) and derive the filter's noise models on the validation trials; returns
     the model and a report of validation figures. layouts (N, layout_grid^2): the layouts of
     the masks X describes (noisy_dataset_layouts), needed when options.layout_grid > 0.
     mirrored: (histograms (N, D), layouts (N, layout_grid^2) or None) of the same masks
-    flipped left to right, needed for limb networks with options.limb_net_mirror."""
+    flipped left to right, needed for limb networks with options.limb_net_mirror. workers:
+    limb networks fitted at once (regressor.limb_net.fit_limb_net; the arrays do not depend
+    on it)."""
     from regressor.mixture import MixtureRegressor
     if options.canonical not in CANONICAL_RULES:
         raise ValueError(f"canonical {options.canonical!r} is not one of {CANONICAL_RULES}")
@@ -615,7 +624,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         limb_net = fit_limb_net(inputs, targets_net, head_centre,
                                 head_direction, members=options.limb_net_members,
                                 hidden=options.limb_net_hidden, alpha=options.limb_net_alpha,
-                                seed=options.seed, log=log)
+                                seed=options.seed, workers=workers, log=log)
     elif head_truth is not None:
         coef, intercept = split_expert_outputs(mixture, POSE_DIM)
         limb_head = LimbHead(coef, intercept, head_centre, head_direction)
