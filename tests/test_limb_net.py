@@ -174,8 +174,8 @@ def test_the_tracker_never_imports_scikit_learn():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120)
     assert out.returncode == 0, out.stderr
-    # the default's 4 networks and its side classifier
-    assert out.stdout.split() == ["4", "True", "False"]
+    # the default's 8 networks and its side classifier
+    assert out.stdout.split() == ["8", "True", "False"]
 
 
 def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp_path):
