@@ -20,6 +20,14 @@ Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 20
   stored as int8 (0.22 MB each; LimbNet.to_arrays): on the 6 validation trials' own rows
   (canonical member, corr8 mean over trials) 4 / 6 / 8 networks 0.647 / 0.654 / 0.659, and
   the figures of tracker.offline.training.MixtureOptions.
+- What limits one network (2026-12-02, one network (512, 256) with mirror images, the same
+  measure): the number of distinct motions more than the number of rows. Half of the
+  training rows drawn at random 0.578 (a quarter 0.544, all 0.584); half of the training
+  trials with all their rows (two draws of 43 of 86 trials) 0.558 / 0.561. Fitted longer
+  (no early stopping, every row), it reaches 0.60 by epoch 12 and stays there to epoch 36.
+  Noise on the inputs while fitting (half of each input's spread) 0.595, err53 lower (7.47
+  against 7.70). The walks are followed best (02_02 0.74-0.77, 08_03 0.79-0.82), the punches
+  of 02_05 worst (0.24-0.38): more kinds of motion would help more than more views.
 - Richer inputs, tried later that day and not adopted (one network (512, 256) on the training
   rows, correlation of the 8 most-moving angles of the canonical member on the 6 validation
   trials' own rows, mean over trials; one-off drivers): the default input 0.552 / 0.556 (two
@@ -49,6 +57,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .angles import POSE_DIM, regression_targets, wrap_deg
 from .relu_layers import (as_float32_layers, check_parts, dequantised_int8, forward,
@@ -183,16 +192,20 @@ class LimbNet:
                                           "canonical_direction")]
         layers = [[(f"{prefix}W{m}_{i}", f"{prefix}b{m}_{i}", f"{prefix}S{m}_{i}")
                    for i in range(int(shape[1]))] for m in range(int(shape[0]))]
-        # int8 weights with per-column scales (to_arrays), or float16 ones (older files)
-        quantised = f"{prefix}S0_0" in a
+        # int8 weights with per-column scales (to_arrays), or float16 ones (older files): a
+        # file with any int8 weight or any scale part is the former, and then needs them all
+        quantised = (f"{prefix}W0_0" in a and np.asarray(a[f"{prefix}W0_0"]).dtype == np.int8) \
+            or any(str(k).startswith(f"{prefix}S") for k in a.keys())
         weights = [k for member in layers for k, _, _ in member]
         needed = names + [k for member in layers for W, b, S in member
                           for k in ((W, b, S) if quantised else (W, b))]
         scale = check_parts(a, needed, prefix, f"{prefix}shape", "limb network",
-                            "shape does not declare", integer=tuple(weights) if quantised else ())
+                            "shape does not declare",
+                            int8_parts=tuple(weights) if quantised else ())
 
         def weight(W: str, S: str) -> np.ndarray:
-            return dequantised_int8(a[W], a[S], f"limb network part {W}") if quantised else a[W]
+            return (dequantised_int8(a[W], a[S], f"limb network part {W}") if quantised
+                    else a[W])
 
         return cls([[(weight(W, S), a[b]) for W, b, S in member] for member in layers],
                    a[names[0]], scale, a[names[2]], a[names[3]], a[names[4]], a[names[5]])
@@ -210,7 +223,8 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
     machine gives the same arrays). workers: members fitted at once, each in its own process
     on one thread (the networks are small: two one-thread fits finish in about the time one
     two-thread fit takes); each member is fitted on one thread whatever ``workers`` is, so
-    the arrays do not depend on it. Needs scikit-learn (training only)."""
+    the arrays do not depend on it (so workers=1 fits on one thread too, slower than before
+    on a machine with many cores). Needs scikit-learn and joblib (training only)."""
     if not 1 <= members <= MAX_MEMBERS or not 1 <= len(hidden) + 1 <= MAX_LAYERS:
         raise ValueError(f"a limb network has 1..{MAX_MEMBERS} members and 0..{MAX_LAYERS - 1} "
                          f"hidden layers, got {members} and {len(hidden)}")
@@ -225,24 +239,26 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
     Xz, Yz = (X - x_mean) / x_scale, (Y - y_mean) / y_scale
     seeds = [seed + m for m in range(members)]
     if workers == 1 or members == 1:
-        fitted = [_fit_member(Xz, Yz, tuple(hidden), alpha, max_iter, s) for s in seeds]
+        results = (_fit_member(Xz, Yz, tuple(hidden), alpha, max_iter, s) for s in seeds)
     else:
-        from joblib import Parallel, delayed            # scikit-learn's own dependency
-        fitted = Parallel(n_jobs=min(workers, members))(
+        from joblib import Parallel, delayed
+        # a generator, in seed order: each member is logged as soon as it and those before
+        # it are done (a fit takes minutes)
+        results = Parallel(n_jobs=min(workers, members), return_as="generator")(
             delayed(_fit_member)(Xz, Yz, tuple(hidden), alpha, max_iter, s) for s in seeds)
-    for m, (_, epochs, score, seconds) in enumerate(fitted):
+    fitted = []
+    for m, (layers, epochs, score, seconds) in enumerate(results):
         stopped = "max_iter reached" if epochs >= max_iter else "early stop"
         log(f"  limb network {m + 1}/{members}: {epochs} epochs ({stopped}), held-out "
             f"R^2 {score:.3f}, {seconds:.0f} s")
-    return LimbNet([layers for layers, *_ in fitted], x_mean, x_scale, y_mean, y_scale,
-                   centre, canonical_direction)
+        fitted.append(layers)
+    return LimbNet(fitted, x_mean, x_scale, y_mean, y_scale, centre, canonical_direction)
 
 
 def _fit_member(Xz: np.ndarray, Yz: np.ndarray, hidden: tuple[int, ...], alpha: float,
                 max_iter: int, seed: int) -> tuple[list, int, float, float]:
     """One network on standardised inputs Xz (N, P) and targets Yz (N, 55), on one thread:
     (its layers [(W, b), ...], epochs run, best held-out R^2, seconds)."""
-    from threadpoolctl import threadpool_limits
     MLPRegressor, ConvergenceWarning = _sklearn_classes()
     start = time.perf_counter()
     net = MLPRegressor(hidden_layer_sizes=hidden, alpha=alpha, batch_size=256,

@@ -20,30 +20,45 @@ def as_float32_layers(layers, what: str) -> list[tuple[np.ndarray, np.ndarray]]:
             for W, b in layers]
 
 
+#: Stored scales must be float32 (what quantised_int8 writes), above zero and small enough
+#: that -128 * scale stays finite in float32. (A float32 scale below the smallest normal
+#: number is fine: it holds a column of tiny weights, as precisely as float32 can.)
+_MAX_SCALE = _FLOAT32_MAX / 128.0
+
+
 def quantised_int8(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A weight matrix W (n_in, n_out) as int8 values q and one float32 scale per output
-    column (n_out,), W ~ q * scale: a quarter of float32's file space. Each column's scale is
-    its largest |weight| / 127 (1 for an all-zero column), so every column keeps 8 bits of
-    its own range."""
+    """A weight matrix W (n_in, n_out) of finite floats as int8 values q in -127..127 and one
+    float32 scale per output column (n_out,), W ~ q * scale: a quarter of float32's file
+    space. Each column's scale is its largest |weight| / 127 in float32 (1 for a column that
+    is zero in float32, stored as zeros), so every column keeps 8 bits of its own range;
+    ValueError for anything but a matrix of finite floats."""
     W = np.asarray(W, dtype=np.float64)
-    scale = np.abs(W).max(axis=0) / 127.0
-    scale[scale == 0] = 1.0
-    return np.round(W / scale).astype(np.int8), scale.astype(np.float32)
+    if W.ndim != 2 or not np.isfinite(W).all():
+        raise ValueError(f"quantised weights come from a matrix of finite floats, got shape "
+                         f"{W.shape}")
+    scale = (np.abs(W).max(axis=0) / 127.0).astype(np.float32)
+    scale[scale == 0] = 1.0             # an all-zero column (or one float32 cannot hold): q is 0
+    q = np.clip(np.round(W / scale.astype(np.float64)), -127, 127)
+    return q.astype(np.int8), scale
 
 
 def dequantised_int8(q, scale, what: str) -> np.ndarray:
     """The float32 weights (n_in, n_out) of quantised_int8's parts q (n_in, n_out) int8 and
-    scale (n_out,); ValueError naming ``what`` when q is not int8 or the scales are not
-    positive finite floats, one per column."""
+    scale (n_out,) float32; ValueError naming ``what`` when q is not a matrix of int8 or the
+    scales are not one float32 per column in (0, _MAX_SCALE]. (A stored -128, which
+    quantised_int8 never writes, is read as it is.)"""
     q, scale = np.asarray(q), np.asarray(scale)
-    if q.dtype != np.int8 or q.ndim != 2:
-        raise ValueError(f"{what}: quantised weights must be a matrix of int8, not {q.dtype} "
-                         f"{q.shape}")
-    if scale.dtype.kind != "f" or scale.shape != (q.shape[1],) \
-            or not np.all(np.isfinite(scale) & (scale > 0)):
-        raise ValueError(f"{what}: the weights' scales must be {q.shape[1]} positive finite "
-                         f"floats, one per column")
-    return q.astype(np.float32) * scale.astype(np.float32)
+    if q.dtype != np.int8:
+        raise ValueError(f"{what}: quantised weights must hold int8, not {q.dtype}")
+    if q.ndim != 2:
+        raise ValueError(f"{what}: quantised weights must be 2-D, got shape {q.shape}")
+    if scale.dtype != np.float32 or scale.shape != (q.shape[1],):
+        raise ValueError(f"{what}'s scales must be {q.shape[1]} float32 values, one per "
+                         f"column, got {scale.dtype} {scale.shape}")
+    if not np.all((scale > 0) & (scale <= _MAX_SCALE)):
+        raise ValueError(f"{what}'s scales must be positive finite floats up to "
+                         f"{_MAX_SCALE:.3g}")
+    return q.astype(np.float32) * scale
 
 
 def standardised(X: np.ndarray, mean: np.ndarray, scale: float) -> np.ndarray:
@@ -61,11 +76,11 @@ def forward(x: np.ndarray, layers) -> np.ndarray:
 
 
 def check_parts(a, needed: list[str], prefix: str, header: str, what: str,
-                declarer: str, integer: tuple[str, ...] = ()) -> float:
+                declarer: str, int8_parts: tuple[str, ...] = ()) -> float:
     """Check a file's parts a (mapping) for ``what`` (e.g. "limb network"): every needed part
     present, no other part under ``prefix`` but ``header`` (the part that declares the
     others, by ``declarer``, e.g. "shape"), every needed part floats, and the
-    ``{prefix}input_scale`` part one number, which is returned. integer: needed parts that
+    ``{prefix}input_scale`` part one number, which is returned. int8_parts: needed parts that
     hold int8 instead (quantised weights: quantised_int8). ValueError naming the first
     problem."""
     missing = [k for k in needed if k not in a]
@@ -75,11 +90,11 @@ def check_parts(a, needed: list[str], prefix: str, header: str, what: str,
                    if k.startswith(prefix) and k not in needed and k != header)
     if extra:
         raise ValueError(f"{what} has a part its {declarer} ({extra[0]})")
-    for k in integer:
+    for k in int8_parts:
         if np.asarray(a[k]).dtype != np.int8:
             raise ValueError(f"{what} part {k} must hold int8, not {np.asarray(a[k]).dtype}")
     for k in needed:
-        if k not in integer and np.asarray(a[k]).dtype.kind != "f":
+        if k not in int8_parts and np.asarray(a[k]).dtype.kind != "f":
             raise ValueError(f"{what} part {k} must hold floats, not {np.asarray(a[k]).dtype}")
     scale = np.asarray(a[f"{prefix}input_scale"])
     if scale.shape != ():

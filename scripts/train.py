@@ -86,7 +86,9 @@ def main(argv=None) -> int:
                          "(1..--max-views); 0: --views for every trial")
     ap.add_argument("--max-views", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=2,
+                    help="processes for rendering and descriptors, threads for the mixture, "
+                         "and limb networks fitted at once (default 2)")
     ap.add_argument("--regressor", choices=("mixture", "rvm"), default="mixture",
                     help="mixture of kernel experts (default) or the single RVM baseline")
     ap.add_argument("--clean", action="store_true",
@@ -155,6 +157,8 @@ def main(argv=None) -> int:
                 prior_files(args.bvh_dir)
         except ValueError as exc:
             ap.error(str(exc))
+    if not 1 <= args.workers <= 64:
+        ap.error(f"--workers must be in 1..64, got {args.workers}")
     if args.heading_index_rows < 0:
         ap.error(f"--heading-index-rows must be >= 0, got {args.heading_index_rows}")
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731

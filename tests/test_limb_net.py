@@ -123,10 +123,40 @@ def test_files_with_float16_weights_still_load_and_are_checked():
                            "float32 range"),
                           ({"limb_net_W0_0": parts["limb_net_W0_0"] > 0}, "must hold floats"),
                           ({"limb_net_W0_1": np.zeros((32, 16), np.int8)}, "must hold floats"),
-                          ({"limb_net_S0_1": np.ones(16, np.float32)}, "does not declare")):
+                          ({"limb_net_S0_1": np.ones(16, np.float32)}, "incomplete"),
+                          ({"limb_net_W0_0": np.zeros((6, 32), np.int8)}, "incomplete")):
         bad = {**parts, **broken}
         with pytest.raises(ValueError, match=match):
             LimbNet.from_arrays(bad)
+
+
+def test_scales_that_float32_cannot_hold_are_refused_without_warnings():
+    import warnings
+    net, _, _ = _fitted()
+    parts = net.to_arrays()
+    for broken, match in (({"limb_net_S0_0": parts["limb_net_S0_0"].astype(np.float64) * 1e-300},
+                           "float32 values"),
+                          ({"limb_net_S0_0": np.full_like(parts["limb_net_S0_0"], 3e38)},
+                           "up to"),
+                          ({"limb_net_S0_0": parts["limb_net_S0_0"] * 0}, "positive"),
+                          ({"limb_net_W0_0": parts["limb_net_W0_0"][0]}, "2-D")):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")                  # no overflow on the way
+            with pytest.raises(ValueError, match=match):
+                LimbNet.from_arrays({**parts, **broken})
+
+
+def test_a_column_of_tiny_weights_is_written_so_that_it_loads():
+    from regressor.relu_layers import dequantised_int8, quantised_int8
+    W = np.array([[1e-44, 0.5, 0.0], [-2e-44, 0.25, 0.0]])
+    q, scale = quantised_int8(W)
+    back = dequantised_int8(q, scale, "w")                  # refused before: a zero scale
+    np.testing.assert_allclose(back[:, 1], W[:, 1], rtol=0.01)
+    assert np.all(np.abs(back[:, 0]) < 1e-40) and np.all(back[:, 2] == 0)
+    with pytest.raises(ValueError, match="finite"):
+        quantised_int8(np.array([[np.nan, 1.0]]))
+    with pytest.raises(ValueError, match="matrix"):
+        quantised_int8(np.ones(3))
 
 
 def test_int8_weights_keep_each_columns_range():

@@ -26,7 +26,8 @@ from regressor.heading_index import build_heading_index
 from regressor.descriptor import (DescriptorSettings, descriptors_for_masks,
                                   fit_codebook_for_masks)
 from regressor.layout import layouts_for_masks
-from regressor.limb_net import MAX_MEMBERS, fit_limb_net, require_training_dependencies
+from regressor.limb_net import (MAX_MEMBERS, LimbNet, fit_limb_net,
+                               require_training_dependencies)
 from regressor.side_classifier import facing_camera, fit_side_classifier
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
                                   frame_descriptors, transform_descriptors)
@@ -428,11 +429,13 @@ class MixtureOptions:
     networks 0.418 / 0.423 / 0.430) and the 28 validation renders (0.361 -> 0.427 with 4).
     8 since 2026-12-02 (int8 weights made room in the 10 MB file; regressor.limb_net):
     corr8 of the canonical member on the 6 validation trials' own rows 1 / 2 / 4 / 6 / 8
-    networks 0.585 (mean of 8 single seeds) / 0.623 / 0.647 / 0.654 / 0.659; through
-    ``track`` on the five validation videos, filtered corr8 mean 0.450 -> 0.480 (all five
-    higher), on the 28 validation renders 0.554 / 0.575 -> 0.560 / 0.630 (filtered /
-    smoothed; heading RMS 38.5 / 34.4 -> 36.3 / 28.7 there, 26.2 -> 38.5 on the videos, where
-    05_02's whole-track front/back decision went the other way: 21 -> 75 deg).
+    networks 0.585 (mean of 8 single seeds) / 0.623 / 0.647 / 0.654 / 0.659; the shipped
+    model retrained with 8, through ``track`` on the five validation videos: filtered corr8
+    mean 0.450 -> 0.481 (all five higher); on the 28 validation renders 0.554 / 0.575 ->
+    0.561 / 0.630 (filtered / smoothed), heading RMS 38.5 / 34.4 -> 36.4 / 28.5 there and
+    26.2 -> 36.8 on the videos, where 05_02's whole-track front/back decision went the other
+    way (21 -> 74 deg). The joints' R scaled by 0.25 / 0.5 / 1 / 2 with the 8 (28 renders):
+    corr8 0.548 / 0.556 / 0.561 / 0.557, so unchanged.
     limb_net_mirror: fit them on every training row's mirror image too (the masks flipped
     left to right, their poses sequences.pose_vector.image_mirror; train_mixture_model's
     ``mirrored``): the training motions are not left/right symmetric (handedness), and a
@@ -625,6 +628,9 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                                 head_direction, members=options.limb_net_members,
                                 hidden=options.limb_net_hidden, alpha=options.limb_net_alpha,
                                 seed=options.seed, workers=workers, log=log)
+        # As the file will hold it (int8 weights): the report and the front/back priors
+        # learned from this model then measure the networks that are shipped.
+        limb_net = LimbNet.from_arrays(limb_net.to_arrays())
     elif head_truth is not None:
         coef, intercept = split_expert_outputs(mixture, POSE_DIM)
         limb_head = LimbHead(coef, intercept, head_centre, head_direction)
