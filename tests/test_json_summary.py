@@ -104,7 +104,10 @@ def test_summary_records_novelty_and_counts_unfamiliar_frames(tmp_path):
                 sink.write(TrackedPose(9, 0.4, 0, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
                                        centroid_px=(1.0, 2.0), novelty=bad))
         # a bad runner-up is refused before anything of the row is written
-        for alt, probability in ((np.zeros(3), 0.5), (_pose(0, 1, 0), None)):
+        for alt, probability in ((np.zeros(3), 0.5), (_pose(0, 1, 0), None),
+                                 (_pose(0, 1, 0), 1.5), (_pose(0, 1, 0), -0.1),
+                                 (_pose(0, 1, 0), "0.5"), (_pose(0, 1, 0), True),
+                                 (_pose(0, 1, 0), float("nan"))):
             with pytest.raises(SinkInputError, match="runner_up"):
                 sink.write(TrackedPose(9, 0.4, 0, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
                                        centroid_px=(1.0, 2.0), runner_up=alt,
@@ -117,3 +120,25 @@ def test_summary_records_novelty_and_counts_unfamiliar_frames(tmp_path):
     assert TrackedPose(0, 0.0, 0, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
                        novelty=1.00003).unfamiliar
     assert all(len(track[k]) == 7 for k in ("frames", "time_s", "pose", "novelty"))
+
+
+def test_both_sinks_take_and_refuse_the_same_runner_up_probabilities(tmp_path):
+    """The JSON summary and the MCAP recording check a runner-up's probability by one rule
+    (tracker.sinks.geometry.checked_probability): a number in [0, 1]."""
+    from tracker.sinks.mcap import McapSink
+    alt = _pose(0, 1, 0)
+    for k, probability in enumerate((0.0, 0.5, 1, np.float32(0.25), 1.5, -0.1, "0.5", True,
+                                     float("nan"), None)):
+        verdicts = []
+        for sink in (JsonSummarySink(tmp_path / f"s{k}.json", video_fps=25.0),
+                     McapSink(tmp_path / f"s{k}.mcap")):
+            with sink:
+                try:
+                    sink.write(TrackedPose(0, 0.0, 0, alt, alt, False, JOINTS,
+                                           centroid_px=(1.0, 2.0), runner_up=alt,
+                                           runner_up_probability=probability))
+                    verdicts.append(True)
+                except SinkInputError:
+                    verdicts.append(False)
+        assert verdicts[0] == verdicts[1], probability
+        assert verdicts[0] == (k < 4), probability

@@ -400,6 +400,8 @@ def test_bad_input_is_refused_before_the_recording_changes(tmp_path):
         for bad in ({"centroid_px": (float("nan"), 1.0)}, {"centroid_px": (1.0,)},
                     {"runner_up": raw, "runner_up_probability": None},
                     {"runner_up": raw, "runner_up_probability": 1.5},
+                    {"runner_up": raw, "runner_up_probability": "0.5"},
+                    {"runner_up": raw, "runner_up_probability": float("nan")},
                     {"novelty": "high"}):
             with pytest.raises(SinkInputError):
                 sink.write(TrackedPose(1, 0.1, 2, raw, raw, False, joints, **bad))

@@ -125,6 +125,17 @@ def known_novelty(value) -> float | None:
     return number
 
 
+def checked_probability(name: str, value) -> float:
+    """A probability called ``name`` (e.g. a runner-up hypothesis's) as a float in [0, 1];
+    SinkInputError naming it for anything else (outside [0, 1], NaN, a bool, a string, not
+    one number), so every sink accepts and refuses the same values."""
+    if isinstance(value, (bool, np.bool_)) \
+            or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= float(value) <= 1.0:
+        raise SinkInputError(f"{name} must be a number in [0, 1], got {value!r}")
+    return float(value)
+
+
 def is_unfamiliar(novelty: float | None) -> bool:
     """Whether a novelty (a checked one, known_novelty, or a pose's own) says the silhouette
     is unlike the training ones: above regressor.pose_model.UNFAMILIAR_NOVELTY, False when

@@ -40,8 +40,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from tracker.sinks.files import OutputFile, write_beside
-from tracker.sinks.geometry import (SinkInputError, check_joints, check_pose, is_unfamiliar,
-                                    known_novelty)
+from tracker.sinks.geometry import (SinkInputError, check_joints, check_pose,
+                                    checked_probability, is_unfamiliar, known_novelty)
 
 if TYPE_CHECKING:
     from ..pipeline import TrackedPose
@@ -123,7 +123,8 @@ class JsonSummarySink:
         runner_up = None
         if getattr(pose, "runner_up", None) is not None:
             alt = check_pose("runner_up55", pose.runner_up)
-            probability = _finite_number("runner_up_probability", pose.runner_up_probability)
+            probability = checked_probability("runner_up_probability",
+                                              pose.runner_up_probability)
             runner_up = {
                 "frame": int(frame_index),
                 "probability": round(probability, _DECIMALS),

@@ -48,6 +48,7 @@ from tracker.sinks.geometry import (
     JOINT_SIDE,
     SinkInputError,
     body_colours,
+    checked_probability,
     check_joints,
     check_pose,
     is_unfamiliar,
@@ -470,12 +471,8 @@ class McapSink:
         if getattr(pose, "runner_up", None) is not None:
             message["runner_up"] = _estimate(check_pose("runner_up55", pose.runner_up),
                                              self._names)
-            probability = pose.runner_up_probability
-            if not isinstance(probability, (int, float, np.floating)) \
-                    or not 0.0 <= float(probability) <= 1.0:
-                raise SinkInputError(f"runner_up_probability must be a number in [0, 1], got "
-                                     f"{probability!r}")
-            message["runner_up_probability"] = round(float(probability), 4)
+            message["runner_up_probability"] = round(checked_probability(
+                "runner_up_probability", pose.runner_up_probability), 4)
         # Everything is checked: only now does the sink's state change.
         if frame_index != self._frame:
             self._write_scene()
