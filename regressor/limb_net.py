@@ -61,7 +61,8 @@ from threadpoolctl import threadpool_limits
 
 from .angles import POSE_DIM, regression_targets, wrap_deg
 from .relu_layers import (as_float32_layers, check_parts, dequantised_int8, forward,
-                          quantised_int8, standardised, typical_inputs)
+                          forward_mean, quantised_int8, stacked_members, standardised,
+                          typical_inputs)
 
 PREFIX = "limb_net_"        # the file parts' names
 MAX_MEMBERS, MAX_LAYERS = 16, 8
@@ -92,9 +93,13 @@ class LimbNet:
         self.output_scale = np.asarray(self.output_scale, dtype=np.float64)
         self.angle_centre_deg = np.asarray(self.angle_centre_deg, dtype=np.float64)
         self.canonical_direction = np.asarray(self.canonical_direction, dtype=np.float64)
+        self._stacked = None
         problem = self._problem()
         if problem:
             raise ValueError(f"invalid limb network: {problem}")
+        # checked: the members as one batched stack for predict (members are not changed
+        # after this)
+        self._stacked = stacked_members(self.members)
 
     def _problem(self) -> str | None:
         """The first inconsistency of the parts, or None."""
@@ -145,10 +150,12 @@ class LimbNet:
         """Canonical poses (N, 55) from the regressor's inputs X (N, P): (cos, sin) of the
         heading, then the 53 body angles in degrees wrapped to (-180, 180]."""
         x = standardised(X, self.input_mean, self.input_scale)
-        total = np.zeros((len(x), POSE_DIM), dtype=np.float64)
-        for layers in self.members:
-            total += forward(x, layers)
-        out = total / len(self.members) * self.output_scale + self.output_mean
+        if self._stacked is not None:
+            mean = forward_mean(x, self._stacked).astype(np.float64)
+        else:
+            mean = np.mean([forward(x, layers) for layers in self.members], axis=0,
+                           dtype=np.float64)
+        out = mean * self.output_scale + self.output_mean
         out[:, 2:] = wrap_deg(out[:, 2:] + self.angle_centre_deg)
         return out
 

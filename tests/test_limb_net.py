@@ -57,6 +57,26 @@ def test_the_ensemble_is_the_mean_of_its_members_and_a_refit_is_identical():
             np.testing.assert_array_equal(bias, bias2)
 
 
+def test_members_of_different_widths_are_averaged_one_by_one():
+    """Same-shaped members run as one batched stack (relu_layers.stacked_members); members
+    of different widths cannot, and give the same mean one by one."""
+    a, X, _ = _fitted(members=1)
+    X2, Y2 = _synthetic(seed=4)
+    b = fit_limb_net(X2, Y2, np.full(53, 170.0), np.eye(55)[0], members=1, hidden=(24, 16),
+                     max_iter=30)
+    mixed = LimbNet([a.members[0], b.members[0]], a.input_mean, a.input_scale, a.output_mean,
+                    a.output_scale, a.angle_centre_deg, a.canonical_direction)
+    same = LimbNet([a.members[0], a.members[0]], a.input_mean, a.input_scale, a.output_mean,
+                   a.output_scale, a.angle_centre_deg, a.canonical_direction)
+    assert mixed._stacked is None and same._stacked is not None
+    parts = [LimbNet([m], a.input_mean, a.input_scale, a.output_mean, a.output_scale,
+                     a.angle_centre_deg, a.canonical_direction) for m in mixed.members]
+    off = [wrap_deg(p.predict(X[:50])[:, 2:] - 170.0) for p in parts]
+    np.testing.assert_allclose(wrap_deg(mixed.predict(X[:50])[:, 2:] - 170.0),
+                               (off[0] + off[1]) / 2, atol=1e-4)
+    np.testing.assert_allclose(same.predict(X[:50]), parts[0].predict(X[:50]), atol=1e-4)
+
+
 def test_members_fitted_in_parallel_are_the_ones_fitted_one_after_another():
     one, _, _ = _fitted(members=2)
     two, _, _ = _fitted(members=2, workers=2)
