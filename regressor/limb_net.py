@@ -97,8 +97,8 @@ class LimbNet:
         problem = self._problem()
         if problem:
             raise ValueError(f"invalid limb network: {problem}")
-        # checked: the members as one batched stack for predict (members are not changed
-        # after this)
+        # checked: the members as one batched stack for predict on one row (a copy of the
+        # weights, 7.9 MB for the default's eight; members are not changed after this)
         self._stacked = stacked_members(self.members)
 
     def _problem(self) -> str | None:
@@ -150,8 +150,11 @@ class LimbNet:
         """Canonical poses (N, 55) from the regressor's inputs X (N, P): (cos, sin) of the
         heading, then the 53 body angles in degrees wrapped to (-180, 180]."""
         x = standardised(X, self.input_mean, self.input_scale)
-        if self._stacked is not None:
-            mean = forward_mean(x, self._stacked).astype(np.float64)
+        # batched for the tracker's one row per person; for many rows (offline evaluation,
+        # training) one by one is faster and holds less (the first layers of all members
+        # at once would be N x 4096 values)
+        if self._stacked is not None and len(x) == 1:
+            mean = forward_mean(x, self._stacked)
         else:
             mean = np.mean([forward(x, layers) for layers in self.members], axis=0,
                            dtype=np.float64)
@@ -165,8 +168,8 @@ class LimbNet:
         space. Measured on the 4,509 validation rows with the four networks of 2026-12-02:
         the poses move by 0.13 deg mean, 0.8 deg at the 99th percentile (float16: hundredths
         of a degree), and the correlation of the 8 most-moving angles is unchanged (0.6471
-        -> 0.6475); scripts/train.py reports the largest change on its probe rows as
-        limbs_round_trip_max_deg. Files written before that hold float16 weights and no
+        -> 0.6475); training reports the largest change on the validation rows as
+        limb_net_int8_max_deg (tracker.offline.training.train_mixture_model). Files written before that hold float16 weights and no
         scales; from_arrays reads both."""
         out = {f"{prefix}shape": np.array([len(self.members), len(self.members[0])], np.int64),
                f"{prefix}input_mean": self.input_mean,
@@ -295,6 +298,14 @@ def _sklearn_classes():
 
 
 def require_training_dependencies() -> None:
-    """Raise the ValueError of :func:`_sklearn_classes` now when scikit-learn is missing, so
-    training stops before its slow steps rather than after them."""
+    """Raise the ValueError of :func:`_sklearn_classes` now when scikit-learn is missing, or
+    one with the same hint when joblib cannot hand back results as they finish (1.3 or
+    later; fit_limb_net's workers), so training stops before its slow steps rather than
+    after them."""
     _sklearn_classes()
+    import inspect
+
+    from joblib import Parallel                         # scikit-learn's own dependency
+    if "return_as" not in inspect.signature(Parallel).parameters:
+        raise ValueError("fitting limb networks needs joblib 1.3 or later: "
+                         "pip install -e '.[train]'")

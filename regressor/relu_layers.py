@@ -83,7 +83,7 @@ def stacked_members(members) -> list | None:
     (forward_mean) then costs a few numpy calls instead of M times as many: for 8 networks
     (200 -> 512 -> 256 -> 55) on one row 0.25 instead of 0.38 ms here, the weights being
     read once either way."""
-    shapes = {tuple(W.shape for W, _ in layers) for layers in members}
+    shapes = {tuple((W.shape, b.shape) for W, b in layers) for layers in members}
     if len(shapes) != 1 or len(members[0]) < 2:
         return None
     first = (np.concatenate([layers[0][0] for layers in members], axis=1),
@@ -97,15 +97,16 @@ def stacked_members(members) -> list | None:
 def forward_mean(x: np.ndarray, stacked: list) -> np.ndarray:
     """The mean over members of their outputs (N, n_out) for inputs x (N, n_in) (already
     standardised), from stacked_members' arrays: what averaging forward() over the members
-    gives, up to float32 rounding."""
+    gives, up to float32 rounding; float64 (N, n_out)."""
     (W, b), later = stacked[0], stacked[1:]
     members = len(later[0][0])
-    h = np.maximum(x @ W + b, 0.0).reshape(len(x), members, -1).transpose(1, 0, 2)
+    h = np.maximum(x @ W + b, 0.0).reshape(len(x), members, W.shape[1] // members)
+    h = h.transpose(1, 0, 2)
     for i, (W, b) in enumerate(later):
         h = np.matmul(h, W) + b                         # (M, N, n_o)
         if i < len(later) - 1:
             h = np.maximum(h, 0.0)
-    return h.mean(axis=0)
+    return h.mean(axis=0, dtype=np.float64)
 
 
 def check_parts(a, needed: list[str], prefix: str, header: str, what: str,

@@ -84,6 +84,14 @@ def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
     assert len(model.limb_net.members) == 2 and model.limb_net.input_length == 6
     assert sum(m.startswith("  limb network ") for m in logged) == 2     # a line per network
     assert "validation_limb_head_at_true_heading" in report
+    # the networks as the file holds them (int8): what that changed is reported, and a
+    # file round trip changes nothing more
+    assert 0 <= report["limb_net_int8_max_deg"] < 5
+    from regressor.limb_net import LimbNet
+    again = LimbNet.from_arrays(model.limb_net.to_arrays())
+    for a, b in zip(model.limb_net.members, again.members):
+        for (W, _), (W2, _) in zip(a, b):
+            np.testing.assert_array_equal(W, W2)
     # Its outputs are canonical members: headings facing the camera's half, as its targets.
     val = validation_mask(data)
     Xs = stack_frames(frame_descriptors(X, model.transform), model.stack_depth,

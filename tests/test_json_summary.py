@@ -128,7 +128,7 @@ def test_both_sinks_take_and_refuse_the_same_runner_up_probabilities(tmp_path):
     from tracker.sinks.mcap import McapSink
     alt = _pose(0, 1, 0)
     for k, probability in enumerate((0.0, 0.5, 1, np.float32(0.25), 1.5, -0.1, "0.5", True,
-                                     float("nan"), None)):
+                                     float("nan"), None, 10 ** 400)):
         verdicts = []
         for sink in (JsonSummarySink(tmp_path / f"s{k}.json", video_fps=25.0),
                      McapSink(tmp_path / f"s{k}.mcap")):

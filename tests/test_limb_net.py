@@ -75,6 +75,10 @@ def test_members_of_different_widths_are_averaged_one_by_one():
     np.testing.assert_allclose(wrap_deg(mixed.predict(X[:50])[:, 2:] - 170.0),
                                (off[0] + off[1]) / 2, atol=1e-4)
     np.testing.assert_allclose(same.predict(X[:50]), parts[0].predict(X[:50]), atol=1e-4)
+    # one row (batched) as several rows (one by one) give it; no rows give no poses
+    np.testing.assert_allclose(same.predict(X[3:4]), same.predict(X[:50])[3:4], atol=1e-4)
+    for net in (same, mixed):
+        assert net.predict(X[:0]).shape == (0, 55)
 
 
 def test_members_fitted_in_parallel_are_the_ones_fitted_one_after_another():

@@ -629,8 +629,11 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                                 hidden=options.limb_net_hidden, alpha=options.limb_net_alpha,
                                 seed=options.seed, workers=workers, log=log)
         # As the file will hold it (int8 weights): the report and the front/back priors
-        # learned from this model then measure the networks that are shipped.
-        limb_net = LimbNet.from_arrays(limb_net.to_arrays())
+        # learned from this model then measure the networks that are shipped. What the
+        # int8 weights change is reported (limb_net_int8_max_deg).
+        fitted_net, limb_net = limb_net, LimbNet.from_arrays(limb_net.to_arrays())
+        int8_max_deg = float(np.abs(wrap_deg(limb_net.predict(Xin[val_rows])[:, 2:]
+                                             - fitted_net.predict(Xin[val_rows])[:, 2:])).max())
     elif head_truth is not None:
         coef, intercept = split_expert_outputs(mixture, POSE_DIM)
         limb_head = LimbHead(coef, intercept, head_centre, head_direction)
@@ -697,6 +700,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               "validation": angle_measures(predicted, truth[val_rows], centre),
               "canonical": options.canonical, "limb_head": options.limb_head,
               "limb_net_members": options.limb_net_members if use_net else 0,
+              **({"limb_net_int8_max_deg": round(int8_max_deg, 3)} if use_net else {}),
               "side_classifier": side_classifier is not None,
               **{k: round(v, 3) for k, v in facts.items()}}
     if model.has_limbs:

@@ -131,7 +131,7 @@ def checked_probability(name: str, value) -> float:
     one number), so every sink accepts and refuses the same values."""
     if isinstance(value, (bool, np.bool_)) \
             or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not 0.0 <= float(value) <= 1.0:
+            or not 0 <= value <= 1:                    # exact for huge ints, False for NaN
         raise SinkInputError(f"{name} must be a number in [0, 1], got {value!r}")
     return float(value)
 
