@@ -247,7 +247,7 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
                          f"hidden layers, got {members} and {len(hidden)}")
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
-    _sklearn_classes()                                  # the install hint before any work
+    require_training_dependencies()                     # the install hint before any work
     X = np.asarray(X, dtype=np.float64)
     centre = np.asarray(angle_centre_deg, dtype=np.float64)
     Y = regression_targets(targets, centre)
