@@ -1,7 +1,8 @@
 """Evaluate the tracker on a real video with a 3-D reference: Pose2Sim's balancing trial.
 
     python scripts/evaluate_real.py [--trial ../shared/data/pose2sim/balancing] [--model FILE]
-        [--max-people N] [--roll calibration] [--json OUT] [--masks PNG]
+        [--max-people N] [--roll calibration] [--zone-foreground colour] [--json OUT]
+        [--masks PNG]
 
 Runs ``track``'s pipeline on each of the four views and prints, per view, knee and elbow flexion
 error and correlation against the reference (beside a constant at the reference's own mean
@@ -73,16 +74,18 @@ class _MaskRecorder(PoseRecorder):
 
 
 def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.0,
-                keep_masks: bool = False) -> ViewTrack:
+                keep_masks: bool = False, trust_zone_foreground: bool = True) -> ViewTrack:
     """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
-    with ``--roll roll_deg``; keep_masks: also keep the silhouettes (ViewTrack.tiles)."""
+    with ``--roll roll_deg``; keep_masks: also keep the silhouettes (ViewTrack.tiles);
+    trust_zone_foreground: the extractor's (tracker.silhouettes.refine_in_zone)."""
     from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
     from tracker.video import open_video
 
     source = open_video(video)
-    tracker = PoseTracker(model, source.fps, TrackerSettings(max_people=max_people,
-                                                             roll_deg=roll_deg, novelty=True))
+    tracker = PoseTracker(model, source.fps, TrackerSettings(
+        max_people=max_people, roll_deg=roll_deg, novelty=True,
+        trust_zone_foreground=trust_zone_foreground))
     recorder = _MaskRecorder(roll_deg) if keep_masks else PoseRecorder()
     track_video(source, tracker, sinks=[recorder])
     poses = recorder.poses
@@ -110,16 +113,19 @@ def evaluate_view(trial: Trial, view: str, track: ViewTrack) -> tuple[dict, np.n
 
 
 def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
-             sheet: list | None = None) -> dict:
+             sheet: list | None = None, trust_zone_foreground: bool = True) -> dict:
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
+    trust_zone_foreground: False lets colour decide on the foreground inside the unreliable
+    zone too (tracker.silhouettes.refine_in_zone; ``--zone-foreground colour``).
     sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
     at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them)."""
     per_view, subject = {}, {}
     for view in VIEWS:
         roll_deg = camera_roll_deg(trial, view) if roll else 0.0
         track = _track_view(trial.video(view), model, max_people, roll_deg,
-                            keep_masks=sheet is not None)
+                            keep_masks=sheet is not None,
+                            trust_zone_foreground=trust_zone_foreground)
         per_view[view], rows = evaluate_view(trial, view, track)
         if sheet is not None:
             picked = rows[np.linspace(0, len(rows) - 1, 8).astype(int)]
@@ -214,6 +220,9 @@ def format_table(result: dict) -> str:
     if any(rolls):
         lines.append("tracked with the cameras' roll (track --roll, degrees): "
                      + ", ".join(f"{v} {r:g}" for v, r in zip(result["views"], rolls)))
+    if result.get("zone_foreground", "sure") != "sure":
+        lines.append(f"silhouettes: --zone-foreground {result['zone_foreground']} (colour also "
+                     f"decides on the foreground inside the unreliable zone)")
     return "\n".join(lines)
 
 
@@ -227,6 +236,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--roll", choices=("none", "calibration"), default="none",
                     help="track each view with its camera's roll from the calibration "
                          "(track --roll), or without (the default, as track)")
+    ap.add_argument("--zone-foreground", choices=("sure", "colour"), default="sure",
+                    help="as track --zone-foreground: inside the background's unreliable zone, "
+                         "take the subtractor's foreground as sure person (the default) or let "
+                         "colour decide on it too (tracker.silhouettes.refine_in_zone)")
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     ap.add_argument("--masks", type=Path, metavar="PNG", help="write the subject's "
                     "silhouettes as the regressor saw them, 8 frames per view, as a PNG")
@@ -244,11 +257,13 @@ def main(argv=None) -> int:
         trial, model = load_trial(args.trial), load_pose_model(args.model)
         with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
             result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration",
-                              sheet=sheet)
+                              sheet=sheet,
+                              trust_zone_foreground=args.zone_foreground == "sure")
     except (Pose2SimError, PoseModelError, MeasureError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
     result["model"] = str(args.model)
+    result["zone_foreground"] = args.zone_foreground
     print(format_table(result))
     if args.json:
         args.json.write_text(json.dumps(result, indent=1))

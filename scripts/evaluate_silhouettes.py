@@ -1,14 +1,18 @@
 """Silhouettes of a real video against a 3-D reference: Pose2Sim's balancing trial, per view.
 
     python scripts/evaluate_silhouettes.py [--trial ../shared/data/pose2sim/balancing]
-        [--extractor before after] [--views cam01 ...] [--json OUT]
+        [--extractor before after colour] [--views cam01 ...] [--json OUT]
 
 Projects the reference keypoints into each view and prints, per extractor and view: coverage
 (keypoints on the subject's mask dilated by 3 px), spill (mask area outside the keypoints' box
-padded by 10 % of its height, over the box area; mean and 90th percentile), tracks, tracks
-holding the subject, and the fraction of frames the subject's main track covers. "before" is
-the extractor and associator as they were (median background, shadows dropped, area gate
-always on), "after" today's defaults, the extractor primed with frames of the clip. Measures: tracker.offline.silhouette_evaluation.
+padded by 10 % of its height, over the box area; mean and 90th percentile), off-body (the
+share of the mask off a generous body drawn from the keypoints: background inside the box),
+tracks, tracks holding the subject, and the fraction of frames the subject's main track
+covers. "before" is the extractor and associator as they were (median background, shadows
+dropped, area gate always on), "after" today's defaults, the extractor primed with frames of
+the clip, "colour" the same with colour also deciding on the foreground inside the unreliable
+zone (tracker.silhouettes.refine_in_zone, trust_zone_foreground=False). Measures:
+tracker.offline.silhouette_evaluation.
 """
 from __future__ import annotations
 

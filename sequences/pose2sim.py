@@ -43,6 +43,17 @@ FLEXION_KEYPOINTS: tuple[tuple[str, str, str], ...] = (
     ("LHip", "LKnee", "LAnkle"), ("RHip", "RKnee", "RAnkle"),
     ("LShoulder", "LElbow", "LWrist"), ("RShoulder", "RElbow", "RWrist"),
 )
+#: The reference's 21 keypoints drawn as a body, for measuring a silhouette against it
+#: (tracker.offline.silhouette_evaluation.body_region): the torso quadrilateral, the head
+#: keypoint, and the bones drawn as thick lines (feet included).
+BODY_TORSO: tuple[str, ...] = ("RShoulder", "LShoulder", "LHip", "RHip")
+BODY_HEAD = "Head"
+BODY_BONES: tuple[tuple[str, str], ...] = (
+    ("RHip", "RKnee"), ("RKnee", "RAnkle"), ("LHip", "LKnee"), ("LKnee", "LAnkle"),
+    ("RAnkle", "RBigToe"), ("LAnkle", "LBigToe"), ("RAnkle", "RHeel"), ("LAnkle", "LHeel"),
+    ("RShoulder", "RElbow"), ("RElbow", "RWrist"), ("LShoulder", "LElbow"), ("LElbow", "LWrist"),
+    ("Neck", "Head"), ("RShoulder", "LShoulder"), ("RHip", "LHip"),
+)
 _TRC_HEADER_LINES = 5
 _UNIT_TO_M = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}
 _WORLD_FROM_TRC = [2, 0, 1]   # world (X, Y, Z) = trc (Z, X, Y)

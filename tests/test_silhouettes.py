@@ -7,7 +7,7 @@ import pytest
 
 from tracker.silhouettes import (BackgroundSubtractor, PersonMask, ExtractionError,
                                  SilhouetteExtractor, ZoneRefiner, clean_mask, median_background,
-                                 person_masks, refine_in_zone)
+                                 person_masks, refine_in_zone, _zone_labels)
 
 
 def background(width: int, height: int, seed: int = 0) -> np.ndarray:
@@ -314,3 +314,48 @@ def test_box_without_background_keeps_its_seeds_and_learns_again_next_frame():
         out = refiner(mask, frame, np.zeros_like(zone), zone)
         assert (out > 0).all()                    # grabCut cannot run: foreground and zone kept
     assert (refiner.learned, refiner.kept) == (2, 0)
+
+
+def ghost_scene(bg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """arm_scene's person (arm to the right) and, left of the torso inside the zone, a ghost:
+    foreground where the frame shows only the background (the median held the arm there).
+    Returns (frame, foreground uint8 255 = found, zone bool, ghost bool), all (240, 320)."""
+    frame, arm = arm_scene(bg, arm_left=False)
+    zone = np.zeros((240, 320), bool)
+    zone[50:160, 80:240] = True
+    ghost = np.zeros((240, 320), bool)
+    ghost[66:86, 90:140] = True
+    found = np.zeros((240, 320), np.uint8)
+    found[160:221, 145:176] = 255                 # the legs, moving, outside the zone
+    found[arm] = 255                              # the arm that moved into view
+    found[ghost] = 255
+    return frame, found, zone, ghost
+
+
+@pytest.mark.parametrize("trust", [True, False])
+def test_colour_decides_on_a_ghost_only_when_the_zone_foreground_is_not_trusted(trust):
+    bg = background(320, 240, seed=8)
+    frame, found, zone, ghost = ghost_scene(bg)
+    shadow = np.zeros_like(zone)
+    person = refine_in_zone(found, frame, shadow, zone, trust_zone_foreground=trust) > 0
+    refiner = ZoneRefiner(relearn_every=1, trust_zone_foreground=trust)
+    assert np.array_equal(person, refiner(found, frame, shadow, zone) > 0)
+    assert person[70:140, 145:175].all() and person[160:221, 145:176].all()   # torso, legs
+    if trust:
+        assert person[ghost].all()                # sure person: the ghost stays
+    else:
+        assert person[ghost].mean() < 0.1         # the background's colours: dropped
+
+
+def test_zone_labels_keep_foreground_outside_the_zone_sure():
+    found = np.zeros((4, 4), bool)
+    found[:, :2] = True
+    zone = np.zeros((4, 4), bool)
+    zone[:2] = True
+    shadow = np.zeros((4, 4), bool)
+    trusted = _zone_labels(found, shadow, zone)
+    assert (trusted[found] == cv2.GC_FGD).all()
+    colour = _zone_labels(found, shadow, zone, trust_zone_foreground=False)
+    assert (colour[found & ~zone] == cv2.GC_FGD).all()
+    assert (colour[zone] == cv2.GC_PR_FGD).all() and (colour[~found & ~zone] == cv2.GC_BGD).all()
+

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
 from sequences.video import textured_background
 from tracker.association import Associator
@@ -15,6 +16,10 @@ from tracker.offline.silhouette_evaluation import (clip_extractor, legacy_associ
 from tracker.silhouettes import SilhouetteExtractor
 
 DATA = Path(__file__).parent / "data" / "pose2sim"
+#: The order of the keypoints in cam01_16frames_keypoints.txt: the reference .trc's.
+KEYPOINT_NAMES = ("RHip", "RKnee", "RAnkle", "RBigToe", "RSmallToe", "RHeel", "LHip", "LKnee",
+                  "LAnkle", "LBigToe", "LSmallToe", "LHeel", "Neck", "Head", "Nose", "RShoulder",
+                  "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist")
 
 
 def balancing_frames() -> tuple[np.ndarray, np.ndarray]:
@@ -117,3 +122,53 @@ def test_real_frames_give_the_same_masks_whatever_ran_before():
     cv2.kmeans(np.random.default_rng(0).random((50, 3), dtype=np.float32), 4, None,
                (cv2.TERM_CRITERIA_MAX_ITER, 5, 0), 1, cv2.KMEANS_RANDOM_CENTERS)
     assert all(np.array_equal(a, b) for a, b in zip(first, masks()))
+
+
+def test_off_body_is_the_share_of_the_mask_away_from_the_keypoints_body():
+    from tracker.offline.silhouette_evaluation import BodyDrawing, body_region, off_body
+    from tracker.silhouettes import PersonMask
+    # A torso square, a head above it and one leg below: keypoints 100 px tall.
+    points = np.array([[40, 30], [60, 30], [60, 60], [40, 60], [50, 10], [45, 110]], float)
+    body = BodyDrawing(torso=(0, 1, 2, 3), head=4, bones=((3, 5),))
+    box = (0, 0, 120, 130)
+    region = body_region(points, body, box, width=0.1)          # lines and head 10 px
+    assert region[45, 50] and region[10, 50] and region[100, 46] and not region[45, 100]
+    person = PersonMask(region.copy(), box, (50.0, 50.0), int(region.sum()))
+    assert off_body(person, points, body, width=0.1) == 0.0
+    blob = region.copy()
+    blob[40:60, 90:110] = True                                  # background taken for person
+    person = PersonMask(blob, box, (60.0, 50.0), int(blob.sum()))
+    assert off_body(person, points, body, width=0.1) == pytest.approx(400 / blob.sum())
+    named = BodyDrawing.from_names(["a", "b", "c", "d", "head", "foot"], ("a", "b", "c", "d"),
+                                   "head", (("d", "foot"),))
+    assert named == body
+
+
+def test_letting_colour_decide_in_the_zone_takes_less_background_for_the_person():
+    from sequences.pose2sim import BODY_BONES, BODY_HEAD, BODY_TORSO
+    from tracker.offline.silhouette_evaluation import BodyDrawing, colour_zone_extractor
+    body = BodyDrawing.from_names(KEYPOINT_NAMES, BODY_TORSO, BODY_HEAD, BODY_BONES)
+    frames, keypoints = balancing_frames()
+    default = silhouette_measures(track_masks(enumerate(frames), clip_extractor(frames)),
+                                  keypoints, body=body)
+    colour = silhouette_measures(track_masks(enumerate(frames), colour_zone_extractor(frames)),
+                                 keypoints, body=body)
+    # The default keeps the median's ghosts beside the torso: over a fifth of the mask.
+    assert default["off_body"] > 0.2
+    assert colour["off_body"] < 0.75 * default["off_body"]
+    assert colour["coverage"] >= 0.88 and colour["main_track_fraction"] == 1.0
+
+
+@pytest.mark.parametrize("trust", [True, False])
+def test_the_tracker_builds_its_extractor_with_the_zone_setting(trust):
+    from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+    from tracker import PoseTracker, TrackerSettings
+    model = load_pose_model(DEFAULT_MODEL_PATH)
+    settings = TrackerSettings(trust_zone_foreground=trust)
+    tracker = PoseTracker(model, 30.0, settings)
+    assert tracker.extractor.refiner.trust_zone_foreground is trust
+    # A grey scene rebuilds the extractor without shadow detection: the setting stays.
+    gray = PoseTracker(model, 30.0, settings)
+    gray.prime(np.full((120, 160, 3), 90, np.uint8))
+    assert gray.extractor is not tracker.extractor
+    assert gray.extractor.refiner.trust_zone_foreground is trust

@@ -192,8 +192,9 @@ def test_output_path_that_cannot_be_written(tmp_path, walk_video):
     (["--bogus"], "--bogus"),
     (["--roll", "135"], "--roll"),
     (["--roll", "nan"], "--roll"),
+    (["--zone-foreground", "maybe"], "--zone-foreground"),
 ], ids=["max-people-0", "end-before-start", "negative-start", "start-past-end", "unknown",
-        "roll-135", "roll-nan"])
+        "roll-135", "roll-nan", "zone-foreground-maybe"])
 def test_absurd_options(tmp_path, walk_video, options, needle):
     _assert_one_line_error(_track(walk_video, *options, cwd=tmp_path), needle)
 

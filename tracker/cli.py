@@ -59,6 +59,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
                     help="the camera's roll: how far the scene's vertical leans clockwise in "
                          "the image, degrees (silhouettes are turned upright; default 0)")
+    ap.add_argument("--zone-foreground", choices=("sure", "colour"), default="sure",
+                    help="for a person who never leaves the spot (no clean plate): take the "
+                         "background model's foreground where the background is unreliable "
+                         "as sure person (default), or let colour decide on it too (fewer "
+                         "ghost blobs beside the body, some thin limb pixels lost)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
 
@@ -216,7 +221,8 @@ def _run(args) -> int:
     sinks = open_sinks(streaming + smoothed)
     # Per-track histories are kept only for --smooth: without it memory stays flat.
     settings = TrackerSettings(max_people=args.max_people, keep_history=args.smooth,
-                               roll_deg=args.roll)
+                               roll_deg=args.roll,
+                               trust_zone_foreground=args.zone_foreground == "sure")
     tracker = PoseTracker(model, source.fps, settings)
     result = track_video(source, tracker, sinks[:len(streaming)],
                          Progress(source.expected_frames(), quiet=args.quiet),

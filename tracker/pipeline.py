@@ -109,7 +109,11 @@ class TrackerSettings:
     UNFAMILIAR_NOVELTY. For the shipped model it reuses the heading index's nearest
     neighbours of the frame, so it costs little per frame; the index's typical distance comes
     from the model file (an older file's is computed once, about 0.35 s, when the tracker is
-    made). An estimator without ``novelty`` gives None.
+    made). An estimator without ``novelty`` gives None. trust_zone_foreground: the default
+    extractor takes the subtractor's foreground inside the background's unreliable zone (a
+    person who never leaves the spot) as sure person; False lets colour decide on it too
+    (tracker.silhouettes.refine_in_zone: fewer ghosts, some lost limb pixels; ``track
+    --zone-foreground colour``).
     """
 
     max_people: int | None = None
@@ -125,6 +129,7 @@ class TrackerSettings:
     fov_deg: float = ASSUMED_FOV_DEG
     keep_history: bool = True
     novelty: bool = True
+    trust_zone_foreground: bool = True
 
     def threshold(self, estimator) -> float:
         """The ambiguity threshold in use: this setting, else the estimator's own."""
@@ -283,7 +288,8 @@ class PoseTracker:
         self.estimator = estimator
         self.fps = float(fps)
         self.settings = settings
-        self.extractor = extractor or SilhouetteExtractor()
+        self.extractor = extractor or SilhouetteExtractor(
+            trust_zone_foreground=settings.trust_zone_foreground)
         self._default_extractor = extractor is None
         self.associator = associator or Associator()
         self.filter_factory, self.limb_filter_factory = filter_factories(estimator, settings,
@@ -308,7 +314,8 @@ class PoseTracker:
             # MOG2 calls a pixel shadow when it is a darker shade of the background's colour;
             # without colour every darker pixel is, and a person darker than the scene is cut
             # into pieces (the sample walk in gray: 11 tracks instead of 1).
-            self.extractor = SilhouetteExtractor(detect_shadows=False)
+            self.extractor = SilhouetteExtractor(
+                detect_shadows=False, trust_zone_foreground=self.settings.trust_zone_foreground)
         if frame_size is None:
             self._set_frame_shape(background.shape[:2])
             self.extractor.prime(background)

@@ -9,6 +9,10 @@ since it does not change the masks or the track ids. Measures per view:
   ``dilate_px`` px; a frame where the subject's track has no mask covers none.
 - ``spill``: mean over the frames with a mask of (mask area outside the keypoints' bounding box
   padded by ``pad`` x its height on every side) / (padded box area).
+- ``off_body``: mean over the frames with a mask of the share of the mask's area off the body
+  drawn from the keypoints (:func:`body_region`: torso, head and bones as lines
+  ``body_width`` x the keypoints' height thick, a generous body): background taken for the
+  person inside the box, which ``spill`` does not see. Only with a :class:`BodyDrawing`.
 - ``tracks``: track ids in the view; ``subject_tracks``: those whose masks hold a keypoint;
   ``main_track_fraction``: fraction of frames in which the subject's main track (the one whose
   masks hold the most keypoints) has a mask.
@@ -23,6 +27,23 @@ import numpy as np
 
 from ..association import Associator
 from ..silhouettes import PersonMask, SilhouetteExtractor
+
+
+@dataclass(frozen=True)
+class BodyDrawing:
+    """Which keypoints make a body (indices into the K keypoints): ``torso`` the corners of
+    the torso, ``head`` the head's, ``bones`` (B, 2) pairs drawn as lines."""
+
+    torso: tuple[int, ...]
+    head: int
+    bones: tuple[tuple[int, int], ...]
+
+    @classmethod
+    def from_names(cls, names, torso, head, bones) -> "BodyDrawing":
+        """From keypoint names (K,) and the torso, head and bones given by name."""
+        index = {n: i for i, n in enumerate(names)}
+        return cls(tuple(index[n] for n in torso), index[head],
+                   tuple((index[a], index[b]) for a, b in bones))
 
 
 @dataclass(frozen=True)
@@ -73,10 +94,41 @@ def spill(person: PersonMask, points_px: np.ndarray, pad: float = 0.1) -> float:
     return outside / float((bx1 - bx0) * (by1 - by0))
 
 
+def body_region(points_px: np.ndarray, body: BodyDrawing, box: tuple[int, int, int, int],
+                width: float = 0.14) -> np.ndarray:
+    """bool (h, w) over ``box`` (x, y, w, h) px: the body drawn from keypoints (K, 2) px (x, y):
+    the torso's convex hull filled, a disc of radius ``width`` x the keypoints' height round
+    the head, each bone a line that thick."""
+    x, y, w, h = box
+    canvas = np.zeros((h, w), np.uint8)
+    p = np.asarray(points_px, np.float64) - (x, y)
+    size = float(np.ptp(p[:, 1]))
+    thick = max(2, int(round(width * size)))
+    torso = np.round(p[list(body.torso)]).astype(np.int32)
+    cv2.fillConvexPoly(canvas, cv2.convexHull(torso), 1)
+    for a, b in body.bones:
+        cv2.line(canvas, tuple(np.round(p[a]).astype(int)), tuple(np.round(p[b]).astype(int)),
+                 1, thick)
+    cv2.circle(canvas, tuple(np.round(p[body.head]).astype(int)), thick, 1, -1)
+    return canvas > 0
+
+
+def off_body(person: PersonMask, points_px: np.ndarray, body: BodyDrawing,
+             width: float = 0.14) -> float:
+    """Share of the person's mask area off the body drawn from points (K, 2) px
+    (:func:`body_region`); 0 for an empty mask."""
+    if person.area == 0:
+        return 0.0
+    region = body_region(points_px, body, person.bbox, width)
+    return float(np.count_nonzero(person.mask & ~region)) / float(np.count_nonzero(person.mask))
+
+
 def silhouette_measures(tracked: list[FramePeople], keypoints_px: np.ndarray,
-                        dilate_px: int = 3, pad: float = 0.1) -> dict:
-    """Coverage, spill and track counts (module docstring) of tracked people against keypoints
-    (T, K, 2) px, one row per entry of ``tracked``. Returns a JSON-ready dict."""
+                        dilate_px: int = 3, pad: float = 0.1, body: BodyDrawing | None = None,
+                        body_width: float = 0.14) -> dict:
+    """Coverage, spill, off-body share (with ``body``) and track counts (module docstring) of
+    tracked people against keypoints (T, K, 2) px, one row per entry of ``tracked``. Returns a
+    JSON-ready dict."""
     if len(tracked) != len(keypoints_px):
         raise ValueError(f"{len(tracked)} tracked frames for {len(keypoints_px)} keypoint rows")
     held: dict[int, int] = {}
@@ -90,17 +142,22 @@ def silhouette_measures(tracked: list[FramePeople], keypoints_px: np.ndarray,
         return {"frames": len(tracked), "coverage": 0.0, "spill": float("nan"),
                 "tracks": len(all_ids), "subject_tracks": 0, "main_track_fraction": 0.0}
     main = max(held, key=held.get)
-    covered, spills, present = 0, [], 0
+    covered, spills, offs, present = 0, [], [], 0
     for t, (frame, points) in enumerate(zip(tracked, keypoints_px)):
         for track_id, person in frame.people:
             if track_id == main:
                 present += 1
                 covered += int(inside[t, track_id].sum())
                 spills.append(spill(person, points, pad))
-    return {"frames": len(tracked), "coverage": covered / keypoints_px[:, :, 0].size,
-            "spill": float(np.mean(spills)), "spill_p90": float(np.percentile(spills, 90)),
-            "tracks": len(all_ids), "subject_tracks": sum(1 for n in held.values() if n > 0),
-            "main_track_fraction": present / len(tracked)}
+                if body is not None:
+                    offs.append(off_body(person, points, body, body_width))
+    out = {"frames": len(tracked), "coverage": covered / keypoints_px[:, :, 0].size,
+           "spill": float(np.mean(spills)), "spill_p90": float(np.percentile(spills, 90)),
+           "tracks": len(all_ids), "subject_tracks": sum(1 for n in held.values() if n > 0),
+           "main_track_fraction": present / len(tracked)}
+    if body is not None:
+        out["off_body"] = float(np.mean(offs))
+    return out
 
 
 def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: int = 25,
@@ -111,7 +168,8 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
     ``make_extractor(sample_frames) -> extractor``: builds a primed extractor from ``samples``
     frames spread over the video (as the ``track`` command samples them);
     ``make_associator() -> Associator`` (default :func:`default_associator`)."""
-    from sequences.pose2sim import project_reference, video_frames
+    from sequences.pose2sim import (BODY_BONES, BODY_HEAD, BODY_TORSO, project_reference,
+                                    video_frames)
     from ..video import open_video
 
     source = open_video(trial.video(view))
@@ -121,7 +179,8 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
     tracked = [f for f in track_masks(((i, im) for i, _, im in source), extractor, associator)
                if f.index in wanted]
     keypoints = project_reference(view, [f.index for f in tracked], trial)
-    return silhouette_measures(tracked, keypoints, dilate_px, pad)
+    body = BodyDrawing.from_names(trial.reference.names, BODY_TORSO, BODY_HEAD, BODY_BONES)
+    return silhouette_measures(tracked, keypoints, dilate_px, pad, body)
 
 
 def legacy_extractor(frames) -> "SilhouetteExtractor":
@@ -144,6 +203,15 @@ def clip_extractor(frames) -> "SilhouetteExtractor":
     return extractor
 
 
+def colour_zone_extractor(frames) -> "SilhouetteExtractor":
+    """Today's default extractor, except that colour also decides on the foreground inside
+    the unreliable zone (``trust_zone_foreground=False``: tracker.silhouettes.refine_in_zone)."""
+    from ..silhouettes import SilhouetteExtractor
+    extractor = SilhouetteExtractor(trust_zone_foreground=False)
+    extractor.prime(frames)
+    return extractor
+
+
 def default_associator() -> Associator:
     """The associator PoseTracker builds by default."""
     return Associator()
@@ -155,17 +223,19 @@ def legacy_associator() -> Associator:
     return Associator(use_boxes=False, min_hits=1)
 
 
-EXTRACTORS = {"before": legacy_extractor, "after": clip_extractor}
-ASSOCIATORS = {"before": legacy_associator, "after": default_associator}
+EXTRACTORS = {"before": legacy_extractor, "after": clip_extractor, "colour": colour_zone_extractor}
+ASSOCIATORS = {"before": legacy_associator, "after": default_associator,
+               "colour": default_associator}
 
 
 def format_table(results: dict[str, dict[str, dict]]) -> str:
     """{label: {view: silhouette_measures dict}} as a plain-text table."""
-    lines = [f"{'':7} {'view':6} {'coverage':>8} {'spill':>6} {'spill90':>7} {'tracks':>6} "
-             f"{'subj.trk':>8} {'main-track frames':>17}"]
+    lines = [f"{'':7} {'view':6} {'coverage':>8} {'spill':>6} {'spill90':>7} {'off-body':>8} "
+             f"{'tracks':>6} {'subj.trk':>8} {'main-track frames':>17}"]
     for label, views in results.items():
         for view, r in views.items():
+            off = f"{r['off_body']:8.1%}" if "off_body" in r else f"{'-':>8}"
             lines.append(f"{label:7} {view:6} {r['coverage']:8.1%} {r['spill']:6.1%} "
-                         f"{r['spill_p90']:7.1%} {r['tracks']:6d} {r['subject_tracks']:8d} "
-                         f"{r['main_track_fraction']:17.0%}")
+                         f"{r['spill_p90']:7.1%} {off} {r['tracks']:6d} "
+                         f"{r['subject_tracks']:8d} {r['main_track_fraction']:17.0%}")
     return "\n".join(lines)
