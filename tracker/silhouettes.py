@@ -470,11 +470,12 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
     --extractor after colour``, mean over the 4 views): the mask's share off the keypoints'
     body 0.230 -> 0.134, keypoint coverage 0.911 -> 0.860; through ``scripts/evaluate_real.py
     --zone-foreground colour`` knee/elbow flexion error 31.0 -> 25.1 degrees (the constant at
-    the reference's mean 13.0). Not the default: on the 16 small test frames of cam01 the
-    subject splits into 2 tracks, colour models kept between frames cut up to 6-10 % of the
-    mask differently from models learned every frame (5 % before), and coverage falls;
-    thin foreground kept sure (an opening of 3-9 px decides what is thick) gave masks between
-    the two (flexion 26.7 at 5 px) with the same test failures.
+    the reference's mean 13.0). Not the default: a floor blob at the feet that the zone had
+    glued to the body becomes a track of its own (cam01, and the 16 small test frames of it),
+    colour models kept between frames cut up to 6 % of the mask differently from models
+    learned every frame (5 % with the rule above), and coverage falls; thin foreground kept
+    sure (an opening of 3-9 px decides what is thick) gave masks between the two (flexion 26.7
+    at 5 px) with kept-model differences up to 10 %.
     """
     out = mask.copy()
     for x0, y0, x1, y1 in zone_boxes(mask, zone, min_seed_area, margin):
