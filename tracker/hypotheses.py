@@ -67,6 +67,20 @@ member nearer the limb filter's predicted body angles instead of the decided hea
 it locks onto mirrored legs (08_03 filtered corr8 0.693 -> 0.487 / 0.449; 02_02 0.656 -> 0.650
 / 0.508).
 
+Tried and not adopted (2026-12-02, ``fuse_travel=False``): no fusion of the direction of
+travel into the hypotheses' headings (the travel likelihood still weighs the states). The
+fusion moment-matches the mocap's mostly-forward (facing - travel) prior into one direction,
+and with the chain's heading variance (37 degrees) it pulls a sideways walker's heading
+towards its travel: on 06_08 from a fixed camera (held out) the filtered heading sits 20
+degrees beyond the raw one for the second half. Without it, on the 28 validation renders
+filtered / smoothed heading RMS 36.4 / 28.5 -> 32.9 / 24.4 degrees and corr8 0.561 / 0.630
+-> 0.568 / 0.632 (the time-reversed renders gain, 41.9 -> 34.4; the forward ones lose, 30.8
+-> 31.5), but on the five validation videos, all walking forwards or on the spot, corr8 0.481
+-> 0.460 (02_02 0.698 -> 0.637, 08_03 0.784 -> 0.760) and heading 36.8 -> 37.2 (09_04 15.2 ->
+18.4). The two sets disagree, so it stays; reported after the choice: 06_08 fixed 30.0 ->
+23.4 filtered, 25.4 -> 19.7 smoothed. A smaller heading variance for the fusion only (0.1 x)
+was worse on the renders (37.9 / 29.6, corr8 0.533 / 0.606).
+
 Canonical hypotheses (the default model since 2026-12-02: it has limb networks and a side
 classifier, regressor.side_classifier): the two states are the limb networks' canonical member
 and its flip, whole (heading and body angles; :func:`canonical_hypotheses`), not the main

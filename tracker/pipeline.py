@@ -49,6 +49,15 @@ from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 #: 0.545 / 0.604, 0.1 0.546 / 0.609, 0.2 0.545 / 0.612, 0.4 0.540 / 0.608 (heading unchanged).
 #: Also tried then: this filter's process noise as the full covariance of the training poses'
 #: angular accelerations (joints coupled, as in a gait) instead of per angle: 0.548 / 0.607.
+#: Tried and not adopted (2026-12-02, one-off driver): undoing the filtered output's shrinkage
+#: towards the mean (on the walks the arms swing at a third of the truth's amplitude) by a
+#: gain per body angle about the training-mean pose, fitted on the five validation videos
+#: through ``track`` (least squares of the truth on the output). Pooled, the output is not
+#: shrunk (one gain for all angles: 1.02); per angle, leave-one-video-out on those videos, it
+#: made the 53 angles' error worse (7.69 -> 8.09 deg; half-way to 1: 7.74; with an offset
+#: too: 8.65) for a flexion error 15.9 -> 15.2; corr8 is unchanged by any gain. The output
+#: also does not lag the truth: its corr8 peaks at a lag of 0-1 frame (16_11 0.763 at 0, 02_02
+#: 0.706 at 1 against 0.698 at 0, 08_03 0.786 against 0.784).
 LIMB_R_SCALE = 0.1
 
 #: Multiplies the model's heading process noise (q[0]) in every filter. The model's q is the
