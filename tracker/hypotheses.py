@@ -78,8 +78,11 @@ filtered / smoothed heading RMS 36.4 / 28.5 -> 32.9 / 24.4 degrees and corr8 0.5
 -> 31.5), but on the five validation videos, all walking forwards or on the spot, corr8 0.481
 -> 0.460 (02_02 0.698 -> 0.637, 08_03 0.784 -> 0.760) and heading 36.8 -> 37.2 (09_04 15.2 ->
 18.4). The two sets disagree, so it stays; reported after the choice: 06_08 fixed 30.0 ->
-23.4 filtered, 25.4 -> 19.7 smoothed. A smaller heading variance for the fusion only (0.1 x)
-was worse on the renders (37.9 / 29.6, corr8 0.533 / 0.606).
+23.4 filtered, 25.4 -> 19.7 smoothed. Also tried: the chain's heading variance x 0.1 in
+the fusion (its offset posterior, its weights and the fused variance the filter gets): worse
+on the renders (37.9 / 29.6, corr8 0.533 / 0.606); a within-state variance (100 deg^2) in the
+offset posterior only, so that a heading far from the travel is not read as forwards:
+neutral (renders 36.3 / 28.5, corr8 0.561 / 0.628; videos corr8 0.476, heading 36.7).
 
 Canonical hypotheses (the default model since 2026-12-02: it has limb networks and a side
 classifier, regressor.side_classifier): the two states are the limb networks' canonical member
