@@ -132,6 +132,7 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
             sheet.append([track.tiles[(int(track.frames[i]), int(track.track_ids[i]))]
                           for i in picked])
         per_view[view]["roll_deg"] = round(roll_deg, 1)
+        per_view[view]["zone_foreground"] = "sure" if trust_zone_foreground else "colour"
         subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows])
     common = subject[VIEWS[0]][0]
     for view in VIEWS[1:]:
@@ -220,9 +221,10 @@ def format_table(result: dict) -> str:
     if any(rolls):
         lines.append("tracked with the cameras' roll (track --roll, degrees): "
                      + ", ".join(f"{v} {r:g}" for v, r in zip(result["views"], rolls)))
-    if result.get("zone_foreground", "sure") != "sure":
-        lines.append(f"silhouettes: --zone-foreground {result['zone_foreground']} (colour also "
-                     f"decides on the foreground inside the unreliable zone)")
+    zone = {r.get("zone_foreground", "sure") for r in result["views"].values()}
+    if zone != {"sure"}:
+        lines.append("silhouettes: --zone-foreground colour (colour also decides on the "
+                     "foreground inside the unreliable zone)")
     return "\n".join(lines)
 
 
@@ -263,7 +265,6 @@ def main(argv=None) -> int:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
     result["model"] = str(args.model)
-    result["zone_foreground"] = args.zone_foreground
     print(format_table(result))
     if args.json:
         args.json.write_text(json.dumps(result, indent=1))

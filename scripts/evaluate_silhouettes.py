@@ -30,7 +30,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL, help="the balancing trial")
     ap.add_argument("--extractor", nargs="+", choices=sorted(EXTRACTORS),
-                    default=["before", "after"])
+                    default=["before", "after"], help="before: as before issue 11; after: "
+                    "today's default; colour: the default with track --zone-foreground colour")
     ap.add_argument("--views", nargs="+", choices=VIEWS, default=list(VIEWS))
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     args = ap.parse_args(argv)

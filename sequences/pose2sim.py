@@ -43,9 +43,10 @@ FLEXION_KEYPOINTS: tuple[tuple[str, str, str], ...] = (
     ("LHip", "LKnee", "LAnkle"), ("RHip", "RKnee", "RAnkle"),
     ("LShoulder", "LElbow", "LWrist"), ("RShoulder", "RElbow", "RWrist"),
 )
-#: The reference's 21 keypoints drawn as a body, for measuring a silhouette against it
+#: The reference's keypoints drawn as a body, for measuring a silhouette against it
 #: (tracker.offline.silhouette_evaluation.body_region): the torso quadrilateral, the head
-#: keypoint, and the bones drawn as thick lines (feet included).
+#: keypoint, and the bones drawn as thick lines (feet included; Nose and the small toes
+#: unused).
 BODY_TORSO: tuple[str, ...] = ("RShoulder", "LShoulder", "LHip", "RHip")
 BODY_HEAD = "Head"
 BODY_BONES: tuple[tuple[str, str], ...] = (

@@ -95,14 +95,19 @@ def union_mask(people, shape: tuple[int, int]) -> np.ndarray:
     return out
 
 
-def test_kept_colour_models_cut_real_frames_as_learning_every_frame_does():
+@pytest.mark.parametrize("trust, tolerance", [(True, 0.05), (False, 0.065)],
+                         ids=["zone-foreground-sure", "zone-foreground-colour"])
+def test_kept_colour_models_cut_real_frames_as_learning_every_frame_does(trust, tolerance):
+    # With colour deciding in the zone too, kept models drift more (6.2 % of a mask at most on
+    # these frames, 2026-12-02): one reason that rule is not the default.
     frames, keypoints = balancing_frames()
-    every, kept = SilhouetteExtractor(refine_relearn_every=1), SilhouetteExtractor()
+    every = SilhouetteExtractor(refine_relearn_every=1, trust_zone_foreground=trust)
+    kept = SilhouetteExtractor(trust_zone_foreground=trust)
     every.prime(frames)
     kept.prime(frames)
     for t, frame in enumerate(frames):
         a, b = union_mask(every(frame), frame.shape[:2]), union_mask(kept(frame), frame.shape[:2])
-        assert np.count_nonzero(a ^ b) <= 0.05 * np.count_nonzero(a), f"frame {t}"
+        assert np.count_nonzero(a ^ b) <= tolerance * np.count_nonzero(a), f"frame {t}"
     # The models are learned in one frame of three; grabCut still cuts every frame.
     assert every.refiner.kept == 0 and every.refiner.learned >= len(frames)
     assert kept.refiner.learned <= every.refiner.learned // 2
@@ -142,6 +147,12 @@ def test_off_body_is_the_share_of_the_mask_away_from_the_keypoints_body():
     named = BodyDrawing.from_names(["a", "b", "c", "d", "head", "foot"], ("a", "b", "c", "d"),
                                    "head", (("d", "foot"),))
     assert named == body
+    with pytest.raises(ValueError, match="'toe'"):
+        BodyDrawing.from_names(["a", "b", "c", "d", "head"], ("a", "b", "c", "d"), "head",
+                               (("d", "toe"),))
+    # The drawing does not depend on where the box cuts it.
+    small = body_region(points, body, (40, 50, 30, 40), width=0.1)
+    assert np.array_equal(small, region[50:90, 40:70])
 
 
 def test_letting_colour_decide_in_the_zone_takes_less_background_for_the_person():
@@ -157,6 +168,8 @@ def test_letting_colour_decide_in_the_zone_takes_less_background_for_the_person(
     assert default["off_body"] > 0.2
     assert colour["off_body"] < 0.75 * default["off_body"]
     assert colour["coverage"] >= 0.88 and colour["main_track_fraction"] == 1.0
+    # Its known cost: the floor blob the zone had glued to the body is a track of its own.
+    assert default["tracks"] == 1 and colour["tracks"] <= 2
 
 
 @pytest.mark.parametrize("trust", [True, False])
@@ -168,7 +181,8 @@ def test_the_tracker_builds_its_extractor_with_the_zone_setting(trust):
     tracker = PoseTracker(model, 30.0, settings)
     assert tracker.extractor.refiner.trust_zone_foreground is trust
     # A grey scene rebuilds the extractor without shadow detection: the setting stays.
-    gray = PoseTracker(model, 30.0, settings)
-    gray.prime(np.full((120, 160, 3), 90, np.uint8))
-    assert gray.extractor is not tracker.extractor
-    assert gray.extractor.refiner.trust_zone_foreground is trust
+    before = tracker.extractor
+    tracker.prime(np.full((120, 160, 3), 90, np.uint8))
+    assert tracker.extractor is not before
+    assert not tracker.extractor.subtractor._mog2_options["detectShadows"]
+    assert tracker.extractor.refiner.trust_zone_foreground is trust

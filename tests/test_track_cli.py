@@ -377,3 +377,10 @@ def test_missing_or_corrupt_background_image_is_one_line_error(tmp_path, walk_vi
     assert broken.returncode == 1
     _assert_one_line_error(broken, "--background", "broken.png", "not an image")
     assert not (tmp_path / "a.json").exists() and not (tmp_path / "b.json").exists()
+
+
+@pytest.mark.parametrize("choice, trust", [(None, True), ("sure", True), ("colour", False)])
+def test_zone_foreground_reaches_the_tracker_settings(choice, trust):
+    from tracker.cli import build_parser, tracker_settings
+    argv = ["v.mp4"] + ([] if choice is None else ["--zone-foreground", choice])
+    assert tracker_settings(build_parser().parse_args(argv)).trust_zone_foreground is trust

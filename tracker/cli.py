@@ -1,7 +1,8 @@
 """The ``track`` command: 3-D poses of the people in a static-camera video.
 
     track VIDEO [--out FILE.mcap] [--bvh DIR] [--json FILE] [--view] [--smooth] [--model FILE]
-          [--background IMAGE] [--max-people N] [--start S] [--end S] [--quiet]
+          [--background IMAGE] [--max-people N] [--roll DEG] [--start S] [--end S]
+          [--zone-foreground {sure,colour}] [--quiet]
 
 Without --out/--json/--bvh/--view it records to VIDEO_STEM.mcap in the current folder. Errors
 (bad video, model, options or output paths) print one line and exit non-zero; Ctrl-C stops
@@ -155,6 +156,15 @@ def _check_collisions(args) -> None:
         raise TrackError(str(exc)) from None
 
 
+def tracker_settings(args):
+    """The tracker.pipeline.TrackerSettings the parsed options ask for."""
+    from .pipeline import TrackerSettings
+    # Per-track histories are kept only for --smooth: without it memory stays flat.
+    return TrackerSettings(max_people=args.max_people, keep_history=args.smooth,
+                           roll_deg=args.roll,
+                           trust_zone_foreground=args.zone_foreground == "sure")
+
+
 def _sink_factories(args, source, model) -> tuple[list, list]:
     """(factories of the sinks fed every frame, of those fed smoothed tracks at the end when
     --smooth). One entry per output option: adding an output is adding a line here."""
@@ -166,6 +176,8 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
             "model": {"path": str(args.model), **model.summary()},
             "settings": {"smooth": args.smooth, "max_people": args.max_people,
                          "start_s": args.start, "end_s": args.end,
+                         **({} if args.zone_foreground == "sure"
+                            else {"zone_foreground": args.zone_foreground}),
                          "note": "MCAP holds filtered (not smoothed) poses"}})
 
     def json_summary():
@@ -202,7 +214,7 @@ def run(args) -> int:
 
 def _run(args) -> int:
     from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-    from .pipeline import PoseTracker, TrackerSettings
+    from .pipeline import PoseTracker
     from .progress import Progress
     from .run import track_video
     from .sinks import open_sinks
@@ -219,11 +231,7 @@ def _run(args) -> int:
     plate = _load_background(args.background, source) if args.background else None
     streaming, smoothed = _sink_factories(args, source, model)
     sinks = open_sinks(streaming + smoothed)
-    # Per-track histories are kept only for --smooth: without it memory stays flat.
-    settings = TrackerSettings(max_people=args.max_people, keep_history=args.smooth,
-                               roll_deg=args.roll,
-                               trust_zone_foreground=args.zone_foreground == "sure")
-    tracker = PoseTracker(model, source.fps, settings)
+    tracker = PoseTracker(model, source.fps, tracker_settings(args))
     result = track_video(source, tracker, sinks[:len(streaming)],
                          Progress(source.expected_frames(), quiet=args.quiet),
                          smoothed_sinks=sinks[len(streaming):], background=plate)

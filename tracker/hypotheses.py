@@ -70,7 +70,7 @@ it locks onto mirrored legs (08_03 filtered corr8 0.693 -> 0.487 / 0.449; 02_02 
 Tried and not adopted (2026-12-02, ``fuse_travel=False``): no fusion of the direction of
 travel into the hypotheses' headings (the travel likelihood still weighs the states). The
 fusion moment-matches the mocap's mostly-forward (facing - travel) prior into one direction,
-and with the chain's heading variance (37 degrees) it pulls a sideways walker's heading
+and with the chain's heading standard deviation (37 degrees) it pulls a sideways walker's heading
 towards its travel: on 06_08 from a fixed camera (held out) the filtered heading sits 20
 degrees beyond the raw one for the second half. Without it, on the 28 validation renders
 filtered / smoothed heading RMS 36.4 / 28.5 -> 32.9 / 24.4 degrees and corr8 0.561 / 0.630

@@ -49,11 +49,11 @@ from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 #: 0.545 / 0.604, 0.1 0.546 / 0.609, 0.2 0.545 / 0.612, 0.4 0.540 / 0.608 (heading unchanged).
 #: Also tried then: this filter's process noise as the full covariance of the training poses'
 #: angular accelerations (joints coupled, as in a gait) instead of per angle: 0.548 / 0.607.
-#: Tried and not adopted (2026-12-02, one-off driver): undoing the filtered output's shrinkage
-#: towards the mean (on the walks the arms swing at a third of the truth's amplitude) by a
-#: gain per body angle about the training-mean pose, fitted on the five validation videos
-#: through ``track`` (least squares of the truth on the output). Pooled, the output is not
-#: shrunk (one gain for all angles: 1.02); per angle, leave-one-video-out on those videos, it
+#: Tried and not adopted (2026-12-02, one-off driver): a gain per body angle on the filtered
+#: output about the training-mean pose, fitted on the five validation videos through
+#: ``track`` (least squares of the truth on the output), since on the walks some angles swing
+#: at a fraction of the truth's amplitude (the arms at about a third). Over all angles pooled
+#: the output is not shrunk (one gain for all: 1.02); per angle, leave-one-video-out, it
 #: made the 53 angles' error worse (7.69 -> 8.09 deg; half-way to 1: 7.74; with an offset
 #: too: 8.65) for a flexion error 15.9 -> 15.2; corr8 is unchanged by any gain. The output
 #: also does not lag the truth: its corr8 peaks at a lag of 0-1 frame (16_11 0.763 at 0, 02_02
@@ -122,7 +122,7 @@ class TrackerSettings:
     extractor takes the subtractor's foreground inside the background's unreliable zone (a
     person who never leaves the spot) as sure person; False lets colour decide on it too
     (tracker.silhouettes.refine_in_zone: fewer ghosts, some lost limb pixels; ``track
-    --zone-foreground colour``).
+    --zone-foreground colour``). An extractor given to PoseTracker keeps its own rule.
     """
 
     max_people: int | None = None

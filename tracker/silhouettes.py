@@ -468,7 +468,7 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
     it foreground, and as sure person it stays on the mask (Pose2Sim's masks are person and
     background blobs). Measured on Pose2Sim (2026-12-02, ``scripts/evaluate_silhouettes.py
     --extractor after colour``, mean over the 4 views): the mask's share off the keypoints'
-    body 0.230 -> 0.134, keypoint coverage 0.911 -> 0.860; through ``scripts/evaluate_real.py
+    body 0.254 -> 0.163, keypoint coverage 0.911 -> 0.860; through ``scripts/evaluate_real.py
     --zone-foreground colour`` knee/elbow flexion error 31.0 -> 25.1 degrees (the constant at
     the reference's mean 13.0). Not the default: a floor blob at the feet that the zone had
     glued to the body becomes a track of its own (cam01, and the 16 small test frames of it),
@@ -515,7 +515,8 @@ def _zone_labels(found: np.ndarray, shadow: np.ndarray, zone: np.ndarray,
     labels = np.full(found.shape, cv2.GC_BGD, np.uint8)
     labels[shadow] = cv2.GC_PR_BGD
     labels[zone] = cv2.GC_PR_FGD
-    labels[found & ~zone if not trust_zone_foreground else found] = cv2.GC_FGD
+    sure = found if trust_zone_foreground else found & ~zone
+    labels[sure] = cv2.GC_FGD
     return labels
 
 

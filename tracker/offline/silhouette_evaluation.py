@@ -1,4 +1,5 @@
-"""How good are the silhouettes of a real video? Coverage and spill against projected keypoints.
+"""How good are the silhouettes of a real video? Coverage, spill and off-body share against
+projected keypoints.
 
 On a video whose subject has 2-D reference keypoints per frame (e.g. Pose2Sim's balancing trial,
 ``sequences.pose2sim.project_reference``), the extractor and the associator run exactly as in
@@ -10,9 +11,11 @@ since it does not change the masks or the track ids. Measures per view:
 - ``spill``: mean over the frames with a mask of (mask area outside the keypoints' bounding box
   padded by ``pad`` x its height on every side) / (padded box area).
 - ``off_body``: mean over the frames with a mask of the share of the mask's area off the body
-  drawn from the keypoints (:func:`body_region`: torso, head and bones as lines
-  ``body_width`` x the keypoints' height thick, a generous body): background taken for the
-  person inside the box, which ``spill`` does not see. Only with a :class:`BodyDrawing`.
+  drawn from the keypoints (:func:`body_region`: torso filled, bones as lines ``body_width`` x
+  the keypoints' height thick, the head a disc of that radius; a generous body): background
+  taken for the person inside the box, which ``spill`` does not see. Only with a
+  :class:`BodyDrawing`. Like spill, it counts the subject's main track only: a ghost that
+  becomes a track of its own leaves this measure (see ``tracks``).
 - ``tracks``: track ids in the view; ``subject_tracks``: those whose masks hold a keypoint;
   ``main_track_fraction``: fraction of frames in which the subject's main track (the one whose
   masks hold the most keypoints) has a mask.
@@ -40,8 +43,13 @@ class BodyDrawing:
 
     @classmethod
     def from_names(cls, names, torso, head, bones) -> "BodyDrawing":
-        """From keypoint names (K,) and the torso, head and bones given by name."""
+        """From keypoint names (K,) and the torso, head and bones given by name; ValueError
+        naming a keypoint that ``names`` lacks."""
         index = {n: i for i, n in enumerate(names)}
+        wanted = list(torso) + [head] + [n for bone in bones for n in bone]
+        missing = [n for n in wanted if n not in index]
+        if missing:
+            raise ValueError(f"the keypoints have no {missing[0]!r} to draw the body with")
         return cls(tuple(index[n] for n in torso), index[head],
                    tuple((index[a], index[b]) for a, b in bones))
 
@@ -97,20 +105,23 @@ def spill(person: PersonMask, points_px: np.ndarray, pad: float = 0.1) -> float:
 def body_region(points_px: np.ndarray, body: BodyDrawing, box: tuple[int, int, int, int],
                 width: float = 0.14) -> np.ndarray:
     """bool (h, w) over ``box`` (x, y, w, h) px: the body drawn from keypoints (K, 2) px (x, y):
-    the torso's convex hull filled, a disc of radius ``width`` x the keypoints' height round
-    the head, each bone a line that thick."""
+    the torso's convex hull filled, each bone a line ``width`` x the keypoints' height thick,
+    a disc of that radius round the head. Drawn whole, then cut to the box, so that the
+    drawing does not depend on where the box cuts it (OpenCV clips shapes at the canvas)."""
+    p = np.asarray(points_px, np.float64)
+    thick = max(2, int(round(width * float(np.ptp(p[:, 1])))))
     x, y, w, h = box
-    canvas = np.zeros((h, w), np.uint8)
-    p = np.asarray(points_px, np.float64) - (x, y)
-    size = float(np.ptp(p[:, 1]))
-    thick = max(2, int(round(width * size)))
-    torso = np.round(p[list(body.torso)]).astype(np.int32)
-    cv2.fillConvexPoly(canvas, cv2.convexHull(torso), 1)
+    x0 = int(min(x, np.floor(p[:, 0].min()) - thick))
+    y0 = int(min(y, np.floor(p[:, 1].min()) - thick))
+    x1 = int(max(x + w, np.ceil(p[:, 0].max()) + thick + 1))
+    y1 = int(max(y + h, np.ceil(p[:, 1].max()) + thick + 1))
+    canvas = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    q = np.round(p - (x0, y0)).astype(np.int32)
+    cv2.fillConvexPoly(canvas, cv2.convexHull(q[list(body.torso)]), 1)
     for a, b in body.bones:
-        cv2.line(canvas, tuple(np.round(p[a]).astype(int)), tuple(np.round(p[b]).astype(int)),
-                 1, thick)
-    cv2.circle(canvas, tuple(np.round(p[body.head]).astype(int)), thick, 1, -1)
-    return canvas > 0
+        cv2.line(canvas, (int(q[a, 0]), int(q[a, 1])), (int(q[b, 0]), int(q[b, 1])), 1, thick)
+    cv2.circle(canvas, (int(q[body.head, 0]), int(q[body.head, 1])), thick, 1, -1)
+    return canvas[y - y0:y - y0 + h, x - x0:x - x0 + w] > 0
 
 
 def off_body(person: PersonMask, points_px: np.ndarray, body: BodyDrawing,
@@ -139,8 +150,12 @@ def silhouette_measures(tracked: list[FramePeople], keypoints_px: np.ndarray,
             held[track_id] = held.get(track_id, 0) + int(inside[t, track_id].sum())
     all_ids = {tid for frame in tracked for tid, _ in frame.people}
     if not held or max(held.values()) == 0:
-        return {"frames": len(tracked), "coverage": 0.0, "spill": float("nan"),
-                "tracks": len(all_ids), "subject_tracks": 0, "main_track_fraction": 0.0}
+        out = {"frames": len(tracked), "coverage": 0.0, "spill": float("nan"),
+               "spill_p90": float("nan"), "tracks": len(all_ids), "subject_tracks": 0,
+               "main_track_fraction": 0.0}
+        if body is not None:
+            out["off_body"] = float("nan")
+        return out
     main = max(held, key=held.get)
     covered, spills, offs, present = 0, [], [], 0
     for t, (frame, points) in enumerate(zip(tracked, keypoints_px)):
@@ -168,8 +183,8 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
     ``make_extractor(sample_frames) -> extractor``: builds a primed extractor from ``samples``
     frames spread over the video (as the ``track`` command samples them);
     ``make_associator() -> Associator`` (default :func:`default_associator`)."""
-    from sequences.pose2sim import (BODY_BONES, BODY_HEAD, BODY_TORSO, project_reference,
-                                    video_frames)
+    from sequences.pose2sim import (BODY_BONES, BODY_HEAD, BODY_TORSO, Pose2SimError,
+                                    project_reference, video_frames)
     from ..video import open_video
 
     source = open_video(trial.video(view))
@@ -179,7 +194,10 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
     tracked = [f for f in track_masks(((i, im) for i, _, im in source), extractor, associator)
                if f.index in wanted]
     keypoints = project_reference(view, [f.index for f in tracked], trial)
-    body = BodyDrawing.from_names(trial.reference.names, BODY_TORSO, BODY_HEAD, BODY_BONES)
+    try:
+        body = BodyDrawing.from_names(trial.reference.names, BODY_TORSO, BODY_HEAD, BODY_BONES)
+    except ValueError as exc:
+        raise Pose2SimError(f"{trial.root}: {exc}") from None
     return silhouette_measures(tracked, keypoints, dilate_px, pad, body)
 
 
