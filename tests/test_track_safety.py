@@ -374,3 +374,25 @@ def test_novelty_is_reported_per_pose_by_default_and_unfamiliar_frames_are_count
     assert (f"{state.frames} frames; {state.unfamiliar} of them "
             f"({state.unfamiliar / state.frames:.0%}) unlike the training silhouettes") \
         in out.getvalue()
+
+
+def test_a_ctrl_c_swallowed_during_start_up_still_stops_the_command():
+    """The command's SIGINT handler remembers the interrupt, so that one caught by a library
+    while it was imported still stops the command once the imports are done."""
+    from tracker import cli
+    cli._interrupts.clear()
+    cli.check_interrupted()                       # nothing came: no effect
+    try:
+        cli._record_interrupt(signal.SIGINT, None)
+    except BaseException:                         # a library's bare except
+        pass
+    with pytest.raises(KeyboardInterrupt):
+        cli.check_interrupted()
+    cli._interrupts.clear()
+
+
+def test_the_command_gives_back_the_default_ctrl_c_handler(tmp_path):
+    from tracker import cli
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert cli.main([str(tmp_path / "missing.mp4"), "--quiet"]) == cli.EXIT_ERROR
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
