@@ -376,23 +376,54 @@ def test_novelty_is_reported_per_pose_by_default_and_unfamiliar_frames_are_count
         in out.getvalue()
 
 
-def test_a_ctrl_c_swallowed_during_start_up_still_stops_the_command():
-    """The command's SIGINT handler remembers the interrupt, so that one caught by a library
-    while it was imported still stops the command once the imports are done."""
+
+def _swallowing(function):
+    """function, except that it first sends this process a SIGINT and swallows the
+    KeyboardInterrupt, as a library with a bare except would."""
+    def wrapped(*args, **kwargs):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)                      # the handler runs here, inside the try
+        except BaseException:
+            pass
+        return function(*args, **kwargs)
+    return wrapped
+
+
+def test_a_ctrl_c_swallowed_during_start_up_still_stops_the_command(tmp_path, walk, monkeypatch):
+    import regressor.pose_model
     from tracker import cli
-    cli._interrupts.clear()
-    cli.check_interrupted()                       # nothing came: no effect
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    monkeypatch.setattr(regressor.pose_model, "load_pose_model",
+                        _swallowing(regressor.pose_model.load_pose_model))
+    out = tmp_path / "s.json"
+    assert cli.main([str(walk), "--json", str(out), "--quiet"]) == cli.EXIT_INTERRUPTED
+    assert not out.exists() and not cli._interrupts
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_ctrl_c_swallowed_while_tracking_stops_after_that_frame(tmp_path, walk, monkeypatch):
+    from tracker import cli
+    from tracker.pipeline import PoseTracker
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    process, calls = PoseTracker.process, []
+
+    def process_swallowing_at_frame_5(self, index, time_s, frame):
+        calls.append(index)
+        if len(calls) == 5:
+            return _swallowing(process)(self, index, time_s, frame)
+        return process(self, index, time_s, frame)
+    monkeypatch.setattr(PoseTracker, "process", process_swallowing_at_frame_5)
+    out = tmp_path / "s.json"
+    assert cli.main([str(walk), "--json", str(out), "--quiet"]) == cli.EXIT_INTERRUPTED
+    assert json.loads(out.read_text())["frames"] == 5       # closed properly, cut at frame 5
+
+
+def test_a_signal_the_shell_ignores_stays_ignored(tmp_path):
+    from tracker import cli
+    previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)      # as under nohup
     try:
-        cli._record_interrupt(signal.SIGINT, None)
-    except BaseException:                         # a library's bare except
-        pass
-    with pytest.raises(KeyboardInterrupt):
-        cli.check_interrupted()
-    cli._interrupts.clear()
-
-
-def test_the_command_gives_back_the_default_ctrl_c_handler(tmp_path):
-    from tracker import cli
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    assert cli.main([str(tmp_path / "missing.mp4"), "--quiet"]) == cli.EXIT_ERROR
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        assert cli.main([str(tmp_path / "missing.mp4"), "--quiet"]) == cli.EXIT_ERROR
+        assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGHUP, previous)

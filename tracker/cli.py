@@ -26,24 +26,43 @@ from pathlib import Path
 from regressor.errors import SilhouettePoseError
 
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
-#: Ctrl-C received since main() began. If anything swallows the KeyboardInterrupt during the
-#: start-up imports (a library's bare ``except:`` round an optional import, say), the command
-#: would run on: in one full test run (2026-12-02) a Ctrl-C 0.2-0.5 s into start-up let the
-#: process run to the end and exit 0, silently; it did not recur in 11 more runs of that test.
+#: Ctrl-C, SIGTERM and SIGHUP received during main() (those the command handles: not one the
+#: shell ignores). If anything swallows the KeyboardInterrupt they raise (a library's bare
+#: ``except:`` round an optional import, say), the command would run on. In one full test run
+#: (2026-12-02) a Ctrl-C 0.2-0.5 s into start-up let the process run to the end and exit 0,
+#: silently; it did not recur in 11 more runs of that test, and its cause was not found: this
+#: guards against a swallowed interrupt, whatever swallows it.
 _interrupts: list[int] = []
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def _record_interrupt(number, frame) -> None:
-    """SIGINT handler of the command: remember it, then interrupt as Python would."""
+    """Handler of the stop signals: remember the signal, then interrupt as Ctrl-C does."""
     _interrupts.append(number)
     raise KeyboardInterrupt
 
 
 def check_interrupted() -> None:
-    """Raise KeyboardInterrupt if Ctrl-C came since main() began, even if something caught
-    it: called once the slow imports and the model load are done."""
+    """Raise KeyboardInterrupt if a stop signal came during main(), even if something caught
+    the first one: called after the slow imports, after the model load, and after each frame
+    (so that the outputs are still closed properly)."""
     if _interrupts:
         raise KeyboardInterrupt
+
+
+class _StopOnInterrupt:
+    """A progress display (update(people_in_view), close()) that also checks, after each
+    frame, for a stop signal that something swallowed (check_interrupted)."""
+
+    def __init__(self, progress):
+        self._progress = progress
+
+    def update(self, people_in_view: int) -> None:
+        self._progress.update(people_in_view)
+        check_interrupted()
+
+    def close(self) -> None:
+        self._progress.close()
 
 
 class TrackError(SilhouettePoseError):
@@ -253,7 +272,7 @@ def _run(args) -> int:
     sinks = open_sinks(streaming + smoothed)
     tracker = PoseTracker(model, source.fps, tracker_settings(args))
     result = track_video(source, tracker, sinks[:len(streaming)],
-                         Progress(source.expected_frames(), quiet=args.quiet),
+                         _StopOnInterrupt(Progress(source.expected_frames(), quiet=args.quiet)),
                          smoothed_sinks=sinks[len(streaming):], background=plate)
     if not args.quiet:
         _print_summary(args, source, result)
@@ -301,12 +320,12 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 def main(argv=None) -> int:
     """Entry point of the ``track`` console script."""
     # SIGTERM and SIGHUP (terminal closed) stop like Ctrl-C: outputs are closed, not cut off.
-    for number in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(number, signal.default_int_handler)
+    # A signal the shell ignores (nohup, a background job's Ctrl-C) stays ignored.
     _interrupts.clear()
-    previous_sigint = signal.getsignal(signal.SIGINT)
-    if previous_sigint is signal.default_int_handler:      # not when the shell ignores it
-        signal.signal(signal.SIGINT, _record_interrupt)
+    previous = {number: signal.getsignal(number) for number in _STOP_SIGNALS}
+    for number, handler in previous.items():
+        if handler != signal.SIG_IGN:
+            signal.signal(number, _record_interrupt)
     try:
         args = build_parser().parse_args(argv)
         if not os.environ.get("TRACK_DEBUG"):
@@ -333,8 +352,10 @@ def main(argv=None) -> int:
               f"(set TRACK_DEBUG=1 for details)", file=sys.stderr)
         return EXIT_ERROR
     finally:
-        if previous_sigint is signal.default_int_handler:
-            signal.signal(signal.SIGINT, previous_sigint)
+        for number, handler in previous.items():
+            if handler is not None:
+                signal.signal(number, handler)
+        _interrupts.clear()
 
 
 if __name__ == "__main__":
