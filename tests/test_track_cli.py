@@ -384,3 +384,15 @@ def test_zone_foreground_reaches_the_tracker_settings(choice, trust):
     from tracker.cli import build_parser, tracker_settings
     argv = ["v.mp4"] + ([] if choice is None else ["--zone-foreground", choice])
     assert tracker_settings(build_parser().parse_args(argv)).trust_zone_foreground is trust
+
+
+def test_the_mcap_records_a_zone_rule_other_than_the_default(tmp_path, walk_video):
+    def settings(*options) -> dict:
+        out = tmp_path / f"z{len(options)}.mcap"
+        assert _track(walk_video, "--out", out, "--end", "0.5", "--quiet", *options,
+                      cwd=tmp_path).returncode == 0
+        with open(out, "rb") as stream:
+            metadata = {m.name: m.metadata for m in make_reader(stream).iter_metadata()}
+        return metadata["settings"]
+    assert "zone_foreground" not in settings()          # the default leaves it out
+    assert settings("--zone-foreground", "colour")["zone_foreground"] == "colour"
