@@ -131,7 +131,7 @@ def off_body(person: PersonMask, points_px: np.ndarray, body: BodyDrawing,
     if person.area == 0:
         return 0.0
     region = body_region(points_px, body, person.bbox, width)
-    return float(np.count_nonzero(person.mask & ~region)) / float(np.count_nonzero(person.mask))
+    return float(np.count_nonzero(person.mask & ~region)) / float(person.area)
 
 
 def silhouette_measures(tracked: list[FramePeople], keypoints_px: np.ndarray,
