@@ -84,3 +84,17 @@ def shape_contexts(
     counts = counts[:, :spare].reshape(n * n_radial, 2, n_angular)
     folded = counts[:, 0, :] + counts[:, 1, :]
     return folded.reshape(n, n_radial * n_angular) / float(n - 1)
+
+
+def mirrored_bins(n_angular: int = 12, n_radial: int = 5) -> np.ndarray:
+    """Bin order that turns a shape context into the context of the mirror-image point set
+    (x -> -x, the image flipped left to right): contexts_of_mirror = contexts[:, order].
+
+    Mirroring sends an angle a to 180 - a, so sector k goes to sector n_angular/2 - 1 - k
+    (mod n_angular); rings are unchanged. Exact for points off the sector boundaries. Needs an
+    even n_angular (a sector edge at 90 degrees); ValueError otherwise. Returns
+    (n_radial * n_angular,) int, a permutation (its own inverse)."""
+    if n_angular < 2 or n_angular % 2:
+        raise ValueError(f"mirrored contexts need an even number of sectors, got {n_angular}")
+    sectors = (n_angular // 2 - 1 - np.arange(n_angular)) % n_angular
+    return (np.arange(n_radial)[:, None] * n_angular + sectors[None, :]).ravel()

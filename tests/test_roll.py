@@ -51,6 +51,8 @@ def test_the_tracker_describes_the_upright_silhouette():
     seen = []
     described = replace(model)
     described.describe = lambda mask: seen.append(mask) or model.describe(mask)
+    described.describe_with_mirror = \
+        lambda mask: seen.append(mask) or model.describe_with_mirror(mask)
     bar = _leaning_bar(15.0)
     ys, xs = np.nonzero(bar)
     person = PersonMask(mask=bar, bbox=(0, 0, bar.shape[1], bar.shape[0]),

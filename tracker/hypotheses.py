@@ -168,7 +168,9 @@ import numpy as np
 
 from regressor.angles import heading_norm
 from regressor.canonical_priors import CanonicalPriors
+from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
+from .mirror_limbs import mirror_mean, sees_mirror
 from .travel import fuse_with_prior, travel_likelihood
 
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
@@ -412,7 +414,8 @@ def switch_probability(estimator) -> tuple[float, float]:
     return SWITCH_PROBABILITY
 
 
-def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS) -> Hypotheses:
+def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
+            mirrored: np.ndarray | None = None) -> Hypotheses:
     """The hypotheses of one frame from a stacked descriptor (k*D,): the estimator's
     ``predict_hypotheses(stacked (N, k*D), n_experts) -> (poses (N, m, 55), probabilities
     (N, m))`` if it has one (regressor.pose_model.PoseModel: a mixture's top experts, or a
@@ -420,22 +423,27 @@ def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS) ->
     pose), else its ``predict``; each pose and its front/back flip. An estimator with
     ``predict_frame`` (PoseModel) gives all of these and the side classifier's probability
     in one pass; with a side classifier and limbs, the hypotheses are
-    :func:`canonical_hypotheses` instead."""
-    return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts)[0]
+    :func:`canonical_hypotheses` instead. mirrored: the stacked descriptor (k*D,) of the
+    frames' mirror images (tracker.mirror_limbs); its limbs are averaged into the frame's."""
+    return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts,
+                         None if mirrored is None else np.asarray(mirrored, float)[None])[0]
 
 
-def propose_batch(estimator, stacked: np.ndarray,
-                  n_experts: int = DEFAULT_EXPERTS) -> list[Hypotheses]:
-    """:func:`propose` for stacked descriptors (N, k*D) at once (offline evaluation)."""
+def propose_batch(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
+                  mirrored: np.ndarray | None = None) -> list[Hypotheses]:
+    """:func:`propose` for stacked descriptors (N, k*D) at once (offline evaluation);
+    mirrored (N, k*D) or None as there."""
     if hasattr(estimator, "predict_frame") or hasattr(estimator, "predict_hypotheses"):
         if hasattr(estimator, "predict_frame"):
             poses, gate, limbs, front = estimator.predict_frame(stacked, n_experts)
+            limbs = _with_mirror(estimator, limbs, mirrored)
             if front is not None and limbs is not None:
                 priors = canonical_priors(estimator)
                 return [canonical_hypotheses(p[0], lb, f, priors)
                         for p, lb, f in zip(poses, limbs, front)]
         elif hasattr(estimator, "predict_hypotheses_and_limbs"):
             poses, gate, limbs = estimator.predict_hypotheses_and_limbs(stacked, n_experts)
+            limbs = _with_mirror(estimator, limbs, mirrored)
         else:
             (poses, gate), limbs = estimator.predict_hypotheses(stacked, n_experts), None
         if limbs is None:
@@ -444,6 +452,29 @@ def propose_batch(estimator, stacked: np.ndarray,
                 for p, g, lb in zip(poses, gate, limbs)]
     raws = estimator.predict_batch(stacked)
     return [_with_flips(raw[None], np.ones(1)) for raw in raws]
+
+
+def _with_mirror(estimator, limbs: np.ndarray | None, mirrored: np.ndarray | None):
+    """limbs (N, 55) averaged with the estimator's limbs for the mirror images' stacked
+    descriptors (tracker.mirror_limbs.mirror_mean); as they are without either."""
+    if limbs is None or mirrored is None:
+        return limbs
+    return mirror_mean(limbs, estimator.predict_limbs(mirrored))
+
+
+def propose_sequence(estimator, masks, n_experts: int = DEFAULT_EXPERTS,
+                     mirror: bool = True) -> list[Hypotheses]:
+    """The hypotheses of one person's silhouette sequence (masks (H, W) bool, in order), as
+    the tracker makes them frame by frame: each mask described (with its mirror image's
+    descriptor too when tracker.mirror_limbs.sees_mirror(estimator, mirror)), stacked, and
+    :func:`propose_batch` (offline evaluation and the learning of priors)."""
+    if sees_mirror(estimator, mirror):
+        pairs = [estimator.describe_with_mirror(m) for m in masks]
+        X, M = (np.array([p[i] for p in pairs]) for i in (0, 1))
+        k = estimator.stack_depth
+        return propose_batch(estimator, stack_frames(X, k), n_experts, stack_frames(M, k))
+    X = np.array([estimator.describe(m) for m in masks])
+    return propose_batch(estimator, stack_frames(X, estimator.stack_depth), n_experts)
 
 
 def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:

@@ -26,6 +26,7 @@ from .association import Associator
 from .roll import upright_mask
 from .filtering import PoseKalmanFilter
 from .hypotheses import FrontBackTracker, propose, switch_probability
+from .mirror_limbs import sees_mirror
 from .silhouettes import PersonMask, SilhouetteExtractor
 from .sinks.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
 from .travel import TravelDirection
@@ -123,6 +124,10 @@ class TrackerSettings:
     person who never leaves the spot) as sure person; False lets colour decide on it too
     (tracker.silhouettes.refine_in_zone: fewer ghosts, some lost limb pixels; ``track
     --zone-foreground colour``). An extractor given to PoseTracker keeps its own rule.
+    mirror_limbs: average the limbs with the model's limbs for each frame's mirror image, for
+    a model whose limb networks were fitted on mirror images (tracker.mirror_limbs; costs a
+    second descriptor histogram and network pass per person and frame); other estimators
+    ignore it.
     """
 
     max_people: int | None = None
@@ -139,6 +144,7 @@ class TrackerSettings:
     keep_history: bool = True
     novelty: bool = True
     trust_zone_foreground: bool = True
+    mirror_limbs: bool = True
 
     def threshold(self, estimator) -> float:
         """The ambiguity threshold in use: this setting, else the estimator's own."""
@@ -271,6 +277,7 @@ class _TrackState:
     stacker: FrameStacker
     hypotheses: FrontBackTracker
     travel: TravelDirection
+    mirror_stacker: FrameStacker | None = None      # the mirror images' (mirror_limbs only)
     measured: list = field(default_factory=list)    # (55,) raw poses (keep_history only)
     frames: int = 0                                  # frames with a pose
     unfamiliar: int = 0                              # of them, novelty > UNFAMILIAR_NOVELTY
@@ -303,6 +310,7 @@ class PoseTracker:
         self.associator = associator or Associator()
         self.filter_factory, self.limb_filter_factory = filter_factories(estimator, settings,
                                                                          filter_factory)
+        self._mirror = sees_mirror(estimator, settings.mirror_limbs)
         index = getattr(estimator, "heading_index", None)
         if settings.novelty and index is not None:
             index.typical_distance()     # novelty's scale, computed once: here, not at frame 1
@@ -362,20 +370,27 @@ class PoseTracker:
                 FrontBackTracker(self.filter_factory, self.fps,
                                  switch=switch_probability(self.estimator),
                                  keep_history=self.settings.keep_history,
-                                 limb_filter_factory=self.limb_filter_factory), travel)
+                                 limb_filter_factory=self.limb_filter_factory), travel,
+                FrameStacker(self.estimator.stack_depth) if self._mirror else None)
         return self.tracks[track_id]
 
     def _pose(self, track_id: int, person: PersonMask, frame_index: int,
               time_s: float) -> TrackedPose | None:
         state = self._state(track_id)
         clock = time.perf_counter()
+        mask = upright_mask(person.mask, self.settings.roll_deg)
         try:
-            descriptor = self.estimator.describe(upright_mask(person.mask, self.settings.roll_deg))
+            if state.mirror_stacker is not None:
+                descriptor, mirrored = self.estimator.describe_with_mirror(mask)
+            else:
+                descriptor, mirrored = self.estimator.describe(mask), None
         except SilhouetteError:
             return None                       # a sliver or speck: no pose this frame
         clock = self._lap("descriptor", clock)
         stacked = state.stacker.push(descriptor)
-        hypotheses = propose(self.estimator, stacked)
+        if mirrored is not None:
+            mirrored = state.mirror_stacker.push(mirrored)
+        hypotheses = propose(self.estimator, stacked, mirrored=mirrored)
         novelty = (float(self.estimator.novelty(np.asarray(stacked, float)[None])[0])
                    if self.settings.novelty and hasattr(self.estimator, "novelty") else None)
         clock = self._lap("regression", clock)

@@ -39,7 +39,7 @@ from sequences.spiral import line_of_sight_azimuth, spiral_walk
 from sequences.video import Actor, load_truth, posed_sequences, scene_camera, write_video
 from regressor.errors import SilhouettePoseError
 from ..filtering import ConstantVelocityFilter
-from ..hypotheses import propose_batch
+from ..hypotheses import propose_sequence
 from ..pipeline import PoseTracker, TrackerSettings, front_back_tracker
 from ..run import track_video
 from ..sinks import PoseRecorder
@@ -366,8 +366,7 @@ def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model
         motion = replace(motion, euler_deg=motion.euler_deg[:frames],
                          root_position=motion.root_position[:frames])
     masks, truth, image_track = render_silhouettes(motion, camera)
-    X = np.array([stacked_model.describe(m) for m in masks])
-    hypotheses = propose_batch(stacked_model, stack_frames(X, stacked_model.stack_depth))
+    hypotheses = propose_sequence(stacked_model, masks, mirror=settings.mirror_limbs)
     name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
     # As the tracker does: front/back hypotheses over time, the direction of travel as soft
     # evidence while the person moves.

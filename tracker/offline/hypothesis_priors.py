@@ -29,7 +29,8 @@ from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_v
 from regressor.stacking import stack_frames
 from sequences.skeleton import CMU_UNIT_M
 from sequences.spiral import spiral_walk
-from ..hypotheses import DEFAULT_EXPERTS, FrontBackTracker, propose_batch, switch_probability
+from ..hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, propose_sequence,
+                          switch_probability)
 from ..pipeline import kalman_factory
 from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW, TravelDirection
 from ..video import focal_length_px
@@ -160,11 +161,10 @@ def validation_renders(model, bvh_files, spiral_deg_per_s: float = 30.0,
                     motion = replace(motion, euler_deg=motion.euler_deg[:frames],
                                      root_position=motion.root_position[:frames])
                 masks, truth, image_track = render_silhouettes(motion, camera)
-                X = np.array([model.describe(m) for m in video_like(masks, video)])
                 name = f"{Path(path).stem} {'spiral' if spiral else 'fixed'}" \
                        f"{' reversed' if reverse else ''}"
-                renders[name] = {"hypotheses": propose_batch(model, stack_frames(X, model.stack_depth),
-                                                             n_experts),
+                renders[name] = {"hypotheses": propose_sequence(model, video_like(masks, video),
+                                                                n_experts),
                                  "image_track": image_track, "truth": truth}
     return renders
 
