@@ -47,7 +47,8 @@ Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 20
   0.052 -> 0.703 / 0.727 / 0.069, and 05_02's heading 47.3 -> 72.6 degrees (the canonical pair
   the front/back chain weighs is the networks' member), for a second descriptor per frame.
   Mirror images in training instead (tracker.offline.training.MixtureOptions.limb_net_mirror)
-  cost nothing at run time.
+  cost nothing at run time. With networks fitted on mirror images too (the default since),
+  the run-time average does help, and ``track`` uses it (tracker.mirror_limbs, figures there).
 
 A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
 standardised by a mean and one scale, outputs by a mean and a scale per value; the 53 body

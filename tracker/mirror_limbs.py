@@ -10,14 +10,20 @@ two (``TrackerSettings.mirror_limbs``, on by default). It costs the mirror image
 (its shape contexts are the frame's own, reflected: PoseModel.describe_with_mirror) and one
 more pass of the networks per person and frame.
 
-Measured (2026-12-02, the shipped model with eight mirror-trained networks, through ``track``
-on the five validation videos 02_02 / 08_03 / 05_02 / 09_04 / 02_05; one-off driver):
-filtered corr8 0.698 / 0.784 / 0.049 / 0.507 / 0.365 -> 0.717 / 0.791 / 0.075 / 0.515 /
-0.361 (mean 0.481 -> 0.492), err53 mean 7.69 -> 7.58, knee/elbow flexion error mean 15.90 ->
-15.67; filtered heading RMS mean 36.8 -> 38.1 (09_04 15.2 -> 19.9; the chain weighs the
-networks' pair, so the heading moves with them; smoothed 5.9 -> 5.7). The same average tried
-earlier with four networks fitted without mirror images gained nothing through ``track``
-(regressor.limb_net's docstring): those networks had not seen mirror images.
+Measured (2026-12-02, the shipped model with eight mirror-trained networks; chosen on
+validation data, one-off drivers): through ``track`` on the five validation videos 02_02 /
+08_03 / 05_02 / 09_04 / 02_05 filtered corr8 0.698 / 0.784 / 0.049 / 0.507 / 0.365 -> 0.708 /
+0.786 / 0.071 / 0.511 / 0.364 (mean 0.481 -> 0.488), err53 mean 7.69 -> 7.60, knee/elbow
+flexion error mean 15.90 -> 15.71; filtered heading RMS 09_04 15.2 -> 20.0 and 02_05 77.4 ->
+79.2 (the chain weighs the networks' pair, so the heading moves with them), the others
+within 0.2 degree. On the 28 validation renders (tracker.offline.hypothesis_priors
+.validation_renders, the whole chain): filtered / smoothed heading RMS 36.4 / 28.5 -> 35.2 /
+28.1 degrees, corr8 0.561 / 0.630 -> 0.571 / 0.635. Describing the flipped mask itself (its
+edge sampled anew, 1.4 ms more per frame instead of 0.34) gave 0.492 on the videos and 0.572
+/ 0.635 on the renders. Averaging the side classifier's probability with the mirror image's
+too: see TrackerSettings.mirror_limbs. The same average tried earlier with four networks
+fitted without mirror images gained nothing through ``track`` (regressor.limb_net's
+docstring): those networks had not seen mirror images.
 """
 from __future__ import annotations
 
