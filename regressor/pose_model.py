@@ -180,16 +180,16 @@ class PoseModel:
         descriptor differs from it only by where the edge sampling starts (the norm of the
         difference 0.45 against 7.4 between a mask's descriptor and its mirror's, on 120
         video-like masks of a walk). Raises as describe."""
-        contexts = mask_contexts(mask, self.settings)
+        flipped = np.asarray(mask)[:, ::-1]
         try:
             order = mirrored_bins(self.settings.n_angular, self.settings.n_radial)
         except ValueError:                                    # odd sectors: no permutation
-            return self.describe(mask), self.describe(np.asarray(mask)[:, ::-1])
+            return self.describe(mask), self.describe(flipped)
+        contexts = mask_contexts(mask, self.settings)
         histograms = np.array([soft_histogram(c, self.codebook, self.settings.n_votes,
                                               self.settings.total)
                                for c in (contexts, contexts[:, order])])
-        layouts = (np.array([silhouette_layout(m, self.layout_grid)
-                             for m in (mask, np.asarray(mask)[:, ::-1])])
+        layouts = (np.array([silhouette_layout(m, self.layout_grid) for m in (mask, flipped)])
                    if self.layout_grid else None)
         own, mirror = frame_descriptors(histograms, self.transform, layouts, self.layout_weight)
         return own, mirror

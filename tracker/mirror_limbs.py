@@ -20,11 +20,12 @@ within 0.2 degree. On the 28 validation renders (tracker.offline.hypothesis_prio
 .validation_renders, the whole chain): filtered / smoothed heading RMS 36.4 / 28.5 -> 35.2 /
 28.1 degrees, corr8 0.561 / 0.630 -> 0.571 / 0.635. Describing the flipped mask itself (its
 edge sampled anew, 1.4 ms more per frame instead of 0.34) gave 0.492 on the videos and 0.572
-/ 0.635 on the renders. Not adopted: averaging the side classifier's front probability with the
-mirror image's too: renders filtered / smoothed heading 35.2 / 28.1 -> 36.0 / 37.5 and
-corr8 0.571 / 0.635 -> 0.547 / 0.541 (whole-track flips on 08_03 and 09_04 fixed, reversed). The same average tried earlier with four networks
-fitted without mirror images gained nothing through ``track`` (regressor.limb_net's
-docstring): those networks had not seen mirror images.
+/ 0.635 on the renders. Not adopted: averaging the side classifier's front probability
+with the mirror image's too: renders filtered / smoothed heading 35.2 / 28.1 -> 36.0 / 37.5
+and corr8 0.571 / 0.635 -> 0.547 / 0.541 (whole-track flips on 08_03 and 09_04 fixed,
+reversed). The same average tried earlier with four networks fitted without mirror images
+gained nothing through ``track`` (regressor.limb_net's docstring): those networks had not
+seen mirror images.
 """
 from __future__ import annotations
 
