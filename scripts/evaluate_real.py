@@ -5,8 +5,9 @@
         [--masks PNG]
 
 Runs ``track``'s pipeline on each of the four views and prints, per view, knee and elbow flexion
-error and correlation against the reference (beside a constant at the reference's own mean
-flexion), heading error against the reference, the number of tracks, and across views the
+error and correlation against the reference (beside two constants: the reference's own mean
+flexion, which knows the answer's average, and the model's training-mean pose, what a regressor
+that ignores its input would score), heading error against the reference, the number of tracks, and across views the
 heading consistency (heading differences against camera azimuth differences) and disagreement of
 the 53 body angles, and the novelty of the subject's silhouettes (how unlike the training
 silhouettes they are: PoseModel.novelty; --masks draws them). In each view the subject is, per
@@ -31,6 +32,7 @@ from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, came
                                 load_trial, project_reference)
 from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
                                          subject_rows, view_measures)
+from tracker.offline.evaluation import constant_pose
 from tracker.sinks import PoseRecorder
 
 _MID_HIP = [0, 6]               # RHip, LHip in the reference's keypoints
@@ -99,15 +101,17 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
                      recorder.tiles if keep_masks else None)
 
 
-def evaluate_view(trial: Trial, view: str, track: ViewTrack) -> tuple[dict, np.ndarray]:
-    """Measures of one view's subject (filtered and raw poses) and the subject's rows."""
+def evaluate_view(trial: Trial, view: str, track: ViewTrack, constant_pose=None
+                  ) -> tuple[dict, np.ndarray]:
+    """Measures of one view's subject (filtered and raw poses) and the subject's rows;
+    constant_pose (55,): also that constant's flexion error (view_measures)."""
     hips = project_reference(view, track.frames, trial)[:, _MID_HIP].mean(axis=1)
     rows = subject_rows(track.frames, track.bbox_px, hips)
     frames = track.frames[rows]
     out = {"tracks": int(len(np.unique(track.track_ids))),
            "subject_tracks": int(len(np.unique(track.track_ids[rows]))),
-           "filtered": view_measures(trial, view, frames, track.filtered[rows]),
-           "raw": view_measures(trial, view, frames, track.raw[rows]),
+           "filtered": view_measures(trial, view, frames, track.filtered[rows], constant_pose),
+           "raw": view_measures(trial, view, frames, track.raw[rows], constant_pose),
            "novelty": novelty_summary(track.novelty[rows])}
     return out, rows
 
@@ -121,12 +125,13 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
     sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
     at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them)."""
     per_view, subject = {}, {}
+    constant = constant_pose(model)
     for view in VIEWS:
         roll_deg = camera_roll_deg(trial, view) if roll else 0.0
         track = _track_view(trial.video(view), model, max_people, roll_deg,
                             keep_masks=sheet is not None,
                             trust_zone_foreground=trust_zone_foreground)
-        per_view[view], rows = evaluate_view(trial, view, track)
+        per_view[view], rows = evaluate_view(trial, view, track, constant)
         if sheet is not None:
             picked = rows[np.linspace(0, len(rows) - 1, 8).astype(int)]
             sheet.append([track.tiles[(int(track.frames[i]), int(track.track_ids[i]))]
@@ -173,31 +178,37 @@ def _means(per_view: dict) -> dict:
             "flexion_error": mean(lambda m: m["flexion"]["error"]),
             "flexion_corr_per_angle": mean(lambda m: m["flexion"]["corr_per_angle"]),
             "constant_flexion_error": mean(lambda m: m["flexion"]["truth_mean_error_mean"]),
+            "training_mean_flexion_error": mean(lambda m: m["flexion"]["constant_error_mean"]),
             "heading_within_45": mean(lambda m: m["heading"]["within_45"]),
             "heading_rms_deg": mean(lambda m: m["heading"]["rms_deg"])}
 
 
-def _row(label: str, tracks: str, frames: str, err, err_mean, const, corr, within, rms) -> str:
+def _row(label: str, tracks: str, frames: str, err, err_mean, const, train, corr, within,
+         rms) -> str:
     return (f"{label:6} {tracks:>3} {frames:>3} | " + " ".join(f"{e:5.1f}" for e in err)
-            + f" {err_mean:5.1f} {const:5.1f} | " + " ".join(f"{c:5.2f}" for c in corr)
+            + f" {err_mean:5.1f} {const:5.1f} {train:5.1f} | "
+            + " ".join(f"{c:5.2f}" for c in corr)
             + f" | {within:5.2f} {rms:4.0f}")
 
 
 def format_table(result: dict) -> str:
     """The evaluation as a plain-text table (filtered poses)."""
     short = " ".join(f"{s:>5}" for s in ("Lkn", "Rkn", "Lel", "Rel"))
-    head = (f"{'':14} | {'flexion error (deg)':^35} | {'flexion corr.':^23} | heading\n"
-            f"{'view':6} {'trk':>3} {'frm':>3} | {short} {'mean':>5} {'const':>5} | {short} "
+    head = (f"{'':14} | {'flexion error (deg)':^41} | {'flexion corr.':^23} | heading\n"
+            f"{'view':6} {'trk':>3} {'frm':>3} | {short} {'mean':>5} {'const':>5} {'train':>5} "
+            f"| {short} "
             f"| {'<=45':>5} {'RMS':>4}")
     lines = [head, "-" * len(head.splitlines()[1])]
     for view, r in result["views"].items():
         f, h = r["filtered"]["flexion"], r["filtered"]["heading"]
         lines.append(_row(view, str(r["tracks"]), str(r["filtered"]["frames"]),
                           f["error_per_angle"], f["error"], f["truth_mean_error_mean"],
-                          f["corr_per_angle"], h["within_45"], h["rms_deg"]))
+                          f["constant_error_mean"], f["corr_per_angle"], h["within_45"],
+                          h["rms_deg"]))
     m = result["mean"]
     lines.append(_row("mean", "", "", m["flexion_error_per_angle"], m["flexion_error"],
-                      m["constant_flexion_error"], m["flexion_corr_per_angle"],
+                      m["constant_flexion_error"], m["training_mean_flexion_error"],
+                      m["flexion_corr_per_angle"],
                       m["heading_within_45"], m["heading_rms_deg"]))
     for kind in ("filtered", "raw"):
         c = result["cross_view"][kind]
@@ -207,8 +218,9 @@ def format_table(result: dict) -> str:
                      f"{c['body_angle_disagreement_deg']:.1f} deg")
     raw = [r["raw"]["flexion"]["error"] for r in result["views"].values()]
     lines.append(f"raw poses: flexion error {np.mean(raw):.1f} deg (mean over views). "
-                 f"const: a constant at the reference's own mean flexion; trk: tracks in the "
-                 f"view; frm: frames with the subject tracked")
+                 f"const: a constant at the reference's own mean flexion; train: the model's "
+                 f"training-mean pose held still; trk: tracks in the view; frm: frames with "
+                 f"the subject tracked")
     novel = {v: r.get("novelty", {}) for v, r in result["views"].items()}
     if all(n.get("median") is not None for n in novel.values()):
         lines.append("novelty (distance to the training silhouettes over their own 99th "

@@ -53,13 +53,17 @@ def heading_measures(estimate_deg, reference_deg) -> dict:
             "within_45": float((err <= WITHIN_DEG).mean())}
 
 
-def view_measures(trial: Trial, view: str, frames, poses) -> dict:
+def view_measures(trial: Trial, view: str, frames, poses, constant_pose=None) -> dict:
     """One view's estimated poses (T >= 2, 55) at video frames (T,) against the reference:
     {"frames", "flexion": sequences.measures.flexion_measures (its "truth_mean_error" is the
-    constant reference-mean flexion's error), "heading": heading_measures}."""
+    constant reference-mean flexion's error; with constant_pose (55,), e.g. the model's
+    training-mean pose, also that pose's "constant_error"), "heading": heading_measures}."""
     frames = np.asarray(frames, dtype=np.int64)
+    constant = None if constant_pose is None else flexion_deg(
+        np.asarray(constant_pose, dtype=np.float64)[None])[0]
     return {"frames": int(len(frames)),
-            "flexion": flexion_measures(flexion_deg(poses), reference_flexion(trial, frames)),
+            "flexion": flexion_measures(flexion_deg(poses), reference_flexion(trial, frames),
+                                        constant),
             "heading": heading_measures(heading_deg(poses),
                                         reference_heading_deg(trial, view, frames))}
 

@@ -44,3 +44,24 @@ def test_the_mask_sheet_has_one_row_per_view(evaluate_real, tmp_path):
     assert (image == 255).sum() == 16 * 120 * 20
     with pytest.raises(evaluate_real.Pose2SimError, match="cannot write"):
         evaluate_real.write_mask_sheet(tmp_path / "no" / "sheet.png", [[tile]])
+
+
+def _view(err: float, train: float) -> dict:
+    flexion = {"error_per_angle": [err] * 4, "error": err, "truth_mean_error_mean": 13.0,
+               "constant_error_mean": train, "corr_per_angle": [0.5] * 4}
+    heading = {"within_45": 1.0, "rms_deg": 10.0}
+    return {"tracks": 1, "filtered": {"frames": 100, "flexion": flexion, "heading": heading},
+            "raw": {"frames": 100, "flexion": flexion, "heading": heading}}
+
+
+def test_the_table_puts_both_constants_beside_the_error(evaluate_real):
+    per_view = {"cam01": _view(20.0, 22.0), "cam02": _view(30.0, 24.0)}
+    cross = {"frames": 100, "heading_rms_deg": 50.0, "random_heading_rms_deg": 104.0,
+             "body_angle_disagreement_deg": 8.0}
+    result = {"views": per_view, "mean": evaluate_real._means(per_view),
+              "cross_view": {"filtered": cross, "raw": cross}}
+    assert result["mean"]["training_mean_flexion_error"] == pytest.approx(23.0)
+    lines = evaluate_real.format_table(result).splitlines()
+    assert "train" in lines[1]
+    assert lines[3].split("|")[1].split()[-3:] == ["20.0", "13.0", "22.0"]
+    assert lines[5].split("|")[1].split()[-3:] == ["25.0", "13.0", "23.0"]

@@ -154,3 +154,16 @@ def test_view_measures_of_the_reference_heading_and_a_straight_body(trial):
     assert out["heading"]["rms_deg"] < 1e-6 and out["heading"]["within_45"] == 1.0
     assert out["flexion"]["error_per_angle"] == pytest.approx(np.abs(ref).mean(axis=0))
     assert out["flexion"]["corr"] == 0.0            # a straight body does not move
+
+
+def test_view_measures_score_a_given_constant_pose_beside_the_reference_mean(trial):
+    frames = video_frames(trial)
+    ref = reference_flexion(trial, frames)
+    straight = _poses_with_heading(np.zeros(len(frames)))
+    out = view_measures(trial, "cam02", frames, straight, constant_pose=straight[0])
+    # The estimate is the constant itself, so the two errors agree; the reference's own mean
+    # is a different (better) constant.
+    assert out["flexion"]["constant_error"] == pytest.approx(out["flexion"]["error_per_angle"])
+    assert out["flexion"]["constant_error_mean"] == pytest.approx(np.abs(ref).mean())
+    assert out["flexion"]["truth_mean_error_mean"] < out["flexion"]["constant_error_mean"]
+    assert "constant_error" not in view_measures(trial, "cam02", frames, straight)["flexion"]
