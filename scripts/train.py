@@ -120,6 +120,10 @@ def main(argv=None) -> int:
                     help="fit the limb networks on every training silhouette's mirror image "
                          "too (the masks flipped left to right; their descriptors are cached "
                          "beside the others); default on")
+    ap.add_argument("--limb-net-noise", type=float, default=MixtureOptions.limb_net_noise,
+                    help="fit the limb networks with fresh Gaussian noise on their inputs each "
+                         "epoch, this fraction of each input's spread (regressor.limb_net; "
+                         f"default {MixtureOptions.limb_net_noise})")
     ap.add_argument("--side-classifier", choices=("on", "off"), default=None,
                     help="with limbs, also fit the front/back side classifier "
                          "(regressor.side_classifier; needs scikit-learn); the tracker then "
@@ -157,6 +161,8 @@ def main(argv=None) -> int:
                 prior_files(args.bvh_dir)
         except ValueError as exc:
             ap.error(str(exc))
+    if not 0.0 <= args.limb_net_noise <= 2.0:
+        ap.error(f"--limb-net-noise must be in 0..2, got {args.limb_net_noise}")
     if not 1 <= args.workers <= 64:
         ap.error(f"--workers must be in 1..64, got {args.workers}")
     if args.heading_index_rows < 0:
@@ -214,6 +220,7 @@ def main(argv=None) -> int:
                                      limb_head=_limb_head(args),
                                      heading_index_rows=args.heading_index_rows,
                                      limb_net_members=args.limb_nets,
+                                     limb_net_noise=args.limb_net_noise,
                                      limb_net_mirror=bool(args.limb_nets)
                                      and args.limb_net_mirror == "on",
                                      side_classifier=args.side_classifier == "on",

@@ -57,6 +57,29 @@ def test_the_ensemble_is_the_mean_of_its_members_and_a_refit_is_identical():
             np.testing.assert_array_equal(bias, bias2)
 
 
+def test_input_noise_still_learns_is_seeded_and_makes_the_map_smoother():
+    clean, X, _ = _fitted(members=1)
+    noisy, _, _ = _fitted(members=1, input_noise=0.5)
+    Xt, Yt = _synthetic(500, seed=1)
+    err = np.abs(wrap_deg(noisy.predict(Xt)[:, 2:] - Yt[:, 2:])).mean()
+    # Blurred by the noise (half of each input's spread on a map of products of inputs), but
+    # still far better than the centre.
+    assert err < 0.5 * np.abs(wrap_deg(Yt[:, 2:] - 170.0)).mean()
+    again, _, _ = _fitted(members=1, input_noise=0.5)
+    for (W, _), (W2, _) in zip(noisy.members[0], again.members[0]):
+        np.testing.assert_array_equal(W, W2)
+    # Trained on inputs blurred by noise, the map changes less for a small step in the input.
+    step = np.random.default_rng(2).normal(0, 0.2, Xt.shape)
+
+    def change(net):
+        return np.abs(wrap_deg(net.predict(Xt + step)[:, 2:] - net.predict(Xt)[:, 2:])).mean()
+
+    assert change(noisy) < 0.9 * change(clean)
+    with pytest.raises(ValueError, match="input_noise"):
+        fit_limb_net(X, np.zeros((len(X), 55)), np.zeros(53), np.eye(55)[0], members=1,
+                     input_noise=-0.1)
+
+
 def test_members_of_different_widths_are_averaged_one_by_one():
     """Same-shaped members run as one batched stack (relu_layers.stacked_members); members
     of different widths cannot, and give the same mean one by one."""

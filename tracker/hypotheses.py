@@ -435,8 +435,15 @@ def propose_batch(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPER
     mirrored (N, k*D) or None as there."""
     if hasattr(estimator, "predict_frame") or hasattr(estimator, "predict_hypotheses"):
         if hasattr(estimator, "predict_frame"):
-            poses, gate, limbs, front = estimator.predict_frame(stacked, n_experts)
-            limbs = _with_mirror(estimator, limbs, mirrored)
+            if mirrored is not None and hasattr(estimator, "predict_frame_and_mirror"):
+                # the frames and their mirror images through the limb networks at once
+                poses, gate, limbs, front, mirror_limbs = estimator.predict_frame_and_mirror(
+                    stacked, mirrored, n_experts)
+                if limbs is not None:
+                    limbs = mirror_mean(limbs, mirror_limbs)
+            else:
+                poses, gate, limbs, front = estimator.predict_frame(stacked, n_experts)
+                limbs = _with_mirror(estimator, limbs, mirrored)
             if front is not None and limbs is not None:
                 priors = canonical_priors(estimator)
                 return [canonical_hypotheses(p[0], lb, f, priors)

@@ -481,6 +481,7 @@ class MixtureOptions:
     limb_net_members: int = 8
     limb_net_hidden: tuple[int, ...] = (512, 256)
     limb_net_alpha: float = 1e-3
+    limb_net_noise: float = 0.0
     limb_net_mirror: bool = True
     side_classifier: bool = True
     side_classifier_hidden: tuple[int, ...] = (256, 64)
@@ -627,7 +628,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         limb_net = fit_limb_net(inputs, targets_net, head_centre,
                                 head_direction, members=options.limb_net_members,
                                 hidden=options.limb_net_hidden, alpha=options.limb_net_alpha,
-                                seed=options.seed, workers=workers, log=log)
+                                seed=options.seed, workers=workers,
+                                input_noise=options.limb_net_noise, log=log)
         # As the file will hold it (int8 weights): the report and the front/back priors
         # learned from this model then measure the networks that are shipped. What the
         # int8 weights change is reported (limb_net_int8_max_deg).
