@@ -386,7 +386,7 @@ def test_zone_foreground_reaches_the_tracker_settings(choice, trust):
     assert tracker_settings(build_parser().parse_args(argv)).trust_zone_foreground is trust
 
 
-def test_the_mcap_records_a_zone_rule_other_than_the_default(tmp_path, walk_video):
+def test_the_mcap_records_silhouette_options_other_than_the_defaults(tmp_path, walk_video):
     def settings(*options) -> dict:
         out = tmp_path / f"z{len(options)}.mcap"
         assert _track(walk_video, "--out", out, "--end", "0.5", "--quiet", *options,
@@ -394,5 +394,10 @@ def test_the_mcap_records_a_zone_rule_other_than_the_default(tmp_path, walk_vide
         with open(out, "rb") as stream:
             metadata = {m.name: m.metadata for m in make_reader(stream).iter_metadata()}
         return metadata["settings"]
-    assert "zone_foreground" not in settings()          # the default leaves it out
+    default = settings()
+    for key in ("zone_foreground", "roll_deg", "background"):
+        assert key not in default                       # the defaults leave them out
     assert settings("--zone-foreground", "colour")["zone_foreground"] == "colour"
+    plate = _plate(walk_video, tmp_path / "plate.png")
+    chosen = settings("--roll", "5", "--background", plate)
+    assert float(chosen["roll_deg"]) == 5.0 and chosen["background"] == str(plate)

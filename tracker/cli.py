@@ -213,8 +213,12 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
             "model": {"path": str(args.model), **model.summary()},
             "settings": {"smooth": args.smooth, "max_people": args.max_people,
                          "start_s": args.start, "end_s": args.end,
+                         # options that change the silhouettes, when not their defaults
                          **({} if args.zone_foreground == "sure"
                             else {"zone_foreground": args.zone_foreground}),
+                         **({"roll_deg": args.roll} if args.roll else {}),
+                         **({} if args.background is None
+                            else {"background": str(args.background)}),
                          "note": "MCAP holds filtered (not smoothed) poses"}})
 
     def json_summary():
