@@ -401,3 +401,17 @@ def test_the_mcap_records_silhouette_options_other_than_the_defaults(tmp_path, w
     plate = _plate(walk_video, tmp_path / "plate.png")
     chosen = settings("--roll", "5", "--background", plate)
     assert float(chosen["roll_deg"]) == 5.0 and chosen["background"] == str(plate)
+
+
+def test_main_called_from_another_thread_leaves_the_signal_handlers_alone(tmp_path, capsys):
+    import threading
+    from tracker.cli import EXIT_ERROR, main
+    result = []
+    worker = threading.Thread(target=lambda: result.append(main([str(tmp_path / "none.mp4"),
+                                                                 "--quiet"])))
+    worker.start()
+    worker.join(60)
+    # only the main thread may set handlers: from another, main() must not try (ValueError)
+    assert result == [EXIT_ERROR]
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("track: error:") and "\n" not in err

@@ -20,6 +20,7 @@ import os
 import re
 import signal
 import sys
+import threading
 import warnings
 from pathlib import Path
 
@@ -325,8 +326,11 @@ def main(argv=None) -> int:
     """Entry point of the ``track`` console script."""
     # SIGTERM and SIGHUP (terminal closed) stop like Ctrl-C: outputs are closed, not cut off.
     # A signal the shell ignores (nohup, a background job's Ctrl-C) stays ignored.
+    # Only the main thread may set handlers (and only it gets signals): called from another
+    # thread, main() leaves them alone.
     _interrupts.clear()
-    previous = {number: signal.getsignal(number) for number in _STOP_SIGNALS}
+    previous = ({number: signal.getsignal(number) for number in _STOP_SIGNALS}
+                if threading.current_thread() is threading.main_thread() else {})
     for number, handler in previous.items():
         if handler != signal.SIG_IGN:
             signal.signal(number, _record_interrupt)
