@@ -124,6 +124,10 @@ def main(argv=None) -> int:
                     help="fit the limb networks with fresh Gaussian noise on their inputs each "
                          "epoch, this fraction of each input's spread (regressor.limb_net; "
                          f"default {MixtureOptions.limb_net_noise})")
+    ap.add_argument("--limb-net-epochs", type=int, default=MixtureOptions.limb_net_epochs,
+                    help="at most this many epochs per limb network (each stops earlier when "
+                         "its held-out tenth stops gaining; default "
+                         f"{MixtureOptions.limb_net_epochs})")
     ap.add_argument("--side-classifier", choices=("on", "off"), default=None,
                     help="with limbs, also fit the front/back side classifier "
                          "(regressor.side_classifier; needs scikit-learn); the tracker then "
@@ -163,6 +167,8 @@ def main(argv=None) -> int:
             ap.error(str(exc))
     if not 0.0 <= args.limb_net_noise <= 2.0:
         ap.error(f"--limb-net-noise must be in 0..2, got {args.limb_net_noise}")
+    if not 1 <= args.limb_net_epochs <= 1000:
+        ap.error(f"--limb-net-epochs must be in 1..1000, got {args.limb_net_epochs}")
     if not 1 <= args.workers <= 64:
         ap.error(f"--workers must be in 1..64, got {args.workers}")
     if args.heading_index_rows < 0:
@@ -221,6 +227,7 @@ def main(argv=None) -> int:
                                      heading_index_rows=args.heading_index_rows,
                                      limb_net_members=args.limb_nets,
                                      limb_net_noise=args.limb_net_noise,
+                                     limb_net_epochs=args.limb_net_epochs,
                                      limb_net_mirror=bool(args.limb_nets)
                                      and args.limb_net_mirror == "on",
                                      side_classifier=args.side_classifier == "on",

@@ -482,6 +482,7 @@ class MixtureOptions:
     limb_net_hidden: tuple[int, ...] = (512, 256)
     limb_net_alpha: float = 1e-3
     limb_net_noise: float = 0.0
+    limb_net_epochs: int = 200
     limb_net_mirror: bool = True
     side_classifier: bool = True
     side_classifier_hidden: tuple[int, ...] = (256, 64)
@@ -629,7 +630,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                                 head_direction, members=options.limb_net_members,
                                 hidden=options.limb_net_hidden, alpha=options.limb_net_alpha,
                                 seed=options.seed, workers=workers,
-                                input_noise=options.limb_net_noise, log=log)
+                                input_noise=options.limb_net_noise,
+                                max_iter=options.limb_net_epochs, log=log)
         # As the file will hold it (int8 weights): the report and the front/back priors
         # learned from this model then measure the networks that are shipped. What the
         # int8 weights change is reported (limb_net_int8_max_deg).
