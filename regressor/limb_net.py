@@ -50,6 +50,16 @@ Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 20
   cost nothing at run time. With networks fitted on mirror images too (the default since),
   the run-time average does help, and ``track`` uses it (tracker.mirror_limbs, figures there).
 
+- Input noise while fitting (``input_noise``; train.py --limb-net-noise), tried 2026-12-02 and
+  not adopted: the shipped recipe retrained with eight networks at noise 0.5, 40 epochs each
+  (``--limb-net-epochs 40``; uncapped, one stopped after 112 epochs, 20 min) scored on the
+  validation rows at the true heading corr8 0.661, err53 7.18 against the shipped 0.669, 7.02;
+  through ``track`` on the five validation videos filtered corr8 0.708 / 0.786 / 0.071 / 0.511
+  / 0.364 -> 0.664 / 0.826 / 0.067 / 0.494 / 0.396 (mean 0.488 -> 0.489), err53 mean 7.60 ->
+  7.49, heading 02_02 8.7 -> 14.5, 09_04 20.0 -> 7.0; on the 28 validation renders filtered /
+  smoothed heading 35.2 / 28.1 -> 26.5 / 21.1 degrees but corr8 0.571 / 0.635 -> 0.552 /
+  0.606. A wash for the limbs, so the default stays 0.
+
 A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
 standardised by a mean and one scale, outputs by a mean and a scale per value; the 53 body
 angles are regressed as wrapped offsets (degrees) from ``angle_centre_deg``, as the experts'.
