@@ -7,8 +7,8 @@
 Runs ``track``'s pipeline on each of the four views and prints, per view, knee and elbow flexion
 error and correlation against the reference (beside two constants: the reference's own mean
 flexion, which knows the answer's average, and the model's training-mean pose, what a regressor
-that ignores its input would score), heading error against the reference, the number of tracks, and across views the
-heading consistency (heading differences against camera azimuth differences) and disagreement of
+that ignores its input would score), heading error against the reference, the number of
+tracks, and across views the heading consistency (heading differences against camera azimuth differences) and disagreement of
 the 53 body angles, and the novelty of the subject's silhouettes (how unlike the training
 silhouettes they are: PoseModel.novelty; --masks draws them). In each view the subject is, per
 frame, the tracked person whose box holds the reference's projected mid-hip (another person
@@ -101,17 +101,17 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
                      recorder.tiles if keep_masks else None)
 
 
-def evaluate_view(trial: Trial, view: str, track: ViewTrack, constant_pose=None
+def evaluate_view(trial: Trial, view: str, track: ViewTrack, constant=None
                   ) -> tuple[dict, np.ndarray]:
     """Measures of one view's subject (filtered and raw poses) and the subject's rows;
-    constant_pose (55,): also that constant's flexion error (view_measures)."""
+    constant (55,), a pose: also its flexion error (view_measures)."""
     hips = project_reference(view, track.frames, trial)[:, _MID_HIP].mean(axis=1)
     rows = subject_rows(track.frames, track.bbox_px, hips)
     frames = track.frames[rows]
     out = {"tracks": int(len(np.unique(track.track_ids))),
            "subject_tracks": int(len(np.unique(track.track_ids[rows]))),
-           "filtered": view_measures(trial, view, frames, track.filtered[rows], constant_pose),
-           "raw": view_measures(trial, view, frames, track.raw[rows], constant_pose),
+           "filtered": view_measures(trial, view, frames, track.filtered[rows], constant),
+           "raw": view_measures(trial, view, frames, track.raw[rows], constant),
            "novelty": novelty_summary(track.novelty[rows])}
     return out, rows
 

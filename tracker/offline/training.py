@@ -436,6 +436,10 @@ class MixtureOptions:
     26.2 -> 36.8 on the videos, where 05_02's whole-track front/back decision went the other
     way (21 -> 74 deg). The joints' R scaled by 0.25 / 0.5 / 1 / 2 with the 8 (28 renders):
     corr8 0.548 / 0.556 / 0.561 / 0.557, so unchanged.
+    limb_net_noise, limb_net_epochs: fresh Gaussian noise on the networks' inputs each epoch
+    (a fraction of each input's spread) and the most epochs per network (regressor.limb_net
+    .fit_limb_net's input_noise and max_iter); noise 0.5 was measured and not adopted (its
+    docstring), so 0 and 200.
     limb_net_mirror: fit them on every training row's mirror image too (the masks flipped
     left to right, their poses sequences.pose_vector.image_mirror; train_mixture_model's
     ``mirrored``): the training motions are not left/right symmetric (handedness), and a
