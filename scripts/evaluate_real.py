@@ -8,8 +8,8 @@ Runs ``track``'s pipeline on each of the four views and prints, per view, knee a
 error and correlation against the reference (beside two constants: the reference's own mean
 flexion, which knows the answer's average, and the model's training-mean pose, what a regressor
 that ignores its input would score), heading error against the reference, the number of
-tracks, and across views the heading consistency (heading differences against camera azimuth differences) and disagreement of
-the 53 body angles, and the novelty of the subject's silhouettes (how unlike the training
+tracks, and across views the heading consistency (heading differences against camera
+azimuth differences) and disagreement of the 53 body angles, and the novelty of the subject's silhouettes (how unlike the training
 silhouettes they are: PoseModel.novelty; --masks draws them). In each view the subject is, per
 frame, the tracked person whose box holds the reference's projected mid-hip (another person
 walks behind in cam02; background subtraction splits the subject into several tracks in some
