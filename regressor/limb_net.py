@@ -300,11 +300,9 @@ def _fit_member(Xz: np.ndarray, Yz: np.ndarray, hidden: tuple[int, ...], alpha: 
     (its layers [(W, b), ...], epochs run, best held-out R^2, seconds)."""
     if input_noise > 0:
         return _fit_member_noisy(Xz, Yz, hidden, alpha, max_iter, seed, input_noise)
-    MLPRegressor, ConvergenceWarning = _sklearn_classes()
+    _, ConvergenceWarning = _sklearn_classes()
     start = time.perf_counter()
-    net = MLPRegressor(hidden_layer_sizes=hidden, alpha=alpha, batch_size=256,
-                       learning_rate_init=1e-3, max_iter=max_iter, early_stopping=True,
-                       n_iter_no_change=10, random_state=seed)
+    net = _network(hidden, alpha, seed, max_iter=max_iter, early_stopping=True)
     with warnings.catch_warnings(), threadpool_limits(1):
         warnings.simplefilter("ignore", ConvergenceWarning)  # max_iter reached is logged
         net.fit(Xz, Yz)
@@ -318,28 +316,36 @@ def _fit_member_noisy(Xz: np.ndarray, Yz: np.ndarray, hidden: tuple[int, ...], a
     """_fit_member with fresh input noise each epoch (fit_limb_net's input_noise):
     MLPRegressor.partial_fit epoch by epoch (the same Adam, minibatches and L2), with the
     early stopping MLPRegressor does itself: a tenth of the rows held out (clean), stop after
-    10 epochs without a gain of 1e-4 in their R^2, keep the best epoch's layers."""
-    MLPRegressor, _ = _sklearn_classes()
+    its n_iter_no_change epochs without a gain of its tol in their R^2, keep the best epoch's
+    layers."""
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     held = np.zeros(len(Xz), dtype=bool)
     held[rng.permutation(len(Xz))[:max(1, len(Xz) // 10)]] = True
     X_fit, Y_fit, X_held, Y_held = Xz[~held], Yz[~held], Xz[held], Yz[held]
     spread = input_noise * X_fit.std(axis=0)
-    net = MLPRegressor(hidden_layer_sizes=hidden, alpha=alpha, batch_size=256,
-                       learning_rate_init=1e-3, random_state=seed)
+    net = _network(hidden, alpha, seed)
     best, best_layers, stale, epoch = -np.inf, None, 0, 0
     with threadpool_limits(1):
         for epoch in range(1, max_iter + 1):
             net.partial_fit(X_fit + rng.standard_normal(X_fit.shape) * spread, Y_fit)
             score = float(net.score(X_held, Y_held))
-            stale = 0 if score > best + 1e-4 else stale + 1
+            stale = 0 if score > best + net.tol else stale + 1
             if score > best:
                 best = score
                 best_layers = [(W.copy(), b.copy()) for W, b in zip(net.coefs_, net.intercepts_)]
-            if stale >= 10:
+            if stale >= net.n_iter_no_change:
                 break
     return best_layers, epoch, best, time.perf_counter() - start
+
+
+def _network(hidden: tuple[int, ...], alpha: float, seed: int, **options):
+    """A member's MLPRegressor, as every fit makes it: Adam, minibatches of 256, learning rate
+    1e-3, L2 alpha, early stopping after 10 epochs without gain (when it stops early)."""
+    MLPRegressor, _ = _sklearn_classes()
+    return MLPRegressor(hidden_layer_sizes=hidden, alpha=alpha, batch_size=256,
+                        learning_rate_init=1e-3, n_iter_no_change=10, random_state=seed,
+                        **options)
 
 
 def _sklearn_classes():

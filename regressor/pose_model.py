@@ -285,8 +285,7 @@ class PoseModel:
         pass: the tracker's per-frame call."""
         X = self._stacked(stacked)
         poses, prob, limbs = self._hypotheses(X, m, with_limbs=True)
-        front = (self.side_classifier.front_probability(X) if self.gives_canonical_pairs
-                 else None)
+        front = self._front_probability(X)
         return poses, prob, limbs, front
 
     def predict_frame_and_mirror(self, stacked: np.ndarray, mirrored: np.ndarray, m: int = 2
@@ -306,9 +305,14 @@ class PoseModel:
         if self.has_limbs and self.mixture is not None:
             both = self._limbs(np.vstack([X, X_mirror]))
             limbs, mirror_limbs = both[:len(X)], both[len(X):]
-        front = (self.side_classifier.front_probability(X) if self.gives_canonical_pairs
-                 else None)
+        front = self._front_probability(X)
         return poses, prob, limbs, front, mirror_limbs
+
+    def _front_probability(self, X: np.ndarray) -> np.ndarray | None:
+        """The side classifier's probability (N,) that each row of the regressor's input X
+        (N, input_length) faces the camera's half; None unless :attr:`gives_canonical_pairs`."""
+        return (self.side_classifier.front_probability(X) if self.gives_canonical_pairs
+                else None)
 
     @property
     def gives_canonical_pairs(self) -> bool:
