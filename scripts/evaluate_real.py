@@ -2,7 +2,7 @@
 
     python scripts/evaluate_real.py [--trial ../shared/data/pose2sim/balancing] [--model FILE]
         [--max-people N] [--roll calibration] [--zone-foreground colour] [--json OUT]
-        [--masks PNG]
+        [--masks PNG] [--reference-masks cut|drawn]
 
 Runs ``track``'s pipeline on each of the four views and prints, per view, knee and elbow flexion
 error and correlation against the reference (beside two constants: the reference's own mean
@@ -14,6 +14,11 @@ silhouettes they are: PoseModel.novelty; --masks draws them). In each view the s
 frame, the tracked person whose box holds the reference's projected mid-hip (another person
 walks behind in cam02; background subtraction splits the subject into several tracks in some
 views).
+
+``--reference-masks`` is a diagnostic, not a result: it reads the reference to correct the
+silhouettes (tracker.offline.reference_masks: ``cut`` removes whatever lies off the body drawn
+from the reference keypoints, ``drawn`` uses that drawing as the silhouette), to tell how much of
+the error the silhouettes cause and how much the regressor.
 """
 from __future__ import annotations
 
@@ -28,8 +33,9 @@ from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
 from sequences.measures import MeasureError, novelty_summary
-from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, camera_roll_deg,
-                                load_trial, project_reference)
+from sequences.pose2sim import (BODY_BONES, BODY_HEAD, BODY_TORSO, DEFAULT_TRIAL, VIEWS,
+                                Pose2SimError, Trial, camera_roll_deg, load_trial,
+                                project_reference, video_frames)
 from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
                                          subject_rows, view_measures)
 from tracker.offline.evaluation import constant_pose
@@ -76,18 +82,26 @@ class _MaskRecorder(PoseRecorder):
 
 
 def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.0,
-                keep_masks: bool = False, trust_zone_foreground: bool = True) -> ViewTrack:
+                keep_masks: bool = False, trust_zone_foreground: bool = True,
+                reference_extractor=None) -> ViewTrack:
     """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
     with ``--roll roll_deg``; keep_masks: also keep the silhouettes (ViewTrack.tiles);
-    trust_zone_foreground: the extractor's (tracker.silhouettes.refine_in_zone)."""
+    trust_zone_foreground: the extractor's (tracker.silhouettes.refine_in_zone);
+    reference_extractor: a function of the extractor giving the extractor to use
+    (``--reference-masks``), or None."""
     from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
+    from tracker.silhouettes import SilhouetteExtractor
     from tracker.video import open_video
 
     source = open_video(video)
+    extractor = None
+    if reference_extractor is not None:
+        extractor = reference_extractor(
+            SilhouetteExtractor(trust_zone_foreground=trust_zone_foreground))
     tracker = PoseTracker(model, source.fps, TrackerSettings(
         max_people=max_people, roll_deg=roll_deg, novelty=True,
-        trust_zone_foreground=trust_zone_foreground))
+        trust_zone_foreground=trust_zone_foreground), extractor=extractor)
     recorder = _MaskRecorder(roll_deg) if keep_masks else PoseRecorder()
     track_video(source, tracker, sinks=[recorder])
     poses = recorder.poses
@@ -116,21 +130,38 @@ def evaluate_view(trial: Trial, view: str, track: ViewTrack, constant=None
     return out, rows
 
 
+def _reference_extractor(trial: Trial, view: str, mode: str):
+    """A function wrapping an extractor in a ReferenceMaskExtractor of ``mode`` ("cut",
+    "drawn") fed with the reference keypoints projected into ``view``."""
+    from tracker.offline.reference_masks import ReferenceMaskExtractor
+    from tracker.offline.silhouette_evaluation import BodyDrawing
+
+    frames = video_frames(trial)
+    keypoints = project_reference(view, frames, trial)
+    body = BodyDrawing.from_names(trial.reference.names, BODY_TORSO, BODY_HEAD, BODY_BONES)
+    return lambda extractor: ReferenceMaskExtractor(extractor, keypoints, frames, body, mode)
+
+
 def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
-             sheet: list | None = None, trust_zone_foreground: bool = True) -> dict:
+             sheet: list | None = None, trust_zone_foreground: bool = True,
+             reference_masks: str | None = None) -> dict:
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
     trust_zone_foreground: False lets colour decide on the foreground inside the unreliable
     zone too (tracker.silhouettes.refine_in_zone; ``--zone-foreground colour``).
     sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
-    at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them)."""
+    at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them).
+    reference_masks: None, or "cut" / "drawn" to correct the silhouettes by the reference
+    (a diagnostic: tracker.offline.reference_masks)."""
     per_view, subject = {}, {}
     constant = constant_pose(model)
     for view in VIEWS:
         roll_deg = camera_roll_deg(trial, view) if roll else 0.0
         track = _track_view(trial.video(view), model, max_people, roll_deg,
                             keep_masks=sheet is not None,
-                            trust_zone_foreground=trust_zone_foreground)
+                            trust_zone_foreground=trust_zone_foreground,
+                            reference_extractor=None if reference_masks is None else
+                            _reference_extractor(trial, view, reference_masks))
         per_view[view], rows = evaluate_view(trial, view, track, constant)
         if sheet is not None:
             picked = rows[np.linspace(0, len(rows) - 1, 8).astype(int)]
@@ -138,6 +169,7 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
                           for i in picked])
         per_view[view]["roll_deg"] = round(roll_deg, 1)
         per_view[view]["zone_foreground"] = "sure" if trust_zone_foreground else "colour"
+        per_view[view]["reference_masks"] = reference_masks or "none"
         subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows])
     common = subject[VIEWS[0]][0]
     for view in VIEWS[1:]:
@@ -237,6 +269,10 @@ def format_table(result: dict) -> str:
     if zone != {"sure"}:
         lines.append("silhouettes: --zone-foreground colour (colour also decides on the "
                      "foreground inside the unreliable zone)")
+    reference = {r.get("reference_masks", "none") for r in result["views"].values()}
+    if reference != {"none"}:
+        lines.append(f"silhouettes corrected by the reference ({', '.join(sorted(reference))}; "
+                     "a diagnostic, not a result: tracker.offline.reference_masks)")
     return "\n".join(lines)
 
 
@@ -254,6 +290,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="as track --zone-foreground: inside the background's unreliable zone, "
                          "take the subtractor's foreground as sure person (the default) or let "
                          "colour decide on it too (tracker.silhouettes.refine_in_zone)")
+    ap.add_argument("--reference-masks", choices=("none", "cut", "drawn"), default="none",
+                    help="a diagnostic that reads the reference: cut each silhouette to the "
+                         "body drawn from the reference keypoints, or use that drawing as the "
+                         "silhouette (tracker.offline.reference_masks); default none")
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     ap.add_argument("--masks", type=Path, metavar="PNG", help="write the subject's "
                     "silhouettes as the regressor saw them, 8 frames per view, as a PNG")
@@ -272,7 +312,9 @@ def main(argv=None) -> int:
         with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
             result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration",
                               sheet=sheet,
-                              trust_zone_foreground=args.zone_foreground == "sure")
+                              trust_zone_foreground=args.zone_foreground == "sure",
+                              reference_masks=None if args.reference_masks == "none"
+                              else args.reference_masks)
     except (Pose2SimError, PoseModelError, MeasureError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
