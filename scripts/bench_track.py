@@ -16,8 +16,9 @@ descriptors, regression and filtering and costs a quarter as much. So the defaul
 the walker big enough to be found in (nearly) every frame (a walk turning at 60 deg/s: 1196 of
 1200 frames), and the report says how many frames had a pose. Until 2026-12-03 the default was
 a walk turning at 30 deg/s whose wider path took the walker below the silhouettes' minimum
-area (SilhouetteExtractor min_area_fraction, ~70 px tall at 640x480) in 54 % of the frames:
-its fps (83-200 over the sessions) counted those cheap empty frames.
+area of the time (SilhouetteExtractor min_area_fraction 0.003, ~70 px tall at 640x480; 0.0015
+since) in 54 % of the frames: its fps (83-200 over the sessions) counted those cheap empty
+frames.
 """
 from __future__ import annotations
 

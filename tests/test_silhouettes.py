@@ -78,6 +78,20 @@ def test_two_people_give_two_masks_largest_first():
     assert abs(people[0].centroid[0] - 80) < 3 and abs(people[1].centroid[0] - 240) < 3
 
 
+def test_a_person_60_px_tall_at_640x480_is_found_by_default_not_by_the_former_gate():
+    rng = np.random.default_rng(11)
+    bg = background(640, 480)
+    found = {}
+    for name, extractor in (("default", SilhouetteExtractor()),
+                            ("former", SilhouetteExtractor(min_area_fraction=0.003))):
+        warm_up(extractor, bg, rng)
+        found[name] = [extractor(scene(bg, [(200 + 10 * i, 300)], 60, rng)[0])
+                       for i in range(5)]
+    assert all(len(people) == 1 for people in found["default"])
+    assert all(people[0].bbox[3] >= 50 for people in found["default"])
+    assert all(people == [] for people in found["former"])
+
+
 def test_empty_scene_and_small_clutter_give_no_people():
     rng = np.random.default_rng(3)
     bg = background(320, 240)
@@ -88,6 +102,9 @@ def test_empty_scene_and_small_clutter_give_no_people():
     frame = scene(bg, [], 0, rng)[0]
     cv2.circle(frame, (100, 100), 4, (255, 0, 255), -1)  # ~50 px, below 0.3 % of 76800
     assert extractor(frame) == []
+    default = SilhouetteExtractor()                       # 0.15 %: 115 px at 320x240
+    warm_up(default, bg, rng)
+    assert default(frame) == []
 
 
 def test_shadow_is_not_foreground():

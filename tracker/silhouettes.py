@@ -19,6 +19,20 @@ from .noise_floor import FOREGROUND_LEVEL as _FOREGROUND_LEVEL, choose_var_min
 _SHADOW_LEVEL = 127              # MOG2's mark for shadow (foreground: _FOREGROUND_LEVEL)
 # A global brightness gain further than this from 1 is undone before subtraction.
 _MIN_GAIN_CHANGE = 0.03
+#: Components smaller than this fraction of the image are clutter, not people: at 640x480 a
+#: walker about 55 px tall or more passes (a 320x240 video: about 28 px). It was 0.003 until
+#: 2026-12-03, which lost walkers under about 70 px at 640x480 (a spiral walk rendered at 9 m,
+#: 40-116 px tall: found in 551 of 1200 frames, none under 60 px, 25 % of those 60-70 px
+#: tall; with 0.0015: 874 frames, 89 % of those 50-60 px, all from 60 px, and the poses of the
+#: taller frames as good or better (53-angle error 5.13 / 5.03 -> 5.09 / 5.03 at 70-80 / 80-100
+#: px), the new ones' better than the training-mean pose (50-60 px: 5.49 against 7.58). Through
+#: ``track`` on the five validation videos (320x240) only 09_04, whose runner is 12-31 px tall
+#: in the frames missed, changed: poses in 193 of 361 frames instead of 141, filtered heading
+#: RMS 20.0 -> 7.2 deg, 53-angle error 9.36 -> 10.04 (the added frames' about 11.9 against
+#: 14.4 for the constant), corr8 0.511 -> 0.477. Pose2Sim: one track per view either way.
+#: 0.001 found smaller walkers still (1150 frames) but their unreliable headings then held
+#: the taller frames' (heading RMS 46-70 deg at 60-100 px against 6-13).
+DEFAULT_MIN_AREA_FRACTION = 0.0015
 # OpenCV MOG2's default cap on a pixel's variance (grey levels squared).
 _MOG2_VAR_MAX = 75.0
 
@@ -268,7 +282,8 @@ def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5,
     return cleaned
 
 
-def person_masks(mask: np.ndarray, frame_size: tuple[int, int], min_area_fraction: float = 0.003,
+def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
+                 min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION,
                  max_hole_fraction: float = 0.002, merge_fragments: bool = True,
                  max_fragment_area: float = 0.15) -> list[PersonMask]:
     """Split a cleaned foreground mask into one :class:`PersonMask` per 8-connected component.
@@ -674,7 +689,8 @@ class SilhouetteExtractor:
     """
 
     def __init__(self, open_px: int = 3, close_px: int = 5, restore_px: int = 1,
-                 min_area_fraction: float = 0.003, max_hole_fraction: float = 0.002,
+                 min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION,
+                 max_hole_fraction: float = 0.002,
                  max_fragment_area: float = 0.15, keep_enclosed_shadow: bool = True,
                  drop_lighting: bool = True, refine: bool = True,
                  refine_relearn_every: int = 3, adapt_noise_floor: bool = True,
