@@ -7,7 +7,6 @@ soft voting). The codebook is fitted on a separate batch first and is not timed.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
@@ -16,6 +15,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy loads its BLAS
 import cv2
 import numpy as np
 
+from tracker.one_line_parser import OneLineParser
 from regressor.codebook import soft_histogram
 from regressor.descriptor import DescriptorSettings, descriptor_for_mask, fit_codebook_for_masks
 from regressor.edges import sample_edge_points
@@ -64,7 +64,7 @@ def _time_stages(masks, settings, codebook) -> np.ndarray:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("--count", type=int, default=200, help="silhouettes timed")
     parser.add_argument("--height", type=int, default=240, help="silhouette height in pixels")
     parser.add_argument("--points", type=int, default=DescriptorSettings.n_points, help="edge points")

@@ -7,7 +7,6 @@ random azimuth/elevation and fills the mask; prints masks per second.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
@@ -17,12 +16,13 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from tracker.one_line_parser import OneLineParser
 from sequences.body import Skinner, load_body
 from sequences.render import centred_camera, silhouette_mask
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=400)
     parser.add_argument("--person-px", type=float, default=240.0)
     parser.add_argument("--seed", type=int, default=0)

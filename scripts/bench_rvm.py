@@ -10,13 +10,13 @@ for everyone; our hyperparameters are the ones scripts/reproduce_paper.py chose.
 """
 from __future__ import annotations
 
-import argparse
 import time
 import warnings
 
 import numpy as np
 import scipy.io
 
+from tracker.one_line_parser import OneLineParser
 from regressor.basis import default_width, gaussian_design
 from regressor.rvm import RVMRegressor
 
@@ -42,7 +42,7 @@ def fit_per_output(make, Phi_or_X, Y):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = OneLineParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", required=True)
     ap.add_argument("--output", type=int, default=24, help="the output column the peers fit")
     ap.add_argument("--width-scale", type=float, default=0.5)

@@ -22,7 +22,6 @@ frames.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
@@ -31,6 +30,7 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
+from tracker.one_line_parser import OneLineParser
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from tracker import PoseTracker, TrackerSettings, track_video
 from tracker.sinks.json_summary import JsonSummarySink
@@ -110,7 +110,7 @@ def _track(video: Path, model_path: Path, workdir: Path):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--video", type=Path, default=None, help="640x480 single-person video")
     ap.add_argument("--frames", type=int, default=1200, help="frames to render if no --video")
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)

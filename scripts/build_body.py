@@ -11,7 +11,6 @@ silhouette rasterizer fills one patch at a time, see sequences/render.py) and wr
 """
 from __future__ import annotations
 
-import argparse
 import json
 import subprocess
 import sys
@@ -24,6 +23,7 @@ from scipy.cluster.vq import kmeans2
 
 ROOT = Path(__file__).resolve().parents[1]
 
+from tracker.one_line_parser import OneLineParser
 from sequences.body import BODY_FORMAT_VERSION, BODY_LICENSE_NOTE, content_digest
 from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS
 
@@ -160,7 +160,7 @@ def patches(vertices: np.ndarray, faces: np.ndarray, bone: np.ndarray, seed: int
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("--triangles", type=int, default=5000, help="target triangle count")
     parser.add_argument("--out", type=Path, default=ROOT / "sequences" / "data" / "body.npz")
     args = parser.parse_args()

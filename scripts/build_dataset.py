@@ -7,18 +7,18 @@ the same settings reuses the cache; prints the build time and size.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 
+from tracker.one_line_parser import OneLineParser
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files, views_by_rows)
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
     ap.add_argument("--cache", type=Path, default=Path("cache/dataset"))
     ap.add_argument("--views", type=int, default=DatasetConfig.views_per_trial)

@@ -9,7 +9,6 @@ so taller or broader shapes look taller or broader.
 """
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -17,6 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 import cv2
 import numpy as np
 
+from tracker.one_line_parser import OneLineParser
 from sequences.body import BodyShape, Skinner, load_body
 from sequences.bvh import read_bvh
 from sequences.render import look_at_camera, shaded_render, silhouette_mask
@@ -38,7 +38,7 @@ def tile_pair(body, vertices, azimuth, label):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bvh", type=Path,
                         default=ROOT.parent / "shared" / "data" / "cmu" / "bvh" / "02_01.bvh")
     parser.add_argument("--frame", type=int, default=40)

@@ -6,18 +6,18 @@ The folder defaults to ../shared/data/cmu/bvh beside the repository.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
+from tracker.one_line_parser import OneLineParser
 from sequences.bvh import BVHError, read_bvh
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder", nargs="?", type=Path,
                         default=ROOT.parent / "shared" / "data" / "cmu" / "bvh")
     parser.add_argument("--fps", type=float, default=30.0, help="target frame rate (default 30)")

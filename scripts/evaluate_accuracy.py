@@ -24,7 +24,6 @@ silhouettes over their own 99th percentile; fps includes its extra query per fra
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -33,6 +32,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from tracker.one_line_parser import OneLineParser
 from regressor.pose_model import load_pose_model
 from sequences.measures import novelty_summary, pose_measures
 from sequences.video import load_truth
@@ -67,7 +67,7 @@ def trial_video(trial: str, bvh_dir: Path, video_dir: Path) -> Path:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", action="append", required=True, help="NAME=FILE (repeatable)")
     ap.add_argument("--trials", nargs="+", default=["16_11", "02_02", "08_03"])
     ap.add_argument("--bvh-dir", type=Path, default=REPO.parent / "shared/data/cmu/bvh")

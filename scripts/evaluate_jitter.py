@@ -17,6 +17,7 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
+from tracker.one_line_parser import OneLineParser
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from regressor.errors import SilhouettePoseError
 from tracker import TrackerSettings
@@ -36,7 +37,7 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     src = ap.add_mutually_exclusive_group(required=True)
     src.add_argument("--ankur", type=Path, help="the paper's ankurDataPoseSilhouette.mat")
     src.add_argument("--bvh", type=Path, help="a CMU BVH file to render and evaluate")

@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from tracker.one_line_parser import OneLineParser
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
 from sequences.measures import MeasureError, novelty_summary
 from sequences.pose2sim import (BODY_BONES, BODY_HEAD, BODY_TORSO, DEFAULT_TRIAL, VIEWS,
@@ -277,7 +278,7 @@ def format_table(result: dict) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL, help="the balancing trial "
                     "folder (default: ../shared/data/pose2sim/balancing beside the repo)")
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH, help="model file")

@@ -16,18 +16,18 @@ tracker.offline.silhouette_evaluation.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
+from tracker.one_line_parser import OneLineParser
 from sequences.pose2sim import DEFAULT_TRIAL, VIEWS, Pose2SimError, load_trial
 from tracker.offline.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, evaluate_pose2sim_view,
                                                    format_table)
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL, help="the balancing trial")
     ap.add_argument("--extractor", nargs="+", choices=sorted(EXTRACTORS),
                     default=["before", "after"], help="before: as before issue 11; after: "

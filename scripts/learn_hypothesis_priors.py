@@ -21,6 +21,7 @@ from threadpoolctl import threadpool_limits
 
 import numpy as np
 
+from tracker.one_line_parser import OneLineParser
 from regressor.pose_model import (DEFAULT_MODEL_PATH, PoseModelError, load_pose_model,
                                   save_pose_model)
 from tracker.offline.hypothesis_priors import (choose_weights, facing_travel_histogram,
@@ -34,7 +35,7 @@ TRAVEL_TRIALS = ("06_06", "06_07", "06_08", "06_09")   # their facing - travel i
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cmu", type=Path, default=CMU)
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)
     ap.add_argument("--skip-regressor", action="store_true")

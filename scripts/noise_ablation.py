@@ -9,7 +9,6 @@ Rows: the walking and running trials of the training set (the CMU index says "wa
 """
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import sys
@@ -19,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from tracker.one_line_parser import OneLineParser
 from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings
 from regressor.mixture import MixtureRegressor
@@ -33,7 +33,7 @@ from select_mixture import VIDEO_TRIALS, video_descriptors
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
     ap.add_argument("--cache", type=Path, default=Path("cache"))
     ap.add_argument("--rows-per-trial", type=int, default=800)

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 
+from tracker.one_line_parser import OneLineParser
 from sequences.body import sample_body_shapes
 from sequences.bvh import BVHError, read_bvh
 from sequences.spiral import SpiralError, spiral_walk
@@ -28,7 +29,7 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bvh", type=Path, action="append", required=True, help="BVH file (repeat)")
     ap.add_argument("--out", type=Path, required=True, help="output .mp4")
     ap.add_argument("--spiral", type=float, default=None, metavar="DEG_PER_S",

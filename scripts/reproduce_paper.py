@@ -9,7 +9,6 @@ of their training frames; linear: <= 30% of the features).
 """
 from __future__ import annotations
 
-import argparse
 import itertools
 import json
 import time
@@ -17,6 +16,7 @@ import time
 import numpy as np
 import scipy.io
 
+from tracker.one_line_parser import OneLineParser
 from regressor.dls import DLSRegressor
 from regressor.mixture import MixtureRegressor
 from regressor.metrics import contiguous_folds, cross_validate, mean_point_error, point_jitter
@@ -90,7 +90,7 @@ def grid(**axes):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = OneLineParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", required=True, help="ankurDataPoseSilhouette.mat")
     ap.add_argument("--json", help="write the results here")
     args = ap.parse_args()

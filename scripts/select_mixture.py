@@ -13,7 +13,6 @@ err53, skill against the training-mean pose, corr8 (tracker.offline.training.ang
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -23,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from tracker.one_line_parser import OneLineParser
 from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings, descriptors_for_masks
 from regressor.mixture import MixtureRegressor
@@ -58,7 +58,7 @@ def video_descriptors(path: Path, codebook: Codebook, settings: DescriptorSettin
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
     ap.add_argument("--cache", type=Path, default=Path("cache"))
     ap.add_argument("--video-dir", type=Path, default=None)

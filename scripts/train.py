@@ -11,7 +11,6 @@ validation trials rendered four ways (regressor.canonical_priors; about 40 s).
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -21,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from tracker.one_line_parser import OneLineParser
 from regressor.angles import wrap_deg
 from regressor.descriptor import DescriptorSettings
 from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
@@ -73,7 +73,7 @@ def _mirrored_inputs(args, data, settings, codebook, key: str, start: float, log
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
     ap.add_argument("--cache", type=Path, default=Path("cache"))
     ap.add_argument("--out", type=Path, default=DEFAULT_MODEL_PATH)

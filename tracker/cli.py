@@ -25,8 +25,9 @@ import warnings
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
+from .one_line_parser import OneLineParser
 
-EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
+EXIT_ERROR, EXIT_INTERRUPTED = 1, 130
 #: Ctrl-C, SIGTERM and SIGHUP received during main() (those the command handles: not one the
 #: shell ignores). If anything swallows the KeyboardInterrupt they raise (a library's bare
 #: ``except:`` round an optional import, say), the command would run on. In one full test run
@@ -70,13 +71,8 @@ class TrackError(SilhouettePoseError):
     """A problem the user can fix (options, paths); printed as one line."""
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):   # one line, not usage + message
-        self.exit(EXIT_USAGE, f"track: error: {message} (see track --help)\n")
-
-
 def build_parser() -> argparse.ArgumentParser:
-    ap = _Parser(prog="track", description="3-D human pose from a static-camera video, by "
+    ap = OneLineParser(prog="track", description="3-D human pose from a static-camera video, by "
                  "relevance vector regression on silhouettes, Kalman-filtered over time.")
     ap.add_argument("video", type=Path, help="video file (mp4, avi, ...)")
     ap.add_argument("--out", type=Path, help="MCAP recording (default VIDEO_STEM.mcap if no "

@@ -1,0 +1,31 @@
+"""Usage errors are one line naming the problem, for track and every script."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tracker.one_line_parser import EXIT_USAGE, OneLineParser
+
+_SCRIPTS = sorted((Path(__file__).resolve().parents[1] / "scripts").glob("*.py"))
+
+
+def test_an_unknown_option_is_one_line_with_the_usage_status(capsys):
+    parser = OneLineParser(prog="tool")
+    parser.add_argument("--count", type=int)
+    with pytest.raises(SystemExit) as stop:
+        parser.parse_args(["--count", "many"])
+    assert stop.value.code == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err == "tool: error: argument --count: invalid int value: 'many' (see tool --help)\n"
+
+
+@pytest.mark.parametrize("script", _SCRIPTS, ids=[s.stem for s in _SCRIPTS])
+def test_every_script_refuses_a_bad_option_in_one_line(script, tmp_path):
+    done = subprocess.run([sys.executable, str(script), "--definitely-not-an-option"],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert done.returncode == EXIT_USAGE
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"{script.name}: error: "), done.stderr
