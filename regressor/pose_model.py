@@ -168,9 +168,14 @@ class PoseModel:
         shape contexts, then the weighted layout (module docstring). Raises
         regressor.edges.SilhouetteError (DegenerateSilhouetteError) for unusable masks."""
         histogram = descriptor_for_mask(mask, self.settings, self.codebook)
-        layout = silhouette_layout(mask, self.layout_grid) if self.layout_grid else None
-        return frame_descriptors(histogram[None], self.transform,
-                                 None if layout is None else layout[None], self.layout_weight)[0]
+        return self._descriptors(histogram[None], [mask])[0]
+
+    def _descriptors(self, histograms: np.ndarray, masks) -> np.ndarray:
+        """Descriptors (n, D) of n masks (each (H, W) bool) from their histograms of shape
+        contexts (n, K): transformed, then the masks' weighted layouts."""
+        layouts = (np.array([silhouette_layout(m, self.layout_grid) for m in masks])
+                   if self.layout_grid else None)
+        return frame_descriptors(histograms, self.transform, layouts, self.layout_weight)
 
     def describe_with_mirror(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(describe(mask), the descriptor of its mirror image (the mask flipped left to
@@ -189,9 +194,7 @@ class PoseModel:
         histograms = np.array([soft_histogram(c, self.codebook, self.settings.n_votes,
                                               self.settings.total)
                                for c in (contexts, contexts[:, order])])
-        layouts = (np.array([silhouette_layout(m, self.layout_grid) for m in (mask, flipped)])
-                   if self.layout_grid else None)
-        own, mirror = frame_descriptors(histograms, self.transform, layouts, self.layout_weight)
+        own, mirror = self._descriptors(histograms, (mask, flipped))
         return own, mirror
 
     @property
