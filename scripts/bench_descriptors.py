@@ -15,11 +15,11 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy loads its BLAS
 import cv2
 import numpy as np
 
-from tracker.one_line_parser import OneLineParser
 from regressor.codebook import soft_histogram
 from regressor.descriptor import DescriptorSettings, descriptor_for_mask, fit_codebook_for_masks
 from regressor.edges import sample_edge_points
 from regressor.shape_context import shape_contexts
+from tracker.one_line_parser import OneLineParser
 
 
 def _limb(mask: np.ndarray, start: np.ndarray, angle_deg: float, length: float, width: float) -> np.ndarray:

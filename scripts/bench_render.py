@@ -16,9 +16,9 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from tracker.one_line_parser import OneLineParser
 from sequences.body import Skinner, load_body
 from sequences.render import centred_camera, silhouette_mask
+from tracker.one_line_parser import OneLineParser
 
 
 def main() -> None:

@@ -16,9 +16,9 @@ import warnings
 import numpy as np
 import scipy.io
 
-from tracker.one_line_parser import OneLineParser
 from regressor.basis import default_width, gaussian_design
 from regressor.rvm import RVMRegressor
+from tracker.one_line_parser import OneLineParser
 
 
 def output_error(P: np.ndarray, T: np.ndarray) -> float:

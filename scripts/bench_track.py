@@ -14,11 +14,11 @@ does without --smooth). One core: BLAS limited to one thread, as the `track` com
 The fps only means something for frames with a person: a frame where nobody is found skips
 descriptors, regression and filtering and costs a quarter as much. So the default video keeps
 the walker big enough to be found in (nearly) every frame (a walk turning at 60 deg/s: all
-1200 frames; 1196 with the former minimum area), and the report says how many frames had a pose. Until 2026-12-03 the default was
-a walk turning at 30 deg/s whose wider path took the walker below the silhouettes' minimum
-area of the time (SilhouetteExtractor min_area_fraction 0.003, ~70 px tall at 640x480; 0.0015
-since) in 54 % of the frames: its fps (83-200 over the sessions) counted those cheap empty
-frames.
+1200 frames; 1196 with the former minimum area), and the report says how many frames had a
+pose. Until 2026-12-03 the default was a walk turning at 30 deg/s whose wider path took the
+walker below the silhouettes' minimum area of the time (SilhouetteExtractor min_area_fraction
+0.003, ~70 px tall at 640x480; 0.0015 since) in 54 % of the frames: its fps (83-200 over the
+sessions) counted those cheap empty frames.
 """
 from __future__ import annotations
 
@@ -30,9 +30,9 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
-from tracker.one_line_parser import OneLineParser
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from tracker import PoseTracker, TrackerSettings, track_video
+from tracker.one_line_parser import OneLineParser
 from tracker.sinks.json_summary import JsonSummarySink
 from tracker.sinks.mcap import McapSink
 from tracker.video import open_video

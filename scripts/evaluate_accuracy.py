@@ -32,12 +32,12 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from tracker.one_line_parser import OneLineParser
 from regressor.pose_model import load_pose_model
 from sequences.measures import novelty_summary, pose_measures
 from sequences.video import load_truth
 from tracker.offline.evaluation import (CameraOptions, cmu_motion, constant_pose, track_longest,
                                         write_camera_video)
+from tracker.one_line_parser import OneLineParser
 from tracker.pipeline import TrackerSettings
 
 REPO = Path(__file__).resolve().parents[1]

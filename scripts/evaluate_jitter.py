@@ -17,13 +17,13 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
-from tracker.one_line_parser import OneLineParser
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from regressor.errors import SilhouettePoseError
 from tracker import TrackerSettings
 from tracker.offline.evaluation import (AnkurOptions, CameraOptions, ankur_sequence, evaluate,
                                         rendered_sequence, video_sequence)
 from tracker.offline.report import format_table, write_report
+from tracker.one_line_parser import OneLineParser
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
 

@@ -31,7 +31,6 @@ from typing import NamedTuple
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from tracker.one_line_parser import OneLineParser
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
 from sequences.measures import MeasureError, novelty_summary
 from sequences.pose2sim import (BODY_BONES, BODY_HEAD, BODY_TORSO, DEFAULT_TRIAL, VIEWS,
@@ -40,6 +39,7 @@ from sequences.pose2sim import (BODY_BONES, BODY_HEAD, BODY_TORSO, DEFAULT_TRIAL
 from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
                                          subject_rows, view_measures)
 from tracker.offline.evaluation import constant_pose
+from tracker.one_line_parser import OneLineParser
 from tracker.sinks import PoseRecorder
 
 _MID_HIP = [0, 6]               # RHip, LHip in the reference's keypoints

@@ -20,10 +20,10 @@ import json
 import sys
 from pathlib import Path
 
-from tracker.one_line_parser import OneLineParser
 from sequences.pose2sim import DEFAULT_TRIAL, VIEWS, Pose2SimError, load_trial
 from tracker.offline.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, evaluate_pose2sim_view,
                                                    format_table)
+from tracker.one_line_parser import OneLineParser
 
 
 def main(argv=None) -> int:

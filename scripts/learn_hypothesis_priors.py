@@ -21,7 +21,6 @@ from threadpoolctl import threadpool_limits
 
 import numpy as np
 
-from tracker.one_line_parser import OneLineParser
 from regressor.pose_model import (DEFAULT_MODEL_PATH, PoseModelError, load_pose_model,
                                   save_pose_model)
 from tracker.offline.hypothesis_priors import (choose_weights, facing_travel_histogram,
@@ -29,6 +28,7 @@ from tracker.offline.hypothesis_priors import (choose_weights, facing_travel_his
                                                regressor_flip_statistics, replay_heading_rms,
                                                top_experts, validation_renders)
 from tracker.offline.training import VALIDATION_TRIALS
+from tracker.one_line_parser import OneLineParser
 
 CMU = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cmu" / "bvh"
 TRAVEL_TRIALS = ("06_06", "06_07", "06_08", "06_09")   # their facing - travel is printed

@@ -18,7 +18,6 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from tracker.one_line_parser import OneLineParser
 from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings
 from regressor.mixture import MixtureRegressor
@@ -29,6 +28,7 @@ from sequences.video import load_truth
 from tracker.offline.training import (VALIDATION_TRIALS, angle_centres, angle_measures,
                               MixtureOptions, dataset_descriptors, descriptor_cache_key, mixture_space,
                               regression_targets)
+from tracker.one_line_parser import OneLineParser
 from select_mixture import VIDEO_TRIALS, video_descriptors
 
 

@@ -13,11 +13,11 @@ import time
 from pathlib import Path
 
 
-from tracker.one_line_parser import OneLineParser
 from sequences.body import sample_body_shapes
 from sequences.bvh import BVHError, read_bvh
 from sequences.spiral import SpiralError, spiral_walk
 from sequences.video import Actor, VideoWriteError, write_video
+from tracker.one_line_parser import OneLineParser
 
 
 def _size(text: str) -> tuple[int, int]:

@@ -16,13 +16,13 @@ import time
 import numpy as np
 import scipy.io
 
-from tracker.one_line_parser import OneLineParser
 from regressor.dls import DLSRegressor
 from regressor.mixture import MixtureRegressor
 from regressor.metrics import contiguous_folds, cross_validate, mean_point_error, point_jitter
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
 from sequences.measures import DEFAULT_TOP_ANGLES, correlation, skill
+from tracker.one_line_parser import OneLineParser
 
 TRAIN_STARTS = [0, 100, 336, 405, 471, 1530, 1768]   # the 7 training sequences (README)
 RV_BUDGET = 0.10                                     # kernel RVM: keep <= 10% of training frames

@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from tracker.one_line_parser import OneLineParser
 from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings, descriptors_for_masks
 from regressor.mixture import MixtureRegressor
@@ -30,6 +29,7 @@ from regressor.pose_model import transform_descriptors
 from regressor.stacking import stack_frames
 from sequences.dataset import DatasetConfig, build_dataset, training_files, views_by_rows
 from sequences.video import load_truth
+from tracker.one_line_parser import OneLineParser
 from tracker.silhouettes import SilhouetteExtractor, median_background
 from tracker.offline.training import (VALIDATION_TRIALS, angle_centres, angle_measures,
                               descriptor_cache_key, partition_space, regression_targets)

@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from tracker.one_line_parser import OneLineParser
 from regressor.angles import wrap_deg
 from regressor.descriptor import DescriptorSettings
 from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
@@ -35,6 +34,7 @@ from tracker.offline.training import (CANONICAL_RULES, MixtureOptions, TrainingO
                                       noisy_dataset_descriptors, noisy_dataset_layouts,
                                       train_mixture_model,
                                       train_pose_model)
+from tracker.one_line_parser import OneLineParser
 
 
 def _describe(args, masks, settings, codebook, start: float, log, what: str):
