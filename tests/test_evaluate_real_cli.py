@@ -65,3 +65,17 @@ def test_the_table_puts_both_constants_beside_the_error(evaluate_real):
     assert "train" in lines[1]
     assert lines[3].split("|")[1].split()[-3:] == ["20.0", "13.0", "22.0"]
     assert lines[5].split("|")[1].split()[-3:] == ["25.0", "13.0", "23.0"]
+
+
+def test_the_table_says_when_the_silhouettes_were_corrected_by_the_reference(evaluate_real):
+    per_view = {"cam01": _view(20.0, 22.0), "cam02": _view(30.0, 24.0)}
+    cross = {"frames": 100, "heading_rms_deg": 50.0, "random_heading_rms_deg": 104.0,
+             "body_angle_disagreement_deg": 8.0}
+    result = {"views": per_view, "mean": evaluate_real._means(per_view),
+              "cross_view": {"filtered": cross, "raw": cross}}
+    assert "reference" not in evaluate_real.format_table(result)
+    for view in per_view.values():
+        view["reference_masks"] = "cut"
+    assert "corrected by the reference (cut; a diagnostic" in evaluate_real.format_table(result)
+    assert evaluate_real.build_parser().parse_args(["--reference-masks", "drawn"]) \
+        .reference_masks == "drawn"
