@@ -73,7 +73,7 @@ def test_the_table_says_when_the_silhouettes_were_corrected_by_the_reference(eva
              "body_angle_disagreement_deg": 8.0}
     result = {"views": per_view, "mean": evaluate_real._means(per_view),
               "cross_view": {"filtered": cross, "raw": cross}}
-    assert "reference" not in evaluate_real.format_table(result)
+    assert "corrected by the reference" not in evaluate_real.format_table(result)
     for view in per_view.values():
         view["reference_masks"] = "cut"
     assert "corrected by the reference (cut; a diagnostic" in evaluate_real.format_table(result)
