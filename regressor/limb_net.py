@@ -59,6 +59,17 @@ Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 20
   7.49, heading 02_02 8.7 -> 14.5, 09_04 20.0 -> 7.0; on the 28 validation renders filtered /
   smoothed heading 35.2 / 28.1 -> 26.5 / 21.1 degrees but corr8 0.571 / 0.635 -> 0.552 /
   0.606. A wash for the limbs, so the default stays 0.
+- New combinations of the training motions, tried 2026-12-03 and not adopted (one-off drivers,
+  one network (512, 256), 30 epochs, with mirror images; the measure above on the 6 validation
+  trials' own rows, seeds 0 / 1): 30 made-up trials (23,026 rows, +34 %), each the root and
+  legs of one training trial with the upper body of another, looped to its length (no
+  validation or held-out trial as a source), rendered and made video-like as the data set.
+  Training rows only 0.593 / 0.595, err53 7.47 / 7.39; with the mixes taking the other
+  trial's spine, arms and head 0.578 / 0.593, 7.32 / 7.22; its arms only 0.590 / 0.601,
+  7.23 / 7.28. The unusual motions gain a little (05_02 0.47 / 0.46 -> 0.49 / 0.50 with the
+  arms, 02_05 0.38 / 0.35 -> 0.37 / 0.42), the walks lose a little (06_10 0.48 / 0.50 -> 0.42
+  / 0.46): combinations of the motions we have are not the new kinds of motion the networks
+  lack.
 
 A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
 standardised by a mean and one scale, outputs by a mean and a scale per value; the 53 body
