@@ -54,12 +54,17 @@ def _view(err: float, train: float) -> dict:
             "raw": {"frames": 100, "flexion": flexion, "heading": heading}}
 
 
-def test_the_table_puts_both_constants_beside_the_error(evaluate_real):
+def _result(evaluate_real) -> dict:
+    """An evaluation result of two views (20 and 30 degrees; train 22 and 24) for the table."""
     per_view = {"cam01": _view(20.0, 22.0), "cam02": _view(30.0, 24.0)}
     cross = {"frames": 100, "heading_rms_deg": 50.0, "random_heading_rms_deg": 104.0,
              "body_angle_disagreement_deg": 8.0}
-    result = {"views": per_view, "mean": evaluate_real._means(per_view),
-              "cross_view": {"filtered": cross, "raw": cross}}
+    return {"views": per_view, "mean": evaluate_real._means(per_view),
+            "cross_view": {"filtered": cross, "raw": cross}}
+
+
+def test_the_table_puts_both_constants_beside_the_error(evaluate_real):
+    result = _result(evaluate_real)
     assert result["mean"]["training_mean_flexion_error"] == pytest.approx(23.0)
     lines = evaluate_real.format_table(result).splitlines()
     assert "train" in lines[1]
@@ -68,13 +73,9 @@ def test_the_table_puts_both_constants_beside_the_error(evaluate_real):
 
 
 def test_the_table_says_when_the_silhouettes_were_corrected_by_the_reference(evaluate_real):
-    per_view = {"cam01": _view(20.0, 22.0), "cam02": _view(30.0, 24.0)}
-    cross = {"frames": 100, "heading_rms_deg": 50.0, "random_heading_rms_deg": 104.0,
-             "body_angle_disagreement_deg": 8.0}
-    result = {"views": per_view, "mean": evaluate_real._means(per_view),
-              "cross_view": {"filtered": cross, "raw": cross}}
+    result = _result(evaluate_real)
     assert "corrected by the reference" not in evaluate_real.format_table(result)
-    for view in per_view.values():
+    for view in result["views"].values():
         view["reference_masks"] = "cut"
     assert "corrected by the reference (cut; a diagnostic" in evaluate_real.format_table(result)
     assert evaluate_real.build_parser().parse_args(["--reference-masks", "drawn"]) \
