@@ -202,17 +202,21 @@ def test_absurd_options(tmp_path, walk_video, options, needle):
 # ------------------------------------------------------------------ odd but valid videos
 
 
-def test_nobody_in_view(tmp_path):
+def test_nobody_in_view_is_an_error_and_the_empty_outputs_are_kept(tmp_path):
     empty_scene = _noise_video(tmp_path / "scene.mp4", frames=40)
     result = _track(empty_scene, "--json", tmp_path / "s.json", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
+    _assert_one_line_error(result, "nobody found in its 40 frames")
+    assert result.returncode == 1
     summary = json.loads((tmp_path / "s.json").read_text())
     assert summary["frames"] == 40 and summary["tracks"] == []
 
 
 def test_grayscale_video_runs(tmp_path):
     grey = _noise_video(tmp_path / "grey.mp4", frames=10, color=False)
-    assert _track(grey, "--json", tmp_path / "g.json", cwd=tmp_path).returncode == 0
+    # Every frame is processed; the scene is empty, so the run ends with that error.
+    _assert_one_line_error(_track(grey, "--json", tmp_path / "g.json", cwd=tmp_path),
+                           "nobody found in its 10 frames")
+    assert json.loads((tmp_path / "g.json").read_text())["frames"] == 10
     # A 4K video: tests/test_track_safety.py (its background is sampled at the working size).
 
 

@@ -278,7 +278,17 @@ def _run(args) -> int:
                          smoothed_sinks=sinks[len(streaming):], background=plate)
     if not args.quiet:
         _print_summary(args, source, result)
-    return EXIT_INTERRUPTED if result.interrupted else 0
+    if result.interrupted:
+        return EXIT_INTERRUPTED
+    if not result.tracker.tracks:
+        # A run that found no one did not do its job, even though its (empty) outputs are
+        # complete and kept.
+        from .silhouettes import DEFAULT_MIN_AREA_FRACTION
+        raise TrackError(f"{args.video}: nobody found in its {result.frames} frames (a person "
+                         f"must move against a still background and cover at least "
+                         f"{100 * DEFAULT_MIN_AREA_FRACTION:g} % of the image); the outputs "
+                         f"were written with no tracks")
+    return 0
 
 
 def _load_background(path: Path, source):
