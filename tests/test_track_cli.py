@@ -193,8 +193,12 @@ def test_output_path_that_cannot_be_written(tmp_path, walk_video):
     (["--roll", "135"], "--roll"),
     (["--roll", "nan"], "--roll"),
     (["--zone-foreground", "maybe"], "--zone-foreground"),
+    (["--min-area", "0"], "--min-area"),
+    (["--min-area", "50"], "--min-area"),
+    (["--min-area", "nan"], "--min-area"),
 ], ids=["max-people-0", "end-before-start", "negative-start", "start-past-end", "unknown",
-        "roll-135", "roll-nan", "zone-foreground-maybe"])
+        "roll-135", "roll-nan", "zone-foreground-maybe", "min-area-0", "min-area-50",
+        "min-area-nan"])
 def test_absurd_options(tmp_path, walk_video, options, needle):
     _assert_one_line_error(_track(walk_video, *options, cwd=tmp_path), needle)
 
@@ -209,6 +213,23 @@ def test_nobody_in_view_is_an_error_and_the_empty_outputs_are_kept(tmp_path):
     assert result.returncode == 1
     summary = json.loads((tmp_path / "s.json").read_text())
     assert summary["frames"] == 40 and summary["tracks"] == []
+
+
+def test_min_area_reaches_the_silhouettes(tmp_path, walk_video):
+    # The walker is found by default (test_end_to_end_on_a_rendered_walk), not when a person
+    # must cover a fifth of the image; the error names the option.
+    result = _track(walk_video, "--json", tmp_path / "w.json", "--min-area", "20",
+                    cwd=tmp_path)
+    _assert_one_line_error(result, "nobody found", "at least 20 % of the image: --min-area")
+    assert json.loads((tmp_path / "w.json").read_text())["tracks"] == []
+
+
+def test_the_default_min_area_is_the_silhouettes_own():
+    from tracker.cli import DEFAULT_MIN_AREA_PERCENT
+    from tracker.pipeline import TrackerSettings
+    from tracker.silhouettes import DEFAULT_MIN_AREA_FRACTION
+    assert DEFAULT_MIN_AREA_PERCENT / 100 == DEFAULT_MIN_AREA_FRACTION
+    assert TrackerSettings().min_area_fraction == DEFAULT_MIN_AREA_FRACTION
 
 
 def test_grayscale_video_runs(tmp_path):
@@ -399,12 +420,13 @@ def test_the_mcap_records_silhouette_options_other_than_the_defaults(tmp_path, w
             metadata = {m.name: m.metadata for m in make_reader(stream).iter_metadata()}
         return metadata["settings"]
     default = settings()
-    for key in ("zone_foreground", "roll_deg", "background"):
+    for key in ("zone_foreground", "roll_deg", "background", "min_area_percent"):
         assert key not in default                       # the defaults leave them out
     assert settings("--zone-foreground", "colour")["zone_foreground"] == "colour"
     plate = _plate(walk_video, tmp_path / "plate.png")
-    chosen = settings("--roll", "5", "--background", plate)
+    chosen = settings("--roll", "5", "--background", plate, "--min-area", "0.1")
     assert float(chosen["roll_deg"]) == 5.0 and chosen["background"] == str(plate)
+    assert float(chosen["min_area_percent"]) == 0.1
 
 
 def test_main_called_from_another_thread_leaves_the_signal_handlers_alone(tmp_path, capsys):

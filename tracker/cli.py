@@ -100,8 +100,13 @@ def build_parser() -> argparse.ArgumentParser:
                          "background model's foreground where the background is unreliable "
                          "as sure person (default), or let colour decide on it too (fewer "
                          "ghost blobs beside the body, some thin limb pixels lost)")
+    ap.add_argument("--min-area", type=float, default=None, metavar="PERCENT",
+                    help="the smallest person, in percent of the image (default "
+                         f"{DEFAULT_MIN_AREA_PERCENT:g}: about 55 px tall at 640x480); lower "
+                         "it for people far away, raise it against clutter")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
+
 
 
 # --roll beyond a quarter turn means the camera is upside down or the sign is wrong. Defined
@@ -112,6 +117,12 @@ MAX_ROLL_DEG = 90.0
 # Past any video (about 3 years): larger values are typing mistakes, and 1e308 s would
 # overflow the frame arithmetic.
 MAX_TIME_S = 1e8
+#: --min-area's range, percent of the image: below it noise specks become people, above it
+#: only someone filling a fifth of the image would count.
+MIN_AREA_RANGE_PERCENT = (0.01, 20.0)
+#: tracker.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent, written out so that parsing the
+#: options loads no OpenCV (a test keeps the two equal).
+DEFAULT_MIN_AREA_PERCENT = 0.15
 
 
 def _check_options(args) -> None:
@@ -128,6 +139,11 @@ def _check_options(args) -> None:
                                      <= MAX_TIME_S):
         raise TrackError(f"--end must be after --start ({args.start} s) and at most "
                          f"{MAX_TIME_S:g} s, got {args.end}")
+    low, high = MIN_AREA_RANGE_PERCENT
+    if args.min_area is not None and not (math.isfinite(args.min_area)
+                                          and low <= args.min_area <= high):
+        raise TrackError(f"--min-area must be between {low:g} and {high:g} percent of the "
+                         f"image, got {args.min_area}")
     if args.background is not None and not args.background.is_file():
         raise TrackError(f"--background {args.background}: no such file")
     if args.out is None and args.json is None and args.bvh is None and not args.view:
@@ -197,7 +213,14 @@ def tracker_settings(args):
     # Per-track histories are kept only for --smooth: without it memory stays flat.
     return TrackerSettings(max_people=args.max_people, keep_history=args.smooth,
                            roll_deg=args.roll,
-                           trust_zone_foreground=args.zone_foreground == "sure")
+                           trust_zone_foreground=args.zone_foreground == "sure",
+                           min_area_fraction=_min_area_fraction(args))
+
+
+def _min_area_fraction(args) -> float:
+    """--min-area as a fraction of the image (the default when not given)."""
+    percent = DEFAULT_MIN_AREA_PERCENT if args.min_area is None else args.min_area
+    return percent / 100.0
 
 
 def _sink_factories(args, source, model) -> tuple[list, list]:
@@ -215,6 +238,8 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
                          **({} if args.zone_foreground == "sure"
                             else {"zone_foreground": args.zone_foreground}),
                          **({"roll_deg": args.roll} if args.roll else {}),
+                         **({} if args.min_area is None
+                            else {"min_area_percent": args.min_area}),
                          **({} if args.background is None
                             else {"background": str(args.background)}),
                          "note": "MCAP holds filtered (not smoothed) poses"}})
@@ -283,11 +308,10 @@ def _run(args) -> int:
     if not result.tracker.tracks:
         # A run that found no one did not do its job, even though its (empty) outputs are
         # complete and kept.
-        from .silhouettes import DEFAULT_MIN_AREA_FRACTION
         raise TrackError(f"{args.video}: nobody found in its {result.frames} frames (a person "
                          f"must move against a still background and cover at least "
-                         f"{100 * DEFAULT_MIN_AREA_FRACTION:g} % of the image); the outputs "
-                         f"were written with no tracks")
+                         f"{100 * _min_area_fraction(args):g} % of the image: --min-area); "
+                         f"the outputs were written with no tracks")
     return 0
 
 

@@ -27,7 +27,7 @@ from .roll import upright_mask
 from .filtering import PoseKalmanFilter
 from .hypotheses import FrontBackTracker, propose, switch_probability
 from .mirror_limbs import sees_mirror
-from .silhouettes import PersonMask, SilhouetteExtractor
+from .silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
 from .sinks.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
 from .travel import TravelDirection
 from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
@@ -124,6 +124,8 @@ class TrackerSettings:
     person who never leaves the spot) as sure person; False lets colour decide on it too
     (tracker.silhouettes.refine_in_zone: fewer ghosts, some lost limb pixels; ``track
     --zone-foreground colour``). An extractor given to PoseTracker keeps its own rule.
+    min_area_fraction: the default extractor's smallest person, as a fraction of the image
+    (tracker.silhouettes.DEFAULT_MIN_AREA_FRACTION; ``track --min-area``).
     mirror_limbs: average the limbs with the model's limbs for each frame's mirror image, for
     a model whose limb networks were fitted on mirror images (tracker.mirror_limbs; costs a
     second descriptor histogram and network pass per person and frame); other estimators
@@ -145,6 +147,7 @@ class TrackerSettings:
     novelty: bool = True
     trust_zone_foreground: bool = True
     mirror_limbs: bool = True
+    min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION
 
     def threshold(self, estimator) -> float:
         """The ambiguity threshold in use: this setting, else the estimator's own."""
@@ -305,7 +308,8 @@ class PoseTracker:
         self.fps = float(fps)
         self.settings = settings
         self.extractor = extractor or SilhouetteExtractor(
-            trust_zone_foreground=settings.trust_zone_foreground)
+            trust_zone_foreground=settings.trust_zone_foreground,
+            min_area_fraction=settings.min_area_fraction)
         self._default_extractor = extractor is None
         self.associator = associator or Associator()
         self.filter_factory, self.limb_filter_factory = filter_factories(estimator, settings,
@@ -332,7 +336,8 @@ class PoseTracker:
             # without colour every darker pixel is, and a person darker than the scene is cut
             # into pieces (the sample walk in gray: 11 tracks instead of 1).
             self.extractor = SilhouetteExtractor(
-                detect_shadows=False, trust_zone_foreground=self.settings.trust_zone_foreground)
+                detect_shadows=False, trust_zone_foreground=self.settings.trust_zone_foreground,
+                min_area_fraction=self.settings.min_area_fraction)
         if frame_size is None:
             self._set_frame_shape(background.shape[:2])
             self.extractor.prime(background)
