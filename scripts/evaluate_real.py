@@ -33,9 +33,8 @@ from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
 from sequences.measures import MeasureError, novelty_summary
-from sequences.pose2sim import (BODY_BONES, BODY_HEAD, BODY_TORSO, DEFAULT_TRIAL, VIEWS,
-                                Pose2SimError, Trial, camera_roll_deg, load_trial,
-                                project_reference, video_frames)
+from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, camera_roll_deg,
+                                load_trial, project_reference, video_frames)
 from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
                                          subject_rows, view_measures)
 from tracker.offline.evaluation import constant_pose
@@ -91,18 +90,15 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
     reference_extractor: a function of the extractor giving the extractor to use
     (``--reference-masks``), or None."""
     from tracker import PoseTracker, track_video
-    from tracker.pipeline import TrackerSettings
-    from tracker.silhouettes import SilhouetteExtractor
+    from tracker.pipeline import TrackerSettings, default_extractor
     from tracker.video import open_video
 
     source = open_video(video)
-    extractor = None
-    if reference_extractor is not None:
-        extractor = reference_extractor(
-            SilhouetteExtractor(trust_zone_foreground=trust_zone_foreground))
-    tracker = PoseTracker(model, source.fps, TrackerSettings(
-        max_people=max_people, roll_deg=roll_deg, novelty=True,
-        trust_zone_foreground=trust_zone_foreground), extractor=extractor)
+    settings = TrackerSettings(max_people=max_people, roll_deg=roll_deg, novelty=True,
+                               trust_zone_foreground=trust_zone_foreground)
+    extractor = (None if reference_extractor is None
+                 else reference_extractor(default_extractor(settings)))
+    tracker = PoseTracker(model, source.fps, settings, extractor=extractor)
     recorder = _MaskRecorder(roll_deg) if keep_masks else PoseRecorder()
     track_video(source, tracker, sinks=[recorder])
     poses = recorder.poses
@@ -135,24 +131,24 @@ def _reference_extractor(trial: Trial, view: str, mode: str):
     """A function wrapping an extractor in a ReferenceMaskExtractor of ``mode`` ("cut",
     "drawn") fed with the reference keypoints projected into ``view``."""
     from tracker.offline.reference_masks import ReferenceMaskExtractor
-    from tracker.offline.silhouette_evaluation import BodyDrawing
+    from tracker.offline.silhouette_evaluation import pose2sim_body
 
     frames = video_frames(trial)
     keypoints = project_reference(view, frames, trial)
-    body = BodyDrawing.from_names(trial.reference.names, BODY_TORSO, BODY_HEAD, BODY_BONES)
+    body = pose2sim_body(trial)
     return lambda extractor: ReferenceMaskExtractor(extractor, keypoints, frames, body, mode)
 
 
 def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
              sheet: list | None = None, trust_zone_foreground: bool = True,
-             reference_masks: str | None = None) -> dict:
+             reference_masks: str = "none") -> dict:
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
     trust_zone_foreground: False lets colour decide on the foreground inside the unreliable
     zone too (tracker.silhouettes.refine_in_zone; ``--zone-foreground colour``).
     sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
     at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them).
-    reference_masks: None, or "cut" / "drawn" to correct the silhouettes by the reference
+    reference_masks: "none", or "cut" / "drawn" to correct the silhouettes by the reference
     (a diagnostic: tracker.offline.reference_masks)."""
     per_view, subject = {}, {}
     constant = constant_pose(model)
@@ -161,7 +157,7 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
         track = _track_view(trial.video(view), model, max_people, roll_deg,
                             keep_masks=sheet is not None,
                             trust_zone_foreground=trust_zone_foreground,
-                            reference_extractor=None if reference_masks is None else
+                            reference_extractor=None if reference_masks == "none" else
                             _reference_extractor(trial, view, reference_masks))
         per_view[view], rows = evaluate_view(trial, view, track, constant)
         if sheet is not None:
@@ -170,7 +166,7 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
                           for i in picked])
         per_view[view]["roll_deg"] = round(roll_deg, 1)
         per_view[view]["zone_foreground"] = "sure" if trust_zone_foreground else "colour"
-        per_view[view]["reference_masks"] = reference_masks or "none"
+        per_view[view]["reference_masks"] = reference_masks
         subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows])
     common = subject[VIEWS[0]][0]
     for view in VIEWS[1:]:
@@ -314,8 +310,7 @@ def main(argv=None) -> int:
             result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration",
                               sheet=sheet,
                               trust_zone_foreground=args.zone_foreground == "sure",
-                              reference_masks=None if args.reference_masks == "none"
-                              else args.reference_masks)
+                              reference_masks=args.reference_masks)
     except (Pose2SimError, PoseModelError, MeasureError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1

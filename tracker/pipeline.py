@@ -286,6 +286,13 @@ class _TrackState:
     unfamiliar: int = 0                              # of them, novelty > UNFAMILIAR_NOVELTY
 
 
+def default_extractor(settings: TrackerSettings, **options) -> SilhouetteExtractor:
+    """The silhouette extractor PoseTracker makes when given none: the settings' zone rule and
+    smallest person; ``options`` go to SilhouetteExtractor too (e.g. detect_shadows=False)."""
+    return SilhouetteExtractor(trust_zone_foreground=settings.trust_zone_foreground,
+                               min_area_fraction=settings.min_area_fraction, **options)
+
+
 class PoseTracker:
     """Tracks every person of a static-camera video (frames fed in order).
 
@@ -307,9 +314,7 @@ class PoseTracker:
         self.estimator = estimator
         self.fps = float(fps)
         self.settings = settings
-        self.extractor = extractor or SilhouetteExtractor(
-            trust_zone_foreground=settings.trust_zone_foreground,
-            min_area_fraction=settings.min_area_fraction)
+        self.extractor = extractor or default_extractor(settings)
         self._default_extractor = extractor is None
         self.associator = associator or Associator()
         self.filter_factory, self.limb_filter_factory = filter_factories(estimator, settings,
@@ -335,9 +340,7 @@ class PoseTracker:
             # MOG2 calls a pixel shadow when it is a darker shade of the background's colour;
             # without colour every darker pixel is, and a person darker than the scene is cut
             # into pieces (the sample walk in gray: 11 tracks instead of 1).
-            self.extractor = SilhouetteExtractor(
-                detect_shadows=False, trust_zone_foreground=self.settings.trust_zone_foreground,
-                min_area_fraction=self.settings.min_area_fraction)
+            self.extractor = default_extractor(self.settings, detect_shadows=False)
         if frame_size is None:
             self._set_frame_shape(background.shape[:2])
             self.extractor.prime(background)

@@ -183,8 +183,7 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
     ``make_extractor(sample_frames) -> extractor``: builds a primed extractor from ``samples``
     frames spread over the video (as the ``track`` command samples them);
     ``make_associator() -> Associator`` (default :func:`default_associator`)."""
-    from sequences.pose2sim import (BODY_BONES, BODY_HEAD, BODY_TORSO, Pose2SimError,
-                                    project_reference, video_frames)
+    from sequences.pose2sim import project_reference, video_frames
     from ..video import open_video
 
     source = open_video(trial.video(view))
@@ -194,11 +193,17 @@ def evaluate_pose2sim_view(trial, view: str, make_extractor: Callable, samples: 
     tracked = [f for f in track_masks(((i, im) for i, _, im in source), extractor, associator)
                if f.index in wanted]
     keypoints = project_reference(view, [f.index for f in tracked], trial)
+    return silhouette_measures(tracked, keypoints, dilate_px, pad, pose2sim_body(trial))
+
+
+def pose2sim_body(trial) -> BodyDrawing:
+    """The body drawn from a Pose2Sim trial's reference keypoints (sequences.pose2sim's
+    BODY_TORSO, BODY_HEAD, BODY_BONES); Pose2SimError naming a keypoint the trial lacks."""
+    from sequences.pose2sim import BODY_BONES, BODY_HEAD, BODY_TORSO, Pose2SimError
     try:
-        body = BodyDrawing.from_names(trial.reference.names, BODY_TORSO, BODY_HEAD, BODY_BONES)
+        return BodyDrawing.from_names(trial.reference.names, BODY_TORSO, BODY_HEAD, BODY_BONES)
     except ValueError as exc:
         raise Pose2SimError(f"{trial.root}: {exc}") from None
-    return silhouette_measures(tracked, keypoints, dilate_px, pad, body)
 
 
 def legacy_extractor(frames) -> "SilhouetteExtractor":
