@@ -186,6 +186,18 @@ class ConstantVelocityFilter:
         return zs
 
 
+def _lower_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """L^-1 b for a lower-triangular L (n, n) and b (n,) or (n, m): LAPACK's trtrs directly
+    (scipy's solve_triangular checks and copies more than a per-frame filter can afford)."""
+    x, info = _trtrs(L, b, lower=1)
+    if info != 0:
+        raise FilterError(f"singular innovation covariance (LAPACK trtrs info {info})")
+    return x
+
+
+_trtrs, _potrf = scipy.linalg.lapack.get_lapack_funcs(("trtrs", "potrf"), dtype=np.float64)
+
+
 def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
     """Angles z (deg) shifted by whole turns to lie within 180 deg of predicted."""
     return predicted + wrap_deg(z - predicted)
@@ -268,8 +280,7 @@ class PoseKalmanFilter:
         for k, (raw, variance) in enumerate(zip(raws, variances)):
             angles, R, ambiguous = self._measure(raw, variance)
             L, logdet = self._factor(R, ambiguous, variance)
-            w = scipy.linalg.solve_triangular(L, wrap_deg(angles - x_pred[:N_ANGLES]),
-                                              lower=True, check_finite=False)
+            w = _lower_solve(L, wrap_deg(angles - x_pred[:N_ANGLES]))
             out[k] = -0.5 * (w @ w + logdet + N_ANGLES * _LOG_2PI)
         return out
 
@@ -297,7 +308,10 @@ class PoseKalmanFilter:
         key = (ambiguous, None if variance is None or not np.isfinite(variance)
                else float(variance))
         if key not in factors:
-            L = np.linalg.cholesky(P_pred[:N_ANGLES, :N_ANGLES] + R)
+            L, info = _potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1)
+            if info != 0:
+                raise FilterError(f"innovation covariance not positive definite (LAPACK potrf "
+                                  f"info {info})")
             factors[key] = (L, 2.0 * np.log(np.diag(L)).sum())
         return factors[key]
 
@@ -327,11 +341,12 @@ class PoseKalmanFilter:
             x_pred, P_pred, _ = self._prediction()
             L, _ = self._factor(R, ambiguous, heading_variance)
             y = wrap_deg(angles - x_pred[:n])           # unwrapped against the prediction
-            # G = S^-1 H P_pred (54, 108), so K = G' and K S K' = P_pred H' G.
-            G = scipy.linalg.cho_solve((L, True), P_pred[:n], check_finite=False)
-            x = x_pred + G.T @ y
-            P = P_pred - P_pred[:, :n] @ G
-            self._P = 0.5 * (P + P.T)
+            # With S = L L', W = L^-1 H P_pred (54, 108): K = W' L^-1, so x = x_pred + W' L^-1 y
+            # and K S K' = W' W. One triangular solve and a symmetric product (BLAS syrk, exactly
+            # symmetric) cost about half of a Cholesky solve for K and a general product.
+            W = _lower_solve(L, P_pred[:n])
+            x = x_pred + W.T @ _lower_solve(L, y)
+            self._P = P_pred - W.T @ W
             # Shifting angles by whole turns changes nothing (measurements are unwrapped against
             # the prediction) and keeps the state bounded on long clips.
             x[:n] -= 360.0 * np.round(x[:n] / 360.0)
