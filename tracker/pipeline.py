@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Protocol
 
@@ -293,6 +293,10 @@ def default_extractor(settings: TrackerSettings, **options) -> SilhouetteExtract
                                min_area_fraction=settings.min_area_fraction, **options)
 
 
+#: A person's descriptor (D,) and its mirror image's (D,) or None: PoseTracker.describe.
+Description = tuple[np.ndarray, "np.ndarray | None"]
+
+
 class PoseTracker:
     """Tracks every person of a static-camera video (frames fed in order).
 
@@ -342,30 +346,68 @@ class PoseTracker:
             # into pieces (the sample walk in gray: 11 tracks instead of 1).
             self.extractor = default_extractor(self.settings, detect_shadows=False)
         if frame_size is None:
-            self._set_frame_shape(background.shape[:2])
+            self.set_frame_shape(background.shape[:2])
             self.extractor.prime(background)
         else:
-            self._set_frame_shape((frame_size[1], frame_size[0]))
+            self.set_frame_shape((frame_size[1], frame_size[0]))
             self.extractor.prime(background, frame_size=frame_size)
 
-    def _set_frame_shape(self, shape: tuple[int, int]) -> None:
-        """Remember the frames' (height, width) px, and the focal length it implies, once."""
+    def set_frame_shape(self, shape: tuple[int, int]) -> None:
+        """Remember the frames' (height, width) px, and the focal length it implies, once
+        (done by prime() and find_people(); a tracker fed by a frame worker is told)."""
         if self.frame_shape is None:
             self.frame_shape = (int(shape[0]), int(shape[1]))
             self._focal_px = focal_length_px(self.frame_shape[1], self.settings.fov_deg)
 
     def process(self, frame_index: int, time_s: float, frame: np.ndarray) -> list[TrackedPose]:
         """Track one frame (BGR uint8 (H, W, 3)); returns a pose per person in view."""
-        self._set_frame_shape(frame.shape[:2])
+        return self.track_people(frame_index, time_s, self.find_people(frame))
+
+    def find_people(self, frame: np.ndarray) -> list[PersonMask]:
+        """The first half of :meth:`process`: the people in one frame (BGR uint8 (H, W, 3)),
+        at most settings.max_people. Frames go in order (the background model learns)."""
+        self.set_frame_shape(frame.shape[:2])
         clock = time.perf_counter()
         people = self.extractor(frame)[: self.settings.max_people]
-        clock = self._lap("silhouettes", clock)
+        self._lap("silhouettes", clock)
+        return people
+
+    def describe(self, person: PersonMask) -> Description | None:
+        """A person's silhouette descriptor (D,) and, when the tracker averages mirror images
+        (tracker.mirror_limbs), its mirror image's (D,) (else None), made upright by the
+        settings' roll; None for a sliver or speck that has no descriptor. Depends on nothing
+        but the mask and the settings, so it can run apart from the tracking (tracker.frame_worker)."""
+        clock = time.perf_counter()
+        mask = upright_mask(person.mask, self.settings.roll_deg)
+        try:
+            if self._mirror:
+                description = self.estimator.describe_with_mirror(mask)
+            else:
+                description = (self.estimator.describe(mask), None)
+        except SilhouetteError:
+            description = None
+        self._lap("descriptor", clock)
+        return description
+
+    def track_people(self, frame_index: int, time_s: float, people: Sequence[PersonMask],
+                     descriptions: Sequence[Description | None] | None = None
+                     ) -> list[TrackedPose]:
+        """The second half of :meth:`process`: the poses of one frame's people (from
+        :meth:`find_people`, in order). descriptions: :meth:`describe` of each person, when
+        made elsewhere; None: described here (only the people on confirmed tracks)."""
+        clock = time.perf_counter()
         matches = self.associator.update(people)
         self.people = dict(matches)
         self._lap("association", clock)
+        known = ({} if descriptions is None
+                 else {id(person): d for person, d in zip(people, descriptions, strict=True)})
         out = []
         for track_id, person in matches:
-            pose = self._pose(track_id, person, frame_index, time_s)
+            self._state(track_id)          # a track exists from its first match, described or not
+            description = (self.describe(person) if descriptions is None
+                           else known[id(person)])
+            pose = None if description is None else self._pose(
+                track_id, person, frame_index, time_s, description)
             if pose is not None:
                 out.append(pose)
         return out
@@ -383,18 +425,10 @@ class PoseTracker:
         return self.tracks[track_id]
 
     def _pose(self, track_id: int, person: PersonMask, frame_index: int,
-              time_s: float) -> TrackedPose | None:
+              time_s: float, description: Description) -> TrackedPose:
         state = self._state(track_id)
         clock = time.perf_counter()
-        mask = upright_mask(person.mask, self.settings.roll_deg)
-        try:
-            if state.mirror_stacker is not None:
-                descriptor, mirrored = self.estimator.describe_with_mirror(mask)
-            else:
-                descriptor, mirrored = self.estimator.describe(mask), None
-        except SilhouetteError:
-            return None                       # a sliver or speck: no pose this frame
-        clock = self._lap("descriptor", clock)
+        descriptor, mirrored = description
         stacked = state.stacker.push(descriptor)
         if mirrored is not None:
             mirrored = state.mirror_stacker.push(mirrored)

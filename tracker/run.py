@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
+from .frame_worker import FrameWorker, can_fork
 from .pipeline import PoseTracker
 from .silhouettes import median_background
 from .sinks import PoseRecorder, Sink, close_sinks
@@ -50,8 +51,8 @@ class TrackRun:
 
 def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = None,
                 sinks: Sequence[Sink] = (), progress=None,
-                smoothed_sinks: Sequence[Sink] = (), background: np.ndarray | None = None
-                ) -> TrackRun:
+                smoothed_sinks: Sequence[Sink] = (), background: np.ndarray | None = None,
+                workers: int = 1) -> TrackRun:
     """Track every frame of ``source`` (an opened video or a path) into ``sinks``.
 
     tracker: a PoseTracker (None: the shipped model with default settings). progress: an
@@ -67,7 +68,14 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     size, ``track --background``), trusted everywhere; None learns the scene from frames spread
     over the video (see :func:`_prime`). tracker.stage_seconds gains "background" (sampling the
     video and priming, the start-up cost), "decode" and "outputs".
+    workers: 2 finds and describes the people in a second process (tracker.frame_worker)
+    while this one tracks them, for the same results on two cores; sinks that show the video
+    get no frames from it, so with one of those (and where processes cannot fork) the run
+    stays in one process. The tracker's stages then include the worker's, and "waiting" (for
+    it).
     """
+    if workers not in (1, 2):
+        raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
         source = open_video(source)
     if tracker is None:
@@ -82,13 +90,18 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     watching = [sink for sink in streaming if hasattr(sink, "write_frame")]
     frames, interrupted, started = 0, False, time.perf_counter()
     stages = tracker.stage_seconds
+    worker = None
     try:
-        _prime(source, tracker, background)
+        if workers > 1 and not watching and can_fork():
+            worker = FrameWorker(source, tracker, background)
+            worker.wait_primed()
+            tracker.set_frame_shape((source.height, source.width))
+            frames_in = _from_worker(worker, tracker)
+        else:
+            _prime(source, tracker, background)
+            frames_in = _in_process(source, tracker)
         stages["background"] += time.perf_counter() - started
-        clock = time.perf_counter()
-        for index, time_s, frame in source:
-            stages["decode"] += time.perf_counter() - clock
-            poses = tracker.process(index, time_s, frame)
+        for index, time_s, frame, poses in frames_in:
             clock = time.perf_counter()
             for sink in streaming:
                 for pose in poses:
@@ -101,11 +114,16 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
             frames += 1
             if progress is not None:
                 progress.update(len(poses))
-            clock = time.perf_counter()
+        if worker is not None:
+            for stage in ("decode", "silhouettes", "descriptor"):
+                stages[stage] += worker.stage_seconds.get(stage, 0.0)
+            source.frames_read, source.truncated = worker.frames_read, worker.truncated
     except KeyboardInterrupt:
         interrupted = True
     finally:
         with _signals_held() as held:
+            if worker is not None:
+                worker.close()
             if progress is not None:
                 progress.close()
             try:
@@ -117,6 +135,27 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     if problems:
         raise OutputError("could not finish outputs: " + "; ".join(problems))
     return TrackRun(frames, time.perf_counter() - started, interrupted, tracker)
+
+
+def _in_process(source: VideoSource, tracker: PoseTracker) -> Iterator[tuple]:
+    """(frame_index, time_s, frame, poses) of each frame, tracked here (one process)."""
+    stages = tracker.stage_seconds
+    clock = time.perf_counter()
+    for index, time_s, frame in source:
+        stages["decode"] += time.perf_counter() - clock
+        yield index, time_s, frame, tracker.process(index, time_s, frame)
+        clock = time.perf_counter()
+
+
+def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
+    """(frame_index, time_s, None, poses) of each frame, its people found and described by
+    the worker process; the time spent waiting for it is the stage "waiting"."""
+    stages = tracker.stage_seconds
+    clock = time.perf_counter()
+    for index, time_s, people, descriptions in worker:
+        stages["waiting"] += time.perf_counter() - clock
+        yield index, time_s, None, tracker.track_people(index, time_s, people, descriptions)
+        clock = time.perf_counter()
 
 
 def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | None) -> None:

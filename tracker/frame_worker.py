@@ -1,0 +1,176 @@
+"""Decoding, silhouettes and descriptors in a second process, so that ``track`` uses two cores.
+
+A frame's work splits in two halves of about the same cost (scripts/bench_track.py, one
+person at 640x480): decoding, background subtraction and describing each silhouette (~5.5 ms),
+then association, regression, the front/back filters, the skeleton and the outputs (~6 ms).
+The first half needs nothing from the second (PoseTracker.find_people and .describe depend
+only on the frames and the settings), so a worker process runs it ahead on its own copy of the
+tracker while the main process tracks: both cores busy, the results the same as in one process
+(the same code on the same frames, in order).
+
+The worker is forked (the model is already in memory: no second load, no pickling) with
+OpenCV and BLAS held to one thread each, so the two processes do not compete for the cores
+(a spawned worker would import everything again and receive a 61 MB model: 1-2 s more).
+It sends frames in small batches through a pipe (a person's mask and two descriptors are a
+few kB); the main process reads them in order. Ctrl-C is the main process's to handle (the
+worker ignores it); whatever way the main process ends, the worker goes with it: it is
+terminated on close, and a worker whose reader has died fails on its next send and exits.
+An error in the worker (e.g. a frame that cannot be decoded) is raised in the main process as
+the same exception.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import time
+from collections.abc import Iterator
+
+import cv2
+import numpy as np
+
+from regressor.errors import SilhouettePoseError
+
+#: Frames sent per message: enough to make the pipe's cost negligible, few enough that the
+#: worker is never far ahead (memory) and a live output lags by a fraction of a second.
+BATCH_FRAMES = 8
+
+
+class FrameWorkerError(SilhouettePoseError, RuntimeError):
+    """The worker process failed in a way that has no exception of its own to pass on."""
+
+
+def can_fork() -> bool:
+    """Whether this platform starts processes by fork (Linux, macOS): the worker needs it."""
+    return "fork" in multiprocessing.get_all_start_methods()
+
+
+class FrameWorker:
+    """Runs ``tracker``'s first half (PoseTracker.find_people and .describe) over ``source``
+    in a forked process; iterate to get (frame_index, time_s, people, descriptions) in frame
+    order. The worker primes its own copy of the tracker as tracking would (the clean plate
+    ``background`` when given, else frames sampled over the video: tracker.run._prime);
+    :meth:`wait_primed` blocks until it has. After the last frame, :attr:`stage_seconds`
+    holds the worker's stages (background, decode, silhouettes, descriptor) and
+    :attr:`frames_read` / :attr:`truncated` the source's own. Close it (or use ``with``)."""
+
+    def __init__(self, source, tracker, background: np.ndarray | None = None,
+                 batch: int = BATCH_FRAMES):
+        if not can_fork():
+            raise FrameWorkerError("a frame worker needs a platform that can fork processes")
+        self.stage_seconds: dict[str, float] = {}
+        self.frames_read, self.truncated = 0, False
+        context = multiprocessing.get_context("fork")
+        self._reader, writer = context.Pipe(duplex=False)
+        self._process = context.Process(target=_work, name="silhouette-pose frame worker",
+                                        args=(writer, source, tracker, background, batch),
+                                        daemon=True)
+        # OpenCV's thread count is set before the fork, never in the child: a child that
+        # resizes a thread pool it inherited without its threads can hang (seen here).
+        threads = cv2.getNumThreads()
+        cv2.setNumThreads(1)
+        try:
+            self._process.start()
+        finally:
+            cv2.setNumThreads(threads)
+        writer.close()           # the worker's end: its death then ends our reads
+        self._primed = False
+
+    def wait_primed(self) -> None:
+        """Block until the worker has learnt the background; raises its error if it failed."""
+        if not self._primed:
+            self._expect("primed")
+            self._primed = True
+
+    def __iter__(self) -> Iterator[tuple]:
+        self.wait_primed()
+        while True:
+            kind, payload = self._receive()
+            if kind == "frames":
+                yield from payload
+            elif kind == "end":
+                self.stage_seconds, self.frames_read, self.truncated = payload
+                return
+            else:
+                raise FrameWorkerError(f"the frame worker sent {kind!r} out of turn")
+
+    def _expect(self, wanted: str) -> None:
+        kind, _ = self._receive()
+        if kind != wanted:
+            raise FrameWorkerError(f"the frame worker sent {kind!r} instead of {wanted!r}")
+
+    def _receive(self) -> tuple[str, object]:
+        try:
+            kind, payload = self._reader.recv()
+        except EOFError:
+            self._process.join(timeout=1.0)
+            raise FrameWorkerError(f"the frame worker stopped unexpectedly (exit code "
+                                   f"{self._process.exitcode})") from None
+        if kind == "error":
+            raise payload
+        return kind, payload
+
+    def close(self) -> None:
+        """Stop the worker (at once if it is still running) and release the pipe."""
+        self._reader.close()
+        if self._process.is_alive():
+            self._process.terminate()
+        self._process.join(timeout=5.0)
+        if self._process.is_alive():
+            self._process.kill()
+            self._process.join()
+
+    def __enter__(self) -> "FrameWorker":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _work(writer, source, tracker, background, batch: int) -> None:
+    """The worker process: prime, then send each frame's people and descriptions."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)      # Ctrl-C is the main process's
+    try:
+        from threadpoolctl import threadpool_limits
+        from .run import _prime
+        with threadpool_limits(1):
+            stages = tracker.stage_seconds
+            stages.clear()
+            started = time.perf_counter()
+            _prime(source, tracker, background)
+            stages["background"] += time.perf_counter() - started
+            writer.send(("primed", None))
+            chunk = []
+            clock = time.perf_counter()
+            for index, time_s, frame in source:
+                stages["decode"] += time.perf_counter() - clock
+                people = tracker.find_people(frame)
+                chunk.append((index, time_s, people, [tracker.describe(p) for p in people]))
+                if len(chunk) >= batch:
+                    writer.send(("frames", chunk))
+                    chunk = []
+                clock = time.perf_counter()
+            if chunk:
+                writer.send(("frames", chunk))
+            writer.send(("end", (dict(stages), source.frames_read, source.truncated)))
+    except (BrokenPipeError, ConnectionResetError):
+        pass                                          # the main process has gone: so do we
+    except BaseException as error:                    # noqa: BLE001 - passed on, not hidden
+        _send_error(writer, error)
+    finally:
+        writer.close()
+        os._exit(0)                                   # no atexit handlers of the parent's
+
+
+def _send_error(writer, error: BaseException) -> None:
+    """Pass the worker's exception to the main process (as it is when it pickles, else as a
+    FrameWorkerError with its message)."""
+    try:
+        writer.send(("error", error))
+    except (BrokenPipeError, ConnectionResetError):
+        return
+    except Exception:                                 # noqa: BLE001 - unpicklable exception
+        try:
+            writer.send(("error", FrameWorkerError(f"{type(error).__name__}: {error}")))
+        except (BrokenPipeError, ConnectionResetError):
+            return
