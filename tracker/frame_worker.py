@@ -130,6 +130,8 @@ class FrameWorker:
 def _work(writer, source, tracker, background, batch: int) -> None:
     """The worker process: prime, then send each frame's people and descriptions."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # Ctrl-C is the main process's
+    for number in (signal.SIGTERM, signal.SIGHUP):    # not the main process's handlers:
+        signal.signal(number, signal.SIG_DFL)         # close() ends the worker by SIGTERM
     try:
         from threadpoolctl import threadpool_limits
         from .run import _prime
