@@ -128,7 +128,7 @@ def test_the_tracker_describes_the_mirror_frame_by_frame_as_offline(model, masks
             ys, xs = np.nonzero(mask)
             person = PersonMask(mask, (0, 0, mask.shape[1], mask.shape[0]),
                                 (float(xs.mean()), float(ys.mean())), int(mask.sum()))
-            proposed.append(tracker._pose(0, person, i, i / 30.0).raw)
+            proposed.append(tracker._pose(0, person, i, i / 30.0, tracker.describe(person)).raw)
         assert (tracker.tracks[0].mirror_stacker is not None) == mirror
         offline = propose_sequence(model, masks, mirror=mirror)
         np.testing.assert_allclose(proposed, [h.raw for h in offline], atol=1e-9)

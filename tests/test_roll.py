@@ -59,5 +59,5 @@ def test_the_tracker_describes_the_upright_silhouette():
                         centroid=(float(xs.mean()), float(ys.mean())), area=int(bar.sum()))
     tracker = PoseTracker(described, 30.0, TrackerSettings(roll_deg=15.0))
     tracker.prime(np.zeros((160, 160, 3), np.uint8))
-    tracker._pose(0, person, 0, 0.0)
+    tracker.describe(person)
     assert len(seen) == 1 and abs(_lean(seen[0])) < 2.0

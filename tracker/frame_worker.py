@@ -16,7 +16,7 @@ few kB); the main process reads them in order. Ctrl-C is the main process's to h
 worker ignores it); whatever way the main process ends, the worker goes with it: it is
 terminated on close, and a worker whose reader has died fails on its next send and exits.
 An error in the worker (e.g. a frame that cannot be decoded) is raised in the main process as
-the same exception.
+the same exception, after the frames before it; its warnings are issued there too.
 """
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ import multiprocessing
 import os
 import signal
 import time
+import warnings
 from collections.abc import Iterator
 
 import cv2
@@ -63,7 +64,8 @@ class FrameWorker:
         context = multiprocessing.get_context("fork")
         self._reader, writer = context.Pipe(duplex=False)
         self._process = context.Process(target=_work, name="silhouette-pose frame worker",
-                                        args=(writer, source, tracker, background, batch),
+                                        args=(self._reader, writer, source, tracker,
+                                              background, batch),
                                         daemon=True)
         # OpenCV's thread count is set before the fork, never in the child: a child that
         # resizes a thread pool it inherited without its threads can hang (seen here).
@@ -100,12 +102,19 @@ class FrameWorker:
             raise FrameWorkerError(f"the frame worker sent {kind!r} instead of {wanted!r}")
 
     def _receive(self) -> tuple[str, object]:
-        try:
-            kind, payload = self._reader.recv()
-        except EOFError:
-            self._process.join(timeout=1.0)
-            raise FrameWorkerError(f"the frame worker stopped unexpectedly (exit code "
-                                   f"{self._process.exitcode})") from None
+        """The worker's next message (kind, payload); its warnings issued on the way, its
+        error raised."""
+        while True:
+            try:
+                kind, payload = self._reader.recv()
+            except EOFError:
+                self._process.join(timeout=1.0)
+                raise FrameWorkerError(f"the frame worker stopped unexpectedly (exit code "
+                                       f"{self._process.exitcode})") from None
+            if kind != "warnings":
+                break
+            for message, category in payload:
+                warnings.warn(message, category, stacklevel=4)
         if kind == "error":
             raise payload
         return kind, payload
@@ -127,22 +136,27 @@ class FrameWorker:
         self.close()
 
 
-def _work(writer, source, tracker, background, batch: int) -> None:
+def _work(reader, writer, source, tracker, background, batch: int) -> None:
     """The worker process: prime, then send each frame's people and descriptions."""
+    # The fork copied the main process's end of the pipe: closed here, so that once the main
+    # process has gone, no reader is left and the next send fails instead of blocking.
+    reader.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # Ctrl-C is the main process's
     for number in (signal.SIGTERM, signal.SIGHUP):    # not the main process's handlers:
         signal.signal(number, signal.SIG_DFL)         # close() ends the worker by SIGTERM
+    chunk: list = []
     try:
         from threadpoolctl import threadpool_limits
         from .run import _prime
-        with threadpool_limits(1):
+        with threadpool_limits(1), warnings.catch_warnings(record=True) as caught:
+            # (the filters stay the main process's, copied by the fork)
+            writer = _PassingWarnings(writer, caught)
             stages = tracker.stage_seconds
             stages.clear()
             started = time.perf_counter()
             _prime(source, tracker, background)
             stages["background"] += time.perf_counter() - started
             writer.send(("primed", None))
-            chunk = []
             clock = time.perf_counter()
             for index, time_s, frame in source:
                 stages["decode"] += time.perf_counter() - clock
@@ -158,16 +172,38 @@ def _work(writer, source, tracker, background, batch: int) -> None:
     except (BrokenPipeError, ConnectionResetError):
         pass                                          # the main process has gone: so do we
     except BaseException as error:                    # noqa: BLE001 - passed on, not hidden
-        _send_error(writer, error)
+        _send_error(writer, error, chunk)
     finally:
         writer.close()
         os._exit(0)                                   # no atexit handlers of the parent's
 
 
-def _send_error(writer, error: BaseException) -> None:
+class _PassingWarnings:
+    """The worker's end of the pipe, sending the warnings caught since the last message
+    (e.g. a video cut short: tracker.video.VideoTruncatedWarning) before each message, for the
+    main process to issue in their place among the frames."""
+
+    def __init__(self, writer, caught: list):
+        self._writer, self._caught = writer, caught
+
+    def send(self, message) -> None:
+        if self._caught:
+            self._writer.send(("warnings", [(str(w.message), w.category)
+                                            for w in self._caught]))
+            self._caught.clear()
+        self._writer.send(message)
+
+    def close(self) -> None:
+        self._writer.close()
+
+
+def _send_error(writer, error: BaseException, chunk: list) -> None:
     """Pass the worker's exception to the main process (as it is when it pickles, else as a
-    FrameWorkerError with its message)."""
+    FrameWorkerError with its message), after the frames done before it (chunk), which one
+    process would have tracked too."""
     try:
+        if chunk:
+            writer.send(("frames", chunk))
         writer.send(("error", error))
     except (BrokenPipeError, ConnectionResetError):
         return

@@ -1,0 +1,181 @@
+"""The frame worker (tracker/frame_worker.py): a second process that finds and describes the
+people, with the same poses as one process, its errors passed on, and nothing left running."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from regressor.pose_model import load_pose_model
+from sequences.video import Actor, write_video
+from tests.test_track_cli import _assert_one_line_error, _track, _walker
+from tracker import PoseRecorder, PoseTracker, TrackerSettings, track_video
+from tracker.frame_worker import FrameWorker, can_fork
+from tracker.video import VideoError, VideoSource, open_video
+
+ROOT = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.skipif(not can_fork(), reason="the frame worker needs fork")
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("walk") / "walk.mp4"
+    write_video(path, [Actor(_walker(45))], size=(240, 320), noise_sigma=2.0, seed=5)
+    return path
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_pose_model()
+
+
+def _poses(video: Path, model, workers: int) -> tuple[np.ndarray, object]:
+    source = open_video(video)
+    recorder = PoseRecorder()
+    tracker = PoseTracker(model, source.fps, TrackerSettings(keep_history=False))
+    run = track_video(source, tracker, [recorder], workers=workers)
+    rows = [np.concatenate([p.raw, p.filtered, p.joints_m.ravel(), [p.frame_index, p.track_id,
+                                                                     p.ambiguous]])
+            for p in recorder.poses]
+    return np.array(rows), run
+
+
+def test_two_processes_give_exactly_the_poses_of_one(walk, model):
+    one, run_one = _poses(walk, model, workers=1)
+    two, run_two = _poses(walk, model, workers=2)
+    assert len(one) >= 30                                  # the walker is tracked
+    np.testing.assert_array_equal(two, one)
+    assert run_two.frames == run_one.frames == 45
+    # the worker's stages are reported with the main process's, and the wait for it
+    stages = run_two.tracker.stage_seconds
+    for stage in ("background", "decode", "silhouettes", "descriptor", "regression", "filter",
+                  "waiting"):
+        assert stages[stage] > 0, stage
+
+
+def test_one_process_again_after_a_worker_and_a_worker_after_one(walk, model):
+    """OpenCV's thread pool, used by one run, must not hang the next run's forked worker."""
+    first, _ = _poses(walk, model, workers=2)
+    _poses(walk, model, workers=1)
+    again, _ = _poses(walk, model, workers=2)
+    np.testing.assert_array_equal(again, first)
+
+
+class _BrokenAtFrame(VideoSource):
+    """A video that fails to decode at frame ``bad`` (as a damaged file would)."""
+
+    bad = 10
+
+    def __iter__(self):
+        for frame in super().__iter__():
+            if frame[0] == self.bad:
+                raise VideoError(f"{self.path.name}: frame {self.bad} cannot be decoded")
+            yield frame
+
+
+def test_an_error_in_the_worker_is_raised_in_the_main_process_as_it_is(walk, model):
+    source = open_video(walk)
+    source.__class__ = _BrokenAtFrame
+    recorder = PoseRecorder()
+    tracker = PoseTracker(model, source.fps, TrackerSettings(keep_history=False))
+    with pytest.raises(VideoError, match="frame 10 cannot be decoded"):
+        track_video(source, tracker, [recorder], workers=2)
+    # the frames before it were tracked and handed to the sinks
+    assert max(p.frame_index for p in recorder.poses) == 9
+
+
+def test_close_ends_a_worker_still_running(walk, model):
+    source = open_video(walk)
+    tracker = PoseTracker(model, source.fps, TrackerSettings(keep_history=False))
+    worker = FrameWorker(source, tracker, batch=1)
+    worker.wait_primed()
+    next(iter(worker))                       # it is working, and blocks once the pipe is full
+    worker.close()
+    assert not worker._process.is_alive()
+
+
+_ORPHAN_SCRIPT = """
+import sys, time
+from regressor.pose_model import load_pose_model
+from tracker import PoseTracker, TrackerSettings
+from tracker.frame_worker import FrameWorker
+from tracker.video import open_video
+source = open_video(sys.argv[1])
+worker = FrameWorker(source, PoseTracker(load_pose_model(), source.fps, TrackerSettings()),
+                     batch=1)
+worker.wait_primed()
+print(worker._process.pid, flush=True)
+time.sleep(60)                               # never reads: the worker fills the pipe and waits
+"""
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"      # a zombie has ended
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
+def test_a_worker_whose_main_process_is_killed_ends_too(walk):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    main = subprocess.Popen([sys.executable, "-c", _ORPHAN_SCRIPT, str(walk)], env=env,
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        worker_pid = int(main.stdout.readline())
+        time.sleep(1.0)                      # the 45 frames take ~0.5 s: it is blocked
+        assert _alive(worker_pid)
+        main.send_signal(signal.SIGKILL)     # no clean-up of any kind in the main process
+        main.wait(timeout=10)
+        deadline = time.monotonic() + 10
+        while _alive(worker_pid) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not _alive(worker_pid), "the worker outlived its main process"
+    finally:
+        main.kill()
+
+
+def test_workers_other_than_one_or_two_are_refused(walk, tmp_path):
+    with pytest.raises(ValueError, match="workers=3"):
+        track_video(walk, workers=3)
+    _assert_one_line_error(_track(walk, "--workers", "3", "--json", tmp_path / "s.json"),
+                           "--workers")
+    assert not (tmp_path / "s.json").exists()
+
+
+def test_track_with_one_or_two_workers_writes_the_same_json(walk, tmp_path):
+    import json
+    for workers in (1, 2):
+        result = _track(walk, "--workers", str(workers), "--json", tmp_path / f"{workers}.json",
+                        "--quiet")
+        assert result.returncode == 0, result.stderr
+    one, two = (json.loads((tmp_path / f"{w}.json").read_text()) for w in (1, 2))
+    for summary in (one, two):
+        for timing in ("fps", "wall_time_s"):
+            summary.pop(timing)
+    assert one == two
+
+
+def test_the_workers_warnings_are_issued_in_the_main_process(tmp_path):
+    """A video cut short warns in the worker, which reads it; the user must still see it."""
+    import cv2
+    from tracker.video import VideoTruncatedWarning
+    avi = tmp_path / "a.avi"
+    writer = cv2.VideoWriter(str(avi), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (160, 120))
+    scene = np.random.default_rng(0).integers(60, 200, (120, 160, 3), dtype=np.uint8)
+    for _ in range(40):
+        writer.write(scene)
+    writer.release()
+    data = avi.read_bytes()
+    (tmp_path / "cut.avi").write_bytes(data[: len(data) // 2])
+    source = open_video(tmp_path / "cut.avi")
+    with pytest.warns(VideoTruncatedWarning, match="decoding stopped"):
+        run = track_video(source, workers=2)
+    assert source.truncated and 0 < source.frames_read == run.frames < 40
