@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
+from .area_shrink import shrink
 from .background import ClipBackground, clean_plate, clip_background, frame_gain
 from .noise_floor import FOREGROUND_LEVEL as _FOREGROUND_LEVEL, choose_var_min
 
@@ -167,8 +168,7 @@ class BackgroundSubtractor:
         if frame_size is None:
             frame_size = given
             work = self.working_size(*given)
-            small = background if work == given else cv2.resize(background, work,
-                                                                 interpolation=cv2.INTER_AREA)
+            small = background if work == given else shrink(background, work)
         else:
             frame_size = (int(frame_size[0]), int(frame_size[1]))
             if given != self.working_size(*frame_size):
@@ -214,7 +214,7 @@ class BackgroundSubtractor:
         size = (frame.shape[1], frame.shape[0])
         self._check_frame_size(size)
         work = self.working_size(*size)
-        small = frame if work == size else cv2.resize(frame, work, interpolation=cv2.INTER_AREA)
+        small = frame if work == size else shrink(frame, work)
         saturated = None
         if self.reference is not None and self.normalise_brightness:
             gain = frame_gain(small, self.reference)
@@ -760,8 +760,7 @@ class SilhouetteExtractor:
         """Frames (each BGR uint8 (H, W, 3)) shrunk to the working size, (N, h, w, 3)."""
         height, width = frames[0].shape[:2]
         size = self.subtractor.working_size(width, height)
-        return np.stack([f if (f.shape[1], f.shape[0]) == size else
-                         cv2.resize(f, size, interpolation=cv2.INTER_AREA) for f in frames])
+        return np.stack([shrink(f, size) for f in frames])
 
     def __call__(self, frame: np.ndarray) -> list[PersonMask]:
         """People in ``frame`` (BGR uint8 (H, W, 3)); [] while the background is warming up."""

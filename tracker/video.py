@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
+from .area_shrink import shrink
 
 MIN_SIDE_PX = 16
 # Longer than any camera or 8K video; beyond this a file is almost certainly damaged metadata.
@@ -162,7 +163,7 @@ class VideoSource:
         image = _as_bgr(image)
         size = size or (self.width, self.height)
         if size != (image.shape[1], image.shape[0]):
-            image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+            image = shrink(image, size)
         return image
 
     def sample_frames(self, count: int, size: tuple[int, int] | None = None
