@@ -100,7 +100,7 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
                  else reference_extractor(default_extractor(settings)))
     tracker = PoseTracker(model, source.fps, settings, extractor=extractor)
     recorder = _MaskRecorder(roll_deg) if keep_masks else PoseRecorder()
-    track_video(source, tracker, sinks=[recorder])
+    track_video(source, tracker, sinks=[recorder], workers=2)  # the same poses, two cores
     poses = recorder.poses
     if not poses:
         raise Pose2SimError(f"{video}: nobody was tracked")
