@@ -15,6 +15,7 @@ import pytest
 from regressor.pose_model import load_pose_model
 from sequences.video import Actor, write_video
 from tests.test_track_cli import _assert_one_line_error, _track, _walker
+from tests.test_track_safety import cut_off_avi
 from tracker import PoseRecorder, PoseTracker, TrackerSettings, track_video
 from tracker.frame_worker import FrameWorker, can_fork
 from tracker.video import VideoError, VideoSource, open_video
@@ -165,17 +166,8 @@ def test_track_with_one_or_two_workers_writes_the_same_json(walk, tmp_path):
 
 def test_the_workers_warnings_are_issued_in_the_main_process(tmp_path):
     """A video cut short warns in the worker, which reads it; the user must still see it."""
-    import cv2
     from tracker.video import VideoTruncatedWarning
-    avi = tmp_path / "a.avi"
-    writer = cv2.VideoWriter(str(avi), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (160, 120))
-    scene = np.random.default_rng(0).integers(60, 200, (120, 160, 3), dtype=np.uint8)
-    for _ in range(40):
-        writer.write(scene)
-    writer.release()
-    data = avi.read_bytes()
-    (tmp_path / "cut.avi").write_bytes(data[: len(data) // 2])
-    source = open_video(tmp_path / "cut.avi")
+    source = open_video(cut_off_avi(tmp_path))
     with pytest.warns(VideoTruncatedWarning, match="decoding stopped"):
         run = track_video(source, workers=2)
     assert source.truncated and 0 < source.frames_read == run.frames < 40

@@ -256,16 +256,23 @@ def test_absurd_times_are_option_errors(tmp_path, walk, options, needle):
     assert "OverflowError" not in result.stderr
 
 
-def test_a_cut_off_avi_gives_a_one_line_warning(tmp_path):
-    """Case 11: tracked up to the cut, one "track: warning:" line, no Python source line."""
-    avi = tmp_path / "a.avi"
+def cut_off_avi(folder: Path) -> Path:
+    """folder/cut.avi: the first half of the bytes of a 40-frame MJPG video (an index-less
+    AVI decodes up to the cut, then stops)."""
+    avi = folder / "a.avi"
     writer = cv2.VideoWriter(str(avi), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (160, 120))
     scene = np.random.default_rng(0).integers(60, 200, (120, 160, 3), dtype=np.uint8)
     for _ in range(40):
         writer.write(scene)
     writer.release()
     data = avi.read_bytes()
-    (tmp_path / "cut.avi").write_bytes(data[: len(data) // 2])
+    (folder / "cut.avi").write_bytes(data[: len(data) // 2])
+    return folder / "cut.avi"
+
+
+def test_a_cut_off_avi_gives_a_one_line_warning(tmp_path):
+    """Case 11: tracked up to the cut, one "track: warning:" line, no Python source line."""
+    cut_off_avi(tmp_path)
     result = _track("cut.avi", "--json", "s.json", "--quiet", cwd=tmp_path)
     assert result.returncode == 0
     assert result.stderr.strip().startswith("track: warning: cut.avi: decoding stopped")
