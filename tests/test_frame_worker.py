@@ -18,6 +18,7 @@ from tests.test_track_cli import _assert_one_line_error, _track, _walker
 from tests.test_track_safety import cut_off_avi
 from tracker import PoseRecorder, PoseTracker, TrackerSettings, track_video
 from tracker.frame_worker import FrameWorker, can_fork
+from tracker.run import _prime
 from tracker.video import VideoError, VideoSource, open_video
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -56,7 +57,7 @@ def test_two_processes_give_exactly_the_poses_of_one(walk, model):
     # the worker's stages are reported with the main process's, and the wait for it
     stages = run_two.tracker.stage_seconds
     for stage in ("background", "decode", "silhouettes", "descriptor", "regression", "filter",
-                  "waiting"):
+                  "waiting"):          # background: primed here, the worker starts from it
         assert stages[stage] > 0, stage
 
 
@@ -94,8 +95,8 @@ def test_an_error_in_the_worker_is_raised_in_the_main_process_as_it_is(walk, mod
 def test_close_ends_a_worker_still_running(walk, model):
     source = open_video(walk)
     tracker = PoseTracker(model, source.fps, TrackerSettings(keep_history=False))
+    _prime(source, tracker, None)
     worker = FrameWorker(source, tracker, batch=1)
-    worker.wait_primed()
     next(iter(worker))                       # it is working, and blocks once the pipe is full
     worker.close()
     assert not worker._process.is_alive()
@@ -106,11 +107,12 @@ import sys, time
 from regressor.pose_model import load_pose_model
 from tracker import PoseTracker, TrackerSettings
 from tracker.frame_worker import FrameWorker
+from tracker.run import _prime
 from tracker.video import open_video
 source = open_video(sys.argv[1])
-worker = FrameWorker(source, PoseTracker(load_pose_model(), source.fps, TrackerSettings()),
-                     batch=1)
-worker.wait_primed()
+tracker = PoseTracker(load_pose_model(), source.fps, TrackerSettings())
+_prime(source, tracker, None)
+worker = FrameWorker(source, tracker, batch=1)
 print(worker._process.pid, flush=True)
 time.sleep(60)                               # never reads: the worker fills the pipe and waits
 """

@@ -29,7 +29,6 @@ import warnings
 from collections.abc import Iterator
 
 import cv2
-import numpy as np
 
 from regressor.errors import SilhouettePoseError
 
@@ -50,14 +49,14 @@ def can_fork() -> bool:
 class FrameWorker:
     """Runs ``tracker``'s first half (PoseTracker.find_people and .describe) over ``source``
     in a forked process; iterate to get (frame_index, time_s, people, descriptions) in frame
-    order. The worker primes its own copy of the tracker as tracking would (the clean plate
-    ``background`` when given, else frames sampled over the video: tracker.run._prime);
-    :meth:`wait_primed` blocks until it has. After the last frame, :attr:`stage_seconds`
-    holds the worker's stages (background, decode, silhouettes, descriptor) and
-    :attr:`frames_read` / :attr:`truncated` the source's own. Close it (or use ``with``)."""
+    order. The tracker must be primed (PoseTracker.prime; tracker.run._prime): the worker
+    starts from a copy of it, background model included, so the start-up is the one
+    process's (priming in the worker, on the one thread it keeps to, took 0.2-0.4 s longer on
+    the Pose2Sim views). After the last frame, :attr:`stage_seconds` holds the worker's
+    stages (decode, silhouettes, descriptor) and :attr:`frames_read` / :attr:`truncated` the
+    source's own. Close it (or use ``with``)."""
 
-    def __init__(self, source, tracker, background: np.ndarray | None = None,
-                 batch: int = BATCH_FRAMES):
+    def __init__(self, source, tracker, batch: int = BATCH_FRAMES):
         if not can_fork():
             raise FrameWorkerError("a frame worker needs a platform that can fork processes")
         self.stage_seconds: dict[str, float] = {}
@@ -65,8 +64,7 @@ class FrameWorker:
         context = multiprocessing.get_context("fork")
         self._reader, writer = context.Pipe(duplex=False)
         self._process = context.Process(target=_work, name="silhouette-pose frame worker",
-                                        args=(self._reader, writer, source, tracker,
-                                              background, batch),
+                                        args=(self._reader, writer, source, tracker, batch),
                                         daemon=True)
         # OpenCV's thread count is set before the fork, never in the child: a child that
         # resizes a thread pool it inherited without its threads can hang (seen here).
@@ -77,16 +75,8 @@ class FrameWorker:
         finally:
             cv2.setNumThreads(threads)
         writer.close()           # the worker's end: its death then ends our reads
-        self._primed = False
-
-    def wait_primed(self) -> None:
-        """Block until the worker has learnt the background; raises its error if it failed."""
-        if not self._primed:
-            self._expect("primed")
-            self._primed = True
 
     def __iter__(self) -> Iterator[tuple]:
-        self.wait_primed()
         while True:
             kind, payload = self._receive()
             if kind == "frames":
@@ -96,11 +86,6 @@ class FrameWorker:
                 return
             else:
                 raise FrameWorkerError(f"the frame worker sent {kind!r} out of turn")
-
-    def _expect(self, wanted: str) -> None:
-        kind, _ = self._receive()
-        if kind != wanted:
-            raise FrameWorkerError(f"the frame worker sent {kind!r} instead of {wanted!r}")
 
     def _receive(self) -> tuple[str, object]:
         """The worker's next message (kind, payload); its warnings issued on the way, its
@@ -137,8 +122,8 @@ class FrameWorker:
         self.close()
 
 
-def _work(reader, writer, source, tracker, background, batch: int) -> None:
-    """The worker process: prime, then send each frame's people and descriptions."""
+def _work(reader, writer, source, tracker, batch: int) -> None:
+    """The worker process: send each frame's people and descriptions."""
     # The fork copied the main process's end of the pipe: closed here, so that once the main
     # process has gone, no reader is left and the next send fails instead of blocking.
     reader.close()
@@ -148,16 +133,11 @@ def _work(reader, writer, source, tracker, background, batch: int) -> None:
     chunk: list = []
     try:
         from threadpoolctl import threadpool_limits
-        from .run import _prime
         with threadpool_limits(1), warnings.catch_warnings(record=True) as caught:
             # (the filters stay the main process's, copied by the fork)
             writer = _PassingWarnings(writer, caught)
             stages = tracker.stage_seconds
             stages.clear()
-            started = time.perf_counter()
-            _prime(source, tracker, background)
-            stages["background"] += time.perf_counter() - started
-            writer.send(("primed", None))
             clock = time.perf_counter()
             for index, time_s, frame in source:
                 stages["decode"] += time.perf_counter() - clock

@@ -346,15 +346,14 @@ class PoseTracker:
             # into pieces (the sample walk in gray: 11 tracks instead of 1).
             self.extractor = default_extractor(self.settings, detect_shadows=False)
         if frame_size is None:
-            self.set_frame_shape(background.shape[:2])
+            self._set_frame_shape(background.shape[:2])
             self.extractor.prime(background)
         else:
-            self.set_frame_shape((frame_size[1], frame_size[0]))
+            self._set_frame_shape((frame_size[1], frame_size[0]))
             self.extractor.prime(background, frame_size=frame_size)
 
-    def set_frame_shape(self, shape: tuple[int, int]) -> None:
-        """Remember the frames' (height, width) px, and the focal length it implies, once
-        (done by prime() and find_people(); a tracker fed by a frame worker is told)."""
+    def _set_frame_shape(self, shape: tuple[int, int]) -> None:
+        """Remember the frames' (height, width) px, and the focal length it implies, once."""
         if self.frame_shape is None:
             self.frame_shape = (int(shape[0]), int(shape[1]))
             self._focal_px = focal_length_px(self.frame_shape[1], self.settings.fov_deg)
@@ -366,7 +365,7 @@ class PoseTracker:
     def find_people(self, frame: np.ndarray) -> list[PersonMask]:
         """The first half of :meth:`process`: the people in one frame (BGR uint8 (H, W, 3)),
         at most settings.max_people. Frames go in order (the background model learns)."""
-        self.set_frame_shape(frame.shape[:2])
+        self._set_frame_shape(frame.shape[:2])
         clock = time.perf_counter()
         people = self.extractor(frame)[: self.settings.max_people]
         self._lap("silhouettes", clock)

@@ -92,15 +92,13 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     stages = tracker.stage_seconds
     worker = None
     try:
+        _prime(source, tracker, background)
+        stages["background"] += time.perf_counter() - started
         if workers > 1 and not watching and can_fork():
-            worker = FrameWorker(source, tracker, background)
-            worker.wait_primed()
-            tracker.set_frame_shape((source.height, source.width))
+            worker = FrameWorker(source, tracker)          # a copy of the primed tracker
             frames_in = _from_worker(worker, tracker)
         else:
-            _prime(source, tracker, background)
             frames_in = _in_process(source, tracker)
-        stages["background"] += time.perf_counter() - started
         for index, time_s, frame, poses in frames_in:
             clock = time.perf_counter()
             for sink in streaming:
