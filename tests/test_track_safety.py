@@ -438,3 +438,24 @@ def test_a_signal_the_shell_ignores_stays_ignored(tmp_path):
         assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
     finally:
         signal.signal(signal.SIGHUP, previous)
+
+
+def test_a_ctrl_c_just_before_the_outputs_close_does_not_cut_them_short(tmp_path, walk,
+                                                                       monkeypatch):
+    """A Ctrl-C in the window between the end of the loop and the signals being held (here
+    raised on the first attempt to hold them): the run counts as interrupted and every
+    output is still closed complete."""
+    import tracker.run as run
+    held, attempts = run._signals_held, []
+
+    def interrupted_once():
+        attempts.append(1)
+        if len(attempts) == 1:
+            raise KeyboardInterrupt
+        return held()
+    monkeypatch.setattr(run, "_signals_held", interrupted_once)
+    js, bvh = JsonSummarySink(tmp_path / "s.json", 30.0), BVHSink(tmp_path / "b", 30.0)
+    result = track_video(walk, sinks=[js, bvh])
+    assert result.interrupted and len(attempts) == 2
+    assert json.loads((tmp_path / "s.json").read_text())["frames"] == result.frames == 40
+    assert js.closed and bvh.closed

@@ -119,17 +119,24 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        with _signals_held() as held:
-            if worker is not None:
-                worker.close()
-            if progress is not None:
-                progress.close()
+        while True:
             try:
-                if recorder is not None and not interrupted:
-                    _write_smoothed(tracker, recorder, smoothed_sinks)
-            finally:
-                problems = close_sinks(list(sinks) + list(smoothed_sinks))
-        interrupted = interrupted or bool(held)
+                with _signals_held() as held:
+                    if worker is not None:
+                        worker.close()
+                    if progress is not None:
+                        progress.close()
+                    try:
+                        if recorder is not None and not interrupted:
+                            _write_smoothed(tracker, recorder, smoothed_sinks)
+                    finally:
+                        problems = close_sinks(list(sinks) + list(smoothed_sinks))
+                interrupted = interrupted or bool(held)
+                break
+            except KeyboardInterrupt:
+                # A Ctrl-C in the few bytecodes before the signals are held: it interrupts
+                # the run, not the closing, which starts again (nothing was closed yet).
+                interrupted = True
     if problems:
         raise OutputError("could not finish outputs: " + "; ".join(problems))
     return TrackRun(frames, time.perf_counter() - started, interrupted, tracker)
