@@ -142,3 +142,25 @@ def test_both_sinks_take_and_refuse_the_same_runner_up_probabilities(tmp_path):
                     verdicts.append(False)
         assert verdicts[0] == verdicts[1], probability
         assert verdicts[0] == (k < 4), probability
+
+
+def test_both_sinks_take_and_refuse_the_same_times(tmp_path):
+    """The JSON summary and the MCAP recording check a pose's time by one rule
+    (tracker.sinks.geometry.checked_time): a finite number >= 0. (The JSON summary took
+    negative times and MCAP failed on a string with a TypeError.)"""
+    from tracker.sinks.mcap import McapSink
+    pose = _pose(0, 1, 0)
+    for k, time_s in enumerate((0.0, 2, np.float32(0.5), 1e6, -0.1, float("nan"), float("inf"),
+                                "0.5", True, None, 10 ** 400)):
+        verdicts = []
+        for sink in (JsonSummarySink(tmp_path / f"t{k}.json", video_fps=25.0),
+                     McapSink(tmp_path / f"t{k}.mcap")):
+            with sink:
+                try:
+                    sink.write(TrackedPose(0, time_s, 0, pose, pose, False, JOINTS,
+                                           centroid_px=(1.0, 2.0)))
+                    verdicts.append(True)
+                except SinkInputError:
+                    verdicts.append(False)
+        assert verdicts[0] == verdicts[1], time_s
+        assert verdicts[0] == (k < 4), time_s

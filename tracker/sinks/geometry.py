@@ -136,6 +136,22 @@ def checked_probability(name: str, value) -> float:
     return float(value)
 
 
+def checked_time(value) -> float:
+    """A pose's video time (seconds) as a float: a finite number >= 0; SinkInputError naming
+    it for anything else (negative, NaN, infinite, a bool, a string, not one number), so every
+    sink accepts and refuses the same times."""
+    if isinstance(value, (bool, np.bool_)) \
+            or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise SinkInputError(f"time_s must be a finite number >= 0, got {value!r}")
+    try:
+        number = float(value)
+    except OverflowError:                                # an int beyond any float
+        number = math.inf
+    if not (math.isfinite(number) and number >= 0):
+        raise SinkInputError(f"time_s must be a finite number >= 0, got {value!r}")
+    return number
+
+
 def is_unfamiliar(novelty: float | None) -> bool:
     """Whether a novelty (a checked one, known_novelty, or a pose's own) says the silhouette
     is unlike the training ones: above regressor.pose_model.UNFAMILIAR_NOVELTY, False when

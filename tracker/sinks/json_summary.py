@@ -41,7 +41,8 @@ import numpy as np
 
 from tracker.sinks.files import OutputFile, write_beside
 from tracker.sinks.geometry import (SinkInputError, check_joints, check_pose,
-                                    checked_probability, is_unfamiliar, known_novelty)
+                                    checked_probability, checked_time, is_unfamiliar,
+                                    known_novelty)
 
 if TYPE_CHECKING:
     from ..pipeline import TrackedPose
@@ -49,17 +50,6 @@ if TYPE_CHECKING:
 FORMAT = "silhouette-pose tracking summary"
 VERSION = 1
 _DECIMALS = 6
-
-
-def _finite_number(name: str, value) -> float:
-    """value as a float; SinkInputError naming ``name`` unless it is one finite number."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise SinkInputError(f"{name} must be one finite number, got {value!r}") from None
-    if not math.isfinite(number):
-        raise SinkInputError(f"{name} must be one finite number, got {value!r}")
-    return number
 
 
 def write_json_atomically(path: str | Path, document: dict) -> None:
@@ -119,7 +109,7 @@ class JsonSummarySink:
         if centroid.shape != (2,) or not np.all(np.isfinite(centroid)):
             raise SinkInputError(f"centroid_px must be two finite numbers, got {centroid_px!r}")
         novelty = known_novelty(getattr(pose, "novelty", None))
-        time_s = _finite_number("time_s", time_s)
+        time_s = checked_time(time_s)
         runner_up = None
         if getattr(pose, "runner_up", None) is not None:
             alt = check_pose("runner_up55", pose.runner_up)

@@ -49,6 +49,7 @@ from tracker.sinks.geometry import (
     SinkInputError,
     body_colours,
     checked_probability,
+    checked_time,
     check_joints,
     check_pose,
     is_unfamiliar,
@@ -443,8 +444,7 @@ class McapSink:
         raw = check_pose("raw55", pose.raw)
         filtered = check_pose("filtered55", pose.filtered)
         joints = check_joints(pose.joints_m)
-        if not (math.isfinite(time_s) and time_s >= 0):
-            raise SinkInputError(f"time_s must be a finite number >= 0, got {time_s}")
+        time_s = checked_time(time_s)
         novelty = known_novelty(getattr(pose, "novelty", None))
         frame_index, track_id = int(frame_index), int(track_id)
         if frame_index < 0 or track_id < 0:
