@@ -119,7 +119,8 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        while True:
+        closed = False
+        while not closed:
             try:
                 with _signals_held() as held:
                     if worker is not None:
@@ -131,11 +132,12 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                             _write_smoothed(tracker, recorder, smoothed_sinks)
                     finally:
                         problems = close_sinks(list(sinks) + list(smoothed_sinks))
+                        closed = True
                 interrupted = interrupted or bool(held)
-                break
             except KeyboardInterrupt:
-                # A Ctrl-C in the few bytecodes before the signals are held: it interrupts
-                # the run, not the closing, which starts again (nothing was closed yet).
+                # A Ctrl-C in the few bytecodes before the signals are held (or just after
+                # they are released): it interrupts the run, not the closing, which starts
+                # again if it had not happened yet.
                 interrupted = True
     if problems:
         raise OutputError("could not finish outputs: " + "; ".join(problems))
