@@ -28,8 +28,11 @@ from regressor.errors import SilhouettePoseError
 from .one_line_parser import OneLineParser
 
 EXIT_ERROR, EXIT_INTERRUPTED = 1, 130
-#: --workers by default: a second process where there is a second core (tracker.frame_worker).
-DEFAULT_WORKERS = 2 if (os.cpu_count() or 1) >= 2 else 1
+#: --workers by default: a second process where this process may run on a second core
+#: (tracker.frame_worker; the cores it is allowed, not all the machine's, where the system says).
+_CORES = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+          else os.cpu_count() or 1)
+DEFAULT_WORKERS = 2 if _CORES >= 2 else 1
 #: Ctrl-C, SIGTERM and SIGHUP received during main() (those the command handles: not one the
 #: shell ignores). If anything swallows the KeyboardInterrupt they raise (a library's bare
 #: ``except:`` round an optional import, say), the command would run on. In one full test run
