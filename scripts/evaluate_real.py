@@ -37,6 +37,7 @@ from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, came
                                 load_trial, project_reference, video_frames)
 from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
                                          subject_rows, view_measures)
+from tracker.cli import ZONE_FOREGROUND
 from tracker.offline.evaluation import constant_pose
 from tracker.one_line_parser import OneLineParser
 from tracker.sinks import PoseRecorder
@@ -165,7 +166,8 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
             sheet.append([track.tiles[(int(track.frames[i]), int(track.track_ids[i]))]
                           for i in picked])
         per_view[view]["roll_deg"] = round(roll_deg, 1)
-        per_view[view]["zone_foreground"] = "sure" if trust_zone_foreground else "colour"
+        per_view[view]["zone_foreground"] = next(
+            name for name, trusted in ZONE_FOREGROUND.items() if trusted == trust_zone_foreground)
         per_view[view]["reference_masks"] = reference_masks
         subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows])
     common = subject[VIEWS[0]][0]
@@ -283,7 +285,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--roll", choices=("none", "calibration"), default="none",
                     help="track each view with its camera's roll from the calibration "
                          "(track --roll), or without (the default, as track)")
-    ap.add_argument("--zone-foreground", choices=("sure", "colour"), default="sure",
+    ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="sure",
                     help="as track --zone-foreground: inside the background's unreliable zone, "
                          "take the subtractor's foreground as sure person (the default) or let "
                          "colour decide on it too (tracker.silhouettes.refine_in_zone)")
@@ -309,7 +311,7 @@ def main(argv=None) -> int:
         with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
             result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration",
                               sheet=sheet,
-                              trust_zone_foreground=args.zone_foreground == "sure",
+                              trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
                               reference_masks=args.reference_masks)
     except (Pose2SimError, PoseModelError, MeasureError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)

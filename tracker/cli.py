@@ -28,6 +28,10 @@ from regressor.errors import SilhouettePoseError
 from .one_line_parser import OneLineParser
 
 EXIT_ERROR, EXIT_INTERRUPTED = 1, 130
+#: --zone-foreground's choices and what each means for TrackerSettings.trust_zone_foreground
+#: (also scripts/evaluate_real.py's option): inside the background's unreliable zone the
+#: subtractor's foreground is sure person, or colour decides on it too.
+ZONE_FOREGROUND = {"sure": True, "colour": False}
 #: --workers by default: a second process where this process may run on a second core
 #: (tracker.frame_worker; the cores it is allowed, not all the machine's, where the system says).
 _CORES = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
@@ -100,7 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
                     help="the camera's roll: how far the scene's vertical leans clockwise in "
                          "the image, degrees (silhouettes are turned upright; default 0)")
-    ap.add_argument("--zone-foreground", choices=("sure", "colour"), default="sure",
+    ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="sure",
                     help="for a person who never leaves the spot (no clean plate): take the "
                          "background model's foreground where the background is unreliable "
                          "as sure person (default), or let colour decide on it too (fewer "
@@ -222,7 +226,7 @@ def tracker_settings(args):
     # Per-track histories are kept only for --smooth: without it memory stays flat.
     return TrackerSettings(max_people=args.max_people, keep_history=args.smooth,
                            roll_deg=args.roll,
-                           trust_zone_foreground=args.zone_foreground == "sure",
+                           trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
                            min_area_fraction=_min_area_fraction(args))
 
 
@@ -244,7 +248,7 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
             "settings": {"smooth": args.smooth, "max_people": args.max_people,
                          "start_s": args.start, "end_s": args.end,
                          # options that change the silhouettes, when not their defaults
-                         **({} if args.zone_foreground == "sure"
+                         **({} if ZONE_FOREGROUND[args.zone_foreground]
                             else {"zone_foreground": args.zone_foreground}),
                          **({"roll_deg": args.roll} if args.roll else {}),
                          **({} if args.min_area is None
