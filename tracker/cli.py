@@ -121,7 +121,6 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-
 # --roll beyond a quarter turn means the camera is upside down or the sign is wrong. Defined
 # here, not in tracker.roll, which imports OpenCV: a Ctrl-C during that import, before main()
 # catches it, printed a traceback (test_ctrl_c_during_start_up_gives_no_traceback).
