@@ -2,23 +2,27 @@
 
     python scripts/evaluate_real.py [--trial ../shared/data/pose2sim/balancing] [--model FILE]
         [--max-people N] [--roll calibration] [--zone-foreground colour] [--json OUT]
-        [--masks PNG] [--reference-masks cut|drawn]
+        [--masks PNG] [--reference-masks cut|drawn|rendered]
 
 Runs ``track``'s pipeline on each of the four views and prints, per view, knee and elbow flexion
 error and correlation against the reference (beside two constants: the reference's own mean
 flexion, which knows the answer's average, and the model's training-mean pose, what a regressor
 that ignores its input would score), heading error against the reference, the number of
-tracks, and across views the heading consistency (heading differences against camera
-azimuth differences) and disagreement of the 53 body angles, and the novelty of the subject's silhouettes (how unlike the training
-silhouettes they are: PoseModel.novelty; --masks draws them). In each view the subject is, per
+tracks, the 53 body angles against the project's body fitted to the reference keypoints
+(sequences.keypoint_fit; error beside the training-mean pose's, correlation of the 8
+most-moving angles), and across views the heading consistency (heading differences against
+camera azimuth differences) and disagreement of the 53 body angles, and the novelty of the
+subject's silhouettes (how unlike the training silhouettes they are: PoseModel.novelty;
+--masks draws them). In each view the subject is, per
 frame, the tracked person whose box holds the reference's projected mid-hip (another person
 walks behind in cam02; background subtraction splits the subject into several tracks in some
 views).
 
 ``--reference-masks`` is a diagnostic, not a result: it reads the reference to correct the
 silhouettes (tracker.offline.reference_masks: ``cut`` removes whatever lies off the body drawn
-from the reference keypoints, ``drawn`` uses that drawing as the silhouette), to tell how much of
-the error the silhouettes cause and how much the regressor.
+from the reference keypoints, ``drawn`` uses that drawing as the silhouette, ``rendered`` the
+training renderer's body fitted to the reference and rendered through each calibrated camera),
+to tell how much of the error the silhouettes cause and how much the regressor.
 """
 from __future__ import annotations
 
@@ -35,8 +39,9 @@ from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_m
 from sequences.measures import MeasureError, novelty_summary
 from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, camera_roll_deg,
                                 load_trial, project_reference, video_frames)
-from sequences.pose2sim_measures import (cross_view_measures, reference_cross_view_check,
-                                         subject_rows, view_measures)
+from sequences.pose2sim_measures import (cross_view_measures, reference_body,
+                                         reference_cross_view_check, subject_rows,
+                                         view_measures)
 from tracker.cli import ZONE_FOREGROUND
 from tracker.offline.evaluation import constant_pose
 from tracker.one_line_parser import OneLineParser
@@ -113,31 +118,51 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
                      recorder.tiles if keep_masks else None)
 
 
-def evaluate_view(trial: Trial, view: str, track: ViewTrack, constant=None
+def evaluate_view(trial: Trial, view: str, track: ViewTrack, constant=None, fit=None
                   ) -> tuple[dict, np.ndarray]:
     """Measures of one view's subject (filtered and raw poses) and the subject's rows;
-    constant (55,), a pose: also its flexion error (view_measures)."""
+    constant (55,), a pose: also its flexion error; fit (reference_body): also the body
+    angles' measures (view_measures)."""
     hips = project_reference(view, track.frames, trial)[:, _MID_HIP].mean(axis=1)
     rows = subject_rows(track.frames, track.bbox_px, hips)
     frames = track.frames[rows]
     out = {"tracks": int(len(np.unique(track.track_ids))),
            "subject_tracks": int(len(np.unique(track.track_ids[rows]))),
-           "filtered": view_measures(trial, view, frames, track.filtered[rows], constant),
-           "raw": view_measures(trial, view, frames, track.raw[rows], constant),
+           "filtered": view_measures(trial, view, frames, track.filtered[rows], constant, fit),
+           "raw": view_measures(trial, view, frames, track.raw[rows], constant, fit),
            "novelty": novelty_summary(track.novelty[rows])}
     return out, rows
 
 
-def _reference_extractor(trial: Trial, view: str, mode: str):
+def _reference_extractor(trial: Trial, view: str, mode: str, fit=None):
     """A function wrapping an extractor in a ReferenceMaskExtractor of ``mode`` ("cut",
-    "drawn") fed with the reference keypoints projected into ``view``."""
-    from tracker.offline.reference_masks import ReferenceMaskExtractor
+    "drawn") fed with the reference keypoints projected into ``view``, or for "rendered" in a
+    RenderedMaskExtractor fed with the fitted body (fit: reference_body) rendered through the
+    view's camera at the video's size."""
+    from tracker.offline.reference_masks import ReferenceMaskExtractor, RenderedMaskExtractor
     from tracker.offline.silhouette_evaluation import pose2sim_body
 
     frames = video_frames(trial)
+    if mode == "rendered":
+        from sequences.body import load_body
+        from sequences.keypoint_fit import posed_vertices
+        from sequences.pose2sim import render_view_masks
+        from tracker.video import open_video
+
+        source = open_video(trial.video(view))
+        body = load_body()
+        masks = render_view_masks(posed_vertices(fit, body), body.faces, body.patch_start,
+                                  trial.camera(view), (source.height, source.width))
+        return lambda extractor: RenderedMaskExtractor(extractor, masks, frames)
     keypoints = project_reference(view, frames, trial)
     body = pose2sim_body(trial)
     return lambda extractor: ReferenceMaskExtractor(extractor, keypoints, frames, body, mode)
+
+
+def _fit_progress(done: int, total: int) -> None:
+    if done == 1 or done % 25 == 0 or done == total:
+        print(f"fitting the body to the reference: {done}/{total} frames", file=sys.stderr,
+              flush=True)
 
 
 def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
@@ -149,18 +174,19 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
     zone too (tracker.silhouettes.refine_in_zone; ``--zone-foreground colour``).
     sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
     at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them).
-    reference_masks: "none", or "cut" / "drawn" to correct the silhouettes by the reference
-    (a diagnostic: tracker.offline.reference_masks)."""
+    reference_masks: "none", or "cut" / "drawn" / "rendered" to correct the silhouettes by the
+    reference (a diagnostic: tracker.offline.reference_masks)."""
     per_view, subject = {}, {}
     constant = constant_pose(model)
+    fit = reference_body(trial, progress=_fit_progress)
     for view in VIEWS:
         roll_deg = camera_roll_deg(trial, view) if roll else 0.0
         track = _track_view(trial.video(view), model, max_people, roll_deg,
                             keep_masks=sheet is not None,
                             trust_zone_foreground=trust_zone_foreground,
                             reference_extractor=None if reference_masks == "none" else
-                            _reference_extractor(trial, view, reference_masks))
-        per_view[view], rows = evaluate_view(trial, view, track, constant)
+                            _reference_extractor(trial, view, reference_masks, fit))
+        per_view[view], rows = evaluate_view(trial, view, track, constant, fit)
         if sheet is not None:
             picked = rows[np.linspace(0, len(rows) - 1, 8).astype(int)]
             sheet.append([track.tiles[(int(track.frames[i]), int(track.track_ids[i]))]
@@ -178,6 +204,9 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
         poses = {v: subject[v][col][np.isin(subject[v][0], common)] for v in VIEWS}
         cross[kind] = cross_view_measures(trial, common, poses)
     return {"trial": str(trial.root), "views": per_view, "mean": _means(per_view),
+            "reference_fit_direction_error_deg": {
+                "median": float(np.median(fit.direction_error_deg)),
+                "max": float(fit.direction_error_deg.max())},
             "cross_view": cross, "common_frames": int(len(common)),
             "reference_cross_view_heading_rms_deg": reference_cross_view_check(trial, common,
                                                                                 VIEWS)}
@@ -201,7 +230,8 @@ def write_mask_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
 
 
 def _means(per_view: dict) -> dict:
-    """Means over views of the filtered poses' per-angle flexion and heading figures."""
+    """Means over views of the filtered poses' per-angle flexion and heading figures (and
+    the body angles' where every view has them)."""
     def mean(get):
         return np.mean([get(r["filtered"]) for r in per_view.values()], axis=0).tolist()
 
@@ -211,7 +241,11 @@ def _means(per_view: dict) -> dict:
             "constant_flexion_error": mean(lambda m: m["flexion"]["truth_mean_error_mean"]),
             "training_mean_flexion_error": mean(lambda m: m["flexion"]["constant_error_mean"]),
             "heading_within_45": mean(lambda m: m["heading"]["within_45"]),
-            "heading_rms_deg": mean(lambda m: m["heading"]["rms_deg"])}
+            "heading_rms_deg": mean(lambda m: m["heading"]["rms_deg"]),
+            **({"body_error_deg": mean(lambda m: m["body"]["error_deg"]),
+                "body_constant_error_deg": mean(lambda m: m["body"]["constant_error_deg"]),
+                "body_top_angle_corr": mean(lambda m: m["body"]["top_angles"]["mean"])}
+               if all("body" in r["filtered"] for r in per_view.values()) else {})}
 
 
 def _row(label: str, tracks: str, frames: str, err, err_mean, const, train, corr, within,
@@ -247,6 +281,12 @@ def format_table(result: dict) -> str:
                      f"{c['heading_rms_deg']:.0f} deg (random headings "
                      f"{c['random_heading_rms_deg']:.0f}); 53 body angles disagree by "
                      f"{c['body_angle_disagreement_deg']:.1f} deg")
+    body = {v: r["filtered"].get("body") for v, r in result["views"].items()}
+    if all(b is not None for b in body.values()):
+        lines.append("53 body angles against the body fitted to the reference (filtered; error "
+                     "/ training-mean pose's / corr. of the 8 most-moving): "
+                     + ", ".join(f"{v} {b['error_deg']:.1f} / {b['constant_error_deg']:.1f} / "
+                                 f"{b['top_angles']['mean']:.2f}" for v, b in body.items()))
     raw = [r["raw"]["flexion"]["error"] for r in result["views"].values()]
     lines.append(f"raw poses: flexion error {np.mean(raw):.1f} deg (mean over views). "
                  f"const: a constant at the reference's own mean flexion; train: the model's "
@@ -289,10 +329,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="as track --zone-foreground: inside the background's unreliable zone, "
                          "take the subtractor's foreground as sure person (the default) or let "
                          "colour decide on it too (tracker.silhouettes.refine_in_zone)")
-    ap.add_argument("--reference-masks", choices=("none", "cut", "drawn"), default="none",
+    ap.add_argument("--reference-masks", choices=("none", "cut", "drawn", "rendered"),
+                    default="none",
                     help="a diagnostic that reads the reference: cut each silhouette to the "
-                         "body drawn from the reference keypoints, or use that drawing as the "
-                         "silhouette (tracker.offline.reference_masks); default none")
+                         "body drawn from the reference keypoints, use that drawing as the "
+                         "silhouette, or the training renderer's body fitted to the reference "
+                         "and rendered through each camera (tracker.offline.reference_masks); "
+                         "default none")
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     ap.add_argument("--masks", type=Path, metavar="PNG", help="write the subject's "
                     "silhouettes as the regressor saw them, 8 frames per view, as a PNG")

@@ -293,6 +293,32 @@ def camera_roll_deg(trial: Trial, view: str) -> float:
     return float(np.degrees(np.arctan2(d[:, 0], -d[:, 1])).mean())
 
 
+class _CalibratedCamera:
+    """A view's camera as sequences.render draws with it: project (with lens distortion)
+    and size (height, width) px."""
+
+    def __init__(self, camera: Camera, size_hw: tuple[int, int]):
+        self.camera, self.size = camera, (int(size_hw[0]), int(size_hw[1]))
+
+    def project(self, points_trc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p = np.asarray(points_trc, dtype=np.float64)[..., _WORLD_FROM_TRC]
+        depth = (p @ self.camera.R.T + self.camera.t)[..., 2]
+        return project_points(points_trc, self.camera), depth
+
+
+def render_view_masks(vertices_trc: np.ndarray, faces: np.ndarray, patch_start: np.ndarray,
+                      camera: Camera, size_hw: tuple[int, int] | None = None) -> np.ndarray:
+    """Silhouettes (T, H, W) bool of a posed body (vertices (T, V, 3) metres, trc coordinates;
+    faces and patch_start as sequences.body.BodyModel has them) seen by a calibrated view,
+    lens distortion included. size_hw: (height, width) px, default the calibration's image;
+    a smaller one keeps its top-left part (the cam01/cam02 videos are 8 px narrower)."""
+    from .render import silhouette_mask
+
+    size_hw = (camera.size[1], camera.size[0]) if size_hw is None else size_hw
+    view = _CalibratedCamera(camera, size_hw)
+    return np.stack([silhouette_mask(v, faces, patch_start, view) for v in vertices_trc])
+
+
 def video_frames(trial: Trial) -> np.ndarray:
     """Video frame indices (N,) that have a reference."""
     return trial.reference.frames - TRC_FRAME_OFFSET

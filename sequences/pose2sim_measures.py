@@ -14,8 +14,11 @@ from itertools import combinations
 
 import numpy as np
 
-from .measures import BODY_ANGLES, flexion_deg, flexion_measures
-from .pose2sim import Trial, camera_azimuth_deg, reference_flexion, reference_heading_deg
+from .keypoint_fit import BodyFit, fit_body, pose_in_view
+from .measures import (BODY_ANGLES, body_angle_error, constant_error, flexion_deg,
+                       flexion_measures, skill, top_angle_correlation)
+from .pose2sim import (Trial, camera_azimuth_deg, reference_flexion, reference_heading_deg,
+                       video_frames)
 from regressor.angles import wrap_deg
 
 from .pose_vector import heading_deg
@@ -53,19 +56,52 @@ def heading_measures(estimate_deg, reference_deg) -> dict:
             "within_45": float((err <= WITHIN_DEG).mean())}
 
 
-def view_measures(trial: Trial, view: str, frames, poses, constant_pose=None) -> dict:
+def reference_body(trial: Trial, progress=None) -> BodyFit:
+    """The project's body fitted to the reference keypoints of every video frame with a
+    reference (sequences.keypoint_fit.fit_body; ~0.3 s a frame; progress(t, T))."""
+    frames = video_frames(trial)
+    return fit_body(trial.points(frames), trial.reference.names, progress=progress)
+
+
+def reference_poses(trial: Trial, view: str, fit: BodyFit, frames) -> np.ndarray:
+    """The fitted reference body's pose vectors (T, 55) at video frames (T,), heading relative
+    to a view's camera (fit: reference_body(trial))."""
+    frames = np.asarray(frames, dtype=np.int64)
+    rows = np.searchsorted(video_frames(trial), frames)
+    return pose_in_view(fit.pose[rows], camera_azimuth_deg(trial, view, frames))
+
+
+def body_measures(poses, reference, constant_pose) -> dict:
+    """The 53 body angles of estimated poses (T >= 2, 55) against the fitted reference body's
+    (T, 55): "error_deg", "constant_error_deg" (constant_pose (55,) held still), "skill",
+    "top_angles" (sequences.measures.top_angle_correlation). Angles the keypoints do not fix
+    (limb twists, hands, collar bones) are ~0 in the reference: read the correlation of the
+    most-moving angles (which the keypoints fix) before the error."""
+    error = body_angle_error(poses, reference)
+    baseline = constant_error(reference, constant_pose)
+    return {"error_deg": error, "constant_error_deg": baseline, "skill": skill(error, baseline),
+            "top_angles": top_angle_correlation(poses, reference)}
+
+
+def view_measures(trial: Trial, view: str, frames, poses, constant_pose=None,
+                  fit: BodyFit | None = None) -> dict:
     """One view's estimated poses (T >= 2, 55) at video frames (T,) against the reference:
     {"frames", "flexion": sequences.measures.flexion_measures (its "truth_mean_error" is the
     constant reference-mean flexion's error; with constant_pose (55,), e.g. the model's
-    training-mean pose, also that pose's "constant_error"), "heading": heading_measures}."""
+    training-mean pose, also that pose's "constant_error"), "heading": heading_measures}; with
+    fit (reference_body) and constant_pose also "body": body_measures."""
     frames = np.asarray(frames, dtype=np.int64)
     constant = None if constant_pose is None else flexion_deg(
         np.asarray(constant_pose, dtype=np.float64)[None])[0]
-    return {"frames": int(len(frames)),
-            "flexion": flexion_measures(flexion_deg(poses), reference_flexion(trial, frames),
-                                        constant),
-            "heading": heading_measures(heading_deg(poses),
-                                        reference_heading_deg(trial, view, frames))}
+    out = {"frames": int(len(frames)),
+           "flexion": flexion_measures(flexion_deg(poses), reference_flexion(trial, frames),
+                                       constant),
+           "heading": heading_measures(heading_deg(poses),
+                                       reference_heading_deg(trial, view, frames))}
+    if fit is not None and constant_pose is not None:
+        out["body"] = body_measures(poses, reference_poses(trial, view, fit, frames),
+                                    constant_pose)
+    return out
 
 
 def cross_view_measures(trial: Trial, frames, poses_by_view: dict[str, np.ndarray]) -> dict:

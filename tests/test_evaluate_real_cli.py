@@ -78,5 +78,19 @@ def test_the_table_says_when_the_silhouettes_were_corrected_by_the_reference(eva
     for view in result["views"].values():
         view["reference_masks"] = "cut"
     assert "corrected by the reference (cut; a diagnostic" in evaluate_real.format_table(result)
-    assert evaluate_real.build_parser().parse_args(["--reference-masks", "drawn"]) \
-        .reference_masks == "drawn"
+    for mode in ("drawn", "rendered"):
+        assert evaluate_real.build_parser().parse_args(["--reference-masks", mode]) \
+            .reference_masks == mode
+
+
+def test_the_table_gives_the_body_angles_beside_the_constant_where_measured(evaluate_real):
+    result = _result(evaluate_real)
+    assert "body_error_deg" not in result["mean"]
+    assert "53 body angles against" not in evaluate_real.format_table(result)
+    for error, view in zip((9.0, 11.0), result["views"].values()):
+        view["filtered"]["body"] = {"error_deg": error, "constant_error_deg": 12.5,
+                                    "top_angles": {"mean": 0.25}}
+    per_view = result["views"]
+    assert evaluate_real._means(per_view)["body_error_deg"] == pytest.approx(10.0)
+    assert "cam01 9.0 / 12.5 / 0.25, cam02 11.0 / 12.5 / 0.25" in \
+        evaluate_real.format_table(result)

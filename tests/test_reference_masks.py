@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracker.offline.reference_masks import (ReferenceMaskExtractor, drawn_person,
-                                             person_from_mask)
+from tracker.offline.reference_masks import (ReferenceMaskExtractor, RenderedMaskExtractor,
+                                             drawn_person, person_from_mask)
 from tracker.offline.silhouette_evaluation import BodyDrawing
 from tracker.silhouettes import PersonMask
 
@@ -85,3 +85,21 @@ def test_the_wrapped_extractors_methods_are_reached_and_bad_settings_refused():
     with pytest.raises(ValueError, match="keypoints_px"):
         ReferenceMaskExtractor(inner, _POINTS, [0], _BODY, "cut")
     assert isinstance(person_from_mask(np.ones((10, 10), bool), 0, 0), PersonMask)
+
+
+def test_rendered_people_are_the_given_masks_where_there_are_any():
+    frame = np.zeros((160, 160, 3), np.uint8)
+    inner = _Extractor()
+    masks = np.zeros((2, 160, 160), bool)
+    masks[0, 30:130, 70:90] = True
+    masks[1, 40:42, 10:12] = True                             # 4 px: no person
+    wrapped = RenderedMaskExtractor(inner, masks, [1, 2])
+    assert wrapped(frame) == []                               # frame 0: no mask
+    (person,) = wrapped(frame)
+    assert person.bbox == (70, 30, 20, 100) and person.area == 2000
+    assert wrapped(frame) == [] and wrapped(frame) == []      # too small; past the end
+    assert inner.calls == 4                                   # the extractor still runs
+    wrapped.prime(np.zeros((4, 4, 3), np.uint8))
+    assert inner.primed == 1
+    with pytest.raises(ValueError, match="masks"):
+        RenderedMaskExtractor(inner, masks[0], [1])

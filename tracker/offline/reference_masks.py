@@ -12,9 +12,12 @@ and hands on each person's mask changed by the reference body (:func:`body_regio
 - ``drawn``: the drawn body itself in place of the extractor's people: a clean silhouette of
   the true pose, but a stick figure (lines, a torso quadrilateral, a disc for the head) unlike
   the training renders' skinned body.
+- ``rendered`` (:class:`RenderedMaskExtractor`): the training renderer's own body fitted to the
+  3-D reference (sequences.keypoint_fit) and rendered through the real camera: a silhouette of
+  the true pose exactly like a training render.
 
-If the regressor does well on either, the silhouettes are what limits it; if not, it is the
-regressor (poses or body shapes its training did not cover).
+If the regressor does well on these, the silhouettes are what limits it; if not even on
+``rendered``, it is the regressor (poses its training did not cover).
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ import numpy as np
 from ..silhouettes import PersonMask
 from .silhouette_evaluation import BodyDrawing, body_region
 
-MODES: tuple[str, ...] = ("cut", "drawn")
+MODES: tuple[str, ...] = ("cut", "drawn")     # ReferenceMaskExtractor's
 #: Bone thickness as a fraction of the keypoints' height. cut: the silhouette evaluation's
 #: generous body (0.14: ~0.22 m for a 1.6 m tall set of keypoints), so that the cut removes
 #: only what is clearly off the body; drawn: ~0.13 m limbs.
@@ -104,3 +107,33 @@ class ReferenceMaskExtractor:
             if cut is not None:
                 out.append(cut)
         return sorted(out, key=lambda p: -p.area)
+
+
+class RenderedMaskExtractor:
+    """An extractor whose one person per frame is a given silhouette: ``masks`` (T, H, W) bool
+    in frame pixels for video frames ``frames`` (T,) int (e.g. the fitted body rendered through
+    the view's camera). ``extractor``: the tracker's, still run on every frame (so that its
+    background model and zone stay as in a normal run) and reached for its other attributes.
+    Frames are counted from 0 in the order they are given; one without a mask (or with fewer
+    than 50 pixels set) gets no people."""
+
+    def __init__(self, extractor, masks: np.ndarray, frames):
+        masks = np.asarray(masks, dtype=bool)
+        frames = np.asarray(frames, np.int64).reshape(-1)
+        if masks.ndim != 3 or len(masks) != len(frames):
+            raise ValueError(f"masks must be (T, H, W) for {len(frames)} frames, got "
+                             f"{masks.shape}")
+        self.extractor = extractor
+        self._masks = {int(f): m for f, m in zip(frames, masks)}
+        self.frames_seen = 0
+
+    def __getattr__(self, name):
+        return getattr(self.__dict__["extractor"], name)
+
+    def __call__(self, frame: np.ndarray) -> list[PersonMask]:
+        index = self.frames_seen
+        self.frames_seen += 1
+        self.extractor(frame)
+        mask = self._masks.get(index)
+        person = None if mask is None else person_from_mask(mask, 0, 0)
+        return [] if person is None else [person]
