@@ -304,6 +304,13 @@ class Skinner:
                 G[:, j] = G[:, p] @ R[:, j]
         return P, G
 
+    def joints_and_ends(self, local_rot, root_position_m) -> tuple[np.ndarray, np.ndarray]:
+        """Joint positions (T, 31, 3) and the far ends of the mesh's bones (T, 31, 3) metres
+        (body joint order; a toe's or the head's end is its tip). Inputs as in pose()."""
+        P, G = self.joints(local_rot, root_position_m)
+        M = G @ self._bone_matrix
+        return P, P + (M @ (self.body.tails - self.body.heads)[:, :, None])[..., 0]
+
     def pose(self, local_rot, root_position_m) -> np.ndarray:
         """Posed vertices, metres, Y up.
 

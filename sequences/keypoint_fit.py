@@ -113,34 +113,30 @@ class _Posed:
 
     def __init__(self, skinner: Skinner):
         self.skinner = skinner
-        self.names = list(skinner.body.joint_names)
-        body = skinner.body
-        self.tails = {n: body.tails[j] - body.heads[j] for j, n in enumerate(self.names)}
+        self.index = list(skinner.body.joint_names).index
 
     def state(self, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Joint positions (T, 31, 3) m and bone matrices (T, 31, 3, 3)."""
+        """Joint positions and bone ends (T, 31, 3) metres."""
         params = np.atleast_2d(params)
         local = pose_vectors_to_local_rotations(pose_from_params(params), 0.0)
-        P, G = self.skinner.joints(local, params[:, 54:57])
-        return P, G @ self.skinner._bone_matrix
+        return self.skinner.joints_and_ends(local, params[:, 54:57])
 
-    def point(self, P, M, name: str) -> np.ndarray:
-        j = self.names.index
+    def point(self, joints, ends, name: str) -> np.ndarray:
+        """A named body point (T, 3) (see BONES)."""
         if name == "midhip":
-            return (P[:, j("LeftUpLeg")] + P[:, j("RightUpLeg")]) / 2
+            return (joints[:, self.index("LeftUpLeg")] + joints[:, self.index("RightUpLeg")]) / 2
         if name == "midshoulder":
-            return (P[:, j("LeftArm")] + P[:, j("RightArm")]) / 2
+            return (joints[:, self.index("LeftArm")] + joints[:, self.index("RightArm")]) / 2
         if name.endswith("@tail"):
-            bone = name[:-len("@tail")]
-            return P[:, j(bone)] + M[:, j(bone)] @ self.tails[bone]
-        return P[:, j(name)]
+            return ends[:, self.index(name[:-len("@tail")])]
+        return joints[:, self.index(name)]
 
     def directions(self, params) -> tuple[np.ndarray, np.ndarray]:
         """Unit bone directions (T, len(BONES), 3) and the mid-hip (T, 3) metres."""
-        P, M = self.state(params)
-        d = np.stack([_unit(self.point(P, M, b) - self.point(P, M, a))
+        joints, ends = self.state(params)
+        d = np.stack([_unit(self.point(joints, ends, b) - self.point(joints, ends, a))
                       for _, _, a, b in BONES], axis=1)
-        return d, self.point(P, M, "midhip")
+        return d, self.point(joints, ends, "midhip")
 
 
 def pose_from_params(params: np.ndarray) -> np.ndarray:

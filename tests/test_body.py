@@ -78,6 +78,12 @@ def test_rest_rotations_reproduce_the_rest_mesh(body, skinner):
     np.testing.assert_allclose(posed, body.vertices, atol=1e-6)
 
 
+def test_bone_ends_at_rest_are_the_meshs_bone_tails(body, skinner):
+    joints, ends = skinner.joints_and_ends(skinner.rest_local_rotations(), skinner.rest_root_m)
+    assert np.allclose(joints[0], body.heads, atol=1e-9)
+    assert np.allclose(ends[0], body.tails, atol=1e-9)
+
+
 def test_identity_rotations_give_the_bvh_t_pose(body, skinner):
     posed = skinner.pose(_identity(), skinner.rest_root_m)
     P, _ = skinner.joints(_identity(), skinner.rest_root_m)

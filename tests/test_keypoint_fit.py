@@ -44,8 +44,8 @@ def _keypoints_of(body, pose, root_m, shape) -> np.ndarray:
     """Keypoints (T, 15, 3) of the body posed by pose vectors (T, 55) at hips root_m (T, 3)."""
     posed = _Posed(Skinner(body, shape=shape))
     params = np.concatenate([heading_deg(pose)[:, None], pose[:, 2:], root_m], axis=1)
-    P, M = posed.state(params)
-    return np.stack([posed.point(P, M, _MADE_FROM[n]) for n in KEYPOINTS], axis=1)
+    joints, ends = posed.state(params)
+    return np.stack([posed.point(joints, ends, _MADE_FROM[n]) for n in KEYPOINTS], axis=1)
 
 
 def test_real_poses_are_recovered_from_the_bodys_own_keypoints(body):
