@@ -70,6 +70,14 @@ Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 20
   arms, 02_05 0.38 / 0.35 -> 0.37 / 0.42), the walks lose a little (06_10 0.48 / 0.50 -> 0.42
   / 0.46): combinations of the motions we have are not the new kinds of motion the networks
   lack.
+- Wider combinations, tried 2026-12-03 after the Pose2Sim clip was found to fail even on
+  renders of its own poses (README, "Real video"): 40 made-up trials (31,073 rows, +46 %),
+  each the root and legs of one training trial, the spine and head of a second, each arm of a
+  third and a fourth, with slowly varying offsets added (trunk bend -10..40 degrees forwards,
+  -20..20 sideways; +-30 degrees on each shoulder axis). Same measure, seed 0: corr8 0.593 ->
+  0.567 (02_05 0.378 -> 0.297, 06_10 0.480 -> 0.415), err53 7.47 -> 7.40. Not adopted. (On
+  the Pose2Sim poses rendered as the training set renders, reported only: corr8 0.205 ->
+  0.189, flexion error 25.1 -> 22.2 degrees.)
 
 A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
 standardised by a mean and one scale, outputs by a mean and a scale per value; the 53 body
