@@ -123,12 +123,14 @@ def test_the_tracker_describes_the_mirror_frame_by_frame_as_offline(model, masks
     for mirror in (True, False):
         tracker = PoseTracker(model, 30.0, TrackerSettings(mirror_limbs=mirror))
         tracker.prime(np.zeros((240, 320, 3), np.uint8))
-        proposed = []
+        frames = []
         for i, mask in enumerate(masks):
             ys, xs = np.nonzero(mask)
             person = PersonMask(mask, (0, 0, mask.shape[1], mask.shape[0]),
                                 (float(xs.mean()), float(ys.mean())), int(mask.sum()))
-            proposed.append(tracker._pose(0, person, i, i / 30.0, tracker.describe(person)).raw)
+            frames.append((i, i / 30.0, [person], [tracker.describe(person)]))
+        proposed = [pose.raw for poses, _ in tracker.track_frames(frames) for pose in poses]
+        assert len(proposed) == len(masks)
         assert (tracker.tracks[0].mirror_stacker is not None) == mirror
         offline = propose_sequence(model, masks, mirror=mirror)
         np.testing.assert_allclose(proposed, [h.raw for h in offline], atol=1e-9)

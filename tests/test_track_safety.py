@@ -360,18 +360,20 @@ def test_novelty_is_reported_per_pose_by_default_and_unfamiliar_frames_are_count
             assert all(isinstance(v, float) and np.isfinite(v) and 0 < v < 1 for v in values)
         else:
             assert all(v is None for v in values)
-    # A model that finds every other frame unlike its training silhouettes.
-    model, calls = load_pose_model(), []
+    # A model that finds every other frame unlike its training silhouettes (one row per
+    # frame: one person in view).
+    model, rows = load_pose_model(), []
 
     def novelty(stacked):
-        calls.append(len(calls))
-        return np.full(len(stacked), 2.0 if len(calls) % 2 else 0.5)
+        first = len(rows)
+        rows.extend(range(first, first + len(stacked)))
+        return np.array([2.0 if i % 2 == 0 else 0.5 for i in range(first, len(rows))])
     model.novelty = novelty
     tracker = PoseTracker(model, 30.0)
     summary = JsonSummarySink(tmp_path / "n.json", 30.0)
     result = track_video(walk, tracker, sinks=[summary])
     (state,) = tracker.tracks.values()
-    assert state.frames == len(calls) >= 30 and state.unfamiliar == (len(calls) + 1) // 2
+    assert state.frames == len(rows) >= 30 and state.unfamiliar == (len(rows) + 1) // 2
     (track,) = json.loads((tmp_path / "n.json").read_text())["tracks"]
     assert track["novelty"][:4] == [2.0, 0.5, 2.0, 0.5]
     assert track["unfamiliar_frames"] == state.unfamiliar
@@ -411,23 +413,27 @@ def test_a_ctrl_c_swallowed_during_start_up_still_stops_the_command(tmp_path, wa
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
-def test_a_ctrl_c_swallowed_while_tracking_stops_after_that_frame(tmp_path, walk, monkeypatch):
+def test_a_ctrl_c_swallowed_while_tracking_stops_at_the_next_frame_written(tmp_path, walk,
+                                                                          monkeypatch):
     from tracker import cli
+    from tracker.frame_worker import BATCH_FRAMES
     from tracker.pipeline import PoseTracker
     signal.signal(signal.SIGINT, signal.default_int_handler)
-    # track_people: the half of a frame's work done in the main process also when a frame
-    # worker finds the people (`track`'s default on two cores)
-    track_people, calls = PoseTracker.track_people, []
+    # track_frames: the half of the work done in the main process, a batch of frames at a
+    # time, also when a frame worker finds the people (`track`'s default on two cores)
+    track_frames, calls = PoseTracker.track_frames, []
 
-    def tracking_swallowing_at_frame_5(self, index, *args):
-        calls.append(index)
-        if len(calls) == 5:
-            return _swallowing(track_people)(self, index, *args)
-        return track_people(self, index, *args)
-    monkeypatch.setattr(PoseTracker, "track_people", tracking_swallowing_at_frame_5)
+    def tracking_swallowing_in_the_second_batch(self, frames):
+        calls.append(len(frames))
+        if len(calls) == 2:
+            return _swallowing(track_frames)(self, frames)
+        return track_frames(self, frames)
+    monkeypatch.setattr(PoseTracker, "track_frames", tracking_swallowing_in_the_second_batch)
     out = tmp_path / "s.json"
     assert cli.main([str(walk), "--json", str(out), "--quiet"]) == cli.EXIT_INTERRUPTED
-    assert json.loads(out.read_text())["frames"] == 5       # closed properly, cut at frame 5
+    # closed properly, cut after the first frame of the second batch was written
+    assert calls == [BATCH_FRAMES, BATCH_FRAMES]
+    assert json.loads(out.read_text())["frames"] == BATCH_FRAMES + 1
 
 
 def test_a_signal_the_shell_ignores_stays_ignored(tmp_path):

@@ -33,7 +33,9 @@ import cv2
 from regressor.errors import SilhouettePoseError
 
 #: Frames sent per message: enough to make the pipe's cost negligible, few enough that the
-#: worker is never far ahead (memory) and a live output lags by a fraction of a second.
+#: worker is never far ahead (memory) and a live output lags by a fraction of a second. The
+#: main process regresses each message's frames in one batch (PoseTracker.track_frames), and
+#: one process batches its frames the same way (tracker.run), so both give the same results.
 BATCH_FRAMES = 8
 
 
@@ -77,10 +79,16 @@ class FrameWorker:
         writer.close()           # the worker's end: its death then ends our reads
 
     def __iter__(self) -> Iterator[tuple]:
+        for chunk in self.chunks():
+            yield from chunk
+
+    def chunks(self) -> Iterator[list[tuple]]:
+        """The frames as the worker sends them: lists of up to ``batch`` consecutive
+        (frame_index, time_s, people, descriptions), every one full but the last."""
         while True:
             kind, payload = self._receive()
             if kind == "frames":
-                yield from payload
+                yield payload
             elif kind == "end":
                 self.stage_seconds, self.frames_read, self.truncated = payload
                 return

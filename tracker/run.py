@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
-from .frame_worker import FrameWorker, can_fork
+from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork
 from .pipeline import PoseTracker
 from .silhouettes import median_background
 from .sinks import PoseRecorder, Sink, close_sinks
@@ -98,14 +98,15 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
             worker = FrameWorker(source, tracker)          # a copy of the primed tracker
             frames_in = _from_worker(worker, tracker)
         else:
-            frames_in = _in_process(source, tracker)
-        for index, time_s, frame, poses in frames_in:
+            # A live view shows each frame as soon as it is tracked; files take batches.
+            frames_in = _in_process(source, tracker, 1 if watching else BATCH_FRAMES)
+        for index, time_s, frame, poses, people in frames_in:
             clock = time.perf_counter()
             for sink in streaming:
                 for pose in poses:
                     sink.write(pose)
             for sink in watching:
-                sink.write_frame(index, time_s, frame, tracker.people)
+                sink.write_frame(index, time_s, frame, people)
             for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
                 sink.end_frame(index)
             stages["outputs"] += time.perf_counter() - clock
@@ -144,25 +145,44 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     return TrackRun(frames, time.perf_counter() - started, interrupted, tracker)
 
 
-def _in_process(source: VideoSource, tracker: PoseTracker) -> Iterator[tuple]:
-    """(frame_index, time_s, frame, poses) of each frame, tracked here (one process)."""
+def _in_process(source: VideoSource, tracker: PoseTracker, batch: int) -> Iterator[tuple]:
+    """(frame_index, time_s, frame, poses, people by track id) of each frame, tracked here
+    (one process), ``batch`` frames at a time (as the worker sends them: the same results)."""
     stages = tracker.stage_seconds
+    chunk, images = [], []
     clock = time.perf_counter()
     for index, time_s, frame in source:
         stages["decode"] += time.perf_counter() - clock
-        yield index, time_s, frame, tracker.process(index, time_s, frame)
+        people = tracker.find_people(frame)
+        chunk.append((index, time_s, people, [tracker.describe(p) for p in people]))
+        images.append(frame)
+        if len(chunk) == batch:
+            yield from _tracked(tracker, chunk, images)
+            chunk, images = [], []
         clock = time.perf_counter()
+    yield from _tracked(tracker, chunk, images)
 
 
 def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
-    """(frame_index, time_s, None, poses) of each frame, its people found and described by
-    the worker process; the time spent waiting for it is the stage "waiting"."""
+    """(frame_index, time_s, None, poses, people by track id) of each frame, its people found
+    and described by the worker process, tracked here a message's frames at a time; the time
+    spent waiting for the worker is the stage "waiting"."""
     stages = tracker.stage_seconds
     clock = time.perf_counter()
-    for index, time_s, people, descriptions in worker:
+    for chunk in worker.chunks():
         stages["waiting"] += time.perf_counter() - clock
-        yield index, time_s, None, tracker.track_people(index, time_s, people, descriptions)
+        yield from _tracked(tracker, chunk, [None] * len(chunk))
         clock = time.perf_counter()
+
+
+def _tracked(tracker: PoseTracker, chunk: list[tuple], images: list) -> Iterator[tuple]:
+    """Track consecutive frames (frame_index, time_s, people, descriptions) at once and give
+    each as (frame_index, time_s, image, poses, people by track id)."""
+    if not chunk:
+        return
+    for (index, time_s, _, _), image, (poses, people) in zip(
+            chunk, images, tracker.track_frames(chunk), strict=True):
+        yield index, time_s, image, poses, people
 
 
 def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | None) -> None:
