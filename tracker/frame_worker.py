@@ -37,6 +37,15 @@ from regressor.errors import SilhouettePoseError
 #: main process regresses each message's frames in one batch (PoseTracker.track_frames), and
 #: one process batches its frames the same way (tracker.run), so both give the same results.
 BATCH_FRAMES = 8
+#: Every other frame's people are described by the main process instead (their descriptions
+#: are sent as None): with the regression in batches the worker's half became the longer one
+#: (scripts/bench_track.py, 640x480, 2026-12-03: worker 7.5 ms a frame, main 5.7, the main
+#: process waiting 2.1 ms a frame for it), and describing (2.4-2.6 ms) some frames over there
+#: balances them. Describing depends on the mask and the settings only, so the results do not
+#: change. Runs alternated on the bench video (fps, the machine's speed moving a lot): every
+#: 2nd frame 122.5 / 127.8 / 131.5 (the main process still waiting 0.3-0.5 ms a frame), every
+#: 3rd 121.6 / 116.0 / 145.7 (0.6-1.3 ms), none 123.7 / 108.3 / 93.2 in an earlier round.
+MAIN_DESCRIBES_EVERY = 2
 
 
 class FrameWorkerError(SilhouettePoseError, RuntimeError):
@@ -84,7 +93,9 @@ class FrameWorker:
 
     def chunks(self) -> Iterator[list[tuple]]:
         """The frames as the worker sends them: lists of up to ``batch`` consecutive
-        (frame_index, time_s, people, descriptions), every one full but the last."""
+        (frame_index, time_s, people, descriptions), every one full but the last;
+        descriptions is None for the frames left to the main process to describe
+        (MAIN_DESCRIBES_EVERY)."""
         while True:
             kind, payload = self._receive()
             if kind == "frames":
@@ -150,7 +161,9 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
             for index, time_s, frame in source:
                 stages["decode"] += time.perf_counter() - clock
                 people = tracker.find_people(frame)
-                chunk.append((index, time_s, people, [tracker.describe(p) for p in people]))
+                descriptions = (None if index % MAIN_DESCRIBES_EVERY == MAIN_DESCRIBES_EVERY - 1
+                                else [tracker.describe(p) for p in people])
+                chunk.append((index, time_s, people, descriptions))
                 if len(chunk) >= batch:
                     writer.send(("frames", chunk))
                     chunk = []

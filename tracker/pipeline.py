@@ -293,6 +293,9 @@ def default_extractor(settings: TrackerSettings, **options) -> SilhouetteExtract
                                min_area_fraction=settings.min_area_fraction, **options)
 
 
+#: joints_m of a TrackedPose whose skeleton is not made yet (PoseTracker._decide).
+_NO_JOINTS = np.empty((0, 3))
+
 #: A person's descriptor (D,) and its mirror image's (D,) or None: PoseTracker.describe.
 Description = tuple[np.ndarray, "np.ndarray | None"]
 
@@ -423,9 +426,10 @@ class PoseTracker:
         poses: list[list[TrackedPose]] = [[] for _ in frames]
         if rows:
             hypotheses, novelty = self._regress([r[3] for r in rows], [r[4] for r in rows])
-            for (slot, track_id, person, _, _), h, n in zip(rows, hypotheses, novelty):
-                frame_index, time_s = frames[slot][:2]
-                poses[slot].append(self._decide(track_id, person, frame_index, time_s, h, n))
+            decided = [self._decide(track_id, person, frames[slot][0], frames[slot][1], h, n)
+                       for (slot, track_id, person, _, _), h, n in zip(rows, hypotheses, novelty)]
+            for (slot, *_), pose in zip(rows, self._with_skeletons(decided)):
+                poses[slot].append(pose)
         return list(zip(poses, people_by_frame))
 
     def _state(self, track_id: int) -> _TrackState:
@@ -467,26 +471,34 @@ class PoseTracker:
     def _decide(self, track_id: int, person: PersonMask, frame_index: int, time_s: float,
                 hypotheses, novelty: float | None) -> TrackedPose:
         """A track's pose for one frame from its hypotheses: the front/back filters (the
-        direction of travel as soft evidence) and the skeleton."""
+        direction of travel as soft evidence); its joints_m are still empty
+        (:meth:`_with_skeletons` fills them)."""
         state = self._state(track_id)
         clock = time.perf_counter()
         travel = state.travel.push(person.centroid[0], person.bbox[3])
         decision = state.hypotheses.step(hypotheses, travel)
-        filtered, ambiguous = decision.filtered, decision.ambiguous
         state.frames += 1
         if self.settings.keep_history:
             state.measured.append(hypotheses.raw)
-        clock = self._lap("filter", clock)
-        h, w = self.frame_shape
-        ground = ground_position_from_image(person.centroid, person.bbox[3], w, h,
-                                            focal_px=self._focal_px)
-        joints = pose_joints_m(filtered[None], root_position_m=ground[None])[0]
-        self._lap("skeleton", clock)
-        pose = TrackedPose(frame_index, time_s, track_id, hypotheses.raw, filtered, ambiguous,
-                           joints, person.centroid, person.bbox, decision.runner_up,
-                           decision.runner_up_probability, novelty)
+        pose = TrackedPose(frame_index, time_s, track_id, hypotheses.raw, decision.filtered,
+                           decision.ambiguous, _NO_JOINTS, person.centroid, person.bbox,
+                           decision.runner_up, decision.runner_up_probability, novelty)
         state.unfamiliar += pose.unfamiliar
+        self._lap("filter", clock)
         return pose
+
+    def _with_skeletons(self, poses: list[TrackedPose]) -> list[TrackedPose]:
+        """The poses with their joints_m (18, 3): the skeletons of all at once (forward
+        kinematics costs about as much for a batch as for one pose), each placed on its
+        approximate ground position."""
+        clock = time.perf_counter()
+        h, w = self.frame_shape
+        ground = np.array([ground_position_from_image(p.centroid_px, p.bbox_px[3], w, h,
+                                                      focal_px=self._focal_px) for p in poses])
+        joints = pose_joints_m(np.array([p.filtered for p in poses]), root_position_m=ground)
+        out = [replace(p, joints_m=j) for p, j in zip(poses, joints)]
+        self._lap("skeleton", clock)
+        return out
 
     def _lap(self, stage: str, since: float) -> float:
         now = time.perf_counter()
