@@ -3,7 +3,9 @@
 A frame's work splits in two halves of about the same cost (scripts/bench_track.py, one
 person at 640x480, one process, 2026-12-03): decoding, background subtraction and describing
 each silhouette (6.5 ms), then association, regression, the front/back filters, the skeleton
-and the outputs (7.2 ms). With the worker: 68.8 -> 107.1 frames/s.
+and the outputs (7.2 ms). With the worker: 68.8 -> 107.1 frames/s; later that day, with the
+regression in batches and every other frame described in the main process
+(MAIN_DESCRIBES_EVERY), 75.8 -> 131.5.
 The first half needs nothing from the second (PoseTracker.find_people and .describe depend
 only on the frames and the settings), so a worker process runs it ahead on its own copy of the
 tracker while the main process tracks: both cores busy, the results the same as in one process
