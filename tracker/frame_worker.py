@@ -5,7 +5,7 @@ person at 640x480, one process, 2026-12-03): decoding, background subtraction an
 each silhouette (6.5 ms), then association, regression, the front/back filters, the skeleton
 and the outputs (7.2 ms). With the worker: 68.8 -> 107.1 frames/s; later that day, with the
 regression in batches and every other frame described in the main process
-(MAIN_DESCRIBES_EVERY), 75.8 -> 131.5.
+(MAIN_DESCRIBES), 75.8 -> 131.5.
 The first half needs nothing from the second (PoseTracker.find_people and .describe depend
 only on the frames and the settings), so a worker process runs it ahead on its own copy of the
 tracker while the main process tracks: both cores busy, the results the same as in one process
@@ -39,15 +39,22 @@ from regressor.errors import SilhouettePoseError
 #: main process regresses each message's frames in one batch (PoseTracker.track_frames), and
 #: one process batches its frames the same way (tracker.run), so both give the same results.
 BATCH_FRAMES = 8
-#: Every other frame's people are described by the main process instead (their descriptions
-#: are sent as None): with the regression in batches the worker's half became the longer one
-#: (scripts/bench_track.py, 640x480, 2026-12-03: worker 7.5 ms a frame, main 5.7, the main
-#: process waiting 2.1 ms a frame for it), and describing (2.4-2.6 ms) some frames over there
-#: balances them. Describing depends on the mask and the settings only, so the results do not
-#: change. Runs alternated on the bench video (fps, the machine's speed moving a lot): every
-#: 2nd frame 122.5 / 127.8 / 131.5 (the main process still waiting 0.3-0.5 ms a frame), every
-#: 3rd 121.6 / 116.0 / 145.7 (0.6-1.3 ms), none 123.7 / 108.3 / 93.2 in an earlier round.
-MAIN_DESCRIBES_EVERY = 2
+#: Of every MAIN_DESCRIBES[1] frames, the first MAIN_DESCRIBES[0] have their people described
+#: by the main process instead (their descriptions are sent as None): with the regression in
+#: batches the worker's half became the longer one (scripts/bench_track.py, 640x480,
+#: 2026-12-03: worker 7.5 ms a frame, main 5.7, the main process waiting 2.1 ms a frame for
+#: it), and describing (2.4-2.6 ms) some frames over there balances them. Describing depends on
+#: the mask and the settings only, so the results do not change. Runs alternated on the bench
+#: video (fps, the machine's speed moving a lot): 1 of 2 frames 122.5 / 127.8 / 131.5 (the
+#: main process still waiting 0.3-0.5 ms a frame), 1 of 3 121.6 / 116.0 / 145.7 (0.6-1.3 ms),
+#: none 123.7 / 108.3 / 93.2 in an earlier round.
+MAIN_DESCRIBES = (1, 2)
+
+
+def main_describes(frame_index: int) -> bool:
+    """Whether the main process describes this frame's people (MAIN_DESCRIBES)."""
+    share, period = MAIN_DESCRIBES
+    return frame_index % period < share
 
 
 class FrameWorkerError(SilhouettePoseError, RuntimeError):
@@ -97,7 +104,7 @@ class FrameWorker:
         """The frames as the worker sends them: lists of up to ``batch`` consecutive
         (frame_index, time_s, people, descriptions), every one full but the last;
         descriptions is None for the frames left to the main process to describe
-        (MAIN_DESCRIBES_EVERY)."""
+        (MAIN_DESCRIBES)."""
         while True:
             kind, payload = self._receive()
             if kind == "frames":
@@ -163,7 +170,7 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
             for index, time_s, frame in source:
                 stages["decode"] += time.perf_counter() - clock
                 people = tracker.find_people(frame)
-                descriptions = (None if index % MAIN_DESCRIBES_EVERY == MAIN_DESCRIBES_EVERY - 1
+                descriptions = (None if main_describes(index)
                                 else [tracker.describe(p) for p in people])
                 chunk.append((index, time_s, people, descriptions))
                 if len(chunk) >= batch:
