@@ -78,9 +78,23 @@ def frame_gain(frame: np.ndarray, background: np.ndarray, step: int = 8) -> np.n
     """Per-channel brightness gain (3,) of frame over background (both BGR uint8 (h, w, 3)):
     the median ratio on every ``step``-th pixel; people cover a minority of the image, so a
     global change of light or exposure shows as a gain away from 1."""
-    f = frame[::step, ::step].reshape(-1, 3).astype(np.float32)
-    b = background[::step, ::step].reshape(-1, 3).astype(np.float32)
-    ok = (b > 16).all(axis=1) & (b < 240).all(axis=1) & (f < 250).all(axis=1)
-    if ok.sum() < 16:
-        return np.ones(3, np.float32)
-    return np.median(f[ok] / b[ok], axis=0)
+    return GainMeter(background, step)(frame)
+
+
+class GainMeter:
+    """:func:`frame_gain` against one background (BGR uint8 (h, w, 3)), its sampled pixels
+    and their usable ones prepared once (the tracker measures every frame against the same
+    background); call with a frame (BGR uint8 (h, w, 3)) for its gain (3,)."""
+
+    def __init__(self, background: np.ndarray, step: int = 8):
+        self.step = step
+        self._background = background[::step, ::step].reshape(-1, 3).astype(np.float32)
+        b = self._background
+        self._usable = (b > 16).all(axis=1) & (b < 240).all(axis=1)
+
+    def __call__(self, frame: np.ndarray) -> np.ndarray:
+        f = frame[::self.step, ::self.step].reshape(-1, 3).astype(np.float32)
+        ok = self._usable & (f < 250).all(axis=1)
+        if ok.sum() < 16:
+            return np.ones(3, np.float32)
+        return np.median(f[ok] / self._background[ok], axis=0)

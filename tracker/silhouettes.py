@@ -14,7 +14,7 @@ import numpy as np
 
 from regressor.errors import SilhouettePoseError
 from .area_shrink import shrink
-from .background import ClipBackground, clean_plate, clip_background, frame_gain
+from .background import ClipBackground, GainMeter, clean_plate, clip_background
 from .noise_floor import FOREGROUND_LEVEL as _FOREGROUND_LEVEL, choose_var_min
 
 _SHADOW_LEVEL = 127              # MOG2's mark for shadow (foreground: _FOREGROUND_LEVEL)
@@ -181,6 +181,7 @@ class BackgroundSubtractor:
             self._model.apply(small, learningRate=-1.0 if not self.ready else self.learning_rate)
             self.frames_seen += 1
         self.reference = small.copy()
+        self._gain = GainMeter(self.reference)
 
     def _check_frame_size(self, size: tuple[int, int]) -> None:
         """Remember the frames' (width, height) px on first use; refuse any other size later."""
@@ -217,7 +218,7 @@ class BackgroundSubtractor:
         small = frame if work == size else shrink(frame, work)
         saturated = None
         if self.reference is not None and self.normalise_brightness:
-            gain = frame_gain(small, self.reference)
+            gain = self._gain(small)
             if np.abs(gain - 1).max() > _MIN_GAIN_CHANGE:
                 # Where the brighter light clips the background, the frame cannot be undone:
                 # such pixels are background, not a blob.
@@ -417,13 +418,21 @@ def enclosed_shadow(foreground: np.ndarray, shadow: np.ndarray) -> np.ndarray:
     (shorts between torso and legs, a dark shirt under the head) is enclosed so; a shadow cast
     on the ground is not, since nothing of the body stands below it in the image. Whole-image
     operations (first and last foreground row per column), no per-pixel Python."""
-    if not shadow.any():
-        return np.zeros(shadow.shape, np.uint8)
+    out = np.zeros(shadow.shape, np.uint8)
+    shadow_cols = np.flatnonzero(shadow.any(axis=0))
+    if not len(shadow_cols):
+        return out
+    shadow_rows = np.flatnonzero(shadow.any(axis=1))
+    # Only the box around the shadow can change: the columns' scans are made there alone.
+    c0, c1 = shadow_cols[0], shadow_cols[-1] + 1
+    r0, r1 = shadow_rows[0], shadow_rows[-1] + 1
     height = foreground.shape[0]
-    top = np.where(foreground.any(axis=0), foreground.argmax(axis=0), height)     # (w,)
-    bottom = height - 1 - foreground[::-1].argmax(axis=0)                        # (w,)
-    rows = np.arange(height)[:, None]
-    return (shadow & (rows > top) & (rows < bottom)).astype(np.uint8) * 255
+    fg = foreground[:, c0:c1]
+    top = np.where(fg.any(axis=0), fg.argmax(axis=0), height)                  # (w,)
+    bottom = height - 1 - fg[::-1].argmax(axis=0)                              # (w,)
+    rows = np.arange(r0, r1)[:, None]
+    out[r0:r1, c0:c1] = (shadow[r0:r1, c0:c1] & (rows > top) & (rows < bottom)) * np.uint8(255)
+    return out
 
 
 def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndarray,
