@@ -61,6 +61,35 @@ def test_two_processes_give_exactly_the_poses_of_one(walk, model):
         assert stages[stage] > 0, stage
 
 
+def test_frames_tracked_in_batches_give_the_poses_of_frames_tracked_one_by_one(walk, model):
+    """PoseTracker.track_frames (what track_video runs, 8 frames at a time) against
+    track_people frame by frame: the same tracks, front/back decisions and skeletons; poses
+    equal to the batched sums' rounding."""
+    source = open_video(walk)
+    trackers = [PoseTracker(model, source.fps, TrackerSettings()) for _ in range(2)]
+    for tracker in trackers:
+        _prime(source, tracker, None)
+    frames = [(index, time_s, trackers[0].find_people(frame)) for index, time_s, frame
+              in open_video(walk)]
+    one_by_one = [trackers[0].track_people(i, t, people) for i, t, people in frames]
+    batched = []
+    for start in range(0, len(frames), 8):
+        chunk = [(i, t, people, None) for i, t, people in frames[start:start + 8]]
+        for poses, people in trackers[1].track_frames(chunk):
+            batched.append(poses)
+            assert sorted(people) == [p.track_id for p in poses]
+    assert [len(p) for p in batched] == [len(p) for p in one_by_one]
+    pairs = [(a, b) for x, y in zip(one_by_one, batched) for a, b in zip(x, y)]
+    assert len(pairs) >= 30
+    for a, b in pairs:
+        assert (a.frame_index, a.track_id, a.ambiguous) == (b.frame_index, b.track_id,
+                                                           b.ambiguous)
+        np.testing.assert_allclose(b.raw, a.raw, atol=1e-3)
+        np.testing.assert_allclose(b.filtered, a.filtered, atol=1e-3)
+        np.testing.assert_allclose(b.joints_m, a.joints_m, atol=1e-5)
+        assert b.joints_m.shape == (18, 3)
+
+
 def test_one_process_again_after_a_worker_and_a_worker_after_one(walk, model):
     """OpenCV's thread pool, used by one run, must not hang the next run's forked worker."""
     first, _ = _poses(walk, model, workers=2)
