@@ -59,7 +59,28 @@ def drawn_person(points_px: np.ndarray, body: BodyDrawing, width: float) -> Pers
     return person_from_mask(region, x0, y0)
 
 
-class ReferenceMaskExtractor:
+class _WrappedExtractor:
+    """An extractor wrapping the tracker's: its other attributes (prime, learn_zone,
+    subtractor, ...) are reached through this one, and it still runs on every frame, so that
+    its background model and zone stay as in a normal run. Frames are counted from 0 in the
+    order they are given (tracker.run.track_video gives every frame of the video in order)."""
+
+    def __init__(self, extractor):
+        self.extractor = extractor
+        self.frames_seen = 0
+
+    def __getattr__(self, name):
+        # Only called for attributes this object lacks.
+        return getattr(self.__dict__["extractor"], name)
+
+    def _extract(self, frame: np.ndarray) -> tuple[int, list[PersonMask]]:
+        """(this frame's index, the wrapped extractor's people)."""
+        index = self.frames_seen
+        self.frames_seen += 1
+        return index, self.extractor(frame)
+
+
+class ReferenceMaskExtractor(_WrappedExtractor):
     """An extractor (frame -> list of PersonMask) whose people are changed by reference
     keypoints (module docstring). ``extractor``: the tracker's (its ``prime``, ``learn_zone``
     and other attributes are reached through this one); ``keypoints_px``: (T, K, 2) px of video
@@ -80,19 +101,13 @@ class ReferenceMaskExtractor:
                 len(keypoints_px) != len(frames):
             raise ValueError(f"keypoints_px must be (T, K, 2) for {len(frames)} frames, got "
                              f"{keypoints_px.shape}")
-        self.extractor, self.body, self.mode = extractor, body, mode
+        super().__init__(extractor)
+        self.body, self.mode = body, mode
         self.width = DEFAULT_WIDTH[mode] if width is None else float(width)
         self._keypoints = {int(f): p for f, p in zip(frames, keypoints_px)}
-        self.frames_seen = 0
-
-    def __getattr__(self, name):
-        # Only called for attributes this object lacks: prime, learn_zone, subtractor, ...
-        return getattr(self.__dict__["extractor"], name)
 
     def __call__(self, frame: np.ndarray) -> list[PersonMask]:
-        index = self.frames_seen
-        self.frames_seen += 1
-        people = self.extractor(frame)
+        index, people = self._extract(frame)
         points = self._keypoints.get(index)
         if points is None:
             return []
@@ -109,7 +124,7 @@ class ReferenceMaskExtractor:
         return sorted(out, key=lambda p: -p.area)
 
 
-class RenderedMaskExtractor:
+class RenderedMaskExtractor(_WrappedExtractor):
     """An extractor whose one person per frame is a given silhouette: ``masks`` (T, H, W) bool
     in frame pixels for video frames ``frames`` (T,) int (e.g. the fitted body rendered through
     the view's camera). ``extractor``: the tracker's, still run on every frame (so that its
@@ -123,17 +138,11 @@ class RenderedMaskExtractor:
         if masks.ndim != 3 or len(masks) != len(frames):
             raise ValueError(f"masks must be (T, H, W) for {len(frames)} frames, got "
                              f"{masks.shape}")
-        self.extractor = extractor
+        super().__init__(extractor)
         self._masks = {int(f): m for f, m in zip(frames, masks)}
-        self.frames_seen = 0
-
-    def __getattr__(self, name):
-        return getattr(self.__dict__["extractor"], name)
 
     def __call__(self, frame: np.ndarray) -> list[PersonMask]:
-        index = self.frames_seen
-        self.frames_seen += 1
-        self.extractor(frame)
+        index, _ = self._extract(frame)
         mask = self._masks.get(index)
         person = None if mask is None else person_from_mask(mask, 0, 0)
         return [] if person is None else [person]
