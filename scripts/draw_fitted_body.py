@@ -3,7 +3,8 @@
     python scripts/draw_fitted_body.py docs/evaluation/pose2sim/fitted_body.jpg
         [--trial ../shared/data/pose2sim/balancing] [--frames 10 50 90]
 
-Fits the project's body to the reference keypoints (sequences.keypoint_fit, ~30 s), renders
+Fits the project's body to the reference keypoints of those frames (sequences.keypoint_fit,
+~0.3 s a frame), renders
 it through each calibrated camera (sequences.pose2sim.render_view_masks) and draws its outline
 in red on the given video frames, one row per view, each tile cropped round the body. The
 outline should follow the subject: it is the silhouette `evaluate_real.py --reference-masks
@@ -18,10 +19,9 @@ import cv2
 import numpy as np
 
 from sequences.body import load_body
-from sequences.keypoint_fit import KeypointFitError, posed_vertices
+from sequences.keypoint_fit import KeypointFitError, fit_body, posed_vertices
 from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, load_trial,
                                 render_view_masks, video_frames)
-from sequences.pose2sim_measures import reference_body
 from tracker.one_line_parser import OneLineParser
 from tracker.video import VideoError, open_video
 
@@ -49,10 +49,9 @@ def draw(trial, frames: list[int]) -> np.ndarray:
     if missing:
         raise Pose2SimError(f"frame {missing[0]} has no reference (the reference covers "
                             f"video frames {min(available)}..{max(available)})")
-    fit = reference_body(trial)
     body = load_body()
-    rows = np.searchsorted(video_frames(trial), frames)
-    vertices = posed_vertices(fit, body)[rows]
+    fit = fit_body(trial.points(frames), trial.reference.names, body)
+    vertices = posed_vertices(fit, body)
     lines = []
     for view in VIEWS:
         source = open_video(trial.video(view))
