@@ -36,6 +36,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
+from sequences.keypoint_fit import KeypointFitError
 from sequences.measures import MeasureError, novelty_summary
 from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, camera_roll_deg,
                                 load_trial, project_reference, video_frames)
@@ -46,6 +47,7 @@ from tracker.cli import ZONE_FOREGROUND
 from tracker.offline.evaluation import constant_pose
 from tracker.one_line_parser import OneLineParser
 from tracker.sinks import PoseRecorder
+from tracker.video import VideoError
 
 _MID_HIP = [0, 6]               # RHip, LHip in the reference's keypoints
 
@@ -356,7 +358,7 @@ def main(argv=None) -> int:
                               sheet=sheet,
                               trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
                               reference_masks=args.reference_masks)
-    except (Pose2SimError, PoseModelError, MeasureError) as exc:
+    except (Pose2SimError, PoseModelError, MeasureError, KeypointFitError, VideoError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
     result["model"] = str(args.model)

@@ -94,3 +94,24 @@ def test_the_table_gives_the_body_angles_beside_the_constant_where_measured(eval
     assert evaluate_real._means(per_view)["body_error_deg"] == pytest.approx(10.0)
     assert "cam01 9.0 / 12.5 / 0.25, cam02 11.0 / 12.5 / 0.25" in \
         evaluate_real.format_table(result)
+
+
+def test_a_reference_lacking_a_keypoint_the_fit_needs_is_a_one_line_error(evaluate_real,
+                                                                         tmp_path, capsys):
+    import shutil
+
+    from conftest import SHARED
+    from sequences.pose2sim import REFERENCE_TRC
+    trial = SHARED / "data" / "pose2sim" / "balancing"
+    if not trial.is_dir():
+        pytest.skip(f"Pose2Sim trial not found at {trial} (needs ../shared beside the repo)")
+    copy = tmp_path / "balancing"
+    shutil.copytree(trial, copy)
+    trc = copy / REFERENCE_TRC
+    lines = trc.read_text().splitlines()
+    lines[3] = lines[3].replace("LBigToe", "LToeTip")
+    trc.write_text("\n".join(lines) + "\n")
+    assert evaluate_real.main(["--trial", str(copy)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("evaluate_real: error: the keypoints lack ['LBigToe']")
+    assert not any("Traceback" in line for line in err)
