@@ -1,8 +1,10 @@
 """Shared fixtures: where the (optional) shared data lives."""
 from __future__ import annotations
 
+import importlib.util
 import os
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -10,6 +12,15 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("SILHOUETTE_POSE_SHARED", ROOT.parent / "shared"))
 CMU_BVH = SHARED / "data" / "cmu" / "bvh"
 ANKUR_MAT = SHARED / "data" / "ankur" / "ankurDataPoseSilhouette.mat"
+POSE2SIM_TRIAL = SHARED / "data" / "pose2sim" / "balancing"
+
+
+def load_script(name: str) -> ModuleType:
+    """A script of scripts/ (e.g. "evaluate_real") imported as a module, to test its parts."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 @pytest.fixture(scope="session")
@@ -26,3 +37,12 @@ def ankur_mat() -> Path:
     if not ANKUR_MAT.is_file():
         pytest.skip(f"paper data not found at {ANKUR_MAT} (needs ../shared beside the repo)")
     return ANKUR_MAT
+
+
+@pytest.fixture(scope="session")
+def pose2sim_trial() -> Path:
+    """Pose2Sim's balancing trial folder of ../shared; skips the test when it is absent."""
+    if not POSE2SIM_TRIAL.is_dir():
+        pytest.skip(f"Pose2Sim trial not found at {POSE2SIM_TRIAL} (needs ../shared beside the "
+                    f"repo)")
+    return POSE2SIM_TRIAL

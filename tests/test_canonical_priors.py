@@ -182,13 +182,9 @@ def test_learn_hypothesis_priors_saves_a_copy_with_the_learned_priors(tmp_path, 
                                                                       capsys):
     """--save writes a new model file carrying the priors it learned; the model it read is
     unchanged. (The learning itself is replaced by a stand-in: it renders 28 sequences.)"""
-    import importlib.util
-    from pathlib import Path
+    from conftest import load_script
     from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-    script = Path(__file__).resolve().parents[1] / "scripts" / "learn_hypothesis_priors.py"
-    spec = importlib.util.spec_from_file_location("learn_hypothesis_priors", script)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script("learn_hypothesis_priors")
     cmu = tmp_path / "cmu"
     cmu.mkdir()
     for stem in module.TRAVEL_TRIALS:           # the travel histogram reads these four

@@ -2,22 +2,19 @@
 and the sheet it writes."""
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
+import shutil
 
 import cv2
 import numpy as np
 import pytest
 
-_SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "evaluate_real.py"
+from conftest import load_script
+from sequences.pose2sim import REFERENCE_TRC
 
 
 @pytest.fixture(scope="module")
 def evaluate_real():
-    spec = importlib.util.spec_from_file_location("evaluate_real", _SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("evaluate_real")
 
 
 def test_unwritable_mask_sheets_are_refused_in_one_line_before_tracking(evaluate_real, tmp_path,
@@ -96,17 +93,10 @@ def test_the_table_gives_the_body_angles_beside_the_constant_where_measured(eval
         evaluate_real.format_table(result)
 
 
-def test_a_reference_lacking_a_keypoint_the_fit_needs_is_a_one_line_error(evaluate_real,
-                                                                         tmp_path, capsys):
-    import shutil
-
-    from conftest import SHARED
-    from sequences.pose2sim import REFERENCE_TRC
-    trial = SHARED / "data" / "pose2sim" / "balancing"
-    if not trial.is_dir():
-        pytest.skip(f"Pose2Sim trial not found at {trial} (needs ../shared beside the repo)")
+def test_a_reference_lacking_a_keypoint_the_fit_needs_is_a_one_line_error(
+        evaluate_real, pose2sim_trial, tmp_path, capsys):
     copy = tmp_path / "balancing"
-    shutil.copytree(trial, copy)
+    shutil.copytree(pose2sim_trial, copy)
     trc = copy / REFERENCE_TRC
     lines = trc.read_text().splitlines()
     lines[3] = lines[3].replace("LBigToe", "LToeTip")

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import SHARED
 from sequences.body import BodyShape, Skinner, load_body
 from sequences.keypoint_fit import (KEYPOINTS, KeypointFitError, _Posed, fit_body,
                                     fitted_joints, pose_in_view)
@@ -103,11 +102,8 @@ def test_the_fitted_body_renders_where_a_calibrated_camera_sees_its_hips(body):
                              (480, 300)).shape == (1, 480, 300)
 
 
-def test_the_pose2sim_reference_is_fitted_within_a_degree_of_its_flexion(body):
-    root = SHARED / "data" / "pose2sim" / "balancing"
-    if not root.is_dir():
-        pytest.skip(f"Pose2Sim trial not found at {root} (needs ../shared beside the repo)")
-    trial = load_trial(root)
+def test_the_pose2sim_reference_is_fitted_within_a_degree_of_its_flexion(body, pose2sim_trial):
+    trial = load_trial(pose2sim_trial)
     frames = video_frames(trial)[:4]
     fit = fit_body(trial.points(frames), trial.reference.names, body)
     assert np.median(fit.direction_error_deg) < 1.0
