@@ -441,3 +441,18 @@ def test_main_called_from_another_thread_leaves_the_signal_handlers_alone(tmp_pa
     assert result == [EXIT_ERROR]
     err = capsys.readouterr().err.strip()
     assert err.startswith("track: error:") and "\n" not in err
+
+
+class _ClosedPipe(io.StringIO):
+    """Standard output whose reader has gone (``track ... | head -1``)."""
+
+    def write(self, text):
+        raise BrokenPipeError(32, "Broken pipe")
+
+
+def test_a_reader_that_stops_reading_the_summary_fails_nothing(walk_video, tmp_path):
+    err = io.StringIO()
+    with redirect_stdout(_ClosedPipe()), redirect_stderr(err):
+        code = main([str(walk_video), "--json", str(tmp_path / "s.json")])
+    assert code == 0 and "error" not in err.getvalue()
+    assert json.loads((tmp_path / "s.json").read_text())["frames"] > 0

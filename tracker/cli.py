@@ -315,7 +315,12 @@ def _run(args) -> int:
                          smoothed_sinks=sinks[len(streaming):], background=plate,
                          workers=args.workers)
     if not args.quiet:
-        _print_summary(args, source, result)
+        try:
+            _print_summary(args, source, result)
+        except BrokenPipeError:
+            # Whoever read the summary stopped (``track ... | head -1``): the outputs are
+            # complete; say nothing more to the closed pipe, as command-line tools do.
+            _silence_stdout()
     if result.interrupted:
         return EXIT_INTERRUPTED
     if not result.tracker.tracks:
@@ -344,6 +349,12 @@ def _load_background(path: Path, source):
                       f"the video's {size[0]}x{size[1]}")
         image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
     return image
+
+
+def _silence_stdout() -> None:
+    """Point sys.stdout at os.devnull, so that nothing (not even the interpreter's last
+    flush) writes to a closed pipe again."""
+    sys.stdout = open(os.devnull, "w")
 
 
 def _print_summary(args, source, result) -> None:
@@ -392,7 +403,8 @@ def main(argv=None) -> int:
         print(f"track: error: {exc}", file=sys.stderr)
         return EXIT_ERROR
     except OSError as exc:
-        print(f"track: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"track: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return EXIT_ERROR
     except KeyboardInterrupt:            # also during the first second's imports
         print("track: interrupted", file=sys.stderr)
