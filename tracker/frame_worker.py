@@ -57,6 +57,39 @@ def main_describes(frame_index: int) -> bool:
     return frame_index % period < share
 
 
+def described_chunks(source, tracker, batch: int, leave_to_main: bool = False
+                     ) -> Iterator[list[tuple]]:
+    """The first half of the tracking, for one process and for the worker alike: the frames
+    of ``source`` with their people found and described by ``tracker``
+    (PoseTracker.find_people, .describe), in lists of ``batch`` consecutive (frame_index,
+    time_s, frame, people, descriptions), the last one shorter; the stage "decode" timed.
+    leave_to_main: descriptions None for the frames the main process describes
+    (main_describes). An error from the source or the tracker is raised after a last list of
+    the frames before it, so that those are tracked too."""
+    stages = tracker.stage_seconds
+    chunk: list[tuple] = []
+    try:
+        clock = time.perf_counter()
+        for index, time_s, frame in source:
+            stages["decode"] += time.perf_counter() - clock
+            people = tracker.find_people(frame)
+            descriptions = (None if leave_to_main and main_describes(index)
+                            else [tracker.describe(p) for p in people])
+            chunk.append((index, time_s, frame, people, descriptions))
+            if len(chunk) == batch:
+                yield chunk
+                chunk = []
+            clock = time.perf_counter()
+    except GeneratorExit:
+        raise
+    except BaseException:
+        if chunk:
+            yield chunk
+        raise
+    if chunk:
+        yield chunk
+
+
 class FrameWorkerError(SilhouettePoseError, RuntimeError):
     """The worker process failed in a way that has no exception of its own to pass on."""
 
@@ -158,32 +191,22 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # Ctrl-C is the main process's
     for number in (signal.SIGTERM, signal.SIGHUP):    # not the main process's handlers:
         signal.signal(number, signal.SIG_DFL)         # close() ends the worker by SIGTERM
-    chunk: list = []
     try:
         from threadpoolctl import threadpool_limits
         with threadpool_limits(1), warnings.catch_warnings(record=True) as caught:
             # (the filters stay the main process's, copied by the fork)
             writer = _PassingWarnings(writer, caught)
-            stages = tracker.stage_seconds
-            stages.clear()
-            clock = time.perf_counter()
-            for index, time_s, frame in source:
-                stages["decode"] += time.perf_counter() - clock
-                people = tracker.find_people(frame)
-                descriptions = (None if main_describes(index)
-                                else [tracker.describe(p) for p in people])
-                chunk.append((index, time_s, people, descriptions))
-                if len(chunk) >= batch:
-                    writer.send(("frames", chunk))
-                    chunk = []
-                clock = time.perf_counter()
-            if chunk:
-                writer.send(("frames", chunk))
-            writer.send(("end", (dict(stages), source.frames_read, source.truncated)))
+            tracker.stage_seconds.clear()
+            for chunk in described_chunks(source, tracker, batch, leave_to_main=True):
+                # the frames themselves stay here: the main process needs their people only
+                writer.send(("frames", [(index, time_s, people, descriptions)
+                                        for index, time_s, _, people, descriptions in chunk]))
+            writer.send(("end", (dict(tracker.stage_seconds), source.frames_read,
+                                 source.truncated)))
     except (BrokenPipeError, ConnectionResetError):
         pass                                          # the main process has gone: so do we
     except BaseException as error:                    # noqa: BLE001 - passed on, not hidden
-        _send_error(writer, error, chunk)
+        _send_error(writer, error)
     finally:
         writer.close()
         os._exit(0)                                   # no atexit handlers of the parent's
@@ -208,13 +231,11 @@ class _PassingWarnings:
         self._writer.close()
 
 
-def _send_error(writer, error: BaseException, chunk: list) -> None:
+def _send_error(writer, error: BaseException) -> None:
     """Pass the worker's exception to the main process (as it is when it pickles, else as a
-    FrameWorkerError with its message), after the frames done before it (chunk), which one
-    process would have tracked too."""
+    FrameWorkerError with its message); the frames done before it were sent already
+    (described_chunks)."""
     try:
-        if chunk:
-            writer.send(("frames", chunk))
         writer.send(("error", error))
     except (BrokenPipeError, ConnectionResetError):
         return

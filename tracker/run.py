@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
-from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork
+from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from .pipeline import PoseTracker
 from .silhouettes import median_background
 from .sinks import PoseRecorder, Sink, close_sinks
@@ -148,19 +148,10 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
 def _in_process(source: VideoSource, tracker: PoseTracker, batch: int) -> Iterator[tuple]:
     """(frame_index, time_s, frame, poses, people by track id) of each frame, tracked here
     (one process), ``batch`` frames at a time (as the worker sends them: the same results)."""
-    stages = tracker.stage_seconds
-    chunk, images = [], []
-    clock = time.perf_counter()
-    for index, time_s, frame in source:
-        stages["decode"] += time.perf_counter() - clock
-        people = tracker.find_people(frame)
-        chunk.append((index, time_s, people, [tracker.describe(p) for p in people]))
-        images.append(frame)
-        if len(chunk) == batch:
-            yield from _tracked(tracker, chunk, images)
-            chunk, images = [], []
-        clock = time.perf_counter()
-    yield from _tracked(tracker, chunk, images)
+    for chunk in described_chunks(source, tracker, batch):
+        yield from _tracked(tracker, [(index, time_s, people, descriptions)
+                                      for index, time_s, _, people, descriptions in chunk],
+                            [frame for _, _, frame, _, _ in chunk])
 
 
 def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
