@@ -293,9 +293,6 @@ def default_extractor(settings: TrackerSettings, **options) -> SilhouetteExtract
                                min_area_fraction=settings.min_area_fraction, **options)
 
 
-#: joints_m of a TrackedPose whose skeleton is not made yet (PoseTracker._decide).
-_NO_JOINTS = np.empty((0, 3))
-
 #: A person's descriptor (D,) and its mirror image's (D,) or None: PoseTracker.describe.
 Description = tuple[np.ndarray, "np.ndarray | None"]
 
@@ -426,9 +423,16 @@ class PoseTracker:
         poses: list[list[TrackedPose]] = [[] for _ in frames]
         if rows:
             hypotheses, novelty = self._regress([r[3] for r in rows], [r[4] for r in rows])
-            decided = [self._decide(track_id, person, frames[slot][0], frames[slot][1], h, n)
-                       for (slot, track_id, person, _, _), h, n in zip(rows, hypotheses, novelty)]
-            for (slot, *_), pose in zip(rows, self._with_skeletons(decided)):
+            decisions = [self._decide(track_id, person, h)
+                         for (_, track_id, person, _, _), h in zip(rows, hypotheses)]
+            joints = self._skeletons(decisions, [r[2] for r in rows])
+            for (slot, track_id, person, _, _), h, n, d, j in zip(rows, hypotheses, novelty,
+                                                                  decisions, joints):
+                frame_index, time_s = frames[slot][:2]
+                pose = TrackedPose(frame_index, time_s, track_id, h.raw, d.filtered, d.ambiguous,
+                                   j, person.centroid, person.bbox, d.runner_up,
+                                   d.runner_up_probability, n)
+                self.tracks[track_id].unfamiliar += pose.unfamiliar
                 poses[slot].append(pose)
         return list(zip(poses, people_by_frame))
 
@@ -468,11 +472,9 @@ class PoseTracker:
         self._lap("regression", clock)
         return hypotheses, novelty
 
-    def _decide(self, track_id: int, person: PersonMask, frame_index: int, time_s: float,
-                hypotheses, novelty: float | None) -> TrackedPose:
-        """A track's pose for one frame from its hypotheses: the front/back filters (the
-        direction of travel as soft evidence); its joints_m are still empty
-        (:meth:`_with_skeletons` fills them)."""
+    def _decide(self, track_id: int, person: PersonMask, hypotheses):
+        """A track's front/back decision (tracker.hypotheses.Decision) for one frame from its
+        hypotheses, the direction of travel as soft evidence."""
         state = self._state(track_id)
         clock = time.perf_counter()
         travel = state.travel.push(person.centroid[0], person.bbox[3])
@@ -480,25 +482,20 @@ class PoseTracker:
         state.frames += 1
         if self.settings.keep_history:
             state.measured.append(hypotheses.raw)
-        pose = TrackedPose(frame_index, time_s, track_id, hypotheses.raw, decision.filtered,
-                           decision.ambiguous, _NO_JOINTS, person.centroid, person.bbox,
-                           decision.runner_up, decision.runner_up_probability, novelty)
-        state.unfamiliar += pose.unfamiliar
         self._lap("filter", clock)
-        return pose
+        return decision
 
-    def _with_skeletons(self, poses: list[TrackedPose]) -> list[TrackedPose]:
-        """The poses with their joints_m (18, 3): the skeletons of all at once (forward
-        kinematics costs about as much for a batch as for one pose), each placed on its
-        approximate ground position."""
+    def _skeletons(self, decisions: list, people: list[PersonMask]) -> np.ndarray:
+        """The joints (N, 18, 3) metres of the decisions' filtered poses, each placed on its
+        person's approximate ground position, all in one forward-kinematics call (it costs
+        about as much for a batch as for one pose)."""
         clock = time.perf_counter()
         h, w = self.frame_shape
-        ground = np.array([ground_position_from_image(p.centroid_px, p.bbox_px[3], w, h,
-                                                      focal_px=self._focal_px) for p in poses])
-        joints = pose_joints_m(np.array([p.filtered for p in poses]), root_position_m=ground)
-        out = [replace(p, joints_m=j) for p, j in zip(poses, joints)]
+        ground = np.array([ground_position_from_image(p.centroid, p.bbox[3], w, h,
+                                                      focal_px=self._focal_px) for p in people])
+        joints = pose_joints_m(np.array([d.filtered for d in decisions]), root_position_m=ground)
         self._lap("skeleton", clock)
-        return out
+        return joints
 
     def _lap(self, stage: str, since: float) -> float:
         now = time.perf_counter()
