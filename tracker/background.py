@@ -74,17 +74,12 @@ def fill_holes(mask: np.ndarray) -> np.ndarray:
     return filled
 
 
-def frame_gain(frame: np.ndarray, background: np.ndarray, step: int = 8) -> np.ndarray:
-    """Per-channel brightness gain (3,) of frame over background (both BGR uint8 (h, w, 3)):
-    the median ratio on every ``step``-th pixel; people cover a minority of the image, so a
-    global change of light or exposure shows as a gain away from 1."""
-    return GainMeter(background, step)(frame)
-
-
 class GainMeter:
-    """:func:`frame_gain` against one background (BGR uint8 (h, w, 3)), its sampled pixels
-    and their usable ones prepared once (the tracker measures every frame against the same
-    background); call with a frame (BGR uint8 (h, w, 3)) for its gain (3,)."""
+    """Per-channel brightness gain (3,) of a frame over one background (both BGR uint8
+    (h, w, 3)): the median ratio on every ``step``-th pixel; people cover a minority of the
+    image, so a global change of light or exposure shows as a gain away from 1. The
+    background's sampled pixels and their usable ones are prepared once (the tracker measures
+    every frame against the same background); call with a frame for its gain."""
 
     def __init__(self, background: np.ndarray, step: int = 8):
         self.step = step
