@@ -136,25 +136,33 @@ def evaluate_view(trial: Trial, view: str, track: ViewTrack, constant=None, fit=
     return out, rows
 
 
-def _reference_extractor(trial: Trial, view: str, mode: str, fit=None):
+def _fitted_body(fit) -> tuple:
+    """(the body model, the fitted body's vertices (T, V, 3) metres) for ``rendered``: posed
+    once for the four views."""
+    from sequences.body import load_body
+    from sequences.keypoint_fit import posed_vertices
+
+    body = load_body()
+    return body, posed_vertices(fit, body)
+
+
+def _reference_extractor(trial: Trial, view: str, mode: str, fitted=None):
     """A function wrapping an extractor in a ReferenceMaskExtractor of ``mode`` ("cut",
     "drawn") fed with the reference keypoints projected into ``view``, or for "rendered" in a
-    RenderedMaskExtractor fed with the fitted body (fit: reference_body) rendered through the
+    RenderedMaskExtractor fed with the fitted body (fitted: _fitted_body) rendered through the
     view's camera at the video's size."""
     from tracker.offline.reference_masks import ReferenceMaskExtractor, RenderedMaskExtractor
     from tracker.offline.silhouette_evaluation import pose2sim_body
 
     frames = video_frames(trial)
     if mode == "rendered":
-        from sequences.body import load_body
-        from sequences.keypoint_fit import posed_vertices
         from sequences.pose2sim import render_view_masks
         from tracker.video import open_video
 
         source = open_video(trial.video(view))
-        body = load_body()
-        masks = render_view_masks(posed_vertices(fit, body), body.faces, body.patch_start,
-                                  trial.camera(view), (source.height, source.width))
+        body, vertices = fitted
+        masks = render_view_masks(vertices, body.faces, body.patch_start, trial.camera(view),
+                                  (source.height, source.width))
         return lambda extractor: RenderedMaskExtractor(extractor, masks, frames)
     keypoints = project_reference(view, frames, trial)
     body = pose2sim_body(trial)
@@ -181,13 +189,14 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
     per_view, subject = {}, {}
     constant = constant_pose(model)
     fit = reference_body(trial, progress=_fit_progress)
+    fitted = _fitted_body(fit) if reference_masks == "rendered" else None
     for view in VIEWS:
         roll_deg = camera_roll_deg(trial, view) if roll else 0.0
         track = _track_view(trial.video(view), model, max_people, roll_deg,
                             keep_masks=sheet is not None,
                             trust_zone_foreground=trust_zone_foreground,
                             reference_extractor=None if reference_masks == "none" else
-                            _reference_extractor(trial, view, reference_masks, fit))
+                            _reference_extractor(trial, view, reference_masks, fitted))
         per_view[view], rows = evaluate_view(trial, view, track, constant, fit)
         if sheet is not None:
             picked = rows[np.linspace(0, len(rows) - 1, 8).astype(int)]
