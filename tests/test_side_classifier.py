@@ -10,8 +10,10 @@ from regressor.angles import pose_angles, wrap_deg
 from regressor.side_classifier import SideClassifier
 from sequences.pose_vector import front_back_flip
 from tracker.filtering import PoseKalmanFilter
-from tracker.hypotheses import (CANONICAL_SWITCH_PROBABILITY, SWITCH_PROBABILITY,
-                                FrontBackTracker, canonical_hypotheses, switch_probability)
+from tracker.hypotheses import (CANONICAL_EVIDENCE_WEIGHT, CANONICAL_SWITCH_PROBABILITY,
+                                EVIDENCE_WEIGHT, SWITCH_PROBABILITY, FrontBackTracker,
+                                canonical_hypotheses, evidence_weight, switch_probability)
+from tracker.pipeline import front_back_tracker
 
 FPS = 30.0
 
@@ -117,6 +119,9 @@ def test_only_a_model_with_limbs_and_a_side_classifier_switches_canonically():
 
     assert switch_probability(Plain()) == SWITCH_PROBABILITY
     assert switch_probability(Canonical()) == CANONICAL_SWITCH_PROBABILITY
+    # and weighs its evidence by the canonical chain's own exponent
+    assert evidence_weight(Plain()) == EVIDENCE_WEIGHT
+    assert evidence_weight(Canonical()) == CANONICAL_EVIDENCE_WEIGHT != EVIDENCE_WEIGHT
 
 
 def test_the_joints_ambiguity_inflation_is_smaller_for_a_model_that_gives_canonical_pairs():
@@ -210,6 +215,10 @@ def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pai
     np.testing.assert_allclose(direction, limbs[0, :2] / np.linalg.norm(limbs[0, :2]))
     assert np.linalg.norm(hyps[0].poses[0, :2]) == pytest.approx(np.linalg.norm(poses[0, 0, :2]))
     assert switch_probability(model) == CANONICAL_SWITCH_PROBABILITY
+    # the tracker's chains (built by one helper) take the canonical switch rates and weight
+    chain = front_back_tracker(model, 30.0)
+    assert chain.switch == CANONICAL_SWITCH_PROBABILITY
+    assert chain.evidence_weight == CANONICAL_EVIDENCE_WEIGHT
     path = tmp_path / "side.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)

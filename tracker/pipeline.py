@@ -25,7 +25,7 @@ from regressor.stacking import FrameStacker
 from .association import Associator
 from .roll import upright_mask
 from .filtering import PoseKalmanFilter
-from .hypotheses import FrontBackTracker, propose_batch, switch_probability
+from .hypotheses import FrontBackTracker, evidence_weight, propose_batch, switch_probability
 from .mirror_limbs import sees_mirror
 from .silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
 from .sinks.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
@@ -211,8 +211,16 @@ def front_back_tracker(estimator, fps: float, settings: TrackerSettings = Tracke
                        filter_factory: Callable[[float], PoseFilter] | None = None,
                        ) -> FrontBackTracker:
     """A track's front/back hypotheses with the filters of filter_factories."""
-    chain, limbs = filter_factories(estimator, settings, filter_factory)
+    return _front_back_chain(estimator, fps, settings,
+                             *filter_factories(estimator, settings, filter_factory))
+
+
+def _front_back_chain(estimator, fps: float, settings: TrackerSettings, chain, limbs
+                      ) -> FrontBackTracker:
+    """The one place a track's FrontBackTracker is built: the estimator's switch rates and
+    evidence weight, the filter factories chain and limbs (filter_factories)."""
     return FrontBackTracker(chain, fps, switch=switch_probability(estimator),
+                            evidence_weight=evidence_weight(estimator),
                             keep_history=settings.keep_history, limb_filter_factory=limbs)
 
 
@@ -441,10 +449,8 @@ class PoseTracker:
             travel = TravelDirection(self.fps, self.frame_shape[1], focal_px=self._focal_px)
             self.tracks[track_id] = _TrackState(
                 FrameStacker(self.estimator.stack_depth),
-                FrontBackTracker(self.filter_factory, self.fps,
-                                 switch=switch_probability(self.estimator),
-                                 keep_history=self.settings.keep_history,
-                                 limb_filter_factory=self.limb_filter_factory), travel,
+                _front_back_chain(self.estimator, self.fps, self.settings, self.filter_factory,
+                                  self.limb_filter_factory), travel,
                 FrameStacker(self.estimator.stack_depth) if self._mirror else None)
         return self.tracks[track_id]
 

@@ -29,8 +29,8 @@ from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_v
 from regressor.stacking import stack_frames
 from sequences.skeleton import CMU_UNIT_M
 from sequences.spiral import spiral_walk
-from ..hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, propose_sequence,
-                          switch_probability)
+from ..hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, evidence_weight,
+                          propose_sequence, switch_probability)
 from ..pipeline import kalman_factory
 from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW, TravelDirection
 from ..video import focal_length_px
@@ -253,6 +253,7 @@ def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOption
     """Filtered heading RMS (deg) of FrontBackTracker (with tracker_options, e.g.
     travel_weight, evidence_weight) over one of validation_renders' sequences."""
     tracker_options.setdefault("switch", switch_probability(model))
+    tracker_options.setdefault("evidence_weight", evidence_weight(model))
     bank = FrontBackTracker(kalman_factory(model), camera.fps, keep_history=False,
                             **tracker_options)
     width = camera.size[1]
@@ -264,7 +265,7 @@ def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOption
 
 
 def choose_weights(model, renders: dict, travel_weights=(1 / 15, 0.1, 0.2, 0.5),
-                   evidence_weights=(0.4, 0.6, 0.8, 1.0)) -> tuple[tuple[float, float], dict]:
+                   evidence_weights=(0.4, 0.6, 0.8, 1.0, 2.0, 3.0)) -> tuple[tuple[float, float], dict]:
     """The (travel_weight, evidence_weight) pair with the lowest mean filtered heading RMS
     over renders (validation_renders); and every pair -> per-sequence RMS table. The caller
     should still check the pair against a backward walker (tracker/hypotheses.py
