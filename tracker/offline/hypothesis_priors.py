@@ -265,7 +265,8 @@ def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOption
 
 
 def choose_weights(model, renders: dict, travel_weights=(1 / 15, 0.1, 0.2, 0.5),
-                   evidence_weights=(0.4, 0.6, 0.8, 1.0, 2.0, 3.0)) -> tuple[tuple[float, float], dict]:
+                   evidence_weights=(0.4, 0.6, 0.8, 1.0, 2.0, 3.0)
+                   ) -> tuple[tuple[float, float], dict]:
     """The (travel_weight, evidence_weight) pair with the lowest mean filtered heading RMS
     over renders (validation_renders); and every pair -> per-sequence RMS table. The caller
     should still check the pair against a backward walker (tracker/hypotheses.py
