@@ -235,8 +235,8 @@ CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 #: (the chain replayed as ``track`` builds it, one-off driver /work/tmp/s32/replay.py; mean
 #: filtered heading RMS / corr8 of the 8 most-moving angles): weight 1 35.2 deg / 0.572, 1.5
 #: 34.7 / 0.569, 2 32.1 / 0.582, 3 32.1 / 0.586, 4 32.2 / 0.586, 6 35.4 / 0.574 (travel weight
-#: 0.02 / 0.08 with weight 2: 31.6 / 32.6, so TRAVEL_WEIGHT stays). Why the canonical chain wants more than 1:
-#: filter j continues its best predecessor's, so while the chain holds the member, the flip's
+#: 0.02 / 0.08 with weight 2: 31.6 / 32.6, so TRAVEL_WEIGHT stays). Why the canonical chain
+#: wants more than 1: filter j continues its best predecessor's, so while the chain holds the member, the flip's
 #: filter is a fresh copy of the member's, updated with the flip once, every frame; its own
 #: continuation then scores 3-7 nats a frame below the member's, and evidence of about 1 nat a
 #: frame never catches up (05_02's spiral, validation: the member held for 180 frames through
