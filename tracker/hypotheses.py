@@ -231,23 +231,23 @@ CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this p
 #: The limb network's canonical member changes body only where its rule does (mostly in
 #: profile), so these are far below SWITCH_PROBABILITY's.
 CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
-#: EVIDENCE_WEIGHT for the canonical chain. Chosen 2026-12-03 on the 28 validation renders
-#: (the chain replayed as ``track`` builds it, one-off driver /work/tmp/s32/replay.py; mean
-#: filtered heading RMS / corr8 of the 8 most-moving angles): weight 1 35.2 deg / 0.572, 1.5
-#: 34.7 / 0.569, 2 32.1 / 0.582, 3 32.1 / 0.586, 4 32.2 / 0.586, 6 35.4 / 0.574 (travel weight
-#: 0.02 / 0.08 with weight 2: 31.6 / 32.6, so TRAVEL_WEIGHT stays). Why the canonical chain
-#: wants more than 1: filter j continues its best predecessor's, so while the chain holds the member, the flip's
-#: filter is a fresh copy of the member's, updated with the flip once, every frame; its own
-#: continuation then scores 3-7 nats a frame below the member's, and evidence of about 1 nat a
-#: frame never catches up (05_02's spiral, validation: the member held for 180 frames through
+#: EVIDENCE_WEIGHT for the canonical chain. Chosen 2026-12-03 on the 28 validation renders (the
+#: chain replayed as ``track`` builds it, one-off driver /work/tmp/s32/replay.py; mean filtered
+#: heading RMS / corr8 of the 8 most-moving angles): weight 1 35.2 deg / 0.572, 1.5 34.7 /
+#: 0.569, 2 32.1 / 0.582, 3 32.1 / 0.586, 4 32.2 / 0.586, 6 35.4 / 0.574 (travel weight 0.02 /
+#: 0.08 with weight 2: 31.6 / 32.6, so TRAVEL_WEIGHT stays). Why the canonical chain wants more
+#: than 1: filter j continues its best predecessor's, so while the chain holds the member, the
+#: flip's filter is a fresh copy of the member's, updated with the flip once, every frame; its
+#: own continuation then scores 3-7 nats a frame below the member's, and evidence of about 1 nat
+#: a frame never catches up (05_02's spiral, validation: the member held for 180 frames through
 #: a turn from profile to the back while the side evidence favoured the flip on ~100 of them).
 #: On the five validation videos through ``track`` (02_02 / 08_03 / 05_02 / 09_04 / 02_05),
 #: weight 1 -> 2: filtered heading RMS 8.7 / 8.5 / 74.1 / 7.2 / 79.2 -> 9.0 / 8.6 / 26.9 / 8.1 /
 #: 65.5 deg, err53 mean 7.74 -> 7.59, corr8 0.708 / 0.786 / 0.071 / 0.477 / 0.364 -> 0.692 /
-#: 0.771 / 0.058 / 0.477 / 0.359. Tried and not adopted the same day: each state keeping its
-#: own filter (continued from itself whatever the best predecessor; or from the predecessor
-#: whose filter explains the pose best, which came to the same), so the evidence alone moves
-#: the chain: on the 28 renders heading 35.2 -> 37.8 deg (median 17.5 -> 23.8), corr8 0.572 ->
+#: 0.771 / 0.058 / 0.477 / 0.359. Tried and not adopted the same day: each state keeping its own
+#: filter (continued from itself whatever the best predecessor; or from the predecessor whose
+#: filter explains the pose best, which came to the same), so the evidence alone moves the
+#: chain: on the 28 renders heading 35.2 -> 37.8 deg (median 17.5 -> 23.8), corr8 0.572 ->
 #: 0.573; with evidence weight 0.3-2 and switch rates x0.3-1 no better (37.7-46.0).
 CANONICAL_EVIDENCE_WEIGHT = 2.0
 #: P(the member on the main head's heading side is the true one | that head's heading norm
