@@ -127,7 +127,7 @@ def test_close_ends_a_worker_still_running(walk, model):
     tracker = PoseTracker(model, source.fps, TrackerSettings(keep_history=False))
     _prime(source, tracker, None)
     worker = FrameWorker(source, tracker, batch=1)
-    next(iter(worker))                       # it is working, and blocks once the pipe is full
+    next(worker.chunks())                    # it is working, and blocks once the pipe is full
     worker.close()
     assert not worker._process.is_alive()
 

@@ -101,8 +101,8 @@ def can_fork() -> bool:
 
 class FrameWorker:
     """Runs ``tracker``'s first half (PoseTracker.find_people and .describe) over ``source``
-    in a forked process; iterate to get (frame_index, time_s, people, descriptions) in frame
-    order. The tracker must be primed (PoseTracker.prime; tracker.run._prime): the worker
+    in a forked process; :meth:`chunks` gives the frames in order, as the worker sends them.
+    The tracker must be primed (PoseTracker.prime; tracker.run._prime): the worker
     starts from a copy of it, background model included, so the start-up is the one
     process's (priming in the worker, on the one thread it keeps to, took 0.2-0.4 s longer on
     the Pose2Sim views). After the last frame, :attr:`stage_seconds` holds the worker's
@@ -128,10 +128,6 @@ class FrameWorker:
         finally:
             cv2.setNumThreads(threads)
         writer.close()           # the worker's end: its death then ends our reads
-
-    def __iter__(self) -> Iterator[tuple]:
-        for chunk in self.chunks():
-            yield from chunk
 
     def chunks(self) -> Iterator[list[tuple]]:
         """The frames as the worker sends them: lists of up to ``batch`` consecutive
