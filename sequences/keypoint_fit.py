@@ -27,7 +27,7 @@ from typing import Callable
 import numpy as np
 from scipy.optimize import least_squares
 
-from regressor.angles import POSE_DIM, wrap_deg
+from regressor.angles import POSE_DIM, angles_to_pose, wrap_deg
 from regressor.errors import SilhouettePoseError
 
 from .body import BodyModel, BodyShape, Skinner, load_body
@@ -118,7 +118,8 @@ class _Posed:
     def state(self, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Joint positions and bone ends (T, 31, 3) metres."""
         params = np.atleast_2d(params)
-        local = pose_vectors_to_local_rotations(pose_from_params(params), 0.0)
+        # parameters 0..53 are the pose's 54 angles (yaw as the heading)
+        local = pose_vectors_to_local_rotations(angles_to_pose(params[:, :54]), 0.0)
         return self.skinner.joints_and_ends(local, params[:, 54:57])
 
     def point(self, joints, ends, name: str) -> np.ndarray:
@@ -137,12 +138,6 @@ class _Posed:
         d = np.stack([_unit(self.point(joints, ends, b) - self.point(joints, ends, a))
                       for _, _, a, b in BONES], axis=1)
         return d, self.point(joints, ends, "midhip")
-
-
-def pose_from_params(params: np.ndarray) -> np.ndarray:
-    """Pose vectors (T, 55) from fit parameters (T, 57): yaw deg, 53 angles deg, hips m."""
-    yaw = np.radians(params[:, 0])
-    return np.concatenate([np.cos(yaw)[:, None], np.sin(yaw)[:, None], params[:, 1:54]], axis=1)
 
 
 def fitted_shape(points: np.ndarray, names: list[str], body: BodyModel) -> BodyShape:
@@ -196,7 +191,7 @@ def fit_body(points, names, body: BodyModel | None = None,
             progress(t + 1, T)
     d, _ = posed.directions(params)
     error = np.degrees(np.arccos(np.clip((d * targets).sum(axis=-1), -1.0, 1.0)))
-    return BodyFit(pose_from_params(params), params[:, 54:57].copy(), shape, error)
+    return BodyFit(angles_to_pose(params[:, :54]), params[:, 54:57].copy(), shape, error)
 
 
 def posed_vertices(fit: BodyFit, body: BodyModel | None = None) -> np.ndarray:
