@@ -43,7 +43,7 @@ def _tile(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 
 def draw(trial, frames: list[int]) -> np.ndarray:
-    """One BGR image: a row per view, a tile per frame (video frame indices)."""
+    """One BGR image: a row per view, a tile per frame (video frame indices, ascending)."""
     available = set(video_frames(trial).tolist())
     missing = [f for f in frames if f not in available]
     if missing:
@@ -57,7 +57,12 @@ def draw(trial, frames: list[int]) -> np.ndarray:
         source = open_video(trial.video(view))
         masks = render_view_masks(vertices, body.faces, body.patch_start, trial.camera(view),
                                   (source.height, source.width))
-        images = {index: image for index, _, image in source if index in frames}
+        images = {}
+        for index, _, image in source:          # decoded only as far as the last frame drawn
+            if index in frames:
+                images[index] = image
+            if index >= frames[-1]:
+                break
         lines.append(np.hstack([_tile(images[f], m) for f, m in zip(frames, masks)]))
     width = max(line.shape[1] for line in lines)
     return np.vstack([np.pad(line, ((0, 0), (0, width - line.shape[1]), (0, 0)))
