@@ -142,8 +142,8 @@ class HeadingIndex:
         over the training rows' own 99th percentile (:meth:`typical_distance`), (N,). A
         threshold, not a boundary: about 1 % of the training rows themselves are above 1; far
         above it the regressor extrapolates. On the rendered validation videos every frame is
-        below 1; on the real Pose2Sim video 26-79 % of a view's frames are above it (README,
-        "Accuracy"). NaN when the index has k or fewer rows."""
+        below 1; on the real Pose2Sim video 26-79 % of a view's frames are above it
+        (docs/accuracy.md). NaN when the index has k or fewer rows."""
         return self.distance(X) / max(self.typical_distance(), 1e-12)
 
     def _nearest(self, X: np.ndarray, extra: int = 0) -> tuple[np.ndarray, np.ndarray]:

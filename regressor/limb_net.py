@@ -71,7 +71,7 @@ Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 20
   / 0.46): combinations of the motions we have are not the new kinds of motion the networks
   lack.
 - Wider combinations, tried 2026-12-03 after the Pose2Sim clip was found to fail even on
-  renders of its own poses (README, "Real video"): 40 made-up trials (31,073 rows, +46 %),
+  renders of its own poses (docs/accuracy.md, "Real video"): 40 made-up trials (31,073 rows, +46 %),
   each the root and legs of one training trial, the spine and head of a second, each arm of a
   third and a fourth, with slowly varying offsets added (trunk bend -10..40 degrees forwards,
   -20..20 sideways; +-30 degrees on each shoulder axis). Same measure, seed 0: corr8 0.593 ->

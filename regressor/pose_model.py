@@ -77,7 +77,7 @@ class PoseModelError(SilhouettePoseError, ValueError):
 #: A frame whose novelty (:meth:`PoseModel.novelty`) is above this is unlike the training
 #: silhouettes: about 1 % of the training rows themselves are, no frame of the rendered
 #: validation and test videos is (medians 0.50-0.82, maximum 0.98), and 26-79 % of the real
-#: Pose2Sim views' frames are (README, "Accuracy"), where the poses are no better than a
+#: Pose2Sim views' frames are (docs/accuracy.md), where the poses are no better than a
 #: constant. ``track`` counts such frames per track (the JSON's "unfamiliar_frames").
 UNFAMILIAR_NOVELTY = 1.0
 

@@ -86,7 +86,7 @@ def video_like(masks: np.ndarray, on: bool = True, seed: int = 0) -> list | np.n
     """The rendered masks (T, H, W) as the tracker's extractor gives them from video
     (tracker.offline.training.noisy_masks, as the model was trained on), or as they are when
     on is False. Priors learned on crisp renders would describe inputs the model never sees
-    in use: the layout block reads their open gaps differently (README, "Accuracy")."""
+    in use: the layout block reads their open gaps differently (docs/accuracy.md)."""
     if not on:
         return masks
     from .training import noisy_masks
