@@ -43,7 +43,7 @@ def _tile(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 
 def draw(trial, frames: list[int]) -> np.ndarray:
-    """One BGR image: a row per view, a tile per frame (video frame indices, ascending)."""
+    """One BGR image: a row per view, a tile per frame (video frame indices)."""
     available = set(video_frames(trial).tolist())
     missing = [f for f in frames if f not in available]
     if missing:
@@ -61,7 +61,7 @@ def draw(trial, frames: list[int]) -> np.ndarray:
         for index, _, image in source:          # decoded only as far as the last frame drawn
             if index in frames:
                 images[index] = image
-            if index >= frames[-1]:
+            if index >= max(frames):
                 break
         lines.append(np.hstack([_tile(images[f], m) for f, m in zip(frames, masks)]))
     width = max(line.shape[1] for line in lines)

@@ -442,6 +442,14 @@ def evidence_weight(estimator) -> float:
     return EVIDENCE_WEIGHT
 
 
+def chain_options(estimator) -> dict:
+    """FrontBackTracker's keyword arguments that depend on the estimator: its switch rates
+    (switch_probability) and evidence weight (evidence_weight). The tracker's chains and the
+    offline replays that choose their weights both take them from here."""
+    return {"switch": switch_probability(estimator),
+            "evidence_weight": evidence_weight(estimator)}
+
+
 def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
             mirrored: np.ndarray | None = None) -> Hypotheses:
     """The hypotheses of one frame from a stacked descriptor (k*D,): the estimator's

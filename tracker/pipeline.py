@@ -25,7 +25,7 @@ from regressor.stacking import FrameStacker
 from .association import Associator
 from .roll import upright_mask
 from .filtering import PoseKalmanFilter
-from .hypotheses import FrontBackTracker, evidence_weight, propose_batch, switch_probability
+from .hypotheses import FrontBackTracker, chain_options, propose_batch
 from .mirror_limbs import sees_mirror
 from .silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
 from .sinks.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
@@ -219,8 +219,7 @@ def _front_back_chain(estimator, fps: float, settings: TrackerSettings, chain, l
                       ) -> FrontBackTracker:
     """The one place a track's FrontBackTracker is built: the estimator's switch rates and
     evidence weight, the filter factories chain and limbs (filter_factories)."""
-    return FrontBackTracker(chain, fps, switch=switch_probability(estimator),
-                            evidence_weight=evidence_weight(estimator),
+    return FrontBackTracker(chain, fps, **chain_options(estimator),
                             keep_history=settings.keep_history, limb_filter_factory=limbs)
 
 

@@ -29,8 +29,7 @@ from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_v
 from regressor.stacking import stack_frames
 from sequences.skeleton import CMU_UNIT_M
 from sequences.spiral import spiral_walk
-from ..hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, evidence_weight,
-                          propose_sequence, switch_probability)
+from ..hypotheses import DEFAULT_EXPERTS, FrontBackTracker, chain_options, propose_sequence
 from ..pipeline import kalman_factory
 from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW, TravelDirection
 from ..video import focal_length_px
@@ -252,10 +251,8 @@ def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOption
                        **tracker_options) -> float:
     """Filtered heading RMS (deg) of FrontBackTracker (with tracker_options, e.g.
     travel_weight, evidence_weight) over one of validation_renders' sequences."""
-    tracker_options.setdefault("switch", switch_probability(model))
-    tracker_options.setdefault("evidence_weight", evidence_weight(model))
     bank = FrontBackTracker(kalman_factory(model), camera.fps, keep_history=False,
-                            **tracker_options)
+                            **{**chain_options(model), **tracker_options})
     width = camera.size[1]
     travel = TravelDirection(camera.fps, width, focal_px=focal_length_px(width))
     filtered = np.array([bank.step(h, travel.push(u, height)).filtered
