@@ -13,7 +13,7 @@ import numpy as np
 
 from regressor.codebook import Codebook, CodebookError, fit_codebook, soft_histogram
 from regressor.edges import DegenerateSilhouetteError, SilhouetteError, sample_edge_points
-from regressor.shape_context import shape_contexts
+from regressor.shape_context import mirrored_bins, shape_contexts
 
 from .errors import SilhouettePoseError
 
@@ -25,6 +25,7 @@ __all__ = [
     "DescriptorSettingsError",
     "SilhouetteError",
     "contexts_for_masks",
+    "descriptor_and_mirror",
     "descriptor_for_mask",
     "descriptors_for_masks",
     "fit_codebook_for_masks",
@@ -125,6 +126,25 @@ def descriptor_for_mask(mask: np.ndarray, settings: DescriptorSettings, codebook
     """
     _check_codebook(settings, codebook)
     return soft_histogram(mask_contexts(mask, settings), codebook, settings.n_votes, settings.total)
+
+
+def descriptor_and_mirror(mask: np.ndarray, settings: DescriptorSettings,
+                          codebook: Codebook) -> tuple[np.ndarray, np.ndarray]:
+    """(descriptor_for_mask(mask), the descriptor of its mirror image (the mask flipped left
+    to right)), (K,) float64 each. The mirror's shape contexts are the mask's own with their
+    sectors reflected (regressor.shape_context.mirrored_bins), so the edge is sampled and the
+    contexts computed once; the flipped mask's own descriptor differs from it only by where
+    the edge sampling starts. With an odd number of sectors (no reflection of sectors) the
+    flipped mask is described. Raises as descriptor_for_mask."""
+    _check_codebook(settings, codebook)
+    try:
+        order = mirrored_bins(settings.n_angular, settings.n_radial)
+    except ValueError:
+        return (descriptor_for_mask(mask, settings, codebook),
+                descriptor_for_mask(np.asarray(mask)[:, ::-1], settings, codebook))
+    contexts = mask_contexts(mask, settings)
+    return tuple(soft_histogram(c, codebook, settings.n_votes, settings.total)
+                 for c in (contexts, contexts[:, order]))
 
 
 def descriptors_for_masks(

@@ -31,45 +31,65 @@ from tracker.offline.training import (CANONICAL_RULES, MixtureOptions, TrainingO
                                       cached_descriptors, cached_layouts, codebook_digest,
                                       dataset_descriptors, descriptor_cache_key,
                                       fit_dataset_codebook, fit_noisy_codebook,
-                                      noisy_dataset_descriptors, noisy_dataset_layouts,
+                                      noisy_dataset_inputs, noisy_dataset_layouts,
                                       train_mixture_model,
                                       train_pose_model)
 from tracker.one_line_parser import OneLineParser
 
 
-def _describe(args, masks, settings, codebook, start: float, log, what: str):
-    """Descriptors (N, K) of masks (N, H, W) on the codebook: of the clean masks with
-    --clean, else of their video-like versions; progress logged as ``what``."""
+def _describe_clean(args, masks, settings, codebook, start: float, log, what: str):
+    """Descriptors (N, K) of the clean masks (N, H, W) on the codebook (--clean); progress
+    logged as ``what``."""
     every = (lambda d, n: log(f"  {what} {d}/{n} ({time.perf_counter() - start:.0f} s)")
              if d % 10000 < 500 else None)
-    if args.clean:
-        return dataset_descriptors(masks, settings, codebook, workers=args.workers,
-                                   progress=every)
-    return noisy_dataset_descriptors(masks, settings, codebook, seed=args.seed,
-                                     workers=args.workers, progress=every)
+    return dataset_descriptors(masks, settings, codebook, workers=args.workers,
+                               progress=every)
 
 
-def _mirrored_inputs(args, data, settings, codebook, key: str, start: float, log):
-    """(histograms (N, D), layouts (N, grid^2) or None) of the data set's masks flipped left
-    to right, made and cached as the masks' own are (the codebook's digest in the key, so a
-    new codebook never meets old mirrored descriptors)."""
-    flipped = data.masks[:, :, ::-1]
-    mirror_key = f"{key}-mirror-{codebook_digest(codebook, settings)}"
+def _mirrored_inputs(args, data, settings, codebook, key: str, start: float, log,
+                    made: dict):
+    """(histograms (N, D), layouts (N, grid^2) or None) of the data set's masks' mirror
+    images (flipped left to right), cached as the masks' own are (the codebook's digest in
+    the key, so a new codebook never meets old mirrored descriptors). made: the arrays the
+    descriptor pass already made (noisy_dataset_inputs; from scratch it makes the mirror
+    images' inputs with the masks' own), else they are made here. With --clean, the clean
+    flipped masks are described."""
+    mirror_key = f"{key}-reflected-{codebook_digest(codebook, settings)}"
 
     def compute():
-        log("mirror images: descriptors ...")
-        return (_describe(args, flipped, settings, codebook, start, log, "mirrored descriptors"),
-                codebook)
+        if "mirror_histograms" not in made:
+            log("mirror images: descriptors ...")
+            if args.clean:
+                made["mirror_histograms"] = _describe_clean(
+                    args, data.masks[:, :, ::-1], settings, codebook, start, log,
+                    "mirrored descriptors")
+            else:
+                made.update(_noisy_inputs(args, data.masks, settings, codebook, True, start,
+                                          log, "mirror images' inputs"))
+        return made["mirror_histograms"], codebook
 
     X_mirror, _ = cached_descriptors(args.cache, mirror_key, compute)
     layouts = None
     if args.layout_grid:
-        layouts = cached_layouts(
-            args.cache, mirror_key, args.layout_grid,
-            lambda: noisy_dataset_layouts(flipped, args.layout_grid, seed=args.seed,
-                                          workers=args.workers))
+        def compute_layouts():
+            if "mirror_layouts" not in made:
+                made.update(_noisy_inputs(args, data.masks, settings, codebook, True, start,
+                                          log, "mirror images' inputs"))
+            return made["mirror_layouts"]
+        layouts = cached_layouts(args.cache, mirror_key, args.layout_grid, compute_layouts)
     log(f"  mirror images ready ({time.perf_counter() - start:.0f} s so far)")
     return X_mirror, layouts
+
+
+def _noisy_inputs(args, masks, settings, codebook, mirror: bool, start: float, log,
+                  what: str) -> dict:
+    """noisy_dataset_inputs of masks (their histograms, layouts with --layout-grid, and with
+    mirror their mirror images'), progress logged as ``what``."""
+    every = (lambda d, n: log(f"  {what} {d}/{n} ({time.perf_counter() - start:.0f} s)")
+             if d % 10000 < 500 else None)
+    grid = args.layout_grid if args.regressor == "mixture" else 0
+    return noisy_dataset_inputs(masks, settings, codebook, grid=grid, mirror=mirror,
+                                seed=args.seed, workers=args.workers, progress=every)
 
 
 def main(argv=None) -> int:
@@ -188,12 +208,22 @@ def main(argv=None) -> int:
         log(f"  {len(data)} silhouettes ({time.perf_counter() - start:.0f} s so far)")
         settings = DescriptorSettings()
 
+        # From scratch, one pass over the video-like masks makes their histograms, layouts
+        # and mirror images' inputs together (each mask degraded and described once).
+        want_mirror = (args.regressor == "mixture" and bool(args.limb_nets)
+                       and args.limb_net_mirror == "on")
+        made: dict = {}
+
         def compute():
             log("codebook and descriptors ...")
             fit = fit_dataset_codebook if args.clean else fit_noisy_codebook
             codebook = fit(data, settings, seed=args.seed)
-            return _describe(args, data.masks, settings, codebook, start, log, "descriptors"), \
-                codebook
+            if args.clean:
+                return _describe_clean(args, data.masks, settings, codebook, start, log,
+                                 "descriptors"), codebook
+            made.update(_noisy_inputs(args, data.masks, settings, codebook, want_mirror,
+                                      start, log, "descriptors"))
+            return made["histograms"], codebook
 
         key = (f"v1-{config.digest()}" if views is None and args.clean else
                descriptor_cache_key(config, views, noisy=not args.clean))
@@ -206,12 +236,13 @@ def main(argv=None) -> int:
                                  "or pass --layout-grid 0)")
             layouts = cached_layouts(
                 args.cache, key, args.layout_grid,
-                lambda: noisy_dataset_layouts(data.masks, args.layout_grid, seed=args.seed,
-                                              workers=args.workers))
+                lambda: made["layouts"] if "layouts" in made else
+                noisy_dataset_layouts(data.masks, args.layout_grid, seed=args.seed,
+                                      workers=args.workers))
             log(f"  layouts ready ({time.perf_counter() - start:.0f} s so far)")
         mirrored = None
-        if args.regressor == "mixture" and args.limb_nets and args.limb_net_mirror == "on":
-            mirrored = _mirrored_inputs(args, data, settings, codebook, key, start, log)
+        if want_mirror:
+            mirrored = _mirrored_inputs(args, data, settings, codebook, key, start, log, made)
         if args.regressor == "rvm":
             options = TrainingOptions(stack_depth=args.stack, n_fit=args.n_fit,
                                       width_scale=args.width_scale, seed=args.seed)

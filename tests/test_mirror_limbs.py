@@ -59,6 +59,33 @@ def test_describe_with_mirror_gives_the_frame_and_near_the_flipped_masks_descrip
     assert np.linalg.norm(mirror - flipped) < 0.25 * np.linalg.norm(own - flipped)
 
 
+def test_training_describes_mirror_images_as_the_tracker_does(model, masks):
+    """tracker.offline.training.noisy_dataset_inputs: one pass gives the video-like masks'
+    histograms and layouts exactly as the separate passes do, and their mirror images'
+    inputs as the tracker makes a frame's (the contexts reflected, the layout flipped)."""
+    from regressor.descriptor import descriptor_and_mirror
+    from regressor.layout import silhouette_layout
+    from tracker.offline.training import (noisy_dataset_descriptors, noisy_dataset_inputs,
+                                          noisy_dataset_layouts, noisy_masks)
+    settings, codebook = model.settings, model.codebook
+    made = noisy_dataset_inputs(masks, settings, codebook, grid=8, mirror=True, seed=3,
+                                workers=2)
+    assert set(made) == {"histograms", "layouts", "mirror_histograms", "mirror_layouts"}
+    np.testing.assert_array_equal(made["histograms"], noisy_dataset_descriptors(
+        masks, settings, codebook, seed=3, workers=1))
+    np.testing.assert_array_equal(made["layouts"], noisy_dataset_layouts(masks, 8, seed=3,
+                                                                         workers=1))
+    for i in (0, 4):
+        noisy = noisy_masks(masks[i:i + 1], 3, start=i)[0]
+        np.testing.assert_array_equal(made["mirror_histograms"][i],
+                                      descriptor_and_mirror(noisy, settings, codebook)[1])
+        np.testing.assert_allclose(made["mirror_layouts"][i], silhouette_layout(noisy[:, ::-1], 8))
+        assert not np.allclose(made["mirror_layouts"][i], made["layouts"][i])  # not symmetric
+    plain = noisy_dataset_inputs(masks, settings, codebook, grid=0, seed=3, workers=1)
+    assert set(plain) == {"histograms"}
+    np.testing.assert_array_equal(plain["histograms"], made["histograms"])
+
+
 def test_the_mean_mirrors_back_and_averages_angles_on_the_circle():
     rng = np.random.default_rng(1)
     pose = np.concatenate([[0.6, 0.8], rng.uniform(-60, 60, 53)])[None]

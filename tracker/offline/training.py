@@ -23,9 +23,10 @@ import numpy as np
 from regressor.angles import POSE_DIM, pose_angles, regression_targets, wrap_deg
 from regressor.codebook import Codebook
 from regressor.heading_index import build_heading_index
-from regressor.descriptor import (DescriptorSettings, descriptors_for_masks,
+from regressor.descriptor import (DescriptorSettings, SilhouetteError, descriptor_and_mirror,
+                                  descriptor_for_mask, descriptors_for_masks,
                                   fit_codebook_for_masks)
-from regressor.layout import layouts_for_masks
+from regressor.layout import layouts_for_masks, silhouette_layout
 from regressor.limb_net import (MAX_MEMBERS, LimbNet, fit_limb_net,
                                require_training_dependencies)
 from regressor.side_classifier import facing_camera, fit_side_classifier
@@ -145,6 +146,48 @@ def noisy_dataset_layouts(masks: np.ndarray, grid: int, seed: int = 0, workers: 
     noisy_dataset_descriptors (same seeds, so row i's layout and descriptor describe one
     mask), by ``workers`` forked processes."""
     return _pooled_rows(masks, _noisy_layout_chunk, (grid, seed), grid * grid, workers, progress)
+
+
+def _noisy_inputs_chunk(args) -> np.ndarray:
+    start, stop, settings, codebook, seed, grid, mirror = args
+    rows = []
+    for i, mask in enumerate(noisy_masks(_SHARED["masks"][start:stop], seed, start=start)):
+        try:
+            own, reflected = (descriptor_and_mirror(mask, settings, codebook) if mirror
+                              else (descriptor_for_mask(mask, settings, codebook), None))
+        except SilhouetteError as err:
+            raise type(err)(f"mask {start + i}: {err}") from err
+        parts = [own] + ([silhouette_layout(mask, grid)] if grid else [])
+        if mirror:
+            parts += [reflected] + ([silhouette_layout(mask[:, ::-1], grid)] if grid else [])
+        rows.append(np.concatenate(parts))
+    return np.array(rows)
+
+
+def noisy_dataset_inputs(masks: np.ndarray, settings: DescriptorSettings, codebook: Codebook,
+                         grid: int = 0, mirror: bool = False, seed: int = 0, workers: int = 2,
+                         progress: Callable[[int, int], None] | None = None
+                         ) -> dict[str, np.ndarray]:
+    """The video-like masks' inputs in one pass (each mask degraded and its shape contexts
+    computed once, by ``workers`` forked processes): {"histograms": (N, K) (equal to
+    noisy_dataset_descriptors, same seeds), "layouts": (N, grid^2) with grid > 0 (equal to
+    noisy_dataset_layouts), and with mirror "mirror_histograms" (N, K), "mirror_layouts"
+    (N, grid^2): the same video-like masks' mirror images (flipped left to right), described
+    as the tracker describes a frame's mirror (regressor.descriptor.descriptor_and_mirror)}.
+    Raises DegenerateSilhouetteError naming the first unusable mask's index."""
+    K, cells = codebook.n_centres, int(grid) ** 2 if grid else 0
+    widths = {"histograms": K, "layouts": cells}
+    if mirror:
+        widths.update(mirror_histograms=K, mirror_layouts=cells)
+    rows = _pooled_rows(masks, _noisy_inputs_chunk,
+                        (settings, codebook, seed, int(grid), bool(mirror)),
+                        sum(widths.values()), workers, progress)
+    out, at = {}, 0
+    for name, width in widths.items():
+        if width:
+            out[name] = rows[:, at:at + width]
+        at += width
+    return out
 
 
 def cached_layouts(cache_dir: str | Path, key: str, grid: int,
