@@ -490,7 +490,8 @@ class MixtureOptions:
     canonical member's corr8 on the 6 validation trials' own rows, mean over trials
     (2026-12-02, one-off drivers): without 0.552 / 0.556 (two seeds), with 0.584 / 0.583.
     On by default, so train_mixture_model then needs ``mirrored`` (scripts/train.py makes
-    and caches it); pass limb_net_mirror=False to fit without.
+    and caches it, noisy_dataset_inputs: the same video-like masks mirrored, described as the
+    tracker describes a frame's mirror image); pass limb_net_mirror=False to fit without.
     side_classifier*: with limbs, fit a front/back side classifier (regressor.side_classifier,
     these hidden layer sizes) on the training rows: the tracker's chain then carries the
     limbs' canonical member and its flip (tracker.hypotheses.canonical_hypotheses).
