@@ -22,6 +22,7 @@ from threadpoolctl import threadpool_limits
 
 from regressor.angles import wrap_deg
 from regressor.descriptor import DescriptorSettings
+from regressor.layout import MAX_GRID
 from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model, save_pose_model
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
@@ -92,6 +93,31 @@ def _noisy_inputs(args, masks, settings, codebook, mirror: bool, start: float, l
                                 seed=args.seed, workers=args.workers, progress=every)
 
 
+def _check_numbers(ap, args) -> None:
+    """Refuse absurd numeric options in one line, before the slow steps (rendering alone
+    takes minutes)."""
+    bounds = (("--stack", args.stack, 1, 30), ("--n-fit", args.n_fit, 1, 10**6),
+              ("--rows-per-trial", args.rows_per_trial, 0, 10**6),
+              ("--max-views", args.max_views, 1, 360), ("--experts", args.experts, 1, 1000),
+              ("--centres", args.centres, 1, 10**5),
+              ("--layout-grid", args.layout_grid, 0, MAX_GRID),
+              ("--components", args.components, 0, 10**5))
+    for flag, value, low, high in bounds:
+        if not low <= value <= high:
+            ap.error(f"{flag} must be in {low}..{high}, got {value}")
+    for flag, value in (("--width-scale", args.width_scale), ("--lam", args.lam)):
+        if not (np.isfinite(value) and value > 0):
+            ap.error(f"{flag} must be a positive number, got {value}")
+    dims = MixtureOptions.heading_index_dims
+    if args.regressor == "mixture" and args.heading_index_rows and args.components < dims:
+        ap.error(f"the heading index (--heading-index-rows > 0) compares the first {dims} "
+                 f"principal directions: it needs --components >= {dims}, got "
+                 f"{args.components} (or pass --heading-index-rows 0)")
+    if args.clean and args.regressor == "mixture" and args.layout_grid:
+        ap.error("--layout-grid needs the video-like masks (drop --clean, or pass "
+                 "--layout-grid 0)")
+
+
 def main(argv=None) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
@@ -159,6 +185,7 @@ def main(argv=None) -> int:
     ap.add_argument("--components", type=int, default=MixtureOptions.components,
                     help="principal directions the stacked input is projected on (0: none)")
     args = ap.parse_args(argv)
+    _check_numbers(ap, args)
     if args.limb_head not in (None, "none"):
         if args.regressor != "mixture":
             ap.error("--limb-head needs the mixture regressor")
@@ -231,9 +258,6 @@ def main(argv=None) -> int:
         log(f"  descriptors ready ({time.perf_counter() - start:.0f} s so far)")
         layouts = None
         if args.regressor == "mixture" and args.layout_grid:
-            if args.clean:
-                raise ValueError("--layout-grid needs the video-like masks (drop --clean, "
-                                 "or pass --layout-grid 0)")
             layouts = cached_layouts(
                 args.cache, key, args.layout_grid,
                 lambda: made["layouts"] if "layouts" in made else
