@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from regressor.errors import SilhouettePoseError
 from regressor.pose_model import load_pose_model
 from sequences.measures import novelty_summary, pose_measures
 from sequences.video import load_truth
@@ -66,6 +67,23 @@ def trial_video(trial: str, bvh_dir: Path, video_dir: Path) -> Path:
     return path
 
 
+def _named_models(ap, specs: list[str]) -> list[tuple[str, object]]:
+    """(name, model) for each --model NAME=FILE; one-line errors (ap.error) for a malformed
+    option, a repeated name or a file that does not load."""
+    models = []
+    for spec in specs:
+        name, sep, path = spec.partition("=")
+        if not sep or not name or not path:
+            ap.error(f"--model takes NAME=FILE, got {spec!r}")
+        if name in (n for n, _ in models):
+            ap.error(f"--model name {name!r} given twice")
+        try:
+            models.append((name, load_pose_model(path)))
+        except (OSError, SilhouettePoseError) as exc:
+            ap.error(f"--model {name}: {exc}")
+    return models
+
+
 def main(argv=None) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", action="append", required=True, help="NAME=FILE (repeatable)")
@@ -74,7 +92,17 @@ def main(argv=None) -> int:
     ap.add_argument("--video-dir", type=Path, default=Path("cache/videos"))
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
-    models = [(n, load_pose_model(p)) for n, p in (m.split("=", 1) for m in args.model)]
+    models = _named_models(ap, args.model)
+    for trial in args.trials:           # before any tracking, not after some trials
+        if (trial != "16_11" and not (args.video_dir / f"{trial}_spiral30.mp4").is_file()
+                and not (args.bvh_dir / f"{trial}.bvh").is_file()):
+            ap.error(f"trial {trial}: neither {args.video_dir / f'{trial}_spiral30.mp4'} nor "
+                     f"{args.bvh_dir / f'{trial}.bvh'} exists")
+    if args.json is not None and not args.json.parent.is_dir():
+        ap.error(f"--json {args.json}: no folder {args.json.parent}")
+    if args.json is not None and any(args.json.resolve() == Path(spec.partition("=")[2]).resolve()
+                                     for spec in args.model):
+        ap.error(f"--json {args.json} is a model file: it would be overwritten")
     constant = constant_pose(models[0][1])
     args.video_dir.mkdir(parents=True, exist_ok=True)
     results = []
