@@ -119,6 +119,12 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=1200, help="frames to render if no --video")
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)
     args = ap.parse_args(argv)
+    if not 10 <= args.frames <= 100000:
+        ap.error(f"--frames must be in 10..100000, got {args.frames}")
+    if args.video is not None and not args.video.is_file():
+        ap.error(f"--video {args.video}: no such file")
+    if not args.model.is_file():
+        ap.error(f"--model {args.model}: no such file")
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     video = args.video
     if video is None:

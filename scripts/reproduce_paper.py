@@ -12,9 +12,11 @@ from __future__ import annotations
 import itertools
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 import scipy.io
+from scipy.io.matlab import MatReadError
 
 from regressor.dls import DLSRegressor
 from regressor.mixture import MixtureRegressor
@@ -89,12 +91,22 @@ def grid(**axes):
     return [dict(zip(axes, v)) for v in itertools.product(*axes.values())]
 
 
-def main() -> None:
+def main(argv=None) -> None:
     ap = OneLineParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", required=True, help="ankurDataPoseSilhouette.mat")
     ap.add_argument("--json", help="write the results here")
-    args = ap.parse_args()
-    d = scipy.io.loadmat(args.data)
+    args = ap.parse_args(argv)
+    if args.json and not Path(args.json).resolve().parent.is_dir():
+        ap.error(f"--json {args.json}: no folder {Path(args.json).parent}")
+    if args.json and Path(args.json).resolve() == Path(args.data).resolve():
+        ap.error(f"--json {args.json} is the data file: it would be overwritten")
+    try:
+        d = scipy.io.loadmat(args.data)
+    except (OSError, ValueError, TypeError, MatReadError) as exc:   # missing, not a .mat
+        ap.error(f"--data {args.data}: cannot read it as a MATLAB file ({exc})")
+    missing = [k for k in ("Y", "Z", "Y_test", "Z_test") if k not in d]
+    if missing:
+        ap.error(f"--data {args.data}: not the paper's data (no {', '.join(missing)})")
     Xraw, Y, Xraw_test, Y_test = d["Y"], d["Z"], d["Y_test"], d["Z_test"]
     folds = contiguous_folds(len(Xraw), 5)
 
