@@ -247,7 +247,7 @@ def main(argv=None) -> int:
             codebook = fit(data, settings, seed=args.seed)
             if args.clean:
                 return _describe_clean(args, data.masks, settings, codebook, start, log,
-                                 "descriptors"), codebook
+                                       "descriptors"), codebook
             made.update(_noisy_inputs(args, data.masks, settings, codebook, want_mirror,
                                       start, log, "descriptors"))
             return made["histograms"], codebook

@@ -184,8 +184,8 @@ def noisy_dataset_inputs(masks: np.ndarray, settings: DescriptorSettings, codebo
                         sum(widths.values()), workers, progress)
     out, at = {}, 0
     for name, width in widths.items():
-        if width:
-            out[name] = rows[:, at:at + width]
+        if width:       # own arrays, not views that would keep all the rows alive
+            out[name] = np.ascontiguousarray(rows[:, at:at + width])
         at += width
     return out
 
