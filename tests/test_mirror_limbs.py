@@ -61,18 +61,17 @@ def test_describe_with_mirror_gives_the_frame_and_near_the_flipped_masks_descrip
 
 def test_training_describes_mirror_images_as_the_tracker_does(model, masks):
     """tracker.offline.training.noisy_dataset_inputs: one pass gives the video-like masks'
-    histograms and layouts exactly as the separate passes do, and their mirror images'
+    histograms and layouts exactly as describing them one by one does, and their mirror images'
     inputs as the tracker makes a frame's (the contexts reflected, the layout flipped)."""
-    from regressor.descriptor import descriptor_and_mirror
+    from regressor.descriptor import descriptor_and_mirror, descriptors_for_masks
     from regressor.layout import silhouette_layout
-    from tracker.offline.training import (noisy_dataset_descriptors, noisy_dataset_inputs,
-                                          noisy_dataset_layouts, noisy_masks)
+    from tracker.offline.training import noisy_dataset_inputs, noisy_dataset_layouts, noisy_masks
     settings, codebook = model.settings, model.codebook
     made = noisy_dataset_inputs(masks, settings, codebook, grid=8, mirror=True, seed=3,
                                 workers=2)
     assert set(made) == {"histograms", "layouts", "mirror_histograms", "mirror_layouts"}
-    np.testing.assert_array_equal(made["histograms"], noisy_dataset_descriptors(
-        masks, settings, codebook, seed=3, workers=1))
+    np.testing.assert_array_equal(made["histograms"], descriptors_for_masks(
+        noisy_masks(masks, 3), settings, codebook))
     np.testing.assert_array_equal(made["layouts"], noisy_dataset_layouts(masks, 8, seed=3,
                                                                          workers=1))
     for i in (0, 4):

@@ -102,21 +102,6 @@ def noisy_masks(masks, seed: int, noise=None, start: int = 0) -> list[np.ndarray
     return degrade_all(masks, seed, noise or MaskNoise(), extractor_cleaner, start=start)
 
 
-def _noisy_descriptor_chunk(args) -> np.ndarray:
-    start, stop, settings, codebook, seed = args
-    masks = noisy_masks(_SHARED["masks"][start:stop], seed, start=start)
-    return descriptors_for_masks(masks, settings, codebook)
-
-
-def noisy_dataset_descriptors(masks: np.ndarray, settings: DescriptorSettings, codebook: Codebook,
-                              seed: int = 0, workers: int = 2,
-                              progress: Callable[[int, int], None] | None = None) -> np.ndarray:
-    """Descriptors (N, K) of video-like versions of masks (N, H, W) (noisy_masks), by
-    ``workers`` forked processes; reproducible whatever the number of workers."""
-    return _pooled_rows(masks, _noisy_descriptor_chunk, (settings, codebook, seed),
-                        codebook.n_centres, workers, progress)
-
-
 def _pooled_rows(masks: np.ndarray, task, args: tuple, width: int, workers: int,
                  progress: Callable[[int, int], None] | None) -> np.ndarray:
     """Rows (N, width), task((start, stop, *args)) -> rows start:stop, over chunks of masks
@@ -143,8 +128,8 @@ def _noisy_layout_chunk(args) -> np.ndarray:
 def noisy_dataset_layouts(masks: np.ndarray, grid: int, seed: int = 0, workers: int = 2,
                           progress: Callable[[int, int], None] | None = None) -> np.ndarray:
     """Layouts (N, grid^2) (regressor.layout) of the same video-like masks as
-    noisy_dataset_descriptors (same seeds, so row i's layout and descriptor describe one
-    mask), by ``workers`` forked processes."""
+    noisy_dataset_inputs (same seeds, so row i's layout and descriptor describe one mask), by
+    ``workers`` forked processes; for a cache that has the descriptors but not the layouts."""
     return _pooled_rows(masks, _noisy_layout_chunk, (grid, seed), grid * grid, workers, progress)
 
 
@@ -169,11 +154,12 @@ def noisy_dataset_inputs(masks: np.ndarray, settings: DescriptorSettings, codebo
                          progress: Callable[[int, int], None] | None = None
                          ) -> dict[str, np.ndarray]:
     """The video-like masks' inputs in one pass (each mask degraded and its shape contexts
-    computed once, by ``workers`` forked processes): {"histograms": (N, K) (equal to
-    noisy_dataset_descriptors, same seeds), "layouts": (N, grid^2) with grid > 0 (equal to
-    noisy_dataset_layouts), and with mirror "mirror_histograms" (N, K), "mirror_layouts"
-    (N, grid^2): the same video-like masks' mirror images (flipped left to right), described
-    as the tracker describes a frame's mirror (regressor.descriptor.descriptor_and_mirror)}.
+    computed once, by ``workers`` forked processes; reproducible whatever their number):
+    {"histograms": (N, K) (descriptors_for_masks of noisy_masks(masks, seed)), "layouts":
+    (N, grid^2) with grid > 0 (equal to noisy_dataset_layouts), and with mirror
+    "mirror_histograms" (N, K), "mirror_layouts" (N, grid^2): the same video-like masks'
+    mirror images (flipped left to right), described as the tracker describes a frame's
+    mirror (regressor.descriptor.descriptor_and_mirror)}.
     Raises DegenerateSilhouetteError naming the first unusable mask's index."""
     K, cells = codebook.n_centres, int(grid) ** 2 if grid else 0
     widths = {"histograms": K, "layouts": cells}
