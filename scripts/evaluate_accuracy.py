@@ -67,18 +67,18 @@ def trial_video(trial: str, bvh_dir: Path, video_dir: Path) -> Path:
     return path
 
 
-def _named_models(ap, specs: list[str]) -> list[tuple[str, object]]:
-    """(name, model) for each --model NAME=FILE; one-line errors (ap.error) for a malformed
-    option, a repeated name or a file that does not load."""
+def _named_models(ap, specs: list[str]) -> list[tuple[str, Path, object]]:
+    """(name, file, model) for each --model NAME=FILE; one-line errors (ap.error) for a
+    malformed option, a repeated name or a file that does not load."""
     models = []
     for spec in specs:
         name, sep, path = spec.partition("=")
         if not sep or not name or not path:
             ap.error(f"--model takes NAME=FILE, got {spec!r}")
-        if name in (n for n, _ in models):
+        if name in (n for n, _, _ in models):
             ap.error(f"--model name {name!r} given twice")
         try:
-            models.append((name, load_pose_model(path)))
+            models.append((name, Path(path), load_pose_model(path)))
         except (OSError, SilhouettePoseError) as exc:
             ap.error(f"--model {name}: {exc}")
     return models
@@ -92,7 +92,7 @@ def main(argv=None) -> int:
     ap.add_argument("--video-dir", type=Path, default=Path("cache/videos"))
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
-    models = _named_models(ap, args.model)
+    named = _named_models(ap, args.model)
     for trial in args.trials:           # before any tracking, not after some trials
         if (trial != "16_11" and not (args.video_dir / f"{trial}_spiral30.mp4").is_file()
                 and not (args.bvh_dir / f"{trial}.bvh").is_file()):
@@ -100,9 +100,10 @@ def main(argv=None) -> int:
                      f"{args.bvh_dir / f'{trial}.bvh'} exists")
     if args.json is not None and not args.json.parent.is_dir():
         ap.error(f"--json {args.json}: no folder {args.json.parent}")
-    if args.json is not None and any(args.json.resolve() == Path(spec.partition("=")[2]).resolve()
-                                     for spec in args.model):
+    if args.json is not None and any(args.json.resolve() == path.resolve()
+                                     for _, path, _ in named):
         ap.error(f"--json {args.json} is a model file: it would be overwritten")
+    models = [(name, model) for name, _, model in named]
     constant = constant_pose(models[0][1])
     args.video_dir.mkdir(parents=True, exist_ok=True)
     results = []

@@ -38,13 +38,17 @@ from tracker.offline.training import (CANONICAL_RULES, MixtureOptions, TrainingO
 from tracker.one_line_parser import OneLineParser
 
 
+def _every_10000(start: float, log, what: str):
+    """A progress(done, total) callback that logs ``what`` about every 10,000 masks."""
+    return (lambda d, n: log(f"  {what} {d}/{n} ({time.perf_counter() - start:.0f} s)")
+            if d % 10000 < 500 else None)
+
+
 def _describe_clean(args, masks, settings, codebook, start: float, log, what: str):
     """Descriptors (N, K) of the clean masks (N, H, W) on the codebook (--clean); progress
     logged as ``what``."""
-    every = (lambda d, n: log(f"  {what} {d}/{n} ({time.perf_counter() - start:.0f} s)")
-             if d % 10000 < 500 else None)
     return dataset_descriptors(masks, settings, codebook, workers=args.workers,
-                               progress=every)
+                               progress=_every_10000(start, log, what))
 
 
 def _mirrored_inputs(args, data, settings, codebook, key: str, start: float, log,
@@ -57,8 +61,8 @@ def _mirrored_inputs(args, data, settings, codebook, key: str, start: float, log
     flipped masks are described."""
     mirror_key = f"{key}-reflected-{codebook_digest(codebook, settings)}"
 
-    def compute():
-        if "mirror_histograms" not in made:
+    def mirror_input(name: str):
+        if name not in made:
             log("mirror images: descriptors ...")
             if args.clean:
                 made["mirror_histograms"] = _describe_clean(
@@ -67,17 +71,14 @@ def _mirrored_inputs(args, data, settings, codebook, key: str, start: float, log
             else:
                 made.update(_noisy_inputs(args, data.masks, settings, codebook, True, start,
                                           log, "mirror images' inputs"))
-        return made["mirror_histograms"], codebook
+        return made[name]
 
-    X_mirror, _ = cached_descriptors(args.cache, mirror_key, compute)
+    X_mirror, _ = cached_descriptors(args.cache, mirror_key,
+                                     lambda: (mirror_input("mirror_histograms"), codebook))
     layouts = None
     if args.layout_grid:
-        def compute_layouts():
-            if "mirror_layouts" not in made:
-                made.update(_noisy_inputs(args, data.masks, settings, codebook, True, start,
-                                          log, "mirror images' inputs"))
-            return made["mirror_layouts"]
-        layouts = cached_layouts(args.cache, mirror_key, args.layout_grid, compute_layouts)
+        layouts = cached_layouts(args.cache, mirror_key, args.layout_grid,
+                                 lambda: mirror_input("mirror_layouts"))
     log(f"  mirror images ready ({time.perf_counter() - start:.0f} s so far)")
     return X_mirror, layouts
 
@@ -86,11 +87,10 @@ def _noisy_inputs(args, masks, settings, codebook, mirror: bool, start: float, l
                   what: str) -> dict:
     """noisy_dataset_inputs of masks (their histograms, layouts with --layout-grid, and with
     mirror their mirror images'), progress logged as ``what``."""
-    every = (lambda d, n: log(f"  {what} {d}/{n} ({time.perf_counter() - start:.0f} s)")
-             if d % 10000 < 500 else None)
     grid = args.layout_grid if args.regressor == "mixture" else 0
     return noisy_dataset_inputs(masks, settings, codebook, grid=grid, mirror=mirror,
-                                seed=args.seed, workers=args.workers, progress=every)
+                                seed=args.seed, workers=args.workers,
+                                progress=_every_10000(start, log, what))
 
 
 def _check_numbers(ap, args) -> None:

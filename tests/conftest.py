@@ -23,6 +23,17 @@ def load_script(name: str) -> ModuleType:
     return module
 
 
+def refused_in_one_line(script: ModuleType, argv: list[str], capsys) -> str:
+    """Run a script's main(argv), expecting its parser to refuse the options: exit 2 and one
+    line on stderr, no traceback. Returns that line."""
+    with pytest.raises(SystemExit) as exit_:
+        script.main(argv)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    return err
+
+
 @pytest.fixture(scope="session")
 def cmu_bvh_dir() -> Path:
     """The CMU BVH folder of ../shared; skips the test when it is absent."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import load_script
+from conftest import load_script, refused_in_one_line
 from regressor.pose_model import DEFAULT_MODEL_PATH
 
 
@@ -14,40 +14,30 @@ def evaluate_accuracy():
     return load_script("evaluate_accuracy")
 
 
-def _refused(script, argv, capsys) -> str:
-    with pytest.raises(SystemExit) as exit_:
-        script.main(argv)
-    assert exit_.value.code == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "Traceback" not in err
-    return err
-
-
 def test_bad_models_are_refused_in_one_line(evaluate_accuracy, tmp_path, capsys):
+    def refused(argv):
+        return refused_in_one_line(evaluate_accuracy, argv, capsys)
     good = f"a={DEFAULT_MODEL_PATH}"
-    assert "NAME=FILE" in _refused(evaluate_accuracy, ["--model", "nameless"], capsys)
-    assert "given twice" in _refused(evaluate_accuracy, ["--model", good, "--model", good],
-                                     capsys)
-    assert "not found" in _refused(evaluate_accuracy, ["--model", f"a={tmp_path / 'm.npz'}"],
-                                   capsys)
+    assert "NAME=FILE" in refused(["--model", "nameless"])
+    assert "given twice" in refused(["--model", good, "--model", good])
+    assert "not found" in refused(["--model", f"a={tmp_path / 'm.npz'}"])
     junk = tmp_path / "junk.npz"
     junk.write_bytes(b"not a model")
-    assert "--model a:" in _refused(evaluate_accuracy, ["--model", f"a={junk}"], capsys)
+    assert "--model a:" in refused(["--model", f"a={junk}"])
 
 
 def test_bad_trials_and_outputs_are_refused_before_tracking(evaluate_accuracy, tmp_path,
                                                             capsys):
+    def refused(argv):
+        return refused_in_one_line(evaluate_accuracy, argv, capsys)
     base = ["--model", f"a={DEFAULT_MODEL_PATH}", "--video-dir", str(tmp_path / "videos"),
             "--bvh-dir", str(tmp_path / "bvh")]
-    assert "trial 99_99: neither" in _refused(evaluate_accuracy, base + ["--trials", "99_99"],
-                                              capsys)
-    assert "no folder" in _refused(evaluate_accuracy,
-                                   base + ["--trials", "16_11", "--json",
-                                           str(tmp_path / "none" / "r.json")], capsys)
+    assert "trial 99_99: neither" in refused(base + ["--trials", "99_99"])
+    assert "no folder" in refused(base + ["--trials", "16_11", "--json",
+                                          str(tmp_path / "none" / "r.json")])
     model_copy = tmp_path / "copy.npz"
     model_copy.write_bytes(DEFAULT_MODEL_PATH.read_bytes())
-    err = _refused(evaluate_accuracy, ["--model", f"a={model_copy}", "--json", str(model_copy),
-                                       "--trials", "16_11"], capsys)
+    err = refused(["--model", f"a={model_copy}", "--json", str(model_copy), "--trials", "16_11"])
     assert "is a model file" in err
     assert model_copy.read_bytes() == DEFAULT_MODEL_PATH.read_bytes()
     assert not (tmp_path / "videos").exists()

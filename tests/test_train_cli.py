@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import load_script
+from conftest import load_script, refused_in_one_line
 
 
 @pytest.fixture(scope="module")
@@ -24,12 +24,10 @@ def train():
 ])
 def test_absurd_options_are_refused_before_rendering(train, tmp_path, capsys, options, says):
     cache, out = tmp_path / "cache", tmp_path / "model.npz"
-    with pytest.raises(SystemExit) as exit_:
-        train.main(options + ["--bvh-dir", str(tmp_path / "no-bvh"), "--cache", str(cache),
-                              "--out", str(out)])
-    assert exit_.value.code == 2
-    err = capsys.readouterr().err.strip()
-    assert says in err and len(err.splitlines()) == 1
+    err = refused_in_one_line(train, options + ["--bvh-dir", str(tmp_path / "no-bvh"),
+                                                "--cache", str(cache), "--out", str(out)],
+                              capsys)
+    assert says in err
     assert not cache.exists() and not out.exists()
 
 
