@@ -6,8 +6,8 @@
 For each trial a 320x240 video is rendered as a 30 deg/s spiral walk (the shipped sample's
 settings; 16_11 uses the shipped sample itself) into --video-dir (reused when present), run
 through the tracker (background subtraction, stacking, Kalman filter) and compared with its
-ground truth on the tracked frames. Measures (issue 9), for the raw per-frame regressor output
-and the filtered output that `track` streams:
+ground truth on the tracked frames. Measures (issue 9), for the raw per-frame regressor output,
+the filtered output that `track` streams and the smoothed output of `track --smooth`:
 
   err53   mean |wrapped error| of the 53 joint angles, degrees
   const   the same for a constant pose: the FIRST model's training-mean pose (its angle centres)
@@ -118,10 +118,10 @@ def main(argv=None) -> int:
             for name, model in models:
                 start = time.perf_counter()
                 tracked = track_longest(video, model, TrackerSettings(novelty=True))
-                idx, raw, filtered, novelty = *tracked[:3], tracked[7]
+                idx, raw, filtered, smoothed, novelty = *tracked[:4], tracked[7]
                 fps = len(truth_all) / (time.perf_counter() - start)
                 novel = novelty_summary(novelty)
-                for output, est in (("raw", raw), ("filtered", filtered)):
+                for output, est in (("raw", raw), ("filtered", filtered), ("smoothed", smoothed)):
                     m = measures(est, truth_all[idx], constant)
                     results.append({"trial": trial, "model": name, "output": output,
                                     "frames": int(len(idx)), "fps": fps, **m,
