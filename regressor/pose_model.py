@@ -66,6 +66,9 @@ MODEL_KIND = "silhouette-pose"
 #: Raw heading norm below which a frame is ambiguous, for model files that do not store the
 #: threshold they were trained with (all written before it was stored used this value).
 DEFAULT_AMBIGUITY_THRESHOLD = 0.5
+#: The frame rate of the training sequences when a model's description does not say
+#: (sequences.dataset.DatasetConfig.fps).
+DEFAULT_TRAINING_FPS = 30.0
 MIXTURE_KIND = "silhouette-pose-mixture"    # a mixture of experts (regressor.mixture)
 
 
@@ -189,6 +192,18 @@ class PoseModel:
         histograms = np.array(descriptor_and_mirror(mask, self.settings, self.codebook))
         own, mirror = self._descriptors(histograms, (mask, flipped))
         return own, mirror
+
+    @property
+    def training_fps(self) -> float:
+        """Frame rate (frames per second) of the sequences the model's stacked input was
+        learned from: the description's data set fps, else the data sets' 30 (every model so
+        far). The tracker stacks a faster video's frames that far apart in time
+        (regressor.stacking.stack_step)."""
+        dataset = (self.description.get("dataset") if isinstance(self.description, dict)
+                   else None)
+        fps = dataset.get("fps") if isinstance(dataset, dict) else None
+        return (float(fps) if isinstance(fps, (int, float)) and np.isfinite(fps) and fps > 0
+                else DEFAULT_TRAINING_FPS)
 
     @property
     def limbs_see_mirror(self) -> bool:

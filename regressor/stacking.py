@@ -2,6 +2,10 @@
 
 Frames before the start of a sequence are padded by repeating the sequence's first frame, so no
 descriptor ever leaks across a sequence boundary. k = 1 is the paper's per-frame regressor.
+
+A model learns its stack at the frame rate of its training sequences (30 fps): on a faster video
+the same k frames would span less time, so a step s takes every s-th frame instead,
+[x_t, x_{t-s}, ..., x_{t-(k-1)s}] (:func:`stack_step` picks s from the two frame rates).
 """
 from __future__ import annotations
 
@@ -30,16 +34,33 @@ def sequence_starts_to_ids(starts, n: int) -> np.ndarray:
     return np.cumsum(ids)
 
 
-def stack_frames(X, k: int, sequence_ids=None, sequence_starts=None) -> np.ndarray:
-    """Stack each frame with its k-1 predecessors in the same sequence.
+def _check_step(step) -> int:
+    if not (int(step) == step and step >= 1):
+        raise StackingInputError(f"stacking step={step!r}; expected an integer >= 1")
+    return int(step)
+
+
+def stack_step(video_fps: float, model_fps: float) -> int:
+    """Frames between stacked descriptors (>= 1) so that a video at video_fps stacks frames
+    about as far apart in time as the model's training sequences at model_fps did (frames
+    per second both): 1 up to 1.5 x model_fps, 2 at 60 fps for a 30 fps model, 4 at 120."""
+    if not (np.isfinite(video_fps) and video_fps > 0 and np.isfinite(model_fps) and model_fps > 0):
+        raise StackingInputError(f"frame rates must be positive, got video {video_fps}, "
+                                 f"model {model_fps}")
+    return max(1, int(np.floor(video_fps / model_fps + 0.5)))
+
+
+def stack_frames(X, k: int, sequence_ids=None, sequence_starts=None, step: int = 1) -> np.ndarray:
+    """Stack each frame with its k-1 predecessors in the same sequence, step frames apart.
 
     X: (N, D) descriptors in time order. sequence_ids: (N,) label per frame (a new sequence
     starts wherever the label changes), or sequence_starts: first row of each sequence; neither
-    means one sequence. Returns (N, k*D): row t is [x_t, x_{t-1}, ..., x_{t-k+1}], with frames
-    before a sequence's start replaced by its first frame.
+    means one sequence. Returns (N, k*D): row t is [x_t, x_{t-s}, ..., x_{t-(k-1)s}] (s = step),
+    with frames before a sequence's start replaced by its first frame.
     """
     X = np.asarray(X, dtype=np.float64)
     k = _check_depth(k)
+    step = _check_step(step)
     if X.ndim != 2:
         raise StackingInputError(f"X must be (N, D); got shape {X.shape}")
     N = X.shape[0]
@@ -57,21 +78,22 @@ def stack_frames(X, k: int, sequence_ids=None, sequence_starts=None) -> np.ndarr
     new_run = np.ones(N, bool)
     new_run[1:] = ids[1:] != ids[:-1]
     first = np.maximum.accumulate(np.where(new_run, np.arange(N), 0))
-    t = np.arange(N)[:, None] - np.arange(k)[None, :]          # (N, k) source frames
+    t = np.arange(N)[:, None] - step * np.arange(k)[None, :]   # (N, k) source frames
     src = np.maximum(t, first[:, None])
     return X[src].reshape(N, k * X.shape[1])
 
 
 class FrameStacker:
-    """Streaming stacking for one track: holds its last k descriptors.
+    """Streaming stacking for one track: holds its last (k - 1) * step + 1 descriptors.
 
-    push(x (D,)) -> (k*D,) stacked vector [x_t, x_{t-1}, ...]; the first push pads with x itself,
-    matching stack_frames at a sequence start. reset() starts a new sequence.
+    push(x (D,)) -> (k*D,) stacked vector [x_t, x_{t-step}, ...]; the first push pads with x
+    itself, matching stack_frames at a sequence start. reset() starts a new sequence.
     """
 
-    def __init__(self, k: int):
+    def __init__(self, k: int, step: int = 1):
         self.k = _check_depth(k)
-        self._buffer: np.ndarray | None = None             # (k, D), newest first
+        self.step = _check_step(step)
+        self._buffer: np.ndarray | None = None   # ((k - 1) * step + 1, D), newest first
 
     def reset(self) -> None:
         """Forget the history (the next push starts a new sequence)."""
@@ -83,9 +105,9 @@ class FrameStacker:
         if x.ndim != 1:
             raise StackingInputError(f"push expects one descriptor (D,); got shape {x.shape}")
         if self._buffer is None:
-            self._buffer = np.repeat(x[None, :], self.k, axis=0)
+            self._buffer = np.repeat(x[None, :], (self.k - 1) * self.step + 1, axis=0)
         elif self._buffer.shape[1] != x.shape[0]:
             raise StackingInputError(f"descriptor has {x.shape[0]} values; this track's have {self._buffer.shape[1]}")
         else:
             self._buffer = np.vstack([x[None, :], self._buffer[:-1]])
-        return self._buffer.reshape(-1).copy()
+        return self._buffer[::self.step].reshape(-1).copy()

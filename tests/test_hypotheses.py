@@ -256,3 +256,52 @@ def test_priors_are_learned_on_video_like_masks_unless_told_otherwise():
     noisy = video_like(masks)
     assert len(noisy) == 2 and all(m.dtype == bool and 55 <= m.shape[0] <= 160 for m in noisy)
     assert not np.array_equal(noisy[0], masks[0, 30:190, 90:130])
+
+
+def _steady_probability(fps: float, seconds: float, reference_fps: float) -> float:
+    """The decided state's probability after feeding the same mildly ambiguous raw pose
+    (heading norm 0.4: its evidence slightly favours it over its flip) for ``seconds``."""
+    bank = FrontBackTracker(_factory, fps, reference_fps=reference_fps)
+    h = _with_flips(_pose(10.0, norm=0.4)[None], np.ones(1))
+    decision = None
+    for _ in range(int(round(seconds * fps))):
+        decision = bank.step(h)
+    return decision.probability
+
+
+def test_the_chain_weighs_evidence_per_second_not_per_frame():
+    """The switch rates and evidence weights were learned on 30 fps sequences: a 60 or 120 fps
+    video's frames are shares of such a frame, so the same evidence for the same time gives
+    the same confidence; counted per frame, a 120 fps video would be four times as sure."""
+    at_30 = _steady_probability(30.0, 0.5, reference_fps=30.0)
+    for fps in (60.0, 120.0):
+        tempered = _steady_probability(fps, 0.5, reference_fps=30.0)
+        per_frame = _steady_probability(fps, 0.5, reference_fps=fps)
+        assert tempered == pytest.approx(at_30, abs=0.05)     # measured: 0.75 / 0.74, 0.77
+        assert per_frame > at_30 + 0.15                      # measured: 0.95 / 1.00
+    bank = FrontBackTracker(_factory, 60.0, reference_fps=30.0)
+    a, b = bank.frame_switch
+    # switching in either of two 60 fps frames is as likely as in one 30 fps frame
+    assert 1 - (1 - a) ** 2 == pytest.approx(bank.switch[0])
+    assert 1 - (1 - b) ** 2 == pytest.approx(bank.switch[1])
+    assert FrontBackTracker(_factory, 30.0).frame_switch == tuple(bank.switch)
+
+
+def test_a_turn_on_the_spot_at_60_fps_is_followed_through_the_regressor_flips():
+    """The turn of test_a_turn_on_the_spot_... filmed at 60 fps (flips on 20% of frames):
+    tempering the evidence per second must not leave the chain unable to follow."""
+    fps, T = 60.0, 360
+    rng = np.random.default_rng(4)
+    truth = wrap_deg(np.arange(T) * 60.0 / fps)
+    flipped = rng.random(T) < 0.2
+    bank = FrontBackTracker(_factory, fps, reference_fps=30.0)
+    body = _pose(0.0, seed=7)
+    out = []
+    for t, h in enumerate(truth):
+        raw = body.copy()
+        raw[0], raw[1] = 0.8 * np.cos(np.radians(h)), 0.8 * np.sin(np.radians(h))
+        raw = raw + np.concatenate([[0, 0], rng.normal(0, 3, 53)])
+        out.append(bank.step(_with_flips((front_back_flip(raw) if flipped[t] else raw)[None],
+                                         np.ones(1))))
+    err = np.abs(wrap_deg(np.array([pose_angles(d.filtered)[0] for d in out]) - truth))
+    assert np.mean(err[20:] < 30.0) > 0.9

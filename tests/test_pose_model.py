@@ -30,3 +30,25 @@ def test_the_tracker_uses_the_models_threshold_unless_told_otherwise():
         tracker = PoseTracker(model, 30.0, settings)
         tracker.prime(background)
         assert tracker.filter_factory(30.0).ambiguity_threshold == expected
+
+
+def test_the_tracker_stacks_and_tempers_at_the_models_training_frame_rate():
+    """The shipped model learned its stacked input and its front/back chain's per-frame
+    figures on 30 fps sequences (its description says so): a 60 fps video stacks every
+    second frame and its chain counts each frame as half of a 30 fps one; a model whose
+    description names another rate (or none: 30) is taken at its word."""
+    model = load_pose_model(DEFAULT_MODEL_PATH)
+    assert model.training_fps == 30.0
+    for fps, step in ((30.0, 1), (60.0, 2), (120.0, 4)):
+        tracker = PoseTracker(model, fps, TrackerSettings())
+        tracker.prime(np.zeros((120, 160, 3), np.uint8))
+        assert tracker.stack_step == step
+        state = tracker._state(0)
+        assert state.stacker.step == step
+        assert state.hypotheses.frame_rate_ratio == 30.0 / fps
+    described = replace(model, description={**model.description,
+                                            "dataset": {**model.description["dataset"],
+                                                        "fps": 60.0}})
+    assert described.training_fps == 60.0
+    assert PoseTracker(described, 60.0, TrackerSettings()).stack_step == 1
+    assert replace(model, description={}).training_fps == 30.0

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from regressor.stacking import FrameStacker, StackingInputError, stack_frames
+from regressor.stacking import FrameStacker, StackingInputError, stack_frames, stack_step
 
 
 def _frames(n, d=2):
@@ -51,3 +51,34 @@ def test_bad_arguments_are_refused():
     stacker.push(np.zeros(3))
     with pytest.raises(StackingInputError, match="has 4 values; this track.s have 3"):
         stacker.push(np.zeros(4))
+
+
+def test_a_step_stacks_every_step_th_frame_in_batch_and_streaming():
+    """A 60 fps video stacks frames t, t-2, t-4 so that they span the time a 30 fps model's
+    t, t-1, t-2 did; frames before the sequence start are its first frame, as with step 1."""
+    X = _frames(9, 3)
+    S = stack_frames(X, 3, step=2, sequence_starts=[0, 6])
+    np.testing.assert_array_equal(S[5], np.concatenate([X[5], X[3], X[1]]))
+    np.testing.assert_array_equal(S[3], np.concatenate([X[3], X[1], X[0]]))
+    np.testing.assert_array_equal(S[7], np.concatenate([X[7], X[6], X[6]]))   # no leakage
+    stacker = FrameStacker(3, step=2)
+    streamed = np.array([stacker.push(x) for x in X[:6]])
+    np.testing.assert_array_equal(streamed, S[:6])
+    with pytest.raises(StackingInputError, match="step=0"):
+        stack_frames(X, 3, step=0)
+    with pytest.raises(StackingInputError, match="step=1.5"):
+        FrameStacker(3, step=1.5)
+
+
+@pytest.mark.parametrize("video_fps, step", [(30, 1), (29.97, 1), (25, 1), (24, 1), (15, 1),
+                                             (50, 2), (59.94, 2), (60, 2), (90, 3), (120, 4),
+                                             (240, 8)])
+def test_the_step_keeps_stacked_frames_as_far_apart_in_time_as_in_training(video_fps, step):
+    assert stack_step(video_fps, 30.0) == step
+
+
+@pytest.mark.parametrize("video_fps, model_fps", [(0, 30), (-30, 30), (float("nan"), 30),
+                                                  (30, 0), (float("inf"), 30)])
+def test_absurd_frame_rates_are_refused(video_fps, model_fps):
+    with pytest.raises(StackingInputError, match="frame rates must be positive"):
+        stack_step(video_fps, model_fps)

@@ -169,6 +169,7 @@ import numpy as np
 
 from regressor.angles import heading_norm
 from regressor.canonical_priors import CanonicalPriors
+from regressor.pose_model import DEFAULT_TRAINING_FPS
 from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from .mirror_limbs import mirror_mean, sees_mirror
@@ -444,10 +445,12 @@ def evidence_weight(estimator) -> float:
 
 def chain_options(estimator) -> dict:
     """FrontBackTracker's keyword arguments that depend on the estimator: its switch rates
-    (switch_probability) and evidence weight (evidence_weight). The tracker's chains and the
+    (switch_probability), evidence weight (evidence_weight) and the frame rate they hold at
+    (its training_fps). The tracker's chains and the
     offline replays that choose their weights both take them from here."""
     return {"switch": switch_probability(estimator),
-            "evidence_weight": evidence_weight(estimator)}
+            "evidence_weight": evidence_weight(estimator),
+            "reference_fps": float(getattr(estimator, "training_fps", DEFAULT_TRAINING_FPS))}
 
 
 def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
@@ -506,18 +509,21 @@ def _with_mirror(estimator, limbs: np.ndarray | None, mirrored: np.ndarray | Non
 
 
 def propose_sequence(estimator, masks, n_experts: int = DEFAULT_EXPERTS,
-                     mirror: bool = True) -> list[Hypotheses]:
+                     mirror: bool = True, step: int = 1) -> list[Hypotheses]:
     """The hypotheses of one person's silhouette sequence (masks (H, W) bool, in order), as
     the tracker makes them frame by frame: each mask described (with its mirror image's
-    descriptor too when tracker.mirror_limbs.sees_mirror(estimator, mirror)), stacked, and
-    :func:`propose_batch` (offline evaluation and the learning of priors)."""
+    descriptor too when tracker.mirror_limbs.sees_mirror(estimator, mirror)), stacked with
+    ``step`` frames between stacked descriptors (regressor.stacking.stack_step of the
+    sequence's frame rate), and :func:`propose_batch` (offline evaluation and the learning
+    of priors)."""
+    k = estimator.stack_depth
     if sees_mirror(estimator, mirror):
         pairs = [estimator.describe_with_mirror(m) for m in masks]
         X, M = (np.array([p[i] for p in pairs]) for i in (0, 1))
-        k = estimator.stack_depth
-        return propose_batch(estimator, stack_frames(X, k), n_experts, stack_frames(M, k))
+        return propose_batch(estimator, stack_frames(X, k, step=step), n_experts,
+                             stack_frames(M, k, step=step))
     X = np.array([estimator.describe(m) for m in masks])
-    return propose_batch(estimator, stack_frames(X, estimator.stack_depth), n_experts)
+    return propose_batch(estimator, stack_frames(X, k, step=step), n_experts)
 
 
 def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
@@ -562,7 +568,10 @@ class FrontBackTracker:
     is used when it has one, else hypotheses are scored by their evidence only); fps: frames
     per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; travel_weight and
     evidence_weight: exponents per frame of the travel likelihood and of the regressor's
-    evidence; keep_history: keep every frame's hypotheses for
+    evidence. These per-frame figures hold at reference_fps (the rate of the sequences they
+    were learned and chosen on, the model's training rate): at another fps the chain keeps
+    them per second instead (:meth:`frame_rate_ratio`), so a 120 fps video's four frames
+    count as one 30 fps frame did, not four times its evidence. keep_history: keep every frame's hypotheses for
     viterbi_path/smoothed (memory grows with the track; off when nothing needs smoothing);
     limb_filter_factory: fps -> a pose filter for the output's body angles, stepped on each
     frame's raw pose, or on its limb head's member that agrees with the decided heading
@@ -574,6 +583,7 @@ class FrontBackTracker:
     switch: tuple[float, float] = SWITCH_PROBABILITY
     travel_weight: float = TRAVEL_WEIGHT
     evidence_weight: float = EVIDENCE_WEIGHT
+    reference_fps: float = DEFAULT_TRAINING_FPS
     fuse_travel: bool = True
     keep_history: bool = True
     limb_filter_factory: Callable[[float], object] | None = None
@@ -588,11 +598,13 @@ class FrontBackTracker:
         person is not moving); returns the decision."""
         poses = hypotheses.poses
         K = len(poses)
-        evidence = self.evidence_weight * hypotheses.log_evidence
+        rate = self.frame_rate_ratio
+        evidence = rate * self.evidence_weight * hypotheses.log_evidence
         variances = np.full(K, np.nan)
         if travel_deg is not None:
             headings = np.degrees(np.arctan2(poses[:, 1], poses[:, 0]))
-            evidence += self.travel_weight * np.log(travel_likelihood(headings, travel_deg))
+            evidence += rate * self.travel_weight * np.log(travel_likelihood(headings,
+                                                                             travel_deg))
             if self.fuse_travel and self.filters:
                 raw_variance = self.filters[0].heading_variance
                 fused = [fuse_with_prior(pose, travel_deg, raw_variance) for pose in poses]
@@ -606,7 +618,7 @@ class FrontBackTracker:
         else:
             ll = np.array([f.log_likelihoods(poses, variances) if hasattr(f, "log_likelihoods")
                            else np.zeros(K) for f in self.filters])
-            link = log_A + ll
+            link = log_A + rate * ll
             scores = self.log_alpha[:, None] + link
             self.filters = self._continue(scores.argmax(axis=0))
             self.log_alpha = _logsumexp(scores, axis=0) + evidence
@@ -637,11 +649,28 @@ class FrontBackTracker:
             decision.runner_up_probability = float(prob[order[1]])
         return decision
 
+    @property
+    def frame_rate_ratio(self) -> float:
+        """reference_fps / fps: the share of a reference frame one of this video's frames is
+        (0.25 at 120 fps for a 30 fps reference); evidence, travel and the filters'
+        likelihoods are tempered by it (exponents), and the switch probabilities are those
+        of that share of a frame (:meth:`frame_switch`). 1 at the reference rate."""
+        return self.reference_fps / self.fps
+
+    @property
+    def frame_switch(self) -> tuple[float, float]:
+        """The switch probabilities per frame of this video: 1 - (1 - p)^ratio of the
+        reference frame's p, the same chance of switching per second."""
+        rate = self.frame_rate_ratio
+        if rate == 1.0:
+            return tuple(self.switch)
+        return tuple(float(-np.expm1(rate * np.log1p(-p))) for p in self.switch)
+
     def _log_transitions(self, K: int) -> np.ndarray:
         """log A (K, K) for the current switch probabilities, computed once."""
-        key = (K, tuple(self.switch))
+        key = (K, tuple(self.switch), self.fps, self.reference_fps)
         if self._log_A is None or self._log_A[0] != key:
-            self._log_A = (key, np.log(transition_matrix(K, self.switch)))
+            self._log_A = (key, np.log(transition_matrix(K, self.frame_switch)))
         return self._log_A[1]
 
     def _continue(self, predecessor: np.ndarray) -> list:
@@ -660,7 +689,7 @@ class FrontBackTracker:
             return np.zeros(0, dtype=np.int64)
         first = self.history[0]
         K = len(first.poses)
-        log_A = np.log(transition_matrix(K, self.switch))
+        log_A = np.log(transition_matrix(K, self.frame_switch))
         delta = np.log(np.linalg.matrix_power(np.exp(log_A), 256)[0]) + first.evidence
         back = []
         for frame in self.history[1:]:

@@ -21,7 +21,8 @@ import numpy as np
 
 from regressor.angles import N_ANGLES
 from regressor.edges import SilhouetteError
-from regressor.stacking import FrameStacker
+from regressor.pose_model import DEFAULT_TRAINING_FPS
+from regressor.stacking import FrameStacker, stack_step
 from .association import Associator
 from .roll import upright_mask
 from .filtering import PoseKalmanFilter
@@ -331,6 +332,10 @@ class PoseTracker:
         self.filter_factory, self.limb_filter_factory = filter_factories(estimator, settings,
                                                                          filter_factory)
         self._mirror = sees_mirror(estimator, settings.mirror_limbs)
+        #: Frames between a track's stacked descriptors: a video faster than the model's
+        #: training sequences stacks frames as far apart in time as those were.
+        self.stack_step = stack_step(self.fps, getattr(estimator, "training_fps",
+                                                       DEFAULT_TRAINING_FPS))
         index = getattr(estimator, "heading_index", None)
         if settings.novelty and index is not None:
             index.typical_distance()     # novelty's scale, computed once: here, not at frame 1
@@ -446,11 +451,12 @@ class PoseTracker:
     def _state(self, track_id: int) -> _TrackState:
         if track_id not in self.tracks:
             travel = TravelDirection(self.fps, self.frame_shape[1], focal_px=self._focal_px)
+            step = self.stack_step
             self.tracks[track_id] = _TrackState(
-                FrameStacker(self.estimator.stack_depth),
+                FrameStacker(self.estimator.stack_depth, step),
                 _front_back_chain(self.estimator, self.fps, self.settings, self.filter_factory,
                                   self.limb_filter_factory), travel,
-                FrameStacker(self.estimator.stack_depth) if self._mirror else None)
+                FrameStacker(self.estimator.stack_depth, step) if self._mirror else None)
         return self.tracks[track_id]
 
     def _stack(self, state: _TrackState, description: Description
