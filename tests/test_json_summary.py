@@ -48,6 +48,7 @@ def test_summary_lists_tracks_with_filtered_values_and_speed(tmp_path):
             clock.now += 0.5
     summary = json.loads(path.read_text())
     assert (summary["frames"], summary["video_fps"]) == (10, 25.0)
+    assert summary["poses"] == "filtered"
     assert summary["fps"] == pytest.approx(10 / 5.0)
     assert [t["id"] for t in summary["tracks"]] == [1, 3]
     track = summary["tracks"][1]
@@ -164,3 +165,11 @@ def test_both_sinks_take_and_refuse_the_same_times(tmp_path):
                     verdicts.append(False)
         assert verdicts[0] == verdicts[1], time_s
         assert verdicts[0] == (k < 4), time_s
+
+
+def test_the_summary_says_whether_its_poses_are_smoothed(tmp_path):
+    with JsonSummarySink(tmp_path / "s.json", 25.0, poses="smoothed") as sink:
+        sink.end_frame(0)
+    assert json.loads((tmp_path / "s.json").read_text())["poses"] == "smoothed"
+    with pytest.raises(SinkInputError, match="poses must be one of"):
+        JsonSummarySink(tmp_path / "t.json", 25.0, poses="raw")

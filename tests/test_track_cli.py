@@ -347,11 +347,17 @@ def test_interrupt_hangup_and_kill_leave_a_readable_recording(tmp_path):
 
 
 def test_smooth_gives_smoother_tracks_than_the_forward_filter(tmp_path, walk_video):
-    plain, smooth = tmp_path / "plain.json", tmp_path / "smooth.json"
-    assert _track(walk_video, "--json", plain, cwd=tmp_path).returncode == 0
+    """The JSON and BVH outputs are smoothed by default (as with --smooth); --no-smooth gives
+    the frame-by-frame filtered poses, which jitter more."""
+    plain, smooth, default = (tmp_path / f"{n}.json" for n in ("plain", "smooth", "default"))
+    assert _track(walk_video, "--json", plain, "--no-smooth", cwd=tmp_path).returncode == 0
     result = _track(walk_video, "--json", smooth, "--smooth", "--bvh", tmp_path / "b",
                     cwd=tmp_path)
     assert result.returncode == 0, result.stderr
+    assert _track(walk_video, "--json", default, cwd=tmp_path).returncode == 0
+    assert json.loads(default.read_text())["tracks"] == json.loads(smooth.read_text())["tracks"]
+    assert [json.loads(p.read_text())["poses"] for p in (plain, smooth, default)] == \
+        ["filtered", "smoothed", "smoothed"]
     (a,), (b,) = (json.loads(p.read_text())["tracks"] for p in (plain, smooth))
     assert a["frames"] == b["frames"]
     pa, pb = np.array(a["pose"])[:, 2:], np.array(b["pose"])[:, 2:]
@@ -360,6 +366,17 @@ def test_smooth_gives_smoother_tracks_than_the_forward_filter(tmp_path, walk_vid
         return np.abs((np.diff(p, 2, axis=0) + 180) % 360 - 180).mean()
     assert jitter(pb) < 0.5 * jitter(pa)
     assert len(list((tmp_path / "b").glob("*.bvh"))) == 1
+
+
+@pytest.mark.parametrize("options, keeps", [
+    (["--json", "t.json"], True), (["--bvh", "b"], True), (["--out", "t.mcap"], False),
+    (["--json", "t.json", "--no-smooth"], False), (["--out", "t.mcap", "--smooth"], False)])
+def test_histories_are_kept_only_for_a_smoothed_json_or_bvh(options, keeps):
+    """Smoothing needs each track's history (memory grows with the video): only a JSON or BVH
+    output takes smoothed tracks, so an MCAP-only run, or --no-smooth, keeps memory flat."""
+    from tracker.cli import build_parser, tracker_settings
+    args = build_parser().parse_args(["v.mp4", *options])
+    assert tracker_settings(args).keep_history is keeps
 
 
 # ------------------------------------------------------------------ --background (clean plate)

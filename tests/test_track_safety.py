@@ -283,7 +283,8 @@ def test_a_cut_off_avi_gives_a_one_line_warning(tmp_path):
 
 
 def test_without_smoothing_the_tracker_keeps_no_per_frame_history(walk):
-    """Case 15: memory flat over a long video (`track` keeps histories only for --smooth)."""
+    """Case 15: memory flat over a long video (`track` keeps histories only to smooth a JSON or
+    BVH output)."""
     tracker = PoseTracker(load_pose_model(), 30.0, TrackerSettings(keep_history=False))
     track_video(walk, tracker)
     (state,) = tracker.tracks.values()

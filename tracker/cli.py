@@ -1,6 +1,6 @@
 """The ``track`` command: 3-D poses of the people in a static-camera video.
 
-    track VIDEO [--out FILE.mcap] [--bvh DIR] [--json FILE] [--view] [--smooth] [--model FILE]
+    track VIDEO [--out FILE.mcap] [--bvh DIR] [--json FILE] [--view] [--no-smooth] [--model FILE]
           [--background IMAGE] [--max-people N] [--roll DEG] [--start S] [--end S]
           [--zone-foreground {sure,colour}] [--min-area PERCENT] [--workers {1,2}] [--quiet]
 
@@ -91,8 +91,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--json", type=Path, metavar="FILE", help="write a JSON summary")
     ap.add_argument("--view", action="store_true", help="live 3-D skeletons in meshcat "
                     "(browser, 127.0.0.1), played at the video's own speed")
-    ap.add_argument("--smooth", action="store_true", help="RTS-smooth each whole track for "
-                    "the JSON and BVH outputs (offline use)")
+    ap.add_argument("--smooth", action=argparse.BooleanOptionalAction, default=True,
+                    help="the JSON and BVH outputs get each whole track RTS-smoothed (the "
+                    "default; it follows the body better than the frame-by-frame filter) or, "
+                    "with --no-smooth, the filtered poses the MCAP and the live view get")
     ap.add_argument("--model", type=Path, default=None, help="model file "
                     "(default: the shipped model)")
     ap.add_argument("--background", type=Path, metavar="IMAGE", help="an image of the empty "
@@ -222,11 +224,18 @@ def _check_collisions(args) -> None:
 def tracker_settings(args):
     """The tracker.pipeline.TrackerSettings the parsed options ask for."""
     from .pipeline import TrackerSettings
-    # Per-track histories are kept only for --smooth: without it memory stays flat.
-    return TrackerSettings(max_people=args.max_people, keep_history=args.smooth,
+    # Per-track histories are kept only to smooth a JSON or BVH output: without one (or with
+    # --no-smooth) memory stays flat.
+    return TrackerSettings(max_people=args.max_people, keep_history=smoothing(args),
                            roll_deg=args.roll,
                            trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
                            min_area_fraction=_min_area_fraction(args))
+
+
+def smoothing(args) -> bool:
+    """Whether smoothed tracks are written: --smooth (the default) and a JSON or BVH output
+    to write them to (the MCAP and the live view take poses frame by frame)."""
+    return bool(args.smooth and (args.json is not None or args.bvh is not None))
 
 
 def _min_area_fraction(args) -> float:
@@ -236,15 +245,15 @@ def _min_area_fraction(args) -> float:
 
 
 def _sink_factories(args, source, model) -> tuple[list, list]:
-    """(factories of the sinks fed every frame, of those fed smoothed tracks at the end when
-    --smooth). One entry per output option: adding an output is adding a line here."""
+    """(factories of the sinks fed every frame, of those fed smoothed tracks at the end
+    (the JSON and BVH outputs unless --no-smooth)). One entry per output option: adding an output is adding a line here."""
     def mcap():
         from .sinks.mcap import McapSink
         return McapSink(args.out, metadata={
             "video": {"path": str(args.video), "fps": source.fps,
                       "width": source.width, "height": source.height},
             "model": {"path": str(args.model), **model.summary()},
-            "settings": {"smooth": args.smooth, "max_people": args.max_people,
+            "settings": {"smooth": smoothing(args), "max_people": args.max_people,
                          "start_s": args.start, "end_s": args.end,
                          # options that change the silhouettes, when not their defaults
                          **({} if ZONE_FOREGROUND[args.zone_foreground]
@@ -258,7 +267,8 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
 
     def json_summary():
         from .sinks.json_summary import JsonSummarySink
-        return JsonSummarySink(args.json, source.fps)
+        return JsonSummarySink(args.json, source.fps,
+                               poses="smoothed" if smoothing(args) else "filtered")
 
     def bvh():
         from .sinks.bvh import BVHSink

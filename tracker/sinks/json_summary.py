@@ -8,6 +8,9 @@ Layout (format version 1)::
      "frames": int,            # frames processed (with or without people)
      "fps": float,             # frames processed per second of wall time (speed achieved)
      "video_fps": float, "wall_time_s": float,
+     "poses": "filtered" or "smoothed",   # what the tracks' "pose" and "heading_deg" hold:
+                                          # frame by frame, or each whole track RTS-smoothed
+                                          # (track's default for this file; --no-smooth)
      "tracks": [{"id": int, "first_frame": int, "last_frame": int, "n_frames": int,
                  "frames": [int], "time_s": [float], "centroid_px": [[x, y]],
                  "heading_deg": [float],   # filtered heading, degrees in (-180, 180]
@@ -50,6 +53,7 @@ if TYPE_CHECKING:
 FORMAT = "silhouette-pose tracking summary"
 VERSION = 1
 _DECIMALS = 6
+POSES = ("filtered", "smoothed")
 
 
 def write_json_atomically(path: str | Path, document: dict) -> None:
@@ -64,14 +68,18 @@ def write_json_atomically(path: str | Path, document: dict) -> None:
 class JsonSummarySink:
     """Collect per-track results and write the summary on close (see the module docstring).
 
-    path: output JSON file. video_fps: the video's frame rate. clock: seconds counter used for
+    path: output JSON file. video_fps: the video's frame rate. poses: "filtered" or
+    "smoothed", what the poses written to it are (recorded in the summary). clock: seconds counter used for
     the speed achieved (default time.perf_counter; a parameter so tests can fix it).
     """
 
-    def __init__(self, path: str | Path, video_fps: float,
+    def __init__(self, path: str | Path, video_fps: float, poses: str = "filtered",
                  clock: Callable[[], float] = time.perf_counter):
         if not (math.isfinite(video_fps) and video_fps > 0):
             raise SinkInputError(f"video_fps must be a positive number, got {video_fps}")
+        if poses not in POSES:
+            raise SinkInputError(f"poses must be one of {POSES}, got {poses!r}")
+        self.poses = poses
         self.path = Path(path)
         self.video_fps = float(video_fps)
         self._clock = clock
@@ -158,7 +166,8 @@ class JsonSummarySink:
             })
         return {"format": FORMAT, "version": VERSION, "frames": frames,
                 "fps": round(frames / wall, 3) if wall > 0 else 0.0,
-                "video_fps": self.video_fps, "wall_time_s": round(wall, 3), "tracks": tracks}
+                "video_fps": self.video_fps, "wall_time_s": round(wall, 3), "poses": self.poses,
+                "tracks": tracks}
 
     def save(self) -> None:
         """Write the summary so far, atomically."""
