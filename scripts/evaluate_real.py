@@ -54,12 +54,14 @@ _MID_HIP = [0, 6]               # RHip, LHip in the reference's keypoints
 
 class ViewTrack(NamedTuple):
     """Every pose the tracker output on one video, one row per (frame, person): frames (n,)
-    int video frame indices, filtered and raw (n, 55) pose vectors, track_ids (n,) int,
-    bbox_px (n, 4) (x, y, w, h) pixels, novelty (n,) (PoseModel.novelty; NaN if unknown)."""
+    int video frame indices, filtered, raw and smoothed (each whole track RTS-smoothed, as
+    track's JSON and BVH get them) (n, 55) pose vectors, track_ids (n,) int, bbox_px (n, 4)
+    (x, y, w, h) pixels, novelty (n,) (PoseModel.novelty; NaN if unknown)."""
 
     frames: np.ndarray
     filtered: np.ndarray
     raw: np.ndarray
+    smoothed: np.ndarray
     track_ids: np.ndarray
     bbox_px: np.ndarray
     novelty: np.ndarray
@@ -112,8 +114,11 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
     poses = recorder.poses
     if not poses:
         raise Pose2SimError(f"{video}: nobody was tracked")
+    # Each track's smoothed poses, in the order of its rows in poses.
+    smoothed = {t: iter(tracker.smoothed_track(t)) for t in {p.track_id for p in poses}}
     return ViewTrack(np.array([p.frame_index for p in poses]),
                      np.array([p.filtered for p in poses]), np.array([p.raw for p in poses]),
+                     np.array([next(smoothed[p.track_id]) for p in poses]),
                      np.array([p.track_id for p in poses]),
                      np.array([p.bbox_px for p in poses], dtype=float),
                      np.array([np.nan if p.novelty is None else p.novelty for p in poses]),
@@ -132,6 +137,7 @@ def evaluate_view(trial: Trial, view: str, track: ViewTrack, constant=None, fit=
            "subject_tracks": int(len(np.unique(track.track_ids[rows]))),
            "filtered": view_measures(trial, view, frames, track.filtered[rows], constant, fit),
            "raw": view_measures(trial, view, frames, track.raw[rows], constant, fit),
+           "smoothed": view_measures(trial, view, frames, track.smoothed[rows], constant, fit),
            "novelty": novelty_summary(track.novelty[rows])}
     return out, rows
 
@@ -206,12 +212,13 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
         per_view[view]["zone_foreground"] = next(
             name for name, trusted in ZONE_FOREGROUND.items() if trusted == trust_zone_foreground)
         per_view[view]["reference_masks"] = reference_masks
-        subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows])
+        subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows],
+                         track.smoothed[rows])
     common = subject[VIEWS[0]][0]
     for view in VIEWS[1:]:
         common = np.intersect1d(common, subject[view][0])
     cross = {}
-    for kind, col in (("filtered", 1), ("raw", 2)):
+    for kind, col in (("filtered", 1), ("raw", 2), ("smoothed", 3)):
         poses = {v: subject[v][col][np.isin(subject[v][0], common)] for v in VIEWS}
         cross[kind] = cross_view_measures(trial, common, poses)
     return {"trial": str(trial.root), "views": per_view, "mean": _means(per_view),
@@ -286,7 +293,7 @@ def format_table(result: dict) -> str:
                       m["constant_flexion_error"], m["training_mean_flexion_error"],
                       m["flexion_corr_per_angle"],
                       m["heading_within_45"], m["heading_rms_deg"]))
-    for kind in ("filtered", "raw"):
+    for kind in ("filtered", "raw", "smoothed"):
         c = result["cross_view"][kind]
         lines.append(f"cross-view ({kind}, {c['frames']} common frames): heading RMS "
                      f"{c['heading_rms_deg']:.0f} deg (random headings "
@@ -298,6 +305,14 @@ def format_table(result: dict) -> str:
                      "/ training-mean pose's / corr. of the 8 most-moving): "
                      + ", ".join(f"{v} {b['error_deg']:.1f} / {b['constant_error_deg']:.1f} / "
                                  f"{b['top_angles']['mean']:.2f}" for v, b in body.items()))
+    smoothed = [r["smoothed"] for r in result["views"].values()]
+    lines.append("smoothed poses (track's JSON and BVH): flexion error "
+                 f"{np.mean([s['flexion']['error'] for s in smoothed]):.1f} deg (mean over "
+                 "views), corr. " + " / ".join(
+                     f"{c:.2f}" for c in np.mean([s["flexion"]["corr_per_angle"]
+                                                  for s in smoothed], axis=0))
+                 + ", heading within 45 deg " + " / ".join(
+                     f"{100 * s['heading']['within_45']:.0f}" for s in smoothed) + " %")
     raw = [r["raw"]["flexion"]["error"] for r in result["views"].values()]
     lines.append(f"raw poses: flexion error {np.mean(raw):.1f} deg (mean over views). "
                  f"const: a constant at the reference's own mean flexion; train: the model's "
