@@ -133,6 +133,23 @@ def test_windowed_smoothing_matches_one_pass():
     assert np.abs(angle_error(no_lag, pose_angles(one_pass))).max() > 0.5
 
 
+def test_the_smoother_is_filterpys_rts_smoother():
+    """The numpy smoother (ConstantVelocityFilter.smooth) gives what filterpy's KalmanFilter
+    and rts_smoother give, with per-frame R (ambiguous frames inflated) and angle unwrapping,
+    on a pose track with the shipped model's noise models."""
+    from regressor.pose_model import load_pose_model
+    model = load_pose_model()
+    raw = noisy_poses(true_angles(80, seed=7), std=6.0, seed=8)
+    raw[20:26, :2] *= 0.2                                   # ambiguous: R inflated there
+    kf = PoseKalmanFilter(FPS, R=model.measurement_covariance, q=model.process_noise)
+    angles, Rs, ambiguous = kf._measure_all(raw, "test")
+    assert ambiguous[20:26].all() and not ambiguous[:20].any()
+    ours = kf.cv.smooth(angles, Rs, window=1000)
+    reference = kf.cv.smooth_filterpy(angles, Rs)
+    assert np.abs(ours - reference).max() < 1e-6
+    assert np.abs(ours - angles).max() > 1.0                # it did smooth
+
+
 def test_smoothing_leaves_the_step_state_alone():
     raw = noisy_poses(true_angles(30), std=6.0)
     a, b = PoseKalmanFilter(FPS), PoseKalmanFilter(FPS)

