@@ -133,6 +133,13 @@ class ConstantVelocityFilter:
         """Forward-filtered values (T, dim) of measurements zs (T, dim); Rs: per-frame R or None."""
         zs = self._check_sequence(zs)
         out = np.empty_like(zs)
+        for t, kf in enumerate(self._filterpy_steps(zs, Rs)):
+            out[t] = kf.x[: self.dim, 0]
+        return out
+
+    def _filterpy_steps(self, zs: np.ndarray, Rs: Sequence | None):
+        """filterpy's filter over checked measurements zs (T, dim): yields it after each
+        frame's update (the same KalmanFilter object each time)."""
         kf = None
         for t, z in enumerate(zs):
             R = None if Rs is None else Rs[t]
@@ -140,8 +147,7 @@ class ConstantVelocityFilter:
                 kf = self.start(z, R)
             else:
                 self.advance(kf, z, R)
-            out[t] = kf.x[: self.dim, 0]
-        return out
+            yield kf
 
     def smooth(self, zs: np.ndarray, Rs: Sequence | None = None, window: int = 256,
                lag: int = 64) -> np.ndarray:
@@ -213,13 +219,8 @@ class ConstantVelocityFilter:
         """:meth:`smooth` done by filterpy's KalmanFilter and rts_smoother in one window (the
         reference the tests hold :meth:`smooth` to; it keeps four (T, 2 dim, 2 dim) arrays)."""
         zs = self._check_sequence(zs)
-        xs, ps, kf = [], [], None
-        for t, z in enumerate(zs):
-            R = None if Rs is None else Rs[t]
-            if kf is None:
-                kf = self.start(z, R)
-            else:
-                self.advance(kf, z, R)
+        xs, ps = [], []
+        for kf in self._filterpy_steps(zs, Rs):
             xs.append(kf.x.copy())
             ps.append(kf.P.copy())
         x_smooth, _, _, _ = kf.rts_smoother(np.array(xs), np.array(ps), Fs=[self.F] * len(xs),
