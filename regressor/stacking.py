@@ -43,7 +43,8 @@ def _check_step(step) -> int:
 def stack_step(video_fps: float, model_fps: float) -> int:
     """Frames between stacked descriptors (>= 1) so that a video at video_fps stacks frames
     about as far apart in time as the model's training sequences at model_fps did (frames
-    per second both): 1 up to 1.5 x model_fps, 2 at 60 fps for a 30 fps model, 4 at 120."""
+    per second both): the nearest whole ratio, at least 1 (1 below 1.5 x model_fps; for a
+    30 fps model 2 from 45 fps, so at 50 and 60 fps, and 4 at 120)."""
     if not (np.isfinite(video_fps) and video_fps > 0 and np.isfinite(model_fps) and model_fps > 0):
         raise StackingInputError(f"frame rates must be positive, got video {video_fps}, "
                                  f"model {model_fps}")

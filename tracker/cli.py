@@ -246,7 +246,8 @@ def _min_area_fraction(args) -> float:
 
 def _sink_factories(args, source, model) -> tuple[list, list]:
     """(factories of the sinks fed every frame, of those fed smoothed tracks at the end
-    (the JSON and BVH outputs unless --no-smooth)). One entry per output option: adding an output is adding a line here."""
+    (the JSON and BVH outputs unless --no-smooth)). One entry per output option: adding an
+    output is adding a line here."""
     def mcap():
         from .sinks.mcap import McapSink
         return McapSink(args.out, metadata={
@@ -281,7 +282,7 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
 
     outputs = [(args.out, mcap, False), (args.json, json_summary, True),
                (args.bvh, bvh, True), (args.view or None, view, False)]
-    chosen = [(make, smoothable and args.smooth) for option, make, smoothable in outputs
+    chosen = [(make, smoothable and smoothing(args)) for option, make, smoothable in outputs
               if option is not None]
     return [m for m, later in chosen if not later], [m for m, later in chosen if later]
 
