@@ -4,7 +4,8 @@
         --model new=FILE [--trials 16_11 02_02 08_03] [--json out.json]
 
 For each trial a 320x240 video is rendered as a 30 deg/s spiral walk (the shipped sample's
-settings; 16_11 uses the shipped sample itself) into --video-dir (reused when present), run
+settings; 16_11 uses the shipped sample itself; --fps renders them at another frame rate, the
+sample too) into --video-dir (reused when present), run
 through the tracker (background subtraction, stacking, Kalman filter) and compared with its
 ground truth on the tracked frames. Measures (issue 9), for the raw per-frame regressor output,
 the filtered output that `track` streams and the smoothed output of `track --smooth`:
@@ -56,13 +57,19 @@ def measures(est, truth, constant) -> dict:
             "head": m["heading_rms_deg"], "mpjpe": m["mpjpe_mm"]}
 
 
-def trial_video(trial: str, bvh_dir: Path, video_dir: Path) -> Path:
-    """The spiral-walk video of a trial (the shipped sample for 16_11), rendered once."""
-    if trial == "16_11":
-        return SAMPLE
-    path = video_dir / f"{trial}_spiral30.mp4"
+def video_path(trial: str, video_dir: Path, fps: float = 30.0) -> Path:
+    """Where a trial's spiral-walk video is (the shipped sample for 16_11 at 30 fps)."""
+    if fps == 30.0:
+        return SAMPLE if trial == "16_11" else video_dir / f"{trial}_spiral30.mp4"
+    return video_dir / f"{trial}_spiral30_{fps:g}fps.mp4"
+
+
+def trial_video(trial: str, bvh_dir: Path, video_dir: Path, fps: float = 30.0) -> Path:
+    """The spiral-walk video of a trial at fps frames per second (the shipped sample for
+    16_11 at 30), rendered once."""
+    path = video_path(trial, video_dir, fps)
     if not path.is_file():
-        cam = CameraOptions()
+        cam = CameraOptions(fps=fps)
         write_camera_video(path, cmu_motion(bvh_dir / f"{trial}.bvh", 30.0, cam.fps), cam)
     return path
 
@@ -91,13 +98,18 @@ def main(argv=None) -> int:
     ap.add_argument("--bvh-dir", type=Path, default=REPO.parent / "shared/data/cmu/bvh")
     ap.add_argument("--video-dir", type=Path, default=Path("cache/videos"))
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--fps", type=float, default=30.0,
+                    help="render the videos at this frame rate (default 30, the sample's; "
+                    "others are rendered as TRIAL_spiral30_FPSfps.mp4)")
     args = ap.parse_args(argv)
+    if not (np.isfinite(args.fps) and 10.0 <= args.fps <= 240.0):
+        ap.error(f"--fps must be between 10 and 240 frames per second, got {args.fps}")
     named = _named_models(ap, args.model)
     for trial in args.trials:           # before any tracking, not after some trials
-        if (trial != "16_11" and not (args.video_dir / f"{trial}_spiral30.mp4").is_file()
-                and not (args.bvh_dir / f"{trial}.bvh").is_file()):
-            ap.error(f"trial {trial}: neither {args.video_dir / f'{trial}_spiral30.mp4'} nor "
-                     f"{args.bvh_dir / f'{trial}.bvh'} exists")
+        video = video_path(trial, args.video_dir, args.fps)
+        if not video.is_file() and not (args.bvh_dir / f"{trial}.bvh").is_file():
+            ap.error(f"trial {trial}: neither {video} nor {args.bvh_dir / f'{trial}.bvh'} "
+                     f"exists")
     if args.json is not None and not args.json.parent.is_dir():
         ap.error(f"--json {args.json}: no folder {args.json.parent}")
     if args.json is not None and any(args.json.resolve() == path.resolve()
@@ -113,7 +125,7 @@ def main(argv=None) -> int:
           + "      fps")
     with threadpool_limits(1):
         for trial in args.trials:
-            video = trial_video(trial, args.bvh_dir, args.video_dir)
+            video = trial_video(trial, args.bvh_dir, args.video_dir, args.fps)
             truth_all = load_truth(video)["pose"][:, 0]
             for name, model in models:
                 start = time.perf_counter()

@@ -41,3 +41,15 @@ def test_bad_trials_and_outputs_are_refused_before_tracking(evaluate_accuracy, t
     assert "is a model file" in err
     assert model_copy.read_bytes() == DEFAULT_MODEL_PATH.read_bytes()
     assert not (tmp_path / "videos").exists()
+
+
+def test_absurd_frame_rates_are_refused_and_others_get_their_own_videos(evaluate_accuracy,
+                                                                        tmp_path, capsys):
+    base = ["--model", f"a={DEFAULT_MODEL_PATH}", "--video-dir", str(tmp_path / "videos")]
+    for fps in ("5", "1000", "nan"):
+        assert "--fps must be between 10 and 240" in refused_in_one_line(
+            evaluate_accuracy, base + ["--fps", fps], capsys)
+    assert evaluate_accuracy.video_path("16_11", tmp_path) == evaluate_accuracy.SAMPLE
+    assert evaluate_accuracy.video_path("02_02", tmp_path).name == "02_02_spiral30.mp4"
+    assert evaluate_accuracy.video_path("16_11", tmp_path, 60.0).name == \
+        "16_11_spiral30_60fps.mp4"
