@@ -466,3 +466,32 @@ def test_a_ctrl_c_just_before_the_outputs_close_does_not_cut_them_short(tmp_path
     assert result.interrupted and len(attempts) == 2
     assert json.loads((tmp_path / "s.json").read_text())["frames"] == result.frames == 40
     assert js.closed and bvh.closed
+
+
+class _CtrlCAtFrame5:
+    """A sink that raises the user's Ctrl-C at frame 5."""
+
+    def write(self, pose):
+        pass
+
+    def end_frame(self, frame_index):
+        if frame_index == 5:
+            raise KeyboardInterrupt
+
+    def close(self):
+        pass
+
+
+def test_a_ctrl_c_leaves_the_smoothed_outputs_the_filtered_poses_so_far(tmp_path, walk):
+    """The JSON and BVH are smoothed at the end by default; a Ctrl-C asks for a quick exit,
+    so they get the frames tracked so far, filtered (and the JSON says so), not nothing."""
+    tracker = PoseTracker(load_pose_model(), 30.0, TrackerSettings(keep_history=True))
+    js = JsonSummarySink(tmp_path / "s.json", 30.0, poses="smoothed")
+    bvh = BVHSink(tmp_path / "b", 30.0, prefix="walk", min_frames=2)
+    result = track_video(walk, tracker, sinks=[_CtrlCAtFrame5()], smoothed_sinks=[js, bvh])
+    assert result.interrupted and result.frames == 5
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["poses"] == "filtered"
+    (track,) = summary["tracks"]
+    assert 3 <= track["n_frames"] <= 6
+    assert len(list((tmp_path / "b").glob("*.bvh"))) == 1

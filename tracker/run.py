@@ -59,8 +59,10 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     object with update(people_in_view) and close(), e.g. tracker.progress.Progress.
     Sinks with a ``write_frame(frame_index, time_s, frame, people)`` method also get each
     frame (BGR uint8 (H, W, 3), not to be modified) and its people (track id -> PersonMask),
-    after its poses. smoothed_sinks: fed at the end with each whole track RTS-smoothed (``track --smooth``),
-    in frame order. Every sink's end_frame() is called after each frame. All sinks are closed
+    after its poses. smoothed_sinks: fed at the end with each whole track RTS-smoothed
+    (``track``'s JSON and BVH unless --no-smooth), in frame order; after a Ctrl-C, which asks
+    for a quick exit, with the filtered poses instead (a sink with a ``pose_kind``
+    attribute, the JSON's, is told "filtered", so its file says so). Every sink's end_frame() is called after each frame. All sinks are closed
     on return, also on Ctrl-C, which stops the loop (the result says interrupted); while they
     are being closed, further Ctrl-C, SIGTERM and SIGHUP are held back (and mark the run
     interrupted), so a second Ctrl-C cannot cut an output short. OutputError if some could not
@@ -131,6 +133,8 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                     try:
                         if recorder is not None and not interrupted:
                             _write_smoothed(tracker, recorder, smoothed_sinks)
+                        elif recorder is not None:
+                            _write_filtered(recorder, smoothed_sinks)
                     finally:
                         problems = close_sinks(list(sinks) + list(smoothed_sinks))
                         closed = True
@@ -232,6 +236,17 @@ def _signals_held() -> Iterator[list[int]]:
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)
+
+
+def _write_filtered(recorder: PoseRecorder, sinks: Sequence[Sink]) -> None:
+    """Feed the recorded (filtered) poses to the sinks in frame order, telling a sink with a
+    ``pose_kind`` attribute that they are filtered."""
+    for sink in sinks:
+        if hasattr(sink, "pose_kind"):
+            sink.pose_kind = "filtered"
+    for pose in recorder.poses:
+        for sink in sinks:
+            sink.write(pose)
 
 
 def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]) -> None:

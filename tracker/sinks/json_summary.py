@@ -79,7 +79,7 @@ class JsonSummarySink:
             raise SinkInputError(f"video_fps must be a positive number, got {video_fps}")
         if poses not in POSES:
             raise SinkInputError(f"poses must be one of {POSES}, got {poses!r}")
-        self.poses = poses
+        self.pose_kind = poses      # tracker.run.track_video may say "filtered" after Ctrl-C
         self.path = Path(path)
         self.video_fps = float(video_fps)
         self._clock = clock
@@ -166,7 +166,7 @@ class JsonSummarySink:
             })
         return {"format": FORMAT, "version": VERSION, "frames": frames,
                 "fps": round(frames / wall, 3) if wall > 0 else 0.0,
-                "video_fps": self.video_fps, "wall_time_s": round(wall, 3), "poses": self.poses,
+                "video_fps": self.video_fps, "wall_time_s": round(wall, 3), "poses": self.pose_kind,
                 "tracks": tracks}
 
     def save(self) -> None:
