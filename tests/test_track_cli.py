@@ -356,6 +356,8 @@ def test_smooth_gives_smoother_tracks_than_the_forward_filter(tmp_path, walk_vid
     assert result.returncode == 0, result.stderr
     assert _track(walk_video, "--json", default, cwd=tmp_path).returncode == 0
     assert json.loads(default.read_text())["tracks"] == json.loads(smooth.read_text())["tracks"]
+    assert f"JSON (smoothed poses): {smooth}" in result.stdout
+    assert f"BVH folder (smoothed poses): {tmp_path / 'b'}" in result.stdout
     assert [json.loads(p.read_text())["poses"] for p in (plain, smooth, default)] == \
         ["filtered", "smoothed", "smoothed"]
     (a,), (b,) = (json.loads(p.read_text())["tracks"] for p in (plain, smooth))

@@ -378,9 +378,13 @@ def _print_summary(args, source, result) -> None:
                       f"unlike the training silhouettes, their poses extrapolated"
                       if state_.unfamiliar else "")
         print(f"  track {track_id}: {state_.frames} frames{unfamiliar}")
-    for path, what in ((args.out, "MCAP"), (args.json, "JSON"), (args.bvh, "BVH folder")):
+    # Which poses the JSON and BVH hold: smoothed, or filtered (--no-smooth, or a quick exit
+    # after an interrupt, tracker.run.track_video).
+    kind = ("smoothed" if smoothing(args) and not result.interrupted else "filtered")
+    for path, what, poses in ((args.out, "MCAP", "filtered"), (args.json, "JSON", kind),
+                              (args.bvh, "BVH folder", kind)):
         if path is not None:
-            print(f"  {what}: {path}")
+            print(f"  {what} ({poses} poses): {path}")
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
