@@ -380,7 +380,8 @@ def _print_summary(args, source, result) -> None:
         print(f"  track {track_id}: {state_.frames} frames{unfamiliar}")
     # Which poses the JSON and BVH hold: smoothed, or filtered (--no-smooth, or a quick exit
     # after an interrupt, tracker.run.track_video).
-    kind = ("smoothed" if smoothing(args) and not result.interrupted else "filtered")
+    files = args.json is not None or args.bvh is not None
+    kind = "smoothed" if files and smoothing(args) and not result.interrupted else "filtered"
     for path, what, poses in ((args.out, "MCAP", "filtered"), (args.json, "JSON", kind),
                               (args.bvh, "BVH folder", kind)):
         if path is not None:
