@@ -235,7 +235,7 @@ def tracker_settings(args):
 def smoothing(args) -> bool:
     """Whether smoothed tracks are written: --smooth (the default) and a JSON or BVH output
     to write them to (the MCAP and the live view take poses frame by frame)."""
-    return bool(args.smooth and (args.json is not None or args.bvh is not None))
+    return (args.json is not None or args.bvh is not None) and bool(args.smooth)
 
 
 def _min_area_fraction(args) -> float:
@@ -380,8 +380,7 @@ def _print_summary(args, source, result) -> None:
         print(f"  track {track_id}: {state_.frames} frames{unfamiliar}")
     # Which poses the JSON and BVH hold: smoothed, or filtered (--no-smooth, or a quick exit
     # after an interrupt, tracker.run.track_video).
-    files = args.json is not None or args.bvh is not None
-    kind = "smoothed" if files and smoothing(args) and not result.interrupted else "filtered"
+    kind = "smoothed" if smoothing(args) and not result.interrupted else "filtered"
     for path, what, poses in ((args.out, "MCAP", "filtered"), (args.json, "JSON", kind),
                               (args.bvh, "BVH folder", kind)):
         if path is not None:

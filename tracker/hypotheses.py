@@ -573,9 +573,9 @@ class FrontBackTracker:
     them per second instead (:meth:`frame_rate_ratio`), so a 120 fps video's four frames
     count as one 30 fps frame did, not four times its evidence. keep_history: keep every
     frame's hypotheses for viterbi_path/smoothed (memory grows with the track; off when
-    nothing needs smoothing); limb_filter_factory: fps -> a pose filter for the output's body angles, stepped on each
-    frame's raw pose, or on its limb head's member that agrees with the decided heading
-    (module docstring, "Limbs"); None: the chosen state's body angles.
+    nothing needs smoothing); limb_filter_factory: fps -> a pose filter for the output's body
+    angles, stepped on each frame's raw pose, or on its limb head's member that agrees with
+    the decided heading (module docstring, "Limbs"); None: the chosen state's body angles.
     """
 
     filter_factory: Callable[[float], object]

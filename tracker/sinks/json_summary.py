@@ -69,8 +69,9 @@ class JsonSummarySink:
     """Collect per-track results and write the summary on close (see the module docstring).
 
     path: output JSON file. video_fps: the video's frame rate. poses: "filtered" or
-    "smoothed", what the poses written to it are (recorded in the summary). clock: seconds counter used for
-    the speed achieved (default time.perf_counter; a parameter so tests can fix it).
+    "smoothed", what the poses written to it are (recorded in the summary). clock: seconds
+    counter used for the speed achieved (default time.perf_counter; a parameter so tests can
+    fix it).
     """
 
     def __init__(self, path: str | Path, video_fps: float, poses: str = "filtered",
@@ -166,8 +167,8 @@ class JsonSummarySink:
             })
         return {"format": FORMAT, "version": VERSION, "frames": frames,
                 "fps": round(frames / wall, 3) if wall > 0 else 0.0,
-                "video_fps": self.video_fps, "wall_time_s": round(wall, 3), "poses": self.pose_kind,
-                "tracks": tracks}
+                "video_fps": self.video_fps, "wall_time_s": round(wall, 3),
+                "poses": self.pose_kind, "tracks": tracks}
 
     def save(self) -> None:
         """Write the summary so far, atomically."""
