@@ -63,13 +63,14 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     (``track``'s JSON and BVH unless --no-smooth), in frame order; after a Ctrl-C, which asks
     for a quick exit, with the filtered poses instead (a sink with a ``pose_kind``
     attribute, the JSON's, is told "filtered", so its file says so). Every sink's end_frame()
-    is called after each frame. All sinks are closed on return, also on Ctrl-C, which stops
-    the loop (the result says interrupted); while they are being closed, further Ctrl-C,
-    SIGTERM and SIGHUP are held back (and mark the run interrupted), so a second Ctrl-C cannot
-    cut an output short. OutputError if some could not be closed. background: an image of the empty scene (a clean plate, BGR uint8 at the video's
-    size, ``track --background``), trusted everywhere; None learns the scene from frames spread
-    over the video (see :func:`_prime`). tracker.stage_seconds gains "background" (sampling the
-    video and priming, the start-up cost), "decode" and "outputs".
+    is called after each frame. All sinks are closed on return, also on Ctrl-C, which stops the
+    loop (the result says interrupted); while they are being closed, further Ctrl-C, SIGTERM and
+    SIGHUP are held back (and mark the run interrupted), so a second Ctrl-C cannot cut an output
+    short. OutputError if some could not be closed. background: an image of the empty scene (a
+    clean plate, BGR uint8 at the video's size, ``track --background``), trusted everywhere;
+    None learns the scene from frames spread over the video (see :func:`_prime`).
+    tracker.stage_seconds gains "background" (sampling the video and priming, the start-up
+    cost), "decode" and "outputs".
     workers: 2 finds and describes the people in a second process (tracker.frame_worker)
     while this one tracks them, for the same results on two cores; sinks that show the video
     get no frames from it, so with one of those (and where processes cannot fork) the run
