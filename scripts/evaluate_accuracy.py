@@ -13,6 +13,9 @@ the filtered output that `track` streams and the smoothed output of `track --smo
   err53   mean |wrapped error| of the 53 joint angles, degrees
   const   the same for a constant pose: the FIRST model's training-mean pose (its angle centres)
   skill   1 - err53 / const
+  off53   err53 with each angle's constant offset over the sequence forgiven (how well the
+          output follows the motion, whatever a subject's own offsets); offC: the constant
+          pose's (the truth's own mean absolute deviation: a still output scores that, not 0)
   corr8   mean correlation with the truth of the 8 angles that move most in the truth
   flex    mean |error| of knee and elbow flexion (angle between the bones, forward kinematics
           on the CMU skeleton), degrees; flexC: the constant pose's; flexM: the truth's own mean
@@ -51,6 +54,7 @@ def measures(est, truth, constant) -> dict:
     constant pose (55,) (sequences.measures.pose_measures, flattened for the table)."""
     m = pose_measures(est, truth, constant)
     return {"err53": m["error_deg"], "const": m["constant_error_deg"], "skill": m["skill"],
+            "off53": m["offset_free_error_deg"], "offC": m["constant_offset_free_error_deg"],
             "corr8": m["top_angles"]["mean"], "flex": m["flexion"]["error"],
             "flexC": m["flexion"]["constant_error_mean"],
             "flexM": m["flexion"]["truth_mean_error_mean"], "flex_corr": m["flexion"]["corr"],
@@ -119,8 +123,8 @@ def main(argv=None) -> int:
     constant = constant_pose(models[0][1])
     args.video_dir.mkdir(parents=True, exist_ok=True)
     results = []
-    cols = ("err53", "const", "skill", "corr8", "flex", "flexC", "flexM", "flex_corr", "head",
-            "mpjpe")
+    cols = ("err53", "const", "skill", "off53", "offC", "corr8", "flex", "flexC", "flexM",
+            "flex_corr", "head", "mpjpe")
     print(f"{'trial':7s} {'model':14s} {'output':8s} " + " ".join(f"{c:>9s}" for c in cols)
           + "      fps")
     with threadpool_limits(1):

@@ -5,6 +5,8 @@ stands beside what a constant achieves, and the limbs are judged by what a viewe
 
 - body angle error (the 53 joint angles, the heading left out) beside a **constant** pose's
   (e.g. the training mean), and the **skill** 1 - error / constant error;
+- the same error with each angle's constant offset forgiven (**offset-free**), beside the
+  constant's: how well the output follows the motion, whatever each subject's own offsets;
 - the **correlation** with the truth of the m most-moving angles;
 - knee and elbow **flexion** (forward kinematics) error and correlation, beside the error of a
   constant flexion;
@@ -90,6 +92,20 @@ def constant_error(truth, constant_pose) -> float:
     truth (T, 55); degrees."""
     tru = _as_poses(truth, "truth")
     return body_angle_error(_constant(constant_pose, len(tru)), tru)
+
+
+def offset_free_error(estimate, truth) -> float:
+    """body_angle_error with each angle's constant offset forgiven: the mean over frames and the
+    53 body angles of |d - circular mean of d over the frames|, d = wrap(estimate - truth),
+    degrees. What is left is how well the output follows the motion: an output that is the
+    truth plus a fixed offset per angle (a subject's own way of holding a wrist, which no
+    silhouette shows) scores 0, a constant output the truth's own mean absolute deviation about
+    its circular mean (not 0: compare with that, as pose_measures does).
+
+    estimate, truth: (T, 55) pose vectors."""
+    est, tru = _pair(estimate, truth)
+    d = wrap_deg(est[:, BODY_ANGLES] - tru[:, BODY_ANGLES])
+    return float(np.abs(wrap_deg(d - circular_mean_deg(d))).mean())
 
 
 def skill(error: float, baseline_error: float) -> float:
@@ -293,6 +309,8 @@ def pose_measures(estimate, truth, constant_pose, m: int = DEFAULT_TOP_ANGLES,
     constant pose (55,) (e.g. the training mean). JSON-ready dict; degrees and millimetres:
 
     - "error_deg" (53 body angles), "constant_error_deg", "skill";
+    - "offset_free_error_deg", "constant_offset_free_error_deg": the same with each angle's
+      constant offset forgiven (offset_free_error), for the estimate and the constant pose;
     - "heading_rms_deg", "heading_within_45" (fraction of frames);
     - "top_angles": top_angle_correlation with m angles;
     - "flexion": flexion_measures, with the constant pose's flexion as "constant_error";
@@ -309,6 +327,8 @@ def pose_measures(estimate, truth, constant_pose, m: int = DEFAULT_TOP_ANGLES,
     return {
         "frames": int(len(tru)),
         "error_deg": error, "constant_error_deg": baseline, "skill": skill(error, baseline),
+        "offset_free_error_deg": offset_free_error(est, tru),
+        "constant_offset_free_error_deg": offset_free_error(const, tru),
         "heading_rms_deg": float(np.sqrt((heading ** 2).mean())),
         "heading_within_45": float((heading <= 45.0).mean()),
         "top_angles": top_angle_correlation(est, tru, m),

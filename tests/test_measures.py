@@ -7,7 +7,8 @@ import pytest
 from sequences.measures import (FLEXION_NAMES, MM_PER_CMU_UNIT, MeasureError,
                                 body_angle_error, constant_error, correlation, flexion_deg,
                                 flexion_from_points, flexion_measures, joints_mm,
-                                most_moving_angles, mpjpe, pa_mpjpe, pose_measures,
+                                most_moving_angles, mpjpe, offset_free_error, pa_mpjpe,
+                                pose_measures,
                                 procrustes_align, skill, top_angle_correlation,
                                 unwrap_about_mean)
 from sequences.pose_vector import POSE_DIM, pose_vector_names
@@ -103,6 +104,35 @@ def test_error_wraps_at_180():
     a[:, _col("LeftArm_z")] = 179.0
     b[:, _col("LeftArm_z")] = -179.0
     assert body_angle_error(a, b) == pytest.approx(2.0 / 53)
+
+
+def test_offset_free_error_forgives_a_fixed_offset_per_angle_and_nothing_else():
+    truth = _moving()
+    shifted = truth.copy()
+    shifted[:, _col("LeftForeArm_y")] += 20.0        # a subject's own way of holding an arm
+    shifted[:, _col("RightFoot_x")] -= 10.6
+    assert body_angle_error(shifted, truth) == pytest.approx(30.6 / 53)
+    assert offset_free_error(shifted, truth) == pytest.approx(0.0, abs=1e-9)
+    lagging = np.roll(truth, 5, axis=0)              # the same motion, late: not forgiven
+    assert offset_free_error(lagging, truth) > 0.1
+
+
+def test_offset_free_error_of_a_still_pose_is_the_truths_own_deviation():
+    truth = _rest(4)
+    truth[:, _col("LeftLeg_z")] = [30.0, 50.0, 30.0, 50.0]   # mean 40, every frame 10 off it
+    still = np.tile(_rest()[0], (4, 1))
+    assert offset_free_error(still, truth) == pytest.approx(10.0 / 53)
+    m = pose_measures(truth, truth, _rest()[0])
+    assert m["offset_free_error_deg"] == pytest.approx(0.0, abs=1e-9)
+    assert m["constant_offset_free_error_deg"] == pytest.approx(10.0 / 53)
+
+
+def test_offset_free_error_wraps_at_180():
+    truth = _rest(4)
+    truth[:, _col("LeftArm_z")] = [170.0, -170.0, 175.0, -175.0]
+    shifted = truth.copy()
+    shifted[:, _col("LeftArm_z")] += 15.0                    # crosses 180 on some frames
+    assert offset_free_error(shifted, truth) == pytest.approx(0.0, abs=1e-9)
 
 
 def test_correlation_of_an_angle_crossing_180_is_one():
