@@ -29,6 +29,7 @@ _COMMON = [("error", "error", lambda m: m["error"]), ("jitter", "jitter", lambda
 _ANGLE_COLUMNS = _COMMON + [
     ("heading_rms_deg", "heading_rms", lambda m: m["heading_rms_deg"]),
     ("skill", "skill", lambda m: m.get("skill")),
+    ("offset_free", "off53", lambda m: m.get("offset_free_error_deg")),
     ("corr8", "corr8", lambda m: m["top_angles"]["mean"] if "top_angles" in m else None),
     ("flexion", "flex_err", lambda m: m["flexion"]["error"] if "flexion" in m else None),
     ("flexion_corr", "flex_corr", lambda m: m["flexion"]["corr"] if "flexion" in m else None),
@@ -49,6 +50,7 @@ def _constant_row(result: dict) -> dict | None:
     m = next(iter(result["methods"].values()))
     if "constant_error_deg" in m:       # angles: the error column is over all 54 angles
         return {"error": None, "body_error": m["constant_error_deg"], "skill": 0.0,
+                "offset_free": m["constant_offset_free_error_deg"],
                 "flexion": m["flexion"]["truth_mean_error_mean"],
                 "mpjpe_mm": m["constant_mpjpe_mm"], "pa_mpjpe_mm": m["constant_pa_mpjpe_mm"]}
     if "constant_error" in m:
@@ -90,7 +92,9 @@ def _angle_notes(result: dict) -> list[str]:
     return [f"53 body angles' error (the skill's): {body}; constant "
             f"{m['constant_error_deg']:.2f}. flex_err: knee/elbow flexion error; the constant "
             f"row's is the truth's own mean flexion (the training-mean pose's scores "
-            f"{m['flexion']['constant_error_mean']:.2f})"]
+            f"{m['flexion']['constant_error_mean']:.2f}). off53: the 53 angles' error with each "
+            f"angle's constant offset forgiven (the constant row's: the truth's own deviation, "
+            f"what a still output scores)"]
 
 
 def markdown_table(result: dict) -> str:
