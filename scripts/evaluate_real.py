@@ -302,8 +302,11 @@ def format_table(result: dict) -> str:
     body = {v: r["filtered"].get("body") for v, r in result["views"].items()}
     if all(b is not None for b in body.values()):
         lines.append("53 body angles against the body fitted to the reference (filtered; error "
-                     "/ training-mean pose's / corr. of the 8 most-moving): "
+                     "/ training-mean pose's / offset-free error / a still pose's / corr. of "
+                     "the 8 most-moving): "
                      + ", ".join(f"{v} {b['error_deg']:.1f} / {b['constant_error_deg']:.1f} / "
+                                 f"{b['offset_free_error_deg']:.1f} / "
+                                 f"{b['constant_offset_free_error_deg']:.1f} / "
                                  f"{b['top_angles']['mean']:.2f}" for v, b in body.items()))
     smoothed = [r["smoothed"] for r in result["views"].values()]
     lines.append("smoothed poses (track's JSON and BVH): flexion error "

@@ -16,7 +16,7 @@ import numpy as np
 
 from .keypoint_fit import BodyFit, fit_body, pose_in_view
 from .measures import (BODY_ANGLES, body_angle_error, constant_error, flexion_deg,
-                       flexion_measures, skill, top_angle_correlation)
+                       flexion_measures, offset_free_error, skill, top_angle_correlation)
 from .pose2sim import (Trial, camera_azimuth_deg, reference_flexion, reference_heading_deg,
                        video_frames)
 from regressor.angles import wrap_deg
@@ -74,12 +74,17 @@ def reference_poses(trial: Trial, view: str, fit: BodyFit, frames) -> np.ndarray
 def body_measures(poses, reference, constant_pose) -> dict:
     """The 53 body angles of estimated poses (T >= 2, 55) against the fitted reference body's
     (T, 55): "error_deg", "constant_error_deg" (constant_pose (55,) held still), "skill",
-    "top_angles" (sequences.measures.top_angle_correlation). Angles the keypoints do not fix
-    (limb twists, hands, collar bones) are ~0 in the reference: read the correlation of the
-    most-moving angles (which the keypoints fix) before the error."""
+    "offset_free_error_deg" and "constant_offset_free_error_deg" (the same with each angle's
+    constant offset forgiven: sequences.measures.offset_free_error), "top_angles"
+    (sequences.measures.top_angle_correlation). Angles the keypoints do not fix (limb twists,
+    hands, collar bones) are ~0 in the reference: read the correlation of the most-moving
+    angles (which the keypoints fix) before the error."""
     error = body_angle_error(poses, reference)
     baseline = constant_error(reference, constant_pose)
+    still = np.tile(np.asarray(constant_pose, dtype=np.float64), (len(reference), 1))
     return {"error_deg": error, "constant_error_deg": baseline, "skill": skill(error, baseline),
+            "offset_free_error_deg": offset_free_error(poses, reference),
+            "constant_offset_free_error_deg": offset_free_error(still, reference),
             "top_angles": top_angle_correlation(poses, reference)}
 
 

@@ -92,10 +92,12 @@ def test_the_table_gives_the_body_angles_beside_the_constant_where_measured(eval
     assert "53 body angles against" not in evaluate_real.format_table(result)
     for error, view in zip((9.0, 11.0), result["views"].values()):
         view["filtered"]["body"] = {"error_deg": error, "constant_error_deg": 12.5,
+                                    "offset_free_error_deg": error - 4.0,
+                                    "constant_offset_free_error_deg": 6.0,
                                     "top_angles": {"mean": 0.25}}
     per_view = result["views"]
     assert evaluate_real._means(per_view)["body_error_deg"] == pytest.approx(10.0)
-    assert "cam01 9.0 / 12.5 / 0.25, cam02 11.0 / 12.5 / 0.25" in \
+    assert "cam01 9.0 / 12.5 / 5.0 / 6.0 / 0.25, cam02 11.0 / 12.5 / 7.0 / 6.0 / 0.25" in \
         evaluate_real.format_table(result)
 
 
