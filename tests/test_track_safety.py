@@ -414,6 +414,55 @@ def test_a_ctrl_c_swallowed_during_start_up_still_stops_the_command(tmp_path, wa
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+class _InterruptedInFinalizer:
+    """An object whose finalizer takes the Ctrl-C, where Python cannot raise it: as the import
+    system's module-lock callback did when a Ctrl-C came during start-up's imports (CPython
+    then printed "Exception ignored in ... Traceback ... KeyboardInterrupt")."""
+
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)                          # the handler runs here, inside __del__
+
+
+def test_a_ctrl_c_taken_by_a_finalizer_stops_the_command_in_one_line(tmp_path, walk,
+                                                                     monkeypatch, capsys):
+    import regressor.pose_model
+    from tracker import cli
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    load = regressor.pose_model.load_pose_model
+
+    def load_while_a_finalizer_takes_a_ctrl_c(*args, **kwargs):
+        _InterruptedInFinalizer()                 # dropped at once: its __del__ runs here
+        return load(*args, **kwargs)
+    monkeypatch.setattr(regressor.pose_model, "load_pose_model",
+                        load_while_a_finalizer_takes_a_ctrl_c)
+    reported = []                   # what Python's default hook would print as a traceback
+    monkeypatch.setattr(sys, "unraisablehook", reported.append)
+    out = tmp_path / "s.json"
+    assert cli.main([str(walk), "--json", str(out), "--quiet"]) == cli.EXIT_INTERRUPTED
+    assert reported == []
+    err = capsys.readouterr().err
+    assert err == "track: interrupted\n", err
+    assert not out.exists() and not cli._interrupts
+    assert sys.unraisablehook == reported.append          # restored
+
+
+def test_other_unraisable_exceptions_still_reach_the_previous_hook(monkeypatch):
+    from tracker import cli
+    seen = []
+    monkeypatch.setattr(cli, "_previous_unraisable_hook", seen.append)
+    monkeypatch.setattr(cli, "_interrupts", [])
+
+    class Unraisable:
+        def __init__(self, exc_type):
+            self.exc_type = exc_type
+    cli._unraisable_interrupt_recorded(Unraisable(KeyboardInterrupt))
+    assert seen == [] and cli._interrupts == [signal.SIGINT]
+    other = Unraisable(ValueError)
+    cli._unraisable_interrupt_recorded(other)
+    assert seen == [other]
+
+
 def test_a_ctrl_c_swallowed_while_tracking_stops_at_the_next_frame_written(tmp_path, walk,
                                                                           monkeypatch):
     from tracker import cli

@@ -42,7 +42,11 @@ DEFAULT_WORKERS = 2 if _CORES >= 2 else 1
 #: ``except:`` round an optional import, say), the command would run on. In one full test run
 #: (2026-12-02) a Ctrl-C 0.2-0.5 s into start-up let the process run to the end and exit 0,
 #: silently; it did not recur in 11 more runs of that test, and its cause was not found: this
-#: guards against a swallowed interrupt, whatever swallows it.
+#: guards against a swallowed interrupt, whatever swallows it. One such place showed on
+#: 2026-12-03 (a fresh-clone CI run, the same test): the import system's module-lock callback,
+#: a weakref callback, took the KeyboardInterrupt, which CPython can only print ("Exception
+#: ignored in ... Traceback") and drop; during main() such an interrupt is recorded instead
+#: (_unraisable_interrupt_recorded).
 _interrupts: list[int] = []
 _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
@@ -51,6 +55,21 @@ def _record_interrupt(number, frame) -> None:
     """Handler of the stop signals: remember the signal, then interrupt as Ctrl-C does."""
     _interrupts.append(number)
     raise KeyboardInterrupt
+
+
+def _unraisable_interrupt_recorded(unraisable) -> None:
+    """sys.unraisablehook during main(): a KeyboardInterrupt that our handler raised where
+    Python cannot raise it (a weakref callback, e.g. the import system's module-lock callback
+    while a Ctrl-C arrives during start-up's imports; a __del__) is not printed as "Exception
+    ignored ... Traceback" but recorded, so check_interrupted stops the run in one line;
+    anything else goes to the hook that was there before (_previous_unraisable_hook)."""
+    if issubclass(unraisable.exc_type, KeyboardInterrupt):
+        _interrupts.append(signal.SIGINT)
+        return
+    _previous_unraisable_hook(unraisable)
+
+
+_previous_unraisable_hook = sys.unraisablehook
 
 
 def check_interrupted() -> None:
@@ -398,12 +417,16 @@ def main(argv=None) -> int:
     # A signal the shell ignores (nohup, a background job's Ctrl-C) stays ignored.
     # Only the main thread may set handlers (and only it gets signals): called from another
     # thread, main() leaves them alone.
+    global _previous_unraisable_hook
     _interrupts.clear()
     previous = ({number: signal.getsignal(number) for number in _STOP_SIGNALS}
                 if threading.current_thread() is threading.main_thread() else {})
     for number, handler in previous.items():
         if handler != signal.SIG_IGN:
             signal.signal(number, _record_interrupt)
+    if previous:
+        _previous_unraisable_hook, sys.unraisablehook = (sys.unraisablehook,
+                                                          _unraisable_interrupt_recorded)
     try:
         args = build_parser().parse_args(argv)
         if not os.environ.get("TRACK_DEBUG"):
@@ -434,6 +457,8 @@ def main(argv=None) -> int:
         for number, handler in previous.items():
             if handler is not None:
                 signal.signal(number, handler)
+        if previous:
+            sys.unraisablehook = _previous_unraisable_hook
         _interrupts.clear()
 
 
