@@ -108,6 +108,14 @@ def offset_free_error(estimate, truth) -> float:
     return float(np.abs(wrap_deg(d - circular_mean_deg(d))).mean())
 
 
+def constant_offset_free_error(truth, constant_pose) -> float:
+    """offset_free_error of a constant pose (55,) held for every frame of truth (T, 55): the
+    truth's own mean absolute deviation about its circular mean, degrees (what a still output
+    scores there)."""
+    tru = _as_poses(truth, "truth")
+    return offset_free_error(_constant(constant_pose, len(tru)), tru)
+
+
 def skill(error: float, baseline_error: float) -> float:
     """1 - error / baseline_error: 1 is perfect, 0 no better than the constant, < 0 worse."""
     if not baseline_error > 0:

@@ -15,8 +15,9 @@ from itertools import combinations
 import numpy as np
 
 from .keypoint_fit import BodyFit, fit_body, pose_in_view
-from .measures import (BODY_ANGLES, body_angle_error, constant_error, flexion_deg,
-                       flexion_measures, offset_free_error, skill, top_angle_correlation)
+from .measures import (BODY_ANGLES, body_angle_error, constant_error,
+                       constant_offset_free_error, flexion_deg, flexion_measures,
+                       offset_free_error, skill, top_angle_correlation)
 from .pose2sim import (Trial, camera_azimuth_deg, reference_flexion, reference_heading_deg,
                        video_frames)
 from regressor.angles import wrap_deg
@@ -81,10 +82,10 @@ def body_measures(poses, reference, constant_pose) -> dict:
     angles (which the keypoints fix) before the error."""
     error = body_angle_error(poses, reference)
     baseline = constant_error(reference, constant_pose)
-    still = np.tile(np.asarray(constant_pose, dtype=np.float64), (len(reference), 1))
     return {"error_deg": error, "constant_error_deg": baseline, "skill": skill(error, baseline),
             "offset_free_error_deg": offset_free_error(poses, reference),
-            "constant_offset_free_error_deg": offset_free_error(still, reference),
+            "constant_offset_free_error_deg": constant_offset_free_error(reference,
+                                                                         constant_pose),
             "top_angles": top_angle_correlation(poses, reference)}
 
 
