@@ -205,7 +205,8 @@ class ConstantVelocityFilter:
         return smoothed
 
     def _predict(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q, F by its blocks."""
+        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q, F = [[I, dt I], [0, I]] by
+        its blocks (O(n^2) instead of two (2n)^3 products; PoseKalmanFilter's steps too)."""
         n, dt = self.dim, self.dt
         x = np.concatenate([x[:n] + dt * x[n:], x[n:]])
         B, D = P[:n, n:], P[n:, n:]
@@ -351,17 +352,7 @@ class PoseKalmanFilter:
         """(x_pred (108,), P_pred (108, 108), factorizations by R) of the next frame, computed
         once per frame."""
         if self._predicted is None:
-            # F P F' by blocks, F = [[I, dt I], [0, I]]: O(n^2) instead of two (2n)^3 products.
-            n, dt, x, P = N_ANGLES, self.dt, self._x, self._P
-            A, B, C = P[:n, :n], P[:n, n:], P[n:, n:]
-            B_pred = B + dt * C
-            P_pred = np.empty_like(P)
-            P_pred[:n, :n] = A + dt * (B + B.T) + dt * dt * C
-            P_pred[:n, n:] = B_pred
-            P_pred[n:, :n] = B_pred.T
-            P_pred[n:, n:] = C
-            P_pred += self.Q
-            self._predicted = (np.concatenate([x[:n] + dt * x[n:], x[n:]]), P_pred, {})
+            self._predicted = (*self.cv._predict(self._x, self._P), {})
         return self._predicted
 
     def _factor(self, R: np.ndarray, ambiguous: bool, variance) -> tuple[np.ndarray, float]:

@@ -689,7 +689,7 @@ class FrontBackTracker:
             return np.zeros(0, dtype=np.int64)
         first = self.history[0]
         K = len(first.poses)
-        log_A = np.log(transition_matrix(K, self.frame_switch))
+        log_A = self._log_transitions(K)
         delta = np.log(np.linalg.matrix_power(np.exp(log_A), 256)[0]) + first.evidence
         back = []
         for frame in self.history[1:]:
