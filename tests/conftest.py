@@ -1,8 +1,9 @@
-"""Shared fixtures: where the (optional) shared data lives."""
+"""Shared fixtures: where the (optional) shared data lives; Ctrl-C as a terminal has it."""
 from __future__ import annotations
 
 import importlib.util
 import os
+import signal
 from pathlib import Path
 from types import ModuleType
 
@@ -13,6 +14,16 @@ SHARED = Path(os.environ.get("SILHOUETTE_POSE_SHARED", ROOT.parent / "shared"))
 CMU_BVH = SHARED / "data" / "cmu" / "bvh"
 ANKUR_MAT = SHARED / "data" / "ankur" / "ankurDataPoseSilhouette.mat"
 POSE2SIM_TRIAL = SHARED / "data" / "pose2sim" / "balancing"
+
+
+def pytest_configure(config) -> None:
+    """Several tests Ctrl-C a child process (track, a sink's writer) and check that it stops
+    cleanly. A shell that starts the suite in the background (``pytest &`` in a script) starts
+    it with SIGINT ignored, which every child inherits and rightly respects (track leaves an
+    ignored SIGINT alone, as nohup expects): those children would never stop and the tests
+    would time out (seen 2026-12-03). Give the suite, and so its children, the usual Ctrl-C."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def load_script(name: str) -> ModuleType:
