@@ -72,6 +72,13 @@ DEFAULT_TRAINING_FPS = 30.0
 MIXTURE_KIND = "silhouette-pose-mixture"    # a mixture of experts (regressor.mixture)
 
 
+def training_fps_of(estimator) -> float:
+    """The frame rate (frames per second) an estimator's stacked input and the tracker's
+    per-frame figures were learned at: a PoseModel's ``training_fps``, DEFAULT_TRAINING_FPS
+    for any other estimator (a bare regressor in tests, a stand-in)."""
+    return float(getattr(estimator, "training_fps", DEFAULT_TRAINING_FPS))
+
+
 class PoseModelError(SilhouettePoseError, ValueError):
     """A model file that is missing, unreadable, tampered with or inconsistent."""
 

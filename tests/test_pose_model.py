@@ -7,8 +7,9 @@ import numpy as np
 
 from regressor.model_file import load_model, save_model
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, DEFAULT_MODEL_PATH,
-                                  load_pose_model, save_pose_model)
+                                  load_pose_model, save_pose_model, training_fps_of)
 from tracker import PoseTracker, TrackerSettings
+from tracker.hypotheses import chain_options
 
 
 def test_the_threshold_round_trips_and_older_files_get_the_old_default(tmp_path):
@@ -51,4 +52,7 @@ def test_the_tracker_stacks_and_tempers_at_the_models_training_frame_rate():
                                                         "fps": 60.0}})
     assert described.training_fps == 60.0
     assert PoseTracker(described, 60.0, TrackerSettings()).stack_step == 1
+    assert chain_options(described)["reference_fps"] == 60.0
     assert replace(model, description={}).training_fps == 30.0
+    # A bare estimator (no training_fps) is taken as trained at the data sets' 30 fps.
+    assert training_fps_of(object()) == 30.0 == chain_options(object())["reference_fps"]

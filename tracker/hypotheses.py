@@ -169,7 +169,7 @@ import numpy as np
 
 from regressor.angles import heading_norm
 from regressor.canonical_priors import CanonicalPriors
-from regressor.pose_model import DEFAULT_TRAINING_FPS
+from regressor.pose_model import DEFAULT_TRAINING_FPS, training_fps_of
 from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from .mirror_limbs import mirror_mean, sees_mirror
@@ -450,7 +450,7 @@ def chain_options(estimator) -> dict:
     offline replays that choose their weights both take them from here."""
     return {"switch": switch_probability(estimator),
             "evidence_weight": evidence_weight(estimator),
-            "reference_fps": float(getattr(estimator, "training_fps", DEFAULT_TRAINING_FPS))}
+            "reference_fps": training_fps_of(estimator)}
 
 
 def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,

@@ -21,7 +21,7 @@ import numpy as np
 
 from regressor.angles import N_ANGLES
 from regressor.edges import SilhouetteError
-from regressor.pose_model import DEFAULT_TRAINING_FPS
+from regressor.pose_model import training_fps_of
 from regressor.stacking import FrameStacker, stack_step
 from .association import Associator
 from .roll import upright_mask
@@ -335,8 +335,7 @@ class PoseTracker:
         self._mirror = sees_mirror(estimator, settings.mirror_limbs)
         #: Frames between a track's stacked descriptors: a video faster than the model's
         #: training sequences stacks frames as far apart in time as those were.
-        self.stack_step = stack_step(self.fps, getattr(estimator, "training_fps",
-                                                       DEFAULT_TRAINING_FPS))
+        self.stack_step = stack_step(self.fps, training_fps_of(estimator))
         index = getattr(estimator, "heading_index", None)
         if settings.novelty and index is not None:
             index.typical_distance()     # novelty's scale, computed once: here, not at frame 1
