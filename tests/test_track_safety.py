@@ -236,9 +236,39 @@ def test_a_second_ctrl_c_while_closing_does_not_lose_the_json_or_bvh(tmp_path, w
     """Case 8: the JSON and BVH sinks closed after the interrupted one are still written."""
     js, bvh = JsonSummarySink(tmp_path / "s.json", 30.0), BVHSink(tmp_path / "b", 30.0)
     result = track_video(walk, sinks=[_InterruptedWhileClosing(), js, bvh])
-    assert result.interrupted and result.frames == 5
+    assert result.interrupted and result.frames == 6          # frames 0-5 were written
     assert json.loads((tmp_path / "s.json").read_text())["frames"] == 6
     assert js.closed and bvh.closed
+
+
+class _InterruptAt:
+    """A sink that takes a Ctrl-C once frame ``frame_index`` has been written."""
+
+    def __init__(self, frame_index: int):
+        self.frame_index = frame_index
+
+    def write(self, pose):
+        pass
+
+    def end_frame(self, frame_index):
+        if frame_index == self.frame_index:
+            raise KeyboardInterrupt
+
+    def close(self):
+        pass
+
+
+def test_after_a_ctrl_c_the_run_counts_the_poses_the_outputs_hold(tmp_path, walk):
+    """The tracker works in batches of frames, so when a Ctrl-C stops the outputs it may have
+    gone further; the run's per-track counts (track's summary) are those of the outputs."""
+    js = JsonSummarySink(tmp_path / "s.json", 30.0)
+    result = track_video(walk, sinks=[js, _InterruptAt(20)])
+    assert result.interrupted and result.frames == 21         # frames 0-20 were written
+    held = {t["id"]: len(t["frames"]) for t in json.loads((tmp_path / "s.json").read_text())
+            ["tracks"]}
+    assert held and {t: c.poses for t, c in result.written.items()} == held
+    reached = {t: state.frames for t, state in result.tracker.tracks.items()}
+    assert sum(reached.values()) > sum(held.values())       # the batch went past frame 20
 
 
 # ------------------------------------------------------------------ 10, 11: odd input
@@ -538,9 +568,10 @@ def test_a_ctrl_c_leaves_the_smoothed_outputs_the_filtered_poses_so_far(tmp_path
     js = JsonSummarySink(tmp_path / "s.json", 30.0, poses="smoothed")
     bvh = BVHSink(tmp_path / "b", 30.0, prefix="walk", min_frames=2)
     result = track_video(walk, tracker, sinks=[_CtrlCAtFrame5()], smoothed_sinks=[js, bvh])
-    assert result.interrupted and result.frames == 5
+    assert result.interrupted and result.frames == 6          # frames 0-5 were written
     summary = json.loads((tmp_path / "s.json").read_text())
     assert summary["poses"] == "filtered"
     (track,) = summary["tracks"]
     assert 3 <= track["n_frames"] <= 6
+    assert track["n_frames"] == result.written[track["id"]].poses
     assert len(list((tmp_path / "b").glob("*.bvh"))) == 1

@@ -389,14 +389,15 @@ def _silence_stdout() -> None:
 
 def _print_summary(args, source, result) -> None:
     state = "interrupted after" if result.interrupted else "tracked"
-    tracks = result.tracker.tracks
+    # What the outputs hold (after a Ctrl-C the tracker may have gone a batch further).
+    tracks = result.written
     print(f"{args.video.name}: {state} {result.frames} frames ({source.width}x{source.height}, "
           f"{source.fps:g} fps video) at {result.fps:.0f} frames/s; {len(tracks)} track(s)")
-    for track_id, state_ in sorted(tracks.items()):
-        unfamiliar = (f"; {state_.unfamiliar} of them ({state_.unfamiliar / state_.frames:.0%}) "
+    for track_id, counts in sorted(tracks.items()):
+        unfamiliar = (f"; {counts.unfamiliar} of them ({counts.unfamiliar / counts.poses:.0%}) "
                       f"unlike the training silhouettes, their poses extrapolated"
-                      if state_.unfamiliar else "")
-        print(f"  track {track_id}: {state_.frames} frames{unfamiliar}")
+                      if counts.unfamiliar else "")
+        print(f"  track {track_id}: {counts.poses} frames{unfamiliar}")
     # Which poses the JSON and BVH hold: smoothed, or filtered (--no-smooth, or a quick exit
     # after an interrupt, tracker.run.track_video).
     kind = "smoothed" if smoothing(args) and not result.interrupted else "filtered"

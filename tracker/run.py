@@ -15,7 +15,7 @@ import signal
 import threading
 import time
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import cv2
@@ -34,14 +34,26 @@ class OutputError(SilhouettePoseError, RuntimeError):
 
 
 @dataclass
+class WrittenPoses:
+    """One track's poses handed to the outputs: how many, and how many were unfamiliar."""
+
+    poses: int = 0
+    unfamiliar: int = 0
+
+
+@dataclass
 class TrackRun:
-    """What a run did: frames processed, wall time (seconds, from priming to closed outputs),
-    interrupted by Ctrl-C (or SIGTERM turned into it), and the tracker used."""
+    """What a run did: frames handed to the outputs, wall time (seconds, from priming to
+    closed outputs), interrupted by Ctrl-C (or SIGTERM turned into it), the tracker used, and
+    per track id the poses handed to the outputs and how many of them were unfamiliar
+    (TrackedPose.unfamiliar). After an interrupt the tracker may have reached a few frames
+    more (the rest of a batch) than the outputs got: ``written`` counts what they hold."""
 
     frames: int
     elapsed_s: float
     interrupted: bool
     tracker: PoseTracker
+    written: dict[int, WrittenPoses] = field(default_factory=dict)
 
     @property
     def fps(self) -> float:
@@ -92,6 +104,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     # shrink the few frames they show themselves, so this costs nothing when there is none.
     watching = [sink for sink in streaming if hasattr(sink, "write_frame")]
     frames, interrupted, started = 0, False, time.perf_counter()
+    written: dict[int, WrittenPoses] = {}
     stages = tracker.stage_seconds
     worker = None
     try:
@@ -108,12 +121,17 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
             for sink in streaming:
                 for pose in poses:
                     sink.write(pose)
+            # Counted with the writes, as the outputs hold them: a Ctrl-C may come at end_frame.
+            frames += 1
+            for pose in poses:
+                counts = written.setdefault(pose.track_id, WrittenPoses())
+                counts.poses += 1
+                counts.unfamiliar += pose.unfamiliar
             for sink in watching:
                 sink.write_frame(index, time_s, frame, people)
             for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
                 sink.end_frame(index)
             stages["outputs"] += time.perf_counter() - clock
-            frames += 1
             if progress is not None:
                 progress.update(len(poses))
         if worker is not None:
@@ -147,7 +165,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                 interrupted = True
     if problems:
         raise OutputError("could not finish outputs: " + "; ".join(problems))
-    return TrackRun(frames, time.perf_counter() - started, interrupted, tracker)
+    return TrackRun(frames, time.perf_counter() - started, interrupted, tracker, written)
 
 
 def _in_process(source: VideoSource, tracker: PoseTracker, batch: int) -> Iterator[tuple]:
