@@ -84,8 +84,11 @@ Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 20
   7.85; p = 1 0.530, 8.16 (against 0.593, 7.47). Not adopted.
 
 A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
-standardised by a mean and one scale, outputs by a mean and a scale per value; the 53 body
-angles are regressed as wrapped offsets (degrees) from ``angle_centre_deg``, as the experts'.
+standardised by a mean and one scale, outputs by a mean and a scale per value. The networks
+give either the pose vector's 55 values, the 53 body angles as wrapped offsets (degrees) from
+``angle_centre_deg`` as the experts' (files before 2026-12-03), or ROT6D_OUTPUTS values: the
+heading's (cos, sin), the root's two tilts as such offsets, and each joint's rotation as 6
+numbers (regressor.rotation6d, a continuous representation); the output width says which.
 """
 from __future__ import annotations
 
@@ -101,9 +104,14 @@ from .angles import POSE_DIM, regression_targets, wrap_deg
 from .relu_layers import (as_float32_layers, check_parts, dequantised_int8, forward,
                           forward_mean, quantised_int8, stacked_members, standardised,
                           typical_inputs)
+from .rotation6d import ROT6D_LENGTH, angles_to_rot6d, rot6d_to_angles
 
 PREFIX = "limb_net_"        # the file parts' names
 MAX_MEMBERS, MAX_LAYERS = 16, 8
+#: The networks' outputs with 6-D rotations: (cos, sin), the root's two tilts, 6 per joint.
+ROT6D_OUTPUTS = 2 + ROT6D_LENGTH
+#: fit_limb_net's target representations -> the networks' output width.
+OUTPUT_WIDTHS = {"euler": POSE_DIM, "rot6d": ROT6D_OUTPUTS}
 
 
 @dataclass
@@ -111,8 +119,9 @@ class LimbNet:
     """An ensemble of networks with shared standardisation. members: per network, its layers
     [(W (n_in, n_out), b (n_out,)), ...], the last linear, the others ReLU; the ensemble's
     output is the members' mean. input_mean (P,), input_scale (scalar) standardise the
-    regressor's input X (N, P); output_mean, output_scale (55,) undo the targets'
-    standardisation; angle_centre_deg (53,); canonical_direction (55,): the rule the targets'
+    regressor's input X (N, P); output_mean, output_scale (O,) undo the targets'
+    standardisation, O = 55 (Euler angles) or ROT6D_OUTPUTS (6-D rotations; module
+    docstring); angle_centre_deg (53,); canonical_direction (55,): the rule the targets'
     members were chosen by (sequences.pose_vector.canonical_member)."""
 
     members: list[list[tuple[np.ndarray, np.ndarray]]]
@@ -157,12 +166,16 @@ class LimbNet:
                     return (f"member {m} layer {i} has shape {W.shape} / {b.shape} after "
                             f"{n_in} values")
                 n_in = W.shape[1]
-            if n_in != POSE_DIM:
-                return f"member {m} gives {n_in} values, not {POSE_DIM}"
-        if self.output_mean.shape != (POSE_DIM,) or self.output_scale.shape != (POSE_DIM,) \
+            if n_in not in OUTPUT_WIDTHS.values() or n_in != self.output_width:
+                return (f"member {m} gives {n_in} values, not "
+                        f"{' or '.join(map(str, sorted(set(OUTPUT_WIDTHS.values()))))}"
+                        + ("" if m == 0 else " as member 0"))
+        width = self.output_width
+        if self.output_mean.shape != (width,) or self.output_scale.shape != (width,) \
                 or self.angle_centre_deg.shape != (POSE_DIM - 2,) \
                 or self.canonical_direction.shape != (POSE_DIM,):
-            return "output parts do not have 55 values (53 centres)"
+            return (f"output parts do not have {width} values (53 centres, a direction of "
+                    f"{POSE_DIM})")
         arrays = [self.input_mean, self.output_mean, self.output_scale, self.angle_centre_deg,
                   self.canonical_direction,
                   *(a for layers in self.members for layer in layers for a in layer)]
@@ -178,6 +191,12 @@ class LimbNet:
             if not np.isfinite(self.predict(typical_inputs(self.input_mean))).all():
                 return "it gives non-finite poses"
         return None
+
+    @property
+    def output_width(self) -> int:
+        """The networks' output width: 55 (Euler angles) or ROT6D_OUTPUTS (6-D rotations;
+        a network of another width is refused on load)."""
+        return int(self.members[0][-1][0].shape[1])
 
     @property
     def input_length(self) -> int:
@@ -197,6 +216,12 @@ class LimbNet:
             mean = np.mean([forward(x, layers) for layers in self.members], axis=0,
                            dtype=np.float64)
         out = mean * self.output_scale + self.output_mean
+        if out.shape[1] == ROT6D_OUTPUTS:
+            # the members' mean 6-D values made rotations (Gram-Schmidt); the root's tilts
+            # are offsets from their centres, as every angle is in the Euler case
+            angles = rot6d_to_angles(out[:, 2:])
+            angles[:, :2] += self.angle_centre_deg[:2]
+            return np.hstack([out[:, :2], wrap_deg(angles)])
         out[:, 2:] = wrap_deg(out[:, 2:] + self.angle_centre_deg)
         return out
 
@@ -263,7 +288,7 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
                  canonical_direction: np.ndarray, members: int = 3,
                  hidden: tuple[int, ...] = (512, 256), alpha: float = 1e-3,
                  max_iter: int = 200, seed: int = 0, workers: int = 1,
-                 input_noise: float = 0.0,
+                 input_noise: float = 0.0, output: str = "euler",
                  log: Callable[[str], None] = lambda message: None) -> LimbNet:
     """Fit a :class:`LimbNet` of ``members`` networks (seeds seed, seed + 1, ...) on inputs
     X (N, P) and canonical poses targets (N, 55) (cos, sin, then 53 angles in degrees) with
@@ -280,6 +305,8 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
     Gaussian noise of this fraction of its column's spread (0: none; the held-out tenth is
     scored clean); a new silhouette's input is off its nearest training rows by far more than
     the rows' own spacing, and noise teaches the networks to be smooth across that gap.
+    output: "euler" (the 53 angles as wrapped offsets from angle_centre_deg) or "rot6d" (each
+    joint's rotation as 6 numbers, the root's tilts as offsets; the module docstring).
     Needs scikit-learn and joblib (training only)."""
     if not 1 <= members <= MAX_MEMBERS or not 1 <= len(hidden) + 1 <= MAX_LAYERS:
         raise ValueError(f"a limb network has 1..{MAX_MEMBERS} members and 0..{MAX_LAYERS - 1} "
@@ -289,10 +316,14 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
     if not 0.0 <= input_noise <= 2.0:
         raise ValueError(f"input_noise must be in 0..2 (a fraction of each input's spread), "
                          f"got {input_noise}")
+    if output not in OUTPUT_WIDTHS:
+        raise ValueError(f"output must be one of {sorted(OUTPUT_WIDTHS)}, got {output!r}")
     require_training_dependencies()                     # the install hint before any work
     X = np.asarray(X, dtype=np.float64)
     centre = np.asarray(angle_centre_deg, dtype=np.float64)
     Y = regression_targets(targets, centre)
+    if output == "rot6d":
+        Y = np.hstack([Y[:, :4], angles_to_rot6d(np.asarray(targets, float)[:, 2:])[:, 2:]])
     x_mean, x_scale = X.mean(axis=0), float(X.std(axis=0).mean())
     y_mean, y_scale = Y.mean(axis=0), Y.std(axis=0) + 1e-6
     Xz, Yz = (X - x_mean) / x_scale, (Y - y_mean) / y_scale
@@ -319,7 +350,7 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
 def _fit_member(Xz: np.ndarray, Yz: np.ndarray, hidden: tuple[int, ...], alpha: float,
                 max_iter: int, seed: int, input_noise: float = 0.0
                 ) -> tuple[list, int, float, float]:
-    """One network on standardised inputs Xz (N, P) and targets Yz (N, 55), on one thread:
+    """One network on standardised inputs Xz (N, P) and targets Yz (N, O), on one thread:
     (its layers [(W, b), ...], epochs run, best held-out R^2, seconds)."""
     if input_noise > 0:
         return _fit_member_noisy(Xz, Yz, hidden, alpha, max_iter, seed, input_noise)

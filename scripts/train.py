@@ -170,6 +170,11 @@ def main(argv=None) -> int:
                     help="fit the limb networks with fresh Gaussian noise on their inputs each "
                          "epoch, this fraction of each input's spread (regressor.limb_net; "
                          f"default {MixtureOptions.limb_net_noise})")
+    ap.add_argument("--limb-net-output", choices=("euler", "rot6d"),
+                    default=MixtureOptions.limb_net_output,
+                    help="what the limb networks regress: each joint's Euler angles about their "
+                         "training means, or its rotation as 6 numbers (regressor.rotation6d; "
+                         f"default {MixtureOptions.limb_net_output})")
     ap.add_argument("--limb-net-epochs", type=int, default=MixtureOptions.limb_net_epochs,
                     help="at most this many epochs per limb network (each stops earlier when "
                          "its held-out tenth stops gaining; default "
@@ -283,6 +288,7 @@ def main(argv=None) -> int:
                                      limb_net_members=args.limb_nets,
                                      limb_net_noise=args.limb_net_noise,
                                      limb_net_epochs=args.limb_net_epochs,
+                                     limb_net_output=args.limb_net_output,
                                      limb_net_mirror=bool(args.limb_nets)
                                      and args.limb_net_mirror == "on",
                                      side_classifier=args.side_classifier == "on",

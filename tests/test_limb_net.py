@@ -300,3 +300,47 @@ def test_only_a_mixture_carries_a_limb_network(tmp_path):
     from test_mixture import assert_only_a_mixture_carries
     net, _, _ = _fitted(members=1)
     assert_only_a_mixture_carries(tmp_path, "limb_net", net, net.to_arrays())
+
+
+def _synthetic_rotations(n=3000, P=6, seed=0):
+    """As _synthetic, but each joint's middle (y) angle within +-60 degrees (one Euler triple
+    per rotation) while the root's tilts still cross +-180."""
+    X, Y = _synthetic(n, P, seed)
+    Y = Y.copy()
+    wave = np.tanh(X[:, 2:3] * X[:, 3:4]) + 0.5 * np.sin(X[:, 4:5])     # (n, 1)
+    Y[:, 4:] = np.tile([30.0, 0.0, -40.0], 17)[None] + np.tile([25.0, 40.0, 30.0], 17) * wave
+    return X, Y
+
+
+def test_networks_on_six_d_rotations_learn_the_angles_and_keep_them_in_the_file():
+    X, Y = _synthetic_rotations()
+    centre = np.r_[170.0, 170.0, np.tile([30.0, 0.0, -40.0], 17)]
+    net = fit_limb_net(X, Y, centre, np.eye(55)[0], members=2, hidden=(32, 16),
+                       max_iter=60, output="rot6d")
+    assert net.output_width == 106 and net.output_mean.shape == (106,)
+    Xt, Yt = _synthetic_rotations(500, seed=1)
+    out = net.predict(Xt)
+    assert out.shape == (500, 55)
+    err = np.abs(wrap_deg(out[:, 2:] - Yt[:, 2:])).mean(axis=0)
+    spread = np.abs(wrap_deg(Yt[:, 2:] - centre)).mean(axis=0)
+    assert np.all(err < 0.3 * spread)                       # tilts across the wrap too
+    assert np.corrcoef(out[:, 1], Yt[:, 1])[0, 1] > 0.8     # the heading shares the layers
+    back = LimbNet.from_arrays(net.to_arrays())
+    assert back.output_width == 106
+    change = np.abs(wrap_deg(back.predict(Xt[:200])[:, 2:] - out[:200, 2:]))
+    assert change.mean() < 0.01 * spread.mean()
+    with pytest.raises(ValueError, match="output must be one of"):
+        fit_limb_net(X[:100], Y[:100], centre, np.eye(55)[0], members=1, hidden=(4,),
+                     max_iter=2, output="quaternion")
+
+
+def test_networks_of_another_output_width_are_refused():
+    net, X, _ = _fitted(members=1)
+    parts = net.to_arrays()
+    last = len(net.members[0]) - 1
+    for key, cut in ((f"limb_net_W0_{last}", np.s_[:, :50]), (f"limb_net_S0_{last}", np.s_[:50]),
+                     (f"limb_net_b0_{last}", np.s_[:50]), ("limb_net_output_mean", np.s_[:50]),
+                     ("limb_net_output_scale", np.s_[:50])):
+        parts[key] = parts[key][cut]
+    with pytest.raises(ValueError, match="gives 50 values, not 55 or 106"):
+        LimbNet.from_arrays(parts)

@@ -478,6 +478,8 @@ class MixtureOptions:
     On by default, so train_mixture_model then needs ``mirrored`` (scripts/train.py makes
     and caches it, noisy_dataset_inputs: the same video-like masks mirrored, described as the
     tracker describes a frame's mirror image); pass limb_net_mirror=False to fit without.
+    limb_net_output: what the networks regress, "euler" (the 53 angles about their centres)
+    or "rot6d" (each joint's rotation as 6 numbers; regressor.rotation6d).
     side_classifier*: with limbs, fit a front/back side classifier (regressor.side_classifier,
     these hidden layer sizes) on the training rows: the tracker's chain then carries the
     limbs' canonical member and its flip (tracker.hypotheses.canonical_hypotheses).
@@ -518,6 +520,7 @@ class MixtureOptions:
     limb_net_noise: float = 0.0
     limb_net_epochs: int = 200
     limb_net_mirror: bool = True
+    limb_net_output: str = "euler"
     side_classifier: bool = True
     side_classifier_hidden: tuple[int, ...] = (256, 64)
     seed: int = 0
@@ -665,6 +668,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                                 hidden=options.limb_net_hidden, alpha=options.limb_net_alpha,
                                 seed=options.seed, workers=workers,
                                 input_noise=options.limb_net_noise,
+                                output=options.limb_net_output,
                                 max_iter=options.limb_net_epochs, log=log)
         # As the file will hold it (int8 weights): the report and the front/back priors
         # learned from this model then measure the networks that are shipped. What the
