@@ -324,6 +324,11 @@ def fit_limb_net(X: np.ndarray, targets: np.ndarray, angle_centre_deg: np.ndarra
     Y = regression_targets(targets, centre)
     if output == "rot6d":
         Y = np.hstack([Y[:, :4], angles_to_rot6d(np.asarray(targets, float)[:, 2:])[:, 2:]])
+        # Joints that never turn give columns that are constant but for rounding (1e-17 in
+        # the mirror images' matrices): standardised, that rounding would dominate the
+        # held-out R^2 that stops the fit early (-2e12 in a first run). Hold them exactly.
+        flat = Y.std(axis=0) < 1e-9
+        Y[:, flat] = Y[:, flat].mean(axis=0)
     x_mean, x_scale = X.mean(axis=0), float(X.std(axis=0).mean())
     y_mean, y_scale = Y.mean(axis=0), Y.std(axis=0) + 1e-6
     Xz, Yz = (X - x_mean) / x_scale, (Y - y_mean) / y_scale
