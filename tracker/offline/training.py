@@ -479,7 +479,8 @@ class MixtureOptions:
     and caches it, noisy_dataset_inputs: the same video-like masks mirrored, described as the
     tracker describes a frame's mirror image); pass limb_net_mirror=False to fit without.
     limb_net_output: what the networks regress, "euler" (the 53 angles about their centres)
-    or "rot6d" (each joint's rotation as 6 numbers; regressor.rotation6d).
+    or "rot6d" (each joint's rotation as 6 numbers; regressor.rotation6d, where the model
+    retrained with it is measured: no better on validation, so "euler").
     side_classifier*: with limbs, fit a front/back side classifier (regressor.side_classifier,
     these hidden layer sizes) on the training rows: the tracker's chain then carries the
     limbs' canonical member and its flip (tracker.hypotheses.canonical_hypotheses).
