@@ -168,7 +168,7 @@ class LimbNet:
                 n_in = W.shape[1]
             if n_in not in OUTPUT_WIDTHS.values() or n_in != self.output_width:
                 return (f"member {m} gives {n_in} values, not "
-                        f"{' or '.join(map(str, sorted(set(OUTPUT_WIDTHS.values()))))}"
+                        f"{' or '.join(map(str, sorted(OUTPUT_WIDTHS.values())))}"
                         + ("" if m == 0 else " as member 0"))
         width = self.output_width
         if self.output_mean.shape != (width,) or self.output_scale.shape != (width,) \

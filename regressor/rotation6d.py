@@ -52,7 +52,8 @@ def rot6d_to_angles(values: np.ndarray) -> np.ndarray:
     orthogonal to it and normalised, the third their cross product), then its ZYX angles
     with the middle one in [-90, 90] (scipy's choice; at +-90 exactly, the first angle takes
     the whole turn about the axis and the last is 0). In numpy, not scipy: this runs for
-    every person in every frame (0.02 ms a row against 0.2 ms through scipy.Rotation)."""
+    every person in every frame (27 us a row against 81 us through scipy.Rotation,
+    measured 2026-12-03 on an idle machine)."""
     v = np.asarray(values, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != ROT6D_LENGTH:
         raise ValueError(f"values must have shape (N, {ROT6D_LENGTH}), got {v.shape}")
