@@ -26,6 +26,7 @@ from regressor.stacking import FrameStacker, stack_step
 from .association import Associator
 from .roll import upright_mask
 from .filtering import PoseKalmanFilter
+from .imm_filter import DEFAULT_SWITCH, TURN_AND_STOP, HeadingModel, IMMPoseFilter
 from .hypotheses import FrontBackTracker, chain_options, propose_batch
 from .mirror_limbs import sees_mirror
 from .silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
@@ -74,6 +75,24 @@ LIMB_R_SCALE = 0.1
 #: 0.001: 37.0 / 34.7 / 30.9 / 28.8 / 30.7, their corr8 unchanged (0.357). 2026-12-01.
 HEADING_Q_SCALE = 0.01
 
+#: The front/back chain's filters follow the heading with two models mixed as an IMM
+#: (tracker.imm_filter): constant velocity, and one that forgets the heading's rate over 0.3 s,
+#: switching with probability 0.01 a frame at 30 fps. With one constant-velocity model and the
+#: small heading noise above, a turn's rate persisted after the turn stopped (06_08, fixed
+#: camera: the filtered heading ran 20-40 degrees past the measurements). Chosen on validation
+#: data, 2026-12-04 (one-off drivers; mean filtered heading RMS, deg, and the share of frames
+#: within 90 degrees of the truth): 28 renders (see LIMB_R_SCALE) 32.1 / 84.8 % with one model,
+#: 30.3 / 86.3 % with these (a rate-forgetting time of 0.1-0.5 s, a switch of 0.003-0.05 and
+#: the second model's noise x0.3-3 all gave 30.3-31.7; a third model with 100x the heading
+#: noise, or that one instead, 30.6-31.7 but flipped front/back on two videos); through
+#: ``track`` on 12 validation videos (five trials spiral and fixed, 06_10 and 07_12 fixed)
+#: 36.7 / 89.2 % -> 31.5 / 93.5 %, smoothed 29.2 -> 23.2, corr8 0.444 -> 0.446. The price is a
+#: steady turn's lag: 02_02 spiral 9.0 -> 10.1, 09_04 spiral 8.1 -> 9.0. A single filter that
+#: forgets the rate (stop 38) gave 36.5-33.7 on the videos with 02_02 spiral at 9.3-10.8.
+#: () or one model: the plain constant-velocity filter.
+HEADING_MODELS: tuple = TURN_AND_STOP
+HEADING_SWITCH = DEFAULT_SWITCH
+
 #: The joints' R inflation on ambiguous frames (PoseKalmanFilter's ambiguous_joint_factor).
 #: The main head averages a silhouette's two bodies where it cannot tell them apart, so its
 #: limbs on such frames are worth less (AMBIGUOUS_JOINT_FACTOR). A model that gives canonical
@@ -106,7 +125,9 @@ class TrackerSettings:
     degrees on the 28 validation renders, 28.0 / 32.3 / 30.3 on the five validation videos,
     2026-12-02). r_scale, q_scale:
     multiply the model's measurement covariance R and process noise q; heading_q_scale further
-    multiplies the heading's q (HEADING_Q_SCALE). limb_r_scale: further
+    multiplies the heading's q (HEADING_Q_SCALE). heading_models, heading_switch: the IMM
+    heading models of the front/back chain's filters and their switch probability per frame at
+    30 fps (HEADING_MODELS; one or none: a plain PoseKalmanFilter). limb_r_scale: further
     multiplies R for the filter of the output's body angles (LIMB_R_SCALE, limb_kalman_factory);
     roll_deg: the camera's roll (tracker.roll.upright_mask: how far the scene's vertical leans
     clockwise in the image, degrees); silhouettes are turned upright before they are described.
@@ -141,6 +162,8 @@ class TrackerSettings:
     r_scale: float = 1.0
     q_scale: float = 1.0
     heading_q_scale: float = HEADING_Q_SCALE
+    heading_models: tuple[HeadingModel, ...] = HEADING_MODELS
+    heading_switch: float = HEADING_SWITCH
     limb_r_scale: float = LIMB_R_SCALE
     roll_deg: float = 0.0
     background_samples: int = 25
@@ -172,17 +195,21 @@ def kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
                    ) -> Callable[[float], PoseKalmanFilter]:
     """The default filter factory: fps -> a PoseKalmanFilter with the estimator's noise models
     (scaled by settings.r_scale / q_scale / heading_q_scale) and the settings' ambiguity
-    handling."""
+    handling; an IMMPoseFilter with settings.heading_models where there are two or more."""
     q = np.broadcast_to(np.asarray(estimator.process_noise, float) * settings.q_scale,
                         (N_ANGLES,)).copy()
     q[0] *= settings.heading_q_scale
 
+    kwargs = dict(R=estimator.measurement_covariance * settings.r_scale, q=q,
+                  ambiguity_threshold=settings.threshold(estimator),
+                  ambiguous_heading_factor=settings.ambiguous_heading_factor,
+                  ambiguous_joint_factor=settings.joint_factor(estimator))
+
     def make(fps: float) -> PoseKalmanFilter:
-        return PoseKalmanFilter(fps, R=estimator.measurement_covariance * settings.r_scale,
-                                q=q,
-                                ambiguity_threshold=settings.threshold(estimator),
-                                ambiguous_heading_factor=settings.ambiguous_heading_factor,
-                                ambiguous_joint_factor=settings.joint_factor(estimator))
+        if len(settings.heading_models) > 1:
+            return IMMPoseFilter(fps, models=settings.heading_models,
+                                 switch=settings.heading_switch, **kwargs)
+        return PoseKalmanFilter(fps, **kwargs)
     return make
 
 
@@ -190,7 +217,8 @@ def limb_kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
                         ) -> Callable[[float], PoseKalmanFilter]:
     """fps -> the PoseKalmanFilter of the output's body angles: kalman_factory's with R
     further scaled by settings.limb_r_scale (LIMB_R_SCALE)."""
-    return kalman_factory(estimator, replace(settings,
+    # Its heading is not used (the body angles only), so it needs no heading models.
+    return kalman_factory(estimator, replace(settings, heading_models=(),
                                              r_scale=settings.r_scale * settings.limb_r_scale))
 
 
