@@ -175,6 +175,11 @@ def main(argv=None) -> int:
                     help="what the limb networks regress: each joint's Euler angles about their "
                          "training means, or its rotation as 6 numbers (regressor.rotation6d; "
                          f"default {MixtureOptions.limb_net_output})")
+    ap.add_argument("--limb-net-reversed", type=float,
+                    default=MixtureOptions.limb_net_reversed,
+                    help="fit the limb networks on this share (0..1) of the training rows "
+                         "played backwards too (their stacked frames in reverse order; "
+                         f"default {MixtureOptions.limb_net_reversed})")
     ap.add_argument("--limb-net-epochs", type=int, default=MixtureOptions.limb_net_epochs,
                     help="at most this many epochs per limb network (each stops earlier when "
                          "its held-out tenth stops gaining; default "
@@ -210,6 +215,12 @@ def main(argv=None) -> int:
         ap.error("--side-classifier needs the mixture regressor with a limb head")
     if args.side_classifier is None:
         args.side_classifier = "on" if has_limbs else "off"
+    if not 0.0 <= args.limb_net_reversed <= 1.0:
+        ap.error(f"--limb-net-reversed must be in 0..1, got {args.limb_net_reversed}")
+    if not 0.0 <= args.limb_net_noise <= 2.0:
+        ap.error(f"--limb-net-noise must be in 0..2, got {args.limb_net_noise}")
+    if not 1 <= args.limb_net_epochs <= 1000:
+        ap.error(f"--limb-net-epochs must be in 1..1000, got {args.limb_net_epochs}")
     if args.limb_nets or args.side_classifier == "on":
         try:       # before the slow steps, not after them
             require_training_dependencies()
@@ -217,10 +228,6 @@ def main(argv=None) -> int:
                 prior_files(args.bvh_dir)
         except ValueError as exc:
             ap.error(str(exc))
-    if not 0.0 <= args.limb_net_noise <= 2.0:
-        ap.error(f"--limb-net-noise must be in 0..2, got {args.limb_net_noise}")
-    if not 1 <= args.limb_net_epochs <= 1000:
-        ap.error(f"--limb-net-epochs must be in 1..1000, got {args.limb_net_epochs}")
     if not 1 <= args.workers <= 64:
         ap.error(f"--workers must be in 1..64, got {args.workers}")
     if args.heading_index_rows < 0:
@@ -289,6 +296,7 @@ def main(argv=None) -> int:
                                      limb_net_noise=args.limb_net_noise,
                                      limb_net_epochs=args.limb_net_epochs,
                                      limb_net_output=args.limb_net_output,
+                                     limb_net_reversed=args.limb_net_reversed,
                                      limb_net_mirror=bool(args.limb_nets)
                                      and args.limb_net_mirror == "on",
                                      side_classifier=args.side_classifier == "on",

@@ -151,6 +151,63 @@ def test_limb_networks_also_fit_every_training_rows_mirror_image(monkeypatch):
                             mirrored=(X_mirror[:-1], None))
 
 
+def test_rows_played_backwards_stack_the_following_frames_within_each_sequence():
+    from tracker.offline.training import _time_reversed_rows, reversed_in_sequence
+    sequence = np.array([0, 0, 0, 0, 1, 1, 1])
+    order = reversed_in_sequence(sequence)
+    assert order.tolist() == [3, 2, 1, 0, 6, 5, 4] and order[order].tolist() == list(range(7))
+    data = Dataset(masks=np.zeros((7, 1, 1), bool), pose=np.zeros((7, 55)), sequence=sequence,
+                   frame=np.array([0, 1, 2, 3, 0, 1, 2]), azimuth_deg=np.zeros(7),
+                   elevation_deg=np.zeros(7), trials=["a", "b"], trial_of_sequence=["a", "b"])
+    X = np.arange(1.0, 8.0)[:, None]
+    rows = _time_reversed_rows(data, X, "none", 3, None, 0.0)
+    assert rows.tolist() == [[1, 2, 3], [2, 3, 4], [3, 4, 4], [4, 4, 4],
+                             [5, 6, 7], [6, 7, 7], [7, 7, 7]]
+
+
+def test_limb_networks_also_fit_a_share_of_the_rows_played_backwards(monkeypatch):
+    """limb_net_reversed: that share of the training rows (and their mirror images) is added
+    with its stacked frames in reverse order and the same targets."""
+    pytest.importorskip("sklearn")
+    import tracker.offline.training as training
+    from sequences.pose_vector import canonical_member, image_mirror
+    data, X, codebook, settings = _dataset()
+    X_mirror = X.copy()
+    X_mirror[:, 1] = 2.4 - X[:, 1]
+    seen = {}
+    real_fit = training.fit_limb_net
+
+    def fit(inputs, targets, *args, **kwargs):
+        seen["inputs"], seen["targets"] = inputs, targets
+        return real_fit(inputs, targets, *args, **kwargs)
+    monkeypatch.setattr(training, "fit_limb_net", fit)
+    options = replace(_options(), limb_head="facing", limb_net_members=1, limb_net_hidden=(8,),
+                      limb_net_reversed=0.5)
+    logged = []
+    model, _ = train_mixture_model(data, X, codebook, settings, options, 30.0,
+                                   log=logged.append, mirrored=(X_mirror, None))
+    train_rows = np.flatnonzero(~validation_mask(data))
+    n = len(train_rows)
+    picked = train_rows[np.random.default_rng(options.seed).random(n) < 0.5]
+    m = len(picked)
+    assert 0.35 * n < m < 0.65 * n
+    assert seen["inputs"].shape == (2 * n + 2 * m, 6)
+    assert any(f"{m} of them played backwards" in line for line in logged)
+    direction = np.eye(55)[0]
+    np.testing.assert_allclose(seen["targets"][2 * n:2 * n + m],
+                               canonical_member(data.pose[picked], direction))
+    np.testing.assert_allclose(seen["targets"][2 * n + m:],
+                               canonical_member(image_mirror(data.pose[picked]), direction))
+    for k, hist in enumerate((X, X_mirror)):
+        played_back = training._time_reversed_rows(data, hist, model.transform,
+                                                   model.stack_depth, None, 0.0)[picked]
+        block = seen["inputs"][2 * n + k * m:2 * n + (k + 1) * m]
+        np.testing.assert_allclose(block, model._stacked(played_back), atol=1e-9)
+        forwards = stack_frames(frame_descriptors(hist, model.transform), model.stack_depth,
+                                sequence_ids=data.sequence)[picked]
+        assert not np.allclose(block, model._stacked(forwards))
+
+
 def test_training_caches_are_written_whole_and_a_damaged_one_is_made_again(tmp_path,
                                                                           monkeypatch):
     """A cut-off cache file (as an interrupted run used to leave) is reported in a warning and

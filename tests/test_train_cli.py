@@ -21,6 +21,7 @@ def train():
     (["--width-scale", "-1"], "--width-scale must be a positive number"),
     (["--components", "10"], "needs --components >= 50"),
     (["--clean"], "--layout-grid needs the video-like masks"),
+    (["--limb-net-reversed", "1.5"], "--limb-net-reversed must be in 0..1, got 1.5"),
 ])
 def test_absurd_options_are_refused_before_rendering(train, tmp_path, capsys, options, says):
     cache, out = tmp_path / "cache", tmp_path / "model.npz"

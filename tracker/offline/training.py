@@ -343,6 +343,29 @@ def _stacked_rows(dataset: Dataset, X: np.ndarray, transform: str, stack_depth: 
                         sequence_ids=dataset.sequence)
 
 
+def reversed_in_sequence(sequence: np.ndarray) -> np.ndarray:
+    """Row permutation (N,) that reverses the order of the rows within each sequence
+    (sequence (N,): label per row, a new sequence wherever it changes), sequences kept in
+    place. It is its own inverse."""
+    sequence = np.asarray(sequence)
+    starts = np.r_[0, np.flatnonzero(sequence[1:] != sequence[:-1]) + 1, len(sequence)]
+    order = np.arange(len(sequence))
+    for start, stop in zip(starts[:-1], starts[1:]):
+        order[start:stop] = order[start:stop][::-1]
+    return order
+
+
+def _time_reversed_rows(dataset: Dataset, X: np.ndarray, transform: str, stack_depth: int,
+                        layouts: np.ndarray | None, layout_weight: float) -> np.ndarray:
+    """Every row's stacked descriptor as if its sequence were played backwards (N, k*D): row
+    t holds [x_t, x_{t+1}, ..., x_{t+k-1}] (frames past a sequence's end replaced by its
+    last), the input a body moving the other way through the same poses gives."""
+    order = reversed_in_sequence(dataset.sequence)
+    frames = frame_descriptors(X, transform, layouts, layout_weight)
+    return stack_frames(frames[order], stack_depth,
+                        sequence_ids=np.asarray(dataset.sequence)[order])[order]
+
+
 def _training_arrays(dataset: Dataset, X: np.ndarray, transform: str, stack_depth: int,
                      layouts: np.ndarray | None = None, layout_weight: float = 0.0,
                      pose: np.ndarray | None = None):
@@ -481,6 +504,14 @@ class MixtureOptions:
     limb_net_output: what the networks regress, "euler" (the 53 angles about their centres)
     or "rot6d" (each joint's rotation as 6 numbers; regressor.rotation6d, where the model
     retrained with it is measured: no better on validation, so "euler").
+    limb_net_reversed: the share of training rows (drawn at random) also given to the
+    networks as if their sequence were played backwards (the stacked input [x_t, x_t+1,
+    x_t+2], same pose; and their mirror images' likewise with limb_net_mirror): the training
+    motions are mostly forwards, and a network that has only seen them reads a backward walk
+    worse. One network (512, 256) on stop 37's video-like rows (6 validation trials, limbs at
+    the true heading, corr8 forwards / played backwards; 2026-12-04, one-off driver
+    /work/tmp/s39/reverse_probe.py): share 0 0.571 / 0.463 and 0.565 / 0.454 (two seeds),
+    0.3 0.557 / 0.537, 1.0 0.551 / 0.549.
     side_classifier*: with limbs, fit a front/back side classifier (regressor.side_classifier,
     these hidden layer sizes) on the training rows: the tracker's chain then carries the
     limbs' canonical member and its flip (tracker.hypotheses.canonical_hypotheses).
@@ -522,6 +553,7 @@ class MixtureOptions:
     limb_net_epochs: int = 200
     limb_net_mirror: bool = True
     limb_net_output: str = "euler"
+    limb_net_reversed: float = 0.0
     side_classifier: bool = True
     side_classifier_hidden: tuple[int, ...] = (256, 64)
     seed: int = 0
@@ -664,6 +696,10 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
             targets_net = np.vstack([targets_net, canonical_member(
                 image_mirror(dataset.pose[train_rows]), head_direction)])
             log(f"  and their {len(train_rows)} mirror images")
+        if options.limb_net_reversed > 0:
+            inputs, targets_net = _with_time_reversed(
+                dataset, X, layouts, mirrored, options, weight, train_rows, projection_mean,
+                projection, head_direction, inputs, targets_net, mirror, log)
         limb_net = fit_limb_net(inputs, targets_net, head_centre,
                                 head_direction, members=options.limb_net_members,
                                 hidden=options.limb_net_hidden, alpha=options.limb_net_alpha,
@@ -766,6 +802,35 @@ def _canonical_targets(rule: str, pose: np.ndarray, fit: np.ndarray, seed: int, 
     members = canonical_member(pose, direction)
     log(f"{what}: {np.mean(np.any(members != pose, axis=1)):.1%} of rows flipped")
     return direction, members
+
+
+def _with_time_reversed(dataset: Dataset, X: np.ndarray, layouts, mirrored, options,
+                        weight: float, train_rows: np.ndarray, projection_mean, projection,
+                        head_direction, inputs: np.ndarray, targets: np.ndarray, mirror: bool,
+                        log) -> tuple[np.ndarray, np.ndarray]:
+    """The limb networks' rows (inputs) and targets with a share (options.limb_net_reversed,
+    drawn with options.seed) of the training rows added as if their sequences were played
+    backwards, same targets, and the same rows' mirror images when those are fitted (see
+    MixtureOptions)."""
+    pick = (np.random.default_rng(options.seed).random(len(train_rows))
+            < options.limb_net_reversed)
+    rows = train_rows[pick]
+    grid = int(options.layout_grid)
+    sources = [(X, layouts, dataset.pose[rows])]
+    if mirror:
+        sources.append((mirrored[0], mirrored[1], image_mirror(dataset.pose[rows])))
+    blocks, goals = [inputs], [targets]
+    for histograms, grids, pose in sources:
+        played_back = _time_reversed_rows(dataset, histograms, options.transform,
+                                          options.stack_depth, grids if grid else None,
+                                          weight)[rows]
+        if projection is not None:
+            played_back = (played_back - projection_mean) @ projection
+        blocks.append(played_back)
+        goals.append(canonical_member(pose, head_direction))
+    log(f"  and {len(rows)} of them played backwards"
+        f"{' (and their mirror images)' if mirror else ''}")
+    return np.vstack(blocks), np.vstack(goals)
 
 
 def split_expert_outputs(mixture, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
