@@ -111,12 +111,25 @@ def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
     assert plain.limb_head is not None and plain.limb_net is None
 
 
+def _capture_limb_net_fit(monkeypatch) -> dict:
+    """Make training's fit_limb_net record the rows and targets it is given (in the dict
+    returned) and then fit as usual."""
+    import tracker.offline.training as training
+    seen = {}
+    real_fit = training.fit_limb_net
+
+    def fit(inputs, targets, *args, **kwargs):
+        seen["inputs"], seen["targets"] = inputs, targets
+        return real_fit(inputs, targets, *args, **kwargs)
+    monkeypatch.setattr(training, "fit_limb_net", fit)
+    return seen
+
+
 def test_limb_networks_also_fit_every_training_rows_mirror_image(monkeypatch):
     """With limb_net_mirror the networks see each training row and its mirror image: the
     mirrored masks' inputs, stacked and projected as the row's own, with the canonical member
     of the mirrored pose (image_mirror); without the mirrored inputs training refuses."""
     pytest.importorskip("sklearn")
-    import tracker.offline.training as training
     from sequences.pose_vector import canonical_member, image_mirror
     data, X, codebook, settings = _dataset()
     # The synthetic histograms say the heading as (cos, sin): a mirror image says -heading.
@@ -125,13 +138,7 @@ def test_limb_networks_also_fit_every_training_rows_mirror_image(monkeypatch):
     options = replace(_options(), limb_head="facing", limb_net_members=1, limb_net_hidden=(8,))
     with pytest.raises(ValueError, match="mirror"):
         train_mixture_model(data, X, codebook, settings, options, 30.0, log=lambda m: None)
-    seen = {}
-    real_fit = training.fit_limb_net
-
-    def fit(inputs, targets, *args, **kwargs):
-        seen["inputs"], seen["targets"] = inputs, targets
-        return real_fit(inputs, targets, *args, **kwargs)
-    monkeypatch.setattr(training, "fit_limb_net", fit)
+    seen = _capture_limb_net_fit(monkeypatch)
     logged = []
     model, _ = train_mixture_model(data, X, codebook, settings, options, 30.0,
                                    log=logged.append, mirrored=(X_mirror, None))
@@ -174,13 +181,7 @@ def test_limb_networks_also_fit_a_share_of_the_rows_played_backwards(monkeypatch
     data, X, codebook, settings = _dataset()
     X_mirror = X.copy()
     X_mirror[:, 1] = 2.4 - X[:, 1]
-    seen = {}
-    real_fit = training.fit_limb_net
-
-    def fit(inputs, targets, *args, **kwargs):
-        seen["inputs"], seen["targets"] = inputs, targets
-        return real_fit(inputs, targets, *args, **kwargs)
-    monkeypatch.setattr(training, "fit_limb_net", fit)
+    seen = _capture_limb_net_fit(monkeypatch)
     options = replace(_options(), limb_head="facing", limb_net_members=1, limb_net_hidden=(8,),
                       limb_net_reversed=0.5)
     logged = []

@@ -262,6 +262,22 @@ def _spd_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     return x
 
 
+def innovation_factor(P_pred: np.ndarray, factors: dict, R: np.ndarray, ambiguous: bool,
+                      variance) -> tuple[np.ndarray, float]:
+    """Lower Cholesky factor of H P_pred H' + R (54, 54) for a predicted covariance P_pred
+    (108, 108), and its log-determinant; kept in ``factors`` (a dict per prediction) under R's
+    key: it is known by the frame's ambiguity and heading variance (NaN or None: R's own)."""
+    key = (ambiguous, None if variance is None or not np.isfinite(variance)
+           else float(variance))
+    if key not in factors:
+        L, info = _potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1)
+        if info != 0:
+            raise FilterError(f"innovation covariance not positive definite (LAPACK potrf "
+                              f"info {info})")
+        factors[key] = (L, 2.0 * np.log(np.diag(L)).sum())
+    return factors[key]
+
+
 def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
     """Angles z (deg) shifted by whole turns to lie within 180 deg of predicted."""
     return predicted + wrap_deg(z - predicted)
@@ -359,15 +375,7 @@ class PoseKalmanFilter:
         """Lower Cholesky factor of the innovation covariance H P_pred H' + R (54, 54) and its
         log-determinant, cached per prediction (R is known by ambiguity and heading variance)."""
         _, P_pred, factors = self._prediction()
-        key = (ambiguous, None if variance is None or not np.isfinite(variance)
-               else float(variance))
-        if key not in factors:
-            L, info = _potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1)
-            if info != 0:
-                raise FilterError(f"innovation covariance not positive definite (LAPACK potrf "
-                                  f"info {info})")
-            factors[key] = (L, 2.0 * np.log(np.diag(L)).sum())
-        return factors[key]
+        return innovation_factor(P_pred, factors, R, ambiguous, variance)
 
     def copy(self) -> "PoseKalmanFilter":
         """An independent filter in the same state (the pending prediction is shared: it is

@@ -29,7 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from regressor.angles import N_ANGLES, angles_to_pose, wrap_deg
-from tracker.filtering import (_LOG_2PI, FilterError, PoseKalmanFilter, _lower_solve, _potrf)
+from tracker.filtering import (_LOG_2PI, FilterError, PoseKalmanFilter, _lower_solve,
+                               innovation_factor)
 
 
 @dataclass(frozen=True)
@@ -150,15 +151,7 @@ class IMMPoseFilter(PoseKalmanFilter):
     def _model_factor(self, j: int, R, ambiguous: bool, variance):
         """Cholesky factor and log-determinant of model j's innovation covariance, cached."""
         _, predictions, caches = self._imm_prediction()
-        key = (ambiguous, None if variance is None or not np.isfinite(variance)
-               else float(variance))
-        if key not in caches[j]:
-            L, info = _potrf(predictions[j][1][:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1)
-            if info != 0:
-                raise FilterError(f"innovation covariance not positive definite (LAPACK potrf "
-                                  f"info {info})")
-            caches[j][key] = (L, 2.0 * np.log(np.diag(L)).sum())
-        return caches[j][key]
+        return innovation_factor(predictions[j][1], caches[j], R, ambiguous, variance)
 
     def log_likelihoods(self, raws, heading_variance=None) -> np.ndarray:
         """As PoseKalmanFilter.log_likelihoods, under the IMM's predictive mixture:
