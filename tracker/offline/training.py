@@ -511,7 +511,16 @@ class MixtureOptions:
     worse. One network (512, 256) on stop 37's video-like rows (6 validation trials, limbs at
     the true heading, corr8 forwards / played backwards; 2026-12-04, one-off driver
     /work/tmp/s39/reverse_probe.py): share 0 0.571 / 0.463 and 0.565 / 0.454 (two seeds),
-    0.3 0.557 / 0.537, 1.0 0.551 / 0.549.
+    0.3 0.557 / 0.537, 1.0 0.551 / 0.549. The default recipe (train.py --experts 24
+    --centres 400) retrained with 0.3, against the same recipe and caches with 0 (28
+    validation renders, limbs at the true heading, corr8 forwards / played backwards; 12
+    validation videos through ``track``, corr8 filtered / smoothed): 0.623 / 0.666 against
+    0.624 / 0.586, videos 0.415 / 0.474 against 0.406 / 0.469; but the shipped file (an
+    earlier build of the recipe with 0) scores 0.446 / 0.475 on those videos and its chain's
+    heading is better on the renders (30.3 against 37.8 degrees), and the networks see 1.3
+    times the rows (the fit took 2591 s against the rebuild's 1622, partly sharing the cores
+    with evaluations), nearer the 60-minute training limit: 0 stays the default
+    (docs/accuracy.md, 2026-12-04).
     side_classifier*: with limbs, fit a front/back side classifier (regressor.side_classifier,
     these hidden layer sizes) on the training rows: the tracker's chain then carries the
     limbs' canonical member and its flip (tracker.hypotheses.canonical_hypotheses).
