@@ -1,13 +1,13 @@
 """An interacting-multiple-model (IMM) pose filter: the heading is filtered by several motion
 models at once, mixed by how well each has explained the measurements.
 
-Why: PoseKalmanFilter's heading is a constant-velocity model with small process noise, so a
-turn's rate it has learned persists after the turn stops; on a sideways dribble (CMU 06_08,
-fixed camera) the filtered heading ran 20-40 degrees past the measurements after each turn.
-A single setting trades steady turns (which want the rate kept) against stops (which want it
-forgotten). The IMM (Blom and Bar-Shalom 1988; Bar-Shalom, Li and Kirubarajan, "Estimation
-with Applications to Tracking and Navigation", 2001, section 11.6) keeps one filter per model
-and a Markov chain over which model is in force:
+Why: PoseKalmanFilter's heading is a constant-velocity model with small process noise (the
+tracker's, tracker.pipeline.HEADING_Q_SCALE), so a turn's rate it has learned persists after
+the turn stops and the estimate runs on past it. A single setting trades steady turns (which
+want the rate kept) against stops (which want it forgotten). The IMM (Blom and Bar-Shalom,
+IEEE Trans. Automatic Control 1988; Bar-Shalom, Li and Kirubarajan, "Estimation with
+Applications to Tracking and Navigation", 2001) keeps one filter per model and a Markov chain
+over which model is in force:
 
     mixing      c_j = sum_i pi_ij mu_i,   mu_i|j = pi_ij mu_i / c_j
                 x0_j = sum_i mu_i|j x_i,  P0_j = sum_i mu_i|j (P_i + (x_i - x0_j)(x_i - x0_j)')
@@ -19,8 +19,9 @@ Models differ only in the heading's dynamics (its process noise and how fast its
 forgotten, exp(-dt / tau) per frame); the 53 joint angles move as PoseKalmanFilter's in every
 model. The state layout, measurement handling (unwrapping, ambiguity, a per-frame heading
 variance) and interface (step, log_likelihoods, copy, reset) are PoseKalmanFilter's, so the
-front/back chain (tracker/hypotheses.py) runs it unchanged; rts_smooth stays the
-constant-velocity smoother of the first model.
+front/back chain (tracker/hypotheses.py) runs it unchanged; rts_smooth stays
+PoseKalmanFilter's constant-velocity smoother with the filter's own q (the first model's when,
+as in the tracker, that model is HeadingModel()).
 """
 from __future__ import annotations
 

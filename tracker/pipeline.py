@@ -78,8 +78,8 @@ HEADING_Q_SCALE = 0.01
 #: The front/back chain's filters follow the heading with two models mixed as an IMM
 #: (tracker.imm_filter): constant velocity, and one that forgets the heading's rate over 0.3 s,
 #: switching with probability 0.01 a frame at 30 fps. With one constant-velocity model and the
-#: small heading noise above, a turn's rate persisted after the turn stopped (06_08, fixed
-#: camera: the filtered heading ran 20-40 degrees past the measurements). Chosen on validation
+#: small heading noise above, a turn's rate persists after the turn stops (a synthetic 90-degree
+#: turn: 16 degrees past it, 12 with these; tests/test_imm_filter.py). Chosen on validation
 #: data, 2026-12-04 (one-off drivers; mean filtered heading RMS, deg, and the share of frames
 #: within 90 degrees of the truth): 28 renders (see LIMB_R_SCALE) 32.1 / 84.8 % with one model,
 #: 30.3 / 86.3 % with these (a rate-forgetting time of 0.1-0.5 s, a switch of 0.003-0.05 and
