@@ -169,3 +169,15 @@ def test_each_models_prediction_is_its_own_F_P_F_plus_Q():
         x_pred, P_pred = imm._predict_model(j, x, P)
         np.testing.assert_allclose(x_pred, F @ x, atol=1e-12)
         np.testing.assert_allclose(P_pred, F @ P @ F.T + Qj, rtol=1e-10, atol=1e-8)
+
+
+def test_models_last_as_many_seconds_at_any_frame_rate():
+    """The switch probability holds per frame at 30 fps; at 120 fps four frames make one."""
+    at30 = IMMPoseFilter(30.0, q=Q, models=TWO_MODELS, switch=0.01)
+    at120 = IMMPoseFilter(120.0, q=Q, models=TWO_MODELS, switch=0.01)
+    np.testing.assert_allclose(at30.transition, [[0.99, 0.01], [0.01, 0.99]])
+    np.testing.assert_allclose(np.linalg.matrix_power(at120.transition, 4)[0, 0],
+                               0.99, atol=1e-4)
+    # the rate is forgotten over the same 0.3 s: 0.3 s of frames leaves exp(-1) of it
+    assert at30.rate_factors[1] ** 9 == pytest.approx(np.exp(-1.0))
+    assert at120.rate_factors[1] ** 36 == pytest.approx(np.exp(-1.0))
