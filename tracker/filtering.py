@@ -278,6 +278,38 @@ def innovation_factor(P_pred: np.ndarray, factors: dict, R: np.ndarray, ambiguou
     return factors[key]
 
 
+def initial_state(angles: np.ndarray, R: np.ndarray, rate_std: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """A track's first state: x (108,) = [the measured angles (54,), zero rates] and its
+    covariance P (108, 108): R on the angles, rate_std^2 (deg/s)^2 on each rate."""
+    n = N_ANGLES
+    x = np.concatenate([angles, np.zeros(n)])
+    P = np.zeros((2 * n, 2 * n))
+    P[:n, :n] = R
+    P[n:, n:] = np.eye(n) * rate_std**2
+    return x, P
+
+
+def kalman_update(x_pred: np.ndarray, P_pred: np.ndarray, L: np.ndarray, angles: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Kalman update in covariance form of a prediction x_pred (108,), P_pred (108, 108)
+    with measured angles (54,) deg, L the lower Cholesky factor of the innovation covariance S
+    (innovation_factor). Returns (x (108,), P (108, 108), w = L^-1 y (54,)): x = x_pred + K y,
+    P = P_pred - K S K' with K = P_pred H' S^-1, y the angles unwrapped against the prediction
+    (w @ w is the innovation's Mahalanobis term, for likelihoods)."""
+    n = N_ANGLES
+    w = _lower_solve(L, wrap_deg(angles - x_pred[:n]))
+    # With S = L L', W = L^-1 H P_pred (54, 108): K = W' L^-1, so x = x_pred + W' L^-1 y
+    # and K S K' = W' W. One triangular solve and a symmetric product (BLAS syrk, exactly
+    # symmetric) cost about half of a Cholesky solve for K and a general product.
+    W = _lower_solve(L, P_pred[:n])
+    x = x_pred + W.T @ w
+    # Shifting angles by whole turns changes nothing (measurements are unwrapped against
+    # the prediction) and keeps the state bounded on long clips.
+    x[:n] -= 360.0 * np.round(x[:n] / 360.0)
+    return x, P_pred - W.T @ W, w
+
+
 def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
     """Angles z (deg) shifted by whole turns to lie within 180 deg of predicted."""
     return predicted + wrap_deg(z - predicted)
@@ -393,28 +425,14 @@ class PoseKalmanFilter:
         The Kalman update in covariance form, x = x_pred + K y, P = P_pred - K S K' with
         K = P_pred H' S^-1: the same as ConstantVelocityFilter's up to rounding."""
         angles, R, ambiguous = self._measure(raw55, heading_variance)
-        n = N_ANGLES
         if self._x is None:
-            self._x = np.concatenate([angles, np.zeros(n)])
-            self._P = np.zeros((2 * n, 2 * n))
-            self._P[:n, :n] = R
-            self._P[n:, n:] = np.eye(n) * self.rate_std**2
+            self._x, self._P = initial_state(angles, R, self.rate_std)
         else:
             x_pred, P_pred, _ = self._prediction()
             L, _ = self._factor(R, ambiguous, heading_variance)
-            y = wrap_deg(angles - x_pred[:n])           # unwrapped against the prediction
-            # With S = L L', W = L^-1 H P_pred (54, 108): K = W' L^-1, so x = x_pred + W' L^-1 y
-            # and K S K' = W' W. One triangular solve and a symmetric product (BLAS syrk, exactly
-            # symmetric) cost about half of a Cholesky solve for K and a general product.
-            W = _lower_solve(L, P_pred[:n])
-            x = x_pred + W.T @ _lower_solve(L, y)
-            self._P = P_pred - W.T @ W
-            # Shifting angles by whole turns changes nothing (measurements are unwrapped against
-            # the prediction) and keeps the state bounded on long clips.
-            x[:n] -= 360.0 * np.round(x[:n] / 360.0)
-            self._x = x
+            self._x, self._P, _ = kalman_update(x_pred, P_pred, L, angles)
         self._predicted = None
-        return angles_to_pose(self._x[:n]), ambiguous
+        return angles_to_pose(self._x[:N_ANGLES]), ambiguous
 
     def filter(self, raws: Sequence | np.ndarray, heading_variance=None
                ) -> tuple[np.ndarray, np.ndarray]:

@@ -31,7 +31,7 @@ import numpy as np
 
 from regressor.angles import N_ANGLES, angles_to_pose, wrap_deg
 from tracker.filtering import (_LOG_2PI, FilterError, PoseKalmanFilter, _lower_solve,
-                               innovation_factor)
+                               initial_state, innovation_factor, kalman_update)
 
 
 @dataclass(frozen=True)
@@ -181,10 +181,7 @@ class IMMPoseFilter(PoseKalmanFilter):
         angles, R, ambiguous = self._measure(raw55, heading_variance)
         n, M = N_ANGLES, len(self.models)
         if self._xs is None:
-            x = np.concatenate([angles, np.zeros(n)])
-            P = np.zeros((2 * n, 2 * n))
-            P[:n, :n] = R
-            P[n:, n:] = np.eye(n) * self.rate_std**2
+            x, P = initial_state(angles, R, self.rate_std)
             self._xs, self._Ps = np.repeat(x[None], M, 0), np.repeat(P[None], M, 0)
             self._mu = np.full(M, 1.0 / M)
         else:
@@ -192,17 +189,11 @@ class IMMPoseFilter(PoseKalmanFilter):
             xs, Ps, logs = np.empty_like(self._xs), np.empty_like(self._Ps), np.empty(M)
             for j, (x_pred, P_pred) in enumerate(predictions):
                 L, logdet = self._model_factor(j, R, ambiguous, heading_variance)
-                w = _lower_solve(L, wrap_deg(angles - x_pred[:n]))
-                W = _lower_solve(L, P_pred[:n])
-                xs[j] = x_pred + W.T @ w
-                Ps[j] = P_pred - W.T @ W
+                xs[j], Ps[j], w = kalman_update(x_pred, P_pred, L, angles)
                 logs[j] = np.log(max(c[j], 1e-300)) - 0.5 * (w @ w + logdet)
-            xs[:, :n] -= 360.0 * np.round(xs[:, :n] / 360.0)
             mu = np.exp(logs - logs.max())
             self._xs, self._Ps, self._mu = xs, Ps, mu / mu.sum()
         self._imm_predicted = None
-        self._predicted = None
         x = self._xs.copy()
         x[:, :n] = x[0, :n] + wrap_deg(x[:, :n] - x[0, :n])
-        self._x = self._mu @ x
-        return angles_to_pose(self._x[:n]), ambiguous
+        return angles_to_pose((self._mu @ x)[:n]), ambiguous
