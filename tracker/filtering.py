@@ -290,6 +290,15 @@ def initial_state(angles: np.ndarray, R: np.ndarray, rate_std: float
     return x, P
 
 
+def innovation_log_likelihood(L: np.ndarray, logdet: float, angles: np.ndarray,
+                              x_pred: np.ndarray) -> float:
+    """log N(y; 0, S) of measured angles (54,) deg against a predicted state x_pred (108,), y
+    the angles unwrapped against the prediction, S = L L' with log-determinant logdet
+    (innovation_factor)."""
+    w = _lower_solve(L, wrap_deg(angles - x_pred[:N_ANGLES]))
+    return float(-0.5 * (w @ w + logdet + N_ANGLES * _LOG_2PI))
+
+
 def kalman_update(x_pred: np.ndarray, P_pred: np.ndarray, L: np.ndarray, angles: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The Kalman update in covariance form of a prediction x_pred (108,), P_pred (108, 108)
@@ -391,9 +400,8 @@ class PoseKalmanFilter:
         out = np.empty(len(raws))
         for k, (raw, variance) in enumerate(zip(raws, variances)):
             angles, R, ambiguous = self._measure(raw, variance)
-            L, logdet = self._factor(R, ambiguous, variance)
-            w = _lower_solve(L, wrap_deg(angles - x_pred[:N_ANGLES]))
-            out[k] = -0.5 * (w @ w + logdet + N_ANGLES * _LOG_2PI)
+            out[k] = innovation_log_likelihood(*self._factor(R, ambiguous, variance), angles,
+                                               x_pred)
         return out
 
     def _prediction(self) -> tuple[np.ndarray, np.ndarray, dict]:

@@ -30,8 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from regressor.angles import N_ANGLES, angles_to_pose, wrap_deg
-from tracker.filtering import (_LOG_2PI, FilterError, PoseKalmanFilter, _lower_solve,
-                               initial_state, innovation_factor, kalman_update)
+from tracker.filtering import (FilterError, PoseKalmanFilter, initial_state,
+                               innovation_factor, innovation_log_likelihood, kalman_update)
 
 
 @dataclass(frozen=True)
@@ -167,10 +167,8 @@ class IMMPoseFilter(PoseKalmanFilter):
             angles, R, ambiguous = self._measure(raw, variance)
             terms = np.empty(len(self.models))
             for j, (x_pred, _) in enumerate(predictions):
-                L, logdet = self._model_factor(j, R, ambiguous, variance)
-                w = _lower_solve(L, wrap_deg(angles - x_pred[:N_ANGLES]))
-                terms[j] = (np.log(max(c[j], 1e-300))
-                            - 0.5 * (w @ w + logdet + N_ANGLES * _LOG_2PI))
+                terms[j] = np.log(max(c[j], 1e-300)) + innovation_log_likelihood(
+                    *self._model_factor(j, R, ambiguous, variance), angles, x_pred)
             top = terms.max()
             out[k] = top + np.log(np.exp(terms - top).sum())
         return out
