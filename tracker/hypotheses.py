@@ -173,7 +173,8 @@ from regressor.pose_model import DEFAULT_TRAINING_FPS, training_fps_of
 from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from .mirror_limbs import mirror_mean, sees_mirror
-from .travel import fuse_with_prior, travel_likelihood
+from .travel import (FACING_TRAVEL_PRIOR, fuse_with_prior, offset_likelihoods,
+                     offset_transition)
 
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
 #: [RAW_NEARER_NORM_EDGES[b], RAW_NEARER_NORM_EDGES[b + 1])); and over all frames. Measured on
@@ -585,11 +586,14 @@ class FrontBackTracker:
     evidence_weight: float = EVIDENCE_WEIGHT
     reference_fps: float = DEFAULT_TRAINING_FPS
     fuse_travel: bool = True
+    offset_memory: bool = True
+    offset_weight: float | None = None
     keep_history: bool = True
     limb_filter_factory: Callable[[float], object] | None = None
     filters: list = field(default_factory=list)
     limb_filter: object | None = None
     log_alpha: np.ndarray | None = None
+    offset_beliefs: np.ndarray | None = None
     history: list[_Frame] = field(default_factory=list)
     _log_A: tuple | None = field(default=None, repr=False)
 
@@ -600,29 +604,53 @@ class FrontBackTracker:
         K = len(poses)
         rate = self.frame_rate_ratio
         evidence = rate * self.evidence_weight * hypotheses.log_evidence
-        variances = np.full(K, np.nan)
+        log_A = self._log_transitions(K)
+        first = self.log_alpha is None or len(self.filters) != K
+        # Each predecessor state's belief over (facing - travel), predicted to this frame
+        # (rows: the states i of the last frame; the population's prior for a new track).
+        if first or not self.offset_memory:
+            predicted = np.tile(FACING_TRAVEL_PRIOR, (K, 1))
+        else:
+            predicted = self.offset_beliefs @ offset_transition(rate)
+        travel_ll = np.zeros((K, K))          # log p(travel | state j after state i)
+        fused_poses = np.broadcast_to(poses, (K,) + poses.shape)
+        fused_variances = np.full((K, K), np.nan)
+        offset_like = None
         if travel_deg is not None:
             headings = np.degrees(np.arctan2(poses[:, 1], poses[:, 0]))
-            evidence += rate * self.travel_weight * np.log(travel_likelihood(headings,
-                                                                             travel_deg))
-            if self.fuse_travel and self.filters:
+            offset_like = offset_likelihoods(headings, travel_deg)          # (K, bins)
+            travel_ll = rate * self.travel_weight * np.log(predicted @ offset_like.T)
+            if self.fuse_travel and not first:
                 raw_variance = self.filters[0].heading_variance
-                fused = [fuse_with_prior(pose, travel_deg, raw_variance) for pose in poses]
-                poses = np.array([f[0] for f in fused])
-                variances = np.array([f[1] for f in fused])
-        log_A = self._log_transitions(K)
-        if self.log_alpha is None or len(self.filters) != K:
+                fused = [[fuse_with_prior(pose, travel_deg, raw_variance, prior=prior)
+                          for pose in poses] for prior in predicted]
+                fused_poses = np.array([[f[0] for f in row] for row in fused])
+                fused_variances = np.array([[f[1] for f in row] for row in fused])
+        if first:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
             stationary = np.linalg.matrix_power(np.exp(log_A), 256)[0]
+            evidence = evidence + travel_ll[0]
             self.log_alpha, link = np.log(stationary) + evidence, None
+            predecessor = np.zeros(K, dtype=np.int64)
         else:
-            ll = np.array([f.log_likelihoods(poses, variances) if hasattr(f, "log_likelihoods")
-                           else np.zeros(K) for f in self.filters])
-            link = log_A + rate * ll
+            ll = np.array([f.log_likelihoods(p, v) if hasattr(f, "log_likelihoods")
+                           else np.zeros(K)
+                           for f, p, v in zip(self.filters, fused_poses, fused_variances)])
+            link = log_A + rate * ll + travel_ll
             scores = self.log_alpha[:, None] + link
-            self.filters = self._continue(scores.argmax(axis=0))
+            predecessor = scores.argmax(axis=0)
+            self.filters = self._continue(predecessor)
             self.log_alpha = _logsumexp(scores, axis=0) + evidence
         self.log_alpha -= _logsumexp(self.log_alpha)
+        states = np.arange(K)
+        poses = fused_poses[predecessor, states]
+        variances = fused_variances[predecessor, states]
+        beliefs = predicted[predecessor]
+        if offset_like is not None:
+            # The same tempering as the chain's travel evidence: windows overlap.
+            w = self.travel_weight if self.offset_weight is None else self.offset_weight
+            beliefs = beliefs * offset_like ** (rate * w)
+        self.offset_beliefs = beliefs / beliefs.sum(axis=1, keepdims=True)
         if self.keep_history:
             self.history.append(_Frame(poses.copy(), evidence, link, variances,
                                        np.array(hypotheses.raw, dtype=np.float64),

@@ -152,7 +152,9 @@ class TrackerSettings:
     mirror_limbs: average the limbs with the model's limbs for each frame's mirror image, for
     a model whose limb networks were fitted on mirror images (tracker.mirror_limbs; costs a
     second descriptor histogram and network pass per person and frame); other estimators
-    ignore it.
+    ignore it. travel_offset_memory: each track keeps its own belief over (facing - direction
+    of travel), carried over time (FrontBackTracker.offset_memory); False: the population's
+    prior on every frame.
     """
 
     max_people: int | None = None
@@ -172,6 +174,7 @@ class TrackerSettings:
     novelty: bool = True
     trust_zone_foreground: bool = True
     mirror_limbs: bool = True
+    travel_offset_memory: bool = True
     min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION
 
     def threshold(self, estimator) -> float:
@@ -250,7 +253,8 @@ def _front_back_chain(estimator, fps: float, settings: TrackerSettings, chain, l
     """The one place a track's FrontBackTracker is built: the estimator's switch rates and
     evidence weight, the filter factories chain and limbs (filter_factories)."""
     return FrontBackTracker(chain, fps, **chain_options(estimator),
-                            keep_history=settings.keep_history, limb_filter_factory=limbs)
+                            keep_history=settings.keep_history, limb_filter_factory=limbs,
+                            offset_memory=settings.travel_offset_memory)
 
 
 class PoseEstimator(Protocol):

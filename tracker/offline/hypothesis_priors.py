@@ -39,14 +39,17 @@ BODY_HEIGHT_M = 1.7
 BIN_DEG = 30.0
 
 
-def facing_minus_travel(bvh: str | Path, fps: float = 30.0, window: int = DEFAULT_WINDOW,
-                        min_speed: float = DEFAULT_MIN_SPEED) -> np.ndarray:
-    """(facing - travel) in degrees (n,) at the frames of a BVH motion where the root moves
-    faster than min_speed body heights per second, travel by least-squares slopes of the root's
-    ground position over ``window`` frames (as tracker.travel), facing = the root's yaw."""
+def facing_minus_travel_series(bvh: str | Path, fps: float = 30.0, window: int = DEFAULT_WINDOW,
+                               min_speed: float = DEFAULT_MIN_SPEED
+                               ) -> tuple[np.ndarray, np.ndarray]:
+    """(facing - travel) in degrees (n,) at every frame of a BVH motion from the window's end
+    on, and whether the root moves there (n,) bool: faster than min_speed body heights per
+    second, travel by least-squares slopes of the root's ground position over ``window``
+    frames (as tracker.travel), facing = the root's yaw. Empty for a motion shorter than the
+    window."""
     motion = read_bvh(bvh, fps=fps)
     if motion.n_frames < window:
-        return np.empty(0)
+        return np.empty(0), np.zeros(0, dtype=bool)
     facing = heading_deg(motion_to_pose_vectors(motion, 0.0))
     xz = motion.root_position[:, [0, 2]] * CMU_UNIT_M / BODY_HEIGHT_M      # body heights
     t = (np.arange(window) - (window - 1) / 2.0) / fps
@@ -54,9 +57,35 @@ def facing_minus_travel(bvh: str | Path, fps: float = 30.0, window: int = DEFAUL
     vx = np.convolve(xz[:, 0], kernel[::-1], mode="valid")
     vz = np.convolve(xz[:, 1], kernel[::-1], mode="valid")
     centre = np.arange(window - 1, motion.n_frames)     # causal: the window's last frame
-    moving = np.hypot(vx, vz) >= min_speed
     travel = np.degrees(np.arctan2(vx, vz))
-    return wrap_deg(facing[centre] - travel)[moving]
+    return wrap_deg(facing[centre] - travel), np.hypot(vx, vz) >= min_speed
+
+
+def facing_minus_travel(bvh: str | Path, fps: float = 30.0, window: int = DEFAULT_WINDOW,
+                        min_speed: float = DEFAULT_MIN_SPEED) -> np.ndarray:
+    """(facing - travel) in degrees (n,) at the frames of a BVH motion where the root moves
+    (facing_minus_travel_series)."""
+    offsets, moving = facing_minus_travel_series(bvh, fps, window, min_speed)
+    return offsets[moving]
+
+
+def facing_travel_steps(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.ndarray, np.ndarray]:
+    """How (facing - travel) moves between FACING_TRAVEL_PRIOR's bins from one 30 fps frame to
+    the next while the body keeps moving: steps (2, n_bins), row 0 the probability of moving
+    one bin down (towards -bin_deg), row 1 one bin up, from each bin; and the transitions
+    counted from each bin (n_bins,). A jump of more than one bin in a frame does not occur in
+    the CMU trials (a body turns, its offset drifts), so the rest stays in its bin."""
+    n_bins = int(round(360.0 / bin_deg))
+    counts = np.zeros((n_bins, n_bins))
+    for path in bvh_files:
+        offsets, moving = facing_minus_travel_series(path)
+        bins = np.round(wrap_deg(offsets) / bin_deg).astype(int) % n_bins
+        both = moving[1:] & moving[:-1]
+        np.add.at(counts, (bins[:-1][both], bins[1:][both]), 1.0)
+    total = counts.sum(axis=1)
+    rows = np.arange(n_bins)
+    steps = np.array([counts[rows, (rows - 1) % n_bins], counts[rows, (rows + 1) % n_bins]])
+    return steps / np.maximum(total, 1.0), total
 
 
 def facing_travel_histogram(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.ndarray, dict]:
