@@ -1,12 +1,13 @@
-"""Learn the front/back hypotheses' priors: (facing - travel) from all CMU trials, and the
-regressor's flip statistics on its validation trials rendered as spiral walks.
+"""Learn the front/back hypotheses' priors: (facing - travel) from the CMU training trials, and
+the regressor's flip statistics on its validation trials rendered as spiral walks.
 
     python scripts/learn_hypothesis_priors.py [--cmu ../shared/data/cmu/bvh] [--model FILE]
         [--skip-regressor] [--weights] [--save OUT]
 
-Prints the values that tracker/travel.py (FACING_TRAVEL_PRIOR, FACING_TRAVEL_STEPS) and tracker/hypotheses.py
-(SWITCH_PROBABILITY, RAW_NEARER_BY_NORM; with --weights TRAVEL_WEIGHT and EVIDENCE_WEIGHT,
-which should be chosen after the others are in place) hold; for a model with limbs and a side
+Prints the values that tracker/travel.py (FACING_TRAVEL_PRIOR, FACING_TRAVEL_STEPS; from the
+training trials, the held-out ones left out) and tracker/hypotheses.py (SWITCH_PROBABILITY, RAW_NEARER_BY_NORM; with
+--weights TRAVEL_WEIGHT and EVIDENCE_WEIGHT, which should be chosen after the others are in
+place) hold; for a model with limbs and a side
 classifier (the default), also the canonical chain's priors on the 28 validation renders
 (regressor.canonical_priors; the model file carries them), and with --save OUT writes the
 model with those priors to OUT (a new file: never the model itself).
@@ -75,7 +76,7 @@ def main(argv=None) -> int:
                  f"{', '.join(sorted({f.stem for f in needed}))})")
     if args.save is not None and not model.gives_canonical_pairs:
         ap.error(f"--save: {args.model} has no side classifier and limbs, so no canonical priors")
-    prior, per_file = facing_travel_histogram(sorted(args.cmu.glob("*.bvh")))
+    prior, per_file = facing_travel_histogram(training_files(args.cmu))
     moving = {k: v for k, v in per_file.items() if v}
     print(f"facing - travel over {sum(moving.values())} moving frames of {len(moving)} trials "
           f"(bins of 30 deg centred on 0, 30, ..., -30):")

@@ -20,8 +20,31 @@ a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter ban
 - e_t(j): the evidence for j that the frame itself gives. The regressor's: the (cos, sin) norm
   n says how often its raw pose, not the flip, is the nearer one (RAW_NEARER_BY_NORM, validation
   renders), turned into a likelihood ratio P(raw | n) / P(raw). The direction of travel's, while
-  the person moves: tracker.travel.travel_likelihood (the mocap distribution of facing minus
-  travel: backwards and sideways walking are less likely than forwards, never excluded).
+  the person moves: the likelihood of the travel seen given hypothesis j's heading and the
+  track's belief over (facing - travel) (below): backwards and sideways walking are less
+  likely than forwards at first, never excluded.
+- The belief over (facing - travel) (``offset_memory``, on by default): each state's filter
+  carries a probability over tracker.travel.FACING_TRAVEL_PRIOR's twelve 30-degree bins,
+  starting at that population prior and moved from frame to frame by the bins' transitions
+  learned from the CMU training trials (tracker.travel.offset_transition: a moving body's
+  offset drifts a bin at a time and persists). Each frame with travel updates it by the
+  travel's likelihood under the state's heading (tempered by TRAVEL_WEIGHT, as the evidence),
+  and the travel evidence for state j after state i is p(travel | j's heading) under i's
+  predicted belief, so it sits in the link, not in e_t. The travel fused into j's heading
+  (tracker.travel.fuse_with_prior) takes the same belief as its prior. Why: people who walk
+  backwards or sideways keep doing so, and one frame's travel is not independent of the
+  last's. With the population prior on every frame (``offset_memory=False``, the chain before
+  2026-12-04) a sideways dribble was read as turned towards its travel on every frame.
+  Measured (2026-12-04, the shipped model; filtered heading RMS, degrees). Chosen on
+  validation: the 28 validation renders (the chain replayed as ``track`` builds it) 30.34 ->
+  29.22 (as recorded 24.13 -> 24.02, time-reversed, i.e. walking backwards, 36.54 -> 34.43),
+  corr8 0.581 -> 0.586; the 12 validation videos through ``track`` 31.47 -> 31.38, corr8 0.446
+  -> 0.447, smoothed 23.22 both. The belief's tempering is the evidence's TRAVEL_WEIGHT:
+  0.02 / 0.1 / 0.2 / 0.5 / 1 gave 29.47 / 29.22 / 28.93 / 29.30 / 29.44 on the renders, no
+  clear gain for another parameter. Held out, after the choice (evaluate_accuracy.py's
+  videos; filtered / smoothed): the sideways dribble 06_08 from a fixed camera 28.1 / 24.5 ->
+  21.5 / 19.3, as a spiral 11.3 / 11.8 -> 8.4 / 6.4; the backward dribble 06_06 fixed 7.2 /
+  7.5 -> 7.0 / 7.2, spiral 10.0 / 5.7 -> 11.3 / 8.0; the sample 7.9 / 6.0 -> 7.8 / 5.8.
   Consecutive frames' evidence is correlated (stacked descriptors share frames; travel windows
   overlap), so each is tempered by an exponent per frame, EVIDENCE_WEIGHT for the regressor's
   (CANONICAL_EVIDENCE_WEIGHT for canonical pairs) and TRAVEL_WEIGHT for travel's, chosen on
@@ -587,7 +610,6 @@ class FrontBackTracker:
     reference_fps: float = DEFAULT_TRAINING_FPS
     fuse_travel: bool = True
     offset_memory: bool = True
-    offset_weight: float | None = None
     keep_history: bool = True
     limb_filter_factory: Callable[[float], object] | None = None
     filters: list = field(default_factory=list)
@@ -648,8 +670,7 @@ class FrontBackTracker:
         beliefs = predicted[predecessor]
         if offset_like is not None:
             # The same tempering as the chain's travel evidence: windows overlap.
-            w = self.travel_weight if self.offset_weight is None else self.offset_weight
-            beliefs = beliefs * offset_like ** (rate * w)
+            beliefs = beliefs * offset_like ** (rate * self.travel_weight)
         self.offset_beliefs = beliefs / beliefs.sum(axis=1, keepdims=True)
         if self.keep_history:
             self.history.append(_Frame(poses.copy(), evidence, link, variances,
