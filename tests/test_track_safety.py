@@ -529,20 +529,21 @@ def test_a_signal_the_shell_ignores_stays_ignored(tmp_path):
 def test_a_ctrl_c_just_before_the_outputs_close_does_not_cut_them_short(tmp_path, walk,
                                                                        monkeypatch):
     """A Ctrl-C in the window between the end of the loop and the signals being held (here
-    raised on the first attempt to hold them): the run counts as interrupted and every
-    output is still closed complete."""
+    raised on the first attempt to hold them for closing, after the 40 frames' own holds
+    while their outputs were written): the run counts as interrupted and every output is
+    still closed complete."""
     import tracker.run as run
     held, attempts = run._signals_held, []
 
     def interrupted_once():
         attempts.append(1)
-        if len(attempts) == 1:
+        if len(attempts) == 41:
             raise KeyboardInterrupt
         return held()
     monkeypatch.setattr(run, "_signals_held", interrupted_once)
     js, bvh = JsonSummarySink(tmp_path / "s.json", 30.0), BVHSink(tmp_path / "b", 30.0)
     result = track_video(walk, sinks=[js, bvh])
-    assert result.interrupted and len(attempts) == 2
+    assert result.interrupted and len(attempts) == 42
     assert json.loads((tmp_path / "s.json").read_text())["frames"] == result.frames == 40
     assert js.closed and bvh.closed
 
@@ -575,3 +576,38 @@ def test_a_ctrl_c_leaves_the_smoothed_outputs_the_filtered_poses_so_far(tmp_path
     assert 3 <= track["n_frames"] <= 6
     assert track["n_frames"] == result.written[track["id"]].poses
     assert len(list((tmp_path / "b").glob("*.bvh"))) == 1
+
+
+class _SignalMidWrite:
+    """A sink that gets Ctrl-C half-way through writing frame ``frame_index`` (as the MCAP
+    writer can, between a chunk's bytes and its index) and then finishes that write."""
+
+    def __init__(self, frame_index: int):
+        self.frame_index, self.frames, self.finished_writes = frame_index, [], 0
+        self.signalled = self.closed = False
+
+    def write(self, pose):
+        if pose.frame_index == self.frame_index and not self.signalled:
+            self.signalled = True
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)                 # delivered here, between two bytecodes
+        self.finished_writes += 1
+
+    def end_frame(self, frame_index):
+        self.frames.append(frame_index)
+
+    def close(self):
+        self.closed = True
+
+
+def test_a_ctrl_c_during_an_outputs_write_waits_for_the_frame_to_be_written(walk):
+    """The signal stops the run after the frame whose write it interrupted, not inside it:
+    every write begun is finished, the frame is ended in every sink and counted."""
+    first, second = _SignalMidWrite(12), _SignalMidWrite(-1)
+    result = track_video(walk, sinks=[first, second])
+    assert result.interrupted
+    assert first.frames == second.frames == list(range(13))       # frames 0-12, all ended
+    assert result.frames == 13
+    assert first.finished_writes == second.finished_writes == sum(
+        c.poses for c in result.written.values())
+    assert first.closed and second.closed

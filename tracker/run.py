@@ -118,20 +118,28 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
             frames_in = _in_process(source, tracker, 1 if watching else BATCH_FRAMES)
         for index, time_s, frame, poses, people in frames_in:
             clock = time.perf_counter()
-            for sink in streaming:
+            # A stop signal acts between frames, never inside an output's write: raised
+            # inside the MCAP writer (a chunk half written, or written but not yet indexed),
+            # it left a finished file that no reader could open (once, in a CI run of
+            # tests/test_track_cli.py on 2026-12-04: "record has length 153600000000").
+            with _signals_held() as held:
+                for sink in streaming:
+                    for pose in poses:
+                        sink.write(pose)
+                # Counted with the writes, as the outputs hold them: a sink may stop the run
+                # at end_frame.
+                frames += 1
                 for pose in poses:
-                    sink.write(pose)
-            # Counted with the writes, as the outputs hold them: a Ctrl-C may come at end_frame.
-            frames += 1
-            for pose in poses:
-                counts = written.setdefault(pose.track_id, WrittenPoses())
-                counts.poses += 1
-                counts.unfamiliar += pose.unfamiliar
-            for sink in watching:
-                sink.write_frame(index, time_s, frame, people)
-            for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
-                sink.end_frame(index)
+                    counts = written.setdefault(pose.track_id, WrittenPoses())
+                    counts.poses += 1
+                    counts.unfamiliar += pose.unfamiliar
+                for sink in watching:
+                    sink.write_frame(index, time_s, frame, people)
+                for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
+                    sink.end_frame(index)
             stages["outputs"] += time.perf_counter() - clock
+            if held:
+                raise KeyboardInterrupt
             if progress is not None:
                 progress.update(len(poses))
         if worker is not None:
