@@ -41,8 +41,9 @@ a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter ban
   corr8 0.581 -> 0.586; the 12 validation videos through ``track`` 31.47 -> 31.38, corr8 0.446
   -> 0.447, smoothed 23.22 both. The belief's tempering is the evidence's TRAVEL_WEIGHT:
   0.02 / 0.1 / 0.2 / 0.5 / 1 gave 29.47 / 29.22 / 28.93 / 29.30 / 29.44 on the renders, no
-  clear gain for another parameter. Held out, after the choice (evaluate_accuracy.py's
-  videos; filtered / smoothed): the sideways dribble 06_08 from a fixed camera 28.1 / 24.5 ->
+  clear gain for another parameter. Held out, after the choice (evaluate_jitter.py
+  --through-video, fixed camera and --spiral 30; the sample by evaluate_accuracy.py; filtered
+  / smoothed): the sideways dribble 06_08 from a fixed camera 28.1 / 24.5 ->
   21.5 / 19.3, as a spiral 11.3 / 11.8 -> 8.4 / 6.4; the backward dribble 06_06 fixed 7.2 /
   7.5 -> 7.0 / 7.2, spiral 10.0 / 5.7 -> 11.3 / 8.0; the sample 7.9 / 6.0 -> 7.8 / 5.8.
   Consecutive frames' evidence is correlated (stacked descriptors share frames; travel windows

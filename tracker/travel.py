@@ -123,7 +123,7 @@ def travel_likelihood(heading_deg, travel_deg: float,
     relative to a uniform density (1 = no information): the mocap distribution of (facing -
     travel), FACING_TRAVEL_PRIOR, seen through the image estimate's error (a von Mises of std
     travel_std_deg, widened by the bins' own width). heading_deg: any shape; degrees, the pose
-    vector's convention (as travel_heading). Soft: walking backwards is 0.079 / 0.44 as likely
+    vector's convention (as travel_heading). Soft: walking backwards is 0.076 / 0.44 as likely
     as forwards per observation, never impossible."""
     return offset_likelihoods(heading_deg, travel_deg, travel_std_deg) @ FACING_TRAVEL_PRIOR
 
