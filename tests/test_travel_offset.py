@@ -14,7 +14,8 @@ from tracker.filtering import PoseKalmanFilter
 from tracker.hypotheses import FrontBackTracker, _with_flips
 from tracker.offline.hypothesis_priors import facing_minus_travel, facing_travel_steps
 from tracker.travel import (FACING_TRAVEL_PRIOR, FACING_TRAVEL_STEPS, fuse_with_prior,
-                            offset_likelihoods, offset_transition, travel_likelihood)
+                            fuse_with_priors, offset_likelihoods, offset_transition,
+                            travel_likelihood)
 
 FPS = 30.0
 BINS = len(FACING_TRAVEL_PRIOR)
@@ -93,6 +94,21 @@ def test_a_belief_that_the_body_moves_sideways_pulls_its_heading_less_towards_tr
     own, _ = fuse_with_prior(pose, 0.0, raw_variance=37.0 ** 2, prior=sideways)
     assert _heading(population) < 70.0                   # the population walks forwards
     assert abs(_heading(own) - 85.0) < 6.0               # pulled towards travel + 90
+
+
+def test_fusing_many_poses_under_many_priors_is_fusing_each_pair():
+    rng = np.random.default_rng(5)
+    poses = np.array([_sideways_pose(h, rng) for h in (-150.0, 10.0, 95.0)])
+    priors = np.array([FACING_TRAVEL_PRIOR, np.roll(FACING_TRAVEL_PRIOR, 6)])
+    travels = np.array([20.0, -100.0])
+    fused, variances = fuse_with_priors(poses, travels, 900.0, priors)
+    assert fused.shape == (2, 3, 55) and variances.shape == (2, 3)
+    for i in range(2):
+        for k in range(3):
+            one, variance = fuse_with_prior(poses[k], travels[i], 900.0, prior=priors[i])
+            np.testing.assert_allclose(fused[i, k], one, atol=1e-9)
+            assert variances[i, k] == pytest.approx(variance)
+    np.testing.assert_array_equal(fused[..., 2:], np.broadcast_to(poses[:, 2:], (2, 3, 53)))
 
 
 def _walk(truth_heading: float, travel: float, memory: bool, T: int = 240, seed: int = 1):

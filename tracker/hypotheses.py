@@ -197,7 +197,7 @@ from regressor.pose_model import DEFAULT_TRAINING_FPS, training_fps_of
 from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from .mirror_limbs import mirror_mean, sees_mirror
-from .travel import (FACING_TRAVEL_PRIOR, fuse_with_prior, offset_likelihoods,
+from .travel import (FACING_TRAVEL_PRIOR, fuse_with_priors, offset_likelihoods,
                      offset_transition)
 
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
@@ -645,10 +645,8 @@ class FrontBackTracker:
             travel_ll = rate * self.travel_weight * np.log(predicted @ offset_like.T)
             if self.fuse_travel and not first:
                 raw_variance = self.filters[0].heading_variance
-                fused = [[fuse_with_prior(pose, travel_deg, raw_variance, prior=prior)
-                          for pose in poses] for prior in predicted]
-                fused_poses = np.array([[f[0] for f in row] for row in fused])
-                fused_variances = np.array([[f[1] for f in row] for row in fused])
+                fused_poses, fused_variances = fuse_with_priors(poses, travel_deg,
+                                                                raw_variance, predicted)
         if first:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
             stationary = np.linalg.matrix_power(np.exp(log_A), 256)[0]

@@ -182,34 +182,49 @@ def fuse_with_prior(raw: np.ndarray, travel_deg: float, raw_variance: float,
     it barely at all (its offset is uncertain). raw (55,); raw_variance deg^2. Returns (pose
     (55,), fused variance deg^2). prior: the offset's probabilities over the bins
     (n_bins,), the population's by default; a track's own belief (tracker.hypotheses) knows
-    more."""
-    heading = math.degrees(math.atan2(raw[1], raw[0]))
-    offsets = np.arange(len(FACING_TRAVEL_PRIOR)) * _PRIOR_BIN_DEG
-    miss = wrap_deg(heading - travel_deg - offsets)
-    log_w = (np.log(np.maximum(prior, 1e-12))
+    more. fuse_with_priors does many at once."""
+    fused, variance = fuse_with_priors(np.asarray(raw)[None], travel_deg, raw_variance,
+                                       np.asarray(prior)[None], travel_std_deg)
+    return fused[0, 0], float(variance[0, 0])
+
+
+def fuse_with_priors(poses: np.ndarray, travel_deg, raw_variance: float, priors: np.ndarray,
+                     travel_std_deg: float = TRAVEL_STD_DEG) -> tuple[np.ndarray, np.ndarray]:
+    """fuse_with_prior for every pose under every prior: poses (K, 55), priors (M, n_bins),
+    travel_deg a float or (M,) (one direction per prior); returns the fused poses (M, K, 55)
+    and their fused heading variances (M, K) deg^2."""
+    poses = np.asarray(poses, dtype=np.float64)
+    heading = np.degrees(np.arctan2(poses[:, 1], poses[:, 0]))                  # (K,)
+    travel = np.broadcast_to(np.asarray(travel_deg, dtype=np.float64), (len(priors),))
+    offsets = np.arange(len(FACING_TRAVEL_PRIOR)) * _PRIOR_BIN_DEG               # (B,)
+    miss = wrap_deg(heading[None, :, None] - travel[:, None, None] - offsets)   # (M, K, B)
+    log_w = (np.log(np.maximum(priors, 1e-12))[:, None, :]
              - 0.5 * miss ** 2 / (raw_variance + travel_std_deg ** 2))
-    w = np.exp(log_w - log_w.max())
-    w /= w.sum()
-    mean = math.degrees(math.atan2(w @ np.sin(np.radians(offsets)),
-                                   w @ np.cos(np.radians(offsets))))
-    spread = float(w @ wrap_deg(offsets - mean) ** 2)
-    return fuse_heading(raw, travel_deg + mean, raw_variance,
-                        math.sqrt(travel_std_deg ** 2 + spread))
+    w = np.exp(log_w - log_w.max(axis=-1, keepdims=True))
+    w /= w.sum(axis=-1, keepdims=True)
+    mean = np.degrees(np.arctan2(w @ np.sin(np.radians(offsets)),
+                                 w @ np.cos(np.radians(offsets))))              # (M, K)
+    spread = (w * wrap_deg(offsets - mean[..., None]) ** 2).sum(axis=-1)
+    return fuse_heading(np.broadcast_to(poses, mean.shape + poses.shape[1:]),
+                        travel[:, None] + mean, raw_variance,
+                        np.sqrt(travel_std_deg ** 2 + spread))
 
 
-def fuse_heading(raw: np.ndarray, travel_deg: float, raw_variance: float,
-                 travel_std_deg: float = TRAVEL_STD_DEG) -> tuple[np.ndarray, float]:
-    """Combine the regressor's heading (raw (55,), front/back already settled, variance
-    raw_variance deg^2) with the direction of travel (degrees, std travel_std_deg) by inverse
-    variance weighting on the circle: the same as two Kalman updates with independent errors.
-    Returns (raw with the fused heading, same (cos, sin) norm; fused variance deg^2).
-    travel_std_deg: measured on the sample walk's true boxes, the travel direction's error
-    has median 13.5 and 90th percentile 38 degrees (walking forwards)."""
+def fuse_heading(raw: np.ndarray, travel_deg, raw_variance: float,
+                 travel_std_deg=TRAVEL_STD_DEG) -> tuple[np.ndarray, np.ndarray | float]:
+    """Combine the regressor's heading (raw (..., 55), front/back already settled, variance
+    raw_variance deg^2) with the direction of travel (degrees, std travel_std_deg; each a
+    float or of raw's leading shape) by inverse variance weighting on the circle: the same as
+    two Kalman updates with independent errors. Returns (raw with the fused heading, same
+    (cos, sin) norm; fused variance deg^2, a float for one pose). travel_std_deg: measured on
+    the sample walk's true boxes, the travel direction's error has median 13.5 and 90th
+    percentile 38 degrees (walking forwards)."""
     out = np.array(raw, dtype=np.float64, copy=True)
-    norm = math.hypot(out[0], out[1])
-    heading = math.degrees(math.atan2(out[1], out[0]))
-    w_raw, w_travel = 1.0 / raw_variance, 1.0 / travel_std_deg ** 2
-    delta = float(wrap_deg(travel_deg - heading))
-    fused = math.radians(heading + delta * w_travel / (w_raw + w_travel))
-    out[0], out[1] = norm * math.cos(fused), norm * math.sin(fused)
-    return out, 1.0 / (w_raw + w_travel)
+    norm = np.hypot(out[..., 0], out[..., 1])
+    heading = np.degrees(np.arctan2(out[..., 1], out[..., 0]))
+    w_raw, w_travel = 1.0 / raw_variance, 1.0 / np.asarray(travel_std_deg, np.float64) ** 2
+    delta = wrap_deg(np.asarray(travel_deg, np.float64) - heading)
+    fused = np.radians(heading + delta * w_travel / (w_raw + w_travel))
+    out[..., 0], out[..., 1] = norm * np.cos(fused), norm * np.sin(fused)
+    variance = 1.0 / (w_raw + w_travel)
+    return out, float(variance) if np.ndim(variance) == 0 else variance
