@@ -5,10 +5,10 @@ the regressor's flip statistics on its validation trials rendered as spiral walk
         [--skip-regressor] [--weights] [--save OUT]
 
 Prints the values that tracker/travel.py (FACING_TRAVEL_PRIOR, FACING_TRAVEL_STEPS; from the
-training trials, the held-out ones left out) and tracker/hypotheses.py (SWITCH_PROBABILITY, RAW_NEARER_BY_NORM; with
---weights TRAVEL_WEIGHT and EVIDENCE_WEIGHT, which should be chosen after the others are in
-place) hold; for a model with limbs and a side
-classifier (the default), also the canonical chain's priors on the 28 validation renders
+training trials, the held-out ones left out) and tracker/hypotheses.py (SWITCH_PROBABILITY,
+RAW_NEARER_BY_NORM; with --weights TRAVEL_WEIGHT and EVIDENCE_WEIGHT, which should be chosen
+after the others are in place) hold; for a model with limbs and a side classifier (the
+default), also the canonical chain's priors on the 28 validation renders
 (regressor.canonical_priors; the model file carries them), and with --save OUT writes the
 model with those priors to OUT (a new file: never the model itself).
 """

@@ -96,19 +96,37 @@ def test_a_belief_that_the_body_moves_sideways_pulls_its_heading_less_towards_tr
     assert abs(_heading(own) - 85.0) < 6.0               # pulled towards travel + 90
 
 
+def _fused_heading(heading: float, travel: float, raw_variance: float, prior) -> float:
+    """fuse_with_prior's heading written out for one pose (the reference for the batch)."""
+    offsets = np.arange(BINS) * 30.0
+    miss = wrap_deg(heading - travel - offsets)
+    w = prior * np.exp(-0.5 * miss ** 2 / (raw_variance + 25.0 ** 2))
+    w /= w.sum()
+    mean = np.degrees(np.arctan2(w @ np.sin(np.radians(offsets)),
+                                 w @ np.cos(np.radians(offsets))))
+    spread = w @ wrap_deg(offsets - mean) ** 2
+    gain = (1 / (25.0 ** 2 + spread)) / (1 / raw_variance + 1 / (25.0 ** 2 + spread))
+    return float(wrap_deg(heading + gain * wrap_deg(travel + mean - heading)))
+
+
 def test_fusing_many_poses_under_many_priors_is_fusing_each_pair():
     rng = np.random.default_rng(5)
-    poses = np.array([_sideways_pose(h, rng) for h in (-150.0, 10.0, 95.0)])
+    headings = (-150.0, 10.0, 95.0)
+    poses = np.array([_sideways_pose(h, rng) for h in headings])
     priors = np.array([FACING_TRAVEL_PRIOR, np.roll(FACING_TRAVEL_PRIOR, 6)])
     travels = np.array([20.0, -100.0])
     fused, variances = fuse_with_priors(poses, travels, 900.0, priors)
     assert fused.shape == (2, 3, 55) and variances.shape == (2, 3)
     for i in range(2):
         for k in range(3):
+            expected = _fused_heading(headings[k], travels[i], 900.0, priors[i])
+            assert _heading(fused[i, k]) == pytest.approx(expected, abs=1e-9)
             one, variance = fuse_with_prior(poses[k], travels[i], 900.0, prior=priors[i])
             np.testing.assert_allclose(fused[i, k], one, atol=1e-9)
-            assert variances[i, k] == pytest.approx(variance)
+            assert variances[i, k] == pytest.approx(variance) and variance < 900.0
     np.testing.assert_array_equal(fused[..., 2:], np.broadcast_to(poses[:, 2:], (2, 3, 53)))
+    np.testing.assert_allclose(np.hypot(fused[..., 0], fused[..., 1]),
+                               np.broadcast_to(np.hypot(poses[:, 0], poses[:, 1]), (2, 3)))
 
 
 def _walk(truth_heading: float, travel: float, memory: bool, T: int = 240, seed: int = 1):
@@ -152,3 +170,25 @@ def test_a_backward_walker_is_read_as_walking_backwards_and_stays_so():
     assert np.all(np.abs(wrap_deg(headings[-100:])) < 30.0)
     best = bank.offset_beliefs[bank.log_alpha.argmax()]
     assert best.argmax() == 6 and best[6] > 0.5
+
+
+def test_the_belief_waits_while_the_body_does_not_move_and_steps_per_30_fps_frame(monkeypatch):
+    """Frames without travel leave the belief as it is (its steps were learned on moving
+    frames); at 60 fps a frame is half a step's frame, whatever rate the model was trained at."""
+    import tracker.hypotheses as hypotheses
+    shares = []
+
+    def recorded(share):
+        shares.append(share)
+        return offset_transition(share)
+    monkeypatch.setattr(hypotheses, "offset_transition", recorded)
+    rng = np.random.default_rng(0)
+    bank = FrontBackTracker(lambda fps: PoseKalmanFilter(fps), 60.0, reference_fps=60.0)
+    body = _sideways_pose(0.0, rng)
+    for travel in (90.0, 90.0, None, None, 90.0):
+        before = None if bank.offset_beliefs is None else bank.offset_beliefs.copy()
+        bank.step(_with_flips(body[None], np.ones(1)), travel)
+        if travel is None:        # each state's belief is its predecessor's, as it was
+            for row in bank.offset_beliefs:
+                assert any(np.allclose(row, old, rtol=1e-12, atol=0) for old in before)
+    assert shares == [0.5, 0.5]           # the second and the last frame: moving, not first

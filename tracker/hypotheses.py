@@ -39,9 +39,12 @@ a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter ban
   validation: the 28 validation renders (the chain replayed as ``track`` builds it) 30.34 ->
   29.22 (as recorded 24.13 -> 24.02, time-reversed, i.e. walking backwards, 36.54 -> 34.43),
   corr8 0.581 -> 0.586; the 12 validation videos through ``track`` 31.47 -> 31.38, corr8 0.446
-  -> 0.447, smoothed 23.22 both. The belief's tempering is the evidence's TRAVEL_WEIGHT:
-  0.02 / 0.1 / 0.2 / 0.5 / 1 gave 29.47 / 29.22 / 28.93 / 29.30 / 29.44 on the renders, no
-  clear gain for another parameter. Held out, after the choice (evaluate_jitter.py
+  -> 0.447, smoothed 23.22 -> 23.23. The belief's update is tempered by TRAVEL_WEIGHT
+  (0.04), as the travel evidence is; an exponent of its own instead, 0.02 / 0.1 / 0.2 / 0.5 /
+  1, gave 29.47 / 29.22 / 28.93 / 29.30 / 29.44 on the renders: no clear gain for another
+  parameter. Offline (``--smooth``) the Viterbi path takes each frame's hypotheses as fused
+  under the forward pass's best predecessor's belief, which may not be the path's own
+  predecessor: an approximation. Held out, after the choice (evaluate_jitter.py
   --through-video, fixed camera and --spiral 30; the sample by evaluate_accuracy.py; filtered
   / smoothed): the sideways dribble 06_08 from a fixed camera 28.1 / 24.5 ->
   21.5 / 19.3, as a spiral 11.3 / 11.8 -> 8.4 / 6.4; the backward dribble 06_06 fixed 7.2 /
@@ -197,8 +200,8 @@ from regressor.pose_model import DEFAULT_TRAINING_FPS, training_fps_of
 from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from .mirror_limbs import mirror_mean, sees_mirror
-from .travel import (FACING_TRAVEL_PRIOR, fuse_with_priors, offset_likelihoods,
-                     offset_transition)
+from .travel import (FACING_TRAVEL_FPS, FACING_TRAVEL_PRIOR, fuse_with_priors,
+                     offset_likelihoods, offset_transition)
 
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
 #: [RAW_NEARER_NORM_EDGES[b], RAW_NEARER_NORM_EDGES[b + 1])); and over all frames. Measured on
@@ -633,8 +636,11 @@ class FrontBackTracker:
         # (rows: the states i of the last frame; the population's prior for a new track).
         if first or not self.offset_memory:
             predicted = np.tile(FACING_TRAVEL_PRIOR, (K, 1))
+        elif travel_deg is None:
+            # Not moving: the steps were learned on moving frames; the belief waits.
+            predicted = self.offset_beliefs
         else:
-            predicted = self.offset_beliefs @ offset_transition(rate)
+            predicted = self.offset_beliefs @ offset_transition(FACING_TRAVEL_FPS / self.fps)
         travel_ll = np.zeros((K, K))          # log p(travel | state j after state i)
         fused_poses = np.broadcast_to(poses, (K,) + poses.shape)
         fused_variances = np.full((K, K), np.nan)

@@ -138,10 +138,10 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                 for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
                     sink.end_frame(index)
             stages["outputs"] += time.perf_counter() - clock
-            if held:
-                raise KeyboardInterrupt
             if progress is not None:
                 progress.update(len(poses))
+            if held:
+                raise KeyboardInterrupt
         if worker is not None:
             for stage in ("decode", "silhouettes", "descriptor"):
                 stages[stage] += worker.stage_seconds.get(stage, 0.0)
@@ -247,6 +247,9 @@ def _background(source: VideoSource, tracker: PoseTracker) -> np.ndarray:
     return _sampled_background(source, tracker)[0]
 
 
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
 @contextlib.contextmanager
 def _signals_held() -> Iterator[list[int]]:
     """Hold back Ctrl-C, SIGTERM and SIGHUP inside the block (main thread only; elsewhere
@@ -254,15 +257,33 @@ def _signals_held() -> Iterator[list[int]]:
     held: list[int] = []
     previous = {}
     if threading.current_thread() is threading.main_thread():
-        for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-            handler = signal.getsignal(number)
-            if handler is not None and handler != signal.SIG_IGN:
-                previous[number] = signal.signal(number, lambda n, _: held.append(n))
+        with _stop_signals_blocked():
+            for number in _STOP_SIGNALS:
+                handler = signal.getsignal(number)
+                if handler is not None and handler != signal.SIG_IGN:
+                    previous[number] = signal.signal(number, lambda n, _: held.append(n))
     try:
         yield held
     finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
+        with _stop_signals_blocked():
+            for number, handler in previous.items():
+                signal.signal(number, handler)
+
+
+@contextlib.contextmanager
+def _stop_signals_blocked() -> Iterator[None]:
+    """Block the stop signals while their handlers are swapped, so that none arrives between
+    two swaps (its handler would raise there and leave the others swapped); one that came
+    meanwhile is delivered on leaving, to the handlers then in place. Where the platform cannot
+    block signals, the swaps are left unguarded."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 def _write_filtered(recorder: PoseRecorder, sinks: Sequence[Sink]) -> None:

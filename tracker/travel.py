@@ -55,9 +55,9 @@ FACING_TRAVEL_PRIOR = np.array([0.4412, 0.1558, 0.0593, 0.0224, 0.0124, 0.0280, 
                                 0.0204, 0.0229, 0.0307, 0.1006])
 _PRIOR_BIN_DEG = 360.0 / len(FACING_TRAVEL_PRIOR)
 #: How a body's (facing - travel) moves between FACING_TRAVEL_PRIOR's bins from one 30 fps frame
-#: to the next while it keeps moving: row 0 the probability of one bin down (towards -30
-#: degrees), row 1 one bin up, from each bin; it stays in its bin otherwise (no CMU trial
-#: jumps two bins in a frame). The offset persists: a body walking backwards keeps doing so
+#: (FACING_TRAVEL_FPS) to the next while it keeps moving: row 0 the probability of one bin down
+#: (towards -30 degrees), row 1 one bin up, from each bin; it stays in its bin otherwise (a
+#: jump of two bins or more in a frame: 2 of the 17,427 pairs, not modelled). The offset persists: a body walking backwards keeps doing so
 #: (from the 180 bin it leaves 4 % of frames), so the travel evidence of one frame is not
 #: independent of the last's. Measured by scripts/learn_hypothesis_priors.py
 #: (tracker.offline.hypothesis_priors.facing_travel_steps) on the 92 training trials of
@@ -68,6 +68,7 @@ FACING_TRAVEL_STEPS = np.array([
      0.0295],
     [0.0206, 0.0249, 0.0309, 0.0475, 0.0900, 0.0543, 0.0231, 0.0393, 0.0487, 0.0680, 0.0648,
      0.0653]])
+FACING_TRAVEL_FPS = 30.0        # the frame rate FACING_TRAVEL_STEPS are per frame of
 
 
 def travel_heading(u_px: np.ndarray, height_px: np.ndarray, fps: float, frame_width: int,
@@ -143,7 +144,8 @@ def offset_likelihoods(heading_deg, travel_deg: float,
 @functools.lru_cache(maxsize=8)
 def offset_transition(frame_share: float = 1.0) -> np.ndarray:
     """The (facing - travel) bins' transition matrix (n_bins, n_bins), rows summing to 1, over
-    frame_share of a 30 fps frame (FACING_TRAVEL_STEPS; 0.25 for a 120 fps frame): the
+    frame_share of a FACING_TRAVEL_FPS frame (FACING_TRAVEL_STEPS; 0.25 for a 120 fps frame),
+    while the body moves (the steps were counted on moving frames only): the
     one-frame matrix's power for whole frames, the share of a frame's steps for the rest (for
     a share below 1 the chance of a step is that share of a frame's)."""
     if frame_share < 0:
