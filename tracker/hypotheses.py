@@ -37,21 +37,21 @@ a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter ban
   2026-12-04) a sideways dribble was read as turned towards its travel on every frame.
   The belief waits on frames without travel (its steps were counted on moving frames; stepping
   there let a still track's belief drift to the steps' own long-run distribution, twice the
-  population's backwards share). Measured (2026-12-04, the shipped model; filtered heading
-  RMS, degrees). Chosen on validation: the 28 validation renders (the chain replayed as
-  ``track`` builds it) 30.34 -> 29.44 (as recorded 24.13 -> 24.41, time-reversed, i.e. walking
-  backwards, 36.54 -> 34.47), corr8 0.581 -> 0.585 (stepping on every frame: 29.23, not
-  taken for the drift); the 12 validation videos through ``track`` 31.47 -> 31.41, corr8
-  0.446 -> 0.447, smoothed 23.22 -> 23.18. The belief's update is tempered by TRAVEL_WEIGHT (0.04), as the travel evidence is;
-  an exponent of its own instead, 0.02 / 0.1 / 0.2 / 0.5 / 1, gave 29.47 / 29.22 / 28.93 /
-  29.30 / 29.44 on the renders (stepping on every frame): no clear gain for another
-  parameter. Offline (``--smooth``) the Viterbi path takes each frame's hypotheses as fused
-  under the forward pass's best predecessor's belief, which may not be the path's own
-  predecessor: an approximation. Held out, after the choice (evaluate_jitter.py
-  --through-video, fixed camera and --spiral 30; the sample by evaluate_accuracy.py; filtered
-  / smoothed): the sideways dribble 06_08 from a fixed camera 28.1 / 24.5 ->
-  21.5 / 19.3, as a spiral 11.3 / 11.8 -> 8.4 / 6.5; the backward dribble 06_06 fixed 7.2 /
-  7.5 -> 7.0 / 7.2, spiral 10.0 / 5.7 -> 11.3 / 8.0; the sample 7.9 / 6.0 -> 7.8 / 5.8.
+  population's backwards share). Measured (2026-12-04, the shipped model; filtered heading RMS,
+  degrees). Chosen on validation: the 28 validation renders (the chain replayed as ``track``
+  builds it) 30.34 -> 29.44 (as recorded 24.13 -> 24.41, time-reversed, i.e. walking backwards,
+  36.54 -> 34.47), corr8 0.581 -> 0.585 (stepping on every frame: 29.23, not taken for the
+  drift); the 12 validation videos through ``track`` 31.47 -> 31.41, corr8 0.446 -> 0.447,
+  smoothed 23.22 -> 23.18. The belief's update is tempered by TRAVEL_WEIGHT (0.04), as the
+  travel evidence is; an exponent of its own instead, 0.02 / 0.1 / 0.2 / 0.5 / 1, gave 29.47 /
+  29.22 / 28.93 / 29.30 / 29.44 on the renders (stepping on every frame): no clear gain for
+  another parameter. Offline (``--smooth``) the Viterbi path takes each frame's hypotheses as
+  fused under the forward pass's best predecessor's belief, which may not be the path's own
+  predecessor: an approximation. Held out, after the choice (evaluate_jitter.py --through-video,
+  fixed camera and --spiral 30; the sample by evaluate_accuracy.py; filtered / smoothed): the
+  sideways dribble 06_08 from a fixed camera 28.1 / 24.5 -> 21.5 / 19.3, as a spiral 11.3 / 11.8
+  -> 8.4 / 6.5; the backward dribble 06_06 fixed 7.2 / 7.5 -> 7.0 / 7.2, spiral 10.0 / 5.7 ->
+  11.3 / 8.0; the sample 7.9 / 6.0 -> 7.8 / 5.8.
   Consecutive frames' evidence is correlated (stacked descriptors share frames; travel windows
   overlap), so each is tempered by an exponent per frame, EVIDENCE_WEIGHT for the regressor's
   (CANONICAL_EVIDENCE_WEIGHT for canonical pairs) and TRAVEL_WEIGHT for travel's, chosen on

@@ -56,13 +56,13 @@ FACING_TRAVEL_PRIOR = np.array([0.4412, 0.1558, 0.0593, 0.0224, 0.0124, 0.0280, 
 _PRIOR_BIN_DEG = 360.0 / len(FACING_TRAVEL_PRIOR)
 #: How a body's (facing - travel) moves between FACING_TRAVEL_PRIOR's bins from one 30 fps frame
 #: (FACING_TRAVEL_FPS) to the next while it keeps moving: row 0 the probability of one bin down
-#: (towards -30 degrees), row 1 one bin up, from each bin; it stays in its bin otherwise (a
-#: jump of two bins or more in a frame: 2 of the 17,427 pairs, not modelled). The offset persists: a body walking backwards keeps doing so
-#: (from the 180 bin it leaves 4 % of frames), so the travel evidence of one frame is not
-#: independent of the last's. Measured by scripts/learn_hypothesis_priors.py
-#: (tracker.offline.hypothesis_priors.facing_travel_steps) on the 92 training trials of
-#: ../shared/data/cmu (the held-out ones, sequences.dataset.HELD_OUT_TRIALS, left out;
-#: 17,427 frame pairs).
+#: (towards -30 degrees), row 1 one bin up, from each bin; it stays in its bin otherwise (a jump
+#: of two bins or more in a frame: 2 of the 17,427 pairs, not modelled). The offset persists: a
+#: body walking backwards keeps doing so (from the 180 bin it leaves 4 % of frames), so the
+#: travel evidence of one frame is not independent of the last's. Measured by
+#: scripts/learn_hypothesis_priors.py (tracker.offline.hypothesis_priors.facing_travel_steps) on
+#: the 92 training trials of ../shared/data/cmu (the held-out ones,
+#: sequences.dataset.HELD_OUT_TRIALS, left out; 17,427 frame pairs).
 FACING_TRAVEL_STEPS = np.array([
     [0.0173, 0.0528, 0.0570, 0.0712, 0.0948, 0.0418, 0.0192, 0.0747, 0.0774, 0.0630, 0.0705,
      0.0295],
