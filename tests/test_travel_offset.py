@@ -114,19 +114,20 @@ def test_fusing_many_poses_under_many_priors_is_fusing_each_pair():
     headings = (-150.0, 10.0, 95.0)
     poses = np.array([_sideways_pose(h, rng) for h in headings])
     priors = np.array([FACING_TRAVEL_PRIOR, np.roll(FACING_TRAVEL_PRIOR, 6)])
-    travels = np.array([20.0, -100.0])
-    fused, variances = fuse_with_priors(poses, travels, 900.0, priors)
-    assert fused.shape == (2, 3, 55) and variances.shape == (2, 3)
-    for i in range(2):
-        for k in range(3):
-            expected = _fused_heading(headings[k], travels[i], 900.0, priors[i])
-            assert _heading(fused[i, k]) == pytest.approx(expected, abs=1e-9)
-            one, variance = fuse_with_prior(poses[k], travels[i], 900.0, prior=priors[i])
-            np.testing.assert_allclose(fused[i, k], one, atol=1e-9)
-            assert variances[i, k] == pytest.approx(variance) and variance < 900.0
-    np.testing.assert_array_equal(fused[..., 2:], np.broadcast_to(poses[:, 2:], (2, 3, 53)))
-    np.testing.assert_allclose(np.hypot(fused[..., 0], fused[..., 1]),
-                               np.broadcast_to(np.hypot(poses[:, 0], poses[:, 1]), (2, 3)))
+    for travel in (20.0, -100.0):
+        fused, variances = fuse_with_priors(poses, travel, 900.0, priors)
+        assert fused.shape == (2, 3, 55) and variances.shape == (2, 3)
+        for i in range(2):
+            for k in range(3):
+                expected = _fused_heading(headings[k], travel, 900.0, priors[i])
+                assert _heading(fused[i, k]) == pytest.approx(expected, abs=1e-9)
+                one, variance = fuse_with_prior(poses[k], travel, 900.0, prior=priors[i])
+                np.testing.assert_allclose(fused[i, k], one, atol=1e-9)
+                assert variances[i, k] == pytest.approx(variance) and variance < 900.0
+        np.testing.assert_array_equal(fused[..., 2:],
+                                      np.broadcast_to(poses[:, 2:], (2, 3, 53)))
+        np.testing.assert_allclose(np.hypot(fused[..., 0], fused[..., 1]),
+                                   np.broadcast_to(np.hypot(poses[:, 0], poses[:, 1]), (2, 3)))
 
 
 def _walk(truth_heading: float, travel: float, memory: bool, T: int = 240, seed: int = 1):

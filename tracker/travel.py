@@ -190,25 +190,24 @@ def fuse_with_prior(raw: np.ndarray, travel_deg: float, raw_variance: float,
     return fused[0, 0], float(variance[0, 0])
 
 
-def fuse_with_priors(poses: np.ndarray, travel_deg, raw_variance: float, priors: np.ndarray,
-                     travel_std_deg: float = TRAVEL_STD_DEG) -> tuple[np.ndarray, np.ndarray]:
-    """fuse_with_prior for every pose under every prior: poses (K, 55), priors (M, n_bins),
-    travel_deg a float or (M,) (one direction per prior); returns the fused poses (M, K, 55)
-    and their fused heading variances (M, K) deg^2."""
+def fuse_with_priors(poses: np.ndarray, travel_deg: float, raw_variance: float,
+                     priors: np.ndarray, travel_std_deg: float = TRAVEL_STD_DEG
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """fuse_with_prior for every pose under every prior: poses (K, 55), priors (M, n_bins);
+    returns the fused poses (M, K, 55) and their fused heading variances (M, K) deg^2."""
     poses = np.asarray(poses, dtype=np.float64)
     heading = np.degrees(np.arctan2(poses[:, 1], poses[:, 0]))                  # (K,)
-    travel = np.broadcast_to(np.asarray(travel_deg, dtype=np.float64), (len(priors),))
     offsets = np.arange(len(FACING_TRAVEL_PRIOR)) * _PRIOR_BIN_DEG               # (B,)
-    miss = wrap_deg(heading[None, :, None] - travel[:, None, None] - offsets)   # (M, K, B)
+    miss = wrap_deg(heading[:, None] - travel_deg - offsets)                     # (K, B)
     log_w = (np.log(np.maximum(priors, 1e-12))[:, None, :]
-             - 0.5 * miss ** 2 / (raw_variance + travel_std_deg ** 2))
+             - 0.5 * miss[None] ** 2 / (raw_variance + travel_std_deg ** 2))     # (M, K, B)
     w = np.exp(log_w - log_w.max(axis=-1, keepdims=True))
     w /= w.sum(axis=-1, keepdims=True)
     mean = np.degrees(np.arctan2(w @ np.sin(np.radians(offsets)),
                                  w @ np.cos(np.radians(offsets))))              # (M, K)
     spread = (w * wrap_deg(offsets - mean[..., None]) ** 2).sum(axis=-1)
     return fuse_heading(np.broadcast_to(poses, mean.shape + poses.shape[1:]),
-                        travel[:, None] + mean, raw_variance,
+                        travel_deg + mean, raw_variance,
                         np.sqrt(travel_std_deg ** 2 + spread))
 
 

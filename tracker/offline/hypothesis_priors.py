@@ -76,11 +76,11 @@ def facing_travel_steps(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.ndarray
     counted from each bin (n_bins,). The offset drifts a bin at a time (a body turns); the
     rare jump of two bins or more in a frame (2 of the training trials' 17,427 pairs) is not
     a step either way."""
-    n_bins = int(round(360.0 / bin_deg))
+    n_bins = _n_bins(bin_deg)
     counts = np.zeros((n_bins, n_bins))
     for path in bvh_files:
         offsets, moving = facing_minus_travel_series(path)
-        bins = np.round(wrap_deg(offsets) / bin_deg).astype(int) % n_bins
+        bins = _bin_of(offsets, bin_deg)
         both = moving[1:] & moving[:-1]
         np.add.at(counts, (bins[:-1][both], bins[1:][both]), 1.0)
     total = counts.sum(axis=1)
@@ -92,14 +92,23 @@ def facing_travel_steps(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.ndarray
 def facing_travel_histogram(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.ndarray, dict]:
     """Probabilities (360 / bin_deg,) of (facing - travel) in bins centred on 0, bin_deg, ...
     (wrapped), over all moving frames of all files; and moving frames per file."""
-    n_bins = int(round(360.0 / bin_deg))
+    n_bins = _n_bins(bin_deg)
     counts, per_file = np.zeros(n_bins), {}
     for path in bvh_files:
         delta = facing_minus_travel(path)
         per_file[Path(path).stem] = int(len(delta))
-        bins = np.round(wrap_deg(delta) / bin_deg).astype(int) % n_bins
-        counts += np.bincount(bins, minlength=n_bins)
+        counts += np.bincount(_bin_of(delta, bin_deg), minlength=n_bins)
     return counts / counts.sum(), per_file
+
+
+def _n_bins(bin_deg: float) -> int:
+    """Bins of bin_deg degrees round the circle."""
+    return int(round(360.0 / bin_deg))
+
+
+def _bin_of(offsets_deg: np.ndarray, bin_deg: float) -> np.ndarray:
+    """The bin (centred on 0, bin_deg, ..., wrapped) of each angle (degrees), as ints."""
+    return np.round(wrap_deg(offsets_deg) / bin_deg).astype(int) % _n_bins(bin_deg)
 
 
 def raw_is_nearer(raw: np.ndarray, truth: np.ndarray) -> np.ndarray:
