@@ -6,7 +6,9 @@ poses and cannot afford the rows to see every motion densely. Here the training 
 into regions of pose space (k-means on a pose embedding), each region gets its own expert
 fitted on its members (plus a margin of rows near its border, so neighbouring experts agree
 where they meet), and a gate p(expert | stacked descriptor) - multinomial logistic regression
-on Gaussian-kernel features - says which experts to trust. Where a silhouette is ambiguous
+on Gaussian-kernel features (the tracker's models), or the regions of the nearest training
+inputs (``gate="neighbours"``, for small sets: on the paper's data it ranks first) - says
+which experts to trust. Where a silhouette is ambiguous
 (front/back) two experts get similar probabilities and :meth:`MixtureRegressor.predict_hypotheses`
 returns both poses; :meth:`MixtureRegressor.predict` returns the most probable one.
 
@@ -36,6 +38,7 @@ from .basis import (NotFittedError, RegressorInputError, default_width, gaussian
                     squared_distances, validate_X)
 
 EXPERT_KINDS = ("ridge", "rvm")
+GATE_KINDS = ("softmax", "neighbours")
 
 
 class Estimator:
@@ -227,27 +230,78 @@ class SoftmaxGate(Estimator):
         return self.predict_proba(X).argmax(axis=1)
 
 
+class NeighbourGate(Estimator):
+    """p(class | x) from the classes of x's k nearest training inputs (Euclidean).
+
+    The share of the k neighbours in class c is Bayes' rule with k-nearest-neighbour density
+    estimates p(x | c) and the class frequencies as the prior: the gate as a density per
+    expert in descriptor space (Agarwal and Triggs 2005), estimated without a parametric form.
+    It keeps every training input, so it suits small sets (the paper's 1,927 frames), not the
+    tracker's model file. Ties between classes go to the class of the nearer neighbours
+    (each vote is weighted 1 + 1e-6 x (k - rank)). Learned: X_ (N, D), labels_ (N,)."""
+
+    def __init__(self, n_neighbours: int = 3, chunk_rows: int = 2048):
+        self.n_neighbours = n_neighbours
+        self.chunk_rows = chunk_rows
+
+    def fit(self, X, labels, n_classes: int | None = None, sample_weight=None):
+        X = validate_X(X)
+        labels = np.asarray(labels, dtype=np.int64)
+        if len(labels) != len(X):
+            raise ValueError("X and labels must have the same number of rows")
+        if not 1 <= int(self.n_neighbours) <= len(X):
+            raise ValueError(f"n_neighbours must be within 1..{len(X)} (the training rows), "
+                             f"got {self.n_neighbours}")
+        self.n_classes_ = int(labels.max()) + 1 if n_classes is None else int(n_classes)
+        self.X_, self.labels_ = X, labels
+        self.n_features_in_ = X.shape[1]
+        return self
+
+    def predict_proba(self, X) -> np.ndarray:
+        """p(class | x), (N, C), rows summing to 1."""
+        self._check_fitted("labels_")
+        X = validate_X(X, self.n_features_in_)
+        k = int(self.n_neighbours)
+        votes = 1.0 + 1e-6 * np.arange(k, 0, -1)         # ties: the nearer neighbours' class
+        P = np.zeros((len(X), self.n_classes_))
+        for start in range(0, len(X), self.chunk_rows):  # bounded memory: chunk x N distances
+            D = squared_distances(X[start:start + self.chunk_rows], self.X_)
+            near = np.argpartition(D, k - 1, axis=1)[:, :k] if k < D.shape[1] \
+                else np.broadcast_to(np.arange(k), D.shape)
+            near = np.take_along_axis(near, np.argsort(np.take_along_axis(D, near, axis=1),
+                                                       axis=1, kind="stable"), axis=1)
+            rows = np.arange(len(D))[:, None]
+            np.add.at(P, (start + rows, self.labels_[near]), votes)
+        return P / P.sum(axis=1, keepdims=True)
+
+    def predict(self, X) -> np.ndarray:
+        """Most probable class (N,)."""
+        return self.predict_proba(X).argmax(axis=1)
+
+
 # ----------------------------------------------------------------------------- the mixture
 
 class MixtureRegressor(Estimator):
-    """Mixture of kernel regression experts with a softmax gate (module docstring).
+    """Mixture of kernel regression experts with a gate (module docstring).
 
     n_experts: regions of pose space (k-means on ``partition_on``, the Z argument of fit, or
     on Y when Z is None). overlap: an expert also trains on rows whose distance to its region
     centre is within (1 + overlap) x their distance to their own region's centre (0: hard
     partition). expert: "ridge" (DampedKernelRegressor with n_centres, width_scale, lam) or
     "rvm" (regressor.rvm.RVMRegressor on at most rvm_rows rows per expert). gate_centres,
-    gate_width_scale, gate_l2: the SoftmaxGate. top_experts: experts evaluated per row in
+    gate_width_scale, gate_l2: the SoftmaxGate. gate: "softmax" (SoftmaxGate) or "neighbours"
+    (NeighbourGate over gate_neighbours training inputs). top_experts: experts evaluated per row in
     predict (the gate's most probable ones; their poses are the hypotheses).
 
     Learned: partition_centres_ (E, dZ), experts_ (list of fitted regressors), gate_
-    (SoftmaxGate), expert_rows_ (E,) rows each expert was fitted on.
+    (SoftmaxGate or NeighbourGate), expert_rows_ (E,) rows each expert was fitted on.
     """
 
     def __init__(self, n_experts: int = 8, overlap: float = 0.2, expert: str = "ridge",
                  n_centres: int = 500, width_scale: float = 0.25, lam: float = 0.01,
                  gate_centres: int = 300, gate_width_scale: float = 0.5, gate_l2: float = 1e-4,
-                 top_experts: int = 2, rvm_rows: int = 2000, seed: int = 0):
+                 top_experts: int = 2, rvm_rows: int = 2000, seed: int = 0,
+                 gate: str = "softmax", gate_neighbours: int = 3):
         self.n_experts = n_experts
         self.overlap = overlap
         self.expert = expert
@@ -260,6 +314,8 @@ class MixtureRegressor(Estimator):
         self.top_experts = top_experts
         self.rvm_rows = rvm_rows
         self.seed = seed
+        self.gate = gate
+        self.gate_neighbours = gate_neighbours
 
     def _new_expert(self, e: int):
         if self.expert == "ridge":
@@ -273,6 +329,8 @@ class MixtureRegressor(Estimator):
         log(str) reports progress."""
         if self.expert not in EXPERT_KINDS:
             raise ValueError(f"expert must be one of {EXPERT_KINDS}, got {self.expert!r}")
+        if self.gate not in GATE_KINDS:
+            raise ValueError(f"gate must be one of {GATE_KINDS}, got {self.gate!r}")
         X = validate_X(X)
         Y = np.asarray(Y, dtype=np.float64)
         Z = Y if Z is None else np.asarray(Z, dtype=np.float64)
@@ -295,8 +353,11 @@ class MixtureRegressor(Estimator):
             if log:
                 log(f"  expert {e}: {int((labels == e).sum())} rows of its own, {len(idx)} fitted")
         self.expert_rows_ = np.array(rows)
-        self.gate_ = SoftmaxGate(self.gate_centres, self.gate_width_scale, self.gate_l2,
-                                 seed=self.seed).fit(X, labels, n_classes=E)
+        if self.gate == "neighbours":
+            self.gate_ = NeighbourGate(self.gate_neighbours).fit(X, labels, n_classes=E)
+        else:
+            self.gate_ = SoftmaxGate(self.gate_centres, self.gate_width_scale, self.gate_l2,
+                                     seed=self.seed).fit(X, labels, n_classes=E)
         self.n_features_in_ = X.shape[1]
         self.n_outputs_ = Y.shape[1] if Y.ndim == 2 else 1
         return self

@@ -586,6 +586,9 @@ def _mixture_arrays(model: PoseModel) -> dict:
         raise PoseModelError("only mixtures of DampedKernelRegressor experts can be saved")
     offsets = np.cumsum([0] + [len(e.centres_) for e in experts]).astype(np.int64)
     gate = mix.gate_
+    if not isinstance(gate, SoftmaxGate):
+        raise PoseModelError("only mixtures with a softmax gate can be saved (a neighbour gate "
+                             "keeps every training row)")
     return {
         **model.codebook.to_arrays(), **model.settings.to_arrays(),
         "model_kind": np.str_(MIXTURE_KIND),

@@ -61,7 +61,8 @@ class NearestNeighbours:
 class MixtureRVM(MixtureRegressor):
     """The mixture of RVM experts (regressor.mixture, after Agarwal & Triggs 2005): each expert
     a kernel RVM with the single kernel RVM's chosen settings (rvm_params), and the count of
-    basis functions its experts keep, as the table reports for every method."""
+    basis functions its experts keep, as the table reports for every method, plus the training
+    rows a neighbour gate keeps (as kNN's count is its training rows)."""
 
     rvm_params: dict = {}
 
@@ -70,7 +71,8 @@ class MixtureRVM(MixtureRegressor):
 
     @property
     def n_basis_(self) -> int:
-        return int(sum(e.n_basis_ for e in self.experts_))
+        kept = getattr(self.gate_, "X_", ())
+        return int(sum(e.n_basis_ for e in self.experts_)) + len(kept)
 
 
 def choose(make, grid, X, Y, folds, budget=None, features=False, log=print):
@@ -127,8 +129,12 @@ def main(argv=None) -> None:
                                              min_gain=[200.0, 400.0, 800.0]), X, Y, folds, budget=RV_BUDGET)
     print("  mixture of RVM experts")
     MixtureRVM.rvm_params = krvm
+    # Two gates (regressor.mixture): the softmax gate the tracker's models use, and the
+    # regions of the nearest training descriptors, which suits this small set.
     mix = choose(lambda **p: MixtureRVM(expert="rvm", rvm_rows=len(X), **p),
-                 grid(n_experts=[2, 4, 8], overlap=[0.2]), X, Y, folds)
+                 grid(n_experts=[2, 4, 8], overlap=[0.2], gate=["softmax"])
+                 + grid(n_experts=[4, 8, 16], overlap=[0.2, 0.5], gate=["neighbours"],
+                        gate_neighbours=[1, 3, 5]), X, Y, folds)
     stacked = {k: stack_frames(X, k, sequence_starts=TRAIN_STARTS) for k in (2, 3, 4)}
     print("  stacking depth")
     depth = min(stacked, key=lambda k: cross_validate(

@@ -6,7 +6,8 @@ import pytest
 
 from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings
-from regressor.mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate, kmeans
+from regressor.mixture import (DampedKernelRegressor, MixtureRegressor, NeighbourGate,
+                              SoftmaxGate, kmeans)
 from regressor.pose_model import (PoseModel, PoseModelError, load_pose_model,
                                   save_pose_model)
 
@@ -60,6 +61,41 @@ def test_gate_learns_separable_classes_and_is_a_distribution():
     assert (gate.predict(x) == labels).mean() > 0.97
 
 
+def test_neighbour_gate_gives_the_shares_of_the_nearest_rows_classes():
+    x = np.array([[0.0], [1.0], [2.0], [10.0], [11.0]])
+    gate = NeighbourGate(n_neighbours=3).fit(x, [0, 0, 1, 2, 2], n_classes=4)
+    P = gate.predict_proba(np.array([[0.4], [10.6], [1.6]]))
+    np.testing.assert_allclose(P, [[2 / 3, 1 / 3, 0, 0], [0, 1 / 3, 2 / 3, 0],
+                                   [2 / 3, 1 / 3, 0, 0]], atol=1e-5)
+    # A tie (one vote each) goes to the nearer neighbour's class.
+    one_each = NeighbourGate(n_neighbours=2).fit(x, [0, 1, 1, 2, 2])
+    assert one_each.predict(np.array([[0.4], [0.6]])).tolist() == [0, 1]
+    # Chunked distances give the same answer.
+    q = np.random.default_rng(0).uniform(-1, 12, (50, 1))
+    np.testing.assert_array_equal(NeighbourGate(3, chunk_rows=7).fit(x, [0, 0, 1, 2, 2])
+                                  .predict_proba(q), gate.predict_proba(q)[:, :3])
+    with pytest.raises(ValueError, match="n_neighbours"):
+        NeighbourGate(n_neighbours=6).fit(x, [0, 0, 1, 2, 2])
+
+
+def test_neighbour_gated_mixture_keeps_both_modes_and_picks_distinct_experts():
+    x, y, _ = _two_modes()
+    mix = MixtureRegressor(n_experts=2, gate="neighbours", gate_neighbours=200,
+                           **SMALL).fit(x, y)
+    poses, prob = mix.predict_hypotheses(_two_modes(seed=9)[0][:50], 2)
+    assert np.all(np.abs(prob - 0.5) < 0.15)
+    np.testing.assert_allclose(np.sort(poses[:, :, 0], axis=1), [[-3.0, 3.0]] * 50, atol=0.3)
+    rng = np.random.default_rng(1)
+    mode = rng.integers(0, 3, 1500)
+    x = rng.normal(0, 0.3, (1500, 4)) + np.eye(4)[mode] * 3.0
+    y = np.column_stack([mode * 10.0 + x[:, 0], np.cos(x[:, 1])])
+    mix = MixtureRegressor(n_experts=3, gate="neighbours", **SMALL).fit(x, y)
+    assert isinstance(mix.gate_, NeighbourGate)
+    assert np.abs(mix.predict(x)[:, 0] - y[:, 0]).mean() < 0.5
+    with pytest.raises(ValueError, match="gate must be one of"):
+        MixtureRegressor(gate="nearest").fit(x, y)
+
+
 def test_estimator_conventions():
     mix = MixtureRegressor(n_experts=3, lam=0.5)
     assert mix.get_params()["lam"] == 0.5 and not hasattr(mix, "gate_")
@@ -72,11 +108,11 @@ def test_estimator_conventions():
     assert kmeans(x, 5).shape == (5, 3)
 
 
-def _mixture_model(k=2, D=4):
+def _mixture_model(k=2, D=4, **gate):
     rng = np.random.default_rng(4)
     x = rng.normal(0, 1, (600, k * D))
     y = np.column_stack([np.cos(x[:, 0]), np.sin(x[:, 0]), 10 * rng.normal(size=(600, 53))])
-    mix = MixtureRegressor(n_experts=3, **SMALL).fit(x, y)
+    mix = MixtureRegressor(n_experts=3, **SMALL, **gate).fit(x, y)
     settings = DescriptorSettings()
     model = PoseModel(settings=settings, codebook=Codebook(rng.random((D, settings.context_size)), 0.2),
                       stack_depth=k, transform="sqrt", basis="gaussian", width=None, centres=None,
@@ -101,6 +137,13 @@ def test_mixture_model_file_round_trip(tmp_path):
     np.testing.assert_allclose(w1, w0, atol=1e-2)
     assert loaded.summary()["basis"] == "mixture" and loaded.description["source"] == "synthetic"
     assert loaded.predict(x[0]).shape == (55,)
+
+
+def test_a_neighbour_gated_mixture_is_not_saved_into_a_model_file(tmp_path):
+    model, _ = _mixture_model(gate="neighbours")
+    with pytest.raises(PoseModelError, match="softmax gate"):
+        save_pose_model(tmp_path / "mixture.npz", model)
+    assert not (tmp_path / "mixture.npz").exists()
 
 
 def test_tampered_mixture_file_is_refused(tmp_path):
