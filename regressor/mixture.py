@@ -7,10 +7,10 @@ into regions of pose space (k-means on a pose embedding), each region gets its o
 fitted on its members (plus a margin of rows near its border, so neighbouring experts agree
 where they meet), and a gate p(expert | stacked descriptor) - multinomial logistic regression
 on Gaussian-kernel features (the tracker's models), or the regions of the nearest training
-inputs (``gate="neighbours"``, for small sets: on the paper's data it ranks first) - says
-which experts to trust. Where a silhouette is ambiguous
-(front/back) two experts get similar probabilities and :meth:`MixtureRegressor.predict_hypotheses`
-returns both poses; :meth:`MixtureRegressor.predict` returns the most probable one.
+inputs (``gate="neighbours"``, for small sets; on the paper's data cross-validation picks it)
+- says which experts to trust. Where a silhouette is ambiguous (front/back) two experts get
+similar probabilities and :meth:`MixtureRegressor.predict_hypotheses` returns both poses;
+:meth:`MixtureRegressor.predict` returns the most probable one.
 
 Experts (:class:`DampedKernelRegressor`): Gaussian-kernel ridge regression on a subset of
 centres (k-means centres of the expert's inputs), the damped least squares of the paper's
@@ -244,7 +244,9 @@ class NeighbourGate(Estimator):
         self.n_neighbours = n_neighbours
         self.chunk_rows = chunk_rows
 
-    def fit(self, X, labels, n_classes: int | None = None, sample_weight=None):
+    def fit(self, X, labels, n_classes: int | None = None):
+        """X (N, D) training inputs, labels (N,) int classes 0..C-1; n_classes C (default:
+        the largest label + 1)."""
         X = validate_X(X)
         labels = np.asarray(labels, dtype=np.int64)
         if len(labels) != len(X):
