@@ -91,19 +91,16 @@ class _MemorySampler:
         pass
 
 
-def _track(video: Path, model_path: Path, workdir: Path, workers: int,
-           segment_people: bool = False):
+def _track(video: Path, model_path: Path, workdir: Path, workers: int):
     """`track`'s loop (tracker.run.track_video) with MCAP and JSON outputs, in one process or
-    with the frame worker (workers 2, `track`'s default on two cores), with or without the
-    learned segmenter (``--segment-people``); returns fps, stage
+    with the frame worker (workers 2, `track`'s default on two cores); returns fps, stage
     ms, memory samples (the main process's), frames, the start-up seconds (open, sample,
     prime) and the frames with someone in view."""
     model = load_pose_model(model_path)
     start = time.perf_counter()
     source = open_video(video)
     opened = time.perf_counter() - start
-    tracker = PoseTracker(model, source.fps, TrackerSettings(keep_history=False,
-                                                             segment_people=segment_people))
+    tracker = PoseTracker(model, source.fps, TrackerSettings(keep_history=False))
     sampler = _MemorySampler()
     result = track_video(source, tracker, [McapSink(workdir / "bench.mcap"),
                                            JsonSummarySink(workdir / "bench.json", source.fps)],
@@ -121,8 +118,6 @@ def main(argv=None) -> int:
     ap.add_argument("--video", type=Path, default=None, help="640x480 single-person video")
     ap.add_argument("--frames", type=int, default=1200, help="frames to render if no --video")
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)
-    ap.add_argument("--segment-people", action="store_true",
-                    help="as track --segment-people: the learned segmenter refines the masks")
     args = ap.parse_args(argv)
     if not 10 <= args.frames <= 100000:
         ap.error(f"--frames must be in 10..100000, got {args.frames}")
@@ -140,10 +135,8 @@ def main(argv=None) -> int:
     with threadpool_limits(1), tempfile.TemporaryDirectory() as tmp:
         decode_fps, n = _decode_fps(video)
         track_fps, stage_ms, memory, frames, startup_s, with_people = _track(video, args.model,
-                                                                             Path(tmp), 1,
-                                                                             args.segment_people)
-        two_fps, two_ms, two_memory, _, two_startup_s, _ = _track(video, args.model, Path(tmp), 2,
-                                                                  args.segment_people)
+                                                                             Path(tmp), 1)
+        two_fps, two_ms, two_memory, _, two_startup_s, _ = _track(video, args.model, Path(tmp), 2)
     print(f"video: {video} ({n} frames, someone in view in {with_people})")
     print(f"decode only : {decode_fps:8.1f} fps")
     print(f"track       : {track_fps:8.1f} fps   one process (ratio track/decode "

@@ -1,8 +1,7 @@
 """Evaluate the tracker on a real video with a 3-D reference: Pose2Sim's balancing trial.
 
     python scripts/evaluate_real.py [--trial ../shared/data/pose2sim/balancing] [--model FILE]
-        [--max-people N] [--roll calibration] [--zone-foreground colour] [--segment-people]
-        [--json OUT]
+        [--max-people N] [--roll calibration] [--zone-foreground colour] [--json OUT]
         [--masks PNG] [--reference-masks cut|drawn|rendered]
 
 Runs ``track``'s pipeline on each of the four views and prints, per view, knee and elbow flexion
@@ -94,11 +93,10 @@ class _MaskRecorder(PoseRecorder):
 
 def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.0,
                 keep_masks: bool = False, trust_zone_foreground: bool = True,
-                reference_extractor=None, segment_people: bool = False) -> ViewTrack:
+                reference_extractor=None) -> ViewTrack:
     """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
     with ``--roll roll_deg``; keep_masks: also keep the silhouettes (ViewTrack.tiles);
     trust_zone_foreground: the extractor's (tracker.silhouettes.refine_in_zone);
-    segment_people: the learned segmenter refines the masks (``track --segment-people``);
     reference_extractor: a function of the extractor giving the extractor to use
     (``--reference-masks``), or None."""
     from tracker import PoseTracker, track_video
@@ -107,8 +105,7 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
 
     source = open_video(video)
     settings = TrackerSettings(max_people=max_people, roll_deg=roll_deg, novelty=True,
-                               trust_zone_foreground=trust_zone_foreground,
-                               segment_people=segment_people)
+                               trust_zone_foreground=trust_zone_foreground)
     extractor = (None if reference_extractor is None
                  else reference_extractor(default_extractor(settings)))
     tracker = PoseTracker(model, source.fps, settings, extractor=extractor)
@@ -186,12 +183,11 @@ def _fit_progress(done: int, total: int) -> None:
 
 def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
              sheet: list | None = None, trust_zone_foreground: bool = True,
-             reference_masks: str = "none", segment_people: bool = False) -> dict:
+             reference_masks: str = "none") -> dict:
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
     trust_zone_foreground: False lets colour decide on the foreground inside the unreliable
     zone too (tracker.silhouettes.refine_in_zone; ``--zone-foreground colour``).
-    segment_people: the learned segmenter refines the masks (``--segment-people``).
     sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
     at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them).
     reference_masks: "none", or "cut" / "drawn" / "rendered" to correct the silhouettes by the
@@ -205,7 +201,6 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
         track = _track_view(trial.video(view), model, max_people, roll_deg,
                             keep_masks=sheet is not None,
                             trust_zone_foreground=trust_zone_foreground,
-                            segment_people=segment_people,
                             reference_extractor=None if reference_masks == "none" else
                             _reference_extractor(trial, view, reference_masks, fitted))
         per_view[view], rows = evaluate_view(trial, view, track, constant, fit)
@@ -217,7 +212,6 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
         per_view[view]["zone_foreground"] = next(
             name for name, trusted in ZONE_FOREGROUND.items() if trusted == trust_zone_foreground)
         per_view[view]["reference_masks"] = reference_masks
-        per_view[view]["segment_people"] = segment_people
         subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows],
                          track.smoothed[rows])
     common = subject[VIEWS[0]][0]
@@ -343,8 +337,6 @@ def format_table(result: dict) -> str:
     if zone != {"sure"}:
         lines.append("silhouettes: --zone-foreground colour (colour also decides on the "
                      "foreground inside the unreliable zone)")
-    if any(r.get("segment_people") for r in result["views"].values()):
-        lines.append("silhouettes: --segment-people (the learned segmenter refines them)")
     reference = {r.get("reference_masks", "none") for r in result["views"].values()}
     if reference != {"none"}:
         lines.append(f"silhouettes corrected by the reference ({', '.join(sorted(reference))}; "
@@ -366,9 +358,6 @@ def build_parser() -> argparse.ArgumentParser:
                     help="as track --zone-foreground: inside the background's unreliable zone, "
                          "take the subtractor's foreground as sure person (the default) or let "
                          "colour decide on it too (tracker.silhouettes.refine_in_zone)")
-    ap.add_argument("--segment-people", action="store_true",
-                    help="as track --segment-people: refine the silhouettes with the learned "
-                         "person segmenter (tracker.person_segmenter)")
     ap.add_argument("--reference-masks", choices=("none", "cut", "drawn", "rendered"),
                     default="none",
                     help="a diagnostic that reads the reference: cut each silhouette to the "
@@ -395,8 +384,7 @@ def main(argv=None) -> int:
             result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration",
                               sheet=sheet,
                               trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
-                              reference_masks=args.reference_masks,
-                              segment_people=args.segment_people)
+                              reference_masks=args.reference_masks)
     except (Pose2SimError, PoseModelError, MeasureError, KeypointFitError, VideoError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1

@@ -2,8 +2,7 @@
 
     track VIDEO [--out FILE.mcap] [--bvh DIR] [--json FILE] [--view] [--no-smooth] [--model FILE]
           [--background IMAGE] [--max-people N] [--roll DEG] [--start S] [--end S]
-          [--zone-foreground {sure,colour}] [--segment-people] [--min-area PERCENT]
-          [--workers {1,2}] [--quiet]
+          [--zone-foreground {sure,colour}] [--min-area PERCENT] [--workers {1,2}] [--quiet]
 
 Without --out/--json/--bvh/--view it records to VIDEO_STEM.mcap in the current folder. Errors
 (bad video, model, options or output paths) print one line and exit non-zero; Ctrl-C stops
@@ -131,11 +130,6 @@ def build_parser() -> argparse.ArgumentParser:
                          "background model's foreground where the background is unreliable "
                          "as sure person (default), or let colour decide on it too (fewer "
                          "ghost blobs beside the body, some thin limb pixels lost)")
-    ap.add_argument("--segment-people", action="store_true",
-                    help="refine each person's silhouette with a learned person segmenter "
-                         "(MediaPipe's selfie segmentation, shipped; about 4 ms a person and "
-                         "frame): far fewer ghosts and background round a person who never "
-                         "leaves the spot")
     ap.add_argument("--min-area", type=float, default=None, metavar="PERCENT",
                     help="the smallest person, in percent of the image (default "
                          f"{DEFAULT_MIN_AREA_PERCENT:g}: about 55 px tall at 640x480); lower "
@@ -254,7 +248,6 @@ def tracker_settings(args):
     return TrackerSettings(max_people=args.max_people, keep_history=smoothing(args),
                            roll_deg=args.roll,
                            trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
-                           segment_people=args.segment_people,
                            min_area_fraction=_min_area_fraction(args))
 
 
@@ -286,7 +279,6 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
                          **({} if ZONE_FOREGROUND[args.zone_foreground]
                             else {"zone_foreground": args.zone_foreground}),
                          **({"roll_deg": args.roll} if args.roll else {}),
-                         **({"segment_people": True} if args.segment_people else {}),
                          **({} if args.min_area is None
                             else {"min_area_percent": args.min_area}),
                          **({} if args.background is None

@@ -146,9 +146,7 @@ class TrackerSettings:
     extractor takes the subtractor's foreground inside the background's unreliable zone (a
     person who never leaves the spot) as sure person; False lets colour decide on it too
     (tracker.silhouettes.refine_in_zone: fewer ghosts, some lost limb pixels; ``track
-    --zone-foreground colour``). segment_people: the default extractor refines each person's
-    mask with the learned segmenter (tracker.person_segmenter; ``track --segment-people``).
-    An extractor given to PoseTracker keeps its own rules.
+    --zone-foreground colour``). An extractor given to PoseTracker keeps its own rule.
     min_area_fraction: the default extractor's smallest person, as a fraction of the image
     (tracker.silhouettes.DEFAULT_MIN_AREA_FRACTION; ``track --min-area``).
     mirror_limbs: average the limbs with the model's limbs for each frame's mirror image, for
@@ -175,7 +173,6 @@ class TrackerSettings:
     keep_history: bool = True
     novelty: bool = True
     trust_zone_foreground: bool = True
-    segment_people: bool = False
     mirror_limbs: bool = True
     travel_offset_memory: bool = True
     min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION
@@ -333,9 +330,6 @@ class _TrackState:
 def default_extractor(settings: TrackerSettings, **options) -> SilhouetteExtractor:
     """The silhouette extractor PoseTracker makes when given none: the settings' zone rule and
     smallest person; ``options`` go to SilhouetteExtractor too (e.g. detect_shadows=False)."""
-    if settings.segment_people and "segmenter" not in options:
-        from .person_segmenter import PersonSegmenter
-        options["segmenter"] = PersonSegmenter()
     return SilhouetteExtractor(trust_zone_foreground=settings.trust_zone_foreground,
                                min_area_fraction=settings.min_area_fraction, **options)
 

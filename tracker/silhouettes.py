@@ -694,8 +694,7 @@ class SilhouetteExtractor:
     ``adapt_noise_floor``: when frames of the clip are given (:meth:`prime` with frames,
     :meth:`learn_zone`), raise the background model's variance floor until its foreground on
     them is no longer speckled (:func:`tracker.noise_floor.choose_var_min`; compressed video);
-    an explicit ``var_min`` keyword turns it off. ``segmenter``: a callable (frame, people) ->
-    people that refines each person's mask (tracker.person_segmenter.PersonSegmenter), or None.
+    an explicit ``var_min`` keyword turns it off.
     """
 
     def __init__(self, open_px: int = 3, close_px: int = 5, restore_px: int = 1,
@@ -704,7 +703,7 @@ class SilhouetteExtractor:
                  max_fragment_area: float = 0.15, keep_enclosed_shadow: bool = True,
                  drop_lighting: bool = True, refine: bool = True,
                  refine_relearn_every: int = 3, adapt_noise_floor: bool = True,
-                 trust_zone_foreground: bool = True, segmenter=None, **subtractor_options):
+                 trust_zone_foreground: bool = True, **subtractor_options):
         self.subtractor = BackgroundSubtractor(**subtractor_options)
         self.adapt_noise_floor = adapt_noise_floor and "var_min" not in subtractor_options
         self.open_px, self.close_px, self.restore_px = open_px, close_px, restore_px
@@ -717,7 +716,6 @@ class SilhouetteExtractor:
         self.refiner = ZoneRefiner(refine_relearn_every,
                                    trust_zone_foreground=trust_zone_foreground)
         self.background: ClipBackground | None = None
-        self.segmenter = segmenter
 
     def prime(self, background, frame_size: tuple[int, int] | None = None) -> None:
         """Learn the scene before the first frame. ``background``: either an image of the empty
@@ -792,7 +790,6 @@ class SilhouetteExtractor:
                                           min_area=int(self.min_area_fraction * cleaned.size))
         if self.refine and self.background is not None and self.background.unreliable.any():
             cleaned = self.refiner(cleaned, small, shadow, self.background.unreliable)
-        people = person_masks(cleaned, (frame.shape[1], frame.shape[0]), self.min_area_fraction,
-                              self.max_hole_fraction,
-                              max_fragment_area=self.max_fragment_area)
-        return people if self.segmenter is None else self.segmenter(frame, people)
+        return person_masks(cleaned, (frame.shape[1], frame.shape[0]), self.min_area_fraction,
+                            self.max_hole_fraction,
+                            max_fragment_area=self.max_fragment_area)

@@ -235,16 +235,6 @@ def colour_zone_extractor(frames) -> "SilhouetteExtractor":
     return extractor
 
 
-def segmenter_extractor(frames) -> "SilhouetteExtractor":
-    """Today's default extractor with the learned segmenter refining each person's mask
-    (tracker.person_segmenter; ``track --segment-people``)."""
-    from ..person_segmenter import PersonSegmenter
-    from ..silhouettes import SilhouetteExtractor
-    extractor = SilhouetteExtractor(segmenter=PersonSegmenter())
-    extractor.prime(frames)
-    return extractor
-
-
 def default_associator() -> Associator:
     """The associator PoseTracker builds by default."""
     return Associator()
@@ -256,10 +246,9 @@ def legacy_associator() -> Associator:
     return Associator(use_boxes=False, min_hits=1)
 
 
-EXTRACTORS = {"before": legacy_extractor, "after": clip_extractor, "colour": colour_zone_extractor,
-              "segmenter": segmenter_extractor}
+EXTRACTORS = {"before": legacy_extractor, "after": clip_extractor, "colour": colour_zone_extractor}
 ASSOCIATORS = {"before": legacy_associator, "after": default_associator,
-               "colour": default_associator, "segmenter": default_associator}
+               "colour": default_associator}
 
 
 def format_table(results: dict[str, dict[str, dict]]) -> str:
