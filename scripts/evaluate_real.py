@@ -1,7 +1,7 @@
 """Evaluate the tracker on a real video with a 3-D reference: Pose2Sim's balancing trial.
 
     python scripts/evaluate_real.py [--trial ../shared/data/pose2sim/balancing] [--model FILE]
-        [--max-people N] [--roll calibration] [--zone-foreground colour] [--json OUT]
+        [--max-people N] [--roll calibration] [--zone-foreground sure] [--json OUT]
         [--masks PNG] [--reference-masks cut|drawn|rendered]
 
 Runs ``track``'s pipeline on each of the four views and prints, per view, knee and elbow flexion
@@ -92,7 +92,7 @@ class _MaskRecorder(PoseRecorder):
 
 
 def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.0,
-                keep_masks: bool = False, trust_zone_foreground: bool = True,
+                keep_masks: bool = False, trust_zone_foreground: bool = False,
                 reference_extractor=None) -> ViewTrack:
     """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
     with ``--roll roll_deg``; keep_masks: also keep the silhouettes (ViewTrack.tiles);
@@ -182,12 +182,13 @@ def _fit_progress(done: int, total: int) -> None:
 
 
 def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
-             sheet: list | None = None, trust_zone_foreground: bool = True,
+             sheet: list | None = None, trust_zone_foreground: bool = False,
              reference_masks: str = "none") -> dict:
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
-    trust_zone_foreground: False lets colour decide on the foreground inside the unreliable
-    zone too (tracker.silhouettes.refine_in_zone; ``--zone-foreground colour``).
+    trust_zone_foreground: True takes the subtractor's foreground inside the unreliable zone
+    as sure person (tracker.silhouettes.refine_in_zone; ``--zone-foreground sure``), False
+    (the default, as track's) lets colour decide on it too.
     sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
     at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them).
     reference_masks: "none", or "cut" / "drawn" / "rendered" to correct the silhouettes by the
@@ -333,10 +334,10 @@ def format_table(result: dict) -> str:
     if any(rolls):
         lines.append("tracked with the cameras' roll (track --roll, degrees): "
                      + ", ".join(f"{v} {r:g}" for v, r in zip(result["views"], rolls)))
-    zone = {r.get("zone_foreground", "sure") for r in result["views"].values()}
-    if zone != {"sure"}:
-        lines.append("silhouettes: --zone-foreground colour (colour also decides on the "
-                     "foreground inside the unreliable zone)")
+    zone = {r.get("zone_foreground", "colour") for r in result["views"].values()}
+    if zone != {"colour"}:
+        lines.append("silhouettes: --zone-foreground sure (the subtractor's foreground inside "
+                     "the unreliable zone taken as sure person)")
     reference = {r.get("reference_masks", "none") for r in result["views"].values()}
     if reference != {"none"}:
         lines.append(f"silhouettes corrected by the reference ({', '.join(sorted(reference))}; "
@@ -354,10 +355,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--roll", choices=("none", "calibration"), default="none",
                     help="track each view with its camera's roll from the calibration "
                          "(track --roll), or without (the default, as track)")
-    ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="sure",
+    ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
                     help="as track --zone-foreground: inside the background's unreliable zone, "
-                         "take the subtractor's foreground as sure person (the default) or let "
-                         "colour decide on it too (tracker.silhouettes.refine_in_zone)")
+                         "let colour decide on the subtractor's foreground too (the default) "
+                         "or take it as sure person (tracker.silhouettes.refine_in_zone)")
     ap.add_argument("--reference-masks", choices=("none", "cut", "drawn", "rendered"),
                     default="none",
                     help="a diagnostic that reads the reference: cut each silhouette to the "

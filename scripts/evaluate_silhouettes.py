@@ -9,9 +9,11 @@ padded by 10 % of its height, over the box area; mean and 90th percentile), off-
 share of the mask off a generous body drawn from the keypoints: background inside the box),
 tracks, tracks holding the subject, and the fraction of frames the subject's main track
 covers. "before" is the extractor and associator as they were (median background, shadows
-dropped, area gate always on), "after" today's defaults, the extractor primed with frames of
-the clip, "colour" the same with colour also deciding on the foreground inside the unreliable
-zone (tracker.silhouettes.refine_in_zone, trust_zone_foreground=False). Measures:
+dropped, area gate always on), "after" the extractor primed with frames of the clip, the
+subtractor's foreground inside the unreliable zone sure person (``track --zone-foreground
+sure``), "colour" the same with colour also deciding on that foreground
+(tracker.silhouettes.refine_in_zone, trust_zone_foreground=False; track's default since
+2026-12-04). Measures:
 tracker.offline.silhouette_evaluation.
 """
 from __future__ import annotations
@@ -30,8 +32,8 @@ def main(argv=None) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL, help="the balancing trial")
     ap.add_argument("--extractor", nargs="+", choices=sorted(EXTRACTORS),
-                    default=["before", "after"], help="before: as before issue 11; after: "
-                    "today's default; colour: the default with track --zone-foreground colour")
+                    default=["before", "after", "colour"], help="before: as before issue "
+                    "11; after: track --zone-foreground sure; colour: track's default")
     ap.add_argument("--views", nargs="+", choices=VIEWS, default=list(VIEWS))
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     args = ap.parse_args(argv)

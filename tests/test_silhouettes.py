@@ -7,7 +7,7 @@ import pytest
 
 from tracker.silhouettes import (BackgroundSubtractor, PersonMask, ExtractionError,
                                  SilhouetteExtractor, ZoneRefiner, clean_mask, median_background,
-                                 person_masks, refine_in_zone, _zone_labels)
+                                 person_masks, refine_in_zone, _unless_collapsed, _zone_labels)
 
 
 def background(width: int, height: int, seed: int = 0) -> np.ndarray:
@@ -362,6 +362,27 @@ def test_colour_decides_on_a_ghost_only_when_the_zone_foreground_is_not_trusted(
         assert person[ghost].all()                # sure person: the ghost stays
     else:
         assert person[ghost].mean() < 0.1         # the background's colours: dropped
+
+
+def test_a_colour_cut_that_loses_the_person_is_cut_again_with_the_foreground_sure():
+    """A person the colours cannot tell from the background inside the zone (here: not drawn
+    at all, only found by the subtractor) would be cut away whole; the box is cut again with
+    the foreground sure instead (tracker.silhouettes.COLLAPSED_SHARE)."""
+    frame = background(320, 240, seed=9)
+    found = np.zeros((240, 320), np.uint8)
+    found[60:200, 140:180] = 255                  # a person-sized blob...
+    zone = np.zeros((240, 320), bool)
+    zone[50:190, 120:200] = True                  # ...mostly in the zone, its feet outside
+    shadow = np.zeros_like(zone)
+    for cut in (refine_in_zone(found, frame, shadow, zone, trust_zone_foreground=False),
+                ZoneRefiner(trust_zone_foreground=False)(found, frame, shadow, zone)):
+        assert (cut[found > 0] > 0).mean() > 0.95
+    # A cut that keeps at least the share is left as it is.
+    box = (slice(40, 220), slice(100, 220))
+    half = found[box].copy()
+    half[:, :60] = 0                              # keeps 20 of the 40 columns: a half
+    assert _unless_collapsed(half, frame[box], found[box] > 0, shadow[box], zone[box],
+                             400) is half
 
 
 def test_zone_labels_keep_foreground_outside_the_zone_sure():

@@ -160,16 +160,17 @@ def test_letting_colour_decide_in_the_zone_takes_less_background_for_the_person(
     from tracker.offline.silhouette_evaluation import BodyDrawing, colour_zone_extractor
     body = BodyDrawing.from_names(KEYPOINT_NAMES, BODY_TORSO, BODY_HEAD, BODY_BONES)
     frames, keypoints = balancing_frames()
-    default = silhouette_measures(track_masks(enumerate(frames), clip_extractor(frames)),
-                                  keypoints, body=body)
+    sure = silhouette_measures(track_masks(enumerate(frames), clip_extractor(frames)),
+                               keypoints, body=body)
     colour = silhouette_measures(track_masks(enumerate(frames), colour_zone_extractor(frames)),
                                  keypoints, body=body)
-    # The default keeps the median's ghosts beside the torso: over a fifth of the mask.
-    assert default["off_body"] > 0.2
-    assert colour["off_body"] < 0.75 * default["off_body"]
+    # The sure rule (track's default until 2026-12-04) keeps the median's ghosts beside the
+    # torso: over a fifth of the mask.
+    assert sure["off_body"] > 0.2
+    assert colour["off_body"] < 0.75 * sure["off_body"]
     assert colour["coverage"] >= 0.88 and colour["main_track_fraction"] == 1.0
     # Its known cost: the floor blob the zone had glued to the body is a track of its own.
-    assert default["tracks"] == 1 and colour["tracks"] <= 2
+    assert sure["tracks"] == 1 and colour["tracks"] <= 2
 
 
 @pytest.mark.parametrize("trust", [True, False])

@@ -423,7 +423,7 @@ def test_missing_or_corrupt_background_image_is_one_line_error(tmp_path, walk_vi
     assert not (tmp_path / "a.json").exists() and not (tmp_path / "b.json").exists()
 
 
-@pytest.mark.parametrize("choice, trust", [(None, True), ("sure", True), ("colour", False)])
+@pytest.mark.parametrize("choice, trust", [(None, False), ("sure", True), ("colour", False)])
 def test_zone_foreground_reaches_the_tracker_settings(choice, trust):
     from tracker.cli import build_parser, tracker_settings
     argv = ["v.mp4"] + ([] if choice is None else ["--zone-foreground", choice])
@@ -441,7 +441,7 @@ def test_the_mcap_records_silhouette_options_other_than_the_defaults(tmp_path, w
     default = settings()
     for key in ("zone_foreground", "roll_deg", "background", "min_area_percent"):
         assert key not in default                       # the defaults leave them out
-    assert settings("--zone-foreground", "colour")["zone_foreground"] == "colour"
+    assert settings("--zone-foreground", "sure")["zone_foreground"] == "sure"
     plate = _plate(walk_video, tmp_path / "plate.png")
     chosen = settings("--roll", "5", "--background", plate, "--min-area", "0.1")
     assert float(chosen["roll_deg"]) == 5.0 and chosen["background"] == str(plate)

@@ -125,11 +125,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
                     help="the camera's roll: how far the scene's vertical leans clockwise in "
                          "the image, degrees (silhouettes are turned upright; default 0)")
-    ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="sure",
-                    help="for a person who never leaves the spot (no clean plate): take the "
-                         "background model's foreground where the background is unreliable "
-                         "as sure person (default), or let colour decide on it too (fewer "
-                         "ghost blobs beside the body, some thin limb pixels lost)")
+    ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
+                    help="for a person who stays in one place (no clean plate): where the "
+                         "background is unreliable, let colour decide on the background "
+                         "model's foreground too (default: fewer ghost blobs beside the body, "
+                         "some thin limb pixels lost), or take it as sure person")
     ap.add_argument("--min-area", type=float, default=None, metavar="PERCENT",
                     help="the smallest person, in percent of the image (default "
                          f"{DEFAULT_MIN_AREA_PERCENT:g}: about 55 px tall at 640x480); lower "
@@ -276,7 +276,7 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
             "settings": {"smooth": smoothing(args), "max_people": args.max_people,
                          "start_s": args.start, "end_s": args.end,
                          # options that change the silhouettes, when not their defaults
-                         **({} if ZONE_FOREGROUND[args.zone_foreground]
+                         **({} if args.zone_foreground == "colour"
                             else {"zone_foreground": args.zone_foreground}),
                          **({"roll_deg": args.roll} if args.roll else {}),
                          **({} if args.min_area is None

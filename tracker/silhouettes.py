@@ -494,19 +494,45 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
     --extractor after colour``, mean over the 4 views): the mask's share off the keypoints'
     body 0.254 -> 0.163, keypoint coverage 0.911 -> 0.860; through ``scripts/evaluate_real.py
     --zone-foreground colour`` knee/elbow flexion error 31.0 -> 25.1 degrees (the constant at
-    the reference's mean 13.0). Not the default: a floor blob at the feet that the zone had
-    glued to the body becomes a track of its own (cam01, and the 16 small test frames of it),
-    colour models kept between frames cut up to 6 % of the mask differently from models
-    learned every frame (5 % with the rule above), and coverage falls; thin foreground kept
-    sure (an opening of 3-9 px decides what is thick) gave masks between the two (flexion 26.7
-    at 5 px) with kept-model differences up to 10 %.
+    the reference's mean 13.0). Its costs: a floor blob at the feet that the zone had glued to
+    the body becomes a track of its own for a few frames (cam01: two, of 4 and 10 frames; one
+    frame of the 16 small test frames), colour models kept between frames cut up to 6 % of the
+    mask differently from models learned every frame (5 % with the rule above), and coverage
+    falls; thin foreground kept sure (an opening of 3-9 px decides what is thick) gave masks
+    between the two (flexion 26.7 at 5 px) with kept-model differences up to 10 %. ``track``'s
+    default since 2026-12-04 (tracker.pipeline.TrackerSettings.trust_zone_foreground), chosen
+    on rendered validation videos: where a walker stays in one region of a short clip, that
+    region becomes the zone, and the sure rule kept its ghosts (12 validation videos, filtered
+    corr8 0.447 -> 0.563, heading unchanged). This function's own default stays the sure rule.
     """
     out = mask.copy()
     for x0, y0, x1, y1 in zone_boxes(mask, zone, min_seed_area, margin):
         labels = _zone_labels(mask[y0:y1, x0:x1] > 0, shadow[y0:y1, x0:x1],
                               zone[y0:y1, x0:x1], trust_zone_foreground)
-        out[y0:y1, x0:x1] = _grabcut(frame[y0:y1, x0:x1], labels, max_side_px)
+        cut = _grabcut(frame[y0:y1, x0:x1], labels, max_side_px)
+        if not trust_zone_foreground:
+            cut = _unless_collapsed(cut, frame[y0:y1, x0:x1], mask[y0:y1, x0:x1] > 0,
+                                    shadow[y0:y1, x0:x1], zone[y0:y1, x0:x1], max_side_px)
+        out[y0:y1, x0:x1] = cut
     return out
+
+
+#: A colour cut (foreground in the zone only probable person) that keeps less than this share
+#: of the box's foreground has lost the person, not a ghost: the box is cut again with the
+#: foreground sure. Ghosts are a part of the foreground (Pose2Sim: the mask's share off the
+#: body 0.25 -> 0.16 with colour deciding); a rendered walker lost 70 % of itself in one frame
+#: (tests/test_track_cli.py's two walkers: the track broke in two there).
+COLLAPSED_SHARE = 0.5
+
+
+def _unless_collapsed(cut: np.ndarray, crop: np.ndarray, found: np.ndarray, shadow: np.ndarray,
+                      zone: np.ndarray, max_side_px: int) -> np.ndarray:
+    """cut (uint8 (h, w), 255 = person) of one box, or, when it keeps less than
+    COLLAPSED_SHARE of the box's foreground found (bool (h, w)), the box cut with the
+    foreground sure (grabCut learning anew)."""
+    if np.count_nonzero(cut) >= COLLAPSED_SHARE * np.count_nonzero(found):
+        return cut
+    return _grabcut(crop, _zone_labels(found, shadow, zone, True), max_side_px)
 
 
 def zone_boxes(mask: np.ndarray, zone: np.ndarray, min_seed_area: int = 20,
@@ -625,6 +651,10 @@ class ZoneRefiner:
                 models.append(_ColourModels(box, previous.background, previous.person,
                                             previous.used + 1))
                 self.kept += 1
+            if not self.trust_zone_foreground:
+                cut = _unless_collapsed(cut, frame[y0:y1, x0:x1], mask[y0:y1, x0:x1] > 0,
+                                        shadow[y0:y1, x0:x1], zone[y0:y1, x0:x1],
+                                        self.max_side_px)
             out[y0:y1, x0:x1] = cut
         self._models = models
         return out

@@ -219,7 +219,9 @@ def legacy_extractor(frames) -> "SilhouetteExtractor":
 
 
 def clip_extractor(frames) -> "SilhouetteExtractor":
-    """Today's default extractor primed with the sampled frames (clip background)."""
+    """The extractor with its own defaults (the subtractor's foreground inside the unreliable
+    zone sure person: ``track --zone-foreground sure``, track's default until 2026-12-04)
+    primed with the sampled frames (clip background)."""
     from ..silhouettes import SilhouetteExtractor
     extractor = SilhouetteExtractor()
     extractor.prime(frames)
@@ -227,8 +229,9 @@ def clip_extractor(frames) -> "SilhouetteExtractor":
 
 
 def colour_zone_extractor(frames) -> "SilhouetteExtractor":
-    """Today's default extractor, except that colour also decides on the foreground inside
-    the unreliable zone (``trust_zone_foreground=False``: tracker.silhouettes.refine_in_zone)."""
+    """The extractor as ``track`` builds it by default since 2026-12-04: colour also decides
+    on the foreground inside the unreliable zone (``trust_zone_foreground=False``:
+    tracker.silhouettes.refine_in_zone)."""
     from ..silhouettes import SilhouetteExtractor
     extractor = SilhouetteExtractor(trust_zone_foreground=False)
     extractor.prime(frames)
