@@ -45,6 +45,17 @@ def squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return np.maximum(d2, 0.0)
 
 
+def nearest_columns(d2: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The k smallest entries of each row of d2 (n, N), nearest first (k <= N): their column
+    indices (n, k) int and values (n, k). For a block of squared distances from n queries to
+    N rows (regressor.heading_index, regressor.mixture.NeighbourGate)."""
+    nearest = (np.argpartition(d2, k - 1, axis=1)[:, :k] if k < d2.shape[1]
+               else np.broadcast_to(np.arange(k), (len(d2), k)))
+    near_d2 = np.take_along_axis(d2, nearest, axis=1)
+    order = np.argsort(near_d2, axis=1)
+    return np.take_along_axis(nearest, order, axis=1), np.take_along_axis(near_d2, order, axis=1)
+
+
 def default_width(X: np.ndarray, width_scale: float = 1.0) -> float:
     """Kernel width from the data's scatter: sqrt(width_scale * mean ||x_i - x_j||^2).
 

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .angles import wrap_deg
+from .basis import nearest_columns
 
 #: Queries per block in HeadingIndex._nearest (distances: block x R float32).
 _QUERY_BLOCK = 256
@@ -165,15 +166,11 @@ class HeadingIndex:
         for start in range(0, len(Q), _QUERY_BLOCK):
             q = Q[start:start + _QUERY_BLOCK]
             d2 = self._squared[None] - 2.0 * (q @ self.inputs.T)
-            nearest = (np.argpartition(d2, k - 1, axis=1)[:, :k] if k < len(self.inputs)
-                       else np.broadcast_to(np.arange(k), (len(q), k)))
-            near_d2 = np.take_along_axis(d2, nearest, axis=1)
-            order = np.argsort(near_d2, axis=1)
-            index[start:start + len(q)] = np.take_along_axis(nearest, order, axis=1)
+            nearest, near_d2 = nearest_columns(d2, k)
+            index[start:start + len(q)] = nearest
             # Adding the query's own norm back; float32 rounding can leave tiny negatives.
             dist2[start:start + len(q)] = np.maximum(
-                np.take_along_axis(near_d2, order, axis=1)
-                + (q.astype(np.float64) ** 2).sum(axis=1)[:, None], 0.0)
+                near_d2 + (q.astype(np.float64) ** 2).sum(axis=1)[:, None], 0.0)
         if key is not None:
             index.flags.writeable = dist2.flags.writeable = False     # shared with callers
             self._last = (key, (index, dist2))

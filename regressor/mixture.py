@@ -35,7 +35,7 @@ import scipy.optimize
 import scipy.sparse
 
 from .basis import (NotFittedError, RegressorInputError, default_width, gaussian_design,
-                    squared_distances, validate_X)
+                    nearest_columns, squared_distances, validate_X)
 
 EXPERT_KINDS = ("ridge", "rvm")
 GATE_KINDS = ("softmax", "neighbours")
@@ -268,10 +268,7 @@ class NeighbourGate(Estimator):
         P = np.zeros((len(X), self.n_classes_))
         for start in range(0, len(X), self.chunk_rows):  # bounded memory: chunk x N distances
             D = squared_distances(X[start:start + self.chunk_rows], self.X_)
-            near = np.argpartition(D, k - 1, axis=1)[:, :k] if k < D.shape[1] \
-                else np.broadcast_to(np.arange(k), D.shape)
-            near = np.take_along_axis(near, np.argsort(np.take_along_axis(D, near, axis=1),
-                                                       axis=1, kind="stable"), axis=1)
+            near, _ = nearest_columns(D, k)
             rows = np.arange(len(D))[:, None]
             np.add.at(P, (start + rows, self.labels_[near]), votes)
         return P / P.sum(axis=1, keepdims=True)
