@@ -10,7 +10,8 @@ on Gaussian-kernel features (the tracker's models), or the regions of the neares
 inputs (``gate="neighbours"``, for small sets; on the paper's data cross-validation picks it)
 - says which experts to trust. Where a silhouette is ambiguous (front/back) two experts get
 similar probabilities and :meth:`MixtureRegressor.predict_hypotheses` returns both poses;
-:meth:`MixtureRegressor.predict` returns the most probable one.
+:meth:`MixtureRegressor.predict` returns the most probable one, and over a whole sequence
+:meth:`MixtureRegressor.predict_path` the most probable chain of them (regressor.hypothesis_path).
 
 Experts (:class:`DampedKernelRegressor`): Gaussian-kernel ridge regression on a subset of
 centres (k-means centres of the expert's inputs), the damped least squares of the paper's
@@ -36,6 +37,7 @@ import scipy.sparse
 
 from .basis import (NotFittedError, RegressorInputError, default_width, gaussian_design,
                     nearest_columns, squared_distances, validate_X)
+from .hypothesis_path import most_probable_path
 
 EXPERT_KINDS = ("ridge", "rvm")
 GATE_KINDS = ("softmax", "neighbours")
@@ -383,6 +385,23 @@ class MixtureRegressor(Estimator):
             rows, slot = np.nonzero(order == e)
             poses[rows, slot] = np.asarray(self.experts_[e].predict(X[rows])).reshape(len(rows), -1)
         return poses, prob
+
+    def predict_path(self, X, step_var: float, continuity: float = 1.0, sequence_ids=None,
+                     floor: float = 1e-3) -> np.ndarray:
+        """The most probable sequence of the experts' poses, (N, K): X (N, D) rows in time
+        order, each frame's evidence the gate's log p(expert | x) (floored at floor, so an
+        expert no neighbour voted for stays possible), the steps between frames scored by a
+        Gaussian of variance step_var (regressor.hypothesis_path). Offline: it needs the whole
+        sequence. sequence_ids (N,): the chain restarts where the label changes."""
+        self._check_fitted("gate_")
+        X = validate_X(X, self.n_features_in_)
+        P = self.gate_.predict_proba(X)
+        poses, _ = self.predict_hypotheses(X, len(self.experts_), proba=P)
+        order = np.argsort(-P, axis=1, kind="stable")       # predict_hypotheses' slot order
+        log_w = np.log(np.maximum(np.take_along_axis(P, order, axis=1), floor))
+        path = most_probable_path(poses, log_w, step_var, continuity, sequence_ids)
+        out = poses[np.arange(len(X)), path]
+        return out if self.n_outputs_ > 1 else out[:, 0]
 
     def predict(self, X) -> np.ndarray:
         """The most probable expert's pose for each row, (N, K)."""

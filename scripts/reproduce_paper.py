@@ -6,6 +6,13 @@ Every hyperparameter (descriptor transform, damping, kernel width, RVM noise and
 depth) is chosen by blocked cross-validation on the 1927 training frames (5 contiguous blocks);
 the RVMs pick the lowest-error setting within a sparsity budget (kernel: fold models keep <= 10%
 of their training frames; linear: <= 30% of the features).
+
+Every method but one answers each frame alone. ``mixture_rvm_tracked`` decodes the whole test
+sequence at once: the most probable chain of the mixture's experts' poses, each frame's gate
+probabilities against Gaussian steps as large as the training motion's
+(regressor.hypothesis_path), as ``track --smooth`` sees a whole clip. Its experts, gate and the
+weight of the steps are chosen by the same cross-validation, each held-out block decoded as the
+pieces of training sequences it holds.
 """
 from __future__ import annotations
 
@@ -19,10 +26,11 @@ import scipy.io
 from scipy.io.matlab import MatReadError
 
 from regressor.dls import DLSRegressor
-from regressor.mixture import MixtureRegressor
+from regressor.hypothesis_path import step_variance
+from regressor.mixture import MixtureRegressor, NeighbourGate
 from regressor.metrics import contiguous_folds, cross_validate, mean_point_error, point_jitter
 from regressor.rvm import RVMRegressor
-from regressor.stacking import stack_frames
+from regressor.stacking import sequence_starts_to_ids, stack_frames
 from sequences.measures import DEFAULT_TOP_ANGLES, correlation, skill
 from tracker.one_line_parser import OneLineParser
 
@@ -73,6 +81,62 @@ class MixtureRVM(MixtureRegressor):
     def n_basis_(self) -> int:
         kept = getattr(self.gate_, "X_", ())
         return int(sum(e.n_basis_ for e in self.experts_)) + len(kept)
+
+
+class TrackedMixture:
+    """The mixture's experts' poses resolved over time: the most probable chain of them over the
+    whole test sequence (MixtureRegressor.predict_path), not each frame's favourite alone. The
+    step variance is the training sequences' own (sequence_ids: (N,) label per training row)."""
+
+    def __init__(self, mixture: MixtureRVM, continuity: float, sequence_ids):
+        self.mixture, self.continuity, self.sequence_ids = mixture, continuity, sequence_ids
+
+    def fit(self, X, Y):
+        self.mixture.fit(X, Y)
+        self.step_var_ = step_variance(Y, self.sequence_ids)
+        self.n_basis_ = self.mixture.n_basis_
+        return self
+
+    def predict(self, X):
+        """X: one test sequence, in time order."""
+        return self.mixture.predict_path(X, self.step_var_, self.continuity)
+
+
+def run_labels(rows: np.ndarray, sequence_ids: np.ndarray) -> np.ndarray:
+    """A label per row of rows (sorted indices) that changes wherever two neighbours are not
+    consecutive frames of one sequence (a held-out block cut out, or a new sequence)."""
+    rows = np.asarray(rows)
+    breaks = (np.diff(rows) != 1) | (np.diff(sequence_ids[rows]) != 0)
+    return np.concatenate([[0], np.cumsum(breaks)])
+
+
+def choose_tracked(mixtures, continuities, neighbours, X, Y, folds, sequence_ids, log=print):
+    """(mixture parameters, continuity) of the neighbour-gated mixture whose most probable
+    chain of poses has the lowest CV error; every held-out block is decoded as the pieces of
+    sequences it holds. The experts are fitted once per fold and mixture setting; the gate's
+    neighbour count only re-reads the stored rows."""
+    results = []
+    for params in mixtures:
+        fits = []
+        for hold in folds:
+            train = np.setdiff1d(np.arange(len(X)), hold)
+            model = MixtureRVM(expert="rvm", rvm_rows=len(X), gate="neighbours", **params)
+            model.fit(X[train], Y[train])
+            fits.append((model, step_variance(Y[train], run_labels(train, sequence_ids)), hold))
+        for k, c in itertools.product(neighbours, continuities):
+            total = 0.0
+            for model, step_var, hold in fits:
+                model.set_params(gate_neighbours=k)
+                model.gate_ = NeighbourGate(k).fit(model.gate_.X_, model.gate_.labels_,
+                                                   n_classes=len(model.experts_))
+                P = model.predict_path(X[hold], step_var, c,
+                                       sequence_ids=run_labels(hold, sequence_ids))
+                total += mean_point_error(P, Y[hold]) * len(hold)
+            err = total / len(X)
+            log(f"    {dict(params, gate_neighbours=k)}, continuity {c}: cv error {err:.3f}")
+            results.append((err, dict(params, gate_neighbours=k), c))
+    err, params, c = min(results, key=lambda r: r[0])
+    return params, c
 
 
 def choose(make, grid, X, Y, folds, budget=None, features=False, log=print):
@@ -135,6 +199,10 @@ def main(argv=None) -> None:
                  grid(n_experts=[2, 4, 8], overlap=[0.2], gate=["softmax"])
                  + grid(n_experts=[4, 8, 16], overlap=[0.2, 0.5], gate=["neighbours"],
                         gate_neighbours=[1, 3, 5]), X, Y, folds)
+    print("  mixture resolved over time (the most probable chain of the experts' poses)")
+    train_ids = sequence_starts_to_ids(TRAIN_STARTS, len(X))
+    tracked, continuity = choose_tracked(grid(n_experts=[8, 16, 32], overlap=[0.2, 0.5]),
+                                         [1.0, 2.0, 3.0, 5.0], [1, 3, 5], X, Y, folds, train_ids)
     stacked = {k: stack_frames(X, k, sequence_starts=TRAIN_STARTS) for k in (2, 3, 4)}
     print("  stacking depth")
     depth = min(stacked, key=lambda k: cross_validate(
@@ -152,11 +220,16 @@ def main(argv=None) -> None:
         # The mixture with the stacked input at the depth chosen above (the tracker's regressor
         # sees stacked descriptors too), its experts and gate as chosen for one frame.
         "mixture_rvm_stacked": (MixtureRVM(expert="rvm", rvm_rows=len(X), **mix), depth),
+        # Not per frame: the whole test sequence decoded at once, as track --smooth does.
+        "mixture_rvm_tracked": (TrackedMixture(MixtureRVM(expert="rvm", rvm_rows=len(X),
+                                                          gate="neighbours", **tracked),
+                                               continuity, train_ids), 1),
     }
     report = {"n_train": int(len(X)), "ground_truth_jitter": point_jitter(Y_test),
               "descriptor_transform": tname, "stack_depth": depth,
               "hyperparameters": {"linear_dls": lin, "linear_rvm": lrvm, "kernel_dls": kdls, "kernel_rvm": krvm,
-                                  "mixture_rvm": mix},
+                                  "mixture_rvm": mix,
+                                  "mixture_rvm_tracked": dict(tracked, continuity=continuity)},
               "methods": {}}
     # Beside each error: the mean training pose's error and skill = 1 - error / that, and the
     # correlation of the 8 most-moving coordinates (a flat output scores 0 there).

@@ -96,6 +96,27 @@ def test_neighbour_gated_mixture_keeps_both_modes_and_picks_distinct_experts():
         MixtureRegressor(gate="nearest").fit(x, y)
 
 
+def test_a_sequence_keeps_the_pose_its_clear_frames_showed():
+    """Descriptors that settle the mode only when x0 > 1.5 (else either pose): per frame the
+    gate guesses on the ambiguous frames, the most probable chain keeps the mode the clear
+    frames showed, and without continuity it is the per-frame answer."""
+    rng = np.random.default_rng(3)
+    x = rng.normal(0, 1, (2000, 3))
+    mode = np.where(x[:, 0] > 1.5, 1, rng.integers(0, 2, 2000))
+    y = np.column_stack([np.where(mode == 1, 3.0, -3.0), np.sin(x[:, 1])])
+    mix = MixtureRegressor(n_experts=2, gate="neighbours", gate_neighbours=20,
+                           **SMALL).fit(x, y)
+    T = 60
+    seq = np.column_stack([np.where(np.arange(T) < 5, 2.5, rng.uniform(-1, 1, T)),
+                           np.linspace(-1, 1, T), rng.normal(0, 1, T)])
+    per_frame = mix.predict(seq)[:, 0]
+    assert np.mean(per_frame[5:] < 0) > 0.2                 # the gate guesses
+    step_var = float(np.mean(np.diff(np.sin(seq[:, 1])) ** 2))
+    path = mix.predict_path(seq, step_var)
+    np.testing.assert_allclose(path[:, 0], 3.0, atol=0.3)    # the mode frames 0-4 showed
+    np.testing.assert_allclose(mix.predict_path(seq, step_var, continuity=0.0), mix.predict(seq))
+
+
 def test_estimator_conventions():
     mix = MixtureRegressor(n_experts=3, lam=0.5)
     assert mix.get_params()["lam"] == 0.5 and not hasattr(mix, "gate_")

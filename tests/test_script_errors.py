@@ -36,3 +36,11 @@ def test_bench_track_refuses_missing_inputs_and_absurd_frame_counts(tmp_path, ca
     assert "no such file" in refused(["--video", str(tmp_path / "v.mp4")])
     assert "--model" in refused(["--model", str(tmp_path / "m.npz")])
     assert "--frames must be" in refused(["--frames", "0"])
+
+
+def test_reproduce_papers_held_out_blocks_are_decoded_as_the_pieces_of_sequences_they_hold():
+    script = load_script("reproduce_paper")
+    ids = np.repeat([0, 1], [6, 4])                      # two training sequences, 6 and 4 frames
+    # Rows 0-2 and 5-9 (the block 3-4 held out): the cut and the new sequence at 6 both break.
+    assert script.run_labels(np.array([0, 1, 2, 5, 6, 7, 8, 9]), ids).tolist() == [0, 0, 0, 1,
+                                                                                   2, 2, 2, 2]

@@ -1,0 +1,97 @@
+"""The most probable sequence of hypotheses: let time resolve what one frame cannot.
+
+A mixture of experts (regressor.mixture) gives each frame several poses, one per expert, with
+the gate's probabilities. One frame alone must take the gate's favourite, and where the
+silhouette is ambiguous the gate is often wrong. Over a sequence the body moves little from one
+frame to the next, so the chain of hypotheses that is both probable frame by frame and smooth
+in time is the better answer (Agarwal and Triggs 2005 resolve their mixture's hypotheses by
+tracking for this reason).
+
+Model (a hidden Markov chain over which hypothesis is true at each frame): frame t's hypothesis
+j has evidence log_weight[t, j] (the gate's log probability), and moving from hypothesis i at
+t-1 to j at t costs continuity * |y_t^j - y_{t-1}^i|^2 / (2 s^2), the log of a Gaussian step
+whose variance s^2 is the training motion's own mean squared step (:func:`step_variance`).
+:func:`most_probable_path` finds the best chain exactly (Viterbi), offline: it needs the whole
+sequence, as a smoother does.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+class HypothesisPathError(ValueError):
+    """Inputs of the wrong shape or value."""
+
+
+def step_variance(Y, sequence_ids=None) -> float:
+    """Mean squared change between consecutive rows of Y within each sequence.
+
+    Y: (N, K) poses in time order, in the units the hypotheses use (the paper's data: cm of
+    joint positions). sequence_ids: (N,) label per row; a step is counted only between
+    consecutive rows with the same label (default: one sequence). Returns s^2 (units^2) > 0.
+    """
+    Y = np.asarray(Y, dtype=np.float64)
+    if Y.ndim != 2 or len(Y) < 2:
+        raise HypothesisPathError(f"Y must be (N, K) with N >= 2, got shape {Y.shape}")
+    same = np.ones(len(Y) - 1, bool) if sequence_ids is None else _continues(sequence_ids, len(Y))
+    if not same.any():
+        raise HypothesisPathError("no two consecutive rows belong to one sequence")
+    s2 = float((np.diff(Y, axis=0)[same] ** 2).sum(axis=1).mean())
+    if not s2 > 0:
+        raise HypothesisPathError("the poses never change: the step variance is 0")
+    return s2
+
+
+def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1.0,
+                       sequence_ids=None) -> np.ndarray:
+    """The chain of hypotheses that maximises evidence + smoothness (module docstring).
+
+    poses: (T, M, K) M hypotheses per frame; log_weight: (T, M) their log evidence (-inf
+    excludes one); step_var: s^2 from :func:`step_variance`, in the poses' units squared;
+    continuity: the weight of the smoothness term (0: each frame's best hypothesis alone);
+    sequence_ids: (T,) label per frame, the chain restarting where it changes (default: one
+    sequence). Returns (T,) int: the chosen hypothesis of each frame.
+    """
+    poses = np.asarray(poses, dtype=np.float64)
+    log_weight = np.asarray(log_weight, dtype=np.float64)
+    if poses.ndim != 3 or log_weight.shape != poses.shape[:2] or len(poses) == 0:
+        raise HypothesisPathError(f"poses must be (T, M, K) and log_weight (T, M), got shapes "
+                                  f"{poses.shape} and {log_weight.shape}")
+    if not (np.isfinite(step_var) and step_var > 0):
+        raise HypothesisPathError(f"step_var must be > 0, got {step_var}")
+    if not (np.isfinite(continuity) and continuity >= 0):
+        raise HypothesisPathError(f"continuity must be >= 0, got {continuity}")
+    T = len(poses)
+    same = np.ones(max(T - 1, 0), bool) if sequence_ids is None else _continues(sequence_ids, T)
+    scale = continuity / (2.0 * step_var)
+    score = log_weight[0].copy()
+    back = np.zeros(poses.shape[:2], dtype=np.int64)
+    # A loop over frames (each step depends on the last), vectorised over the M x M moves.
+    for t in range(1, T):
+        if same[t - 1]:
+            d2 = squared_steps(poses[t - 1], poses[t])              # (M previous, M current)
+            total = score[:, None] - scale * d2
+            back[t] = total.argmax(axis=0)
+            score = total[back[t], np.arange(total.shape[1])] + log_weight[t]
+        else:                                                       # a new sequence: restart
+            back[t] = score.argmax()
+            score = log_weight[t].copy()
+    path = np.empty(T, dtype=np.int64)
+    path[-1] = int(score.argmax())
+    for t in range(T - 1, 0, -1):
+        path[t - 1] = back[t, path[t]]
+    return path
+
+
+def squared_steps(before, after) -> np.ndarray:
+    """|after_j - before_i|^2 for every pair: before (M, K), after (M', K) -> (M, M')."""
+    return ((after[None, :, :] - before[:, None, :]) ** 2).sum(axis=2)
+
+
+def _continues(sequence_ids, n: int) -> np.ndarray:
+    """(n - 1,) whether row t + 1 is in row t's sequence."""
+    ids = np.asarray(sequence_ids).ravel()
+    if ids.shape != (n,):
+        raise HypothesisPathError(f"sequence_ids must have one label per row ({n}), "
+                                  f"got shape {np.shape(sequence_ids)}")
+    return ids[1:] == ids[:-1]
