@@ -43,14 +43,15 @@ def step_variance(Y, sequence_ids=None) -> float:
 
 
 def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1.0,
-                       sequence_ids=None) -> np.ndarray:
+                       sequence_ids=None, period: float | None = None) -> np.ndarray:
     """The chain of hypotheses that maximises evidence + smoothness (module docstring).
 
     poses: (T, M, K) M hypotheses per frame; log_weight: (T, M) their log evidence (-inf
     excludes one); step_var: s^2 from :func:`step_variance`, in the poses' units squared;
     continuity: the weight of the smoothness term (0: each frame's best hypothesis alone);
     sequence_ids: (T,) label per frame, the chain restarting where it changes (default: one
-    sequence). Returns (T,) int: the chosen hypothesis of each frame.
+    sequence); period: the poses are angles of this period (360 for degrees), their steps
+    wrapped (default: plain numbers). Returns (T,) int: the chosen hypothesis of each frame.
     """
     poses = np.asarray(poses, dtype=np.float64)
     log_weight = np.asarray(log_weight, dtype=np.float64)
@@ -69,7 +70,7 @@ def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1
     # A loop over frames (each step depends on the last), vectorised over the M x M moves.
     for t in range(1, T):
         if same[t - 1]:
-            d2 = squared_steps(poses[t - 1], poses[t])              # (M previous, M current)
+            d2 = squared_steps(poses[t - 1], poses[t], period)      # (M previous, M current)
             total = score[:, None] - scale * d2
             back[t] = total.argmax(axis=0)
             score = total[back[t], np.arange(total.shape[1])] + log_weight[t]
@@ -83,9 +84,13 @@ def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1
     return path
 
 
-def squared_steps(before, after) -> np.ndarray:
-    """|after_j - before_i|^2 for every pair: before (M, K), after (M', K) -> (M, M')."""
-    return ((after[None, :, :] - before[:, None, :]) ** 2).sum(axis=2)
+def squared_steps(before, after, period: float | None = None) -> np.ndarray:
+    """|after_j - before_i|^2 for every pair: before (M, K), after (M', K) -> (M, M'); with a
+    period, each difference wrapped to [-period / 2, period / 2) first."""
+    step = after[None, :, :] - before[:, None, :]
+    if period is not None:
+        step = (step + period / 2.0) % period - period / 2.0
+    return (step ** 2).sum(axis=2)
 
 
 def _continues(sequence_ids, n: int) -> np.ndarray:

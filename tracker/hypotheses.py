@@ -184,10 +184,12 @@ regressor's own pose but the limb head's canonical member or its flip, whichever
 heading nearer the heading the chain decided (pick_member). The own pose averages a
 silhouette's two bodies where it cannot tell them apart (in profile, which leg is forward); the
 limb head gives one of them, and the decided heading says which. Offline (``--smooth``) the
-members are picked by the smoothed heading. The limb filter measures the decided heading with
-them (its R, the main head's residual covariance, couples heading and joints). Its noise
-model is still the main head's (LIMB_R_SCALE re-checked with the limb head on the validation
-videos: 0.03 / 0.1 / 0.3 / 1.0 give mean corr8 0.392 / 0.395 / 0.395 / 0.382).
+members are those of the most probable chain given the smoothed heading and the limbs'
+continuity (tracker.member_path: in profile the heading cannot say which leg is forward).
+The limb filter measures the decided heading with them (its R, the main head's residual
+covariance, couples heading and joints). Its noise model is still the main head's
+(LIMB_R_SCALE re-checked with the limb head on the validation videos: 0.03 / 0.1 / 0.3 / 1.0
+give mean corr8 0.392 / 0.395 / 0.395 / 0.382).
 """
 from __future__ import annotations
 
@@ -202,6 +204,7 @@ from regressor.canonical_priors import CanonicalPriors
 from regressor.pose_model import DEFAULT_TRAINING_FPS, training_fps_of
 from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
+from .member_path import members_over_time
 from .mirror_limbs import mirror_mean, sees_mirror
 from .travel import (FACING_TRAVEL_FPS, FACING_TRAVEL_PRIOR, fuse_with_priors,
                      offset_likelihoods, offset_transition)
@@ -768,15 +771,16 @@ class FrontBackTracker:
     def smoothed(self) -> np.ndarray:
         """RTS-smoothed poses (T, 55) of the Viterbi path's hypotheses (``--smooth``); with a
         limb_filter_factory, the body angles are its RTS smoothing of the raw poses (of the
-        limb head's members picked by the smoothed heading when every frame of the track has
-        them, as a model's frames all do), with the smoothed heading as theirs."""
+        limb head's members on their most probable chain given the smoothed heading when
+        every frame of the track has them, as a model's frames all do:
+        tracker.member_path), with the smoothed heading as theirs."""
         poses, variances = self.chosen_poses()
         out = self.filter_factory(self.fps).rts_smooth(poses, heading_variance=variances)
         if self.limb_filter_factory is not None and len(out):
             raws = np.array([frame.raw for frame in self.history])
             if all(frame.limbs is not None for frame in self.history):
-                raws = pick_member(np.array([frame.limbs for frame in self.history]),
-                                   heading_deg(out))
+                raws = members_over_time(np.array([frame.limbs for frame in self.history]),
+                                         heading_deg(out), self.frame_rate_ratio)
             raws = with_body_angles(out, raws)          # the decided heading, as online
             out = with_body_angles(out, self.limb_filter_factory(self.fps).rts_smooth(raws))
         return out
