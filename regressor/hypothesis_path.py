@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .angles import wrap_deg
+
 
 class HypothesisPathError(ValueError):
     """Inputs of the wrong shape or value."""
@@ -26,13 +28,16 @@ class HypothesisPathError(ValueError):
 def step_variance(Y, sequence_ids=None) -> float:
     """Mean squared change between consecutive rows of Y within each sequence.
 
-    Y: (N, K) poses in time order, in the units the hypotheses use (the paper's data: cm of
-    joint positions). sequence_ids: (N,) label per row; a step is counted only between
-    consecutive rows with the same label (default: one sequence). Returns s^2 (units^2) > 0.
+    Y: (N, K) poses in time order, in the units the hypotheses use (the paper's data: its
+    renderer's units, a body about 60 tall). sequence_ids: (N,) label per row; a step is
+    counted only between consecutive rows with the same label (default: one sequence).
+    Returns s^2 (units^2) > 0.
     """
     Y = np.asarray(Y, dtype=np.float64)
     if Y.ndim != 2 or len(Y) < 2:
         raise HypothesisPathError(f"Y must be (N, K) with N >= 2, got shape {Y.shape}")
+    if not np.isfinite(Y).all():
+        raise HypothesisPathError("Y has non-finite values")
     same = np.ones(len(Y) - 1, bool) if sequence_ids is None else _continues(sequence_ids, len(Y))
     if not same.any():
         raise HypothesisPathError("no two consecutive rows belong to one sequence")
@@ -43,21 +48,24 @@ def step_variance(Y, sequence_ids=None) -> float:
 
 
 def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1.0,
-                       sequence_ids=None, period: float | None = None) -> np.ndarray:
+                       sequence_ids=None, angles_deg: bool = False) -> np.ndarray:
     """The chain of hypotheses that maximises evidence + smoothness (module docstring).
 
     poses: (T, M, K) M hypotheses per frame; log_weight: (T, M) their log evidence (-inf
     excludes one); step_var: s^2 from :func:`step_variance`, in the poses' units squared;
     continuity: the weight of the smoothness term (0: each frame's best hypothesis alone);
     sequence_ids: (T,) label per frame, the chain restarting where it changes (default: one
-    sequence); period: the poses are angles of this period (360 for degrees), their steps
-    wrapped (default: plain numbers). Returns (T,) int: the chosen hypothesis of each frame.
+    sequence); angles_deg: the poses are angles in degrees, their steps wrapped to (-180, 180]
+    (regressor.angles.wrap_deg; default: plain numbers). Returns (T,) int: the chosen
+    hypothesis of each frame.
     """
     poses = np.asarray(poses, dtype=np.float64)
     log_weight = np.asarray(log_weight, dtype=np.float64)
-    if poses.ndim != 3 or log_weight.shape != poses.shape[:2] or len(poses) == 0:
-        raise HypothesisPathError(f"poses must be (T, M, K) and log_weight (T, M), got shapes "
-                                  f"{poses.shape} and {log_weight.shape}")
+    if poses.ndim != 3 or log_weight.shape != poses.shape[:2] or 0 in poses.shape[:2]:
+        raise HypothesisPathError(f"poses must be (T, M, K) and log_weight (T, M), T, M >= 1, "
+                                  f"got shapes {poses.shape} and {log_weight.shape}")
+    if not np.isfinite(poses).all() or np.isnan(log_weight).any():
+        raise HypothesisPathError("poses must be finite and log_weight not NaN (-inf excludes)")
     if not (np.isfinite(step_var) and step_var > 0):
         raise HypothesisPathError(f"step_var must be > 0, got {step_var}")
     if not (np.isfinite(continuity) and continuity >= 0):
@@ -70,11 +78,13 @@ def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1
     # A loop over frames (each step depends on the last), vectorised over the M x M moves.
     for t in range(1, T):
         if same[t - 1]:
-            d2 = squared_steps(poses[t - 1], poses[t], period)      # (M previous, M current)
+            d2 = squared_steps(poses[t - 1], poses[t], angles_deg)  # (M previous, M current)
             total = score[:, None] - scale * d2
             back[t] = total.argmax(axis=0)
             score = total[back[t], np.arange(total.shape[1])] + log_weight[t]
-        else:                                                       # a new sequence: restart
+        else:
+            # A new sequence: no step links it to the last, so whatever frame t takes, the
+            # last sequence's best end is where its chain is traced back from.
             back[t] = score.argmax()
             score = log_weight[t].copy()
     path = np.empty(T, dtype=np.int64)
@@ -84,18 +94,18 @@ def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1
     return path
 
 
-def squared_steps(before, after, period: float | None = None) -> np.ndarray:
-    """|after_j - before_i|^2 for every pair: before (M, K), after (M', K) -> (M, M'); with a
-    period, each difference wrapped to [-period / 2, period / 2) first."""
+def squared_steps(before, after, angles_deg: bool = False) -> np.ndarray:
+    """|after_j - before_i|^2 for every pair: before (M, K), after (M', K) -> (M, M'); with
+    angles_deg, each difference (degrees) wrapped to (-180, 180] first."""
     step = after[None, :, :] - before[:, None, :]
-    if period is not None:
-        step = (step + period / 2.0) % period - period / 2.0
+    if angles_deg:
+        step = wrap_deg(step)
     return (step ** 2).sum(axis=2)
 
 
 def _continues(sequence_ids, n: int) -> np.ndarray:
     """(n - 1,) whether row t + 1 is in row t's sequence."""
-    ids = np.asarray(sequence_ids).ravel()
+    ids = np.asarray(sequence_ids)
     if ids.shape != (n,):
         raise HypothesisPathError(f"sequence_ids must have one label per row ({n}), "
                                   f"got shape {np.shape(sequence_ids)}")

@@ -388,17 +388,16 @@ class MixtureRegressor(Estimator):
 
     def predict_path(self, X, step_var: float, continuity: float = 1.0, sequence_ids=None,
                      floor: float = 1e-3) -> np.ndarray:
-        """The most probable sequence of the experts' poses, (N, K): X (N, D) rows in time
+        """The most probable sequence of the experts' poses, (N, K) of X (N, D) rows in time
         order, each frame's evidence the gate's log p(expert | x) (floored at floor, so an
         expert no neighbour voted for stays possible), the steps between frames scored by a
         Gaussian of variance step_var (regressor.hypothesis_path). Offline: it needs the whole
-        sequence. sequence_ids (N,): the chain restarts where the label changes."""
+        sequence. sequence_ids (N,): the chain restarts where the label changes. (N,) for a
+        single output, as predict."""
         self._check_fitted("gate_")
-        X = validate_X(X, self.n_features_in_)
-        P = self.gate_.predict_proba(X)
-        poses, _ = self.predict_hypotheses(X, len(self.experts_), proba=P)
-        order = np.argsort(-P, axis=1, kind="stable")       # predict_hypotheses' slot order
-        log_w = np.log(np.maximum(np.take_along_axis(P, order, axis=1), floor))
+        # All experts: their probabilities, renormalised over all of them, are the gate's own.
+        poses, prob = self.predict_hypotheses(X, len(self.experts_))
+        log_w = np.log(np.maximum(prob, floor))
         path = most_probable_path(poses, log_w, step_var, continuity, sequence_ids)
         out = poses[np.arange(len(X)), path]
         return out if self.n_outputs_ > 1 else out[:, 0]

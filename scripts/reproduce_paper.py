@@ -10,9 +10,10 @@ of their training frames; linear: <= 30% of the features).
 Every method but one answers each frame alone. ``mixture_rvm_tracked`` decodes the whole test
 sequence at once: the most probable chain of the mixture's experts' poses, each frame's gate
 probabilities against Gaussian steps as large as the training motion's
-(regressor.hypothesis_path), as ``track --smooth`` sees a whole clip. Its experts, gate and the
-weight of the steps are chosen by the same cross-validation, each held-out block decoded as the
-pieces of training sequences it holds.
+(regressor.hypothesis_path): offline, over the whole clip, as a smoother works (the tracker
+itself does not decode experts; its ``--smooth`` chains front/back states and limb members).
+Its experts, gate and the weight of the steps are chosen by the same cross-validation, each
+held-out block decoded as the pieces of training sequences it holds.
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from scipy.io.matlab import MatReadError
 
 from regressor.dls import DLSRegressor
 from regressor.hypothesis_path import step_variance
-from regressor.mixture import MixtureRegressor, NeighbourGate
+from regressor.mixture import MixtureRegressor
 from regressor.metrics import contiguous_folds, cross_validate, mean_point_error, point_jitter
 from regressor.rvm import RVMRegressor
 from regressor.stacking import sequence_starts_to_ids, stack_frames
@@ -106,6 +107,8 @@ def run_labels(rows: np.ndarray, sequence_ids: np.ndarray) -> np.ndarray:
     """A label per row of rows (sorted indices) that changes wherever two neighbours are not
     consecutive frames of one sequence (a held-out block cut out, or a new sequence)."""
     rows = np.asarray(rows)
+    if len(rows) == 0:
+        return np.zeros(0, dtype=np.int64)
     breaks = (np.diff(rows) != 1) | (np.diff(sequence_ids[rows]) != 0)
     return np.concatenate([[0], np.cumsum(breaks)])
 
@@ -126,9 +129,9 @@ def choose_tracked(mixtures, continuities, neighbours, X, Y, folds, sequence_ids
         for k, c in itertools.product(neighbours, continuities):
             total = 0.0
             for model, step_var, hold in fits:
+                # The gate keeps every training row: another k only re-reads them.
                 model.set_params(gate_neighbours=k)
-                model.gate_ = NeighbourGate(k).fit(model.gate_.X_, model.gate_.labels_,
-                                                   n_classes=len(model.experts_))
+                model.gate_.n_neighbours = k
                 P = model.predict_path(X[hold], step_var, c,
                                        sequence_ids=run_labels(hold, sequence_ids))
                 total += mean_point_error(P, Y[hold]) * len(hold)
@@ -136,6 +139,7 @@ def choose_tracked(mixtures, continuities, neighbours, X, Y, folds, sequence_ids
             log(f"    {dict(params, gate_neighbours=k)}, continuity {c}: cv error {err:.3f}")
             results.append((err, dict(params, gate_neighbours=k), c))
     err, params, c = min(results, key=lambda r: r[0])
+    log(f"    chosen: {params}, continuity {c} (cv error {err:.3f})")
     return params, c
 
 
@@ -220,7 +224,7 @@ def main(argv=None) -> None:
         # The mixture with the stacked input at the depth chosen above (the tracker's regressor
         # sees stacked descriptors too), its experts and gate as chosen for one frame.
         "mixture_rvm_stacked": (MixtureRVM(expert="rvm", rvm_rows=len(X), **mix), depth),
-        # Not per frame: the whole test sequence decoded at once, as track --smooth does.
+        # Not per frame: the whole test sequence decoded at once, as a smoother works.
         "mixture_rvm_tracked": (TrackedMixture(MixtureRVM(expert="rvm", rvm_rows=len(X),
                                                           gate="neighbours", **tracked),
                                                continuity, train_ids), 1),

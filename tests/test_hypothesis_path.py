@@ -4,7 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from regressor.hypothesis_path import HypothesisPathError, most_probable_path, step_variance
+from regressor.angles import wrap_deg
+from regressor.hypothesis_path import (HypothesisPathError, most_probable_path, squared_steps,
+                                       step_variance)
 
 
 def _two_tracks(T=12):
@@ -58,6 +60,23 @@ def test_the_chain_restarts_where_a_new_sequence_begins():
     assert most_probable_path(poses, log_w, step_var=1.0).tolist() == [0] * T
     ids = np.repeat([7, 8], 5)
     assert most_probable_path(poses, log_w, 1.0, sequence_ids=ids).tolist() == [0] * 5 + [1] * 5
+    # Each piece traced back from its own best end: the first one's is hypothesis 1 here.
+    log_w[0], log_w[5] = np.log([0.1, 0.9]), np.log([0.8, 0.2])
+    assert most_probable_path(poses, log_w, 1.0, sequence_ids=ids).tolist() == [1] * 5 + [0] * 5
+
+
+def test_angle_steps_wrap_round_the_circle():
+    """Hypothesis 0 turns steadily through +-180 degrees (10 a frame); hypothesis 1 jumps
+    between 110 and 130 and the frames prefer it slightly. As angles the turn is the smooth
+    chain; unwrapped, it would look like a 340-degree jump the chain must avoid."""
+    t = np.arange(8)
+    turning = wrap_deg(150.0 + 10.0 * t)                        # 150 ... 180, -170 ... -140
+    poses = np.stack([turning, np.where(t % 2 == 0, 110.0, 130.0)], axis=1)[:, :, None]
+    log_w = np.log(np.tile([0.45, 0.55], (8, 1)))
+    assert most_probable_path(poses, log_w, 100.0, angles_deg=True).tolist() == [0] * 8
+    assert most_probable_path(poses, log_w, 100.0).tolist() != [0] * 8
+    assert squared_steps(np.array([[179.0]]), np.array([[-179.0]]), angles_deg=True)[0, 0] \
+        == pytest.approx(4.0)
 
 
 def test_step_variance_is_the_mean_squared_step_within_sequences():
@@ -76,6 +95,17 @@ def test_bad_inputs_are_refused_with_the_reason():
         most_probable_path(poses, log_w, 1.0, continuity=-1.0)
     with pytest.raises(HypothesisPathError, match="sequence_ids"):
         most_probable_path(poses, log_w, 1.0, sequence_ids=[0, 0, 1])
+    with pytest.raises(HypothesisPathError, match="sequence_ids"):
+        most_probable_path(np.zeros((4, 2, 3)), np.zeros((4, 2)), 1.0,
+                           sequence_ids=np.zeros((2, 2)))
+    with pytest.raises(HypothesisPathError, match="T, M >= 1"):
+        most_probable_path(np.zeros((5, 0, 3)), np.zeros((5, 0)), 1.0)
+    with pytest.raises(HypothesisPathError, match="finite"):
+        most_probable_path(np.full((5, 2, 3), np.nan), log_w, 1.0)
+    with pytest.raises(HypothesisPathError, match="NaN"):
+        most_probable_path(poses, np.full((5, 2), np.nan), 1.0)
+    with pytest.raises(HypothesisPathError, match="non-finite"):
+        step_variance(np.array([[0.0], [np.nan]]))
     with pytest.raises(HypothesisPathError, match="never change"):
         step_variance(np.ones((4, 2)))
     with pytest.raises(HypothesisPathError, match="one sequence"):

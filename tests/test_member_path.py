@@ -65,3 +65,52 @@ def test_members_over_time_refuses_mismatched_inputs():
     with pytest.raises(ValueError, match="limbs must be"):
         members_over_time(np.zeros((5, 53)), np.zeros(5))
     assert members_over_time(np.zeros((0, 55)), np.zeros(0)).shape == (0, 55)
+
+
+def test_the_trackers_smoothed_output_takes_its_limbs_from_the_chain_of_members(monkeypatch):
+    """FrontBackTracker.smoothed hands the whole track's limbs, the smoothed heading and the
+    frame-rate ratio to members_over_time, and its body angles are the RTS smoothing of what
+    that returns; the online (filtered) output still takes the member by the heading."""
+    import tracker.hypotheses as hypotheses
+    from sequences.pose_vector import heading_deg
+    from tracker.filtering import PoseKalmanFilter
+    from tracker.hypotheses import FrontBackTracker, _with_flips
+
+    truth, limbs, _ = _walk_in_profile(T=60)
+    calls = []
+
+    def spy(members, headings, frame_rate_ratio=1.0):
+        calls.append((np.array(members), np.array(headings), frame_rate_ratio))
+        return truth                                 # what a perfect chain would return
+    monkeypatch.setattr(hypotheses, "members_over_time", spy)
+    bank = FrontBackTracker(PoseKalmanFilter, 60.0, limb_filter_factory=PoseKalmanFilter)
+    for i in range(len(limbs)):
+        raw = np.zeros(55)
+        raw[:2] = truth[i, :2]
+        bank.step(_with_flips(raw[None], np.ones(1), limbs[i]))
+    assert not calls                                  # online: pick_member, as before
+    smoothed = bank.smoothed()
+    (members, headings, ratio), = calls
+    np.testing.assert_allclose(members, limbs)
+    np.testing.assert_allclose(headings, heading_deg(smoothed))
+    assert ratio == pytest.approx(0.5)                # 60 fps against the 30 chosen at
+    # Its legs are those returned (smoothed), not the random members'.
+    assert not _legs_swapped(smoothed, truth).any()
+
+
+def test_the_heading_evidence_is_tempered_by_the_frame_rate():
+    """A body at 80 degrees with its legs apart (its flip at 100, legs swapped). The first 12
+    frames' heading (60) says the body, the last 12's (120) the flip, each by 0.67 a frame.
+    Changing body costs the legs' jump (3200 deg^2 / 800 = 4); each half's evidence is 8 at
+    the rate the settings were chosen at, and a quarter of that at 120 fps, where the chain no
+    longer pays for the change."""
+    T = 24
+    body = np.zeros((T, 55))
+    body[:, 0], body[:, 1] = np.cos(np.radians(80.0)), np.sin(np.radians(80.0))
+    body[:, LEFT_HIP], body[:, RIGHT_HIP] = 20.0, -20.0
+    flip = front_back_flip(body)                                 # heading 100, legs swapped
+    headings = np.where(np.arange(T) < 12, 60.0, 120.0)
+    full = members_over_time(body, headings, step_variance=400.0)
+    np.testing.assert_allclose(full, np.concatenate([body[:12], flip[12:]]))
+    quarter = members_over_time(body, headings, frame_rate_ratio=0.25, step_variance=400.0)
+    assert np.allclose(quarter, body) or np.allclose(quarter, flip)

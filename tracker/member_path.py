@@ -10,17 +10,13 @@ chain of members (regressor.hypothesis_path): each frame's evidence for a member
 its heading is to the smoothed heading (a Gaussian of MEMBER_HEADING_SD_DEG), and each step
 from one frame's member to the next costs the squared change of the 53 body angles over
 2 MEMBER_STEP_VARIANCE. Away from profile the heading decides; in profile, where it cannot,
-the legs' continuity does. The heading itself is not changed.
+the legs' continuity does. The heading itself is not changed, nor is the online (filtered)
+output: the same recursion forward only, without look-ahead, gained nothing.
 
-Measured (2026-12-04, the shipped model, smoothed output; chosen on validation, one-off
-drivers /work/tmp/s42/replay_lp.py and vids.py): on the 28 validation renders (the chain
-replayed as ``track`` builds it) corr8 0.6356 -> 0.6407, err53 6.811 -> 6.790, heading
-unchanged (23.89); on the 12 validation videos through ``track`` corr8 0.618 -> 0.626, err53
-7.013 -> 6.980 (02_02 spiral 0.744 -> 0.800, 05_02 spiral 0.044 -> 0.080; no video lower).
-Only the ratio MEMBER_STEP_VARIANCE / MEMBER_HEADING_SD_DEG^2 matters: 0.11 / 0.44 / 1.8 /
-7.1 gave renders 0.6403 / 0.6407 / 0.6424 / 0.6351 and videos - / 0.626 / 0.623 / 0.617.
-The same recursion online (each frame's member the best of a forward pass, no look-ahead)
-gains nothing (filtered corr8 0.5845 -> 0.5840 on the renders), so online stays as it was.
+Only the ratio MEMBER_STEP_VARIANCE / MEMBER_HEADING_SD_DEG^2 matters; 0.44 was chosen on the
+validation renders and videos (smoothed corr8 of the 28 renders 0.6356 -> 0.6407, of the 12
+videos 0.618 -> 0.626). The measurements, the other ratios tried and the held-out figures:
+docs/accuracy.md, "2026-12-04 (stop 42)".
 """
 from __future__ import annotations
 
@@ -34,16 +30,18 @@ MEMBER_HEADING_SD_DEG = 30.0        # the evidence: how near each member's headi
 MEMBER_STEP_VARIANCE = 400.0        # deg^2: the 53 angles' summed squared step per frame
 
 
-def members_over_time(limbs, headings_deg, evidence_weight: float = 1.0,
+def members_over_time(limbs, headings_deg, frame_rate_ratio: float = 1.0,
                       heading_sd_deg: float = MEMBER_HEADING_SD_DEG,
                       step_variance: float = MEMBER_STEP_VARIANCE) -> np.ndarray:
     """Of each frame's canonical pose and its front/back flip, the ones on the most probable
     chain (module docstring).
 
     limbs: (T, 55) canonical poses ((cos, sin) of the heading, 53 body angles in degrees) in
-    time order; headings_deg: (T,) the decided (smoothed) heading, degrees; evidence_weight:
-    each frame's heading evidence is multiplied by it (the frame-rate ratio, as the chain's
-    evidence). Returns (T, 55): each frame's chosen member, whole."""
+    time order; headings_deg: (T,) the decided (smoothed) heading, degrees; frame_rate_ratio:
+    the chain's (tracker.hypotheses.FrontBackTracker.frame_rate_ratio, 0.25 at 120 fps for
+    the 30 fps the settings were chosen at): each frame's heading evidence is multiplied by
+    it, so a second of video weighs the same at any rate. The steps are not: a switch of
+    member is one jump whatever the rate. Returns (T, 55): each frame's chosen member, whole."""
     limbs = np.asarray(limbs, dtype=np.float64)
     headings = np.asarray(headings_deg, dtype=np.float64)
     if limbs.ndim != 2 or limbs.shape[1] != 55 or headings.shape != (len(limbs),):
@@ -53,6 +51,6 @@ def members_over_time(limbs, headings_deg, evidence_weight: float = 1.0,
         return limbs.copy()
     pair = np.stack([limbs, front_back_flip(limbs)], axis=1)                 # (T, 2, 55)
     off = wrap_deg(heading_deg(pair.reshape(-1, 55)).reshape(-1, 2) - headings[:, None])
-    log_weight = -evidence_weight * off ** 2 / (2.0 * heading_sd_deg ** 2)
-    path = most_probable_path(pair[:, :, 2:], log_weight, step_variance, period=360.0)
+    log_weight = -frame_rate_ratio * off ** 2 / (2.0 * heading_sd_deg ** 2)
+    path = most_probable_path(pair[:, :, 2:], log_weight, step_variance, angles_deg=True)
     return pair[np.arange(len(pair)), path]
