@@ -148,11 +148,11 @@ class TrackerSettings:
     False, the default since 2026-12-04, lets colour decide on it too
     (tracker.silhouettes.refine_in_zone: fewer ghosts, some lost limb pixels). Chosen on the 12
     validation videos through track's loop (two walks, a dance, a run and punches as spirals
-    and from a fixed camera, two more trials from a fixed camera): filtered err53 / corr8 / heading RMS 8.242 / 0.447 /
-    31.41 with the sure rule, 7.311 / 0.563 / 31.63 with colour; smoothed 8.103 / 0.475 / 23.18
-    and 7.013 / 0.618 / 23.22 (the fixed-camera clips gain: a short clip's walker stays in one
-    region, which becomes the zone; the spirals do not change). An extractor given to
-    PoseTracker keeps its own rule.
+    and from a fixed camera, two more trials from a fixed camera): filtered err53 / corr8 /
+    heading RMS 8.242 / 0.447 / 31.41 with the sure rule, 7.311 / 0.563 / 31.63 with colour;
+    smoothed 8.103 / 0.475 / 23.18 and 7.013 / 0.618 / 23.22 (the fixed-camera clips gain: a
+    short clip's walker stays in one region, which becomes the zone; the spirals do not
+    change). An extractor given to PoseTracker keeps its own rule.
     min_area_fraction: the default extractor's smallest person, as a fraction of the image
     (tracker.silhouettes.DEFAULT_MIN_AREA_FRACTION; ``track --min-area``).
     mirror_limbs: average the limbs with the model's limbs for each frame's mirror image, for
