@@ -26,9 +26,11 @@ from regressor.layout import MAX_GRID
 from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model, save_pose_model
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
-                               build_dataset, training_files, views_by_rows)
+                               build_dataset, trial_name, training_files, views_by_rows)
+from sequences.splice import SpliceConfig, SpliceError, write_spliced_files
 from tracker.offline.hypothesis_priors import learn_canonical_priors, prior_files
-from tracker.offline.training import (CANONICAL_RULES, MixtureOptions, TrainingOptions,
+from tracker.offline.training import (CANONICAL_RULES, VALIDATION_TRIALS, MixtureOptions,
+                                      TrainingOptions,
                                       cached_descriptors, cached_layouts, codebook_digest,
                                       dataset_descriptors, descriptor_cache_key,
                                       fit_dataset_codebook, fit_noisy_codebook,
@@ -98,6 +100,7 @@ def _check_numbers(ap, args) -> None:
     takes minutes)."""
     bounds = (("--stack", args.stack, 1, 30), ("--n-fit", args.n_fit, 1, 10**6),
               ("--rows-per-trial", args.rows_per_trial, 0, 10**6),
+              ("--spliced", args.spliced, 0, 10_000),
               ("--max-views", args.max_views, 1, 360), ("--experts", args.experts, 1, 1000),
               ("--centres", args.centres, 1, 10**5),
               ("--layout-grid", args.layout_grid, 0, MAX_GRID),
@@ -131,6 +134,10 @@ def main(argv=None) -> int:
                     help="views per trial chosen to give about this many silhouettes per trial "
                          "(1..--max-views); 0: --views for every trial")
     ap.add_argument("--max-views", type=int, default=10)
+    ap.add_argument("--spliced", type=int, default=0,
+                    help="also train on this many spliced motions: a training trial whose "
+                         "limbs come from other training trials (sequences.splice; validation "
+                         "trials never take part), rendered as the trials are; default 0")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2,
                     help="processes for rendering and descriptors, threads for the mixture, "
@@ -239,6 +246,13 @@ def main(argv=None) -> int:
         files = training_files(args.bvh_dir)
         log(f"data set: {len(files)} trials x {args.views} views (held out: "
             f"{', '.join(HELD_OUT_TRIALS)})")
+        if args.spliced:
+            sources = [f for f in files if trial_name(f) not in VALIDATION_TRIALS]
+            files = files + write_spliced_files(
+                sources, SpliceConfig(n_motions=args.spliced, seed=args.seed),
+                args.cache / "spliced")
+            log(f"  and {args.spliced} spliced motions of {len(sources)} trials "
+                f"({time.perf_counter() - start:.0f} s so far)")
         views = (views_by_rows(files, config, args.rows_per_trial, args.max_views)
                  if args.rows_per_trial else None)
         data = build_dataset(files, config, args.cache / "dataset", workers=args.workers,
@@ -336,7 +350,7 @@ def main(argv=None) -> int:
                 diff = np.abs(wrap_deg(loaded.predict_limbs(probe)[:, 2:]
                                        - model.predict_limbs(probe)[:, 2:]))
                 report["limbs_round_trip_max_deg"] = round(float(diff.max()), 3)
-    except (OSError, DatasetError, ValueError) as exc:
+    except (OSError, DatasetError, SpliceError, ValueError) as exc:
         print(f"train: error: {exc}", file=sys.stderr)
         return 1
     total = time.perf_counter() - start
