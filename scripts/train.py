@@ -137,7 +137,8 @@ def main(argv=None) -> int:
     ap.add_argument("--spliced", type=int, default=0,
                     help="also train on this many spliced motions: a training trial whose "
                          "limbs come from other training trials (sequences.splice; validation "
-                         "trials never take part), rendered as the trials are; default 0")
+                         "trials never take part), rendered as the trials are; default 0 (24 "
+                         "did not help on real video: docs/accuracy.md, 2026-12-04)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2,
                     help="processes for rendering and descriptors, threads for the mixture, "

@@ -13,7 +13,11 @@ Measured before building this (a nearest-neighbour probe in the shipped model's 
 databases of equal size rendered and degraded as the training set is, one-off drivers): on
 Pose2Sim's four views the flexion error of the 16 nearest neighbours went 25.3 -> 20.9 degrees
 when recombined poses were added to the real ones, while the held-out CMU trials stayed level
-(16_11 12.8 -> 13.0, 06_06 11.0 -> 10.6, 06_08 9.9 -> 9.8).
+(16_11 12.8 -> 13.0, 06_06 11.0 -> 10.6, 06_08 9.9 -> 9.8). But a model trained with 24
+spliced motions (``scripts/train.py --spliced 24``: 19,152 more silhouettes beside the 71,545)
+did not carry that over (2026-12-04, docs/accuracy.md): Pose2Sim flexion 25.0 -> 26.3, and
+smoothed corr8 lower on the validation videos (mean of five 0.519 -> 0.500) and the held-out
+ones (16_11 0.801 -> 0.775). So it is not in the default recipe (``--spliced 0``).
 
 Limb joints are found by the skeleton: a joint belongs to the part of its nearest ancestor (or
 itself) among the pose joints (sequences.skeleton.POSE_JOINT_PART, FOLDED), so fingers go with
