@@ -430,3 +430,102 @@ def test_per_frame_messages_are_the_json_the_json_module_would_write(tmp_path, m
     for message in seen + [{"x": np.float64(0.1), "y": np.arange(3), "z": [1e-5, 1e300]}]:
         assert json.loads(frame_bytes(message)) == json.loads(mcap_module._to_bytes(
             json.loads(json.dumps(message, default=lambda a: a.tolist()))))
+
+
+def _record_with_smoothed(path: Path, frames: int = 6, kind: str = "smoothed"):
+    """Tracks 1 (every frame) and 2 (first half) streamed, then fed to the smoothed channel as
+    tracker.run does at the end: the same poses with `filtered` replaced by a 'smoothed' one
+    and the root moved, in frame order. Returns the smoothed poses given, by (frame, track)."""
+    rng = np.random.default_rng(3)
+    joints = pose_joints_m(np.r_[1.0, np.zeros(54)][None])[0]
+    given, streamed = {}, []
+    with McapSink(path) as sink:
+        for frame in range(frames):
+            for track in (1, 2) if frame < frames // 2 else (1,):
+                raw = _pose(rng)
+                pose = TrackedPose(frame, frame / FPS, track, raw, raw * 0.5, False,
+                                   joints + [track, 0.0, 0.1 * frame])
+                sink.write(pose)
+                streamed.append(pose)
+        channel = sink.smoothed_channel()
+        channel.pose_kind = kind
+        for pose in streamed:
+            smoothed = _pose(rng)
+            given[(pose.frame_index, pose.track_id)] = (smoothed, pose.joints_m[0])
+            channel.write(TrackedPose(pose.frame_index, pose.time_s, pose.track_id, pose.raw,
+                                      smoothed, pose.ambiguous, pose.joints_m))
+            channel.end_frame(pose.frame_index)
+        channel.close()
+        assert not sink.closed          # the channel closes nothing; the sink closes itself
+    return given
+
+
+def test_smoothed_tracks_are_recorded_on_their_own_topics(tmp_path):
+    path = tmp_path / "run.mcap"
+    given = _record_with_smoothed(path, frames=6)
+    messages = _messages(path)
+    by_topic: dict[str, list] = {}
+    for schema, channel, message in messages:
+        by_topic.setdefault(channel.topic, []).append((schema, json.loads(message.data)))
+        _check_required(json.loads(message.data), json.loads(schema.data))
+    assert {t: len(m) for t, m in by_topic.items()} == {
+        "/pose": 9, "/skeleton": 6, "/smoothed/pose": 9, "/smoothed/skeleton": 6}
+    assert by_topic["/smoothed/pose"][0][0].name == "silhouette_pose.SmoothedPose"
+    assert by_topic["/smoothed/skeleton"][0][0].name == "foxglove.SceneUpdate"
+    names = pose_vector_names()
+    for _, body in by_topic["/smoothed/pose"]:
+        smoothed, _ = given[(body["frame_index"], body["track_id"])]
+        got = np.array([body["smoothed"]["pose"][n] for n in names])
+        np.testing.assert_allclose(got, smoothed, atol=1e-6)
+    # Each skeleton is drawn from the smoothed angles, its root where the track's was.
+    scenes = [b for _, b in by_topic["/smoothed/skeleton"]]
+    assert [sorted(e["id"] for e in u["entities"]) for u in scenes] == \
+        [["track-1", "track-2"]] * 3 + [["track-1"]] * 3
+    assert [d["id"] for d in scenes[3]["deletions"]] == ["track-2"]
+    assert all(not u["deletions"] for i, u in enumerate(scenes) if i != 3)
+    smoothed, root = given[(4, 1)]
+    want = pose_joints_m(smoothed[None], root_position_m=root[None])[0]
+    spheres = scenes[4]["entities"][0]["spheres"][:18]
+    got = np.array([[s["pose"]["position"][k] for k in "xyz"] for s in spheres])
+    np.testing.assert_allclose(got, want[:, [0, 2, 1]] * [1, -1, 1], atol=1e-3)
+    # The streamed scenes are untouched: no deletion of every track before the smoothed ones.
+    assert [len(b["entities"]) for _, b in by_topic["/skeleton"]] == [2, 2, 2, 1, 1, 1]
+    assert all(not b["deletions"] for _, b in by_topic["/skeleton"][4:])
+
+
+def test_after_a_quick_exit_the_filtered_poses_are_not_recorded_again(tmp_path):
+    path = tmp_path / "run.mcap"
+    _record_with_smoothed(path, frames=4, kind="filtered")
+    assert {c.topic for _, c, _ in _messages(path)} == {"/pose", "/skeleton"}
+
+
+def test_smoothed_input_is_checked_and_the_stream_is_over(tmp_path):
+    joints = pose_joints_m(np.r_[1.0, np.zeros(54)][None])[0]
+    pose = TrackedPose(3, 0.12, 1, np.r_[1.0, np.zeros(54)], np.r_[1.0, np.zeros(54)], False,
+                       joints)
+    with McapSink(tmp_path / "run.mcap") as sink:
+        sink.write(pose)
+        with pytest.raises(SinkInputError, match="smoothed55"):
+            sink.write_smoothed(TrackedPose(3, 0.12, 1, pose.raw, np.zeros(54), False, joints))
+        sink.write_smoothed(pose)
+        with pytest.raises(SinkInputError, match="twice in frame 3"):
+            sink.write_smoothed(pose)
+        with pytest.raises(SinkInputError, match="went backwards"):
+            sink.write_smoothed(TrackedPose(2, 0.08, 1, pose.raw, pose.filtered, False, joints))
+        with pytest.raises(SinkInputError, match="stream is over"):
+            sink.write(TrackedPose(4, 0.16, 1, pose.raw, pose.filtered, False, joints))
+    with pytest.raises(SinkInputError, match="closed"):
+        sink.write_smoothed(pose)
+
+
+def test_smoothed_scene_updates_validate_against_foxglove_official_schema(tmp_path):
+    jsonschema = pytest.importorskip("jsonschema")
+    official = json.loads((ROOT / "tests" / "data" / "foxglove" / "SceneUpdate.json").read_text())
+    path = tmp_path / "run.mcap"
+    _record_with_smoothed(path, frames=6)
+    validator = jsonschema.Draft7Validator(official)
+    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/smoothed/skeleton"]
+    assert len(scenes) == 6
+    for update in scenes:
+        errors = sorted(validator.iter_errors(update), key=str)
+        assert not errors, errors[0]

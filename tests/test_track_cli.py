@@ -25,7 +25,7 @@ from mcap.reader import make_reader
 
 from regressor.pose_model import DEFAULT_MODEL_PATH
 from sequences.bvh import Motion, read_bvh
-from sequences.pose_vector import heading_deg
+from sequences.pose_vector import heading_deg, pose_vector_names
 from sequences.skeleton import CMU_JOINT_NAMES
 from tests.synthetic import cmu_motion
 from sequences.video import Actor, load_truth, write_video
@@ -254,12 +254,22 @@ def test_end_to_end_on_a_rendered_walk(tmp_path, walk_video):
     track = summary["tracks"][0]
     assert len(track["frames"]) >= 40                 # all but the first few frames
     assert np.array(track["pose"]).shape == (len(track["frames"]), 55)
-    # The MCAP reads back with CRCs checked, one pose message per tracked frame.
+    # The MCAP reads back with CRCs checked, one pose message per tracked frame, filtered
+    # and (written at the end) smoothed: the very poses the JSON holds.
     with open(out, "rb") as f:
         reader = make_reader(f, validate_crcs=True)
-        topics = [channel.topic for _, channel, _ in reader.iter_messages()]
-    assert topics.count("/pose") == len(track["frames"])
+        messages = [(channel.topic, json.loads(m.data)) for _, channel, m in
+                    reader.iter_messages(log_time_order=True)]
+    topics = [topic for topic, _ in messages]
+    assert topics.count("/pose") == topics.count("/smoothed/pose") == len(track["frames"])
     assert topics.count("/skeleton") >= len(track["frames"])
+    assert topics.count("/smoothed/skeleton") >= len(track["frames"])
+    smoothed = [m for topic, m in messages if topic == "/smoothed/pose"]
+    assert [m["frame_index"] for m in smoothed] == track["frames"]
+    names = pose_vector_names()
+    np.testing.assert_allclose([[m["smoothed"]["pose"][n] for n in names] for m in smoothed],
+                               track["pose"], atol=1e-5)
+    assert f"MCAP (filtered + smoothed poses): {out}" in result.stdout
     # The BVH parses back with our reader, one frame per tracked frame.
     files = sorted(bvh.glob("*.bvh"))
     assert len(files) == 1
@@ -371,11 +381,13 @@ def test_smooth_gives_smoother_tracks_than_the_forward_filter(tmp_path, walk_vid
 
 
 @pytest.mark.parametrize("options, keeps", [
-    (["--json", "t.json"], True), (["--bvh", "b"], True), (["--out", "t.mcap"], False),
-    (["--json", "t.json", "--no-smooth"], False), (["--out", "t.mcap", "--smooth"], False)])
-def test_histories_are_kept_only_for_a_smoothed_json_or_bvh(options, keeps):
-    """Smoothing needs each track's history (memory grows with the video): only a JSON or BVH
-    output takes smoothed tracks, so an MCAP-only run, or --no-smooth, keeps memory flat."""
+    (["--json", "t.json"], True), (["--bvh", "b"], True), (["--out", "t.mcap"], True),
+    (["--json", "t.json", "--no-smooth"], False), (["--out", "t.mcap", "--no-smooth"], False),
+    (["--view"], False)])
+def test_histories_are_kept_only_for_smoothed_outputs(options, keeps):
+    """Smoothing needs each track's history (memory grows with the video): the JSON, the BVH
+    and (since 2026-12-04, on its /smoothed topics) the MCAP take smoothed tracks; the live
+    view alone, or --no-smooth, keeps memory flat."""
     from tracker.cli import build_parser, tracker_settings
     args = build_parser().parse_args(["v.mp4", *options])
     assert tracker_settings(args).keep_history is keeps

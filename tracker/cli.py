@@ -111,9 +111,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--view", action="store_true", help="live 3-D skeletons in meshcat "
                     "(browser, 127.0.0.1), played at the video's own speed")
     ap.add_argument("--smooth", action=argparse.BooleanOptionalAction, default=True,
-                    help="the JSON and BVH outputs get each whole track RTS-smoothed (the "
-                    "default; it follows the body better than the frame-by-frame filter) or, "
-                    "with --no-smooth, the filtered poses the MCAP and the live view get")
+                    help="the JSON and BVH outputs get each whole track RTS-smoothed, and the "
+                    "MCAP gets it beside its filtered poses (the default; it follows the body "
+                    "better than the frame-by-frame filter) or, with --no-smooth, the JSON and "
+                    "BVH get the filtered poses the MCAP and the live view get")
     ap.add_argument("--model", type=Path, default=None, help="model file "
                     "(default: the shipped model)")
     ap.add_argument("--background", type=Path, metavar="IMAGE", help="an image of the empty "
@@ -243,8 +244,8 @@ def _check_collisions(args) -> None:
 def tracker_settings(args):
     """The tracker.pipeline.TrackerSettings the parsed options ask for."""
     from .pipeline import TrackerSettings
-    # Per-track histories are kept only to smooth a JSON or BVH output: without one (or with
-    # --no-smooth) memory stays flat.
+    # Per-track histories are kept only to smooth a JSON, BVH or MCAP output: without one
+    # (or with --no-smooth) memory stays flat.
     return TrackerSettings(max_people=args.max_people, keep_history=smoothing(args),
                            roll_deg=args.roll,
                            trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
@@ -252,9 +253,11 @@ def tracker_settings(args):
 
 
 def smoothing(args) -> bool:
-    """Whether smoothed tracks are written: --smooth (the default) and a JSON or BVH output
-    to write them to (the MCAP and the live view take poses frame by frame)."""
-    return (args.json is not None or args.bvh is not None) and bool(args.smooth)
+    """Whether smoothed tracks are written: --smooth (the default) and a JSON, BVH or MCAP
+    output to write them to (the MCAP gets them beside its filtered poses, at the end; the
+    live view takes poses frame by frame only)."""
+    return (args.json is not None or args.bvh is not None or args.out is not None) \
+        and bool(args.smooth)
 
 
 def _min_area_fraction(args) -> float:
@@ -267,9 +270,11 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
     """(factories of the sinks fed every frame, of those fed smoothed tracks at the end
     (the JSON and BVH outputs unless --no-smooth)). One entry per output option: adding an
     output is adding a line here."""
+    opened = {}
+
     def mcap():
         from .sinks.mcap import McapSink
-        return McapSink(args.out, metadata={
+        opened["mcap"] = McapSink(args.out, metadata={
             "video": {"path": str(args.video), "fps": source.fps,
                       "width": source.width, "height": source.height},
             "model": {"path": str(args.model), **model.summary()},
@@ -283,7 +288,13 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
                             else {"min_area_percent": args.min_area}),
                          **({} if args.background is None
                             else {"background": str(args.background)}),
-                         "note": "MCAP holds filtered (not smoothed) poses"}})
+                         "note": "/pose and /skeleton hold the filtered poses, frame by "
+                                 "frame; /smoothed/pose and /smoothed/skeleton (with smooth) "
+                                 "each whole track smoothed, written at the end"}})
+        return opened["mcap"]
+
+    def mcap_smoothed():
+        return opened["mcap"].smoothed_channel()     # opened after mcap(), in order
 
     def json_summary():
         from .sinks.json_summary import JsonSummarySink
@@ -299,10 +310,11 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
         from .sinks.meshcat_view import MeshcatView  # deferred: starts a server process
         return MeshcatView(realtime=True)    # tracking outruns the video: play at its speed
 
-    outputs = [(args.out, mcap, False), (args.json, json_summary, True),
-               (args.bvh, bvh, True), (args.view or None, view, False)]
+    outputs = [(args.out, mcap, False), (args.out, mcap_smoothed, True),
+               (args.json, json_summary, True), (args.bvh, bvh, True),
+               (args.view or None, view, False)]
     chosen = [(make, smoothable and smoothing(args)) for option, make, smoothable in outputs
-              if option is not None]
+              if option is not None and (make is not mcap_smoothed or smoothing(args))]
     return [m for m, later in chosen if not later], [m for m, later in chosen if later]
 
 
@@ -401,7 +413,8 @@ def _print_summary(args, source, result) -> None:
     # Which poses the JSON and BVH hold: smoothed, or filtered (--no-smooth, or a quick exit
     # after an interrupt, tracker.run.track_video).
     kind = "smoothed" if smoothing(args) and not result.interrupted else "filtered"
-    for path, what, poses in ((args.out, "MCAP", "filtered"), (args.json, "JSON", kind),
+    mcap_kind = "filtered + smoothed" if kind == "smoothed" else "filtered"
+    for path, what, poses in ((args.out, "MCAP", mcap_kind), (args.json, "JSON", kind),
                               (args.bvh, "BVH folder", kind)):
         if path is not None:
             print(f"  {what} ({poses} poses): {path}")

@@ -13,6 +13,12 @@ Channels (JSON messages, JSON-schema schemas):
   translucent in ambiguous frames, and a text label; every TRAIL_EVERY frames also each track's
   pelvis path over the last TRAIL_S seconds (id ``trail-<id>``), a line strip fading with age.
   Entities of tracks absent from the frame are deleted.
+- ``/smoothed/pose`` (schema ``silhouette_pose.SmoothedPose``) and ``/smoothed/skeleton``
+  (``foxglove.SceneUpdate``, drawn as ``/skeleton`` without trails): with ``track``'s --smooth
+  (the default), each whole track RTS-smoothed as the JSON and BVH get it, written at the end
+  of the run (:meth:`McapSink.smoothed_channel`); the smoothed output follows the body better
+  (README, Accuracy) but exists only once the video is done. Absent after a Ctrl-C's quick
+  exit and with --no-smooth.
 - Metadata records (e.g. ``video``, ``model``, ``settings``) given to the constructor.
 Log and publish times are the video time in nanoseconds.
 
@@ -55,6 +61,7 @@ from tracker.sinks.geometry import (
     check_pose,
     is_unfamiliar,
     known_novelty,
+    pose_joints_m,
     pose_label,
     track_colour,
     y_up_to_z_up,
@@ -65,7 +72,10 @@ if TYPE_CHECKING:
 
 POSE_TOPIC = "/pose"
 SKELETON_TOPIC = "/skeleton"
+SMOOTHED_POSE_TOPIC = "/smoothed/pose"
+SMOOTHED_SKELETON_TOPIC = "/smoothed/skeleton"
 POSE_SCHEMA_NAME = "silhouette_pose.TrackedPose"
+SMOOTHED_SCHEMA_NAME = "silhouette_pose.SmoothedPose"
 SCENE_SCHEMA_NAME = "foxglove.SceneUpdate"
 WORLD_FRAME = "world"
 #: Drawing sizes in metres.
@@ -199,6 +209,17 @@ def tracked_pose_schema() -> dict:
         "type": "array", "items": _NUMBER, "minItems": 2, "maxItems": 2,
         "description": "silhouette centroid (x, y) in pixels, when known"}
     return schema
+
+
+def smoothed_pose_schema() -> dict:
+    """JSON schema of the ``/smoothed/pose`` messages (see the module docstring)."""
+    return _object(SMOOTHED_SCHEMA_NAME, {
+        "timestamp": _time(),
+        "frame_index": {"type": "integer", "minimum": 0},
+        "time_s": {"type": "number", "description": "video time of the frame, seconds"},
+        "track_id": {"type": "integer", "minimum": 0},
+        "smoothed": tracked_pose_schema()["properties"]["filtered"],
+    }, "One tracked person's pose in one video frame, the whole track RTS-smoothed")
 
 
 # ---------------------------------------------------------------- message builders
@@ -424,6 +445,7 @@ class McapSink:
         self._frames_since_flush = 0
         self._trails: dict[int, deque] = {}   # track id -> (time s, x, y) of its root
         self.messages_written = 0
+        self._smoothed: _SmoothedScenes | None = None     # channels made on the first write
 
     def _start(self, writer: Writer, metadata) -> None:
         writer.start(profile="", library="silhouette-pose tracker")
@@ -435,6 +457,7 @@ class McapSink:
             SCENE_SCHEMA_NAME, "jsonschema", _to_bytes(scene_update_schema()))
         self._pose_channel = writer.register_channel(POSE_TOPIC, "json", pose_schema)
         self._scene_channel = writer.register_channel(SKELETON_TOPIC, "json", scene_schema)
+        self._scene_schema = scene_schema
 
     @property
     def closed(self) -> bool:
@@ -453,6 +476,8 @@ class McapSink:
         ambiguous, centroid_px = pose.ambiguous, pose.centroid_px
         if self.closed:
             raise SinkInputError(f"MCAP sink {self.path.name} is closed")
+        if self._smoothed is not None:
+            raise SinkInputError("poses streamed after the smoothed tracks: the stream is over")
         raw = check_pose("raw55", pose.raw)
         filtered = check_pose("filtered55", pose.filtered)
         joints = check_joints(pose.joints_m)
@@ -500,6 +525,63 @@ class McapSink:
     def end_frame(self, frame_index: int) -> None:
         """Nothing here: a frame's scene update is written when the next frame's first pose
         arrives, or on close."""
+
+    def smoothed_channel(self) -> "SmoothedChannel":
+        """A sink for ``track_video``'s smoothed_sinks that records what it is fed on
+        ``/smoothed/pose`` and ``/smoothed/skeleton`` of this file (module docstring)."""
+        return SmoothedChannel(self)
+
+    def write_smoothed(self, pose: TrackedPose) -> None:
+        """Record one track's smoothed pose in one frame: pose.filtered holds the smoothed
+        pose (55,) (as tracker.run feeds smoothed sinks), drawn from its own angles with the
+        root where pose.joints_m (18, 3) metres put it. Frames in non-decreasing order, after
+        every streamed pose. Raises SinkInputError on bad input or when the sink is closed."""
+        if self.closed:
+            raise SinkInputError(f"MCAP sink {self.path.name} is closed")
+        smoothed = check_pose("smoothed55", pose.filtered)
+        root = check_joints(pose.joints_m)[:1]
+        time_s = checked_time(pose.time_s)
+        frame_index, track_id = int(pose.frame_index), int(pose.track_id)
+        if frame_index < 0 or track_id < 0:
+            raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
+                                 f"{track_id}")
+        if self._smoothed is None:
+            self._write_scene()          # the streamed frames' last scene goes first
+            self._frame = None           # and the stream is over (write() refuses more)
+            writer = self._state["writer"]
+            self._smoothed = _SmoothedScenes(
+                writer.register_channel(SMOOTHED_POSE_TOPIC, "json", writer.register_schema(
+                    SMOOTHED_SCHEMA_NAME, "jsonschema", _to_bytes(smoothed_pose_schema()))),
+                writer.register_channel(SMOOTHED_SKELETON_TOPIC, "json", self._scene_schema))
+        scenes = self._smoothed
+        if scenes.frame is not None and frame_index < scenes.frame:
+            raise SinkInputError(f"frame_index went backwards: {frame_index} after "
+                                 f"{scenes.frame}")
+        if frame_index == scenes.frame and track_id in scenes.entities:
+            raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
+        time_ns = int(round(time_s * 1e9))
+        joints = pose_joints_m(smoothed[None], root_position_m=root)[0]
+        if frame_index != scenes.frame:
+            self._write_smoothed_scene()
+            scenes.frame, scenes.frame_ns = frame_index, time_ns
+        self._add(scenes.pose_channel, time_ns, {
+            "timestamp": _timestamp(time_ns), "frame_index": frame_index,
+            "time_s": float(time_s), "track_id": track_id,
+            "smoothed": _estimate(smoothed, self._names)})
+        scenes.entities[track_id] = skeleton_entity(track_id, time_ns, joints,
+                                                    bool(pose.ambiguous))
+
+    def _write_smoothed_scene(self) -> None:
+        """The collected smoothed frame's SceneUpdate, deleting tracks that left."""
+        scenes = self._smoothed
+        if scenes is None or scenes.frame is None:
+            return
+        stamp = _timestamp(scenes.frame_ns)
+        self._add(scenes.scene_channel, scenes.frame_ns, {
+            "deletions": [{"timestamp": stamp, "type": 0, "id": f"track-{t}"}
+                          for t in sorted(scenes.shown - set(scenes.entities))],
+            "entities": [scenes.entities[t] for t in sorted(scenes.entities)]})
+        scenes.shown, scenes.entities = set(scenes.entities), {}
 
     def add_metadata(self, name: str, values: Mapping[str, object]) -> None:
         """Add a metadata record (e.g. results known only at the end)."""
@@ -549,6 +631,7 @@ class McapSink:
             return
         try:
             self._write_scene()
+            self._write_smoothed_scene()
         finally:
             self._finalizer.detach()
             _finish(self._state)
@@ -558,3 +641,36 @@ class McapSink:
 
     def __exit__(self, *exc_info) -> None:
         self.close()
+
+
+class _SmoothedScenes:
+    """The smoothed channels' ids and the frame being collected (McapSink.write_smoothed)."""
+
+    def __init__(self, pose_channel: int, scene_channel: int):
+        self.pose_channel, self.scene_channel = pose_channel, scene_channel
+        self.frame: int | None = None
+        self.frame_ns = 0
+        self.entities: dict[int, dict] = {}
+        self.shown: set[int] = set()
+
+
+class SmoothedChannel:
+    """The Sink that ``track_video`` feeds smoothed tracks (smoothed_sinks) and that writes
+    them into an open McapSink (McapSink.write_smoothed). After a Ctrl-C's quick exit the run
+    feeds the filtered poses instead and says so (pose_kind = "filtered"): those are in the
+    file already, so they are not written again. Closing it closes nothing: the McapSink
+    itself is closed with the other sinks, after the smoothed tracks."""
+
+    def __init__(self, sink: McapSink):
+        self.sink = sink
+        self.pose_kind = "smoothed"
+
+    def write(self, pose: TrackedPose) -> None:
+        if self.pose_kind == "smoothed":
+            self.sink.write_smoothed(pose)
+
+    def end_frame(self, frame_index: int) -> None:
+        """Nothing: smoothed frames arrive at the end, in order."""
+
+    def close(self) -> None:
+        """Nothing: see the class docstring."""
