@@ -281,6 +281,8 @@ def main(argv=None) -> int:
 
         key = (f"v1-{config.digest()}" if views is None and args.clean else
                descriptor_cache_key(config, views, noisy=not args.clean))
+        if args.spliced and views is None:     # the views then name no trial: say which
+            key += "-" + files[-1].stem.split("-")[1]         # the spliced recipe's digest
         X, codebook = cached_descriptors(args.cache, key, compute)
         log(f"  descriptors ready ({time.perf_counter() - start:.0f} s so far)")
         layouts = None

@@ -453,7 +453,8 @@ def _record_with_smoothed(path: Path, frames: int = 6, kind: str = "smoothed"):
             smoothed = _pose(rng)
             given[(pose.frame_index, pose.track_id)] = (smoothed, pose.joints_m[0])
             channel.write(TrackedPose(pose.frame_index, pose.time_s, pose.track_id, pose.raw,
-                                      smoothed, pose.ambiguous, pose.joints_m))
+                                      smoothed, pose.frame_index % 2 == 0, pose.joints_m,
+                                      novelty=2.0 if pose.frame_index == 1 else 0.5))
             channel.end_frame(pose.frame_index)
         channel.close()
         assert not sink.closed          # the channel closes nothing; the sink closes itself
@@ -488,7 +489,11 @@ def test_smoothed_tracks_are_recorded_on_their_own_topics(tmp_path):
     spheres = scenes[4]["entities"][0]["spheres"][:18]
     got = np.array([[s["pose"]["position"][k] for k in "xyz"] for s in spheres])
     np.testing.assert_allclose(got, want[:, [0, 2, 1]] * [1, -1, 1], atol=1e-3)
-    # The streamed scenes are untouched: no deletion of every track before the smoothed ones.
+    # Ambiguous frames translucent, unfamiliar ones labelled, as on /skeleton.
+    flags = [{m["key"]: m["value"] for m in u["entities"][0]["metadata"]} for u in scenes]
+    assert [f["ambiguous"] for f in flags] == ["true", "false"] * 3
+    assert [f["unfamiliar"] for f in flags] == ["false", "true"] + ["false"] * 4
+        # The streamed scenes are untouched: no deletion of every track before the smoothed ones.
     assert [len(b["entities"]) for _, b in by_topic["/skeleton"]] == [2, 2, 2, 1, 1, 1]
     assert all(not b["deletions"] for _, b in by_topic["/skeleton"][4:])
 

@@ -20,7 +20,8 @@ def _motion(T: int, value: float, fps: float = 120.0, source: str = "m"):
     """Every joint angle of frame t is value + t + 0.25 (so a copied stretch is recognisable;
     not whole numbers, which read_bvh would take for an added T-pose)."""
     euler = value + 0.25 + np.arange(T, dtype=float)[:, None, None] + np.zeros((T, J, 3))
-    return cmu_motion(euler, np.tile([0.0, 17.0, 0.0], (T, 1)), fps=fps, source=source)
+    root = np.c_[value + np.arange(T), np.full(T, 17.0), np.zeros(T)]   # moves frame by frame
+    return cmu_motion(euler, root, fps=fps, source=source)
 
 
 def test_joint_parts_follow_the_skeleton():
@@ -85,6 +86,8 @@ def test_spliced_motions_follow_their_recipes_and_repeat(tmp_path):
         torso = parts == "torso"
         np.testing.assert_array_equal(motion.euler_deg[:, torso],
                                       originals[name].euler_deg[start:start + 120, torso])
+        np.testing.assert_array_equal(motion.root_position,
+                                      originals[name].root_position[start:start + 120])
         for limb in LIMBS:
             source, first = recipe.get(limb, recipe["base"])
             sel = parts == limb
@@ -108,6 +111,11 @@ def test_written_files_carry_the_recipe_in_their_names(tmp_path):
     recipes = json.loads(next((tmp_path / "out").glob("*.json")).read_text())
     assert sorted(recipes) == sorted(p.stem for p in out)
     assert read_bvh(out[1], fps=None).n_frames == 120
+    # Already written: kept as they are, not made again.
+    out[0].write_text(out[0].read_text() + "\n")
+    stamp = out[0].read_text()
+    again = write_spliced_files(files, SpliceConfig(n_motions=2, seconds=1.0), tmp_path / "out")
+    assert again == out and out[0].read_text() == stamp
     other = write_spliced_files(files, SpliceConfig(n_motions=2, seconds=1.0, seed=1),
                                 tmp_path / "out")
     assert {p.stem for p in other}.isdisjoint({p.stem for p in out})

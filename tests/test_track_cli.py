@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from regressor.pose_model import DEFAULT_MODEL_PATH
+from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from sequences.bvh import Motion, read_bvh
 from sequences.pose_vector import heading_deg, pose_vector_names
 from sequences.skeleton import CMU_JOINT_NAMES
@@ -275,6 +275,41 @@ def test_end_to_end_on_a_rendered_walk(tmp_path, walk_video):
     assert len(files) == 1
     motion = read_bvh(files[0], fps=None)
     assert motion.n_frames == track["frames"][-1] - track["frames"][0] + 1
+
+
+def test_an_mcap_with_no_smooth_holds_the_filtered_topics_only(tmp_path, walk_video):
+    out = tmp_path / "plain.mcap"
+    result = _track(walk_video, "--out", out, "--no-smooth", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    with open(out, "rb") as f:
+        topics = {channel.topic for _, channel, _ in
+                  make_reader(f, validate_crcs=True).iter_messages()}
+    assert topics == {"/pose", "/skeleton"}
+    assert f"MCAP (filtered poses): {out}" in result.stdout
+
+
+def test_a_failing_smoothed_output_costs_the_others_nothing(tmp_path, walk_video):
+    """A sink that fails while the smoothed tracks are written (a full disk under the MCAP)
+    is fed no more; the sinks after it still get every pose, and the run's error names it."""
+    from tracker import PoseTracker, track_video
+    from tracker.pipeline import TrackerSettings
+    from tracker.run import OutputError
+    from tracker.sinks import PoseRecorder
+
+    class Failing(PoseRecorder):
+        def write(self, pose):
+            if len(self.poses) == 5:
+                raise OSError("No space left on device")
+            super().write(pose)
+
+    failing, after = Failing(), PoseRecorder()
+    tracker = PoseTracker(load_pose_model(), 30.0, TrackerSettings(keep_history=True))
+    with pytest.raises(OutputError, match="Failing: No space left on device"):
+        track_video(walk_video, tracker, smoothed_sinks=[failing, after])
+    assert len(failing.poses) == 5
+    assert len(after.poses) >= 40                      # every tracked frame
+    smoothed = tracker.smoothed_track(after.poses[0].track_id)
+    np.testing.assert_allclose([p.filtered for p in after.poses], smoothed[:len(after.poses)])
 
 
 def test_accuracy_on_held_out_real_walk(tmp_path, cmu_bvh_dir):

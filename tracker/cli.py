@@ -268,8 +268,10 @@ def _min_area_fraction(args) -> float:
 
 def _sink_factories(args, source, model) -> tuple[list, list]:
     """(factories of the sinks fed every frame, of those fed smoothed tracks at the end
-    (the JSON and BVH outputs unless --no-smooth)). One entry per output option: adding an
-    output is adding a line here."""
+    (the JSON, the BVH and the MCAP's smoothed topics unless --no-smooth)). One entry per
+    output (the MCAP has two: its frames and its smoothed topics): adding an output is adding
+    a line here. The streamed sinks are opened first (tracker.sinks.open_sinks, in order), so
+    the MCAP's smoothed topics find the MCAP open."""
     opened = {}
 
     def mcap():
@@ -310,11 +312,13 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
         from .sinks.meshcat_view import MeshcatView  # deferred: starts a server process
         return MeshcatView(realtime=True)    # tracking outruns the video: play at its speed
 
-    outputs = [(args.out, mcap, False), (args.out, mcap_smoothed, True),
-               (args.json, json_summary, True), (args.bvh, bvh, True),
+    # The MCAP's smoothed topics come last of the smoothed outputs: the biggest write, and
+    # the one the others least need to wait for.
+    outputs = [(args.out, mcap, False), (args.json, json_summary, True),
+               (args.bvh, bvh, True), (args.out if smoothing(args) else None, mcap_smoothed, True),
                (args.view or None, view, False)]
     chosen = [(make, smoothable and smoothing(args)) for option, make, smoothable in outputs
-              if option is not None and (make is not mcap_smoothed or smoothing(args))]
+              if option is not None]
     return [m for m, later in chosen if not later], [m for m, later in chosen if later]
 
 

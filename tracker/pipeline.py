@@ -135,8 +135,8 @@ class TrackerSettings:
     frames spread over the video for the median background. fov_deg: the horizontal field of
     view assumed for the focal length (direction of travel, ground position). keep_history:
     keep every track's filter inputs for PoseTracker.smoothed_track (about 0.6 KB per person
-    per frame, so memory grows with the video); ``track`` keeps them only to smooth a JSON
-    or BVH output (its default; not with --no-smooth).
+    per frame, so memory grows with the video); ``track`` keeps them only to smooth a JSON,
+    BVH or MCAP output (its default; not with --no-smooth).
     novelty: give each pose the estimator's novelty (PoseModel.novelty: how unlike the
     training silhouettes its input is), and count each track's frames above
     UNFAMILIAR_NOVELTY. For the shipped model it reuses the heading index's nearest

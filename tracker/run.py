@@ -72,9 +72,10 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     Sinks with a ``write_frame(frame_index, time_s, frame, people)`` method also get each
     frame (BGR uint8 (H, W, 3), not to be modified) and its people (track id -> PersonMask),
     after its poses. smoothed_sinks: fed at the end with each whole track RTS-smoothed
-    (``track``'s JSON and BVH unless --no-smooth), in frame order; after a Ctrl-C, which asks
-    for a quick exit, with the filtered poses instead (a sink with a ``pose_kind``
-    attribute, the JSON's, is told "filtered", so its file says so). Every sink's end_frame()
+    (``track``'s JSON, BVH and the MCAP's smoothed topics unless --no-smooth), in frame order
+    (a sink that fails there is fed no more, the others are, and OutputError names it);
+    after a Ctrl-C, which asks for a quick exit, with the filtered poses instead (a sink with
+    a ``pose_kind`` attribute, the JSON's, is told "filtered", so its file says so). Every sink's end_frame()
     is called after each frame. All sinks are closed on return, also on Ctrl-C, which stops the
     loop (the result says interrupted); while they are being closed, further Ctrl-C, SIGTERM and
     SIGHUP are held back (and mark the run interrupted), so a second Ctrl-C cannot cut an output
@@ -157,13 +158,14 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                         worker.close()
                     if progress is not None:
                         progress.close()
+                    fed = []
                     try:
                         if recorder is not None and not interrupted:
-                            _write_smoothed(tracker, recorder, smoothed_sinks)
+                            fed = _write_smoothed(tracker, recorder, smoothed_sinks)
                         elif recorder is not None:
-                            _write_filtered(recorder, smoothed_sinks)
+                            fed = _write_filtered(recorder, smoothed_sinks)
                     finally:
-                        problems = close_sinks(list(sinks) + list(smoothed_sinks))
+                        problems = fed + close_sinks(list(sinks) + list(smoothed_sinks))
                         closed = True
                 interrupted = interrupted or bool(held)
             except KeyboardInterrupt:
@@ -286,23 +288,36 @@ def _stop_signals_blocked() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
-def _write_filtered(recorder: PoseRecorder, sinks: Sequence[Sink]) -> None:
+def _write_filtered(recorder: PoseRecorder, sinks: Sequence[Sink]) -> list[str]:
     """Feed the recorded (filtered) poses to the sinks in frame order, telling a sink with a
-    ``pose_kind`` attribute that they are filtered."""
+    ``pose_kind`` attribute that they are filtered; returns _feed's problems."""
     for sink in sinks:
         if hasattr(sink, "pose_kind"):
             sink.pose_kind = "filtered"
-    for pose in recorder.poses:
-        for sink in sinks:
-            sink.write(pose)
+    return _feed(recorder.poses, sinks)
 
 
-def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]) -> None:
-    """RTS-smooth every track's poses and feed them to the sinks in frame order."""
+def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]
+                    ) -> list[str]:
+    """RTS-smooth every track's poses and feed them to the sinks in frame order; returns
+    _feed's problems."""
     records = recorder.by_track()
     smoothed = {track_id: tracker.smoothed_track(track_id) for track_id in records}
     order = sorted((p.frame_index, tid, i) for tid, ps in records.items() for i, p in enumerate(ps))
-    for _, track_id, i in order:
-        pose = replace(records[track_id][i], filtered=smoothed[track_id][i])
-        for sink in sinks:
-            sink.write(pose)
+    return _feed((replace(records[track_id][i], filtered=smoothed[track_id][i])
+                  for _, track_id, i in order), sinks)
+
+
+def _feed(poses, sinks: Sequence[Sink]) -> list[str]:
+    """Write every pose to every sink; a sink that fails (a full disk under the MCAP) is fed
+    no more, the others are fed on, so one output's failure costs no other its poses.
+    Returns one "Kind: message" line per failed sink."""
+    live, problems = list(sinks), []
+    for pose in poses:
+        for sink in list(live):
+            try:
+                sink.write(pose)
+            except Exception as exc:
+                live.remove(sink)
+                problems.append(f"{type(sink).__name__}: {exc}")
+    return problems

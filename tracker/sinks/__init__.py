@@ -8,7 +8,8 @@ Optional, for sinks that show the video (MeshcatView): write_frame(frame_index, 
 people), after the frame's poses: the frame (BGR uint8, read only) and track id -> PersonMask.
 Optional, for sinks that record what their poses are (JsonSummarySink): a ``pose_kind``
 attribute, "filtered" or "smoothed"; a sink given smoothed poses is told "filtered" when a
-Ctrl-C makes tracker.run.track_video write the filtered ones instead.
+Ctrl-C makes tracker.run.track_video write the filtered ones instead (the MCAP's
+SmoothedChannel then writes nothing: the filtered poses are in its file already).
 
 Sinks: McapSink (mcap.py), BVHSink (bvh.py), JsonSummarySink (json_summary.py), MeshcatView
 (meshcat_view.py), and PoseRecorder here (keeps the poses in memory, e.g. in a notebook).

@@ -14,7 +14,8 @@ Channels (JSON messages, JSON-schema schemas):
   pelvis path over the last TRAIL_S seconds (id ``trail-<id>``), a line strip fading with age.
   Entities of tracks absent from the frame are deleted.
 - ``/smoothed/pose`` (schema ``silhouette_pose.SmoothedPose``) and ``/smoothed/skeleton``
-  (``foxglove.SceneUpdate``, drawn as ``/skeleton`` without trails): with ``track``'s --smooth
+  (``foxglove.SceneUpdate``, drawn as ``/skeleton`` without trails; its chunks close by size
+  only, 64 KB by default): with ``track``'s --smooth
   (the default), each whole track RTS-smoothed as the JSON and BVH get it, written at the end
   of the run (:meth:`McapSink.smoothed_channel`); the smoothed output follows the body better
   (README, Accuracy) but exists only once the video is done. Absent after a Ctrl-C's quick
@@ -484,13 +485,7 @@ class McapSink:
         time_s = checked_time(time_s)
         novelty = known_novelty(getattr(pose, "novelty", None))
         frame_index, track_id = int(frame_index), int(track_id)
-        if frame_index < 0 or track_id < 0:
-            raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
-                                 f"{track_id}")
-        if self._frame is not None and frame_index < self._frame:
-            raise SinkInputError(f"frame_index went backwards: {frame_index} after {self._frame}")
-        if frame_index == self._frame and track_id in self._entities:
-            raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
+        _check_order(frame_index, track_id, self._frame, self._entities)
         time_ns = int(round(time_s * 1e9))
         message = {
             "timestamp": _timestamp(time_ns), "frame_index": frame_index,
@@ -541,11 +536,13 @@ class McapSink:
         smoothed = check_pose("smoothed55", pose.filtered)
         root = check_joints(pose.joints_m)[:1]
         time_s = checked_time(pose.time_s)
+        unfamiliar = is_unfamiliar(known_novelty(getattr(pose, "novelty", None)))
         frame_index, track_id = int(pose.frame_index), int(pose.track_id)
-        if frame_index < 0 or track_id < 0:
-            raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
-                                 f"{track_id}")
-        if self._smoothed is None:
+        scenes = self._smoothed
+        if scenes is not None:
+            _check_order(frame_index, track_id, scenes.frame, scenes.entities)
+        else:
+            _check_order(frame_index, track_id, None, {})
             self._write_scene()          # the streamed frames' last scene goes first
             self._frame = None           # and the stream is over (write() refuses more)
             writer = self._state["writer"]
@@ -554,11 +551,6 @@ class McapSink:
                     SMOOTHED_SCHEMA_NAME, "jsonschema", _to_bytes(smoothed_pose_schema()))),
                 writer.register_channel(SMOOTHED_SKELETON_TOPIC, "json", self._scene_schema))
         scenes = self._smoothed
-        if scenes.frame is not None and frame_index < scenes.frame:
-            raise SinkInputError(f"frame_index went backwards: {frame_index} after "
-                                 f"{scenes.frame}")
-        if frame_index == scenes.frame and track_id in scenes.entities:
-            raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
         time_ns = int(round(time_s * 1e9))
         joints = pose_joints_m(smoothed[None], root_position_m=root)[0]
         if frame_index != scenes.frame:
@@ -569,7 +561,7 @@ class McapSink:
             "time_s": float(time_s), "track_id": track_id,
             "smoothed": _estimate(smoothed, self._names)})
         scenes.entities[track_id] = skeleton_entity(track_id, time_ns, joints,
-                                                    bool(pose.ambiguous))
+                                                    bool(pose.ambiguous), unfamiliar)
 
     def _write_smoothed_scene(self) -> None:
         """The collected smoothed frame's SceneUpdate, deleting tracks that left."""
@@ -641,6 +633,18 @@ class McapSink:
 
     def __exit__(self, *exc_info) -> None:
         self.close()
+
+
+def _check_order(frame_index: int, track_id: int, frame: int | None, entities: dict) -> None:
+    """SinkInputError unless (frame_index, track_id) may follow a stream whose frame being
+    collected is ``frame`` (None: none yet) with these tracks' entities already in it."""
+    if frame_index < 0 or track_id < 0:
+        raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
+                             f"{track_id}")
+    if frame is not None and frame_index < frame:
+        raise SinkInputError(f"frame_index went backwards: {frame_index} after {frame}")
+    if frame_index == frame and track_id in entities:
+        raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
 
 
 class _SmoothedScenes:
