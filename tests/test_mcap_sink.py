@@ -183,18 +183,23 @@ def test_trails_follow_the_pelvis_and_fade(tmp_path):
     assert all(p["z"] < 0.01 for p in trail["points"])          # on the ground
 
 
-def test_every_scene_update_validates_against_foxglove_official_schema(tmp_path):
-    """Foxglove's own SceneUpdate schema (@foxglove/schemas 2.1.0, vendored under tests/data)."""
+def _assert_official_scene_updates(scenes: list) -> None:
+    """Every SceneUpdate validates against Foxglove's own schema (@foxglove/schemas 2.1.0,
+    vendored under tests/data)."""
     jsonschema = pytest.importorskip("jsonschema")
     official = json.loads((ROOT / "tests" / "data" / "foxglove" / "SceneUpdate.json").read_text())
-    path = tmp_path / "run.mcap"
-    _record(path, frames=25)
     validator = jsonschema.Draft7Validator(official)
-    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/skeleton"]
-    assert len(scenes) == 25
     for update in scenes:
         errors = sorted(validator.iter_errors(update), key=str)
         assert not errors, errors[0]
+
+
+def test_every_scene_update_validates_against_foxglove_official_schema(tmp_path):
+    path = tmp_path / "run.mcap"
+    _record(path, frames=25)
+    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/skeleton"]
+    assert len(scenes) == 25
+    _assert_official_scene_updates(scenes)
 
 
 def test_pose_message_holds_named_values_times_in_ns_and_headings(tmp_path):
@@ -524,13 +529,8 @@ def test_smoothed_input_is_checked_and_the_stream_is_over(tmp_path):
 
 
 def test_smoothed_scene_updates_validate_against_foxglove_official_schema(tmp_path):
-    jsonschema = pytest.importorskip("jsonschema")
-    official = json.loads((ROOT / "tests" / "data" / "foxglove" / "SceneUpdate.json").read_text())
     path = tmp_path / "run.mcap"
     _record_with_smoothed(path, frames=6)
-    validator = jsonschema.Draft7Validator(official)
     scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/smoothed/skeleton"]
     assert len(scenes) == 6
-    for update in scenes:
-        errors = sorted(validator.iter_errors(update), key=str)
-        assert not errors, errors[0]
+    _assert_official_scene_updates(scenes)
