@@ -67,29 +67,27 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                 workers: int = 1) -> TrackRun:
     """Track every frame of ``source`` (an opened video or a path) into ``sinks``.
 
-    tracker: a PoseTracker (None: the shipped model with default settings). progress: an
-    object with update(people_in_view) and close(), e.g. tracker.progress.Progress.
-    Sinks with a ``write_frame(frame_index, time_s, frame, people)`` method also get each
-    frame (BGR uint8 (H, W, 3), not to be modified) and its people (track id -> PersonMask),
-    after its poses. smoothed_sinks: fed at the end with each whole track RTS-smoothed
-    (``track``'s JSON, BVH and the MCAP's smoothed topics unless --no-smooth), in frame order
-    (a sink that fails there is fed no more, the others are, and OutputError names it);
-    after a Ctrl-C, which asks for a quick exit, with the filtered poses instead (a sink with
-    a ``pose_kind`` attribute, the JSON's, is told "filtered", so its file says so). Every sink's end_frame()
-    is called after each frame. All sinks are closed on return, also on Ctrl-C, which stops the
-    loop (the result says interrupted); while they are being closed, further Ctrl-C, SIGTERM and
-    SIGHUP are held back (and mark the run interrupted), so a second Ctrl-C cannot cut an output
-    short. OutputError if some could not be closed. background: an image of the empty scene (a
-    clean plate, BGR uint8 at the video's size, ``track --background``), trusted everywhere;
-    None learns the scene from frames spread over the video (see :func:`_prime`).
+    tracker: a PoseTracker (None: the shipped model with default settings). progress: an object
+    with update(people_in_view) and close(), e.g. tracker.progress.Progress. Sinks with a
+    ``write_frame(frame_index, time_s, frame, people)`` method also get each frame (BGR uint8
+    (H, W, 3), not to be modified) and its people (track id -> PersonMask), after its poses.
+    smoothed_sinks: fed at the end with each whole track RTS-smoothed (``track``'s JSON, BVH and
+    the MCAP's smoothed topics unless --no-smooth), in frame order (a sink that fails there is
+    fed no more, the others are, and OutputError names it); after a Ctrl-C, which asks for a
+    quick exit, with the filtered poses instead (a sink with a ``pose_kind`` attribute, the
+    JSON's, is told "filtered", so its file says so). Every sink's end_frame() is called after
+    each frame. All sinks are closed on return, also on Ctrl-C, which stops the loop (the result
+    says interrupted); while they are being closed, further Ctrl-C, SIGTERM and SIGHUP are held
+    back (and mark the run interrupted), so a second Ctrl-C cannot cut an output short.
+    OutputError if some could not be closed. background: an image of the empty scene (a clean
+    plate, BGR uint8 at the video's size, ``track --background``), trusted everywhere; None
+    learns the scene from frames spread over the video (see :func:`_prime`).
     tracker.stage_seconds gains "background" (sampling the video and priming, the start-up
-    cost), "decode" and "outputs".
-    workers: 2 finds and describes the people in a second process (tracker.frame_worker)
-    while this one tracks them, for the same results on two cores; sinks that show the video
-    get no frames from it, so with one of those (and where processes cannot fork) the run
-    stays in one process. The tracker's stages then include the worker's, and "waiting" (for
-    it).
-    """
+    cost), "decode" and "outputs". workers: 2 finds and describes the people in a second process
+    (tracker.frame_worker) while this one tracks them, for the same results on two cores; sinks
+    that show the video get no frames from it, so with one of those (and where processes cannot
+    fork) the run stays in one process. The tracker's stages then include the worker's, and
+    "waiting" (for it)."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):

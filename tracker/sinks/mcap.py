@@ -15,11 +15,11 @@ Channels (JSON messages, JSON-schema schemas):
   Entities of tracks absent from the frame are deleted.
 - ``/smoothed/pose`` (schema ``silhouette_pose.SmoothedPose``) and ``/smoothed/skeleton``
   (``foxglove.SceneUpdate``, drawn as ``/skeleton`` without trails; its chunks close by size
-  only, 64 KB by default): with ``track``'s --smooth
-  (the default), each whole track RTS-smoothed as the JSON and BVH get it, written at the end
-  of the run (:meth:`McapSink.smoothed_channel`); the smoothed output follows the body better
-  (README, Accuracy) but exists only once the video is done. Absent after a Ctrl-C's quick
-  exit and with --no-smooth.
+  only, 64 KB by default): with ``track``'s --smooth (the default), each whole track
+  RTS-smoothed as the JSON and BVH get it, written at the end of the run
+  (:meth:`McapSink.smoothed_channel`); the smoothed output follows the body better (README,
+  Accuracy) but exists only once the video is done. Absent after a Ctrl-C's quick exit and
+  with --no-smooth.
 - Metadata records (e.g. ``video``, ``model``, ``settings``) given to the constructor.
 Log and publish times are the video time in nanoseconds.
 
