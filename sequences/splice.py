@@ -17,7 +17,9 @@ when recombined poses were added to the real ones, while the held-out CMU trials
 spliced motions (``scripts/train.py --spliced 24``: 19,152 more silhouettes beside the 71,545)
 did not carry that over (2026-12-04, docs/accuracy.md): Pose2Sim flexion 25.0 -> 26.3, and
 smoothed corr8 lower on the validation videos (mean of five 0.519 -> 0.500) and the held-out
-ones (16_11 0.801 -> 0.775). So it is not in the default recipe (``--spliced 0``).
+ones (16_11 0.801 -> 0.775). So it is not in the default recipe (``--spliced 0``). An
+earlier try of made-up trials with one limb network (regressor/limb_net.py, "New
+combinations", "Wider combinations", 2026-12-03) had found the same on the validation rows.
 
 Limb joints are found by the skeleton: a joint belongs to the part of its nearest ancestor (or
 itself) among the pose joints (sequences.skeleton.POSE_JOINT_PART, FOLDED), so fingers go with
