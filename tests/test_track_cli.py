@@ -312,6 +312,29 @@ def test_a_failing_smoothed_output_costs_the_others_nothing(tmp_path, walk_video
     np.testing.assert_allclose([p.filtered for p in after.poses], smoothed[:len(after.poses)])
 
 
+def test_a_ctrl_c_while_the_outputs_close_still_counts_them_smoothed(tmp_path, walk_video):
+    """A Ctrl-C held back while the smoothed tracks are written marks the run interrupted, but
+    the outputs did get the smoothed tracks, and the run says so (the summary's labels)."""
+    from tracker import PoseTracker, track_video
+    from tracker.pipeline import TrackerSettings
+    from tracker.sinks import PoseRecorder
+
+    class CtrlC(PoseRecorder):
+        def write(self, pose):
+            if not self.poses:
+                os.kill(os.getpid(), signal.SIGINT)       # held back until the outputs close
+            super().write(pose)
+
+    sink = CtrlC()
+    tracker = PoseTracker(load_pose_model(), 30.0, TrackerSettings(keep_history=True))
+    result = track_video(walk_video, tracker, smoothed_sinks=[sink])
+    assert result.interrupted and result.smoothed
+    smoothed = tracker.smoothed_track(sink.poses[0].track_id)
+    np.testing.assert_allclose([p.filtered for p in sink.poses], smoothed)
+    plain = track_video(walk_video, PoseTracker(load_pose_model(), 30.0))
+    assert not plain.interrupted and not plain.smoothed     # nothing to smooth for
+
+
 def test_accuracy_on_held_out_real_walk(tmp_path, cmu_bvh_dir):
     """16_11 (never trained on) seen from 60 degrees: joint angles and heading near the truth."""
     video = tmp_path / "16_11.mp4"

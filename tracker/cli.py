@@ -415,8 +415,8 @@ def _print_summary(args, source, result) -> None:
                       if counts.unfamiliar else "")
         print(f"  track {track_id}: {counts.poses} frames{unfamiliar}")
     # Which poses the JSON and BVH hold: smoothed, or filtered (--no-smooth, or a quick exit
-    # after an interrupt, tracker.run.track_video).
-    kind = "smoothed" if smoothing(args) and not result.interrupted else "filtered"
+    # after an interrupt, tracker.run.track_video; not a Ctrl-C while the outputs closed).
+    kind = "smoothed" if result.smoothed else "filtered"
     mcap_kind = "filtered + smoothed" if kind == "smoothed" else "filtered"
     for path, what, poses in ((args.out, "MCAP", mcap_kind), (args.json, "JSON", kind),
                               (args.bvh, "BVH folder", kind)):

@@ -47,13 +47,17 @@ class TrackRun:
     closed outputs), interrupted by Ctrl-C (or SIGTERM turned into it), the tracker used, and
     per track id the poses handed to the outputs and how many of them were unfamiliar
     (TrackedPose.unfamiliar). After an interrupt the tracker may have reached a few frames
-    more (the rest of a batch) than the outputs got: ``written`` counts what they hold."""
+    more (the rest of a batch) than the outputs got: ``written`` counts what they hold.
+    smoothed: whether the smoothed sinks were fed the smoothed tracks (False after a quick
+    exit, which feeds them the filtered poses, or with none); a Ctrl-C held back while the
+    outputs were being closed marks the run interrupted after they were."""
 
     frames: int
     elapsed_s: float
     interrupted: bool
     tracker: PoseTracker
     written: dict[int, WrittenPoses] = field(default_factory=dict)
+    smoothed: bool = False
 
     @property
     def fps(self) -> float:
@@ -148,7 +152,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        closed = False
+        closed, smoothed = False, False
         while not closed:
             try:
                 with _signals_held() as held:
@@ -160,6 +164,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                     try:
                         if recorder is not None and not interrupted:
                             fed = _write_smoothed(tracker, recorder, smoothed_sinks)
+                            smoothed = True
                         elif recorder is not None:
                             fed = _write_filtered(recorder, smoothed_sinks)
                     finally:
@@ -173,7 +178,8 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                 interrupted = True
     if problems:
         raise OutputError("could not finish outputs: " + "; ".join(problems))
-    return TrackRun(frames, time.perf_counter() - started, interrupted, tracker, written)
+    return TrackRun(frames, time.perf_counter() - started, interrupted, tracker, written,
+                    smoothed)
 
 
 def _in_process(source: VideoSource, tracker: PoseTracker, batch: int) -> Iterator[tuple]:
