@@ -183,25 +183,6 @@ def test_trails_follow_the_pelvis_and_fade(tmp_path):
     assert all(p["z"] < 0.01 for p in trail["points"])          # on the ground
 
 
-def _assert_official_scene_updates(scenes: list) -> None:
-    """Every SceneUpdate validates against Foxglove's own schema (@foxglove/schemas 2.1.0,
-    vendored under tests/data)."""
-    jsonschema = pytest.importorskip("jsonschema")
-    official = json.loads((ROOT / "tests" / "data" / "foxglove" / "SceneUpdate.json").read_text())
-    validator = jsonschema.Draft7Validator(official)
-    for update in scenes:
-        errors = sorted(validator.iter_errors(update), key=str)
-        assert not errors, errors[0]
-
-
-def test_every_scene_update_validates_against_foxglove_official_schema(tmp_path):
-    path = tmp_path / "run.mcap"
-    _record(path, frames=25)
-    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/skeleton"]
-    assert len(scenes) == 25
-    _assert_official_scene_updates(scenes)
-
-
 def test_pose_message_holds_named_values_times_in_ns_and_headings(tmp_path):
     path = tmp_path / "run.mcap"
     rng = np.random.default_rng(3)
@@ -528,9 +509,19 @@ def test_smoothed_input_is_checked_and_the_stream_is_over(tmp_path):
         sink.write_smoothed(pose)
 
 
-def test_smoothed_scene_updates_validate_against_foxglove_official_schema(tmp_path):
+@pytest.mark.parametrize("record, topic, frames", [
+    (_record, "/skeleton", 25), (_record_with_smoothed, "/smoothed/skeleton", 6)])
+def test_every_scene_update_validates_against_foxglove_official_schema(tmp_path, record, topic,
+                                                                        frames):
+    """Foxglove's own SceneUpdate schema (@foxglove/schemas 2.1.0, vendored under tests/data),
+    on both skeleton topics."""
+    jsonschema = pytest.importorskip("jsonschema")
+    official = json.loads((ROOT / "tests" / "data" / "foxglove" / "SceneUpdate.json").read_text())
     path = tmp_path / "run.mcap"
-    _record_with_smoothed(path, frames=6)
-    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == "/smoothed/skeleton"]
-    assert len(scenes) == 6
-    _assert_official_scene_updates(scenes)
+    record(path, frames=frames)
+    validator = jsonschema.Draft7Validator(official)
+    scenes = [json.loads(m.data) for s, c, m in _messages(path) if c.topic == topic]
+    assert len(scenes) == frames
+    for update in scenes:
+        errors = sorted(validator.iter_errors(update), key=str)
+        assert not errors, errors[0]

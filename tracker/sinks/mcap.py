@@ -176,15 +176,20 @@ def scene_update_schema() -> dict:
                    "An update to the entities displayed in a 3D scene")
 
 
-def tracked_pose_schema() -> dict:
-    """JSON schema of the ``/pose`` messages (see the module docstring)."""
+def _estimate_schema() -> dict:
+    """JSON schema of one pose estimate (_estimate): heading, its norm, the 55 values."""
     values = _object("PoseValues", {name: _NUMBER for name in pose_vector_names()},
                      "The 55 pose-vector entries by name: heading cos/sin, then angles in degrees")
-    estimate = _object("PoseEstimate", {
+    return _object("PoseEstimate", {
         "heading_deg": {"type": "number", "description": "atan2(sin, cos), degrees in (-180, 180]"},
         "heading_norm": {"type": "number", "description": "norm of (cos, sin); low = ambiguous"},
         "pose": values,
     })
+
+
+def tracked_pose_schema() -> dict:
+    """JSON schema of the ``/pose`` messages (see the module docstring)."""
+    estimate = _estimate_schema()
     schema = _object(POSE_SCHEMA_NAME, {
         "timestamp": _time(),
         "frame_index": {"type": "integer", "minimum": 0},
@@ -219,7 +224,7 @@ def smoothed_pose_schema() -> dict:
         "frame_index": {"type": "integer", "minimum": 0},
         "time_s": {"type": "number", "description": "video time of the frame, seconds"},
         "track_id": {"type": "integer", "minimum": 0},
-        "smoothed": tracked_pose_schema()["properties"]["filtered"],
+        "smoothed": _estimate_schema(),
     }, "One tracked person's pose in one video frame, the whole track RTS-smoothed")
 
 
@@ -439,14 +444,13 @@ class McapSink:
             raise
         # Runs at interpreter exit (e.g. after an uncaught exception) if close() was not called.
         self._finalizer = weakref.finalize(self, _finish, self._state)
-        self._frame: int | None = None  # frame whose scene update is being collected
-        self._frame_ns = 0
-        self._entities: dict[int, dict] = {}
-        self._shown: set[int] = set()  # track ids drawn in the last written scene update
+        self._scenes = _SceneStream(self._scene_channel)    # /skeleton's frame being collected
         self._frames_since_flush = 0
         self._trails: dict[int, deque] = {}   # track id -> (time s, x, y) of its root
         self.messages_written = 0
-        self._smoothed: _SmoothedScenes | None = None     # channels made on the first write
+        # /smoothed/skeleton's; its channels are registered by the first write_smoothed.
+        self._smoothed = _SceneStream(None)
+        self._smoothed_pose_channel: int | None = None
 
     def _start(self, writer: Writer, metadata) -> None:
         writer.start(profile="", library="silhouette-pose tracker")
@@ -477,7 +481,7 @@ class McapSink:
         ambiguous, centroid_px = pose.ambiguous, pose.centroid_px
         if self.closed:
             raise SinkInputError(f"MCAP sink {self.path.name} is closed")
-        if self._smoothed is not None:
+        if self._smoothed.channel is not None:
             raise SinkInputError("poses streamed after the smoothed tracks: the stream is over")
         raw = check_pose("raw55", pose.raw)
         filtered = check_pose("filtered55", pose.filtered)
@@ -485,7 +489,8 @@ class McapSink:
         time_s = checked_time(time_s)
         novelty = known_novelty(getattr(pose, "novelty", None))
         frame_index, track_id = int(frame_index), int(track_id)
-        _check_order(frame_index, track_id, self._frame, self._entities)
+        scenes = self._scenes
+        scenes.check(frame_index, track_id)
         time_ns = int(round(time_s * 1e9))
         message = {
             "timestamp": _timestamp(time_ns), "frame_index": frame_index,
@@ -506,12 +511,12 @@ class McapSink:
             message["runner_up_probability"] = round(checked_probability(
                 "runner_up_probability", pose.runner_up_probability), 4)
         # Everything is checked: only now does the sink's state change.
-        if frame_index != self._frame:
+        if frame_index != scenes.frame:
             self._write_scene()
-            self._frame, self._frame_ns = frame_index, time_ns
+            scenes.frame, scenes.frame_ns = frame_index, time_ns
         self._add(self._pose_channel, time_ns, message)
-        self._entities[track_id] = skeleton_entity(track_id, time_ns, joints, bool(ambiguous),
-                                                   is_unfamiliar(novelty))
+        scenes.entities[track_id] = skeleton_entity(track_id, time_ns, joints, bool(ambiguous),
+                                                    is_unfamiliar(novelty))
         trail = self._trails.setdefault(track_id, deque())
         trail.append((time_s, joints[0, 0], -joints[0, 2]))     # the root on the Z-up ground
         while trail[0][0] < time_s - TRAIL_S:
@@ -539,41 +544,27 @@ class McapSink:
         unfamiliar = is_unfamiliar(known_novelty(getattr(pose, "novelty", None)))
         frame_index, track_id = int(pose.frame_index), int(pose.track_id)
         scenes = self._smoothed
-        if scenes is not None:
-            _check_order(frame_index, track_id, scenes.frame, scenes.entities)
-        else:
-            _check_order(frame_index, track_id, None, {})
+        scenes.check(frame_index, track_id)
+        if scenes.channel is None:
             self._write_scene()          # the streamed frames' last scene goes first
-            self._frame = None           # and the stream is over (write() refuses more)
+            self._scenes.frame = None    # and the stream is over (write() refuses more)
             writer = self._state["writer"]
-            self._smoothed = _SmoothedScenes(
-                writer.register_channel(SMOOTHED_POSE_TOPIC, "json", writer.register_schema(
-                    SMOOTHED_SCHEMA_NAME, "jsonschema", _to_bytes(smoothed_pose_schema()))),
-                writer.register_channel(SMOOTHED_SKELETON_TOPIC, "json", self._scene_schema))
-        scenes = self._smoothed
+            self._smoothed_pose_channel = writer.register_channel(
+                SMOOTHED_POSE_TOPIC, "json", writer.register_schema(
+                    SMOOTHED_SCHEMA_NAME, "jsonschema", _to_bytes(smoothed_pose_schema())))
+            scenes.channel = writer.register_channel(SMOOTHED_SKELETON_TOPIC, "json",
+                                                     self._scene_schema)
         time_ns = int(round(time_s * 1e9))
         joints = pose_joints_m(smoothed[None], root_position_m=root)[0]
         if frame_index != scenes.frame:
-            self._write_smoothed_scene()
+            self._write_update(scenes, ("track",))
             scenes.frame, scenes.frame_ns = frame_index, time_ns
-        self._add(scenes.pose_channel, time_ns, {
+        self._add(self._smoothed_pose_channel, time_ns, {
             "timestamp": _timestamp(time_ns), "frame_index": frame_index,
             "time_s": float(time_s), "track_id": track_id,
             "smoothed": _estimate(smoothed, self._names)})
         scenes.entities[track_id] = skeleton_entity(track_id, time_ns, joints,
                                                     bool(pose.ambiguous), unfamiliar)
-
-    def _write_smoothed_scene(self) -> None:
-        """The collected smoothed frame's SceneUpdate, deleting tracks that left."""
-        scenes = self._smoothed
-        if scenes is None or scenes.frame is None:
-            return
-        stamp = _timestamp(scenes.frame_ns)
-        self._add(scenes.scene_channel, scenes.frame_ns, {
-            "deletions": [{"timestamp": stamp, "type": 0, "id": f"track-{t}"}
-                          for t in sorted(scenes.shown - set(scenes.entities))],
-            "entities": [scenes.entities[t] for t in sorted(scenes.entities)]})
-        scenes.shown, scenes.entities = set(scenes.entities), {}
 
     def add_metadata(self, name: str, values: Mapping[str, object]) -> None:
         """Add a metadata record (e.g. results known only at the end)."""
@@ -587,35 +578,42 @@ class McapSink:
         self.messages_written += 1
 
     def _write_scene(self) -> None:
-        """Write the collected frame's SceneUpdate; delete tracks that left since the last one."""
-        if self._frame is None:
+        """Write /skeleton's collected frame: its SceneUpdate with the trails every
+        TRAIL_EVERY frames; tracks that left since the last one are deleted with their trails."""
+        scenes = self._scenes
+        if scenes.frame is None:
             return
-        stamp = _timestamp(self._frame_ns)
-        gone = sorted(self._shown - set(self._entities))
-        entities = [self._entities[t] for t in sorted(self._entities)]
-        if self._frame % TRAIL_EVERY == 0:
-            entities += [self._trail(t) for t in sorted(self._entities)
-                         if len(self._trails[t]) >= 2]
-        for track_id in gone:
+        trails = ([self._trail(t) for t in sorted(scenes.entities) if len(self._trails[t]) >= 2]
+                  if scenes.frame % TRAIL_EVERY == 0 else [])
+        for track_id in self._write_update(scenes, ("track", "trail"), trails):
             self._trails.pop(track_id, None)
-        update = {
-            "deletions": [{"timestamp": stamp, "type": 0, "id": f"{kind}-{t}"}
-                          for t in gone for kind in ("track", "trail")],
-            "entities": entities,
-        }
-        self._add(self._scene_channel, self._frame_ns, update)
-        self._shown = set(self._entities)
-        self._entities = {}
         self._frames_since_flush += 1
         writer = self._state["writer"]
         if self._frames_since_flush >= self._flush_every:
             writer.flush()  # closes the chunk: it is now safe from a crash
             self._frames_since_flush = 0
 
+    def _write_update(self, scenes: "_SceneStream", kinds: tuple[str, ...],
+                      extra: tuple | list = ()) -> list[int]:
+        """Write the SceneUpdate of a skeleton topic's collected frame (none if no frame is):
+        its tracks' entities, then ``extra``; the tracks drawn last time and not now deleted,
+        each entity id ``<kind>-<track>`` of kinds. Starts the next frame's collection;
+        returns the deleted tracks."""
+        if scenes.frame is None:
+            return []
+        stamp = _timestamp(scenes.frame_ns)
+        gone = sorted(scenes.shown - set(scenes.entities))
+        self._add(scenes.channel, scenes.frame_ns, {
+            "deletions": [{"timestamp": stamp, "type": 0, "id": f"{kind}-{t}"}
+                          for t in gone for kind in kinds],
+            "entities": [scenes.entities[t] for t in sorted(scenes.entities)] + list(extra)})
+        scenes.shown, scenes.entities = set(scenes.entities), {}
+        return gone
+
     def _trail(self, track_id: int) -> dict:
         samples = np.array(self._trails[track_id])[::-1][::3][::-1]   # every 3rd, newest kept
         ages = (samples[-1, 0] - samples[:, 0]) / TRAIL_S
-        return trail_entity(track_id, self._frame_ns, samples[:, 1:], ages)
+        return trail_entity(track_id, self._scenes.frame_ns, samples[:, 1:], ages)
 
     def close(self) -> None:
         """Write the last frame's scene, the summary and the footer; idempotent."""
@@ -623,7 +621,7 @@ class McapSink:
             return
         try:
             self._write_scene()
-            self._write_smoothed_scene()
+            self._write_update(self._smoothed, ("track",))
         finally:
             self._finalizer.detach()
             _finish(self._state)
@@ -635,27 +633,27 @@ class McapSink:
         self.close()
 
 
-def _check_order(frame_index: int, track_id: int, frame: int | None, entities: dict) -> None:
-    """SinkInputError unless (frame_index, track_id) may follow a stream whose frame being
-    collected is ``frame`` (None: none yet) with these tracks' entities already in it."""
-    if frame_index < 0 or track_id < 0:
-        raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
-                             f"{track_id}")
-    if frame is not None and frame_index < frame:
-        raise SinkInputError(f"frame_index went backwards: {frame_index} after {frame}")
-    if frame_index == frame and track_id in entities:
-        raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
+class _SceneStream:
+    """A skeleton topic's frame being collected: its channel id (None: not registered yet),
+    the frame (None: none yet) and its time in ns, the tracks' entities so far, and the tracks
+    its last update drew."""
 
-
-class _SmoothedScenes:
-    """The smoothed channels' ids and the frame being collected (McapSink.write_smoothed)."""
-
-    def __init__(self, pose_channel: int, scene_channel: int):
-        self.pose_channel, self.scene_channel = pose_channel, scene_channel
+    def __init__(self, channel: int | None):
+        self.channel = channel
         self.frame: int | None = None
         self.frame_ns = 0
         self.entities: dict[int, dict] = {}
         self.shown: set[int] = set()
+
+    def check(self, frame_index: int, track_id: int) -> None:
+        """SinkInputError unless track track_id of frame frame_index may come next."""
+        if frame_index < 0 or track_id < 0:
+            raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
+                                 f"{track_id}")
+        if self.frame is not None and frame_index < self.frame:
+            raise SinkInputError(f"frame_index went backwards: {frame_index} after {self.frame}")
+        if frame_index == self.frame and track_id in self.entities:
+            raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
 
 
 class SmoothedChannel:
