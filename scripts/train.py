@@ -27,7 +27,7 @@ from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model, save_pose_model
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, trial_name, training_files, views_by_rows)
-from sequences.splice import SpliceConfig, SpliceError, write_spliced_files
+from sequences.splice import SpliceConfig, SpliceError, recipe_name, write_spliced_files
 from tracker.offline.hypothesis_priors import learn_canonical_priors, prior_files
 from tracker.offline.training import (CANONICAL_RULES, VALIDATION_TRIALS, MixtureOptions,
                                       TrainingOptions,
@@ -247,11 +247,11 @@ def main(argv=None) -> int:
         files = training_files(args.bvh_dir)
         log(f"data set: {len(files)} trials x {args.views} views (held out: "
             f"{', '.join(HELD_OUT_TRIALS)})")
+        splice = None
         if args.spliced:
             sources = [f for f in files if trial_name(f) not in VALIDATION_TRIALS]
-            files = files + write_spliced_files(
-                sources, SpliceConfig(n_motions=args.spliced, seed=args.seed),
-                args.cache / "spliced")
+            splice = SpliceConfig(n_motions=args.spliced, seed=args.seed)
+            files = files + write_spliced_files(sources, splice, args.cache / "spliced")
             log(f"  and {args.spliced} spliced motions of {len(sources)} trials "
                 f"({time.perf_counter() - start:.0f} s so far)")
         views = (views_by_rows(files, config, args.rows_per_trial, args.max_views)
@@ -281,8 +281,8 @@ def main(argv=None) -> int:
 
         key = (f"v1-{config.digest()}" if views is None and args.clean else
                descriptor_cache_key(config, views, noisy=not args.clean))
-        if args.spliced and views is None:     # the views then name no trial: say which
-            key += "-" + files[-1].stem.split("-")[1]         # the spliced recipe's digest
+        if splice is not None and views is None:  # the views then name no trial: say which
+            key += "-" + recipe_name(splice, sources)
         X, codebook = cached_descriptors(args.cache, key, compute)
         log(f"  descriptors ready ({time.perf_counter() - start:.0f} s so far)")
         layouts = None

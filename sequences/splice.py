@@ -151,21 +151,21 @@ def spliced_motions(files: Sequence[str | Path], config: SpliceConfig
     return out
 
 
-def spliced_name(config: SpliceConfig, sources: Sequence[str | Path], i: int) -> str:
-    """The trial name of the i-th spliced motion: 'spliced-<digest>-<i>', the digest of the
-    recipe (config, version, source trials), so a data-set cache never mixes recipes."""
+def recipe_name(config: SpliceConfig, sources: Sequence[str | Path]) -> str:
+    """'spliced-<digest>': the digest of the recipe (config, version, source trials). The
+    spliced motions' trial names begin with it, so a data-set cache never mixes recipes."""
     text = json.dumps({"config": asdict(config), "version": SPLICE_VERSION,
                        "sources": sorted(Path(s).stem for s in sources)}, sort_keys=True)
-    return f"spliced-{hashlib.sha256(text.encode()).hexdigest()[:10]}-{i:03d}"
+    return f"spliced-{hashlib.sha256(text.encode()).hexdigest()[:10]}"
 
 
 def write_spliced_files(files: Sequence[str | Path], config: SpliceConfig,
                         out_dir: str | Path) -> list[Path]:
-    """Write the spliced motions of files as BVH files under out_dir (kept if already there:
-    their names carry the recipe's digest) with a JSON of their recipes beside; returns their
-    paths, in order."""
-    out_dir = Path(out_dir)
-    paths = [out_dir / f"{spliced_name(config, files, i)}.bvh" for i in range(config.n_motions)]
+    """Write the spliced motions of files as BVH files under out_dir, named
+    '<recipe_name>-<i>' (kept if already there) with a JSON of their recipes beside,
+    '<recipe_name>.json'; returns their paths, in order."""
+    out_dir, name = Path(out_dir), recipe_name(config, files)
+    paths = [out_dir / f"{name}-{i:03d}.bvh" for i in range(config.n_motions)]
     if all(p.is_file() for p in paths):
         return paths
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -175,6 +175,6 @@ def write_spliced_files(files: Sequence[str | Path], config: SpliceConfig,
         write_bvh(tmp, motion)
         tmp.replace(path)
         recipes[path.stem] = recipe
-    (out_dir / f"{paths[0].stem.rsplit('-', 1)[0]}.json").write_text(
+    (out_dir / f"{name}.json").write_text(
         json.dumps(recipes, indent=1), encoding="utf-8")
     return paths
