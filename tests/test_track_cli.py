@@ -196,9 +196,12 @@ def test_output_path_that_cannot_be_written(tmp_path, walk_video):
     (["--min-area", "0"], "--min-area"),
     (["--min-area", "50"], "--min-area"),
     (["--min-area", "nan"], "--min-area"),
+    (["--lag", "-1"], "--lag"),
+    (["--lag", "nan"], "--lag"),
+    (["--lag", "11"], "--lag"),
 ], ids=["max-people-0", "end-before-start", "negative-start", "start-past-end", "unknown",
         "roll-135", "roll-nan", "zone-foreground-maybe", "min-area-0", "min-area-50",
-        "min-area-nan"])
+        "min-area-nan", "lag-negative", "lag-nan", "lag-11"])
 def test_absurd_options(tmp_path, walk_video, options, needle):
     _assert_one_line_error(_track(walk_video, *options, cwd=tmp_path), needle)
 
@@ -438,17 +441,47 @@ def test_smooth_gives_smoother_tracks_than_the_forward_filter(tmp_path, walk_vid
     assert len(list((tmp_path / "b").glob("*.bvh"))) == 1
 
 
-@pytest.mark.parametrize("options, keeps", [
-    (["--json", "t.json"], True), (["--bvh", "b"], True), (["--out", "t.mcap"], True),
-    (["--json", "t.json", "--no-smooth"], False), (["--out", "t.mcap", "--no-smooth"], False),
-    (["--view"], False)])
-def test_histories_are_kept_only_for_smoothed_outputs(options, keeps):
+@pytest.mark.parametrize("options, keeps, lag", [
+    (["--json", "t.json"], True, 0.0), (["--bvh", "b"], True, 0.0),
+    (["--out", "t.mcap"], True, 0.0),
+    (["--json", "t.json", "--no-smooth"], False, 0.0),
+    (["--out", "t.mcap", "--no-smooth"], False, 0.0),
+    (["--out", "t.mcap", "--no-smooth", "--lag", "0.3"], True, 0.3),
+    (["--view"], True, 0.5), (["--view", "--lag", "0"], False, 0.0)])
+def test_histories_are_kept_only_for_smoothing(options, keeps, lag):
     """Smoothing needs each track's history (memory grows with the video): the JSON, the BVH
-    and (since 2026-12-04, on its /smoothed topics) the MCAP take smoothed tracks; the live
-    view alone, or --no-smooth, keeps memory flat."""
-    from tracker.cli import build_parser, tracker_settings
+    and (since 2026-12-04, on its /smoothed topics) the MCAP take smoothed tracks, and a lag
+    (--lag; 0.5 s by default with --view) smooths the streamed poses; --no-smooth without a
+    lag keeps memory flat."""
+    from tracker.cli import build_parser, lag_seconds, tracker_settings
     args = build_parser().parse_args(["v.mp4", *options])
     assert tracker_settings(args).keep_history is keeps
+    assert lag_seconds(args) == lag
+
+
+def test_a_lag_gives_the_streamed_outputs_fixed_lag_smoothed_poses(tmp_path, walk_video):
+    """--lag: the MCAP's /pose (and, with --no-smooth, the JSON) hold each pose smoothed over
+    the frames that followed it, and the files and the summary say so."""
+    plain, lagged = tmp_path / "plain.json", tmp_path / "lagged.json"
+    out = tmp_path / "lagged.mcap"
+    assert _track(walk_video, "--json", plain, "--no-smooth", cwd=tmp_path).returncode == 0
+    result = _track(walk_video, "--json", lagged, "--no-smooth", "--lag", "0.3", "--out", out,
+                    cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert f"JSON (fixed-lag smoothed poses): {lagged}" in result.stdout
+    assert f"MCAP (fixed-lag smoothed poses): {out}" in result.stdout
+    (a,), (b,) = (json.loads(p.read_text())["tracks"] for p in (plain, lagged))
+    assert json.loads(lagged.read_text())["poses"] == "fixed-lag smoothed"
+    assert a["frames"] == b["frames"] and a["pose"] != b["pose"]
+    with open(out, "rb") as f:
+        settings = {m.name: m.metadata for m in make_reader(f).iter_metadata()}["settings"]
+    with open(out, "rb") as f:
+        bodies = [json.loads(m.data) for _, _, m in
+                  make_reader(f).iter_messages(topics=["/pose"])]
+    assert float(settings["lag_s"]) == 0.3 and "fixed-lag smoothed" in settings["note"]
+    names = pose_vector_names()
+    np.testing.assert_allclose([[body["filtered"]["pose"][n] for n in names] for body in bodies],
+                               b["pose"], atol=1e-3)
 
 
 # ------------------------------------------------------------------ --background (clean plate)

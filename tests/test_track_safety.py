@@ -408,7 +408,7 @@ def test_novelty_is_reported_per_pose_by_default_and_unfamiliar_frames_are_count
     (track,) = json.loads((tmp_path / "n.json").read_text())["tracks"]
     assert track["novelty"][:4] == [2.0, 0.5, 2.0, 0.5]
     assert track["unfamiliar_frames"] == state.unfamiliar
-    args = argparse.Namespace(video=walk, out=None, json=None, bvh=None)
+    args = argparse.Namespace(video=walk, out=None, json=None, bvh=None, lag=None, view=False)
     source = argparse.Namespace(width=320, height=240, fps=30.0)
     out = io.StringIO()
     with contextlib.redirect_stdout(out):

@@ -743,16 +743,18 @@ class FrontBackTracker:
             used.add(int(i))
         return out
 
-    def viterbi_path(self) -> np.ndarray:
-        """The most probable state sequence (T,) int over the frames so far."""
-        if not self.history:
+    def viterbi_path(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """The most probable state sequence (n,) int over the frames so far, or over
+        history[start:stop] alone (its first frame taken as a track's first)."""
+        frames = self.history[start:stop]
+        if not frames:
             return np.zeros(0, dtype=np.int64)
-        first = self.history[0]
+        first = frames[0]
         K = len(first.poses)
         log_A = self._log_transitions(K)
         delta = np.log(np.linalg.matrix_power(np.exp(log_A), 256)[0]) + first.evidence
         back = []
-        for frame in self.history[1:]:
+        for frame in frames[1:]:
             scores = delta[:, None] + frame.link
             back.append(scores.argmax(axis=0))
             delta = scores.max(axis=0) + frame.evidence
@@ -761,25 +763,29 @@ class FrontBackTracker:
             path.append(int(pointers[path[-1]]))
         return np.array(path[::-1], dtype=np.int64)
 
-    def chosen_poses(self) -> tuple[np.ndarray, np.ndarray]:
-        """The hypotheses (T, 55) on the Viterbi path (the smoother's input) and their heading
-        variances (T,) deg^2 (NaN: the filter's own)."""
-        path = self.viterbi_path()
-        return (np.array([frame.poses[s] for frame, s in zip(self.history, path)]),
-                np.array([frame.heading_variance[s] for frame, s in zip(self.history, path)]))
+    def chosen_poses(self, start: int = 0, stop: int | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """The hypotheses (n, 55) on the Viterbi path of history[start:stop] (the smoother's
+        input) and their heading variances (n,) deg^2 (NaN: the filter's own)."""
+        frames = self.history[start:stop]
+        path = self.viterbi_path(start, stop)
+        return (np.array([frame.poses[s] for frame, s in zip(frames, path)]),
+                np.array([frame.heading_variance[s] for frame, s in zip(frames, path)]))
 
-    def smoothed(self) -> np.ndarray:
-        """RTS-smoothed poses (T, 55) of the Viterbi path's hypotheses (``--smooth``); with a
-        limb_filter_factory, the body angles are its RTS smoothing of the raw poses (of the
-        limb head's members on their most probable chain given the smoothed heading when
-        every frame of the track has them, as a model's frames all do:
-        tracker.member_path), with the smoothed heading as theirs."""
-        poses, variances = self.chosen_poses()
+    def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``): of the
+        whole track, or of history[start:stop] as if the track were those frames alone (the
+        fixed-lag smoothing of tracker.fixed_lag). With a limb_filter_factory, the body angles
+        are its RTS smoothing of the raw poses (of the limb head's members on their most
+        probable chain given the smoothed heading when every frame has them, as a model's
+        frames all do: tracker.member_path), with the smoothed heading as theirs."""
+        frames = self.history[start:stop]
+        poses, variances = self.chosen_poses(start, stop)
         out = self.filter_factory(self.fps).rts_smooth(poses, heading_variance=variances)
         if self.limb_filter_factory is not None and len(out):
-            raws = np.array([frame.raw for frame in self.history])
-            if all(frame.limbs is not None for frame in self.history):
-                raws = members_over_time(np.array([frame.limbs for frame in self.history]),
+            raws = np.array([frame.raw for frame in frames])
+            if all(frame.limbs is not None for frame in frames):
+                raws = members_over_time(np.array([frame.limbs for frame in frames]),
                                          heading_deg(out), self.frame_rate_ratio)
             raws = with_body_angles(out, raws)          # the decided heading, as online
             out = with_body_angles(out, self.limb_filter_factory(self.fps).rts_smooth(raws))

@@ -551,10 +551,12 @@ class PoseTracker:
         self.stage_seconds[stage] += now - since
         return now
 
-    def smoothed_track(self, track_id: int) -> np.ndarray:
-        """RTS-smoothed poses (n, 55) of every frame of a track so far (offline use; needs
+    def smoothed_track(self, track_id: int, start: int = 0, stop: int | None = None
+                       ) -> np.ndarray:
+        """RTS-smoothed poses (n, 55) of every frame of a track so far (needs
         settings.keep_history), on the most probable (Viterbi) sequence of front/back
-        hypotheses."""
+        hypotheses; with start/stop, of the track's poses start..stop-1 (counted from its
+        first pose) smoothed as if the track were those alone (tracker.fixed_lag)."""
         if not self.settings.keep_history:
             raise ValueError("smoothed_track needs TrackerSettings(keep_history=True)")
-        return self.tracks[track_id].hypotheses.smoothed()
+        return self.tracks[track_id].hypotheses.smoothed(start, stop)

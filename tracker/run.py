@@ -14,6 +14,7 @@ import contextlib
 import signal
 import threading
 import time
+from collections import deque
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -22,6 +23,7 @@ import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
+from .fixed_lag import FixedLagSmoother
 from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from .pipeline import PoseTracker
 from .silhouettes import median_background
@@ -68,7 +70,7 @@ class TrackRun:
 def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = None,
                 sinks: Sequence[Sink] = (), progress=None,
                 smoothed_sinks: Sequence[Sink] = (), background: np.ndarray | None = None,
-                workers: int = 1) -> TrackRun:
+                workers: int = 1, lag_s: float = 0.0) -> TrackRun:
     """Track every frame of ``source`` (an opened video or a path) into ``sinks``.
 
     tracker: a PoseTracker (None: the shipped model with default settings). progress: an object
@@ -78,20 +80,25 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     smoothed_sinks: fed at the end with each whole track RTS-smoothed (``track``'s JSON, BVH and
     the MCAP's smoothed topics unless --no-smooth), in frame order (a sink that fails there is
     fed no more, the others are, and OutputError names it); after a Ctrl-C, which asks for a
-    quick exit, with the filtered poses instead (a sink with a ``pose_kind`` attribute, the
-    JSON's, is told "filtered", so its file says so). Every sink's end_frame() is called after
-    each frame. All sinks are closed on return, also on Ctrl-C, which stops the loop (the result
-    says interrupted); while they are being closed, further Ctrl-C, SIGTERM and SIGHUP are held
-    back (and mark the run interrupted), so a second Ctrl-C cannot cut an output short.
+    quick exit, with the streamed poses instead (a sink with a ``pose_kind`` attribute, the
+    JSON's, is told "filtered", or "fixed-lag smoothed" with a lag, so its file says so).
+    Every sink's end_frame() is called after each frame. All sinks are closed on return, also
+    on Ctrl-C, which stops the loop (the result says interrupted); while they are being
+    closed, further Ctrl-C, SIGTERM and SIGHUP are held back (and mark the run interrupted),
+    so a second Ctrl-C cannot cut an output short.
     OutputError if some could not be closed. background: an image of the empty scene (a clean
     plate, BGR uint8 at the video's size, ``track --background``), trusted everywhere; None
     learns the scene from frames spread over the video (see :func:`_prime`).
     tracker.stage_seconds gains "background" (sampling the video and priming, the start-up
-    cost), "decode" and "outputs". workers: 2 finds and describes the people in a second process
+    cost), "decode", "outputs" and, with a lag, "fixed-lag smoothing". workers: 2 finds and describes the people in a second process
     (tracker.frame_worker) while this one tracks them, for the same results on two cores; sinks
     that show the video get no frames from it, so with one of those (and where processes cannot
     fork) the run stays in one process. The tracker's stages then include the worker's, and
-    "waiting" (for it)."""
+    "waiting" (for it). lag_s: 0, or hold each frame back that many seconds of video (at
+    least; up to twice that) and give the sinks its poses fixed-lag smoothed over the frames
+    that followed (tracker.fixed_lag; needs keep_history): they follow the body better than
+    the filtered ones. The frames reach the sinks in order, each once; after a Ctrl-C the
+    frames held back go out too, smoothed over what the sinks were given."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
@@ -101,6 +108,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         tracker = PoseTracker(load_pose_model(), source.fps)
     if smoothed_sinks and not tracker.settings.keep_history:
         raise ValueError("smoothed_sinks need a tracker with TrackerSettings(keep_history=True)")
+    lagged = FixedLagSmoother.from_seconds(tracker, lag_s) if lag_s else None
     recorder = PoseRecorder() if smoothed_sinks else None
     streaming = list(sinks) + ([recorder] if recorder else [])
     # Sinks that show the video (the live view) also get every frame and its silhouettes; they
@@ -110,6 +118,36 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     written: dict[int, WrittenPoses] = {}
     stages = tracker.stage_seconds
     worker = None
+    due: deque = deque()          # frames tracked (and smoothed, with a lag) not yet written
+
+    def emit(index, time_s, frame, poses, people) -> bool:
+        """Hand one frame to the outputs; whether a stop signal came meanwhile."""
+        nonlocal frames
+        clock = time.perf_counter()
+        # A stop signal acts between frames, never inside an output's write: raised
+        # inside the MCAP writer (a chunk half written, or written but not yet indexed),
+        # it left a finished file that no reader could open (once, in a CI run of
+        # tests/test_track_cli.py on 2026-12-04: "record has length 153600000000").
+        with _signals_held() as held:
+            for sink in streaming:
+                for pose in poses:
+                    sink.write(pose)
+            # Counted with the writes, as the outputs hold them: a sink may stop the run
+            # at end_frame.
+            frames += 1
+            for pose in poses:
+                counts = written.setdefault(pose.track_id, WrittenPoses())
+                counts.poses += 1
+                counts.unfamiliar += pose.unfamiliar
+            for sink in watching:
+                sink.write_frame(index, time_s, frame, people)
+            for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
+                sink.end_frame(index)
+        stages["outputs"] += time.perf_counter() - clock
+        if progress is not None:
+            progress.update(len(poses))
+        return bool(held)
+
     try:
         _prime(source, tracker, background)
         stages["background"] += time.perf_counter() - started
@@ -119,32 +157,16 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         else:
             # A live view shows each frame as soon as it is tracked; files take batches.
             frames_in = _in_process(source, tracker, 1 if watching else BATCH_FRAMES)
-        for index, time_s, frame, poses, people in frames_in:
-            clock = time.perf_counter()
-            # A stop signal acts between frames, never inside an output's write: raised
-            # inside the MCAP writer (a chunk half written, or written but not yet indexed),
-            # it left a finished file that no reader could open (once, in a CI run of
-            # tests/test_track_cli.py on 2026-12-04: "record has length 153600000000").
-            with _signals_held() as held:
-                for sink in streaming:
-                    for pose in poses:
-                        sink.write(pose)
-                # Counted with the writes, as the outputs hold them: a sink may stop the run
-                # at end_frame.
-                frames += 1
-                for pose in poses:
-                    counts = written.setdefault(pose.track_id, WrittenPoses())
-                    counts.poses += 1
-                    counts.unfamiliar += pose.unfamiliar
-                for sink in watching:
-                    sink.write_frame(index, time_s, frame, people)
-                for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
-                    sink.end_frame(index)
-            stages["outputs"] += time.perf_counter() - clock
-            if progress is not None:
-                progress.update(len(poses))
-            if held:
-                raise KeyboardInterrupt
+        for tracked in frames_in:
+            due.extend([tracked] if lagged is None else _timed(lagged.push, tracked, stages))
+            while due:
+                if emit(*due.popleft()):
+                    raise KeyboardInterrupt
+        if lagged is not None:
+            due.extend(_timed(lagged.flush, None, stages))
+            while due:
+                if emit(*due.popleft()):
+                    raise KeyboardInterrupt
         if worker is not None:
             for stage in ("decode", "silhouettes", "descriptor"):
                 stages[stage] += worker.stage_seconds.get(stage, 0.0)
@@ -152,21 +174,28 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        closed, smoothed = False, False
+        closed, smoothed, flushed = False, False, False
         while not closed:
             try:
                 with _signals_held() as held:
                     if worker is not None:
                         worker.close()
-                    if progress is not None:
-                        progress.close()
                     fed = []
                     try:
+                        if interrupted and not flushed:
+                            # The frames held back for a lag go out before the outputs
+                            # close: a stop costs none of the frames given to the smoother.
+                            flushed = True
+                            fed = _write_held(lagged, due, emit, stages)
+                        if progress is not None:
+                            progress.close()
                         if recorder is not None and not interrupted:
-                            fed = _write_smoothed(tracker, recorder, smoothed_sinks)
+                            fed += _write_smoothed(tracker, recorder, smoothed_sinks)
                             smoothed = True
                         elif recorder is not None:
-                            fed = _write_filtered(recorder, smoothed_sinks)
+                            fed += _write_filtered(recorder, smoothed_sinks,
+                                                   "filtered" if lagged is None
+                                                   else "fixed-lag smoothed")
                     finally:
                         problems = fed + close_sinks(list(sinks) + list(smoothed_sinks))
                         closed = True
@@ -180,6 +209,29 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         raise OutputError("could not finish outputs: " + "; ".join(problems))
     return TrackRun(frames, time.perf_counter() - started, interrupted, tracker, written,
                     smoothed)
+
+
+def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> list[str]:
+    """After a stop: write the frames in ``due`` and those the fixed-lag smoother holds back
+    (with emit); returns a problem line if an output failed there (the others then get no
+    more of them either: frames go to every output together)."""
+    try:
+        if lagged is not None:
+            due.extend(_timed(lagged.flush, None, stages))
+        while due:
+            emit(*due.popleft())
+    except Exception as exc:
+        return [f"the frames held back for --lag: {type(exc).__name__}: {exc}"]
+    return []
+
+
+def _timed(release, tracked, stages) -> list[tuple]:
+    """The frames the fixed-lag smoother gives out for ``tracked`` (push) or at the end
+    (flush: tracked None), its time counted as the stage "fixed-lag smoothing"."""
+    clock = time.perf_counter()
+    out = release() if tracked is None else release(tracked)
+    stages["fixed-lag smoothing"] += time.perf_counter() - clock
+    return out
 
 
 def _in_process(source: VideoSource, tracker: PoseTracker, batch: int) -> Iterator[tuple]:
@@ -292,12 +344,14 @@ def _stop_signals_blocked() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
-def _write_filtered(recorder: PoseRecorder, sinks: Sequence[Sink]) -> list[str]:
-    """Feed the recorded (filtered) poses to the sinks in frame order, telling a sink with a
-    ``pose_kind`` attribute that they are filtered; returns _feed's problems."""
+def _write_filtered(recorder: PoseRecorder, sinks: Sequence[Sink], kind: str = "filtered"
+                    ) -> list[str]:
+    """Feed the recorded poses (as streamed: filtered, or "fixed-lag smoothed" with a lag) to
+    the sinks in frame order, telling a sink with a ``pose_kind`` attribute which they are;
+    returns _feed's problems."""
     for sink in sinks:
         if hasattr(sink, "pose_kind"):
-            sink.pose_kind = "filtered"
+            sink.pose_kind = kind
     return _feed(recorder.poses, sinks)
 
 

@@ -10,6 +10,8 @@ Layout (format version 1)::
      "video_fps": float, "wall_time_s": float,
      "poses": "filtered" or "smoothed",   # what the tracks' "pose" and "heading_deg" hold:
                                           # frame by frame, or each whole track RTS-smoothed
+                                          # ("fixed-lag smoothed" with track --no-smooth --lag:
+                                          # tracker.fixed_lag)
                                           # (track's default for this file; --no-smooth)
      "tracks": [{"id": int, "first_frame": int, "last_frame": int, "n_frames": int,
                  "frames": [int], "time_s": [float], "centroid_px": [[x, y]],
@@ -53,7 +55,7 @@ if TYPE_CHECKING:
 FORMAT = "silhouette-pose tracking summary"
 VERSION = 1
 _DECIMALS = 6
-POSES = ("filtered", "smoothed")
+POSES = ("filtered", "smoothed", "fixed-lag smoothed")
 
 
 def write_json_atomically(path: str | Path, document: dict) -> None:
@@ -68,8 +70,8 @@ def write_json_atomically(path: str | Path, document: dict) -> None:
 class JsonSummarySink:
     """Collect per-track results and write the summary on close (see the module docstring).
 
-    path: output JSON file. video_fps: the video's frame rate. poses: "filtered" or
-    "smoothed", what the poses written to it are (recorded in the summary). clock: seconds
+    path: output JSON file. video_fps: the video's frame rate. poses: "filtered", "smoothed"
+    or "fixed-lag smoothed", what the poses written to it are (recorded in the summary). clock: seconds
     counter used for the speed achieved (default time.perf_counter; a parameter so tests can
     fix it).
     """

@@ -1,0 +1,224 @@
+"""Fixed-lag smoothing (tracker.fixed_lag): which frames go out when, smoothed over which
+window; and on a rendered walk through track_video, that it follows the body better than the
+filter and, with a lag longer than the video, gives exactly the whole-track smoothing."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from regressor.pose_model import load_pose_model
+from sequences.video import Actor, load_truth, write_video
+from tests.synthetic import cmu_motion
+from tracker.fixed_lag import MAX_LAG_S, FixedLagSmoother
+from tracker.pipeline import TrackedPose
+from tracker.sinks.geometry import pose_joints_m
+
+
+class _Tracker:
+    """The part of a PoseTracker the smoother uses. smoothed_track(track, start, stop) gives
+    poses whose entries 2, 3, 4 are (start, stop, pose number) and records each call."""
+
+    def __init__(self, fps=30.0, keep_history=True):
+        self.fps = fps
+        self.settings = SimpleNamespace(keep_history=keep_history)
+        self.calls = []
+
+    def smoothed_track(self, track_id, start=0, stop=None):
+        self.calls.append((track_id, start, stop))
+        out = np.zeros((stop - start, 55))
+        out[:, 0] = 1.0                                  # heading 0: cos 1, sin 0
+        out[:, 2], out[:, 3] = start, stop
+        out[:, 4] = np.arange(start, stop)
+        out[:, 5] = track_id
+        return out
+
+
+def _pose(frame, track_id, root=(0.0, 1.0, 3.0)):
+    vector = np.zeros(55)
+    vector[0] = 1.0
+    joints = pose_joints_m(vector[None], root_position_m=np.array([root]))[0]
+    return TrackedPose(frame, frame / 30.0, track_id, vector.copy(), vector.copy(), False,
+                       joints)
+
+
+def _frame(index, track_ids):
+    return (index, index / 30.0, None, [_pose(index, t) for t in track_ids], {})
+
+
+def _run(smoother, frames):
+    """Push every frame, then flush; returns [(push number, released frame)]."""
+    out = []
+    for number, frame in enumerate(frames):
+        out += [(number, f) for f in smoother.push(frame)]
+    out += [(len(frames), f) for f in smoother.flush()]
+    return out
+
+
+def test_frames_go_out_in_order_once_each_between_lag_and_twice_lag_late():
+    tracker = _Tracker()
+    smoother = FixedLagSmoother(tracker, lag_frames=4, margin_frames=3)
+    out = _run(smoother, [_frame(i, [7]) for i in range(23)])
+    assert [f[0] for _, f in out] == list(range(23))
+    for pushed, (index, *_rest) in out[:-3]:
+        assert 4 <= pushed - index <= 7                 # lag .. 2 lag - 1 frames late
+    assert smoother.waiting == 0
+    # Blocks of 4, each smoothed once from 3 frames before it to the newest pose pushed.
+    assert tracker.calls[:3] == [(7, 0, 8), (7, 1, 12), (7, 5, 16)]
+    for _, (index, _, _, (pose,), _) in out:
+        start, stop, number = pose.filtered[2:5]
+        # The flush's block holds up to 2 lag - 1 frames.
+        assert number == index and start <= index < stop and index - start <= 3 + 7
+
+
+def test_each_pose_gets_its_own_tracks_smoothing_and_joints_drawn_from_it_at_its_root():
+    tracker = _Tracker()
+    smoother = FixedLagSmoother(tracker, lag_frames=2, margin_frames=0)
+    tracks = [[1], [1, 2], [2], [], [2], [1, 2], [1]]       # 1 leaves for two frames
+    out = _run(smoother, [_frame(i, t) for i, t in enumerate(tracks)])
+    assert [[p.track_id for p in f[3]] for _, f in out] == tracks
+    numbers = {1: 0, 2: 0}
+    for _, (_, _, _, poses, _) in out:
+        for pose in poses:
+            assert pose.filtered[5] == pose.track_id
+            assert pose.filtered[4] == numbers[pose.track_id]   # the track's own pose number
+            numbers[pose.track_id] += 1
+            expected = pose_joints_m(pose.filtered[None],
+                                     root_position_m=np.array([[0.0, 1.0, 3.0]]))[0]
+            np.testing.assert_allclose(pose.joints_m, expected)
+            assert not np.allclose(pose.filtered, pose.raw)        # raw stays as tracked
+
+
+def test_a_lag_longer_than_the_video_smooths_every_track_whole_at_the_end():
+    tracker = _Tracker()
+    smoother = FixedLagSmoother(tracker, lag_frames=50, margin_frames=5)
+    out = _run(smoother, [_frame(i, [3]) for i in range(20)])
+    assert all(pushed == 20 for pushed, _ in out)        # all at the flush
+    assert tracker.calls == [(3, 0, 20)]
+
+
+def test_refusals():
+    with pytest.raises(ValueError, match="keep_history"):
+        FixedLagSmoother(_Tracker(keep_history=False), 4)
+    for lag in (0, -1, 2.5):
+        with pytest.raises(ValueError, match="lag_frames"):
+            FixedLagSmoother(_Tracker(), lag)
+    with pytest.raises(ValueError, match="margin_frames"):
+        FixedLagSmoother(_Tracker(), 4, margin_frames=-1)
+    for seconds in (0.0, -0.5, float("nan"), float("inf"), MAX_LAG_S + 1):
+        with pytest.raises(ValueError, match="lag"):
+            FixedLagSmoother.from_seconds(_Tracker(), seconds)
+    assert FixedLagSmoother.from_seconds(_Tracker(fps=30.0), 0.5).lag == 15
+    assert FixedLagSmoother.from_seconds(_Tracker(fps=30.0), 0.001).lag == 1
+    assert FixedLagSmoother.from_seconds(_Tracker(fps=120.0), 0.5).margin == 60
+
+
+def test_the_cli_limit_is_the_smoothers():
+    from tracker import cli
+    assert cli.MAX_LAG_S == MAX_LAG_S
+
+
+# ------------------------------------------------------------------ on a rendered walk
+
+
+def _walk(T=90):
+    """A walk with the legs and arms swinging at 1 Hz, turning slowly (a spiral's piece)."""
+    from sequences.skeleton import CMU_JOINT_NAMES
+    J = len(CMU_JOINT_NAMES)
+    euler = np.zeros((T, J, 3))
+    phase = np.arange(T) * 2 * np.pi / 30
+    for name, amp in (("LeftUpLeg", 30), ("RightUpLeg", -30), ("LeftArm", -25),
+                      ("RightArm", 25)):
+        euler[:, CMU_JOINT_NAMES.index(name), 2] = amp * np.sin(phase)
+    for name, amp in (("LeftLeg", 40), ("RightLeg", 40)):
+        euler[:, CMU_JOINT_NAMES.index(name), 2] = amp * np.maximum(0, np.sin(phase + 1.0))
+    for name, z in (("LeftArm", -70), ("RightArm", 70)):
+        euler[:, CMU_JOINT_NAMES.index(name), 0] = z
+    euler[:, 0, 1] = 90.0
+    root = np.column_stack([0.5 * np.arange(T), np.full(T, 17.0), np.zeros(T)])
+    return cmu_motion(euler, root, fps=30.0, source="walker")
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory):
+    path = tmp_path_factory.mktemp("lag") / "walk.mp4"
+    write_video(path, [Actor(_walk())], size=(240, 320), noise_sigma=2.0, seed=5)
+    return path
+
+
+def _tracked(video, model, lag_s, workers=1):
+    from tracker import PoseTracker, track_video
+    from tracker.pipeline import TrackerSettings
+    from tracker.sinks import PoseRecorder
+    tracker = PoseTracker(model, 30.0, TrackerSettings(max_people=1, keep_history=True))
+    recorder = PoseRecorder()
+    run = track_video(video, tracker, [recorder], workers=workers, lag_s=lag_s)
+    return tracker, recorder.poses, run
+
+
+def test_through_track_video_the_lagged_poses_follow_the_walk_better(walk):
+    model = load_pose_model()
+    truth = load_truth(walk)["pose"][:, 0]
+    _, filtered, _ = _tracked(walk, model, 0.0)
+    tracker, lagged, run = _tracked(walk, model, 0.5)
+    assert [p.frame_index for p in lagged] == [p.frame_index for p in filtered]
+    assert run.frames == len(load_truth(walk)["pose"])
+    assert tracker.stage_seconds["fixed-lag smoothing"] > 0
+    index = np.array([p.frame_index for p in lagged])
+
+    def error(poses):
+        diff = np.array([p.filtered for p in poses])[:, 2:] - truth[index, 2:]
+        return np.abs((diff + 180) % 360 - 180).mean()
+
+    def jitter(poses):
+        p = np.array([q.filtered for q in poses])[:, 2:]
+        return np.abs((np.diff(p, 2, axis=0) + 180) % 360 - 180).mean()
+    assert error(lagged) < error(filtered)
+    assert jitter(lagged) < 0.8 * jitter(filtered)
+    # The raw poses are the tracker's, untouched.
+    np.testing.assert_array_equal([p.raw for p in lagged], [p.raw for p in filtered])
+
+
+def test_a_lag_longer_than_the_video_is_the_whole_track_smoothed(walk):
+    tracker, poses, _ = _tracked(walk, load_pose_model(), MAX_LAG_S)
+    whole = tracker.smoothed_track(poses[0].track_id)
+    np.testing.assert_allclose([p.filtered for p in poses], whole, atol=1e-9)
+
+
+def test_one_or_two_processes_give_the_same_lagged_poses(walk):
+    model = load_pose_model()
+    _, one, _ = _tracked(walk, model, 0.2, workers=1)
+    _, two, _ = _tracked(walk, model, 0.2, workers=2)
+    np.testing.assert_allclose([p.filtered for p in one], [p.filtered for p in two], atol=1e-4)
+
+
+def test_a_ctrl_c_still_writes_the_frames_held_back(walk):
+    """A stop between frames: the frames the smoother holds back go out too (smoothed over
+    what was tracked), in order, each once; a sink fed at the end is told they are the
+    fixed-lag smoothed poses."""
+    import os
+    import signal
+
+    from tracker import PoseTracker, track_video
+    from tracker.pipeline import TrackerSettings
+    from tracker.sinks import PoseRecorder
+
+    class CtrlC(PoseRecorder):
+        def write(self, pose):
+            if len(self.poses) == 30:
+                os.kill(os.getpid(), signal.SIGINT)       # acts after this frame's writes
+            super().write(pose)
+
+    class Told(PoseRecorder):
+        pose_kind = "smoothed"
+
+    sink, told = CtrlC(), Told()
+    tracker = PoseTracker(load_pose_model(), 30.0, TrackerSettings(max_people=1,
+                                                                   keep_history=True))
+    run = track_video(walk, tracker, [sink], smoothed_sinks=[told], lag_s=0.3)   # 9 frames
+    assert run.interrupted and not run.smoothed
+    frames = [p.frame_index for p in sink.poses]
+    assert frames == sorted(set(frames)) and len(frames) >= 31 + 9
+    assert len(frames) < len(load_truth(walk)["pose"])
+    assert told.pose_kind == "fixed-lag smoothed" and len(told.poses) == len(frames)

@@ -1,0 +1,149 @@
+"""Fixed-lag smoothing: the outputs written while tracking get each pose a little late,
+smoothed over what the video showed next (``track --lag``).
+
+The smoothed output (``--smooth``: the JSON, the BVH and the MCAP's smoothed topics) follows
+the body better than the frame-by-frame filter, but it needs each whole track, so it can only
+be written at the end. A pose held back for ``lag`` frames can already be smoothed over those
+frames: each track's own smoother (FrontBackTracker.smoothed: the front/back hypotheses'
+most probable path, the heading's and the body angles' RTS smoothers, the limb members'
+chain) is run on a window of the track's latest poses, and the window's older frames are
+handed on. One run per frame would cost about 0.5 ms per frame of window (two 55-angle
+Kalman passes with full covariances), so frames are released in blocks instead: when ``2 lag``
+frames wait, the oldest ``lag`` go, each track in them smoothed once over its poses from
+``margin`` frames before the block to its newest. A frame therefore waits ``lag`` to
+``2 lag - 1`` frames, and the window's first ``margin`` frames are there only to start its
+filters (they are smoothed again, as part of their own block, with more behind them).
+
+Measured on the five validation spiral videos (02_02, 08_03, 05_02, 09_04, 02_05 at 30 fps;
+2026-12-04, one-off driver /work/tmp/s44/block_lag.py; mean err53 / corr8 of the 8 most-moving
+angles): filtered 7.509 / 0.481, whole track smoothed 7.284 / 0.519; lag 4 frames 7.383 /
+0.491, 8 frames 7.356 / 0.498, 15 frames 7.310 / 0.510 (margin 15 frames; 30: 7.302 / 0.514 at
+blocks of 5), costing 3.1 / 2.1 / 1.6 ms a frame for one person. Almost all of the corr8 gain
+is on the walk 02_02 (0.679 filtered, 0.783 at 15 frames, 0.800 smoothed); 08_03 gains
+nothing.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .sinks.geometry import pose_joints_m
+
+if TYPE_CHECKING:
+    from .pipeline import PoseTracker, TrackedPose
+
+#: Frames before a block that start its window's filters, in seconds of video (15 frames at
+#: 30 fps, the study's setting above).
+MARGIN_S = 0.5
+#: The longest lag ``track --lag`` takes, seconds: the frames held back (with --view, the
+#: video frames too) grow with it.
+MAX_LAG_S = 10.0
+
+
+@dataclass
+class _Waiting:
+    """A tracked frame held back: as the tracking loop gives it, and per pose its track's
+    pose number (0 for the track's first pose)."""
+
+    frame: tuple              # (frame_index, time_s, image or None, poses, people)
+    numbers: list[int]
+
+
+class FixedLagSmoother:
+    """Holds tracked frames back and gives them out with each pose's ``filtered`` replaced
+    by the fixed-lag smoothed pose (55,) and its ``joints_m`` (18, 3) metres redrawn from it
+    at the same root (module docstring). Everything else of a pose (raw, ambiguous, the
+    runner-up of its frame's front/back decision, novelty) is as tracked.
+
+    tracker: the PoseTracker producing the frames, with TrackerSettings(keep_history=True).
+    lag_frames: >= 1; margin_frames: >= 0 (None: MARGIN_S of video at the tracker's fps).
+    Frames (frame_index, time_s, image, poses, people) go in with :meth:`push`, in the order
+    tracked, and come out in the same order, each exactly once, by :meth:`push` and, at the
+    end, :meth:`flush`."""
+
+    def __init__(self, tracker: PoseTracker, lag_frames: int, margin_frames: int | None = None):
+        if not tracker.settings.keep_history:
+            raise ValueError("fixed-lag smoothing needs TrackerSettings(keep_history=True)")
+        if not (int(lag_frames) == lag_frames and lag_frames >= 1):
+            raise ValueError(f"lag_frames={lag_frames} must be a whole number >= 1")
+        if margin_frames is None:
+            margin_frames = int(round(MARGIN_S * tracker.fps))
+        if not (int(margin_frames) == margin_frames and margin_frames >= 0):
+            raise ValueError(f"margin_frames={margin_frames} must be a whole number >= 0")
+        self.tracker = tracker
+        self.lag, self.margin = int(lag_frames), int(margin_frames)
+        self._waiting: deque[_Waiting] = deque()
+        self._poses_seen: dict[int, int] = {}      # track id -> its poses pushed so far
+
+    @classmethod
+    def from_seconds(cls, tracker: PoseTracker, lag_s: float) -> FixedLagSmoother:
+        """A smoother holding frames back at least ``lag_s`` seconds of video (> 0; rounded
+        to whole frames at the tracker's fps, at least one)."""
+        if not (np.isfinite(lag_s) and 0 < lag_s <= MAX_LAG_S):
+            raise ValueError(f"lag {lag_s} s must be above 0 and at most {MAX_LAG_S:g} s")
+        return cls(tracker, max(1, int(round(lag_s * tracker.fps))))
+
+    @property
+    def waiting(self) -> int:
+        """How many frames are held back."""
+        return len(self._waiting)
+
+    def push(self, frame: tuple) -> list[tuple]:
+        """Take the next tracked frame (frame_index, time_s, image, poses, people); returns the
+        frames now due (none, or the oldest ``lag``), their poses smoothed."""
+        poses = frame[3]
+        numbers = []
+        for pose in poses:
+            number = self._poses_seen.get(pose.track_id, 0)
+            self._poses_seen[pose.track_id] = number + 1
+            numbers.append(number)
+        self._waiting.append(_Waiting(frame, numbers))
+        if len(self._waiting) < 2 * self.lag:
+            return []
+        return self._release(self.lag)
+
+    def flush(self) -> list[tuple]:
+        """Every frame still held back (at the end of the video, or on a stop), smoothed
+        over all that was tracked."""
+        return self._release(len(self._waiting))
+
+    def _release(self, count: int) -> list[tuple]:
+        block = [self._waiting.popleft() for _ in range(count)]
+        # Each track's poses in the block, one smoother run per track.
+        numbers: dict[int, list[int]] = {}
+        for waiting in block:
+            for pose, number in zip(waiting.frame[3], waiting.numbers):
+                numbers.setdefault(pose.track_id, []).append(number)
+        smoothed: dict[tuple[int, int], np.ndarray] = {}
+        for track_id, wanted in numbers.items():
+            start = max(0, wanted[0] - self.margin)
+            stop = self._poses_seen[track_id]
+            window = self.tracker.smoothed_track(track_id, start, stop)
+            if len(window) != stop - start:
+                raise RuntimeError(f"track {track_id} holds {len(window)} poses from pose "
+                                   f"{start}, the smoother was given {stop - start}")
+            for number in wanted:
+                smoothed[track_id, number] = window[number - start]
+        poses = [(pose, smoothed[pose.track_id, number]) for waiting in block
+                 for pose, number in zip(waiting.frame[3], waiting.numbers)]
+        redrawn = iter(_redrawn(poses))
+        out = []
+        for waiting in block:
+            index, time_s, image, frame_poses, people = waiting.frame
+            out.append((index, time_s, image, [next(redrawn) for _ in frame_poses], people))
+        return out
+
+
+def _redrawn(poses: list[tuple[TrackedPose, np.ndarray]]) -> list[TrackedPose]:
+    """Each (pose, smoothed (55,)) as the pose with filtered = smoothed and its joints drawn
+    from it with the root where the tracker put it, all in one forward-kinematics call."""
+    if not poses:
+        return []
+    vectors = np.array([vector for _, vector in poses])
+    roots = np.array([np.asarray(pose.joints_m, np.float64)[0] for pose, _ in poses])
+    joints = pose_joints_m(vectors, root_position_m=roots)
+    return [replace(pose, filtered=vector, joints_m=j)
+            for (pose, _), vector, j in zip(poses, vectors, joints)]
