@@ -8,7 +8,8 @@ settings; 16_11 uses the shipped sample itself; --fps renders them at another fr
 sample too) into --video-dir (reused when present), run
 through the tracker (background subtraction, stacking, Kalman filter) and compared with its
 ground truth on the tracked frames. Measures (issue 9), for the raw per-frame regressor output,
-the filtered output that `track` streams and the smoothed output of `track --smooth`:
+the filtered output that `track` streams, what it streams with `--lag S` (row lagS; --lag,
+default 0.5) and the smoothed output of `track --smooth`:
 
   err53   mean |wrapped error| of the 53 joint angles, degrees
   const   the same for a constant pose: the FIRST model's training-mean pose (its angle centres)
@@ -42,6 +43,7 @@ from sequences.measures import novelty_summary, pose_measures
 from sequences.video import load_truth
 from tracker.offline.evaluation import (CameraOptions, cmu_motion, constant_pose, track_longest,
                                         write_camera_video)
+from tracker.fixed_lag import MAX_LAG_S
 from tracker.one_line_parser import OneLineParser
 from tracker.pipeline import TrackerSettings
 
@@ -105,7 +107,12 @@ def main(argv=None) -> int:
     ap.add_argument("--fps", type=float, default=30.0,
                     help="render the videos at this frame rate (default 30, the sample's; "
                     "others are rendered as TRIAL_spiral30_FPSfps.mp4)")
+    ap.add_argument("--lag", type=float, default=0.5, metavar="S",
+                    help="also measure the poses `track --lag S` streams (default 0.5, "
+                    "--view's default)")
     args = ap.parse_args(argv)
+    if not (np.isfinite(args.lag) and 0 < args.lag <= MAX_LAG_S):
+        ap.error(f"--lag must be above 0 and at most {MAX_LAG_S:g} seconds, got {args.lag}")
     if not (np.isfinite(args.fps) and 10.0 <= args.fps <= 240.0):
         ap.error(f"--fps must be between 10 and 240 frames per second, got {args.fps}")
     named = _named_models(ap, args.model)
@@ -133,11 +140,12 @@ def main(argv=None) -> int:
             truth_all = load_truth(video)["pose"][:, 0]
             for name, model in models:
                 start = time.perf_counter()
-                tracked = track_longest(video, model, TrackerSettings(novelty=True))
-                idx, raw, filtered, smoothed, novelty = *tracked[:4], tracked[7]
+                tracked = track_longest(video, model, TrackerSettings(novelty=True), args.lag)
+                idx, raw, filtered, smoothed, novelty, lagged = *tracked[:4], *tracked[7:]
                 fps = len(truth_all) / (time.perf_counter() - start)
                 novel = novelty_summary(novelty)
-                for output, est in (("raw", raw), ("filtered", filtered), ("smoothed", smoothed)):
+                for output, est in (("raw", raw), ("filtered", filtered),
+                                    (f"lag{args.lag:g}", lagged), ("smoothed", smoothed)):
                     m = measures(est, truth_all[idx], constant)
                     results.append({"trial": trial, "model": name, "output": output,
                                     "frames": int(len(idx)), "fps": fps, **m,

@@ -222,3 +222,16 @@ def test_a_ctrl_c_still_writes_the_frames_held_back(walk):
     assert frames == sorted(set(frames)) and len(frames) >= 31 + 9
     assert len(frames) < len(load_truth(walk)["pose"])
     assert told.pose_kind == "fixed-lag smoothed" and len(told.poses) == len(frames)
+
+
+def test_a_replay_of_a_run_without_lag_gives_the_lagged_runs_poses(walk):
+    """tracker.fixed_lag.replay (what the evaluation scripts use: one run gives the filtered
+    and the lagged poses) equals a run with the lag, pose for pose."""
+    from tracker.offline.evaluation import track_longest
+    from tracker.pipeline import TrackerSettings
+    model = load_pose_model()
+    tracked = track_longest(walk, model, TrackerSettings(), lag_s=0.5)
+    _, live, _ = _tracked(walk, model, 0.5, workers=2)
+    np.testing.assert_array_equal(tracked[0], [p.frame_index for p in live])
+    np.testing.assert_allclose(tracked[8], [p.filtered for p in live], atol=1e-9)
+    assert not np.allclose(tracked[8], tracked[2])          # not the filtered poses

@@ -137,6 +137,23 @@ class FixedLagSmoother:
         return out
 
 
+def replay(tracker: PoseTracker, frames: list[tuple[int, list[TrackedPose]]],
+           lag_s: float) -> list[TrackedPose]:
+    """The poses a run with ``track_video(..., lag_s=lag_s)`` would have given the outputs,
+    from a finished run without a lag (TrackerSettings(keep_history=True)): frames is that
+    run's every frame, with or without people, as (frame_index, its poses) in order. The same
+    smoother runs on the same histories, so the poses are the same (tests/test_fixed_lag.py);
+    an evaluation gets the filtered and the lagged poses from one run."""
+    smoother = FixedLagSmoother.from_seconds(tracker, lag_s)
+    out = []
+    for index, poses in frames:
+        for released in smoother.push((index, 0.0, None, poses, {})):
+            out += released[3]
+    for released in smoother.flush():
+        out += released[3]
+    return out
+
+
 def _redrawn(poses: list[tuple[TrackedPose, np.ndarray]]) -> list[TrackedPose]:
     """Each (pose, smoothed (55,)) as the pose with filtered = smoothed and its joints drawn
     from it with the root where the tracker put it, all in one forward-kinematics call."""
