@@ -53,3 +53,10 @@ def test_absurd_frame_rates_are_refused_and_others_get_their_own_videos(evaluate
     assert evaluate_accuracy.video_path("02_02", tmp_path).name == "02_02_spiral30.mp4"
     assert evaluate_accuracy.video_path("16_11", tmp_path, 60.0).name == \
         "16_11_spiral30_60fps.mp4"
+
+
+def test_absurd_lags_are_refused(evaluate_accuracy, tmp_path, capsys):
+    base = ["--model", f"a={DEFAULT_MODEL_PATH}", "--video-dir", str(tmp_path / "videos")]
+    for lag in ("0", "-1", "nan", "11"):
+        assert "--lag must be above 0" in refused_in_one_line(
+            evaluate_accuracy, base + ["--lag", lag], capsys)
