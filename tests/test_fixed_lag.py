@@ -235,3 +235,24 @@ def test_a_replay_of_a_run_without_lag_gives_the_lagged_runs_poses(walk):
     np.testing.assert_array_equal(tracked[0], [p.frame_index for p in live])
     np.testing.assert_allclose(tracked[8], [p.filtered for p in live], atol=1e-9)
     assert not np.allclose(tracked[8], tracked[2])          # not the filtered poses
+
+
+def test_video_frames_held_back_are_kept_small_and_given_back_at_their_size():
+    from tracker.fixed_lag import HELD_FRAME_WIDTH_PX
+    smoother = FixedLagSmoother(_Tracker(), lag_frames=3, margin_frames=0)
+    x = np.linspace(0, 255, 1920)[None, :, None]
+    image = np.broadcast_to(x, (1080, 1920, 3)).astype(np.uint8)       # a smooth ramp
+    small = np.zeros((120, 160, 3), np.uint8)
+    frames = [(i, i / 30, image if i % 2 else small, [_pose(i, 1)], {}) for i in range(8)]
+    smoother.push(frames[0])
+    smoother.push(frames[1])
+    assert [w.frame[2].shape for w in smoother._waiting] == [(120, 160, 3),
+                                                            (360, HELD_FRAME_WIDTH_PX, 3)]
+    out = _run(smoother, frames[2:])
+    assert [f[0] for _, f in out] == list(range(8))
+    for _, (index, _, given, _, _) in out:
+        if index % 2:
+            assert given.shape == image.shape
+            assert np.abs(given.astype(int) - image).mean() < 1.0
+        else:
+            assert given is small                         # small frames are held as they are

@@ -28,6 +28,7 @@ from collections import deque
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from .sinks.geometry import pose_joints_m
@@ -41,6 +42,10 @@ MARGIN_S = 0.5
 #: The longest lag ``track --lag`` takes, seconds: the frames held back (with --view, the
 #: video frames too) grow with it.
 MAX_LAG_S = 10.0
+#: Video frames held back (for a sink that shows the video: the live view) are kept at most
+#: this wide and scaled back to their own size when released. The view shows them 256 px
+#: wide, and a 4K frame is 25 MB: a 0.5 s lag at 60 fps holds up to 59 of them.
+HELD_FRAME_WIDTH_PX = 640
 
 
 @dataclass
@@ -50,13 +55,15 @@ class _Waiting:
 
     frame: tuple              # (frame_index, time_s, image or None, poses, people)
     numbers: list[int]
+    image_size: tuple[int, int] | None = None     # (width, height) the image was shrunk from
 
 
 class FixedLagSmoother:
     """Holds tracked frames back and gives them out with each pose's ``filtered`` replaced
     by the fixed-lag smoothed pose (55,) and its ``joints_m`` (18, 3) metres redrawn from it
     at the same root (module docstring). Everything else of a pose (raw, ambiguous, the
-    runner-up of its frame's front/back decision, novelty) is as tracked.
+    runner-up of its frame's front/back decision, novelty) is as tracked; a video frame
+    wider than HELD_FRAME_WIDTH_PX is held shrunk and given back at its size, softer.
 
     tracker: the PoseTracker producing the frames, with TrackerSettings(keep_history=True).
     lag_frames: >= 1; margin_frames: >= 0 (None: MARGIN_S of video at the tracker's fps).
@@ -100,7 +107,13 @@ class FixedLagSmoother:
             number = self._poses_seen.get(pose.track_id, 0)
             self._poses_seen[pose.track_id] = number + 1
             numbers.append(number)
-        self._waiting.append(_Waiting(frame, numbers))
+        image, size = frame[2], None
+        if image is not None and image.shape[1] > HELD_FRAME_WIDTH_PX:
+            size = (image.shape[1], image.shape[0])
+            height = max(1, round(image.shape[0] * HELD_FRAME_WIDTH_PX / image.shape[1]))
+            image = cv2.resize(image, (HELD_FRAME_WIDTH_PX, height), interpolation=cv2.INTER_AREA)
+            frame = (frame[0], frame[1], image, *frame[3:])
+        self._waiting.append(_Waiting(frame, numbers, size))
         if len(self._waiting) < 2 * self.lag:
             return []
         return self._release(self.lag)
@@ -133,6 +146,8 @@ class FixedLagSmoother:
         out = []
         for waiting in block:
             index, time_s, image, frame_poses, people = waiting.frame
+            if waiting.image_size is not None:
+                image = cv2.resize(image, waiting.image_size, interpolation=cv2.INTER_LINEAR)
             out.append((index, time_s, image, [next(redrawn) for _ in frame_poses], people))
         return out
 
