@@ -41,9 +41,9 @@ from regressor.errors import SilhouettePoseError
 from regressor.pose_model import load_pose_model
 from sequences.measures import novelty_summary, pose_measures
 from sequences.video import load_truth
+from tracker.fixed_lag import MAX_LAG_S
 from tracker.offline.evaluation import (CameraOptions, cmu_motion, constant_pose, track_longest,
                                         write_camera_video)
-from tracker.fixed_lag import MAX_LAG_S
 from tracker.one_line_parser import OneLineParser
 from tracker.pipeline import TrackerSettings
 

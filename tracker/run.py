@@ -90,14 +90,14 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     plate, BGR uint8 at the video's size, ``track --background``), trusted everywhere; None
     learns the scene from frames spread over the video (see :func:`_prime`).
     tracker.stage_seconds gains "background" (sampling the video and priming, the start-up
-    cost), "decode", "outputs" and, with a lag, "fixed-lag smoothing". workers: 2 finds and describes the people in a second process
-    (tracker.frame_worker) while this one tracks them, for the same results on two cores; sinks
-    that show the video get no frames from it, so with one of those (and where processes cannot
-    fork) the run stays in one process. The tracker's stages then include the worker's, and
-    "waiting" (for it). lag_s: 0, or hold each frame back that many seconds of video (at
-    least; up to twice that) and give the sinks its poses fixed-lag smoothed over the frames
-    that followed (tracker.fixed_lag; needs keep_history): they follow the body better than
-    the filtered ones. The frames reach the sinks in order, each once; after a Ctrl-C the
+    cost), "decode", "outputs" and, with a lag, "fixed-lag smoothing". workers: 2 finds and
+    describes the people in a second process (tracker.frame_worker) while this one tracks them,
+    for the same results on two cores; sinks that show the video get no frames from it, so with
+    one of those (and where processes cannot fork) the run stays in one process. The
+    tracker's stages then include the worker's, and "waiting" (for it). lag_s: 0, or hold
+    each frame back that many seconds of video (at least; up to twice that) and give the sinks
+    its poses fixed-lag smoothed over the frames that followed (tracker.fixed_lag; needs
+    keep_history): they follow the body better than the filtered ones. The frames reach the sinks in order, each once; after a Ctrl-C the
     frames held back go out too, smoothed over what the sinks were given."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")

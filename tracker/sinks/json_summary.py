@@ -71,9 +71,9 @@ class JsonSummarySink:
     """Collect per-track results and write the summary on close (see the module docstring).
 
     path: output JSON file. video_fps: the video's frame rate. poses: "filtered", "smoothed"
-    or "fixed-lag smoothed", what the poses written to it are (recorded in the summary). clock: seconds
-    counter used for the speed achieved (default time.perf_counter; a parameter so tests can
-    fix it).
+    or "fixed-lag smoothed", what the poses written to it are (recorded in the summary).
+    clock: seconds counter used for the speed achieved (default time.perf_counter; a
+    parameter so tests can fix it).
     """
 
     def __init__(self, path: str | Path, video_fps: float, poses: str = "filtered",
