@@ -97,8 +97,9 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     tracker's stages then include the worker's, and "waiting" (for it). lag_s: 0, or hold
     each frame back that many seconds of video (at least; up to twice that) and give the sinks
     its poses fixed-lag smoothed over the frames that followed (tracker.fixed_lag; needs
-    keep_history): they follow the body better than the filtered ones. The frames reach the sinks in order, each once; after a Ctrl-C the
-    frames held back go out too, smoothed over what the sinks were given."""
+    keep_history): they follow the body better than the filtered ones. The frames reach the
+    sinks in order, each once; after a Ctrl-C the frames held back go out too, smoothed over
+    what the sinks were given."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
