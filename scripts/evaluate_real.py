@@ -13,7 +13,9 @@ tracks, the 53 body angles against the project's body fitted to the reference ke
 most-moving angles), and across views the heading consistency (heading differences against
 camera azimuth differences) and disagreement of the 53 body angles, and the novelty of the
 subject's silhouettes (how unlike the training silhouettes they are: PoseModel.novelty;
---masks draws them). In each view the subject is, per
+--masks draws them); the flexion and heading figures also for the smoothed poses (track's
+JSON and BVH) and the lagged ones (``track --lag 0.5``, the live view's). In each view the
+subject is, per
 frame, the tracked person whose box holds the reference's projected mid-hip (another person
 walks behind in cam02; background subtraction splits the subject into several tracks in some
 views).
@@ -44,6 +46,7 @@ from sequences.pose2sim_measures import (cross_view_measures, reference_body,
                                          reference_cross_view_check, subject_rows,
                                          view_measures)
 from tracker.cli import ZONE_FOREGROUND
+from tracker.fixed_lag import replay
 from tracker.offline.evaluation import constant_pose
 from tracker.one_line_parser import OneLineParser
 from tracker.sinks import PoseRecorder
@@ -56,7 +59,8 @@ class ViewTrack(NamedTuple):
     """Every pose the tracker output on one video, one row per (frame, person): frames (n,)
     int video frame indices, filtered, raw and smoothed (each whole track RTS-smoothed, as
     track's JSON and BVH get them) (n, 55) pose vectors, track_ids (n,) int, bbox_px (n, 4)
-    (x, y, w, h) pixels, novelty (n,) (PoseModel.novelty; NaN if unknown)."""
+    (x, y, w, h) pixels, novelty (n,) (PoseModel.novelty; NaN if unknown), lagged (n, 55): as
+    ``track --lag LAG_S`` streams them (the live view's default; tracker.fixed_lag)."""
 
     frames: np.ndarray
     filtered: np.ndarray
@@ -65,7 +69,12 @@ class ViewTrack(NamedTuple):
     track_ids: np.ndarray
     bbox_px: np.ndarray
     novelty: np.ndarray
+    lagged: np.ndarray
     tiles: dict | None = None
+
+
+#: The lag of the "lagged" poses, seconds (track --view's default, tracker.cli.VIEW_LAG_S).
+LAG_S = 0.5
 
 
 _TILE_PX = 160                  # height of a mask in the --masks contact sheet
@@ -116,12 +125,14 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
         raise Pose2SimError(f"{video}: nobody was tracked")
     # Each track's smoothed poses, in the order of its rows in poses.
     smoothed = {t: iter(tracker.smoothed_track(t)) for t in {p.track_id for p in poses}}
+    lagged = replay(tracker, recorder.frames(), LAG_S)     # the same rows, in the same order
     return ViewTrack(np.array([p.frame_index for p in poses]),
                      np.array([p.filtered for p in poses]), np.array([p.raw for p in poses]),
                      np.array([next(smoothed[p.track_id]) for p in poses]),
                      np.array([p.track_id for p in poses]),
                      np.array([p.bbox_px for p in poses], dtype=float),
                      np.array([np.nan if p.novelty is None else p.novelty for p in poses]),
+                     np.array([p.filtered for p in lagged]),
                      recorder.tiles if keep_masks else None)
 
 
@@ -138,6 +149,7 @@ def evaluate_view(trial: Trial, view: str, track: ViewTrack, constant=None, fit=
            "filtered": view_measures(trial, view, frames, track.filtered[rows], constant, fit),
            "raw": view_measures(trial, view, frames, track.raw[rows], constant, fit),
            "smoothed": view_measures(trial, view, frames, track.smoothed[rows], constant, fit),
+           "lagged": view_measures(trial, view, frames, track.lagged[rows], constant, fit),
            "novelty": novelty_summary(track.novelty[rows])}
     return out, rows
 
@@ -309,14 +321,18 @@ def format_table(result: dict) -> str:
                                  f"{b['offset_free_error_deg']:.1f} / "
                                  f"{b['constant_offset_free_error_deg']:.1f} / "
                                  f"{b['top_angles']['mean']:.2f}" for v, b in body.items()))
-    smoothed = [r["smoothed"] for r in result["views"].values()]
-    lines.append("smoothed poses (track's JSON and BVH): flexion error "
-                 f"{np.mean([s['flexion']['error'] for s in smoothed]):.1f} deg (mean over "
-                 "views), corr. " + " / ".join(
-                     f"{c:.2f}" for c in np.mean([s["flexion"]["corr_per_angle"]
-                                                  for s in smoothed], axis=0))
-                 + ", heading within 45 deg " + " / ".join(
-                     f"{100 * s['heading']['within_45']:.0f}" for s in smoothed) + " %")
+    for kind, what in (("smoothed", "smoothed poses (track's JSON and BVH)"),
+                       ("lagged", f"lagged poses (track --lag {LAG_S:g}, the live view's)")):
+        if kind not in next(iter(result["views"].values())):
+            continue                  # a result written before the lagged poses were measured
+        rows = [r[kind] for r in result["views"].values()]
+        lines.append(f"{what}: flexion error "
+                     f"{np.mean([s['flexion']['error'] for s in rows]):.1f} deg (mean over "
+                     "views), corr. " + " / ".join(
+                         f"{c:.2f}" for c in np.mean([s["flexion"]["corr_per_angle"]
+                                                      for s in rows], axis=0))
+                     + ", heading within 45 deg " + " / ".join(
+                         f"{100 * s['heading']['within_45']:.0f}" for s in rows) + " %")
     raw = [r["raw"]["flexion"]["error"] for r in result["views"].values()]
     lines.append(f"raw poses: flexion error {np.mean(raw):.1f} deg (mean over views). "
                  f"const: a constant at the reference's own mean flexion; train: the model's "

@@ -49,10 +49,14 @@ def _view(err: float, train: float) -> dict:
     heading = {"within_45": 1.0, "rms_deg": 10.0}
     smoothed = {"error_per_angle": [err - 1] * 4, "error": err - 1.0,
                 "corr_per_angle": [0.6, 0.5, 0.4, 0.3]}
+    lagged = {"error_per_angle": [err - 0.5] * 4, "error": err - 0.5,
+              "corr_per_angle": [0.55, 0.45, 0.35, 0.25]}
     return {"tracks": 1, "filtered": {"frames": 100, "flexion": flexion, "heading": heading},
             "raw": {"frames": 100, "flexion": flexion, "heading": heading},
             "smoothed": {"frames": 100, "flexion": smoothed,
-                         "heading": {"within_45": 0.5, "rms_deg": 9.0}}}
+                         "heading": {"within_45": 0.5, "rms_deg": 9.0}},
+            "lagged": {"frames": 100, "flexion": lagged,
+                       "heading": {"within_45": 0.75, "rms_deg": 9.5}}}
 
 
 def _result(evaluate_real) -> dict:
@@ -73,6 +77,13 @@ def test_the_table_puts_both_constants_beside_the_error(evaluate_real):
     assert lines[5].split("|")[1].split()[-3:] == ["25.0", "13.0", "23.0"]
     assert ("smoothed poses (track's JSON and BVH): flexion error 24.0 deg (mean over views), "
             "corr. 0.60 / 0.50 / 0.40 / 0.30, heading within 45 deg 50 / 50 %") in lines
+    assert ("lagged poses (track --lag 0.5, the live view's): flexion error 24.5 deg (mean over "
+            "views), corr. 0.55 / 0.45 / 0.35 / 0.25, heading within 45 deg 75 / 75 %") in lines
+    from tracker.cli import VIEW_LAG_S
+    assert evaluate_real.LAG_S == VIEW_LAG_S
+    for view in result["views"].values():          # a result saved before they were measured
+        del view["lagged"]
+    assert "lagged poses" not in evaluate_real.format_table(result)
 
 
 def test_the_table_says_when_the_silhouettes_were_corrected_by_the_reference(evaluate_real):

@@ -413,19 +413,6 @@ def _pose_sequence(name, truth, per_frame, raw, filtered, smoothed, ambiguous, r
                                          "ambiguity_threshold": threshold}})
 
 
-class _FrameRecorder(PoseRecorder):
-    """A PoseRecorder that also keeps every frame as (frame_index, its poses), in order."""
-
-    def __init__(self):
-        super().__init__()
-        self.frames: list[tuple[int, list]] = []
-        self._mark = 0
-
-    def end_frame(self, frame_index: int) -> None:
-        self.frames.append((frame_index, self.poses[self._mark:]))
-        self._mark = len(self.poses)
-
-
 def track_longest(video: Path, model: PoseModel, settings: TrackerSettings,
                   lag_s: float = 0.5):
     """Run the ``track`` loop (tracker.run.track_video) on a one-person video: (frame indices
@@ -433,7 +420,7 @@ def track_longest(video: Path, model: PoseModel, settings: TrackerSettings,
     (n, 55) and probabilities (n,), NaN where none, novelty (n,), NaN unless
     settings.novelty, and the poses ``track --lag lag_s`` gives (n, 55): tracker.fixed_lag)
     of its longest track."""
-    recorder = _FrameRecorder()
+    recorder = PoseRecorder()
     source = open_video(video)
     tracker = PoseTracker(model, source.fps, replace(settings, max_people=1, keep_history=True))
     track_video(source, tracker, [recorder], workers=2)     # the same poses, on two cores
@@ -442,7 +429,7 @@ def track_longest(video: Path, model: PoseModel, settings: TrackerSettings,
         raise EvaluationError(f"{video}: nobody was tracked")
     track_id = max(by_track, key=lambda t: len(by_track[t]))
     poses = by_track[track_id]
-    lagged = [p.filtered for p in replay(tracker, recorder.frames, lag_s)
+    lagged = [p.filtered for p in replay(tracker, recorder.frames(), lag_s)
               if p.track_id == track_id]
     return (np.array([p.frame_index for p in poses]), np.array([p.raw for p in poses]),
             np.array([p.filtered for p in poses]), tracker.smoothed_track(track_id),

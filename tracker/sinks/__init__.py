@@ -36,18 +36,29 @@ class Sink(Protocol):
 
 
 class PoseRecorder:
-    """A sink that keeps every pose: ``poses`` (list of TrackedPose, in order) and
-    ``by_track()`` (track id -> its poses)."""
+    """A sink that keeps every pose: ``poses`` (list of TrackedPose, in order),
+    ``by_track()`` (track id -> its poses) and ``frames()`` (every frame, with its poses)."""
 
     def __init__(self):
         self.poses: list[TrackedPose] = []
+        self._frame_ends: list[tuple[int, int]] = []   # (frame index, poses up to its end)
 
     def write(self, pose: TrackedPose) -> None:
         """Keep the pose."""
         self.poses.append(pose)
 
     def end_frame(self, frame_index: int) -> None:
-        """Nothing to do per frame."""
+        """Note where the frame's poses end."""
+        self._frame_ends.append((frame_index, len(self.poses)))
+
+    def frames(self) -> list[tuple[int, list[TrackedPose]]]:
+        """Every frame ended so far, with people or without, as (frame_index, its poses) in
+        order (what tracker.fixed_lag.replay takes)."""
+        out, start = [], 0
+        for index, stop in self._frame_ends:
+            out.append((index, self.poses[start:stop]))
+            start = stop
+        return out
 
     def close(self) -> None:
         """Nothing to finish."""
