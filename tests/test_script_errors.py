@@ -44,3 +44,18 @@ def test_reproduce_papers_held_out_blocks_are_decoded_as_the_pieces_of_sequences
     # Rows 0-2 and 5-9 (the block 3-4 held out): the cut and the new sequence at 6 both break.
     assert script.run_labels(np.array([0, 1, 2, 5, 6, 7, 8, 9]), ids).tolist() == [0, 0, 0, 1,
                                                                                    2, 2, 2, 2]
+
+
+def test_the_bagged_mixture_averages_mixtures_that_differ_by_their_seed():
+    script = load_script("reproduce_paper")
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(120, 4))
+    Y = np.column_stack([np.sin(X[:, 0]), X[:, 1] ** 2, X[:, 2] * X[:, 3]])
+    script.MixtureRVM.rvm_params = {"width_scale": 0.5, "noise": 0.05, "min_gain": 400.0}
+    mix = {"n_experts": 4, "overlap": 0.5, "gate": "neighbours", "gate_neighbours": 3}
+    bag = script.BaggedMixture(3, **mix).fit(X, Y)
+    answers = [member.predict(X[:20]) for member in bag.members_]
+    assert [m.seed for m in bag.members_] == [0, 1, 2]
+    assert not np.allclose(answers[0], answers[1])             # different partitions
+    np.testing.assert_allclose(bag.predict(X[:20]), np.mean(answers, axis=0))
+    assert bag.n_basis_ == sum(m.n_basis_ for m in bag.members_)
