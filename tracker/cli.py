@@ -121,7 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "and the MCAP's /pose and /skeleton (with --no-smooth, the JSON and BVH "
                     "too) its poses smoothed over the frames that followed: they follow the "
                     "body better than the frame-by-frame filter (about 2 ms a frame per "
-                    "person); 0: the filtered poses at once. Default 0.5 with --view (it "
+                    "person at 0.5 s, more for shorter lags); 0: the filtered poses at once. Default 0.5 with --view (it "
                     "plays the video at its own speed, so the delay shows only at the start), "
                     "else 0")
     ap.add_argument("--model", type=Path, default=None, help="model file "
