@@ -115,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="the JSON and BVH outputs get each whole track RTS-smoothed, and the "
                     "MCAP gets it beside its filtered poses (the default; it follows the body "
                     "better than the frame-by-frame filter) or, with --no-smooth, the JSON and "
-                    "BVH get the filtered poses the MCAP and the live view get")
+                    "BVH get the poses the MCAP and the live view get (filtered, or --lag's)")
     ap.add_argument("--lag", type=float, default=None, metavar="S",
                     help="hold each frame back S to 2S seconds of video and give the live view "
                     "and the MCAP's /pose and /skeleton (with --no-smooth, the JSON and BVH "
