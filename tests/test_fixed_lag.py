@@ -111,7 +111,7 @@ def test_refusals():
             FixedLagSmoother.from_seconds(_Tracker(), seconds)
     assert FixedLagSmoother.from_seconds(_Tracker(fps=30.0), 0.5).lag == 15
     assert FixedLagSmoother.from_seconds(_Tracker(fps=30.0), 0.001).lag == 1
-    assert FixedLagSmoother.from_seconds(_Tracker(fps=120.0), 0.5).margin == 60
+    assert FixedLagSmoother.from_seconds(_Tracker(fps=120.0), 0.5).margin == 120
 
 
 def test_the_cli_limit_is_the_smoothers():

@@ -120,7 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="hold each frame back S to 2S seconds of video and give the live view "
                     "and the MCAP's /pose and /skeleton (with --no-smooth, the JSON and BVH "
                     "too) its poses smoothed over the frames that followed: they follow the "
-                    "body better than the frame-by-frame filter (about 2 ms a frame per "
+                    "body better than the frame-by-frame filter (about 2.5 ms a frame per "
                     "person at 0.5 s, more for shorter lags); 0: the filtered poses at once. Default 0.5 with --view (it "
                     "plays the video at its own speed, so the delay shows only at the start), "
                     "else 0")
@@ -158,7 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
 MAX_ROLL_DEG = 90.0
 
 #: --lag when not given, seconds: with --view (tracker.fixed_lag: 0.5 s at 30 fps is its
-#: 15 frames, mean corr8 0.510 against the filter's 0.481 on the five validation spirals);
+#: 15 frames, mean corr8 0.516 against the filter's 0.481 on the five validation spirals);
 #: without it, outputs get the filtered poses at once, as before.
 VIEW_LAG_S = 0.5
 #: --lag's upper end, seconds (tracker.fixed_lag.MAX_LAG_S, written out so that parsing the

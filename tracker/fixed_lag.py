@@ -16,11 +16,11 @@ filters (they are smoothed again, as part of their own block, with more behind t
 
 Measured on the five validation spiral videos (02_02, 08_03, 05_02, 09_04, 02_05 at 30 fps;
 2026-12-04, one-off driver /work/tmp/s44/block_lag.py; mean err53 / corr8 of the 8 most-moving
-angles): filtered 7.509 / 0.481, whole track smoothed 7.284 / 0.519; lag 4 frames 7.383 /
-0.491, 8 frames 7.356 / 0.498, 15 frames 7.310 / 0.510 (margin 15 frames; 30: 7.302 / 0.514 at
-blocks of 5), costing 3.1 / 2.1 / 1.6 ms a frame for one person. Almost all of the corr8 gain
-is on the walk 02_02 (0.679 filtered, 0.783 at 15 frames, 0.800 smoothed); 08_03 gains
-nothing.
+angles): filtered 7.509 / 0.481, whole track smoothed 7.284 / 0.519; with a margin of 15
+frames, lag 4 frames 7.383 / 0.491, 8 frames 7.356 / 0.498, 15 frames 7.310 / 0.510, costing
+3.1 / 2.1 / 1.6 ms a frame for one person; a margin of 30 frames (MARGIN_S) gives 7.295 /
+0.516 at 15 frames. Almost all of the corr8 gain is on the walk 02_02 (0.679 filtered, 0.783
+at 15 frames, 0.800 smoothed); 08_03 gains nothing.
 """
 from __future__ import annotations
 
@@ -36,9 +36,11 @@ from .sinks.geometry import pose_joints_m
 if TYPE_CHECKING:
     from .pipeline import PoseTracker, TrackedPose
 
-#: Frames before a block that start its window's filters, in seconds of video (15 frames at
-#: 30 fps, the study's setting above).
-MARGIN_S = 0.5
+#: Frames before a block that start its window's filters, in seconds of video. On the five
+#: validation spirals with a 15-frame lag (/work/tmp/s44/margin.py, 2026-12-04), mean err53 /
+#: corr8 / ms a frame: 15 frames 7.310 / 0.510 / 1.7, 30 frames 7.295 / 0.516 / 2.1 (the gain
+#: all 05_02's, 0.050 -> 0.080 corr8, its whole-track figure), 60 frames the same as 30.
+MARGIN_S = 1.0
 #: The longest lag ``track --lag`` takes, seconds: the frames held back (with --view, the
 #: video frames too) grow with it.
 MAX_LAG_S = 10.0
