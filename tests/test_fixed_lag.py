@@ -51,19 +51,24 @@ def _run(smoother, frames):
     """Push every frame, then flush; returns [(push number, released frame)]."""
     out = []
     for number, frame in enumerate(frames):
-        out += [(number, f) for f in smoother.push(frame)]
-    out += [(len(frames), f) for f in smoother.flush()]
+        smoother.push(frame)
+        while smoother.ready:
+            out.append((number, smoother.ready.popleft()))
+    smoother.flush()
+    while smoother.ready:
+        out.append((len(frames), smoother.ready.popleft()))
     return out
 
 
-def test_frames_go_out_in_order_once_each_between_lag_and_twice_lag_late():
+def test_frames_go_out_in_order_once_each_one_per_push_twice_lag_less_one_late():
     tracker = _Tracker()
     smoother = FixedLagSmoother(tracker, lag_frames=4, margin_frames=3)
     out = _run(smoother, [_frame(i, [7]) for i in range(23)])
     assert [f[0] for _, f in out] == list(range(23))
-    for pushed, (index, *_rest) in out[:-3]:
-        assert 4 <= pushed - index <= 7                 # lag .. 2 lag - 1 frames late
-    assert smoother.waiting == 0
+    pushed = [number for number, _ in out]
+    assert pushed[:16] == list(range(7, 23))            # one per push once 7 are held
+    assert pushed[16:] == [23] * 7                      # the rest at the flush
+    assert smoother.waiting == 0 and not smoother.ready
     # Blocks of 4, each smoothed once from 3 frames before it to the newest pose pushed.
     assert tracker.calls[:3] == [(7, 0, 8), (7, 1, 12), (7, 5, 16)]
     for _, (index, _, _, (pose,), _) in out:
@@ -96,6 +101,30 @@ def test_a_lag_longer_than_the_video_smooths_every_track_whole_at_the_end():
     out = _run(smoother, [_frame(i, [3]) for i in range(20)])
     assert all(pushed == 20 for pushed, _ in out)        # all at the flush
     assert tracker.calls == [(3, 0, 20)]
+
+
+def test_a_stop_inside_the_smoother_loses_no_frame():
+    """A Ctrl-C (KeyboardInterrupt) while a block is smoothed leaves the block held back; the
+    flush that follows gives every frame, in order."""
+    class Stopping(_Tracker):
+        def smoothed_track(self, track_id, start=0, stop=None):
+            if len(self.calls) == 1:
+                self.calls.append("stopped")
+                raise KeyboardInterrupt
+            return super().smoothed_track(track_id, start, stop)
+
+    smoother = FixedLagSmoother(Stopping(), lag_frames=3, margin_frames=0)
+    frames, out = [_frame(i, [1]) for i in range(20)], []
+    with pytest.raises(KeyboardInterrupt):
+        for frame in frames:
+            smoother.push(frame)
+            while smoother.ready:
+                out.append(smoother.ready.popleft())
+    # Stopped at frame 8's push, the second block (frames 3-5) in the smoother: still held.
+    assert [f[0] for f in out] == [0, 1, 2] and smoother.waiting == 6
+    smoother.flush()
+    out += list(smoother.ready)
+    assert [f[0] for f in out] == list(range(9))
 
 
 def test_refusals():
@@ -219,7 +248,8 @@ def test_a_ctrl_c_still_writes_the_frames_held_back(walk):
     run = track_video(walk, tracker, [sink], smoothed_sinks=[told], lag_s=0.3)   # 9 frames
     assert run.interrupted and not run.smoothed
     frames = [p.frame_index for p in sink.poses]
-    assert frames == sorted(set(frames)) and len(frames) >= 31 + 9
+    assert frames == list(range(frames[0], frames[-1] + 1))    # none lost, none twice
+    assert len(frames) >= 31 + 9
     assert len(frames) < len(load_truth(walk)["pose"])
     assert told.pose_kind == "fixed-lag smoothed" and len(told.poses) == len(frames)
 
@@ -237,22 +267,34 @@ def test_a_replay_of_a_run_without_lag_gives_the_lagged_runs_poses(walk):
     assert not np.allclose(tracked[8], tracked[2])          # not the filtered poses
 
 
-def test_video_frames_held_back_are_kept_small_and_given_back_at_their_size():
+def test_video_frames_held_back_are_kept_small_with_their_people():
     from tracker.fixed_lag import HELD_FRAME_WIDTH_PX
-    smoother = FixedLagSmoother(_Tracker(), lag_frames=3, margin_frames=0)
+    from tracker.silhouettes import PersonMask
     x = np.linspace(0, 255, 1920)[None, :, None]
     image = np.broadcast_to(x, (1080, 1920, 3)).astype(np.uint8)       # a smooth ramp
+    mask = np.zeros((600, 300), bool)
+    mask[100:500, 50:250] = True
+    person = PersonMask(mask, (900, 300, 300, 600), (1050.0, 600.0), int(mask.sum()))
     small = np.zeros((120, 160, 3), np.uint8)
-    frames = [(i, i / 30, image if i % 2 else small, [_pose(i, 1)], {}) for i in range(8)]
+    small_person = PersonMask(np.ones((40, 20), bool), (10, 10, 20, 40), (20.0, 30.0), 800)
+    frames = [(i, i / 30, image if i % 2 else small, [_pose(i, 1)],
+               {1: person if i % 2 else small_person}) for i in range(8)]
+    smoother = FixedLagSmoother(_Tracker(), lag_frames=3, margin_frames=0)
     smoother.push(frames[0])
     smoother.push(frames[1])
     assert [w.frame[2].shape for w in smoother._waiting] == [(120, 160, 3),
                                                             (360, HELD_FRAME_WIDTH_PX, 3)]
     out = _run(smoother, frames[2:])
     assert [f[0] for _, f in out] == list(range(8))
-    for _, (index, _, given, _, _) in out:
+    for _, (index, _, given, _, people) in out:
         if index % 2:
-            assert given.shape == image.shape
-            assert np.abs(given.astype(int) - image).mean() < 1.0
+            assert given.shape == (360, HELD_FRAME_WIDTH_PX, 3)
+            assert np.abs(given[:, ::64].astype(int) - image[::3, ::192][:360]).mean() < 2.0
+            shrunk = people[1]
+            assert shrunk.bbox == (300, 100, 100, 200) and shrunk.mask.shape == (200, 100)
+            assert shrunk.centroid == pytest.approx((350.0, 200.0))
+            assert shrunk.area == int(shrunk.mask.sum()) == pytest.approx(80000 / 9, rel=0.02)
         else:
-            assert given is small                         # small frames are held as they are
+            assert given is small and people[1] is small_person    # small frames as they are
+
+

@@ -516,6 +516,35 @@ def test_a_ctrl_c_swallowed_while_tracking_stops_at_the_next_frame_written(tmp_p
     assert json.loads(out.read_text())["frames"] == BATCH_FRAMES + 1
 
 
+def test_a_ctrl_c_while_tracking_with_a_lag_writes_every_frame_given_to_the_smoother(
+        tmp_path, walk, monkeypatch):
+    """`track --lag`: a Ctrl-C that lands while tracking (recorded by track's handler, acted on
+    at the next frame written) still gets the frames held back written, smoothed over what was
+    tracked, into the JSON and BVH, which say so. Before 2026-12-04's fix their tracks came
+    out empty: the flush's progress update raised the stop again."""
+    from tracker import cli
+    from tracker.frame_worker import BATCH_FRAMES
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    track_frames, calls = PoseTracker.track_frames, []
+
+    def stopped_in_the_fourth_batch(self, frames):
+        calls.append(len(frames))
+        if len(calls) == 4:
+            os.kill(os.getpid(), signal.SIGINT)
+        return track_frames(self, frames)
+    monkeypatch.setattr(PoseTracker, "track_frames", stopped_in_the_fourth_batch)
+    out, bvh = tmp_path / "s.json", tmp_path / "b"
+    assert cli.main([str(walk), "--json", str(out), "--bvh", str(bvh), "--lag", "0.3",
+                     "--workers", "1", "--quiet"]) == cli.EXIT_INTERRUPTED
+    summary = json.loads(out.read_text())
+    # The stop lands while the fourth batch is tracked: the three batches given to the
+    # smoother are all written (a 0.3 s lag holds 17 frames back at 30 fps).
+    assert summary["poses"] == "fixed-lag smoothed" and summary["frames"] == 3 * BATCH_FRAMES
+    (track,) = summary["tracks"]
+    assert track["frames"] == list(range(track["first_frame"], 3 * BATCH_FRAMES))
+    assert len(list(bvh.glob("*.bvh"))) == 1
+
+
 def test_a_signal_the_shell_ignores_stays_ignored(tmp_path):
     from tracker import cli
     previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)      # as under nohup

@@ -117,11 +117,12 @@ def build_parser() -> argparse.ArgumentParser:
                     "better than the frame-by-frame filter) or, with --no-smooth, the JSON and "
                     "BVH get the poses the MCAP and the live view get (filtered, or --lag's)")
     ap.add_argument("--lag", type=float, default=None, metavar="S",
-                    help="hold each frame back S to 2S seconds of video and give the live view "
-                    "and the MCAP's /pose and /skeleton (with --no-smooth, the JSON and BVH "
-                    "too) its poses smoothed over the frames that followed: they follow the "
-                    "body better than the frame-by-frame filter (about 2.5 ms a frame per "
-                    "person at 0.5 s, more for shorter lags); 0: the filtered poses at once. Default 0.5 with --view (it "
+                    help="give the live view and the MCAP's /pose and /skeleton (with "
+                    "--no-smooth, the JSON and BVH too) each pose about 2S seconds of video "
+                    "late (S rounded to whole frames; 2S less one frame), smoothed over at "
+                    "least S seconds that followed it: they follow the body better than the "
+                    "frame-by-frame filter (about 2.5 ms a frame per person at 0.5 s, more for "
+                    "shorter lags); 0: the filtered poses at once. Default 0.5 with --view (it "
                     "plays the video at its own speed, so the delay shows only at the start), "
                     "else 0")
     ap.add_argument("--model", type=Path, default=None, help="model file "

@@ -8,22 +8,27 @@ frames: each track's own smoother (FrontBackTracker.smoothed: the front/back hyp
 most probable path, the heading's and the body angles' RTS smoothers, the limb members'
 chain) is run on a window of the track's latest poses, and the window's older frames are
 handed on. One run per frame would cost about 0.5 ms per frame of window (two 55-angle
-Kalman passes with full covariances), so frames are released in blocks instead: when ``2 lag``
-frames wait, the oldest ``lag`` go, each track in them smoothed once over its poses from
-``margin`` frames before the block to its newest. A frame therefore waits ``lag`` to
-``2 lag - 1`` frames, and the window's first ``margin`` frames are there only to start its
-filters (they are smoothed again, as part of their own block, with more behind them).
+Kalman passes with full covariances), so frames are smoothed in blocks instead: when ``2 lag``
+frames wait unsmoothed, the oldest ``lag`` are smoothed, each track in them once, over its
+poses from ``margin`` frames before the block to its newest; so each frame is smoothed over at
+least ``lag`` frames that followed it. The window's first ``margin`` frames are there only to
+start its filters (they are smoothed again, as part of their own block, with more behind
+them). The smoothed frames then go out one per frame pushed, each ``2 lag - 1`` frames after
+it came in: at a steady pace, so a live view playing the video at its own speed shows no
+pauses (handed out a block at a time, its frames were shown while nothing was tracked, and the
+view froze for 0.2 s every 15 frames: a review's measurement, 2026-12-04).
 
 Measured on the five validation spiral videos (02_02, 08_03, 05_02, 09_04, 02_05 at 30 fps;
 2026-12-04, one-off driver /work/tmp/s44/block_lag.py; mean err53 / corr8 of the 8 most-moving
 angles): filtered 7.509 / 0.481, whole track smoothed 7.284 / 0.519; with a margin of 15
 frames, lag 4 frames 7.383 / 0.491, 8 frames 7.356 / 0.498, 15 frames 7.310 / 0.510, costing
 3.1 / 2.1 / 1.6 ms a frame for one person; a margin of 30 frames (MARGIN_S) gives 7.295 /
-0.516 at 15 frames. Almost all of the corr8 gain is on the walk 02_02 (0.679 filtered, 0.783
+0.516 at 15 frames, 2.1 ms a frame. Almost all of the corr8 gain is on the walk 02_02 (0.679 filtered, 0.783
 at 15 frames, 0.800 smoothed); 08_03 gains nothing.
 """
 from __future__ import annotations
 
+import itertools
 from collections import deque
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
@@ -31,6 +36,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from .silhouettes import PersonMask
 from .sinks.geometry import pose_joints_m
 
 if TYPE_CHECKING:
@@ -45,33 +51,38 @@ MARGIN_S = 1.0
 #: video frames too) grow with it.
 MAX_LAG_S = 10.0
 #: Video frames held back (for a sink that shows the video: the live view) are kept at most
-#: this wide and scaled back to their own size when released. The view shows them 256 px
-#: wide, and a 4K frame is 25 MB: a 0.5 s lag at 60 fps holds up to 59 of them.
+#: this wide, their people with them. The view shows them 256 px wide, and a 4K frame is 25
+#: MB: a 0.5 s lag at 60 fps holds 59 of them.
 HELD_FRAME_WIDTH_PX = 640
 
 
 @dataclass
 class _Waiting:
-    """A tracked frame held back: as the tracking loop gives it, and per pose its track's
-    pose number (0 for the track's first pose)."""
+    """A tracked frame held back: as the tracking loop gives it (its image shrunk, above), and
+    per pose its track's pose number (0 for the track's first pose)."""
 
     frame: tuple              # (frame_index, time_s, image or None, poses, people)
     numbers: list[int]
-    image_size: tuple[int, int] | None = None     # (width, height) the image was shrunk from
 
 
 class FixedLagSmoother:
     """Holds tracked frames back and gives them out with each pose's ``filtered`` replaced
     by the fixed-lag smoothed pose (55,) and its ``joints_m`` (18, 3) metres redrawn from it
     at the same root (module docstring). Everything else of a pose (raw, ambiguous, the
-    runner-up of its frame's front/back decision, novelty) is as tracked; a video frame
-    wider than HELD_FRAME_WIDTH_PX is held shrunk and given back at its size, softer.
+    runner-up of its frame's front/back decision, novelty) is as tracked. A video frame wider
+    than HELD_FRAME_WIDTH_PX is held shrunk to that width, its people's masks, boxes and
+    centroids with it (so it comes out smaller than the video, consistent with its people).
 
     tracker: the PoseTracker producing the frames, with TrackerSettings(keep_history=True).
     lag_frames: >= 1; margin_frames: >= 0 (None: MARGIN_S of video at the tracker's fps).
     Frames (frame_index, time_s, image, poses, people) go in with :meth:`push`, in the order
-    tracked, and come out in the same order, each exactly once, by :meth:`push` and, at the
-    end, :meth:`flush`."""
+    tracked, and come out in the same order, each exactly once, on :attr:`ready` (a deque the
+    caller takes them from): after the first 2 lag - 1 frames, one per frame pushed, so each
+    goes out 2 lag - 1 frames after it came in, smoothed over at least lag frames that
+    followed it; :meth:`flush` at the end puts the rest there. The smoother runs once per
+    ``lag`` frames pushed, on the oldest ``lag`` of the 2 lag held (module docstring); a
+    block leaves the queue only once smoothed, so a Ctrl-C inside the smoother loses
+    nothing."""
 
     def __init__(self, tracker: PoseTracker, lag_frames: int, margin_frames: int | None = None):
         if not tracker.settings.keep_history:
@@ -84,49 +95,50 @@ class FixedLagSmoother:
             raise ValueError(f"margin_frames={margin_frames} must be a whole number >= 0")
         self.tracker = tracker
         self.lag, self.margin = int(lag_frames), int(margin_frames)
-        self._waiting: deque[_Waiting] = deque()
-        self._poses_seen: dict[int, int] = {}      # track id -> its poses pushed so far
+        self.ready: deque[tuple] = deque()           # due: for the caller to take
+        self._smoothed: deque[tuple] = deque()       # smoothed, not due yet
+        self._waiting: deque[_Waiting] = deque()     # not smoothed yet
+        self._poses_seen: dict[int, int] = {}        # track id -> its poses pushed so far
 
     @classmethod
     def from_seconds(cls, tracker: PoseTracker, lag_s: float) -> FixedLagSmoother:
-        """A smoother holding frames back at least ``lag_s`` seconds of video (> 0; rounded
-        to whole frames at the tracker's fps, at least one)."""
+        """A smoother whose lag is ``lag_s`` seconds of video (> 0; rounded to whole frames
+        at the tracker's fps, at least one)."""
         if not (np.isfinite(lag_s) and 0 < lag_s <= MAX_LAG_S):
             raise ValueError(f"lag {lag_s} s must be above 0 and at most {MAX_LAG_S:g} s")
         return cls(tracker, max(1, int(round(lag_s * tracker.fps))))
 
     @property
     def waiting(self) -> int:
-        """How many frames are held back."""
+        """How many frames are held back, not yet smoothed."""
         return len(self._waiting)
 
-    def push(self, frame: tuple) -> list[tuple]:
-        """Take the next tracked frame (frame_index, time_s, image, poses, people); returns the
-        frames now due (none, or the oldest ``lag``), their poses smoothed."""
-        poses = frame[3]
+    def push(self, frame: tuple) -> None:
+        """Take the next tracked frame (frame_index, time_s, image, poses, people); the frame
+        now due, if any, is put on :attr:`ready`."""
         numbers = []
-        for pose in poses:
+        for pose in frame[3]:
             number = self._poses_seen.get(pose.track_id, 0)
             self._poses_seen[pose.track_id] = number + 1
             numbers.append(number)
-        image, size = frame[2], None
-        if image is not None and image.shape[1] > HELD_FRAME_WIDTH_PX:
-            size = (image.shape[1], image.shape[0])
-            height = max(1, round(image.shape[0] * HELD_FRAME_WIDTH_PX / image.shape[1]))
-            image = cv2.resize(image, (HELD_FRAME_WIDTH_PX, height), interpolation=cv2.INTER_AREA)
-            frame = (frame[0], frame[1], image, *frame[3:])
-        self._waiting.append(_Waiting(frame, numbers, size))
-        if len(self._waiting) < 2 * self.lag:
-            return []
-        return self._release(self.lag)
+        self._waiting.append(_Waiting(_held(frame), numbers))
+        if not self._smoothed and len(self._waiting) >= 2 * self.lag:
+            self._smooth(self.lag)
+        if self._smoothed:
+            self.ready.append(self._smoothed.popleft())
 
-    def flush(self) -> list[tuple]:
-        """Every frame still held back (at the end of the video, or on a stop), smoothed
-        over all that was tracked."""
-        return self._release(len(self._waiting))
+    def flush(self) -> None:
+        """Put every frame still held back on :attr:`ready` (at the end of the video, or on a
+        stop), smoothed over all that was pushed."""
+        if self._waiting:
+            self._smooth(len(self._waiting))
+        self.ready.extend(self._smoothed)
+        self._smoothed.clear()
 
-    def _release(self, count: int) -> list[tuple]:
-        block = [self._waiting.popleft() for _ in range(count)]
+    def _smooth(self, count: int) -> None:
+        """Smooth the oldest ``count`` frames held back onto the internal smoothed queue; they
+        leave the waiting queue only once done."""
+        block = list(itertools.islice(self._waiting, count))
         # Each track's poses in the block, one smoother run per track.
         numbers: dict[int, list[int]] = {}
         for waiting in block:
@@ -148,10 +160,10 @@ class FixedLagSmoother:
         out = []
         for waiting in block:
             index, time_s, image, frame_poses, people = waiting.frame
-            if waiting.image_size is not None:
-                image = cv2.resize(image, waiting.image_size, interpolation=cv2.INTER_LINEAR)
             out.append((index, time_s, image, [next(redrawn) for _ in frame_poses], people))
-        return out
+        for _ in block:
+            self._waiting.popleft()
+        self._smoothed.extend(out)
 
 
 def replay(tracker: PoseTracker, frames: list[tuple[int, list[TrackedPose]]],
@@ -162,13 +174,33 @@ def replay(tracker: PoseTracker, frames: list[tuple[int, list[TrackedPose]]],
     smoother runs on the same histories, so the poses are the same (tests/test_fixed_lag.py);
     an evaluation gets the filtered and the lagged poses from one run."""
     smoother = FixedLagSmoother.from_seconds(tracker, lag_s)
-    out = []
     for index, poses in frames:
-        for released in smoother.push((index, 0.0, None, poses, {})):
-            out += released[3]
-    for released in smoother.flush():
-        out += released[3]
-    return out
+        smoother.push((index, 0.0, None, poses, {}))
+    smoother.flush()
+    return [pose for frame in smoother.ready for pose in frame[3]]
+
+
+def _held(frame: tuple) -> tuple:
+    """A tracked frame as held back: its image, when wider than HELD_FRAME_WIDTH_PX, shrunk to
+    that width, and its people (track id -> PersonMask) shrunk with it (masks, boxes,
+    centroids and areas in the shrunk image's pixels)."""
+    index, time_s, image, poses, people = frame
+    if image is None or image.shape[1] <= HELD_FRAME_WIDTH_PX:
+        return frame
+    scale = HELD_FRAME_WIDTH_PX / image.shape[1]
+    small = cv2.resize(image, (HELD_FRAME_WIDTH_PX, max(1, round(image.shape[0] * scale))),
+                       interpolation=cv2.INTER_AREA)
+    return index, time_s, small, poses, {track_id: _shrunk(person, scale)
+                                         for track_id, person in people.items()}
+
+
+def _shrunk(person: PersonMask, scale: float) -> PersonMask:
+    """A person's mask and box scaled by ``scale`` (< 1)."""
+    x, y, w, h = person.bbox
+    size = (max(1, round(w * scale)), max(1, round(h * scale)))
+    mask = cv2.resize(person.mask.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
+    return PersonMask(mask, (round(x * scale), round(y * scale), size[0], size[1]),
+                      (person.centroid[0] * scale, person.centroid[1] * scale), int(mask.sum()))
 
 
 def _redrawn(poses: list[tuple[TrackedPose, np.ndarray]]) -> list[TrackedPose]:

@@ -119,10 +119,14 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     written: dict[int, WrittenPoses] = {}
     stages = tracker.stage_seconds
     worker = None
-    due: deque = deque()          # frames tracked (and smoothed, with a lag) not yet written
+    # Frames tracked (and smoothed, with a lag) and not yet written: taken off inside the
+    # signals-held block that writes them, so a stop cannot fall between the two.
+    due: deque = deque() if lagged is None else lagged.ready
 
-    def emit(index, time_s, frame, poses, people) -> bool:
-        """Hand one frame to the outputs; whether a stop signal came meanwhile."""
+    def emit(count_progress: bool = True) -> bool:
+        """Hand the next due frame to the outputs; whether a stop signal came meanwhile.
+        count_progress False: no progress update (after a stop, whose progress display may
+        raise the stop again: cli._StopOnInterrupt)."""
         nonlocal frames
         clock = time.perf_counter()
         # A stop signal acts between frames, never inside an output's write: raised
@@ -130,6 +134,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         # it left a finished file that no reader could open (once, in a CI run of
         # tests/test_track_cli.py on 2026-12-04: "record has length 153600000000").
         with _signals_held() as held:
+            index, time_s, frame, poses, people = due.popleft()
             for sink in streaming:
                 for pose in poses:
                     sink.write(pose)
@@ -145,7 +150,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
             for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
                 sink.end_frame(index)
         stages["outputs"] += time.perf_counter() - clock
-        if progress is not None:
+        if progress is not None and count_progress:
             progress.update(len(poses))
         return bool(held)
 
@@ -159,14 +164,19 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
             # A live view shows each frame as soon as it is tracked; files take batches.
             frames_in = _in_process(source, tracker, 1 if watching else BATCH_FRAMES)
         for tracked in frames_in:
-            due.extend([tracked] if lagged is None else _timed(lagged.push, tracked, stages))
+            if lagged is None:
+                due.append(tracked)
+            else:
+                # Only a sink that shows the video needs it held back.
+                _timed(lagged.push, tracked if watching else tracked[:2] + (None,) + tracked[3:],
+                       stages)
             while due:
-                if emit(*due.popleft()):
+                if emit():
                     raise KeyboardInterrupt
         if lagged is not None:
-            due.extend(_timed(lagged.flush, None, stages))
+            _timed(lagged.flush, None, stages)
             while due:
-                if emit(*due.popleft()):
+                if emit():
                     raise KeyboardInterrupt
         if worker is not None:
             for stage in ("decode", "silhouettes", "descriptor"):
@@ -213,26 +223,30 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
 
 
 def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> list[str]:
-    """After a stop: write the frames in ``due`` and those the fixed-lag smoother holds back
-    (with emit); returns a problem line if an output failed there (the others then get no
-    more of them either: frames go to every output together)."""
+    """After a stop: write the frames due and those the fixed-lag smoother holds back (emit,
+    without progress updates); returns a problem line if an output failed there (the others
+    then get no more of them either: frames go to every output together). A sink that asks
+    to stop again (KeyboardInterrupt) ends this, not the closing that follows."""
     try:
         if lagged is not None:
-            due.extend(_timed(lagged.flush, None, stages))
+            _timed(lagged.flush, None, stages)
         while due:
-            emit(*due.popleft())
+            emit(count_progress=False)
+    except KeyboardInterrupt:
+        pass
     except Exception as exc:
         return [f"the frames held back for --lag: {type(exc).__name__}: {exc}"]
     return []
 
 
-def _timed(release, tracked, stages) -> list[tuple]:
-    """The frames the fixed-lag smoother gives out for ``tracked`` (push) or at the end
-    (flush: tracked None), its time counted as the stage "fixed-lag smoothing"."""
+def _timed(step, tracked, stages) -> None:
+    """The fixed-lag smoother's push of ``tracked`` (or flush: tracked None), its time
+    counted as the stage "fixed-lag smoothing"."""
     clock = time.perf_counter()
-    out = release() if tracked is None else release(tracked)
-    stages["fixed-lag smoothing"] += time.perf_counter() - clock
-    return out
+    try:
+        step() if tracked is None else step(tracked)
+    finally:
+        stages["fixed-lag smoothing"] += time.perf_counter() - clock
 
 
 def _in_process(source: VideoSource, tracker: PoseTracker, batch: int) -> Iterator[tuple]:
