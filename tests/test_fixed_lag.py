@@ -298,3 +298,36 @@ def test_video_frames_held_back_are_kept_small_with_their_people():
             assert given is small and people[1] is small_person    # small frames as they are
 
 
+
+
+def test_after_a_stop_the_frames_held_back_go_to_the_files_not_the_live_view(walk):
+    """A Ctrl-C with a lag: the frames held back are written to the files, but not shown:
+    the live view would play them at the video's speed, to nobody, while further stops are
+    held back (a review measured a 7 s exit at --lag 5)."""
+    from tracker import PoseTracker, track_video
+    from tracker.pipeline import TrackerSettings
+    from tracker.sinks import PoseRecorder
+
+    class Watching(PoseRecorder):
+        def __init__(self):
+            super().__init__()
+            self.shown = []
+
+        def write_frame(self, frame_index, time_s, frame, people):
+            self.shown.append(frame_index)
+
+    class StopAt(PoseRecorder):
+        def end_frame(self, frame_index):
+            super().end_frame(frame_index)
+            if frame_index == 10:
+                raise KeyboardInterrupt
+
+    watching, files = Watching(), PoseRecorder()
+    tracker = PoseTracker(load_pose_model(), 30.0, TrackerSettings(max_people=1,
+                                                                   keep_history=True))
+    run = track_video(walk, tracker, [watching, files, StopAt()], lag_s=0.3)   # 9 frames
+    assert run.interrupted
+    assert watching.shown == list(range(11))
+    written = [index for index, _ in files.frames()]
+    assert written == list(range(2 * 9 - 1 + 11))       # all given to the smoother
+    assert [index for index, _ in watching.frames()] == list(range(11))

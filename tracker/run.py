@@ -123,10 +123,11 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     # signals-held block that writes them, so a stop cannot fall between the two.
     due: deque = deque() if lagged is None else lagged.ready
 
-    def emit(count_progress: bool = True) -> bool:
+    def emit(stopped: bool = False) -> bool:
         """Hand the next due frame to the outputs; whether a stop signal came meanwhile.
-        count_progress False: no progress update (after a stop, whose progress display may
-        raise the stop again: cli._StopOnInterrupt)."""
+        stopped: after a stop, the frames held back go to the files only: no progress update
+        (its display may raise the stop again: cli._StopOnInterrupt) and nothing to the live
+        view, which would play them at the video's speed to nobody while stops are held."""
         nonlocal frames
         clock = time.perf_counter()
         # A stop signal acts between frames, never inside an output's write: raised
@@ -135,7 +136,9 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         # tests/test_track_cli.py on 2026-12-04: "record has length 153600000000").
         with _signals_held() as held:
             index, time_s, frame, poses, people = due.popleft()
-            for sink in streaming:
+            showing = [] if stopped else watching
+            fed = [sink for sink in streaming if sink not in watching or not stopped]
+            for sink in fed:
                 for pose in poses:
                     sink.write(pose)
             # Counted with the writes, as the outputs hold them: a sink may stop the run
@@ -145,12 +148,12 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                 counts = written.setdefault(pose.track_id, WrittenPoses())
                 counts.poses += 1
                 counts.unfamiliar += pose.unfamiliar
-            for sink in watching:
+            for sink in showing:
                 sink.write_frame(index, time_s, frame, people)
-            for sink in streaming + list(smoothed_sinks):   # frames with nobody count too
+            for sink in fed + list(smoothed_sinks):   # frames with nobody count too
                 sink.end_frame(index)
         stages["outputs"] += time.perf_counter() - clock
-        if progress is not None and count_progress:
+        if progress is not None and not stopped:
             progress.update(len(poses))
         return bool(held)
 
@@ -166,18 +169,16 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         for tracked in frames_in:
             if lagged is None:
                 due.append(tracked)
-            else:
-                # Only a sink that shows the video needs it held back.
-                _timed(lagged.push, tracked if watching else tracked[:2] + (None,) + tracked[3:],
-                       stages)
+            elif _timed(lagged.push, tracked if watching else _poses_only(tracked), stages):
+                raise KeyboardInterrupt
             while due:
                 if emit():
                     raise KeyboardInterrupt
-        if lagged is not None:
-            _timed(lagged.flush, None, stages)
-            while due:
-                if emit():
-                    raise KeyboardInterrupt
+        if lagged is not None and _timed(lagged.flush, None, stages):
+            raise KeyboardInterrupt
+        while due:
+            if emit():
+                raise KeyboardInterrupt
         if worker is not None:
             for stage in ("decode", "silhouettes", "descriptor"):
                 stages[stage] += worker.stage_seconds.get(stage, 0.0)
@@ -223,15 +224,15 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
 
 
 def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> list[str]:
-    """After a stop: write the frames due and those the fixed-lag smoother holds back (emit,
-    without progress updates); returns a problem line if an output failed there (the others
+    """After a stop: write the frames due and those the fixed-lag smoother holds back to the
+    files (emit(stopped=True)); returns a problem line if an output failed there (the others
     then get no more of them either: frames go to every output together). A sink that asks
     to stop again (KeyboardInterrupt) ends this, not the closing that follows."""
     try:
         if lagged is not None:
             _timed(lagged.flush, None, stages)
         while due:
-            emit(count_progress=False)
+            emit(stopped=True)
     except KeyboardInterrupt:
         pass
     except Exception as exc:
@@ -239,14 +240,24 @@ def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> li
     return []
 
 
-def _timed(step, tracked, stages) -> None:
+def _timed(step, tracked, stages) -> bool:
     """The fixed-lag smoother's push of ``tracked`` (or flush: tracked None), its time
-    counted as the stage "fixed-lag smoothing"."""
+    counted as the stage "fixed-lag smoothing"; stop signals are held meanwhile (a frame
+    moving between its queues cannot be lost), and whether one came is returned."""
     clock = time.perf_counter()
     try:
-        step() if tracked is None else step(tracked)
+        with _signals_held() as held:
+            step() if tracked is None else step(tracked)
+        return bool(held)
     finally:
         stages["fixed-lag smoothing"] += time.perf_counter() - clock
+
+
+def _poses_only(tracked: tuple) -> tuple:
+    """A tracked frame (frame_index, time_s, image, poses, people) without its image and
+    people, which only a sink that shows the video needs: nothing else is held back."""
+    index, time_s, _, poses, _ = tracked
+    return index, time_s, None, poses, {}
 
 
 def _in_process(source: VideoSource, tracker: PoseTracker, batch: int) -> Iterator[tuple]:
