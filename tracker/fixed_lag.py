@@ -23,8 +23,8 @@ Measured on the five validation spiral videos (02_02, 08_03, 05_02, 09_04, 02_05
 angles): filtered 7.509 / 0.481, whole track smoothed 7.284 / 0.519; with a margin of 15
 frames, lag 4 frames 7.383 / 0.491, 8 frames 7.356 / 0.498, 15 frames 7.310 / 0.510, costing
 3.1 / 2.1 / 1.6 ms a frame for one person; a margin of 30 frames (MARGIN_S) gives 7.295 /
-0.516 at 15 frames, 2.1 ms a frame. Almost all of the corr8 gain is on the walk 02_02 (0.679 filtered, 0.783
-at 15 frames, 0.800 smoothed); 08_03 gains nothing.
+0.516 at 15 frames, 2.1 ms a frame. Almost all of the corr8 gain is on the walk 02_02 (0.679
+filtered, 0.783 at 15 frames, 0.800 smoothed); 08_03 gains nothing.
 """
 from __future__ import annotations
 
