@@ -41,6 +41,7 @@ from regressor.errors import SilhouettePoseError
 from regressor.pose_model import load_pose_model
 from sequences.measures import novelty_summary, pose_measures
 from sequences.video import load_truth
+from tracker.cli import VIEW_LAG_S
 from tracker.fixed_lag import MAX_LAG_S
 from tracker.offline.evaluation import (CameraOptions, cmu_motion, constant_pose, track_longest,
                                         write_camera_video)
@@ -107,9 +108,9 @@ def main(argv=None) -> int:
     ap.add_argument("--fps", type=float, default=30.0,
                     help="render the videos at this frame rate (default 30, the sample's; "
                     "others are rendered as TRIAL_spiral30_FPSfps.mp4)")
-    ap.add_argument("--lag", type=float, default=0.5, metavar="S",
-                    help="also measure the poses `track --lag S` streams (default 0.5, "
-                    "--view's default)")
+    ap.add_argument("--lag", type=float, default=VIEW_LAG_S, metavar="S",
+                    help="also measure the poses `track --lag S` streams (default "
+                    f"{VIEW_LAG_S:g}, --view's default)")
     args = ap.parse_args(argv)
     if not (np.isfinite(args.lag) and 0 < args.lag <= MAX_LAG_S):
         ap.error(f"--lag must be above 0 and at most {MAX_LAG_S:g} seconds, got {args.lag}")

@@ -45,7 +45,7 @@ from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, came
 from sequences.pose2sim_measures import (cross_view_measures, reference_body,
                                          reference_cross_view_check, subject_rows,
                                          view_measures)
-from tracker.cli import ZONE_FOREGROUND
+from tracker.cli import VIEW_LAG_S, ZONE_FOREGROUND
 from tracker.fixed_lag import replay
 from tracker.offline.evaluation import constant_pose
 from tracker.one_line_parser import OneLineParser
@@ -73,8 +73,8 @@ class ViewTrack(NamedTuple):
     tiles: dict | None = None
 
 
-#: The lag of the "lagged" poses, seconds (track --view's default, tracker.cli.VIEW_LAG_S).
-LAG_S = 0.5
+#: The lag of the "lagged" poses, seconds: track --view's default.
+LAG_S = VIEW_LAG_S
 
 
 _TILE_PX = 160                  # height of a mask in the --masks contact sheet

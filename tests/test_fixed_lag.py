@@ -152,7 +152,8 @@ def test_the_cli_limit_is_the_smoothers():
 
 
 def _walk(T=90):
-    """A walk with the legs and arms swinging at 1 Hz, turning slowly (a spiral's piece)."""
+    """A walk along +X, the legs and arms swinging at 1 Hz and the knees bending (unlike
+    test_track_cli's walker, whose knees stay straight)."""
     from sequences.skeleton import CMU_JOINT_NAMES
     J = len(CMU_JOINT_NAMES)
     euler = np.zeros((T, J, 3))

@@ -291,7 +291,8 @@ def lag_seconds(args) -> float:
 
 def streamed_kind(args) -> str:
     """What the poses written frame by frame are: "filtered", or "fixed-lag smoothed"."""
-    return "fixed-lag smoothed" if lag_seconds(args) > 0 else "filtered"
+    from .fixed_lag import streamed_kind as kind    # deferred: it loads numpy and OpenCV
+    return kind(lag_seconds(args))
 
 
 def _min_area_fraction(args) -> float:

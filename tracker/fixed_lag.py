@@ -166,6 +166,12 @@ class FixedLagSmoother:
         self._smoothed.extend(out)
 
 
+def streamed_kind(lag_s: float) -> str:
+    """What the poses written while tracking are, as the outputs name them: "filtered", or
+    "fixed-lag smoothed" with a lag (seconds) above 0."""
+    return "fixed-lag smoothed" if lag_s > 0 else "filtered"
+
+
 def replay(tracker: PoseTracker, frames: list[tuple[int, list[TrackedPose]]],
            lag_s: float) -> list[TrackedPose]:
     """The poses a run with ``track_video(..., lag_s=lag_s)`` would have given the outputs,

@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
-from .fixed_lag import FixedLagSmoother
+from .fixed_lag import FixedLagSmoother, streamed_kind
 from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from .pipeline import PoseTracker
 from .silhouettes import median_background
@@ -94,12 +94,12 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     describes the people in a second process (tracker.frame_worker) while this one tracks them,
     for the same results on two cores; sinks that show the video get no frames from it, so with
     one of those (and where processes cannot fork) the run stays in one process. The
-    tracker's stages then include the worker's, and "waiting" (for it). lag_s: 0, or hold
-    each frame back that many seconds of video (at least; up to twice that) and give the sinks
-    its poses fixed-lag smoothed over the frames that followed (tracker.fixed_lag; needs
+    tracker's stages then include the worker's, and "waiting" (for it). lag_s: 0, or give
+    the sinks each frame about twice that many seconds of video late (tracker.fixed_lag's
+    2 lag - 1 frames), its poses smoothed over at least lag_s seconds that followed (needs
     keep_history): they follow the body better than the filtered ones. The frames reach the
-    sinks in order, each once; after a Ctrl-C the frames held back go out too, smoothed over
-    what the sinks were given."""
+    sinks in order, each once; after a Ctrl-C the frames held back go out too, to the sinks
+    that do not show the video, smoothed over what was given to the smoother."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
@@ -115,6 +115,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     # Sinks that show the video (the live view) also get every frame and its silhouettes; they
     # shrink the few frames they show themselves, so this costs nothing when there is none.
     watching = [sink for sink in streaming if hasattr(sink, "write_frame")]
+    files = [sink for sink in streaming if sink not in watching]    # fed after a stop
     frames, interrupted, started = 0, False, time.perf_counter()
     written: dict[int, WrittenPoses] = {}
     stages = tracker.stage_seconds
@@ -136,8 +137,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         # tests/test_track_cli.py on 2026-12-04: "record has length 153600000000").
         with _signals_held() as held:
             index, time_s, frame, poses, people = due.popleft()
-            showing = [] if stopped else watching
-            fed = [sink for sink in streaming if sink not in watching or not stopped]
+            showing, fed = ([], files) if stopped else (watching, streaming)
             for sink in fed:
                 for pose in poses:
                     sink.write(pose)
@@ -169,12 +169,13 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         for tracked in frames_in:
             if lagged is None:
                 due.append(tracked)
-            elif _timed(lagged.push, tracked if watching else _poses_only(tracked), stages):
+            elif _smoother_step(stages, lagged.push,
+                                tracked if watching else _poses_only(tracked)):
                 raise KeyboardInterrupt
             while due:
                 if emit():
                     raise KeyboardInterrupt
-        if lagged is not None and _timed(lagged.flush, None, stages):
+        if lagged is not None and _smoother_step(stages, lagged.flush):
             raise KeyboardInterrupt
         while due:
             if emit():
@@ -206,8 +207,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                             smoothed = True
                         elif recorder is not None:
                             fed += _write_filtered(recorder, smoothed_sinks,
-                                                   "filtered" if lagged is None
-                                                   else "fixed-lag smoothed")
+                                                   streamed_kind(lag_s))
                     finally:
                         problems = fed + close_sinks(list(sinks) + list(smoothed_sinks))
                         closed = True
@@ -230,7 +230,7 @@ def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> li
     to stop again (KeyboardInterrupt) ends this, not the closing that follows."""
     try:
         if lagged is not None:
-            _timed(lagged.flush, None, stages)
+            _smoother_step(stages, lagged.flush)
         while due:
             emit(stopped=True)
     except KeyboardInterrupt:
@@ -240,14 +240,14 @@ def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> li
     return []
 
 
-def _timed(step, tracked, stages) -> bool:
-    """The fixed-lag smoother's push of ``tracked`` (or flush: tracked None), its time
-    counted as the stage "fixed-lag smoothing"; stop signals are held meanwhile (a frame
-    moving between its queues cannot be lost), and whether one came is returned."""
+def _smoother_step(stages, step, *args) -> bool:
+    """step(*args), a fixed-lag smoother's push or flush, its time counted as the stage
+    "fixed-lag smoothing"; stop signals are held meanwhile (a frame moving between its queues
+    cannot be lost), and whether one came is returned."""
     clock = time.perf_counter()
     try:
         with _signals_held() as held:
-            step() if tracked is None else step(tracked)
+            step(*args)
         return bool(held)
     finally:
         stages["fixed-lag smoothing"] += time.perf_counter() - clock

@@ -38,6 +38,7 @@ from sequences.render import silhouette_mask
 from sequences.spiral import line_of_sight_azimuth, spiral_walk
 from sequences.video import Actor, load_truth, posed_sequences, scene_camera, write_video
 from regressor.errors import SilhouettePoseError
+from ..cli import VIEW_LAG_S
 from ..filtering import ConstantVelocityFilter
 from ..fixed_lag import replay
 from ..hypotheses import propose_sequence
@@ -414,7 +415,7 @@ def _pose_sequence(name, truth, per_frame, raw, filtered, smoothed, ambiguous, r
 
 
 def track_longest(video: Path, model: PoseModel, settings: TrackerSettings,
-                  lag_s: float = 0.5):
+                  lag_s: float = VIEW_LAG_S):
     """Run the ``track`` loop (tracker.run.track_video) on a one-person video: (frame indices
     (n,), raw (n, 55), filtered (n, 55), smoothed (n, 55), ambiguous (n,), runner-up poses
     (n, 55) and probabilities (n,), NaN where none, novelty (n,), NaN unless
