@@ -102,8 +102,8 @@ class TrackError(SilhouettePoseError):
 
 def build_parser() -> argparse.ArgumentParser:
     ap = OneLineParser(prog="track", description="3-D human pose from a static-camera video, "
-                       "by relevance vector regression on silhouettes, Kalman-filtered over "
-                       "time.")
+                       "regressed from each person's silhouette (a mixture of kernel experts "
+                       "and limb networks), Kalman-filtered over time.")
     ap.add_argument("video", type=Path, help="video file (mp4, avi, ...)")
     ap.add_argument("--out", type=Path, help="MCAP recording (default VIDEO_STEM.mcap if no "
                     "other output is chosen)")
