@@ -29,3 +29,29 @@ def test_every_script_refuses_a_bad_option_in_one_line(script, tmp_path):
     assert done.returncode == EXIT_USAGE
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"{script.name}: error: "), done.stderr
+
+
+def _refused_outputs(capsys, outputs, inputs=()) -> str:
+    with pytest.raises(SystemExit) as exit_:
+        OneLineParser(prog="p").check_outputs(outputs, inputs)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    return err
+
+
+def test_check_outputs_refuses_an_output_that_is_an_input_a_folder_or_in_no_folder(tmp_path,
+                                                                                   capsys):
+    model = tmp_path / "m.npz"
+    model.write_bytes(b"model")
+    (tmp_path / "link.npz").symlink_to(model)
+    assert "same file as --model" in _refused_outputs(
+        capsys, [("--json", tmp_path / "link.npz")], [("--model", model)])
+    assert "is a folder" in _refused_outputs(capsys, [("--json", tmp_path)])
+    assert "no folder" in _refused_outputs(capsys, [("--json", tmp_path / "none" / "a.json")])
+    assert "same file as --json" in _refused_outputs(
+        capsys, [("--json", tmp_path / "a.json"), ("--out", tmp_path / "a.json")])
+    # Distinct, writable outputs pass; None entries are skipped.
+    OneLineParser(prog="p").check_outputs([("--json", tmp_path / "a.json"), ("--x", None)],
+                                          [("--model", model), ("--y", None)])
+    assert model.read_bytes() == b"model"
