@@ -75,6 +75,26 @@ def test_an_output_that_is_the_input_video_is_refused(tmp_path, video, option, s
     _refused_and_intact(result, video, before, option, "input video")
 
 
+@pytest.mark.parametrize("input_", ["model", "background"])
+@pytest.mark.parametrize("option", ["--out", "--json"])
+def test_an_output_that_is_the_model_or_the_background_is_refused(tmp_path, video, option,
+                                                                   input_):
+    """An output may not overwrite any input: the model file (given, or the shipped default
+    the run would read) and the clean plate, not only the video."""
+    model = ROOT / "regressor/models/default_model.npz"
+    if input_ == "model":
+        target, given = tmp_path / "m.npz", []
+        target.symlink_to(model)             # the shipped model itself, through a link
+        before = model.read_bytes()
+    else:
+        target = tmp_path / "plate.png"
+        cv2.imwrite(str(target), np.zeros((48, 64, 3), np.uint8))
+        given, before = ["--background", target], target.read_bytes()
+    result = _track(video, *given, option, target, cwd=tmp_path)
+    _assert_one_line_error(result, option, "the model" if input_ == "model" else "--background")
+    assert (model if input_ == "model" else target).read_bytes() == before
+
+
 @pytest.mark.parametrize("options", [["--json", "x", "--out", "x"],
                                      ["--bvh", "x", "--out", "x"],
                                      ["--bvh", ".", "--json", "v_1.bvh"],

@@ -239,10 +239,15 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def _check_collisions(args) -> None:
-    """No output (nor the file it is written as until complete) may be the input video or
-    another output, also through a relative path, a symlink or a hard link."""
+    """No output (nor the file it is written as until complete) may be an input (the video,
+    the model, the background image) or another output, also through a relative path, a
+    symlink or a hard link."""
+    from regressor.pose_model import DEFAULT_MODEL_PATH
     from .sinks.files import check_distinct, partial_path
-    named = [("the input video", args.video)]
+    named = [("the input video", args.video),
+             ("the model", args.model or DEFAULT_MODEL_PATH)]
+    if args.background is not None:
+        named.append(("the --background image", args.background))
     for path, what in ((args.out, "--out"), (args.json, "--json")):
         if path is not None:
             named += [(what, path), (f"{what}'s temporary file", partial_path(path))]
