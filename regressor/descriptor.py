@@ -39,6 +39,10 @@ class DescriptorSettingsError(SilhouettePoseError, ValueError):
     """A descriptor setting is out of range, or stored settings are malformed."""
 
 
+#: At most this many points sampled along a silhouette's edge (DescriptorSettings.n_points).
+MAX_EDGE_POINTS = 4096
+
+
 @dataclass(frozen=True)
 class DescriptorSettings:
     """How a silhouette becomes a descriptor (everything but the codebook).
@@ -63,13 +67,15 @@ class DescriptorSettings:
     total: float = 100.0
 
     def __post_init__(self) -> None:
+        # Upper bounds far above any useful value: the contexts of n points take n^2 memory
+        # (4,096 points: 134 MB), so a model file asking for 10^12 is refused, not run.
         checks = {
-            "n_points": self.n_points >= 10,
-            "n_angular": self.n_angular >= 1,
-            "n_radial": self.n_radial >= 1,
-            "r_inner": 0 < self.r_inner < self.r_outer,
-            "n_votes": self.n_votes >= 1,
-            "total": self.total > 0,
+            "n_points": 10 <= self.n_points <= MAX_EDGE_POINTS,
+            "n_angular": 1 <= self.n_angular <= 360,
+            "n_radial": 1 <= self.n_radial <= 100,
+            "r_inner": 0 < self.r_inner < self.r_outer < 1e6,
+            "n_votes": 1 <= self.n_votes <= 10_000,
+            "total": 0 < self.total < 1e12,
         }
         for name, ok in checks.items():
             if not ok:

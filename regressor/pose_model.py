@@ -508,7 +508,7 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
             measurement_covariance=a["measurement_covariance"].astype(np.float64),
             process_noise=a["process_noise"].astype(np.float64),
             ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
-            description=json.loads(str(a["description"])), **_input_from_arrays(a))
+            description=_description(a), **_input_from_arrays(a))
     except PoseModelError:
         raise
     except ModelFileError as exc:
@@ -655,6 +655,21 @@ def _heading_index_arrays(index: HeadingIndex | None) -> dict:
                if np.isfinite(typical) else {})}
 
 
+#: The most neighbours a model file's heading index may ask for (the shipped one: 20).
+MAX_HEADING_NEIGHBOURS = 1000
+
+
+def _description(a) -> dict:
+    """The file's training description, a JSON object (what the tracker reads from it, e.g.
+    the data set's fps and the limb networks' mirror images, is looked up by name); a
+    ValueError (PoseModelError-ready) for anything else."""
+    description = json.loads(str(a["description"]))
+    if not isinstance(description, dict):
+        raise ValueError(f"the description must be a JSON object, not "
+                         f"{type(description).__name__}")
+    return description
+
+
 def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
     """A file's heading index (None when it has none), checked against the regressor's input
     length; PoseModelError-ready ValueError otherwise."""
@@ -670,6 +685,8 @@ def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
             or not np.issubdtype(limit.dtype, np.floating):
         raise ValueError("heading index k must be one integer and its limit one number")
     k, limit = int(k), float(limit)
+    if not 1 <= k <= MAX_HEADING_NEIGHBOURS:      # (an index of fewer rows uses them all)
+        raise ValueError(f"heading index k = {k} must be within 1..{MAX_HEADING_NEIGHBOURS}")
     if inputs.ndim != 2 or not 1 <= inputs.shape[1] <= input_length or len(inputs) < 1 \
             or folded.shape != (len(inputs),):
         raise ValueError("heading index shapes do not match the regressor's input")
@@ -797,6 +814,6 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         measurement_covariance=a["measurement_covariance"].astype(np.float64),
         process_noise=a["process_noise"].astype(np.float64),
         ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
-        description=json.loads(str(a["description"])), mixture=mix, limb_head=limb_head,
+        description=_description(a), mixture=mix, limb_head=limb_head,
         heading_index=heading_index, limb_net=limb_net, side_classifier=side_classifier,
         canonical_priors=canonical_priors, **inputs)

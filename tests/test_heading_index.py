@@ -111,7 +111,10 @@ def test_a_broken_index_is_refused(tmp_path):
                            "heading index shapes"),
                           ({"heading_index_folded_deg": raw["heading_index_folded_deg"] + 200},
                            "within \\+-90"),
-                          ({"heading_index_limit_deg": np.float64(0.0)}, "limit")):
+                          ({"heading_index_limit_deg": np.float64(0.0)}, "limit"),
+                          ({"heading_index_k": np.int64(10**9)}, "k = 1000000000"),
+                          ({"description": np.str_("[1, 2]")}, "must be a JSON object"),
+                          ({"descriptor_n_points": np.int64(10**12)}, "n_points")):
         parts = {k: v for k, v in {**raw, **broken}.items() if v is not None}
         save_model(path, parts)                                    # re-checksummed
         with pytest.raises(PoseModelError, match=match):
