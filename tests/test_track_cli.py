@@ -523,7 +523,16 @@ def test_missing_or_corrupt_background_image_is_one_line_error(tmp_path, walk_vi
                     cwd=tmp_path)
     assert broken.returncode == 1
     _assert_one_line_error(broken, "--background", "broken.png", "not an image")
-    assert not (tmp_path / "a.json").exists() and not (tmp_path / "b.json").exists()
+    folder = _track(walk_video, "--background", tmp_path, "--json", tmp_path / "c.json",
+                    cwd=tmp_path)
+    _assert_one_line_error(folder, "--background", "is a folder")
+    assert not any((tmp_path / name).exists() for name in ("a.json", "b.json", "c.json"))
+    if os.geteuid() != 0:                   # root reads any file: no permission to take away
+        hidden = tmp_path / "hidden.png"
+        hidden.write_bytes(corrupt.read_bytes())
+        hidden.chmod(0)
+        _assert_one_line_error(_track(walk_video, "--background", hidden, cwd=tmp_path),
+                               "--background", "not readable")
 
 
 @pytest.mark.parametrize("choice, trust", [(None, False), ("sure", True), ("colour", False)])

@@ -198,8 +198,12 @@ def _check_options(args) -> None:
                                           and low <= args.min_area <= high):
         raise TrackError(f"--min-area must be between {low:g} and {high:g} percent of the "
                          f"image, got {args.min_area}")
+    if args.background is not None and args.background.is_dir():
+        raise TrackError(f"--background {args.background} is a folder; give an image file")
     if args.background is not None and not args.background.is_file():
         raise TrackError(f"--background {args.background}: no such file")
+    if args.background is not None and not os.access(args.background, os.R_OK):
+        raise TrackError(f"--background {args.background}: not readable (permissions)")
     if args.out is None and args.json is None and args.bvh is None and not args.view:
         args.out = Path(args.video.stem + ".mcap")
         if _same_file(args.out, args.video):
