@@ -22,6 +22,11 @@ pose. Until 2026-12-03 the default was a walk turning at 30 deg/s whose wider pa
 walker below the silhouettes' minimum area of the time (SilhouetteExtractor min_area_fraction
 0.003, ~70 px tall at 640x480; 0.0015 since) in 54 % of the frames: its fps (83-200 over the
 sessions) counted those cheap empty frames.
+
+A video or model that cannot be used is refused in one line before any work (exit 2); bad data
+found later (a video that stops decoding) ends the run in one line (exit 1), Ctrl-C too (exit
+130). The default video is rendered under a temporary name and renamed once complete, so an
+interrupted render leaves nothing that the next run would take for the video.
 """
 from __future__ import annotations
 
@@ -33,12 +38,17 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
+from regressor.errors import SilhouettePoseError
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from tracker import PoseTracker, TrackerSettings, track_video
 from tracker.one_line_parser import OneLineParser
 from tracker.sinks.json_summary import JsonSummarySink
 from tracker.sinks.mcap import McapSink
 from tracker.video import open_video
+
+#: What a bad video, model or motion capture raises: the project's errors, and what numpy and
+#: the standard library raise on a file that is not what it says.
+BAD_DATA = (SilhouettePoseError, ValueError, UnicodeDecodeError, MemoryError, OSError)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -58,13 +68,16 @@ _TURN_DEG_PER_S = 60.0
 def _make_video(path: Path, frames: int) -> None:
     from sequences.bvh import read_bvh
     from sequences.spiral import spiral_walk
-    from sequences.video import Actor, write_video
+    from sequences.video import Actor, replace_video, write_video
     bvh = ROOT.parent / "shared" / "data" / "cmu" / "bvh" / "07_12.bvh"
     if not bvh.is_file():
         sys.exit(f"bench_track: {bvh} not found; pass --video")
     motion = spiral_walk(read_bvh(bvh), _TURN_DEG_PER_S, n_frames=frames)
     print(f"rendering {frames} frames of 640x480 video to {path} ...", file=sys.stderr)
-    write_video(path, [Actor(motion)], size=(480, 640), noise_sigma=2.0)
+    # Whole or not at all: an interrupted render leaves no half-written video to be
+    # benchmarked next time.
+    replace_video(path, lambda partial: write_video(partial, [Actor(motion)], size=(480, 640),
+                                                    noise_sigma=2.0))
 
 
 def _decode_fps(video: Path) -> tuple[float, int]:
@@ -105,6 +118,8 @@ def _track(video: Path, model_path: Path, workdir: Path, workers: int):
     result = track_video(source, tracker, [McapSink(workdir / "bench.mcap"),
                                            JsonSummarySink(workdir / "bench.json", source.fps)],
                          progress=sampler, workers=workers)
+    if result.interrupted:      # track_video ends early on Ctrl-C, as `track` should: stop here
+        raise KeyboardInterrupt
     elapsed = time.perf_counter() - start
     frames = result.frames
     stages = dict(tracker.stage_seconds)
@@ -114,6 +129,14 @@ def _track(video: Path, model_path: Path, workdir: Path, workers: int):
 
 
 def main(argv=None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:               # Ctrl-C: one line, no traceback
+        print("bench_track: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--video", type=Path, default=None, help="640x480 single-person video")
     ap.add_argument("--frames", type=int, default=1200, help="frames to render if no --video")
@@ -125,26 +148,49 @@ def main(argv=None) -> int:
         ap.error(f"--video {args.video}: no such file")
     if not args.model.is_file():
         ap.error(f"--model {args.model}: no such file")
+    if not os.environ.get("TRACK_DEBUG"):
+        # As track does: FFmpeg's own complaints ("moov atom not found") would repeat our
+        # one-line error in its words; both are read when the first video is opened.
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+        os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
+    try:                # both open in a fraction of a second: refused before the long work
+        load_pose_model(args.model)
+    except BAD_DATA as exc:
+        ap.error(f"--model {args.model}: {_one_line(exc, args.model)}")
+    if args.video is not None:
+        try:
+            open_video(args.video)
+        except BAD_DATA as exc:
+            ap.error(f"--video {args.video}: {_one_line(exc, args.video)}")
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     video = args.video
-    if video is None:
-        video = ROOT / "out" / "bench" / "walk640-turn60.mp4"
-        if not video.is_file():
-            video.parent.mkdir(parents=True, exist_ok=True)
-            _make_video(video, args.frames)
-    with threadpool_limits(1), tempfile.TemporaryDirectory() as tmp:
-        decode_fps, n = _decode_fps(video)
-        track_fps, stage_ms, memory, frames, startup_s, with_people = _track(video, args.model,
-                                                                             Path(tmp), 1)
-        two_fps, two_ms, two_memory, _, two_startup_s, _ = _track(video, args.model, Path(tmp), 2)
+    try:
+        if video is None:
+            video = ROOT / "out" / "bench" / "walk640-turn60.mp4"
+            if not video.is_file():
+                video.parent.mkdir(parents=True, exist_ok=True)
+                _make_video(video, args.frames)
+        with threadpool_limits(1), tempfile.TemporaryDirectory() as tmp:
+            decode_fps, n = _decode_fps(video)
+            track_fps, stage_ms, memory, frames, startup_s, with_people = _track(
+                video, args.model, Path(tmp), 1)
+            two_fps, two_ms, two_memory, _, two_startup_s, _ = _track(video, args.model,
+                                                                      Path(tmp), 2)
+    except BAD_DATA as exc:
+        print(f"bench_track: error: {_one_line(exc)}", file=sys.stderr)
+        return 1
+    if not frames or not n:
+        print(f"bench_track: error: {video}: no frames could be decoded", file=sys.stderr)
+        return 1
     print(f"video: {video} ({n} frames, someone in view in {with_people})")
     print(f"decode only : {decode_fps:8.1f} fps")
     print(f"track       : {track_fps:8.1f} fps   one process (ratio track/decode "
           f"{track_fps / decode_fps:.2f}; target >= 150 fps)")
     print(f"track       : {two_fps:8.1f} fps   with the frame worker, `track`'s default on two "
           f"cores ({two_fps / track_fps:.2f} x one process)")
-    print(f"start-up    : {startup_s:8.2f} s     one process; {two_startup_s:.2f} s with the worker "
-          f"(open, sample the background, prime; target <= 2 s on a 1080x1920 H.264 clip)")
+    print(f"start-up    : {startup_s:8.2f} s     one process; {two_startup_s:.2f} s with the "
+          f"worker (open, sample the background, prime; target <= 2 s on a 1080x1920 H.264 "
+          f"clip)")
     if with_people < 0.9 * frames:
         print(f"warning: nobody in view in {frames - with_people} of {frames} frames; those skip "
               f"most stages, so the fps overstates the cost of tracking a person")
@@ -162,6 +208,14 @@ def main(argv=None) -> int:
               f"{two_memory[-1][1] - two_memory[0][1]:+.1f} MB (the main process with the "
               f"worker)")
     return 0
+
+
+def _one_line(exc: BaseException, path: Path | None = None) -> str:
+    """An exception as one line (its type's name if it has no message: MemoryError), without
+    a leading "PATH: " when the caller names path itself."""
+    text = str(exc).strip()
+    line = text.splitlines()[0] if text else type(exc).__name__
+    return line.removeprefix(f"{path}: ") if path is not None else line
 
 
 if __name__ == "__main__":

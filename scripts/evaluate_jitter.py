@@ -10,8 +10,13 @@ Prints a table; --json writes the measures, --report DIR a markdown report with 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
+import math
+import os
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 
@@ -19,13 +24,22 @@ from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from regressor.errors import SilhouettePoseError
+from sequences.video import partial_video, replace_video, truth_path
 from tracker import TrackerSettings
 from tracker.offline.evaluation import (AnkurOptions, CameraOptions, ankur_sequence, evaluate,
                                         rendered_sequence, video_sequence)
 from tracker.offline.report import format_table, write_report
 from tracker.one_line_parser import OneLineParser
+from tracker.sinks.files import write_beside
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
+#: Names OpenCV's writer takes the mp4v codec in (sequences.video.write_video; OpenCV 5.1).
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
+#: What tracker.offline.report.write_report puts in the --report folder.
+REPORT_FILES = ("README.md", "result.json", "parts.png", "jitter.png", "heading.png")
+MIN_FRAMES = 3              # the jitter and acceleration measures take second differences
+MAX_FRAMES = 1_000_000
+EXIT_INTERRUPTED = 130      # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -46,9 +60,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--video", type=Path, help="keep the --through-video mp4 here")
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH, help="stacked model")
     ap.add_argument("--per-frame-model", type=Path, default=PER_FRAME_MODEL, help="k=1 model")
-    ap.add_argument("--size", type=_size, default=(240, 320), help="WIDTHxHEIGHT (320x240)")
-    ap.add_argument("--frames", type=int, help="evaluate only the first N frames")
-    ap.add_argument("--ambiguity-threshold", type=float, help="default: the model's")
+    ap.add_argument("--size", type=_size, default=(240, 320),
+                    help="WIDTHxHEIGHT (320x240), 64..1920 each side")
+    ap.add_argument("--frames", type=int, help=f"evaluate only the first N frames (N >= "
+                    f"{MIN_FRAMES})")
+    ap.add_argument("--ambiguity-threshold", type=float,
+                    help="raw heading norm below which a frame is ambiguous, 0..1.5 (default: "
+                         "the model's)")
     ap.add_argument("--heading-factor", type=float,
                     default=TrackerSettings.ambiguous_heading_factor)
     ap.add_argument("--joint-factor", type=float, default=None,
@@ -62,8 +80,106 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _check_numbers(ap: OneLineParser, args) -> None:
+    """Refuse absurd numbers in one line before the slow work: each finite and within what
+    the filter (scales > 0, inflation factors >= 1, a (cos, sin) norm of 0..1.5 as threshold),
+    the camera and the measures take."""
+    bounds = [("--heading-factor", args.heading_factor, 1, 1e6),
+              ("--joint-factor", args.joint_factor, 1, 1e6),
+              ("--r-scale", args.r_scale, 1e-6, 1e6), ("--q-scale", args.q_scale, 1e-6, 1e6),
+              ("--ambiguity-threshold", args.ambiguity_threshold, 0, 1.5),
+              ("--spiral", args.spiral, -720, 720)]
+    for flag, value, low, high in bounds:
+        if value is not None and not (math.isfinite(value) and low <= value <= high):
+            ap.error(f"{flag} must be within {low:g}..{high:g}, got {value}")
+    if args.frames is not None and not MIN_FRAMES <= args.frames <= MAX_FRAMES:
+        ap.error(f"--frames must be within {MIN_FRAMES}..{MAX_FRAMES} (the jitter measures "
+                 f"need {MIN_FRAMES} frames), got {args.frames}")
+    if not all(64 <= side <= 1920 for side in args.size):
+        ap.error(f"--size must be within 64..1920 pixels each side, got "
+                 f"{args.size[1]}x{args.size[0]}")
+
+
+def _check_files(ap: OneLineParser, args) -> None:
+    """Refuse, before the slow work, missing inputs and outputs that could not be written or
+    would overwrite an input or each other: --json, --video and its sidecar (and their
+    temporary names), and the files --report writes into an existing folder."""
+    if args.video is not None and not args.through_video:
+        ap.error("--video keeps the --through-video mp4: give --through-video too")
+    if args.through_video and args.ankur:
+        ap.error("--through-video renders a --bvh motion; the paper's data has no video")
+    inputs = [("--ankur", args.ankur)] if args.ankur else [("--bvh", args.bvh)]
+    if args.bvh:
+        inputs += [("--model", args.model), ("--per-frame-model", args.per_frame_model)]
+    distinct = []
+    for what, path in inputs:
+        if not path.is_file():
+            ap.error(f"{what} {path}: no such file")
+        # The same model as both is a comparison of one model with itself, not a clash.
+        if not any(os.path.samefile(path, other) for _, other in distinct):
+            distinct.append((what, path))
+    outputs = [("--json", args.json)]
+    if args.video is not None:
+        if args.video.suffix.lower() not in VIDEO_SUFFIXES and not args.video.is_dir():
+            ap.error(f"--video {args.video}: give a video name ending in "
+                     f"{', '.join(VIDEO_SUFFIXES)}")
+        partial = partial_video(args.video)
+        outputs += [("--video", args.video), ("its ground-truth sidecar", truth_path(args.video)),
+                    ("the temporary video", partial),
+                    ("the temporary sidecar", truth_path(partial))]
+    if args.report is not None:
+        if args.report.exists() and not args.report.is_dir():
+            ap.error(f"--report {args.report} is a file; give a folder")
+        if args.report.is_dir():
+            outputs += [(f"--report's {name}", args.report / name) for name in REPORT_FILES]
+        else:
+            parent = args.report.parent if str(args.report.parent) else Path(".")
+            if not parent.is_dir():
+                ap.error(f"--report {args.report}: no folder {parent}")
+            if not os.access(parent, os.W_OK):
+                ap.error(f"--report {args.report}: {parent} is not writable")
+        if importlib.util.find_spec("matplotlib") is None:
+            ap.error("--report draws plots with matplotlib: pip install "
+                     "'silhouette-pose[report]'")
+    ap.check_outputs(outputs, distinct)
+    for what, path in outputs[1:]:
+        if path.exists() and not path.is_file():
+            ap.error(f"{what} {path} exists and is not a regular file; choose another name")
+
+
+def _write_text(path: Path, text: str) -> None:
+    """Write text to path through a temporary file renamed at the end (the old file stays if
+    this fails); a destination that is not a regular file (/dev/null) is written in place."""
+    if path.exists() and not path.is_file():
+        path.write_text(text)
+    else:
+        write_beside(path, lambda partial: partial.write_text(text))
+
+
+def _write_report(folder: Path, seq, result: dict) -> Path:
+    """write_report into a temporary folder beside ``folder``, then move its files into
+    ``folder`` (created if need be) together: a failed or interrupted report leaves the old
+    one as it was. Other files of ``folder`` are kept. Returns the README's path."""
+    # Inside an existing folder (its parent may not be writable, or be "." itself), else beside
+    # it: the renames stay on one file system either way.
+    home = folder if folder.is_dir() else (folder.parent if str(folder.parent) else Path("."))
+    scratch = Path(tempfile.mkdtemp(prefix=".report.", suffix=".partial", dir=home))
+    try:
+        write_report(scratch, seq, result)
+        folder.mkdir(exist_ok=True)
+        for made in sorted(scratch.iterdir()):
+            os.replace(made, folder / made.name)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    return folder / "README.md"
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    _check_numbers(ap, args)
+    _check_files(ap, args)
+    written = []
     try:
         with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
             if args.ankur:
@@ -76,17 +192,34 @@ def main(argv=None) -> int:
                                            r_scale=args.r_scale or 1.0, q_scale=args.q_scale)
                 models = load_pose_model(args.model), load_pose_model(args.per_frame_model)
                 make = video_sequence if args.through_video else rendered_sequence
-                extra = {"video": args.video} if args.through_video else {}
-                seq = make(args.bvh, *models, args.spiral, CameraOptions(size=args.size),
-                           settings, args.frames, **extra)
+
+                def sequence(**video):
+                    return make(args.bvh, *models, args.spiral, CameraOptions(size=args.size),
+                                settings, args.frames, **video)
+                if args.video is None:
+                    seq = sequence()
+                else:
+                    # The kept video is written and tracked under a temporary name, renamed
+                    # once tracked: a failed or interrupted run leaves an older one intact.
+                    made = []
+                    replace_video(args.video, lambda partial: made.append(
+                        sequence(video=partial)))
+                    seq = made[0]
+                    written.append(str(args.video))
         result = evaluate(seq)
         print(format_table(result))
         if args.json:
-            args.json.write_text(json.dumps(result, indent=1))
+            _write_text(args.json, json.dumps(result, indent=1))
+            written.append(str(args.json))
         if args.report:
-            print(f"report: {write_report(args.report, seq, result)}")
-    except (OSError, SilhouettePoseError, ValueError) as exc:
-        print(f"evaluate_jitter: error: {exc}", file=sys.stderr)
+            print(f"report: {_write_report(args.report, seq, result)}")
+    except KeyboardInterrupt:
+        done = f"wrote only {', '.join(written)}" if written else "nothing written"
+        print(f"evaluate_jitter: interrupted; {done}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (OSError, SilhouettePoseError, ValueError, MemoryError) as exc:
+        print(f"evaluate_jitter: error: {' '.join(str(exc).split()) or type(exc).__name__}",
+              file=sys.stderr)
         return 1
     return 0
 

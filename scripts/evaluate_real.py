@@ -25,11 +25,17 @@ silhouettes (tracker.offline.reference_masks: ``cut`` removes whatever lies off 
 from the reference keypoints, ``drawn`` uses that drawing as the silhouette, ``rendered`` the
 training renderer's body fitted to the reference and rendered through each calibrated camera),
 to tell how much of the error the silhouettes cause and how much the regressor.
+
+Options that cannot work (--max-people 0, a --json or --masks that could not be written or
+that is one of the files read) are refused before any work (exit 2); bad data (a trial file
+that is not text, a NaN in the calibration) ends the run in one line naming the file (exit 1),
+Ctrl-C in one line (exit 130). --json and --masks are written whole or not at all.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import NamedTuple
@@ -37,11 +43,13 @@ from typing import NamedTuple
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from regressor.errors import SilhouettePoseError
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
 from sequences.keypoint_fit import KeypointFitError
 from sequences.measures import MeasureError, novelty_summary
-from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, camera_roll_deg,
-                                load_trial, project_reference, video_frames)
+from sequences.pose2sim import (CALIBRATION, DEFAULT_TRIAL, REFERENCE_TRC, VIEWS, Pose2SimError,
+                                Trial, camera_roll_deg, load_trial, project_reference,
+                                video_frames)
 from sequences.pose2sim_measures import (cross_view_measures, reference_body,
                                          reference_cross_view_check, subject_rows,
                                          view_measures)
@@ -119,7 +127,9 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
                  else reference_extractor(default_extractor(settings)))
     tracker = PoseTracker(model, source.fps, settings, extractor=extractor)
     recorder = _MaskRecorder(roll_deg) if keep_masks else PoseRecorder()
-    track_video(source, tracker, sinks=[recorder], workers=2)  # the same poses, two cores
+    run = track_video(source, tracker, sinks=[recorder], workers=2)  # the same poses, two cores
+    if run.interrupted:     # track_video ends early on Ctrl-C, as `track` should: stop here
+        raise KeyboardInterrupt
     poses = recorder.poses
     if not poses:
         raise Pose2SimError(f"{video}: nobody was tracked")
@@ -389,33 +399,104 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:               # Ctrl-C: one line, no traceback
+        print("evaluate_real: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv) -> int:
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    if args.max_people is not None and args.max_people < 1:
+        ap.error(f"--max-people must be at least 1, got {args.max_people} (leave it out to "
+                 f"track everyone)")
     problem = _masks_path_problem(args.masks, args.json)
     if problem:
         print(f"evaluate_real: error: {problem}", file=sys.stderr)
         return 1
+    # Before about a minute of tracking, not after it: the outputs must be writable and may
+    # overwrite none of the files read (the model, the trial's reference, calibration, videos).
+    ap.check_outputs([("--json", args.json), ("--masks", args.masks)],
+                     [("--model", args.model),
+                      ("the reference", args.trial / REFERENCE_TRC),
+                      ("the calibration", args.trial / CALIBRATION),
+                      *((f"the {view} video", args.trial / "videos" / f"{view}.mp4")
+                        for view in VIEWS)])
+    if not os.environ.get("TRACK_DEBUG"):
+        # As track does: FFmpeg's own complaints ("moov atom not found") would repeat our
+        # one-line error in its words; both are read when the first video is opened.
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+        os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
     sheet = [] if args.masks else None
     try:
-        trial, model = load_trial(args.trial), load_pose_model(args.model)
+        trial, model = checked_trial(args.trial), load_pose_model(args.model)
         with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
             result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration",
                               sheet=sheet,
                               trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
                               reference_masks=args.reference_masks)
-    except (Pose2SimError, PoseModelError, MeasureError, KeypointFitError, VideoError) as exc:
+    except (Pose2SimError, PoseModelError, MeasureError, KeypointFitError, VideoError,
+            SilhouettePoseError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
     result["model"] = str(args.model)
     print(format_table(result))
-    if args.json:
-        args.json.write_text(json.dumps(result, indent=1))
-    if args.masks:
-        try:
-            write_mask_sheet(args.masks, sheet)
-        except Pose2SimError as exc:
-            print(f"evaluate_real: error: {exc}", file=sys.stderr)
-            return 1
+    try:
+        if args.json:
+            _write_whole(args.json, lambda path: path.write_text(json.dumps(result, indent=1)))
+        if args.masks:
+            _write_whole(args.masks, lambda path: write_mask_sheet(path, sheet))
+    except Pose2SimError as exc:
+        print(f"evaluate_real: error: {exc}", file=sys.stderr)
+        return 1
     return 0
+
+
+def checked_trial(root: Path) -> Trial:
+    """load_trial(root), with one-line errors (Pose2SimError naming the file) also for a
+    reference or calibration that is not text, and for a calibration whose numbers are not all
+    finite (a NaN there only showed later, as warnings and a misleading error)."""
+    try:
+        trial = load_trial(root)
+    except UnicodeDecodeError as exc:
+        files = [root / REFERENCE_TRC, root / CALIBRATION]
+        binary = [str(path) for path in files if not _is_text(path)] or map(str, files)
+        raise Pose2SimError(f"{' or '.join(binary)}: not a text file ({exc.reason} at byte "
+                            f"{exc.start})") from None
+    for view, camera in trial.cameras.items():
+        if not all(np.isfinite(a).all() for a in (camera.K, camera.distortion, camera.R,
+                                                  camera.t)):
+            raise Pose2SimError(f"{root / CALIBRATION}: camera {view} has a number that is not "
+                                f"finite (NaN or infinity)")
+    return trial
+
+
+def _is_text(path: Path) -> bool:
+    """Whether the file reads as UTF-8 text (what load_trial expects)."""
+    try:
+        path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    except OSError:
+        pass                            # not this one's problem
+    return True
+
+
+def _write_whole(path: Path, write) -> None:
+    """write(partial) writes the output under a temporary name beside path, with path's
+    suffix (OpenCV picks the image format by it), then renamed onto path: a run cut short
+    leaves the file it would have replaced whole. Pose2SimError naming the file on failure."""
+    partial = path.with_name(f"{path.stem}.partial-{os.getpid()}{path.suffix}")
+    try:
+        write(partial)
+        os.replace(partial, path)
+    except OSError as exc:
+        raise Pose2SimError(f"{path}: cannot write it ({exc.strerror or exc})") from None
+    finally:
+        if partial.exists():
+            partial.unlink()
 
 
 def _masks_path_problem(masks: Path | None, json_out: Path | None) -> str | None:

@@ -11,8 +11,13 @@ validation trials rendered four ways (regressor.canonical_priors; about 40 s).
 """
 from __future__ import annotations
 
+import contextlib
 import json
+import multiprocessing
+import os
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -22,6 +27,7 @@ from threadpoolctl import threadpool_limits
 
 from regressor.angles import wrap_deg
 from regressor.descriptor import DescriptorSettings
+from regressor.errors import SilhouettePoseError
 from regressor.layout import MAX_GRID
 from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model, save_pose_model
@@ -98,7 +104,10 @@ def _noisy_inputs(args, masks, settings, codebook, mirror: bool, start: float, l
 def _check_numbers(ap, args) -> None:
     """Refuse absurd numeric options in one line, before the slow steps (rendering alone
     takes minutes)."""
-    bounds = (("--stack", args.stack, 1, 30), ("--n-fit", args.n_fit, 1, 10**6),
+    # --seed: numpy and scikit-learn take seeds in 0..2**32 - 1, and the experts and limb
+    # networks add their index to it.
+    bounds = (("--seed", args.seed, 0, 2**31 - 1),
+              ("--stack", args.stack, 1, 30), ("--n-fit", args.n_fit, 1, 10**6),
               ("--rows-per-trial", args.rows_per_trial, 0, 10**6),
               ("--spliced", args.spliced, 0, 10_000),
               ("--max-views", args.max_views, 1, 360), ("--experts", args.experts, 1, 1000),
@@ -121,7 +130,56 @@ def _check_numbers(ap, args) -> None:
                  "--layout-grid 0)")
 
 
+def _check_out(ap, args) -> None:
+    """Refuse, before the slow steps, an --out that could not be written or would overwrite
+    what training reads or writes: a BVH file of --bvh-dir (or a file named like one there: it
+    would be read as a trial next time), or a file of the --cache (its rendered trials,
+    spliced motions, descriptors and layouts)."""
+    out = args.out.resolve()
+    if out.parent == args.bvh_dir.resolve() and out.suffix.lower() == ".bvh":
+        ap.error(f"--out {args.out} is named like the motion capture in --bvh-dir "
+                 f"{args.bvh_dir}; choose another file name")
+    cache = args.cache.resolve()
+    if (out.parent in (cache / "dataset", cache / "spliced")
+            or out.parent == cache and out.name.startswith(("descriptors-", "layouts-"))):
+        ap.error(f"--out {args.out} would be among the files training keeps in --cache "
+                 f"{args.cache}; choose another file name")
+    motions = sorted(args.bvh_dir.glob("*.bvh")) if args.bvh_dir.is_dir() else []
+    ap.check_outputs([("--out", args.out)], [("--bvh-dir", path) for path in motions])
+
+
 def main(argv=None) -> int:
+    """Train (see the module docstring); Ctrl-C ends it at once with one line, exit 130."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        return _main(argv)          # an ignored Ctrl-C (nohup, `&`) or a caller's own handler
+    main_pid = os.getpid()
+
+    def interrupted(number, frame):
+        # Rendering and descriptors run in pools of worker processes, which wait for their
+        # running tasks (a trial's rendering: a minute or more) before letting an interrupt
+        # of this process through: `kill -INT` of it did not stop it within 5 s. So the
+        # workers are stopped first. A worker (forked: it inherits this handler) leaves
+        # Ctrl-C, which a terminal sends it too, to this process.
+        if os.getpid() != main_pid:
+            return
+        for child in multiprocessing.active_children():
+            with contextlib.suppress(OSError, ValueError):    # gone meanwhile
+                child.terminate()
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, interrupted)
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        print("train: interrupted (finished steps stay in the --cache: a re-run resumes there)",
+              file=sys.stderr)
+        return 130
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def _main(argv) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
     ap.add_argument("--cache", type=Path, default=Path("cache"))
@@ -240,6 +298,7 @@ def main(argv=None) -> int:
         ap.error(f"--workers must be in 1..64, got {args.workers}")
     if args.heading_index_rows < 0:
         ap.error(f"--heading-index-rows must be >= 0, got {args.heading_index_rows}")
+    _check_out(ap, args)
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     start = time.perf_counter()
     try:
@@ -353,7 +412,7 @@ def main(argv=None) -> int:
                 diff = np.abs(wrap_deg(loaded.predict_limbs(probe)[:, 2:]
                                        - model.predict_limbs(probe)[:, 2:]))
                 report["limbs_round_trip_max_deg"] = round(float(diff.max()), 3)
-    except (OSError, DatasetError, SpliceError, ValueError) as exc:
+    except (OSError, DatasetError, SpliceError, ValueError, SilhouettePoseError) as exc:
         print(f"train: error: {exc}", file=sys.stderr)
         return 1
     total = time.perf_counter() - start

@@ -11,7 +11,9 @@ and centroid in pixels.
 """
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
@@ -212,6 +214,34 @@ def truth_path(video_path: str | Path) -> Path:
     """The ground-truth sidecar path of a video: 'walk.mp4' -> 'walk.truth.npz'."""
     p = Path(video_path)
     return p.with_name(p.stem + ".truth.npz")
+
+
+def partial_video(video_path: str | Path) -> Path:
+    """Where :func:`replace_video` writes a video until it and its sidecar are complete:
+    NAME.partial with the suffix kept last (OpenCV picks the container from it):
+    'walk.mp4' -> 'walk.partial.mp4', whose sidecar is 'walk.partial.truth.npz'."""
+    p = Path(video_path)
+    return p.with_name(f"{p.stem}.partial{p.suffix}")
+
+
+def replace_video(video_path: str | Path, render: Callable[[Path], object]) -> None:
+    """Write a video and its ground-truth sidecar whole or not at all: render(partial) writes
+    them (e.g. with :func:`write_video`) at :func:`partial_video`'s name, then both are renamed
+    onto video_path and its sidecar. The old video goes first and the new one comes last, so
+    a kill between the renames leaves no video (a cache renders it again), never a video
+    beside another one's ground truth or without its own; if render fails or is interrupted,
+    the old pair is as it was and the temporary files are removed."""
+    path = Path(video_path)
+    partial = partial_video(path)
+    try:
+        render(partial)
+        path.unlink(missing_ok=True)
+        os.replace(truth_path(partial), truth_path(path))
+        os.replace(partial, path)
+    finally:
+        for leftover in (partial, truth_path(partial)):
+            with contextlib.suppress(OSError):
+                leftover.unlink(missing_ok=True)
 
 
 def load_truth(video_path: str | Path) -> dict[str, np.ndarray]:

@@ -93,3 +93,27 @@ def test_bad_options_are_refused(tmp_path):
         write_video(tmp_path / "x.mp4", [Actor(_walker())], size=(8, 8))
     with pytest.raises(VideoWriteError, match="cannot read ground truth"):
         load_truth(tmp_path / "missing.mp4")
+
+
+def test_replace_video_writes_the_pair_whole_or_leaves_the_old_one(tmp_path):
+    """sequences.video.replace_video: an interrupted render leaves the old video and sidecar
+    as they were and no temporary file; a finished one replaces both."""
+    from sequences.video import replace_video, truth_path
+    path = tmp_path / "walk.mp4"
+
+    def render(partial, stop=False):
+        partial.write_bytes(b"new frames")
+        if stop:                                    # Ctrl-C before the ground truth
+            raise KeyboardInterrupt
+        truth_path(partial).write_bytes(b"new truth")
+    with pytest.raises(KeyboardInterrupt):
+        replace_video(path, lambda partial: render(partial, stop=True))
+    assert list(tmp_path.iterdir()) == []           # nothing was there, nothing is
+    path.write_bytes(b"old frames")
+    truth_path(path).write_bytes(b"old truth")
+    with pytest.raises(KeyboardInterrupt):
+        replace_video(path, lambda partial: render(partial, stop=True))
+    assert path.read_bytes() == b"old frames" and truth_path(path).read_bytes() == b"old truth"
+    replace_video(path, render)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["walk.mp4", "walk.truth.npz"]
+    assert path.read_bytes() == b"new frames" and truth_path(path).read_bytes() == b"new truth"
