@@ -390,9 +390,12 @@ def test_interrupt_hangup_and_kill_leave_a_readable_recording(tmp_path):
     for sig in (signal.SIGINT, signal.SIGHUP, signal.SIGKILL):   # SIGTERM: as SIGHUP
         out = tmp_path / f"{sig.name}.mcap"
         out.write_bytes(b"previous run")
+        # As from a terminal: under nohup (a CI job started with it) SIGHUP is ignored, and
+        # track rightly leaves an ignored signal ignored (it then ran on and exited 0).
         proc = subprocess.Popen([sys.executable, "-m", "tracker.cli", str(video), "--out",
                                  str(out), "--quiet"], env=env, stderr=subprocess.PIPE,
-                                text=True)
+                                text=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL))
         partial = partial_path(out)
         deadline = time.time() + 60
         while time.time() < deadline and (not partial.exists() or
