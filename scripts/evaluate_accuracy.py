@@ -58,7 +58,7 @@ from tracker.offline.evaluation import (CameraOptions, cmu_motion, constant_pose
                                         write_camera_video)
 from tracker.one_line_parser import OneLineParser
 from tracker.pipeline import TrackerSettings
-from tracker.sinks.files import OutputWriteError, write_beside
+from tracker.sinks.files import OutputWriteError, write_whole
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE = REPO / "sequences" / "data" / "sample_spiral_walk.mp4"
@@ -283,7 +283,7 @@ def _evaluate(args, models: list[tuple[str, object]]) -> int:
                           f"{100 * novel['share_above_1']:.1f} % of frames", flush=True)
     if args.json:
         try:             # whole or not at all: a re-run's --json keeps the last complete one
-            write_beside(args.json, lambda path: path.write_text(json.dumps(results, indent=1)))
+            write_whole(args.json, lambda path: path.write_text(json.dumps(results, indent=1)))
         except OutputWriteError as exc:
             return _failed(str(exc))
     return 0

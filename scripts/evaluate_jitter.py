@@ -30,7 +30,7 @@ from tracker.offline.evaluation import (AnkurOptions, CameraOptions, ankur_seque
                                         rendered_sequence, video_sequence)
 from tracker.offline.report import format_table, write_report
 from tracker.one_line_parser import OneLineParser
-from tracker.sinks.files import write_beside
+from tracker.sinks.files import write_whole
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
 #: Names OpenCV's writer takes the mp4v codec in (sequences.video.write_video; OpenCV 5.1).
@@ -61,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH, help="stacked model")
     ap.add_argument("--per-frame-model", type=Path, default=PER_FRAME_MODEL, help="k=1 model")
     ap.add_argument("--size", type=_size, default=(240, 320),
-                    help="WIDTHxHEIGHT (320x240), 64..1920 each side")
+                    help="WIDTHxHEIGHT (320x240), 64..4096 each side")
     ap.add_argument("--frames", type=int, help=f"evaluate only the first N frames (N >= "
                     f"{MIN_FRAMES})")
     ap.add_argument("--ambiguity-threshold", type=float,
@@ -95,8 +95,8 @@ def _check_numbers(ap: OneLineParser, args) -> None:
     if args.frames is not None and not MIN_FRAMES <= args.frames <= MAX_FRAMES:
         ap.error(f"--frames must be within {MIN_FRAMES}..{MAX_FRAMES} (the jitter measures "
                  f"need {MIN_FRAMES} frames), got {args.frames}")
-    if not all(64 <= side <= 1920 for side in args.size):
-        ap.error(f"--size must be within 64..1920 pixels each side, got "
+    if not all(64 <= side <= 4096 for side in args.size):
+        ap.error(f"--size must be within 64..4096 pixels each side, got "
                  f"{args.size[1]}x{args.size[0]}")
 
 
@@ -132,12 +132,12 @@ def _check_files(ap: OneLineParser, args) -> None:
             ap.error(f"--report {args.report} is a file; give a folder")
         if args.report.is_dir():
             outputs += [(f"--report's {name}", args.report / name) for name in REPORT_FILES]
-        else:
-            parent = args.report.parent if str(args.report.parent) else Path(".")
-            if not parent.is_dir():
-                ap.error(f"--report {args.report}: no folder {parent}")
-            if not os.access(parent, os.W_OK):
-                ap.error(f"--report {args.report}: {parent} is not writable")
+        else:               # made with its missing parents, as before: the nearest that
+            parent = args.report.parent     # exists must take it
+            while not parent.exists() and parent != parent.parent:
+                parent = parent.parent
+            if not (parent.is_dir() and os.access(parent, os.W_OK)):
+                ap.error(f"--report {args.report}: cannot make it in {parent}")
         if importlib.util.find_spec("matplotlib") is None:
             ap.error("--report draws plots with matplotlib: pip install "
                      "'silhouette-pose[report]'")
@@ -147,26 +147,16 @@ def _check_files(ap: OneLineParser, args) -> None:
             ap.error(f"{what} {path} exists and is not a regular file; choose another name")
 
 
-def _write_text(path: Path, text: str) -> None:
-    """Write text to path through a temporary file renamed at the end (the old file stays if
-    this fails); a destination that is not a regular file (/dev/null) is written in place."""
-    if path.exists() and not path.is_file():
-        path.write_text(text)
-    else:
-        write_beside(path, lambda partial: partial.write_text(text))
-
-
 def _write_report(folder: Path, seq, result: dict) -> Path:
     """write_report into a temporary folder beside ``folder``, then move its files into
     ``folder`` (created if need be) together: a failed or interrupted report leaves the old
     one as it was. Other files of ``folder`` are kept. Returns the README's path."""
-    # Inside an existing folder (its parent may not be writable, or be "." itself), else beside
-    # it: the renames stay on one file system either way.
-    home = folder if folder.is_dir() else (folder.parent if str(folder.parent) else Path("."))
-    scratch = Path(tempfile.mkdtemp(prefix=".report.", suffix=".partial", dir=home))
+    # Inside the folder itself (its parent may not be writable), so the renames stay on one
+    # file system.
+    folder.mkdir(parents=True, exist_ok=True)
+    scratch = Path(tempfile.mkdtemp(prefix=".report.", suffix=".partial", dir=folder))
     try:
         write_report(scratch, seq, result)
-        folder.mkdir(exist_ok=True)
         for made in sorted(scratch.iterdir()):
             os.replace(made, folder / made.name)
     finally:
@@ -209,7 +199,7 @@ def main(argv=None) -> int:
         result = evaluate(seq)
         print(format_table(result))
         if args.json:
-            _write_text(args.json, json.dumps(result, indent=1))
+            write_whole(args.json, lambda path: path.write_text(json.dumps(result, indent=1)))
             written.append(str(args.json))
         if args.report:
             print(f"report: {_write_report(args.report, seq, result)}")

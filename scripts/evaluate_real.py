@@ -58,6 +58,7 @@ from tracker.fixed_lag import replay
 from tracker.offline.evaluation import constant_pose
 from tracker.one_line_parser import OneLineParser
 from tracker.sinks import PoseRecorder
+from tracker.sinks.files import OutputWriteError, write_whole
 from tracker.video import VideoError
 
 _MID_HIP = [0, 6]               # RHip, LHip in the reference's keypoints
@@ -445,10 +446,10 @@ def _main(argv) -> int:
     print(format_table(result))
     try:
         if args.json:
-            _write_whole(args.json, lambda path: path.write_text(json.dumps(result, indent=1)))
-        if args.masks:
-            _write_whole(args.masks, lambda path: write_mask_sheet(path, sheet))
-    except Pose2SimError as exc:
+            write_whole(args.json, lambda path: path.write_text(json.dumps(result, indent=1)))
+        if args.masks:      # whole or not at all; the temporary name keeps .png for OpenCV
+            write_whole(args.masks, lambda path: write_mask_sheet(path, sheet), keep_suffix=True)
+    except (Pose2SimError, OutputWriteError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
     return 0
@@ -482,21 +483,6 @@ def _is_text(path: Path) -> bool:
     except OSError:
         pass                            # not this one's problem
     return True
-
-
-def _write_whole(path: Path, write) -> None:
-    """write(partial) writes the output under a temporary name beside path, with path's
-    suffix (OpenCV picks the image format by it), then renamed onto path: a run cut short
-    leaves the file it would have replaced whole. Pose2SimError naming the file on failure."""
-    partial = path.with_name(f"{path.stem}.partial-{os.getpid()}{path.suffix}")
-    try:
-        write(partial)
-        os.replace(partial, path)
-    except OSError as exc:
-        raise Pose2SimError(f"{path}: cannot write it ({exc.strerror or exc})") from None
-    finally:
-        if partial.exists():
-            partial.unlink()
 
 
 def _masks_path_problem(masks: Path | None, json_out: Path | None) -> str | None:

@@ -163,6 +163,11 @@ def main(argv=None) -> int:
         # Ctrl-C, which a terminal sends it too, to this process.
         if os.getpid() != main_pid:
             return
+        # A pool's own thread then fails on the futures it was cancelling (InvalidStateError:
+        # CANCELLED), even after main() has returned, and would print a traceback after the
+        # one-line message: the run is over, so the threads' errors from here on are dropped
+        # (not restored: the pools' threads are joined only at the interpreter's exit).
+        threading.excepthook = lambda args: None
         for child in multiprocessing.active_children():
             with contextlib.suppress(OSError, ValueError):    # gone meanwhile
                 child.terminate()

@@ -55,3 +55,32 @@ def test_check_outputs_refuses_an_output_that_is_an_input_a_folder_or_in_no_fold
     OneLineParser(prog="p").check_outputs([("--json", tmp_path / "a.json"), ("--x", None)],
                                           [("--model", model), ("--y", None)])
     assert model.read_bytes() == b"model"
+
+
+def test_check_outputs_takes_links_special_files_and_inputs_that_are_one_another(tmp_path):
+    """A symlink to a file in a writable folder, /dev/null, and two inputs that are the same
+    file (a folder of links) are all fine; the output is checked where its link points."""
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "a.bvh").write_text("motion")
+    (data / "alias.bvh").symlink_to(data / "a.bvh")
+    (tmp_path / "out.json").symlink_to(tmp_path / "real.json")
+    OneLineParser(prog="p").check_outputs(
+        [("--json", tmp_path / "out.json"), ("--log", Path("/dev/null"))],
+        [("--bvh-dir", data / "a.bvh"), ("--bvh-dir", data / "alias.bvh")])
+
+
+def test_write_whole_follows_links_and_writes_special_files_in_place(tmp_path):
+    from tracker.sinks.files import write_whole
+    real = tmp_path / "real.json"
+    real.write_text("old")
+    link = tmp_path / "link.json"
+    link.symlink_to(real)
+    write_whole(link, lambda partial: partial.write_text("new"))
+    assert link.is_symlink() and real.read_text() == "new"
+    write_whole(Path("/dev/null"), lambda path: path.write_text("nothing"))
+    assert Path("/dev/null").is_char_device()
+    png = tmp_path / "sheet.png"
+    write_whole(png, lambda partial: partial.write_text(partial.suffix), keep_suffix=True)
+    assert png.read_text() == ".png" and sorted(p.name for p in tmp_path.iterdir()) == [
+        "link.json", "real.json", "sheet.png"]

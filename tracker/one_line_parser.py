@@ -25,24 +25,32 @@ class OneLineParser(argparse.ArgumentParser):
         overwrite one of its inputs or another output: ``outputs`` and ``inputs`` are
         (option or description, path or None) pairs, e.g. [("--json", args.json)] and
         [("--model", args.model)]; None entries are skipped. An output may not be a folder,
-        its folder must exist and be writable, and no two entries (an input and an output or
-        two outputs, also through a relative path, a symlink or a hard link) may be the same
-        file. Exits as error() does."""
-        from .sinks.files import OutputPathError, check_distinct     # deferred: numpy
-        named = [(what, Path(path)) for what, path in inputs if path is not None]
+        the folder of the file it names (a symlink followed) must exist and be writable (but
+        for /dev/null and the like, written in place: tracker.sinks.files.write_whole), and
+        it may not be the same file as an input or another output, also through a relative
+        path, a symlink or a hard link. Inputs that are one another (a folder of links) are
+        no conflict. Exits as error() does."""
+        from .sinks.files import file_identity       # deferred: numpy
+        seen = {}
+        for what, path in inputs:
+            if path is not None:
+                seen.setdefault(file_identity(path), (what, Path(path)))
         for what, path in outputs:
             if path is None:
                 continue
             path = Path(path)
-            if path.is_dir():
+            target = Path(os.path.realpath(path))
+            if target.is_dir():
                 self.error(f"{what} {path} is a folder; give a file name")
-            folder = path.parent if str(path.parent) else Path(".")
-            if not folder.is_dir():
-                self.error(f"{what} {path}: no folder {folder}")
-            if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+            in_place = target.exists() and not target.is_file()
+            if not target.parent.is_dir():
+                self.error(f"{what} {path}: no folder {target.parent}")
+            if (not in_place and not os.access(target.parent, os.W_OK)) or \
+                    (target.exists() and not os.access(target, os.W_OK)):
                 self.error(f"{what} {path}: not writable")
-            named.append((what, path))
-        try:
-            check_distinct(named)
-        except OutputPathError as exc:
-            self.error(str(exc))
+            key = file_identity(path)
+            if key in seen:
+                other, other_path = seen[key]
+                self.error(f"{what} {path} is the same file as {other} {other_path}; choose "
+                           f"another file name (nothing was written)")
+            seen[key] = (what, path)

@@ -180,12 +180,13 @@ def _sync_folder(folder: Path) -> None:
             os.close(fd)
 
 
-def write_beside(path: str | Path, write: Callable[[Path], None]) -> None:
+def write_beside(path: str | Path, write: Callable[[Path], None],
+                 partial: str | Path | None = None) -> None:
     """Call ``write(partial path)``, flush that file to disk and rename it onto ``path``; on
     failure the partial file is removed and ``path`` is left as it was (OutputWriteError naming
-    the file)."""
+    the file). partial: the temporary name (default partial_path(path)), in path's folder."""
     path = Path(path)
-    partial = partial_path(path)
+    partial = partial_path(path) if partial is None else Path(partial)
     try:
         write(partial)
         fd = os.open(partial, os.O_RDONLY)
@@ -201,6 +202,31 @@ def write_beside(path: str | Path, write: Callable[[Path], None]) -> None:
             raise OutputWriteError(f"{path}: {exc.strerror or exc}") from None
         raise
     _sync_folder(path.parent)
+
+
+def write_whole(path: str | Path, write: Callable[[Path], None],
+                keep_suffix: bool = False) -> None:
+    """A script's output file written whole or not at all: write_beside onto the file the
+    path names, a symlink followed (its target replaced, the link kept); a path that exists
+    and is not a regular file (/dev/null, /dev/stdout, a FIFO) is written in place. With
+    keep_suffix the temporary name ends in path's suffix (NAME.partial.png: OpenCV picks an
+    image's format by it). OutputWriteError naming the file on failure."""
+    target = Path(os.path.realpath(path))
+    if target.exists() and not target.is_file():
+        try:
+            write(target)
+        except OSError as exc:
+            raise OutputWriteError(f"{path}: {exc.strerror or exc}") from None
+        return
+    partial = (target.with_name(f"{target.stem}{PARTIAL_SUFFIX}{target.suffix}")
+               if keep_suffix else None)
+    write_beside(target, write, partial)
+
+
+def file_identity(path: str | Path) -> tuple:
+    """What makes two paths the same file (check_distinct): (device, inode) of an existing
+    file, else the absolute path with symlinks resolved."""
+    return _identity(Path(path))
 
 
 class LockFile:
