@@ -203,23 +203,7 @@ def _check_json(ap, args, named) -> None:
         if folder == where.resolve() and name.endswith(suffixes):
             ap.error(f"--json {args.json} is named like the {option} files this script reads "
                      f"or writes; choose another file name")
-    ap.check_outputs([("--json", args.json)], _once(inputs))
-
-
-def _once(named: list[tuple[str, Path]]) -> list[tuple[str, Path]]:
-    """named (description, path) without repeats of a file (the sample as 16_11's video, a
-    trial or model given twice): check_outputs refuses two inputs that are the same file."""
-    seen, out = set(), []
-    for what, path in named:
-        try:
-            status = os.stat(path)
-            key = (status.st_dev, status.st_ino)
-        except OSError:
-            key = os.path.realpath(path)
-        if key not in seen:
-            seen.add(key)
-            out.append((what, path))
-    return out
+    ap.check_outputs([("--json", args.json)], inputs)
 
 
 def _evaluate(args, models: list[tuple[str, object]]) -> int:
@@ -264,7 +248,8 @@ def _evaluate(args, models: list[tuple[str, object]]) -> int:
                 try:
                     tracked = track_longest(video, model, TrackerSettings(novelty=True),
                                             args.lag)
-                except BAD_DATA as exc:
+                # The video's own problems (unreadable, nobody in it), not a bug's KeyError.
+                except (SilhouettePoseError, OSError, MemoryError) as exc:
                     return _failed(f"trial {trial}, model {name}: {_about(video, exc)}")
                 idx, raw, filtered, smoothed, novelty, lagged = *tracked[:4], *tracked[7:]
                 fps = len(truth_all) / (time.perf_counter() - start)

@@ -24,7 +24,7 @@ from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from regressor.errors import SilhouettePoseError
-from sequences.video import partial_video, replace_video, truth_path
+from sequences.video import VIDEO_SUFFIXES, partial_video, replace_video, truth_path
 from tracker import TrackerSettings
 from tracker.offline.evaluation import (AnkurOptions, CameraOptions, ankur_sequence, evaluate,
                                         rendered_sequence, video_sequence)
@@ -33,8 +33,6 @@ from tracker.one_line_parser import OneLineParser
 from tracker.sinks.files import write_whole
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
-#: Names OpenCV's writer takes the mp4v codec in (sequences.video.write_video; OpenCV 5.1).
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
 #: What tracker.offline.report.write_report puts in the --report folder.
 REPORT_FILES = ("README.md", "result.json", "parts.png", "jitter.png", "heading.png")
 MIN_FRAMES = 3              # the jitter and acceleration measures take second differences
@@ -111,13 +109,9 @@ def _check_files(ap: OneLineParser, args) -> None:
     inputs = [("--ankur", args.ankur)] if args.ankur else [("--bvh", args.bvh)]
     if args.bvh:
         inputs += [("--model", args.model), ("--per-frame-model", args.per_frame_model)]
-    distinct = []
-    for what, path in inputs:
+    for what, path in inputs:   # (the same model as both is no clash: check_outputs)
         if not path.is_file():
             ap.error(f"{what} {path}: no such file")
-        # The same model as both is a comparison of one model with itself, not a clash.
-        if not any(os.path.samefile(path, other) for _, other in distinct):
-            distinct.append((what, path))
     outputs = [("--json", args.json)]
     if args.video is not None:
         if args.video.suffix.lower() not in VIDEO_SUFFIXES and not args.video.is_dir():
@@ -141,7 +135,7 @@ def _check_files(ap: OneLineParser, args) -> None:
         if importlib.util.find_spec("matplotlib") is None:
             ap.error("--report draws plots with matplotlib: pip install "
                      "'silhouette-pose[report]'")
-    ap.check_outputs(outputs, distinct)
+    ap.check_outputs(outputs, inputs)
     for what, path in outputs[1:]:
         if path.exists() and not path.is_file():
             ap.error(f"{what} {path} exists and is not a regular file; choose another name")

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
 import time
 from pathlib import Path
@@ -19,12 +18,10 @@ from regressor.errors import SilhouettePoseError
 from sequences.body import Skinner, load_body, sample_body_shapes
 from sequences.bvh import BVHError, read_bvh
 from sequences.spiral import spiral_walk
-from sequences.video import Actor, partial_video, replace_video, truth_path, write_video
+from sequences.video import (VIDEO_SUFFIXES, Actor, partial_video, replace_video, truth_path,
+                             write_video)
 from tracker.one_line_parser import OneLineParser
 
-#: Names OpenCV's writer takes the mp4v codec in (checked with OpenCV 5.1); any other name
-#: (.txt, no suffix) fails only after the BVH files are read, with OpenCV's own warnings.
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
 MAX_PEOPLE = 10
 MAX_FRAMES = 20_000        # write_video holds every frame's posed vertices (60 kB a person)
 EXIT_INTERRUPTED = 130     # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
@@ -66,13 +63,10 @@ def _check_options(ap: OneLineParser, args) -> None:
         ap.error(f"--seed must be within 0..{2**32 - 1}, got {args.seed}")
     if len(args.bvh) > MAX_PEOPLE:
         ap.error(f"at most {MAX_PEOPLE} --bvh (people), got {len(args.bvh)}")
-    inputs = []
-    for path in args.bvh:
+    for path in args.bvh:       # (the same motion twice is two people doing it)
         if not path.is_file():
             ap.error(f"--bvh {path}: no such file")
-        # The same motion twice is two people doing it, not an input given twice.
-        if not any(os.path.samefile(path, other) for _, other in inputs):
-            inputs.append(("--bvh", path))
+    inputs = [("--bvh", path) for path in args.bvh]
     if args.out.suffix.lower() not in VIDEO_SUFFIXES and not args.out.is_dir():
         ap.error(f"--out {args.out}: give a video name ending in "
                  f"{', '.join(VIDEO_SUFFIXES)}")

@@ -216,6 +216,11 @@ def truth_path(video_path: str | Path) -> Path:
     return p.with_name(p.stem + ".truth.npz")
 
 
+#: Names OpenCV's writer takes write_video's mp4v codec in (checked with OpenCV 5.1); any other
+#: name (.txt, no suffix) fails only once the frames are drawn, with OpenCV's own warnings.
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
+
+
 def partial_video(video_path: str | Path) -> Path:
     """Where :func:`replace_video` writes a video until it and its sidecar are complete:
     NAME.partial with the suffix kept last (OpenCV picks the container from it):
