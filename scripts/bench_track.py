@@ -41,7 +41,7 @@ from threadpoolctl import threadpool_limits
 from regressor.errors import SilhouettePoseError
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from tracker import PoseTracker, TrackerSettings, track_video
-from tracker.one_line_parser import OneLineParser
+from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.sinks.json_summary import JsonSummarySink
 from tracker.sinks.mcap import McapSink
 from tracker.video import open_video
@@ -117,23 +117,13 @@ def _track(video: Path, model_path: Path, workdir: Path, workers: int):
     sampler = _MemorySampler()
     result = track_video(source, tracker, [McapSink(workdir / "bench.mcap"),
                                            JsonSummarySink(workdir / "bench.json", source.fps)],
-                         progress=sampler, workers=workers)
-    if result.interrupted:      # track_video ends early on Ctrl-C, as `track` should: stop here
-        raise KeyboardInterrupt
+                         progress=sampler, workers=workers).stop_if_interrupted()
     elapsed = time.perf_counter() - start
     frames = result.frames
     stages = dict(tracker.stage_seconds)
     startup_s = opened + stages.pop("background")
     return (frames / elapsed, {k: 1000 * v / frames for k, v in stages.items()}, sampler.memory,
             frames, startup_s, sampler.with_people)
-
-
-def main(argv=None) -> int:
-    try:
-        return _main(argv)
-    except KeyboardInterrupt:               # Ctrl-C: one line, no traceback
-        print("bench_track: interrupted", file=sys.stderr)
-        return 130
 
 
 def _main(argv) -> int:
@@ -148,11 +138,7 @@ def _main(argv) -> int:
         ap.error(f"--video {args.video}: no such file")
     if not args.model.is_file():
         ap.error(f"--model {args.model}: no such file")
-    if not os.environ.get("TRACK_DEBUG"):
-        # As track does: FFmpeg's own complaints ("moov atom not found") would repeat our
-        # one-line error in its words; both are read when the first video is opened.
-        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
-        os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
+    quiet_decoder_logs()          # as track: one line, not FFmpeg's too
     try:                # both open in a fraction of a second: refused before the long work
         load_pose_model(args.model)
     except BAD_DATA as exc:
@@ -216,6 +202,9 @@ def _one_line(exc: BaseException, path: Path | None = None) -> str:
     text = str(exc).strip()
     line = text.splitlines()[0] if text else type(exc).__name__
     return line.removeprefix(f"{path}: ") if path is not None else line
+
+
+main = stops_in_one_line("bench_track", _main)       # Ctrl-C: one line, no traceback
 
 
 if __name__ == "__main__":

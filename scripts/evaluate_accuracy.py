@@ -56,7 +56,7 @@ from tracker.cli import VIEW_LAG_S
 from tracker.fixed_lag import MAX_LAG_S
 from tracker.offline.evaluation import (CameraOptions, cmu_motion, constant_pose, track_longest,
                                         write_camera_video)
-from tracker.one_line_parser import OneLineParser
+from tracker.one_line_parser import OneLineParser, stops_in_one_line
 from tracker.pipeline import TrackerSettings
 from tracker.sinks.files import OutputWriteError, write_whole
 
@@ -137,14 +137,6 @@ def _named_models(ap, specs: list[str]) -> list[tuple[str, Path, object]]:
         except (OSError, SilhouettePoseError) as exc:
             ap.error(f"--model {name}: {exc}")
     return models
-
-
-def main(argv=None) -> int:
-    try:
-        return _main(argv)
-    except KeyboardInterrupt:               # Ctrl-C: one line, no traceback
-        print("evaluate_accuracy: interrupted", file=sys.stderr)
-        return 130
 
 
 def _main(argv) -> int:
@@ -291,6 +283,9 @@ def _failed(message: str) -> int:
     """One line on stderr; the exit status of bad data."""
     print(f"evaluate_accuracy: error: {message}", file=sys.stderr)
     return 1
+
+
+main = stops_in_one_line("evaluate_accuracy", _main)       # Ctrl-C: one line, no traceback
 
 
 if __name__ == "__main__":

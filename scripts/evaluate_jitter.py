@@ -29,7 +29,7 @@ from tracker import TrackerSettings
 from tracker.offline.evaluation import (AnkurOptions, CameraOptions, ankur_sequence, evaluate,
                                         rendered_sequence, video_sequence)
 from tracker.offline.report import format_table, write_report
-from tracker.one_line_parser import OneLineParser
+from tracker.one_line_parser import EXIT_INTERRUPTED, OneLineParser
 from tracker.sinks.files import write_whole
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
@@ -37,7 +37,6 @@ PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
 REPORT_FILES = ("README.md", "result.json", "parts.png", "jitter.png", "heading.png")
 MIN_FRAMES = 3              # the jitter and acceleration measures take second differences
 MAX_FRAMES = 1_000_000
-EXIT_INTERRUPTED = 130      # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
 
 
 def _size(text: str) -> tuple[int, int]:

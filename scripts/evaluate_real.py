@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 from typing import NamedTuple
@@ -56,7 +55,7 @@ from sequences.pose2sim_measures import (cross_view_measures, reference_body,
 from tracker.cli import VIEW_LAG_S, ZONE_FOREGROUND
 from tracker.fixed_lag import replay
 from tracker.offline.evaluation import constant_pose
-from tracker.one_line_parser import OneLineParser
+from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.sinks import PoseRecorder
 from tracker.sinks.files import OutputWriteError, write_whole
 from tracker.video import VideoError
@@ -128,9 +127,8 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
                  else reference_extractor(default_extractor(settings)))
     tracker = PoseTracker(model, source.fps, settings, extractor=extractor)
     recorder = _MaskRecorder(roll_deg) if keep_masks else PoseRecorder()
-    run = track_video(source, tracker, sinks=[recorder], workers=2)  # the same poses, two cores
-    if run.interrupted:     # track_video ends early on Ctrl-C, as `track` should: stop here
-        raise KeyboardInterrupt
+    # The same poses on two cores; a run cut short by Ctrl-C is not measured.
+    track_video(source, tracker, sinks=[recorder], workers=2).stop_if_interrupted()
     poses = recorder.poses
     if not poses:
         raise Pose2SimError(f"{video}: nobody was tracked")
@@ -399,14 +397,6 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def main(argv=None) -> int:
-    try:
-        return _main(argv)
-    except KeyboardInterrupt:               # Ctrl-C: one line, no traceback
-        print("evaluate_real: interrupted", file=sys.stderr)
-        return 130
-
-
 def _main(argv) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
@@ -425,11 +415,7 @@ def _main(argv) -> int:
                       ("the calibration", args.trial / CALIBRATION),
                       *((f"the {view} video", args.trial / "videos" / f"{view}.mp4")
                         for view in VIEWS)])
-    if not os.environ.get("TRACK_DEBUG"):
-        # As track does: FFmpeg's own complaints ("moov atom not found") would repeat our
-        # one-line error in its words; both are read when the first video is opened.
-        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
-        os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
+    quiet_decoder_logs()          # as track: one line, not FFmpeg's too
     sheet = [] if args.masks else None
     try:
         trial, model = checked_trial(args.trial), load_pose_model(args.model)
@@ -496,6 +482,9 @@ def _masks_path_problem(masks: Path | None, json_out: Path | None) -> str | None
     if json_out is not None and masks.resolve() == json_out.resolve():
         return "--masks and --json name the same file"
     return None
+
+
+main = stops_in_one_line("evaluate_real", _main)       # Ctrl-C: one line, no traceback
 
 
 if __name__ == "__main__":

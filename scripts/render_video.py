@@ -20,11 +20,10 @@ from sequences.bvh import BVHError, read_bvh
 from sequences.spiral import spiral_walk
 from sequences.video import (VIDEO_SUFFIXES, Actor, partial_video, replace_video, truth_path,
                              write_video)
-from tracker.one_line_parser import OneLineParser
+from tracker.one_line_parser import EXIT_INTERRUPTED, OneLineParser
 
 MAX_PEOPLE = 10
 MAX_FRAMES = 20_000        # write_video holds every frame's posed vertices (60 kB a person)
-EXIT_INTERRUPTED = 130     # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
 
 
 def _size(text: str) -> tuple[int, int]:

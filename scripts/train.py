@@ -43,7 +43,7 @@ from tracker.offline.training import (CANONICAL_RULES, VALIDATION_TRIALS, Mixtur
                                       noisy_dataset_inputs, noisy_dataset_layouts,
                                       train_mixture_model,
                                       train_pose_model)
-from tracker.one_line_parser import OneLineParser
+from tracker.one_line_parser import EXIT_INTERRUPTED, OneLineParser
 
 
 def _every_10000(start: float, log, what: str):
@@ -179,7 +179,7 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("train: interrupted (finished steps stay in the --cache: a re-run resumes there)",
               file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler)
 

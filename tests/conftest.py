@@ -34,6 +34,12 @@ def load_script(name: str) -> ModuleType:
     return module
 
 
+def cut_run():
+    """What tracker.run.track_video returns for a run a Ctrl-C ended early (3 frames)."""
+    from tracker.run import TrackRun
+    return TrackRun(frames=3, elapsed_s=0.1, interrupted=True, tracker=None)
+
+
 def refused_in_one_line(script: ModuleType, argv: list[str], capsys) -> str:
     """Run a script's main(argv), expecting its parser to refuse the options: exit 2 and one
     line on stderr, no traceback. Returns that line."""

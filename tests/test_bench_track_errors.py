@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import io
 import zipfile
-from types import SimpleNamespace
 
 import cv2
 import numpy as np
 import pytest
 
-from conftest import load_script, refused_in_one_line
+from conftest import cut_run, load_script, refused_in_one_line
 from regressor.pose_model import DEFAULT_MODEL_PATH
 
 SAMPLE = DEFAULT_MODEL_PATH.parents[2] / "sequences" / "data" / "sample_spiral_walk.mp4"
@@ -74,7 +73,7 @@ def test_ctrl_c_ends_the_benchmark_in_one_line(bench_track, tmp_path, capsys, mo
     video = tmp_path / "still.mp4"
     _video(video, (320, 240))
     monkeypatch.setattr(bench_track, "track_video",       # tracking stopped early by Ctrl-C
-                        lambda *args, **kwargs: SimpleNamespace(interrupted=True))
+                        lambda *args, **kwargs: cut_run())
     assert bench_track.main(["--video", str(video)]) == 130
     assert capsys.readouterr().err == "bench_track: interrupted\n"
 

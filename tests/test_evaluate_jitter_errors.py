@@ -10,7 +10,7 @@ import types
 import pytest
 
 import tracker.offline.evaluation as evaluation
-from conftest import load_script, refused_in_one_line
+from conftest import cut_run, load_script, refused_in_one_line
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +121,7 @@ def test_a_ctrl_c_that_ends_the_tracking_ends_the_evaluation(monkeypatch):
     monkeypatch.setattr(evaluation, "open_video", lambda video: types.SimpleNamespace(fps=30.0))
     monkeypatch.setattr(evaluation, "PoseTracker", lambda *args, **kwargs: None)
     monkeypatch.setattr(evaluation, "track_video",
-                        lambda *args, **kwargs: types.SimpleNamespace(interrupted=True))
+                        lambda *args, **kwargs: cut_run())
     with pytest.raises(KeyboardInterrupt):
         evaluation.track_longest("v.mp4", None, TrackerSettings())
 

@@ -5,13 +5,12 @@ line naming the file; a tracking run cut short by Ctrl-C stops the evaluation, i
 from __future__ import annotations
 
 import shutil
-from types import SimpleNamespace
 
 import cv2
 import numpy as np
 import pytest
 
-from conftest import load_script, refused_in_one_line
+from conftest import cut_run, load_script, refused_in_one_line
 from regressor.pose_model import DEFAULT_MODEL_PATH
 from sequences.pose2sim import CALIBRATION, REFERENCE_TRC
 
@@ -107,6 +106,6 @@ def test_a_tracking_run_cut_short_by_ctrl_c_stops_the_evaluation(evaluate_real, 
         writer.write(np.full((240, 320, 3), 100, np.uint8))
     writer.release()
     monkeypatch.setattr(tracker, "track_video",
-                        lambda *args, **kwargs: SimpleNamespace(interrupted=True))
+                        lambda *args, **kwargs: cut_run())
     with pytest.raises(KeyboardInterrupt):
         evaluate_real._track_view(video, load_pose_model(DEFAULT_MODEL_PATH), None)

@@ -26,9 +26,9 @@ import warnings
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
-from .one_line_parser import OneLineParser
+from .one_line_parser import EXIT_INTERRUPTED, OneLineParser, quiet_decoder_logs
 
-EXIT_ERROR, EXIT_INTERRUPTED = 1, 130
+EXIT_ERROR = 1
 #: --zone-foreground's choices and what each means for TrackerSettings.trust_zone_foreground
 #: (also scripts/evaluate_real.py's option): inside the background's unreliable zone the
 #: subtractor's foreground is sure person, or colour decides on it too.
@@ -496,11 +496,7 @@ def main(argv=None) -> int:
                                                           _unraisable_interrupt_recorded)
     try:
         args = build_parser().parse_args(argv)
-        if not os.environ.get("TRACK_DEBUG"):
-            # FFmpeg's own complaints ("moov atom not found") would repeat our one-line error
-            # in its words; both variables are read when the first video is opened.
-            os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
-            os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
+        quiet_decoder_logs()            # before the first video is opened
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning
             return run(args)

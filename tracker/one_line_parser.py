@@ -8,9 +8,36 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
+from collections.abc import Callable
 from pathlib import Path
 
 EXIT_USAGE = 2                  # argparse's status for a usage error
+EXIT_INTERRUPTED = 130          # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
+
+
+def quiet_decoder_logs() -> None:
+    """Keep FFmpeg's and OpenCV's own log lines ("moov atom not found") off stderr, where
+    they would repeat a one-line error in their words (TRACK_DEBUG set: left as they are).
+    Both variables are read when the first video is opened: call before that. (Here, not
+    beside the decoding, so that ``track`` need not load OpenCV to call it.)"""
+    if not os.environ.get("TRACK_DEBUG"):
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+        os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
+
+
+def stops_in_one_line(prog: str, main: Callable[[list[str] | None], int]
+                      ) -> Callable[[list[str] | None], int]:
+    """A script's main(argv) that ends on Ctrl-C with "PROG: interrupted" on stderr and
+    EXIT_INTERRUPTED, not a traceback."""
+    def stopping(argv: list[str] | None = None) -> int:
+        try:
+            return main(argv)
+        except KeyboardInterrupt:
+            print(f"{prog}: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+    stopping.__doc__ = main.__doc__
+    return stopping
 
 
 class OneLineParser(argparse.ArgumentParser):

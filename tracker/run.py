@@ -66,6 +66,15 @@ class TrackRun:
         """Frames processed per second of wall time."""
         return self.frames / self.elapsed_s if self.elapsed_s > 0 else 0.0
 
+    def stop_if_interrupted(self) -> TrackRun:
+        """Raise KeyboardInterrupt if a Ctrl-C ended the run early, else return it: for a
+        caller that measures the run (an evaluation, a benchmark) and must not go on with a
+        cut track as if it were the whole; track_video itself ends early and keeps what it
+        tracked, as ``track`` should."""
+        if self.interrupted:
+            raise KeyboardInterrupt
+        return self
+
 
 def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = None,
                 sinks: Sequence[Sink] = (), progress=None,

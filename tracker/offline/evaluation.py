@@ -424,11 +424,8 @@ def track_longest(video: Path, model: PoseModel, settings: TrackerSettings,
     recorder = PoseRecorder()
     source = open_video(video)
     tracker = PoseTracker(model, source.fps, replace(settings, max_people=1, keep_history=True))
-    run = track_video(source, tracker, [recorder], workers=2)   # the same poses, two cores
-    if run.interrupted:
-        # track_video ends early on Ctrl-C and says so only here (as `track` should: it keeps
-        # what it tracked); an evaluation of the cut track would measure the wrong thing.
-        raise KeyboardInterrupt
+    # The same poses on two cores; a run cut short by Ctrl-C is not measured.
+    track_video(source, tracker, [recorder], workers=2).stop_if_interrupted()
     by_track = recorder.by_track()
     if not by_track:
         raise EvaluationError(f"{video}: nobody was tracked")
