@@ -317,6 +317,13 @@ def test_after_a_stop_the_frames_held_back_go_to_the_files_not_the_live_view(wal
         def write_frame(self, frame_index, time_s, frame, people):
             self.shown.append(frame_index)
 
+        def discard(self):              # what it holds back is dropped before it closes
+            self.shown.append("discarded")
+
+        def close(self):
+            self.shown.append("closed")
+            super().close()
+
     class StopAt(PoseRecorder):
         def end_frame(self, frame_index):
             super().end_frame(frame_index)
@@ -328,7 +335,7 @@ def test_after_a_stop_the_frames_held_back_go_to_the_files_not_the_live_view(wal
                                                                    keep_history=True))
     run = track_video(walk, tracker, [watching, files, StopAt()], lag_s=0.3)   # 9 frames
     assert run.interrupted
-    assert watching.shown == list(range(11))
+    assert watching.shown == list(range(11)) + ["discarded", "closed"]
     written = [index for index, _ in files.frames()]
     assert written == list(range(2 * 9 - 1 + 11))       # all given to the smoother
     assert [index for index, _ in watching.frames()] == list(range(11))

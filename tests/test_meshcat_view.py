@@ -168,6 +168,16 @@ def test_interrupting_the_parent_stops_the_server(to_group, signum):
     assert _gone(child)
 
 
+def test_a_ctrl_c_leaves_the_server_to_its_parent():
+    # The terminal's Ctrl-C reaches the child too; the parent's clean-up stops it, after
+    # closing the view (a server gone at once made the view warn that it had stopped).
+    with ViewerServer() as server:
+        os.kill(server.pid, signal.SIGINT)
+        assert not _gone(server.pid, timeout_s=0.5)
+        assert server.running
+    assert _gone(server.pid)
+
+
 def _scene_paths(zmq_url: str) -> list[str]:
     """Paths of the objects the server holds, from its 'get_scene' HTML (msgpack commands)."""
     context = zmq.Context.instance()

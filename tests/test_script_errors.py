@@ -1,6 +1,7 @@
-"""scripts/reproduce_paper.py and scripts/bench_track.py refuse bad input in one line (exit 2)
-before their long work: a missing or foreign data file, a --json they could not write or that
-names the data, a missing video or model, an absurd frame count."""
+"""scripts/reproduce_paper.py, scripts/bench_track.py and scripts/bench_view.py refuse bad input
+in one line (exit 2) before their long work: a missing or foreign data file, a --json they could
+not write or that names the data, a missing or undecodable video or model, an absurd frame
+count or lag."""
 from __future__ import annotations
 
 import numpy as np
@@ -36,6 +37,19 @@ def test_bench_track_refuses_missing_inputs_and_absurd_frame_counts(tmp_path, ca
     assert "no such file" in refused(["--video", str(tmp_path / "v.mp4")])
     assert "--model" in refused(["--model", str(tmp_path / "m.npz")])
     assert "--frames must be" in refused(["--frames", "0"])
+
+
+def test_bench_view_refuses_missing_or_broken_videos_and_absurd_lags(tmp_path, capsys):
+    script = load_script("bench_view")
+
+    def refused(argv):
+        return refused_in_one_line(script, argv, capsys)
+    assert "no such file" in refused(["--video", str(tmp_path / "v.mp4")])
+    broken = tmp_path / "broken.mp4"
+    broken.write_bytes(b"not a video" * 100)
+    assert "decode" in refused(["--video", str(broken)])
+    for lag in ("-1", "nan", "inf", "11"):
+        assert "--lag" in refused(["--lag", lag])
 
 
 def test_reproduce_papers_held_out_blocks_are_decoded_as_the_pieces_of_sequences_they_hold():

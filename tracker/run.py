@@ -200,6 +200,11 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         while not closed:
             try:
                 with _signals_held() as held:
+                    if interrupted:
+                        # A stop shows nothing more: frames the live view holds are dropped.
+                        for sink in watching:
+                            if hasattr(sink, "discard"):
+                                sink.discard()
                     if worker is not None:
                         worker.close()
                     fed = []

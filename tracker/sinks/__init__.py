@@ -5,7 +5,8 @@
     close()                finish the output (idempotent); also on Ctrl-C
 
 Optional, for sinks that show the video (MeshcatView): write_frame(frame_index, time_s, frame,
-people), after the frame's poses: the frame (BGR uint8, read only) and track id -> PersonMask.
+people), after the frame's poses: the frame (BGR uint8, read only) and track id -> PersonMask;
+and discard(), called after a Ctrl-C before close(): drop what is held back, not shown yet.
 Optional, for sinks that record what their poses are (JsonSummarySink): a ``pose_kind``
 attribute, "filtered" or "smoothed"; a sink given smoothed poses is told "filtered" when a
 Ctrl-C makes tracker.run.track_video write the filtered ones instead (the MCAP's

@@ -9,7 +9,11 @@ operating system picks, and the child process exits when:
   ``with`` block and at interpreter exit;
 - its stdin reaches end of file, which happens when the parent dies in any way, SIGKILL included
   (the parent holds the only write end of that pipe);
-- it receives SIGINT or SIGTERM itself (Ctrl-C in a terminal reaches the whole process group).
+- it receives SIGTERM itself.
+A Ctrl-C in a terminal reaches the whole foreground process group, this child too: it ignores
+SIGINT and leaves the stopping to its parent, whose clean-up closes the view first (had the
+server gone at once, the frames the parent was still drawing would have found it gone and
+warned that the viewer had stopped, on most Ctrl-Cs).
 
 Run as ``python -m tracker.sinks.meshcat_server`` it is the child: it prints ``zmq_url=...`` and
 ``web_url=...`` lines and serves until one of the above happens.
@@ -124,8 +128,8 @@ def _exit_when_stdin_closes() -> None:
 
 def serve() -> None:
     """Child entry point: start the bridge, announce its URLs on stdout, serve until told to stop."""
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: os._exit(0))
+    signal.signal(signal.SIGINT, signal.SIG_IGN)          # the parent stops us (docstring)
+    signal.signal(signal.SIGTERM, lambda *_: os._exit(0))
     bridge = LoopbackBridge()
     threading.Thread(target=_exit_when_stdin_closes, daemon=True).start()
     print(f"zmq_url={bridge.zmq_url}", flush=True)

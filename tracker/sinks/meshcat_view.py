@@ -42,6 +42,7 @@ import zmq
 from tracker.sinks.body_mesh import body_mesh
 from tracker.sinks.framing import Framing
 from tracker.sinks.meshcat_server import ViewerServer
+from tracker.sinks.playout import Player
 from tracker.sinks.geometry import (
     SinkInputError,
     body_colours,
@@ -157,12 +158,15 @@ class MeshcatView:
 
     server: a running ViewerServer to draw into; None starts one (owned: stopped by close()).
     print_url: print the page's address on start. realtime: draw each frame no sooner than its
-    video time after the first (play at the video's own speed). video_fps: screen updates a
-    second (0: no screen); video_width_px: width of the copy of the frame sent. trail_s: seconds
-    of pelvis path drawn; trail_every: redraw each trail every this many frames.
+    video time after the first (play at the video's own speed), from a thread of its own up to
+    a second of video behind the writes (tracker.sinks.playout: a pause of the tracking loop
+    does not pause the view; close() plays out what is left, discard() drops it).
+    video_fps: screen updates a second (0: no screen); video_width_px: width of the copy of
+    the frame sent. trail_s: seconds of pelvis path drawn; trail_every: redraw each trail
+    every this many frames.
     framing: a framing.Framing (default: the tracker's assumed field of view, 4:3).
     Attributes: web_url (open it in a browser); frames_drawn, draw_seconds (time spent
-    sending, not waiting), screens_drawn.
+    drawing and sending, not waiting), screens_drawn.
     """
 
     def __init__(self, server: ViewerServer | None = None, print_url: bool = True,
@@ -185,8 +189,12 @@ class MeshcatView:
         self._frame_time_s, self._frame_done = 0.0, False
         self._closed = False
         self._lost = False          # the server stopped: writes do nothing
-        self._realtime = realtime
-        self._clock_start: tuple[float, float] | None = None   # (video s, wall s) of frame 1
+        self._player: Player | None = None   # realtime: makes the drawing calls
+        self._last_time_s = 0.0              # video time of the last call handed over
+        # The player found the server gone: warned from the writer's thread (the command's
+        # warnings go through it), or not at all after a stop (discard()), which the command
+        # is ending anyway.
+        self._lost_warning_due = self._discarded = False
         self._video_interval_s = 1.0 / video_fps if video_fps > 0 else float("inf")
         self._video_width_px = int(video_width_px)
         self._last_screen_s = -float("inf")
@@ -208,6 +216,8 @@ class MeshcatView:
         except BaseException:
             self.close()
             raise
+        if realtime:
+            self._player = Player(name="meshcat-view")
         if print_url:
             print(f"meshcat viewer: {self.web_url}")
 
@@ -273,7 +283,19 @@ class MeshcatView:
             raise SinkInputError("meshcat view is closed")
         joints = y_up_to_z_up(check_joints(pose.joints_m))
         unfamiliar = is_unfamiliar(known_novelty(getattr(pose, "novelty", None)))
-        self._send(self._draw, pose, joints, unfamiliar)
+        self._play(pose.time_s, self._draw, pose, joints, unfamiliar)
+
+    def _play(self, time_s: float, draw, *args) -> None:
+        """_send(draw, *args) now, or with ``realtime`` by the player at video time time_s
+        (seconds); raises what an earlier call raised there."""
+        if self._player is None:
+            self._send(draw, *args)
+            return
+        if self._player.error is not None:
+            raise self._player.error
+        self._warn_if_lost()
+        self._last_time_s = float(time_s)
+        self._player.put(time_s, self._send, draw, *args)
 
     def _send(self, draw, *args) -> None:
         """draw(*args) unless the server is gone; a zmq timeout drops this frame's drawing."""
@@ -288,15 +310,22 @@ class MeshcatView:
         """False (after one ViewLostWarning) once the server process has exited."""
         if not self._lost and not self.server.running:
             self._lost = True
+            if self._player is None:
+                self._lost_warning_due = True
+                self._warn_if_lost()
+            else:
+                self._lost_warning_due = not self._discarded
+        return not self._lost
+
+    def _warn_if_lost(self) -> None:
+        if self._lost_warning_due:
+            self._lost_warning_due = False
             warnings.warn(f"the meshcat viewer stopped (server process {self.server.pid} "
                           f"exited); tracking goes on without the live view", ViewLostWarning,
-                          stacklevel=4)
-        return not self._lost
+                          stacklevel=5)
 
     def _draw(self, pose: TrackedPose, joints: np.ndarray, unfamiliar: bool) -> None:
         frame_index, track_id = int(pose.frame_index), int(pose.track_id)
-        if self._realtime:
-            self._wait_until(pose.time_s)
         clock = time.perf_counter()
         if frame_index != self._frame:
             self._finish_frame()
@@ -388,45 +417,49 @@ class MeshcatView:
         ``realtime``, not before its video time."""
         if self._closed:
             raise SinkInputError("meshcat view is closed")
-        if self._realtime:
-            self._wait_until(time_s)
         if time_s - self._last_screen_s < self._video_interval_s:
             return
         self._last_screen_s = time_s
-        self._send(self._draw_screen, frame, people)
+        # The small copy is made here: the player holds it, not the frame (which the caller
+        # may reuse).
+        self._play(time_s, self._draw_screen, panel_image(frame, people, self._video_width_px))
 
-    def _draw_screen(self, frame: np.ndarray, people: Mapping[int, PersonMask]) -> None:
+    def _draw_screen(self, panel: np.ndarray) -> None:
         clock = time.perf_counter()
         g = self._g
-        jpeg = encode_jpeg(panel_image(frame, people, self._video_width_px))
+        jpeg = encode_jpeg(panel)
         self._vis["video/frame"].set_object(
             _plane(*self.framing.screen_size_m),
             g.MeshBasicMaterial(map=g.ImageTexture(_meshcat_extras()[1](jpeg))))
         self.screens_drawn += 1
         self.draw_seconds += time.perf_counter() - clock
 
-    def _wait_until(self, time_s: float) -> None:
-        """Sleep until time_s of video has passed (wall clock) since the first pose drawn:
-        tracking outruns the video, and the view is played at its own speed."""
-        now = time.perf_counter()
-        if self._clock_start is None:
-            self._clock_start = (time_s, now)
-        ahead = (time_s - self._clock_start[0]) - (now - self._clock_start[1])
-        if ahead > 0:
-            time.sleep(ahead)
-
     def end_frame(self, frame_index: int) -> None:
         """Follow the frame's people with the camera; remove the tracks absent from it (also
         done when a pose of a later frame is written without end_frame)."""
+        self._play(self._last_time_s, self._timed_finish)
+
+    def _timed_finish(self) -> None:
         clock = time.perf_counter()
-        self._send(self._finish_frame)
+        self._finish_frame()
         self.draw_seconds += time.perf_counter() - clock
+
+    def discard(self) -> None:
+        """Drop the frames handed over and not shown yet (``realtime``; after a stop, the
+        command does not wait for them to play)."""
+        if self._player is not None:
+            self._discarded, self._lost_warning_due = True, False
+            self._player.discard()
 
     def close(self) -> None:
         """Disconnect, and stop the server if this view started it; idempotent."""
         if self._closed:
             return
         self._closed = True
+        player = getattr(self, "_player", None)
+        if player is not None:
+            player.close()                  # what was handed over plays out at its times
+            self._warn_if_lost()
         vis = getattr(self, "_vis", None)
         if vis is not None:
             # meshcat's Visualizer.close() raises (its window has no close); close the socket.
