@@ -25,9 +25,11 @@ import numpy as np
 from regressor.errors import SilhouettePoseError
 from .fixed_lag import FixedLagSmoother, streamed_kind
 from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
-from .pipeline import PoseTracker
+from .pipeline import PoseTracker, TrackedPose
+from .root_path import smoothed_roots
 from .silhouettes import median_background
 from .sinks import PoseRecorder, Sink, close_sinks
+from .sinks.geometry import pose_joints_m
 from .video import VideoSource, open_video
 
 
@@ -400,10 +402,22 @@ def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequenc
     """RTS-smooth every track's poses and feed them to the sinks in frame order; returns
     _feed's problems."""
     records = recorder.by_track()
-    smoothed = {track_id: tracker.smoothed_track(track_id) for track_id in records}
+    redrawn = {track_id: _smoothed_bodies(tracker, track_id, poses)
+               for track_id, poses in records.items()}
     order = sorted((p.frame_index, tid, i) for tid, ps in records.items() for i, p in enumerate(ps))
-    return _feed((replace(records[track_id][i], filtered=smoothed[track_id][i])
-                  for _, track_id, i in order), sinks)
+    return _feed((redrawn[track_id][i] for _, track_id, i in order), sinks)
+
+
+def _smoothed_bodies(tracker: PoseTracker, track_id: int, poses: list[TrackedPose]
+                     ) -> list[TrackedPose]:
+    """A track's poses (in frame order) with filtered = its RTS-smoothed pose and joints_m
+    drawn from that at the root path smoothed over the track (tracker.root_path)."""
+    smoothed = tracker.smoothed_track(track_id)
+    roots = smoothed_roots(np.array([np.asarray(p.joints_m, np.float64)[0] for p in poses]),
+                           tracker.fps)
+    joints = pose_joints_m(smoothed, root_position_m=roots)
+    return [replace(pose, filtered=vector, joints_m=j)
+            for pose, vector, j in zip(poses, smoothed, joints)]
 
 
 def _feed(poses, sinks: Sequence[Sink]) -> list[str]:

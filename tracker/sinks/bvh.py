@@ -1,13 +1,16 @@
 """BVH export: one file per track on the CMU skeleton, written when the sink is closed.
 
-Angles: the filtered pose vectors, converted by ``sequences.pose_vector.pose_vectors_to_motion``
+Angles: the pose vectors given (``pose.filtered``: filtered, or smoothed when ``track``
+feeds the smoothed poses at the end, its default), converted by ``sequences.pose_vector.pose_vectors_to_motion``
 (camera azimuth 0: the video camera sits on the subject's +Z side, so heading 0 faces it).
 
 Root translation: the tracker does not measure where a person is in 3-D. The BVH root follows
 the Hips position of the ``joints3d`` given to ``write`` (metres, converted to CMU units), so it
 is whatever placement the caller chose: with ``tracker.sinks.geometry.ground_position_from_image``
 it is the image-plane motion turned into an approximate ground-plane position (lateral position
-and depth from an assumed body height and field of view; hips at a fixed height); with
+and depth from an assumed body height and field of view, so the depth is only as right as the
+field of view; hips at a fixed height), which ``track``'s smoothed outputs smooth over the
+track (tracker.root_path); with
 root-relative joints it stays at the origin.
 
 Frames: BVH frame i is video frame ``first_frame + i`` at the ``fps`` given, for every frame from
@@ -68,7 +71,7 @@ def _fill_gaps(frames: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 
 class BVHSink:
-    """Collect each track's filtered poses and root positions; write one BVH per track on close.
+    """Collect each track's poses and root positions; write one BVH per track on close.
 
     directory: where files go (created if missing); files are ``<prefix>_<track id>.bvh``.
     fps: video frame rate (frames per second of the frame indices). template: the skeleton

@@ -1,6 +1,6 @@
 """JSON summary of a tracking run, for scripts: frames, speed, and per track its frames,
 centroids, headings, ambiguity flags, novelty (how unlike the training silhouettes each frame
-is) and filtered poses.
+is) and poses (filtered, fixed-lag smoothed or smoothed: the file's "poses" says which).
 
 Layout (format version 1)::
 
@@ -15,7 +15,7 @@ Layout (format version 1)::
                                           # (track's default for this file; --no-smooth)
      "tracks": [{"id": int, "first_frame": int, "last_frame": int, "n_frames": int,
                  "frames": [int], "time_s": [float], "centroid_px": [[x, y]],
-                 "heading_deg": [float],   # filtered heading, degrees in (-180, 180]
+                 "heading_deg": [float],   # the poses' heading, degrees in (-180, 180]
                  "heading_norm": [float],  # norm of the RAW (cos, sin): the ambiguity measure
                                            # (the filtered one is 1 by construction)
                  "ambiguous": [bool], "ambiguous_frames": int,
@@ -23,11 +23,12 @@ Layout (format version 1)::
                                               # frame's is (PoseModel.novelty; null: unknown)
                  "unfamiliar_frames": int,    # frames with novelty above
                                               # regressor.pose_model.UNFAMILIAR_NOVELTY (1)
-                 "heading_mean_deg": float,  # circular mean of the filtered heading
-                 "pose": [[55 filtered values]],
+                 "heading_mean_deg": float,  # circular mean of heading_deg
+                 "pose": [[55 values]],      # as "poses" says
                  "runner_up": [{"frame": int, "probability": float, "heading_deg": float,
                                 "pose": [55 values]}]}]}   # the next most probable front/back
-                                # hypothesis (filtered), on the frames where it was close
+                                # hypothesis (filtered, frame by frame, whatever "poses"
+                                # says; likewise "ambiguous"), on the frames where it was close
 
 The file is replaced atomically (written to ``PATH.partial``, locked from the sink's creation
 so that a second run on the same output fails at once, flushed to disk, then renamed), so a
