@@ -590,3 +590,18 @@ def test_a_reader_that_stops_reading_the_summary_fails_nothing(walk_video, tmp_p
         code = main([str(walk_video), "--json", str(tmp_path / "s.json")])
     assert code == 0 and "error" not in err.getvalue()
     assert json.loads((tmp_path / "s.json").read_text())["frames"] > 0
+
+
+def test_the_summary_names_the_bvh_files_written_and_an_earlier_runs_left_beside_them(tmp_path):
+    from tracker.cli import _bvh_files
+    for name in ("clip_0.bvh", "clip_1.bvh", "clip_12.bvh", "clipper_1.bvh", "clip_a.bvh",
+                 "clip_0.bvh.partial"):
+        (tmp_path / name).write_text("")
+    tail = _bvh_files(tmp_path, "clip", [tmp_path / "clip_0.bvh"])
+    assert tail == (" (clip_0.bvh); also there from an earlier run, not replaced: "
+                    "clip_1.bvh, clip_12.bvh")
+    assert _bvh_files(tmp_path, "clip", [tmp_path / "clip_0.bvh", tmp_path / "clip_1.bvh",
+                                         tmp_path / "clip_12.bvh"]) == \
+        " (clip_0.bvh, clip_1.bvh, clip_12.bvh)"
+    assert "no track long enough" in _bvh_files(tmp_path / "none", "clip", [])
+    assert _bvh_files(tmp_path, "clip", None) == ""

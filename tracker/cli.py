@@ -16,6 +16,7 @@ inside main(), where Ctrl-C during those first seconds is caught like any other.
 from __future__ import annotations
 
 import argparse
+import glob
 import math
 import os
 import re
@@ -409,7 +410,12 @@ def _run(args) -> int:
                          workers=args.workers, lag_s=lag_seconds(args))
     if not args.quiet:
         try:
-            _print_summary(args, source, result)
+            bvh_files = None
+            if args.bvh is not None:
+                from .sinks.bvh import BVHSink
+                bvh_files = next((sorted(sink.paths.values()) for sink in sinks
+                                  if isinstance(sink, BVHSink)), None)
+            _print_summary(args, source, result, bvh_files)
         except BrokenPipeError:
             # Whoever read the summary stopped (``track ... | head -1``): the outputs are
             # complete; say nothing more to the closed pipe, as command-line tools do.
@@ -450,7 +456,26 @@ def _silence_stdout() -> None:
     sys.stdout = open(os.devnull, "w")
 
 
-def _print_summary(args, source, result) -> None:
+def _bvh_files(folder: Path, stem: str, written: list[Path] | None) -> str:
+    """The BVH line's tail: the files this run wrote and those of the video's name it did not
+    (an earlier run's, with more tracks: they stay, and would pass for this run's)."""
+    if written is None:
+        return ""
+
+    def names(paths: list[Path]) -> str:
+        shown = ", ".join(p.name for p in paths[:3])
+        return shown + (f" and {len(paths) - 3} more" if len(paths) > 3 else "")
+    pattern = re.compile(rf"{re.escape(stem)}_\d+\.bvh")
+    mine = {p.name for p in written}
+    older = sorted(p for p in folder.glob(f"{glob.escape(stem)}_*.bvh")
+                   if pattern.fullmatch(p.name) and p.name not in mine)
+    tail = f" ({names(written)})" if written else " (no track long enough for a file)"
+    if older:
+        tail += f"; also there from an earlier run, not replaced: {names(older)}"
+    return tail
+
+
+def _print_summary(args, source, result, bvh_files: list[Path] | None = None) -> None:
     state = "interrupted after" if result.interrupted else "tracked"
     # What the outputs hold (after a Ctrl-C the tracker may have gone a batch further).
     tracks = result.written
@@ -470,7 +495,8 @@ def _print_summary(args, source, result) -> None:
     for path, what, poses in ((args.out, "MCAP", mcap_kind), (args.json, "JSON", kind),
                               (args.bvh, "BVH folder", kind)):
         if path is not None:
-            print(f"  {what} ({poses} poses): {path}")
+            tail = _bvh_files(path, args.video.stem, bvh_files) if what == "BVH folder" else ""
+            print(f"  {what} ({poses} poses): {path}{tail}")
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
