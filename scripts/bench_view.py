@@ -65,7 +65,7 @@ def measure(video: Path, lag_s: float, model) -> dict:
     started = time.perf_counter()
     with TimedView() as view:
         track_video(source, tracker, [view], lag_s=lag_s).stop_if_interrupted()
-    shown = np.array(view.shown)
+    shown = np.array(view.shown).reshape(-1, 2)
     return {"video_s": shown[:, 0], "wall_s": shown[:, 1],
             "run_s": time.perf_counter() - started, "interval_s": 1.0 / source.fps}
 
@@ -92,6 +92,10 @@ def main(argv: list[str] | None = None) -> int:
     with threadpool_limits(1):                       # as the track command runs
         for lag_s in args.lag:
             run = measure(args.video, lag_s, model)
+            if len(run["wall_s"]) < 2:
+                print(f"bench_view.py: {args.video}: {len(run['wall_s'])} frames with people "
+                      f"drawn: no gaps to measure", file=sys.stderr)
+                return 1
             gaps = np.diff(run["wall_s"]) * 1e3
             print(f"  --lag {lag_s:g}: {len(run['wall_s'])} frames, video interval "
                   f"{run['interval_s'] * 1e3:.0f} ms; gaps median {np.median(gaps):.0f} ms, "

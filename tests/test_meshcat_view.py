@@ -169,9 +169,11 @@ def test_interrupting_the_parent_stops_the_server(to_group, signum):
 
 
 def test_a_ctrl_c_leaves_the_server_to_its_parent():
-    # The terminal's Ctrl-C reaches the child too; the parent's clean-up stops it, after
-    # closing the view (a server gone at once made the view warn that it had stopped).
+    # The terminal's signals go to its foreground process group: not to the child, in a
+    # session of its own; the parent's clean-up stops it after closing the view (a server
+    # gone at once made the view warn that it had stopped).
     with ViewerServer() as server:
+        assert os.getsid(server.pid) != os.getsid(0)
         os.kill(server.pid, signal.SIGINT)
         assert not _gone(server.pid, timeout_s=0.5)
         assert server.running

@@ -13,7 +13,7 @@ import pytest
 
 from tracker import TrackedPose
 from tracker.sinks.meshcat_view import MeshcatView, ViewLostWarning
-from tracker.sinks.geometry import pose_joints_m
+from tracker.sinks.geometry import SinkInputError, pose_joints_m
 from tracker.sinks.playout import Player
 
 POSE = np.r_[1.0, np.zeros(54)]
@@ -129,7 +129,7 @@ def test_a_realtime_view_warns_once_of_a_lost_server_but_not_after_a_stop():
                 view.end_frame(frame)
     # (meshcat's Visualizer leaks a socket, whose ResourceWarning may fall in here too)
     assert len([w for w in caught if issubclass(w.category, ViewLostWarning)]) == 1
-    # A Ctrl-C stops the server process with the command: nothing to warn of then.
+    # After a stop (Ctrl-C) the command ends anyway: nothing to warn of then.
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         with MeshcatView(print_url=False, realtime=True) as view:
@@ -139,3 +139,33 @@ def test_a_realtime_view_warns_once_of_a_lost_server_but_not_after_a_stop():
             _kill(view.server)
             view.discard()
     assert not [w for w in caught if issubclass(w.category, ViewLostWarning)]
+
+
+def test_a_drain_that_takes_too_long_is_cut_short():
+    made, call = _recorder()
+
+    def slow(label):
+        time.sleep(0.3)
+        call(label)
+    player = Player(lead_s=60.0)
+    for label in range(10):                      # all due at once, 3 s of work
+        player.put(0.0, slow, label)
+    started = time.perf_counter()
+    player.close(timeout_s=0.4)
+    assert time.perf_counter() - started < 2.0
+    assert 1 <= len(made) < 10
+
+
+def test_a_closed_realtime_view_refuses_frames_and_reports_a_late_failure():
+    view = MeshcatView(print_url=False, realtime=True)
+    view.write(TrackedPose(0, 0.0, 1, POSE, POSE, False, JOINTS))
+
+    def broken():
+        raise OSError("drawing failed")
+    view._finish_frame = broken                 # fails on the player's thread
+    view.end_frame(0)
+    with pytest.raises(OSError, match="drawing failed"):
+        view.close()
+    assert not view.server.running
+    with pytest.raises(SinkInputError, match="closed"):
+        view.end_frame(1)

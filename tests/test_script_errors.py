@@ -52,6 +52,18 @@ def test_bench_view_refuses_missing_or_broken_videos_and_absurd_lags(tmp_path, c
         assert "--lag" in refused(["--lag", lag])
 
 
+def test_bench_view_says_so_in_one_line_when_nobody_is_drawn(tmp_path, capsys):
+    import cv2
+    video = tmp_path / "empty.mp4"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 30, (160, 120))
+    for _ in range(20):
+        writer.write(np.full((120, 160, 3), 128, np.uint8))
+    writer.release()
+    assert load_script("bench_view").main(["--video", str(video), "--lag", "0"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "no gaps to measure" in err and len(err.splitlines()) == 1
+
+
 def test_reproduce_papers_held_out_blocks_are_decoded_as_the_pieces_of_sequences_they_hold():
     script = load_script("reproduce_paper")
     ids = np.repeat([0, 1], [6, 4])                      # two training sequences, 6 and 4 frames

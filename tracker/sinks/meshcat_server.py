@@ -10,10 +10,11 @@ operating system picks, and the child process exits when:
 - its stdin reaches end of file, which happens when the parent dies in any way, SIGKILL included
   (the parent holds the only write end of that pipe);
 - it receives SIGTERM itself.
-A Ctrl-C in a terminal reaches the whole foreground process group, this child too: it ignores
-SIGINT and leaves the stopping to its parent, whose clean-up closes the view first (had the
-server gone at once, the frames the parent was still drawing would have found it gone and
-warned that the viewer had stopped, on most Ctrl-Cs).
+It runs in a session of its own, so what a terminal sends its foreground process group (Ctrl-C,
+SIGHUP when the terminal closes, ``timeout``'s SIGTERM) reaches the parent only, whose
+clean-up closes the view first and then stops the child; it also ignores a SIGINT sent to it
+directly. (A server that went at once with the parent's stop made the frames the parent was
+still drawing find it gone, and ``track`` warned that the viewer had stopped on most stops.)
 
 Run as ``python -m tracker.sinks.meshcat_server`` it is the child: it prints ``zmq_url=...`` and
 ``web_url=...`` lines and serves until one of the above happens.
@@ -172,7 +173,8 @@ class ViewerServer:
         self._proc = subprocess.Popen(
             [sys.executable, "-u", "-m", "tracker.sinks.meshcat_server"],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._log, env=env,
-            bufsize=0)  # unbuffered: select() on stdout must see every line not yet read
+            bufsize=0,  # unbuffered: select() on stdout must see every line not yet read
+            start_new_session=True)     # the terminal's signals are the parent's (docstring)
         self.pid = self._proc.pid
         # Stops the child if close() is never called (also at interpreter exit).
         self._finalizer = weakref.finalize(self, _stop, self._proc, 5.0)

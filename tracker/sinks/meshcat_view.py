@@ -191,10 +191,10 @@ class MeshcatView:
         self._lost = False          # the server stopped: writes do nothing
         self._player: Player | None = None   # realtime: makes the drawing calls
         self._last_time_s = 0.0              # video time of the last call handed over
-        # The player found the server gone: warned from the writer's thread (the command's
-        # warnings go through it), or not at all after a stop (discard()), which the command
-        # is ending anyway.
-        self._lost_warning_due = self._discarded = False
+        # A server found gone is warned of once, from the writer's thread (the command's
+        # warnings go through it; the player only sets _lost), and not after a stop
+        # (discard()), which the command is ending anyway.
+        self._warned = self._discarded = False
         self._video_interval_s = 1.0 / video_fps if video_fps > 0 else float("inf")
         self._video_width_px = int(video_width_px)
         self._last_screen_s = -float("inf")
@@ -294,6 +294,8 @@ class MeshcatView:
         if self._player.error is not None:
             raise self._player.error
         self._warn_if_lost()
+        if self._lost:
+            return                          # nothing to draw into: not even the waiting
         self._last_time_s = float(time_s)
         self._player.put(time_s, self._send, draw, *args)
 
@@ -311,15 +313,13 @@ class MeshcatView:
         if not self._lost and not self.server.running:
             self._lost = True
             if self._player is None:
-                self._lost_warning_due = True
                 self._warn_if_lost()
-            else:
-                self._lost_warning_due = not self._discarded
         return not self._lost
 
     def _warn_if_lost(self) -> None:
-        if self._lost_warning_due:
-            self._lost_warning_due = False
+        """Warn once that the server is gone (the writer's thread only)."""
+        if self._lost and not self._warned and not self._discarded:
+            self._warned = True
             warnings.warn(f"the meshcat viewer stopped (server process {self.server.pid} "
                           f"exited); tracking goes on without the live view", ViewLostWarning,
                           stacklevel=5)
@@ -437,6 +437,8 @@ class MeshcatView:
     def end_frame(self, frame_index: int) -> None:
         """Follow the frame's people with the camera; remove the tracks absent from it (also
         done when a pose of a later frame is written without end_frame)."""
+        if self._closed:
+            raise SinkInputError("meshcat view is closed")
         self._play(self._last_time_s, self._timed_finish)
 
     def _timed_finish(self) -> None:
@@ -448,7 +450,7 @@ class MeshcatView:
         """Drop the frames handed over and not shown yet (``realtime``; after a stop, the
         command does not wait for them to play)."""
         if self._player is not None:
-            self._discarded, self._lost_warning_due = True, False
+            self._discarded = True
             self._player.discard()
 
     def close(self) -> None:
@@ -458,7 +460,9 @@ class MeshcatView:
         self._closed = True
         player = getattr(self, "_player", None)
         if player is not None:
-            player.close()                  # what was handed over plays out at its times
+            # What was handed over plays out at its times; a stalled server (each call waits
+            # for its reply timeout) must not hold the command much longer than the lead.
+            player.close(timeout_s=player.lead_s + 2 * _REPLY_TIMEOUT_MS / 1000)
             self._warn_if_lost()
         vis = getattr(self, "_vis", None)
         if vis is not None:
@@ -466,6 +470,8 @@ class MeshcatView:
             vis.window.zmq_socket.close(linger=0)
         if self._owns_server:
             self.server.close()
+        if player is not None and player.error is not None:
+            raise player.error               # a drawing call's failure at the end, not lost
 
     def __enter__(self) -> "MeshcatView":
         return self

@@ -8,9 +8,10 @@ the loop hands each call over and goes on tracking; the player waits for the cal
 makes it. Tracking outruns the video, so the buffer stays full and a pause of the loop
 shorter than the buffer's lead never shows. Measured on the sample (``python
 scripts/bench_view.py --lag 0 0.5 2 5``, 2026-12-04; the wall-clock gaps between frames
-shown, 33 ms apart in the video): largest gap 38 / 71 / 120 / 141 ms before, 13-16 gaps over
-50 ms at 0.5 s; with the player 46-49 / 46-49 / 47-48 / 42-44 ms, none over 50. Without a
-lag the largest gap grows by about 10 ms: the player shares the interpreter with tracking.
+shown, 33 ms apart in the video): largest gap 36-38 / 58-71 / 120-137 / 141-148 ms before,
+13-21 gaps over 50 ms at 0.5 s; with the player 45-49 / 46-49 / 47-58 / 38-45 ms (five runs,
+one a review's on a loaded machine), at most 2 gaps over 50 ms in a run. Without a lag the
+largest gap grows by about 10 ms: the player shares the interpreter with tracking.
 
 The lead is bounded in video time (``lead_s``): ``put`` blocks while the oldest call not yet
 made is more than lead_s older than the new one, so memory stays flat however fast tracking
@@ -66,15 +67,19 @@ class Player:
             self._calls.clear()
             self._cond.notify_all()
 
-    def close(self, drain: bool = True) -> None:
+    def close(self, drain: bool = True, timeout_s: float | None = None) -> None:
         """Make the calls waiting at their times (drain) or drop them, then stop the thread;
-        idempotent."""
+        idempotent. timeout_s: how long to drain at most (None: as long as it takes); the
+        calls still waiting then are dropped (the one being made finishes)."""
         with self._cond:
             self._closing = True
             if not drain:
                 self._calls.clear()
             self._cond.notify_all()
-        self._thread.join()
+        self._thread.join(timeout_s)
+        if self._thread.is_alive():
+            self.discard()
+            self._thread.join()
 
     def _ahead(self, time_s: float) -> float:
         """Seconds until time_s is due (the first call is due at once)."""
