@@ -45,16 +45,18 @@ from threadpoolctl import threadpool_limits
 from regressor.errors import SilhouettePoseError
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
 from sequences.keypoint_fit import KeypointFitError
-from sequences.measures import MeasureError, novelty_summary
+from sequences.measures import FLEXION_NAMES, MeasureError, flexion_deg, novelty_summary
 from sequences.pose2sim import (CALIBRATION, DEFAULT_TRIAL, REFERENCE_TRC, VIEWS, Pose2SimError,
                                 Trial, camera_roll_deg, load_trial, project_reference,
-                                video_frames)
+                                reference_flexion, reference_heading_deg, video_frames)
 from sequences.pose2sim_measures import (cross_view_measures, reference_body,
                                          reference_cross_view_check, subject_rows,
                                          view_measures)
 from tracker.cli import VIEW_LAG_S, ZONE_FOREGROUND
 from tracker.fixed_lag import replay
+from sequences.pose_vector import heading_deg
 from tracker.offline.evaluation import constant_pose
+from tracker.offline.report import ReportError, check_plotting, plot_real_video
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.sinks import PoseRecorder
 from tracker.sinks.files import OutputWriteError, write_whole
@@ -204,7 +206,7 @@ def _fit_progress(done: int, total: int) -> None:
 
 def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
              sheet: list | None = None, trust_zone_foreground: bool = False,
-             reference_masks: str = "none") -> dict:
+             reference_masks: str = "none", series: list | None = None) -> dict:
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
     trust_zone_foreground: True takes the subtractor's foreground inside the unreliable zone
@@ -213,7 +215,9 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
     sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
     at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them).
     reference_masks: "none", or "cut" / "drawn" / "rendered" to correct the silhouettes by the
-    reference (a diagnostic: tracker.offline.reference_masks)."""
+    reference (a diagnostic: tracker.offline.reference_masks).
+    series: a list that gets, per view, the subject's flexions and headings over time beside
+    the reference's (tracker.offline.report.plot_real_video draws them)."""
     per_view, subject = {}, {}
     constant = constant_pose(model)
     fit = reference_body(trial, progress=_fit_progress)
@@ -236,6 +240,8 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
         per_view[view]["reference_masks"] = reference_masks
         subject[view] = (track.frames[rows], track.filtered[rows], track.raw[rows],
                          track.smoothed[rows])
+        if series is not None:
+            series.append(_view_series(trial, view, *subject[view], constant))
     common = subject[VIEWS[0]][0]
     for view in VIEWS[1:]:
         common = np.intersect1d(common, subject[view][0])
@@ -250,6 +256,16 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
             "cross_view": cross, "common_frames": int(len(common)),
             "reference_cross_view_heading_rms_deg": reference_cross_view_check(trial, common,
                                                                                 VIEWS)}
+
+
+def _view_series(trial: Trial, view: str, frames, filtered, raw, smoothed, constant) -> dict:
+    """One view's flexions (T, 4) and headings (T,) over its frames, estimated and the
+    reference's, and the constant pose's flexions (4,): a row of the --plot figure."""
+    return {"view": view, "frames": frames, "reference": reference_flexion(trial, frames),
+            "filtered": flexion_deg(filtered), "smoothed": flexion_deg(smoothed),
+            "constant": flexion_deg(np.asarray(constant, dtype=np.float64)[None])[0],
+            "reference_heading": reference_heading_deg(trial, view, frames),
+            "filtered_heading": heading_deg(filtered), "smoothed_heading": heading_deg(smoothed)}
 
 
 def write_mask_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
@@ -394,6 +410,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     ap.add_argument("--masks", type=Path, metavar="PNG", help="write the subject's "
                     "silhouettes as the regressor saw them, 8 frames per view, as a PNG")
+    ap.add_argument("--plot", type=Path, metavar="PNG", help="plot each view's knee and "
+                    "elbow flexions and heading over time against the reference's, as a PNG "
+                    "(needs matplotlib: pip install -e '.[report]')")
     return ap
 
 
@@ -403,13 +422,14 @@ def _main(argv) -> int:
     if args.max_people is not None and args.max_people < 1:
         ap.error(f"--max-people must be at least 1, got {args.max_people} (leave it out to "
                  f"track everyone)")
-    problem = _masks_path_problem(args.masks, args.json)
+    problem = (_png_path_problem("--masks", args.masks)
+               or _png_path_problem("--plot", args.plot))
     if problem:
         print(f"evaluate_real: error: {problem}", file=sys.stderr)
         return 1
     # Before about a minute of tracking, not after it: the outputs must be writable and may
     # overwrite none of the files read (the model, the trial's reference, calibration, videos).
-    ap.check_outputs([("--json", args.json), ("--masks", args.masks)],
+    ap.check_outputs([("--json", args.json), ("--masks", args.masks), ("--plot", args.plot)],
                      [("--model", args.model),
                       ("the reference", args.trial / REFERENCE_TRC),
                       ("the calibration", args.trial / CALIBRATION),
@@ -417,13 +437,20 @@ def _main(argv) -> int:
                         for view in VIEWS)])
     quiet_decoder_logs()          # as track: one line, not FFmpeg's too
     sheet = [] if args.masks else None
+    series = [] if args.plot else None
+    if args.plot:
+        try:
+            check_plotting()            # before the minute of work: matplotlib is there
+        except ReportError as exc:
+            print(f"evaluate_real: error: --plot {args.plot}: {exc}", file=sys.stderr)
+            return 1
     try:
         trial, model = checked_trial(args.trial), load_pose_model(args.model)
         with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
             result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration",
                               sheet=sheet,
                               trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
-                              reference_masks=args.reference_masks)
+                              reference_masks=args.reference_masks, series=series)
     except (Pose2SimError, PoseModelError, MeasureError, KeypointFitError, VideoError,
             SilhouettePoseError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
@@ -435,7 +462,11 @@ def _main(argv) -> int:
             write_whole(args.json, lambda path: path.write_text(json.dumps(result, indent=1)))
         if args.masks:      # whole or not at all; the temporary name keeps .png for OpenCV
             write_whole(args.masks, lambda path: write_mask_sheet(path, sheet), keep_suffix=True)
-    except (Pose2SimError, OutputWriteError) as exc:
+        if args.plot:
+            write_whole(args.plot, lambda path: plot_real_video(path, series,
+                                                                list(FLEXION_NAMES)),
+                        keep_suffix=True)
+    except (Pose2SimError, OutputWriteError, ReportError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
     return 0
@@ -471,16 +502,13 @@ def _is_text(path: Path) -> bool:
     return True
 
 
-def _masks_path_problem(masks: Path | None, json_out: Path | None) -> str | None:
-    """Why --masks cannot be written (checked before a minute of tracking), or None."""
-    if masks is None:
+def _png_path_problem(option: str, path: Path | None) -> str | None:
+    """Why --masks or --plot cannot be written as a PNG (checked before a minute of
+    tracking; the outputs' other checks are check_outputs'), or None."""
+    if path is None:
         return None
-    if masks.suffix.lower() != ".png":
-        return f"--masks {masks}: the mask sheet is a PNG, give a .png path"
-    if not masks.resolve().parent.is_dir():
-        return f"--masks {masks}: no folder {masks.resolve().parent}"
-    if json_out is not None and masks.resolve() == json_out.resolve():
-        return "--masks and --json name the same file"
+    if path.suffix.lower() != ".png":
+        return f"{option} {path}: it is written as a PNG, give a .png path"
     return None
 
 

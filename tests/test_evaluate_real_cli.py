@@ -17,18 +17,40 @@ def evaluate_real():
     return load_script("evaluate_real")
 
 
-def test_unwritable_mask_sheets_are_refused_in_one_line_before_tracking(evaluate_real, tmp_path,
-                                                                        capsys):
-    check = evaluate_real._masks_path_problem
-    assert check(None, None) is None and check(tmp_path / "m.png", tmp_path / "r.json") is None
-    assert "PNG" in check(tmp_path / "m.jpg", None)
-    assert "no folder" in check(tmp_path / "missing" / "m.png", None)
-    assert "same file" in check(tmp_path / "m.png", tmp_path / "m.png")
-    # main refuses at once, without the trial (a missing trial would fail later).
-    assert evaluate_real.main(["--trial", str(tmp_path / "none"), "--masks",
-                               str(tmp_path / "m")]) == 1
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("evaluate_real: error: --masks") and "\n" not in err
+def test_unwritable_mask_sheets_and_plots_are_refused_in_one_line_before_tracking(
+        evaluate_real, tmp_path, capsys):
+    for option in ("--masks", "--plot"):
+        check = evaluate_real._png_path_problem
+        assert check(option, None) is None and check(option, tmp_path / "m.png") is None
+        assert "PNG" in check(option, tmp_path / "m.jpg")
+        # main refuses at once, without the trial (a missing trial would fail later).
+        assert evaluate_real.main(["--trial", str(tmp_path / "none"), option,
+                                   str(tmp_path / "m")]) == 1
+        err = capsys.readouterr().err.strip()
+        assert err.startswith(f"evaluate_real: error: {option}") and "\n" not in err
+        for argv, words in (([option, str(tmp_path / "missing" / "m.png")], "no folder"),
+                            ([option, str(tmp_path / "m.png"), "--json", str(tmp_path / "m.png")],
+                             "")):
+            with pytest.raises(SystemExit) as stop:
+                evaluate_real.main(["--trial", str(tmp_path / "none")] + argv)
+            assert stop.value.code == 2
+            err = capsys.readouterr().err.strip()
+            assert words in err and "\n" not in err
+
+
+def test_the_plot_has_a_row_per_view(evaluate_real, tmp_path):
+    pytest.importorskip("matplotlib")
+    from tracker.offline.report import plot_real_video
+    t = np.arange(50)
+    view = {"view": "cam01", "frames": t, "reference": np.full((50, 4), 40.0),
+            "filtered": np.full((50, 4), 50.0), "smoothed": np.full((50, 4), 45.0),
+            "constant": np.full(4, 30.0), "reference_heading": np.zeros(50),
+            "filtered_heading": np.full(50, 20.0), "smoothed_heading": np.full(50, 10.0)}
+    path = tmp_path / "plot.png"
+    plot_real_video(path, [view, dict(view, view="cam02")], ["L knee", "R knee", "L elbow",
+                                                              "R elbow"])
+    image = cv2.imread(str(path))
+    assert image is not None and image.shape[0] > 250 and image.shape[1] > 800
 
 
 def test_the_mask_sheet_has_one_row_per_view(evaluate_real, tmp_path):

@@ -2,8 +2,9 @@
 
 matplotlib is an optional extra ("report") and is imported only when plots are drawn. Plots:
 heading over time with the (cos, sin) norm beneath and ambiguous frames marked (the paper's
-figure 7, angle sequences only), error per body part per method (its figure 5), and jitter per
-method beside the ground truth's.
+figure 7, angle sequences only), error per body part per method (its figure 5), jitter per
+method beside the ground truth's, and a real video's flexions and headings over time against
+its reference (plot_real_video).
 """
 from __future__ import annotations
 
@@ -142,6 +143,12 @@ def _pyplot():
     return plt
 
 
+def check_plotting() -> None:
+    """Raise ReportError now if plots cannot be drawn (matplotlib missing): before the work
+    whose results they would show."""
+    _pyplot()
+
+
 def plot_heading(seq: EvaluatedSequence, path: Path, threshold: float) -> None:
     """Heading (deg) over frames, true vs stacked raw vs kalman, ambiguous frames shaded; the
     raw (cos, sin) norm beneath with the ambiguity threshold."""
@@ -200,6 +207,41 @@ def plot_jitter(result: dict, path: Path) -> None:
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def plot_real_video(path: Path, views: list[dict], angle_names: list[str]) -> None:
+    """One row per view of a real video with a 3-D reference: each flexion angle (degrees)
+    over the video's frames, the reference's, the filtered and smoothed estimates' and a
+    constant pose's, and the heading (degrees relative to the camera). views: dicts with
+    "view" (name), "frames" (T,), "reference", "filtered", "smoothed" (T, A) flexions,
+    "constant" (A,), "reference_heading", "filtered_heading", "smoothed_heading" (T,)."""
+    plt = _pyplot()
+    columns = len(angle_names) + 1
+    fig, axes = plt.subplots(len(views), columns, figsize=(2.6 * columns, 2.1 * len(views)),
+                             sharex=True, squeeze=False)
+    for row, view in zip(axes, views):
+        t = view["frames"]
+        for a, (ax, name) in enumerate(zip(row, angle_names)):
+            ax.plot(t, view["reference"][:, a], "k-", lw=1.5, label="reference")
+            ax.plot(t, view["filtered"][:, a], "C0-", lw=1, label="filtered")
+            ax.plot(t, view["smoothed"][:, a], "C2-", lw=1, label="smoothed")
+            ax.axhline(view["constant"][a], color="0.5", ls="--", lw=1,
+                       label="training-mean pose")
+            ax.set_ylim(0, 150)
+            ax.set_title(f"{view['view']} {name}", fontsize=8)
+        ax = row[-1]
+        ax.plot(t, view["reference_heading"], "k.", ms=2, label="reference")
+        ax.plot(t, view["filtered_heading"], "C0.", ms=2, label="filtered")
+        ax.plot(t, view["smoothed_heading"], "C2.", ms=2, label="smoothed")
+        ax.set_ylim(-185, 185)
+        ax.set_title(f"{view['view']} heading", fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("frame", fontsize=8)
+    axes[0, 0].set_ylabel("flexion (deg)", fontsize=8)
+    axes[0, 0].legend(fontsize=6, loc="upper left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
     plt.close(fig)
 
 
