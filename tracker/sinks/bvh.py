@@ -1,7 +1,8 @@
 """BVH export: one file per track on the CMU skeleton, written when the sink is closed.
 
 Angles: the pose vectors given (``pose.filtered``: filtered, or smoothed when ``track``
-feeds the smoothed poses at the end, its default), converted by ``sequences.pose_vector.pose_vectors_to_motion``
+feeds the smoothed poses at the end, its default), converted by
+``sequences.pose_vector.pose_vectors_to_motion``
 (camera azimuth 0: the video camera sits on the subject's +Z side, so heading 0 faces it).
 
 Root translation: the tracker does not measure where a person is in 3-D. The BVH root follows
