@@ -399,8 +399,8 @@ def _write_filtered(recorder: PoseRecorder, sinks: Sequence[Sink], kind: str = "
 
 def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]
                     ) -> list[str]:
-    """RTS-smooth every track's poses and feed them to the sinks in frame order; returns
-    _feed's problems."""
+    """RTS-smooth every track's poses, draw them at the track's smoothed root path, and feed
+    them to the sinks in frame order; returns _feed's problems."""
     records = recorder.by_track()
     redrawn = {track_id: _smoothed_bodies(tracker, track_id, poses)
                for track_id, poses in records.items()}
