@@ -48,3 +48,9 @@ def test_the_smoothed_outputs_draw_their_bodies_on_the_smoothed_root_path(tmp_pa
     wobble = [np.linalg.norm(np.diff(r[:, [0, 2]], 2, axis=0), axis=1).mean()
               for r in (raw_roots, roots)]
     assert wobble[1] < 0.3 * wobble[0]
+    # --lag 0.5 draws at the same root path: its windows reach past the Gaussian's 0.4 s.
+    from tracker.fixed_lag import replay
+    lagged = [p for p in replay(tracker, streamed.frames(), 0.5) if p.track_id == track_id]
+    np.testing.assert_allclose([p.joints_m[0] for p in lagged], roots, atol=1e-9)
+    assert not np.allclose([p.joints_m[0] for p in replay(tracker, streamed.frames(), 0.1)
+                            if p.track_id == track_id], raw_roots)

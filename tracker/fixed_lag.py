@@ -25,6 +25,12 @@ frames, lag 4 frames 7.383 / 0.491, 8 frames 7.356 / 0.498, 15 frames 7.310 / 0.
 3.1 / 2.1 / 1.6 ms a frame for one person; a margin of 30 frames (MARGIN_S) gives 7.295 /
 0.516 at 15 frames, 2.1 ms a frame. Almost all of the corr8 gain is on the walk 02_02 (0.679
 filtered, 0.783 at 15 frames, 0.800 smoothed); 08_03 gains nothing.
+
+The bodies are drawn at the root path smoothed over the same window (tracker.root_path, as
+the whole-track smoothed outputs are; each track's raw roots are kept for it, 24 bytes a
+frame), so where the window reaches far enough on both sides (the Gaussian's 4 sigma, 0.4 s:
+lags from 0.4 s) the root is the whole track's; with shorter lags it is cut at the newest
+frame.
 """
 from __future__ import annotations
 
@@ -36,6 +42,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from .root_path import smoothed_roots
 from .silhouettes import PersonMask
 from .sinks.geometry import pose_joints_m
 
@@ -99,6 +106,7 @@ class FixedLagSmoother:
         self._smoothed: deque[tuple] = deque()       # smoothed, not due yet
         self._waiting: deque[_Waiting] = deque()     # not smoothed yet
         self._poses_seen: dict[int, int] = {}        # track id -> its poses pushed so far
+        self._roots: dict[int, list] = {}            # track id -> its poses' raw roots (m)
 
     @classmethod
     def from_seconds(cls, tracker: PoseTracker, lag_s: float) -> FixedLagSmoother:
@@ -121,6 +129,8 @@ class FixedLagSmoother:
             number = self._poses_seen.get(pose.track_id, 0)
             self._poses_seen[pose.track_id] = number + 1
             numbers.append(number)
+            self._roots.setdefault(pose.track_id, []).append(
+                np.asarray(pose.joints_m, np.float64)[0])
         self._waiting.append(_Waiting(_held(frame), numbers))
         if not self._smoothed and len(self._waiting) >= 2 * self.lag:
             self._smooth(self.lag)
@@ -144,7 +154,7 @@ class FixedLagSmoother:
         for waiting in block:
             for pose, number in zip(waiting.frame[3], waiting.numbers):
                 numbers.setdefault(pose.track_id, []).append(number)
-        smoothed: dict[tuple[int, int], np.ndarray] = {}
+        smoothed: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
         for track_id, wanted in numbers.items():
             start = max(0, wanted[0] - self.margin)
             stop = self._poses_seen[track_id]
@@ -152,9 +162,11 @@ class FixedLagSmoother:
             if len(window) != stop - start:
                 raise RuntimeError(f"track {track_id} holds {len(window)} poses from pose "
                                    f"{start}, the smoother was given {stop - start}")
+            roots = smoothed_roots(np.array(self._roots[track_id][start:stop]),
+                                   self.tracker.fps)
             for number in wanted:
-                smoothed[track_id, number] = window[number - start]
-        poses = [(pose, smoothed[pose.track_id, number]) for waiting in block
+                smoothed[track_id, number] = (window[number - start], roots[number - start])
+        poses = [(pose, *smoothed[pose.track_id, number]) for waiting in block
                  for pose, number in zip(waiting.frame[3], waiting.numbers)]
         redrawn = iter(_redrawn(poses))
         out = []
@@ -209,13 +221,13 @@ def _shrunk(person: PersonMask, scale: float) -> PersonMask:
                       (person.centroid[0] * scale, person.centroid[1] * scale), int(mask.sum()))
 
 
-def _redrawn(poses: list[tuple[TrackedPose, np.ndarray]]) -> list[TrackedPose]:
-    """Each (pose, smoothed (55,)) as the pose with filtered = smoothed and its joints drawn
-    from it with the root where the tracker put it, all in one forward-kinematics call."""
+def _redrawn(poses: list[tuple[TrackedPose, np.ndarray, np.ndarray]]) -> list[TrackedPose]:
+    """Each (pose, smoothed (55,), smoothed root (3,) metres) as the pose with filtered =
+    smoothed and its joints drawn from it at that root, all in one forward-kinematics call."""
     if not poses:
         return []
-    vectors = np.array([vector for _, vector in poses])
-    roots = np.array([np.asarray(pose.joints_m, np.float64)[0] for pose, _ in poses])
+    vectors = np.array([vector for _, vector, _ in poses])
+    roots = np.array([root for _, _, root in poses])
     joints = pose_joints_m(vectors, root_position_m=roots)
     return [replace(pose, filtered=vector, joints_m=j)
-            for (pose, _), vector, j in zip(poses, vectors, joints)]
+            for (pose, _, _), vector, j in zip(poses, vectors, joints)]

@@ -6,8 +6,9 @@ field of view), so it jitters with the box as the limbs move (on the sample its 
 strays 45 mm (standard deviation) about its own 15-frame mean, the truth's 5 mm once scaled
 alike; a review's measurement, 2026-12-04). The smoothed outputs
 (JSON, BVH, the MCAP's /smoothed topics) draw their bodies at the root smoothed here: a
-Gaussian over time, zero phase, since the whole track is known. The streamed outputs (the live
-view, the MCAP's /pose and /skeleton) keep each frame's own root.
+Gaussian over time, zero phase, since the whole track is known; with ``--lag`` the streamed
+outputs (the live view, the MCAP's /pose and /skeleton) are drawn at the same path smoothed
+over their window (tracker.fixed_lag), without one at each frame's own root.
 
 ROOT_SMOOTHING_S was chosen on the 12 validation videos (five trials as spiral walks and
 seven from a fixed camera; one-off driver /work/tmp/s46/root_sigma.py, 2026-12-04): the root's
