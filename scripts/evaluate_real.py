@@ -425,8 +425,7 @@ def _main(argv) -> int:
     problem = (_png_path_problem("--masks", args.masks)
                or _png_path_problem("--plot", args.plot))
     if problem:
-        print(f"evaluate_real: error: {problem}", file=sys.stderr)
-        return 1
+        ap.error(problem)
     # Before about a minute of tracking, not after it: the outputs must be writable and may
     # overwrite none of the files read (the model, the trial's reference, calibration, videos).
     ap.check_outputs([("--json", args.json), ("--masks", args.masks), ("--plot", args.plot)],

@@ -6,38 +6,103 @@ field of view), so it jitters with the box as the limbs move (on the sample its 
 strays 45 mm (standard deviation) about its own 15-frame mean, the truth's 5 mm once scaled
 alike; a review's measurement, 2026-12-04). The smoothed outputs
 (JSON, BVH, the MCAP's /smoothed topics) draw their bodies at the root smoothed here: a
-Gaussian over time, zero phase, since the whole track is known; with ``--lag`` the streamed
+straight line fitted with Gaussian weights about each pose's time (a local linear smoother,
+zero phase, since the whole track is known: no lag, and no pull at the track's ends or beside
+a gap); with ``--lag`` the streamed
 outputs (the live view, the MCAP's /pose and /skeleton) are drawn at the same path smoothed
 over their window (tracker.fixed_lag), without one at each frame's own root.
 
 ROOT_SMOOTHING_S was chosen on the 12 validation videos (five trials as spiral walks and
-seven from a fixed camera; one-off driver /work/tmp/s46/root_sigma.py, 2026-12-04): the root's
+seven from a fixed camera; one-off driver /work/tmp/s46/root_sigma2.py, 2026-12-04): the root's
 RMS distance from the truth's hips (lateral and depth, the depth scaled per video by least
 squares, since the assumed field of view is not the render's), mean over videos, for a sigma
-of 0 / 0.033 / 0.067 / 0.1 / 0.15 / 0.2 / 0.3 / 0.5 s: 170 / 150 / 135 / 128 / 128 / 130 / 139
-/ 173 mm; the path's mean second difference 167 / 41 / 14 / 6.4 / 2.4 / 1.5 / 1.0 / 0.7 mm per
-frame squared. 0.1 s: as near as 0.15 s, lagging less where the body moves fast (07_12, a
-jump: 92 against 108 mm).
+of 0 / 0.033 / 0.067 / 0.1 / 0.15 / 0.2 / 0.3 / 0.5 s: 170 / 150 / 135 / 128 / 124 / 122 / 121
+/ 133 mm; the path's mean second difference 167 / 44 / 17 / 9.3 / 5.7 / 4.1 / 3.4 / 3.6 mm per
+frame squared. 0.2 s: as near as 0.3 s, following a fast body better (07_12, a jump: 92
+against 95 mm). (A plain Gaussian with the ends padded, tried first: best at 0.1-0.15 s, 128
+mm; beside a 12-frame gap in a 1.4 m/s walk the padded or pose-order Gaussian strays up to
+0.24 m from the path, this fit not at all.)
 """
 from __future__ import annotations
 
+from array import array
+
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
 
 #: Standard deviation of the Gaussian over time, seconds (module docstring).
-ROOT_SMOOTHING_S = 0.1
+ROOT_SMOOTHING_S = 0.2
+_REACH_SIGMAS = 4.0        # the Gaussian is cut beyond this many standard deviations
 
 
-def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTHING_S
-                   ) -> np.ndarray:
-    """roots_m (T, 3) metres, one track's root per frame in time order at fps frames per
-    second, smoothed by a Gaussian of sigma_s seconds (0: unchanged); the ends are extended
-    by their own values. Returns (T, 3) metres."""
+def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTHING_S,
+                   frames: np.ndarray | None = None) -> np.ndarray:
+    """roots_m (T, 3) metres, one track's root per pose in time order at fps frames per
+    second, smoothed over the video's time with Gaussian weights of sigma_s seconds (0:
+    unchanged): frames (T,) are the poses' frame indices (None: one pose per frame), so the
+    poses beyond a gap (frames where the person was missed) weigh as far as they are. Each
+    root is the value at its time of a straight line fitted by those weights to the roots
+    within 4 sigma (a local linear smoother): in the middle of a track the Gaussian's mean,
+    at its ends and beside a gap no pull towards the side that has poses (a walker's root is
+    not held back there). Returns (T, 3) metres."""
     roots = np.asarray(roots_m, dtype=np.float64)
     if roots.ndim != 2 or roots.shape[1] != 3:
         raise ValueError(f"roots must be (T, 3), got {roots.shape}")
     if not (np.isfinite(fps) and fps > 0 and np.isfinite(sigma_s) and sigma_s >= 0):
         raise ValueError(f"fps={fps} must be > 0 and sigma_s={sigma_s} >= 0")
-    if sigma_s == 0 or len(roots) < 2:
+    count = len(roots)
+    times = (np.arange(count, dtype=np.float64) if frames is None
+             else np.asarray(frames, dtype=np.float64))
+    if times.shape != (count,) or np.any(np.diff(times) <= 0):
+        raise ValueError(f"frames must be ({count},) and increasing")
+    if sigma_s == 0 or count < 2:
         return roots.copy()
-    return gaussian_filter1d(roots, sigma_s * fps, axis=0, mode="nearest")
+    sigma = sigma_s * fps                               # frames
+    reach = _REACH_SIGMAS * sigma
+    # Weighted sums for each pose's fit: of w, w d, w d^2, w y, w d y (d: time from it).
+    s0, s1, s2 = np.zeros(count), np.zeros(count), np.zeros(count)
+    t0, t1 = np.zeros_like(roots), np.zeros_like(roots)
+    # Neighbours within reach in time are within reach in pose order (a gap only removes
+    # some): one vectorised pass per offset in pose order.
+    for offset in range(-int(reach), int(reach) + 1):
+        lo, hi = max(0, -offset), min(count, count - offset)
+        if lo >= hi:
+            continue
+        d = times[lo + offset:hi + offset] - times[lo:hi]
+        w = np.exp(-0.5 * (d / sigma) ** 2) * (np.abs(d) <= reach)
+        y = roots[lo + offset:hi + offset]
+        s0[lo:hi] += w
+        s1[lo:hi] += w * d
+        s2[lo:hi] += w * d * d
+        t0[lo:hi] += w[:, None] * y
+        t1[lo:hi] += (w * d)[:, None] * y
+    det = s0 * s2 - s1 * s1
+    mean = t0 / s0[:, None]
+    # A lone pose (no neighbour within reach) has no line: its mean, which is itself.
+    line = det > 1e-9 * s0 * s0
+    out = mean.copy()
+    out[line] = ((s2[line, None] * t0[line] - s1[line, None] * t1[line])
+                 / det[line, None])
+    return out
+
+
+class RootHistory:
+    """Each track's raw roots (metres) and frame indices as they come, 32 bytes a pose."""
+
+    def __init__(self):
+        self._tracks: dict[int, tuple[array, array]] = {}
+
+    def add(self, track_id: int, frame_index: int, root_m) -> None:
+        """Keep a track's next pose's root (3,) metres and frame index."""
+        roots, frames = self._tracks.setdefault(int(track_id), (array("d"), array("q")))
+        roots.extend(float(c) for c in np.asarray(root_m, dtype=np.float64)[:3])
+        frames.append(int(frame_index))
+
+    def get(self, track_id: int, start: int = 0, stop: int | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
+        """Poses start:stop of a track: roots (n, 3) metres and frame indices (n,), copies."""
+        roots, frames = self._tracks[int(track_id)]
+        start, stop, _ = slice(start, stop).indices(len(frames))
+        count = max(0, stop - start)
+        # Only the slice is copied: a long track's history is read a block at a time.
+        return (np.frombuffer(roots, np.float64, 3 * count, 24 * start).reshape(-1, 3).copy(),
+                np.frombuffer(frames, np.int64, count, 8 * start).copy())
