@@ -594,7 +594,7 @@ def test_a_reader_that_stops_reading_the_summary_fails_nothing(walk_video, tmp_p
 
 def test_the_summary_names_the_bvh_files_written_and_an_earlier_runs_left_beside_them(tmp_path):
     from tracker.cli import _bvh_files
-    for name in ("clip_0.bvh", "clip_1.bvh", "clip_12.bvh", "clipper_1.bvh", "clip_a.bvh",
+    for name in ("clip_0.bvh", "clip_12.bvh", "clip_1.bvh", "clipper_1.bvh", "clip_a.bvh",
                  "clip_0.bvh.partial"):
         (tmp_path / name).write_text("")
     tail = _bvh_files(tmp_path, "clip", [tmp_path / "clip_0.bvh"])

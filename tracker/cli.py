@@ -413,8 +413,8 @@ def _run(args) -> int:
             bvh_files = None
             if args.bvh is not None:
                 from .sinks.bvh import BVHSink
-                bvh_files = next((sorted(sink.paths.values()) for sink in sinks
-                                  if isinstance(sink, BVHSink)), None)
+                bvh_files = next(([path for _, path in sorted(sink.paths.items())]
+                                  for sink in sinks if isinstance(sink, BVHSink)), None)
             _print_summary(args, source, result, bvh_files)
         except BrokenPipeError:
             # Whoever read the summary stopped (``track ... | head -1``): the outputs are
@@ -465,10 +465,11 @@ def _bvh_files(folder: Path, stem: str, written: list[Path] | None) -> str:
     def names(paths: list[Path]) -> str:
         shown = ", ".join(p.name for p in paths[:3])
         return shown + (f" and {len(paths) - 3} more" if len(paths) > 3 else "")
-    pattern = re.compile(rf"{re.escape(stem)}_\d+\.bvh")
+    pattern = re.compile(rf"{re.escape(stem)}_(\d+)\.bvh")
     mine = {p.name for p in written}
-    older = sorted(p for p in folder.glob(f"{glob.escape(stem)}_*.bvh")
-                   if pattern.fullmatch(p.name) and p.name not in mine)
+    older = sorted((p for p in folder.glob(f"{glob.escape(stem)}_*.bvh")
+                    if pattern.fullmatch(p.name) and p.name not in mine),
+                   key=lambda p: int(pattern.fullmatch(p.name).group(1)))   # by track number
     tail = f" ({names(written)})" if written else " (no track long enough for a file)"
     if older:
         tail += f"; also there from an earlier run, not replaced: {names(older)}"

@@ -228,7 +228,9 @@ def plot_real_video(path: Path, views: list[dict], angle_names: list[str]) -> No
             ax.plot(t, view["smoothed"][:, a], "C2-", lw=1, label="smoothed")
             ax.axhline(view["constant"][a], color="0.5", ls="--", lw=1,
                        label="training-mean pose")
-            ax.set_ylim(0, 150)
+            top = max(150.0, np.nanmax([view[k][:, a].max() for k in
+                                        ("reference", "filtered", "smoothed")]) + 5.0)
+            ax.set_ylim(0, top)
             ax.set_title(f"{view['view']} {name}", fontsize=8)
         ax = row[-1]
         ax.plot(t, view["reference_heading"], "k.", ms=2, label="reference")
