@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from tracker.cli import MAX_LAG_S            # track --lag's upper end
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sequences" / "data" / "sample_spiral_walk.mp4"
-MAX_LAG_S = 10.0
 
 
 def lag(text: str) -> float:
