@@ -34,6 +34,9 @@ class _Tracker:
         out[:, 5] = track_id
         return out
 
+    def smoothed_root_path(self, track_id, start=0, stop=None):
+        return np.tile([0.0, 1.0, 3.0], (stop - start, 1))   # where _pose puts every root
+
 
 def _pose(frame, track_id, root=(0.0, 1.0, 3.0)):
     vector = np.zeros(55)

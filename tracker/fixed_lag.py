@@ -27,8 +27,8 @@ frames, lag 4 frames 7.383 / 0.491, 8 frames 7.356 / 0.498, 15 frames 7.310 / 0.
 filtered, 0.783 at 15 frames, 0.800 smoothed); 08_03 gains nothing.
 
 The bodies are drawn at the root path smoothed over the same window (tracker.root_path, as
-the whole-track smoothed outputs are; each pose's raw root and frame are kept for it, 32 bytes
-a pose: FixedLagSmoother.roots), so where the window reaches far enough on both sides (the
+the whole-track smoothed outputs are: PoseTracker.smoothed_root_path, from the roots the
+tracker keeps with its history, 32 bytes a pose), so where the window reaches far enough on both sides (the
 weights' 4 sigma, 0.8 s: lags from 0.8 s) the root is the whole track's; with shorter lags the
 line is fitted to what the window has (tested: within 25 mm of the whole track's path at
 0.5 s on a rendered walk).
@@ -43,7 +43,6 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .root_path import RootHistory, smoothed_roots
 from .silhouettes import PersonMask
 from .sinks.geometry import pose_joints_m
 
@@ -107,7 +106,6 @@ class FixedLagSmoother:
         self._smoothed: deque[tuple] = deque()       # smoothed, not due yet
         self._waiting: deque[_Waiting] = deque()     # not smoothed yet
         self._poses_seen: dict[int, int] = {}        # track id -> its poses pushed so far
-        self.roots = RootHistory()                   # every pose's raw root, by track
 
     @classmethod
     def from_seconds(cls, tracker: PoseTracker, lag_s: float) -> FixedLagSmoother:
@@ -130,7 +128,6 @@ class FixedLagSmoother:
             number = self._poses_seen.get(pose.track_id, 0)
             self._poses_seen[pose.track_id] = number + 1
             numbers.append(number)
-            self.roots.add(pose.track_id, pose.frame_index, np.asarray(pose.joints_m)[0])
         self._waiting.append(_Waiting(_held(frame), numbers))
         if not self._smoothed and len(self._waiting) >= 2 * self.lag:
             self._smooth(self.lag)
@@ -162,13 +159,12 @@ class FixedLagSmoother:
             if len(window) != stop - start:
                 raise RuntimeError(f"track {track_id} holds {len(window)} poses from pose "
                                    f"{start}, the smoother was given {stop - start}")
-            raw, frames = self.roots.get(track_id, start, stop)
-            roots = smoothed_roots(raw, self.tracker.fps, frames=frames)
+            roots = self.tracker.smoothed_root_path(track_id, start, stop)
             for number in wanted:
                 smoothed[track_id, number] = (window[number - start], roots[number - start])
         poses = [(pose, *smoothed[pose.track_id, number]) for waiting in block
                  for pose, number in zip(waiting.frame[3], waiting.numbers)]
-        redrawn = iter(_redrawn(poses))
+        redrawn = iter(drawn_at(poses))
         out = []
         for waiting in block:
             index, time_s, image, frame_poses, people = waiting.frame
@@ -221,9 +217,10 @@ def _shrunk(person: PersonMask, scale: float) -> PersonMask:
                       (person.centroid[0] * scale, person.centroid[1] * scale), int(mask.sum()))
 
 
-def _redrawn(poses: list[tuple[TrackedPose, np.ndarray, np.ndarray]]) -> list[TrackedPose]:
+def drawn_at(poses: list[tuple[TrackedPose, np.ndarray, np.ndarray]]) -> list[TrackedPose]:
     """Each (pose, smoothed (55,), smoothed root (3,) metres) as the pose with filtered =
-    smoothed and its joints drawn from it at that root, all in one forward-kinematics call."""
+    smoothed and its joints drawn from it at that root, all in one forward-kinematics call
+    (the fixed-lag and the whole-track smoothed outputs, tracker.run)."""
     if not poses:
         return []
     vectors = np.array([vector for _, vector, _ in poses])

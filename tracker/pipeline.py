@@ -30,6 +30,7 @@ from .imm_filter import DEFAULT_SWITCH, TURN_AND_STOP, HeadingModel, IMMPoseFilt
 from .hypotheses import FrontBackTracker, chain_options, propose_batch
 from .mirror_limbs import sees_mirror
 from .silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
+from .root_path import RootHistory, smoothed_roots
 from .sinks.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
 from .travel import TravelDirection
 from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
@@ -380,6 +381,9 @@ class PoseTracker:
         self.frame_shape: tuple[int, int] | None = None      # (height, width) pixels
         self._focal_px = 0.0
         self.tracks: dict[int, _TrackState] = {}
+        #: Every pose's root as placed here, by track (keep_history only): the smoothed outputs
+        #: draw their bodies at it smoothed (smoothed_root_path), whatever was streamed.
+        self.roots = RootHistory()
         #: Track id -> silhouette of each person in the frame processed last (for drawing).
         self.people: dict[int, PersonMask] = {}
         #: Seconds spent per stage so far (silhouettes, association, descriptor, regression,
@@ -483,6 +487,8 @@ class PoseTracker:
                                    j, person.centroid, person.bbox, d.runner_up,
                                    d.runner_up_probability, n)
                 self.tracks[track_id].unfamiliar += pose.unfamiliar
+                if self.settings.keep_history:
+                    self.roots.add(track_id, frame_index, j[0])
                 poses[slot].append(pose)
         return list(zip(poses, people_by_frame))
 
@@ -560,3 +566,13 @@ class PoseTracker:
         if not self.settings.keep_history:
             raise ValueError("smoothed_track needs TrackerSettings(keep_history=True)")
         return self.tracks[track_id].hypotheses.smoothed(start, stop)
+
+    def smoothed_root_path(self, track_id: int, start: int = 0, stop: int | None = None
+                           ) -> np.ndarray:
+        """The roots (n, 3) metres of a track's poses start..stop-1 (as smoothed_track's),
+        the tracker's own placements smoothed over the video's time (tracker.root_path); needs
+        settings.keep_history."""
+        if not self.settings.keep_history:
+            raise ValueError("smoothed_root_path needs TrackerSettings(keep_history=True)")
+        raw, frames = self.roots.get(track_id, start, stop)
+        return smoothed_roots(raw, self.fps, frames=frames)

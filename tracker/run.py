@@ -16,20 +16,18 @@ import threading
 import time
 from collections import deque
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
-from .fixed_lag import FixedLagSmoother, streamed_kind
+from .fixed_lag import FixedLagSmoother, drawn_at, streamed_kind
 from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
-from .pipeline import PoseTracker, TrackedPose
-from .root_path import RootHistory, smoothed_roots
+from .pipeline import PoseTracker
 from .silhouettes import median_background
 from .sinks import PoseRecorder, Sink, close_sinks
-from .sinks.geometry import pose_joints_m
 from .video import VideoSource, open_video
 
 
@@ -219,8 +217,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                         if progress is not None:
                             progress.close()
                         if recorder is not None and not interrupted:
-                            fed += _write_smoothed(tracker, recorder, smoothed_sinks,
-                                                   None if lagged is None else lagged.roots)
+                            fed += _write_smoothed(tracker, recorder, smoothed_sinks)
                             smoothed = True
                         elif recorder is not None:
                             fed += _write_filtered(recorder, smoothed_sinks,
@@ -398,34 +395,18 @@ def _write_filtered(recorder: PoseRecorder, sinks: Sequence[Sink], kind: str = "
     return _feed(recorder.poses, sinks)
 
 
-def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink],
-                    raw_roots: RootHistory | None = None) -> list[str]:
-    """RTS-smooth every track's poses, draw them at the track's smoothed root path, and feed
-    them to the sinks in frame order; returns _feed's problems. raw_roots: the tracker's own
-    roots when the recorded poses are not drawn at them (a fixed-lag smoother's, which has
-    drawn them at its own smoothed path already); None: the recorded poses' roots."""
+def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]
+                    ) -> list[str]:
+    """RTS-smooth every track's poses, draw them at the track's smoothed root path
+    (PoseTracker.smoothed_root_path: the tracker's own roots, not the streamed poses', which
+    a fixed-lag smoother has moved already), and feed them to the sinks in frame order;
+    returns _feed's problems."""
     records = recorder.by_track()
-    redrawn = {track_id: _smoothed_bodies(tracker, track_id, poses,
-                                          None if raw_roots is None else
-                                          raw_roots.get(track_id)[0])
+    redrawn = {track_id: drawn_at(list(zip(poses, tracker.smoothed_track(track_id),
+                                           tracker.smoothed_root_path(track_id))))
                for track_id, poses in records.items()}
     order = sorted((p.frame_index, tid, i) for tid, ps in records.items() for i, p in enumerate(ps))
     return _feed((redrawn[track_id][i] for _, track_id, i in order), sinks)
-
-
-def _smoothed_bodies(tracker: PoseTracker, track_id: int, poses: list[TrackedPose],
-                     raw_roots: np.ndarray | None = None) -> list[TrackedPose]:
-    """A track's poses (in frame order) with filtered = its RTS-smoothed pose and joints_m
-    drawn from that at the root path smoothed over the track (tracker.root_path) from
-    raw_roots (n, 3) metres (None: the poses' own)."""
-    smoothed = tracker.smoothed_track(track_id)
-    if raw_roots is None:
-        raw_roots = np.array([np.asarray(p.joints_m, np.float64)[0] for p in poses])
-    roots = smoothed_roots(raw_roots, tracker.fps,
-                           frames=np.array([p.frame_index for p in poses]))
-    joints = pose_joints_m(smoothed, root_position_m=roots)
-    return [replace(pose, filtered=vector, joints_m=j)
-            for pose, vector, j in zip(poses, smoothed, joints)]
 
 
 def _feed(poses, sinks: Sequence[Sink]) -> list[str]:
