@@ -151,6 +151,56 @@ def test_an_existing_output_is_replaced_only_when_the_new_one_is_complete(tmp_pa
         assert make_reader(f, validate_crcs=True).get_summary() is not None
 
 
+def test_an_earlier_runs_unfinished_recording_is_kept_aside_not_overwritten(tmp_path):
+    """A kill leaves NAME.partial for recover_mcap; the next run on NAME must not truncate it:
+    it is moved to NAME.partial.1 (then .2) with a warning, and an empty one is reused."""
+    out = tmp_path / "o.mcap"
+    partial_path(out).write_bytes(b"killed run 1")
+    with pytest.warns(UserWarning, match=r"o\.mcap\.partial held an earlier run.*o\.mcap\.partial\.1"):
+        sink = McapSink(out)
+    sink.close()
+    partial_path(out).write_bytes(b"killed run 2")
+    with pytest.warns(UserWarning, match=r"kept as .*o\.mcap\.partial\.2"):
+        JsonSummarySink(tmp_path / "o.mcap", 30.0).close()   # any OutputFile: the JSON's too
+    assert (tmp_path / "o.mcap.partial.1").read_bytes() == b"killed run 1"
+    assert (tmp_path / "o.mcap.partial.2").read_bytes() == b"killed run 2"
+    partial_path(out).write_bytes(b"")
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        McapSink(out).close()
+    assert not (tmp_path / "o.mcap.partial.3").exists()
+
+
+def test_track_keeps_a_partial_file_it_finds_and_says_so_in_one_line(tmp_path, walk):
+    """Through the command: the MCAP's and a BVH's NAME.partial that hold data survive a run."""
+    out, bvh = tmp_path / "w.mcap", tmp_path / "bvh"
+    bvh.mkdir()
+    partial_path(out).write_bytes(b"an earlier recording")
+    partial_path(bvh / "walk_0.bvh").write_text("someone's file")
+    result = _track(walk, "--out", out, "--bvh", bvh, "--quiet", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    notices = [line for line in result.stderr.splitlines() if "kept as" in line]
+    assert len(notices) == 2 and all(n.startswith("track: warning: ") for n in notices)
+    assert (tmp_path / "w.mcap.partial.1").read_bytes() == b"an earlier recording"
+    assert (bvh / "walk_0.bvh.partial.1").read_text() == "someone's file"
+    with open(out, "rb") as f:
+        assert make_reader(f, validate_crcs=True).get_summary() is not None
+    assert (bvh / "walk_0.bvh").read_text().startswith("HIERARCHY")
+
+
+def test_a_partial_file_another_run_is_writing_is_not_set_aside(tmp_path):
+    out = tmp_path / "o.mcap"
+    first = McapSink(out)
+    first._state["stream"].write(b"x" * 10)       # the live run's partial holds data
+    try:
+        with pytest.raises(OutputBusyError):
+            McapSink(out)
+        assert not (tmp_path / "o.mcap.partial.1").exists()
+    finally:
+        first.close()
+
+
 # ------------------------------------------------------------------ 6: a full disk
 
 

@@ -6,7 +6,9 @@
   run on the same output fails at once with :class:`OutputBusyError`) and renames it onto
   ``NAME`` only by :meth:`OutputFile.commit`, once it is complete. A crash leaves ``NAME`` as it
   was and the new data in ``NAME.partial``. A destination that exists and is not a regular file
-  (``/dev/null``, a FIFO) is written in place.
+  (``/dev/null``, a FIFO) is written in place. A ``NAME.partial`` that already holds data (an
+  earlier run's unfinished recording, or a file of the user's) is kept as ``NAME.partial.1``
+  (``.2``, ...) with a warning, never overwritten.
 - :func:`write_beside` does the same for a file written in one go by a function of a path.
 - :class:`LockFile` holds such a lock on a lock file of its own (a BVH folder's set of files).
 - Every failure to write is an :class:`OutputWriteError` naming the file.
@@ -16,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import warnings
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
@@ -92,6 +95,41 @@ def _open_locked(path: Path, flags: int) -> int:
                           f"writing this output")
 
 
+def set_aside(path: Path) -> Path | None:
+    """Move a non-empty regular file at ``path`` (a ``NAME.partial`` about to be written) to the
+    first free ``NAME.partial.N`` and warn naming both; returns the new name, or None when there
+    was nothing to keep. OutputBusyError if another process is writing it (holds its lock)."""
+    try:
+        if not path.is_file() or path.stat().st_size == 0:
+            return None
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise OutputBusyError(f"{path}: another track run is writing this output; wait for "
+                                  f"it to finish or choose another file name") from None
+        for n in range(1, 10_000):
+            aside = path.with_name(f"{path.name}.{n}")
+            try:
+                os.link(path, aside)      # never replaces an existing file, unlike rename
+            except FileExistsError:
+                continue
+            except OSError as exc:
+                raise OutputWriteError(f"{path}: holds an earlier run's data and cannot be kept "
+                                       f"aside ({exc.strerror}); move it away first") from None
+            os.unlink(path)
+            warnings.warn(f"{path} held an earlier run's unfinished output; kept as {aside}, "
+                          f"not overwritten", stacklevel=3)
+            return aside
+        raise OutputWriteError(f"{path}: too many earlier unfinished outputs kept beside it; "
+                               f"remove some")
+    finally:
+        os.close(fd)
+
+
 class OutputFile:
     """A binary output written beside ``path`` and renamed onto it by commit() (see the module
     docstring). File protocol for writers: write(bytes) (everything handed to the operating
@@ -107,8 +145,9 @@ class OutputFile:
             if self._in_place:
                 self._fd = os.open(self.path, os.O_WRONLY)
             else:
+                set_aside(self.written_path)
                 self._fd = _open_locked(self.written_path, os.O_WRONLY)
-                os.ftruncate(self._fd, 0)   # a partial file of an earlier run that died
+                os.ftruncate(self._fd, 0)   # set_aside kept any data it held
         except OSError as exc:
             raise OutputWriteError(f"{self.written_path}: cannot write ({exc.strerror})") from None
         self._offset = 0
@@ -184,9 +223,11 @@ def write_beside(path: str | Path, write: Callable[[Path], None],
                  partial: str | Path | None = None) -> None:
     """Call ``write(partial path)``, flush that file to disk and rename it onto ``path``; on
     failure the partial file is removed and ``path`` is left as it was (OutputWriteError naming
-    the file). partial: the temporary name (default partial_path(path)), in path's folder."""
+    the file). partial: the temporary name (default partial_path(path)), in path's folder; a
+    non-empty file there is kept aside first (set_aside)."""
     path = Path(path)
     partial = partial_path(path) if partial is None else Path(partial)
+    set_aside(partial)
     try:
         write(partial)
         fd = os.open(partial, os.O_RDONLY)
