@@ -189,6 +189,50 @@ def test_track_keeps_a_partial_file_it_finds_and_says_so_in_one_line(tmp_path, w
     assert (bvh / "walk_0.bvh").read_text().startswith("HIERARCHY")
 
 
+def test_a_symlinked_output_replaces_its_target_and_keeps_the_link(tmp_path, walk):
+    """An output given as a symlink: the file it points to gets the result (not the link
+    replaced by a regular file, the target left stale), for the JSON, the MCAP and a BVH."""
+    (tmp_path / "real").mkdir()
+    for name in ("s.json", "s.mcap"):
+        (tmp_path / "real" / name).write_text("old")
+        (tmp_path / name).symlink_to(tmp_path / "real" / name)
+    result = _track(walk, "--json", "s.json", "--out", "s.mcap", "--end", "0.5", "--quiet",
+                    cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "s.json").is_symlink() and (tmp_path / "s.mcap").is_symlink()
+    assert json.loads((tmp_path / "real" / "s.json").read_text())["frames"] == 15
+    with open(tmp_path / "real" / "s.mcap", "rb") as f:
+        assert make_reader(f, validate_crcs=True).get_summary() is not None
+    assert sorted(p.name for p in (tmp_path / "real").iterdir()) == ["s.json", "s.mcap"]
+
+
+def test_json_to_a_stdout_redirected_to_a_file_lands_in_that_file(tmp_path, walk):
+    """`track V --json /dev/stdout > o.txt` (here through a link of our own to
+    /proc/self/fd/1, so /dev is never at risk): o.txt gets the JSON, the link stays a link."""
+    (tmp_path / "fd").mkdir()
+    (tmp_path / "fd" / "stdout").symlink_to("/proc/self/fd/1")
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    with open(tmp_path / "o.txt", "w") as out:
+        code = subprocess.run([sys.executable, "-m", "tracker.cli", str(walk), "--json",
+                               "fd/stdout", "--end", "0.5", "--quiet"], cwd=tmp_path, env=env,
+                              stdout=out, stderr=subprocess.PIPE, text=True, timeout=120)
+    assert code.returncode == 0, code.stderr
+    assert json.loads((tmp_path / "o.txt").read_text())["frames"] == 15
+    assert (tmp_path / "fd" / "stdout").is_symlink()
+
+
+@pytest.mark.parametrize("option", ["--json", "--out"])
+def test_an_output_ending_in_a_slash_is_refused_not_written_as_a_file(tmp_path, video, option):
+    result = _track(video, option, "newdir/", cwd=tmp_path)
+    _assert_one_line_error(result, "newdir/", "folder")
+    assert list(tmp_path.iterdir()) == [video]
+
+
+def test_a_background_that_is_not_a_regular_file_is_named_as_such(tmp_path, video):
+    result = _track(video, "--json", "x.json", "--background", "/dev/null", cwd=tmp_path)
+    _assert_one_line_error(result, "/dev/null", "not a regular file")
+
+
 def test_a_partial_file_another_run_is_writing_is_not_set_aside(tmp_path):
     out = tmp_path / "o.mcap"
     first = McapSink(out)

@@ -101,15 +101,23 @@ class TrackError(SilhouettePoseError):
     """A problem the user can fix (options, paths); printed as one line."""
 
 
+def _file_name(text: str) -> Path:
+    """An output file's path as given; one ending in a slash names a folder (Path would drop
+    the slash and write a file of the folder's name)."""
+    if text.endswith(("/", os.sep)):
+        raise argparse.ArgumentTypeError(f"{text} ends in '/', a folder; give a file name")
+    return Path(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = OneLineParser(prog="track", description="3-D human pose from a static-camera video, "
                        "regressed from each person's silhouette (a mixture of kernel experts "
                        "and limb networks), Kalman-filtered over time.")
     ap.add_argument("video", type=Path, help="video file (mp4, avi, ...)")
-    ap.add_argument("--out", type=Path, help="MCAP recording (default VIDEO_STEM.mcap if no "
+    ap.add_argument("--out", type=_file_name, help="MCAP recording (default VIDEO_STEM.mcap if no "
                     "other output is chosen)")
     ap.add_argument("--bvh", type=Path, metavar="DIR", help="write one BVH per track here")
-    ap.add_argument("--json", type=Path, metavar="FILE", help="write a JSON summary")
+    ap.add_argument("--json", type=_file_name, metavar="FILE", help="write a JSON summary")
     ap.add_argument("--view", action="store_true", help="live 3-D skeletons in meshcat "
                     "(browser, 127.0.0.1), played at the video's own speed")
     ap.add_argument("--smooth", action=argparse.BooleanOptionalAction, default=True,
@@ -148,7 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "it for people far away, raise it against clutter")
     ap.add_argument("--workers", type=int, choices=(1, 2), default=DEFAULT_WORKERS,
                     help="processes: 2 finds the people in a second process while the first "
-                         "tracks them (about 1.5x faster, the same poses; not with --view), 1 "
+                         "tracks them (about 1.7x the frames per second, the same poses; not with "
+                         "--view), 1 "
                          f"keeps to one (default {DEFAULT_WORKERS} on this machine)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
@@ -201,8 +210,11 @@ def _check_options(args) -> None:
                          f"image, got {args.min_area}")
     if args.background is not None and args.background.is_dir():
         raise TrackError(f"--background {args.background} is a folder; give an image file")
-    if args.background is not None and not args.background.is_file():
+    if args.background is not None and not args.background.exists():
         raise TrackError(f"--background {args.background}: no such file")
+    if args.background is not None and not args.background.is_file():
+        raise TrackError(f"--background {args.background} is not a regular file; give an "
+                         f"image file")
     if args.background is not None and not os.access(args.background, os.R_OK):
         raise TrackError(f"--background {args.background}: not readable (permissions)")
     if args.out is None and args.json is None and args.bvh is None and not args.view:
@@ -215,9 +227,11 @@ def _check_options(args) -> None:
             continue
         if path.is_dir():
             raise TrackError(f"{what} {path} is a folder; give a file name")
-        folder = path.parent if str(path.parent) else Path(".")
+        # A symlink's target is what gets replaced (tracker.sinks.files), in its own folder.
+        folder = Path(os.path.realpath(path)).parent
         if not folder.is_dir():
-            raise TrackError(f"{what} {path}: folder {folder} does not exist")
+            shown = folder if path.is_symlink() else (path.parent if str(path.parent) else ".")
+            raise TrackError(f"{what} {path}: folder {shown} does not exist")
         written_in_place = path.exists() and not path.is_file()     # /dev/null, a FIFO
         if (not written_in_place and not os.access(folder, os.W_OK)) or \
                 (path.exists() and not os.access(path, os.W_OK)):
@@ -255,7 +269,8 @@ def _check_collisions(args) -> None:
         named.append(("the --background image", args.background))
     for path, what in ((args.out, "--out"), (args.json, "--json")):
         if path is not None:
-            named += [(what, path), (f"{what}'s temporary file", partial_path(path))]
+            named += [(what, path), (f"{what}'s temporary file",
+                                     partial_path(os.path.realpath(path)))]
     if args.bvh is not None:
         named.append(("the --bvh folder", args.bvh))
         bvh_names = re.compile(rf"\.?{re.escape(args.video.stem)}(_\d+\.bvh(\.partial)?|"

@@ -140,7 +140,10 @@ class OutputFile:
     def __init__(self, path: str | Path):
         self.path = Path(path)
         self._in_place = self.path.exists() and not self.path.is_file()
-        self.written_path = self.path if self._in_place else partial_path(self.path)
+        # A symlink (e.g. /dev/stdout redirected to a file) is followed: its target is replaced,
+        # the link kept, as write_beside does.
+        self._target = self.path if self._in_place else Path(os.path.realpath(self.path))
+        self.written_path = self.path if self._in_place else partial_path(self._target)
         try:
             if self._in_place:
                 self._fd = os.open(self.path, os.O_WRONLY)
@@ -184,8 +187,8 @@ class OutputFile:
         try:
             if not self._in_place:
                 os.fsync(self._fd)
-                os.replace(self.written_path, self.path)
-                _sync_folder(self.path.parent)
+                os.replace(self.written_path, self._target)
+                _sync_folder(self._target.parent)
         except OSError as exc:
             self.discard(keep=True)
             raise OutputWriteError(f"{self.path}: could not be finished ({exc.strerror}); the "
@@ -221,11 +224,13 @@ def _sync_folder(folder: Path) -> None:
 
 def write_beside(path: str | Path, write: Callable[[Path], None],
                  partial: str | Path | None = None) -> None:
-    """Call ``write(partial path)``, flush that file to disk and rename it onto ``path``; on
-    failure the partial file is removed and ``path`` is left as it was (OutputWriteError naming
-    the file). partial: the temporary name (default partial_path(path)), in path's folder; a
-    non-empty file there is kept aside first (set_aside)."""
-    path = Path(path)
+    """Call ``write(partial path)``, flush that file to disk and rename it onto ``path`` (a
+    symlink's target: the link is kept); on failure the partial file is removed and ``path`` is
+    left as it was (OutputWriteError naming the file). partial: the temporary name (default
+    partial_path of the target), in the target's folder; a non-empty file there is kept aside
+    first (set_aside)."""
+    shown = Path(path)
+    path = Path(os.path.realpath(path))
     partial = partial_path(path) if partial is None else Path(partial)
     set_aside(partial)
     try:
@@ -240,7 +245,7 @@ def write_beside(path: str | Path, write: Callable[[Path], None],
         with contextlib.suppress(OSError):
             os.unlink(partial)
         if isinstance(exc, OSError):
-            raise OutputWriteError(f"{path}: {exc.strerror or exc}") from None
+            raise OutputWriteError(f"{shown}: {exc.strerror or exc}") from None
         raise
     _sync_folder(path.parent)
 
