@@ -110,7 +110,9 @@ def _check_numbers(ap, args) -> None:
               ("--stack", args.stack, 1, 30), ("--n-fit", args.n_fit, 1, 10**6),
               ("--rows-per-trial", args.rows_per_trial, 0, 10**6),
               ("--spliced", args.spliced, 0, 10_000),
-              ("--max-views", args.max_views, 1, 360), ("--experts", args.experts, 1, 1000),
+              ("--max-views", args.max_views, 1, 360), ("--views", args.views, 1, 360),
+              ("--experts", args.experts, 1, 1000),
+              ("--codebook-centres", args.codebook_centres, 10, 1000),
               ("--centres", args.centres, 1, 10**5),
               ("--layout-grid", args.layout_grid, 0, MAX_GRID),
               ("--components", args.components, 0, 10**5))
@@ -189,7 +191,9 @@ def _main(argv) -> int:
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
     ap.add_argument("--cache", type=Path, default=Path("cache"))
     ap.add_argument("--out", type=Path, default=DEFAULT_MODEL_PATH)
-    ap.add_argument("--views", type=int, default=DatasetConfig.views_per_trial)
+    ap.add_argument("--views", type=int, default=DatasetConfig.views_per_trial,
+                    help="views rendered per trial with --rows-per-trial 0 (default "
+                         f"{DatasetConfig.views_per_trial}); otherwise the rows decide")
     ap.add_argument("--stack", type=int, default=TrainingOptions.stack_depth)
     ap.add_argument("--n-fit", type=int, default=TrainingOptions.n_fit)
     ap.add_argument("--width-scale", type=float, default=TrainingOptions.width_scale)
@@ -216,6 +220,9 @@ def _main(argv) -> int:
     ap.add_argument("--lam", type=float, default=MixtureOptions.lam)
     ap.add_argument("--partition", choices=("input", "descriptor", "pose", "joint"),
                     default=MixtureOptions.partition)
+    ap.add_argument("--codebook-centres", type=int, default=100,
+                    help="k-means centres of the shape-context codebook, the length of each "
+                         "frame's histogram (default 100, the paper's)")
     ap.add_argument("--layout-grid", type=int, default=MixtureOptions.layout_grid,
                     help="silhouette layout cells per side added to each frame's descriptor "
                          "(regressor.layout; 0: shape contexts only)")
@@ -309,7 +316,9 @@ def _main(argv) -> int:
     try:
         config = DatasetConfig(views_per_trial=args.views, seed=args.seed)
         files = training_files(args.bvh_dir)
-        log(f"data set: {len(files)} trials x {args.views} views (held out: "
+        per_trial = (f"1-{args.max_views} views each for about {args.rows_per_trial} "
+                     f"silhouettes" if args.rows_per_trial else f"{args.views} views")
+        log(f"data set: {len(files)} trials x {per_trial} (held out: "
             f"{', '.join(HELD_OUT_TRIALS)})")
         splice = None
         if args.spliced:
@@ -335,7 +344,7 @@ def _main(argv) -> int:
         def compute():
             log("codebook and descriptors ...")
             fit = fit_dataset_codebook if args.clean else fit_noisy_codebook
-            codebook = fit(data, settings, seed=args.seed)
+            codebook = fit(data, settings, n_centres=args.codebook_centres, seed=args.seed)
             if args.clean:
                 return _describe_clean(args, data.masks, settings, codebook, start, log,
                                        "descriptors"), codebook
@@ -345,6 +354,8 @@ def _main(argv) -> int:
 
         key = (f"v1-{config.digest()}" if views is None and args.clean else
                descriptor_cache_key(config, views, noisy=not args.clean))
+        if args.codebook_centres != 100:     # the default's key stays what its caches are under
+            key += f"-cb{args.codebook_centres}"
         if splice is not None and views is None:  # the views then name no trial: say which
             key += "-" + recipe_name(splice, sources)
         X, codebook = cached_descriptors(args.cache, key, compute)

@@ -57,6 +57,17 @@ def test_a_negative_seed_is_refused_naming_the_option(train, folders, tmp_path, 
     assert not cache.exists()
 
 
+@pytest.mark.parametrize("flag, value", [("--views", "-1"), ("--codebook-centres", "0"),
+                                         ("--codebook-centres", "5000")])
+def test_views_and_codebook_size_out_of_range_are_refused_naming_the_option(
+        train, folders, tmp_path, capsys, flag, value):
+    bvh_dir, cache = folders
+    err = refused_in_one_line(train, [flag, value, "--bvh-dir", str(bvh_dir), "--cache",
+                                      str(cache), "--out", str(tmp_path / "m.npz")], capsys)
+    assert f"{flag} must be in" in err and f"got {value}" in err
+    assert not cache.exists()
+
+
 def _sleep() -> None:
     time.sleep(60)
 
