@@ -1,6 +1,7 @@
 """Benchmark `track` on one 640x480 single-person video: decode-only fps vs tracking fps.
 
     python scripts/bench_track.py                      # renders out/bench/walk640-turn60.mp4 once
+    python scripts/bench_track.py --frames 300         # out/bench/walk640-turn60-300f.mp4 once
     python scripts/bench_track.py --video my.mp4
     python scripts/bench_track.py --video ../shared/data/pose2sim/balancing/videos/cam01.mp4
 
@@ -63,6 +64,15 @@ def _rss_mb() -> float:
 
 #: Turning rate of the default video's spiral walk, deg/s (see the module docstring).
 _TURN_DEG_PER_S = 60.0
+DEFAULT_FRAMES = 1200
+
+
+def default_video(frames: int) -> Path:
+    """Where the default video of that many frames is rendered once and reused: the frame
+    count is in the name (but for the default count's, kept from before), so that --frames
+    takes effect whatever was rendered before."""
+    suffix = "" if frames == DEFAULT_FRAMES else f"-{frames}f"
+    return ROOT / "out" / "bench" / f"walk640-turn60{suffix}.mp4"
 
 
 def _make_video(path: Path, frames: int) -> None:
@@ -129,11 +139,15 @@ def _track(video: Path, model_path: Path, workdir: Path, workers: int):
 def _main(argv) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--video", type=Path, default=None, help="640x480 single-person video")
-    ap.add_argument("--frames", type=int, default=1200, help="frames to render if no --video")
+    ap.add_argument("--frames", type=int,
+                    help=f"frames of the default video, 10..100000 (default {DEFAULT_FRAMES}; "
+                         "each count rendered once, then reused); not with --video")
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)
     args = ap.parse_args(argv)
-    if not 10 <= args.frames <= 100000:
+    if args.frames is not None and not 10 <= args.frames <= 100000:
         ap.error(f"--frames must be in 10..100000, got {args.frames}")
+    if args.video is not None and args.frames is not None:
+        ap.error("--frames sets the length of the default video; --video is benchmarked whole")
     if args.video is not None and not args.video.is_file():
         ap.error(f"--video {args.video}: no such file")
     if not args.model.is_file():
@@ -152,10 +166,11 @@ def _main(argv) -> int:
     video = args.video
     try:
         if video is None:
-            video = ROOT / "out" / "bench" / "walk640-turn60.mp4"
+            frames = args.frames or DEFAULT_FRAMES
+            video = default_video(frames)
             if not video.is_file():
                 video.parent.mkdir(parents=True, exist_ok=True)
-                _make_video(video, args.frames)
+                _make_video(video, frames)
         with threadpool_limits(1), tempfile.TemporaryDirectory() as tmp:
             decode_fps, n = _decode_fps(video)
             track_fps, stage_ms, memory, frames, startup_s, with_people = _track(

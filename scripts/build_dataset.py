@@ -3,7 +3,8 @@
     python scripts/build_dataset.py --bvh-dir ../shared/data/cmu/bvh --cache cache/dataset
 
 Held-out trials (sequences.dataset.HELD_OUT_TRIALS) are never rendered into it. Re-running with
-the same settings reuses the cache; prints the build time and size.
+the same settings reuses the cache; prints the build time and size. Numbers outside their
+ranges (as train.py's) are refused in one line naming the option (exit 2).
 """
 from __future__ import annotations
 
@@ -21,14 +22,26 @@ def main(argv=None) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
     ap.add_argument("--cache", type=Path, default=Path("cache/dataset"))
-    ap.add_argument("--views", type=int, default=DatasetConfig.views_per_trial)
+    ap.add_argument("--views", type=int, default=DatasetConfig.views_per_trial,
+                    help="views rendered per trial with --rows-per-trial 0, 1..360 (default "
+                         f"{DatasetConfig.views_per_trial})")
     ap.add_argument("--rows-per-trial", type=int, default=800,
                     help="views per trial chosen to give about this many silhouettes per trial "
                          "(1..--max-views); 0: --views for every trial")
-    ap.add_argument("--max-views", type=int, default=10)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--workers", type=int, default=2, help="rendering processes")
+    ap.add_argument("--max-views", type=int, default=10, help="at most this many views per "
+                    "trial with --rows-per-trial, 1..360 (default 10)")
+    ap.add_argument("--seed", type=int, default=0, help="0..2147483647 (default 0)")
+    ap.add_argument("--workers", type=int, default=2, help="rendering processes, 1..64 "
+                    "(default 2)")
     args = ap.parse_args(argv)
+    # train.py's ranges (it builds the same data set): seeds as numpy takes them.
+    for flag, value, low, high in (("--views", args.views, 1, 360),
+                                   ("--rows-per-trial", args.rows_per_trial, 0, 10**6),
+                                   ("--max-views", args.max_views, 1, 360),
+                                   ("--seed", args.seed, 0, 2**31 - 1),
+                                   ("--workers", args.workers, 1, 64)):
+        if not low <= value <= high:
+            ap.error(f"{flag} must be in {low}..{high}, got {value}")
     try:
         config = DatasetConfig(views_per_trial=args.views, seed=args.seed)
         files = training_files(args.bvh_dir)

@@ -2,10 +2,13 @@
 
     python scripts/count_frames.py [folder] [--fps 30]
 
-The folder defaults to ../shared/data/cmu/bvh beside the repository.
+The folder defaults to ../shared/data/cmu/bvh beside the repository. A folder that does not
+exist or is a file, and an --fps outside 1..240, are refused in one line (exit 2); files that
+cannot be read are listed as ERROR and make the exit status 1.
 """
 from __future__ import annotations
 
+import math
 import sys
 import time
 from pathlib import Path
@@ -19,9 +22,17 @@ from tracker.one_line_parser import OneLineParser
 def main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder", nargs="?", type=Path,
-                        default=ROOT.parent / "shared" / "data" / "cmu" / "bvh")
-    parser.add_argument("--fps", type=float, default=30.0, help="target frame rate (default 30)")
+                        default=ROOT.parent / "shared" / "data" / "cmu" / "bvh",
+                        help="folder of .bvh files (default: ../shared/data/cmu/bvh beside the "
+                             "repository)")
+    parser.add_argument("--fps", type=float, default=30.0,
+                        help="target frame rate, 1..240 (default 30)")
     args = parser.parse_args(argv)
+    if not (math.isfinite(args.fps) and 1 <= args.fps <= 240):
+        parser.error(f"--fps must be within 1..240 frames per second, got {args.fps}")
+    if not args.folder.is_dir():
+        parser.error(f"{args.folder}: " + ("is a file, not a folder" if args.folder.exists()
+                                           else "no such folder"))
     paths = sorted(args.folder.glob("*.bvh"))
     if not paths:
         print(f"no .bvh files in {args.folder}", file=sys.stderr)
@@ -31,8 +42,8 @@ def main(argv: list[str] | None = None) -> int:
         start = time.perf_counter()
         try:
             motion = read_bvh(path, fps=args.fps)
-        except BVHError as error:
-            print(f"{path.name:<12} ERROR {error}")
+        except (BVHError, OSError) as error:    # OSError: a folder named *.bvh, unreadable
+            print(f"{path.name:<12} ERROR {getattr(error, 'strerror', None) or error}")
             failures += 1
             continue
         seconds = time.perf_counter() - start

@@ -9,6 +9,12 @@ it through each calibrated camera (sequences.pose2sim.render_view_masks) and dra
 in red on the given video frames, one row per view, each tile cropped round the body. The
 outline should follow the subject: it is the silhouette `evaluate_real.py --reference-masks
 rendered` gives the regressor.
+
+An output that is not a .jpg or .png name, could not be written or is one of the trial's files,
+and a --trial folder that does not exist, are refused before any work (exit 2); bad data (a
+trial file that is not text, a view's video missing or undecodable: evaluate_real.py's checks)
+ends the run in one line naming the file (exit 1); Ctrl-C in one line (exit 130). The image is
+written whole or not at all.
 """
 from __future__ import annotations
 
@@ -18,11 +24,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tracker.offline.pose2sim_trial import checked_trial
 from sequences.body import load_body
 from sequences.keypoint_fit import KeypointFitError, fit_body, posed_vertices
-from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, load_trial,
+from sequences.pose2sim import (CALIBRATION, DEFAULT_TRIAL, REFERENCE_TRC, VIEWS, Pose2SimError,
                                 render_view_masks, video_frames)
-from tracker.one_line_parser import OneLineParser
+from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
+from tracker.sinks.files import OutputWriteError, write_whole
 from tracker.video import VideoError, open_video
 
 _TILE_PX = 260          # tile height
@@ -69,7 +77,16 @@ def draw(trial, frames: list[int]) -> np.ndarray:
                       for line in lines])
 
 
-def main(argv=None) -> int:
+def _write_image(path: Path, image: np.ndarray, out: Path) -> None:
+    """image written to path (out's temporary name) by OpenCV, in the format its suffix names;
+    Pose2SimError naming out if it cannot be. (The JPEG quality flag only for a JPEG: OpenCV
+    warns of it for a PNG.)"""
+    jpeg = path.suffix.lower() in (".jpg", ".jpeg")
+    if not cv2.imwrite(str(path), image, [cv2.IMWRITE_JPEG_QUALITY, 80] if jpeg else []):
+        raise Pose2SimError(f"{out}: cannot write the image")
+
+
+def _main(argv) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("out", type=Path, help="image to write (.jpg or .png)")
     ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL, help="the balancing trial "
@@ -78,17 +95,29 @@ def main(argv=None) -> int:
                     help="video frames to draw (default: 10 50 90)")
     args = ap.parse_args(argv)
     if args.out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
-        print(f"draw_fitted_body: error: {args.out}: give a .jpg or .png name", file=sys.stderr)
-        return 1
+        ap.error(f"{args.out}: give a .jpg or .png name")
+    if not args.trial.is_dir():
+        ap.error(f"--trial {args.trial}: no such folder")
+    # Before the fitting and decoding: writable, and none of the files read.
+    ap.check_outputs([("the output", args.out)],
+                     [("the reference", args.trial / REFERENCE_TRC),
+                      ("the calibration", args.trial / CALIBRATION),
+                      *((f"the {view} video", args.trial / "videos" / f"{view}.mp4")
+                        for view in VIEWS)])
+    quiet_decoder_logs()          # as track: one line, not FFmpeg's too
     try:
-        image = draw(load_trial(args.trial), sorted(set(args.frames)))
-        if not cv2.imwrite(str(args.out), image, [cv2.IMWRITE_JPEG_QUALITY, 80]):
-            raise Pose2SimError(f"{args.out}: cannot write the image")
-    except (Pose2SimError, KeypointFitError, VideoError, cv2.error) as exc:
+        image = draw(checked_trial(args.trial), sorted(set(args.frames)))
+        # Whole or not at all; the temporary name keeps the suffix, which OpenCV reads.
+        write_whole(args.out, lambda path: _write_image(path, image, args.out),
+                    keep_suffix=True)
+    except (Pose2SimError, KeypointFitError, VideoError, OutputWriteError, cv2.error) as exc:
         print(f"draw_fitted_body: error: {exc}", file=sys.stderr)
         return 1
     print(f"wrote {args.out}")
     return 0
+
+
+main = stops_in_one_line("draw_fitted_body", _main)       # Ctrl-C: one line, no traceback
 
 
 if __name__ == "__main__":

@@ -56,7 +56,7 @@ from tracker.cli import VIEW_LAG_S
 from tracker.fixed_lag import MAX_LAG_S
 from tracker.offline.evaluation import (CameraOptions, cmu_motion, constant_pose, track_longest,
                                         write_camera_video)
-from tracker.one_line_parser import OneLineParser, stops_in_one_line
+from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.pipeline import TrackerSettings
 from tracker.sinks.files import OutputWriteError, write_whole
 
@@ -171,6 +171,7 @@ def _main(argv) -> int:
                                      for _, path, _ in named):
         ap.error(f"--json {args.json} is a model file: it would be overwritten")
     _check_json(ap, args, named)
+    quiet_decoder_logs()          # as track: one line, not FFmpeg's too
     return _evaluate(args, [(name, model) for name, _, model in named])
 
 

@@ -6,6 +6,12 @@
         [--through-video] [--model FILE] --report docs/evaluation/16_11
 
 Prints a table; --json writes the measures, --report DIR a markdown report with plots.
+
+--ankur trains the paper's regressor on its training split and takes --frames, --r-scale (the
+filter's R; chosen on the training split when not given), --q-scale, --json and --report; the
+other options render and track a --bvh motion with our models, and are refused with --ankur.
+A --ankur file that is not the paper's data, or a --bvh too short for its --spiral, ends the
+run in one line naming the file (exit 1).
 """
 from __future__ import annotations
 
@@ -37,6 +43,13 @@ PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
 REPORT_FILES = ("README.md", "result.json", "parts.png", "jitter.png", "heading.png")
 MIN_FRAMES = 3              # the jitter and acceleration measures take second differences
 MAX_FRAMES = 1_000_000
+DEFAULT_SIZE = (240, 320)   # (height, width)
+#: Options (dest, flag) of the rendered --bvh motion alone: the paper's data has no video,
+#: camera or models of ours, and its regressor and filter are fitted on its training split.
+BVH_ONLY = (("spiral", "--spiral"), ("model", "--model"),
+            ("per_frame_model", "--per-frame-model"), ("size", "--size"),
+            ("ambiguity_threshold", "--ambiguity-threshold"),
+            ("heading_factor", "--heading-factor"), ("joint_factor", "--joint-factor"))
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -48,27 +61,34 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = OneLineParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0],
+                       epilog="--ankur takes --frames, --r-scale, --q-scale, --json and "
+                              "--report; the options marked (--bvh) are refused with it.")
     src = ap.add_mutually_exclusive_group(required=True)
     src.add_argument("--ankur", type=Path, help="the paper's ankurDataPoseSilhouette.mat")
     src.add_argument("--bvh", type=Path, help="a CMU BVH file to render and evaluate")
-    ap.add_argument("--spiral", type=float, metavar="DEG_PER_S", help="as a spiral walk")
-    ap.add_argument("--through-video", action="store_true", help="write an mp4 and run track")
-    ap.add_argument("--video", type=Path, help="keep the --through-video mp4 here")
-    ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH, help="stacked model")
-    ap.add_argument("--per-frame-model", type=Path, default=PER_FRAME_MODEL, help="k=1 model")
-    ap.add_argument("--size", type=_size, default=(240, 320),
-                    help="WIDTHxHEIGHT (320x240), 64..4096 each side")
+    ap.add_argument("--spiral", type=float, metavar="DEG_PER_S", help="as a spiral walk (--bvh)")
+    ap.add_argument("--through-video", action="store_true",
+                    help="write an mp4 and run track (--bvh)")
+    ap.add_argument("--video", type=Path, help="keep the --through-video mp4 here (--bvh)")
+    # Defaults None, filled in by main: so that --ankur can tell them given.
+    ap.add_argument("--model", type=Path, help=f"stacked model (--bvh; default "
+                    f"{DEFAULT_MODEL_PATH.name})")
+    ap.add_argument("--per-frame-model", type=Path,
+                    help=f"k=1 model (--bvh; default {PER_FRAME_MODEL.name})")
+    ap.add_argument("--size", type=_size, help="WIDTHxHEIGHT, 64..4096 each side (--bvh; "
+                    f"default {DEFAULT_SIZE[1]}x{DEFAULT_SIZE[0]})")
     ap.add_argument("--frames", type=int, help=f"evaluate only the first N frames (N >= "
                     f"{MIN_FRAMES})")
     ap.add_argument("--ambiguity-threshold", type=float,
-                    help="raw heading norm below which a frame is ambiguous, 0..1.5 (default: "
-                         "the model's)")
+                    help="raw heading norm below which a frame is ambiguous, 0..1.5 (--bvh; "
+                         "default: the model's)")
     ap.add_argument("--heading-factor", type=float,
-                    default=TrackerSettings.ambiguous_heading_factor)
+                    help="heading's R inflation on ambiguous frames, >= 1 (--bvh; default "
+                         f"{TrackerSettings.ambiguous_heading_factor:g})")
     ap.add_argument("--joint-factor", type=float, default=None,
-                    help="joints' R inflation on ambiguous frames (default: the model's, "
-                         "tracker.pipeline.TrackerSettings.joint_factor)")
+                    help="joints' R inflation on ambiguous frames (--bvh; default: the "
+                         "model's, tracker.pipeline.TrackerSettings.joint_factor)")
     ap.add_argument("--r-scale", type=float, help="multiply the filter's R (default 1; --ankur: "
                     "chosen on the training split)")
     ap.add_argument("--q-scale", type=float, default=1.0, help="multiply the filter's q")
@@ -92,7 +112,7 @@ def _check_numbers(ap: OneLineParser, args) -> None:
     if args.frames is not None and not MIN_FRAMES <= args.frames <= MAX_FRAMES:
         ap.error(f"--frames must be within {MIN_FRAMES}..{MAX_FRAMES} (the jitter measures "
                  f"need {MIN_FRAMES} frames), got {args.frames}")
-    if not all(64 <= side <= 4096 for side in args.size):
+    if args.size is not None and not all(64 <= side <= 4096 for side in args.size):
         ap.error(f"--size must be within 64..4096 pixels each side, got "
                  f"{args.size[1]}x{args.size[0]}")
 
@@ -105,6 +125,16 @@ def _check_files(ap: OneLineParser, args) -> None:
         ap.error("--video keeps the --through-video mp4: give --through-video too")
     if args.through_video and args.ankur:
         ap.error("--through-video renders a --bvh motion; the paper's data has no video")
+    given = [flag for dest, flag in BVH_ONLY if getattr(args, dest) is not None]
+    if args.ankur and given:
+        ap.error(f"{given[0]} is for a rendered --bvh motion; --ankur evaluates the paper's "
+                 f"data with its own regressor (it takes --frames, --r-scale, --q-scale)")
+    if args.bvh:                # the defaults, left None by the parser for the check above
+        args.model = args.model or DEFAULT_MODEL_PATH
+        args.per_frame_model = args.per_frame_model or PER_FRAME_MODEL
+        args.size = args.size or DEFAULT_SIZE
+        if args.heading_factor is None:
+            args.heading_factor = TrackerSettings.ambiguous_heading_factor
     inputs = [("--ankur", args.ankur)] if args.ankur else [("--bvh", args.bvh)]
     if args.bvh:
         inputs += [("--model", args.model), ("--per-frame-model", args.per_frame_model)]

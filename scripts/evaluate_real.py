@@ -26,10 +26,12 @@ from the reference keypoints, ``drawn`` uses that drawing as the silhouette, ``r
 training renderer's body fitted to the reference and rendered through each calibrated camera),
 to tell how much of the error the silhouettes cause and how much the regressor.
 
-Options that cannot work (--max-people 0, a --json or --masks that could not be written or
-that is one of the files read) are refused before any work (exit 2); bad data (a trial file
-that is not text, a NaN in the calibration) ends the run in one line naming the file (exit 1),
-Ctrl-C in one line (exit 130). --json and --masks are written whole or not at all.
+Options that cannot work (a --trial folder or --model file that does not exist, --max-people 0,
+a --json or --masks that could not be written or that is one of the files read) are refused
+before any work (exit 2); bad data (a trial file that is not text, a NaN in the calibration, a
+view's video missing or undecodable) ends the run in one line naming the file (exit 1), also
+before any work; Ctrl-C in one line (exit 130). --json and --masks are written whole or not at
+all.
 """
 from __future__ import annotations
 
@@ -47,7 +49,7 @@ from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_m
 from sequences.keypoint_fit import KeypointFitError
 from sequences.measures import FLEXION_NAMES, MeasureError, flexion_deg, novelty_summary
 from sequences.pose2sim import (CALIBRATION, DEFAULT_TRIAL, REFERENCE_TRC, VIEWS, Pose2SimError,
-                                Trial, camera_roll_deg, load_trial, project_reference,
+                                Trial, camera_roll_deg, project_reference,
                                 reference_flexion, reference_heading_deg, video_frames)
 from sequences.pose2sim_measures import (cross_view_measures, reference_body,
                                          reference_cross_view_check, subject_rows,
@@ -56,6 +58,7 @@ from tracker.cli import VIEW_LAG_S, ZONE_FOREGROUND
 from tracker.fixed_lag import replay
 from sequences.pose_vector import heading_deg
 from tracker.offline.evaluation import constant_pose
+from tracker.offline.pose2sim_trial import checked_trial
 from tracker.offline.report import ReportError, check_plotting, plot_real_video
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.sinks import PoseRecorder
@@ -434,6 +437,12 @@ def _main(argv) -> int:
                       ("the calibration", args.trial / CALIBRATION),
                       *((f"the {view} video", args.trial / "videos" / f"{view}.mp4")
                         for view in VIEWS)])
+    if not args.trial.is_dir():
+        default = (" (the default, in the shared data beside the repository; give --trial)"
+                   if args.trial == DEFAULT_TRIAL else "")
+        ap.error(f"--trial {args.trial}: no such folder{default}")
+    if not args.model.is_file():
+        ap.error(f"--model {args.model}: no such file")
     quiet_decoder_logs()          # as track: one line, not FFmpeg's too
     sheet = [] if args.masks else None
     series = [] if args.plot else None
@@ -469,36 +478,6 @@ def _main(argv) -> int:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
     return 0
-
-
-def checked_trial(root: Path) -> Trial:
-    """load_trial(root), with one-line errors (Pose2SimError naming the file) also for a
-    reference or calibration that is not text, and for a calibration whose numbers are not all
-    finite (a NaN there only showed later, as warnings and a misleading error)."""
-    try:
-        trial = load_trial(root)
-    except UnicodeDecodeError as exc:
-        files = [root / REFERENCE_TRC, root / CALIBRATION]
-        binary = [str(path) for path in files if not _is_text(path)] or map(str, files)
-        raise Pose2SimError(f"{' or '.join(binary)}: not a text file ({exc.reason} at byte "
-                            f"{exc.start})") from None
-    for view, camera in trial.cameras.items():
-        if not all(np.isfinite(a).all() for a in (camera.K, camera.distortion, camera.R,
-                                                  camera.t)):
-            raise Pose2SimError(f"{root / CALIBRATION}: camera {view} has a number that is not "
-                                f"finite (NaN or infinity)")
-    return trial
-
-
-def _is_text(path: Path) -> bool:
-    """Whether the file reads as UTF-8 text (what load_trial expects)."""
-    try:
-        path.read_bytes().decode("utf-8")
-    except UnicodeDecodeError:
-        return False
-    except OSError:
-        pass                            # not this one's problem
-    return True
 
 
 def _png_path_problem(option: str, path: Path | None) -> str | None:

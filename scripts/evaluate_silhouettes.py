@@ -15,6 +15,13 @@ sure``), "colour" the same with colour also deciding on that foreground
 (tracker.silhouettes.refine_in_zone, trust_zone_foreground=False; track's default since
 2026-12-04). Measures:
 tracker.offline.silhouette_evaluation.
+
+A --trial folder that does not exist, or a --json that could not be written or is one of the
+files read, is refused before any work (exit 2); bad data (a trial file that is not text, a NaN
+in the calibration, a view's video missing or undecodable: evaluate_real.py's checks, also
+before any work) ends the run in one line naming the file (exit 1); Ctrl-C in one line (exit
+130). It prints each extractor and view as it starts it. --json is written whole or not at
+all.
 """
 from __future__ import annotations
 
@@ -22,33 +29,57 @@ import json
 import sys
 from pathlib import Path
 
-from sequences.pose2sim import DEFAULT_TRIAL, VIEWS, Pose2SimError, load_trial
+from tracker.offline.pose2sim_trial import checked_trial
+from regressor.errors import SilhouettePoseError
+from sequences.pose2sim import CALIBRATION, DEFAULT_TRIAL, REFERENCE_TRC, VIEWS, Pose2SimError
 from tracker.offline.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, evaluate_pose2sim_view,
                                                    format_table)
-from tracker.one_line_parser import OneLineParser
+from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
+from tracker.sinks.files import OutputWriteError, write_whole
 
 
-def main(argv=None) -> int:
+def _main(argv) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL, help="the balancing trial")
+    ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL, help="the balancing trial "
+                    "folder (default: ../shared/data/pose2sim/balancing beside the repo)")
     ap.add_argument("--extractor", nargs="+", choices=sorted(EXTRACTORS),
                     default=["before", "after", "colour"], help="before: as before issue "
                     "11; after: track --zone-foreground sure; colour: track's default")
     ap.add_argument("--views", nargs="+", choices=VIEWS, default=list(VIEWS))
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     args = ap.parse_args(argv)
+    if not args.trial.is_dir():
+        ap.error(f"--trial {args.trial}: no such folder")
+    # Before minutes of work: writable, and none of the files read.
+    ap.check_outputs([("--json", args.json)],
+                     [("the reference", args.trial / REFERENCE_TRC),
+                      ("the calibration", args.trial / CALIBRATION),
+                      *((f"the {view} video", args.trial / "videos" / f"{view}.mp4")
+                        for view in VIEWS)])
+    quiet_decoder_logs()          # as track: one line, not FFmpeg's too
+    results = {label: {} for label in args.extractor}
     try:
-        trial = load_trial(args.trial)
-        results = {label: {view: evaluate_pose2sim_view(trial, view, EXTRACTORS[label],
-                                                        make_associator=ASSOCIATORS[label])
-                           for view in args.views} for label in args.extractor}
-    except Pose2SimError as exc:
+        trial = checked_trial(args.trial, args.views)
+        runs = [(label, view) for label in args.extractor for view in args.views]
+        for done, (label, view) in enumerate(runs, 1):      # a minute or so each
+            print(f"[{done}/{len(runs)}] extractor {label}, view {view}", file=sys.stderr,
+                  flush=True)
+            results[label][view] = evaluate_pose2sim_view(trial, view, EXTRACTORS[label],
+                                                          make_associator=ASSOCIATORS[label])
+    except (Pose2SimError, SilhouettePoseError) as exc:
         print(f"evaluate_silhouettes: error: {exc}", file=sys.stderr)
         return 1
     print(format_table(results))
     if args.json:
-        args.json.write_text(json.dumps(results, indent=1))
+        try:
+            write_whole(args.json, lambda path: path.write_text(json.dumps(results, indent=1)))
+        except OutputWriteError as exc:
+            print(f"evaluate_silhouettes: error: {exc}", file=sys.stderr)
+            return 1
     return 0
+
+
+main = stops_in_one_line("evaluate_silhouettes", _main)       # Ctrl-C: one line, no traceback
 
 
 if __name__ == "__main__":

@@ -119,7 +119,7 @@ def main(argv=None) -> int:
     ap.add_argument("--fps", type=float, default=30.0, help="frames per second, 1..240")
     ap.add_argument("--azimuth", type=float, default=0.0, help="camera azimuth, degrees")
     ap.add_argument("--elevation", type=float, default=8.0,
-                    help="camera elevation, degrees (-89..89)")
+                    help="camera elevation, degrees, strictly between -89 and 89")
     ap.add_argument("--distance", type=float, default=9.0, help="camera distance, metres")
     ap.add_argument("--noise", type=float, default=2.0, help="sensor noise sigma, grey levels")
     ap.add_argument("--spacing", type=float, default=2.5, help="metres between people")

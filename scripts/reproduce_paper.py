@@ -16,32 +16,37 @@ Its experts, gate and the weight of the steps are chosen by the same cross-valid
 held-out block decoded as the pieces of training sequences it holds. ``mixture_rvm_bagged``
 answers each frame alone but is not one mixture: the mean of BAGS mixtures' most probable poses
 (``mixture_rvm_stacked``'s settings, seeds 0..BAGS-1).
+
+A --data that is not the paper's data (missing, not a MATLAB file, cut short, without its four
+arrays of numbers at their shapes) or a --json that could not be written or is the --data file
+(also through a link) is refused before any work (exit 2); a failure on the data later is one
+line naming the file (exit 1), Ctrl-C one line (exit 130). --json is written whole or not at
+all.
 """
 from __future__ import annotations
 
 import itertools
 import json
+import sys
 import time
-from pathlib import Path
 
 import numpy as np
-import scipy.io
-from scipy.io.matlab import MatReadError
 
 from regressor.dls import DLSRegressor
+from regressor.errors import SilhouettePoseError
 from regressor.hypothesis_path import step_variance
 from regressor.mixture import MixtureRegressor
 from regressor.metrics import contiguous_folds, cross_validate, mean_point_error, point_jitter
 from regressor.rvm import RVMRegressor
 from regressor.stacking import sequence_starts_to_ids, stack_frames
 from sequences.measures import DEFAULT_TOP_ANGLES, correlation, skill
-from tracker.one_line_parser import OneLineParser
+from tracker.offline.evaluation import EvaluationError, load_ankur
+from tracker.one_line_parser import OneLineParser, stops_in_one_line
+from tracker.sinks.files import OutputWriteError, write_whole
 
 TRAIN_STARTS = [0, 100, 336, 405, 471, 1530, 1768]   # the 7 training sequences (README)
 RV_BUDGET = 0.10                                     # kernel RVM: keep <= 10% of training frames
 FEATURE_BUDGET = 0.30                                # linear RVM: keep <= 30 of the 100 features
-
-
 class MeanPose:
     """Predicts the mean training pose (the trivial baseline)."""
     n_basis_ = 0
@@ -192,22 +197,34 @@ def grid(**axes):
     return [dict(zip(axes, v)) for v in itertools.product(*axes.values())]
 
 
-def main(argv=None) -> None:
+def _main(argv) -> int:
     ap = OneLineParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", required=True, help="ankurDataPoseSilhouette.mat")
     ap.add_argument("--json", help="write the results here")
     args = ap.parse_args(argv)
-    if args.json and not Path(args.json).resolve().parent.is_dir():
-        ap.error(f"--json {args.json}: no folder {Path(args.json).parent}")
-    if args.json and Path(args.json).resolve() == Path(args.data).resolve():
-        ap.error(f"--json {args.json} is the data file: it would be overwritten")
+    # Before the minutes of work: by the file, so a hard link to --data is refused too.
+    ap.check_outputs([("--json", args.json)], [("--data", args.data)])
     try:
-        d = scipy.io.loadmat(args.data)
-    except (OSError, ValueError, TypeError, MatReadError) as exc:   # missing, not a .mat
-        ap.error(f"--data {args.data}: cannot read it as a MATLAB file ({exc})")
-    missing = [k for k in ("Y", "Z", "Y_test", "Z_test") if k not in d]
-    if missing:
-        ap.error(f"--data {args.data}: not the paper's data (no {', '.join(missing)})")
+        d = load_ankur(args.data)
+    except EvaluationError as exc:
+        ap.error(f"--data {exc}")
+    try:
+        report = _reproduce(d)
+    except SilhouettePoseError as exc:        # numbers the regressors cannot use
+        print(f"reproduce_paper: error: --data {args.data}: {exc}", file=sys.stderr)
+        return 1
+    if args.json:
+        try:             # whole or not at all: a re-run's --json keeps the last complete one
+            write_whole(args.json, lambda path: path.write_text(json.dumps(report, indent=2)))
+        except OutputWriteError as exc:
+            print(f"reproduce_paper: error: {exc}", file=sys.stderr)
+            return 1
+    return 0
+
+
+def _reproduce(d: dict) -> dict:
+    """The whole run on the paper's data d (load_ankur): the table on stdout, the report
+    as a JSON-ready dict."""
     Xraw, Y, Xraw_test, Y_test = d["Y"], d["Z"], d["Y_test"], d["Z_test"]
     folds = contiguous_folds(len(Xraw), 5)
 
@@ -289,10 +306,11 @@ def main(argv=None) -> None:
         print(f"{name:20s} {row['error']:7.3f} {row['skill']:7.3f} {row['corr8']:7.3f} "
               f"{row['jitter']:7.3f} {row['n_basis']:8d} {seconds:7.2f}")
     print(f"{'ground truth':20s} {'':23s} {report['ground_truth_jitter']:7.3f}")
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(report, fh, indent=2)
+    return report
+
+
+main = stops_in_one_line("reproduce_paper", _main)       # Ctrl-C: one line, no traceback
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -72,8 +72,8 @@ def find_loop(motion: Motion, min_seconds: float = _MIN_LOOP_SECONDS) -> tuple[i
     T = len(vectors)
     gap = int(np.ceil(min_seconds * motion.fps))
     if T < gap + 2:
-        raise SpiralError(f"{motion.source or 'motion'}: {T} frames is too short to loop "
-                          f"(needs at least {gap + 2} at {motion.fps:g} fps)")
+        raise SpiralError(f"{motion.source or 'motion'}: too short to loop into a spiral "
+                          f"walk: {T} frame(s) at {motion.fps:g} fps, needs at least {gap + 2}")
     pose = vectors[:-1]
     nxt = vectors[1:]
     # Pairwise wrapped distance over all (i, j) pairs: (T-1, T-1), small enough for mocap clips.
@@ -103,9 +103,10 @@ def spiral_walk(motion: Motion, deg_per_s: float = 30.0, turns: float = 1.0,
         else:
             n_frames = int(np.ceil(360.0 * turns / abs(deg_per_s) * motion.fps)) + 1
     if n_frames < 2:
-        raise SpiralError(f"spiral walk needs at least 2 frames, got {n_frames}")
-    yaw, tilt, local_step, yaw_rate, height = _pieces(motion)
-
+        raise SpiralError(f"{motion.source or 'motion'}: a spiral walk needs at least 2 "
+                          f"frames, got {n_frames}")
+    # The frames to play first: a motion too short to loop (a 2-frame file at 120 fps is one
+    # frame at 30) is refused by find_loop, naming it, before _pieces needs two frames.
     if n_frames <= motion.n_frames:
         source_frames = np.arange(n_frames)
     else:
@@ -113,6 +114,7 @@ def spiral_walk(motion: Motion, deg_per_s: float = 30.0, turns: float = 1.0,
         loop = np.arange(i, j)
         reps = int(np.ceil((n_frames - i) / len(loop)))
         source_frames = np.concatenate([np.arange(i), np.tile(loop, reps)])[:n_frames]
+    yaw, tilt, local_step, yaw_rate, height = _pieces(motion)
 
     fps = motion.fps
     ramp = np.linspace(*_RAMP, n_frames)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import pytest
 
-from conftest import load_script
+from conftest import load_script, refused_in_one_line
 
 
 @pytest.fixture(scope="module")
@@ -14,11 +14,11 @@ def script():
 
 
 def test_bad_names_and_trials_are_one_line_errors(script, tmp_path, capsys):
-    assert script.main([str(tmp_path / "x.gif")]) == 1
-    assert script.main([str(tmp_path / "x.jpg"), "--trial", str(tmp_path / "none")]) == 1
-    errors = capsys.readouterr().err.strip().splitlines()
-    assert len(errors) == 2 and all(e.startswith("draw_fitted_body: error: ") for e in errors)
-    assert "x.gif" in errors[0] and "not found" in errors[1]
+    # Options, refused by the parser (exit 2) before any work.
+    assert "x.gif" in refused_in_one_line(script, [str(tmp_path / "x.gif")], capsys)
+    err = refused_in_one_line(script, [str(tmp_path / "x.jpg"), "--trial",
+                                       str(tmp_path / "none")], capsys)
+    assert f"--trial {tmp_path / 'none'}: no such folder" in err
 
 
 def test_the_outline_is_drawn_over_each_view(script, pose2sim_trial, tmp_path, capsys):

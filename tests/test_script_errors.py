@@ -8,6 +8,7 @@ import numpy as np
 import scipy.io
 
 from conftest import load_script, refused_in_one_line
+from tracker.offline.evaluation import ANKUR_SHAPES
 
 
 def test_reproduce_paper_refuses_what_is_not_the_papers_data(tmp_path, capsys):
@@ -25,8 +26,78 @@ def test_reproduce_paper_refuses_what_is_not_the_papers_data(tmp_path, capsys):
     assert "no folder" in refused(["--data", str(other), "--json",
                                    str(tmp_path / "none" / "r.json")])
     before = other.read_bytes()
-    assert "would be overwritten" in refused(["--data", str(other), "--json", str(other)])
+    assert "is the same file as --data" in refused(["--data", str(other), "--json", str(other)])
     assert other.read_bytes() == before
+
+
+def _paper_data(path, **arrays) -> None:
+    """A .mat file of the paper's four arrays at their shapes (zeros), some replaced."""
+    data = {key: np.zeros(shape) for key, shape in ANKUR_SHAPES.items()}
+    scipy.io.savemat(path, {**data, **arrays})
+
+
+def test_reproduce_paper_refuses_a_json_that_is_the_data_by_a_hard_link_or_a_folder(tmp_path,
+                                                                                 capsys):
+    script = load_script("reproduce_paper")
+    data = tmp_path / "paper.mat"
+    _paper_data(data)
+    link = tmp_path / "hard.json"
+    link.hardlink_to(data)
+    before = data.read_bytes()
+    err = refused_in_one_line(script, ["--data", str(data), "--json", str(link)], capsys)
+    assert "is the same file as --data" in err and data.read_bytes() == before
+    err = refused_in_one_line(script, ["--data", str(data), "--json", str(tmp_path)], capsys)
+    assert "is a folder" in err
+
+
+def test_reproduce_paper_names_the_file_and_the_problem_of_data_that_is_not_the_papers(
+        tmp_path, capsys):
+    script = load_script("reproduce_paper")
+
+    def refused(path):
+        return refused_in_one_line(script, ["--data", str(path)], capsys)
+    real = tmp_path / "real.mat"
+    _paper_data(real)
+    cut = tmp_path / "cut.mat"                           # a header cut short: an IndexError
+    cut.write_bytes(real.read_bytes()[:120])
+    assert f"--data {cut}: cannot read it as a MATLAB file" in refused(cut)
+    strings = tmp_path / "strings.mat"
+    scipy.io.savemat(strings, {"Y": "abc", "Z": "a", "Y_test": "b", "Z_test": "c"})
+    assert f"--data {strings}: not the paper's data (Y holds no numbers)" in refused(strings)
+    rows = tmp_path / "rows.mat"
+    scipy.io.savemat(rows, {"Y": np.zeros((5, 100)), "Z": np.zeros((5, 63)),
+                            "Y_test": np.zeros((3, 100)), "Z_test": np.zeros((3, 63))})
+    assert "(Y is 5x100, expected 1927x100)" in refused(rows)
+    nan = tmp_path / "nan.mat"
+    _paper_data(nan, Z=np.full((1927, 63), np.nan))
+    assert "Z holds a number that is not finite" in refused(nan)
+
+
+def test_reproduce_paper_ends_in_one_line_on_data_the_regressors_refuse_and_on_ctrl_c(
+        tmp_path, capsys, monkeypatch):
+    script = load_script("reproduce_paper")
+    zeros = tmp_path / "zeros.mat"                       # the paper's shapes, all zeros
+    _paper_data(zeros)
+    assert script.main(["--data", str(zeros)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith(
+        f"reproduce_paper: error: --data {zeros}: ")
+
+    def interrupted(data):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(script, "_reproduce", interrupted)
+    assert script.main(["--data", str(zeros)]) == 130
+    assert capsys.readouterr().err == "reproduce_paper: interrupted\n"
+
+
+def test_reproduce_paper_writes_its_json_whole(tmp_path, capsys, monkeypatch):
+    script = load_script("reproduce_paper")
+    data, out = tmp_path / "paper.mat", tmp_path / "r.json"
+    _paper_data(data)
+    monkeypatch.setattr(script, "_reproduce", lambda d: {"n_train": len(d["Y"])})
+    assert script.main(["--data", str(data), "--json", str(out)]) == 0
+    assert out.read_text() == '{\n  "n_train": 1927\n}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["paper.mat", "r.json"]
 
 
 def test_bench_track_refuses_missing_inputs_and_absurd_frame_counts(tmp_path, capsys):

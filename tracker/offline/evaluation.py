@@ -17,12 +17,15 @@ heading RMS (angles only), error per body part (angles) or per point (points).
 """
 from __future__ import annotations
 
+import struct
 import tempfile
+import zlib
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import scipy.io
+from scipy.io.matlab import MatReadError
 
 from regressor.angles import heading_norm, pose_angles, wrap_deg
 from regressor.metrics import (acceleration_error, angle_jitter, angular_error,
@@ -249,15 +252,41 @@ def runner_up_analysis(chosen: np.ndarray, runner_up: np.ndarray, truth: np.ndar
 
 # ---------------------------------------------------------------- the paper's data
 
+#: The paper's data (its README): training descriptors Y and poses Z, test Y_test and Z_test.
+#: ANKUR_TRAIN_STARTS and the scripts' folds assume these rows: any other shape is not it.
+ANKUR_SHAPES = {"Y": (1927, 100), "Z": (1927, 63), "Y_test": (418, 100), "Z_test": (418, 63)}
+
+
 def load_ankur(path: str | Path) -> dict[str, np.ndarray]:
-    """The paper's data: Y (1927, 100), Z (1927, 63), Y_test (418, 100), Z_test (418, 63)."""
+    """The paper's four arrays (ANKUR_SHAPES, float64) from its .mat file; EvaluationError
+    naming the file and the problem for anything else (missing, not a MATLAB file, cut short,
+    an array missing, not numbers, of another shape, not finite)."""
     try:
         d = scipy.io.loadmat(str(path))
-        data = {k: np.asarray(d[k], float) for k in ("Y", "Z", "Y_test", "Z_test")}
-    except (OSError, ValueError, KeyError) as exc:
-        raise EvaluationError(f"{path}: not the paper's data file ({exc})") from exc
-    if data["Y"].shape[0] != data["Z"].shape[0] or data["Z"].shape[1] % 3:
-        raise EvaluationError(f"{path}: descriptor and pose rows do not match")
+    # scipy's errors on a file that is not a MATLAB file or is cut short: IndexError on a cut
+    # header, zlib and struct errors in compressed or cut data, NotImplementedError for a v7.3
+    # (HDF5) file.
+    except (OSError, ValueError, TypeError, IndexError, KeyError, EOFError, MemoryError,
+            NotImplementedError, MatReadError, zlib.error, struct.error) as exc:
+        text = ((isinstance(exc, OSError) and exc.strerror) or " ".join(str(exc).split())
+                or type(exc).__name__)
+        raise EvaluationError(f"{path}: cannot read it as a MATLAB file ({text})") from None
+    missing = [k for k in ANKUR_SHAPES if k not in d]
+    if missing:
+        raise EvaluationError(f"{path}: not the paper's data (no {', '.join(missing)})")
+    data = {}
+    for key, shape in ANKUR_SHAPES.items():
+        try:
+            data[key] = np.asarray(d[key], dtype=np.float64)
+        except (ValueError, TypeError):
+            raise EvaluationError(f"{path}: not the paper's data ({key} holds no numbers)") \
+                from None
+        if data[key].shape != shape:
+            raise EvaluationError(f"{path}: not the paper's data ({key} is "
+                                  f"{'x'.join(map(str, data[key].shape))}, expected "
+                                  f"{shape[0]}x{shape[1]})")
+        if not np.isfinite(data[key]).all():
+            raise EvaluationError(f"{path}: {key} holds a number that is not finite")
     return data
 
 

@@ -1,0 +1,45 @@
+"""The Pose2Sim trial checked before long work (evaluate_real.py, evaluate_silhouettes.py,
+draw_fitted_body.py): sequences.pose2sim.load_trial with one-line errors for what it would
+otherwise find late or as a traceback."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from sequences.pose2sim import CALIBRATION, REFERENCE_TRC, VIEWS, Pose2SimError, Trial, load_trial
+from ..video import open_video
+
+
+def checked_trial(root: Path, views=VIEWS) -> Trial:
+    """load_trial(root), with one-line errors (Pose2SimError naming the file) also for a
+    reference or calibration that is not text, for a calibration whose numbers are not all
+    finite (a NaN there only showed later, as warnings and a misleading error), and for a
+    video of views missing or undecodable (found after minutes of fitting and tracking, else;
+    VideoError)."""
+    try:
+        trial = load_trial(root)
+    except UnicodeDecodeError as exc:
+        files = [root / REFERENCE_TRC, root / CALIBRATION]
+        binary = [str(path) for path in files if not _is_text(path)] or map(str, files)
+        raise Pose2SimError(f"{' or '.join(binary)}: not a text file ({exc.reason} at byte "
+                            f"{exc.start})") from None
+    for view, camera in trial.cameras.items():
+        if not all(np.isfinite(a).all() for a in (camera.K, camera.distortion, camera.R,
+                                                  camera.t)):
+            raise Pose2SimError(f"{root / CALIBRATION}: camera {view} has a number that is not "
+                                f"finite (NaN or infinity)")
+    for view in views:
+        open_video(trial.video(view))       # decodes its first frame: a fraction of a second
+    return trial
+
+
+def _is_text(path: Path) -> bool:
+    """Whether the file reads as UTF-8 text (what load_trial expects)."""
+    try:
+        path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    except OSError:
+        pass                            # not this one's problem
+    return True
