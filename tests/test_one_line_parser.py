@@ -84,3 +84,39 @@ def test_write_whole_follows_links_and_writes_special_files_in_place(tmp_path):
     write_whole(png, lambda partial: partial.write_text(partial.suffix), keep_suffix=True)
     assert png.read_text() == ".png" and sorted(p.name for p in tmp_path.iterdir()) == [
         "link.json", "real.json", "sheet.png"]
+
+
+def test_check_outputs_refuses_an_output_whose_temporary_name_is_an_input(tmp_path, capsys):
+    """write_whole writes NAME.partial (or NAME.partial.png) first and keeps a file found
+    there aside: an input of that name would be moved from under the script."""
+    for temporary, output in (("r.json.partial", "r.json"), ("s.partial.png", "s.png")):
+        data = tmp_path / temporary
+        data.write_text("input")
+        err = _refused_outputs(capsys, [("--json", tmp_path / output)], [("--data", data)])
+        assert "is written as" in err and "--data" in err
+        assert data.read_text() == "input"
+
+
+def test_write_whole_to_a_pipe_writes_into_it(tmp_path):
+    """/dev/stdout sent to a pipe has no path to resolve: written in place (it had failed,
+    naming /proc/PID/fd/pipe:[N])."""
+    import os
+    from tracker.sinks.files import write_whole
+    read, write = os.pipe()
+    try:
+        write_whole(f"/dev/fd/{write}", lambda path: path.write_text("through the pipe"))
+    finally:
+        os.close(write)
+    with os.fdopen(read) as pipe:
+        assert pipe.read() == "through the pipe"
+
+
+def test_scripts_print_warnings_in_one_line(capsys):
+    import warnings
+    from tracker.one_line_parser import stops_in_one_line
+
+    def main(argv):
+        warnings.warn("a file was kept aside")
+        return 0
+    assert stops_in_one_line("script", main)([]) == 0
+    assert capsys.readouterr().err == "script: warning: a file was kept aside\n"

@@ -206,25 +206,50 @@ def test_a_symlinked_output_replaces_its_target_and_keeps_the_link(tmp_path, wal
     assert sorted(p.name for p in (tmp_path / "real").iterdir()) == ["s.json", "s.mcap"]
 
 
-def test_json_to_a_stdout_redirected_to_a_file_lands_in_that_file(tmp_path, walk):
-    """`track V --json /dev/stdout > o.txt` (here through a link of our own to
-    /proc/self/fd/1, so /dev is never at risk): o.txt gets the JSON, the link stays a link."""
+@pytest.mark.parametrize("mode", ["w", "a"])
+def test_json_to_a_stdout_redirected_to_a_file_lands_in_that_file(tmp_path, walk, mode):
+    """`track V --json /dev/stdout > o.txt` (or >>; here through a link of our own to
+    /proc/self/fd/1, so /dev is never at risk): written through the shell's descriptor, so
+    o.txt holds what came before (>>), the JSON and the summary line after it, and the link
+    stays a link."""
     (tmp_path / "fd").mkdir()
     (tmp_path / "fd" / "stdout").symlink_to("/proc/self/fd/1")
+    (tmp_path / "o.txt").write_text("earlier line\n")
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
-    with open(tmp_path / "o.txt", "w") as out:
+    with open(tmp_path / "o.txt", mode) as out:
         code = subprocess.run([sys.executable, "-m", "tracker.cli", str(walk), "--json",
-                               "fd/stdout", "--end", "0.5", "--quiet"], cwd=tmp_path, env=env,
+                               "fd/stdout", "--end", "0.5"], cwd=tmp_path, env=env,
                               stdout=out, stderr=subprocess.PIPE, text=True, timeout=120)
     assert code.returncode == 0, code.stderr
-    assert json.loads((tmp_path / "o.txt").read_text())["frames"] == 15
+    text = (tmp_path / "o.txt").read_text()
+    if mode == "a":
+        assert text.startswith("earlier line\n")
+        text = text[len("earlier line\n"):]
+    assert json.loads(text)["frames"] == 15         # the summary went to stderr
+    assert "tracked 15 frames" in code.stderr
     assert (tmp_path / "fd" / "stdout").is_symlink()
 
 
+def test_a_bvh_name_that_is_a_symlink_is_replaced_not_followed(tmp_path, walk):
+    """BVH files are named by track, not the user: a link of that name (here to the input
+    video) is replaced by the file; what it points to is left alone."""
+    video = tmp_path / "walk.mp4"
+    video.write_bytes(walk.read_bytes())
+    (tmp_path / "bvh").mkdir()
+    (tmp_path / "bvh" / "walk_0.bvh").symlink_to("../walk.mp4")
+    result = _track(video, "--bvh", "bvh", "--end", "1", "--quiet", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert video.read_bytes() == walk.read_bytes()
+    written = tmp_path / "bvh" / "walk_0.bvh"
+    assert not written.is_symlink() and written.read_text().startswith("HIERARCHY")
+
+
 @pytest.mark.parametrize("option", ["--json", "--out"])
-def test_an_output_ending_in_a_slash_is_refused_not_written_as_a_file(tmp_path, video, option):
-    result = _track(video, option, "newdir/", cwd=tmp_path)
-    _assert_one_line_error(result, "newdir/", "folder")
+@pytest.mark.parametrize("name", ["newdir/", "newdir/.", "newdir/.."])
+def test_an_output_ending_in_a_slash_is_refused_not_written_as_a_file(tmp_path, video, option,
+                                                                      name):
+    result = _track(video, option, name, cwd=tmp_path)
+    _assert_one_line_error(result, name, "folder")
     assert list(tmp_path.iterdir()) == [video]
 
 

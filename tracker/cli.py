@@ -104,8 +104,8 @@ class TrackError(SilhouettePoseError):
 def _file_name(text: str) -> Path:
     """An output file's path as given; one ending in a slash names a folder (Path would drop
     the slash and write a file of the folder's name)."""
-    if text.endswith(("/", os.sep)):
-        raise argparse.ArgumentTypeError(f"{text} ends in '/', a folder; give a file name")
+    if text.endswith(("/", os.sep)) or os.path.basename(text) in ("", ".", ".."):
+        raise argparse.ArgumentTypeError(f"{text} names a folder; give a file name")
     return Path(text)
 
 
@@ -222,6 +222,7 @@ def _check_options(args) -> None:
         if _same_file(args.out, args.video):
             raise TrackError(f"the default output {args.out} would be the input video; choose "
                              f"an output with --out")
+    from .sinks.files import stream_descriptor     # deferred: the sinks load numpy
     for path, what in ((args.out, "--out"), (args.json, "--json")):
         if path is None:
             continue
@@ -232,7 +233,9 @@ def _check_options(args) -> None:
         if not folder.is_dir():
             shown = folder if path.is_symlink() else (path.parent if str(path.parent) else ".")
             raise TrackError(f"{what} {path}: folder {shown} does not exist")
-        written_in_place = path.exists() and not path.is_file()     # /dev/null, a FIFO
+        # /dev/null, a FIFO, /dev/stdout (tracker.sinks.files.OutputFile)
+        written_in_place = stream_descriptor(path) is not None or \
+            (path.exists() and not path.is_file())
         if (not written_in_place and not os.access(folder, os.W_OK)) or \
                 (path.exists() and not os.access(path, os.W_OK)):
             raise TrackError(f"{what} {path}: not writable")
@@ -492,16 +495,22 @@ def _bvh_files(folder: Path, stem: str, written: list[Path] | None) -> str:
 
 
 def _print_summary(args, source, result, bvh_files: list[Path] | None = None) -> None:
+    from .sinks.files import stream_descriptor
+    # An output sent to standard output (--json /dev/stdout | jq) gets it alone: the summary
+    # goes to standard error then.
+    out = sys.stderr if any(path is not None and stream_descriptor(path) == 1
+                            for path in (args.out, args.json)) else sys.stdout
     state = "interrupted after" if result.interrupted else "tracked"
     # What the outputs hold (after a Ctrl-C the tracker may have gone a batch further).
     tracks = result.written
     print(f"{args.video.name}: {state} {result.frames} frames ({source.width}x{source.height}, "
-          f"{source.fps:g} fps video) at {result.fps:.0f} frames/s; {len(tracks)} track(s)")
+          f"{source.fps:g} fps video) at {result.fps:.0f} frames/s; {len(tracks)} track(s)",
+          file=out)
     for track_id, counts in sorted(tracks.items()):
         unfamiliar = (f"; {counts.unfamiliar} of them ({counts.unfamiliar / counts.poses:.0%}) "
                       f"unlike the training silhouettes, their poses extrapolated"
                       if counts.unfamiliar else "")
-        print(f"  track {track_id}: {counts.poses} frames{unfamiliar}")
+        print(f"  track {track_id}: {counts.poses} frames{unfamiliar}", file=out)
     # Which poses the JSON and BVH hold: smoothed, or those streamed (--no-smooth, or a quick
     # exit after an interrupt, tracker.run.track_video; not a Ctrl-C while the outputs
     # closed): filtered, or fixed-lag smoothed with --lag.
@@ -512,7 +521,7 @@ def _print_summary(args, source, result, bvh_files: list[Path] | None = None) ->
                               (args.bvh, "BVH folder", kind)):
         if path is not None:
             tail = _bvh_files(path, args.video.stem, bvh_files) if what == "BVH folder" else ""
-            print(f"  {what} ({poses} poses): {path}{tail}")
+            print(f"  {what} ({poses} poses): {path}{tail}", file=out)
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -29,10 +30,16 @@ def quiet_decoder_logs() -> None:
 def stops_in_one_line(prog: str, main: Callable[[list[str] | None], int]
                       ) -> Callable[[list[str] | None], int]:
     """A script's main(argv) that ends on Ctrl-C with "PROG: interrupted" on stderr and
-    EXIT_INTERRUPTED, not a traceback."""
+    EXIT_INTERRUPTED, not a traceback, and prints warnings as one line "PROG: warning: ...",
+    without Python's file name and source line."""
+    def one_line(message, category, filename, lineno, file=None, line=None) -> None:
+        print(f"{prog}: warning: {message}", file=sys.stderr)
+
     def stopping(argv: list[str] | None = None) -> int:
         try:
-            return main(argv)
+            with warnings.catch_warnings():
+                warnings.showwarning = one_line
+                return main(argv)
         except KeyboardInterrupt:
             print(f"{prog}: interrupted", file=sys.stderr)
             return EXIT_INTERRUPTED
@@ -57,7 +64,7 @@ class OneLineParser(argparse.ArgumentParser):
         it may not be the same file as an input or another output, also through a relative
         path, a symlink or a hard link. Inputs that are one another (a folder of links) are
         no conflict. Exits as error() does."""
-        from .sinks.files import file_identity       # deferred: numpy
+        from .sinks.files import PARTIAL_SUFFIX, file_identity, partial_path  # deferred: numpy
         seen = {}
         for what, path in inputs:
             if path is not None:
@@ -80,4 +87,12 @@ class OneLineParser(argparse.ArgumentParser):
                 other, other_path = seen[key]
                 self.error(f"{what} {path} is the same file as {other} {other_path}; choose "
                            f"another file name (nothing was written)")
+            # Nor may the temporary names it is written under (write_whole's two forms) be
+            # an input: a file found there is moved aside before writing.
+            for temporary in (partial_path(target), target.with_name(
+                    f"{target.stem}{PARTIAL_SUFFIX}{target.suffix}")):
+                other = seen.get(file_identity(temporary))
+                if other is not None:
+                    self.error(f"{what} {path} is written as {temporary} until complete, which "
+                               f"is {other[0]} {other[1]}; choose another file name")
             seen[key] = (what, path)

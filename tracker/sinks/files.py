@@ -6,7 +6,9 @@
   run on the same output fails at once with :class:`OutputBusyError`) and renames it onto
   ``NAME`` only by :meth:`OutputFile.commit`, once it is complete. A crash leaves ``NAME`` as it
   was and the new data in ``NAME.partial``. A destination that exists and is not a regular file
-  (``/dev/null``, a FIFO) is written in place. A ``NAME.partial`` that already holds data (an
+  (``/dev/null``, a FIFO), or is a stream the shell opened (``/dev/stdout``, ``/dev/fd/N``:
+  :func:`stream_descriptor`), is written in place; a symlink is followed (the target replaced,
+  the link kept). A ``NAME.partial`` that already holds data (an
   earlier run's unfinished recording, or a file of the user's) is kept as ``NAME.partial.1``
   (``.2``, ...) with a warning, never overwritten.
 - :func:`write_beside` does the same for a file written in one go by a function of a path.
@@ -18,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import re
 import warnings
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -37,6 +40,29 @@ class OutputBusyError(SilhouettePoseError, RuntimeError):
 
 class OutputWriteError(SilhouettePoseError, RuntimeError):
     """Writing an output failed (disk full, I/O error); one line naming the file."""
+
+
+_FD_LINK = re.compile(r"/(?:proc/self|dev)/fd/(\d+)")
+_STANDARD = {"/dev/stdin": 0, "/dev/stdout": 1, "/dev/stderr": 2}
+
+
+def stream_descriptor(path: str | Path) -> int | None:
+    """N when ``path`` is, or leads by symlinks to, /dev/stdout, /dev/stderr, /dev/fd/N or
+    /proc/self/fd/N: a stream the shell opened (a pipe, a terminal, a file with > or >>),
+    written through that descriptor so that its offset and append mode are kept; else None."""
+    current = os.path.abspath(path)
+    for _ in range(40):                  # the kernel's own limit on a chain of links
+        if current in _STANDARD:
+            return _STANDARD[current]
+        match = _FD_LINK.fullmatch(current)
+        if match:
+            return int(match.group(1))
+        try:
+            link = os.readlink(current)
+        except OSError:
+            return None
+        current = os.path.normpath(os.path.join(os.path.dirname(current), link))
+    return None
 
 
 def partial_path(path: str | Path) -> Path:
@@ -98,36 +124,64 @@ def _open_locked(path: Path, flags: int) -> int:
 def set_aside(path: Path) -> Path | None:
     """Move a non-empty regular file at ``path`` (a ``NAME.partial`` about to be written) to the
     first free ``NAME.partial.N`` and warn naming both; returns the new name, or None when there
-    was nothing to keep. OutputBusyError if another process is writing it (holds its lock)."""
-    try:
-        if not path.is_file() or path.stat().st_size == 0:
-            return None
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return None
-    try:
+    was nothing to keep. OutputBusyError if another process is writing it (holds its lock);
+    OutputWriteError if it holds data but cannot be opened to be locked."""
+    for _ in range(10):
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise OutputBusyError(f"{path}: another track run is writing this output; wait for "
-                                  f"it to finish or choose another file name") from None
-        for n in range(1, 10_000):
-            aside = path.with_name(f"{path.name}.{n}")
+            if not path.is_file() or path.stat().st_size == 0:
+                return None
+        except OSError:
+            return None
+        fd = _open_to_lock(path)
+        try:
             try:
-                os.link(path, aside)      # never replaces an existing file, unlike rename
-            except FileExistsError:
-                continue
-            except OSError as exc:
-                raise OutputWriteError(f"{path}: holds an earlier run's data and cannot be kept "
-                                       f"aside ({exc.strerror}); move it away first") from None
-            os.unlink(path)
-            warnings.warn(f"{path} held an earlier run's unfinished output; kept as {aside}, "
-                          f"not overwritten", stacklevel=3)
-            return aside
-        raise OutputWriteError(f"{path}: too many earlier unfinished outputs kept beside it; "
-                               f"remove some")
-    finally:
-        os.close(fd)
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise OutputBusyError(f"{path}: another track run is writing this output; wait "
+                                      f"for it to finish or choose another file name") from None
+            # Moved by another run between our open and our lock (it set it aside and may now
+            # write a new one under the name): what we locked is not what the name holds.
+            try:
+                same = os.stat(path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                return _link_aside(path)
+        finally:
+            os.close(fd)            # also releases the lock
+    raise OutputBusyError(f"{path}: kept changing while being locked; another track run is "
+                          f"writing this output")
+
+
+def _open_to_lock(path: Path) -> int:
+    """A descriptor of ``path`` to flock (read or, failing that, write access suffices);
+    OutputWriteError when neither is allowed: its data must not be written over unseen."""
+    for flags in (os.O_RDONLY, os.O_WRONLY):
+        try:
+            return os.open(path, flags)
+        except OSError as exc:
+            error = exc
+    raise OutputWriteError(f"{path}: holds an earlier run's data that cannot be kept aside "
+                           f"({error.strerror}); move it away first")
+
+
+def _link_aside(path: Path) -> Path:
+    """set_aside's move of the locked ``path`` to the first free ``NAME.N``."""
+    for n in range(1, 10_000):
+        aside = path.with_name(f"{path.name}.{n}")
+        try:
+            os.link(path, aside)      # never replaces an existing file, unlike rename
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise OutputWriteError(f"{path}: holds an earlier run's data and cannot be kept "
+                                   f"aside ({exc.strerror}); move it away first") from None
+        os.unlink(path)
+        warnings.warn(f"{path} held an earlier run's unfinished output; kept as {aside}, "
+                      f"not overwritten", stacklevel=4)
+        return aside
+    raise OutputWriteError(f"{path}: too many earlier unfinished outputs kept beside it; "
+                           f"remove some")
 
 
 class OutputFile:
@@ -139,13 +193,15 @@ class OutputFile:
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
-        self._in_place = self.path.exists() and not self.path.is_file()
-        # A symlink (e.g. /dev/stdout redirected to a file) is followed: its target is replaced,
-        # the link kept, as write_beside does.
+        stream = stream_descriptor(self.path)
+        self._in_place = stream is not None or (self.path.exists() and not self.path.is_file())
+        # A symlink the user named is followed: its target is replaced, the link kept.
         self._target = self.path if self._in_place else Path(os.path.realpath(self.path))
         self.written_path = self.path if self._in_place else partial_path(self._target)
         try:
-            if self._in_place:
+            if stream is not None:
+                self._fd = os.dup(stream)
+            elif self._in_place:
                 self._fd = os.open(self.path, os.O_WRONLY)
             else:
                 set_aside(self.written_path)
@@ -225,12 +281,11 @@ def _sync_folder(folder: Path) -> None:
 def write_beside(path: str | Path, write: Callable[[Path], None],
                  partial: str | Path | None = None) -> None:
     """Call ``write(partial path)``, flush that file to disk and rename it onto ``path`` (a
-    symlink's target: the link is kept); on failure the partial file is removed and ``path`` is
-    left as it was (OutputWriteError naming the file). partial: the temporary name (default
-    partial_path of the target), in the target's folder; a non-empty file there is kept aside
-    first (set_aside)."""
-    shown = Path(path)
-    path = Path(os.path.realpath(path))
+    symlink there is replaced, not followed: BVH files are named by the sink, not the user);
+    on failure the partial file is removed and ``path`` is left as it was (OutputWriteError
+    naming the file). partial: the temporary name (default partial_path(path)), in path's
+    folder; a non-empty file there is kept aside first (set_aside)."""
+    shown = path = Path(path)
     partial = partial_path(path) if partial is None else Path(partial)
     set_aside(partial)
     try:
@@ -257,6 +312,13 @@ def write_whole(path: str | Path, write: Callable[[Path], None],
     and is not a regular file (/dev/null, /dev/stdout, a FIFO) is written in place. With
     keep_suffix the temporary name ends in path's suffix (NAME.partial.png: OpenCV picks an
     image's format by it). OutputWriteError naming the file on failure."""
+    given = Path(path)
+    if given.exists() and not given.is_file():     # before resolving: a pipe has no path
+        try:
+            write(given)
+        except OSError as exc:
+            raise OutputWriteError(f"{path}: {exc.strerror or exc}") from None
+        return
     target = Path(os.path.realpath(path))
     if target.exists() and not target.is_file():
         try:
