@@ -222,7 +222,8 @@ def _main(argv) -> int:
                     default=MixtureOptions.partition)
     ap.add_argument("--codebook-centres", type=int, default=100,
                     help="k-means centres of the shape-context codebook, the length of each "
-                         "frame's histogram (default 100, the paper's)")
+                         "frame's histogram (default 100, the paper's; 300 did no better: "
+                         "docs/accuracy.md, stop 47)")
     ap.add_argument("--layout-grid", type=int, default=MixtureOptions.layout_grid,
                     help="silhouette layout cells per side added to each frame's descriptor "
                          "(regressor.layout; 0: shape contexts only)")
