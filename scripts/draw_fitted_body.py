@@ -24,11 +24,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tracker.offline.pose2sim_trial import checked_trial
+from tracker.offline.pose2sim_trial import checked_trial, trial_files
 from sequences.body import load_body
 from sequences.keypoint_fit import KeypointFitError, fit_body, posed_vertices
-from sequences.pose2sim import (CALIBRATION, DEFAULT_TRIAL, REFERENCE_TRC, VIEWS, Pose2SimError,
-                                render_view_masks, video_frames)
+from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, render_view_masks,
+                                video_frames)
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.sinks.files import OutputWriteError, write_whole
 from tracker.video import VideoError, open_video
@@ -100,10 +100,7 @@ def _main(argv) -> int:
         ap.error(f"--trial {args.trial}: no such folder")
     # Before the fitting and decoding: writable, and none of the files read.
     ap.check_outputs([("the output", args.out)],
-                     [("the reference", args.trial / REFERENCE_TRC),
-                      ("the calibration", args.trial / CALIBRATION),
-                      *((f"the {view} video", args.trial / "videos" / f"{view}.mp4")
-                        for view in VIEWS)])
+                     trial_files(args.trial))
     quiet_decoder_logs()          # as track: one line, not FFmpeg's too
     try:
         image = draw(checked_trial(args.trial), sorted(set(args.frames)))

@@ -48,8 +48,8 @@ from regressor.errors import SilhouettePoseError
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
 from sequences.keypoint_fit import KeypointFitError
 from sequences.measures import FLEXION_NAMES, MeasureError, flexion_deg, novelty_summary
-from sequences.pose2sim import (CALIBRATION, DEFAULT_TRIAL, REFERENCE_TRC, VIEWS, Pose2SimError,
-                                Trial, camera_roll_deg, project_reference,
+from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, camera_roll_deg,
+                                project_reference,
                                 reference_flexion, reference_heading_deg, video_frames)
 from sequences.pose2sim_measures import (cross_view_measures, reference_body,
                                          reference_cross_view_check, subject_rows,
@@ -58,7 +58,7 @@ from tracker.cli import VIEW_LAG_S, ZONE_FOREGROUND
 from tracker.fixed_lag import replay
 from sequences.pose_vector import heading_deg
 from tracker.offline.evaluation import constant_pose
-from tracker.offline.pose2sim_trial import checked_trial
+from tracker.offline.pose2sim_trial import checked_trial, trial_files
 from tracker.offline.report import ReportError, check_plotting, plot_real_video
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.sinks import PoseRecorder
@@ -432,11 +432,7 @@ def _main(argv) -> int:
     # Before about a minute of tracking, not after it: the outputs must be writable and may
     # overwrite none of the files read (the model, the trial's reference, calibration, videos).
     ap.check_outputs([("--json", args.json), ("--masks", args.masks), ("--plot", args.plot)],
-                     [("--model", args.model),
-                      ("the reference", args.trial / REFERENCE_TRC),
-                      ("the calibration", args.trial / CALIBRATION),
-                      *((f"the {view} video", args.trial / "videos" / f"{view}.mp4")
-                        for view in VIEWS)])
+                     [("--model", args.model), *trial_files(args.trial)])
     if not args.trial.is_dir():
         default = (" (the default, in the shared data beside the repository; give --trial)"
                    if args.trial == DEFAULT_TRIAL else "")

@@ -29,9 +29,9 @@ import json
 import sys
 from pathlib import Path
 
-from tracker.offline.pose2sim_trial import checked_trial
+from tracker.offline.pose2sim_trial import checked_trial, trial_files
 from regressor.errors import SilhouettePoseError
-from sequences.pose2sim import CALIBRATION, DEFAULT_TRIAL, REFERENCE_TRC, VIEWS, Pose2SimError
+from sequences.pose2sim import DEFAULT_TRIAL, VIEWS, Pose2SimError
 from tracker.offline.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, evaluate_pose2sim_view,
                                                    format_table)
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
@@ -52,10 +52,7 @@ def _main(argv) -> int:
         ap.error(f"--trial {args.trial}: no such folder")
     # Before minutes of work: writable, and none of the files read.
     ap.check_outputs([("--json", args.json)],
-                     [("the reference", args.trial / REFERENCE_TRC),
-                      ("the calibration", args.trial / CALIBRATION),
-                      *((f"the {view} video", args.trial / "videos" / f"{view}.mp4")
-                        for view in VIEWS)])
+                     trial_files(args.trial))
     quiet_decoder_logs()          # as track: one line, not FFmpeg's too
     results = {label: {} for label in args.extractor}
     try:

@@ -11,6 +11,13 @@ from sequences.pose2sim import CALIBRATION, REFERENCE_TRC, VIEWS, Pose2SimError,
 from ..video import open_video
 
 
+def trial_files(root: Path) -> list[tuple[str, Path]]:
+    """(description, path) of every file a script reads from the trial at ``root``: the
+    reference, the calibration and each view's video (the inputs of check_outputs)."""
+    return [("the reference", root / REFERENCE_TRC), ("the calibration", root / CALIBRATION),
+            *((f"the {view} video", root / "videos" / f"{view}.mp4") for view in VIEWS)]
+
+
 def checked_trial(root: Path, views=VIEWS) -> Trial:
     """load_trial(root), with one-line errors (Pose2SimError naming the file) also for a
     reference or calibration that is not text, for a calibration whose numbers are not all
