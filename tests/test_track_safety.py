@@ -156,7 +156,8 @@ def test_an_earlier_runs_unfinished_recording_is_kept_aside_not_overwritten(tmp_
     it is moved to NAME.partial.1 (then .2) with a warning, and an empty one is reused."""
     out = tmp_path / "o.mcap"
     partial_path(out).write_bytes(b"killed run 1")
-    with pytest.warns(UserWarning, match=r"o\.mcap\.partial held an earlier run.*o\.mcap\.partial\.1"):
+    with pytest.warns(UserWarning,
+                      match=r"o\.mcap\.partial held an earlier run.*o\.mcap\.partial\.1"):
         sink = McapSink(out)
     sink.close()
     partial_path(out).write_bytes(b"killed run 2")

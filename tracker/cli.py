@@ -114,8 +114,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "regressed from each person's silhouette (a mixture of kernel experts "
                        "and limb networks), Kalman-filtered over time.")
     ap.add_argument("video", type=Path, help="video file (mp4, avi, ...)")
-    ap.add_argument("--out", type=_file_name, help="MCAP recording (default VIDEO_STEM.mcap if no "
-                    "other output is chosen)")
+    ap.add_argument("--out", type=_file_name, help="MCAP recording (default VIDEO_STEM.mcap if "
+                    "no other output is chosen)")
     ap.add_argument("--bvh", type=Path, metavar="DIR", help="write one BVH per track here")
     ap.add_argument("--json", type=_file_name, metavar="FILE", help="write a JSON summary")
     ap.add_argument("--view", action="store_true", help="live 3-D skeletons in meshcat "
@@ -156,9 +156,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "it for people far away, raise it against clutter")
     ap.add_argument("--workers", type=int, choices=(1, 2), default=DEFAULT_WORKERS,
                     help="processes: 2 finds the people in a second process while the first "
-                         "tracks them (about 1.7x the frames per second, the same poses; not with "
-                         "--view), 1 "
-                         f"keeps to one (default {DEFAULT_WORKERS} on this machine)")
+                         "tracks them (about 1.7x the frames per second, the same poses; not "
+                         f"with --view), 1 keeps to one (default {DEFAULT_WORKERS} on this "
+                         "machine)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
 

@@ -8,9 +8,9 @@
   was and the new data in ``NAME.partial``. A destination that exists and is not a regular file
   (``/dev/null``, a FIFO), or is a stream the shell opened (``/dev/stdout``, ``/dev/fd/N``:
   :func:`stream_descriptor`), is written in place; a symlink is followed (the target replaced,
-  the link kept). A ``NAME.partial`` that already holds data (an
-  earlier run's unfinished recording, or a file of the user's) is kept as ``NAME.partial.1``
-  (``.2``, ...) with a warning, never overwritten.
+  the link kept). A ``NAME.partial`` that already holds data (an earlier run's unfinished
+  recording, or a file of the user's) is kept as ``NAME.partial.1`` (``.2``, ...) with a
+  warning (:func:`set_aside`), never overwritten.
 - :func:`write_beside` does the same for a file written in one go by a function of a path.
 - :class:`LockFile` holds such a lock on a lock file of its own (a BVH folder's set of files).
 - Every failure to write is an :class:`OutputWriteError` naming the file.
