@@ -15,10 +15,10 @@ from pathlib import Path
 
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, training_files, views_by_rows)
-from tracker.one_line_parser import OneLineParser
+from tracker.one_line_parser import OneLineParser, stops_in_one_line
 
 
-def main(argv=None) -> int:
+def _main(argv=None) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
     ap.add_argument("--cache", type=Path, default=Path("cache/dataset"))
@@ -62,6 +62,9 @@ def main(argv=None) -> int:
           f"{elapsed:.1f} s ({len(data) / elapsed:.0f} silhouettes/s with {args.workers} "
           f"workers)")
     return 0
+
+
+main = stops_in_one_line("build_dataset", _main)       # Ctrl-C: one line, exit 130
 
 
 if __name__ == "__main__":

@@ -16,10 +16,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 from sequences.bvh import BVHError, read_bvh
-from tracker.one_line_parser import OneLineParser
+from tracker.one_line_parser import OneLineParser, stops_in_one_line
 
 
-def main(argv: list[str] | None = None) -> int:
+def _main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder", nargs="?", type=Path,
                         default=ROOT.parent / "shared" / "data" / "cmu" / "bvh",
@@ -54,6 +54,9 @@ def main(argv: list[str] | None = None) -> int:
           f"({total_frames / args.fps / 60:.1f} min of motion), parsed in {total_seconds:.2f} s"
           + (f", {failures} failed" if failures else ""))
     return 1 if failures else 0
+
+
+main = stops_in_one_line("count_frames", _main)       # Ctrl-C: one line, exit 130
 
 
 if __name__ == "__main__":

@@ -388,6 +388,20 @@ def test_count_frames_names_what_is_wrong_with_the_folder(tmp_path, capsys):
     assert "y.bvh        ERROR Is a directory" in out and "2 files, 5 frames" in out
 
 
+def test_count_frames_and_build_dataset_end_ctrl_c_in_one_line(tmp_path, capsys, monkeypatch):
+    write_bvh(tmp_path / "walk.bvh", _walk(6))
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    for name, function, argv in (("count_frames", "read_bvh", [str(tmp_path)]),
+                                 ("build_dataset", "build_dataset",
+                                  ["--bvh-dir", str(tmp_path), "--cache", str(tmp_path / "c")])):
+        script = load_script(name)
+        monkeypatch.setattr(script, function, interrupted)
+        assert script.main(argv) == 130
+        assert capsys.readouterr().err.splitlines()[-1] == f"{name}: interrupted"   # after progress
+
+
 # ---------------------------------------------------------------- build_dataset
 
 @pytest.mark.parametrize("option, value", [("--workers", "0"), ("--workers", "-3"),
