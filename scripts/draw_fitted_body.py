@@ -12,10 +12,9 @@ rendered` gives the regressor.
 
 An output that is not a .jpg or .png name, could not be written or is one of the trial's files,
 and a --trial folder that does not exist, are refused before any work (exit 2); bad data (a
-trial file that is not text, a view's video missing or undecodable: evaluate_real.py's checks)
-ends the run in one line naming the file (exit 1); Ctrl-C in one line (exit 130). The image is
-written whole or not at all.
-"""
+trial file that is not text, a view's video missing or undecodable:
+tracker.offline.pose2sim_trial's checks) ends the run in one line naming the file (exit 1);
+Ctrl-C in one line (exit 130). The image is written whole or not at all."""
 from __future__ import annotations
 
 import sys
@@ -24,11 +23,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tracker.offline.pose2sim_trial import checked_trial, trial_files
 from sequences.body import load_body
 from sequences.keypoint_fit import KeypointFitError, fit_body, posed_vertices
 from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, render_view_masks,
                                 video_frames)
+from tracker.offline.pose2sim_trial import checked_trial, missing_trial, trial_files
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.sinks.files import OutputWriteError, write_whole
 from tracker.video import VideoError, open_video
@@ -96,11 +95,10 @@ def _main(argv) -> int:
     args = ap.parse_args(argv)
     if args.out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         ap.error(f"{args.out}: give a .jpg or .png name")
-    if not args.trial.is_dir():
-        ap.error(f"--trial {args.trial}: no such folder")
+    if missing_trial(args.trial):
+        ap.error(missing_trial(args.trial))
     # Before the fitting and decoding: writable, and none of the files read.
-    ap.check_outputs([("the output", args.out)],
-                     trial_files(args.trial))
+    ap.check_outputs([("the output", args.out)], trial_files(args.trial))
     quiet_decoder_logs()          # as track: one line, not FFmpeg's too
     try:
         image = draw(checked_trial(args.trial), sorted(set(args.frames)))

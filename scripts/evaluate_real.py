@@ -58,7 +58,7 @@ from tracker.cli import VIEW_LAG_S, ZONE_FOREGROUND
 from tracker.fixed_lag import replay
 from sequences.pose_vector import heading_deg
 from tracker.offline.evaluation import constant_pose
-from tracker.offline.pose2sim_trial import checked_trial, trial_files
+from tracker.offline.pose2sim_trial import checked_trial, missing_trial, trial_files
 from tracker.offline.report import ReportError, check_plotting, plot_real_video
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.sinks import PoseRecorder
@@ -433,10 +433,8 @@ def _main(argv) -> int:
     # overwrite none of the files read (the model, the trial's reference, calibration, videos).
     ap.check_outputs([("--json", args.json), ("--masks", args.masks), ("--plot", args.plot)],
                      [("--model", args.model), *trial_files(args.trial)])
-    if not args.trial.is_dir():
-        default = (" (the default, in the shared data beside the repository; give --trial)"
-                   if args.trial == DEFAULT_TRIAL else "")
-        ap.error(f"--trial {args.trial}: no such folder{default}")
+    if missing_trial(args.trial):
+        ap.error(missing_trial(args.trial))
     if not args.model.is_file():
         ap.error(f"--model {args.model}: no such file")
     quiet_decoder_logs()          # as track: one line, not FFmpeg's too

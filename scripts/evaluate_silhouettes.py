@@ -18,20 +18,19 @@ tracker.offline.silhouette_evaluation.
 
 A --trial folder that does not exist, or a --json that could not be written or is one of the
 files read, is refused before any work (exit 2); bad data (a trial file that is not text, a NaN
-in the calibration, a view's video missing or undecodable: evaluate_real.py's checks, also
-before any work) ends the run in one line naming the file (exit 1); Ctrl-C in one line (exit
-130). It prints each extractor and view as it starts it. --json is written whole or not at
-all.
-"""
+in the calibration, a view's video missing or undecodable: tracker.offline.pose2sim_trial's
+checks, also before any work) ends the run in one line naming the file (exit 1); Ctrl-C in one
+line (exit 130). It prints each extractor and view as it starts it. --json is written whole or
+not at all."""
 from __future__ import annotations
 
 import json
 import sys
 from pathlib import Path
 
-from tracker.offline.pose2sim_trial import checked_trial, trial_files
 from regressor.errors import SilhouettePoseError
 from sequences.pose2sim import DEFAULT_TRIAL, VIEWS, Pose2SimError
+from tracker.offline.pose2sim_trial import checked_trial, missing_trial, trial_files
 from tracker.offline.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, evaluate_pose2sim_view,
                                                    format_table)
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
@@ -48,11 +47,10 @@ def _main(argv) -> int:
     ap.add_argument("--views", nargs="+", choices=VIEWS, default=list(VIEWS))
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     args = ap.parse_args(argv)
-    if not args.trial.is_dir():
-        ap.error(f"--trial {args.trial}: no such folder")
+    if missing_trial(args.trial):
+        ap.error(missing_trial(args.trial))
     # Before minutes of work: writable, and none of the files read.
-    ap.check_outputs([("--json", args.json)],
-                     trial_files(args.trial))
+    ap.check_outputs([("--json", args.json)], trial_files(args.trial))
     quiet_decoder_logs()          # as track: one line, not FFmpeg's too
     results = {label: {} for label in args.extractor}
     try:

@@ -7,8 +7,19 @@ from pathlib import Path
 
 import numpy as np
 
-from sequences.pose2sim import CALIBRATION, REFERENCE_TRC, VIEWS, Pose2SimError, Trial, load_trial
+from sequences.pose2sim import (CALIBRATION, DEFAULT_TRIAL, REFERENCE_TRC, VIEWS, Pose2SimError,
+                                Trial, load_trial)
 from ..video import open_video
+
+
+def missing_trial(root: Path) -> str | None:
+    """The usage error for a --trial folder that does not exist (the default one pointed at
+    as such), or None."""
+    if root.is_dir():
+        return None
+    default = (" (the default, in the shared data beside the repository; give --trial)"
+               if root == DEFAULT_TRIAL else "")
+    return f"--trial {root}: no such folder{default}"
 
 
 def trial_files(root: Path) -> list[tuple[str, Path]]:

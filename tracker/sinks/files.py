@@ -313,19 +313,15 @@ def write_whole(path: str | Path, write: Callable[[Path], None],
     keep_suffix the temporary name ends in path's suffix (NAME.partial.png: OpenCV picks an
     image's format by it). OutputWriteError naming the file on failure."""
     given = Path(path)
-    if given.exists() and not given.is_file():     # before resolving: a pipe has no path
+    # Checked on the path as given (exists and is_file follow links): a pipe has no path that
+    # realpath could give.
+    if given.exists() and not given.is_file():
         try:
             write(given)
         except OSError as exc:
             raise OutputWriteError(f"{path}: {exc.strerror or exc}") from None
         return
     target = Path(os.path.realpath(path))
-    if target.exists() and not target.is_file():
-        try:
-            write(target)
-        except OSError as exc:
-            raise OutputWriteError(f"{path}: {exc.strerror or exc}") from None
-        return
     partial = (target.with_name(f"{target.stem}{PARTIAL_SUFFIX}{target.suffix}")
                if keep_suffix else None)
     write_beside(target, write, partial)
