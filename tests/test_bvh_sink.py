@@ -111,3 +111,12 @@ def test_a_cmu_file_can_be_the_template(tmp_path, cmu_bvh_dir):
     np.testing.assert_allclose(motion.offsets, template.offsets, atol=1e-6)
     back = motion_to_pose_vectors(motion)
     np.testing.assert_allclose(_wrap(back[:, 2:] - vectors[:, 2:]), 0.0, atol=1e-5)
+
+
+def test_abandon_writes_no_file_and_frees_the_folder(tmp_path):
+    """A run that tracked nobody abandons its BVH output (tracker.sinks.close_sinks)."""
+    sink = BVHSink(tmp_path, fps=30.0, prefix="clip")
+    sink.abandon()
+    sink.abandon()                                   # idempotent
+    assert sink.closed and not list(tmp_path.glob("*.bvh"))
+    BVHSink(tmp_path, fps=30.0, prefix="clip").close()   # the lock is released

@@ -173,3 +173,15 @@ def test_the_summary_says_whether_its_poses_are_smoothed(tmp_path):
     assert json.loads((tmp_path / "s.json").read_text())["poses"] == "smoothed"
     with pytest.raises(SinkInputError, match="poses must be one of"):
         JsonSummarySink(tmp_path / "t.json", 25.0, poses="raw")
+
+
+def test_abandon_leaves_the_destination_as_it_was(tmp_path):
+    """A run that tracked nobody abandons its outputs (tracker.sinks.close_sinks)."""
+    path = tmp_path / "summary.json"
+    path.write_text('{"an": "earlier run"}')
+    sink = JsonSummarySink(path, video_fps=25.0)
+    sink.end_frame(0)
+    sink.abandon()
+    sink.abandon()                                   # idempotent
+    assert sink.closed and path.read_text() == '{"an": "earlier run"}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["summary.json"]

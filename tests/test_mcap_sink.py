@@ -525,3 +525,17 @@ def test_every_scene_update_validates_against_foxglove_official_schema(tmp_path,
     for update in scenes:
         errors = sorted(validator.iter_errors(update), key=str)
         assert not errors, errors[0]
+
+
+def test_abandon_removes_the_partial_and_keeps_what_the_path_held(tmp_path):
+    """A run that tracked nobody abandons its recording (tracker.sinks.close_sinks)."""
+    path = tmp_path / "run.mcap"
+    path.write_bytes(b"an earlier recording")
+    sink = McapSink(path)
+    assert partial_path(path).exists()
+    sink.abandon()
+    sink.abandon()                                   # idempotent
+    assert sink.closed and path.read_bytes() == b"an earlier recording"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.mcap"]
+    sink.close()                                     # nothing more is written
+    assert path.read_bytes() == b"an earlier recording"

@@ -425,7 +425,7 @@ def _run(args) -> int:
     result = track_video(source, tracker, sinks[:len(streaming)],
                          _StopOnInterrupt(Progress(source.expected_frames(), quiet=args.quiet)),
                          smoothed_sinks=sinks[len(streaming):], background=plate,
-                         workers=args.workers, lag_s=lag_seconds(args))
+                         workers=args.workers, lag_s=lag_seconds(args), write_empty=False)
     if not args.quiet:
         try:
             bvh_files = None
@@ -441,13 +441,20 @@ def _run(args) -> int:
     if result.interrupted:
         return EXIT_INTERRUPTED
     if not result.tracker.tracks:
-        # A run that found no one did not do its job, even though its (empty) outputs are
-        # complete and kept.
+        # A run that found no one did not do its job: it wrote no outputs (track_video's
+        # write_empty), so an earlier run's files of those names are still there.
         raise TrackError(f"{args.video}: nobody found in its {result.frames} frames (a person "
                          f"must move against a still background and cover at least "
                          f"{100 * _min_area_fraction(args):g} % of the image: --min-area); "
-                         f"the outputs were written with no tracks")
+                         f"{_nothing_written(args)}")
     return 0
+
+
+def _nothing_written(args) -> str:
+    """The end of the nobody-found error: what became of the outputs asked for."""
+    if args.out is None and args.json is None and args.bvh is None:
+        return "nothing to show"
+    return "no outputs written (files already of those names are left as they were)"
 
 
 def _load_background(path: Path, source):
@@ -511,6 +518,8 @@ def _print_summary(args, source, result, bvh_files: list[Path] | None = None) ->
                       f"unlike the training silhouettes, their poses extrapolated"
                       if counts.unfamiliar else "")
         print(f"  track {track_id}: {counts.poses} frames{unfamiliar}", file=out)
+    if not tracks and not result.interrupted:
+        return              # nothing written: the error that follows says so
     # Which poses the JSON and BVH hold: smoothed, or those streamed (--no-smooth, or a quick
     # exit after an interrupt, tracker.run.track_video; not a Ctrl-C while the outputs
     # closed): filtered, or fixed-lag smoothed with --lag.

@@ -28,7 +28,7 @@ from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from .pipeline import PoseTracker
 from .silhouettes import median_background
 from .sinks import PoseRecorder, Sink, close_sinks
-from .video import VideoSource, open_video
+from .video import VideoError, VideoSource, open_video
 
 
 class OutputError(SilhouettePoseError, RuntimeError):
@@ -79,7 +79,7 @@ class TrackRun:
 def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = None,
                 sinks: Sequence[Sink] = (), progress=None,
                 smoothed_sinks: Sequence[Sink] = (), background: np.ndarray | None = None,
-                workers: int = 1, lag_s: float = 0.0) -> TrackRun:
+                workers: int = 1, lag_s: float = 0.0, write_empty: bool = True) -> TrackRun:
     """Track every frame of ``source`` (an opened video or a path) into ``sinks``.
 
     tracker: a PoseTracker (None: the shipped model with default settings). progress: an object
@@ -108,7 +108,10 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     2 lag - 1 frames), its poses smoothed over at least lag_s seconds that followed (needs
     keep_history): they follow the body better than the filtered ones. The frames reach the
     sinks in order, each once; after a Ctrl-C the frames held back go out too, to the sinks
-    that do not show the video, smoothed over what was given to the smoother."""
+    that do not show the video, smoothed over what was given to the smoother.
+    write_empty: False abandons the sinks that can be (close_sinks) when the run ends, not
+    interrupted, without a single pose for them (nobody found, or an error before any frame):
+    an earlier run's files of those names are not replaced by empty ones."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
@@ -223,7 +226,9 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                             fed += _write_filtered(recorder, smoothed_sinks,
                                                    streamed_kind(lag_s))
                     finally:
-                        problems = fed + close_sinks(list(sinks) + list(smoothed_sinks))
+                        empty = not write_empty and not written and not interrupted
+                        problems = fed + close_sinks(list(sinks) + list(smoothed_sinks),
+                                                     abandon=empty)
                         closed = True
                 interrupted = interrupted or bool(held)
             except KeyboardInterrupt:
@@ -334,6 +339,10 @@ def _sampled_background(source: VideoSource, tracker: PoseTracker, full_size: bo
     subtractor = getattr(tracker.extractor, "subtractor", None)
     size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full
     frames = source.sample_frames(tracker.settings.background_samples, size=size)
+    if not frames:           # the file opened, but nothing decodes in the range asked for
+        start_s = source.start_index / source.fps
+        raise VideoError(f"{source.path}: no decodable frames from {start_s:g} s on "
+                         f"(a cut-off or damaged file?)")
     median = median_background(frames)
     if full_size and size != full:
         median = cv2.resize(median, full, interpolation=cv2.INTER_CUBIC)

@@ -1,8 +1,11 @@
 """Video decoding: a file becomes a stream of (index, time, BGR frame) with checked metadata.
 
 Every failure to read a file is a :class:`VideoError` whose one-line message names the file.
-A stream that stops before the container's announced end (a corrupt or cut-off file) does not
-raise: it ends cleanly with what was decoded and emits a :class:`VideoTruncatedWarning`.
+A damaged frame inside a stream is skipped (its index is not yielded) and reading goes on: a
+glitch in one frame of a long video used to end the stream there, losing the rest. A stream
+that stops before the container's announced end (a cut-off file, or a damaged stretch longer
+than :data:`UNREADABLE_RUN_S`) does not raise: it ends cleanly with what was decoded. Either
+emits a :class:`VideoTruncatedWarning` saying which frames were lost.
 """
 from __future__ import annotations
 
@@ -28,6 +31,11 @@ ASSUMED_FOV_DEG = 60.0
 #: Background samples at most this many frames apart are read by decoding straight through
 #: rather than by seeking (x264's default key-frame interval is 250 frames).
 SEQUENTIAL_SPACING = 250
+#: Undecodable frames in a row after which a stream whose container announces more counts as
+#: ended (cut off), in seconds of video; at least UNREADABLE_RUN_MIN frames. Shorter runs are
+#: damaged frames, skipped. Reads past a file's real end fail at once, so waiting costs little.
+UNREADABLE_RUN_S = 2.0
+UNREADABLE_RUN_MIN = 30
 
 
 def focal_length_px(frame_width_px: int, fov_deg: float = ASSUMED_FOV_DEG) -> float:
@@ -112,8 +120,9 @@ class VideoSource:
     the whole file, None when it does not say; may be approximate), ``width``/``height`` (px of
     the frames yielded, after any downscaling), ``source_width``/``source_height`` (px in the
     file), ``start_index``/``end_index`` (frame range yielded, end exclusive; end None = until the
-    stream ends), ``frames_read`` (frames yielded by the last iteration) and ``truncated`` (True
-    when the last iteration stopped before ``end_index``).
+    stream ends), ``frames_read`` (frames yielded by the last iteration), ``frames_skipped``
+    (undecodable frames it skipped inside the stream) and ``truncated`` (True when it stopped
+    before ``end_index``).
     Each iteration reopens the file, so a source can be iterated more than once.
     """
 
@@ -128,6 +137,7 @@ class VideoSource:
         self.start_index = start_index
         self.end_index = end_index
         self.frames_read = 0
+        self.frames_skipped = 0
         self.truncated = False
 
     def expected_frames(self) -> int | None:
@@ -136,27 +146,50 @@ class VideoSource:
 
     def __iter__(self) -> Iterator[VideoFrame]:
         capture = _open_capture(self.path)
-        self.frames_read, self.truncated = 0, False
+        self.frames_read, self.frames_skipped, self.truncated = 0, 0, False
+        first_skipped = None
+        stopped_at = None               # the first of the undecodable frames the stream ends on
         try:
             index = _seek(capture, self.start_index)
             end = math.inf if self.end_index is None else self.end_index
+            give_up = self.unreadable_run()
+            failed = 0                  # undecodable frames in a row, just before index
             while index < end:
                 ok, image = capture.read()
                 if not ok or image is None:
-                    if self.end_index is None:
+                    if self.end_index is None:      # no announced end: this is the end
                         return
-                    self.truncated = True
-                    warnings.warn(f"{self.path.name}: decoding stopped at frame {index} of "
-                                  f"{self.end_index} (corrupt or cut-off file); using the "
-                                  f"{self.frames_read} frames read", VideoTruncatedWarning,
-                                  stacklevel=2)
-                    return
+                    failed += 1
+                    index += 1        # a failed read consumes its frame (FFmpeg's backend)
+                    if failed >= give_up:
+                        break
+                    continue
+                if failed:
+                    first_skipped = index - failed if first_skipped is None else first_skipped
+                    self.frames_skipped += failed
+                    failed = 0
                 yield VideoFrame(index, index / self.fps, self._prepare(image))
                 self.frames_read += 1
                 index += 1
+            if failed:
+                stopped_at = index - failed
         finally:
             capture.release()
+        if self.frames_skipped:
+            warnings.warn(f"{self.path.name}: skipped {self.frames_skipped} undecodable "
+                          f"frame(s) from frame {first_skipped} on (a damaged file); the "
+                          f"tracks go on over them", VideoTruncatedWarning, stacklevel=2)
+        if stopped_at is not None:
+            self.truncated = True
+            warnings.warn(f"{self.path.name}: decoding stopped at frame {stopped_at} of "
+                          f"{self.end_index} (corrupt or cut-off file); using the "
+                          f"{self.frames_read} frames read", VideoTruncatedWarning,
+                          stacklevel=2)
 
+    def unreadable_run(self) -> int:
+        """Undecodable frames in a row after which the stream counts as ended
+        (:data:`UNREADABLE_RUN_S` of video, at least :data:`UNREADABLE_RUN_MIN`)."""
+        return max(UNREADABLE_RUN_MIN, math.ceil(UNREADABLE_RUN_S * self.fps))
 
     def _prepare(self, image: np.ndarray, size: tuple[int, int] | None = None) -> np.ndarray:
         """A decoded image -> BGR uint8 at ``size`` (width, height; default this source's)."""
@@ -170,8 +203,8 @@ class VideoSource:
                       ) -> list[np.ndarray]:
         """Up to ``count`` frames (BGR uint8 (H, W, 3)) evenly spaced over the selected range,
         e.g. to estimate the empty background; ``size`` (width, height) px shrinks them
-        (INTER_AREA), so a 4K video does not hold 25 full frames. Decoding stops at the first
-        frame that fails.
+        (INTER_AREA), so a 4K video does not hold 25 full frames. An undecodable frame is passed
+        over as in iteration; decoding stops where the stream ends (or seeking fails).
 
         Samples up to SEQUENTIAL_SPACING frames apart are read in one pass (grab() every frame,
         retrieve() only those kept): a seek decodes from the previous key frame, so on H.264
@@ -189,22 +222,25 @@ class VideoSource:
                 if _seek(capture, int(indices[0])) != indices[0]:
                     return images
                 wanted = set(indices.tolist())
+                failed, give_up = 0, self.unreadable_run()
                 for index in range(int(indices[0]), int(indices[-1]) + 1):
                     if not capture.grab():
-                        break
+                        failed += 1
+                        if failed >= give_up:
+                            break
+                        continue
+                    failed = 0
                     if index in wanted:
                         ok, image = capture.retrieve()
-                        if not ok or image is None:
-                            break
-                        images.append(self._prepare(image, size))
+                        if ok and image is not None:
+                            images.append(self._prepare(image, size))
                 return images
             for index in indices:
                 if _seek(capture, int(index)) != index:
                     break
                 ok, image = capture.read()
-                if not ok or image is None:
-                    break
-                images.append(self._prepare(image, size))
+                if ok and image is not None:
+                    images.append(self._prepare(image, size))
         finally:
             capture.release()
         return images
@@ -231,9 +267,14 @@ def _seek(capture: cv2.VideoCapture, start_index: int) -> int:
     if position == start_index:
         return start_index
     capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+    failed = 0                   # a damaged frame on the way is passed over, as in iteration
     for index in range(start_index):
-        if not capture.grab():
-            return index
+        if capture.grab():
+            failed = 0
+        else:
+            failed += 1
+            if failed >= UNREADABLE_RUN_MIN:
+                return index - failed + 1
     return start_index
 
 

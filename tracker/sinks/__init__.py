@@ -84,13 +84,18 @@ def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
     return opened
 
 
-def close_sinks(sinks: Iterable[Sink]) -> list[str]:
+def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
     """Close every sink, even when some fail (each holds the user's results); returns one
-    "Kind: message" line per failure."""
+    "Kind: message" line per failure. abandon: the run has nothing to give (it tracked
+    nobody): sinks with an ``abandon()`` method (the files) stop without writing, so what their
+    destinations held stays; the others are closed."""
     problems = []
     for sink in sinks:
         try:
-            sink.close()
+            if abandon and hasattr(sink, "abandon"):
+                sink.abandon()
+            else:
+                sink.close()
         except Exception as exc:
             problems.append(f"{type(sink).__name__}: {exc}")
     return problems

@@ -150,6 +150,13 @@ class BVHSink:
         finally:
             self._lock.release()
 
+    def abandon(self) -> None:
+        """Stop without writing any file (a run that tracked nobody); idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._lock.release()
+
     def __enter__(self) -> "BVHSink":
         return self
 

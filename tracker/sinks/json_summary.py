@@ -191,6 +191,14 @@ class JsonSummarySink:
             self._file.discard()
             raise
 
+    def abandon(self) -> None:
+        """Stop without writing (a run that tracked nobody): the partial file is removed and
+        the path keeps what it held; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._file.discard()
+
     def __enter__(self) -> "JsonSummarySink":
         return self
 

@@ -627,6 +627,15 @@ class McapSink:
             self._finalizer.detach()
             _finish(self._state)
 
+    def abandon(self) -> None:
+        """Stop without a recording (a run that tracked nobody): the partial file is removed
+        and the path keeps what it held; idempotent."""
+        if self.closed:
+            return
+        self._state["done"] = True
+        self._finalizer.detach()
+        self._state["stream"].discard()
+
     def __enter__(self) -> "McapSink":
         return self
 
