@@ -196,12 +196,17 @@ def test_output_path_that_cannot_be_written(tmp_path, walk_video):
     (["--min-area", "0"], "--min-area"),
     (["--min-area", "50"], "--min-area"),
     (["--min-area", "nan"], "--min-area"),
+    (["--fps", "0"], "--fps"),
+    (["--fps", "-30"], "--fps"),
+    (["--fps", "nan"], "--fps"),
+    (["--fps", "1e6"], "--fps"),
     (["--lag", "-1"], "--lag"),
     (["--lag", "nan"], "--lag"),
     (["--lag", "11"], "--lag"),
 ], ids=["max-people-0", "end-before-start", "negative-start", "start-past-end", "unknown",
         "roll-135", "roll-nan", "zone-foreground-maybe", "min-area-0", "min-area-50",
-        "min-area-nan", "lag-negative", "lag-nan", "lag-11"])
+        "min-area-nan", "fps-0", "fps-negative", "fps-nan", "fps-1e6", "lag-negative",
+        "lag-nan", "lag-11"])
 def test_absurd_options(tmp_path, walk_video, options, needle):
     _assert_one_line_error(_track(walk_video, *options, cwd=tmp_path), needle)
 

@@ -217,8 +217,21 @@ def test_bad_time_range_is_refused(tmp_path, start_s, end_s):
 
 def test_unusable_fps_override_is_refused(tmp_path):
     path = write_video(tmp_path / "clip.mp4", flat_frames(3))
-    with pytest.raises(VideoError, match="clip.mp4: frame rate 0.0 is unusable"):
+    with pytest.raises(VideoError, match="clip.mp4: frame rate 0 frames/s is unusable"):
         open_video(path, fps=0.0)
+
+
+def test_a_damaged_frame_rate_names_track_s_option(tmp_path):
+    """It said "pass fps= to state it", an argument track does not have."""
+    path = write_video(tmp_path / "clip.mp4", flat_frames(3), fps=2000.0)
+    with pytest.raises(VideoError, match=r"clip.mp4: frame rate 2000 .*\(track --fps\)"):
+        open_video(path)
+    assert open_video(path, fps=30.0).fps == 30.0
+
+
+def test_track_s_fps_bound_is_the_decoder_s():
+    from tracker import cli, video
+    assert cli.MAX_FPS == video.MAX_FPS
 
 
 def test_errors_are_one_line(tmp_path):

@@ -142,6 +142,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="track at most N people per frame (largest first)")
     ap.add_argument("--start", type=float, default=0.0, metavar="S", help="start at S seconds")
     ap.add_argument("--end", type=float, default=None, metavar="S", help="stop at S seconds")
+    ap.add_argument("--fps", type=float, default=None, metavar="F",
+                    help="the video's frame rate, frames/s, where its file's is missing or wrong "
+                         "(default: the file's)")
     ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
                     help="the camera's roll: how far the scene's vertical leans clockwise in "
                          "the image, degrees (silhouettes are turned upright; default 0)")
@@ -185,6 +188,8 @@ MIN_AREA_RANGE_PERCENT = (0.01, 20.0)
 #: tracker.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent, written out so that parsing the
 #: options loads no OpenCV (a test keeps the two equal).
 DEFAULT_MIN_AREA_PERCENT = 0.15
+#: --fps's upper bound, tracker.video.MAX_FPS (kept equal by a test, for the same reason).
+MAX_FPS = 1000.0
 
 
 def _check_options(args) -> None:
@@ -201,6 +206,9 @@ def _check_options(args) -> None:
                                      <= MAX_TIME_S):
         raise TrackError(f"--end must be after --start ({args.start} s) and at most "
                          f"{MAX_TIME_S:g} s, got {args.end}")
+    if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= MAX_FPS):
+        raise TrackError(f"--fps must be above 0 and at most {MAX_FPS:g} frames/s, "
+                         f"got {args.fps}")
     if args.lag is not None and not (math.isfinite(args.lag) and 0 <= args.lag <= MAX_LAG_S):
         raise TrackError(f"--lag must be between 0 and {MAX_LAG_S:g} seconds, got {args.lag}")
     low, high = MIN_AREA_RANGE_PERCENT
@@ -417,7 +425,7 @@ def _run(args) -> int:
                       f"which may not fit its side classifier (add its own: python "
                       f"scripts/learn_hypothesis_priors.py --model {args.model} --save NEW.npz)")
     check_interrupted()                  # the model and its imports are loaded
-    source = open_video(args.video, start_s=args.start, end_s=args.end)
+    source = open_video(args.video, start_s=args.start, end_s=args.end, fps=args.fps)
     plate = _load_background(args.background, source) if args.background else None
     streaming, smoothed = _sink_factories(args, source, model)
     sinks = open_sinks(streaming + smoothed)

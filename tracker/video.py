@@ -334,7 +334,8 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
         raise VideoError(f"{path}: resolution {width}x{height} is too large "
                          f"(each side must be at most {MAX_SIDE_PX} px)")
     if not (math.isfinite(rate) and 0.0 < rate <= MAX_FPS):
-        raise VideoError(f"{path}: frame rate {rate} is unusable; pass fps= to state it")
+        raise VideoError(f"{path}: frame rate {rate:g} frames/s is unusable (missing or damaged "
+                         f"metadata?); state the real one (track --fps)")
     frame_count = int(count) if math.isfinite(count) and count >= 1 else None
     if not (math.isfinite(start_s) and start_s >= 0) or \
             (end_s is not None and not end_s > start_s):
