@@ -157,7 +157,8 @@ def test_small_holes_filled_large_holes_kept():
     mask[10:90, 10:90] = 255
     mask[20:23, 20:23] = 0  # 9 px hole: a subtraction dropout
     mask[40:70, 40:70] = 0  # 900 px hole: real background (e.g. between arm and torso)
-    (person,) = person_masks(mask, (100, 100), min_area_fraction=0.01, max_hole_fraction=0.01)
+    (person,) = person_masks(mask, (100, 100), min_area_fraction=0.01, max_hole_fraction=0.01,
+                             max_area_fraction=1.0)      # 64 % of this small image
     assert person.bbox == (10, 10, 80, 80)
     assert person.mask[10:13, 10:13].all()
     assert not person.mask[30:60, 30:60].any()
@@ -397,3 +398,29 @@ def test_zone_labels_keep_foreground_outside_the_zone_sure():
     assert (colour[found & ~zone] == cv2.GC_FGD).all()
     assert (colour[zone] == cv2.GC_PR_FGD).all() and (colour[~found & ~zone] == cv2.GC_BGD).all()
 
+
+
+def test_a_black_or_blank_frame_shows_nobody_and_leaves_the_model_as_it_was():
+    """A black frame had divided by a zero gain and made the whole image one "person"."""
+    import warnings
+    rng = np.random.default_rng(9)
+    bg = background(320, 240)
+    extractor = SilhouetteExtractor()
+    extractor.prime(bg)
+    frame, truth = scene(bg, [(160, 130)], 150, rng)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                 # no "divide by zero" either
+        for blank in (np.zeros_like(bg), np.full_like(bg, 255)):
+            assert extractor(blank) == []
+    people = extractor(frame)                          # the model did not learn the blanks
+    assert len(people) == 1 and iou(people[0], truth) > 0.9
+
+
+def test_a_component_over_half_the_image_is_no_person():
+    mask = np.zeros((120, 160), np.uint8)
+    mask[5:115, 5:155] = 255                           # 86 % of the image
+    assert person_masks(mask, (160, 120)) == []
+    assert len(person_masks(mask, (160, 120), max_area_fraction=0.9)) == 1
+    mask[:] = 0
+    mask[20:110, 60:100] = 255                         # 19 %: a person close to the camera
+    assert len(person_masks(mask, (160, 120))) == 1

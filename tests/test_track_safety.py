@@ -459,6 +459,36 @@ def test_a_start_past_what_decodes_is_one_line_naming_the_file(tmp_path):
     assert not (tmp_path / "s.json").exists()
 
 
+def test_black_frames_before_the_scene_are_no_background_and_no_person(tmp_path, walk):
+    """80 black frames, then the walk: the background had been learned black, so every
+    frame's "person" was the whole image; a black frame inside made one such pose too."""
+    capture = cv2.VideoCapture(str(walk))
+    frames = []
+    while True:
+        ok, frame = capture.read()
+        if not ok:
+            break
+        frames.append(frame)
+    capture.release()
+    black = np.zeros_like(frames[0])
+    frames[20] = black                                          # a glitch inside the walk
+    path = tmp_path / "fade.mp4"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30.0,
+                             (black.shape[1], black.shape[0]))
+    for frame in [black] * 80 + frames:
+        writer.write(frame)
+    writer.release()
+    result = _track(path, "--json", "s.json", "--quiet", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "divide" not in result.stderr
+    (track,) = json.loads((tmp_path / "s.json").read_text())["tracks"]
+    assert track["first_frame"] >= 80 and 80 + 20 not in track["frames"]
+    width = black.shape[1]
+    # The walker, not the image: the centroids move along the walk, away from the centre.
+    xs = np.array(track["centroid_px"])[:, 0]
+    assert xs.max() - xs.min() > width / 4
+
+
 # ------------------------------------------------------------------ 15-18: resources
 
 

@@ -33,9 +33,15 @@ def clean_plate(image: np.ndarray) -> ClipBackground:
     return ClipBackground(image, np.zeros(image.shape[:2], bool))
 
 
+#: A global brightness gain further than this from 1 is undone before subtraction
+#: (tracker.silhouettes.BackgroundSubtractor) and before the clip's busy pixels are counted.
+MIN_GAIN_CHANGE = 0.03
+
+
 def clip_background(frames: np.ndarray, tolerance: float = 20.0, max_busy: float = 0.25,
                     close_px: int = 9, bridge_px: int = 31,
-                    min_area_fraction: float = 0.003) -> ClipBackground:
+                    min_area_fraction: float = 0.003,
+                    min_gain_change: float = MIN_GAIN_CHANGE) -> ClipBackground:
     """Background and its unreliable zone from frames (N, h, w, 3) BGR uint8 spread over a clip.
 
     A pixel is busy in a frame when a channel differs from the clip median by more than
@@ -47,9 +53,21 @@ def clip_background(frames: np.ndarray, tolerance: float = 20.0, max_busy: float
     standing and a moving leg), which is never busy and, open to the floor below, is no hole:
     without it Pose2Sim cam02 lost its hips in 20-45 % of frames. Two people passing side by
     side have nothing busy above the gap between them, which stays out.
+    A frame whose global brightness is more than ``min_gain_change`` from the clip median's
+    (its median gain, :class:`GainMeter`) is first brought to it, as the subtractor does with
+    each frame: under a slow change of light (auto-exposure, clouds) a bright sky had been busy
+    in most frames, and the zone it made was taken for a person.
     """
     stack = np.asarray(frames)
     median = np.median(stack, axis=0).astype(np.uint8)
+    meter = GainMeter(median)
+    gains = [meter(frame) for frame in stack]
+    changed = [np.all(g > 0) and np.abs(g - 1).max() > min_gain_change for g in gains]
+    if any(changed):
+        stack = np.stack([cv2.multiply(frame, tuple(float(1 / g) for g in gain) + (0.0,),
+                                       dtype=cv2.CV_8U) if change else frame
+                          for frame, gain, change in zip(stack, gains, changed)])
+        median = np.median(stack, axis=0).astype(np.uint8)
     busy = np.zeros(median.shape[:2], np.float32)
     for frame in stack:
         busy += cv2.absdiff(frame, median).max(axis=2) > tolerance

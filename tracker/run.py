@@ -343,10 +343,22 @@ def _sampled_background(source: VideoSource, tracker: PoseTracker, full_size: bo
         start_s = source.start_index / source.fps
         raise VideoError(f"{source.path}: no decodable frames from {start_s:g} s on "
                          f"(a cut-off or damaged file?)")
+    # Blank frames (black before a fade-in, a cut to white) are no picture of the scene: a
+    # median of mostly black samples made every later frame one whole-image "person".
+    scenes = [f for f in frames if not _blank(f)]
+    frames = scenes or frames
     median = median_background(frames)
     if full_size and size != full:
         median = cv2.resize(median, full, interpolation=cv2.INTER_CUBIC)
     return median, frames
+
+
+def _blank(frame: np.ndarray, max_spread: float = 3.0) -> bool:
+    """Whether a frame (BGR uint8 (h, w, 3)) is one flat colour: its grey levels' standard
+    deviation (every 4th pixel) under max_spread. A real scene, even a plain wall under
+    sensor noise, spreads wider."""
+    grey = frame[::4, ::4].mean(axis=2)
+    return float(grey.std()) < max_spread
 
 
 def _background(source: VideoSource, tracker: PoseTracker) -> np.ndarray:

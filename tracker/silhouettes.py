@@ -14,12 +14,18 @@ import numpy as np
 
 from regressor.errors import SilhouettePoseError
 from .area_shrink import shrink
-from .background import ClipBackground, GainMeter, clean_plate, clip_background
+from .background import (MIN_GAIN_CHANGE, ClipBackground, GainMeter, clean_plate,
+                         clip_background)
 from .noise_floor import FOREGROUND_LEVEL as _FOREGROUND_LEVEL, choose_var_min
 
 _SHADOW_LEVEL = 127              # MOG2's mark for shadow (foreground: _FOREGROUND_LEVEL)
-# A global brightness gain further than this from 1 is undone before subtraction.
-_MIN_GAIN_CHANGE = 0.03
+# A frame darker or brighter than the background by more than this factor in some channel (a
+# black or blank frame, a flash, a cut to another scene) shows no one: it cannot be undone
+# (a black frame's gain is 0), and subtracted as it is, the whole image was one "person".
+_MAX_GAIN_FACTOR = 4.0
+#: Components larger than this fraction of the image are not people (a change of the whole
+#: scene): a standing person filling a portrait frame's height covers about 15-35 %.
+DEFAULT_MAX_AREA_FRACTION = 0.5
 #: Components smaller than this fraction of the image are clutter, not people: at 640x480 a
 #: walker about 55 px tall or more passes (a 320x240 video: about 28 px). It was 0.003 until
 #: 2026-12-03, which lost walkers under about 70 px at 640x480 (a spiral walk rendered at 9 m,
@@ -208,7 +214,9 @@ class BackgroundSubtractor:
 
         Once a :attr:`reference` background is set (by :meth:`prime`), a global brightness
         change (clouds, auto-exposure) is undone first: the frame is divided by its median
-        per-channel gain over the reference when that is more than 3 % away from 1."""
+        per-channel gain over the reference when that is more than 3 % away from 1. A frame
+        whose gain is beyond a factor of 4 either way (black, blank, a flash) gets an empty mask
+        and leaves the model as it was."""
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise ExtractionError(f"frame must be BGR uint8 (H, W, 3), got {frame.dtype} "
                                   f"{frame.shape}")
@@ -219,7 +227,11 @@ class BackgroundSubtractor:
         saturated = None
         if self.reference is not None and self.normalise_brightness:
             gain = self._gain(small)
-            if np.abs(gain - 1).max() > _MIN_GAIN_CHANGE:
+            if not (np.all(gain >= 1 / _MAX_GAIN_FACTOR) and np.all(gain <= _MAX_GAIN_FACTOR)):
+                # Nobody can be told from such a frame; the model does not learn it either.
+                self.frames_seen += 1
+                return small, np.zeros(small.shape[:2], np.uint8)
+            if np.abs(gain - 1).max() > MIN_GAIN_CHANGE:
                 # Where the brighter light clips the background, the frame cannot be undone:
                 # such pixels are background, not a blob.
                 expected = cv2.multiply(self.reference, tuple(float(g) for g in gain) + (0.0,))
@@ -286,13 +298,16 @@ def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5,
 def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
                  min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION,
                  max_hole_fraction: float = 0.002, merge_fragments: bool = True,
-                 max_fragment_area: float = 0.15) -> list[PersonMask]:
+                 max_fragment_area: float = 0.15,
+                 max_area_fraction: float = DEFAULT_MAX_AREA_FRACTION) -> list[PersonMask]:
     """Split a cleaned foreground mask into one :class:`PersonMask` per 8-connected component.
 
     ``mask``: uint8 (h, w) at the working size, 255 = foreground. ``frame_size``: (width, height)
     px of the original frame; each person's crop is scaled up to it (linear interpolation,
     threshold at half). ``min_area_fraction``: components smaller than this fraction of the image
-    are dropped as clutter. ``max_hole_fraction``: holes (enclosed background) up to this fraction
+    are dropped as clutter; those larger than ``max_area_fraction`` as a change of the whole
+    scene (a background learned from other frames, a light switched on), not a person.
+    ``max_hole_fraction``: holes (enclosed background) up to this fraction
     of the image are filled as subtraction dropouts; larger ones are kept, because a gap such as
     between an arm on the hip and the torso is real background the pose depends on.
     ``merge_fragments``: join components that look like pieces of one person (see
@@ -311,7 +326,8 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
     areas = np.array([cv2.contourArea(c) for c in contours])
     # contourArea runs through boundary pixel centres, so it undercounts by about half the
     # perimeter; the gate only needs to reject clutter, the reported area is counted exactly.
-    outers = np.flatnonzero((parents == -1) & (areas >= min_area_fraction * image_area))
+    outers = np.flatnonzero((parents == -1) & (areas >= min_area_fraction * image_area)
+                            & (areas <= max_area_fraction * image_area))
     big_holes = np.flatnonzero((parents != -1) & (areas > max_hole_fraction * image_area))
     rects = np.array([cv2.boundingRect(contours[o]) for o in outers]).reshape(-1, 4)
     people = []
