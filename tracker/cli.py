@@ -413,7 +413,7 @@ def _run(args) -> int:
     from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
     from .pipeline import PoseTracker
     from .progress import Progress
-    from .run import track_video
+    from .run import BackgroundMismatchError, track_video
     from .sinks import open_sinks
     from .video import open_video
 
@@ -430,10 +430,14 @@ def _run(args) -> int:
     streaming, smoothed = _sink_factories(args, source, model)
     sinks = open_sinks(streaming + smoothed)
     tracker = PoseTracker(model, source.fps, tracker_settings(args))
-    result = track_video(source, tracker, sinks[:len(streaming)],
-                         _StopOnInterrupt(Progress(source.expected_frames(), quiet=args.quiet)),
-                         smoothed_sinks=sinks[len(streaming):], background=plate,
-                         workers=args.workers, lag_s=lag_seconds(args), write_empty=False)
+    try:
+        result = track_video(source, tracker, sinks[:len(streaming)],
+                             _StopOnInterrupt(Progress(source.expected_frames(),
+                                                       quiet=args.quiet)),
+                             smoothed_sinks=sinks[len(streaming):], background=plate,
+                             workers=args.workers, lag_s=lag_seconds(args), write_empty=False)
+    except BackgroundMismatchError as exc:
+        raise TrackError(f"--background {args.background}: {exc}") from None
     if not args.quiet:
         try:
             bvh_files = None

@@ -26,13 +26,18 @@ from regressor.errors import SilhouettePoseError
 from .fixed_lag import FixedLagSmoother, drawn_at, streamed_kind
 from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from .pipeline import PoseTracker
+from .background import GainMeter
 from .silhouettes import median_background
 from .sinks import PoseRecorder, Sink, close_sinks
-from .video import VideoError, VideoSource, open_video
+from .video import VideoError, VideoSource, colourless, open_video
 
 
 class OutputError(SilhouettePoseError, RuntimeError):
     """Some outputs could not be finished; the message lists them."""
+
+
+class BackgroundMismatchError(SilhouettePoseError, ValueError):
+    """A clean plate (track --background) that is not of the video's scene."""
 
 
 @dataclass
@@ -318,6 +323,7 @@ def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | N
     can use them (``learn_zone``), the same frames to find where that median shows a person who
     never leaves the spot (tracker.background.clip_background)."""
     if background is not None:
+        _check_plate(source, background)
         tracker.prime(background)
         return
     median, frames = _sampled_background(source, tracker, full_size=False)
@@ -329,6 +335,46 @@ def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | N
     learn_zone = getattr(tracker.extractor, "learn_zone", None)
     if learn_zone is not None:
         learn_zone(frames)
+
+
+#: A clean plate is refused when, in most of these frames spread over the video, the frame
+#: (its brightness brought to the plate's) differs from it all over: in more than
+#: PLATE_MAX_CELLS of the cells of an 8 x 8 grid, over a tenth of the pixels differ by more
+#: than PLATE_TOLERANCE grey levels. A person is one blob (the sample's walker touches about
+#: 10 % of the cells against its plate, a mirrored plate 95 %).
+PLATE_CHECK_FRAMES, PLATE_MAX_CELLS, PLATE_TOLERANCE = 5, 0.75, 25
+
+
+def _check_plate(source: VideoSource, plate: np.ndarray) -> None:
+    """BackgroundMismatchError when the clean plate (BGR uint8 at the video's size) is not of
+    this video's scene: another scene or camera, or grey against colour. Such a plate had made
+    every frame one whole-image "person", or nobody at all with a misleading message."""
+    scale = min(1.0, 320 / max(source.width, source.height))
+    size = (max(1, round(source.width * scale)), max(1, round(source.height * scale)))
+    small = cv2.resize(plate, size, interpolation=cv2.INTER_AREA)
+    frames = source.sample_frames(PLATE_CHECK_FRAMES, size=size)
+    if not frames:
+        return               # nothing decodes: the tracking loop says so
+    plate_grey, video_grey = colourless(small), colourless(frames[len(frames) // 2])
+    if plate_grey != video_grey:
+        raise BackgroundMismatchError(
+            f"the background image is {'grey' if plate_grey else 'in colour'} and the video "
+            f"{'grey' if video_grey else 'in colour'}: not a clean plate of this video")
+    meter = GainMeter(small)
+    changed = []
+    for frame in frames:
+        gain = meter(frame)
+        if np.all(gain > 0):
+            frame = cv2.multiply(frame, tuple(float(1 / g) for g in gain) + (0.0,),
+                                 dtype=cv2.CV_8U)
+        differs = (cv2.absdiff(frame, small).max(axis=2) > PLATE_TOLERANCE).astype(np.float32)
+        cells = cv2.resize(differs, (8, 8), interpolation=cv2.INTER_AREA)
+        changed.append(float((cells > 0.1).mean()))
+    if np.median(changed) > PLATE_MAX_CELLS:
+        raise BackgroundMismatchError(
+            f"the background image differs from the video all over ({np.median(changed):.0%} "
+            f"of the image's regions, median over {len(frames)} frames): not a clean plate of "
+            f"this scene and camera")
 
 
 def _sampled_background(source: VideoSource, tracker: PoseTracker, full_size: bool = True
