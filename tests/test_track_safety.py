@@ -231,6 +231,17 @@ def test_json_to_a_stdout_redirected_to_a_file_lands_in_that_file(tmp_path, walk
     assert (tmp_path / "fd" / "stdout").is_symlink()
 
 
+def test_a_dash_is_standard_output(tmp_path, walk):
+    """`--json -` had written a file named "-"."""
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    code = subprocess.run([sys.executable, "-m", "tracker.cli", str(walk), "--json", "-",
+                           "--end", "0.5"], cwd=tmp_path, env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert code.returncode == 0, code.stderr
+    assert json.loads(code.stdout)["frames"] == 15 and "tracked 15 frames" in code.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_bvh_name_that_is_a_symlink_is_replaced_not_followed(tmp_path, walk):
     """BVH files are named by track, not the user: a link of that name (here to the input
     video) is replaced by the file; what it points to is left alone."""

@@ -102,8 +102,11 @@ class TrackError(SilhouettePoseError):
 
 
 def _file_name(text: str) -> Path:
-    """An output file's path as given; one ending in a slash names a folder (Path would drop
-    the slash and write a file of the folder's name)."""
+    """An output file's path as given; "-" is standard output (/dev/stdout), as command-line
+    tools read it (it had written a file named "-"); one ending in a slash names a folder
+    (Path would drop the slash and write a file of the folder's name)."""
+    if text == "-":
+        return Path("/dev/stdout")
     if text.endswith(("/", os.sep)) or os.path.basename(text) in ("", ".", ".."):
         raise argparse.ArgumentTypeError(f"{text} names a folder; give a file name")
     return Path(text)
