@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
-from sequences.body import BodyShape, Skinner, load_body
+from sequences.body import BodyPoseError, BodyShape, Skinner, load_body
 from sequences.bvh import BVHError, read_bvh
 from sequences.render import look_at_camera, shaded_render, silhouette_mask
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
@@ -82,6 +82,9 @@ def _main(argv) -> int:
         sheet = _sheet(motion, args.frame)
         # Whole or not at all; the temporary name keeps the suffix, which OpenCV reads.
         write_whole(args.out, lambda path: _write(path, sheet, args.out), keep_suffix=True)
+    except BodyPoseError as exc:            # the file's skeleton, which the message does not name
+        print(f"contact_sheet: error: --bvh {args.bvh}: {exc}", file=sys.stderr)
+        return 1
     except (SilhouettePoseError, OutputWriteError, ValueError) as exc:
         print(f"contact_sheet: error: {exc}", file=sys.stderr)
         return 1

@@ -30,6 +30,7 @@ from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from regressor.errors import SilhouettePoseError
+from sequences.body import BodyPoseError
 from sequences.video import VIDEO_SUFFIXES, partial_video, replace_video, truth_path
 from tracker import TrackerSettings
 from tracker.offline.evaluation import (AnkurOptions, CameraOptions, ankur_sequence, evaluate,
@@ -230,6 +231,9 @@ def main(argv=None) -> int:
         done = f"wrote only {', '.join(written)}" if written else "nothing written"
         print(f"evaluate_jitter: interrupted; {done}", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BodyPoseError as exc:            # the file's skeleton, which the message does not name
+        print(f"evaluate_jitter: error: --bvh {args.bvh}: {exc}", file=sys.stderr)
+        return 1
     except (OSError, SilhouettePoseError, ValueError, MemoryError) as exc:
         print(f"evaluate_jitter: error: {' '.join(str(exc).split()) or type(exc).__name__}",
               file=sys.stderr)

@@ -20,6 +20,23 @@ from regressor.errors import SilhouettePoseError
 _POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 _ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
 _TOKEN = re.compile(r"[{}]|[^\s{}]+")
+#: Joints nested deeper than this are no skeleton (a body has about 10 levels); a file nesting
+#: thousands had overflowed the parser's recursion.
+MAX_DEPTH = 256
+#: Frame times outside this range (seconds) are no motion capture: 10 kHz to one frame in
+#: 10 s. A frame time of 100 s had made a 530-line file 1,026,001 frames at 30 fps (12 GB).
+FRAME_TIME_RANGE = (1e-4, 10.0)
+#: A motion longer than this (frames, at the rate asked for) is refused before resampling.
+MAX_RESAMPLED_FRAMES = 10_000_000
+#: Offsets and root positions beyond this (file units; CMU's are 5.6 cm, so 56 km) are damage,
+#: not a body: 1e300 had passed, to be blamed later on a camera distance.
+MAX_COORDINATE = 1e6
+
+
+def _short(token: str, limit: int = 40) -> str:
+    """repr() of a token, cut to ``limit`` characters: an error about a binary file's
+    'token' had been one line of 20,000 characters."""
+    return repr(token) if len(token) <= limit else repr(token[:limit]) + "..."
 
 
 class BVHError(SilhouettePoseError, ValueError):
@@ -120,7 +137,7 @@ class _Tokens:
     def expect(self, word: str) -> int:
         line, tok = self.next(repr(word))
         if tok != word:
-            raise self.error(f"expected {word!r}, got {tok!r}", line)
+            raise self.error(f"expected {word!r}, got {_short(tok)}", line)
         return line
 
     def number(self, what: str) -> float:
@@ -128,9 +145,10 @@ class _Tokens:
         try:
             value = float(tok)
         except ValueError:
-            raise self.error(f"expected a number for {what}, got {tok!r}", line) from None
+            raise self.error(f"expected a number for {what}, got {_short(tok)}",
+                             line) from None
         if not np.isfinite(value):
-            raise self.error(f"non-finite {what}: {tok!r}", line)
+            raise self.error(f"non-finite {what}: {_short(tok)}", line)
         return value
 
     def peek(self) -> str | None:
@@ -173,8 +191,14 @@ def _parse_channels(tok: _Tokens, name: str, is_root: bool) -> list[str]:
     return channels
 
 
-def _parse_joint(tok: _Tokens, skel: _Skeleton, name: str, parent: int) -> None:
+def _parse_joint(tok: _Tokens, skel: _Skeleton, name: str, parent: int, depth: int = 0
+                 ) -> None:
     open_line = tok.expect("{")
+    if depth > MAX_DEPTH:
+        raise tok.error(f"joints nested more than {MAX_DEPTH} deep", open_line)
+    if name in skel.names:
+        # Two joints of one name: the body model took the first, the pose vector the last.
+        raise tok.error(f"a second joint named {_short(name)}", open_line)
     index = len(skel.names)
     skel.names.append(name)
     skel.parents.append(parent)
@@ -189,7 +213,7 @@ def _parse_joint(tok: _Tokens, skel: _Skeleton, name: str, parent: int) -> None:
         if word == "JOINT":
             tok.next("JOINT")
             _, child = tok.next("joint name")
-            _parse_joint(tok, skel, child, index)
+            _parse_joint(tok, skel, child, index, depth + 1)
         elif word == "End":
             tok.next("End")
             tok.expect("Site")
@@ -200,7 +224,8 @@ def _parse_joint(tok: _Tokens, skel: _Skeleton, name: str, parent: int) -> None:
             raise tok.error(f"unbalanced braces: joint {name!r} opened on line {open_line} "
                             f"is not closed")
         else:
-            raise tok.error(f"expected JOINT, End Site or '}}' in joint {name!r}, got {word!r}")
+            raise tok.error(f"expected JOINT, End Site or '}}' in joint {name!r}, got "
+                            f"{_short(word)}")
 
 
 def _parse_hierarchy(lines: list[str], source: str) -> _Skeleton:
@@ -209,14 +234,14 @@ def _parse_hierarchy(lines: list[str], source: str) -> _Skeleton:
         raise BVHError(f"{source} line 1: empty file, expected HIERARCHY")
     line, word = tok.next("HIERARCHY")
     if word != "HIERARCHY":
-        raise tok.error(f"expected HIERARCHY, got {word!r}", line)
+        raise tok.error(f"expected HIERARCHY, got {_short(word)}", line)
     tok.expect("ROOT")
     _, root = tok.next("root name")
     skel = _Skeleton()
     _parse_joint(tok, skel, root, -1)
     if tok.peek() != "MOTION":
         word = tok.peek()
-        what = "end of file" if word is None else repr(word)
+        what = "end of file" if word is None else _short(word)
         if word == "}":
             raise tok.error("unbalanced braces: '}' without a matching '{'")
         raise tok.error(f"expected MOTION after the hierarchy, got {what}")
@@ -286,12 +311,16 @@ def read_bvh(path: str | Path, fps: float | None = 30.0, drop_tpose: str | bool 
     """
     path = Path(path)
     source = path.name
-    text = path.read_text(encoding="utf-8", errors="replace")
+    text = path.read_text(encoding="utf-8", errors="replace").removeprefix("\ufeff")  # a BOM
     match = re.search(r"^[ \t]*MOTION[ \t]*\r?$", text, flags=re.MULTILINE)
     head = text[: match.start()] if match else text
     head_lines = head.splitlines()
     skel = _parse_hierarchy(head_lines + (["MOTION"] if match else []), source)
     motion_line = len(head_lines) + 1
+    if match is None:     # the hierarchy ended at a MOTION that shares its line with more
+        lineno = next((n for n, line in enumerate(head_lines, 1) if "MOTION" in line.split()),
+                      len(head_lines))
+        raise BVHError(f"{source} line {lineno}: 'MOTION' must stand alone on its line")
 
     rest = text[match.end():]
     if rest.startswith("\r"):
@@ -303,12 +332,13 @@ def read_bvh(path: str | Path, fps: float | None = 30.0, drop_tpose: str | bool 
                        f"'Frame Time:' after MOTION")
     frames_value = _header_value(header[0], "Frames", source, motion_line + 1)
     frame_time = _header_value(header[1], "Frame Time", source, motion_line + 2)
-    if frames_value != int(frames_value) or frames_value < 1:
+    if not np.isfinite(frames_value) or frames_value != int(frames_value) or frames_value < 1:
         raise BVHError(f"{source} line {motion_line + 1}: need a positive whole number of "
                        f"frames, got {header[0].strip()!r}")
-    if not (np.isfinite(frame_time) and frame_time > 0):
-        raise BVHError(f"{source} line {motion_line + 2}: frame time must be positive, "
-                       f"got {header[1].strip()!r}")
+    low, high = FRAME_TIME_RANGE
+    if not (np.isfinite(frame_time) and low <= frame_time <= high):
+        raise BVHError(f"{source} line {motion_line + 2}: frame time must be between {low:g} "
+                       f"and {high:g} s, got {_short(header[1].strip())}")
     n_frames = int(frames_value)
     n_values = sum(len(c) for c in skel.channels)
     block = header[2] if len(header) == 3 else ""
@@ -321,6 +351,12 @@ def read_bvh(path: str | Path, fps: float | None = 30.0, drop_tpose: str | bool 
         ok = False
     if not ok:
         raise _diagnose_motion(block, first_data_line, n_frames, n_values, source)
+    far = np.flatnonzero(np.abs(data[:, :3]).max(axis=1) > MAX_COORDINATE)
+    if len(far):
+        raise BVHError(f"{source} line {first_data_line + int(far[0])}: root position beyond "
+                       f"{MAX_COORDINATE:g} units")
+    if np.abs(np.array(skel.offsets)).max() > MAX_COORDINATE:
+        raise BVHError(f"{source}: a joint OFFSET beyond {MAX_COORDINATE:g} units")
 
     n_pos = 3
     if drop_tpose == "auto":
@@ -360,6 +396,11 @@ def resample(motion: Motion, fps: float) -> Motion:
     """
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"fps must be positive, got {fps!r}")
+    frames_out = (motion.n_frames - 1) / motion.fps * fps + 1
+    if frames_out > MAX_RESAMPLED_FRAMES:
+        raise BVHError(f"{motion.source or 'motion'}: {motion.n_frames} frames at "
+                       f"{motion.fps:g} fps would be {frames_out:.3g} frames at {fps:g} fps "
+                       f"(at most {MAX_RESAMPLED_FRAMES:,})")
     ratio = motion.fps / fps
     step = round(ratio)
     if abs(ratio - step) < 1e-9 and step >= 1:

@@ -245,3 +245,43 @@ def test_cmu_read_write_read_is_exact(cmu_bvh_dir, tmp_path):
         np.testing.assert_allclose(second.euler_deg, first.euler_deg, atol=1e-6, rtol=0)
         np.testing.assert_allclose(second.root_position, first.root_position, atol=1e-6, rtol=0)
         np.testing.assert_allclose(second.offsets, first.offsets, atol=1e-6, rtol=0)
+
+
+@pytest.mark.parametrize("change, says", [
+    (("\nMOTION\n", "\nMOTION extra\n"), "line 16: 'MOTION' must stand alone"),
+    (("Frames: 3", "Frames: inf"), "need a positive whole number of frames"),
+    (("Frames: 3", "Frames: nan"), "need a positive whole number of frames"),
+    (("Frame Time: 0.0083333", "Frame Time: 1e-310"), "frame time must be between"),
+    (("Frame Time: 0.0083333", "Frame Time: 100"), "frame time must be between"),
+    (("JOINT Chest", "JOINT Hips"), "a second joint named 'Hips'"),
+    (("1.6 2.6 3.6", "1.6 1e300 3.6"), "line 20: root position beyond"),
+], ids=["motion-not-alone", "frames-inf", "frames-nan", "frame-time-subnormal",
+        "frame-time-100", "duplicate-joint", "root-1e300"])
+def test_damaged_headers_and_values_are_one_bvh_error(tmp_path, change, says):
+    """Each had been a traceback (AttributeError, OverflowError, ValueError), a 12 GB
+    resampling, or a file read with two joints of one name (the body model took the first,
+    the pose vector the last)."""
+    text = _tiny_text()
+    assert change[0] in text
+    message = _error(tmp_path, text.replace(change[0], change[1], 1))
+    assert message.startswith("tiny.bvh") and says in message
+
+
+def test_a_byte_order_mark_is_read_and_binary_junk_is_named_briefly(tmp_path):
+    text = _tiny_text()
+    path = tmp_path / "bom.bvh"
+    path.write_bytes("\ufeff".encode() + text.encode())
+    assert read_bvh(path, fps=None, drop_tpose=False).n_frames == 3
+    message = _error(tmp_path, "\x00" * 20000)
+    assert "expected HIERARCHY" in message and len(message) < 300     # was 80,000
+
+
+def test_thousands_of_nested_joints_are_refused_not_a_recursion_error(tmp_path):
+    depth = 3000
+    joints = "".join(f"JOINT J{i}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Yrotation "
+                     f"Xrotation\n" for i in range(depth))
+    text = ("HIERARCHY\nROOT Hips\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition Zposition "
+            "Zrotation Yrotation Xrotation\n" + joints + "}\n" * (depth + 1)
+            + "MOTION\nFrames: 1\nFrame Time: 0.0333333\n" + " ".join(["0"] * (6 + 3 * depth))
+            + "\n")
+    assert "nested more than" in _error(tmp_path, text)

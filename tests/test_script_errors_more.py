@@ -447,3 +447,17 @@ def test_render_videos_help_gives_the_elevations_it_takes(capsys):
     with pytest.raises(SystemExit):
         load_script("render_video").main(["--help"])
     assert "strictly between -89 and 89" in " ".join(capsys.readouterr().out.split())
+
+
+def test_a_skeleton_without_the_cmu_joints_is_named_by_its_file(contact_sheet, evaluate_jitter,
+                                                                walk_bvh, tmp_path, capsys):
+    """"skeleton lacks the CMU joints" had not said which file."""
+    odd = tmp_path / "odd.bvh"
+    odd.write_text(walk_bvh.read_text().replace("LeftUpLeg", "LeftThigh"))
+    assert contact_sheet.main(["--bvh", str(odd), "--out", str(tmp_path / "s.png"),
+                               "--frame", "0"]) == 1
+    assert _one_line(capsys.readouterr().err) == (
+        f"contact_sheet: error: --bvh {odd}: skeleton lacks the CMU joints ['LeftUpLeg']")
+    assert evaluate_jitter.main(["--bvh", str(odd)]) == 1
+    assert _one_line(capsys.readouterr().err) == (
+        f"evaluate_jitter: error: --bvh {odd}: skeleton lacks the CMU joints ['LeftUpLeg']")
