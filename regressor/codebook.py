@@ -18,6 +18,11 @@ class CodebookError(SilhouettePoseError, ValueError):
     """A codebook's arrays, or the data given to fit or use one, are malformed."""
 
 
+#: The Gaussian votes' width. Shape contexts sum to 1, so two lie at most sqrt(2) apart: widths
+#: outside this range are damage (1e300 had overflowed its square, 1e-300 made every vote NaN).
+SIGMA_RANGE = (1e-6, 1e3)
+
+
 @dataclass(frozen=True, eq=False)
 class Codebook:
     """k-means centres of shape contexts and the width of the Gaussian votes onto them.
@@ -35,8 +40,10 @@ class Codebook:
             raise CodebookError(f"codebook centres must be (K, D) with K, D >= 1, got shape {centres.shape}")
         if not np.all(np.isfinite(centres)):
             raise CodebookError("codebook centres contain NaN or infinite values")
-        if not (np.isfinite(self.sigma) and self.sigma > 0):
-            raise CodebookError(f"codebook sigma must be a positive finite number, got {self.sigma}")
+        low, high = SIGMA_RANGE
+        if not (np.isfinite(self.sigma) and low <= self.sigma <= high):
+            raise CodebookError(f"codebook sigma must be within {low:g}..{high:g}, got "
+                                f"{self.sigma}")
         centres = np.array(centres, dtype=np.float64)  # a private copy, read-only: a codebook never changes
         centres.flags.writeable = False
         object.__setattr__(self, "centres", centres)

@@ -73,13 +73,17 @@ class DescriptorSettings:
             "n_points": 10 <= self.n_points <= MAX_EDGE_POINTS,
             "n_angular": 1 <= self.n_angular <= 360,
             "n_radial": 1 <= self.n_radial <= 100,
-            "r_inner": 0 < self.r_inner < self.r_outer < 1e6,
+            "r_inner": 0 < self.r_inner,
+            "r_outer": self.r_inner < self.r_outer < 1e6,    # named on its own (it said r_inner)
             "n_votes": 1 <= self.n_votes <= 10_000,
             "total": 0 < self.total < 1e12,
         }
         for name, ok in checks.items():
             if not ok:
-                raise DescriptorSettingsError(f"descriptor setting {name}={getattr(self, name)!r} is out of range")
+                why = (f" (it must exceed r_inner={self.r_inner!r} and stay under 1e6)"
+                       if name == "r_outer" else "")
+                raise DescriptorSettingsError(f"descriptor setting {name}={getattr(self, name)!r} "
+                                              f"is out of range{why}")
 
     @property
     def context_size(self) -> int:
@@ -101,7 +105,13 @@ class DescriptorSettings:
             value = np.asarray(arrays[key])
             if value.shape != ():
                 raise DescriptorSettingsError(f"{key} must be a scalar, got shape {value.shape}")
-            values[f.name] = {"int": int, "bool": bool, "float": float}[f.type](value.item())
+            # The stored kind must be the field's: bool("False") is True, int(300.7) 300.
+            kinds, convert = {"int": ("iu", int), "bool": ("b", bool),
+                              "float": ("fiu", float)}[f.type]
+            if value.dtype.kind not in kinds:
+                raise DescriptorSettingsError(f"{key} must be {f.type}, got {value.dtype} "
+                                              f"{value.item()!r}")
+            values[f.name] = convert(value.item())
         return cls(**values)
 
 

@@ -47,7 +47,29 @@ from .errors import SilhouettePoseError
 FORMAT_VERSION = 1
 SUPPORTED_VERSIONS = (1,)
 _RESERVED = ("format_version", "checksum")
+_KIND_NAMES = {"fiu": "numbers", "iu": "whole numbers", "b": "a boolean", "U": "text"}
 BASIS_KINDS = ("linear", "gaussian")
+#: The numpy dtype kinds each named part of the format may have. A part of another kind is
+#: refused: converted as it was read, a string "False" became True, 300.7 became 300 and
+#: "0.5" a number. (Floats may be stored as whole numbers; the limb and side networks' parts
+#: are checked by regressor.limb_net and regressor.side_classifier.)
+_FLOAT_PARTS = (
+    "codebook_centres", "codebook_sigma", "descriptor_r_inner", "descriptor_r_outer",
+    "descriptor_total", "width", "centres", "coef", "intercept", "angle_centre_deg",
+    "measurement_covariance", "process_noise", "ambiguity_threshold", "layout_weight",
+    "projection", "projection_mean", "canonical_direction", "mixture_expert_width",
+    "mixture_expert_intercept", "mixture_partition_centres", "mixture_gate_centres",
+    "mixture_gate_width", "mixture_gate_feature_mean", "mixture_gate_feature_std",
+    "mixture_gate_weights", "heading_index_inputs", "heading_index_folded_deg",
+    "heading_index_limit_deg", "heading_index_typical_distance")
+_INTEGER_PARTS = (
+    "descriptor_n_points", "descriptor_n_angular", "descriptor_n_radial", "descriptor_n_votes",
+    "stack_depth", "relevance", "layout_grid", "mixture_expert_offsets", "mixture_top_experts",
+    "heading_index_k")
+PART_KINDS = {**{name: "fiu" for name in _FLOAT_PARTS}, **{name: "iu" for name in _INTEGER_PARTS},
+              "descriptor_include_holes": "b",
+              **{name: "U" for name in ("model_kind", "transform", "basis", "description",
+                                        "mixture_params")}}
 
 
 class ModelFileError(SilhouettePoseError, ValueError):
@@ -148,6 +170,10 @@ def load_model(path: str | Path) -> ModelFile:
     except MemoryError:                 # a part whose header declares an absurd size
         raise ModelFileError(f"{where}: not a readable model file (a part declares more data "
                              f"than fits in memory)") from None
+    foreign = [k for k, a in arrays.items() if not isinstance(a, np.ndarray)]
+    if foreign:       # np.load gives a member that is not an .npy array as its raw bytes
+        raise ModelFileError(f"{where}: not a model file: member {foreign[0]!r} of the archive "
+                             f"is not an array")
     if "format_version" not in arrays:
         raise ModelFileError(f"{where}: no format_version; not a model file")
     version = arrays.pop("format_version")
@@ -180,6 +206,9 @@ def _validate(where: str, p: Mapping[str, np.ndarray]) -> None:
             fail(f"{name} must be a {ndim}-D array of kind {kinds!r}; got shape {a.shape} dtype {a.dtype}")
         return a
 
+    for name, kinds in PART_KINDS.items():
+        if name in p and p[name].dtype.kind not in kinds:
+            fail(f"{name} is stored as {p[name].dtype}, not as {_KIND_NAMES[kinds]}")
     basis = need("basis", 0, "U")
     if basis is not None and str(basis) not in BASIS_KINDS:
         fail(f"basis {str(basis)!r} is not one of {BASIS_KINDS}")

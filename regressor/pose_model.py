@@ -69,6 +69,8 @@ DEFAULT_AMBIGUITY_THRESHOLD = 0.5
 #: The frame rate of the training sequences when a model's description does not say
 #: (sequences.dataset.DatasetConfig.fps).
 DEFAULT_TRAINING_FPS = 30.0
+#: A model's described training rate must lie in this range (frames/s).
+MIN_TRAINING_FPS, MAX_TRAINING_FPS = 1.0, 1000.0
 MIXTURE_KIND = "silhouette-pose-mixture"    # a mixture of experts (regressor.mixture)
 
 
@@ -513,7 +515,10 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
         raise
     except ModelFileError as exc:
         raise PoseModelError(str(exc)) from exc
-    except (KeyError, ValueError, TypeError, CodebookError, DescriptorSettingsError) as exc:
+    except KeyError as exc:
+        raise PoseModelError(f"{path}: malformed model file: part {exc.args[0]!r} is "
+                             f"missing") from exc
+    except (ValueError, TypeError, CodebookError, DescriptorSettingsError) as exc:
         raise PoseModelError(f"{path}: malformed model file ({exc})") from exc
     _validate(path, model)
     return model
@@ -557,6 +562,16 @@ def _validate(path: Path, m: PoseModel) -> None:
         arrays.append(m.centres)
     checks.append((all(np.isfinite(x).all() for x in arrays), "non-finite values"))
     checks.append((0.0 <= m.ambiguity_threshold <= 1.0, "ambiguity threshold must be in [0, 1]"))
+    dataset = m.description.get("dataset") if isinstance(m.description, dict) else None
+    fps = dataset.get("fps") if isinstance(dataset, dict) else None
+    # The tracker stacks frames by this rate: 1e-4 had taken minutes and gigabytes.
+    checks.append((fps is None or (isinstance(fps, (int, float)) and not isinstance(fps, bool)
+                                   and MIN_TRAINING_FPS <= fps <= MAX_TRAINING_FPS),
+                   f"the description's data set fps {fps!r} is not a frame rate in "
+                   f"{MIN_TRAINING_FPS:g}..{MAX_TRAINING_FPS:g}"))
+    checks.append((m.codebook.centres.shape[1] == m.settings.context_size,
+                   f"the codebook's centres have {m.codebook.centres.shape[1]} columns, the "
+                   f"descriptor settings' shape contexts {m.settings.context_size} bins"))
     for ok, problem in checks:
         if not ok:
             raise PoseModelError(f"{path}: invalid model: {problem}")

@@ -289,3 +289,20 @@ def test_bad_settings_are_refused():
     del arrays["descriptor_n_votes"]
     with pytest.raises(DescriptorSettingsError, match="descriptor_n_votes"):
         DescriptorSettings.from_arrays(arrays)
+
+
+@pytest.mark.parametrize("name, value", [
+    ("descriptor_include_holes", np.str_("False")), ("descriptor_include_holes", np.int64(2)),
+    ("descriptor_n_points", np.float64(300.7)), ("descriptor_n_votes", np.str_("5")),
+    ("descriptor_r_outer", np.str_("3.0"))])
+def test_stored_settings_of_the_wrong_kind_are_refused(name, value):
+    """bool("False") is True and int(300.7) 300: a tampered file had been misread silently."""
+    arrays = {**DescriptorSettings().to_arrays(), name: value}
+    with pytest.raises(DescriptorSettingsError, match=f"{name} must be"):
+        DescriptorSettings.from_arrays(arrays)
+
+
+def test_a_bad_r_outer_is_named_as_such():
+    with pytest.raises(DescriptorSettingsError, match=r"r_outer=0.01 is out of range \(it must "
+                                                      r"exceed r_inner=0.125"):
+        DescriptorSettings(r_outer=0.01)

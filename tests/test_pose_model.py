@@ -1,12 +1,14 @@
-"""The pose model file stores the ambiguity threshold it was trained with; the tracker uses it."""
+"""The pose model file stores the ambiguity threshold it was trained with; the tracker uses it;
+edited model files are refused at load."""
 from __future__ import annotations
 
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from regressor.model_file import load_model, save_model
-from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, DEFAULT_MODEL_PATH,
+from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, DEFAULT_MODEL_PATH, PoseModelError,
                                   load_pose_model, save_pose_model, training_fps_of)
 from tracker import PoseTracker, TrackerSettings
 from tracker.hypotheses import chain_options
@@ -56,3 +58,57 @@ def test_the_tracker_stacks_and_tempers_at_the_models_training_frame_rate():
     assert replace(model, description={}).training_fps == 30.0
     # A bare estimator (no training_fps) is taken as trained at the data sets' 30 fps.
     assert training_fps_of(object()) == 30.0 == chain_options(object())["reference_fps"]
+
+
+# ------------------------------------------------------------------ edited model files
+
+
+def _edited(path, **changes):
+    """The shipped model with some parts changed or (value None) removed and its checksum
+    recomputed, as a deliberate edit would be; returns the path."""
+    import json as _json
+    from regressor.model_file import FORMAT_VERSION, checksum
+    with np.load(DEFAULT_MODEL_PATH, allow_pickle=False) as npz:
+        parts = {k: npz[k] for k in npz.files if k not in ("format_version", "checksum")}
+    for name, value in changes.items():
+        if name == "dataset_fps":
+            description = _json.loads(str(parts["description"]))
+            description["dataset"]["fps"] = value
+            parts["description"] = np.str_(_json.dumps(description))
+        elif value is None:
+            del parts[name]
+        else:
+            parts[name] = value(parts[name]) if callable(value) else value
+    np.savez(path, **parts, format_version=np.int64(FORMAT_VERSION),
+             checksum=np.str_(checksum(parts)))
+    return path
+
+
+@pytest.mark.parametrize("changes, says", [
+    (dict(descriptor_include_holes=np.str_("False")), "descriptor_include_holes is stored as"),
+    (dict(mixture_top_experts=np.float64(2.5)), "mixture_top_experts is stored as"),
+    (dict(ambiguity_threshold=np.str_("0.5")), "ambiguity_threshold is stored as"),
+    (dict(coef=None), "part 'coef' is missing"),
+    (dict(dataset_fps=1e-4), "data set fps 0.0001 is not a frame rate"),
+    (dict(codebook_centres=lambda c: c[:, :59].copy()), "centres have 59 columns"),
+    (dict(codebook_sigma=np.float64(1e300)), "codebook sigma must be within"),
+    (dict(descriptor_r_outer=np.float64(0.01)), "r_outer=0.01 is out of range"),
+], ids=["bool-as-text", "int-as-float", "float-as-text", "missing-part", "fps-1e-4",
+        "codebook-columns", "sigma-1e300", "r-outer"])
+def test_an_edited_model_is_refused_at_load_naming_the_problem(tmp_path, changes, says):
+    """Each had loaded (misread: bool("False") is True) and then given wrong poses, a
+    traceback, minutes and gigabytes (fps 1e-4), or a run-time error blaming the video."""
+    path = _edited(tmp_path / "edited.npz", **changes)
+    with pytest.raises(PoseModelError, match="edited.npz") as info:
+        load_pose_model(path)
+    assert says in str(info.value)
+
+
+def test_an_archive_member_that_is_not_an_array_is_refused(tmp_path):
+    import zipfile
+    path = _edited(tmp_path / "extra.npz")
+    with zipfile.ZipFile(path, "a") as archive:
+        archive.writestr("notes.txt", b"hello")
+    with pytest.raises(PoseModelError, match="member 'notes.txt' of the archive is not an "
+                                             "array"):
+        load_pose_model(path)
