@@ -6,7 +6,8 @@ import pytest
 
 from regressor.heading_index import (HeadingIndex, build_heading_index, fold_heading_deg,
                                      unfold_heading_deg, with_heading)
-from regressor.model_file import load_model, save_model
+from regressor.model_file import (FORMAT_VERSION, ModelFileError, checksum, load_model,
+                                  save_model)
 from regressor.pose_model import PoseModelError, load_pose_model, save_pose_model
 from sequences.pose_vector import front_back_flip, heading_deg
 from tests.test_mixture import _mixture_model
@@ -162,8 +163,13 @@ def test_a_non_integer_k_in_a_file_is_refused(tmp_path):
     path = tmp_path / "indexed.npz"
     save_pose_model(path, model)
     raw = dict(load_model(path).parts)
-    save_model(path, {**raw, "heading_index_k": np.float64(2.7)})
-    with pytest.raises(PoseModelError, match="one integer"):
+    edited = {**raw, "heading_index_k": np.float64(2.7)}
+    # Refused as saved, and as loaded when written by hand with a matching checksum.
+    with pytest.raises(ModelFileError, match="heading_index_k is stored as float64"):
+        save_model(path, edited)
+    np.savez(path, **edited, format_version=np.int64(FORMAT_VERSION),
+             checksum=np.str_(checksum(edited)))
+    with pytest.raises(PoseModelError, match="heading_index_k is stored as float64"):
         load_pose_model(path)
 
 
