@@ -318,7 +318,8 @@ def read_bvh(path: str | Path, fps: float | None = 30.0, drop_tpose: str | bool 
     skel = _parse_hierarchy(head_lines + (["MOTION"] if match else []), source)
     motion_line = len(head_lines) + 1
     if match is None:     # the hierarchy ended at a MOTION that shares its line with more
-        lineno = next((n for n, line in enumerate(head_lines, 1) if "MOTION" in line.split()),
+        word = re.compile(r"(?<![\w])MOTION(?![\w])")
+        lineno = next((n for n, line in enumerate(head_lines, 1) if word.search(line)),
                       len(head_lines))
         raise BVHError(f"{source} line {lineno}: 'MOTION' must stand alone on its line")
 

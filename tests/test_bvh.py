@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import csv
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -285,3 +286,13 @@ def test_thousands_of_nested_joints_are_refused_not_a_recursion_error(tmp_path):
             + "MOTION\nFrames: 1\nFrame Time: 0.0333333\n" + " ".join(["0"] * (6 + 3 * depth))
             + "\n")
     assert "nested more than" in _error(tmp_path, text)
+
+
+def test_an_offset_beyond_reason_and_a_resampling_too_long_are_refused(tmp_path):
+    message = _error(tmp_path, _tiny_text().replace("OFFSET 0 2 0", "OFFSET 0 2e7 0"))
+    assert message.startswith("tiny.bvh") and "OFFSET beyond" in message
+    from sequences.bvh import MAX_RESAMPLED_FRAMES, resample
+    motion = read_bvh(_write(tmp_path, _tiny_text()), fps=None, drop_tpose=False)
+    long = replace(motion, fps=1.0 / 9.0)                # 3 frames 9 s apart: 18 s
+    with pytest.raises(BVHError, match=f"at most {MAX_RESAMPLED_FRAMES:,}"):
+        resample(long, 1e6)

@@ -120,3 +120,5 @@ def test_abandon_writes_no_file_and_frees_the_folder(tmp_path):
     sink.abandon()                                   # idempotent
     assert sink.closed and not list(tmp_path.glob("*.bvh"))
     BVHSink(tmp_path, fps=30.0, prefix="clip").close()   # the lock is released
+    BVHSink(tmp_path / "new" / "sub", fps=30.0).abandon()
+    assert list(tmp_path.iterdir()) == []           # the folders it made are gone again

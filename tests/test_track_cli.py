@@ -222,7 +222,7 @@ def test_nobody_in_view_is_an_error_that_writes_nothing_and_keeps_earlier_output
         (tmp_path / name).write_bytes(data)
     result = _track(empty_scene, "--json", "s.json", "--out", "s.mcap", "--bvh", "bvh",
                     cwd=tmp_path)
-    _assert_one_line_error(result, "nobody found in its 40 frames", "no outputs written")
+    _assert_one_line_error(result, "nobody found in its 40 frames", "no output files written")
     assert result.returncode == 1
     assert {name: (tmp_path / name).read_bytes() for name in earlier} == earlier
     assert not list(tmp_path.glob("*.partial*")) and not list((tmp_path / "bvh").glob("*.bvh"))

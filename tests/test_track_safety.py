@@ -544,7 +544,8 @@ def test_background_samples_are_read_in_one_pass_not_by_seeking(walk, monkeypatc
     import tracker.video as video_module
     seeks = []
     real = video_module._seek
-    monkeypatch.setattr(video_module, "_seek", lambda cap, i: seeks.append(i) or real(cap, i))
+    monkeypatch.setattr(video_module, "_seek",
+                        lambda cap, i, *more: seeks.append(i) or real(cap, i, *more))
     source = open_video(walk)
     frames = source.sample_frames(25)
     assert seeks == [0]
@@ -830,3 +831,91 @@ def test_a_ctrl_c_during_an_outputs_write_waits_for_the_frame_to_be_written(walk
     assert first.finished_writes == second.finished_writes == sum(
         c.poses for c in result.written.values())
     assert first.closed and second.closed
+
+
+# ------------------------------------------------------------------ runs that write nothing
+
+
+def test_a_stop_before_anyone_is_tracked_keeps_an_earlier_json(tmp_path):
+    """A Ctrl-C before the first pose had replaced an earlier run's JSON with an empty one."""
+    earlier = tmp_path / "e.json"
+    earlier.write_text('{"tracks": ["an earlier run"]}')
+    source = open_video(_noise_video(tmp_path / "empty.mp4", frames=20))
+    run = track_video(source, sinks=[JsonSummarySink(earlier, 30.0), _InterruptAt(5)],
+                      write_empty=False)
+    assert run.interrupted and not run.written
+    assert earlier.read_text() == '{"tracks": ["an earlier run"]}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.json", "empty.mp4"]
+
+
+def test_a_track_without_a_single_pose_is_nobody_found(tmp_path):
+    """A thin bar is matched as a track, but no silhouette of it can be described: the run
+    had exited 0 with the earlier run's JSON left in place as if it were this one's."""
+    path = tmp_path / "bar.mp4"
+    scene = np.random.default_rng(0).integers(60, 200, (240, 320, 3), dtype=np.uint8)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (320, 240))
+    for i in range(90):
+        frame = scene.copy()
+        frame[20 + 2 * i:26 + 2 * i, 50:270] = 255           # a bar 220 x 6 px, sinking
+        writer.write(frame)
+    writer.release()
+    (tmp_path / "out.json").write_text('{"old": true}')
+    result = _track(path, "--json", "out.json", cwd=tmp_path)
+    _assert_one_line_error(result, "nobody found in its 90 frames")
+    assert result.returncode == 1 and (tmp_path / "out.json").read_text() == '{"old": true}'
+
+
+def test_nobody_found_with_the_mcap_on_standard_output_leaves_it_readable(tmp_path):
+    """Streamed in place, the recording cannot be taken back: it is finished, empty."""
+    video = _noise_video(tmp_path / "empty.mp4", frames=10)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    run = subprocess.run([sys.executable, "-m", "tracker.cli", str(video), "--out", "-"],
+                         cwd=tmp_path, env=env, capture_output=True, timeout=120)
+    assert run.returncode == 1 and b"nobody found" in run.stderr
+    reader = make_reader(io.BytesIO(run.stdout), validate_crcs=True)
+    assert reader.get_summary() is not None and list(reader.iter_messages()) == []
+
+
+def test_a_plate_check_past_what_decodes_names_the_file(tmp_path):
+    cut_off_avi(tmp_path)
+    cv2.imwrite(str(tmp_path / "plate.png"), np.full((120, 160, 3), 128, np.uint8))
+    result = _track("cut.avi", "--json", "s.json", "--start", "1.2", "--background",
+                    "plate.png", cwd=tmp_path)
+    _assert_one_line_error(result, "cut.avi: no decodable frames from 1.2 s on")
+
+
+def test_only_black_or_white_frames_are_left_out_of_the_learned_background():
+    """An evenly lit plain backdrop is flat too, but a picture of the scene: leaving it out
+    had put the person into the background (a ghost track over the empty frames)."""
+    from tracker.run import _blank
+    rng = np.random.default_rng(0)
+    noisy = lambda level: np.clip(level + rng.normal(0, 0.5, (120, 160, 3)), 0, 255).astype(
+        np.uint8)
+    assert _blank(noisy(3)) and _blank(noisy(252))
+    assert not _blank(noisy(175))                       # a grey studio backdrop
+    assert not _blank(rng.integers(0, 40, (120, 160, 3), dtype=np.uint8))   # a dark scene
+
+
+class _Frames:
+    """A stand-in VideoSource giving fixed sample frames."""
+
+    def __init__(self, frames):
+        self.frames, self.height, self.width = frames, *frames[0].shape[:2]
+
+    def sample_frames(self, count, size=None):
+        return [cv2.resize(f, size, interpolation=cv2.INTER_AREA) for f in self.frames]
+
+
+def test_a_grey_rooms_plate_is_accepted_though_its_person_wears_colour():
+    """The video's colour was judged on one frame, person included: a red top in a grey room
+    made a true plate "grey against colour"."""
+    from tracker.run import _check_plate
+    rng = np.random.default_rng(1)
+    grey = cv2.GaussianBlur(rng.integers(40, 220, (240, 320), dtype=np.uint8), (9, 9), 0)
+    plate = cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR)
+    frames = []
+    for i in range(5):
+        frame = plate.copy()
+        frame[60:200, 40 + 50 * i:80 + 50 * i] = (40, 40, 200)     # a red top, walking
+        frames.append(frame)
+    _check_plate(_Frames(frames), plate)                # no error

@@ -248,3 +248,47 @@ def test_sample_frames_are_evenly_spaced(tmp_path):
     samples = source.sample_frames(4)
     assert [decoded_index(image) for image in samples] == [10, 20, 29, 39]
     assert all(image.shape == (64, 96, 3) for image in samples)
+
+
+class _FailingCapture:
+    """A capture whose read() fails at the given read numbers (as FFmpeg's does on a damaged
+    frame, consuming it), then ends after ``frames`` reads."""
+
+    def __init__(self, frames: int, failing: set[int]):
+        self.frames, self.failing, self.reads = frames, failing, 0
+
+    def read(self):
+        self.reads += 1
+        if self.reads > self.frames or self.reads - 1 in self.failing:
+            return False, None
+        return True, np.full((64, 96, 3), self.reads - 1, np.uint8)
+
+    def release(self):
+        pass
+
+
+@pytest.mark.parametrize("announced", [True, False])
+def test_a_damaged_frame_is_skipped_whether_or_not_the_length_is_known(tmp_path, monkeypatch,
+                                                                        announced):
+    """With no frame count in the container, one failed read had ended the stream, silently."""
+    import tracker.video as video
+    source = open_video(write_video(tmp_path / "clip.mp4", flat_frames(3)))
+    source.end_index = 20 if announced else None
+    monkeypatch.setattr(video, "_open_capture", lambda path: _FailingCapture(20, {5}))
+    with pytest.warns(VideoTruncatedWarning, match=r"skipped 1 undecodable frame\(s\) from "
+                                                   r"frame 5"):
+        frames = list(source)
+    assert [f.index for f in frames] == [i for i in range(20) if i != 5]
+    assert [int(f.image[0, 0, 0]) for f in frames] == [f.index for f in frames]
+    assert not source.truncated
+
+
+def test_a_long_damaged_stretch_ends_the_stream_as_cut_off(tmp_path, monkeypatch):
+    import tracker.video as video
+    source = open_video(write_video(tmp_path / "clip.mp4", flat_frames(3)))   # 25 fps
+    source.end_index = 200
+    monkeypatch.setattr(video, "_open_capture",
+                        lambda path: _FailingCapture(200, set(range(10, 200))))
+    with pytest.warns(VideoTruncatedWarning, match="decoding stopped at frame 10 of 200"):
+        frames = list(source)
+    assert len(frames) == 10 and source.truncated

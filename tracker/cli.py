@@ -455,9 +455,10 @@ def _run(args) -> int:
             _silence_stdout()
     if result.interrupted:
         return EXIT_INTERRUPTED
-    if not result.tracker.tracks:
-        # A run that found no one did not do its job: it wrote no outputs (track_video's
-        # write_empty), so an earlier run's files of those names are still there.
+    if not result.written:
+        # A run that tracked no one did not do its job: it wrote no outputs (track_video's
+        # write_empty), so an earlier run's files of those names are still there. (A track
+        # whose silhouettes all failed to describe gives no pose: the outputs' count decides.)
         raise TrackError(f"{args.video}: nobody found in its {result.frames} frames (a person "
                          f"must move against a still background and cover at least "
                          f"{100 * _min_area_fraction(args):g} % of the image: --min-area); "
@@ -469,7 +470,7 @@ def _nothing_written(args) -> str:
     """The end of the nobody-found error: what became of the outputs asked for."""
     if args.out is None and args.json is None and args.bvh is None:
         return "nothing to show"
-    return "no outputs written (files already of those names are left as they were)"
+    return "no output files written (files already of those names are left as they were)"
 
 
 def _load_background(path: Path, source):
@@ -533,8 +534,10 @@ def _print_summary(args, source, result, bvh_files: list[Path] | None = None) ->
                       f"unlike the training silhouettes, their poses extrapolated"
                       if counts.unfamiliar else "")
         print(f"  track {track_id}: {counts.poses} frames{unfamiliar}", file=out)
-    if not tracks and not result.interrupted:
-        return              # nothing written: the error that follows says so
+    if not tracks:          # nothing written (the nobody-found error follows unless stopped)
+        if result.interrupted:
+            print(f"  {_nothing_written(args)}", file=out)
+        return
     # Which poses the JSON and BVH hold: smoothed, or those streamed (--no-smooth, or a quick
     # exit after an interrupt, tracker.run.track_video; not a Ctrl-C while the outputs
     # closed): filtered, or fixed-lag smoothed with --lag.

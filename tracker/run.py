@@ -114,9 +114,9 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     keep_history): they follow the body better than the filtered ones. The frames reach the
     sinks in order, each once; after a Ctrl-C the frames held back go out too, to the sinks
     that do not show the video, smoothed over what was given to the smoother.
-    write_empty: False abandons the sinks that can be (close_sinks) when the run ends, not
-    interrupted, without a single pose for them (nobody found, or an error before any frame):
-    an earlier run's files of those names are not replaced by empty ones."""
+    write_empty: False abandons the sinks that can be (close_sinks) when the run ends without
+    a single pose for them (nobody found, a stop or an error before anyone was): an earlier
+    run's files of those names are not replaced by empty ones."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
@@ -231,7 +231,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                             fed += _write_filtered(recorder, smoothed_sinks,
                                                    streamed_kind(lag_s))
                     finally:
-                        empty = not write_empty and not written and not interrupted
+                        empty = not write_empty and not written
                         problems = fed + close_sinks(list(sinks) + list(smoothed_sinks),
                                                      abandon=empty)
                         closed = True
@@ -354,8 +354,10 @@ def _check_plate(source: VideoSource, plate: np.ndarray) -> None:
     small = cv2.resize(plate, size, interpolation=cv2.INTER_AREA)
     frames = source.sample_frames(PLATE_CHECK_FRAMES, size=size)
     if not frames:
-        return               # nothing decodes: the tracking loop says so
-    plate_grey, video_grey = colourless(small), colourless(frames[len(frames) // 2])
+        raise _nothing_decodes(source)
+    # The video's colour from the samples' median, where a passing person (a red top on a grey
+    # room) is gone.
+    plate_grey, video_grey = colourless(small), colourless(median_background(frames))
     if plate_grey != video_grey:
         raise BackgroundMismatchError(
             f"the background image is {'grey' if plate_grey else 'in colour'} and the video "
@@ -385,11 +387,9 @@ def _sampled_background(source: VideoSource, tracker: PoseTracker, full_size: bo
     subtractor = getattr(tracker.extractor, "subtractor", None)
     size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full
     frames = source.sample_frames(tracker.settings.background_samples, size=size)
-    if not frames:           # the file opened, but nothing decodes in the range asked for
-        start_s = source.start_index / source.fps
-        raise VideoError(f"{source.path}: no decodable frames from {start_s:g} s on "
-                         f"(a cut-off or damaged file?)")
-    # Blank frames (black before a fade-in, a cut to white) are no picture of the scene: a
+    if not frames:
+        raise _nothing_decodes(source)
+    # Black or white frames (before a fade-in, a cut to white) are no picture of the scene: a
     # median of mostly black samples made every later frame one whole-image "person".
     scenes = [f for f in frames if not _blank(f)]
     frames = scenes or frames
@@ -399,12 +399,21 @@ def _sampled_background(source: VideoSource, tracker: PoseTracker, full_size: bo
     return median, frames
 
 
-def _blank(frame: np.ndarray, max_spread: float = 3.0) -> bool:
-    """Whether a frame (BGR uint8 (h, w, 3)) is one flat colour: its grey levels' standard
-    deviation (every 4th pixel) under max_spread. A real scene, even a plain wall under
-    sensor noise, spreads wider."""
+def _nothing_decodes(source: VideoSource) -> VideoError:
+    """The error for a file that opened but decodes nothing in the range asked for."""
+    start_s = source.start_index / source.fps
+    return VideoError(f"{source.path}: no decodable frames from {start_s:g} s on (a cut-off "
+                      f"or damaged file?)")
+
+
+def _blank(frame: np.ndarray, max_spread: float = 3.0, dark: float = 16.0,
+           bright: float = 240.0) -> bool:
+    """Whether a frame (BGR uint8 (h, w, 3)) is black or white all over: its grey levels'
+    standard deviation (every 4th pixel) under max_spread and their mean under ``dark`` or
+    over ``bright``. An evenly lit plain backdrop is flat too (a spread of 0.5 after mp4v)
+    but a picture of the scene, and stays."""
     grey = frame[::4, ::4].mean(axis=2)
-    return float(grey.std()) < max_spread
+    return float(grey.std()) < max_spread and not dark <= float(grey.mean()) <= bright
 
 
 def _background(source: VideoSource, tracker: PoseTracker) -> np.ndarray:

@@ -5,7 +5,10 @@ A damaged frame inside a stream is skipped (its index is not yielded) and readin
 glitch in one frame of a long video used to end the stream there, losing the rest. A stream
 that stops before the container's announced end (a cut-off file, or a damaged stretch longer
 than :data:`UNREADABLE_RUN_S`) does not raise: it ends cleanly with what was decoded. Either
-emits a :class:`VideoTruncatedWarning` saying which frames were lost.
+emits a :class:`VideoTruncatedWarning` saying which frames were lost. The indices stay right
+where the decoder reports each damaged frame as a failed read (MP4); where FFmpeg drops
+damaged packets without a word (AVI, MPEG-PS) the frames after them come a few indices early,
+and the stream then seems to end short of its announced length.
 """
 from __future__ import annotations
 
@@ -150,15 +153,13 @@ class VideoSource:
         first_skipped = None
         stopped_at = None               # the first of the undecodable frames the stream ends on
         try:
-            index = _seek(capture, self.start_index)
+            index = _seek(capture, self.start_index, self.unreadable_run())
             end = math.inf if self.end_index is None else self.end_index
             give_up = self.unreadable_run()
             failed = 0                  # undecodable frames in a row, just before index
             while index < end:
                 ok, image = capture.read()
                 if not ok or image is None:
-                    if self.end_index is None:      # no announced end: this is the end
-                        return
                     failed += 1
                     index += 1        # a failed read consumes its frame (FFmpeg's backend)
                     if failed >= give_up:
@@ -171,7 +172,7 @@ class VideoSource:
                 yield VideoFrame(index, index / self.fps, self._prepare(image))
                 self.frames_read += 1
                 index += 1
-            if failed:
+            if failed and self.end_index is not None:   # else simply the stream's end
                 stopped_at = index - failed
         finally:
             capture.release()
@@ -219,7 +220,7 @@ class VideoSource:
         images = []
         try:
             if spacing <= SEQUENTIAL_SPACING:
-                if _seek(capture, int(indices[0])) != indices[0]:
+                if _seek(capture, int(indices[0]), self.unreadable_run()) != indices[0]:
                     return images
                 wanted = set(indices.tolist())
                 failed, give_up = 0, self.unreadable_run()
@@ -236,7 +237,7 @@ class VideoSource:
                             images.append(self._prepare(image, size))
                 return images
             for index in indices:
-                if _seek(capture, int(index)) != index:
+                if _seek(capture, int(index), self.unreadable_run()) != index:
                     break
                 ok, image = capture.read()
                 if ok and image is not None:
@@ -254,7 +255,8 @@ def _open_capture(path: Path) -> cv2.VideoCapture:
     return capture
 
 
-def _seek(capture: cv2.VideoCapture, start_index: int) -> int:
+def _seek(capture: cv2.VideoCapture, start_index: int, give_up: int = UNREADABLE_RUN_MIN
+          ) -> int:
     """Position ``capture`` so the next read returns frame ``start_index``; returns that index.
 
     Tries a container seek first and falls back to decoding and discarding frames when the
@@ -273,7 +275,7 @@ def _seek(capture: cv2.VideoCapture, start_index: int) -> int:
             failed = 0
         else:
             failed += 1
-            if failed >= UNREADABLE_RUN_MIN:
+            if failed >= give_up:
                 return index - failed + 1
     return start_index
 

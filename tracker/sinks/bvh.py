@@ -94,6 +94,9 @@ class BVHSink:
         self._tracks: dict[int, tuple[list[int], list[np.ndarray], list[np.ndarray]]] = {}
         self.paths: dict[int, Path] = {}
         self._closed = False
+        # The top-most folder this sink makes, removed again (if still empty) by abandon().
+        missing = [p for p in (self.directory, *self.directory.parents) if not p.exists()]
+        self._made = missing[-1] if missing else None
         self.directory.mkdir(parents=True, exist_ok=True)
         self._lock = LockFile(self.directory / f".{prefix}.bvh.lock")
 
@@ -151,11 +154,20 @@ class BVHSink:
             self._lock.release()
 
     def abandon(self) -> None:
-        """Stop without writing any file (a run that tracked nobody); idempotent."""
+        """Stop without writing any file (a run that tracked nobody), removing the folders it
+        made if they are still empty; idempotent."""
         if self._closed:
             return
         self._closed = True
         self._lock.release()
+        if self._made is not None:
+            for folder in (self.directory, *self.directory.parents):
+                try:
+                    folder.rmdir()
+                except OSError:             # not empty (someone else's files): kept
+                    break
+                if folder == self._made:
+                    break
 
     def __enter__(self) -> "BVHSink":
         return self

@@ -213,6 +213,12 @@ class OutputFile:
         self.committed = False
 
     @property
+    def in_place(self) -> bool:
+        """True when the bytes go straight to the destination (standard output, a pipe, a
+        device): nothing written there can be taken back."""
+        return self._in_place
+
+    @property
     def closed(self) -> bool:
         """True once committed or discarded."""
         return self._fd < 0

@@ -629,8 +629,12 @@ class McapSink:
 
     def abandon(self) -> None:
         """Stop without a recording (a run that tracked nobody): the partial file is removed
-        and the path keeps what it held; idempotent."""
+        and the path keeps what it held; idempotent. A recording streamed in place (--out -)
+        has its header out already: it is finished, empty, so that it stays readable."""
         if self.closed:
+            return
+        if self._state["stream"].in_place:
+            self.close()
             return
         self._state["done"] = True
         self._finalizer.detach()
