@@ -424,34 +424,3 @@ def test_a_component_over_half_the_image_is_no_person():
     mask[:] = 0
     mask[20:110, 60:100] = 255                         # 19 %: a person close to the camera
     assert len(person_masks(mask, (160, 120))) == 1
-
-
-def test_a_ghost_is_dropped_and_a_person_kept():
-    """A person the background remembers (who stood there while it was learned, then left)
-    leaves a blob of empty scene: weak edges along its outline in the frame, strong ones in
-    the background. The person in the frame has it the other way round."""
-    from tracker.silhouettes import drop_ghost_blobs, edge_strength
-    bg_scene = background(320, 240)
-    remembered = bg_scene.copy()
-    draw_person(remembered, (80, 130), 150)             # in the learned background only
-    frame = bg_scene.copy()
-    draw_person(frame, (230, 130), 150)                 # in the frame only
-    mask = np.zeros((240, 320), np.uint8)
-    draw_person(mask, (80, 130), 150, colour=255)       # the ghost's blob
-    draw_person(mask, (230, 130), 150, colour=255)      # the person's
-    kept = drop_ghost_blobs(mask, frame, edge_strength(remembered))
-    assert not kept[:, :160].any() and np.array_equal(kept[:, 160:], mask[:, 160:])
-
-
-def test_the_sample_cut_to_3_s_gives_no_ghost_track(tmp_path):
-    """Its first 3 s learn a background with the walker at the start, who then leaves: a
-    still 'person' there from frame 69 had been a second track."""
-    from pathlib import Path
-    from tracker import track_video
-    from tracker.sinks import PoseRecorder
-    from tracker.video import open_video
-    sample = Path(__file__).resolve().parents[1] / "sequences/data/sample_spiral_walk.mp4"
-    recorder = PoseRecorder()
-    track_video(open_video(sample, end_s=3.0), sinks=[recorder])
-    tracks = recorder.by_track()
-    assert len(tracks) == 1 and len(next(iter(tracks.values()))) == 90

@@ -23,11 +23,6 @@ _SHADOW_LEVEL = 127              # MOG2's mark for shadow (foreground: _FOREGROU
 # black or blank frame, a flash, a cut to another scene) shows no one: it cannot be undone
 # (a black frame's gain is 0), and subtracted as it is, the whole image was one "person".
 _MAX_GAIN_FACTOR = 4.0
-#: A blob whose outline shows weaker edges in the frame than in the background, by this factor,
-#: is a ghost (drop_ghost_blobs). Measured 2026-12-05 (mean Sobel magnitude along each mask's
-#: outline, frame over background): real people 1.44-3.0 in every frame of the 14 validation
-#: renders and 2.26-3.4 in the Pose2Sim views; the ghost the sample's first 3 s leave 0.74-0.75.
-GHOST_EDGE_RATIO = 0.9
 #: Components larger than this fraction of the image are not people (a change of the whole
 #: scene): a standing person filling a portrait frame's height covers about 15-35 %.
 DEFAULT_MAX_AREA_FRACTION = 0.5
@@ -456,46 +451,6 @@ def enclosed_shadow(foreground: np.ndarray, shadow: np.ndarray) -> np.ndarray:
     return out
 
 
-def edge_strength(image: np.ndarray) -> np.ndarray:
-    """Gradient magnitude (h, w) float32 of a BGR uint8 (h, w, 3) image's grey levels (Sobel,
-    grey levels per pixel x 4)."""
-    grey = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY).astype(np.float32)
-    return cv2.magnitude(cv2.Sobel(grey, cv2.CV_32F, 1, 0), cv2.Sobel(grey, cv2.CV_32F, 0, 1))
-
-
-def drop_ghost_blobs(mask: np.ndarray, frame: np.ndarray, background_edges: np.ndarray,
-                     max_edge_ratio: float = GHOST_EDGE_RATIO, min_area: int = 0) -> np.ndarray:
-    """Remove from ``mask`` (uint8 (h, w), 255 = foreground) the ghosts: blobs where the
-    background model holds a person who has since left (a median learned while someone stood
-    there, a clip too short for the model to forget them). Along a real person's outline the
-    frame has the stronger edges (the person against the scene); along a ghost's, the
-    background has them (the person it remembers) and the frame shows smooth empty scene. A
-    blob whose mean edge strength along its outline (a 3 px band; :func:`edge_strength`) in
-    the frame (BGR uint8 (h, w, 3); measured around each blob only, so a frame costs little)
-    is under ``max_edge_ratio`` times the background's (``background_edges``, (h, w), computed
-    once per background) is dropped. Blobs under ``min_area`` px are left to the area gate.
-    Returns a new mask."""
-    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    out = mask
-    for contour in contours:
-        x, y, w, h = cv2.boundingRect(contour)
-        if w * h < max(min_area, 16):
-            continue
-        band = np.zeros((h, w), np.uint8)
-        cv2.drawContours(band, [contour], -1, 1, 3, offset=(-x, -y))
-        on = band.astype(bool)
-        # The frame's edges on the blob's box and a 1 px margin (Sobel's reach).
-        top, left = max(y - 1, 0), max(x - 1, 0)
-        edges = edge_strength(frame[top:y + h + 1, left:x + w + 1])
-        seen = float(edges[y - top:y - top + h, x - left:x - left + w][on].mean())
-        remembered = float(background_edges[y:y + h, x:x + w][on].mean())
-        if seen < max_edge_ratio * remembered:
-            if out is mask:
-                out = mask.copy()
-            cv2.drawContours(out, [contour], -1, 0, cv2.FILLED)
-    return out
-
-
 def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndarray,
                         min_correlation: float = 0.85, max_ratio_spread: float = 0.08,
                         min_area: int = 0) -> np.ndarray:
@@ -777,8 +732,7 @@ class SilhouetteExtractor:
     ``keep_enclosed_shadow``: shadow pixels inside a body's outline (enclosed by solid
     foreground, not by specks) count as person (dark clothing; :func:`enclosed_shadow`).
     ``drop_lighting``: drop blobs that are the background under other light
-    (:func:`drop_lighting_blobs`). ``drop_ghosts``: drop blobs that are a person the background
-    remembers, not one in the frame (:func:`drop_ghost_blobs`). ``refine``:
+    (:func:`drop_lighting_blobs`). ``refine``:
     re-segment people by colour where the background is unreliable (:func:`refine_in_zone`;
     only after :meth:`prime` with frames of the clip), learning grabCut's colour models every
     ``refine_relearn_every`` frames (:class:`ZoneRefiner`; 1: every frame), the foreground in
@@ -795,7 +749,6 @@ class SilhouetteExtractor:
                  max_fragment_area: float = 0.15, keep_enclosed_shadow: bool = True,
                  drop_lighting: bool = True, refine: bool = True,
                  refine_relearn_every: int = 3, adapt_noise_floor: bool = True,
-                 drop_ghosts: bool = True,
                  trust_zone_foreground: bool = True, **subtractor_options):
         self.subtractor = BackgroundSubtractor(**subtractor_options)
         self.adapt_noise_floor = adapt_noise_floor and "var_min" not in subtractor_options
@@ -805,8 +758,6 @@ class SilhouetteExtractor:
         self.max_fragment_area = max_fragment_area
         self.keep_enclosed_shadow = keep_enclosed_shadow
         self.drop_lighting = drop_lighting
-        self.drop_ghosts = drop_ghosts
-        self._edges_of: tuple[np.ndarray, np.ndarray] | None = None   # (an image, its edges)
         self.refine = refine
         self.refiner = ZoneRefiner(refine_relearn_every,
                                    trust_zone_foreground=trust_zone_foreground)
@@ -836,13 +787,6 @@ class SilhouetteExtractor:
         self._adapt_noise_floor(small)
         self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
         self.refiner.reset()
-
-    def _background_edges(self) -> np.ndarray:
-        """edge_strength of the background image, computed once per background."""
-        image = self.background.image
-        if self._edges_of is None or self._edges_of[0] is not image:
-            self._edges_of = (image, edge_strength(image))
-        return self._edges_of[1]
 
     def _adapt_noise_floor(self, small: np.ndarray) -> None:
         """Retune the primed subtractor's variance floor on working-size frames (N, h, w, 3)."""
@@ -890,9 +834,6 @@ class SilhouetteExtractor:
         if self.drop_lighting and self.background is not None:
             cleaned = drop_lighting_blobs(cleaned, small, self.background.image,
                                           min_area=int(self.min_area_fraction * cleaned.size))
-        if self.drop_ghosts and self.background is not None and cleaned.any():
-            cleaned = drop_ghost_blobs(cleaned, small, self._background_edges(),
-                                       min_area=int(self.min_area_fraction * cleaned.size))
         if self.refine and self.background is not None and self.background.unreliable.any():
             cleaned = self.refiner(cleaned, small, shadow, self.background.unreliable)
         return person_masks(cleaned, (frame.shape[1], frame.shape[0]), self.min_area_fraction,
