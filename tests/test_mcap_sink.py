@@ -148,6 +148,9 @@ def test_scene_draws_one_entity_per_track_and_deletes_tracks_that_left(tmp_path)
     assert all(not u["deletions"] for i, u in enumerate(scenes) if i != 4)
     entity = scenes[0]["entities"][0]
     assert entity["frame_id"] == "world"
+    # Each body expires a second after it was last drawn: after the last frame with its person
+    # (and through frames with nobody, which get no update) it does not stay on screen.
+    assert entity["lifetime"] == {"sec": 1, "nsec": 0}
     assert len(entity["spheres"]) == 18 + 1                      # joints and a head ball
     assert len(entity["cylinders"]) == 17 - 3                   # bones of non-zero length
     colours = {json.dumps(e["spheres"][0]["color"]) for e in scenes[0]["entities"]}

@@ -254,11 +254,13 @@ def _check_options(args) -> None:
     if args.bvh is not None:
         if args.bvh.exists() and not args.bvh.is_dir():
             raise TrackError(f"--bvh {args.bvh} exists and is not a folder")
-        try:
-            args.bvh.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise TrackError(f"--bvh {args.bvh}: cannot create folder ({exc.strerror})")
-        if not os.access(args.bvh, os.W_OK):
+        # Checked, not made: the BVH sink makes the folder, and removes it again when a run
+        # that tracks nobody leaves it empty.
+        existing = next(p for p in (args.bvh, *args.bvh.parents) if p.exists())
+        if not existing.is_dir():
+            raise TrackError(f"--bvh {args.bvh}: cannot create folder ({existing} is not a "
+                             f"folder)")
+        if not os.access(existing, os.W_OK):
             raise TrackError(f"--bvh {args.bvh}: not writable")
 
 

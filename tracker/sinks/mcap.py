@@ -13,7 +13,9 @@ Channels (JSON messages, JSON-schema schemas):
   per bone, a sphere per joint and a head ball in the side colours (geometry.body_colours),
   translucent in ambiguous frames, and a text label; every TRAIL_EVERY frames also each track's
   pelvis path over the last TRAIL_S seconds (id ``trail-<id>``), a line strip fading with age.
-  Entities of tracks absent from the frame are deleted.
+  Entities of tracks absent from the frame are deleted; each entity lives SKELETON_LIFETIME_S
+  (trails TRAIL_LIFETIME_S) unless drawn again, so a body whose person left, or through frames
+  with nobody in them (which get no message), goes away within a second.
 - ``/smoothed/pose`` (schema ``silhouette_pose.SmoothedPose``) and ``/smoothed/skeleton``
   (``foxglove.SceneUpdate``, drawn as ``/skeleton`` without trails; its chunks close by size
   only, 64 KB by default): with ``track``'s --smooth (the default), each whole track
@@ -90,6 +92,11 @@ AMBIGUOUS_ALPHA = 0.5
 #: A track's trail (pelvis path) covers this many seconds and is redrawn every TRAIL_EVERY frames.
 TRAIL_S = 8.0
 TRAIL_EVERY = 10
+#: Seconds a body (and a trail) stays drawn without being drawn again: each frame's update
+#: renews it, so a person who leaves, or frames with nobody, do not leave it standing (it had
+#: lived forever, deletions coming only with a later frame that had someone in it). Longer
+#: than a frame of any video down to 1 frame/s (trails: TRAIL_EVERY frames down to 3.3).
+SKELETON_LIFETIME_S, TRAIL_LIFETIME_S = 1.0, 3.0
 _DECIMALS = 6  # JSON rounding: 1e-6 degrees or units is far below any estimate's accuracy
 
 
@@ -288,6 +295,12 @@ def _body_style(track_id: int, ambiguous: bool, unfamiliar: bool = False
             pose_label(track_id, ambiguous, unfamiliar))
 
 
+def _duration(seconds: float) -> dict:
+    """A foxglove duration {sec, nsec} of whole seconds and nanoseconds."""
+    nanoseconds = int(round(seconds * 1e9))
+    return {"sec": nanoseconds // 1_000_000_000, "nsec": nanoseconds % 1_000_000_000}
+
+
 def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool,
                     unfamiliar: bool = False) -> dict:
     """A ``foxglove.SceneEntity`` drawing one track's body as the live view does.
@@ -332,7 +345,7 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
         "timestamp": _timestamp(time_ns),
         "frame_id": WORLD_FRAME,
         "id": f"track-{track_id}",
-        "lifetime": {"sec": 0, "nsec": 0},
+        "lifetime": _duration(SKELETON_LIFETIME_S),
         "frame_locked": False,
         "metadata": [{"key": "track_id", "value": str(track_id)},
                      {"key": "ambiguous", "value": str(bool(ambiguous)).lower()},
@@ -357,7 +370,7 @@ def trail_entity(track_id: int, time_ns: int, path_m: np.ndarray, ages: np.ndarr
     rgb = np.tile(track_colour(track_id), (len(points), 1))
     return {
         "timestamp": _timestamp(time_ns), "frame_id": WORLD_FRAME, "id": f"trail-{track_id}",
-        "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
+        "lifetime": _duration(TRAIL_LIFETIME_S), "frame_locked": False,
         "metadata": [{"key": "track_id", "value": str(track_id)}],
         "arrows": [], "cubes": [], "spheres": [], "cylinders": [], "triangles": [],
         "models": [], "texts": [],
