@@ -1,8 +1,8 @@
 """The ``track`` command: 3-D poses of the people in a static-camera video.
 
-    track VIDEO [--out FILE.mcap] [--bvh DIR] [--json FILE] [--view] [--no-smooth] [--lag S]
-          [--model FILE]
-          [--background IMAGE] [--max-people N] [--roll DEG] [--start S] [--end S]
+    track VIDEO [--out FILE.mcap] [--bvh DIR] [--json FILE] [--view] [--smooth | --no-smooth]
+          [--lag S] [--model FILE]
+          [--background IMAGE] [--max-people N] [--roll DEG] [--start S] [--end S] [--fps F]
           [--zone-foreground {sure,colour}] [--min-area PERCENT] [--workers {1,2}] [--quiet]
 
 Without --out/--json/--bvh/--view it records to VIDEO_STEM.mcap in the current folder. Errors

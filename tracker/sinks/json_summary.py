@@ -6,7 +6,9 @@ Layout (format version 1)::
 
     {"format": "silhouette-pose tracking summary", "version": 1,
      "frames": int,            # frames processed (with or without people)
-     "fps": float,             # frames processed per second of wall time (speed achieved)
+     "fps": float,             # frames processed per second of wall time from the first frame
+                              # on (start-up and background sampling not counted, unlike the
+                              # speed track's summary line prints)
      "video_fps": float, "wall_time_s": float,
      "poses": "filtered" or "smoothed",   # what the tracks' "pose" and "heading_deg" hold:
                                           # frame by frame, or each whole track RTS-smoothed
@@ -24,7 +26,8 @@ Layout (format version 1)::
                  "unfamiliar_frames": int,    # frames with novelty above
                                               # regressor.pose_model.UNFAMILIAR_NOVELTY (1)
                  "heading_mean_deg": float,  # circular mean of heading_deg
-                 "pose": [[55 values]],      # as "poses" says
+                 "pose": [[55 values]],      # as "poses" says; in the order and units of
+                                             # sequences.pose_vector.pose_vector_names()
                  "runner_up": [{"frame": int, "probability": float, "heading_deg": float,
                                 "pose": [55 values]}]}]}   # the next most probable front/back
                                 # hypothesis (filtered, frame by frame, whatever "poses"
