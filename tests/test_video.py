@@ -136,15 +136,20 @@ def band_index(image: np.ndarray) -> int:
     return sum(int(row[bands == b].mean() > 0.5) << b for b in range(8))
 
 
-def test_damaged_frames_mid_stream_are_skipped_and_the_rest_read(tmp_path):
-    """A glitch inside a file used to end the stream there, the rest of the video lost."""
-    data = bytearray(write_video(tmp_path / "full.mp4", flat_frames(60)).read_bytes())
-    start = len(data) // 2
+def damaged_video(folder: Path, at: float) -> Path:
+    """folder/damaged.mp4: 60 flat_frames with every third of 300 bytes flipped from the
+    fraction ``at`` of the file on (a glitch of a few frames)."""
+    data = bytearray(write_video(folder / "full.mp4", flat_frames(60)).read_bytes())
+    start = int(len(data) * at)
     for i in range(start, start + 300, 3):
         data[i] ^= 0xFF
-    damaged = tmp_path / "damaged.mp4"
-    damaged.write_bytes(bytes(data))
-    source = open_video(damaged)
+    (folder / "damaged.mp4").write_bytes(bytes(data))
+    return folder / "damaged.mp4"
+
+
+def test_damaged_frames_mid_stream_are_skipped_and_the_rest_read(tmp_path):
+    """A glitch inside a file used to end the stream there, the rest of the video lost."""
+    source = open_video(damaged_video(tmp_path, 0.5))
     with pytest.warns(VideoTruncatedWarning, match=r"damaged.mp4: skipped \d+ undecodable"):
         frames = list(source)
     assert not source.truncated and source.frames_skipped > 0
@@ -173,13 +178,7 @@ def test_a_cut_off_stream_stops_cleanly_with_a_warning(tmp_path):
 
 
 def test_background_samples_pass_over_a_damaged_frame(tmp_path):
-    data = bytearray(write_video(tmp_path / "full.mp4", flat_frames(60)).read_bytes())
-    start = len(data) // 4
-    for i in range(start, start + 300, 3):
-        data[i] ^= 0xFF
-    damaged = tmp_path / "damaged.mp4"
-    damaged.write_bytes(bytes(data))
-    samples = open_video(damaged).sample_frames(6)
+    samples = open_video(damaged_video(tmp_path, 0.25)).sample_frames(6)
     # Spread over the whole clip: before the fix, sampling stopped at the damage.
     assert len(samples) >= 5 and band_index(samples[-1]) == 59
 
