@@ -136,21 +136,22 @@ def build_parser() -> argparse.ArgumentParser:
                     "frame-by-frame filter (about 2.5 ms a frame per person at 0.5 s, more for "
                     "shorter lags); 0: the filtered poses at once. Default 0.5 with --view (it "
                     "plays the video at its own speed, so the delay shows only at the start), "
-                    "else 0")
+                    f"else 0; at most {MAX_LAG_S:g}")
     ap.add_argument("--model", type=Path, default=None, help="model file "
                     "(default: the shipped model)")
     ap.add_argument("--background", type=Path, metavar="IMAGE", help="an image of the empty "
                     "scene (clean plate) from the same camera (default: learned from the video)")
     ap.add_argument("--max-people", type=int, default=None, metavar="N",
-                    help="track at most N people per frame (largest first)")
+                    help="track at most N people per frame (largest first; 1 to 100)")
     ap.add_argument("--start", type=float, default=0.0, metavar="S", help="start at S seconds")
     ap.add_argument("--end", type=float, default=None, metavar="S", help="stop at S seconds")
     ap.add_argument("--fps", type=float, default=None, metavar="F",
                     help="the video's frame rate, frames/s, where its file's is missing or wrong "
-                         "(default: the file's)")
+                         f"(above 0, at most {MAX_FPS:g}; default: the file's)")
     ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
                     help="the camera's roll: how far the scene's vertical leans clockwise in "
-                         "the image, degrees (silhouettes are turned upright; default 0)")
+                         "the image, degrees (silhouettes are turned upright; within "
+                         f"+-{MAX_ROLL_DEG:g}; default 0)")
     ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
                     help="for a person who stays in one place (no clean plate): where the "
                          "background is unreliable, let colour decide on the background "
@@ -158,8 +159,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "some thin limb pixels lost), or take it as sure person")
     ap.add_argument("--min-area", type=float, default=None, metavar="PERCENT",
                     help="the smallest person, in percent of the image (default "
-                         f"{DEFAULT_MIN_AREA_PERCENT:g}: about 55 px tall at 640x480); lower "
-                         "it for people far away, raise it against clutter")
+                         f"{DEFAULT_MIN_AREA_PERCENT:g}: about 55 px tall at 640x480; "
+                         f"{MIN_AREA_RANGE_PERCENT[0]:g} to {MIN_AREA_RANGE_PERCENT[1]:g}); "
+                         "lower it for people far away, raise it against clutter")
     ap.add_argument("--workers", type=int, choices=(1, 2), default=DEFAULT_WORKERS,
                     help="processes: 2 finds the people in a second process while the first "
                          "tracks them (about 1.7x the frames per second, the same poses; not "
