@@ -64,8 +64,7 @@ def clip_background(frames: np.ndarray, tolerance: float = 20.0, max_busy: float
     gains = [meter(frame) for frame in stack]
     changed = [np.all(g > 0) and np.abs(g - 1).max() > min_gain_change for g in gains]
     if any(changed):
-        stack = np.stack([cv2.multiply(frame, tuple(float(1 / g) for g in gain) + (0.0,),
-                                       dtype=cv2.CV_8U) if change else frame
+        stack = np.stack([undo_gain(frame, gain) if change else frame
                           for frame, gain, change in zip(stack, gains, changed)])
         median = np.median(stack, axis=0).astype(np.uint8)
     busy = np.zeros(median.shape[:2], np.float32)
@@ -90,6 +89,12 @@ def fill_holes(mask: np.ndarray) -> np.ndarray:
     filled = np.zeros_like(mask)
     cv2.drawContours(filled, contours, -1, 255, cv2.FILLED)
     return filled
+
+
+def undo_gain(frame: np.ndarray, gain: np.ndarray) -> np.ndarray:
+    """``frame`` (BGR uint8 (h, w, 3)) divided by its per-channel ``gain`` (3,) over a
+    background (GainMeter), saturating at 255: its brightness brought to the background's."""
+    return cv2.multiply(frame, tuple(float(1 / g) for g in gain) + (0.0,), dtype=cv2.CV_8U)
 
 
 class GainMeter:

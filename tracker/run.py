@@ -26,10 +26,10 @@ from regressor.errors import SilhouettePoseError
 from .fixed_lag import FixedLagSmoother, drawn_at, streamed_kind
 from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from .pipeline import PoseTracker
-from .background import GainMeter
+from .background import GainMeter, undo_gain
 from .silhouettes import median_background
 from .sinks import PoseRecorder, Sink, close_sinks
-from .video import VideoError, VideoSource, colourless, open_video
+from .video import VideoError, VideoSource, colourless, open_video, scaled_size
 
 
 class OutputError(SilhouettePoseError, RuntimeError):
@@ -349,8 +349,7 @@ def _check_plate(source: VideoSource, plate: np.ndarray) -> None:
     """BackgroundMismatchError when the clean plate (BGR uint8 at the video's size) is not of
     this video's scene: another scene or camera, or grey against colour. Such a plate had made
     every frame one whole-image "person", or nobody at all with a misleading message."""
-    scale = min(1.0, 320 / max(source.width, source.height))
-    size = (max(1, round(source.width * scale)), max(1, round(source.height * scale)))
+    size = scaled_size(source.width, source.height, 320)
     small = cv2.resize(plate, size, interpolation=cv2.INTER_AREA)
     frames = source.sample_frames(PLATE_CHECK_FRAMES, size=size)
     if not frames:
@@ -367,8 +366,7 @@ def _check_plate(source: VideoSource, plate: np.ndarray) -> None:
     for frame in frames:
         gain = meter(frame)
         if np.all(gain > 0):
-            frame = cv2.multiply(frame, tuple(float(1 / g) for g in gain) + (0.0,),
-                                 dtype=cv2.CV_8U)
+            frame = undo_gain(frame, gain)
         differs = (cv2.absdiff(frame, small).max(axis=2) > PLATE_TOLERANCE).astype(np.float32)
         cells = cv2.resize(differs, (8, 8), interpolation=cv2.INTER_AREA)
         changed.append(float((cells > 0.1).mean()))

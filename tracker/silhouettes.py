@@ -15,7 +15,7 @@ import numpy as np
 from regressor.errors import SilhouettePoseError
 from .area_shrink import shrink
 from .background import (MIN_GAIN_CHANGE, ClipBackground, GainMeter, clean_plate,
-                         clip_background)
+                         clip_background, undo_gain)
 from .noise_floor import FOREGROUND_LEVEL as _FOREGROUND_LEVEL, choose_var_min
 
 _SHADOW_LEVEL = 127              # MOG2's mark for shadow (foreground: _FOREGROUND_LEVEL)
@@ -236,8 +236,7 @@ class BackgroundSubtractor:
                 # such pixels are background, not a blob.
                 expected = cv2.multiply(self.reference, tuple(float(g) for g in gain) + (0.0,))
                 saturated = (expected.max(axis=2) >= 250) & (small.max(axis=2) >= 250)
-                small = cv2.multiply(small, tuple(float(1 / g) for g in gain) + (0.0,),
-                                     dtype=cv2.CV_8U)
+                small = undo_gain(small, gain)
         rate = -1.0 if not self.ready else self.learning_rate
         raw = self._model.apply(small, learningRate=rate)
         if saturated is not None:

@@ -152,10 +152,10 @@ class VideoSource:
         self.frames_read, self.frames_skipped, self.truncated = 0, 0, False
         first_skipped = None
         stopped_at = None               # the first of the undecodable frames the stream ends on
+        give_up = self.unreadable_run()
         try:
-            index = _seek(capture, self.start_index, self.unreadable_run())
+            index = _seek(capture, self.start_index, give_up)
             end = math.inf if self.end_index is None else self.end_index
-            give_up = self.unreadable_run()
             failed = 0                  # undecodable frames in a row, just before index
             while index < end:
                 ok, image = capture.read()
@@ -218,12 +218,13 @@ class VideoSource:
         spacing = (indices[-1] - indices[0]) / max(len(indices) - 1, 1)
         capture = _open_capture(self.path)
         images = []
+        give_up = self.unreadable_run()
         try:
             if spacing <= SEQUENTIAL_SPACING:
-                if _seek(capture, int(indices[0]), self.unreadable_run()) != indices[0]:
+                if _seek(capture, int(indices[0]), give_up) != indices[0]:
                     return images
                 wanted = set(indices.tolist())
-                failed, give_up = 0, self.unreadable_run()
+                failed = 0
                 for index in range(int(indices[0]), int(indices[-1]) + 1):
                     if not capture.grab():
                         failed += 1
@@ -237,7 +238,7 @@ class VideoSource:
                             images.append(self._prepare(image, size))
                 return images
             for index in indices:
-                if _seek(capture, int(index), self.unreadable_run()) != index:
+                if _seek(capture, int(index), give_up) != index:
                     break
                 ok, image = capture.read()
                 if ok and image is not None:
@@ -291,7 +292,7 @@ def _as_bgr(image: np.ndarray) -> np.ndarray:
     return image
 
 
-def _scaled_size(width: int, height: int, max_side: int | None) -> tuple[int, int]:
+def scaled_size(width: int, height: int, max_side: int | None) -> tuple[int, int]:
     """Frame size after shrinking so the longer side is at most ``max_side`` px (never enlarges)."""
     if max_side is None or max(width, height) <= max_side:
         return width, height
@@ -354,5 +355,5 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
     if end_index is not None and end_index <= start_index:
         raise VideoError(f"{path}: no frames in the chosen time range ({start_s:g} s to "
                          f"{end_s:g} s at {rate:g} fps)")
-    size = _scaled_size(width, height, max_side)
+    size = scaled_size(width, height, max_side)
     return VideoSource(path, rate, frame_count, (width, height), size, start_index, end_index)
