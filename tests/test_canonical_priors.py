@@ -155,6 +155,7 @@ def test_only_a_mixture_carries_canonical_priors(tmp_path):
     assert_only_a_mixture_carries(tmp_path, "canonical_priors", priors, priors.to_arrays())
 
 
+@pytest.mark.slow
 def test_learn_hypothesis_priors_never_saves_over_a_model(tmp_path):
     """--save refuses the model it reads and any existing file, with a one-line usage error
     before any learning."""

@@ -21,6 +21,7 @@ def test_bad_names_and_trials_are_one_line_errors(script, tmp_path, capsys):
     assert f"--trial {tmp_path / 'none'}: no such folder" in err
 
 
+@pytest.mark.slow
 def test_the_outline_is_drawn_over_each_view(script, pose2sim_trial, tmp_path, capsys):
     assert script.main([str(tmp_path / "x.jpg"), "--trial", str(pose2sim_trial),
                         "--frames", "500"]) == 1

@@ -190,6 +190,7 @@ def _tracked(video, model, lag_s, workers=1):
     return tracker, recorder.poses, run
 
 
+@pytest.mark.slow
 def test_through_track_video_the_lagged_poses_follow_the_walk_better(walk):
     model = load_pose_model()
     truth = load_truth(walk)["pose"][:, 0]
@@ -213,12 +214,14 @@ def test_through_track_video_the_lagged_poses_follow_the_walk_better(walk):
     np.testing.assert_array_equal([p.raw for p in lagged], [p.raw for p in filtered])
 
 
+@pytest.mark.slow
 def test_a_lag_longer_than_the_video_is_the_whole_track_smoothed(walk):
     tracker, poses, _ = _tracked(walk, load_pose_model(), MAX_LAG_S)
     whole = tracker.smoothed_track(poses[0].track_id)
     np.testing.assert_allclose([p.filtered for p in poses], whole, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_one_or_two_processes_give_the_same_lagged_poses(walk):
     model = load_pose_model()
     _, one, _ = _tracked(walk, model, 0.2, workers=1)
@@ -226,6 +229,7 @@ def test_one_or_two_processes_give_the_same_lagged_poses(walk):
     np.testing.assert_allclose([p.filtered for p in one], [p.filtered for p in two], atol=1e-4)
 
 
+@pytest.mark.slow
 def test_a_ctrl_c_still_writes_the_frames_held_back(walk):
     """A stop between frames: the frames the smoother holds back go out too (smoothed over
     what was tracked), in order, each once; a sink fed at the end is told they are the
@@ -258,6 +262,7 @@ def test_a_ctrl_c_still_writes_the_frames_held_back(walk):
     assert told.pose_kind == "fixed-lag smoothed" and len(told.poses) == len(frames)
 
 
+@pytest.mark.slow
 def test_a_replay_of_a_run_without_lag_gives_the_lagged_runs_poses(walk):
     """tracker.fixed_lag.replay (what the evaluation scripts use: one run gives the filtered
     and the lagged poses) equals a run with the lag, pose for pose."""
@@ -304,6 +309,7 @@ def test_video_frames_held_back_are_kept_small_with_their_people():
 
 
 
+@pytest.mark.slow
 def test_after_a_stop_the_frames_held_back_go_to_the_files_not_the_live_view(walk):
     """A Ctrl-C with a lag: the frames held back are written to the files, but not shown:
     the live view would play them at the video's speed, to nobody, while further stops are

@@ -48,6 +48,7 @@ def _poses(video: Path, model, workers: int) -> tuple[np.ndarray, object]:
     return np.array(rows), run
 
 
+@pytest.mark.slow
 def test_two_processes_give_exactly_the_poses_of_one(walk, model):
     one, run_one = _poses(walk, model, workers=1)
     two, run_two = _poses(walk, model, workers=2)
@@ -61,6 +62,7 @@ def test_two_processes_give_exactly_the_poses_of_one(walk, model):
         assert stages[stage] > 0, stage
 
 
+@pytest.mark.slow
 def test_frames_tracked_in_batches_give_the_poses_of_frames_tracked_one_by_one(walk, model):
     """PoseTracker.track_frames (what track_video runs, 8 frames at a time) against
     track_people frame by frame: the same tracks, front/back decisions and skeletons; poses
@@ -90,6 +92,7 @@ def test_frames_tracked_in_batches_give_the_poses_of_frames_tracked_one_by_one(w
         assert b.joints_m.shape == (18, 3)
 
 
+@pytest.mark.slow
 def test_one_process_again_after_a_worker_and_a_worker_after_one(walk, model):
     """OpenCV's thread pool, used by one run, must not hang the next run's forked worker."""
     first, _ = _poses(walk, model, workers=2)
@@ -110,6 +113,7 @@ class _BrokenAtFrame(VideoSource):
             yield frame
 
 
+@pytest.mark.slow
 def test_an_error_in_the_worker_is_raised_in_the_main_process_as_it_is(walk, model):
     for workers in (2, 1):                   # one process: the same, though frames go in 8s
         source = open_video(walk)
@@ -157,6 +161,7 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
+@pytest.mark.slow
 def test_a_worker_whose_main_process_is_killed_ends_too(walk):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     main = subprocess.Popen([sys.executable, "-c", _ORPHAN_SCRIPT, str(walk)], env=env,
@@ -183,6 +188,7 @@ def test_workers_other_than_one_or_two_are_refused(walk, tmp_path):
     assert not (tmp_path / "s.json").exists()
 
 
+@pytest.mark.slow
 def test_track_with_one_or_two_workers_writes_the_same_json(walk, tmp_path):
     import json
     for workers in (1, 2):

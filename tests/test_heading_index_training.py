@@ -70,6 +70,7 @@ def test_no_index_when_asked_and_none_without_a_projection():
                             30.0, log=lambda m: None)
 
 
+@pytest.mark.slow
 def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
     pytest.importorskip("sklearn")
     from sequences.pose_vector import canonical_member

@@ -47,6 +47,7 @@ def _keypoints_of(body, pose, root_m, shape) -> np.ndarray:
     return np.stack([posed.point(joints, ends, _MADE_FROM[n]) for n in KEYPOINTS], axis=1)
 
 
+@pytest.mark.slow
 def test_real_poses_are_recovered_from_the_bodys_own_keypoints(body):
     pose = np.load(_TRUTH, allow_pickle=False)["pose"][[0, 40, 80], 0]   # a spiral walk
     root = np.array([[0.1, 0.95, -1.0], [0.2, 0.94, -1.1], [0.3, 0.95, -1.2]])
@@ -102,6 +103,7 @@ def test_the_fitted_body_renders_where_a_calibrated_camera_sees_its_hips(body):
                              (480, 300)).shape == (1, 480, 300)
 
 
+@pytest.mark.slow
 def test_the_pose2sim_reference_is_fitted_within_a_degree_of_its_flexion(body, pose2sim_trial):
     trial = load_trial(pose2sim_trial)
     frames = video_frames(trial)[:4]

@@ -104,6 +104,7 @@ def test_members_of_different_widths_are_averaged_one_by_one():
         assert net.predict(X[:0]).shape == (0, 55)
 
 
+@pytest.mark.slow
 def test_members_fitted_in_parallel_are_the_ones_fitted_one_after_another():
     one, _, _ = _fitted(members=2)
     two, _, _ = _fitted(members=2, workers=2)

@@ -67,6 +67,7 @@ def test_members_over_time_refuses_mismatched_inputs():
     assert members_over_time(np.zeros((0, 55)), np.zeros(0)).shape == (0, 55)
 
 
+@pytest.mark.slow
 def test_the_trackers_smoothed_output_takes_its_limbs_from_the_chain_of_members(monkeypatch):
     """FrontBackTracker.smoothed hands the whole track's limbs, the smoothed heading and the
     frame-rate ratio to members_over_time, and its body angles are the RTS smoothing of what

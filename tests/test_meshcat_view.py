@@ -152,6 +152,7 @@ def test_server_dies_with_its_killed_parent():
 @pytest.mark.parametrize("to_group, signum", [(True, signal.SIGINT), (False, signal.SIGINT),
                                                (False, signal.SIGTERM)],
                          ids=["ctrl-c-in-terminal", "sigint-to-parent", "sigterm-to-parent"])
+@pytest.mark.slow
 def test_interrupting_the_parent_stops_the_server(to_group, signum):
     # A terminal's Ctrl-C sends SIGINT to the whole foreground process group; a SIGINT to the
     # parent alone leaves the stopping to its KeyboardInterrupt clean-up; SIGTERM kills the

@@ -140,6 +140,7 @@ def test_one_pass_for_the_frames_and_their_mirror_images_gives_each_ones_answer(
         model.predict_frame_and_mirror(X, M[:2])
 
 
+@pytest.mark.slow
 def test_the_tracker_describes_the_mirror_frame_by_frame_as_offline(model, masks):
     """The streaming path (a second stacker of the mirror images' descriptors) proposes what
     propose_sequence does for the whole sequence."""

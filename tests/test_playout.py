@@ -119,6 +119,7 @@ def _kill(server) -> None:
         time.sleep(0.01)
 
 
+@pytest.mark.slow
 def test_a_realtime_view_warns_once_of_a_lost_server_but_not_after_a_stop():
     with pytest.warns(ViewLostWarning, match="meshcat viewer stopped") as caught:
         with MeshcatView(print_url=False, realtime=True) as view:

@@ -50,6 +50,7 @@ def test_the_root_history_gives_copies_of_its_slices():
     assert history.get(4)[0].shape == (11, 3) and history.get(4, 3, 6)[0][0, 0] == 3
 
 
+@pytest.mark.slow
 def test_the_smoothed_outputs_draw_their_bodies_on_the_smoothed_root_path(tmp_path):
     from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings

@@ -60,6 +60,7 @@ def test_rvm_predictions_match_dls_on_the_same_sparse_problem():
     np.testing.assert_allclose(rvm.predict(X), dls.predict(X), atol=0.01)
 
 
+@pytest.mark.slow
 def test_kernel_rvm_on_the_paper_data_is_sparse_and_beats_ridge(ankur_mat):
     import scipy.io
 

@@ -173,6 +173,7 @@ def _backward_walker(classifier_right: float):
             pose_angles(bank.smoothed())[:, 0])
 
 
+@pytest.mark.slow
 def test_a_backward_walker_is_turned_the_right_way_by_the_classifier():
     """The soft travel evidence (which prefers forwards) must give way to a classifier that is
     right on 75 % of frames; with the classifier inverted (right on 25 %), it does not: the

@@ -19,5 +19,6 @@ EXPECTED_FAILED = {
     DLSRegressor(basis="linear"), DLSRegressor(basis="gaussian"),
     RVMRegressor(basis="linear"), RVMRegressor(basis="gaussian", max_iter=200),
 ], ids=repr)
+@pytest.mark.slow
 def test_passes_sklearn_estimator_checks(estimator):
     sklearn_checks.check_estimator(estimator, expected_failed_checks=EXPECTED_FAILED)

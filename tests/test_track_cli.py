@@ -109,6 +109,7 @@ def _noise_video(path: Path, frames: int, size=(120, 160), color=True) -> Path:
 # ------------------------------------------------------------------ bad input, one line each
 
 
+@pytest.mark.slow
 def test_missing_video(tmp_path):
     result = _track_process(tmp_path / "nope.mp4", cwd=tmp_path)    # exit code end to end
     assert result.returncode == 1
@@ -160,6 +161,7 @@ def test_tampered_model(tmp_path, walk_video):
                            "tampered.npz")
 
 
+@pytest.mark.slow
 def test_a_model_without_its_front_back_priors_is_tracked_with_a_warning(tmp_path, walk_video):
     """A model with a side classifier but no canonical priors (a file from before they were
     stored) still tracks, with the shipped model's priors and a one-line warning naming it;
@@ -232,6 +234,7 @@ def test_nobody_in_view_is_an_error_that_writes_nothing_and_keeps_earlier_output
     assert fresh.returncode == 1 and not (tmp_path / "new.json").exists()
 
 
+@pytest.mark.slow
 def test_min_area_reaches_the_silhouettes(tmp_path, walk_video):
     # The walker is found by default (test_end_to_end_on_a_rendered_walk), not when a person
     # must cover a fifth of the image; the error names the option.
@@ -260,6 +263,7 @@ def test_grayscale_video_runs(tmp_path):
 # ------------------------------------------------------------------ end to end
 
 
+@pytest.mark.slow
 def test_end_to_end_on_a_rendered_walk(tmp_path, walk_video):
     out, js, bvh = tmp_path / "walk.mcap", tmp_path / "walk.json", tmp_path / "bvh"
     result = _track(walk_video, "--out", out, "--json", js, "--bvh", bvh, cwd=tmp_path)
@@ -293,6 +297,7 @@ def test_end_to_end_on_a_rendered_walk(tmp_path, walk_video):
     assert motion.n_frames == track["frames"][-1] - track["frames"][0] + 1
 
 
+@pytest.mark.slow
 def test_an_mcap_with_no_smooth_holds_the_filtered_topics_only(tmp_path, walk_video):
     out = tmp_path / "plain.mcap"
     result = _track(walk_video, "--out", out, "--no-smooth", cwd=tmp_path)
@@ -304,6 +309,7 @@ def test_an_mcap_with_no_smooth_holds_the_filtered_topics_only(tmp_path, walk_vi
     assert f"MCAP (filtered poses): {out}" in result.stdout
 
 
+@pytest.mark.slow
 def test_a_failing_smoothed_output_costs_the_others_nothing(tmp_path, walk_video):
     """A sink that fails while the smoothed tracks are written (a full disk under the MCAP)
     is fed no more; the sinks after it still get every pose, and the run's error names it."""
@@ -328,6 +334,7 @@ def test_a_failing_smoothed_output_costs_the_others_nothing(tmp_path, walk_video
     np.testing.assert_allclose([p.filtered for p in after.poses], smoothed[:len(after.poses)])
 
 
+@pytest.mark.slow
 def test_a_ctrl_c_while_the_outputs_close_still_counts_them_smoothed(tmp_path, walk_video):
     """A Ctrl-C held back while the smoothed tracks are written marks the run interrupted, but
     the outputs did get the smoothed tracks, and the run says so (the summary's labels)."""
@@ -351,6 +358,7 @@ def test_a_ctrl_c_while_the_outputs_close_still_counts_them_smoothed(tmp_path, w
     assert not plain.interrupted and not plain.smoothed     # nothing to smooth for
 
 
+@pytest.mark.slow
 def test_accuracy_on_held_out_real_walk(tmp_path, cmu_bvh_dir):
     """16_11 (never trained on) seen from 60 degrees: joint angles and heading near the truth."""
     video = tmp_path / "16_11.mp4"
@@ -371,6 +379,7 @@ def test_accuracy_on_held_out_real_walk(tmp_path, cmu_bvh_dir):
     assert np.median(heading_error) < 30.0
 
 
+@pytest.mark.slow
 def test_two_people_get_two_stable_tracks(tmp_path):
     video = tmp_path / "two.mp4"
     actors = [Actor(_walker(50, step=0.3), offset_m=(-2.5, 0.0)),
@@ -394,6 +403,7 @@ def test_two_people_get_two_stable_tracks(tmp_path):
     assert sorted(people) == [0, 1]
 
 
+@pytest.mark.slow
 def test_interrupt_hangup_and_kill_leave_a_readable_recording(tmp_path):
     """Ctrl-C, SIGTERM and SIGHUP (terminal closed) finish the MCAP and put it in place; a
     SIGKILL leaves the previous file intact and the new data in OUT.partial for recover_mcap."""
@@ -433,6 +443,7 @@ def test_interrupt_hangup_and_kill_leave_a_readable_recording(tmp_path):
                     == report.messages
 
 
+@pytest.mark.slow
 def test_smooth_gives_smoother_tracks_than_the_forward_filter(tmp_path, walk_video):
     """The JSON and BVH outputs are smoothed by default (as with --smooth); --no-smooth gives
     the frame-by-frame filtered poses, which jitter more."""
@@ -475,6 +486,7 @@ def test_histories_are_kept_only_for_smoothing(options, keeps, lag):
     assert lag_seconds(args) == lag
 
 
+@pytest.mark.slow
 def test_a_lag_gives_the_streamed_outputs_fixed_lag_smoothed_poses(tmp_path, walk_video):
     """--lag: the MCAP's /pose (and, with --no-smooth, the JSON) hold each pose smoothed over
     the frames that followed it, and the files and the summary say so."""
@@ -572,6 +584,7 @@ def test_zone_foreground_reaches_the_tracker_settings(choice, trust):
     assert tracker_settings(build_parser().parse_args(argv)).trust_zone_foreground is trust
 
 
+@pytest.mark.slow
 def test_the_mcap_records_silhouette_options_other_than_the_defaults(tmp_path, walk_video):
     def settings(*options) -> dict:
         out = tmp_path / f"z{len(options)}.mcap"
@@ -611,6 +624,7 @@ class _ClosedPipe(io.StringIO):
         raise BrokenPipeError(32, "Broken pipe")
 
 
+@pytest.mark.slow
 def test_a_reader_that_stops_reading_the_summary_fails_nothing(walk_video, tmp_path):
     err = io.StringIO()
     with redirect_stdout(_ClosedPipe()), redirect_stderr(err):

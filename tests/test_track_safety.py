@@ -173,6 +173,7 @@ def test_an_earlier_runs_unfinished_recording_is_kept_aside_not_overwritten(tmp_
     assert not (tmp_path / "o.mcap.partial.3").exists()
 
 
+@pytest.mark.slow
 def test_track_keeps_a_partial_file_it_finds_and_says_so_in_one_line(tmp_path, walk):
     """Through the command: the MCAP's and a BVH's NAME.partial that hold data survive a run."""
     out, bvh = tmp_path / "w.mcap", tmp_path / "bvh"
@@ -190,6 +191,7 @@ def test_track_keeps_a_partial_file_it_finds_and_says_so_in_one_line(tmp_path, w
     assert (bvh / "walk_0.bvh").read_text().startswith("HIERARCHY")
 
 
+@pytest.mark.slow
 def test_a_symlinked_output_replaces_its_target_and_keeps_the_link(tmp_path, walk):
     """An output given as a symlink: the file it points to gets the result (not the link
     replaced by a regular file, the target left stale), for the JSON, the MCAP and a BVH."""
@@ -208,6 +210,7 @@ def test_a_symlinked_output_replaces_its_target_and_keeps_the_link(tmp_path, wal
 
 
 @pytest.mark.parametrize("mode", ["w", "a"])
+@pytest.mark.slow
 def test_json_to_a_stdout_redirected_to_a_file_lands_in_that_file(tmp_path, walk, mode):
     """`track V --json /dev/stdout > o.txt` (or >>; here through a link of our own to
     /proc/self/fd/1, so /dev is never at risk): written through the shell's descriptor, so
@@ -231,6 +234,7 @@ def test_json_to_a_stdout_redirected_to_a_file_lands_in_that_file(tmp_path, walk
     assert (tmp_path / "fd" / "stdout").is_symlink()
 
 
+@pytest.mark.slow
 def test_a_dash_is_standard_output(tmp_path, walk):
     """`--json -` had written a file named "-"."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
@@ -242,6 +246,7 @@ def test_a_dash_is_standard_output(tmp_path, walk):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_a_bvh_name_that_is_a_symlink_is_replaced_not_followed(tmp_path, walk):
     """BVH files are named by track, not the user: a link of that name (here to the input
     video) is replaced by the file; what it points to is left alone."""
@@ -383,6 +388,7 @@ class _InterruptedWhileClosing:
         time.sleep(0.05)                       # delivered here, between two bytecodes
 
 
+@pytest.mark.slow
 def test_a_second_ctrl_c_while_closing_does_not_lose_the_json_or_bvh(tmp_path, walk):
     """Case 8: the JSON and BVH sinks closed after the interrupted one are still written."""
     js, bvh = JsonSummarySink(tmp_path / "s.json", 30.0), BVHSink(tmp_path / "b", 30.0)
@@ -409,6 +415,7 @@ class _InterruptAt:
         pass
 
 
+@pytest.mark.slow
 def test_after_a_ctrl_c_the_run_counts_the_poses_the_outputs_hold(tmp_path, walk):
     """The tracker works in batches of frames, so when a Ctrl-C stops the outputs it may have
     gone further; the run's per-track counts (track's summary) are those of the outputs."""
@@ -470,6 +477,7 @@ def test_a_start_past_what_decodes_is_one_line_naming_the_file(tmp_path):
     assert not (tmp_path / "s.json").exists()
 
 
+@pytest.mark.slow
 def test_black_frames_before_the_scene_are_no_background_and_no_person(tmp_path, walk):
     """80 black frames, then the walk: the background had been learned black, so every
     frame's "person" was the whole image; a black frame inside made one such pose too."""
@@ -503,6 +511,7 @@ def test_black_frames_before_the_scene_are_no_background_and_no_person(tmp_path,
 # ------------------------------------------------------------------ 15-18: resources
 
 
+@pytest.mark.slow
 def test_without_smoothing_the_tracker_keeps_no_per_frame_history(walk):
     """Case 15: memory flat over a long video (`track` keeps histories only to smooth a JSON or
     BVH output)."""
@@ -514,6 +523,7 @@ def test_without_smoothing_the_tracker_keeps_no_per_frame_history(walk):
         track_video(walk, tracker, smoothed_sinks=[JsonSummarySink(walk.with_suffix(".j"), 30)])
 
 
+@pytest.mark.slow
 def test_a_4k_video_is_tracked_with_its_background_sampled_at_the_working_size(tmp_path):
     """Case 16: no 25 full 4K frames in memory (peak was 2.18 GB), and the video runs."""
     large = tmp_path / "large.mp4"
@@ -567,6 +577,7 @@ def test_grayscale_video_gives_the_same_single_track_as_colour(tmp_path, walk):
     assert len(json.loads((tmp_path / "g.json").read_text())["tracks"]) == 1
 
 
+@pytest.mark.slow
 def test_novelty_is_reported_per_pose_by_default_and_unfamiliar_frames_are_counted(walk, tmp_path):
     """TrackerSettings() gives each pose the model's novelty (TrackerSettings(novelty=False):
     None) and counts a track's frames above UNFAMILIAR_NOVELTY; the JSON summary records both."""
@@ -707,6 +718,7 @@ def test_a_ctrl_c_swallowed_while_tracking_stops_at_the_next_frame_written(tmp_p
     assert json.loads(out.read_text())["frames"] == BATCH_FRAMES + 1
 
 
+@pytest.mark.slow
 def test_a_ctrl_c_while_tracking_with_a_lag_writes_every_frame_given_to_the_smoother(
         tmp_path, walk, monkeypatch):
     """`track --lag`: a Ctrl-C that lands while tracking (recorded by track's handler, acted on
@@ -746,6 +758,7 @@ def test_a_signal_the_shell_ignores_stays_ignored(tmp_path):
         signal.signal(signal.SIGHUP, previous)
 
 
+@pytest.mark.slow
 def test_a_ctrl_c_just_before_the_outputs_close_does_not_cut_them_short(tmp_path, walk,
                                                                        monkeypatch):
     """A Ctrl-C in the window between the end of the loop and the signals being held (here
@@ -782,6 +795,7 @@ class _CtrlCAtFrame5:
         pass
 
 
+@pytest.mark.slow
 def test_a_ctrl_c_leaves_the_smoothed_outputs_the_filtered_poses_so_far(tmp_path, walk):
     """The JSON and BVH are smoothed at the end by default; a Ctrl-C asks for a quick exit,
     so they get the frames tracked so far, filtered (and the JSON says so), not nothing."""
@@ -820,6 +834,7 @@ class _SignalMidWrite:
         self.closed = True
 
 
+@pytest.mark.slow
 def test_a_ctrl_c_during_an_outputs_write_waits_for_the_frame_to_be_written(walk):
     """The signal stops the run after the frame whose write it interrupted, not inside it:
     every write begun is finished, the frame is ended in every sink and counted."""
@@ -865,6 +880,7 @@ def test_a_track_without_a_single_pose_is_nobody_found(tmp_path):
     assert result.returncode == 1 and (tmp_path / "out.json").read_text() == '{"old": true}'
 
 
+@pytest.mark.slow
 def test_nobody_found_with_the_mcap_on_standard_output_leaves_it_readable(tmp_path):
     """Streamed in place, the recording cannot be taken back: it is finished, empty."""
     video = _noise_video(tmp_path / "empty.mp4", frames=10)

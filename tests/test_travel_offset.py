@@ -147,6 +147,7 @@ def _walk(truth_heading: float, travel: float, memory: bool, T: int = 240, seed:
     return np.array(out), bank
 
 
+@pytest.mark.slow
 def test_a_sideways_mover_keeps_its_heading_once_the_track_has_learned_its_offset():
     """Moving to the image's right (travel 90) while facing the camera (heading 0): the
     population's prior reads the body as turned towards its travel on every frame; the
