@@ -421,7 +421,7 @@ def _run(args) -> int:
     from .pipeline import PoseTracker
     from .progress import Progress
     from .run import BackgroundMismatchError, track_video
-    from .sinks import open_sinks
+    from .sinks import close_sinks, open_sinks
     from .video import open_video
 
     _check_options(args)
@@ -436,13 +436,22 @@ def _run(args) -> int:
     plate = _load_background(args.background, source) if args.background else None
     streaming, smoothed = _sink_factories(args, source, model)
     sinks = open_sinks(streaming + smoothed)
-    tracker = PoseTracker(model, source.fps, tracker_settings(args))
     try:
-        result = track_video(source, tracker, sinks[:len(streaming)],
-                             _StopOnInterrupt(Progress(source.expected_frames(),
-                                                       quiet=args.quiet)),
-                             smoothed_sinks=sinks[len(streaming):], background=plate,
-                             workers=args.workers, lag_s=lag_seconds(args), write_empty=False)
+        try:
+            tracker = PoseTracker(model, source.fps, tracker_settings(args))
+            result = track_video(source, tracker, sinks[:len(streaming)],
+                                 _StopOnInterrupt(Progress(source.expected_frames(),
+                                                           quiet=args.quiet)),
+                                 smoothed_sinks=sinks[len(streaming):], background=plate,
+                                 workers=args.workers, lag_s=lag_seconds(args),
+                                 write_empty=False)
+        except BaseException:
+            # Ended before track_video closed the sinks (a Ctrl-C before it started): they
+            # are abandoned, so the files of their names stay as they were (the MCAP's
+            # finalizer would otherwise finish an empty recording over one). Sinks it closed
+            # (or abandoned: nobody tracked yet) are left as they are.
+            close_sinks(sinks, abandon=True)
+            raise
     except BackgroundMismatchError as exc:
         raise TrackError(f"--background {args.background}: {exc}") from None
     if not args.quiet:

@@ -14,8 +14,9 @@ SmoothedChannel then writes nothing: the filtered poses are in its file already)
 
 Sinks: McapSink (mcap.py), BVHSink (bvh.py), JsonSummarySink (json_summary.py), MeshcatView
 (meshcat_view.py), and PoseRecorder here (keeps the poses in memory, e.g. in a notebook).
-``open_sinks`` opens several, closing those already open if one fails; ``close_sinks`` closes
-them all, collecting the problems instead of stopping at the first.
+``open_sinks`` opens several, abandoning those already open if one fails (a refused run leaves
+every existing file as it was); ``close_sinks`` closes them all, collecting the problems
+instead of stopping at the first.
 """
 from __future__ import annotations
 
@@ -73,13 +74,15 @@ class PoseRecorder:
 
 
 def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
-    """Call each factory in turn; if one fails, close the sinks already opened and re-raise."""
+    """Call each factory in turn; if one fails (another run holds its lock, a name the file
+    system refuses, Ctrl-C), abandon the sinks already opened (close_sinks(abandon=True): a
+    file sink then writes nothing, so what its destination held stays) and re-raise."""
     opened: list[Sink] = []
     try:
         for make in factories:
             opened.append(make())
     except BaseException:
-        close_sinks(opened)
+        close_sinks(opened, abandon=True)
         raise
     return opened
 

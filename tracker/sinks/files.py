@@ -2,7 +2,8 @@
 
 - :func:`check_distinct` refuses, before anything is written, an output that is (after symlinks,
   relative paths and hard links) the input or another output.
-- :class:`OutputFile` writes ``NAME.partial`` beside ``NAME`` under an exclusive lock (a second
+- :class:`OutputFile` writes ``NAME.partial`` beside ``NAME`` (a shorter name when that one
+  would be too long: :func:`beside_name`) under an exclusive lock (a second
   run on the same output fails at once with :class:`OutputBusyError`) and renames it onto
   ``NAME`` only by :meth:`OutputFile.commit`, once it is complete. A crash leaves ``NAME`` as it
   was and the new data in ``NAME.partial``. A destination that exists and is not a regular file
@@ -19,8 +20,10 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import os
 import re
+import sys
 import warnings
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -28,6 +31,8 @@ from pathlib import Path
 from regressor.errors import SilhouettePoseError
 
 PARTIAL_SUFFIX = ".partial"
+#: The longest file name, in bytes, of the usual file systems (ext4, XFS, btrfs, tmpfs).
+NAME_MAX = 255
 
 
 class OutputPathError(SilhouettePoseError, ValueError):
@@ -65,10 +70,26 @@ def stream_descriptor(path: str | Path) -> int | None:
     return None
 
 
-def partial_path(path: str | Path) -> Path:
-    """Where ``path`` is written until it is complete: ``NAME.partial`` beside it."""
+def beside_name(path: str | Path, suffix: str) -> Path:
+    """``path`` with ``suffix`` added to its name, in the same folder (``NAME.partial``,
+    ``.PREFIX.bvh.lock``). Where that name would pass NAME_MAX bytes (a legal 250-byte NAME),
+    NAME is cut and ``~`` and 12 hex digits of its SHA-256 follow it, so that every NAME
+    still has its own: the same NAME always gives the same name (a second run finds the
+    first's lock and partial file)."""
     path = Path(path)
-    return path.with_name(path.name + PARTIAL_SUFFIX)
+    name = path.name + suffix
+    if len(os.fsencode(name)) <= NAME_MAX:
+        return path.with_name(name)
+    digest = hashlib.sha256(os.fsencode(path.name)).hexdigest()[:12]
+    keep = NAME_MAX - len(os.fsencode(suffix)) - len(digest) - 1
+    head = os.fsencode(path.name)[:keep].decode(sys.getfilesystemencoding(), "ignore")
+    return path.with_name(f"{head}~{digest}{suffix}")
+
+
+def partial_path(path: str | Path) -> Path:
+    """Where ``path`` is written until it is complete: ``NAME.partial`` beside it
+    (:func:`beside_name`: a shorter name when that one would be too long)."""
+    return beside_name(path, PARTIAL_SUFFIX)
 
 
 def _identity(path: Path) -> tuple:
@@ -168,7 +189,7 @@ def _open_to_lock(path: Path) -> int:
 def _link_aside(path: Path) -> Path:
     """set_aside's move of the locked ``path`` to the first free ``NAME.N``."""
     for n in range(1, 10_000):
-        aside = path.with_name(f"{path.name}.{n}")
+        aside = beside_name(path, f".{n}")
         try:
             os.link(path, aside)      # never replaces an existing file, unlike rename
         except FileExistsError:
