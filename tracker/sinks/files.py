@@ -44,7 +44,12 @@ class OutputBusyError(SilhouettePoseError, RuntimeError):
 
 
 class OutputWriteError(SilhouettePoseError, RuntimeError):
-    """Writing an output failed (disk full, I/O error); one line naming the file."""
+    """Writing an output failed (disk full, I/O error); one line starting with the file's
+    path, which is also its ``path`` attribute (None when not given)."""
+
+    def __init__(self, message: str, path: str | Path | None = None):
+        super().__init__(message)
+        self.path = None if path is None else Path(path)
 
 
 _FD_LINK = re.compile(r"/(?:proc/self|dev)/fd/(\d+)")
@@ -183,7 +188,7 @@ def _open_to_lock(path: Path) -> int:
         except OSError as exc:
             error = exc
     raise OutputWriteError(f"{path}: holds an earlier run's data that cannot be kept aside "
-                           f"({error.strerror}); move it away first")
+                           f"({error.strerror}); move it away first", path)
 
 
 def _link_aside(path: Path) -> Path:
@@ -196,13 +201,13 @@ def _link_aside(path: Path) -> Path:
             continue
         except OSError as exc:
             raise OutputWriteError(f"{path}: holds an earlier run's data and cannot be kept "
-                                   f"aside ({exc.strerror}); move it away first") from None
+                                   f"aside ({exc.strerror}); move it away first", path) from None
         os.unlink(path)
         warnings.warn(f"{path} held an earlier run's unfinished output; kept as {aside}, "
                       f"not overwritten", stacklevel=4)
         return aside
     raise OutputWriteError(f"{path}: too many earlier unfinished outputs kept beside it; "
-                           f"remove some")
+                           f"remove some", path)
 
 
 class OutputFile:
@@ -229,7 +234,8 @@ class OutputFile:
                 self._fd = _open_locked(self.written_path, os.O_WRONLY)
                 os.ftruncate(self._fd, 0)   # set_aside kept any data it held
         except OSError as exc:
-            raise OutputWriteError(f"{self.written_path}: cannot write ({exc.strerror})") from None
+            raise OutputWriteError(f"{self.written_path}: cannot write ({exc.strerror})",
+                                   self.written_path) from None
         self._offset = 0
         self.committed = False
 
@@ -252,7 +258,7 @@ class OutputFile:
             while done < len(view):
                 done += os.write(self._fd, view[done:])
         except OSError as exc:
-            raise OutputWriteError(f"{self.path}: {exc.strerror or exc}") from None
+            raise OutputWriteError(f"{self.path}: {exc.strerror or exc}", self.path) from None
         self._offset += done
         return done
 
@@ -275,7 +281,7 @@ class OutputFile:
         except OSError as exc:
             self.discard(keep=True)
             raise OutputWriteError(f"{self.path}: could not be finished ({exc.strerror}); the "
-                                   f"data written is in {self.written_path}") from None
+                                   f"data written is in {self.written_path}", self.path) from None
         self._release()
         self.committed = True
 
@@ -327,7 +333,7 @@ def write_beside(path: str | Path, write: Callable[[Path], None],
         with contextlib.suppress(OSError):
             os.unlink(partial)
         if isinstance(exc, OSError):
-            raise OutputWriteError(f"{shown}: {exc.strerror or exc}") from None
+            raise OutputWriteError(f"{shown}: {exc.strerror or exc}", shown) from None
         raise
     _sync_folder(path.parent)
 
@@ -346,7 +352,7 @@ def write_whole(path: str | Path, write: Callable[[Path], None],
         try:
             write(given)
         except OSError as exc:
-            raise OutputWriteError(f"{path}: {exc.strerror or exc}") from None
+            raise OutputWriteError(f"{path}: {exc.strerror or exc}", path) from None
         return
     target = Path(os.path.realpath(path))
     partial = (target.with_name(f"{target.stem}{PARTIAL_SUFFIX}{target.suffix}")
@@ -369,7 +375,8 @@ class LockFile:
         try:
             self._fd = _open_locked(self.path, os.O_RDWR)
         except OSError as exc:
-            raise OutputWriteError(f"{self.path}: cannot create ({exc.strerror})") from None
+            raise OutputWriteError(f"{self.path}: cannot create ({exc.strerror})",
+                                   self.path) from None
 
     def release(self) -> None:
         """Remove the lock file and release the lock; idempotent."""
