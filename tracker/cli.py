@@ -4,6 +4,7 @@
           [--lag S] [--model FILE]
           [--background IMAGE] [--max-people N] [--roll DEG] [--start S] [--end S] [--fps F]
           [--zone-foreground {sure,colour}] [--min-area PERCENT] [--workers {1,2}] [--quiet]
+    track --version
 
 Without --out/--json/--bvh/--view it records to VIDEO_STEM.mcap in the current folder. Errors
 (bad video, model, options or output paths) print one line and exit non-zero; Ctrl-C stops
@@ -514,9 +515,13 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
     from .progress import Progress
     from .run import track_video
     from .sinks import close_sinks, open_sinks
+    from .sinks.files import OutputBusyError, OutputWriteError
 
     streaming, smoothed = _sink_factories(args, source, model)
-    sinks = open_sinks(streaming + smoothed)
+    try:
+        sinks = open_sinks(streaming + smoothed)
+    except (OutputBusyError, OutputWriteError) as exc:    # nothing of this run's is kept
+        raise TrackError(_output_failure(args, exc, kept=False)) from None
     try:
         tracker = PoseTracker(model, source.fps, tracker_settings(args))
         result = track_video(source, tracker, sinks[:len(streaming)],
@@ -567,13 +572,14 @@ def _output_option(args, path: Path | None) -> str | None:
     return None
 
 
-def _output_failure(args, exc) -> str:
-    """An output's failure (OutputWriteError, or OutputError from closing) in the user's
-    terms: the option of the file it names, and where the MCAP's recording so far is kept
-    when it is (a full disk: tracker.sinks.mcap keeps its partial file for repair)."""
+def _output_failure(args, exc, kept: bool = True) -> str:
+    """An output's failure (OutputWriteError or OutputBusyError, or OutputError from closing)
+    in the user's terms: the option of the file it names and, with ``kept``, where the MCAP's
+    recording so far is kept when it is (a full disk: tracker.sinks.mcap keeps its partial
+    file for repair)."""
     option = _output_option(args, getattr(exc, "path", None))
     message = f"{option} {exc}" if option else str(exc)
-    kept = _kept_recording(args)
+    kept = _kept_recording(args) if kept else None
     if kept is not None and str(kept) not in message:
         message += (f"; the recording so far is kept in {kept} "
                     f"(tracker.sinks.mcap_repair.recover_mcap makes a readable file of it)")

@@ -39,17 +39,21 @@ class OutputPathError(SilhouettePoseError, ValueError):
     """An output path that would overwrite the input or another output; one line."""
 
 
-class OutputBusyError(SilhouettePoseError, RuntimeError):
-    """Another process is writing the same output; one line naming the file."""
-
-
-class OutputWriteError(SilhouettePoseError, RuntimeError):
-    """Writing an output failed (disk full, I/O error); one line starting with the file's
-    path, which is also its ``path`` attribute (None when not given)."""
+class _FileError(SilhouettePoseError, RuntimeError):
+    """One line starting with the file's path, which is also the ``path`` attribute (None
+    when not given): a command can name the option the file came from."""
 
     def __init__(self, message: str, path: str | Path | None = None):
         super().__init__(message)
         self.path = None if path is None else Path(path)
+
+
+class OutputBusyError(_FileError):
+    """Another process is writing the same output; one line naming the file."""
+
+
+class OutputWriteError(_FileError):
+    """Writing an output failed (disk full, I/O error); one line naming the file."""
 
 
 _FD_LINK = re.compile(r"/(?:proc/self|dev)/fd/(\d+)")
@@ -133,7 +137,7 @@ def _open_locked(path: Path, flags: int) -> int:
         except BlockingIOError:
             os.close(fd)
             raise OutputBusyError(f"{path}: another track run is writing this output; wait for "
-                                  f"it to finish or choose another file name") from None
+                                  f"it to finish or choose another file name", path) from None
         except BaseException:
             os.close(fd)
             raise
@@ -144,7 +148,7 @@ def _open_locked(path: Path, flags: int) -> int:
                 return fd
         os.close(fd)
     raise OutputBusyError(f"{path}: kept changing while being locked; another track run is "
-                          f"writing this output")
+                          f"writing this output", path)
 
 
 def set_aside(path: Path) -> Path | None:
@@ -164,7 +168,8 @@ def set_aside(path: Path) -> Path | None:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 raise OutputBusyError(f"{path}: another track run is writing this output; wait "
-                                      f"for it to finish or choose another file name") from None
+                                      f"for it to finish or choose another file name",
+                                      path) from None
             # Moved by another run between our open and our lock (it set it aside and may now
             # write a new one under the name): what we locked is not what the name holds.
             try:
@@ -176,7 +181,7 @@ def set_aside(path: Path) -> Path | None:
         finally:
             os.close(fd)            # also releases the lock
     raise OutputBusyError(f"{path}: kept changing while being locked; another track run is "
-                          f"writing this output")
+                          f"writing this output", path)
 
 
 def _open_to_lock(path: Path) -> int:
