@@ -143,3 +143,11 @@ def test_bvh_in_a_folder_that_does_not_exist_is_refused_as_json_and_out_are(tmp_
         _assert_one_line_error(result, f"{option} {name}: folder nope does not exist")
         assert result.returncode == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["v.mp4"]
+
+
+def test_a_video_name_too_long_for_its_bvh_files_is_refused_before_tracking(tmp_path):
+    """A 250-byte stem makes STEM_0.bvh 256 bytes: refused up front, not after the tracking."""
+    video = _noise_video(tmp_path / "v.mp4", frames=5).rename(tmp_path / ("v" * 250 + ".mp4"))
+    result = _track(video.name, "--bvh", "b", cwd=tmp_path)
+    _assert_one_line_error(result, "--bvh b: the video's name is too long", "256 bytes")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [video.name]

@@ -284,6 +284,11 @@ def _check_options(args) -> None:
     _check_collisions(args)
     if args.bvh is not None:
         _check_bvh_folder(args.bvh)
+        first = f"{args.video.stem}_0.bvh"
+        if len(os.fsencode(first)) > 255:           # the file system's longest name, bytes
+            raise TrackError(f"--bvh {args.bvh}: the video's name is too long for its tracks' "
+                             f"BVH files (VIDEO_STEM_0.bvh would be {len(os.fsencode(first))} "
+                             f"bytes, over 255); rename or link the video shorter")
 
 
 def _check_bvh_folder(bvh: Path) -> None:
@@ -548,11 +553,13 @@ def _open_source(args):
             raise
         whole = open_video(args.video, fps=args.fps)    # a fault of the file raises here
     count = whole.frame_count
-    if count is not None and args.start * whole.fps >= count:
+    # The first frame as tracker.video.open_video numbers it.
+    if count is not None and math.floor(args.start * whole.fps + 1e-9) >= count:
         raise TrackError(f"--start {args.start:g} s is past the end of {args.video} "
                          f"({count / whole.fps:.2f} s, {count} frames at {whole.fps:g} fps)")
+    end = "its end" if args.end is None else f"--end {args.end:g} s"
     raise TrackError(f"no frames in the chosen time range of {args.video} (--start "
-                     f"{args.start:g} s to --end {args.end:g} s at {whole.fps:g} fps)")
+                     f"{args.start:g} s to {end} at {whole.fps:g} fps)")
 
 
 def _output_option(args, path: Path | None) -> str | None:
