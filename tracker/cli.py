@@ -4,6 +4,7 @@
           [--lag S] [--model FILE]
           [--background IMAGE] [--max-people N] [--roll DEG] [--start S] [--end S] [--fps F]
           [--zone-foreground {sure,colour}] [--min-area PERCENT] [--workers {1,2}] [--quiet]
+    track --version
 
 Without --out/--json/--bvh/--view it records to VIDEO_STEM.mcap in the current folder. Errors
 (bad video, model, options or output paths) print one line and exit non-zero; Ctrl-C stops
@@ -27,7 +28,7 @@ import warnings
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
-from .one_line_parser import EXIT_INTERRUPTED, OneLineParser, quiet_decoder_logs
+from .one_line_parser import EXIT_INTERRUPTED, EXIT_USAGE, OneLineParser, quiet_decoder_logs
 
 EXIT_ERROR = 1
 #: --zone-foreground's choices and what each means for TrackerSettings.trust_zone_foreground
@@ -112,11 +113,39 @@ def _file_name(text: str) -> Path:
     return Path(text)
 
 
+#: A URL's scheme (rtsp://, http://, file://): Path would collapse its // into one slash.
+_URL = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://")
+#: What ``track`` alone prints: the usage's first line, and where the rest is.
+SHORT_USAGE = ("usage: track VIDEO [--out FILE.mcap] [--json FILE] [--bvh DIR] [--view] "
+               "[options]\ntrack: give a video file to track (track --help lists the options)\n")
+
+
+def _video_file(text: str) -> Path:
+    """The video's path. A camera index ("0", when no file has that name) or a URL (rtsp://,
+    http://) is refused in one line: only files are read (it had said "no such file", with
+    rtsp://host/x shown as rtsp:/host/x)."""
+    if _URL.match(text) or (text.isdigit() and not os.path.exists(text)):
+        raise argparse.ArgumentTypeError(f"{text}: cameras and streams are not supported; "
+                                         f"give a video file")
+    return Path(text)
+
+
+def _package_version() -> str:
+    """The installed package's version (its metadata), or "(version unknown)" when it runs
+    from a folder that was never installed."""
+    from importlib import metadata
+    try:
+        return metadata.version("silhouette-pose")
+    except metadata.PackageNotFoundError:
+        return "(version unknown)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = OneLineParser(prog="track", description="3-D human pose from a static-camera video, "
                        "regressed from each person's silhouette (a mixture of kernel experts "
                        "and limb networks), Kalman-filtered over time.")
-    ap.add_argument("video", type=Path, help="video file (mp4, avi, ...)")
+    ap.add_argument("video", type=_video_file, help="video file (mp4, avi, ...)")
+    ap.add_argument("--version", action="version", version=f"track {_package_version()}")
     ap.add_argument("--out", type=_file_name, help="MCAP recording (default VIDEO_STEM.mcap if "
                     "no other output is chosen)")
     ap.add_argument("--bvh", type=Path, metavar="DIR", help="write one BVH per track here")
@@ -254,16 +283,30 @@ def _check_options(args) -> None:
             raise TrackError(f"{what} {path}: not writable")
     _check_collisions(args)
     if args.bvh is not None:
-        if args.bvh.exists() and not args.bvh.is_dir():
-            raise TrackError(f"--bvh {args.bvh} exists and is not a folder")
-        # Checked, not made: the BVH sink makes the folder, and removes it again when a run
-        # that tracks nobody leaves it empty.
-        existing = next(p for p in (args.bvh, *args.bvh.parents) if p.exists())
-        if not existing.is_dir():
-            raise TrackError(f"--bvh {args.bvh}: cannot create folder ({existing} is not a "
-                             f"folder)")
-        if not os.access(existing, os.W_OK):
-            raise TrackError(f"--bvh {args.bvh}: not writable")
+        _check_bvh_folder(args.bvh)
+        first = f"{args.video.stem}_0.bvh"
+        if len(os.fsencode(first)) > 255:           # the file system's longest name, bytes
+            raise TrackError(f"--bvh {args.bvh}: the video's name is too long for its tracks' "
+                             f"BVH files (VIDEO_STEM_0.bvh would be {len(os.fsencode(first))} "
+                             f"bytes, over 255); rename or link the video shorter")
+
+
+def _check_bvh_folder(bvh: Path) -> None:
+    """--bvh names a folder: made if missing (by the BVH sink, which removes it again when a
+    run that tracks nobody leaves it empty), but only one level, in a folder that exists, as
+    --out's and --json's file must be (TrackError otherwise, in their words)."""
+    if bvh.exists() and not bvh.is_dir():
+        raise TrackError(f"--bvh {bvh} exists and is not a folder")
+    if bvh.is_dir():
+        if not os.access(bvh, os.W_OK):
+            raise TrackError(f"--bvh {bvh}: not writable")
+        return
+    folder = Path(os.path.realpath(bvh)).parent
+    if not folder.is_dir():
+        shown = folder if bvh.is_symlink() else (bvh.parent if str(bvh.parent) else ".")
+        raise TrackError(f"--bvh {bvh}: folder {shown} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise TrackError(f"--bvh {bvh}: not writable")
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -352,6 +395,10 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
     the MCAP's smoothed topics find the MCAP open."""
     opened = {}
 
+    def named(sink, option: str):
+        sink.option = option            # a failure's line names the option (problem_line)
+        return sink
+
     def mcap():
         from .sinks.mcap import McapSink
         opened["mcap"] = McapSink(args.out, metadata={
@@ -374,24 +421,25 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
                                  "written, smoothed over what followed); /smoothed/pose and "
                                  "/smoothed/skeleton (with smooth) each whole track smoothed, "
                                  "written at the end"}})
-        return opened["mcap"]
+        return named(opened["mcap"], "--out")
 
     def mcap_smoothed():
-        return opened["mcap"].smoothed_channel()     # opened after mcap(), in order
+        return named(opened["mcap"].smoothed_channel(), "--out")   # after mcap(), in order
 
     def json_summary():
         from .sinks.json_summary import JsonSummarySink
-        return JsonSummarySink(args.json, source.fps,
-                               poses="smoothed" if smoothing(args) else streamed_kind(args))
+        return named(JsonSummarySink(args.json, source.fps, poses="smoothed" if smoothing(args)
+                                     else streamed_kind(args)), "--json")
 
     def bvh():
         from .sinks.bvh import BVHSink
         # Tracks of a few frames are subtraction glitches, not people worth a file.
-        return BVHSink(args.bvh, source.fps, prefix=args.video.stem, min_frames=5)
+        return named(BVHSink(args.bvh, source.fps, prefix=args.video.stem, min_frames=5),
+                     "--bvh")
 
     def view():
         from .sinks.meshcat_view import MeshcatView  # deferred: starts a server process
-        return MeshcatView(realtime=True)    # tracking outruns the video: play at its speed
+        return named(MeshcatView(realtime=True), "--view")   # played at the video's speed
 
     # The MCAP's smoothed topics come last of the smoothed outputs: the biggest write, and
     # the one the others least need to wait for.
@@ -418,11 +466,8 @@ def run(args) -> int:
 
 def _run(args) -> int:
     from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-    from .pipeline import PoseTracker
-    from .progress import Progress
-    from .run import BackgroundMismatchError, track_video
-    from .sinks import open_sinks
-    from .video import open_video
+    from .run import BackgroundMismatchError, OutputError
+    from .sinks.files import OutputWriteError
 
     _check_options(args)
     args.model = args.model or DEFAULT_MODEL_PATH
@@ -432,19 +477,14 @@ def _run(args) -> int:
                       f"which may not fit its side classifier (add its own: python "
                       f"scripts/learn_hypothesis_priors.py --model {args.model} --save NEW.npz)")
     check_interrupted()                  # the model and its imports are loaded
-    source = open_video(args.video, start_s=args.start, end_s=args.end, fps=args.fps)
+    source = _open_source(args)
     plate = _load_background(args.background, source) if args.background else None
-    streaming, smoothed = _sink_factories(args, source, model)
-    sinks = open_sinks(streaming + smoothed)
-    tracker = PoseTracker(model, source.fps, tracker_settings(args))
     try:
-        result = track_video(source, tracker, sinks[:len(streaming)],
-                             _StopOnInterrupt(Progress(source.expected_frames(),
-                                                       quiet=args.quiet)),
-                             smoothed_sinks=sinks[len(streaming):], background=plate,
-                             workers=args.workers, lag_s=lag_seconds(args), write_empty=False)
+        result, sinks = _track_into_outputs(args, source, model, plate)
     except BackgroundMismatchError as exc:
         raise TrackError(f"--background {args.background}: {exc}") from None
+    except (OutputWriteError, OutputError) as exc:
+        raise TrackError(_output_failure(args, exc)) from None
     if not args.quiet:
         try:
             bvh_files = None
@@ -468,6 +508,107 @@ def _run(args) -> int:
                          f"{100 * _min_area_fraction(args):g} % of the image: --min-area); "
                          f"{_nothing_written(args)}")
     return 0
+
+
+def _track_into_outputs(args, source, model, plate) -> tuple:
+    """Open the outputs and track the video into them: (tracker.run.TrackRun, the sinks).
+    A run that ends before its first pose leaves every file of the outputs' names as it was:
+    a refused output abandons those opened before it (tracker.sinks.open_sinks), track_video
+    abandons them when nobody was tracked (write_empty=False), and a stop before
+    track_video took them abandons them here."""
+    from .pipeline import PoseTracker
+    from .progress import Progress
+    from .run import track_video
+    from .sinks import close_sinks, open_sinks
+    from .sinks.files import OutputBusyError, OutputWriteError
+
+    streaming, smoothed = _sink_factories(args, source, model)
+    try:
+        sinks = open_sinks(streaming + smoothed)
+    except (OutputBusyError, OutputWriteError) as exc:    # nothing of this run's is kept
+        raise TrackError(_output_failure(args, exc, kept=False)) from None
+    try:
+        tracker = PoseTracker(model, source.fps, tracker_settings(args))
+        result = track_video(source, tracker, sinks[:len(streaming)],
+                             _StopOnInterrupt(Progress(source.expected_frames(),
+                                                       quiet=args.quiet)),
+                             smoothed_sinks=sinks[len(streaming):], background=plate,
+                             workers=args.workers, lag_s=lag_seconds(args), write_empty=False)
+    except BaseException:
+        # Sinks track_video closed (or abandoned) stay so (both are idempotent); those it
+        # never took are abandoned: the MCAP's finalizer would finish an empty recording.
+        close_sinks(sinks, abandon=True)
+        raise
+    return result, sinks
+
+
+def _open_source(args):
+    """The video opened with --start, --end and --fps; a time range outside it is told in
+    the options' terms (TrackError), not the library's."""
+    from .video import VideoError, open_video
+    try:
+        return open_video(args.video, start_s=args.start, end_s=args.end, fps=args.fps)
+    except VideoError:
+        if args.start == 0 and args.end is None:
+            raise
+        whole = open_video(args.video, fps=args.fps)    # a fault of the file raises here
+    count = whole.frame_count
+    # The first frame as tracker.video.open_video numbers it.
+    if count is not None and math.floor(args.start * whole.fps + 1e-9) >= count:
+        raise TrackError(f"--start {args.start:g} s is past the end of {args.video} "
+                         f"({count / whole.fps:.2f} s, {count} frames at {whole.fps:g} fps)")
+    end = "its end" if args.end is None else f"--end {args.end:g} s"
+    raise TrackError(f"no frames in the chosen time range of {args.video} (--start "
+                     f"{args.start:g} s to {end} at {whole.fps:g} fps)")
+
+
+def _output_option(args, path: Path | None) -> str | None:
+    """The option whose output ``path`` is (the file, its partial file, a BVH file or lock
+    in the --bvh folder), None if none's."""
+    if path is None:
+        return None
+    from .sinks.files import partial_path
+    real = os.path.realpath(path)
+    for option, given in (("--out", args.out), ("--json", args.json)):
+        if given is not None:
+            target = os.path.realpath(given)
+            if real in (target, os.path.realpath(partial_path(target))):
+                return option
+    if args.bvh is not None and os.path.dirname(real) == os.path.realpath(args.bvh):
+        return "--bvh"
+    return None
+
+
+def _output_failure(args, exc, kept: bool = True) -> str:
+    """An output's failure (OutputWriteError or OutputBusyError, or OutputError from closing)
+    in the user's terms: the option of the file it names and, with ``kept``, where the MCAP's
+    recording so far is kept when it is (a full disk: tracker.sinks.mcap keeps its partial
+    file for repair)."""
+    option = _output_option(args, getattr(exc, "path", None))
+    message = f"{option} {exc}" if option else str(exc)
+    kept = _kept_recording(args) if kept else None
+    if kept is not None and str(kept) not in message:
+        message += (f"; the recording so far is kept in {kept} "
+                    f"(tracker.sinks.mcap_repair.recover_mcap makes a readable file of it)")
+    return message
+
+
+def _kept_recording(args) -> Path | None:
+    """The --out MCAP's partial file when a failed run left one holding data, else None."""
+    if args.out is None:
+        return None
+    from .sinks.files import partial_path, stream_descriptor
+    if stream_descriptor(args.out) is not None or (args.out.exists()
+                                                   and not args.out.is_file()):
+        return None
+    partial = partial_path(os.path.realpath(args.out))
+    try:
+        if not (partial.is_file() and partial.stat().st_size > 0):
+            return None
+    except OSError:
+        return None
+    # Shown as the user named the output, unless it is a link (written beside its target).
+    return partial if args.out.is_symlink() else partial_path(args.out)
 
 
 def _nothing_written(args) -> str:
@@ -577,7 +718,10 @@ def main(argv=None) -> int:
         _previous_unraisable_hook, sys.unraisablehook = (sys.unraisablehook,
                                                           _unraisable_interrupt_recorded)
     try:
-        args = build_parser().parse_args(argv)
+        parser = build_parser()
+        if not (sys.argv[1:] if argv is None else argv):
+            parser.exit(EXIT_USAGE, SHORT_USAGE)    # ``track`` alone: what to give it
+        args = parser.parse_args(argv)
         quiet_decoder_logs()            # before the first video is opened
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning

@@ -28,7 +28,7 @@ from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from .pipeline import PoseTracker
 from .background import GainMeter, undo_gain
 from .silhouettes import median_background
-from .sinks import PoseRecorder, Sink, close_sinks
+from .sinks import PoseRecorder, Sink, close_sinks, problem_line
 from .video import VideoError, VideoSource, colourless, open_video, scaled_size
 
 
@@ -486,7 +486,7 @@ def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequenc
 def _feed(poses, sinks: Sequence[Sink]) -> list[str]:
     """Write every pose to every sink; a sink that fails (a full disk under the MCAP) is fed
     no more, the others are fed on, so one output's failure costs no other its poses.
-    Returns one "Kind: message" line per failed sink."""
+    Returns one line per failed sink (tracker.sinks.problem_line)."""
     live, problems = list(sinks), []
     for pose in poses:
         for sink in list(live):
@@ -494,5 +494,5 @@ def _feed(poses, sinks: Sequence[Sink]) -> list[str]:
                 sink.write(pose)
             except Exception as exc:
                 live.remove(sink)
-                problems.append(f"{type(sink).__name__}: {exc}")
+                problems.append(problem_line(sink, exc))
     return problems

@@ -12,15 +12,21 @@ attribute, "filtered" or "smoothed"; a sink given smoothed poses is told "filter
 Ctrl-C makes tracker.run.track_video write the filtered ones instead (the MCAP's
 SmoothedChannel then writes nothing: the filtered poses are in its file already).
 
+Optional, for sinks a command opened from its options: an ``option`` attribute (e.g.
+"--json"), which a failure's line names instead of the sink's class (problem_line).
+
 Sinks: McapSink (mcap.py), BVHSink (bvh.py), JsonSummarySink (json_summary.py), MeshcatView
 (meshcat_view.py), and PoseRecorder here (keeps the poses in memory, e.g. in a notebook).
-``open_sinks`` opens several, closing those already open if one fails; ``close_sinks`` closes
-them all, collecting the problems instead of stopping at the first.
+``open_sinks`` opens several, abandoning those already open if one fails (a refused run leaves
+every existing file as it was); ``close_sinks`` closes them all, collecting the problems
+instead of stopping at the first.
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Protocol
+
+from .files import OutputWriteError
 
 if TYPE_CHECKING:
     from ..pipeline import TrackedPose
@@ -73,20 +79,32 @@ class PoseRecorder:
 
 
 def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
-    """Call each factory in turn; if one fails, close the sinks already opened and re-raise."""
+    """Call each factory in turn; if one fails (another run holds its lock, a name the file
+    system refuses, Ctrl-C), abandon the sinks already opened (close_sinks(abandon=True): a
+    file sink then writes nothing, so what its destination held stays) and re-raise."""
     opened: list[Sink] = []
     try:
         for make in factories:
             opened.append(make())
     except BaseException:
-        close_sinks(opened)
+        close_sinks(opened, abandon=True)
         raise
     return opened
 
 
+def problem_line(sink: Sink, exc: BaseException) -> str:
+    """One line for a sink's failure: with its ``option`` attribute "--json /dev/full: No space
+    left on device" (an OutputWriteError's message starts with its file) or "--view: ...";
+    without, "JsonSummarySink: ..." (the sink's class)."""
+    option = getattr(sink, "option", None)
+    if option is None:
+        return f"{type(sink).__name__}: {exc}"
+    return f"{option} {exc}" if isinstance(exc, OutputWriteError) else f"{option}: {exc}"
+
+
 def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
     """Close every sink, even when some fail (each holds the user's results); returns one
-    "Kind: message" line per failure. abandon: the run has nothing to give (it tracked
+    line per failure (problem_line). abandon: the run has nothing to give (it tracked
     nobody): sinks with an ``abandon()`` method (the files) stop without writing, so what their
     destinations held stays; the others are closed."""
     problems = []
@@ -97,5 +115,5 @@ def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
             else:
                 sink.close()
         except Exception as exc:
-            problems.append(f"{type(sink).__name__}: {exc}")
+            problems.append(problem_line(sink, exc))
     return problems

@@ -40,7 +40,7 @@ from sequences.skeleton import (
     CMU_REST_OFFSETS,
     CMU_UNIT_M,
 )
-from tracker.sinks.files import LockFile, write_beside
+from tracker.sinks.files import LockFile, beside_name, write_beside
 from tracker.sinks.geometry import SinkInputError, check_joints, check_pose
 
 if TYPE_CHECKING:
@@ -98,7 +98,11 @@ class BVHSink:
         missing = [p for p in (self.directory, *self.directory.parents) if not p.exists()]
         self._made = missing[-1] if missing else None
         self.directory.mkdir(parents=True, exist_ok=True)
-        self._lock = LockFile(self.directory / f".{prefix}.bvh.lock")
+        try:
+            self._lock = LockFile(beside_name(self.directory / f".{prefix}.bvh", ".lock"))
+        except BaseException:           # another run holds it: leave no folder of ours behind
+            self._remove_made_folders()
+            raise
 
     @property
     def closed(self) -> bool:
@@ -160,14 +164,19 @@ class BVHSink:
             return
         self._closed = True
         self._lock.release()
-        if self._made is not None:
-            for folder in (self.directory, *self.directory.parents):
-                try:
-                    folder.rmdir()
-                except OSError:             # not empty (someone else's files): kept
-                    break
-                if folder == self._made:
-                    break
+        self._remove_made_folders()
+
+    def _remove_made_folders(self) -> None:
+        """Remove the folders the constructor made, innermost first, while they are empty."""
+        if self._made is None:
+            return
+        for folder in (self.directory, *self.directory.parents):
+            try:
+                folder.rmdir()
+            except OSError:                 # not empty (someone else's files): kept
+                break
+            if folder == self._made:
+                break
 
     def __enter__(self) -> "BVHSink":
         return self

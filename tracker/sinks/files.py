@@ -2,7 +2,8 @@
 
 - :func:`check_distinct` refuses, before anything is written, an output that is (after symlinks,
   relative paths and hard links) the input or another output.
-- :class:`OutputFile` writes ``NAME.partial`` beside ``NAME`` under an exclusive lock (a second
+- :class:`OutputFile` writes ``NAME.partial`` beside ``NAME`` (a shorter name when that one
+  would be too long: :func:`beside_name`) under an exclusive lock (a second
   run on the same output fails at once with :class:`OutputBusyError`) and renames it onto
   ``NAME`` only by :meth:`OutputFile.commit`, once it is complete. A crash leaves ``NAME`` as it
   was and the new data in ``NAME.partial``. A destination that exists and is not a regular file
@@ -19,8 +20,10 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import os
 import re
+import sys
 import warnings
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -28,17 +31,28 @@ from pathlib import Path
 from regressor.errors import SilhouettePoseError
 
 PARTIAL_SUFFIX = ".partial"
+#: The longest file name, in bytes, of the usual file systems (ext4, XFS, btrfs, tmpfs).
+NAME_MAX = 255
 
 
 class OutputPathError(SilhouettePoseError, ValueError):
     """An output path that would overwrite the input or another output; one line."""
 
 
-class OutputBusyError(SilhouettePoseError, RuntimeError):
+class _FileError(SilhouettePoseError, RuntimeError):
+    """One line starting with the file's path, which is also the ``path`` attribute (None
+    when not given): a command can name the option the file came from."""
+
+    def __init__(self, message: str, path: str | Path | None = None):
+        super().__init__(message)
+        self.path = None if path is None else Path(path)
+
+
+class OutputBusyError(_FileError):
     """Another process is writing the same output; one line naming the file."""
 
 
-class OutputWriteError(SilhouettePoseError, RuntimeError):
+class OutputWriteError(_FileError):
     """Writing an output failed (disk full, I/O error); one line naming the file."""
 
 
@@ -65,10 +79,26 @@ def stream_descriptor(path: str | Path) -> int | None:
     return None
 
 
-def partial_path(path: str | Path) -> Path:
-    """Where ``path`` is written until it is complete: ``NAME.partial`` beside it."""
+def beside_name(path: str | Path, suffix: str) -> Path:
+    """``path`` with ``suffix`` added to its name, in the same folder (``NAME.partial``,
+    ``.PREFIX.bvh.lock``). Where that name would pass NAME_MAX bytes (a legal 250-byte NAME),
+    NAME is cut and ``~`` and 12 hex digits of its SHA-256 follow it, so that every NAME
+    still has its own: the same NAME always gives the same name (a second run finds the
+    first's lock and partial file)."""
     path = Path(path)
-    return path.with_name(path.name + PARTIAL_SUFFIX)
+    name = path.name + suffix
+    if len(os.fsencode(name)) <= NAME_MAX:
+        return path.with_name(name)
+    digest = hashlib.sha256(os.fsencode(path.name)).hexdigest()[:12]
+    keep = NAME_MAX - len(os.fsencode(suffix)) - len(digest) - 1
+    head = os.fsencode(path.name)[:keep].decode(sys.getfilesystemencoding(), "ignore")
+    return path.with_name(f"{head}~{digest}{suffix}")
+
+
+def partial_path(path: str | Path) -> Path:
+    """Where ``path`` is written until it is complete: ``NAME.partial`` beside it
+    (:func:`beside_name`: a shorter name when that one would be too long)."""
+    return beside_name(path, PARTIAL_SUFFIX)
 
 
 def _identity(path: Path) -> tuple:
@@ -107,7 +137,7 @@ def _open_locked(path: Path, flags: int) -> int:
         except BlockingIOError:
             os.close(fd)
             raise OutputBusyError(f"{path}: another track run is writing this output; wait for "
-                                  f"it to finish or choose another file name") from None
+                                  f"it to finish or choose another file name", path) from None
         except BaseException:
             os.close(fd)
             raise
@@ -118,7 +148,7 @@ def _open_locked(path: Path, flags: int) -> int:
                 return fd
         os.close(fd)
     raise OutputBusyError(f"{path}: kept changing while being locked; another track run is "
-                          f"writing this output")
+                          f"writing this output", path)
 
 
 def set_aside(path: Path) -> Path | None:
@@ -138,7 +168,8 @@ def set_aside(path: Path) -> Path | None:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 raise OutputBusyError(f"{path}: another track run is writing this output; wait "
-                                      f"for it to finish or choose another file name") from None
+                                      f"for it to finish or choose another file name",
+                                      path) from None
             # Moved by another run between our open and our lock (it set it aside and may now
             # write a new one under the name): what we locked is not what the name holds.
             try:
@@ -150,7 +181,7 @@ def set_aside(path: Path) -> Path | None:
         finally:
             os.close(fd)            # also releases the lock
     raise OutputBusyError(f"{path}: kept changing while being locked; another track run is "
-                          f"writing this output")
+                          f"writing this output", path)
 
 
 def _open_to_lock(path: Path) -> int:
@@ -162,26 +193,26 @@ def _open_to_lock(path: Path) -> int:
         except OSError as exc:
             error = exc
     raise OutputWriteError(f"{path}: holds an earlier run's data that cannot be kept aside "
-                           f"({error.strerror}); move it away first")
+                           f"({error.strerror}); move it away first", path)
 
 
 def _link_aside(path: Path) -> Path:
     """set_aside's move of the locked ``path`` to the first free ``NAME.N``."""
     for n in range(1, 10_000):
-        aside = path.with_name(f"{path.name}.{n}")
+        aside = beside_name(path, f".{n}")
         try:
             os.link(path, aside)      # never replaces an existing file, unlike rename
         except FileExistsError:
             continue
         except OSError as exc:
             raise OutputWriteError(f"{path}: holds an earlier run's data and cannot be kept "
-                                   f"aside ({exc.strerror}); move it away first") from None
+                                   f"aside ({exc.strerror}); move it away first", path) from None
         os.unlink(path)
         warnings.warn(f"{path} held an earlier run's unfinished output; kept as {aside}, "
                       f"not overwritten", stacklevel=4)
         return aside
     raise OutputWriteError(f"{path}: too many earlier unfinished outputs kept beside it; "
-                           f"remove some")
+                           f"remove some", path)
 
 
 class OutputFile:
@@ -208,7 +239,8 @@ class OutputFile:
                 self._fd = _open_locked(self.written_path, os.O_WRONLY)
                 os.ftruncate(self._fd, 0)   # set_aside kept any data it held
         except OSError as exc:
-            raise OutputWriteError(f"{self.written_path}: cannot write ({exc.strerror})") from None
+            raise OutputWriteError(f"{self.written_path}: cannot write ({exc.strerror})",
+                                   self.written_path) from None
         self._offset = 0
         self.committed = False
 
@@ -231,7 +263,7 @@ class OutputFile:
             while done < len(view):
                 done += os.write(self._fd, view[done:])
         except OSError as exc:
-            raise OutputWriteError(f"{self.path}: {exc.strerror or exc}") from None
+            raise OutputWriteError(f"{self.path}: {exc.strerror or exc}", self.path) from None
         self._offset += done
         return done
 
@@ -254,7 +286,7 @@ class OutputFile:
         except OSError as exc:
             self.discard(keep=True)
             raise OutputWriteError(f"{self.path}: could not be finished ({exc.strerror}); the "
-                                   f"data written is in {self.written_path}") from None
+                                   f"data written is in {self.written_path}", self.path) from None
         self._release()
         self.committed = True
 
@@ -306,7 +338,7 @@ def write_beside(path: str | Path, write: Callable[[Path], None],
         with contextlib.suppress(OSError):
             os.unlink(partial)
         if isinstance(exc, OSError):
-            raise OutputWriteError(f"{shown}: {exc.strerror or exc}") from None
+            raise OutputWriteError(f"{shown}: {exc.strerror or exc}", shown) from None
         raise
     _sync_folder(path.parent)
 
@@ -325,7 +357,7 @@ def write_whole(path: str | Path, write: Callable[[Path], None],
         try:
             write(given)
         except OSError as exc:
-            raise OutputWriteError(f"{path}: {exc.strerror or exc}") from None
+            raise OutputWriteError(f"{path}: {exc.strerror or exc}", path) from None
         return
     target = Path(os.path.realpath(path))
     partial = (target.with_name(f"{target.stem}{PARTIAL_SUFFIX}{target.suffix}")
@@ -348,7 +380,8 @@ class LockFile:
         try:
             self._fd = _open_locked(self.path, os.O_RDWR)
         except OSError as exc:
-            raise OutputWriteError(f"{self.path}: cannot create ({exc.strerror})") from None
+            raise OutputWriteError(f"{self.path}: cannot create ({exc.strerror})",
+                                   self.path) from None
 
     def release(self) -> None:
         """Remove the lock file and release the lock; idempotent."""
