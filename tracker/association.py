@@ -8,11 +8,12 @@ units of the track's size (its box height, or sqrt(area) for detections without 
 same gates work for near and far people:
 
     cost = |centroid - predicted| / size + size_weight * |ln(detection area / track area)|
+           + appearance_weight * Bhattacharyya(detection colour, track colour)
 
-A pair is refused (gated) when the distance exceeds ``max_distance`` sizes (widened by one size per
-missed frame while a track coasts), or the areas differ by more than ``max_area_ratio`` while the
-boxes do not overlap: a silhouette that grows or shrinks in place (legs found or lost by the
-extractor) keeps its id, a different-sized blob elsewhere does not.
+A pair is refused (gated) when the distance exceeds ``max_distance`` sizes (widened by one size
+per frame while a track coasts, missed or hidden in a group), or the areas differ by more than
+``max_area_ratio`` while the boxes do not overlap: a silhouette that grows or shrinks in place
+(legs found or lost by the extractor) keeps its id, a different-sized blob elsewhere does not.
 An unmatched detection starts a track at once when it is at least ``min_relative_area`` of the
 largest confirmed track's area (or no track is confirmed: the first people of a video are not
 delayed); a smaller one starts a tentative track, which gets an id and is reported once matched
@@ -23,7 +24,7 @@ later gets a new id.
 
 People who cross or walk together are one blob to background subtraction. When a detection's
 box holds the predicted centroids of two or more established tracks (each seen last frame or
-already in a group, of comparable heights, and matched to no other detection), it is a group:
+already in a group, standing side by side, matched to no other detection), it is a group:
 it is given to none of them (a two-person silhouette is nobody's pose) and starts no track,
 and each member coasts on its constant-velocity prediction, kept inside the group's box, for
 up to ``max_occluded`` frames. When the blob splits, the predictions and each person's
@@ -43,6 +44,13 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from regressor.errors import SilhouettePoseError
+
+
+#: How long, seconds, a track may stay hidden in a group (PoseTracker sets max_occluded from it
+#: and the video's fps; Associator's default is this at 30 fps). The sample beside its mirror
+#: image is one blob for 17-18 frames (0.6 s) per crossing; people who stop together longer
+#: are taken as one person again.
+MAX_OCCLUDED_S = 1.5
 
 
 class Detection(Protocol):
@@ -123,7 +131,8 @@ class Associator:
     (0-1) in the cost; ``colour_rate``: weight of the newest frame in a track's colour (the
     first frames are averaged equally). ``max_occluded``: frames a track may stay hidden in a
     group (0: no groups); ``min_height_ratio``: a group's members are at least this fraction
-    of the tallest member's box height (a leg cut off by the extractor is no person).
+    of the tallest member's box height and overlap its rows by this share of their own (a leg
+    cut off by the extractor is no person beside it).
     """
 
     def __init__(self, max_distance: float = 1.0, max_area_ratio: float = 1.8,
@@ -174,7 +183,8 @@ class Associator:
             boxes = np.full((len(areas), 4), np.nan)
         predicted = np.array([t.predicted() for t in self.tracks])           # (T, 2)
         track_area = np.array([t.area for t in self.tracks])                  # (T,)
-        missed = np.array([t.missed for t in self.tracks])                    # (T,)
+        # Coasting, in a group or unseen, widens the gate by one size a frame.
+        missed = np.array([t.missed + t.occluded for t in self.tracks])       # (T,)
         size = np.array([t.size() for t in self.tracks])[:, None]             # (T, 1)
         distance = np.linalg.norm(predicted[:, None, :] - centroids[None, :, :], axis=2) / size
         log_ratio = np.abs(np.log(areas[None, :] / track_area[:, None]))
@@ -253,8 +263,10 @@ class Associator:
     def _groups(self, matched: dict[int, int], boxes: np.ndarray) -> dict[int, np.ndarray]:
         """Detection index -> rows (M,) of the tracks hidden in it, for detections whose box
         (N, 4) px holds the predicted centroids of two or more confirmed tracks that were seen
-        last frame or are in a group, have hidden no longer than max_occluded, are of
-        comparable heights and are matched (``matched``: detection -> track row) to no other
+        last frame or are in a group, have hidden no longer than max_occluded, stand side by
+        side (each at least min_height_ratio of the tallest one's height, and overlapping its
+        rows by that share of its own: pieces of one person cut apart by the extractor stand one
+        above the other) and are matched (``matched``: detection -> track row) to no other
         detection."""
         if not self.tracks or self.max_occluded == 0 or not len(boxes):
             return {}
@@ -268,12 +280,17 @@ class Associator:
         owner[list(matched.values())] = list(matched.keys())
         member = inside & eligible[:, None] & ((owner[:, None] == -1) |
                                                (owner[:, None] == np.arange(len(boxes))))
+        tops = np.array([t.bbox[1] for t in self.tracks])
         heights = np.array([t.bbox[3] for t in self.tracks])
         groups, taken = {}, np.zeros(len(self.tracks), bool)
         for j in np.flatnonzero(member.sum(axis=0) >= 2):
             rows = np.flatnonzero(member[:, j] & ~taken)
-            if len(rows) >= 2 and heights[rows].min() >= self.min_height_ratio * \
-                    heights[rows].max():
+            tall = rows[np.argmax(heights[rows])]
+            beside = (np.minimum(tops[rows] + heights[rows], tops[tall] + heights[tall])
+                      - np.maximum(tops[rows], tops[tall]))
+            rows = rows[(heights[rows] >= self.min_height_ratio * heights[tall])
+                        & (beside >= self.min_height_ratio * heights[rows])]
+            if len(rows) >= 2:
                 groups[int(j)] = rows
                 taken[rows] = True
         return groups
