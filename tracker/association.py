@@ -270,9 +270,11 @@ class Associator:
         detection."""
         if not self.tracks or self.max_occluded == 0 or not len(boxes):
             return {}
-        predicted = np.array([t.predicted() for t in self.tracks])            # (T, 2)
         eligible = np.array([t.track_id >= 0 and t.missed == 0 and t.hits >= self.min_hits
                              and t.occluded < self.max_occluded for t in self.tracks])
+        if eligible.sum() < 2:
+            return {}
+        predicted = np.array([t.predicted() for t in self.tracks])            # (T, 2)
         x0, y0, w, h = (boxes[:, i][None, :] for i in range(4))
         px, py = predicted[:, :1], predicted[:, 1:]
         inside = (px >= x0) & (px <= x0 + w) & (py >= y0) & (py <= y0 + h)      # (T, N)
