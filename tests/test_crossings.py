@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.association import Associator
+from tracker.association import AssociationError, Associator
 from tracker.offline.crossings import (identity_measures, mirror_crossing, read_frames,
                                        track_identities)
 from tracker.silhouettes import COLOUR_BINS, colour_histogram
@@ -100,6 +100,13 @@ def test_a_fragment_of_one_person_makes_no_group():
             people = [Blob((x, 200.0), 4000, (x - 20, 140.0, 40, 120), colour)]
         reported.append([track_id for track_id, _ in associator.update(people)])
     assert all(0 in ids for ids in reported)
+
+
+def test_bad_group_settings_are_refused():
+    for bad in (dict(max_occluded=-1), dict(appearance_weight=-0.5), dict(colour_rate=0.0),
+                dict(min_height_ratio=1.5)):
+        with pytest.raises(AssociationError, match=str(next(iter(bad.values())))):
+            Associator(**bad)
 
 
 def test_colour_histogram_sums_to_one_inside_the_mask():

@@ -92,10 +92,6 @@ class Track:
         """(x, y) px expected this frame: the last centroid moved on by the missed frames + 1."""
         return self.centroid + self.velocity * (self.missed + 1)
 
-    def predicted_box(self) -> np.ndarray:
-        """(x, y, w, h) px expected this frame: the last box moved as the centroid."""
-        return self.bbox + np.r_[self.predicted() - self.centroid, 0.0, 0.0]
-
     def size(self) -> float:
         """The unit of distance, px: the box height, else sqrt(area)."""
         return float(self.bbox[3]) if np.isfinite(self.bbox[3]) else math.sqrt(self.area)
@@ -203,7 +199,7 @@ class Associator:
         known = np.array([t.colour is not None for t in self.tracks])
         if not known.any():
             return np.zeros((len(self.tracks), len(colours)))
-        mean = np.stack([t.colour if t.colour is not None else colours[0] * 0
+        mean = np.stack([t.colour if t.colour is not None else np.zeros(colours.shape[1])
                          for t in self.tracks])
         coefficient = np.sqrt(mean) @ np.sqrt(colours).T
         return np.sqrt(np.clip(1.0 - coefficient, 0.0, 1.0)) * known[:, None]
