@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
+from conftest import load_script, refused_in_one_line
 from tracker.association import AssociationError, Associator
 from tracker.offline.crossings import (identity_measures, mirror_crossing, read_frames,
                                        track_identities)
@@ -163,3 +164,10 @@ def test_mirror_crossing_pastes_the_mirrored_walker():
     assert np.abs(copy - original)[walker].max() == 0
     with pytest.raises(ValueError, match="offset"):
         mirror_crossing(frames, truth, offset=5)
+
+
+def test_evaluate_crossings_refuses_bad_options_in_one_line(capsys, tmp_path):
+    script = load_script("evaluate_crossings")
+    assert "--video" in refused_in_one_line(script, ["--video", str(tmp_path / "no.mp4")],
+                                            capsys)
+    assert "--offsets" in refused_in_one_line(script, ["--offsets", "400"], capsys)
