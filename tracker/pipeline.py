@@ -23,7 +23,7 @@ from regressor.angles import N_ANGLES
 from regressor.edges import SilhouetteError
 from regressor.pose_model import training_fps_of
 from regressor.stacking import FrameStacker, stack_step
-from .association import Associator
+from .association import MAX_OCCLUDED_S, Associator
 from .roll import upright_mask
 from .filtering import PoseKalmanFilter
 from .imm_filter import DEFAULT_SWITCH, TURN_AND_STOP, HeadingModel, IMMPoseFilter
@@ -350,11 +350,11 @@ class PoseTracker:
 
     estimator: a PoseEstimator; fps: video frame rate; settings: TrackerSettings; extractor:
     frame -> people (default SilhouetteExtractor); associator: people -> track ids (default
-    Associator); filter_factory: fps -> a PoseFilter per front/back hypothesis of a track
-    (default kalman_factory(estimator, settings), with the body angles from
-    limb_kalman_factory's filter; a custom one gives the whole pose: filter_factories). The
-    frame size (height, width) is taken from the background given to prime() or the first
-    frame. With the default extractor, a colourless
+    Associator, a track hidden in a group for up to MAX_OCCLUDED_S); filter_factory: fps -> a
+    PoseFilter per front/back hypothesis of a track (default kalman_factory(estimator,
+    settings), with the body angles from limb_kalman_factory's filter; a custom one gives the
+    whole pose: filter_factories). The frame size (height, width) is taken from the background
+    given to prime() or the first frame. With the default extractor, a colourless
     background (black-and-white video) turns shadow detection off (see prime()).
     """
 
@@ -368,7 +368,8 @@ class PoseTracker:
         self.settings = settings
         self.extractor = extractor or default_extractor(settings)
         self._default_extractor = extractor is None
-        self.associator = associator or Associator()
+        self.associator = associator or Associator(
+            max_occluded=max(1, round(MAX_OCCLUDED_S * self.fps)))
         self.filter_factory, self.limb_filter_factory = filter_factories(estimator, settings,
                                                                          filter_factory)
         self._mirror = sees_mirror(estimator, settings.mirror_limbs)

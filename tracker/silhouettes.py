@@ -54,13 +54,32 @@ class PersonMask:
 
     ``mask``: (h, w) bool crop, True on the person; ``bbox``: (x, y, w, h) px of the crop in the
     frame; ``centroid``: (x, y) px of the mask's centre of mass in the frame; ``area``: foreground
-    pixels in ``mask``.
+    pixels in ``mask``; ``colour``: the person's appearance, :func:`colour_histogram` of the
+    frame inside the silhouette (COLOUR_BINS,), or None when not measured.
     """
 
     mask: np.ndarray
     bbox: tuple[int, int, int, int]
     centroid: tuple[float, float]
     area: int
+    colour: np.ndarray | None = None
+
+
+#: Bins of a person's colour histogram over hue, saturation and value (OpenCV's HSV, hue 0-180):
+#: hue and saturation tell clothes apart under the same light, value tells black from white.
+COLOUR_BINS_HSV = (8, 4, 4)
+COLOUR_BINS = int(np.prod(COLOUR_BINS_HSV))
+
+
+def colour_histogram(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """The colour of ``image`` (BGR uint8 (h, w, 3)) where ``mask`` (uint8 (h, w), nonzero =
+    person): a HSV histogram (COLOUR_BINS,) float32 summing to 1 (all zeros for an empty
+    mask). Compared by Bhattacharyya distance (tracker.association), it tells people apart
+    where their silhouettes cannot."""
+    hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
+    hist = cv2.calcHist([hsv], [0, 1, 2], mask, list(COLOUR_BINS_HSV), [0, 180, 0, 256, 0, 256])
+    total = float(hist.sum())
+    return (hist.ravel() / total if total else hist.ravel()).astype(np.float32)
 
 
 class BackgroundSubtractor:
@@ -298,7 +317,8 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
                  min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION,
                  max_hole_fraction: float = 0.002, merge_fragments: bool = True,
                  max_fragment_area: float = 0.15,
-                 max_area_fraction: float = DEFAULT_MAX_AREA_FRACTION) -> list[PersonMask]:
+                 max_area_fraction: float = DEFAULT_MAX_AREA_FRACTION,
+                 image: np.ndarray | None = None) -> list[PersonMask]:
     """Split a cleaned foreground mask into one :class:`PersonMask` per 8-connected component.
 
     ``mask``: uint8 (h, w) at the working size, 255 = foreground. ``frame_size``: (width, height)
@@ -311,7 +331,9 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
     between an arm on the hip and the torso is real background the pose depends on.
     ``merge_fragments``: join components that look like pieces of one person (see
     :func:`_fragment_groups`, which also gets ``max_fragment_area``; 0 joins only pieces
-    stacked one above the other); False gives exactly one person per component.
+    stacked one above the other); False gives exactly one person per component. ``image``:
+    the frame at the mask's size (BGR uint8 (h, w, 3)) to measure each person's colour from
+    (PersonMask.colour; None: not measured).
     Returns people sorted by area, largest first. Two people touching form one component.
     """
     height, width = mask.shape
@@ -335,7 +357,8 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
     for group in groups:
         members = [int(outers[g]) for g in group]
         holes = [contours[h] for h in big_holes if parents[h] in members]
-        people.append(_person_from_contours(contours, members, holes, mask.shape, frame_size))
+        people.append(_person_from_contours(contours, members, holes, mask.shape, frame_size,
+                                            image))
     return sorted((p for p in people if p is not None), key=lambda p: -p.area)
 
 
@@ -382,10 +405,11 @@ def _fragment_groups(rects: np.ndarray, areas: np.ndarray | None = None,
 
 
 def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
-                          shape: tuple[int, int], frame_size: tuple[int, int]
-                          ) -> PersonMask | None:
+                          shape: tuple[int, int], frame_size: tuple[int, int],
+                          image: np.ndarray | None = None) -> PersonMask | None:
     """Rasterize one person (its component pieces minus their kept holes) and scale it to
-    frame pixels. Pieces of one person are joined across the gap between them."""
+    frame pixels. Pieces of one person are joined across the gap between them. Its colour
+    is measured in ``image`` (at the mask's size) when given, before scaling (cheaper)."""
     height, width = shape
     frame_width, frame_height = frame_size
     sx, sy = frame_width / width, frame_height / height
@@ -401,6 +425,7 @@ def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
         cv2.drawContours(crop, holes, -1, 255, 1, offset=(-x, -y))
     if len(members) > 1:
         crop = _bridge_vertical_gaps(crop, [cv2.boundingRect(contours[m]) for m in members])
+    colour = None if image is None else colour_histogram(image[y:y + h, x:x + w], crop)
     x0, y0 = int(round(x * sx)), int(round(y * sy))
     x1 = min(frame_width, int(round((x + w) * sx)))
     y1 = min(frame_height, int(round((y + h) * sy)))
@@ -411,7 +436,8 @@ def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
     if moments["m00"] == 0:
         return None
     centroid = (x0 + moments["m10"] / moments["m00"], y0 + moments["m01"] / moments["m00"])
-    return PersonMask(crop > 0, (x0, y0, x1 - x0, y1 - y0), centroid, int(moments["m00"]))
+    return PersonMask(crop > 0, (x0, y0, x1 - x0, y1 - y0), centroid, int(moments["m00"]),
+                      colour)
 
 
 def _bridge_vertical_gaps(crop: np.ndarray, rects) -> np.ndarray:
@@ -837,4 +863,4 @@ class SilhouetteExtractor:
             cleaned = self.refiner(cleaned, small, shadow, self.background.unreliable)
         return person_masks(cleaned, (frame.shape[1], frame.shape[0]), self.min_area_fraction,
                             self.max_hole_fraction,
-                            max_fragment_area=self.max_fragment_area)
+                            max_fragment_area=self.max_fragment_area, image=small)
