@@ -68,6 +68,7 @@ def test_chromium_shows_both_sides_of_a_body_in_their_colours(tmp_path):
         assert _hue_pixels(drawn, colours[side]) > 150, f"side {side}"
 
 
+@pytest.mark.slow
 def test_track_view_shows_bodies_and_video_from_start_to_end(tmp_path):
     """`track --view` on the sample (12 s, played at its own speed): screenshots at 2.5 s,
     6.5 s and 10.5 s of one page each show the left and right colours of track 0 and the video
