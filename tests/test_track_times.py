@@ -1,6 +1,7 @@
 """Each frame's own time reaches `track`'s outputs: a video at 30 fps for 6 s and then at 10 fps
 (tests/data/vfr_walk.mkv, scripts/make_vfr_clip.py) keeps its real timing in the JSON, the
-MCAP and the BVH."""
+MCAP and the BVH; and a file that states no length, as a recording still being written, is
+tracked without a phantom track."""
 from __future__ import annotations
 
 import json
@@ -12,6 +13,7 @@ from mcap.reader import make_reader
 
 from sequences.bvh import read_bvh
 from tests.test_track_cli import _track
+from tests.test_video import without_duration
 
 VFR_CLIP = Path(__file__).parent / "data" / "vfr_walk.mkv"
 #: The clip's frame times: 180 at 30 fps, then 61 at 10 fps (6.0 to 12.0 s).
@@ -46,3 +48,16 @@ def test_a_variable_frame_rate_s_times_reach_the_json_the_mcap_and_the_bvh(tmp_p
     motion = read_bvh(next(bvh.glob("*.bvh")), fps=None)
     assert motion.fps == pytest.approx(30.0)
     assert motion.n_frames == round((track["time_s"][-1] - track["time_s"][0]) * 30) + 1
+
+
+def test_a_video_of_unknown_length_gives_no_phantom_track(tmp_path):
+    """A Matroska file still being written states no length: its background was learned from
+    its first 25 frames, the walker standing in them, and a second track of 162 frames
+    followed that ghost."""
+    path = tmp_path / "recording.mkv"
+    path.write_bytes(without_duration(VFR_CLIP.read_bytes()))
+    js = tmp_path / "walk.json"
+    result = _track(path, "--json", js, "--quiet", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    (track,) = json.loads(js.read_text())["tracks"]
+    assert track["n_frames"] == 241

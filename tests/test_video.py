@@ -417,3 +417,27 @@ def test_a_file_that_grows_while_read_is_said_to(tmp_path, monkeypatch):
                                                  r"first 0.8 s"):
         frames = list(source)
     assert len(frames) == 20 and source.grew
+
+
+def without_duration(data: bytes) -> bytes:
+    """A Matroska file's bytes with its Duration element (ID 0x4489) made a Void one of the same
+    length: the file states no length, as one still being written does not."""
+    at = data.index(b"\x44\x89")
+    length = 3 + (data[at + 2] & 0x7F)               # ID, one-byte size, the float
+    return data[:at] + bytes([0xEC, 0x80 | (length - 2)]) + bytes(length - 2) + data[at + length:]
+
+
+def test_background_samples_of_a_stream_of_unknown_length_span_it(tmp_path):
+    """They were its first 25 frames: a Matroska file still being written states no length,
+    and the person standing there in its first second became a phantom second track."""
+    path = tmp_path / "recording.mkv"
+    path.write_bytes(without_duration(VFR_CLIP.read_bytes()))
+    source = open_video(path)
+    assert source.frame_count is None and source.end_index is None
+    with pytest.warns(VideoTimingWarning):
+        frames = [f.image for f in open_video(VFR_CLIP)]
+    samples = source.sample_frames(7)
+    shown = [next(i for i, frame in enumerate(frames) if np.array_equal(frame, sample))
+             for sample in samples]
+    assert len(shown) == 7 and shown[0] == 0 and shown[-1] >= 200      # of 241 frames
+    assert np.all(np.diff(shown) >= 20)

@@ -361,9 +361,14 @@ class VideoSource:
         Samples up to SEQUENTIAL_SPACING frames apart are read in one pass (grab() every frame,
         retrieve() only those kept): a seek decodes from the previous key frame, so on H.264
         with long key-frame intervals 25 seeks cost far more than reading straight through.
-        Sparser samples (long videos) are reached by seeking.
+        Sparser samples (long videos) are reached by seeking. A stream of unknown length (a
+        Matroska file still being written states none) is read through to its end
+        (:meth:`_sample_through`): sampling its first ``count`` frames had learned a background
+        with the person of the first second in it, a phantom second track.
         """
-        end = self.end_index if self.end_index is not None else self.start_index + count
+        if self.end_index is None:
+            return self._sample_through(count, size)
+        end = self.end_index
         indices = np.linspace(self.start_index, end - 1, max(count, 1)).round().astype(int)
         indices = np.unique(indices)
         spacing = (indices[-1] - indices[0]) / max(len(indices) - 1, 1)
@@ -397,6 +402,39 @@ class VideoSource:
         finally:
             capture.release()
         return images
+
+
+    def _sample_through(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
+        """Up to ``count`` frames evenly spaced over a stream of unknown length, in one pass to
+        its end: every ``step``-th frame is kept, and when 2 count are kept every other one is
+        dropped and ``step`` doubles. A file that grew since it was opened ends at its first
+        failed read (its live end), as in iteration."""
+        capture = _open_capture(self.path)
+        opened = _file_state(self.path)
+        kept, step, give_up = [], 1, self.unreadable_run()
+        try:
+            index = _seek(capture, self.start_index, give_up)
+            offset, failed = index, 0
+            while failed < give_up:
+                if not capture.grab():
+                    if _file_state(self.path) != opened:
+                        break
+                    failed, index = failed + 1, index + 1
+                    continue
+                failed = 0
+                if (index - offset) % step == 0:
+                    ok, image = capture.retrieve()
+                    if ok and image is not None:
+                        kept.append(self._prepare(image, size))
+                    if len(kept) >= 2 * max(count, 1):
+                        kept, step = kept[::2], 2 * step
+                index += 1
+        finally:
+            capture.release()
+        if len(kept) <= count:
+            return kept
+        return [kept[i] for i in np.unique(np.linspace(0, len(kept) - 1, count).round()
+                                           .astype(int))]
 
 
 def _open_capture(path: Path) -> cv2.VideoCapture:
