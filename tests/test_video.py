@@ -362,8 +362,8 @@ class _GrowingCapture:
     (the reader has caught up with the writer), before that read returns."""
 
     def __init__(self, path: Path, rest: bytes, after: int | None = None):
-        self.capture, self.path, self.rest, self.after = cv2.VideoCapture(str(path)), path, rest, after
-        self.reads = 0
+        self.capture, self.path = cv2.VideoCapture(str(path)), path
+        self.rest, self.after, self.reads = rest, after, 0
 
     def read(self):
         ok, image = self.capture.read()

@@ -18,9 +18,9 @@ not increase, frames are spaced evenly at the frame rate from there on (also sai
 
 A file still being written (a recording in progress) is read up to where its data ended when
 reading reached it: a failed read on a file that has grown since it was opened ends the stream
-there (reading on would resume mid-write, decoding half-written frames), the last frame decoded
-before that end is dropped (it may be half written), and a :class:`VideoGrowingWarning` says
-how far the file grew and how much of it was used.
+there, without the last frame decoded before it (the tail of a half-written frame decodes as a
+damaged picture), and a :class:`VideoGrowingWarning` says how far the file grew and how much of
+it was used; also when the stream ends at the length stated when it was opened (MPEG-TS).
 """
 from __future__ import annotations
 
@@ -197,15 +197,16 @@ class VideoSource:
     Attributes: ``path``, ``fps`` (frames/s: the container's, or the one stated), ``frame_count``
     (frames the container announces for the whole file, None when it does not say; may be
     approximate: with a variable frame rate it is the duration times ``fps``),
-    ``width``/``height`` (px of
-    the frames yielded, after any downscaling), ``source_width``/``source_height`` (px in the
-    file), ``start_index``/``end_index`` (frame range yielded, end exclusive; end None = until the
-    stream ends), ``start_s``/``end_s`` (the time range asked for, seconds, end None: to the
-    end; frames outside it are not yielded, so a variable frame rate's range is by time), ``container_times`` (False: frames evenly spaced at ``fps``, as with a stated
-    rate), ``frames_read`` (frames yielded by the last iteration), ``frames_skipped``
-    (undecodable frames it skipped inside the stream), ``truncated`` (True when it stopped
-    before ``end_index``), ``grew`` (True when the file grew while it was read) and
-    ``read_until_s`` (the time of the last frame yielded, None before any).
+    ``width``/``height`` (px of the frames yielded, after any downscaling),
+    ``source_width``/``source_height`` (px in the file), ``start_index``/``end_index`` (frame
+    range yielded, end exclusive; end None = until the stream ends), ``start_s``/``end_s``
+    (the time range asked for, seconds, end None: to the end; frames outside it are not
+    yielded, so a variable frame rate's range is by time), ``container_times`` (False: frames
+    evenly spaced at ``fps``, as with a stated rate), ``frames_read`` (frames yielded by the
+    last iteration), ``frames_skipped`` (undecodable frames it skipped inside the stream),
+    ``truncated`` (True when it stopped before ``end_index``), ``grew`` (True when the file
+    grew while it was read) and ``read_until_s`` (the time of the last frame yielded, None
+    before any).
     Each iteration reopens the file, so a source can be iterated more than once.
     """
 
