@@ -441,3 +441,24 @@ def test_background_samples_of_a_stream_of_unknown_length_span_it(tmp_path):
              for sample in samples]
     assert len(shown) == 7 and shown[0] == 0 and shown[-1] >= 200      # of 241 frames
     assert np.all(np.diff(shown) >= 20)
+
+
+class _RemovingCapture(_GrowingCapture):
+    """A capture whose file is removed after its third read (it reads on: the file is open)."""
+
+    def read(self):
+        ok, image = self.capture.read()
+        self.reads += 1
+        if self.reads == 3:
+            self.path.unlink()
+        return ok, image
+
+
+def test_a_file_removed_while_read_is_said_to(tmp_path, monkeypatch):
+    import tracker.video as video
+    path = write_video(tmp_path / "clip.mp4", flat_frames(10))
+    source = open_video(path)
+    monkeypatch.setattr(video, "_open_capture", lambda p: _RemovingCapture(p, b""))
+    with pytest.warns(VideoGrowingWarning, match=r"clip.mp4 was removed or replaced while "
+                                                 r"read; tracked the first 0.4 s"):
+        assert len(list(source)) == 10

@@ -181,9 +181,13 @@ class FrameTimes:
             longest > (1.0 + IRREGULAR_INTERVAL) / self.fps
 
 
-def _file_state(path: Path) -> tuple[int, int]:
-    """(size in bytes, modification time in ns) of ``path``, to see it change while read."""
-    stat = os.stat(path)
+def _file_state(path: Path) -> tuple[int, int] | None:
+    """(size in bytes, modification time in ns) of ``path``, to see it change while read; None
+    once it is gone (removed or renamed while read)."""
+    try:
+        stat = os.stat(path)
+    except OSError:
+        return None
     return stat.st_size, stat.st_mtime_ns
 
 
@@ -309,7 +313,7 @@ class VideoSource:
         return reached < announced - 0.5 / self.fps
 
     def _report(self, times: FrameTimes, first_skipped: int | None, stopped_at: int | None,
-                opened: tuple[int, int]) -> None:
+                opened: tuple[int, int] | None) -> None:
         """The one-line warnings about the iteration just finished (see the module docstring)."""
         name = self.path.name
         if self.frames_skipped:
@@ -335,9 +339,15 @@ class VideoSource:
         if now != opened or self.grew:
             self.grew = True
             used = 0.0 if self.read_until_s is None else self.read_until_s + 1.0 / self.fps
-            warnings.warn(f"{self.path} is still being written (grew from "
+            tracked = f"the first {used:.1f} s" if self.start_s == 0 else f"up to {used:.1f} s"
+            if now is None or opened is None:
+                warnings.warn(f"{self.path} was removed or replaced while read; tracked "
+                              f"{tracked}", VideoGrowingWarning, stacklevel=3)
+                return
+            change = "grew" if now[0] > opened[0] else "changed"
+            warnings.warn(f"{self.path} is still being written ({change} from "
                           f"{_megabytes(opened[0])} to {_megabytes(now[0])} while read); "
-                          f"tracked the first {used:.1f} s", VideoGrowingWarning, stacklevel=3)
+                          f"tracked {tracked}", VideoGrowingWarning, stacklevel=3)
 
     def unreadable_run(self) -> int:
         """Undecodable frames in a row after which the stream counts as ended
