@@ -19,7 +19,9 @@ baseline on a compact basis. The project's one-shot RVM (regressor.rvm) keeps 1,
 rows and takes 94 s at that size (issue 9), and the cost grows as N^2-N^3; an expert here sees
 5,000-15,000 rows, so its basis is chosen by clustering and its weights by damped least
 squares, in seconds. (``expert="rvm"`` fits the RVM instead on at most ``rvm_rows`` rows of each
-expert, for comparison.)
+expert, for comparison.) ``expert="sparse_rvm"`` (regressor.sparse_rvm) is both: a sparse RVM on
+all the expert's rows, over k-means candidate kernels, whose fit costs grow with the candidates
+rather than the rows, and which gives each pose a predictive standard deviation.
 
 Per-frame cost: the gate's kernel features (G centres), then only the top experts' kernels.
 
