@@ -263,10 +263,13 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
     for kind, col in (("filtered", 1), ("raw", 2), ("smoothed", 3)):
         poses = {v: subject[v][col][np.isin(subject[v][0], common)] for v in VIEWS}
         cross[kind] = cross_view_measures(trial, common, poses)
-    limbs = {v: limb_angles_deg(subject[v][1]) for v in VIEWS}
+    still = limb_angles_deg(np.asarray(constant)[None])[0]
+    limbs = {kind: pooled_limb_measures(trial, {v: subject[v][0] for v in VIEWS},
+                                        {v: limb_angles_deg(subject[v][col]) for v in VIEWS},
+                                        still)
+             for kind, col in (("filtered", 1), ("smoothed", 3))}
     return {"trial": str(trial.root), "views": per_view, "mean": _means(per_view),
-            "limbs": pooled_limb_measures(trial, {v: subject[v][0] for v in VIEWS}, limbs,
-                                          limb_angles_deg(np.asarray(constant)[None])[0]),
+            "limbs": limbs["filtered"], "limbs_smoothed": limbs["smoothed"],
             **({} if peer is None else
                {"peer": _peer(trial, {v: subject[v][0] for v in VIEWS}, peer)}),
             "reference_fit_direction_error_deg": {
@@ -454,6 +457,11 @@ def format_limb_table(name: str, result: dict) -> str:
         lines.append(_limb_row(f"{label} mean", "", limbs["mean"], None))
         lines.append(_limb_row(f"{label} pooled", limbs["pooled"]["frames"], limbs["pooled"],
                                None))
+    if "limbs_smoothed" in result:
+        smoothed = result["limbs_smoothed"]["mean"]
+        lines.append(f"ours, smoothed poses (track's JSON and BVH): mean corr "
+                     f"{np.mean(smoothed['corr_per_angle']):.2f}, mean error "
+                     f"{np.mean(smoothed['error_per_angle']):.1f} deg (mean over the views)")
     lines.append("const: a constant at the reference's own mean angle; train: the model's "
                  "training-mean pose held still; mean: over the views' figures; pooled: all "
                  "views' frames together")
@@ -463,7 +471,8 @@ def format_limb_table(name: str, result: dict) -> str:
 
 def summary_line(name: str, result: dict) -> str:
     """The trial's figures in one line: mean correlation and error over the 8 angles (over
-    the views' figures), cross-view heading RMS, and balancing's flexion error."""
+    the views' figures), cross-view heading RMS, and balancing's flexion error: ours (filtered
+    poses, and smoothed as track's JSON has them) and the peer's."""
     def part(label, limbs, cross, flexion):
         return (f"{label} mean corr {np.mean(limbs['corr_per_angle']):.2f}, mean error "
                 f"{np.mean(limbs['error_per_angle']):.1f} deg, cross-view heading RMS "
@@ -474,6 +483,11 @@ def summary_line(name: str, result: dict) -> str:
                   np.mean(limbs["error_per_angle"][:4]) if flex else None)
              + f" (constant {np.mean(limbs['truth_mean_error']):.1f}, training-mean "
                f"{limbs['constant_error_mean']:.1f})"]
+    if "limbs_smoothed" in result:
+        smoothed = result["limbs_smoothed"]["mean"]
+        parts.append(part("ours smoothed (track's JSON)", smoothed,
+                          result["cross_view"]["smoothed"]["heading_rms_deg"],
+                          np.mean(smoothed["error_per_angle"][:4]) if flex else None))
     if "peer" in result:
         peer = result["peer"]
         parts.append(part("MediaPipe", peer["limbs"]["mean"], peer["cross_view_heading_rms_deg"],

@@ -50,7 +50,9 @@ def _result(peer: bool) -> dict:
     limbs = {"mean": _measures(5.0), "pooled": _measures(5.0, 200)}
     view = {"filtered": {"frames": 50, "limbs": _measures(5.0), "heading": {"rms_deg": 33.0}}}
     result = {"views": {v: view for v in VIEWS}, "limbs": limbs,
-              "cross_view": {"filtered": {"heading_rms_deg": 99.4}}}
+              "limbs_smoothed": {"mean": _measures(3.0), "pooled": _measures(3.0, 200)},
+              "cross_view": {"filtered": {"heading_rms_deg": 99.4},
+                             "smoothed": {"heading_rms_deg": 88.0}}}
     if peer:
         result["peer"] = {"views": {v: {"frames": 50, "limbs": _measures(-2.0),
                                         "heading": {"rms_deg": 12.0}} for v in VIEWS},
@@ -62,7 +64,7 @@ def _result(peer: bool) -> dict:
 def test_the_limb_table_has_ours_and_the_peer_per_view_and_a_summary(evaluate_real):
     lines = evaluate_real.format_limb_table("balancing", _result(peer=True)).splitlines()
     assert lines[0].startswith("balancing: 8 limb angles")
-    rows = [line for line in lines if line.startswith(("ours", "MediaPipe"))]
+    rows = [line for line in lines if line.startswith(("ours ", "MediaPipe ")) and "|" in line]
     assert len(rows) == 2 * (len(VIEWS) + 2)
     assert rows[0].startswith("ours cam01") and "MediaPipe pooled" in rows[-1]
     assert " 1.00 " in rows[0] and "  5.0 " in rows[0] and "   33" in rows[0]
@@ -70,6 +72,9 @@ def test_the_limb_table_has_ours_and_the_peer_per_view_and_a_summary(evaluate_re
     assert summary.startswith("balancing summary: ours mean corr 1.00, mean error 5.0 deg, "
                               "cross-view heading RMS 99, flexion error 5.0")
     assert "training-mean" in summary and "MediaPipe mean corr 1.00, mean error 2.0" in summary
+    assert ("ours smoothed (track's JSON) mean corr 1.00, mean error 3.0 deg, cross-view "
+            "heading RMS 88, flexion error 3.0") in summary
+    assert "smoothed poses (track's JSON and BVH): mean corr 1.00, mean error 3.0" in lines[-3]
     assert "cross-view heading RMS 20" in summary
 
 
