@@ -205,3 +205,48 @@ def test_mediapipe_scoring_path_on_the_reference_itself(pose2sim_swings):
     pooled = pooled_limb_measures(trial, {"cam02": m["series"][0]}, {"cam02": m["series"][1]})
     assert pooled["pooled"]["corr"] == pytest.approx(1.0)
     assert pooled["mean"]["error"] == pytest.approx(0.0, abs=1e-6)
+
+
+class _FakePose:
+    """Stands in for mediapipe's legacy Pose: on a frame greyed outside the subject's box it
+    finds the subject (mid-hip in the box) and follows it from then on; otherwise it finds
+    someone else (mid-hip in the top-left corner)."""
+
+    made = 0
+
+    def __init__(self, **settings):
+        assert settings["model_complexity"] == 1 and not settings["static_image_mode"]
+        type(self).made += 1
+        self.following = False
+
+    def process(self, rgb):
+        from types import SimpleNamespace
+        self.following = self.following or bool((rgb[0, 0] == 127).all())
+        x, y = (0.5, 0.5) if self.following else (0.02, 0.02)
+        marks = [SimpleNamespace(x=x, y=y, z=0.0) for _ in range(33)]
+        return SimpleNamespace(pose_landmarks=SimpleNamespace(landmark=marks),
+                               pose_world_landmarks=SimpleNamespace(landmark=marks))
+
+    def close(self):
+        pass
+
+
+def test_mediapipe_is_started_on_the_subject_masked_outside_its_box(tmp_path, monkeypatch):
+    """run_view's subject picking, with a stand-in for mediapipe (not needed here)."""
+    import sys
+    from types import SimpleNamespace
+
+    import cv2
+    video = tmp_path / "v.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48))
+    for _ in range(5):
+        writer.write(np.full((48, 64, 3), 30, np.uint8))
+    writer.release()
+    fake = SimpleNamespace(solutions=SimpleNamespace(pose=SimpleNamespace(Pose=_FakePose)))
+    monkeypatch.setitem(sys.modules, "mediapipe", fake)
+    boxes = np.tile([16.0, 12.0, 48.0, 36.0], (5, 1))          # holds the centre (32, 24)
+    results = mediapipe_peer.run_view(video, boxes)
+    assert _FakePose.made == 1                       # started once, on the subject, and kept
+    np.testing.assert_allclose(results["image"][:, 23, :2], [[32.0, 24.0]] * 5)
+    assert mediapipe_peer.subject_frames(results["image"], boxes).all()
+    assert results["frames"].tolist() == list(range(5))
