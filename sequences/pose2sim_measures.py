@@ -3,8 +3,9 @@
 Per view: knee and elbow flexion and the 8 limb angles (sequences.measures.LIMB_ANGLE_NAMES)
 against the reference's (beside a constant at the reference's own mean), and the heading
 against the reference heading relative to that camera; the same for MediaPipe's landmarks
-(peer_view_measures). Across views: the same body is seen by four cameras at known azimuths, so at each instant the estimated
-headings of views i and j must differ by az_j - az_i, and the 53 body angles must agree.
+(peer_view_measures). Across views: the same body is seen by four cameras at known azimuths, so
+at each instant the estimated headings of views i and j must differ by az_j - az_i, and the 53
+body angles must agree.
 
 Poses are (T, 55) pose vectors (sequences.pose_vector), one per video frame listed in
 ``frames`` (T,) int; angles in degrees.
