@@ -12,7 +12,6 @@ matched to it within MATCH_MM, share of consecutive matches advancing by one fra
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from collections import Counter
@@ -24,6 +23,8 @@ from tqdm import tqdm
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from tracker.one_line_parser import OneLineParser, stops_in_one_line  # noqa: E402
 
 from sequences.bvh import read_bvh  # noqa: E402
 from sequences.cmu_extra import convert_all  # noqa: E402
@@ -43,9 +44,9 @@ def describe(motion) -> np.ndarray:
     return joint_positions(v).reshape(len(v), -1)
 
 
-def main(argv=None) -> int:
+def _main(argv=None) -> int:
     shared = Path(os.environ.get("SILHOUETTE_POSE_SHARED", ROOT.parent / "shared"))
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=str(shared / "data" / "cmu_extra"))
     parser.add_argument("--cmu", default=str(shared / "data" / "cmu" / "bvh"))
     parser.add_argument("--out", default="", help="write the table here (TSV)")
@@ -80,6 +81,9 @@ def main(argv=None) -> int:
     if args.out:
         Path(args.out).write_text(text)
     return 0
+
+
+main = stops_in_one_line("cmu_extra_duplicates", _main)
 
 
 if __name__ == "__main__":

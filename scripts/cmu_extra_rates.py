@@ -9,7 +9,6 @@ beside the other dances and ../cmu's dance trials (subject 05, 120 fps).
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from pathlib import Path
@@ -18,6 +17,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from tracker.one_line_parser import OneLineParser, stops_in_one_line  # noqa: E402
 
 from sequences.bvh import read_bvh  # noqa: E402
 from sequences.expmap import EXPMAP_FPS, expmap_files, read_expmap_motion  # noqa: E402
@@ -48,9 +49,9 @@ def report(label: str, motions) -> None:
           f"{np.median(s[:, 1]):.2f} Hz  wrist {np.median(s[:, 2]):.2f} m/s")
 
 
-def main(argv=None) -> int:
+def _main(argv=None) -> int:
     shared = Path(os.environ.get("SILHOUETTE_POSE_SHARED", ROOT.parent / "shared"))
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=str(shared / "data" / "cmu_extra"))
     parser.add_argument("--cmu", default=str(shared / "data" / "cmu" / "bvh"))
     args = parser.parse_args(argv)
@@ -87,6 +88,9 @@ def main(argv=None) -> int:
                 m.fps = fps
             report(f"dances {kind} at {fps:g} fps", native)
     return 0
+
+
+main = stops_in_one_line("cmu_extra_rates", _main)
 
 
 if __name__ == "__main__":

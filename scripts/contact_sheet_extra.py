@@ -5,12 +5,12 @@
 Writes docs/cmu_extra_expmap.png and docs/cmu_extra_dances.png: one row per sequence, a few
 frames spread over it, drawn in metres at one scale for every row (the ../cmu walk 02_01 is
 the first row), front view with the heading turned to face the viewer (the body's left, red,
-on the image's right), the floor at height 0 (feet settled on it: sequences.cmu_extra.settle_on_floor). Each row is labelled with its median ground
-speed at 30 fps, so units, up axis, left/right and speed can be checked by eye.
+on the image's right), the floor at height 0 (feet settled on it as the converter does:
+sequences.cmu_extra.settle_on_floor). Each row is labelled with its duration and median
+ground speed at 30 fps, so units, up axis, left/right and speed can be checked by eye.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from pathlib import Path
@@ -22,6 +22,8 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from tracker.one_line_parser import OneLineParser, stops_in_one_line  # noqa: E402
 
 from sequences.bvh import read_bvh  # noqa: E402
 from sequences.cmu_extra import settle_on_floor  # noqa: E402
@@ -86,9 +88,9 @@ def sheet(rows, title: str, out: Path) -> None:
     plt.close(fig)
 
 
-def main(argv=None) -> int:
+def _main(argv=None) -> int:
     shared = Path(os.environ.get("SILHOUETTE_POSE_SHARED", ROOT.parent / "shared"))
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=shared / "data" / "cmu_extra")
     parser.add_argument("--cmu-walk", type=Path,
                         default=shared / "data" / "cmu" / "bvh" / "02_01.bvh")
@@ -108,6 +110,9 @@ def main(argv=None) -> int:
                      for name in DANCE_ROWS]
     sheet(rows, "cmu_extra dances, retargeted, 30 fps", args.out_dir / "cmu_extra_dances.png")
     return 0
+
+
+main = stops_in_one_line("contact_sheet_extra", _main)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,6 @@ written are rewritten; nothing else in --out is touched.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
@@ -23,13 +22,15 @@ from tqdm import tqdm
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from tracker.one_line_parser import OneLineParser, stops_in_one_line  # noqa: E402
+
 from regressor.errors import SilhouettePoseError  # noqa: E402
 from sequences.bvh import write_bvh  # noqa: E402
 from sequences.cmu_extra import DUPLICATES, convert_all  # noqa: E402
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def _main(argv=None) -> int:
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     shared = Path(os.environ.get("SILHOUETTE_POSE_SHARED", ROOT.parent / "shared"))
     parser.add_argument("--data", default=str(shared / "data" / "cmu_extra"),
                         help="the cmu_extra folder (expmap/ and dances/)")
@@ -44,6 +45,8 @@ def main(argv=None) -> int:
     if not Path(args.data).is_dir():
         parser.error(f"--data folder not found: {args.data}")
     out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        parser.error(f"--out {out}: not a folder")
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     summary = {"fps": args.fps, "sequences": {}, "left_out": []}
@@ -59,9 +62,11 @@ def main(argv=None) -> int:
             if name in DUPLICATES and not args.keep_duplicates:
                 summary["left_out"].append(name)
                 continue
-            write_bvh(out / f"{name}.bvh", motion)
+            tmp = out / f".{name}.bvh.tmp"
+            write_bvh(tmp, motion)          # whole or not at all
+            tmp.replace(out / f"{name}.bvh")
     except (SilhouettePoseError, OSError) as exc:
-        print(f"convert_cmu_extra: {exc}", file=sys.stderr)
+        print(f"convert_cmu_extra: error: {exc}", file=sys.stderr)
         return 1
     summary["seconds"] = time.perf_counter() - start
     if args.summary:
@@ -70,6 +75,9 @@ def main(argv=None) -> int:
     print(f"{len(summary['sequences'])} sequences, {total} frames at {args.fps:g} fps, "
           f"{len(summary['left_out'])} duplicates left out, {summary['seconds']:.1f} s")
     return 0
+
+
+main = stops_in_one_line("convert_cmu_extra", _main)
 
 
 if __name__ == "__main__":

@@ -33,7 +33,7 @@ from regressor.errors import SilhouettePoseError
 from .bvh import Motion, matrices_to_euler, read_bvh, resample
 from .pose_vector import forward_kinematics
 from .skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES, CMU_REST_OFFSETS,
-                       FOLDED)
+                       CMU_UNIT_M, FOLDED)
 
 _X, _Y, _Z = np.eye(3)
 
@@ -229,7 +229,6 @@ def retarget(source: Motion) -> Retargeted:
     cmu = _pose(CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, CMU_REST_END_SITES, local, root)
     residual = np.stack([np.linalg.norm(cmu.point(c) - scale * src.point(s), axis=-1)
                          for s, c in RESIDUAL_PAIRS], axis=1)
-    from .skeleton import CMU_UNIT_M
     euler = matrices_to_euler(local, ["ZYX"] * len(CMU_JOINT_NAMES))
     motion = Motion(names=list(CMU_JOINT_NAMES), parents=CMU_PARENTS.copy(),
                     offsets=np.array(CMU_REST_OFFSETS), end_sites=np.array(CMU_REST_END_SITES),

@@ -352,3 +352,44 @@ def test_expmap_walking_1_is_cmu_02_01(cmu_bvh_dir):
     angle = np.degrees(np.arccos(np.clip((np.einsum("tjab,tjab->tj", a, b) - 1) / 2, -1, 1)))
     assert angle[:, 1:].max() < 0.01 and angle[:, 0].max() < 0.8
     assert np.abs(ours.root_position - cmu.root_position).max() < 1e-3
+
+
+# --------------------------------------------------------------------------- the script
+
+
+def test_convert_script_writes_cmu_bvh_files_the_builder_reads(tmp_path, capsys):
+    """scripts/convert_cmu_extra.py on a hand-made cmu_extra folder (one expmap sequence, one
+    salsa): CMU-skeleton BVH files at 30 fps that read_bvh reads, a summary with the frames."""
+    from conftest import load_script
+    data = tmp_path / "cmu_extra"
+    walk = data / "expmap" / "train" / "walking_extra"
+    walk.mkdir(parents=True)
+    frames = np.zeros((121, 117))
+    frames[:, 1] = 17.0
+    frames[:, 3 + 3 * EXPMAP_JOINTS.index("LeftUpLeg")] = np.linspace(0.1, 0.5, 121)
+    np.savetxt(walk / "walking_99.txt", frames, delimiter=",", fmt="%.9g")
+    _write_dance(data / "dances" / "salsa", _daz(np.zeros((60, len(_DAZ), 3)), T=60))
+    script = load_script("convert_cmu_extra")
+    out, summary = tmp_path / "out", tmp_path / "summary.json"
+    assert script.main(["--data", str(data), "--out", str(out), "--summary", str(summary)]) == 0
+    files = sorted(p.name for p in out.iterdir())
+    assert files == ["xd_salsa_01.bvh", "xm_train_walking_extra_99.bvh"]
+    walk_motion = read_bvh(out / files[1], fps=None)
+    assert walk_motion.fps == 30.0 and walk_motion.n_frames == 31
+    assert walk_motion.names == list(CMU_JOINT_NAMES)
+    assert read_bvh(out / files[0], fps=None).n_frames == 30          # 1 s of salsa at 60 fps
+    assert '"frames": 31' in summary.read_text()
+
+
+def test_convert_script_refuses_bad_input_in_one_line(tmp_path, capsys):
+    from conftest import load_script, refused_in_one_line
+    script = load_script("convert_cmu_extra")
+    err = refused_in_one_line(script, ["--data", str(tmp_path / "none")], capsys)
+    assert "--data folder not found" in err
+    (tmp_path / "expmap" / "test" / "soccer").mkdir(parents=True)
+    (tmp_path / "dances").mkdir()
+    (tmp_path / "expmap" / "test" / "soccer" / "soccer_1.txt").write_text("1,2,3\n")
+    assert script.main(["--data", str(tmp_path), "--out", str(tmp_path / "o")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("soccer_1.txt line 1: expected 117 numbers, got 3")
+    assert len(err.splitlines()) == 1
