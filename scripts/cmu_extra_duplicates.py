@@ -55,7 +55,8 @@ def _main(argv=None) -> int:
         if not Path(folder).is_dir():
             parser.error(f"{option} folder not found: {folder}")
     feats, owner, index = [], [], []
-    for path in tqdm(sorted(Path(args.cmu).glob("*.bvh")), desc="../cmu", unit="trial"):
+    for path in tqdm(sorted(Path(args.cmu).glob("*.bvh")), desc="../cmu", unit="trial",
+                     disable=None):
         f = describe(read_bvh(path, fps=30.0))
         feats.append(f)
         owner += [path.stem] * len(f)
@@ -64,7 +65,7 @@ def _main(argv=None) -> int:
     owner, index = np.array(owner), np.concatenate(index)
     n_joints = 18
     rows = ["name\tframes\tmedian_mm\tbest_trial\tshare_matched\tbest_trial_frames\tshare_in_order"]
-    for item in tqdm(list(convert_all(args.data)), desc="cmu_extra", unit="seq"):
+    for item in tqdm(list(convert_all(args.data)), desc="cmu_extra", unit="seq", disable=None):
         f = describe(item.convert().motion)
         dist, nearest = tree.query(f)
         # Euclidean distance over 54 numbers -> a mean joint distance bound (rms over joints)

@@ -52,7 +52,7 @@ def _main(argv=None) -> int:
     summary = {"fps": args.fps, "sequences": {}, "left_out": []}
     try:
         items = list(convert_all(args.data, fps=args.fps))
-        for item in tqdm(items, desc="converting", unit="seq"):
+        for item in tqdm(items, desc="converting", unit="seq", disable=None):
             name, kind, action, converted = item.name, item.kind, item.action, item.convert()
             motion = converted.motion
             entry = {"kind": kind, "action": action, "frames": motion.n_frames}
