@@ -21,15 +21,13 @@ import numpy as np
 from scipy.spatial import cKDTree
 from tqdm import tqdm
 
+from sequences.bvh import read_bvh
+from sequences.cmu_extra import convert_all
+from sequences.pose_vector import joint_positions, motion_to_pose_vectors
+from sequences.skeleton import CMU_UNIT_M
+from tracker.one_line_parser import OneLineParser, stops_in_one_line
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from tracker.one_line_parser import OneLineParser, stops_in_one_line  # noqa: E402
-
-from sequences.bvh import read_bvh  # noqa: E402
-from sequences.cmu_extra import convert_all  # noqa: E402
-from sequences.pose_vector import joint_positions, motion_to_pose_vectors  # noqa: E402
-from sequences.skeleton import CMU_UNIT_M  # noqa: E402
 
 #: Frames nearer than this (rms joint distance, mm) to a trial's frame count as matched: the
 #: repeats found lie at 1-5 mm (the expmap root orientation differs from the BVH's by ~0.4

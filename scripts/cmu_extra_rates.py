@@ -15,16 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
+from sequences.bvh import read_bvh
+from sequences.expmap import EXPMAP_FPS, expmap_files, read_expmap_motion
+from sequences.pose_vector import forward_kinematics
+from sequences.retarget import DANCE_FPS, dance_files, read_dance
+from sequences.skeleton import CMU_UNIT_M
+from tracker.one_line_parser import OneLineParser, stops_in_one_line
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from tracker.one_line_parser import OneLineParser, stops_in_one_line  # noqa: E402
-
-from sequences.bvh import read_bvh  # noqa: E402
-from sequences.expmap import EXPMAP_FPS, expmap_files, read_expmap_motion  # noqa: E402
-from sequences.pose_vector import forward_kinematics  # noqa: E402
-from sequences.retarget import DANCE_FPS, dance_files, read_dance  # noqa: E402
-from sequences.skeleton import CMU_UNIT_M  # noqa: E402
 
 
 def speeds(motion) -> tuple[float, float, float]:

@@ -17,20 +17,18 @@ from pathlib import Path
 
 import matplotlib
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402 (after the backend is chosen)
+import numpy as np
+
+from sequences.bvh import read_bvh
+from sequences.cmu_extra import settle_on_floor
+from sequences.expmap import read_expmap_motion
+from sequences.pose_vector import joint_positions, motion_to_pose_vectors
+from sequences.retarget import read_dance
+from sequences.skeleton import BONES_FOR_DRAWING, CMU_UNIT_M, POSE_JOINTS
+from tracker.one_line_parser import OneLineParser, stops_in_one_line
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from tracker.one_line_parser import OneLineParser, stops_in_one_line  # noqa: E402
-
-from sequences.bvh import read_bvh  # noqa: E402
-from sequences.cmu_extra import settle_on_floor  # noqa: E402
-from sequences.expmap import read_expmap_motion  # noqa: E402
-from sequences.pose_vector import joint_positions, motion_to_pose_vectors  # noqa: E402
-from sequences.retarget import read_dance  # noqa: E402
-from sequences.skeleton import BONES_FOR_DRAWING, CMU_UNIT_M, POSE_JOINTS  # noqa: E402
 
 COLUMNS = 8
 SPACING_M = 1.1

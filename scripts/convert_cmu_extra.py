@@ -19,14 +19,12 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from regressor.errors import SilhouettePoseError
+from sequences.bvh import write_bvh
+from sequences.cmu_extra import DUPLICATES, convert_all
+from tracker.one_line_parser import OneLineParser, stops_in_one_line
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from tracker.one_line_parser import OneLineParser, stops_in_one_line  # noqa: E402
-
-from regressor.errors import SilhouettePoseError  # noqa: E402
-from sequences.bvh import write_bvh  # noqa: E402
-from sequences.cmu_extra import DUPLICATES, convert_all  # noqa: E402
 
 
 def _main(argv=None) -> int:
