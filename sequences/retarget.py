@@ -72,6 +72,9 @@ RESIDUAL_PAIRS: tuple[tuple[str, str], ...] = (
     ("rShldr", "RightArm"), ("rForeArm", "RightForeArm"), ("rHand", "RightHand"),
     ("head", "Head"),
 )
+#: Source frames dropped after the rest frame: the files start by settling from it (joint
+#: rotations change by up to 59 degrees a frame over the first 7 frames, then by 5 or less).
+SETTLING_FRAMES = 8
 #: Frames per second of each dance folder (the BVH headers all say 120; the source's
 #: readme.txt and the motion's speed say salsa is 60: docs/cmu_extra.md).
 DANCE_FPS = {"salsa": 60.0, "indian": 120.0, "martial": 120.0}
@@ -289,12 +292,15 @@ def dance_fps(path: str | Path) -> float:
 
 def read_dance(path: str | Path, fps: float | None = 30.0) -> Retargeted:
     """A dance BVH retargeted to the CMU skeleton at ``fps`` (None: the true source rate).
-    The file's first frame (the rest T-pose the conversion added, root rotation zero) is
-    dropped; the header's frame time is replaced by the folder's true rate (dance_fps)."""
+    The file's first frame (the rest T-pose the conversion added, root rotation zero) and the
+    SETTLING_FRAMES after it are dropped; the header's frame time is replaced by the folder's
+    true rate (dance_fps)."""
     path = Path(path)
     source = read_bvh(path, fps=None, drop_tpose=False)
     if source.n_frames > 1 and np.all(source.euler_deg[0, 0] == 0.0):
-        source.euler_deg, source.root_position = source.euler_deg[1:], source.root_position[1:]
+        first = min(1 + SETTLING_FRAMES, source.n_frames - 1)
+        source.euler_deg = source.euler_deg[first:]
+        source.root_position = source.root_position[first:]
     source.fps = dance_fps(path)
     out = retarget(source)
     if fps is not None:

@@ -264,20 +264,22 @@ def test_retarget_left_arm_signal_raises_the_left_arm():
 
 
 def _write_dance(folder: Path, motion: Motion, name: str = "01.bvh") -> Path:
+    """A dance file as the source writes them: the rest frame (zero angles), 8 frames
+    settling from it (here: garbage angles), then ``motion``."""
     folder.mkdir(parents=True, exist_ok=True)
-    tpose = Motion(**{**motion.__dict__, "euler_deg": np.zeros((1, len(motion.names), 3)),
-                      "root_position": motion.root_position[:1]})
-    full = Motion(**{**motion.__dict__,
-                     "euler_deg": np.concatenate([tpose.euler_deg, motion.euler_deg]),
-                     "root_position": np.concatenate([tpose.root_position,
-                                                      motion.root_position])})
-    write_bvh(folder / name, full)
+    J = len(motion.names)
+    settling = np.random.default_rng(9).uniform(-90, 90, (8, J, 3))
+    euler = np.concatenate([np.zeros((1, J, 3)), settling, motion.euler_deg])
+    root = np.concatenate([np.repeat(motion.root_position[:1], 9, axis=0),
+                           motion.root_position])
+    write_bvh(folder / name, Motion(**{**motion.__dict__, "euler_deg": euler,
+                                       "root_position": root}))
     return folder / name
 
 
 def test_dance_frame_rate_is_the_folders_not_the_headers(tmp_path):
     """Every dance header says 120 fps; salsa really is 60: 2 s of salsa (120 frames after
-    the added T-pose frame) become 60 frames at 30 fps, 2 s of martial arts (240) too."""
+    the rest and settling frames) become 60 frames at 30 fps, 2 s of martial arts (240) too."""
     rng = np.random.default_rng(2)
     for kind, n in (("salsa", 120), ("martial", 240)):
         src = _daz(rng.uniform(-20, 20, (n, len(_DAZ), 3)), T=n, fps=120.0)
