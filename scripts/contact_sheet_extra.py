@@ -82,7 +82,7 @@ def sheet(rows, title: str, out: Path) -> None:
                  "viewer)", fontsize=9)
     ax.tick_params(labelsize=6)
     fig.tight_layout()
-    fig.savefig(out, dpi=110)
+    fig.savefig(out, dpi=90)
     plt.close(fig)
 
 

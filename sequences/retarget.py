@@ -167,7 +167,7 @@ def _hip_middle(pose: _Pose, pair: tuple[str, str]) -> np.ndarray:
     return (pose.point(pair[0]) + pose.point(pair[1])) / 2.0
 
 
-def cmu_targets(src: _Pose, src_rest: _Pose) -> dict[str, np.ndarray]:
+def cmu_targets(src: _Pose) -> dict[str, np.ndarray]:
     """Global rotations (T, 3, 3) of the driven CMU joints from a source pose (see RULES)."""
     cmu_rest = _cmu_rest()
     out = {}
@@ -225,7 +225,7 @@ def retarget(source: Motion) -> Retargeted:
     cmu_rest = _cmu_rest()
     leg = ("lThigh", "lShin", "lFoot"), ("LeftUpLeg", "LeftLeg", "LeftFoot")
     scale = _leg_length(cmu_rest, *leg[1]) / _leg_length(src_rest, *leg[0])
-    local = cmu_local_rotations(cmu_targets(src, src_rest))
+    local = cmu_local_rotations(cmu_targets(src))
     G_root = local[:, 0]
     root = scale * _hip_middle(src, HIP_JOINTS[0]) - G_root @ _hip_middle(cmu_rest,
                                                                             HIP_JOINTS[1])[0]
