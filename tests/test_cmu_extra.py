@@ -395,3 +395,11 @@ def test_convert_script_refuses_bad_input_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.endswith("soccer_1.txt line 1: expected 117 numbers, got 3")
     assert len(err.splitlines()) == 1
+
+
+def test_extra_training_files_leave_the_repeats_out(tmp_path):
+    from sequences.cmu_extra import extra_training_files
+    for name in ("xm_train_walking_1", "xm_train_walking_extra_18", "xd_salsa_01", "02_01"):
+        (tmp_path / f"{name}.bvh").write_text("")
+    assert [p.stem for p in extra_training_files(tmp_path)] == ["xd_salsa_01",
+                                                                "xm_train_walking_extra_18"]
