@@ -41,7 +41,9 @@ EXPMAP_JOINTS: tuple[str, ...] = (
     "RightShoulder", "RightArm", "RightForeArm", "RightHand", "RightFingerBase",
     "RightHandIndex1", "RightHandIndex1_end", "RThumb", "RThumb_end",
 )
-#: Parent of each of the 38 joints (the source's ``parent`` table, 0-based).
+#: Parent of each of the 38 joints: the ``parent`` table of the source's
+#: forward_kinematics_cmu.py (0-based), transcribed under its MIT licence, Copyright (c) 2018
+#: Li Chen.
 EXPMAP_PARENTS: np.ndarray = np.array(
     [-1, 0, 1, 2, 3, 4, 5, 0, 7, 8, 9, 10, 11, 0, 13, 14, 15, 16, 17, 18, 15, 20, 21, 22, 23,
      24, 25, 23, 27, 15, 29, 30, 31, 32, 33, 34, 32, 36], dtype=np.int64)
