@@ -14,11 +14,17 @@ from typing import Iterator
 
 import numpy as np
 
+from regressor.errors import SilhouettePoseError
+
 from .bvh import Motion
 from .pose_vector import forward_kinematics
 from .skeleton import CMU_UNIT_M
 from .expmap import expmap_files, expmap_name, read_expmap_motion
 from .retarget import dance_files, dance_name, read_dance
+
+class CmuExtraError(SilhouettePoseError, ValueError):
+    """A converted file without the BVH header lines needed."""
+
 
 #: Converted sequences that repeat a ../cmu trial (name -> that trial), found by
 #: scripts/cmu_extra_duplicates.py: the same number of frames as the trial at 30 fps, median
@@ -104,3 +110,28 @@ def extra_training_files(bvh_dir: str | Path) -> list[Path]:
     """The converted BVH files of bvh_dir (written by scripts/convert_cmu_extra.py) that are
     not duplicates, sorted: pass them to build_dataset with the ../cmu training files."""
     return sorted(p for p in Path(bvh_dir).glob("x[md]_*.bvh") if p.stem not in DUPLICATES)
+
+
+def extra_views(bvh_files, config_fps: float, rows_per_trial: int, max_views: int = 12,
+                min_views: int = 1) -> dict[str, int]:
+    """Views per converted trial for about rows_per_trial silhouettes each, as
+    dataset.views_by_rows but from each file's own rate (its 'Frame Time'; views_by_rows
+    assumes 120 fps and would give these 30-fps files 4x too many). Pass the result, merged
+    with views_by_rows' for the ../cmu files, as build_dataset's ``views``."""
+    out = {}
+    for path in bvh_files:
+        frames, fps = None, None
+        with open(path, "r", errors="replace") as f:
+            for line in f:
+                if line.strip().startswith("Frames:"):
+                    frames = int(line.split(":", 1)[1])
+                elif line.strip().startswith("Frame Time:"):
+                    fps = 1.0 / float(line.split(":", 1)[1])
+                    break
+        if frames is None or fps is None:
+            raise CmuExtraError(f"{path}: no 'Frames:' and 'Frame Time:' lines")
+        at_rate = frames * config_fps / fps
+        out[Path(path).stem] = int(np.clip(round(rows_per_trial / max(at_rate, 1.0)),
+                                           min_views, max_views))
+    return out
+

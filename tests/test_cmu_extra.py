@@ -403,3 +403,17 @@ def test_extra_training_files_leave_the_repeats_out(tmp_path):
         (tmp_path / f"{name}.bvh").write_text("")
     assert [p.stem for p in extra_training_files(tmp_path)] == ["xd_salsa_01",
                                                                 "xm_train_walking_extra_18"]
+
+
+def test_extra_views_count_frames_at_the_files_own_rate(tmp_path):
+    """A 100-frame file at 30 fps is 100 frames at the data set's 30 fps: 800 rows want 8
+    views (views_by_rows, which takes every file for 120 fps, would count 25 and give 12)."""
+    from sequences.cmu_extra import extra_views
+    from sequences.dataset import DatasetConfig, views_by_rows
+    motion = expmap_to_motion(np.tile(np.r_[0.0, 17.0, 0.0, np.zeros(114)], (100, 1)),
+                              fps=None, drop_tpose=False)
+    motion.fps = 30.0
+    write_bvh(tmp_path / "xm_train_jumping_1.bvh", motion)
+    files = [tmp_path / "xm_train_jumping_1.bvh"]
+    assert extra_views(files, 30.0, 800) == {"xm_train_jumping_1": 8}
+    assert views_by_rows(files, DatasetConfig(), 800) == {"xm_train_jumping_1": 12}
