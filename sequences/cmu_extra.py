@@ -17,10 +17,11 @@ import numpy as np
 from regressor.errors import SilhouettePoseError
 
 from .bvh import Motion
-from .pose_vector import forward_kinematics
-from .skeleton import CMU_UNIT_M
 from .expmap import expmap_files, expmap_name, read_expmap_motion
+from .pose_vector import forward_kinematics
 from .retarget import dance_files, dance_name, read_dance
+from .skeleton import CMU_UNIT_M
+
 
 class CmuExtraError(SilhouettePoseError, ValueError):
     """A converted file without the BVH header lines needed."""
