@@ -9,12 +9,12 @@ own environment if mediapipe's requirements do not fit the main one (see docs/re
 """
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from tracker.one_line_parser import OneLineParser
 from sequences.mediapipe_peer import PeerError, keypoint_boxes, run_view, write_results
 from sequences.pose2sim import (VIEWS, Pose2SimError, load_trial, project_reference, trial_roots,
                                 video_frames)
@@ -37,7 +37,7 @@ def run_trial(root: Path, out: Path) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trial", default="all", help="all (default), balancing, swings, or a "
                     "trial folder")
     ap.add_argument("--out", type=Path, required=True, help="folder for TRIAL/camNN.npz")
