@@ -52,6 +52,7 @@ def _direct_log_marginal_likelihood(model, x, y):
     return -0.5 * (K * (N * np.log(2 * np.pi) + 2 * np.log(np.diag(L)).sum()) + (Z * Z).sum())
 
 
+@pytest.mark.slow
 def test_log_marginal_likelihood_never_falls_over_the_steps():
     rng = np.random.default_rng(3)
     x = np.sort(rng.uniform(-10, 10, 150))[:, None]

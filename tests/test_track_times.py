@@ -20,6 +20,7 @@ VFR_CLIP = Path(__file__).parent / "data" / "vfr_walk.mkv"
 TIMES = np.r_[np.arange(180) / 30.0, 6.0 + np.arange(61) / 10.0]
 
 
+@pytest.mark.slow
 def test_a_variable_frame_rate_s_times_reach_the_json_the_mcap_and_the_bvh(tmp_path):
     """Every frame was stamped index / 30 fps: frame 220 at 7.33 s instead of 10.0, the
     12 s walk's outputs ending at 8.0 s."""
@@ -50,6 +51,7 @@ def test_a_variable_frame_rate_s_times_reach_the_json_the_mcap_and_the_bvh(tmp_p
     assert motion.n_frames == round((track["time_s"][-1] - track["time_s"][0]) * 30) + 1
 
 
+@pytest.mark.slow
 def test_a_video_of_unknown_length_gives_no_phantom_track(tmp_path):
     """A Matroska file still being written states no length: its background was learned from
     its first 25 frames, the walker standing in them, and a second track of 162 frames
