@@ -150,6 +150,21 @@ def step_gains(st: "_Stats", A: np.ndarray, alpha: np.ndarray, K: int, min_gain:
     return gain, new_alpha, delete
 
 
+def check_learning_options(est) -> None:
+    """Refuse (RegressorInputError, naming the option) the sparse Bayesian learning options
+    both RVMs share: output_scale, noise, min_gain, max_iter, tol."""
+    if est.output_scale not in ("each", "common"):
+        raise RegressorInputError(f"output_scale={est.output_scale!r}; expected 'each' or 'common'")
+    if est.noise is not None and not (np.isfinite(est.noise) and est.noise > 0):
+        raise RegressorInputError(f"noise={est.noise!r}; expected a positive number or None")
+    if not (np.isfinite(est.min_gain) and est.min_gain >= 0):
+        raise RegressorInputError(f"min_gain={est.min_gain!r}; expected a number >= 0")
+    if not (int(est.max_iter) == est.max_iter and est.max_iter >= 1):
+        raise RegressorInputError(f"max_iter={est.max_iter!r}; expected a positive integer")
+    if not (np.isfinite(est.tol) and est.tol > 0):
+        raise RegressorInputError(f"tol={est.tol!r}; expected a positive number")
+
+
 class RVMRegressor(BasisRegressor):
     """Multi-output relevance vector regression with one relevance set for all outputs.
 
@@ -186,16 +201,7 @@ class RVMRegressor(BasisRegressor):
         self.tol = tol
 
     def _check_options(self) -> None:
-        if self.output_scale not in ("each", "common"):
-            raise RegressorInputError(f"output_scale={self.output_scale!r}; expected 'each' or 'common'")
-        if self.noise is not None and not (np.isfinite(self.noise) and self.noise > 0):
-            raise RegressorInputError(f"noise={self.noise!r}; expected a positive number or None")
-        if not (np.isfinite(self.min_gain) and self.min_gain >= 0):
-            raise RegressorInputError(f"min_gain={self.min_gain!r}; expected a number >= 0")
-        if not (int(self.max_iter) == self.max_iter and self.max_iter >= 1):
-            raise RegressorInputError(f"max_iter={self.max_iter!r}; expected a positive integer")
-        if not (np.isfinite(self.tol) and self.tol > 0):
-            raise RegressorInputError(f"tol={self.tol!r}; expected a positive number")
+        check_learning_options(self)
 
     def _fit_weights(self, Phi: np.ndarray, Y: np.ndarray):
         self._check_options()

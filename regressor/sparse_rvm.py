@@ -26,7 +26,7 @@ import scipy.linalg
 
 from .basis import (BasisRegressor, RegressorInputError, default_width, gaussian_design,
                     validate_X, validate_Xy)
-from .rvm import _ALPHA_MAX, _BETA_MAX, _Stats, step_gains
+from .rvm import _ALPHA_MAX, _BETA_MAX, _Stats, check_learning_options, step_gains
 
 _REFRESH = 50          # steps between exact recomputations of the factors (and noise updates)
 _CHUNK = 4096          # rows per block when accumulating the sufficient statistics
@@ -149,16 +149,7 @@ class SparseRVMRegressor(BasisRegressor):
             raise RegressorInputError(f"width={self.width!r}; expected a positive number or None")
         if not (np.isfinite(self.width_scale) and self.width_scale > 0):
             raise RegressorInputError(f"width_scale={self.width_scale!r}; expected a positive number")
-        if self.output_scale not in ("each", "common"):
-            raise RegressorInputError(f"output_scale={self.output_scale!r}; expected 'each' or 'common'")
-        if self.noise is not None and not (np.isfinite(self.noise) and self.noise > 0):
-            raise RegressorInputError(f"noise={self.noise!r}; expected a positive number or None")
-        if not (np.isfinite(self.min_gain) and self.min_gain >= 0):
-            raise RegressorInputError(f"min_gain={self.min_gain!r}; expected a number >= 0")
-        if not (int(self.max_iter) == self.max_iter and self.max_iter >= 1):
-            raise RegressorInputError(f"max_iter={self.max_iter!r}; expected a positive integer")
-        if not (np.isfinite(self.tol) and self.tol > 0):
-            raise RegressorInputError(f"tol={self.tol!r}; expected a positive number")
+        check_learning_options(self)
 
     def fit(self, X, y):
         """Fit on X (N, D) and y (N,) or (N, K); returns self."""
