@@ -15,16 +15,9 @@ least ``lag`` frames that followed it. The window's first ``margin`` frames are 
 start its filters (they are smoothed again, as part of their own block, with more behind
 them). The smoothed frames then go out one per frame pushed, each ``2 lag - 1`` frames after
 it came in: at a steady pace, so a live view playing the video at its own speed shows no
-pauses (handed out a block at a time, its frames were shown while nothing was tracked, and the
-view froze for 0.2 s every 15 frames: a review's measurement, 2026-12-04).
+pauses (handed out a block at a time, the view froze while a block was smoothed).
 
-Measured on the five validation spiral videos (02_02, 08_03, 05_02, 09_04, 02_05 at 30 fps;
-2026-12-04, one-off driver /work/tmp/s44/block_lag.py; mean err53 / corr8 of the 8 most-moving
-angles): filtered 7.509 / 0.481, whole track smoothed 7.284 / 0.519; with a margin of 15
-frames, lag 4 frames 7.383 / 0.491, 8 frames 7.356 / 0.498, 15 frames 7.310 / 0.510, costing
-3.1 / 2.1 / 1.6 ms a frame for one person; a margin of 30 frames (MARGIN_S) gives 7.295 /
-0.516 at 15 frames, 2.1 ms a frame. Almost all of the corr8 gain is on the walk 02_02 (0.679
-filtered, 0.783 at 15 frames, 0.800 smoothed); 08_03 gains nothing.
+How the block scheme and the margin were chosen: docs/tuning.md, "tracker/fixed_lag.py".
 
 The bodies are drawn at the root path smoothed over the same window (tracker.root_path, as
 the whole-track smoothed outputs are: PoseTracker.smoothed_root_path, from the roots the
@@ -49,10 +42,8 @@ from .sinks.geometry import pose_joints_m
 if TYPE_CHECKING:
     from .pipeline import PoseTracker, TrackedPose
 
-#: Frames before a block that start its window's filters, in seconds of video. On the five
-#: validation spirals with a 15-frame lag (/work/tmp/s44/margin.py, 2026-12-04), mean err53 /
-#: corr8 / ms a frame: 15 frames 7.310 / 0.510 / 1.7, 30 frames 7.295 / 0.516 / 2.1 (the gain
-#: all 05_02's, 0.050 -> 0.080 corr8, its whole-track figure), 60 frames the same as 30.
+#: Frames before a block that start its window's filters, in seconds of video (longer
+#: gained nothing on the validation spirals: docs/tuning.md).
 MARGIN_S = 1.0
 #: The longest lag ``track --lag`` takes, seconds: the frames held back (with --view, the
 #: video frames too) grow with it.

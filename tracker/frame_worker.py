@@ -41,13 +41,8 @@ from regressor.errors import SilhouettePoseError
 BATCH_FRAMES = 8
 #: Of every MAIN_DESCRIBES[1] frames, the first MAIN_DESCRIBES[0] have their people described
 #: by the main process instead (their descriptions are sent as None): with the regression in
-#: batches the worker's half became the longer one (scripts/bench_track.py, 640x480,
-#: 2026-12-03: worker 7.5 ms a frame, main 5.7, the main process waiting 2.1 ms a frame for
-#: it), and describing (2.4-2.6 ms) some frames over there balances them. Describing depends on
-#: the mask and the settings only, so the results do not change. Runs alternated on the bench
-#: video (fps, the machine's speed moving a lot): 1 of 2 frames 122.5 / 127.8 / 131.5 (the
-#: main process still waiting 0.3-0.5 ms a frame), 1 of 3 121.6 / 116.0 / 145.7 (0.6-1.3 ms),
-#: none 123.7 / 108.3 / 93.2 in an earlier round.
+#: batches the worker's half became the longer one, and describing some frames over there
+#: balances them; the results do not change (measurements: docs/tuning.md).
 MAIN_DESCRIBES = (1, 2)
 
 

@@ -12,16 +12,8 @@ a gap); with ``--lag`` the streamed
 outputs (the live view, the MCAP's /pose and /skeleton) are drawn at the same path smoothed
 over their window (tracker.fixed_lag), without one at each frame's own root.
 
-ROOT_SMOOTHING_S was chosen on the 12 validation videos (five trials as spiral walks and
-seven from a fixed camera; one-off driver /work/tmp/s46/root_sigma2.py, 2026-12-04): the root's
-RMS distance from the truth's hips (lateral and depth, the depth scaled per video by least
-squares, since the assumed field of view is not the render's), mean over videos, for a sigma
-of 0 / 0.033 / 0.067 / 0.1 / 0.15 / 0.2 / 0.3 / 0.5 s: 170 / 150 / 135 / 128 / 124 / 122 / 121
-/ 133 mm; the path's mean second difference 167 / 44 / 17 / 9.3 / 5.7 / 4.1 / 3.4 / 3.6 mm per
-frame squared. 0.2 s: as near as 0.3 s, following a fast body better (07_12, a jump: 92
-against 95 mm). (A plain Gaussian with the ends padded, tried first: best at 0.1-0.15 s, 128
-mm; beside a 12-frame gap in a 1.4 m/s walk the padded or pose-order Gaussian strays up to
-0.24 m from the path, this fit not at all.)
+ROOT_SMOOTHING_S (0.2 s) brought the root nearest the truth's hips on the validation videos
+(docs/tuning.md, "tracker/root_path.py").
 """
 from __future__ import annotations
 
