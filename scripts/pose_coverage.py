@@ -171,6 +171,9 @@ def _main(argv=None) -> int:
     args = ap.parse_args(argv)
     if not (np.isfinite(args.fps) and 0 < args.fps <= 120):
         ap.error(f"--fps must be in (0, 120], got {args.fps}")
+    for folder in args.pose2sim:
+        if not Path(folder).is_dir():
+            ap.error(f"--pose2sim folder not found: {folder}")
     try:
         extra = extra_sources(args.extra) if args.extra is not None else []
         databases = {"cmu": motion_poses(training_files(args.bvh_dir), args.fps)}

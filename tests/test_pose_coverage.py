@@ -74,3 +74,11 @@ def test_joint_distance_ignores_the_heading_and_sees_the_posture(cov):
                                                                                         abs=1e-3)
     far = cov.nearest_joint_distance(cov.posture_mm(bent), training)
     assert 10.0 < far[0] < 200.0            # the left ankle and foot moved, ~0.4 m each
+
+
+def test_missing_folders_and_absurd_rates_are_refused_in_one_line(cov, tmp_path, capsys):
+    from conftest import refused_in_one_line
+    assert "--pose2sim folder not found" in refused_in_one_line(
+        cov, ["--pose2sim", str(tmp_path / "none")], capsys)
+    assert "--fps must be in (0, 120], got 0.0" in refused_in_one_line(cov, ["--fps", "0"],
+                                                                       capsys)
