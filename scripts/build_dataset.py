@@ -2,7 +2,10 @@
 
     python scripts/build_dataset.py --bvh-dir ../shared/data/cmu/bvh --cache cache/dataset
 
-Held-out trials (sequences.dataset.HELD_OUT_TRIALS) are never rendered into it. Re-running with
+Held-out trials (sequences.dataset.HELD_OUT_TRIALS) are never rendered into it. With --extra
+DIR (written by scripts/convert_cmu_extra.py) the cmu_extra sequences are rendered too, as
+train.py --extra renders them (sequences.cmu_extra.extra_dataset_trials: EXTRA_HELD_OUT left
+out, windows of the long ones written beside the cache in cmu_extra_windows/). Re-running with
 the same settings reuses the cache; prints the build time and size. Numbers outside their
 ranges (as train.py's) are refused in one line naming the option (exit 2).
 """
@@ -13,8 +16,11 @@ import time
 from pathlib import Path
 
 
-from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
-                               build_dataset, training_files, views_by_rows)
+from regressor.errors import SilhouettePoseError
+from sequences.cmu_extra import (EXTRA_HELD_OUT, EXTRA_ROWS_PER_TRIAL, CmuExtraError,
+                                extra_dataset_trials, extra_sources)
+from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, build_dataset, training_files,
+                               views_by_rows)
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
 
 
@@ -30,6 +36,12 @@ def _main(argv=None) -> int:
                          "(1..--max-views); 0: --views for every trial")
     ap.add_argument("--max-views", type=int, default=10, help="at most this many views per "
                     "trial with --rows-per-trial, 1..360 (default 10)")
+    ap.add_argument("--extra", type=Path, default=None,
+                    help="also render the converted cmu_extra sequences in this folder "
+                         "(EXTRA_HELD_OUT left out); default none")
+    ap.add_argument("--extra-rows-per-trial", type=int, default=EXTRA_ROWS_PER_TRIAL,
+                    help="with --extra: about this many silhouettes per converted sequence "
+                         f"(default {EXTRA_ROWS_PER_TRIAL})")
     ap.add_argument("--seed", type=int, default=0, help="0..2147483647 (default 0)")
     ap.add_argument("--workers", type=int, default=2, help="rendering processes, 1..64 "
                     "(default 2)")
@@ -37,11 +49,18 @@ def _main(argv=None) -> int:
     # train.py's ranges (it builds the same data set): seeds as numpy takes them.
     for flag, value, low, high in (("--views", args.views, 1, 360),
                                    ("--rows-per-trial", args.rows_per_trial, 0, 10**6),
+                                   ("--extra-rows-per-trial", args.extra_rows_per_trial, 1,
+                                    10**6),
                                    ("--max-views", args.max_views, 1, 360),
                                    ("--seed", args.seed, 0, 2**31 - 1),
                                    ("--workers", args.workers, 1, 64)):
         if not low <= value <= high:
             ap.error(f"{flag} must be in {low}..{high}, got {value}")
+    if args.extra is not None:
+        try:                # before the slow steps
+            extra_sources(args.extra)
+        except CmuExtraError as exc:
+            ap.error(str(exc))
     try:
         config = DatasetConfig(views_per_trial=args.views, seed=args.seed)
         files = training_files(args.bvh_dir)
@@ -51,10 +70,17 @@ def _main(argv=None) -> int:
         start = time.perf_counter()
         views = (views_by_rows(files, config, args.rows_per_trial, args.max_views)
                  if args.rows_per_trial else None)
+        if args.extra is not None:
+            extra, extra_views, rows = extra_dataset_trials(
+                args.extra, args.cache.parent / "cmu_extra_windows", config.fps,
+                args.extra_rows_per_trial, args.max_views)
+            print(f"and {len(extra)} cmu_extra trials (held out: {', '.join(EXTRA_HELD_OUT)}), "
+                  f"about {rows} silhouettes", file=sys.stderr)
+            files, views = files + extra, {**(views or {}), **extra_views}
         data = build_dataset(files, config, args.cache, workers=args.workers,
                              progress=lambda t, d, n: print(f"  [{d}/{n}] {t}", file=sys.stderr),
                              views=views)
-    except (OSError, DatasetError) as exc:
+    except (OSError, SilhouettePoseError) as exc:
         print(f"build_dataset: error: {exc}", file=sys.stderr)
         return 1
     elapsed = time.perf_counter() - start

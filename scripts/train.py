@@ -31,6 +31,9 @@ from regressor.errors import SilhouettePoseError
 from regressor.layout import MAX_GRID
 from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model, save_pose_model
+from sequences.cmu_extra import (EXTRA_HELD_OUT, EXTRA_ROWS_PER_TRIAL, CmuExtraError,
+                                 extra_dataset_trials, extra_sources, source_sequence,
+                                 training_sources)
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, trial_name, training_files, views_by_rows)
 from sequences.splice import SpliceConfig, SpliceError, recipe_name, write_spliced_files
@@ -109,6 +112,7 @@ def _check_numbers(ap, args) -> None:
     bounds = (("--seed", args.seed, 0, 2**31 - 1),
               ("--stack", args.stack, 1, 30), ("--n-fit", args.n_fit, 1, 10**6),
               ("--rows-per-trial", args.rows_per_trial, 0, 10**6),
+              ("--extra-rows-per-trial", args.extra_rows_per_trial, 1, 10**6),
               ("--spliced", args.spliced, 0, 10_000),
               ("--max-views", args.max_views, 1, 360), ("--views", args.views, 1, 360),
               ("--experts", args.experts, 1, 1000),
@@ -143,6 +147,7 @@ def _check_out(ap, args) -> None:
                  f"{args.bvh_dir}; choose another file name")
     cache = args.cache.resolve()
     if (out.parent in (cache / "dataset", cache / "spliced")
+            or cache / "cmu_extra_windows" in out.parents
             or out.parent == cache and out.name.startswith(("descriptors-", "layouts-"))):
         ap.error(f"--out {args.out} would be among the files training keeps in --cache "
                  f"{args.cache}; choose another file name")
@@ -206,6 +211,14 @@ def _main(argv) -> int:
                          "limbs come from other training trials (sequences.splice; validation "
                          "trials never take part), rendered as the trials are; default 0 (24 "
                          "did not help on real video: docs/accuracy.md, 2026-12-04)")
+    ap.add_argument("--extra", type=Path, default=None,
+                    help="also train on the converted cmu_extra sequences in this folder "
+                         "(python scripts/convert_cmu_extra.py --out DIR), those of "
+                         "sequences.cmu_extra.EXTRA_HELD_OUT left out; default none")
+    ap.add_argument("--extra-rows-per-trial", type=int, default=EXTRA_ROWS_PER_TRIAL,
+                    help="with --extra: about this many silhouettes per converted sequence "
+                         "(views of a short one, windows of a long one; default "
+                         f"{EXTRA_ROWS_PER_TRIAL}, which keeps training within an hour)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2,
                     help="processes for rendering and descriptors, threads for the mixture, "
@@ -312,6 +325,11 @@ def _main(argv) -> int:
     if args.heading_index_rows < 0:
         ap.error(f"--heading-index-rows must be >= 0, got {args.heading_index_rows}")
     _check_out(ap, args)
+    if args.extra is not None:
+        try:                # before the slow steps
+            extra_sources(args.extra)
+        except CmuExtraError as exc:
+            ap.error(str(exc))
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     start = time.perf_counter()
     try:
@@ -330,6 +348,13 @@ def _main(argv) -> int:
                 f"({time.perf_counter() - start:.0f} s so far)")
         views = (views_by_rows(files, config, args.rows_per_trial, args.max_views)
                  if args.rows_per_trial else None)
+        if args.extra is not None:
+            extra, extra_views, rows = extra_dataset_trials(
+                args.extra, args.cache / "cmu_extra_windows", config.fps,
+                args.extra_rows_per_trial, args.max_views)
+            log(f"  and cmu_extra: {len(extra)} trials from --extra {args.extra} (held out: "
+                f"{', '.join(EXTRA_HELD_OUT)}), about {rows} silhouettes")
+            files, views = files + extra, {**(views or {}), **extra_views}
         data = build_dataset(files, config, args.cache / "dataset", workers=args.workers,
                              progress=lambda t, d, n: log(f"  rendered {t} [{d}/{n}]"),
                              views=views)
@@ -400,10 +425,8 @@ def _main(argv) -> int:
                                                     config.fps, log=log, layouts=layouts,
                                                     mirrored=mirrored, workers=args.workers)
         report["noise_aware"] = not args.clean
-        model.description = {"data": "CMU motion capture (mocap.cs.cmu.edu), rendered",
-                             "trials": data.trials, "held_out": list(HELD_OUT_TRIALS),
-                             "dataset": json.loads(json.dumps(config.__dict__)),
-                             "options": options.__dict__, "validation": report}
+        model.description = model_description(data, config, options, report,
+                                              extra=args.extra is not None)
         args.out.parent.mkdir(parents=True, exist_ok=True)
         save_pose_model(args.out, model)
         if model.gives_canonical_pairs:
@@ -436,6 +459,21 @@ def _main(argv) -> int:
     print(json.dumps({"model": str(args.out), "size_bytes": args.out.stat().st_size,
                       "total_seconds": round(total, 1), **report}, indent=1))
     return 0
+
+
+def model_description(data, config, options, report: dict, extra: bool) -> dict:
+    """What the model file records of its training: the trials (windows of a long cmu_extra
+    sequence named once, by the sequence), the rows, frames and sequences of each source
+    (sequences.cmu_extra.training_sources; ``python -m regressor describe`` prints them), the
+    held-out trials (the cmu_extra ones too with extra), the data set's settings, the
+    options and the validation report."""
+    return {"data": "CMU motion capture (mocap.cs.cmu.edu), rendered",
+            "trials": list(dict.fromkeys(map(source_sequence, data.trials))),
+            "sources": training_sources(np.asarray(data.trial_of_sequence)[data.sequence],
+                                        data.frame),
+            "held_out": list(HELD_OUT_TRIALS) + (list(EXTRA_HELD_OUT) if extra else []),
+            "dataset": json.loads(json.dumps(config.__dict__)),
+            "options": options.__dict__, "validation": report}
 
 
 def _learn_priors(args, model, report: dict, log) -> None:
