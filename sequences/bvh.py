@@ -298,6 +298,49 @@ def _is_added_tpose(frame: np.ndarray, n_root_pos: int) -> bool:
     return bool(np.all(rotations[:3] == 0) and np.all(rotations == np.round(rotations)))
 
 
+def _motion_header(rest: str, source: str, motion_line: int) -> tuple[int, float, str]:
+    """(frames, frame time in seconds, the data block) from the text after the MOTION line
+    (at line motion_line); BVHError naming the line for a missing or absurd value."""
+    if rest.startswith("\r"):
+        rest = rest[1:]
+    rest = rest[1:] if rest.startswith("\n") else rest
+    header = rest.split("\n", 2)
+    if len(header) < 3 and not (len(header) == 2 and header[1].strip()):
+        raise BVHError(f"{source} line {motion_line + len(header)}: expected 'Frames:' and "
+                       f"'Frame Time:' after MOTION")
+    frames_value = _header_value(header[0], "Frames", source, motion_line + 1)
+    frame_time = _header_value(header[1], "Frame Time", source, motion_line + 2)
+    if not np.isfinite(frames_value) or frames_value != int(frames_value) or frames_value < 1:
+        raise BVHError(f"{source} line {motion_line + 1}: need a positive whole number of "
+                       f"frames, got {header[0].strip()!r}")
+    low, high = FRAME_TIME_RANGE
+    if not (np.isfinite(frame_time) and low <= frame_time <= high):
+        raise BVHError(f"{source} line {motion_line + 2}: frame time must be between {low:g} "
+                       f"and {high:g} s, got {_short(header[1].strip())}")
+    return int(frames_value), frame_time, header[2] if len(header) == 3 else ""
+
+
+def _motion_values(block: str, skel, n_frames: int, source: str, first_line: int
+                   ) -> np.ndarray:
+    """The motion's values (n_frames, channels), finite and within MAX_COORDINATE; BVHError
+    naming the line otherwise."""
+    n_values = sum(len(c) for c in skel.channels)
+    try:
+        data = np.loadtxt(io.StringIO(block), dtype=np.float64, ndmin=2, comments=None)
+        ok = data.shape == (n_frames, n_values) and bool(np.isfinite(data).all())
+    except ValueError:
+        ok = False
+    if not ok:
+        raise _diagnose_motion(block, first_line, n_frames, n_values, source)
+    far = np.flatnonzero(np.abs(data[:, :3]).max(axis=1) > MAX_COORDINATE)
+    if len(far):
+        raise BVHError(f"{source} line {first_line + int(far[0])}: root position beyond "
+                       f"{MAX_COORDINATE:g} units")
+    if np.abs(np.array(skel.offsets)).max() > MAX_COORDINATE:
+        raise BVHError(f"{source}: a joint OFFSET beyond {MAX_COORDINATE:g} units")
+    return data
+
+
 def read_bvh(path: str | Path, fps: float | None = 30.0, drop_tpose: str | bool = "auto"
              ) -> Motion:
     """Read a BVH file into a Motion resampled to ``fps`` frames per second.
@@ -323,41 +366,9 @@ def read_bvh(path: str | Path, fps: float | None = 30.0, drop_tpose: str | bool 
                       len(head_lines))
         raise BVHError(f"{source} line {lineno}: 'MOTION' must stand alone on its line")
 
-    rest = text[match.end():]
-    if rest.startswith("\r"):
-        rest = rest[1:]
-    rest = rest[1:] if rest.startswith("\n") else rest
-    header = rest.split("\n", 2)
-    if len(header) < 3 and not (len(header) == 2 and header[1].strip()):
-        raise BVHError(f"{source} line {motion_line + len(header)}: expected 'Frames:' and "
-                       f"'Frame Time:' after MOTION")
-    frames_value = _header_value(header[0], "Frames", source, motion_line + 1)
-    frame_time = _header_value(header[1], "Frame Time", source, motion_line + 2)
-    if not np.isfinite(frames_value) or frames_value != int(frames_value) or frames_value < 1:
-        raise BVHError(f"{source} line {motion_line + 1}: need a positive whole number of "
-                       f"frames, got {header[0].strip()!r}")
-    low, high = FRAME_TIME_RANGE
-    if not (np.isfinite(frame_time) and low <= frame_time <= high):
-        raise BVHError(f"{source} line {motion_line + 2}: frame time must be between {low:g} "
-                       f"and {high:g} s, got {_short(header[1].strip())}")
-    n_frames = int(frames_value)
-    n_values = sum(len(c) for c in skel.channels)
-    block = header[2] if len(header) == 3 else ""
+    n_frames, frame_time, block = _motion_header(text[match.end():], source, motion_line)
     first_data_line = motion_line + 3
-
-    try:
-        data = np.loadtxt(io.StringIO(block), dtype=np.float64, ndmin=2, comments=None)
-        ok = data.shape == (n_frames, n_values) and bool(np.isfinite(data).all())
-    except ValueError:
-        ok = False
-    if not ok:
-        raise _diagnose_motion(block, first_data_line, n_frames, n_values, source)
-    far = np.flatnonzero(np.abs(data[:, :3]).max(axis=1) > MAX_COORDINATE)
-    if len(far):
-        raise BVHError(f"{source} line {first_data_line + int(far[0])}: root position beyond "
-                       f"{MAX_COORDINATE:g} units")
-    if np.abs(np.array(skel.offsets)).max() > MAX_COORDINATE:
-        raise BVHError(f"{source}: a joint OFFSET beyond {MAX_COORDINATE:g} units")
+    data = _motion_values(block, skel, n_frames, source, first_data_line)
 
     n_pos = 3
     if drop_tpose == "auto":
