@@ -245,6 +245,25 @@ def _validate(where: str, p: Mapping[str, np.ndarray]) -> None:
         fail(f"centres {centres.shape} does not match coef {coef.shape}")
     if basis is not None and str(basis) == "gaussian" and coef is not None and (centres is None or centres.shape[0] != R):
         fail("a Gaussian basis needs one centre per weight row")
+    _validate_input_shapes(need, fail, k, centres)
+    direction = need("canonical_direction", 1)
+    if direction is not None and (direction.shape != (55,) or not np.linalg.norm(direction) > 0):
+        fail(f"canonical_direction must be 55 values, not all zero; got shape {direction.shape}")
+    _validate_noise(p, fail)
+    desc = need("description", 0, "U")
+    if desc is not None:
+        try:
+            json.loads(str(desc))
+        except json.JSONDecodeError as exc:
+            fail(f"description is not JSON ({exc})")
+    for name, a in p.items():
+        if name.startswith("descriptor_") and a.shape != ():
+            fail(f"descriptor setting {name} must be a single number or string; got shape {a.shape}")
+
+
+def _validate_input_shapes(need, fail, k, centres) -> None:
+    """The codebook, layout and projection agree with the stacking depth k and the kernel
+    centres (need, fail: _validate's part getter and failure)."""
     cb = need("codebook_centres", 2)
     sigma = need("codebook_sigma", 0)
     if sigma is not None and not float(sigma) > 0:
@@ -263,19 +282,6 @@ def _validate(where: str, p: Mapping[str, np.ndarray]) -> None:
             k is not None and centres.shape[1] != int(k) * (cb.shape[0] + layout):
         fail(f"centres have {centres.shape[1]} columns; stack_depth {int(k)} x "
              f"({cb.shape[0]} codebook centres + {layout} layout cells) expected")
-    direction = need("canonical_direction", 1)
-    if direction is not None and (direction.shape != (55,) or not np.linalg.norm(direction) > 0):
-        fail(f"canonical_direction must be 55 values, not all zero; got shape {direction.shape}")
-    _validate_noise(p, fail)
-    desc = need("description", 0, "U")
-    if desc is not None:
-        try:
-            json.loads(str(desc))
-        except json.JSONDecodeError as exc:
-            fail(f"description is not JSON ({exc})")
-    for name, a in p.items():
-        if name.startswith("descriptor_") and a.shape != ():
-            fail(f"descriptor setting {name} must be a single number or string; got shape {a.shape}")
 
 
 def _validate_noise(p: Mapping[str, np.ndarray], fail) -> None:
