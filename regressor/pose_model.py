@@ -750,6 +750,43 @@ def _limb_head_from_arrays(a, n_rows: int, n_experts: int) -> LimbHead | None:
     return head
 
 
+def _gate_from_arrays(a, kD: int, E: int, fail) -> SoftmaxGate:
+    """The mixture's softmax gate from its file's parts, checking their shapes agree with the
+    input length kD and the E experts."""
+    gate_centres = a["mixture_gate_centres"].astype(np.float64)
+    G = len(gate_centres)
+    weights = a["mixture_gate_weights"].astype(np.float64)
+    mean, std = a["mixture_gate_feature_mean"], a["mixture_gate_feature_std"]
+    if gate_centres.ndim != 2 or gate_centres.shape[1] != kD or weights.shape != (G + 1, E) \
+            or mean.shape != (G,) or std.shape != (G,) or np.any(std <= 0) \
+            or not float(a["mixture_gate_width"]) > 0:
+        fail("gate parts have inconsistent shapes")
+    gate = SoftmaxGate(n_centres=G)
+    gate.centres_, gate.width_ = gate_centres, float(a["mixture_gate_width"])
+    gate.feature_mean_, gate.feature_std_ = mean.astype(np.float64), std.astype(np.float64)
+    gate.weights_, gate.n_classes_, gate.n_features_in_ = weights, E, kD
+    return gate
+
+
+def _check_parts(fail, kD: int, limb_head, limb_net, side_classifier, canonical_priors,
+                 canonical: bool) -> None:
+    """The parts beside the experts fit together and take the regressor's kD inputs;
+    canonical: the model was fitted on canonical members."""
+    if canonical_priors is not None and side_classifier is None:
+        fail("canonical priors need a side classifier")
+    if side_classifier is not None and limb_net is None and limb_head is None:
+        fail("a side classifier needs the model's limbs")
+    if side_classifier is not None and side_classifier.input_length != kD:
+        fail(f"the side classifier takes {side_classifier.input_length} inputs, the regressor "
+             f"{kD}")
+    if limb_net is not None and limb_head is not None:
+        fail("a model carries a limb head or a limb network, not both")
+    if limb_net is not None and limb_net.input_length != kD:
+        fail(f"the limb network takes {limb_net.input_length} inputs, the regressor {kD}")
+    if (limb_head is not None or limb_net is not None) and canonical:
+        fail("a model fitted on canonical members takes no limb head or network")
+
+
 def _mixture_from_arrays(path: Path, a) -> PoseModel:
     """Rebuild a mixture model from its file's parts, checking their shapes agree."""
     def fail(problem: str):
@@ -772,14 +809,7 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         fail("expert offsets do not split the centres into experts")
     if intercept.shape != (E, POSE_DIM) or np.any(width <= 0) or centres.shape != (len(coef), kD):
         fail("expert widths, offsets or centres have inconsistent shapes")
-    gate_centres = a["mixture_gate_centres"].astype(np.float64)
-    G = len(gate_centres)
-    weights = a["mixture_gate_weights"].astype(np.float64)
-    mean, std = a["mixture_gate_feature_mean"], a["mixture_gate_feature_std"]
-    if gate_centres.ndim != 2 or gate_centres.shape[1] != kD or weights.shape != (G + 1, E) \
-            or mean.shape != (G,) or std.shape != (G,) or np.any(std <= 0) \
-            or not float(a["mixture_gate_width"]) > 0:
-        fail("gate parts have inconsistent shapes")
+    gate = _gate_from_arrays(a, kD, E, fail)
     partition = a["mixture_partition_centres"].astype(np.float64)
     if partition.ndim != 2 or len(partition) != E:
         fail("partition centres must have one row per expert")
@@ -792,10 +822,6 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         ex.coef_ = coef[offsets[e]:offsets[e + 1]]
         ex.width_, ex.intercept_, ex.n_features_in_ = float(width[e]), intercept[e], kD
         mix.experts_.append(ex)
-    gate = SoftmaxGate(n_centres=G)
-    gate.centres_, gate.width_ = gate_centres, float(a["mixture_gate_width"])
-    gate.feature_mean_, gate.feature_std_ = mean.astype(np.float64), std.astype(np.float64)
-    gate.weights_, gate.n_classes_, gate.n_features_in_ = weights, E, kD
     mix.gate_, mix.partition_centres_ = gate, partition
     mix.expert_rows_ = np.zeros(E, np.int64)
     mix.top_experts = int(a["mixture_top_experts"])
@@ -808,19 +834,8 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         canonical_priors = CanonicalPriors.from_arrays(a)
     except ValueError as exc:
         fail(str(exc))
-    if canonical_priors is not None and side_classifier is None:
-        fail("canonical priors need a side classifier")
-    if side_classifier is not None and limb_net is None and limb_head is None:
-        fail("a side classifier needs the model's limbs")
-    if side_classifier is not None and side_classifier.input_length != kD:
-        fail(f"the side classifier takes {side_classifier.input_length} inputs, the regressor "
-             f"{kD}")
-    if limb_net is not None and limb_head is not None:
-        fail("a model carries a limb head or a limb network, not both")
-    if limb_net is not None and limb_net.input_length != kD:
-        fail(f"the limb network takes {limb_net.input_length} inputs, the regressor {kD}")
-    if (limb_head is not None or limb_net is not None) and "canonical_direction" in a:
-        fail("a model fitted on canonical members takes no limb head or network")
+    _check_parts(fail, kD, limb_head, limb_net, side_classifier, canonical_priors,
+                 "canonical_direction" in a)
     return PoseModel(
         settings=settings, codebook=codebook, stack_depth=k, transform=str(a["transform"]),
         basis="gaussian", width=float(a["width"]), centres=centres,
