@@ -27,18 +27,8 @@ _MAX_GAIN_FACTOR = 4.0
 #: scene): a standing person filling a portrait frame's height covers about 15-35 %.
 DEFAULT_MAX_AREA_FRACTION = 0.5
 #: Components smaller than this fraction of the image are clutter, not people: at 640x480 a
-#: walker about 55 px tall or more passes (a 320x240 video: about 28 px). It was 0.003 until
-#: 2026-12-03, which lost walkers under about 70 px at 640x480 (a spiral walk rendered at 9 m,
-#: 40-116 px tall: found in 551 of 1200 frames, none under 60 px, 25 % of those 60-70 px
-#: tall; with 0.0015: 874 frames, 89 % of those 50-60 px, all from 60 px, and the poses of the
-#: taller frames as good or better (53-angle error 5.13 / 5.03 -> 5.09 / 5.03 at 70-80 / 80-100
-#: px), the new ones' better than the training-mean pose (50-60 px: 5.49 against 7.58). Through
-#: ``track`` on the five validation videos (320x240) only 09_04, whose runner is 12-31 px tall
-#: in the frames missed, changed: poses in 193 of 361 frames instead of 141, filtered heading
-#: RMS 20.0 -> 7.2 deg, 53-angle error 9.36 -> 10.04 (the added frames' about 11.9 against
-#: 14.4 for the constant), corr8 0.511 -> 0.477. Pose2Sim: one track per view either way.
-#: 0.001 found smaller walkers still (1150 frames) but their unreliable headings then held
-#: the taller frames' (heading RMS 46-70 deg at 60-100 px against 6-13).
+#: walker about 55 px tall or more passes (a 320x240 video: about 28 px); smaller walkers'
+#: headings became unreliable (docs/tuning.md, "tracker/silhouettes.py").
 DEFAULT_MIN_AREA_FRACTION = 0.0015
 # OpenCV MOG2's default cap on a pixel's variance (grey levels squared).
 _MOG2_VAR_MAX = 75.0
