@@ -145,3 +145,19 @@ def test_a_variable_frame_rate_keeps_its_duration(tmp_path):
     np.testing.assert_allclose(motion.root_position * CMU_UNIT_M, joints[rows, 0], atol=1e-6)
     back = motion_to_pose_vectors(motion)
     np.testing.assert_allclose(_wrap(back[:, 2:] - vectors[rows, 2:]), 0.0, atol=1e-5)
+
+
+def test_a_track_whose_file_name_would_be_too_long_gets_a_shortened_one(tmp_path):
+    """A 249-byte prefix: PREFIX_0.bvh is 255 bytes, PREFIX_10.bvh 256 (it had failed after the
+    whole run, leaving tracks 10 and up without a file)."""
+    vectors = _poses(3, seed=7)
+    joints = pose_joints_m(vectors)
+    prefix = "a" * 249
+    with BVHSink(tmp_path, 30.0, prefix=prefix, min_frames=1) as sink:
+        for track in (0, 10):
+            for frame in range(3):
+                sink.write(TrackedPose(frame, frame / 30, track, vectors[frame], vectors[frame],
+                                       False, joints[frame]))
+    assert sink.paths[0].name == prefix + "_0.bvh"
+    assert len(sink.paths[10].name.encode()) <= 255 and sink.paths[10].name.endswith("_10.bvh")
+    assert read_bvh(sink.paths[10], fps=None, drop_tpose=False).n_frames == 3

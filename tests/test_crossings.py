@@ -102,6 +102,18 @@ def test_a_fragment_of_one_person_makes_no_group():
     assert all(0 in ids for ids in reported)
 
 
+def test_two_overlapping_blobs_that_both_hold_both_people_make_one_group_at_most():
+    """Two wide blobs whose boxes overlap, each holding both tracks' predictions: the second
+    found its members taken (an IndexError of an empty argmax, a traceback for track)."""
+    rng = np.random.default_rng(0)
+    associator = Associator()
+    for _ in range(5):
+        associator.update([_person(200, _colour(3, rng)), _person(260, _colour(40, rng))])
+    wide = [Blob((20, 200.0), 9000, (0, 130.0, 400, 140), _colour(3, rng)),
+            Blob((480, 200.0), 9000, (100, 130.0, 400, 140), _colour(40, rng))]
+    assert len(associator.update(wide)) <= 2
+
+
 def test_bad_group_settings_are_refused():
     for bad in (dict(max_occluded=-1), dict(appearance_weight=-0.5), dict(colour_rate=0.0),
                 dict(min_height_ratio=1.5)):

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.video import (VideoError, VideoGrowingWarning, VideoTimingWarning,
+from tracker.video import (FrameTimes, VideoError, VideoGrowingWarning, VideoTimingWarning,
                            VideoTruncatedWarning, _as_bgr, open_video)
 
 #: The sample walk at 30 fps for 6 s, then 10 fps to 12 s (scripts/make_vfr_clip.py): 241 frames;
@@ -328,6 +328,29 @@ def test_a_variable_frame_rate_s_time_range_is_by_time():
         times = [f.time_s for f in source]
     assert times[0] == pytest.approx(5.5, abs=1e-3) and times[-1] == pytest.approx(6.9)
     assert len(times) == 15 + 10      # 5.5-5.97 s at 30 fps, 6.0-6.9 s at 10 fps
+
+
+@pytest.mark.parametrize("start_s, end_s, first, count", [
+    (7.0, 8.0, 7.0, 10),       # a seek by frame number at 30 fps landed at 9.0 s
+    (7.0, None, 7.0, 51),
+    (10.0, 11.5, 10.0, 15),    # frame 300 at 30 fps is past the clip's 241 frames
+    (11.9, None, 11.9, 2),
+])
+def test_a_variable_frame_rate_s_start_after_the_rate_changes_is_found_by_time(
+        start_s, end_s, first, count):
+    source = open_video(VFR_CLIP, start_s=start_s, end_s=end_s)
+    with pytest.warns(VideoTimingWarning):
+        times = [f.time_s for f in source]
+    assert len(times) == count and times[0] == pytest.approx(first)
+    np.testing.assert_allclose(np.diff(times), 0.1, atol=1e-9)
+
+
+def test_a_seek_into_a_container_without_times_keeps_the_frames_own_times():
+    """After a seek, a raw stream reports 0 ms for the frame it landed on: that is no time
+    (it had been taken as one, stamping frames 24-36 with 0.48-0.96 s)."""
+    times = FrameTimes(25.0)
+    assert times(12, 0.0) == pytest.approx(0.48) and times.problem == "gives no frame times"
+    assert times(13, 0.0) == pytest.approx(0.52)
 
 
 def test_a_stated_frame_rate_spaces_the_frames_evenly(tmp_path):

@@ -283,6 +283,8 @@ class Associator:
         groups, taken = {}, np.zeros(len(self.tracks), bool)
         for j in np.flatnonzero(member.sum(axis=0) >= 2):
             rows = np.flatnonzero(member[:, j] & ~taken)
+            if len(rows) < 2:               # its tracks were taken by an overlapping box
+                continue
             tall = rows[np.argmax(heights[rows])]
             beside = (np.minimum(tops[rows] + heights[rows], tops[tall] + heights[tall])
                       - np.maximum(tops[rows], tops[tall]))

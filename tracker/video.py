@@ -160,8 +160,10 @@ class FrameTimes:
     def __call__(self, index: int, container_ms: float) -> float:
         """The time of frame ``index``, whose container time is ``container_ms``."""
         time_s = container_ms / 1000.0
-        if self.from_container and not (math.isfinite(time_s) and time_s >= 0.0 and (
-                self.last is None or time_s > self.last[1])):
+        # After a seek, a container without times reports 0 ms for a frame past the first.
+        unset = self.last is None and index > 0 and time_s <= 0.0
+        if self.from_container and (unset or not (math.isfinite(time_s) and time_s >= 0.0 and (
+                self.last is None or time_s > self.last[1]))):
             self.from_container = False
             self.problem = ("gives no frame times" if self.last is None else
                             f"gives frame {index} a time not after frame {self.last[0]}'s")
@@ -247,12 +249,26 @@ class VideoSource:
         stopped_at = None               # the first of the undecodable frames the stream ends on
         held = None         # (the last frame decoded, the times before it), yielded after the next
         give_up = self.unreadable_run()
+        rewound = False
         try:
             index = _seek(capture, self.start_index, give_up)
+            if index < self.start_index and self.container_times:
+                # The stream ended before the frame the announced rate puts at the start time
+                # (a variable rate announces more frames than it has): the times decide.
+                capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+                index, rewound = 0, True
             end = self._last_index()
             failed = 0                  # undecodable frames in a row, just before index
             while index < end:
                 ok, image = capture.read()
+                if (not ok or image is None) and held is None and not rewound and \
+                        index > 0 and self.container_times:
+                    # Nothing decodes where the seek put us (past a variable rate's real
+                    # end, or a damaged frame): read from the first frame, the times decide.
+                    capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+                    index, failed, rewound = 0, 0, True
+                    times = FrameTimes(self.fps, self.container_times)
+                    continue
                 if not ok or image is None:
                     if _file_state(self.path) != opened:    # the live end: stop there,
                         if held is not None:                    # the last frame unused
@@ -266,6 +282,13 @@ class VideoSource:
                     continue
                 before = copy.copy(times)
                 time_s = times(index, capture.get(cv2.CAP_PROP_POS_MSEC))
+                if held is None and not rewound and self._landed_late(index, time_s, times):
+                    # A seek by frame number at the announced rate passes a variable rate's
+                    # start time: read from the first frame, the times then decide.
+                    capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+                    index, failed, rewound = 0, 0, True
+                    times = FrameTimes(self.fps, self.container_times)
+                    continue
                 if time_s + 1.0 / self.fps <= self.start_s + 1e-6:
                     index, failed = index + 1, 0    # a seek by frame number landed early
                     continue
@@ -289,6 +312,12 @@ class VideoSource:
         finally:
             capture.release()
         self._report(times, first_skipped, stopped_at, opened)
+
+    def _landed_late(self, index: int, time_s: float, times: FrameTimes) -> bool:
+        """Whether the first frame read after seeking to ``index`` lies over a frame past the
+        start time by its container time (a variable frame rate)."""
+        return index > 0 and times.from_container and \
+            time_s > self.start_s + 1.0 / self.fps + 1e-6
 
     def _last_index(self) -> float:
         """The index the read loop stops before: end_index, or with an end time and the

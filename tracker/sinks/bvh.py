@@ -161,7 +161,9 @@ class BVHSink:
             for track_id in sorted(self._tracks):
                 if len(self._tracks[track_id][0]) < self.min_frames:
                     continue
-                path = self.directory / f"{self.prefix}_{track_id}.bvh"
+                # A name past the file system's limit (a long video name, a track id of many
+                # digits) gets its prefix cut and hashed, as the partial and lock names do.
+                path = beside_name(self.directory / self.prefix, f"_{track_id}.bvh")
                 motion = self.motion(track_id)
                 write_beside(path, lambda partial: write_bvh(partial, motion))
                 self.paths[track_id] = path
