@@ -1,7 +1,9 @@
 """Ablation of the tracker's mechanisms: each one removed against all present (issue 51).
 
     python scripts/ablation.py [--videos DIR] [--json OUT] [--only NAME ...] [--skip-real]
-        [--skip-renders] [--bvh-dir DIR]
+        [--skip-renders] [--reversed] [--bvh-dir DIR] [--trial DIR]
+
+The results: docs/ablation.md.
 
 Each video is tracked once as ``track`` tracks it (tracker.run.track_video, one process): its
 silhouettes and descriptors (with the mirror images') are kept, and every variant replays only
@@ -29,10 +31,17 @@ patched for the replay only):
   limb_networks   no limb networks: the mixture's own pose and its flip as the hypotheses (the
                   chain before canonical pairs: raw-nearer table, pose/flip switch rates), the
                   limb filter on the mixture's pose; the side classifier goes with them
+  stacking        the per-frame model regressor/models/per_frame_model.npz (k = 1) through the
+                  same tracker; not a clean ablation: that file is a single RVM on the
+                  shape-context histogram alone (no layout, mixture, limb networks, side
+                  classifier), described anew from the kept silhouettes
+  recommended     every removal of RECOMMENDED_REMOVALS at once (they may interact);
+                  recommended_keep_ambiguity: the same but the first (ambiguity)
 
 Measures. Validation renders (the model's validation trials 02_02, 08_03, 05_02, 09_04, 02_05
 as 30 deg/s spiral walks and from a fixed camera, 06_10 and 07_12 from a fixed camera; 12
-videos rendered once into --videos): err53, corr8, heading RMS of the longest track, filtered
+videos rendered once into --videos; --reversed: also the same motions time-reversed, i.e.
+walking backwards, in a table of their own): err53, corr8, heading RMS of the longest track, filtered
 and smoothed (sequences.measures.pose_measures), mean over videos; the noise: the standard
 error over videos of the paired difference. Real video (Pose2Sim's balancing trial, the
 four views, as scripts/evaluate_real.py measures the subject): mean over views and the four
@@ -43,7 +52,6 @@ cross-view heading.
 """
 from __future__ import annotations
 
-import argparse
 import contextlib
 import functools
 import json
@@ -60,6 +68,8 @@ from regressor.heading_index import HeadingIndex
 from regressor.pose_model import load_pose_model
 from sequences.measures import pose_measures
 from sequences.pose2sim import DEFAULT_TRIAL
+from tracker.offline.pose2sim_trial import missing_trial
+from tracker.one_line_parser import OneLineParser
 from tracker.offline.evaluation import CameraOptions, cmu_motion, constant_pose, \
     write_camera_video
 from tracker.pipeline import PoseTracker, TrackerSettings
@@ -83,13 +93,15 @@ BOOTSTRAP_DRAWS = 2000
 class Variant:
     """One mechanism removed: name, what replaces it (one line), settings overrides
     (TrackerSettings fields), whether the mirror images' descriptors are kept, whether the
-    people are described anew by the variant's model (its descriptor differs)."""
+    people are described anew by the variant's model (its descriptor differs); parts: the
+    names of several variants removed together."""
 
     name: str
     what: str
     settings: dict = field(default_factory=dict)
     mirror: bool = True
     describe: bool = False       # describe the people anew (another model's descriptor)
+    parts: tuple = ()            # several variants' removals at once
 
 
 VARIANTS = (
@@ -114,8 +126,15 @@ VARIANTS = (
     Variant("stacking", "the per-frame model (k = 1; a single RVM: no layout, mixture, limb "
             "networks or side classifier either)", mirror=False, describe=True),
 )
-PER_FRAME_MODEL = REPO / "regressor" / "models" / "per_frame_model.npz"
+#: The removals docs/ablation.md recommends, all at once (they may interact), and the same
+#: without the ambiguity inflation's (the one borderline among them).
+RECOMMENDED_REMOVALS = ("ambiguity", "heading_index", "raw_side", "switch", "imm", "travel")
+VARIANTS += (Variant("recommended", "all of " + ", ".join(RECOMMENDED_REMOVALS) + " at once",
+                     parts=RECOMMENDED_REMOVALS),
+             Variant("recommended_keep_ambiguity", "the same but the ambiguity inflation kept",
+                     parts=RECOMMENDED_REMOVALS[1:]))
 BY_NAME = {v.name: v for v in VARIANTS}
+PER_FRAME_MODEL = REPO / "regressor" / "models" / "per_frame_model.npz"
 
 
 def _flat(priors, **tables):
@@ -149,36 +168,47 @@ def _keep_heading(self, poses, X):
 @contextlib.contextmanager
 def applied(variant: Variant, model):
     """Within the block: (the model, TrackerSettings) the variant tracks with. Module patches
-    are undone on leaving; the model given is never changed (a copy where it must differ)."""
-    settings = replace(TrackerSettings(max_people=None), **variant.settings)
-    priors = hyp.canonical_priors(model)
+    are undone on leaving; the model given is never changed (a copy where it must differ).
+    A variant with parts removes each of theirs."""
+    names = variant.parts or (variant.name,)
+    settings = TrackerSettings(max_people=None)
+    for name in names:
+        settings = replace(settings, **BY_NAME[name].settings)
     with contextlib.ExitStack() as stack:
         patch = stack.enter_context(_Patches())
-        name = variant.name
-        if name == "flips":
-            patch(hyp, "canonical_hypotheses", _one_hypothesis(hyp.canonical_hypotheses))
-            patch(hyp, "transition_matrix", _transition_matrix(hyp.transition_matrix))
-        elif name == "heading_index":
-            patch(HeadingIndex, "apply", _keep_heading)
-        elif name == "side_classifier":
-            model = replace(model, canonical_priors=_flat(priors, by_front="overall"))
-        elif name == "raw_side":
-            model = replace(model, canonical_priors=_flat(priors,
-                                                          raw_side_by_norm="raw_side_overall"))
-        elif name == "switch":
-            model = replace(model, canonical_priors=replace(priors, switch=(0.5, 0.5)))
-        elif name == "travel":
-            patch(TravelDirection, "push", lambda self, x, h: None)
-        elif name == "member_path":
-            patch(hyp, "members_over_time",
-                  lambda limbs, headings, ratio=1.0: hyp.pick_member(limbs, headings))
-        elif name == "limb_networks":
-            model = replace(model, limb_net=None, side_classifier=None, canonical_priors=None)
-        elif name == "stacking":
-            model = _per_frame_model()
-        elif name not in BY_NAME:
-            raise ValueError(f"unknown variant {name!r}")
+        for name in names:
+            model = _removed(name, model, patch)
         yield model, settings
+
+
+def _removed(name: str, model, patch):
+    """The model the variant ``name`` tracks with (a copy where it differs), its module
+    patches made through patch(owner, attribute, value)."""
+    priors = hyp.canonical_priors(model)
+    if name == "flips":
+        patch(hyp, "canonical_hypotheses", _one_hypothesis(hyp.canonical_hypotheses))
+        patch(hyp, "transition_matrix", _transition_matrix(hyp.transition_matrix))
+    elif name == "heading_index":
+        patch(HeadingIndex, "apply", _keep_heading)
+    elif name == "side_classifier":
+        model = replace(model, canonical_priors=_flat(priors, by_front="overall"))
+    elif name == "raw_side":
+        model = replace(model, canonical_priors=_flat(priors,
+                                                      raw_side_by_norm="raw_side_overall"))
+    elif name == "switch":
+        model = replace(model, canonical_priors=replace(priors, switch=(0.5, 0.5)))
+    elif name == "travel":
+        patch(TravelDirection, "push", lambda self, x, h: None)
+    elif name == "member_path":
+        patch(hyp, "members_over_time",
+              lambda limbs, headings, ratio=1.0: hyp.pick_member(limbs, headings))
+    elif name == "limb_networks":
+        model = replace(model, limb_net=None, side_classifier=None, canonical_priors=None)
+    elif name == "stacking":
+        model = _per_frame_model()
+    elif name not in BY_NAME:
+        raise ValueError(f"unknown variant {name!r}")
+    return model
 
 
 @functools.lru_cache(maxsize=1)
@@ -277,18 +307,33 @@ def longest_track(poses: list, smoothed: dict) -> tuple[np.ndarray, np.ndarray, 
 
 # ---------------------------------------------------------------- renders
 
-def render_videos(bvh_dir: Path, out: Path) -> list[tuple[str, Path]]:
-    """The 12 validation videos (rendered once into out): (name, path)."""
+def render_videos(bvh_dir: Path, out: Path, reverse: bool = False) -> list[tuple[str, Path]]:
+    """The 12 validation videos (rendered once into out): (name, path); reverse: the same
+    motions time-reversed (backward walks; reversed before the spiral, as
+    tracker.offline.hypothesis_priors.validation_renders)."""
     out.mkdir(parents=True, exist_ok=True)
     videos = []
+    tag = " reversed" if reverse else ""
     for kind, trials, spiral in (("spiral", SPIRAL_TRIALS, 30.0), ("fixed", FIXED_TRIALS, None)):
         for trial in trials:
-            path = out / f"{trial}_{kind}.mp4"
+            path = out / f"{trial}_{kind}{'_reversed' if reverse else ''}.mp4"
             if not path.is_file():
-                write_camera_video(path, cmu_motion(bvh_dir / f"{trial}.bvh", spiral),
+                write_camera_video(path, _motion(bvh_dir / f"{trial}.bvh", spiral, reverse),
                                    CameraOptions())
-            videos.append((f"{trial} {kind}", path))
+            videos.append((f"{trial} {kind}{tag}", path))
     return videos
+
+
+def _motion(bvh: Path, spiral: float | None, reverse: bool):
+    """The trial's motion at 30 fps, time-reversed if asked, then as a spiral walk if asked."""
+    if not reverse:
+        return cmu_motion(bvh, spiral)
+    from sequences.bvh import read_bvh
+    from sequences.spiral import spiral_walk
+    motion = read_bvh(bvh, fps=30.0)
+    motion = replace(motion, euler_deg=motion.euler_deg[::-1].copy(),
+                     root_position=motion.root_position[::-1].copy())
+    return spiral_walk(motion, spiral) if spiral else motion
 
 
 def render_measures(frames, filtered, smoothed, truth, constant) -> dict:
@@ -441,7 +486,7 @@ def block_bootstrap_rms(base: np.ndarray, other: np.ndarray, block: int = BLOCK_
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--videos", type=Path, default=Path("/work/cache/ablation/videos"))
     ap.add_argument("--bvh-dir", type=Path, default=DEFAULT_TRIAL.parents[2] / "cmu" / "bvh")
     ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL)
@@ -449,7 +494,15 @@ def main(argv=None) -> int:
     ap.add_argument("--only", nargs="+", choices=[v.name for v in VARIANTS[1:]])
     ap.add_argument("--skip-real", action="store_true")
     ap.add_argument("--skip-renders", action="store_true")
+    ap.add_argument("--reversed", action="store_true",
+                    help="also the 12 renders time-reversed (backward walks), a table of their own")
     args = ap.parse_args(argv)
+    if not args.skip_real and missing_trial(args.trial):
+        ap.error(missing_trial(args.trial))
+    if not args.skip_renders and not args.bvh_dir.is_dir():
+        ap.error(f"--bvh-dir {args.bvh_dir}: no such folder (the CMU BVH files)")
+    if args.videos.exists() and not args.videos.is_dir():
+        ap.error(f"--videos {args.videos} is a file, not a folder")
     variants = [VARIANTS[0]] + [v for v in VARIANTS[1:] if not args.only or v.name in args.only]
     model = load_pose_model()
     log = lambda text: print(text, file=sys.stderr, flush=True)     # noqa: E731
@@ -457,8 +510,10 @@ def main(argv=None) -> int:
            "variants": {v.name: v.what for v in variants}}
     with threadpool_limits(1):
         if not args.skip_renders:
-            out["renders"] = run_renders(render_videos(args.bvh_dir, args.videos), model,
-                                         variants, log)
+            videos = render_videos(args.bvh_dir, args.videos)
+            if args.reversed:
+                videos += render_videos(args.bvh_dir, args.videos, reverse=True)
+            out["renders"] = run_renders(videos, model, variants, log)
         if not args.skip_real:
             out["real"] = run_real(args.trial, model, variants, log)
     args.json.parent.mkdir(parents=True, exist_ok=True)
@@ -473,6 +528,35 @@ def _jsonable(x):
     raise TypeError(type(x).__name__)
 
 
+def _render_table(title: str, r: dict, names: list, videos: list) -> list[str]:
+    """The renders' two tables (differences with their noise; videos worse / better)."""
+    lines = [f"{title} ({len(videos)} videos; mean over videos, present -> removed, "
+             "difference +- its standard error over videos):", "",
+             "| removed | err53 filt | corr8 filt | head filt | err53 smooth | "
+             "corr8 smooth | head smooth |", "|---|---|---|---|---|---|---|"]
+    for n in names:
+        cells = []
+        for kind in ("filtered", "smoothed"):
+            for key, fmt in (("err53", ".2f"), ("corr8", ".3f"), ("head", ".1f")):
+                a, b, d, se = paired([r["present"][v][kind][key] for v in videos],
+                                     [r[n][v][kind][key] for v in videos])
+                cells.append(f"{a:{fmt}} -> {b:{fmt}} ({d:+{fmt}} +- {se:{fmt}})")
+        lines.append(f"| {n} | " + " | ".join(cells) + " |")
+    lines += ["", f"{title}: videos where removing it is worse / better (corr8 by more than "
+              f"{COUNT_CORR}, heading RMS by more than {COUNT_HEAD_DEG:g} deg):", "",
+              "| removed | corr8 filt | head filt | corr8 smooth | head smooth |",
+              "|---|---|---|---|---|"]
+    for n in names:
+        cells = []
+        for kind in ("filtered", "smoothed"):
+            for key, margin, sign in (("corr8", COUNT_CORR, 1), ("head", COUNT_HEAD_DEG, -1)):
+                d = sign * np.array([r[n][v][kind][key] - r["present"][v][kind][key]
+                                     for v in videos])
+                cells.append(f"{int((d < -margin).sum())} / {int((d > margin).sum())}")
+        lines.append(f"| {n} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def format_table(out: dict) -> str:
     """The markdown table: one row per variant, each measure as present -> removed (the
     difference and its noise)."""
@@ -480,32 +564,14 @@ def format_table(out: dict) -> str:
     names = [n for n in out["variants"] if n != "present"]
     if "renders" in out:
         r = out["renders"]["measures"]
-        videos = list(r["present"])
-        lines += ["Validation renders (12 videos; mean over videos, present -> removed, "
-                  "difference +- its standard error over videos):", "",
-                  "| removed | err53 filt | corr8 filt | head filt | err53 smooth | "
-                  "corr8 smooth | head smooth |", "|---|---|---|---|---|---|---|"]
-        for n in names:
-            cells = []
-            for kind in ("filtered", "smoothed"):
-                for key, fmt in (("err53", ".2f"), ("corr8", ".3f"), ("head", ".1f")):
-                    a, b, d, se = paired([r["present"][v][kind][key] for v in videos],
-                                         [r[n][v][kind][key] for v in videos])
-                    cells.append(f"{a:{fmt}} -> {b:{fmt}} ({d:+{fmt}} +- {se:{fmt}})")
-            lines.append(f"| {n} | " + " | ".join(cells) + " |")
-        lines += ["", "Videos where removing it is worse / better (corr8 by more than "
-                  f"{COUNT_CORR}, heading RMS by more than {COUNT_HEAD_DEG:g} deg):", "",
-                  "| removed | corr8 filt | head filt | corr8 smooth | head smooth |",
-                  "|---|---|---|---|---|"]
-        for n in names:
-            cells = []
-            for kind in ("filtered", "smoothed"):
-                for key, margin, sign in (("corr8", COUNT_CORR, 1), ("head", COUNT_HEAD_DEG, -1)):
-                    d = sign * np.array([r[n][v][kind][key] - r["present"][v][kind][key]
-                                         for v in videos])
-                    cells.append(f"{int((d < -margin).sum())} / {int((d > margin).sum())}")
-            lines.append(f"| {n} | " + " | ".join(cells) + " |")
-        lines.append("")
+        every = list(r["present"])
+        for title, videos in (
+                ("Validation renders", [v for v in every if "reversed" not in v]),
+                ("The same renders time-reversed (backward walks)",
+                 [v for v in every if "reversed" in v]),
+                ("All renders, forward and time-reversed", every)):
+            if videos and (title[0] != "A" or len(videos) > 12):
+                lines += _render_table(title, r, names, videos)
     if "real" in out:
         r = out["real"]["measures"]
         lines += ["Pose2Sim balancing (4 views; present -> removed (difference +- standard "
