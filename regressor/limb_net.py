@@ -8,85 +8,13 @@ targets shares its features over all the training rows. Seeded networks differ a
 one another (the validation videos' correlation of the 8 most-moving angles at the true
 heading moved by up to 0.17 between two seeds), so several are averaged.
 
-Chosen on the five validation videos (02_02 / 08_03 / 05_02 / 09_04 / 02_05), 2026-12-02:
-- At the true heading (the member picked by the truth; one-off driver on the masks ``track``
-  extracts): limb head 0.675 / 0.714 / 0.032 / 0.321 / 0.173 (mean 0.383); one network
-  (512, 256) 0.412 and 0.373 for two seeds, their mean 0.716 / 0.759 / 0.034 / 0.408 / 0.229
-  (0.430). (1024, 512) 0.398, L2 1e-2 0.399, the first 100 components 0.39-0.41.
-- Through ``track`` (filtered, mean over the five: corr8, err53; the heading is the
-  chain's and does not change): limb head 0.392, 8.68; 2 networks 0.418, 8.37; 3 0.423,
-  8.15; 4 0.430, 8.06. The default model had 4 (9.8 MB; the limb head's weights it replaces
-  took 1.7 MB, each network took 0.5 MB as float16). Since 2026-12-02 it has 8, their weights
-  stored as int8 (0.22 MB each; LimbNet.to_arrays): on the 6 validation trials' own rows
-  (canonical member, corr8 mean over trials) 4 / 6 / 8 networks 0.647 / 0.654 / 0.659, and
-  the figures of tracker.offline.training.MixtureOptions.
-- What limits one network (2026-12-02, one network (512, 256) with mirror images, the same
-  measure): the number of distinct motions more than the number of rows. Half of the
-  training rows drawn at random 0.578 (a quarter 0.544, all 0.584); half of the training
-  trials with all their rows (two draws of 43 of 86 trials) 0.558 / 0.561. Fitted longer
-  (no early stopping, every row), it reaches 0.60 by epoch 12 and stays there to epoch 36.
-  Noise on the inputs while fitting (half of each input's spread) 0.595, err53 lower (7.47
-  against 7.70). The walks are followed best (02_02 0.74-0.77, 08_03 0.79-0.82), the punches
-  of 02_05 worst (0.24-0.38): more kinds of motion would help more than more views.
-  Narrower networks do not buy more members for the same space: (256, 128) scores 0.558-0.582
-  alone (four seeds), 0.620 for the mean of four (0.647 for four of (512, 256), which hold
-  2.7 times as many weights), and adding those four to the default's eight gives 0.658
-  against 0.660.
-- Richer inputs, tried later that day and not adopted (one network (512, 256) on the training
-  rows, correlation of the 8 most-moving angles of the canonical member on the 6 validation
-  trials' own rows, mean over trials; one-off drivers): the default input 0.552 / 0.556 (two
-  seeds); with a 32 x 32 layout's 200 principal directions added 0.555 / 0.553; with the
-  input of 3 and 6 frames before stacked on (a wider window) 0.552, of 5, 10 and 15 before
-  0.535. The wider windows fit their held-out training rows better (R^2 0.613 against 0.526)
-  but new trials no better: the walks gain a little (0.70 -> 0.72, 0.79 -> 0.82), the others
-  lose.
-- Averaging at run time with the networks' answer for the mirror image (the mask flipped left
-  to right, the pose mirrored back: sequences.pose_vector.image_mirror), tried the same day
-  and not adopted: on the validation rows the shipped four networks go 0.616 -> 0.644, but
-  through ``track`` (a one-off patch) 02_02 / 08_03 / 05_02 filtered corr8 0.704 / 0.718 /
-  0.052 -> 0.703 / 0.727 / 0.069, and 05_02's heading 47.3 -> 72.6 degrees (the canonical pair
-  the front/back chain weighs is the networks' member), for a second descriptor per frame.
-  Mirror images in training instead (tracker.offline.training.MixtureOptions.limb_net_mirror)
-  cost nothing at run time. With networks fitted on mirror images too (the default since),
-  the run-time average does help, and ``track`` uses it (tracker.mirror_limbs, figures there).
-
-- Input noise while fitting (``input_noise``; train.py --limb-net-noise), tried 2026-12-02 and
-  not adopted: the shipped recipe retrained with eight networks at noise 0.5, 40 epochs each
-  (``--limb-net-epochs 40``; uncapped, one stopped after 112 epochs, 20 min) scored on the
-  validation rows at the true heading corr8 0.661, err53 7.18 against the shipped 0.669, 7.02;
-  through ``track`` on the five validation videos filtered corr8 0.708 / 0.786 / 0.071 / 0.511
-  / 0.364 -> 0.664 / 0.826 / 0.067 / 0.494 / 0.396 (mean 0.488 -> 0.489), err53 mean 7.60 ->
-  7.49, heading 02_02 8.7 -> 14.5, 09_04 20.0 -> 7.0; on the 28 validation renders filtered /
-  smoothed heading 35.2 / 28.1 -> 26.5 / 21.1 degrees but corr8 0.571 / 0.635 -> 0.552 /
-  0.606. A wash for the limbs, so the default stays 0.
-- New combinations of the training motions, tried 2026-12-03 and not adopted (one-off drivers,
-  one network (512, 256), 30 epochs, with mirror images; the measure above on the 6 validation
-  trials' own rows, seeds 0 / 1): 30 made-up trials (23,026 rows, +34 %), each the root and
-  legs of one training trial with the upper body of another, looped to its length (no
-  validation or held-out trial as a source), rendered and made video-like as the data set.
-  Training rows only 0.593 / 0.595, err53 7.47 / 7.39; with the mixes taking the other
-  trial's spine, arms and head 0.578 / 0.593, 7.32 / 7.22; its arms only 0.590 / 0.601,
-  7.23 / 7.28. The unusual motions gain a little (05_02 0.47 / 0.46 -> 0.49 / 0.50 with the
-  arms, 02_05 0.38 / 0.35 -> 0.37 / 0.42), the walks lose a little (06_10 0.48 / 0.50 -> 0.42
-  / 0.46): combinations of the motions we have are not the new kinds of motion the networks
-  lack.
-- Wider combinations, tried 2026-12-03 after the Pose2Sim clip was found to fail even on
-  renders of its own poses (docs/accuracy.md, "Real video"): 40 made-up trials (31,073 rows, +46 %),
-  each the root and legs of one training trial, the spine and head of a second, each arm of a
-  third and a fourth, with slowly varying offsets added (trunk bend -10..40 degrees forwards,
-  -20..20 sideways; +-30 degrees on each shoulder axis). Same measure, seed 0: corr8 0.593 ->
-  0.567 (02_05 0.378 -> 0.297, 06_10 0.480 -> 0.415), err53 7.47 -> 7.40. Not adopted. (On
-  the Pose2Sim poses rendered as the training set renders, reported only: corr8 0.205 ->
-  0.189, flexion error 25.1 -> 22.2 degrees.)
-- Rarer poses drawn more often, tried the same day: the training rows resampled (as many as
-  before, with replacement) with probability ~ (size of the row's pose cluster)^-p, 100
-  k-means clusters of the canonical 53 angles. Same measure: p = 0.5 corr8 0.558, err53
-  7.85; p = 1 0.530, 8.16 (against 0.593, 7.47). Not adopted.
+How the recipe (eight (512, 256) networks, mirror images in training, int8 weights) was
+chosen, and what was tried and not adopted: docs/tuning.md, "regressor/limb_net.py".
 
 A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
 standardised by a mean and one scale, outputs by a mean and a scale per value. The networks
 give either the pose vector's 55 values, the 53 body angles as wrapped offsets (degrees) from
-``angle_centre_deg`` as the experts' (files before 2026-12-03), or ROT6D_OUTPUTS values: the
+``angle_centre_deg`` as the experts' (older files), or ROT6D_OUTPUTS values: the
 heading's (cos, sin), the root's two tilts as such offsets, and each joint's rotation as 6
 numbers (regressor.rotation6d, a continuous representation); the output width says which.
 """

@@ -19,7 +19,9 @@ baseline on a compact basis. The project's one-shot RVM (regressor.rvm) keeps 1,
 rows and takes 94 s at that size (issue 9), and the cost grows as N^2-N^3; an expert here sees
 5,000-15,000 rows, so its basis is chosen by clustering and its weights by damped least
 squares, in seconds. (``expert="rvm"`` fits the RVM instead on at most ``rvm_rows`` rows of each
-expert, for comparison.)
+expert, for comparison.) ``expert="sparse_rvm"`` (regressor.sparse_rvm) is both: a sparse RVM on
+all the expert's rows, over k-means candidate kernels, whose fit costs grow with the candidates
+rather than the rows, and which gives each pose a predictive standard deviation.
 
 Per-frame cost: the gate's kernel features (G centres), then only the top experts' kernels.
 
@@ -39,8 +41,9 @@ from .basis import (NotFittedError, RegressorInputError, default_width, gaussian
                     nearest_columns, squared_distances, validate_X)
 from .hypothesis_path import most_probable_path
 
-EXPERT_KINDS = ("ridge", "rvm")
+EXPERT_KINDS = ("ridge", "rvm", "sparse_rvm")
 GATE_KINDS = ("softmax", "neighbours")
+COMBINE_KINDS = ("most_probable", "mean")
 
 
 class Estimator:
@@ -289,10 +292,15 @@ class MixtureRegressor(Estimator):
     on Y when Z is None). overlap: an expert also trains on rows whose distance to its region
     centre is within (1 + overlap) x their distance to their own region's centre (0: hard
     partition). expert: "ridge" (DampedKernelRegressor with n_centres, width_scale, lam) or
-    "rvm" (regressor.rvm.RVMRegressor on at most rvm_rows rows per expert). gate_centres,
+    "rvm" (regressor.rvm.RVMRegressor on at most rvm_rows rows per expert) or "sparse_rvm"
+    (regressor.sparse_rvm.SparseRVMRegressor on all the expert's rows: n_centres candidate
+    kernels, width_scale, further arguments in expert_params, a dict). gate_centres,
     gate_width_scale, gate_l2: the SoftmaxGate. gate: "softmax" (SoftmaxGate) or "neighbours"
     (NeighbourGate over gate_neighbours training inputs). top_experts: experts evaluated per row in
-    predict (the gate's most probable ones; their poses are the hypotheses).
+    predict (the gate's most probable ones; their poses are the hypotheses). combine: what
+    predict returns, "most_probable" (the most probable expert's pose) or "mean" (the experts'
+    poses weighted by the gate: smoother where the gate hesitates, but an average of the
+    hypotheses there).
 
     Learned: partition_centres_ (E, dZ), experts_ (list of fitted regressors), gate_
     (SoftmaxGate or NeighbourGate), expert_rows_ (E,) rows each expert was fitted on.
@@ -302,7 +310,8 @@ class MixtureRegressor(Estimator):
                  n_centres: int = 500, width_scale: float = 0.25, lam: float = 0.01,
                  gate_centres: int = 300, gate_width_scale: float = 0.5, gate_l2: float = 1e-4,
                  top_experts: int = 2, rvm_rows: int = 2000, seed: int = 0,
-                 gate: str = "softmax", gate_neighbours: int = 3):
+                 gate: str = "softmax", gate_neighbours: int = 3, expert_params: dict | None = None,
+                 combine: str = "most_probable"):
         self.n_experts = n_experts
         self.overlap = overlap
         self.expert = expert
@@ -317,11 +326,17 @@ class MixtureRegressor(Estimator):
         self.seed = seed
         self.gate = gate
         self.gate_neighbours = gate_neighbours
+        self.expert_params = expert_params
+        self.combine = combine
 
     def _new_expert(self, e: int):
         if self.expert == "ridge":
             return DampedKernelRegressor(self.n_centres, self.width_scale, self.lam,
                                          seed=self.seed + e)
+        if self.expert == "sparse_rvm":
+            from .sparse_rvm import SparseRVMRegressor
+            return SparseRVMRegressor(n_candidates=self.n_centres, width_scale=self.width_scale,
+                                      seed=self.seed + e, **(self.expert_params or {}))
         from .rvm import RVMRegressor
         return RVMRegressor("gaussian", width_scale=self.width_scale)
 
@@ -332,6 +347,8 @@ class MixtureRegressor(Estimator):
             raise ValueError(f"expert must be one of {EXPERT_KINDS}, got {self.expert!r}")
         if self.gate not in GATE_KINDS:
             raise ValueError(f"gate must be one of {GATE_KINDS}, got {self.gate!r}")
+        if self.combine not in COMBINE_KINDS:
+            raise ValueError(f"combine must be one of {COMBINE_KINDS}, got {self.combine!r}")
         X = validate_X(X)
         Y = np.asarray(Y, dtype=np.float64)
         Z = Y if Z is None else np.asarray(Z, dtype=np.float64)
@@ -368,23 +385,34 @@ class MixtureRegressor(Estimator):
         self._check_fitted("gate_")
         return self.gate_.predict_proba(X)
 
-    def predict_hypotheses(self, X, m: int | None = None, proba: np.ndarray | None = None
-                           ) -> tuple[np.ndarray, np.ndarray]:
+    def predict_hypotheses(self, X, m: int | None = None, proba: np.ndarray | None = None,
+                           return_std: bool = False):
         """The m most probable experts' poses for each row: (poses (N, m, K), probabilities
         (N, m), most probable first; probabilities are the gate's, renormalised over the m).
-        proba: the gate's predict_proba(X) (N, E) when the caller has it already."""
+        proba: the gate's predict_proba(X) (N, E) when the caller has it already. return_std:
+        also each pose's predictive standard deviation (N, m, K), from experts that give one
+        (expert="sparse_rvm")."""
         self._check_fitted("gate_")
         X = validate_X(X, self.n_features_in_)
+        if return_std and self.expert != "sparse_rvm":
+            raise ValueError(f"return_std needs experts with a predictive variance "
+                             f"(expert='sparse_rvm'), not expert={self.expert!r}")
         m = min(self.top_experts if m is None else int(m), len(self.experts_))
         P = self.gate_.predict_proba(X) if proba is None else proba
         order = np.argsort(-P, axis=1, kind="stable")[:, :m]
         prob = np.take_along_axis(P, order, axis=1)
         prob = prob / np.maximum(prob.sum(axis=1, keepdims=True), 1e-300)
         poses = np.empty((len(X), m, self.n_outputs_))
+        stds = np.empty_like(poses) if return_std else None
         for e in np.unique(order):
             rows, slot = np.nonzero(order == e)
-            poses[rows, slot] = np.asarray(self.experts_[e].predict(X[rows])).reshape(len(rows), -1)
-        return poses, prob
+            if return_std:
+                mean, std = self.experts_[e].predict(X[rows], return_std=True)
+                stds[rows, slot] = np.asarray(std).reshape(len(rows), -1)
+            else:
+                mean = self.experts_[e].predict(X[rows])
+            poses[rows, slot] = np.asarray(mean).reshape(len(rows), -1)
+        return (poses, prob, stds) if return_std else (poses, prob)
 
     def predict_path(self, X, step_var: float, continuity: float = 1.0, sequence_ids=None,
                      floor: float = 1e-3) -> np.ndarray:
@@ -402,8 +430,16 @@ class MixtureRegressor(Estimator):
         out = poses[np.arange(len(X)), path]
         return out if self.n_outputs_ > 1 else out[:, 0]
 
-    def predict(self, X) -> np.ndarray:
-        """The most probable expert's pose for each row, (N, K)."""
-        poses, _ = self.predict_hypotheses(X, 1)
-        out = poses[:, 0]
-        return out if self.n_outputs_ > 1 else out[:, 0]
+    def predict(self, X, return_std: bool = False):
+        """(N, K) per row: the most probable expert's pose, or with combine="mean" the gate's
+        weighting of all the experts' poses. return_std: also the standard deviation (N, K) of a
+        new observation, the expert's or the mixture's (its second moment less the squared
+        mean), for experts that give one (expert="sparse_rvm"). (N,) for a single output."""
+        m = 1 if self.combine == "most_probable" else len(self.experts_)
+        out = self.predict_hypotheses(X, m, return_std=return_std)
+        poses, prob = out[0], out[1][:, :, None]
+        mean = (poses * prob).sum(axis=1)
+        if not return_std:
+            return mean if self.n_outputs_ > 1 else mean[:, 0]
+        std = np.sqrt(np.maximum((prob * (out[2] ** 2 + poses ** 2)).sum(axis=1) - mean ** 2, 0.0))
+        return (mean, std) if self.n_outputs_ > 1 else (mean[:, 0], std[:, 0])

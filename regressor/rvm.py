@@ -112,6 +112,59 @@ class _Stats:
         self.Mu = np.delete(Mu, pos, 0)
 
 
+def step_gains(st: "_Stats", A: np.ndarray, alpha: np.ndarray, K: int, min_gain: float):
+    """Each basis function's best step and what it gains (Tipping & Faul 2003, shared alpha).
+
+    st: the current factors S (M,), Q (M, K); A (R,) active indices, alpha (R,) their
+    precisions. An inactive basis may be added, an active one re-estimated or deleted; the gain
+    is in nats of L - min_gain * R (adding costs min_gain, deleting refunds it). Deleting the
+    last active basis is never offered. Returns (gain (M,), -inf where no step pays; the new
+    alpha (M,), inf where the basis should be out; delete (M,) bool, the step is a deletion).
+    """
+    M = len(st.S)
+    s, q = st.S.copy(), st.Q.copy()
+    denom = alpha - st.S[A]
+    s[A] = alpha * st.S[A] / denom
+    q[A] = (alpha / denom)[:, None] * st.Q[A]
+    qsum = (q * q).sum(1)
+    theta = qsum - K * s
+
+    in_model = np.zeros(M, bool)
+    in_model[A] = True
+    good = (theta > 0) & (s > 0)
+    new_alpha = np.full(M, np.inf)
+    new_alpha[good] = np.minimum(K * s[good] ** 2 / theta[good], _ALPHA_MAX)
+    gain = np.full(M, -np.inf)
+    add = good & ~in_model
+    gain[add] = 0.5 * ((qsum[add] / s[add] - K) - K * np.log(qsum[add] / (K * s[add])))
+    gain[add] -= min_gain
+    old = _log_gain(alpha, s[A], qsum[A], K)
+    re_gain = np.full(len(A), -np.inf)
+    re = good[A]
+    re_gain[re] = _log_gain(new_alpha[A[re]], s[A[re]], qsum[A[re]], K) - old[re]
+    del_gain = min_gain - old if len(A) > 1 else np.full(len(A), -np.inf)
+    deleting = del_gain >= re_gain
+    gain[A] = np.where(deleting, del_gain, re_gain)
+    delete = np.zeros(M, bool)
+    delete[A[deleting]] = True
+    return gain, new_alpha, delete
+
+
+def check_learning_options(est) -> None:
+    """Refuse (RegressorInputError, naming the option) the sparse Bayesian learning options
+    both RVMs share: output_scale, noise, min_gain, max_iter, tol."""
+    if est.output_scale not in ("each", "common"):
+        raise RegressorInputError(f"output_scale={est.output_scale!r}; expected 'each' or 'common'")
+    if est.noise is not None and not (np.isfinite(est.noise) and est.noise > 0):
+        raise RegressorInputError(f"noise={est.noise!r}; expected a positive number or None")
+    if not (np.isfinite(est.min_gain) and est.min_gain >= 0):
+        raise RegressorInputError(f"min_gain={est.min_gain!r}; expected a number >= 0")
+    if not (int(est.max_iter) == est.max_iter and est.max_iter >= 1):
+        raise RegressorInputError(f"max_iter={est.max_iter!r}; expected a positive integer")
+    if not (np.isfinite(est.tol) and est.tol > 0):
+        raise RegressorInputError(f"tol={est.tol!r}; expected a positive number")
+
+
 class RVMRegressor(BasisRegressor):
     """Multi-output relevance vector regression with one relevance set for all outputs.
 
@@ -148,16 +201,7 @@ class RVMRegressor(BasisRegressor):
         self.tol = tol
 
     def _check_options(self) -> None:
-        if self.output_scale not in ("each", "common"):
-            raise RegressorInputError(f"output_scale={self.output_scale!r}; expected 'each' or 'common'")
-        if self.noise is not None and not (np.isfinite(self.noise) and self.noise > 0):
-            raise RegressorInputError(f"noise={self.noise!r}; expected a positive number or None")
-        if not (np.isfinite(self.min_gain) and self.min_gain >= 0):
-            raise RegressorInputError(f"min_gain={self.min_gain!r}; expected a number >= 0")
-        if not (int(self.max_iter) == self.max_iter and self.max_iter >= 1):
-            raise RegressorInputError(f"max_iter={self.max_iter!r}; expected a positive integer")
-        if not (np.isfinite(self.tol) and self.tol > 0):
-            raise RegressorInputError(f"tol={self.tol!r}; expected a positive number")
+        check_learning_options(self)
 
     def _fit_weights(self, Phi: np.ndarray, Y: np.ndarray):
         self._check_options()
@@ -199,7 +243,6 @@ class RVMRegressor(BasisRegressor):
         Returns (active indices (R,), alpha (R,), beta, steps taken, converged).
         """
         N, K = T.shape
-        M = B.shape[1]
         BtT = B.T @ T                                     # (M, K)
         beta = min(1.0 / self.noise if self.noise is not None else 10.0, _BETA_MAX)
 
@@ -218,32 +261,7 @@ class RVMRegressor(BasisRegressor):
                 if self.noise is None:
                     beta = self._reestimate_beta(B, T, BtT, A, alpha, beta)
                 st = _Stats(G, BtT, A, alpha, beta)
-            s, q = st.S.copy(), st.Q.copy()
-            denom = alpha - st.S[A]
-            s[A] = alpha * st.S[A] / denom
-            q[A] = (alpha / denom)[:, None] * st.Q[A]
-            qsum = (q * q).sum(1)
-            theta = qsum - K * s
-
-            in_model = np.zeros(M, bool)
-            in_model[A] = True
-            good = (theta > 0) & (s > 0)
-            new_alpha = np.full(M, np.inf)
-            new_alpha[good] = np.minimum(K * s[good] ** 2 / theta[good], _ALPHA_MAX)
-            gain = np.full(M, -np.inf)
-            add = good & ~in_model
-            gain[add] = 0.5 * ((qsum[add] / s[add] - K) - K * np.log(qsum[add] / (K * s[add])))
-            gain[add] -= self.min_gain
-            # Active bases: re-estimate alpha, or delete when that pays (the cost is returned).
-            old = _log_gain(alpha, s[A], qsum[A], K)
-            re_gain = np.full(len(A), -np.inf)
-            re = good[A]
-            re_gain[re] = _log_gain(new_alpha[A[re]], s[A[re]], qsum[A[re]], K) - old[re]
-            del_gain = self.min_gain - old if len(A) > 1 else np.full(len(A), -np.inf)
-            deleting = del_gain >= re_gain
-            gain[A] = np.where(deleting, del_gain, re_gain)
-            delete_set = np.zeros(M, bool)
-            delete_set[A[deleting]] = True
+            gain, new_alpha, delete_set = step_gains(st, A, alpha, K, self.min_gain)
 
             j = int(np.argmax(gain))
             if not gain[j] > self.tol:
@@ -255,7 +273,7 @@ class RVMRegressor(BasisRegressor):
                         continue
                 converged = True
                 break
-            if not in_model[j]:
+            if not np.isin(j, A):
                 g_new = B.T @ B[:, j]
                 st.add(j, g_new, G, new_alpha[j])
                 G = np.column_stack([G, g_new])
@@ -263,7 +281,7 @@ class RVMRegressor(BasisRegressor):
             else:
                 pos = int(np.flatnonzero(A == j)[0])
                 if not delete_set[j]:
-                    st.reestimate(pos, G, new_alpha[j] , alpha[pos])
+                    st.reestimate(pos, G, new_alpha[j], alpha[pos])
                     alpha[pos] = new_alpha[j]
                 else:
                     st.delete(pos, G)

@@ -1,10 +1,17 @@
-"""Evaluate the tracker on a real video with a 3-D reference: Pose2Sim's balancing trial.
+"""Evaluate the tracker on real videos with a 3-D reference: Pose2Sim's balancing and swings.
 
-    python scripts/evaluate_real.py [--trial ../shared/data/pose2sim/balancing] [--model FILE]
-        [--max-people N] [--roll calibration] [--zone-foreground sure] [--json OUT]
-        [--masks PNG] [--reference-masks cut|drawn|rendered]
+    python scripts/evaluate_real.py [--trial all|balancing|swings|FOLDER] [--model FILE]
+        [--peer mediapipe [--peer-results DIR]] [--max-people N] [--roll calibration]
+        [--zone-foreground sure] [--json OUT] [--masks PNG] [--reference-masks cut|drawn|rendered]
 
-Runs ``track``'s pipeline on each of the four views and prints, per view, knee and elbow flexion
+For each trial (default both), a table of the 8 limb angles (knee and elbow flexion, hip and
+shoulder as thigh and upper arm against the trunk; sequences.measures.limb_angles_from_points)
+per view, averaged over the views and pooled: correlation with the reference and mean error,
+beside the reference's own mean angle and the training-mean pose held still, and the heading;
+with ``--peer mediapipe`` the same for MediaPipe Pose's 3-D world landmarks on the same frames
+(run in-process, or read from ``scripts/run_mediapipe.py --out DIR`` with --peer-results DIR);
+then a summary line per trial. Details (docs/real_video.md): runs ``track``'s pipeline on each
+of the four views and prints, per view, knee and elbow flexion
 error and correlation against the reference (beside two constants: the reference's own mean
 flexion, which knows the answer's average, and the model's training-mean pose, what a regressor
 that ignores its input would score), heading error against the reference, the number of
@@ -47,13 +54,16 @@ from threadpoolctl import threadpool_limits
 from regressor.errors import SilhouettePoseError
 from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
 from sequences.keypoint_fit import KeypointFitError
-from sequences.measures import FLEXION_NAMES, MeasureError, flexion_deg, novelty_summary
-from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, camera_roll_deg,
-                                project_reference,
-                                reference_flexion, reference_heading_deg, video_frames)
-from sequences.pose2sim_measures import (cross_view_measures, reference_body,
-                                         reference_cross_view_check, subject_rows,
-                                         view_measures)
+from sequences.measures import (FLEXION_NAMES, MeasureError, flexion_deg, limb_angles_deg,
+                                novelty_summary)
+from sequences.mediapipe_peer import PeerError, keypoint_boxes, read_results, run_view
+from sequences.pose2sim import (VIEWS, Pose2SimError, Trial, camera_roll_deg, mid_hip_px,
+                                project_reference, reference_flexion, reference_heading_deg,
+                                trial_roots, video_frames)
+from sequences.pose2sim_measures import (cross_view_heading_rms, cross_view_measures,
+                                         peer_view_measures, pooled_limb_measures,
+                                         reference_body, reference_cross_view_check,
+                                         subject_rows, view_measures)
 from tracker.cli import VIEW_LAG_S, ZONE_FOREGROUND
 from tracker.fixed_lag import replay
 from sequences.pose_vector import heading_deg
@@ -65,7 +75,6 @@ from tracker.sinks import PoseRecorder
 from tracker.sinks.files import OutputWriteError, write_whole
 from tracker.video import VideoError
 
-_MID_HIP = [0, 6]               # RHip, LHip in the reference's keypoints
 
 
 class ViewTrack(NamedTuple):
@@ -155,8 +164,7 @@ def evaluate_view(trial: Trial, view: str, track: ViewTrack, constant=None, fit=
     """Measures of one view's subject (filtered and raw poses) and the subject's rows;
     constant (55,), a pose: also its flexion error; fit (reference_body): also the body
     angles' measures (view_measures)."""
-    hips = project_reference(view, track.frames, trial)[:, _MID_HIP].mean(axis=1)
-    rows = subject_rows(track.frames, track.bbox_px, hips)
+    rows = subject_rows(track.frames, track.bbox_px, mid_hip_px(trial, view, track.frames))
     frames = track.frames[rows]
     out = {"tracks": int(len(np.unique(track.track_ids))),
            "subject_tracks": int(len(np.unique(track.track_ids[rows]))),
@@ -209,7 +217,8 @@ def _fit_progress(done: int, total: int) -> None:
 
 def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
              sheet: list | None = None, trust_zone_foreground: bool = False,
-             reference_masks: str = "none", series: list | None = None) -> dict:
+             reference_masks: str = "none", series: list | None = None,
+             peer=None) -> dict:
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
     trust_zone_foreground: True takes the subtractor's foreground inside the unreliable zone
@@ -220,7 +229,9 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
     reference_masks: "none", or "cut" / "drawn" / "rendered" to correct the silhouettes by the
     reference (a diagnostic: tracker.offline.reference_masks).
     series: a list that gets, per view, the subject's flexions and headings over time beside
-    the reference's (tracker.offline.report.plot_real_video draws them)."""
+    the reference's (tracker.offline.report.plot_real_video draws them).
+    peer: a function of a view giving MediaPipe's results there (mediapipe_peer.read_results),
+    to score on the same frames as ours, or None."""
     per_view, subject = {}, {}
     constant = constant_pose(model)
     fit = reference_body(trial, progress=_fit_progress)
@@ -252,13 +263,38 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
     for kind, col in (("filtered", 1), ("raw", 2), ("smoothed", 3)):
         poses = {v: subject[v][col][np.isin(subject[v][0], common)] for v in VIEWS}
         cross[kind] = cross_view_measures(trial, common, poses)
+    still = limb_angles_deg(np.asarray(constant)[None])[0]
+    limbs = {kind: pooled_limb_measures(trial, {v: subject[v][0] for v in VIEWS},
+                                        {v: limb_angles_deg(subject[v][col]) for v in VIEWS},
+                                        still)
+             for kind, col in (("filtered", 1), ("smoothed", 3))}
     return {"trial": str(trial.root), "views": per_view, "mean": _means(per_view),
+            "limbs": limbs["filtered"], "limbs_smoothed": limbs["smoothed"],
+            **({} if peer is None else
+               {"peer": _peer(trial, {v: subject[v][0] for v in VIEWS}, peer)}),
             "reference_fit_direction_error_deg": {
                 "median": float(np.median(fit.direction_error_deg)),
                 "max": float(fit.direction_error_deg.max())},
             "cross_view": cross, "common_frames": int(len(common)),
             "reference_cross_view_heading_rms_deg": reference_cross_view_check(trial, common,
                                                                                 VIEWS)}
+
+
+def _peer(trial: Trial, frames_by_view: dict, peer) -> dict:
+    """MediaPipe scored on each view's frames where ours has the subject (and MediaPipe
+    follows it): {"views": per view peer_view_measures, "limbs": pooled_limb_measures,
+    "cross_view_heading_rms_deg" over the frames every view has}."""
+    views = {v: peer_view_measures(trial, v, peer(v), frames_by_view[v]) for v in VIEWS}
+    series = {v: views[v].pop("series") for v in VIEWS}
+    common = series[VIEWS[0]][0]
+    for v in VIEWS[1:]:
+        common = np.intersect1d(common, series[v][0])
+    heading = {v: series[v][2][np.isin(series[v][0], common)] for v in VIEWS}
+    return {"views": views,
+            "limbs": pooled_limb_measures(trial, {v: series[v][0] for v in VIEWS},
+                                          {v: series[v][1] for v in VIEWS}),
+            "cross_view_heading_rms_deg": cross_view_heading_rms(trial, common, heading),
+            "common_frames": int(len(common))}
 
 
 def _view_series(trial: Trial, view: str, frames, filtered, raw, smoothed, constant) -> dict:
@@ -389,10 +425,89 @@ def format_table(result: dict) -> str:
     return "\n".join(lines)
 
 
+_SHORT8 = ("Lkn", "Rkn", "Lel", "Rel", "Lhp", "Rhp", "Lsh", "Rsh")
+
+
+def _limb_row(label: str, frames, m: dict, heading) -> str:
+    const = m.get("constant_error_mean")
+    return (f"{label:16} {frames:>3} | " + " ".join(f"{c:5.2f}" for c in m["corr_per_angle"])
+            + f" {np.mean(m['corr_per_angle']):5.2f} | "
+            + " ".join(f"{e:4.0f}" for e in m["error_per_angle"])
+            + f" {np.mean(m['error_per_angle']):5.1f} {np.mean(m['truth_mean_error']):5.1f} "
+            + ("    -" if const is None else f"{const:5.1f}")
+            + ("" if heading is None else f" | {heading:4.0f}"))
+
+
+def format_limb_table(name: str, result: dict) -> str:
+    """One trial's 8 limb angles, ours and the peer's: per view, the views' mean, and all views
+    pooled; then the trial's summary line."""
+    head = (f"{name}: 8 limb angles, ours (filtered poses) and the peer's\n{'':20} | "
+            f"{'correlation with the reference':^53} | {'mean error (deg)':^57} | heading\n"
+            f"{'':16} frm | " + " ".join(f"{s:>5}" for s in _SHORT8) + "  mean | "
+            + " ".join(f"{s:>4}" for s in _SHORT8) + "  mean const train |  RMS")
+    lines = [head, "-" * len(head.splitlines()[2])]
+    sources = [("ours", result["views"], result["limbs"], "filtered")]
+    if "peer" in result:
+        sources.append(("MediaPipe", result["peer"]["views"], result["peer"]["limbs"], None))
+    for label, views, limbs, kind in sources:
+        for view, r in views.items():
+            m = r[kind] if kind else r
+            lines.append(_limb_row(f"{label} {view}", m["frames"], m["limbs"],
+                                   m["heading"]["rms_deg"]))
+        lines.append(_limb_row(f"{label} mean", "", limbs["mean"], None))
+        lines.append(_limb_row(f"{label} pooled", limbs["pooled"]["frames"], limbs["pooled"],
+                               None))
+    if "limbs_smoothed" in result:
+        smoothed = result["limbs_smoothed"]["mean"]
+        lines.append(f"ours, smoothed poses (track's JSON and BVH): mean corr "
+                     f"{np.mean(smoothed['corr_per_angle']):.2f}, mean error "
+                     f"{np.mean(smoothed['error_per_angle']):.1f} deg (mean over the views)")
+    lines.append("const: a constant at the reference's own mean angle; train: the model's "
+                 "training-mean pose held still; mean: over the views' figures; pooled: all "
+                 "views' frames together")
+    lines.append(summary_line(name, result))
+    return "\n".join(lines)
+
+
+def summary_line(name: str, result: dict) -> str:
+    """The trial's figures in one line: mean correlation and error over the 8 angles (over
+    the views' figures), cross-view heading RMS, and balancing's flexion error: ours (filtered
+    poses, and smoothed as track's JSON has them) and the peer's."""
+    def part(label, limbs, cross, flexion):
+        return (f"{label} mean corr {np.mean(limbs['corr_per_angle']):.2f}, mean error "
+                f"{np.mean(limbs['error_per_angle']):.1f} deg, cross-view heading RMS "
+                f"{cross:.0f}" + ("" if flexion is None else f", flexion error {flexion:.1f}"))
+
+    limbs, flex = result["limbs"]["mean"], name == "balancing"
+    parts = [part("ours", limbs, result["cross_view"]["filtered"]["heading_rms_deg"],
+                  np.mean(limbs["error_per_angle"][:4]) if flex else None)
+             + f" (constant {np.mean(limbs['truth_mean_error']):.1f}, training-mean "
+               f"{limbs['constant_error_mean']:.1f})"]
+    if "limbs_smoothed" in result:
+        smoothed = result["limbs_smoothed"]["mean"]
+        parts.append(part("ours smoothed (track's JSON)", smoothed,
+                          result["cross_view"]["smoothed"]["heading_rms_deg"],
+                          np.mean(smoothed["error_per_angle"][:4]) if flex else None))
+    if "peer" in result:
+        peer = result["peer"]
+        parts.append(part("MediaPipe", peer["limbs"]["mean"], peer["cross_view_heading_rms_deg"],
+                          np.mean(peer["limbs"]["mean"]["error_per_angle"][:4])
+                          if flex else None))
+    return f"{name} summary: " + "; ".join(parts)
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = OneLineParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL, help="the balancing trial "
-                    "folder (default: ../shared/data/pose2sim/balancing beside the repo)")
+    ap.add_argument("--trial", default="all", help="all (the default: balancing and swings, "
+                    "in ../shared/data/pose2sim beside the repo), balancing, swings, or a "
+                    "trial folder")
+    ap.add_argument("--peer", choices=("none", "mediapipe"), default="none",
+                    help="also score MediaPipe Pose's 3-D world landmarks on the same frames "
+                         "(needs mediapipe==0.10.14: pip install -e '.[peers]', or "
+                         "--peer-results)")
+    ap.add_argument("--peer-results", type=Path, metavar="DIR", help="read MediaPipe's "
+                    "results from DIR/TRIAL/camNN.npz (scripts/run_mediapipe.py --out DIR) "
+                    "instead of running it")
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH, help="model file")
     ap.add_argument("--max-people", type=int, default=None, metavar="N",
                     help="track at most N people per frame (default: all, as track)")
@@ -429,12 +544,19 @@ def _main(argv) -> int:
                or _png_path_problem("--plot", args.plot))
     if problem:
         ap.error(problem)
+    roots = trial_roots(args.trial)
+    if len(roots) > 1 and (args.masks or args.plot):
+        ap.error("--masks and --plot draw one trial: give --trial balancing or swings")
+    peer = args.peer == "mediapipe" or args.peer_results is not None
+    _check_peer(ap, peer, args.peer_results, roots)
     # Before about a minute of tracking, not after it: the outputs must be writable and may
     # overwrite none of the files read (the model, the trial's reference, calibration, videos).
     ap.check_outputs([("--json", args.json), ("--masks", args.masks), ("--plot", args.plot)],
-                     [("--model", args.model), *trial_files(args.trial)])
-    if missing_trial(args.trial):
-        ap.error(missing_trial(args.trial))
+                     [("--model", args.model),
+                      *(f for root in roots.values() for f in trial_files(root))])
+    for root in roots.values():
+        if missing_trial(root):
+            ap.error(missing_trial(root))
     if not args.model.is_file():
         ap.error(f"--model {args.model}: no such file")
     quiet_decoder_logs()          # as track: one line, not FFmpeg's too
@@ -446,22 +568,32 @@ def _main(argv) -> int:
         except ReportError as exc:
             print(f"evaluate_real: error: --plot {args.plot}: {exc}", file=sys.stderr)
             return 1
+    results = {"model": str(args.model), "trials": {}}
     try:
-        trial, model = checked_trial(args.trial), load_pose_model(args.model)
-        with threadpool_limits(1):      # small matrices: BLAS threads cost more than they save
-            result = evaluate(trial, model, args.max_people, roll=args.roll == "calibration",
-                              sheet=sheet,
-                              trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
-                              reference_masks=args.reference_masks, series=series)
+        trials, model = {n: checked_trial(r) for n, r in roots.items()}, load_pose_model(args.model)
+        for name, trial in trials.items():
+            with threadpool_limits(1):  # small matrices: BLAS threads cost more than they save
+                result = evaluate(trial, model, args.max_people,
+                                  roll=args.roll == "calibration", sheet=sheet,
+                                  trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
+                                  reference_masks=args.reference_masks, series=series,
+                                  peer=_peer_source(trial, name, args.peer_results)
+                                  if peer else None)
+            print(format_table(result), format_limb_table(name, result), sep="\n\n",
+                  end="\n\n", flush=True)
+            results["trials"][name] = result
     except (Pose2SimError, PoseModelError, MeasureError, KeypointFitError, VideoError,
-            SilhouettePoseError) as exc:
+            SilhouettePoseError, PeerError) as exc:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
-    result["model"] = str(args.model)
-    print(format_table(result))
+    if not peer:
+        print("MediaPipe not scored: give --peer mediapipe (needs mediapipe==0.10.14, "
+              "pip install -e '.[peers]') or --peer-results DIR (scripts/run_mediapipe.py)")
+    for name, result in results["trials"].items():
+        print(summary_line(name, result))
     try:
         if args.json:
-            write_whole(args.json, lambda path: path.write_text(json.dumps(result, indent=1)))
+            write_whole(args.json, lambda path: path.write_text(json.dumps(results, indent=1)))
         if args.masks:      # whole or not at all; the temporary name keeps .png for OpenCV
             write_whole(args.masks, lambda path: write_mask_sheet(path, sheet), keep_suffix=True)
         if args.plot:
@@ -472,6 +604,35 @@ def _main(argv) -> int:
         print(f"evaluate_real: error: {exc}", file=sys.stderr)
         return 1
     return 0
+
+
+def _check_peer(ap, peer: bool, results_dir: Path | None, roots: dict) -> None:
+    """Refuse (usage error) a MediaPipe peer that cannot be scored: mediapipe not installed
+    and no --peer-results, or a --peer-results folder lacking a view's file."""
+    if not peer:
+        return
+    if results_dir is None:
+        import importlib.util
+        if importlib.util.find_spec("mediapipe") is None:
+            ap.error("--peer mediapipe: mediapipe is not installed (pip install "
+                     "mediapipe==0.10.14, or run scripts/run_mediapipe.py elsewhere and give "
+                     "--peer-results DIR)")
+        return
+    for name in roots:
+        for view in VIEWS:
+            if not (results_dir / name / f"{view}.npz").is_file():
+                ap.error(f"--peer-results {results_dir}: no {name}/{view}.npz (write it with "
+                         f"scripts/run_mediapipe.py --out {results_dir})")
+
+
+def _peer_source(trial: Trial, name: str, results_dir: Path | None):
+    """A function of a view giving MediaPipe's results there: read from results_dir/name/, or
+    run now (mediapipe_peer.run_view, the subject picked by the reference's keypoint box)."""
+    if results_dir is not None:
+        return lambda view: read_results(results_dir / name / f"{view}.npz")
+    frames = video_frames(trial)
+    return lambda view: run_view(trial.video(view),
+                                 keypoint_boxes(project_reference(view, frames, trial)))
 
 
 def _png_path_problem(option: str, path: Path | None) -> str | None:

@@ -1,6 +1,7 @@
 """Reproduce the paper's regressors on its released data (train split only; test = spiral walk).
 
     python scripts/reproduce_paper.py --data ../shared/data/ankur/ankurDataPoseSilhouette.mat --json out.json
+    python scripts/reproduce_paper.py --data ... --methods kernel_rvm,mixture_sparse_rvm
 
 Every hyperparameter (descriptor transform, damping, kernel width, RVM noise and cost, stacking
 depth) is chosen by blocked cross-validation on the 1927 training frames (5 contiguous blocks);
@@ -17,6 +18,12 @@ held-out block decoded as the pieces of training sequences it holds. ``mixture_r
 answers each frame alone but is not one mixture: the mean of BAGS mixtures' most probable poses
 (``mixture_rvm_stacked``'s settings, seeds 0..BAGS-1).
 
+``mixture_sparse_rvm`` is one mixture whose experts are sparse RVMs fitted on all their rows by
+fast sparse Bayesian learning over candidate kernels (regressor.sparse_rvm), each frame's pose
+the softmax gate's weighting of theirs; among its settings the most accurate is chosen whose
+held-out predictions jitter no more than the kernel RVM's. --methods runs only the methods
+named, choosing only the hyperparameters they need.
+
 A --data that is not the paper's data (missing, not a MATLAB file, cut short, without its four
 arrays of numbers at their shapes) or a --json that could not be written or is the --data file
 (also through a link) is refused before any work (exit 2); a failure on the data later is one
@@ -29,6 +36,7 @@ import itertools
 import json
 import sys
 import time
+from functools import cached_property
 
 import numpy as np
 
@@ -47,6 +55,7 @@ from tracker.sinks.files import OutputWriteError, write_whole
 TRAIN_STARTS = [0, 100, 336, 405, 471, 1530, 1768]   # the 7 training sequences (README)
 RV_BUDGET = 0.10                                     # kernel RVM: keep <= 10% of training frames
 FEATURE_BUDGET = 0.30                                # linear RVM: keep <= 30 of the 100 features
+SPARSE_CANDIDATES = 200                              # candidate kernels per sparse RVM expert
 class MeanPose:
     """Predicts the mean training pose (the trivial baseline)."""
     n_basis_ = 0
@@ -125,18 +134,41 @@ class TrackedMixture:
     whole test sequence (MixtureRegressor.predict_path), not each frame's favourite alone. The
     step variance is the training sequences' own (sequence_ids: (N,) label per training row)."""
 
-    def __init__(self, mixture: MixtureRVM, continuity: float, sequence_ids):
+    def __init__(self, mixture: MixtureRegressor, continuity: float, sequence_ids):
         self.mixture, self.continuity, self.sequence_ids = mixture, continuity, sequence_ids
 
     def fit(self, X, Y):
         self.mixture.fit(X, Y)
         self.step_var_ = step_variance(Y, self.sequence_ids)
         self.n_basis_ = self.mixture.n_basis_
+        if hasattr(self.mixture, "relevance_per_expert"):
+            self.relevance_per_expert = self.mixture.relevance_per_expert
         return self
 
     def predict(self, X):
         """X: one test sequence, in time order."""
         return self.mixture.predict_path(X, self.step_var_, self.continuity)
+
+
+class SparseMixture(MixtureRegressor):
+    """The mixture of sparse RVM experts (regressor.sparse_rvm): each expert fitted by fast
+    sparse Bayesian learning on all the rows of its region, over n_centres candidate kernels;
+    the softmax gate; each frame's pose the gate's weighting of the experts' poses
+    (combine="mean"). Its count of basis functions: the experts' relevance vectors plus the
+    gate's kernel centres (or, for the neighbour gate, its training rows)."""
+
+    @property
+    def n_basis_(self) -> int:
+        gate = getattr(self.gate_, "centres_", getattr(self.gate_, "X_", ()))  # softmax / neighbours
+        return int(sum(self.relevance_per_expert())) + len(gate)
+
+    def relevance_per_expert(self) -> list[int]:
+        return [int(e.n_basis_) for e in self.experts_]
+
+
+def sparse_mixture(**params) -> SparseMixture:
+    """SparseMixture with its usual parts (sparse RVM experts, softmax gate, the gate's mean)."""
+    return SparseMixture(**{"expert": "sparse_rvm", "gate": "softmax", "combine": "mean", **params})
 
 
 def run_labels(rows: np.ndarray, sequence_ids: np.ndarray) -> np.ndarray:
@@ -149,34 +181,37 @@ def run_labels(rows: np.ndarray, sequence_ids: np.ndarray) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(breaks)])
 
 
-def choose_tracked(mixtures, continuities, neighbours, X, Y, folds, sequence_ids, log=print):
-    """(mixture parameters, continuity) of the neighbour-gated mixture whose most probable
-    chain of poses has the lowest CV error; every held-out block is decoded as the pieces of
-    sequences it holds. The experts are fitted once per fold and mixture setting; the gate's
-    neighbour count only re-reads the stored rows."""
+def choose_tracked(mixtures, continuities, neighbours, X, Y, folds, sequence_ids, log=print,
+                   make=None):
+    """(mixture parameters, continuity, CV error) of the mixture whose most probable chain of poses has
+    the lowest CV error; every held-out block is decoded as the pieces of sequences it holds.
+    The experts are fitted once per fold and mixture setting; a neighbour gate's count
+    (neighbours; [None] for a softmax gate) only re-reads the stored rows. make(**params): the
+    mixture (default: MixtureRVM's RVM experts, neighbour gate)."""
+    make = make or (lambda **p: MixtureRVM(expert="rvm", rvm_rows=len(X), gate="neighbours", **p))
     results = []
     for params in mixtures:
         fits = []
         for hold in folds:
             train = np.setdiff1d(np.arange(len(X)), hold)
-            model = MixtureRVM(expert="rvm", rvm_rows=len(X), gate="neighbours", **params)
-            model.fit(X[train], Y[train])
+            model = make(**params).fit(X[train], Y[train])
             fits.append((model, step_variance(Y[train], run_labels(train, sequence_ids)), hold))
         for k, c in itertools.product(neighbours, continuities):
+            setting = params if k is None else dict(params, gate_neighbours=k)
             total = 0.0
             for model, step_var, hold in fits:
-                # The gate keeps every training row: another k only re-reads them.
-                model.set_params(gate_neighbours=k)
-                model.gate_.n_neighbours = k
+                if k is not None:     # the gate keeps every training row: another k re-reads them
+                    model.set_params(gate_neighbours=k)
+                    model.gate_.n_neighbours = k
                 P = model.predict_path(X[hold], step_var, c,
                                        sequence_ids=run_labels(hold, sequence_ids))
                 total += mean_point_error(P, Y[hold]) * len(hold)
             err = total / len(X)
-            log(f"    {dict(params, gate_neighbours=k)}, continuity {c}: cv error {err:.3f}")
-            results.append((err, dict(params, gate_neighbours=k), c))
+            log(f"    {setting}, continuity {c}: cv error {err:.3f}")
+            results.append((err, setting, c))
     err, params, c = min(results, key=lambda r: r[0])
     log(f"    chosen: {params}, continuity {c} (cv error {err:.3f})")
-    return params, c
+    return params, c, err
 
 
 def choose(make, grid, X, Y, folds, budget=None, features=False, log=print):
@@ -193,15 +228,188 @@ def choose(make, grid, X, Y, folds, budget=None, features=False, log=print):
     return min(ok, key=lambda r: r[0])[2]
 
 
+def cv_error_and_jitter(make, X, Y, folds) -> tuple[float, float]:
+    """Cross-validated error and jitter (point_jitter of each held-out block's predictions, in
+    time order), both averaged over the held-out frames."""
+    err, models = cross_validate(make, X, Y, folds)
+    jitter = sum(point_jitter(m.predict(X[hold])) * len(hold) for m, hold in zip(models, folds))
+    return err, jitter / sum(len(hold) for hold in folds)
+
+
+def choose_smooth(make, grid, X, Y, folds, max_jitter, log=print):
+    """The grid point (dict) with the lowest CV error among those whose held-out predictions
+    jitter no more than max_jitter (else the least jittery)."""
+    results = []
+    for params in grid:
+        err, jitter = cv_error_and_jitter(lambda: make(**params), X, Y, folds)
+        log(f"    {params}: cv error {err:.3f}, jitter {jitter:.3f}")
+        results.append((err, jitter, params))
+    ok = [r for r in results if r[1] <= max_jitter] or [min(results, key=lambda r: r[1])]
+    return min(ok, key=lambda r: r[0])[2]
+
+
 def grid(**axes):
     return [dict(zip(axes, v)) for v in itertools.product(*axes.values())]
+
+
+class _Choices:
+    """Each method's hyperparameters, chosen by cross-validation on the training rows X (N, D),
+    Y (N, K) over folds the first time a method needs them (train_ids: the training sequence
+    of each row)."""
+
+    def __init__(self, X, Y, folds, train_ids):
+        self.X, self.Y, self.folds, self.train_ids = X, Y, folds, train_ids
+
+    def report(self) -> dict:
+        """The choices made so far, by name."""
+        return {name: getattr(self, name) for name in
+                ("lin", "lrvm", "kdls", "krvm", "mix", "tracked", "stack_depth", "sparse_mix",
+                 "sparse_tracked")
+                if name in self.__dict__}
+
+    @cached_property
+    def lin(self):
+        print("  linear DLS")
+        return choose(lambda **p: DLSRegressor("linear", **p),
+                      grid(lam=[1e-3, 1e-2, 1e-1, 1.0]), self.X, self.Y, self.folds)
+
+    @cached_property
+    def lrvm(self):
+        print("  linear RVM")
+        return choose(lambda **p: RVMRegressor("linear", output_scale="common", **p),
+                      grid(min_gain=[300.0, 1000.0, 3000.0]), self.X, self.Y, self.folds,
+                      budget=FEATURE_BUDGET, features=True)
+
+    @cached_property
+    def kdls(self):
+        print("  kernel DLS")
+        return choose(lambda **p: DLSRegressor("gaussian", **p),
+                      grid(width_scale=[0.25, 0.5, 1.0], lam=[1e-3, 1e-2]), self.X, self.Y, self.folds)
+
+    @cached_property
+    def krvm(self):
+        width = self.kdls["width_scale"]
+        print("  kernel RVM")
+        params = choose(lambda **p: RVMRegressor("gaussian", output_scale="common", **p),
+                        grid(width_scale=[width], noise=[0.03, 0.05, 0.1],
+                             min_gain=[200.0, 400.0, 800.0]), self.X, self.Y, self.folds,
+                        budget=RV_BUDGET)
+        MixtureRVM.rvm_params = params        # the mixtures' experts take these settings
+        return params
+
+    @cached_property
+    def mix(self):
+        self.krvm
+        print("  mixture of RVM experts")
+        # Two gates (regressor.mixture): the softmax gate the tracker's models use, and the
+        # regions of the nearest training descriptors, which suits this small set.
+        return choose(lambda **p: MixtureRVM(expert="rvm", rvm_rows=len(self.X), **p),
+                      grid(n_experts=[2, 4, 8], overlap=[0.2], gate=["softmax"])
+                      + grid(n_experts=[4, 8, 16], overlap=[0.2, 0.5], gate=["neighbours"],
+                             gate_neighbours=[1, 3, 5]), self.X, self.Y, self.folds)
+
+    @cached_property
+    def tracked(self):
+        self.krvm
+        print("  mixture resolved over time (the most probable chain of the experts' poses)")
+        params, continuity, _ = choose_tracked(grid(n_experts=[8, 16, 32], overlap=[0.2, 0.5]),
+                                            [1.0, 2.0, 3.0, 5.0], [1, 3, 5], self.X, self.Y,
+                                            self.folds, self.train_ids)
+        return dict(params, continuity=continuity)
+
+    @cached_property
+    def stack_depth(self):
+        krvm = self.krvm
+        print("  stacking depth")
+        stacked = {k: stack_frames(self.X, k, sequence_starts=TRAIN_STARTS) for k in (2, 3, 4)}
+        depth = min(stacked, key=lambda k: cross_validate(
+            lambda: RVMRegressor("gaussian", output_scale="common", **krvm), stacked[k], self.Y,
+            self.folds)[0])
+        print(f"    k = {depth}")
+        return depth
+
+    @cached_property
+    def sparse_mix(self):
+        """Experts with the kernel RVM's width and noise; the number of experts, the regions'
+        overlap and the gate's damping the most accurate whose held-out predictions jitter no
+        more than the kernel RVM's."""
+        krvm = self.krvm
+        _, bound = cv_error_and_jitter(
+            lambda: RVMRegressor("gaussian", output_scale="common", **krvm), self.X, self.Y, self.folds)
+        print(f"  mixture of sparse RVM experts (held-out jitter at most the kernel RVM's, {bound:.3f})")
+        experts = self.sparse_experts
+        params = choose_smooth(lambda **p: sparse_mixture(**experts, **p),
+                               grid(n_experts=[4, 8], overlap=[0.5], gate_l2=[1e-3, 3e-3, 1e-2]),
+                               self.X, self.Y, self.folds, bound)
+        return dict(experts, **params)
+
+    @cached_property
+    def sparse_experts(self) -> dict:
+        """The sparse RVM experts' settings: the kernel RVM's width and noise."""
+        return dict(width_scale=self.krvm["width_scale"], n_centres=SPARSE_CANDIDATES,
+                    expert_params={"noise": self.krvm["noise"], "output_scale": "common"})
+
+    @cached_property
+    def sparse_tracked(self):
+        """As the RVM mixture's (tracked), with the sparse RVM experts; the gate (neighbours, as
+        there, or softmax, whose model keeps fewer basis functions than training rows) chosen
+        by the same cross-validation."""
+        experts = self.sparse_experts
+        print("  mixture of sparse RVM experts resolved over time")
+        found = [choose_tracked(grid(n_experts=[8, 16, 32], overlap=[0.2, 0.5]),
+                                [1.0, 2.0, 3.0, 5.0], [1, 3, 5], self.X, self.Y, self.folds,
+                                self.train_ids, make=lambda **p: sparse_mixture(
+                                    gate="neighbours", **experts, **p)),
+                 choose_tracked(grid(n_experts=[8, 16], overlap=[0.5], gate_l2=[1e-4, 1e-3]),
+                                [1.0, 2.0, 3.0], [None], self.X, self.Y, self.folds,
+                                self.train_ids, make=lambda **p: sparse_mixture(**experts, **p))]
+        (params, continuity, _), gate = min(zip(found, ["neighbours", "softmax"]),
+                                            key=lambda f: f[0][2])
+        return dict(experts, gate=gate, **params, continuity=continuity)
+
+#: Each method's (model, stacking depth), from the choices (hyperparameters chosen on demand).
+METHODS = {
+    "mean_pose": lambda c: (MeanPose(), 1),
+    "knn": lambda c: (NearestNeighbours(3), 1),
+    "linear_dls": lambda c: (DLSRegressor("linear", **c.lin), 1),
+    "linear_rvm": lambda c: (RVMRegressor("linear", output_scale="common", **c.lrvm), 1),
+    "kernel_dls": lambda c: (DLSRegressor("gaussian", **c.kdls), 1),
+    "kernel_rvm": lambda c: (RVMRegressor("gaussian", output_scale="common", **c.krvm), 1),
+    "kernel_rvm_stacked": lambda c: (RVMRegressor("gaussian", output_scale="common", **c.krvm),
+                                     c.stack_depth),
+    "mixture_rvm": lambda c: (MixtureRVM(expert="rvm", rvm_rows=len(c.X), **c.mix), 1),
+    # The mixture with the stacked input at the depth chosen above (the tracker's regressor
+    # sees stacked descriptors too), its experts and gate as chosen for one frame.
+    "mixture_rvm_stacked": lambda c: (MixtureRVM(expert="rvm", rvm_rows=len(c.X), **c.mix),
+                                      c.stack_depth),
+    # The same, averaged over BAGS seeds (BaggedMixture).
+    "mixture_rvm_bagged": lambda c: (BaggedMixture(BAGS, **c.mix), c.stack_depth),
+    # Not per frame: the whole test sequence decoded at once, as a smoother works.
+    "mixture_rvm_tracked": lambda c: (TrackedMixture(
+        MixtureRVM(expert="rvm", rvm_rows=len(c.X), gate="neighbours",
+                   **{k: v for k, v in c.tracked.items() if k != "continuity"}),
+        c.tracked["continuity"], c.train_ids), 1),
+    # Sparse RVM experts on all their rows (SparseMixture), one frame and stacked.
+    "mixture_sparse_rvm": lambda c: (sparse_mixture(**c.sparse_mix), 1),
+    "mixture_sparse_rvm_stacked": lambda c: (sparse_mixture(**c.sparse_mix), c.stack_depth),
+    "mixture_sparse_rvm_tracked": lambda c: (TrackedMixture(
+        sparse_mixture(**{k: v for k, v in c.sparse_tracked.items() if k != "continuity"}),
+        c.sparse_tracked["continuity"], c.train_ids), 1),
+}
 
 
 def _main(argv) -> int:
     ap = OneLineParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", required=True, help="ankurDataPoseSilhouette.mat")
     ap.add_argument("--json", help="write the results here")
+    ap.add_argument("--methods", help="comma-separated methods to run (default: all of "
+                    + ", ".join(METHODS) + ")")
     args = ap.parse_args(argv)
+    names = None if args.methods is None else [n.strip() for n in args.methods.split(",")]
+    unknown = [n for n in names or () if n not in METHODS]
+    if names is not None and (unknown or not names):
+        ap.error(f"--methods: unknown method {', '.join(unknown) or repr(args.methods)}; "
+                 f"choose from {', '.join(METHODS)}")
     # Before the minutes of work: by the file, so a hard link to --data is refused too.
     ap.check_outputs([("--json", args.json)], [("--data", args.data)])
     try:
@@ -209,7 +417,7 @@ def _main(argv) -> int:
     except EvaluationError as exc:
         ap.error(f"--data {exc}")
     try:
-        report = _reproduce(d)
+        report = _reproduce(d, names)
     except SilhouettePoseError as exc:        # numbers the regressors cannot use
         print(f"reproduce_paper: error: --data {args.data}: {exc}", file=sys.stderr)
         return 1
@@ -222,9 +430,10 @@ def _main(argv) -> int:
     return 0
 
 
-def _reproduce(d: dict) -> dict:
-    """The whole run on the paper's data d (load_ankur): the table on stdout, the report
-    as a JSON-ready dict."""
+def _reproduce(d: dict, names=None) -> dict:
+    """The whole run on the paper's data d (load_ankur), or only the methods named (METHODS):
+    the table on stdout, the report as a JSON-ready dict. A method's hyperparameters are chosen
+    when it (or a method built on it) is first needed."""
     Xraw, Y, Xraw_test, Y_test = d["Y"], d["Z"], d["Y_test"], d["Z_test"]
     folds = contiguous_folds(len(Xraw), 5)
 
@@ -234,57 +443,12 @@ def _reproduce(d: dict) -> dict:
         lambda: DLSRegressor("gaussian", lam=1e-2, width_scale=0.5), transforms[t](Xraw), Y, folds)[0])
     X, X_test = transforms[tname](Xraw), transforms[tname](Xraw_test)
     print(f"  descriptor transform: {tname}")
-    print("  linear DLS"); lin = choose(lambda **p: DLSRegressor("linear", **p), grid(lam=[1e-3, 1e-2, 1e-1, 1.0]), X, Y, folds)
-    print("  linear RVM"); lrvm = choose(lambda **p: RVMRegressor("linear", output_scale="common", **p),
-                                        grid(min_gain=[300.0, 1000.0, 3000.0]), X, Y, folds,
-                                        budget=FEATURE_BUDGET, features=True)
-    print("  kernel DLS"); kdls = choose(lambda **p: DLSRegressor("gaussian", **p),
-                                        grid(width_scale=[0.25, 0.5, 1.0], lam=[1e-3, 1e-2]), X, Y, folds)
-    print("  kernel RVM"); krvm = choose(lambda **p: RVMRegressor("gaussian", output_scale="common", **p),
-                                        grid(width_scale=[kdls["width_scale"]], noise=[0.03, 0.05, 0.1],
-                                             min_gain=[200.0, 400.0, 800.0]), X, Y, folds, budget=RV_BUDGET)
-    print("  mixture of RVM experts")
-    MixtureRVM.rvm_params = krvm
-    # Two gates (regressor.mixture): the softmax gate the tracker's models use, and the
-    # regions of the nearest training descriptors, which suits this small set.
-    mix = choose(lambda **p: MixtureRVM(expert="rvm", rvm_rows=len(X), **p),
-                 grid(n_experts=[2, 4, 8], overlap=[0.2], gate=["softmax"])
-                 + grid(n_experts=[4, 8, 16], overlap=[0.2, 0.5], gate=["neighbours"],
-                        gate_neighbours=[1, 3, 5]), X, Y, folds)
-    print("  mixture resolved over time (the most probable chain of the experts' poses)")
     train_ids = sequence_starts_to_ids(TRAIN_STARTS, len(X))
-    tracked, continuity = choose_tracked(grid(n_experts=[8, 16, 32], overlap=[0.2, 0.5]),
-                                         [1.0, 2.0, 3.0, 5.0], [1, 3, 5], X, Y, folds, train_ids)
-    stacked = {k: stack_frames(X, k, sequence_starts=TRAIN_STARTS) for k in (2, 3, 4)}
-    print("  stacking depth")
-    depth = min(stacked, key=lambda k: cross_validate(
-        lambda: RVMRegressor("gaussian", output_scale="common", **krvm), stacked[k], Y, folds)[0])
-    print(f"    k = {depth}")
-
-    methods = {
-        "mean_pose": (MeanPose(), 1), "knn": (NearestNeighbours(3), 1),
-        "linear_dls": (DLSRegressor("linear", **lin), 1),
-        "linear_rvm": (RVMRegressor("linear", output_scale="common", **lrvm), 1),
-        "kernel_dls": (DLSRegressor("gaussian", **kdls), 1),
-        "kernel_rvm": (RVMRegressor("gaussian", output_scale="common", **krvm), 1),
-        "kernel_rvm_stacked": (RVMRegressor("gaussian", output_scale="common", **krvm), depth),
-        "mixture_rvm": (MixtureRVM(expert="rvm", rvm_rows=len(X), **mix), 1),
-        # The mixture with the stacked input at the depth chosen above (the tracker's regressor
-        # sees stacked descriptors too), its experts and gate as chosen for one frame.
-        "mixture_rvm_stacked": (MixtureRVM(expert="rvm", rvm_rows=len(X), **mix), depth),
-        # The same, averaged over BAGS seeds (BaggedMixture).
-        "mixture_rvm_bagged": (BaggedMixture(BAGS, **mix), depth),
-        # Not per frame: the whole test sequence decoded at once, as a smoother works.
-        "mixture_rvm_tracked": (TrackedMixture(MixtureRVM(expert="rvm", rvm_rows=len(X),
-                                                          gate="neighbours", **tracked),
-                                               continuity, train_ids), 1),
-    }
+    chosen = _Choices(X, Y, folds, train_ids)
+    names = list(METHODS) if names is None else list(names)
+    methods = {name: METHODS[name](chosen) for name in names}
     report = {"n_train": int(len(X)), "ground_truth_jitter": point_jitter(Y_test),
-              "descriptor_transform": tname, "stack_depth": depth,
-              "hyperparameters": {"linear_dls": lin, "linear_rvm": lrvm, "kernel_dls": kdls, "kernel_rvm": krvm,
-                                  "mixture_rvm": mix,
-                                  "mixture_rvm_tracked": dict(tracked, continuity=continuity)},
-              "methods": {}}
+              "descriptor_transform": tname, "hyperparameters": chosen.report(), "methods": {}}
     # Beside each error: the mean training pose's error and skill = 1 - error / that, and the
     # correlation of the 8 most-moving coordinates (a flat output scores 0 there).
     const_error = mean_point_error(np.tile(Y.mean(0), (len(Y_test), 1)), Y_test)
@@ -302,10 +466,17 @@ def _reproduce(d: dict) -> dict:
         row = {"error": error, "skill": skill(error, const_error),
                "corr8": float(correlation(P[:, top], Y_test[:, top]).mean()),
                "jitter": point_jitter(P), "n_basis": int(model.n_basis_), "fit_seconds": seconds}
+        if hasattr(model, "relevance_per_expert"):
+            row["relevance_per_expert"] = model.relevance_per_expert()
         report["methods"][name] = row
         print(f"{name:20s} {row['error']:7.3f} {row['skill']:7.3f} {row['corr8']:7.3f} "
               f"{row['jitter']:7.3f} {row['n_basis']:8d} {seconds:7.2f}")
     print(f"{'ground truth':20s} {'':23s} {report['ground_truth_jitter']:7.3f}")
+    for name, row in report["methods"].items():
+        if "relevance_per_expert" in row:
+            print(f"{name}: relevance vectors per expert {row['relevance_per_expert']}")
+    if "stack_depth" in report["hyperparameters"]:
+        report["stack_depth"] = report["hyperparameters"]["stack_depth"]
     return report
 
 

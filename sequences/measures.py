@@ -9,7 +9,8 @@ stands beside what a constant achieves, and the limbs are judged by what a viewe
   constant's: how well the output follows the motion, whatever each subject's own offsets;
 - the **correlation** with the truth of the m most-moving angles;
 - knee and elbow **flexion** (forward kinematics) error and correlation, beside the error of a
-  constant flexion;
+  constant flexion, and the same for the 8 **limb angles** (flexion, and hip and shoulder as
+  the thigh and upper arm against the trunk) from any 3-D joints;
 - **MPJPE** and **PA-MPJPE** in millimetres on the CMU skeleton.
 
 Pose vectors are (T, 55) as in sequences.pose_vector (degrees, heading as (cos, sin)); angles are
@@ -36,6 +37,21 @@ FLEXION_JOINTS: tuple[tuple[str, str, str], ...] = (
     ("LeftUpLeg", "LeftLeg", "LeftFoot"), ("RightUpLeg", "RightLeg", "RightFoot"),
     ("LeftArm", "LeftForeArm", "LeftHand"), ("RightArm", "RightForeArm", "RightHand"),
 )
+#: The 8 limb angles: knee and elbow flexion (FLEXION_NAMES, first), then hip (the thigh against
+#: the trunk) and shoulder (the upper arm against the trunk); limb_angles_from_points.
+LIMB_ANGLE_NAMES: tuple[str, ...] = FLEXION_NAMES + ("L hip", "R hip", "L shoulder",
+                                                     "R shoulder")
+#: The 3-D points the limb angles are computed from, in this order (Pose2Sim's names).
+LIMB_POINTS: tuple[str, ...] = ("LHip", "RHip", "LKnee", "RKnee", "LAnkle", "RAnkle",
+                                "LShoulder", "RShoulder", "LElbow", "RElbow", "LWrist", "RWrist")
+#: The pose joint (skeleton.POSE_JOINTS) at each of LIMB_POINTS.
+LIMB_POSE_JOINTS: dict[str, str] = {
+    "LHip": "LeftUpLeg", "RHip": "RightUpLeg", "LKnee": "LeftLeg", "RKnee": "RightLeg",
+    "LAnkle": "LeftFoot", "RAnkle": "RightFoot", "LShoulder": "LeftArm",
+    "RShoulder": "RightArm", "LElbow": "LeftForeArm", "RElbow": "RightForeArm",
+    "LWrist": "LeftHand", "RWrist": "RightHand"}
+_LIMB_FLEXION = (("LHip", "LKnee", "LAnkle"), ("RHip", "RKnee", "RAnkle"),
+                 ("LShoulder", "LElbow", "LWrist"), ("RShoulder", "RElbow", "RWrist"))
 #: Joints of MPJPE: the pose joints at distinct places on the CMU skeleton (Neck and both
 #: Shoulders sit at Spine1 and are left out). The root is kept, as in the field's 17-joint
 #: Human3.6M set; root-aligned, its error is 0.
@@ -217,38 +233,76 @@ def flexion_deg(vectors, template=None) -> np.ndarray:
     return flexion_from_joints(joint_positions(v, template))
 
 
-def _as_flexion(flexion, name: str, frames: int | None = None) -> np.ndarray:
-    f = np.asarray(flexion, dtype=np.float64)
-    if f.ndim != 2 or f.shape[1] != len(FLEXION_NAMES) or (frames is not None
-                                                           and len(f) != frames):
-        want = f"({frames if frames is not None else 'T'}, {len(FLEXION_NAMES)})"
-        raise MeasureError(f"{name}: flexion must have shape {want}, got {f.shape}")
+def _as_angles(angles, name: str, names, frames: int | None = None) -> np.ndarray:
+    f = np.asarray(angles, dtype=np.float64)
+    if f.ndim != 2 or f.shape[1] != len(names) or (frames is not None and len(f) != frames):
+        want = f"({frames if frames is not None else 'T'}, {len(names)})"
+        raise MeasureError(f"{name}: angles must have shape {want}, got {f.shape}")
     if not np.isfinite(f).all():
-        raise MeasureError(f"{name}: NaN or infinity in the flexion angles")
+        raise MeasureError(f"{name}: NaN or infinity in the angles")
     return f
 
 
-def flexion_measures(estimate_flexion, truth_flexion, constant_flexion=None) -> dict:
-    """Flexion estimate (T >= 2, 4) against truth (T, 4), degrees (FLEXION_NAMES order).
+def angle_measures(estimate, truth, names, constant=None) -> dict:
+    """Angle series estimate (T >= 2, A) against truth (T, A), degrees, columns named by names
+    (A,) (e.g. FLEXION_NAMES, LIMB_ANGLE_NAMES).
 
-    Returns (JSON-ready): "names"; "error_per_angle" (4,) mean |difference| over frames and
-    "error" their mean; "corr_per_angle" (4,) and "corr" their mean; "truth_mean_error" (4,) and
-    "truth_mean_error_mean": the error of a constant at the truth's own mean flexion; with
-    constant_flexion (4,) (e.g. the training-mean pose's), "constant_error" (4,) and
-    "constant_error_mean" likewise."""
-    tru = _as_flexion(truth_flexion, "truth")
-    est = _as_flexion(estimate_flexion, "estimate", len(tru))
+    Returns (JSON-ready): "names"; "error_per_angle" (A,) mean |difference| over frames and
+    "error" their mean; "corr_per_angle" (A,) and "corr" their mean; "truth_mean_error" (A,) and
+    "truth_mean_error_mean": the error of a constant at the truth's own mean; with constant
+    (A,) (e.g. the training-mean pose's angles), "constant_error" (A,) and
+    "constant_error_mean" likewise; "frames"."""
+    tru = _as_angles(truth, "truth", names)
+    est = _as_angles(estimate, "estimate", names, len(tru))
     err = np.abs(est - tru).mean(axis=0)
     r = correlation(est, tru)
     own = np.abs(tru - tru.mean(axis=0)).mean(axis=0)
-    out = {"names": list(FLEXION_NAMES), "error_per_angle": err.tolist(),
+    out = {"names": list(names), "frames": int(len(tru)), "error_per_angle": err.tolist(),
            "error": float(err.mean()), "corr_per_angle": r.tolist(), "corr": float(r.mean()),
            "truth_mean_error": own.tolist(), "truth_mean_error_mean": float(own.mean())}
-    if constant_flexion is not None:
-        c = _as_flexion(np.reshape(constant_flexion, (1, -1)), "constant")[0]
+    if constant is not None:
+        c = _as_angles(np.reshape(constant, (1, -1)), "constant", names)[0]
         const = np.abs(tru - c).mean(axis=0)
         out.update(constant_error=const.tolist(), constant_error_mean=float(const.mean()))
     return out
+
+
+def flexion_measures(estimate_flexion, truth_flexion, constant_flexion=None) -> dict:
+    """angle_measures of knee and elbow flexion (T >= 2, 4) in FLEXION_NAMES order (with
+    constant_flexion (4,), e.g. the training-mean pose's, its "constant_error")."""
+    return angle_measures(estimate_flexion, truth_flexion, FLEXION_NAMES, constant_flexion)
+
+
+# ---------------------------------------------------------------- the 8 limb angles
+
+def limb_angles_from_points(points) -> np.ndarray:
+    """The 8 limb angles (..., 8) degrees in LIMB_ANGLE_NAMES order from 3-D points (..., 12, 3)
+    in LIMB_POINTS order (any length unit, any axes). Knee and elbow: flexion (0 = straight).
+    Hip: the thigh (hip -> knee) against the trunk's downward line (mid-shoulder -> mid-hip);
+    shoulder: the upper arm (shoulder -> elbow) against the same line; 0 = along the trunk
+    (standing, arm hanging), 90 = thigh or arm out at a right angle (in any direction:
+    flexion, abduction or both)."""
+    p = np.asarray(points, dtype=np.float64)
+    if p.shape[-2:] != (len(LIMB_POINTS), 3):
+        raise MeasureError(f"limb points must have shape (..., {len(LIMB_POINTS)}, 3), got "
+                           f"{p.shape}")
+    at = {name: p[..., i, :] for i, name in enumerate(LIMB_POINTS)}
+    down = ((at["LHip"] + at["RHip"]) - (at["LShoulder"] + at["RShoulder"])) / 2
+    out = [flexion_from_points(at[a], at[b], at[c]) for a, b, c in _LIMB_FLEXION]
+    for root, end in (("LHip", "LKnee"), ("RHip", "RKnee"),
+                      ("LShoulder", "LElbow"), ("RShoulder", "RElbow")):
+        # The angle between two directions: flexion of (root - down, root, end).
+        out.append(flexion_from_points(at[root] - down, at[root], at[end]))
+    return np.stack(out, axis=-1)
+
+
+def limb_angles_deg(vectors, template=None) -> np.ndarray:
+    """The 8 limb angles (T, 8) degrees (LIMB_ANGLE_NAMES) of pose vectors (T, 55), by forward
+    kinematics on the CMU skeleton (template as in pose_vector.joint_positions)."""
+    v = _as_poses(vectors, "pose vectors")
+    joints = joint_positions(v, template)
+    return limb_angles_from_points(joints[:, [POSE_JOINTS.index(LIMB_POSE_JOINTS[n])
+                                              for n in LIMB_POINTS]])
 
 
 # ---------------------------------------------------------------- MPJPE

@@ -1,7 +1,9 @@
-"""Pose2Sim's balancing trial: a real 4-view video with a 3-D reference (../shared/data/pose2sim).
+"""Pose2Sim's balancing and swings trials: real 4-view videos with a 3-D reference
+(../shared/data/pose2sim).
 
-Reads the reference keypoints (.trc) and the calibration (Calib_qualisys.toml), and gives what
-an evaluation against them needs, per video frame: knee and elbow flexion, the body heading
+Reads the reference keypoints (.trc) and the calibration (Calib_qualisys.toml; swings uses
+balancing's), and gives what an evaluation against them needs, per video frame: knee and elbow
+flexion and the 8 limb angles (sequences.measures.LIMB_ANGLE_NAMES), the body heading
 relative to each camera in this project's convention (sequences.pose_vector), and the reference
 keypoints projected into each view.
 
@@ -26,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from regressor.angles import wrap_deg
 
-from .measures import flexion_from_points
+from .measures import LIMB_POINTS, flexion_from_points, limb_angles_from_points
 
 
 #: The trial folder in the shared data, beside the repository (as the tests look for it).
@@ -36,7 +38,10 @@ DEFAULT_TRIAL = (Path(os.environ.get("SILHOUETTE_POSE_SHARED",
 VIEWS: tuple[str, ...] = ("cam01", "cam02", "cam03", "cam04")
 TRC_FRAME_OFFSET = 1          # trc Frame# of video frame 0
 REFERENCE_TRC = "pose-3d/S00_P00_T01_BalancingTrial_0-100_filt_butterworth.trc"
+SWINGS_REFERENCE_TRC = "pose-3d/swings_mediapipe_triangulated.trc"
 CALIBRATION = "calibration/Calib_qualisys.toml"
+#: The trials by name: their folders in the shared data.
+TRIALS: dict[str, Path] = {"balancing": DEFAULT_TRIAL, "swings": DEFAULT_TRIAL.parent / "swings"}
 #: (proximal, middle, distal) reference keypoints of the four flexion angles, in
 #: sequences.measures.FLEXION_NAMES order (L knee, R knee, L elbow, R elbow).
 FLEXION_KEYPOINTS: tuple[tuple[str, str, str], ...] = (
@@ -169,7 +174,7 @@ def read_calibration(path: str | Path) -> dict[str, Camera]:
 
 @dataclass(frozen=True)
 class Trial:
-    """The balancing trial: its folder, reference keypoints and cameras (by view name)."""
+    """A trial: its folder, reference keypoints and cameras (by view name)."""
 
     root: Path
     reference: Reference
@@ -205,13 +210,43 @@ class Trial:
         return self.reference.points[self.rows(video_frames)]
 
 
+def trial_roots(spec: str | Path) -> dict[str, Path]:
+    """The trial folders by name that ``spec`` names: "all" (every one of TRIALS), a name of
+    TRIALS, or a folder (named by its last part)."""
+    spec = str(spec)
+    if spec == "all":
+        return dict(TRIALS)
+    if spec in TRIALS:
+        return {spec: TRIALS[spec]}
+    return {Path(spec).name: Path(spec)}
+
+
+def reference_path(root: str | Path) -> Path:
+    """The reference .trc of the trial in folder root: balancing's (REFERENCE_TRC), else
+    swings' (SWINGS_REFERENCE_TRC) if that one exists."""
+    root = Path(root)
+    if not (root / REFERENCE_TRC).exists() and (root / SWINGS_REFERENCE_TRC).exists():
+        return root / SWINGS_REFERENCE_TRC
+    return root / REFERENCE_TRC
+
+
+def calibration_path(root: str | Path) -> Path:
+    """The calibration of the trial in folder root: its own (CALIBRATION), else that of the
+    sibling balancing/ folder (the same cameras film both trials; swings has none)."""
+    root = Path(root)
+    shared = root.parent / "balancing" / CALIBRATION
+    if not (root / CALIBRATION).exists() and shared.exists():
+        return shared
+    return root / CALIBRATION
+
+
 def load_trial(root: str | Path = DEFAULT_TRIAL) -> Trial:
     """The trial in folder root (pose-3d/, calibration/, videos/ as in the data's README)."""
     root = Path(root)
     if not root.is_dir():
         raise Pose2SimError(f"{root}: Pose2Sim trial folder not found (needs ../shared/data/"
                             f"pose2sim/balancing beside the repository)")
-    return Trial(root, read_trc(root / REFERENCE_TRC), read_calibration(root / CALIBRATION))
+    return Trial(root, read_trc(reference_path(root)), read_calibration(calibration_path(root)))
 
 
 # ---------------------------------------------------------------- what the evaluation needs
@@ -234,7 +269,7 @@ def project_points(points_trc, camera: Camera) -> np.ndarray:
 
 
 def project_reference(view: str, frames, trial: Trial | None = None) -> np.ndarray:
-    """The reference keypoints (T, 21, 2) in pixels of a view's video at video frames (T,).
+    """The reference keypoints (T, K, 2) in pixels of a view's video at video frames (T,).
     trial: a loaded Trial (default: load_trial() from the shared data).
 
     Pixels are those of the calibration's image (camera.size, 1088x1920). The cam01 and cam02
@@ -251,6 +286,19 @@ def reference_flexion(trial: Trial, frames) -> np.ndarray:
     idx = np.array([[trial.reference.names.index(n) for n in trio]
                     for trio in FLEXION_KEYPOINTS])                     # (4, 3)
     return flexion_from_points(p[:, idx[:, 0]], p[:, idx[:, 1]], p[:, idx[:, 2]])
+
+
+def reference_limb_angles(trial: Trial, frames) -> np.ndarray:
+    """Reference limb angles (T, 8) degrees (sequences.measures.LIMB_ANGLE_NAMES: knee and
+    elbow flexion, hip and shoulder against the trunk) at video frames (T,), from the 3-D
+    keypoints."""
+    return limb_angles_from_points(_keypoints(trial, frames, LIMB_POINTS))
+
+
+def mid_hip_px(trial: Trial, view: str, frames) -> np.ndarray:
+    """The reference's mid-hip (T, 2) in a view's pixels at video frames (T,)."""
+    hips = _keypoints(trial, frames, ("LHip", "RHip")).mean(axis=1)
+    return project_points(hips, trial.camera(view))
 
 
 def _keypoints(trial: Trial, frames, names: tuple[str, ...]) -> np.ndarray:

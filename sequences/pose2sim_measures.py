@@ -1,9 +1,11 @@
-"""Estimated poses of Pose2Sim's balancing trial judged against its 3-D reference.
+"""Estimated poses of Pose2Sim's trials judged against their 3-D reference.
 
-Per view: knee and elbow flexion against the reference's (beside a constant at the reference's
-own mean), and the heading against the reference heading relative to that camera. Across views:
-the same body is seen by four cameras at known azimuths, so at each instant the estimated
-headings of views i and j must differ by az_j - az_i, and the 53 body angles must agree.
+Per view: knee and elbow flexion and the 8 limb angles (sequences.measures.LIMB_ANGLE_NAMES)
+against the reference's (beside a constant at the reference's own mean), and the heading
+against the reference heading relative to that camera; the same for MediaPipe's landmarks
+(peer_view_measures). Across views: the same body is seen by four cameras at known azimuths, so
+at each instant the estimated headings of views i and j must differ by az_j - az_i, and the 53
+body angles must agree.
 
 Poses are (T, 55) pose vectors (sequences.pose_vector), one per video frame listed in
 ``frames`` (T,) int; angles in degrees.
@@ -15,11 +17,13 @@ from itertools import combinations
 import numpy as np
 
 from .keypoint_fit import BodyFit, fit_body, pose_in_view
-from .measures import (BODY_ANGLES, body_angle_error, constant_error,
-                       constant_offset_free_error, flexion_deg, flexion_measures,
-                       offset_free_error, skill, top_angle_correlation)
-from .pose2sim import (Trial, camera_azimuth_deg, reference_flexion, reference_heading_deg,
-                       video_frames)
+from . import mediapipe_peer
+from .measures import (BODY_ANGLES, LIMB_ANGLE_NAMES, angle_measures, body_angle_error,
+                       constant_error, constant_offset_free_error, flexion_deg,
+                       flexion_measures, limb_angles_deg, offset_free_error, skill,
+                       top_angle_correlation)
+from .pose2sim import (Trial, camera_azimuth_deg, project_reference, reference_flexion,
+                       reference_heading_deg, reference_limb_angles, video_frames)
 from regressor.angles import wrap_deg
 
 from .pose_vector import heading_deg
@@ -94,14 +98,19 @@ def view_measures(trial: Trial, view: str, frames, poses, constant_pose=None,
     """One view's estimated poses (T >= 2, 55) at video frames (T,) against the reference:
     {"frames", "flexion": sequences.measures.flexion_measures (its "truth_mean_error" is the
     constant reference-mean flexion's error; with constant_pose (55,), e.g. the model's
-    training-mean pose, also that pose's "constant_error"), "heading": heading_measures}; with
+    training-mean pose, also that pose's "constant_error"), "limbs": the same for the 8 limb
+    angles (sequences.measures.angle_measures), "heading": heading_measures}; with
     fit (reference_body) and constant_pose also "body": body_measures."""
     frames = np.asarray(frames, dtype=np.int64)
     constant = None if constant_pose is None else flexion_deg(
         np.asarray(constant_pose, dtype=np.float64)[None])[0]
+    limbs = None if constant_pose is None else limb_angles_deg(
+        np.asarray(constant_pose, dtype=np.float64)[None])[0]
     out = {"frames": int(len(frames)),
            "flexion": flexion_measures(flexion_deg(poses), reference_flexion(trial, frames),
                                        constant),
+           "limbs": angle_measures(limb_angles_deg(poses), reference_limb_angles(trial, frames),
+                                   LIMB_ANGLE_NAMES, limbs),
            "heading": heading_measures(heading_deg(poses),
                                        reference_heading_deg(trial, view, frames))}
     if fit is not None and constant_pose is not None:
@@ -143,3 +152,49 @@ def reference_cross_view_check(trial: Trial, frames, views) -> float:
     az = {v: camera_azimuth_deg(trial, v, frames) for v in views}
     return _rms([wrap_deg((ref[i] - ref[j]) - (az[j] - az[i]))
                  for i, j in combinations(sorted(views), 2)])
+
+
+def pooled_limb_measures(trial: Trial, frames_by_view: dict, angles_by_view: dict,
+                         constant=None) -> dict:
+    """The 8 limb angles over several views: frames_by_view maps each view to its video frames
+    (T_v,), angles_by_view to the estimated limb angles (T_v, 8) degrees; constant (8,) as in
+    angle_measures. Returns {"mean": each per-view figure of angle_measures averaged over the
+    views, "pooled": angle_measures of all views' frames together}."""
+    views = list(frames_by_view)
+    truth = {v: reference_limb_angles(trial, frames_by_view[v]) for v in views}
+    each = [angle_measures(angles_by_view[v], truth[v], LIMB_ANGLE_NAMES, constant)
+            for v in views]
+    mean = {key: np.mean([m[key] for m in each], axis=0).tolist() for key in each[0]
+            if key != "names"}
+    pooled = angle_measures(np.concatenate([angles_by_view[v] for v in views]),
+                            np.concatenate([truth[v] for v in views]), LIMB_ANGLE_NAMES,
+                            constant)
+    return {"mean": {"names": list(LIMB_ANGLE_NAMES), **mean}, "pooled": pooled}
+
+
+def cross_view_heading_rms(trial: Trial, frames, headings_by_view: dict) -> float:
+    """Cross-view heading RMS (degrees) of headings (T,) per view at the same video frames (T,):
+    over view pairs (i, j), wrap((h_i - h_j) - (az_j - az_i)), as cross_view_measures."""
+    frames = np.asarray(frames, dtype=np.int64)
+    az = {v: camera_azimuth_deg(trial, v, frames) for v in headings_by_view}
+    return _rms([wrap_deg((headings_by_view[i] - headings_by_view[j]) - (az[j] - az[i]))
+                 for i, j in combinations(sorted(headings_by_view), 2)])
+
+
+def peer_view_measures(trial: Trial, view: str, results: dict, frames=None) -> dict:
+    """MediaPipe's results in one view (sequences.mediapipe_peer.read_results) against the
+    reference: its subject's frames (among ``frames`` (T,), default all with a reference) with
+    "frames", "limbs" (angle_measures), "heading" (heading_measures), and "series": (frames
+    (T',), limb angles (T', 8), headings (T',)) for pooling, popped before writing JSON."""
+    wanted = video_frames(trial) if frames is None else np.asarray(frames, dtype=np.int64)
+    rows = np.flatnonzero(np.isin(results["frames"], wanted))
+    at = results["frames"][rows]
+    boxes = mediapipe_peer.keypoint_boxes(project_reference(view, at, trial))
+    keep = mediapipe_peer.subject_frames(results["image"][rows], boxes)
+    rows, at = rows[keep], at[keep]
+    world = results["world"][rows]
+    angles, heading = mediapipe_peer.limb_angles(world), mediapipe_peer.heading_deg(world)
+    return {"frames": int(len(at)),
+            "limbs": angle_measures(angles, reference_limb_angles(trial, at), LIMB_ANGLE_NAMES),
+            "heading": heading_measures(heading, reference_heading_deg(trial, view, at)),
+            "series": (at, angles, heading)}

@@ -14,6 +14,7 @@ SHARED = Path(os.environ.get("SILHOUETTE_POSE_SHARED", ROOT.parent / "shared"))
 CMU_BVH = SHARED / "data" / "cmu" / "bvh"
 ANKUR_MAT = SHARED / "data" / "ankur" / "ankurDataPoseSilhouette.mat"
 POSE2SIM_TRIAL = SHARED / "data" / "pose2sim" / "balancing"
+POSE2SIM_SWINGS = SHARED / "data" / "pose2sim" / "swings"
 
 
 def pytest_configure(config) -> None:
@@ -74,3 +75,13 @@ def pose2sim_trial() -> Path:
         pytest.skip(f"Pose2Sim trial not found at {POSE2SIM_TRIAL} (needs ../shared beside the "
                     f"repo)")
     return POSE2SIM_TRIAL
+
+
+@pytest.fixture(scope="session")
+def pose2sim_swings() -> Path:
+    """Pose2Sim's swings trial folder of ../shared (its calibration is balancing's); skips the
+    test when either is absent."""
+    if not POSE2SIM_SWINGS.is_dir() or not POSE2SIM_TRIAL.is_dir():
+        pytest.skip(f"Pose2Sim swings trial not found at {POSE2SIM_SWINGS} (needs ../shared "
+                    f"beside the repo)")
+    return POSE2SIM_SWINGS

@@ -122,3 +122,26 @@ def test_abandon_writes_no_file_and_frees_the_folder(tmp_path):
     BVHSink(tmp_path, fps=30.0, prefix="clip").close()   # the lock is released
     BVHSink(tmp_path / "new" / "sub", fps=30.0).abandon()
     assert list(tmp_path.iterdir()) == []           # the folders it made are gone again
+
+
+def test_a_variable_frame_rate_keeps_its_duration(tmp_path):
+    """30 fps for 6 s, then 10 fps for 2 s: the BVH (one Frame Time) held one row per video
+    frame, so its 200 frames lasted 6.67 s at 30 fps; it now covers the 8 s, each 10 fps pose
+    held for three frames."""
+    times = np.r_[np.arange(180) / 30.0, 6.0 + np.arange(20) / 10.0]
+    vectors = _poses(len(times), seed=5)
+    joints = pose_joints_m(vectors, root_position_m=np.c_[times, np.full(len(times), 0.95),
+                                                          np.full(len(times), -3.0)])
+    with BVHSink(tmp_path, 30.0) as sink:
+        for frame, time_s in enumerate(times):
+            sink.write(TrackedPose(frame, time_s, 0, vectors[frame], vectors[frame], False,
+                                   joints[frame]))
+    motion = read_bvh(sink.paths[0], fps=None, drop_tpose=False)
+    assert motion.fps == pytest.approx(30.0)
+    assert motion.n_frames == 7.9 * 30 + 1       # the last pose at 7.9 s
+    expected = sink.motion(0).euler_deg
+    np.testing.assert_allclose(motion.euler_deg, expected, atol=1e-6)
+    rows = np.r_[np.arange(180), 180 + np.arange(58) // 3]      # video frame of each BVH frame
+    np.testing.assert_allclose(motion.root_position * CMU_UNIT_M, joints[rows, 0], atol=1e-6)
+    back = motion_to_pose_vectors(motion)
+    np.testing.assert_allclose(_wrap(back[:, 2:] - vectors[rows, 2:]), 0.0, atol=1e-5)

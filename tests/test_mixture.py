@@ -129,6 +129,29 @@ def test_estimator_conventions():
     assert kmeans(x, 5).shape == (5, 3)
 
 
+def test_sparse_rvm_experts_give_each_pose_a_spread_and_the_mean_the_hypotheses_spread():
+    x, y, _ = _two_modes()
+    mix = MixtureRegressor(n_experts=2, expert="sparse_rvm", width_scale=1.0,
+                           **{**SMALL, "gate_l2": 0.1, "n_centres": 30}).fit(x, y)
+    new = _two_modes(seed=9)[0][:50]
+    pose, std = mix.predict(new, return_std=True)            # the most probable expert's
+    assert pose.shape == std.shape == (50, 2)
+    assert np.all(np.abs(np.abs(pose[:, 0]) - 3.0) < 0.3) and np.all(std[:, 0] < 0.3)
+    mean, spread = mix.set_params(combine="mean").predict(new, return_std=True)
+    # Two equally likely poses +-3: the mixture's mean is near 0, its spread near 3.
+    assert np.all(np.abs(mean[:, 0]) < 1.0) and np.all(np.abs(spread[:, 0] - 3.0) < 0.3)
+    np.testing.assert_array_equal(mean, mix.predict(new))
+
+
+def test_return_std_needs_experts_with_a_variance_and_combine_is_checked():
+    x, y, _ = _two_modes(n=300)
+    ridge = MixtureRegressor(n_experts=2, **SMALL).fit(x, y)
+    with pytest.raises(ValueError, match="expert='sparse_rvm'"):
+        ridge.predict(x, return_std=True)
+    with pytest.raises(ValueError, match="combine"):
+        MixtureRegressor(n_experts=2, combine="median", **SMALL).fit(x, y)
+
+
 def _mixture_model(k=2, D=4, **gate):
     rng = np.random.default_rng(4)
     x = rng.normal(0, 1, (600, k * D))

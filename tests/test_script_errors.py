@@ -28,6 +28,8 @@ def test_reproduce_paper_refuses_what_is_not_the_papers_data(tmp_path, capsys):
     before = other.read_bytes()
     assert "is the same file as --data" in refused(["--data", str(other), "--json", str(other)])
     assert other.read_bytes() == before
+    assert "--methods: unknown method kernel_svm; choose from mean_pose" in refused(
+        ["--data", str(other), "--methods", "kernel_rvm,kernel_svm"])
 
 
 def _paper_data(path, **arrays) -> None:
@@ -83,7 +85,7 @@ def test_reproduce_paper_ends_in_one_line_on_data_the_regressors_refuse_and_on_c
     assert len(err.splitlines()) == 1 and err.startswith(
         f"reproduce_paper: error: --data {zeros}: ")
 
-    def interrupted(data):
+    def interrupted(data, names=None):
         raise KeyboardInterrupt
     monkeypatch.setattr(script, "_reproduce", interrupted)
     assert script.main(["--data", str(zeros)]) == 130
@@ -94,7 +96,7 @@ def test_reproduce_paper_writes_its_json_whole(tmp_path, capsys, monkeypatch):
     script = load_script("reproduce_paper")
     data, out = tmp_path / "paper.mat", tmp_path / "r.json"
     _paper_data(data)
-    monkeypatch.setattr(script, "_reproduce", lambda d: {"n_train": len(d["Y"])})
+    monkeypatch.setattr(script, "_reproduce", lambda d, names=None: {"n_train": len(d["Y"])})
     assert script.main(["--data", str(data), "--json", str(out)]) == 0
     assert out.read_text() == '{\n  "n_train": 1927\n}'
     assert sorted(p.name for p in tmp_path.iterdir()) == ["paper.mat", "r.json"]

@@ -5,6 +5,7 @@ sklearn_checks = pytest.importorskip("sklearn.utils.estimator_checks")
 
 from regressor.dls import DLSRegressor
 from regressor.rvm import RVMRegressor
+from regressor.sparse_rvm import SparseRVMRegressor
 
 # Checks that conflict with the design, each with the reason (passed to check_estimator).
 EXPECTED_FAILED = {
@@ -18,6 +19,7 @@ EXPECTED_FAILED = {
 @pytest.mark.parametrize("estimator", [
     DLSRegressor(basis="linear"), DLSRegressor(basis="gaussian"),
     RVMRegressor(basis="linear"), RVMRegressor(basis="gaussian", max_iter=200),
+    SparseRVMRegressor(n_candidates=20),
 ], ids=repr)
 @pytest.mark.slow
 def test_passes_sklearn_estimator_checks(estimator):

@@ -8,7 +8,12 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.video import VideoError, VideoTruncatedWarning, _as_bgr, open_video
+from tracker.video import (VideoError, VideoGrowingWarning, VideoTimingWarning,
+                           VideoTruncatedWarning, _as_bgr, open_video)
+
+#: The sample walk at 30 fps for 6 s, then 10 fps to 12 s (scripts/make_vfr_clip.py): 241 frames;
+#: Matroska announces 30 fps and 361 frames (its duration at 30 fps).
+VFR_CLIP = Path(__file__).parent / "data" / "vfr_walk.mkv"
 
 
 def write_video(path: Path, frames: list[np.ndarray], fps: float = 25.0) -> Path:
@@ -262,6 +267,11 @@ class _FailingCapture:
             return False, None
         return True, np.full((64, 96, 3), self.reads - 1, np.uint8)
 
+    def get(self, prop):
+        """The last frame read's time, ms, at 25 fps (the only property read while reading)."""
+        assert prop == cv2.CAP_PROP_POS_MSEC
+        return (self.reads - 1) * 40.0
+
     def release(self):
         pass
 
@@ -291,3 +301,164 @@ def test_a_long_damaged_stretch_ends_the_stream_as_cut_off(tmp_path, monkeypatch
     with pytest.warns(VideoTruncatedWarning, match="decoding stopped at frame 10 of 200"):
         frames = list(source)
     assert len(frames) == 10 and source.truncated
+
+
+def test_a_variable_frame_rate_keeps_each_frame_s_own_time():
+    """Frames were stamped index / fps: frame 181 at 6.03 s instead of 6.1, the last at 8.0 s
+    instead of 12.0; the stream's end, short of the 361 frames its duration makes at 30 fps,
+    was taken for a cut-off file."""
+    source = open_video(VFR_CLIP)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        frames = list(source)
+    assert [str(w.message) for w in caught] == [
+        "vfr_walk.mkv: variable frame rate (frames 33 to 100 ms apart, 30 fps announced); "
+        "each frame keeps its own time"]
+    assert caught[0].category is VideoTimingWarning
+    assert [f.index for f in frames] == list(range(241)) and not source.truncated
+    times = np.array([f.time_s for f in frames])
+    np.testing.assert_allclose(times[:180], np.arange(180) / 30.0, atol=1e-3)  # ms in MKV
+    np.testing.assert_allclose(times[180:], 6.0 + np.arange(61) / 10.0, atol=1e-9)
+
+
+def test_a_variable_frame_rate_s_time_range_is_by_time():
+    """--start and --end counted frames at the announced 30 fps: 7.0 s was frame 210, 8.9 s."""
+    source = open_video(VFR_CLIP, start_s=5.5, end_s=7.0)
+    with pytest.warns(VideoTimingWarning):
+        times = [f.time_s for f in source]
+    assert times[0] == pytest.approx(5.5, abs=1e-3) and times[-1] == pytest.approx(6.9)
+    assert len(times) == 15 + 10      # 5.5-5.97 s at 30 fps, 6.0-6.9 s at 10 fps
+
+
+def test_a_stated_frame_rate_spaces_the_frames_evenly(tmp_path):
+    source = open_video(write_video(tmp_path / "clip.mp4", flat_frames(10), fps=25.0), fps=50.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert [f.time_s for f in source] == pytest.approx(np.arange(10) / 50.0)
+
+
+class _TimelessCapture(_FailingCapture):
+    """A capture whose container gives every frame the time 0 (no times)."""
+
+    def get(self, prop):
+        return 0.0
+
+
+def test_a_container_without_frame_times_gets_even_ones_and_says_so(tmp_path, monkeypatch):
+    import tracker.video as video
+    source = open_video(write_video(tmp_path / "clip.mp4", flat_frames(3)))     # 25 fps
+    source.end_index = 12
+    monkeypatch.setattr(video, "_open_capture", lambda path: _TimelessCapture(12, set()))
+    with pytest.warns(VideoTimingWarning, match=r"clip.mp4: the container gives frame 1 a time "
+                                                r"not after frame 0's; frames from there on "
+                                                r"are taken as evenly spaced at 25 fps"):
+        times = [f.time_s for f in source]
+    assert times == pytest.approx(np.arange(12) / 25.0)
+
+
+class _GrowingCapture:
+    """A capture of a file that a recorder is still writing: ``rest`` (bytes) is appended to
+    the file after read number ``after`` or, with ``after`` None, at the first failed read
+    (the reader has caught up with the writer), before that read returns."""
+
+    def __init__(self, path: Path, rest: bytes, after: int | None = None):
+        self.capture, self.path = cv2.VideoCapture(str(path)), path
+        self.rest, self.after, self.reads = rest, after, 0
+
+    def read(self):
+        ok, image = self.capture.read()
+        self.reads += 1
+        if self.rest and (self.reads == self.after or (self.after is None and not ok)):
+            with self.path.open("ab") as file:
+                file.write(self.rest)
+            self.rest = b""
+        return ok, image
+
+    def get(self, prop):
+        return self.capture.get(prop)
+
+    def release(self):
+        self.capture.release()
+
+
+def test_a_file_still_being_written_stops_at_its_live_end(tmp_path, monkeypatch):
+    """The last frame before the end of what was written came out half decoded (the tail of a
+    half-written frame), the stream was reported cut off and nothing said it was growing."""
+    import tracker.video as video
+    with pytest.warns(VideoTimingWarning):
+        whole = {f.index: f.image for f in open_video(VFR_CLIP) if f.index < 150}
+    data = VFR_CLIP.read_bytes()
+    path = tmp_path / "recording.mkv"
+    path.write_bytes(data[:len(data) // 2])
+    source = open_video(path)
+    monkeypatch.setattr(video, "_open_capture",
+                        lambda p: _GrowingCapture(p, data[len(data) // 2:]))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        frames = list(source)
+    assert [w.category for w in caught] == [VideoGrowingWarning]
+    assert str(caught[0].message) == (f"{path} is still being written (grew from 42 KB to 84 KB "
+                                      f"while read); tracked the first 4.0 s")
+    assert source.grew and not source.truncated
+    assert [f.index for f in frames] == list(range(119))
+    for frame in frames:        # every frame whole: none decoded from a half-written tail
+        np.testing.assert_array_equal(frame.image, whole[frame.index])
+
+
+def test_a_file_that_grows_while_read_is_said_to(tmp_path, monkeypatch):
+    """An MPEG-TS still being written stopped where its length when opened said, silently."""
+    import tracker.video as video
+    path = write_video(tmp_path / "clip.mp4", flat_frames(20))
+    source = open_video(path)
+    monkeypatch.setattr(video, "_open_capture", lambda p: _GrowingCapture(p, b"\0" * 200_000,
+                                                                          after=5))
+    with pytest.warns(VideoGrowingWarning, match=r"clip.mp4 is still being written \(grew from "
+                                                 r"\d+ KB to 0.2 MB while read\); tracked the "
+                                                 r"first 0.8 s"):
+        frames = list(source)
+    assert len(frames) == 20 and source.grew
+
+
+def without_duration(data: bytes) -> bytes:
+    """A Matroska file's bytes with its Duration element (ID 0x4489) made a Void one of the same
+    length: the file states no length, as one still being written does not."""
+    at = data.index(b"\x44\x89")
+    length = 3 + (data[at + 2] & 0x7F)               # ID, one-byte size, the float
+    return data[:at] + bytes([0xEC, 0x80 | (length - 2)]) + bytes(length - 2) + data[at + length:]
+
+
+def test_background_samples_of_a_stream_of_unknown_length_span_it(tmp_path):
+    """They were its first 25 frames: a Matroska file still being written states no length,
+    and the person standing there in its first second became a phantom second track."""
+    path = tmp_path / "recording.mkv"
+    path.write_bytes(without_duration(VFR_CLIP.read_bytes()))
+    source = open_video(path)
+    assert source.frame_count is None and source.end_index is None
+    with pytest.warns(VideoTimingWarning):
+        frames = [f.image for f in open_video(VFR_CLIP)]
+    samples = source.sample_frames(7)
+    shown = [next(i for i, frame in enumerate(frames) if np.array_equal(frame, sample))
+             for sample in samples]
+    assert len(shown) == 7 and shown[0] == 0 and shown[-1] >= 200      # of 241 frames
+    assert np.all(np.diff(shown) >= 20)
+
+
+class _RemovingCapture(_GrowingCapture):
+    """A capture whose file is removed after its third read (it reads on: the file is open)."""
+
+    def read(self):
+        ok, image = self.capture.read()
+        self.reads += 1
+        if self.reads == 3:
+            self.path.unlink()
+        return ok, image
+
+
+def test_a_file_removed_while_read_is_said_to(tmp_path, monkeypatch):
+    import tracker.video as video
+    path = write_video(tmp_path / "clip.mp4", flat_frames(10))
+    source = open_video(path)
+    monkeypatch.setattr(video, "_open_capture", lambda p: _RemovingCapture(p, b""))
+    with pytest.warns(VideoGrowingWarning, match=r"clip.mp4 was removed or replaced while "
+                                                 r"read; tracked the first 0.4 s"):
+        assert len(list(source)) == 10

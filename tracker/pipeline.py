@@ -36,77 +36,22 @@ from .travel import TravelDirection
 from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 
 
-#: The body angles' filter (tracker.hypotheses, "Limbs") takes as measurement noise only the
-#: white part of the regressor's error. The model's R is the covariance of its whole validation
-#: residual, but that residual is mostly a slow bias (the same pose misread for many frames):
-#: half the variance of its frame-to-frame change is 7.5 % of its variance on the validation
-#: renders (10-13 % on track's inputs from five spiral-walk videos), and a filter that takes
-#: the bias for white noise lags the gait. Chosen on the 28 validation renders of
-#: scripts/learn_hypothesis_priors.py (6 validation trials and 07_12, spiral and fixed camera,
-#: as recorded and reversed; heading from the chain in every case), mean over renders of the
-#: 53 body angles' error / correlation of the 8 most-moving angles / mean |second difference|
-#: (jitter, deg): chain's own limbs 9.197 / 0.185 / 1.20; this filter with limb_r_scale 1.0:
-#: 9.064 / 0.244 / 0.96, 0.3: 9.044 / 0.261 / 1.16, 0.1: 9.043 / 0.269 / 1.34, 0.05: 9.044 /
-#: 0.271 / 1.46; the raw poses 9.005 / 0.266 / 2.28 (2026-12-01, a one-off driver). 0.1: as
-#: accurate as the raw poses with 40 % less jitter. Re-checked 2026-12-02 with the side
-#: classifier and the joints' inflation 2 (same renders, corr8 filtered / smoothed): 0.05
-#: 0.545 / 0.604, 0.1 0.546 / 0.609, 0.2 0.545 / 0.612, 0.4 0.540 / 0.608 (heading unchanged).
-#: Also tried then: this filter's process noise as the full covariance of the training poses'
-#: angular accelerations (joints coupled, as in a gait) instead of per angle: 0.548 / 0.607.
-#: Tried and not adopted (2026-12-02, one-off driver): a gain per body angle on the filtered
-#: output about the training-mean pose, fitted on the five validation videos through
-#: ``track`` (least squares of the truth on the output), since on the walks some angles swing
-#: at a fraction of the truth's amplitude (the arms at about a third). Over all angles pooled
-#: the output is not shrunk (one gain for all: 1.02); per angle, leave-one-video-out, it
-#: made the 53 angles' error worse (7.69 -> 8.09 deg; half-way to 1: 7.74; with an offset
-#: too: 8.65) for a flexion error 15.9 -> 15.2; corr8 is unchanged by any gain. The output
-#: also does not lag the truth: its corr8 peaks at a lag of 0-1 frame (16_11 0.763 at 0, 02_02
-#: 0.706 at 1 against 0.698 at 0, 08_03 0.786 against 0.784).
+#: The body angles' filter takes as measurement noise only the white part of the regressor's
+#: error (its validation residual is mostly a slow bias): R times this (docs/tuning.md).
 LIMB_R_SCALE = 0.1
 
-#: Multiplies the model's heading process noise (q[0]) in every filter. The model's q is the
-#: acceleration variance of the training poses, and for the heading it is dominated by a few
-#: pirouettes (one dance trial, 05_16, gives half of it; a robust (MAD) estimate is 0.16 of it),
-#: so the filter follows the regressor when it confidently misreads the heading for a few
-#: frames: on the shipped sample, frames 126-142, the raw heading swings 140 degrees in 10 frames
-#: from a back view to a front view, and the filter went along. Chosen on the 28 validation
-#: renders (as LIMB_R_SCALE; mean filtered heading RMS, deg) with q scaled by 1 / 0.3 / 0.1 /
-#: 0.03 / 0.01 / 0.003: 70.8 / 68.3 / 67.0 / 64.4 / 61.9 / 65.4; through ``track`` on the five
-#: validation spiral videos (02_02, 08_03, 05_02, 09_04, 02_05) by 1 / 0.1 / 0.01 / 0.003 /
-#: 0.001: 37.0 / 34.7 / 30.9 / 28.8 / 30.7, their corr8 unchanged (0.357). 2026-12-01.
+#: Multiplies the model's heading process noise: the model's q is dominated by a few pirouettes
+#: in the training motion, so the filter followed confident misreadings (docs/tuning.md).
 HEADING_Q_SCALE = 0.01
 
 #: The front/back chain's filters follow the heading with two models mixed as an IMM
-#: (tracker.imm_filter): constant velocity, and one that forgets the heading's rate over 0.3 s,
-#: switching with probability 0.01 a frame at 30 fps. With one constant-velocity model and the
-#: small heading noise above, a turn's rate persists after the turn stops (a synthetic 90-degree
-#: turn: 16 degrees past it, 12 with these; tests/test_imm_filter.py). Chosen on validation
-#: data, 2026-12-04 (one-off drivers; mean filtered heading RMS, deg, and the share of frames
-#: within 90 degrees of the truth): 28 renders (see LIMB_R_SCALE) 32.1 / 84.8 % with one model,
-#: 30.3 / 86.3 % with these (a rate-forgetting time of 0.1-0.5 s, a switch of 0.003-0.05 and
-#: the second model's noise x0.3-3 all gave 30.3-31.7; a third model with 100x the heading
-#: noise, or that one instead, 30.6-31.7 but flipped front/back on two videos); through
-#: ``track`` on 12 validation videos (five trials spiral and fixed, 06_10 and 07_12 fixed)
-#: 36.7 / 89.2 % -> 31.5 / 93.5 %, smoothed 29.2 -> 23.2, corr8 0.444 -> 0.446. The price is a
-#: steady turn's lag: 02_02 spiral 9.0 -> 10.1, 09_04 spiral 8.1 -> 9.0. A single filter that
-#: forgets the rate (stop 38) gave 36.5-33.7 on the videos with 02_02 spiral at 9.3-10.8.
-#: () or one model: the plain constant-velocity filter.
+#: (tracker.imm_filter): constant velocity, and one that forgets the turning rate over 0.3 s,
+#: so a turn that stops is overshot less (docs/tuning.md). () or one model: a plain filter.
 HEADING_MODELS: tuple = TURN_AND_STOP
 HEADING_SWITCH = DEFAULT_SWITCH
 
-#: The joints' R inflation on ambiguous frames (PoseKalmanFilter's ambiguous_joint_factor).
-#: The main head averages a silhouette's two bodies where it cannot tell them apart, so its
-#: limbs on such frames are worth less (AMBIGUOUS_JOINT_FACTOR). A model that gives canonical
-#: pairs (tracker.hypotheses, "Canonical hypotheses") measures the limb networks' member, which
-#: commits to one body on those frames too: its inflation is smaller. Chosen on the 28
-#: validation renders (one-off driver over the real chain; mean filtered / smoothed heading
-#: RMS, deg, and corr8 of the 8 most-moving angles, filtered) with factor 1 / 1.5 / 2 / 3 / 4:
-#: 33.8 / 32.7 / 32.7 / 35.7 / 36.1, smoothed 28.2 / 27.4 / 26.6 / 27.0 / 27.8, corr8 0.546 /
-#: 0.547 / 0.546 / 0.541 / 0.541; through ``track`` on the five validation videos (02_02 /
-#: 08_03 / 05_02 / 09_04 / 02_05) factor 2 against 4: filtered heading 8.1 / 8.0 / 47.3 /
-#: 14.7 / 68.4 against 8.1 / 8.0 / 56.3 / 19.5 / 68.4 (smoothed mean 27.7 against 31.1), corr8
-#: mean 0.438 against 0.440 (2026-12-02). Where the main head's frames are rarely ambiguous
-#: (the walks 02_02, 08_03) nothing changes.
+#: The joints' R inflation on ambiguous frames: the main head averages a silhouette's two
+#: bodies there; a model that gives canonical pairs (one body per frame) needs less.
 AMBIGUOUS_JOINT_FACTOR = 4.0
 CANONICAL_AMBIGUOUS_JOINT_FACTOR = 2.0
 
@@ -114,54 +59,29 @@ CANONICAL_AMBIGUOUS_JOINT_FACTOR = 2.0
 @dataclass(frozen=True)
 class TrackerSettings:
     """The tracker's run-time choices, in one place (the ``track`` command, the evaluation and
-    the benchmark all build one).
+    the benchmark all build one). Why each default is what it is: docs/tuning.md.
 
     max_people: keep at most this many (largest) people per frame, None = all.
     ambiguity_threshold: raw heading norm below which a frame is ambiguous; None = the one the
     model was trained with (PoseModel.ambiguity_threshold). ambiguous_heading_factor,
     ambiguous_joint_factor: R inflation on ambiguous frames (PoseKalmanFilter; None for the
-    joints = the estimator's (:meth:`joint_factor`); with the front/back
-    chain the heading's inflation makes a 180-degree jump cheap for its filters, but lowering it
-    did not help on validation: factor 25 / 4 / 1 gave mean filtered heading 59.5 / 51.2 / 56.1
-    degrees on the 28 validation renders, 28.0 / 32.3 / 30.3 on the five validation videos,
-    2026-12-02). r_scale, q_scale:
-    multiply the model's measurement covariance R and process noise q; heading_q_scale further
-    multiplies the heading's q (HEADING_Q_SCALE). heading_models, heading_switch: the IMM
-    heading models of the front/back chain's filters and their switch probability per frame at
-    30 fps (HEADING_MODELS; one or none: a plain PoseKalmanFilter). limb_r_scale: further
-    multiplies R for the filter of the output's body angles (LIMB_R_SCALE, limb_kalman_factory);
-    roll_deg: the camera's roll (tracker.roll.upright_mask: how far the scene's vertical leans
-    clockwise in the image, degrees); silhouettes are turned upright before they are described.
-    background_samples:
-    frames spread over the video for the median background. fov_deg: the horizontal field of
-    view assumed for the focal length (direction of travel, ground position). keep_history:
-    keep every track's filter inputs for PoseTracker.smoothed_track (about 0.6 KB per person
-    per frame, so memory grows with the video); ``track`` keeps them only to smooth a JSON,
-    BVH or MCAP output (its default; not with --no-smooth).
-    novelty: give each pose the estimator's novelty (PoseModel.novelty: how unlike the
-    training silhouettes its input is), and count each track's frames above
-    UNFAMILIAR_NOVELTY. For the shipped model it reuses the heading index's nearest
-    neighbours of the frame, so it costs little per frame; the index's typical distance comes
-    from the model file (an older file's is computed once, about 0.35 s, when the tracker is
-    made). An estimator without ``novelty`` gives None. trust_zone_foreground: whether the
-    default extractor takes the subtractor's foreground inside the background's unreliable
-    zone (a person who stays in one place) as sure person (``track --zone-foreground sure``);
-    False, the default since 2026-12-04, lets colour decide on it too
-    (tracker.silhouettes.refine_in_zone: fewer ghosts, some lost limb pixels). Chosen on the 12
-    validation videos through track's loop (two walks, a dance, a run and punches as spirals
-    and from a fixed camera, two more trials from a fixed camera): filtered err53 / corr8 /
-    heading RMS 8.242 / 0.447 / 31.41 with the sure rule, 7.311 / 0.563 / 31.63 with colour;
-    smoothed 8.103 / 0.475 / 23.18 and 7.013 / 0.618 / 23.22 (the fixed-camera clips gain: a
-    short clip's walker stays in one region, which becomes the zone; the spirals do not
-    change). An extractor given to PoseTracker keeps its own rule.
-    min_area_fraction: the default extractor's smallest person, as a fraction of the image
-    (tracker.silhouettes.DEFAULT_MIN_AREA_FRACTION; ``track --min-area``).
-    mirror_limbs: average the limbs with the model's limbs for each frame's mirror image, for
-    a model whose limb networks were fitted on mirror images (tracker.mirror_limbs; costs a
-    second descriptor histogram and network pass per person and frame); other estimators
-    ignore it. travel_offset_memory: each track keeps its own belief over (facing - direction
-    of travel), carried over time (FrontBackTracker.offset_memory); False: the population's
-    prior on every frame.
+    joints = the estimator's, :meth:`joint_factor`). r_scale, q_scale: multiply the model's
+    measurement covariance R and process noise q; heading_q_scale further multiplies the
+    heading's q. heading_models, heading_switch: the IMM heading models of the front/back
+    chain's filters and their switch probability per frame at 30 fps (one or none: a plain
+    PoseKalmanFilter). limb_r_scale: further multiplies R for the body angles' filter.
+    roll_deg: the camera's roll, degrees clockwise (silhouettes are turned upright first).
+    background_samples: frames spread over the video for the median background. fov_deg: the
+    horizontal field of view assumed for the focal length. keep_history: keep every track's
+    filter inputs for PoseTracker.smoothed_track (about 0.6 KB per person per frame).
+    novelty: give each pose the estimator's novelty and count each track's frames above
+    UNFAMILIAR_NOVELTY (None from an estimator without ``novelty``).
+    trust_zone_foreground: the default extractor takes the subtractor's foreground inside the
+    background's unreliable zone as sure person (True) or lets colour decide on it (False).
+    min_area_fraction: the default extractor's smallest person, a fraction of the image.
+    mirror_limbs: average the limbs with the mirror image's (tracker.mirror_limbs), for a model
+    whose limb networks saw mirror images. travel_offset_memory: each track keeps its own
+    belief over (facing - direction of travel); False: the population's prior every frame.
     """
 
     max_people: int | None = None

@@ -126,125 +126,153 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
         tracker = PoseTracker(load_pose_model(), source.fps)
     if smoothed_sinks and not tracker.settings.keep_history:
         raise ValueError("smoothed_sinks need a tracker with TrackerSettings(keep_history=True)")
-    lagged = FixedLagSmoother.from_seconds(tracker, lag_s) if lag_s else None
-    recorder = PoseRecorder() if smoothed_sinks else None
-    streaming = list(sinks) + ([recorder] if recorder else [])
-    # Sinks that show the video (the live view) also get every frame and its silhouettes; they
-    # shrink the few frames they show themselves, so this costs nothing when there is none.
-    watching = [sink for sink in streaming if hasattr(sink, "write_frame")]
-    files = [sink for sink in streaming if sink not in watching]    # fed after a stop
-    frames, interrupted, started = 0, False, time.perf_counter()
-    written: dict[int, WrittenPoses] = {}
-    stages = tracker.stage_seconds
-    worker = None
-    # Frames tracked (and smoothed, with a lag) and not yet written: taken off inside the
-    # signals-held block that writes them, so a stop cannot fall between the two.
-    due: deque = deque() if lagged is None else lagged.ready
+    run = _Run(tracker, sinks, smoothed_sinks, progress, lag_s)
+    started, interrupted = time.perf_counter(), False
+    try:
+        _prime(source, tracker, background)
+        run.stages["background"] += time.perf_counter() - started
+        run.track(_frames_in(run, source, tracker, workers))
+        if run.worker is not None:
+            for stage in ("decode", "silhouettes", "descriptor"):
+                run.stages[stage] += run.worker.stage_seconds.get(stage, 0.0)
+            source.frames_read, source.truncated = run.worker.frames_read, run.worker.truncated
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        interrupted, smoothed, problems = run.close(interrupted, write_empty)
+    if problems:
+        raise OutputError("could not finish outputs: " + "; ".join(problems))
+    return TrackRun(run.frames, time.perf_counter() - started, interrupted, tracker,
+                    run.written, smoothed)
 
-    def emit(stopped: bool = False) -> bool:
+
+def _frames_in(run: _Run, source: VideoSource, tracker: PoseTracker, workers: int
+               ) -> Iterator[tuple]:
+    """The tracked frames: from a second process (run.worker) when asked for and possible
+    (no sink shows the video, processes can fork), else tracked here, one at a time for a
+    live view, in batches for files."""
+    if workers > 1 and not run.watching and can_fork():
+        run.worker = FrameWorker(source, tracker)          # a copy of the primed tracker
+        return _from_worker(run.worker, tracker)
+    return _in_process(source, tracker, 1 if run.watching else BATCH_FRAMES)
+
+
+class _Run:
+    """One run's outputs and what they were given: the streamed sinks (those that show the
+    video: ``watching``; the others: ``files``), the smoothed sinks fed at the end, the
+    frames due to them (``due``: tracked, with a lag smoothed, not yet written), the count
+    of frames and each track's poses written."""
+
+    def __init__(self, tracker: PoseTracker, sinks, smoothed_sinks, progress, lag_s: float):
+        self.tracker, self.progress, self.lag_s = tracker, progress, lag_s
+        self.sinks, self.smoothed_sinks = list(sinks), list(smoothed_sinks)
+        self.lagged = FixedLagSmoother.from_seconds(tracker, lag_s) if lag_s else None
+        self.recorder = PoseRecorder() if smoothed_sinks else None
+        self.streaming = self.sinks + ([self.recorder] if self.recorder else [])
+        # Sinks that show the video (the live view) also get every frame and its silhouettes.
+        self.watching = [sink for sink in self.streaming if hasattr(sink, "write_frame")]
+        self.files = [sink for sink in self.streaming if sink not in self.watching]
+        self.frames = 0
+        self.written: dict[int, WrittenPoses] = {}
+        self.stages = tracker.stage_seconds
+        self.worker: FrameWorker | None = None
+        # Taken off inside the signals-held block that writes them, so a stop cannot fall
+        # between the two.
+        self.due: deque = deque() if self.lagged is None else self.lagged.ready
+
+    def track(self, frames_in: Iterator[tuple]) -> None:
+        """Hand every tracked frame to the outputs (through the smoother with a lag);
+        KeyboardInterrupt when a stop signal came meanwhile."""
+        for tracked in frames_in:
+            if self.lagged is None:
+                self.due.append(tracked)
+            elif _smoother_step(self.stages, self.lagged.push,
+                                tracked if self.watching else _poses_only(tracked)):
+                raise KeyboardInterrupt
+            self._emit_due()
+        if self.lagged is not None and _smoother_step(self.stages, self.lagged.flush):
+            raise KeyboardInterrupt
+        self._emit_due()
+
+    def _emit_due(self) -> None:
+        while self.due:
+            if self.emit():
+                raise KeyboardInterrupt
+
+    def emit(self, stopped: bool = False) -> bool:
         """Hand the next due frame to the outputs; whether a stop signal came meanwhile.
         stopped: after a stop, the frames held back go to the files only: no progress update
         (its display may raise the stop again: cli._StopOnInterrupt) and nothing to the live
         view, which would play them at the video's speed to nobody while stops are held."""
-        nonlocal frames
         clock = time.perf_counter()
-        # A stop signal acts between frames, never inside an output's write: raised
-        # inside the MCAP writer (a chunk half written, or written but not yet indexed),
-        # it left a finished file that no reader could open (once, in a CI run of
-        # tests/test_track_cli.py on 2026-12-04: "record has length 153600000000").
+        # A stop signal acts between frames, never inside an output's write (raised inside
+        # the MCAP writer it can leave a finished file no reader opens).
         with _signals_held() as held:
-            index, time_s, frame, poses, people = due.popleft()
-            showing, fed = ([], files) if stopped else (watching, streaming)
+            index, time_s, frame, poses, people = self.due.popleft()
+            showing, fed = ([], self.files) if stopped else (self.watching, self.streaming)
             for sink in fed:
                 for pose in poses:
                     sink.write(pose)
             # Counted with the writes, as the outputs hold them: a sink may stop the run
             # at end_frame.
-            frames += 1
+            self.frames += 1
             for pose in poses:
-                counts = written.setdefault(pose.track_id, WrittenPoses())
+                counts = self.written.setdefault(pose.track_id, WrittenPoses())
                 counts.poses += 1
                 counts.unfamiliar += pose.unfamiliar
             for sink in showing:
                 sink.write_frame(index, time_s, frame, people)
-            for sink in fed + list(smoothed_sinks):   # frames with nobody count too
+            for sink in fed + self.smoothed_sinks:   # frames with nobody count too
                 sink.end_frame(index)
-        stages["outputs"] += time.perf_counter() - clock
-        if progress is not None and not stopped:
-            progress.update(len(poses))
+        self.stages["outputs"] += time.perf_counter() - clock
+        if self.progress is not None and not stopped:
+            self.progress.update(len(poses))
         return bool(held)
 
-    try:
-        _prime(source, tracker, background)
-        stages["background"] += time.perf_counter() - started
-        if workers > 1 and not watching and can_fork():
-            worker = FrameWorker(source, tracker)          # a copy of the primed tracker
-            frames_in = _from_worker(worker, tracker)
-        else:
-            # A live view shows each frame as soon as it is tracked; files take batches.
-            frames_in = _in_process(source, tracker, 1 if watching else BATCH_FRAMES)
-        for tracked in frames_in:
-            if lagged is None:
-                due.append(tracked)
-            elif _smoother_step(stages, lagged.push,
-                                tracked if watching else _poses_only(tracked)):
-                raise KeyboardInterrupt
-            while due:
-                if emit():
-                    raise KeyboardInterrupt
-        if lagged is not None and _smoother_step(stages, lagged.flush):
-            raise KeyboardInterrupt
-        while due:
-            if emit():
-                raise KeyboardInterrupt
-        if worker is not None:
-            for stage in ("decode", "silhouettes", "descriptor"):
-                stages[stage] += worker.stage_seconds.get(stage, 0.0)
-            source.frames_read, source.truncated = worker.frames_read, worker.truncated
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        closed, smoothed, flushed = False, False, False
+    def close(self, interrupted: bool, write_empty: bool) -> tuple[bool, bool, list[str]]:
+        """Finish every output, stop signals held meanwhile (a Ctrl-C just before they are
+        held interrupts the run, not the closing, which starts again if it had not happened).
+        Returns (interrupted, smoothed tracks written, problem lines)."""
+        closed, smoothed, flushed, problems = False, False, False, []
         while not closed:
             try:
                 with _signals_held() as held:
                     if interrupted:
                         # A stop shows nothing more: frames the live view holds are dropped.
-                        for sink in watching:
+                        for sink in self.watching:
                             if hasattr(sink, "discard"):
                                 sink.discard()
-                    if worker is not None:
-                        worker.close()
+                    if self.worker is not None:
+                        self.worker.close()
                     fed = []
                     try:
                         if interrupted and not flushed:
                             # The frames held back for a lag go out before the outputs
                             # close: a stop costs none of the frames given to the smoother.
                             flushed = True
-                            fed = _write_held(lagged, due, emit, stages)
-                        if progress is not None:
-                            progress.close()
-                        if recorder is not None and not interrupted:
-                            fed += _write_smoothed(tracker, recorder, smoothed_sinks)
-                            smoothed = True
-                        elif recorder is not None:
-                            fed += _write_filtered(recorder, smoothed_sinks,
-                                                   streamed_kind(lag_s))
+                            fed = _write_held(self.lagged, self.due, self.emit, self.stages)
+                        if self.progress is not None:
+                            self.progress.close()
+                        fed += self._feed_smoothed_sinks(interrupted)
+                        smoothed = self.recorder is not None and not interrupted
                     finally:
-                        empty = not write_empty and not written
-                        problems = fed + close_sinks(list(sinks) + list(smoothed_sinks),
+                        empty = not write_empty and not self.written
+                        problems = fed + close_sinks(self.sinks + self.smoothed_sinks,
                                                      abandon=empty)
                         closed = True
                 interrupted = interrupted or bool(held)
             except KeyboardInterrupt:
-                # A Ctrl-C in the few bytecodes before the signals are held (or just after
-                # they are released): it interrupts the run, not the closing, which starts
-                # again if it had not happened yet.
                 interrupted = True
-    if problems:
-        raise OutputError("could not finish outputs: " + "; ".join(problems))
-    return TrackRun(frames, time.perf_counter() - started, interrupted, tracker, written,
-                    smoothed)
+        return interrupted, smoothed, problems
+
+    def _feed_smoothed_sinks(self, interrupted: bool) -> list[str]:
+        """The smoothed sinks get each whole track smoothed, or after a stop (a quick exit)
+        the streamed poses; problem lines of those that failed."""
+        if self.recorder is None:
+            return []
+        if not interrupted:
+            return _write_smoothed(self.tracker, self.recorder, self.smoothed_sinks)
+        return _write_filtered(self.recorder, self.smoothed_sinks, streamed_kind(self.lag_s))
 
 
 def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> list[str]:

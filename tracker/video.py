@@ -9,10 +9,24 @@ emits a :class:`VideoTruncatedWarning` saying which frames were lost. The indice
 where the decoder reports each damaged frame as a failed read (MP4); where FFmpeg drops
 damaged packets without a word (AVI, MPEG-PS) the frames after them come a few indices early,
 and the stream then seems to end short of its announced length.
+
+Times: each frame's ``time_s`` is its own time in the container (its presentation time), so a
+variable frame rate (a phone's, or 30 fps then 10 fps) keeps its real timing; a
+:class:`VideoTimingWarning` says so once. Where the container gives no times, or times that do
+not increase, frames are spaced evenly at the frame rate from there on (also said once); with
+``fps`` stated (``track --fps``) they are spaced evenly throughout.
+
+A file still being written (a recording in progress) is read up to where its data ended when
+reading reached it: a failed read on a file that has grown since it was opened ends the stream
+there, without the last frame decoded before it (the tail of a half-written frame decodes as a
+damaged picture), and a :class:`VideoGrowingWarning` says how far the file grew and how much of
+it was used; also when the stream ends at the length stated when it was opened (MPEG-TS).
 """
 from __future__ import annotations
 
+import copy
 import math
+import os
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -39,6 +53,10 @@ SEQUENTIAL_SPACING = 250
 #: damaged frames, skipped. Reads past a file's real end fail at once, so waiting costs little.
 UNREADABLE_RUN_S = 2.0
 UNREADABLE_RUN_MIN = 30
+#: Frame intervals further than this fraction from 1/fps make a video's timing irregular
+#: (a variable frame rate, said once); a container's millisecond rounding (33 or 34 ms at
+#: 30 fps) stays well inside.
+IRREGULAR_INTERVAL = 0.25
 
 
 def focal_length_px(frame_width_px: int, fov_deg: float = ASSUMED_FOV_DEG) -> float:
@@ -62,6 +80,15 @@ class VideoError(SilhouettePoseError, ValueError):
 
 class VideoTruncatedWarning(UserWarning):
     """Decoding stopped before the end the container announced (corrupt or cut-off file)."""
+
+
+class VideoTimingWarning(UserWarning):
+    """The frames are not evenly spaced in time (a variable frame rate), or the container gives
+    no usable frame times (evenly spaced ones are assumed)."""
+
+
+class VideoGrowingWarning(UserWarning):
+    """The file grew (or changed) while it was read: a recording still being written."""
 
 
 def _mp4_top_level_boxes(path: Path) -> dict[bytes, int] | None:
@@ -108,7 +135,8 @@ def _why_unopenable(path: Path) -> str:
 
 
 class VideoFrame(NamedTuple):
-    """One decoded frame: ``index`` from 0 at the file's start, ``time_s`` = index / fps (seconds),
+    """One decoded frame: ``index`` from 0 at the file's start, ``time_s`` its time in the video
+    (seconds: the container's time for it, else index / fps; see the module docstring),
     ``image`` BGR uint8 (H, W, 3)."""
 
     index: int
@@ -116,22 +144,80 @@ class VideoFrame(NamedTuple):
     image: np.ndarray
 
 
+class FrameTimes:
+    """Each frame's time, seconds: the container's (``CAP_PROP_POS_MSEC`` after a read) while it
+    gives times that increase, else the last good time plus (index - its index) / fps.
+    ``problem`` says why the container's times were given up (None while they are used);
+    ``intervals`` is (shortest, longest) seconds per frame seen so far."""
+
+    def __init__(self, fps: float, from_container: bool = True):
+        self.fps = float(fps)
+        self.from_container = from_container
+        self.problem: str | None = None
+        self.last: tuple[int, float] | None = None          # (index, time_s) of the last frame
+        self.intervals = (math.inf, 0.0)
+
+    def __call__(self, index: int, container_ms: float) -> float:
+        """The time of frame ``index``, whose container time is ``container_ms``."""
+        time_s = container_ms / 1000.0
+        if self.from_container and not (math.isfinite(time_s) and time_s >= 0.0 and (
+                self.last is None or time_s > self.last[1])):
+            self.from_container = False
+            self.problem = ("gives no frame times" if self.last is None else
+                            f"gives frame {index} a time not after frame {self.last[0]}'s")
+        if not self.from_container:
+            last_index, last_time = self.last or (0, 0.0)
+            time_s = last_time + (index - last_index) / self.fps
+        if self.last is not None:
+            step = (time_s - self.last[1]) / (index - self.last[0])
+            self.intervals = (min(self.intervals[0], step), max(self.intervals[1], step))
+        self.last = (index, time_s)
+        return time_s
+
+    def irregular(self) -> bool:
+        """Whether some frame interval is more than IRREGULAR_INTERVAL off 1 / fps."""
+        shortest, longest = self.intervals
+        return shortest < (1.0 - IRREGULAR_INTERVAL) / self.fps or \
+            longest > (1.0 + IRREGULAR_INTERVAL) / self.fps
+
+
+def _file_state(path: Path) -> tuple[int, int] | None:
+    """(size in bytes, modification time in ns) of ``path``, to see it change while read; None
+    once it is gone (removed or renamed while read)."""
+    try:
+        stat = os.stat(path)
+    except OSError:
+        return None
+    return stat.st_size, stat.st_mtime_ns
+
+
+def _megabytes(size: int) -> str:
+    return f"{size / 1e6:.1f} MB" if size >= 100_000 else f"{size / 1e3:.0f} KB"
+
+
 class VideoSource:
     """A checked video file; iterate to get :class:`VideoFrame` (unpacks as index, time_s, frame).
 
-    Attributes: ``path``, ``fps`` (frames/s), ``frame_count`` (frames the container announces for
-    the whole file, None when it does not say; may be approximate), ``width``/``height`` (px of
-    the frames yielded, after any downscaling), ``source_width``/``source_height`` (px in the
-    file), ``start_index``/``end_index`` (frame range yielded, end exclusive; end None = until the
-    stream ends), ``frames_read`` (frames yielded by the last iteration), ``frames_skipped``
-    (undecodable frames it skipped inside the stream) and ``truncated`` (True when it stopped
-    before ``end_index``).
+    Attributes: ``path``, ``fps`` (frames/s: the container's, or the one stated), ``frame_count``
+    (frames the container announces for the whole file, None when it does not say; may be
+    approximate: with a variable frame rate it is the duration times ``fps``),
+    ``width``/``height`` (px of the frames yielded, after any downscaling),
+    ``source_width``/``source_height`` (px in the file), ``start_index``/``end_index`` (frame
+    range yielded, end exclusive; end None = until the stream ends), ``start_s``/``end_s``
+    (the time range asked for, seconds, end None: to the end; frames outside it are not
+    yielded, so a variable frame rate's range is by time), ``container_times`` (False: frames
+    evenly spaced at ``fps``, as with a stated rate), ``frames_read`` (frames yielded by the
+    last iteration), ``frames_skipped`` (undecodable frames it skipped inside the stream),
+    ``truncated`` (True when it stopped before ``end_index``), ``grew`` (True when the file
+    grew while it was read) and ``read_until_s`` (the time of the last frame yielded, None
+    before any).
     Each iteration reopens the file, so a source can be iterated more than once.
     """
 
     def __init__(self, path: Path, fps: float, frame_count: int | None,
                  source_size: tuple[int, int], size: tuple[int, int], start_index: int,
-                 end_index: int | None):
+                 end_index: int | None, end_s: float | None = None,
+                 container_times: bool = True, start_s: float = 0.0):
         self.path = path
         self.fps = fps
         self.frame_count = frame_count
@@ -139,9 +225,13 @@ class VideoSource:
         self.width, self.height = size
         self.start_index = start_index
         self.end_index = end_index
+        self.start_s, self.end_s = start_s, end_s
+        self.container_times = container_times
         self.frames_read = 0
         self.frames_skipped = 0
         self.truncated = False
+        self.grew = False
+        self.read_until_s: float | None = None      # the last frame yielded's time_s
 
     def expected_frames(self) -> int | None:
         """Frames this source should yield (``end_index - start_index``), None if unknown."""
@@ -149,43 +239,115 @@ class VideoSource:
 
     def __iter__(self) -> Iterator[VideoFrame]:
         capture = _open_capture(self.path)
-        self.frames_read, self.frames_skipped, self.truncated = 0, 0, False
+        opened = _file_state(self.path)
+        self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
+        self.read_until_s = None
+        times = FrameTimes(self.fps, self.container_times)
         first_skipped = None
         stopped_at = None               # the first of the undecodable frames the stream ends on
+        held = None         # (the last frame decoded, the times before it), yielded after the next
         give_up = self.unreadable_run()
         try:
             index = _seek(capture, self.start_index, give_up)
-            end = math.inf if self.end_index is None else self.end_index
+            end = self._last_index()
             failed = 0                  # undecodable frames in a row, just before index
             while index < end:
                 ok, image = capture.read()
                 if not ok or image is None:
+                    if _file_state(self.path) != opened:    # the live end: stop there,
+                        if held is not None:                    # the last frame unused
+                            times = held[1]
+                        self.grew, held, failed = True, None, 0
+                        break
                     failed += 1
                     index += 1        # a failed read consumes its frame (FFmpeg's backend)
                     if failed >= give_up:
                         break
                     continue
+                before = copy.copy(times)
+                time_s = times(index, capture.get(cv2.CAP_PROP_POS_MSEC))
+                if time_s + 1.0 / self.fps <= self.start_s + 1e-6:
+                    index, failed = index + 1, 0    # a seek by frame number landed early
+                    continue
+                if self.end_s is not None and time_s >= self.end_s - 1e-6:
+                    failed = 0
+                    break
                 if failed:
                     first_skipped = index - failed if first_skipped is None else first_skipped
                     self.frames_skipped += failed
                     failed = 0
-                yield VideoFrame(index, index / self.fps, self._prepare(image))
-                self.frames_read += 1
+                if held is not None:
+                    yield held[0]
+                    self.frames_read, self.read_until_s = self.frames_read + 1, held[0].time_s
+                held = VideoFrame(index, time_s, self._prepare(image)), before
                 index += 1
-            if failed and self.end_index is not None:   # else simply the stream's end
+            if held is not None:
+                yield held[0]
+                self.frames_read, self.read_until_s = self.frames_read + 1, held[0].time_s
+            if failed and self._ended_early(times, index - failed):
                 stopped_at = index - failed
         finally:
             capture.release()
+        self._report(times, first_skipped, stopped_at, opened)
+
+    def _last_index(self) -> float:
+        """The index the read loop stops before: end_index, or with an end time and the
+        container's frame times, the whole stream (the end time stops it)."""
+        if self.end_s is not None and self.container_times:
+            return math.inf if self.frame_count is None else self.frame_count
+        return math.inf if self.end_index is None else self.end_index
+
+    def _ended_early(self, times: FrameTimes, stopped_at: int) -> bool:
+        """Whether a stream whose reads failed from frame ``stopped_at`` on stopped before the
+        end announced: its frames' time span short of end_index / fps (or end_s) by more than
+        half a frame; a variable frame rate's stream ends at its time, not its frame count."""
+        if self.end_index is None:
+            return False
+        if times.last is None:
+            return True
+        last_index, last_time = times.last
+        reached = last_time + (stopped_at - last_index) / self.fps
+        announced = self.end_index / self.fps
+        if self.end_s is not None:
+            announced = min(announced, self.end_s)
+        return reached < announced - 0.5 / self.fps
+
+    def _report(self, times: FrameTimes, first_skipped: int | None, stopped_at: int | None,
+                opened: tuple[int, int] | None) -> None:
+        """The one-line warnings about the iteration just finished (see the module docstring)."""
+        name = self.path.name
         if self.frames_skipped:
-            warnings.warn(f"{self.path.name}: skipped {self.frames_skipped} undecodable "
+            warnings.warn(f"{name}: skipped {self.frames_skipped} undecodable "
                           f"frame(s) from frame {first_skipped} on (a damaged file); the "
-                          f"tracks go on over them", VideoTruncatedWarning, stacklevel=2)
+                          f"tracks go on over them", VideoTruncatedWarning, stacklevel=3)
         if stopped_at is not None:
             self.truncated = True
-            warnings.warn(f"{self.path.name}: decoding stopped at frame {stopped_at} of "
+            warnings.warn(f"{name}: decoding stopped at frame {stopped_at} of "
                           f"{self.end_index} (corrupt or cut-off file); using the "
                           f"{self.frames_read} frames read", VideoTruncatedWarning,
-                          stacklevel=2)
+                          stacklevel=3)
+        if times.problem is not None:
+            warnings.warn(f"{name}: the container {times.problem}; frames from there on are "
+                          f"taken as evenly spaced at {self.fps:g} fps", VideoTimingWarning,
+                          stacklevel=3)
+        elif times.from_container and times.irregular():
+            shortest, longest = times.intervals
+            warnings.warn(f"{name}: variable frame rate (frames {1000 * shortest:.0f} to "
+                          f"{1000 * longest:.0f} ms apart, {self.fps:g} fps announced); each "
+                          f"frame keeps its own time", VideoTimingWarning, stacklevel=3)
+        now = _file_state(self.path)
+        if now != opened or self.grew:
+            self.grew = True
+            used = 0.0 if self.read_until_s is None else self.read_until_s + 1.0 / self.fps
+            tracked = f"the first {used:.1f} s" if self.start_s == 0 else f"up to {used:.1f} s"
+            if now is None or opened is None:
+                warnings.warn(f"{self.path} was removed or replaced while read; tracked "
+                              f"{tracked}", VideoGrowingWarning, stacklevel=3)
+                return
+            change = "grew" if now[0] > opened[0] else "changed"
+            warnings.warn(f"{self.path} is still being written ({change} from "
+                          f"{_megabytes(opened[0])} to {_megabytes(now[0])} while read); "
+                          f"tracked {tracked}", VideoGrowingWarning, stacklevel=3)
 
     def unreadable_run(self) -> int:
         """Undecodable frames in a row after which the stream counts as ended
@@ -210,9 +372,14 @@ class VideoSource:
         Samples up to SEQUENTIAL_SPACING frames apart are read in one pass (grab() every frame,
         retrieve() only those kept): a seek decodes from the previous key frame, so on H.264
         with long key-frame intervals 25 seeks cost far more than reading straight through.
-        Sparser samples (long videos) are reached by seeking.
+        Sparser samples (long videos) are reached by seeking. A stream of unknown length (a
+        Matroska file still being written states none) is read through to its end
+        (:meth:`_sample_through`): sampling its first ``count`` frames had learned a background
+        with the person of the first second in it, a phantom second track.
         """
-        end = self.end_index if self.end_index is not None else self.start_index + count
+        if self.end_index is None:
+            return self._sample_through(count, size)
+        end = self.end_index
         indices = np.linspace(self.start_index, end - 1, max(count, 1)).round().astype(int)
         indices = np.unique(indices)
         spacing = (indices[-1] - indices[0]) / max(len(indices) - 1, 1)
@@ -246,6 +413,39 @@ class VideoSource:
         finally:
             capture.release()
         return images
+
+
+    def _sample_through(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
+        """Up to ``count`` frames evenly spaced over a stream of unknown length, in one pass to
+        its end: every ``step``-th frame is kept, and when 2 count are kept every other one is
+        dropped and ``step`` doubles. A file that grew since it was opened ends at its first
+        failed read (its live end), as in iteration."""
+        capture = _open_capture(self.path)
+        opened = _file_state(self.path)
+        kept, step, give_up = [], 1, self.unreadable_run()
+        try:
+            index = _seek(capture, self.start_index, give_up)
+            offset, failed = index, 0
+            while failed < give_up:
+                if not capture.grab():
+                    if _file_state(self.path) != opened:
+                        break
+                    failed, index = failed + 1, index + 1
+                    continue
+                failed = 0
+                if (index - offset) % step == 0:
+                    ok, image = capture.retrieve()
+                    if ok and image is not None:
+                        kept.append(self._prepare(image, size))
+                    if len(kept) >= 2 * max(count, 1):
+                        kept, step = kept[::2], 2 * step
+                index += 1
+        finally:
+            capture.release()
+        if len(kept) <= count:
+            return kept
+        return [kept[i] for i in np.unique(np.linspace(0, len(kept) - 1, count).round()
+                                           .astype(int))]
 
 
 def _open_capture(path: Path) -> cv2.VideoCapture:
@@ -305,7 +505,8 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
     """Open and check a video file; returns a :class:`VideoSource` to iterate over.
 
     ``start_s``/``end_s``: seconds from the file's start (end exclusive; None = to the end).
-    ``fps``: frames per second to assume when the container's rate is missing or wrong.
+    ``fps``: frames per second to assume when the container's rate is missing or wrong; the
+    frames are then taken as evenly spaced at it (the container's frame times are not used).
     ``max_side``: if set (px), frames whose longer side exceeds it are shrunk (INTER_AREA) so the
     longer side equals it; pixel coordinates downstream are then in the shrunk frame.
     The first frame is decoded here, so a file that opens but yields nothing is refused now.
@@ -356,4 +557,5 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
         raise VideoError(f"{path}: no frames in the chosen time range ({start_s:g} s to "
                          f"{end_s:g} s at {rate:g} fps)")
     size = scaled_size(width, height, max_side)
-    return VideoSource(path, rate, frame_count, (width, height), size, start_index, end_index)
+    return VideoSource(path, rate, frame_count, (width, height), size, start_index, end_index,
+                       end_s=end_s, container_times=fps is None, start_s=start_s)

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sequences.pose2sim import (CALIBRATION, DEFAULT_TRIAL, REFERENCE_TRC, VIEWS, Pose2SimError,
-                                Trial, load_trial)
+from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, Trial, calibration_path,
+                                load_trial, reference_path)
 from ..video import open_video
 
 
@@ -25,7 +25,7 @@ def missing_trial(root: Path) -> str | None:
 def trial_files(root: Path) -> list[tuple[str, Path]]:
     """(description, path) of every file a script reads from the trial at ``root``: the
     reference, the calibration and each view's video (the inputs of check_outputs)."""
-    return [("the reference", root / REFERENCE_TRC), ("the calibration", root / CALIBRATION),
+    return [("the reference", reference_path(root)), ("the calibration", calibration_path(root)),
             *((f"the {view} video", root / "videos" / f"{view}.mp4") for view in VIEWS)]
 
 
@@ -38,14 +38,14 @@ def checked_trial(root: Path, views=VIEWS) -> Trial:
     try:
         trial = load_trial(root)
     except UnicodeDecodeError as exc:
-        files = [root / REFERENCE_TRC, root / CALIBRATION]
+        files = [reference_path(root), calibration_path(root)]
         binary = [str(path) for path in files if not _is_text(path)] or map(str, files)
         raise Pose2SimError(f"{' or '.join(binary)}: not a text file ({exc.reason} at byte "
                             f"{exc.start})") from None
     for view, camera in trial.cameras.items():
         if not all(np.isfinite(a).all() for a in (camera.K, camera.distortion, camera.R,
                                                   camera.t)):
-            raise Pose2SimError(f"{root / CALIBRATION}: camera {view} has a number that is not "
+            raise Pose2SimError(f"{calibration_path(root)}: camera {view} has a number that is not "
                                 f"finite (NaN or infinity)")
     for view in views:
         open_video(trial.video(view))       # decodes its first frame: a fraction of a second

@@ -14,9 +14,14 @@ field of view; hips at a fixed height), which ``track``'s smoothed outputs smoot
 track (tracker.root_path); with
 root-relative joints it stays at the origin.
 
-Frames: BVH frame i is video frame ``first_frame + i`` at the ``fps`` given, for every frame from
-the track's first to its last; frames where the track was not written (missed detections,
-skipped frames) repeat the last written pose and root. A track with fewer than ``min_frames``
+Frames: BVH frame i is the time ``t0 + i / fps`` (``fps`` as given, the video's rate; t0 the
+track's first frame's time), for every such time up to the track's last frame: each holds the
+pose and root of the latest frame written at or before it (to within half a BVH frame), so
+frames where the track was not written (missed detections, skipped frames) repeat the last
+written pose and root, and a video with a variable frame rate (BVH has one Frame Time) keeps
+its real timing: a video at 30 fps for 6 s and then 10 fps gives a file at 30 fps whose 10 fps
+part holds each pose for three frames, as long as it lasted. At a constant rate BVH frame i is
+video frame ``first_frame + i``. A track with fewer than ``min_frames``
 written frames gets no file. Nothing is written before close(): the MCAP recording is the
 crash-safe record. Each file is written as ``NAME.partial`` and renamed when complete (a file cut
 short by a full disk is removed, an existing NAME is left as it was); while the sink is open,
@@ -41,7 +46,7 @@ from sequences.skeleton import (
     CMU_UNIT_M,
 )
 from tracker.sinks.files import LockFile, beside_name, write_beside
-from tracker.sinks.geometry import SinkInputError, check_joints, check_pose
+from tracker.sinks.geometry import SinkInputError, check_joints, check_pose, checked_time
 
 if TYPE_CHECKING:
     from ..pipeline import TrackedPose
@@ -62,13 +67,16 @@ def default_cmu_template(fps: float) -> Motion:
         fps=float(fps), source="")
 
 
-def _fill_gaps(frames: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """Rows for every frame frames[0] .. frames[-1], holding the last written row in gaps.
+def regular_rows(times_s: np.ndarray, fps: float) -> np.ndarray:
+    """Which row each frame of a regular grid at ``fps`` from times_s[0] to times_s[-1] holds:
+    the latest row whose time is at or before the grid time plus half a grid step (so a time
+    rounded a little late still lands on its own frame).
 
-    frames: (N,) increasing ints; values: (N, D). Returns (frames[-1] - frames[0] + 1, D).
+    times_s: (N,) increasing seconds. Returns (round((times_s[-1] - times_s[0]) fps) + 1,) ints.
     """
-    wanted = np.arange(frames[0], frames[-1] + 1)
-    return values[np.searchsorted(frames, wanted, side="right") - 1]
+    count = int(round((times_s[-1] - times_s[0]) * fps)) + 1
+    grid = times_s[0] + (np.arange(count) + 0.5) / fps
+    return np.maximum(np.searchsorted(times_s, grid, side="right") - 1, 0)
 
 
 class BVHSink:
@@ -91,7 +99,9 @@ class BVHSink:
         self.template = default_cmu_template(fps) if template is None else template
         self.min_frames = int(min_frames)
         self._root = int(np.flatnonzero(np.asarray(self.template.parents) < 0)[0])
-        self._tracks: dict[int, tuple[list[int], list[np.ndarray], list[np.ndarray]]] = {}
+        # Per track: frame indices, times (s), poses (55,) and Hips positions (3,) m.
+        self._tracks: dict[int, tuple[list[int], list[float], list[np.ndarray],
+                                      list[np.ndarray]]] = {}
         self.paths: dict[int, Path] = {}
         self._closed = False
         # The top-most folder this sink makes, removed again (if still empty) by abandon().
@@ -110,19 +120,21 @@ class BVHSink:
         return self._closed
 
     def write(self, pose: TrackedPose) -> None:
-        """Keep pose.filtered (55,) and the Hips position pose.joints_m[0] (metres) of this
-        track and frame. Frame indices of a track must increase. Raises SinkInputError on bad
-        input."""
+        """Keep pose.filtered (55,), the Hips position pose.joints_m[0] (metres) and the time
+        pose.time_s (seconds) of this track and frame. Frame indices and times of a track must
+        increase. Raises SinkInputError on bad input."""
         if self._closed:
             raise SinkInputError("BVH sink is closed")
         frame_index, track_id = pose.frame_index, pose.track_id
         filtered = check_pose("filtered55", pose.filtered)
         joints = check_joints(pose.joints_m)
-        frames, poses, roots = self._tracks.setdefault(int(track_id), ([], [], []))
-        if frames and int(frame_index) <= frames[-1]:
-            raise SinkInputError(f"track {track_id}: frame_index {frame_index} does not follow "
-                                 f"{frames[-1]}")
+        time_s = checked_time(pose.time_s)
+        frames, times, poses, roots = self._tracks.setdefault(int(track_id), ([], [], [], []))
+        if frames and (int(frame_index) <= frames[-1] or time_s <= times[-1]):
+            raise SinkInputError(f"track {track_id}: frame {frame_index} at {time_s:g} s does "
+                                 f"not follow frame {frames[-1]} at {times[-1]:g} s")
         frames.append(int(frame_index))
+        times.append(time_s)
         poses.append(filtered)
         roots.append(joints[0])
 
@@ -131,11 +143,10 @@ class BVHSink:
 
     def motion(self, track_id: int) -> Motion:
         """The Motion that close() writes for ``track_id`` (KeyError if never written)."""
-        frames, poses, roots = self._tracks[track_id]
-        frames_arr = np.asarray(frames)
-        vectors = _fill_gaps(frames_arr, np.asarray(poses))
-        root_cmu = _fill_gaps(frames_arr, np.asarray(roots)) / CMU_UNIT_M \
-            - self.template.offsets[self._root]
+        _, times, poses, roots = self._tracks[track_id]
+        rows = regular_rows(np.asarray(times), self.fps)
+        vectors = np.asarray(poses)[rows]
+        root_cmu = np.asarray(roots)[rows] / CMU_UNIT_M - self.template.offsets[self._root]
         motion = pose_vectors_to_motion(vectors, self.template, root_position=root_cmu)
         motion.fps = self.fps
         motion.source = f"{self.prefix}_{track_id}.bvh"

@@ -9,14 +9,20 @@ Layout (format version 1)::
      "fps": float,             # frames processed per second of wall time from the first frame
                               # on (start-up and background sampling not counted, unlike the
                               # speed track's summary line prints)
-     "video_fps": float, "wall_time_s": float,
+     "video_fps": float,        # the frame rate the video's container announces (frames
+                              # of a variable frame rate are not 1/video_fps apart: time_s)
+     "wall_time_s": float,
      "poses": "filtered" or "smoothed",   # what the tracks' "pose" and "heading_deg" hold:
                                           # frame by frame, or each whole track RTS-smoothed
                                           # ("fixed-lag smoothed" with track --no-smooth --lag:
                                           # tracker.fixed_lag)
                                           # (track's default for this file; --no-smooth)
      "tracks": [{"id": int, "first_frame": int, "last_frame": int, "n_frames": int,
-                 "frames": [int], "time_s": [float], "centroid_px": [[x, y]],
+                 "frames": [int],
+                 "time_s": [float],        # each frame's own time in the video, seconds
+                                           # (the container's: a variable frame rate's real
+                                           # times; tracker.video)
+                 "centroid_px": [[x, y]],
                  "heading_deg": [float],   # the poses' heading, degrees in (-180, 180]
                  "heading_norm": [float],  # norm of the RAW (cos, sin): the ambiguity measure
                                            # (the filtered one is 1 by construction)

@@ -24,7 +24,9 @@ Channels (JSON messages, JSON-schema schemas):
   Accuracy) but exists only once the video is done. Absent after a Ctrl-C's quick exit and
   with --no-smooth.
 - Metadata records (e.g. ``video``, ``model``, ``settings``) given to the constructor.
-Log and publish times are the video time in nanoseconds.
+Log and publish times, and the messages' ``time_s`` and timestamps, are each frame's own time in
+the video (the container's, so a variable frame rate keeps its real timing: tracker.video), the
+first two in nanoseconds.
 
 Crash safety: messages go into small compressed chunks (``chunk_size`` bytes, and a chunk is
 closed at least every ``flush_every_frames`` frames); every finished chunk is handed to the
