@@ -1,7 +1,7 @@
 """Ablation of the tracker's mechanisms: each one removed against all present (issue 51).
 
     python scripts/ablation.py [--videos DIR] [--json OUT] [--only NAME ...] [--skip-real]
-        [--skip-renders] [--reversed] [--bvh-dir DIR] [--trial DIR]
+        [--skip-renders] [--reversed] [--bvh-dir DIR] [--trials DIR ...]
 
 The results: docs/ablation.md.
 
@@ -43,10 +43,11 @@ as 30 deg/s spiral walks and from a fixed camera, 06_10 and 07_12 from a fixed c
 videos rendered once into --videos; --reversed: also the same motions time-reversed, i.e.
 walking backwards, in a table of their own): err53, corr8, heading RMS of the longest track, filtered
 and smoothed (sequences.measures.pose_measures), mean over videos; the noise: the standard
-error over videos of the paired difference. Real video (Pose2Sim's balancing trial, the
-four views, as scripts/evaluate_real.py measures the subject): mean over views and the four
-knee/elbow flexions of their correlation with the reference, flexion error, cross-view heading
-RMS (filtered and smoothed); the noise: standard error over views for the first two, a
+error over videos of the paired difference. Real video (Pose2Sim's balancing and swings
+trials, the four views each, as scripts/evaluate_real.py measures the subject): mean over
+views of the correlation with the reference over the 8 limb angles (both trials) and, for
+balancing, over the four knee/elbow flexions and their error; cross-view heading RMS (all
+filtered and smoothed); the noise: standard error over views for the per-view figures, a
 paired block bootstrap over frames (15-frame blocks, 2,000 draws, 95 % interval) for the
 cross-view heading.
 """
@@ -67,7 +68,7 @@ import tracker.hypotheses as hyp
 from regressor.heading_index import HeadingIndex
 from regressor.pose_model import load_pose_model
 from sequences.measures import pose_measures
-from sequences.pose2sim import DEFAULT_TRIAL
+from sequences.pose2sim import TRIALS
 from tracker.offline.pose2sim_trial import missing_trial
 from tracker.one_line_parser import OneLineParser
 from tracker.offline.evaluation import CameraOptions, cmu_motion, constant_pose, \
@@ -370,9 +371,14 @@ def run_renders(videos, model, variants, log) -> dict:
 
 # ---------------------------------------------------------------- real video
 
-def run_real(trial_dir: Path, model, variants, log) -> dict:
-    """{variant: per-view flexion measures and cross-view heading errors} on Pose2Sim's
-    balancing trial, the subject's rows chosen as scripts/evaluate_real.py chooses them."""
+def run_real(trial_dirs: list[Path], model, variants, log) -> dict:
+    """{trial name: {"measures": {variant: _real_summary}, "cpu_s"}} on Pose2Sim's trials
+    (balancing, swings), the subject's rows chosen as scripts/evaluate_real.py chooses them."""
+    return {Path(d).name: _run_trial(Path(d), model, variants, log) for d in trial_dirs}
+
+
+def _run_trial(trial_dir: Path, model, variants, log) -> dict:
+    """One Pose2Sim trial: every variant's _real_summary and CPU seconds."""
     from sequences.pose2sim import VIEWS
     from tracker.offline.pose2sim_trial import checked_trial
     real = _load_script("evaluate_real")
@@ -397,7 +403,7 @@ def run_real(trial_dir: Path, model, variants, log) -> dict:
                 subject[view] = (track.frames[rows], track.filtered[rows], track.smoothed[rows])
         results[v.name] = _real_summary(trial, per_view, subject)
         seconds[v.name] += time.process_time() - clock
-        log(f"real {v.name}: " + json.dumps(
+        log(f"{trial_dir.name} {v.name}: " + json.dumps(
             {kind: {k: val for k, val in m.items() if not k.startswith("_")}
              for kind, m in results[v.name].items()}))
     return {"measures": results, "cpu_s": seconds}
@@ -428,7 +434,9 @@ def _real_summary(trial, per_view: dict, subject: dict) -> dict:
     for kind in ("filtered", "smoothed"):
         corr = [float(np.nanmean(per_view[v][kind]["flexion"]["corr_per_angle"])) for v in views]
         err = [float(per_view[v][kind]["flexion"]["error"]) for v in views]
-        out[kind] = {"flex_corr": corr, "flex_err": err,
+        limbs = [float(np.nanmean(per_view[v][kind]["limbs"]["corr_per_angle"]))
+                 for v in views]
+        out[kind] = {"flex_corr": corr, "flex_err": err, "limb8_corr": limbs,
                      "flex_corr_per_angle": np.mean([per_view[v][kind]["flexion"]
                                                      ["corr_per_angle"] for v in views],
                                                     axis=0).tolist()}
@@ -488,8 +496,10 @@ def block_bootstrap_rms(base: np.ndarray, other: np.ndarray, block: int = BLOCK_
 def main(argv=None) -> int:
     ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--videos", type=Path, default=Path("/work/cache/ablation/videos"))
-    ap.add_argument("--bvh-dir", type=Path, default=DEFAULT_TRIAL.parents[2] / "cmu" / "bvh")
-    ap.add_argument("--trial", type=Path, default=DEFAULT_TRIAL)
+    ap.add_argument("--bvh-dir", type=Path,
+                    default=TRIALS["balancing"].parents[1] / "cmu" / "bvh")
+    ap.add_argument("--trials", type=Path, nargs="+", default=list(TRIALS.values()),
+                    help="Pose2Sim trial folders (default balancing and swings)")
     ap.add_argument("--json", type=Path, default=Path("/work/cache/ablation/ablation.json"))
     ap.add_argument("--only", nargs="+", choices=[v.name for v in VARIANTS[1:]])
     ap.add_argument("--skip-real", action="store_true")
@@ -497,8 +507,9 @@ def main(argv=None) -> int:
     ap.add_argument("--reversed", action="store_true",
                     help="also the 12 renders time-reversed (backward walks), a table of their own")
     args = ap.parse_args(argv)
-    if not args.skip_real and missing_trial(args.trial):
-        ap.error(missing_trial(args.trial))
+    for trial in [] if args.skip_real else args.trials:
+        if missing_trial(trial):
+            ap.error(missing_trial(trial))
     if not args.skip_renders and not args.bvh_dir.is_dir():
         ap.error(f"--bvh-dir {args.bvh_dir}: no such folder (the CMU BVH files)")
     if args.videos.exists() and not args.videos.is_dir():
@@ -515,7 +526,7 @@ def main(argv=None) -> int:
                 videos += render_videos(args.bvh_dir, args.videos, reverse=True)
             out["renders"] = run_renders(videos, model, variants, log)
         if not args.skip_real:
-            out["real"] = run_real(args.trial, model, variants, log)
+            out["real"] = run_real(args.trials, model, variants, log)
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(out, indent=1, default=_jsonable))
     print(format_table(out))
@@ -557,6 +568,41 @@ def _render_table(title: str, r: dict, names: list, videos: list) -> list[str]:
     return lines + [""]
 
 
+#: The real trials' columns: (key, label, format); flexion only for balancing (swings' brief
+#: is the 8 limb angles), cross-view heading for both.
+REAL_COLUMNS = {"balancing": (("flex_corr", "flex corr", ".3f"), ("flex_err", "flex err", ".1f"),
+                              ("limb8_corr", "8-angle corr", ".3f"), ("cross", "cross head", "")),
+                "swings": (("limb8_corr", "8-angle corr", ".3f"), ("cross", "cross head", ""))}
+
+
+def _real_table(trial: str, r: dict, names: list) -> list[str]:
+    """One Pose2Sim trial's table: present -> removed (difference +- standard error over the
+    4 views; cross-view heading: the 95 % block-bootstrap interval of the difference)."""
+    columns = REAL_COLUMNS.get(trial, REAL_COLUMNS["swings"])
+    head = [f"{label} {kind[:6]}" for kind in ("filtered", "smoothed") for _, label, _ in columns]
+    lines = [f"Pose2Sim {trial} (4 views; present -> removed (difference +- standard error over "
+             "views; cross-view heading RMS: 95 % block-bootstrap interval of the difference)):",
+             "", "| removed | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
+    for n in names:
+        cells = []
+        for kind in ("filtered", "smoothed"):
+            for key, _, fmt in columns:
+                if key != "cross":
+                    a, b, d, se = paired(r["present"][kind][key], r[n][kind][key])
+                    cells.append(f"{a:{fmt}} -> {b:{fmt}} ({d:+{fmt}} +- {se:{fmt}})")
+                    continue
+                base = np.asarray(r["present"][kind]["_cross_errors"])
+                other = np.asarray(r[n][kind]["_cross_errors"])
+                a, b = r["present"][kind]["cross_heading"], r[n][kind]["cross_heading"]
+                if base.shape == other.shape:
+                    lo, hi = block_bootstrap_rms(base, other)
+                    cells.append(f"{a:.1f} -> {b:.1f} [{lo:+.1f}, {hi:+.1f}]")
+                else:
+                    cells.append(f"{a:.1f} -> {b:.1f} (other frames)")
+        lines.append(f"| {n} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def format_table(out: dict) -> str:
     """The markdown table: one row per variant, each measure as present -> removed (the
     difference and its noise)."""
@@ -572,35 +618,15 @@ def format_table(out: dict) -> str:
                 ("All renders, forward and time-reversed", every)):
             if videos and (title[0] != "A" or len(videos) > 12):
                 lines += _render_table(title, r, names, videos)
-    if "real" in out:
-        r = out["real"]["measures"]
-        lines += ["Pose2Sim balancing (4 views; present -> removed (difference +- standard "
-                  "error over views; cross-view heading: 95 % block-bootstrap interval of the "
-                  "difference)):", "",
-                  "| removed | flex corr filt | flex err filt | cross head filt | "
-                  "flex corr smooth | flex err smooth | cross head smooth |",
-                  "|---|---|---|---|---|---|---|"]
-        for n in names:
-            cells = []
-            for kind in ("filtered", "smoothed"):
-                for key, fmt in (("flex_corr", ".3f"), ("flex_err", ".1f")):
-                    a, b, d, se = paired(r["present"][kind][key], r[n][kind][key])
-                    cells.append(f"{a:{fmt}} -> {b:{fmt}} ({d:+{fmt}} +- {se:{fmt}})")
-                base = np.asarray(r["present"][kind]["_cross_errors"])
-                other = np.asarray(r[n][kind]["_cross_errors"])
-                a, b = r["present"][kind]["cross_heading"], r[n][kind]["cross_heading"]
-                if base.shape == other.shape:
-                    lo, hi = block_bootstrap_rms(base, other)
-                    cells.append(f"{a:.1f} -> {b:.1f} [{lo:+.1f}, {hi:+.1f}]")
-                else:
-                    cells.append(f"{a:.1f} -> {b:.1f} (other frames)")
-            lines.append(f"| {n} | " + " | ".join(cells) + " |")
-    for part in ("renders", "real"):
-        if part in out:
-            cpu = out[part]["cpu_s"]
-            lines.append(f"\nCPU seconds ({part}): capture (``track`` once per video) "
-                         f"{cpu['capture']:.0f}; replays " + ", ".join(
-                             f"{k} {v:.0f}" for k, v in cpu.items() if k != "capture"))
+    for trial, result in out.get("real", {}).items():
+        lines += _real_table(trial, result["measures"], names)
+    parts = ([("renders", out["renders"])] if "renders" in out else []) + list(
+        out.get("real", {}).items())
+    for part, result in parts:
+        cpu = result["cpu_s"]
+        lines.append(f"\nCPU seconds ({part}): capture (``track`` once per video) "
+                     f"{cpu['capture']:.0f}; replays " + ", ".join(
+                         f"{k} {v:.0f}" for k, v in cpu.items() if k != "capture"))
     return "\n".join(lines)
 
 
