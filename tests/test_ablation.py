@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 import tracker.hypotheses as hyp
 from regressor.heading_index import HeadingIndex
@@ -49,7 +50,14 @@ def _walker(T=45):
 
 
 @pytest.fixture(scope="module")
-def captured(tmp_path_factory):
+def one_thread():
+    """Small matrices: BLAS threads cost far more than they save (as the script runs)."""
+    with threadpool_limits(1):
+        yield
+
+
+@pytest.fixture(scope="module")
+def captured(tmp_path_factory, one_thread):
     path = tmp_path_factory.mktemp("ablation") / "walk.mp4"
     write_video(path, [Actor(_walker())], size=(240, 320), noise_sigma=2.0, seed=5)
     model = load_pose_model()
