@@ -127,8 +127,10 @@ VARIANTS = (
     Variant("stacking", "the per-frame model (k = 1; a single RVM: no layout, mixture, limb "
             "networks or side classifier either)", mirror=False, describe=True),
 )
-#: The removals docs/ablation.md recommends, all at once (they may interact), and the same
-#: without the ambiguity inflation's (the one borderline among them).
+#: Removals together (they may interact): "recommended", the ones inside the noise on the
+#: 12 forward renders (travel's removal takes its memory with it); and
+#: "recommended_keep_ambiguity", the same without the ambiguity inflation's, which the
+#: time-reversed renders keep: the set docs/ablation.md recommends.
 RECOMMENDED_REMOVALS = ("ambiguity", "heading_index", "raw_side", "switch", "imm", "travel")
 VARIANTS += (Variant("recommended", "all of " + ", ".join(RECOMMENDED_REMOVALS) + " at once",
                      parts=RECOMMENDED_REMOVALS),
@@ -504,9 +506,16 @@ def main(argv=None) -> int:
     ap.add_argument("--only", nargs="+", choices=[v.name for v in VARIANTS[1:]])
     ap.add_argument("--skip-real", action="store_true")
     ap.add_argument("--skip-renders", action="store_true")
+    ap.add_argument("--from-json", type=Path, metavar="JSON",
+                    help="print the tables of an earlier run's --json, run nothing")
     ap.add_argument("--reversed", action="store_true",
                     help="also the 12 renders time-reversed (backward walks), a table of their own")
     args = ap.parse_args(argv)
+    if args.from_json is not None:
+        if not args.from_json.is_file():
+            ap.error(f"--from-json {args.from_json}: no such file")
+        print(format_table(json.loads(args.from_json.read_text())))
+        return 0
     for trial in [] if args.skip_real else args.trials:
         if missing_trial(trial):
             ap.error(missing_trial(trial))
@@ -603,10 +612,51 @@ def _real_table(trial: str, r: dict, names: list) -> list[str]:
     return lines + [""]
 
 
+def summary_table(out: dict) -> list[str]:
+    """One row per variant: the difference removed - present of the headline measures with
+    its noise (renders: +- standard error over all renders; real: over the 4 views, and the
+    95 % block-bootstrap interval for the cross-view heading)."""
+    names = [n for n in out["variants"] if n != "present"]
+    cols, rows = [], {n: [] for n in names}
+    if "renders" in out:
+        r = out["renders"]["measures"]
+        videos = list(r["present"])
+        for kind, key, fmt in (("filtered", "err53", ".2f"), ("filtered", "corr8", ".3f"),
+                               ("filtered", "head", ".1f"), ("smoothed", "corr8", ".3f"),
+                               ("smoothed", "head", ".1f")):
+            cols.append(f"renders {key} {kind[:6]}")
+            for n in names:
+                _, _, d, se = paired([r["present"][v][kind][key] for v in videos],
+                                     [r[n][v][kind][key] for v in videos])
+                rows[n].append(f"{d:+{fmt}} +- {se:{fmt}}")
+    for trial, result in out.get("real", {}).items():
+        r = result["measures"]
+        keys = ((("flex_corr", ".3f"), ("flex_err", ".1f")) if trial == "balancing"
+                else (("limb8_corr", ".3f"),))
+        for key, fmt in keys:
+            cols.append(f"{trial} {key} filt")
+            for n in names:
+                _, _, d, se = paired(r["present"]["filtered"][key], r[n]["filtered"][key])
+                rows[n].append(f"{d:+{fmt}} +- {se:{fmt}}")
+        cols.append(f"{trial} cross head filt")
+        for n in names:
+            base = np.asarray(r["present"]["filtered"]["_cross_errors"])
+            other = np.asarray(r[n]["filtered"]["_cross_errors"])
+            d = r[n]["filtered"]["cross_heading"] - r["present"]["filtered"]["cross_heading"]
+            lo, hi = block_bootstrap_rms(base, other) if base.shape == other.shape \
+                else (np.nan, np.nan)
+            rows[n].append(f"{d:+.1f} [{lo:+.1f}, {hi:+.1f}]")
+    return (["Removed - present (renders: all of them, +- standard error over videos; real: "
+             "+- standard error over views, cross-view heading RMS with its 95 % "
+             "block-bootstrap interval):", "", "| removed | " + " | ".join(cols) + " |",
+             "|---" * (len(cols) + 1) + "|"]
+            + [f"| {n} | " + " | ".join(rows[n]) + " |" for n in names] + [""])
+
+
 def format_table(out: dict) -> str:
-    """The markdown table: one row per variant, each measure as present -> removed (the
-    difference and its noise)."""
-    lines = []
+    """The markdown tables: the summary (summary_table), then per set of videos one row per
+    variant, each measure as present -> removed (the difference and its noise)."""
+    lines = summary_table(out)
     names = [n for n in out["variants"] if n != "present"]
     if "renders" in out:
         r = out["renders"]["measures"]
