@@ -41,8 +41,8 @@ patched for the replay only):
 Measures. Validation renders (the model's validation trials 02_02, 08_03, 05_02, 09_04, 02_05
 as 30 deg/s spiral walks and from a fixed camera, 06_10 and 07_12 from a fixed camera; 12
 videos rendered once into --videos; --reversed: also the same motions time-reversed, i.e.
-walking backwards, in a table of their own): err53, corr8, heading RMS of the longest track, filtered
-and smoothed (sequences.measures.pose_measures), mean over videos; the noise: the standard
+walking backwards, in a table of their own): err53, corr8, heading RMS of the longest track,
+filtered and smoothed (sequences.measures.pose_measures), mean over videos; the noise: the standard
 error over videos of the paired difference. Real video (Pose2Sim's balancing and swings
 trials, the four views each, as scripts/evaluate_real.py measures the subject): mean over
 views of the correlation with the reference over the 8 limb angles (both trials) and, for
