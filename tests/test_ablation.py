@@ -1,0 +1,100 @@
+"""scripts/ablation.py: the default variant's replay is the ``track`` run itself, every
+variant's toggle changes the tracker's output, and the toggles leave nothing changed after."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+import tracker.hypotheses as hyp
+from regressor.heading_index import HeadingIndex
+from regressor.pose_model import load_pose_model
+from sequences.video import Actor, write_video
+from tests.conftest import ROOT
+from tests.synthetic import cmu_motion
+from tracker.travel import TravelDirection
+
+
+
+def _load():
+    """scripts/ablation.py as a module, registered (its dataclasses need that)."""
+    import importlib.util
+    import sys
+    spec = importlib.util.spec_from_file_location("ablation", ROOT / "scripts" / "ablation.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["ablation"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+ablation = _load()
+
+
+def _walker(T=45):
+    """A walk along +X, legs and arms swinging at 1 Hz, the body turning 300 degrees over the
+    clip (through both profiles, facing the camera and away: every mechanism has work)."""
+    from sequences.skeleton import CMU_JOINT_NAMES
+    J = len(CMU_JOINT_NAMES)
+    euler = np.zeros((T, J, 3))
+    phase = np.arange(T) * 2 * np.pi / 30
+    for name, amp in (("LeftUpLeg", 30), ("RightUpLeg", -30), ("LeftArm", -25),
+                      ("RightArm", 25)):
+        euler[:, CMU_JOINT_NAMES.index(name), 2] = amp * np.sin(phase)
+    for name, amp in (("LeftLeg", 40), ("RightLeg", 40)):
+        euler[:, CMU_JOINT_NAMES.index(name), 2] = amp * np.maximum(0, np.sin(phase + 1.0))
+    for name, z in (("LeftArm", -70), ("RightArm", 70)):
+        euler[:, CMU_JOINT_NAMES.index(name), 0] = z
+    euler[:, 0, 1] = np.linspace(-60.0, 240.0, T)
+    root = np.column_stack([0.5 * np.arange(T), np.full(T, 17.0), np.zeros(T)])
+    return cmu_motion(euler, root, fps=30.0, source="walker")
+
+
+@pytest.fixture(scope="module")
+def one_thread():
+    """Small matrices: BLAS threads cost far more than they save (as the script runs)."""
+    with threadpool_limits(1):
+        yield
+
+
+@pytest.fixture(scope="module")
+def captured(tmp_path_factory, one_thread):
+    path = tmp_path_factory.mktemp("ablation") / "walk.mp4"
+    write_video(path, [Actor(_walker())], size=(240, 320), noise_sigma=2.0, seed=5)
+    model = load_pose_model()
+    return model, ablation.capture(path, model)
+
+
+def _outputs(poses, smoothed):
+    return (np.array([p.raw for p in poses]), np.array([p.filtered for p in poses]),
+            np.concatenate([smoothed[t] for t in sorted(smoothed)]))
+
+
+def test_the_default_variant_replays_the_track_run_exactly(captured):
+    model, cap = captured
+    assert len(cap.poses) > 30
+    with ablation.applied(ablation.BY_NAME["present"], model) as (m, settings):
+        assert m is model
+        poses, smoothed = ablation.replay(cap, m, settings)
+    assert [(p.frame_index, p.track_id) for p in poses] == \
+        [(p.frame_index, p.track_id) for p in cap.poses]
+    for mine, theirs in zip(_outputs(poses, smoothed), _outputs(cap.poses, cap.smoothed)):
+        np.testing.assert_allclose(mine, theirs, atol=1e-9)
+
+
+def test_every_toggle_changes_the_output_and_is_undone(captured):
+    model, cap = captured
+    saved = (hyp.canonical_hypotheses, hyp.transition_matrix, hyp.members_over_time,
+             HeadingIndex.apply, TravelDirection.push, model.canonical_priors,
+             model.limb_net, model.side_classifier)
+    with ablation.applied(ablation.BY_NAME["present"], model) as (m, settings):
+        base = _outputs(*ablation.replay(cap, m, settings))
+    for variant in ablation.VARIANTS[1:]:
+        with ablation.applied(variant, model) as (m, settings):
+            out = _outputs(*ablation.replay(cap, m, settings, variant.mirror,
+                                            variant.describe))
+        changed = [a.shape != b.shape or not np.allclose(a, b, atol=1e-6)
+                   for a, b in zip(base, out)]
+        assert any(changed), variant.name
+    assert saved == (hyp.canonical_hypotheses, hyp.transition_matrix, hyp.members_over_time,
+                     HeadingIndex.apply, TravelDirection.push, model.canonical_priors,
+                     model.limb_net, model.side_classifier)
