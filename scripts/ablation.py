@@ -23,7 +23,6 @@ patched for the replay only):
   side_classifier no side classifier evidence (its table flat at its overall rate)
   raw_side        no main-head side evidence (the raw-side table flat)
   switch          no learned switch probabilities (every transition 0.5)
-  imm             one constant-velocity heading filter instead of the two-model IMM
   travel          no direction of travel (no travel evidence, no fusion)
   travel_memory   travel with the population prior on every frame (no per-track belief)
   mirror          no mirror-image averaging of the limbs
@@ -114,8 +113,6 @@ VARIANTS = (
     Variant("side_classifier", "no side-classifier evidence (table flat)"),
     Variant("raw_side", "no main-head side evidence (raw-side table flat)"),
     Variant("switch", "switch probabilities 0.5 (no learned switching)"),
-    Variant("imm", "one constant-velocity heading filter, no IMM",
-            {"heading_models": ()}),
     Variant("travel", "no direction of travel (no evidence, no fusion)"),
     Variant("travel_memory", "population (facing - travel) prior every frame",
             {"travel_offset_memory": False}),
@@ -131,7 +128,7 @@ VARIANTS = (
 #: 12 forward renders (travel's removal takes its memory with it); and
 #: "recommended_keep_ambiguity", the same without the ambiguity inflation's, which the
 #: time-reversed renders keep: the set docs/ablation.md recommends.
-RECOMMENDED_REMOVALS = ("ambiguity", "heading_index", "raw_side", "switch", "imm", "travel")
+RECOMMENDED_REMOVALS = ("ambiguity", "heading_index", "raw_side", "switch", "travel")
 VARIANTS += (Variant("recommended", "all of " + ", ".join(RECOMMENDED_REMOVALS) + " at once",
                      parts=RECOMMENDED_REMOVALS),
              Variant("recommended_keep_ambiguity", "the same but the ambiguity inflation kept",

@@ -26,7 +26,6 @@ from regressor.stacking import FrameStacker, stack_step
 from .association import MAX_OCCLUDED_S, Associator
 from .roll import upright_mask
 from .filtering import PoseKalmanFilter
-from .imm_filter import DEFAULT_SWITCH, TURN_AND_STOP, HeadingModel, IMMPoseFilter
 from .hypotheses import FrontBackTracker, chain_options, propose_batch
 from .mirror_limbs import sees_mirror
 from .silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
@@ -43,12 +42,6 @@ LIMB_R_SCALE = 0.1
 #: Multiplies the model's heading process noise: the model's q is dominated by a few pirouettes
 #: in the training motion, so the filter followed confident misreadings (docs/tuning.md).
 HEADING_Q_SCALE = 0.01
-
-#: The front/back chain's filters follow the heading with two models mixed as an IMM
-#: (tracker.imm_filter): constant velocity, and one that forgets the turning rate over 0.3 s,
-#: so a turn that stops is overshot less (docs/tuning.md). () or one model: a plain filter.
-HEADING_MODELS: tuple = TURN_AND_STOP
-HEADING_SWITCH = DEFAULT_SWITCH
 
 #: The joints' R inflation on ambiguous frames: the main head averages a silhouette's two
 #: bodies there; a model that gives canonical pairs (one body per frame) needs less.
@@ -67,9 +60,7 @@ class TrackerSettings:
     ambiguous_joint_factor: R inflation on ambiguous frames (PoseKalmanFilter; None for the
     joints = the estimator's, :meth:`joint_factor`). r_scale, q_scale: multiply the model's
     measurement covariance R and process noise q; heading_q_scale further multiplies the
-    heading's q. heading_models, heading_switch: the IMM heading models of the front/back
-    chain's filters and their switch probability per frame at 30 fps (one or none: a plain
-    PoseKalmanFilter). limb_r_scale: further multiplies R for the body angles' filter.
+    heading's q. limb_r_scale: further multiplies R for the body angles' filter.
     roll_deg: the camera's roll, degrees clockwise (silhouettes are turned upright first).
     background_samples: frames spread over the video for the median background. fov_deg: the
     horizontal field of view assumed for the focal length. keep_history: keep every track's
@@ -91,8 +82,6 @@ class TrackerSettings:
     r_scale: float = 1.0
     q_scale: float = 1.0
     heading_q_scale: float = HEADING_Q_SCALE
-    heading_models: tuple[HeadingModel, ...] = HEADING_MODELS
-    heading_switch: float = HEADING_SWITCH
     limb_r_scale: float = LIMB_R_SCALE
     roll_deg: float = 0.0
     background_samples: int = 25
@@ -125,7 +114,7 @@ def kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
                    ) -> Callable[[float], PoseKalmanFilter]:
     """The default filter factory: fps -> a PoseKalmanFilter with the estimator's noise models
     (scaled by settings.r_scale / q_scale / heading_q_scale) and the settings' ambiguity
-    handling; an IMMPoseFilter with settings.heading_models where there are two or more."""
+    handling."""
     q = np.broadcast_to(np.asarray(estimator.process_noise, float) * settings.q_scale,
                         (N_ANGLES,)).copy()
     q[0] *= settings.heading_q_scale
@@ -136,9 +125,6 @@ def kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
                   ambiguous_joint_factor=settings.joint_factor(estimator))
 
     def make(fps: float) -> PoseKalmanFilter:
-        if len(settings.heading_models) > 1:
-            return IMMPoseFilter(fps, models=settings.heading_models,
-                                 switch=settings.heading_switch, **kwargs)
         return PoseKalmanFilter(fps, **kwargs)
     return make
 
@@ -147,8 +133,7 @@ def limb_kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
                         ) -> Callable[[float], PoseKalmanFilter]:
     """fps -> the PoseKalmanFilter of the output's body angles: kalman_factory's with R
     further scaled by settings.limb_r_scale (LIMB_R_SCALE)."""
-    # Its heading is not used (the body angles only), so it needs no heading models.
-    return kalman_factory(estimator, replace(settings, heading_models=(),
+    return kalman_factory(estimator, replace(settings,
                                              r_scale=settings.r_scale * settings.limb_r_scale))
 
 
