@@ -1,32 +1,15 @@
-"""The body's heading by nearest neighbours among training silhouettes, up to front/back.
+"""Nearest neighbours among the training rows, in the regressor's own projected input space.
 
-The mixture's experts regress the heading's (cos, sin) with the limbs, by ridge regression
-over kernel features; on rendered videos their heading, folded so that front/back cannot
-count (:func:`fold_heading_deg`), is off by 19-41 degrees RMS. The median folded heading of
-the 20 nearest training rows (in the regressor's own projected input space) is off by 11-26
-(issue 10, validation videos): a silhouette's heading is a local property that kernel
-ridge smooths over, the paper's own data tells the same (3 nearest neighbours beat every
-kernel regressor there).
+The model file keeps a sample of training rows' inputs and their headings, folded so that
+front/back cannot count (:func:`fold_heading_deg`: of h and its partner 180 - h, the one within
+90 degrees of facing the camera). ``track`` uses it for each frame's novelty (how far its input
+lies from the training rows', :meth:`HeadingIndex.novelty`).
 
-Front and back look alike, so neighbours vote on the folded heading only: of a heading h and
-its front/back partner 180 - h (sequences.pose_vector.front_back_flip), the one within 90
-degrees of facing the camera. The regressor's own hypotheses keep deciding the side (and the
-tracker's front/back chain chooses among them); :meth:`HeadingIndex.apply` gives each
-hypothesis the neighbours' heading on its own side and keeps its (cos, sin) norm, the
-ambiguity measure.
-
-Only away from profile (folded heading within ``limit_deg`` of facing the camera or its back).
-Near profile, h and 180 - h are both near 90 degrees: with the neighbours' heading there the
-front/back chain's two hypotheses carry the same heading and the limb member it picks by the
-decided heading's side (tracker.hypotheses.pick_member) turns into a coin toss (validation
-videos through ``track``, filtered corr8 0.396 -> 0.365 applied everywhere); the regressor's
-own heading keeps its side there. The limit was chosen on the five validation videos (02_02,
-08_03, 05_02, 09_04, 02_05; an index of 20,000 rows, 50 components, k = 20), filtered /
-smoothed heading RMS mean and corr8: without 30.9 / 32.7, 0.396; limit 30 27.8 / 25.2, 0.390;
-45 28.6 / 25.0, 0.391; 60 30.1 / 28.1, 0.392; everywhere 30.6 / 28.5, 0.365. The shipped model
-keeps 16,000 rows (its file stays under 10 MB): 27.9 / 25.0, 0.392; with the rule that most
-neighbours, not only their median, must be within the limit (:meth:`HeadingIndex.apply`)
-28.0 / 25.1, 0.392 (2026-12-02).
+Its neighbours' median folded heading once replaced the experts' heading away from profile.
+With canonical hypotheses (the limb networks' member and its flip, tracker.hypotheses) the
+experts' pose only lends the front/back chain its side, which that replacement kept, so it
+changed no output (docs/ablation.md) and was removed; ``limit_deg`` stays in model files for
+compatibility. The history of the heading index: docs/tuning.md, "regressor/heading_index.py".
 """
 from __future__ import annotations
 
@@ -51,20 +34,12 @@ def fold_heading_deg(heading_deg) -> np.ndarray:
     return np.where(np.abs(h) <= 90.0, h, np.copysign(180.0, h) - h)
 
 
-def unfold_heading_deg(folded_deg, side_deg) -> np.ndarray:
-    """The member of {folded, 180 - folded} on the same side (front: |h| <= 90, or back) as
-    side_deg; degrees in (-180, 180], broadcast shapes."""
-    f = np.asarray(folded_deg, dtype=np.float64)
-    back = np.abs(wrap_deg(np.asarray(side_deg, dtype=np.float64))) > 90.0
-    return wrap_deg(np.where(back, np.copysign(180.0, f) - f, f))
-
-
 @dataclass
 class HeadingIndex:
     """Training rows for the nearest-neighbour heading: inputs (R, P) the rows' regressor
     inputs (the projected stacked descriptors, first P principal components), folded_deg (R,)
-    their folded headings (degrees), k neighbours per query, limit_deg: the index's heading is
-    used where its folded value is within limit_deg of 0 (module docstring)."""
+    their folded headings (degrees), k neighbours per query; limit_deg: kept in model files,
+    no longer used (module docstring)."""
 
     inputs: np.ndarray
     folded_deg: np.ndarray
@@ -179,32 +154,6 @@ class HeadingIndex:
     def folded(self, X: np.ndarray) -> np.ndarray:
         """The median folded heading (N,) degrees of each row's k nearest training rows."""
         return np.median(self.neighbours(X), axis=1)
-
-    def apply(self, poses: np.ndarray, X: np.ndarray) -> np.ndarray:
-        """Pose vectors (N, 55) or (N, m, 55) for the regressor inputs X (N, >= P), each given
-        the neighbours' median heading on its own side where most neighbours are within
-        limit_deg of facing the camera or its back (else left as it is); norms kept; a new
-        array. "Most neighbours", not only the median: neighbours split between left and
-        right profile (near +90 and -90) have a median near 0 that none of them supports."""
-        near = self.neighbours(X)
-        folded = np.median(near, axis=1)
-        facing = (np.abs(folded) < self.limit_deg) \
-            & ((np.abs(near) < self.limit_deg).mean(axis=1) > 0.5)
-        out = with_heading(poses, folded)
-        out[~facing] = np.asarray(poses, dtype=np.float64)[~facing]
-        return out
-
-
-def with_heading(poses: np.ndarray, folded_deg: np.ndarray) -> np.ndarray:
-    """Pose vectors (N, ..., 55) whose heading is folded_deg (N,) unfolded to each pose's own
-    side, with each pose's (cos, sin) norm kept; a new array."""
-    out = np.array(poses, dtype=np.float64, copy=True)
-    norm = np.hypot(out[..., 0], out[..., 1])
-    side = np.degrees(np.arctan2(out[..., 1], out[..., 0]))
-    f = np.reshape(folded_deg, (-1,) + (1,) * (out.ndim - 2))
-    h = np.radians(unfold_heading_deg(f, side))
-    out[..., 0], out[..., 1] = norm * np.cos(h), norm * np.sin(h)
-    return out
 
 
 def build_heading_index(inputs: np.ndarray, heading_deg: np.ndarray, rows: int, dims: int,

@@ -34,9 +34,7 @@ training rows (:attr:`PoseModel.limb_net`; a model carries a limb head or a limb
 both).
 
 A mixture model may also carry a heading index (regressor.heading_index.HeadingIndex): training
-rows' projected inputs and folded headings; its nearest neighbours' heading replaces the
-experts' away from profile (the experts' is off by 19-41 degrees folded RMS on the validation
-videos, the neighbours' by 11-26).
+rows' projected inputs and folded headings, whose nearest neighbours give each frame's novelty.
 """
 from __future__ import annotations
 
@@ -127,7 +125,7 @@ class PoseModel:
     limb_head: a mixture's canonical limb head (:class:`LimbHead`, :meth:`predict_limbs`), or
     None. limb_net: a mixture's limb network (regressor.limb_net.LimbNet), used for the limbs
     instead of a limb head (a model has one or neither), or None. heading_index: a mixture's
-    nearest-neighbour heading (module docstring), or None. side_classifier: a mixture's
+    sample of training rows for novelty (module docstring), or None. side_classifier: a mixture's
     front/back side classifier (regressor.side_classifier.SideClassifier; needs limbs: the
     tracker weighs the limbs' canonical member against its flip with it), or None.
     canonical_priors: with a side classifier, how far the tracker trusts that weighing
@@ -231,16 +229,13 @@ class PoseModel:
         return self.predict_batch(np.asarray(stacked, dtype=np.float64)[None])[0]
 
     def predict_batch(self, stacked: np.ndarray) -> np.ndarray:
-        """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D) (with a heading
-        index, its heading where it applies: the regressor's output as the tracker gets it)."""
+        """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D)."""
         return self._regress(self._stacked(stacked))
 
     def _regress(self, X: np.ndarray) -> np.ndarray:
         """Raw poses (N, 55) from the regressor's input (N, input_length) (:meth:`_stacked`)."""
         if self.mixture is not None:
             Y = self.mixture.predict(X)
-            if self.heading_index is not None:
-                Y = self.heading_index.apply(Y, X)
         elif self.basis == "gaussian":
             Y = gaussian_design(X, self.centres, self.width) @ self.coef + self.intercept
         else:
@@ -350,8 +345,6 @@ class PoseModel:
             return self._regress(X)[:, None], np.ones((len(X), 1)), None
         gate = self.mixture.predict_proba(X)
         poses, prob = self.mixture.predict_hypotheses(X, m, proba=gate)
-        if self.heading_index is not None:
-            poses = self.heading_index.apply(poses, X)
         poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
         limbs = self._limbs(X, gate) if with_limbs and self.has_limbs else None
         return poses, prob, limbs

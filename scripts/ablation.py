@@ -19,7 +19,6 @@ patched for the replay only):
   ambiguity       no R inflation on ambiguous frames (heading and joints factor 1)
   flips           no front/back flip hypotheses: one hypothesis per frame, the member or its
                   flip by that frame's own evidence (side classifier and raw side), no chain
-  heading_index   the experts' own heading (no nearest-neighbour heading)
   side_classifier no side classifier evidence (its table flat at its overall rate)
   raw_side        no main-head side evidence (the raw-side table flat)
   switch          no learned switch probabilities (every transition 0.5)
@@ -64,7 +63,6 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 import tracker.hypotheses as hyp
-from regressor.heading_index import HeadingIndex
 from regressor.pose_model import load_pose_model
 from sequences.measures import pose_measures
 from sequences.pose2sim import TRIALS
@@ -109,7 +107,6 @@ VARIANTS = (
     Variant("ambiguity", "no R inflation on ambiguous frames (factors 1)",
             {"ambiguous_heading_factor": 1.0, "ambiguous_joint_factor": 1.0}),
     Variant("flips", "one hypothesis a frame (member or flip by its own evidence), no chain"),
-    Variant("heading_index", "the experts' own heading, no nearest-neighbour index"),
     Variant("side_classifier", "no side-classifier evidence (table flat)"),
     Variant("raw_side", "no main-head side evidence (raw-side table flat)"),
     Variant("switch", "switch probabilities 0.5 (no learned switching)"),
@@ -128,7 +125,7 @@ VARIANTS = (
 #: 12 forward renders (travel's removal takes its memory with it); and
 #: "recommended_keep_ambiguity", the same without the ambiguity inflation's, which the
 #: time-reversed renders keep: the set docs/ablation.md recommends.
-RECOMMENDED_REMOVALS = ("ambiguity", "heading_index", "raw_side", "switch", "travel")
+RECOMMENDED_REMOVALS = ("ambiguity", "raw_side", "switch", "travel")
 VARIANTS += (Variant("recommended", "all of " + ", ".join(RECOMMENDED_REMOVALS) + " at once",
                      parts=RECOMMENDED_REMOVALS),
              Variant("recommended_keep_ambiguity", "the same but the ambiguity inflation kept",
@@ -161,10 +158,6 @@ def _transition_matrix(original):
     return matrix
 
 
-def _keep_heading(self, poses, X):
-    return np.array(poses, dtype=np.float64, copy=True)
-
-
 @contextlib.contextmanager
 def applied(variant: Variant, model):
     """Within the block: (the model, TrackerSettings) the variant tracks with. Module patches
@@ -188,8 +181,6 @@ def _removed(name: str, model, patch):
     if name == "flips":
         patch(hyp, "canonical_hypotheses", _one_hypothesis(hyp.canonical_hypotheses))
         patch(hyp, "transition_matrix", _transition_matrix(hyp.transition_matrix))
-    elif name == "heading_index":
-        patch(HeadingIndex, "apply", _keep_heading)
     elif name == "side_classifier":
         model = replace(model, canonical_priors=_flat(priors, by_front="overall"))
     elif name == "raw_side":

@@ -4,8 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from regressor.heading_index import (HeadingIndex, build_heading_index, fold_heading_deg,
-                                     unfold_heading_deg, with_heading)
+from regressor.heading_index import HeadingIndex, build_heading_index, fold_heading_deg
 from regressor.model_file import (FORMAT_VERSION, ModelFileError, checksum, load_model,
                                   save_model)
 from regressor.pose_model import PoseModelError, load_pose_model, save_pose_model
@@ -22,28 +21,9 @@ def test_fold_maps_a_heading_and_its_front_back_partner_to_one_value():
     pose = np.zeros((len(h), 55))
     pose[:, 0], pose[:, 1] = np.cos(np.radians(h)), np.sin(np.radians(h))
     np.testing.assert_allclose(fold_heading_deg(heading_deg(front_back_flip(pose))), f, atol=1e-6)
-    # Front-side headings are their own fold; back-side ones unfold back to themselves.
-    np.testing.assert_allclose(unfold_heading_deg(f, h), np.where(h == 180.0, 180.0, h), atol=1e-9)
 
 
-def test_with_heading_keeps_each_poses_side_norm_and_angles():
-    rng = np.random.default_rng(0)
-    poses = rng.normal(0, 20, (6, 2, 55))
-    h = np.array([[10.0, 170.0], [-30.0, -150.0], [80.0, 100.0], [0.0, 180.0], [45, -45],
-                  [120, 60]])
-    norm = rng.uniform(0.2, 1.2, (6, 2))
-    poses[..., 0], poses[..., 1] = norm * np.cos(np.radians(h)), norm * np.sin(np.radians(h))
-    folded = np.array([20.0, -40.0, 70.0, 5.0, 30.0, -10.0])
-    out = with_heading(poses, folded)
-    got = heading_deg(out.reshape(-1, 55)).reshape(6, 2)
-    expected = unfold_heading_deg(folded[:, None], h)
-    np.testing.assert_allclose(got, expected, atol=1e-9)
-    assert np.all((np.abs(got) <= 90) == (np.abs(h) <= 90))          # each keeps its side
-    np.testing.assert_allclose(np.hypot(out[..., 0], out[..., 1]), norm, atol=1e-12)
-    np.testing.assert_array_equal(out[..., 2:], poses[..., 2:])
-
-
-def test_index_finds_the_heading_of_nearby_training_rows_and_stays_out_of_profile():
+def test_index_finds_the_folded_heading_of_nearby_training_rows():
     rng = np.random.default_rng(1)
     # Inputs that encode the folded heading (a circle in two components) plus noise columns.
     heading = rng.uniform(-180, 180, 4000)
@@ -54,16 +34,6 @@ def test_index_finds_the_heading_of_nearby_training_rows_and_stays_out_of_profil
     query = np.radians(np.array([-40.0, -5.0, 30.0, 60.0]))
     Q = np.column_stack([np.cos(2 * query), np.sin(2 * query), np.zeros((4, 3))])
     np.testing.assert_allclose(index.folded(Q), np.degrees(query), atol=2.0)
-    # Hypotheses on both sides get the neighbours' heading on their own side within the limit
-    # (|folded| < 45); near profile (60) the regressor's own heading is kept.
-    poses = np.zeros((4, 2, 55))
-    own = np.array([[-20.0, -160.0], [0.0, 180.0], [10.0, 170.0], [75.0, 105.0]])
-    poses[..., 0], poses[..., 1] = np.cos(np.radians(own)), np.sin(np.radians(own))
-    got = heading_deg(index.apply(poses, Q).reshape(-1, 55)).reshape(4, 2)
-    np.testing.assert_allclose(got[0], [-40.0, -140.0], atol=2.0)
-    np.testing.assert_allclose(np.abs(got[1]), [5.0, 175.0], atol=2.0)
-    np.testing.assert_allclose(got[2], [30.0, 150.0], atol=2.0)
-    np.testing.assert_allclose(got[3], own[3], atol=1e-9)
 
 
 def test_bad_index_settings_are_refused():
@@ -81,22 +51,20 @@ def _indexed_model():
     return model, x
 
 
-def test_mixture_model_with_an_index_round_trips_and_uses_it(tmp_path):
+def test_mixture_model_with_an_index_round_trips_and_its_poses_are_the_experts(tmp_path):
+    """The index gives novelty only: the poses are the experts' own, index or not."""
     model, x = _indexed_model()
     poses, prob = model.predict_hypotheses(x[:30], 2)
-    model_without = _mixture_model()[0]
-    own, _ = model_without.predict_hypotheses(x[:30], 2)
-    np.testing.assert_allclose(poses[..., 2:], own[..., 2:], atol=1e-9)   # limbs untouched
-    expected = with_heading(own, model.heading_index.folded(x[:30]))
-    np.testing.assert_allclose(poses[..., :2], expected[..., :2], atol=1e-9)
-    np.testing.assert_allclose(model.predict_batch(x[:30])[:, :2], poses[:, 0, :2], atol=1e-9)
+    own, _ = _mixture_model()[0].predict_hypotheses(x[:30], 2)
+    np.testing.assert_allclose(poses, own, atol=1e-9)
+    assert np.all(np.isfinite(model.novelty(x[:30])))
     path = tmp_path / "indexed.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)
     assert loaded.heading_index is not None and loaded.heading_index.k == 5
     np.testing.assert_allclose(loaded.heading_index.folded_deg, model.heading_index.folded_deg,
                                atol=1e-4)
-    a, _ = loaded.predict_hypotheses(x[:30], 2)
+    a, _ = loaded.predict_hypotheses(x[:30], 2)       # the file keeps some parts as float16
     assert np.abs(heading_deg(a[:, 0]) - heading_deg(poses[:, 0])).max() < 1.0
 
 
@@ -134,18 +102,6 @@ def test_only_a_mixture_carries_an_index(tmp_path):
     save_model(tmp_path / "single.npz", {**raw, "heading_index_k": np.int64(3)})
     with pytest.raises(PoseModelError, match="only a mixture"):
         load_pose_model(tmp_path / "single.npz")
-
-
-def test_neighbours_split_between_left_and_right_profile_leave_the_heading_alone():
-    # Half the neighbours near +88, half near -88: the median (~0) is supported by none.
-    index = HeadingIndex(np.zeros((10, 1)), np.r_[np.full(5, 88.0), np.full(5, -88.0)], k=10)
-    assert abs(index.folded(np.zeros((1, 1)))[0]) < 45.0
-    pose = np.zeros((1, 55))
-    pose[0, 0], pose[0, 1] = np.cos(np.radians(80.0)), np.sin(np.radians(80.0))
-    np.testing.assert_array_equal(index.apply(pose, np.zeros((1, 1))), pose)
-    # The same median with most neighbours facing is applied.
-    index = HeadingIndex(np.zeros((10, 1)), np.r_[np.full(7, 10.0), np.full(3, 88.0)], k=10)
-    assert heading_deg(index.apply(pose, np.zeros((1, 1))))[0] == pytest.approx(10.0)
 
 
 def test_long_queries_go_in_blocks_with_the_same_answer():

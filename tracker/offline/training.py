@@ -758,19 +758,13 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                       projection=projection, projection_mean=projection_mean,
                       canonical_direction=direction, limb_head=limb_head,
                       limb_net=limb_net, side_classifier=side_classifier)
-    # R from the experts' own heading: its heading entry is mostly front/back confusions
-    # (which the tracker's chain, not the filter, handles); the index's heading commits to a
-    # side and would inflate it (validation videos through track: heading RMS 30.2 with that R,
-    # 27.9 with this one). The heading filter's q (tracker.pipeline.HEADING_Q_SCALE) was
-    # chosen with this R too.
-    experts_own = model.predict_batch(Xs[val_rows])
-    model.heading_index = heading_index
-    # The model's output (predict_batch with the index): the index changes the heading only.
-    predicted = (experts_own if heading_index is None
-                 else heading_index.apply(experts_own, Xin[val_rows]))
+    # R from the experts' own heading: its heading entry is mostly front/back confusions,
+    # which the tracker's chain, not the filter, handles.
+    predicted = model.predict_batch(Xs[val_rows])
+    model.heading_index = heading_index          # its neighbours give each frame's novelty
     # A canonical model's error is measured against the canonical members, as its output is
     # the chain's hypothesis, not yet the decision.
-    R, facts = measurement_noise(experts_own, truth[val_rows], options.ambiguity_threshold)
+    R, facts = measurement_noise(predicted, truth[val_rows], options.ambiguity_threshold)
     model.measurement_covariance = R
     model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
     errors = np.abs(wrap_deg(pose_angles(predicted) - pose_angles(truth[val_rows])))
