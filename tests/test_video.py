@@ -345,6 +345,14 @@ def test_a_variable_frame_rate_s_start_after_the_rate_changes_is_found_by_time(
     np.testing.assert_allclose(np.diff(times), 0.1, atol=1e-9)
 
 
+def test_background_samples_of_a_variable_rate_s_late_range_are_found_by_time():
+    """10-11.5 s of the clip: frame 300 at the announced 30 fps is past its 241 frames, so
+    sampling by frame number found nothing ('no decodable frames from 10 s on')."""
+    source = open_video(VFR_CLIP, start_s=10.0, end_s=11.5)
+    samples = source.sample_frames(5)
+    assert len(samples) == 5 and samples[0].shape == (source.height, source.width, 3)
+
+
 def test_a_seek_into_a_container_without_times_keeps_the_frames_own_times():
     """After a seek, a raw stream reports 0 ms for the frame it landed on: that is no time
     (it had been taken as one, stamping frames 24-36 with 0.48-0.96 s)."""

@@ -408,6 +408,35 @@ class VideoSource:
         """
         if self.end_index is None:
             return self._sample_through(count, size)
+        images = self._sample_by_index(count, size)
+        if not images and self.container_times and self.start_index > 0:
+            # A variable rate puts the start time at another frame than the announced rate
+            # does (or past the frames the file has): sample what iteration finds by time.
+            return self._sample_by_time(count, size)
+        return images
+
+    def _sample_by_time(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
+        """Up to ``count`` frames evenly spaced over the frames iteration yields (the time
+        range), in one pass as :meth:`_sample_through` keeps them; iteration's warnings are
+        left to the tracking pass."""
+        kept, step = [], 1
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            for n, frame in enumerate(self):
+                if n % step == 0:
+                    image = frame.image
+                    if size is not None and size != (image.shape[1], image.shape[0]):
+                        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+                    kept.append(image)
+                    if len(kept) >= 2 * max(count, 1):
+                        kept, step = kept[::2], 2 * step
+        if len(kept) <= count:
+            return kept
+        return [kept[i] for i in np.unique(np.linspace(0, len(kept) - 1, count).round()
+                                           .astype(int))]
+
+    def _sample_by_index(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
+        """sample_frames by frame number at the announced rate (see there)."""
         end = self.end_index
         indices = np.linspace(self.start_index, end - 1, max(count, 1)).round().astype(int)
         indices = np.unique(indices)
