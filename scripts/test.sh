@@ -20,6 +20,9 @@ apt_install() {   # apt-get install "$@", tried up to three times (Debian's mirr
     return 1
 }
 
+if [ -x .venv/bin/python ] && ! .venv/bin/python -m pip --version >/dev/null 2>&1; then
+    rm -rf .venv          # a venv made without pip (python3-venv missing then): made again
+fi
 if [ ! -x .venv/bin/python ]; then
     if ! python3 -m venv .venv 2>/dev/null; then
         rm -rf .venv
