@@ -252,24 +252,18 @@ class VideoSource:
         rewound = False
         try:
             index = _seek(capture, self.start_index, give_up)
-            if index < self.start_index and self.container_times:
-                # The stream ended before the frame the announced rate puts at the start time
-                # (a variable rate announces more frames than it has): the times decide.
-                capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
-                index, rewound = 0, True
             end = self._last_index()
             failed = 0                  # undecodable frames in a row, just before index
             while index < end:
                 ok, image = capture.read()
-                if (not ok or image is None) and held is None and not rewound and \
-                        index > 0 and self.container_times:
-                    # Nothing decodes where the seek put us (past a variable rate's real
-                    # end, or a damaged frame): read from the first frame, the times decide.
+                decoded = ok and image is not None
+                if held is None and not rewound and self._seek_missed(index, decoded, capture):
+                    # Read from the first frame instead: the times decide.
                     capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
                     index, failed, rewound = 0, 0, True
                     times = FrameTimes(self.fps, self.container_times)
                     continue
-                if not ok or image is None:
+                if not decoded:
                     if _file_state(self.path) != opened:    # the live end: stop there,
                         if held is not None:                    # the last frame unused
                             times = held[1]
@@ -282,13 +276,6 @@ class VideoSource:
                     continue
                 before = copy.copy(times)
                 time_s = times(index, capture.get(cv2.CAP_PROP_POS_MSEC))
-                if held is None and not rewound and self._landed_late(index, time_s, times):
-                    # A seek by frame number at the announced rate passes a variable rate's
-                    # start time: read from the first frame, the times then decide.
-                    capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
-                    index, failed, rewound = 0, 0, True
-                    times = FrameTimes(self.fps, self.container_times)
-                    continue
                 if time_s + 1.0 / self.fps <= self.start_s + 1e-6:
                     index, failed = index + 1, 0    # a seek by frame number landed early
                     continue
@@ -313,11 +300,15 @@ class VideoSource:
             capture.release()
         self._report(times, first_skipped, stopped_at, opened)
 
-    def _landed_late(self, index: int, time_s: float, times: FrameTimes) -> bool:
-        """Whether the first frame read after seeking to ``index`` lies over a frame past the
-        start time by its container time (a variable frame rate)."""
-        return index > 0 and times.from_container and \
-            time_s > self.start_s + 1.0 / self.fps + 1e-6
+    def _seek_missed(self, index: int, decoded: bool, capture: cv2.VideoCapture) -> bool:
+        """Whether the first read after seeking to frame ``index`` (the start time at the
+        announced rate) shows that a variable rate's start time is elsewhere, by the
+        container's times: nothing decodes there (the file has fewer frames than announced,
+        or a damaged frame), or the frame read lies over a frame past the start time."""
+        if index == 0 or not self.container_times:
+            return False
+        return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
+            self.start_s + 1.0 / self.fps + 1e-6
 
     def _last_index(self) -> float:
         """The index the read loop stops before: end_index, or with an end time and the
