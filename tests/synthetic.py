@@ -25,3 +25,20 @@ def cmu_motion(euler_deg: np.ndarray, root_position: np.ndarray, fps: float = 30
 def joint(name: str) -> int:
     """Index of a CMU joint."""
     return CMU_JOINT_NAMES.index(name)
+
+
+def gait_walk(T: int, heading_deg) -> Motion:
+    """A walk along +X at 30 fps, the legs and arms swinging at 1 Hz and the knees bending;
+    heading_deg: the root's rotation about the vertical, a number or one per frame (T,)."""
+    euler = np.zeros((T, len(CMU_JOINT_NAMES), 3))
+    phase = np.arange(T) * 2 * np.pi / 30
+    for name, amp in (("LeftUpLeg", 30), ("RightUpLeg", -30), ("LeftArm", -25),
+                      ("RightArm", 25)):
+        euler[:, joint(name), 2] = amp * np.sin(phase)
+    for name in ("LeftLeg", "RightLeg"):
+        euler[:, joint(name), 2] = 40 * np.maximum(0, np.sin(phase + 1.0))
+    for name, z in (("LeftArm", -70), ("RightArm", 70)):
+        euler[:, joint(name), 0] = z
+    euler[:, 0, 1] = heading_deg
+    root = np.column_stack([0.5 * np.arange(T), np.full(T, 17.0), np.zeros(T)])
+    return cmu_motion(euler, root, fps=30.0, source="walker")

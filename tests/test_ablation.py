@@ -10,7 +10,7 @@ import tracker.hypotheses as hyp
 from regressor.pose_model import load_pose_model
 from sequences.video import Actor, write_video
 from tests.conftest import ROOT
-from tests.synthetic import cmu_motion
+from tests.synthetic import gait_walk
 from tracker.travel import TravelDirection
 
 
@@ -32,20 +32,7 @@ ablation = _load()
 def _walker(T=45):
     """A walk along +X, legs and arms swinging at 1 Hz, the body turning 300 degrees over the
     clip (through both profiles, facing the camera and away: every mechanism has work)."""
-    from sequences.skeleton import CMU_JOINT_NAMES
-    J = len(CMU_JOINT_NAMES)
-    euler = np.zeros((T, J, 3))
-    phase = np.arange(T) * 2 * np.pi / 30
-    for name, amp in (("LeftUpLeg", 30), ("RightUpLeg", -30), ("LeftArm", -25),
-                      ("RightArm", 25)):
-        euler[:, CMU_JOINT_NAMES.index(name), 2] = amp * np.sin(phase)
-    for name, amp in (("LeftLeg", 40), ("RightLeg", 40)):
-        euler[:, CMU_JOINT_NAMES.index(name), 2] = amp * np.maximum(0, np.sin(phase + 1.0))
-    for name, z in (("LeftArm", -70), ("RightArm", 70)):
-        euler[:, CMU_JOINT_NAMES.index(name), 0] = z
-    euler[:, 0, 1] = np.linspace(-60.0, 240.0, T)
-    root = np.column_stack([0.5 * np.arange(T), np.full(T, 17.0), np.zeros(T)])
-    return cmu_motion(euler, root, fps=30.0, source="walker")
+    return gait_walk(T, np.linspace(-60.0, 240.0, T))
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ import pytest
 
 from regressor.pose_model import load_pose_model
 from sequences.video import Actor, load_truth, write_video
-from tests.synthetic import cmu_motion
+from tests.synthetic import gait_walk
 from tracker.fixed_lag import MAX_LAG_S, FixedLagSmoother
 from tracker.pipeline import TrackedPose
 from tracker.sinks.geometry import pose_joints_m
@@ -157,20 +157,7 @@ def test_the_cli_limit_is_the_smoothers():
 def _walk(T=90):
     """A walk along +X, the legs and arms swinging at 1 Hz and the knees bending (unlike
     test_track_cli's walker, whose knees stay straight)."""
-    from sequences.skeleton import CMU_JOINT_NAMES
-    J = len(CMU_JOINT_NAMES)
-    euler = np.zeros((T, J, 3))
-    phase = np.arange(T) * 2 * np.pi / 30
-    for name, amp in (("LeftUpLeg", 30), ("RightUpLeg", -30), ("LeftArm", -25),
-                      ("RightArm", 25)):
-        euler[:, CMU_JOINT_NAMES.index(name), 2] = amp * np.sin(phase)
-    for name, amp in (("LeftLeg", 40), ("RightLeg", 40)):
-        euler[:, CMU_JOINT_NAMES.index(name), 2] = amp * np.maximum(0, np.sin(phase + 1.0))
-    for name, z in (("LeftArm", -70), ("RightArm", 70)):
-        euler[:, CMU_JOINT_NAMES.index(name), 0] = z
-    euler[:, 0, 1] = 90.0
-    root = np.column_stack([0.5 * np.arange(T), np.full(T, 17.0), np.zeros(T)])
-    return cmu_motion(euler, root, fps=30.0, source="walker")
+    return gait_walk(T, 90.0)
 
 
 @pytest.fixture(scope="module")
