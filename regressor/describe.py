@@ -11,7 +11,8 @@ from .pose_model import PoseModel
 
 #: The name each regressor class is described by (the mission's terms: damped least squares
 #: and relevance vector machines).
-EXPERT_KINDS = {"DampedKernelRegressor": "damped_least_squares", "RVMRegressor": "rvm"}
+EXPERT_KINDS = {"DampedKernelRegressor": "damped_least_squares", "RVMRegressor": "rvm",
+                "SparseRVMRegressor": "rvm"}
 
 
 def describe_model(model: PoseModel) -> dict:
@@ -27,7 +28,7 @@ def _expert(expert) -> dict:
     kept = getattr(expert, "relevance_", centres)
     out = {"kind": EXPERT_KINDS.get(name, name), "basis": "gaussian",
            "basis_functions": int(len(kept)) if kept is not None else None}
-    if name == "RVMRegressor":
+    if out["kind"] == "rvm":
         out["relevance_vectors"] = out["basis_functions"]
     return out
 

@@ -11,6 +11,7 @@ from regressor.describe import _expert, describe_model
 from regressor.mixture import DampedKernelRegressor
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from regressor.rvm import RVMRegressor
+from regressor.sparse_rvm import SparseRVMRegressor
 
 
 @pytest.fixture(scope="module")
@@ -40,6 +41,10 @@ def test_an_rvm_expert_is_described_by_its_relevance_vectors():
     described = _expert(rvm)
     assert described["kind"] == "rvm"
     assert described["relevance_vectors"] == rvm.n_basis_ < 80
+    sparse = SparseRVMRegressor(n_candidates=40).fit(X, Y)
+    assert _expert(sparse) == {"kind": "rvm", "basis": "gaussian",
+                               "basis_functions": len(sparse.relevance_),
+                               "relevance_vectors": len(sparse.relevance_)}
     ridge = _expert(DampedKernelRegressor(n_centres=10).fit(X, Y))
     assert ridge == {"kind": "damped_least_squares", "basis": "gaussian", "basis_functions": 10}
 
