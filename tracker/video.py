@@ -410,21 +410,16 @@ class VideoSource:
         """Up to ``count`` frames evenly spaced over the frames iteration yields (the time
         range), in one pass as :meth:`_sample_through` keeps them; iteration's warnings are
         left to the tracking pass."""
-        kept, step = [], 1
+        sample = _EvenSample(count)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             for n, frame in enumerate(self):
-                if n % step == 0:
+                if sample.wants(n):
                     image = frame.image
                     if size is not None and size != (image.shape[1], image.shape[0]):
                         image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
-                    kept.append(image)
-                    if len(kept) >= 2 * max(count, 1):
-                        kept, step = kept[::2], 2 * step
-        if len(kept) <= count:
-            return kept
-        return [kept[i] for i in np.unique(np.linspace(0, len(kept) - 1, count).round()
-                                           .astype(int))]
+                    sample.keep(image)
+        return sample.frames()
 
     def _sample_by_index(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
         """sample_frames by frame number at the announced rate (see there)."""
@@ -471,7 +466,7 @@ class VideoSource:
         failed read (its live end), as in iteration."""
         capture = _open_capture(self.path)
         opened = _file_state(self.path)
-        kept, step, give_up = [], 1, self.unreadable_run()
+        sample, give_up = _EvenSample(count), self.unreadable_run()
         try:
             index = _seek(capture, self.start_index, give_up)
             offset, failed = index, 0
@@ -482,19 +477,40 @@ class VideoSource:
                     failed, index = failed + 1, index + 1
                     continue
                 failed = 0
-                if (index - offset) % step == 0:
+                if sample.wants(index - offset):
                     ok, image = capture.retrieve()
-                    if ok and image is not None:
-                        kept.append(self._prepare(image, size))
-                    if len(kept) >= 2 * max(count, 1):
-                        kept, step = kept[::2], 2 * step
+                    sample.keep(self._prepare(image, size) if ok and image is not None
+                                else None)
                 index += 1
         finally:
             capture.release()
-        if len(kept) <= count:
-            return kept
-        return [kept[i] for i in np.unique(np.linspace(0, len(kept) - 1, count).round()
-                                           .astype(int))]
+        return sample.frames()
+
+
+class _EvenSample:
+    """Up to ``count`` frames evenly spaced over a stream of unknown length, in one pass:
+    every ``step``-th frame is kept, and when 2 count are kept every other one is dropped and
+    ``step`` doubles; :meth:`frames` picks ``count`` evenly from what is kept."""
+
+    def __init__(self, count: int):
+        self.count, self.step, self.kept = count, 1, []
+
+    def wants(self, n: int) -> bool:
+        """Whether the n-th frame (from 0) is one to keep."""
+        return n % self.step == 0
+
+    def keep(self, image: np.ndarray | None) -> None:
+        """Keep a wanted frame (None: it did not decode, nothing kept)."""
+        if image is not None:
+            self.kept.append(image)
+        if len(self.kept) >= 2 * max(self.count, 1):
+            self.kept, self.step = self.kept[::2], 2 * self.step
+
+    def frames(self) -> list[np.ndarray]:
+        if len(self.kept) <= self.count:
+            return self.kept
+        picks = np.unique(np.linspace(0, len(self.kept) - 1, self.count).round().astype(int))
+        return [self.kept[i] for i in picks]
 
 
 def _open_capture(path: Path) -> cv2.VideoCapture:
