@@ -23,7 +23,7 @@ import numpy as np
 from .silhouettes import PersonMask
 
 #: Rows of the grid the blob is split on (the blob is scaled to it, never enlarged).
-WORK_HEIGHT = 96
+WORK_HEIGHT = 64
 
 
 @dataclass(frozen=True)
@@ -70,7 +70,7 @@ def _signed_distance(shape: Shape, box: tuple[int, int, int, int], scale: float,
     small = cv2.resize(shape.mask.astype(np.uint8), (w, h), interpolation=cv2.INTER_AREA)
     # Translate into a canvas padded by a margin, so shapes reaching out of the blob keep
     # their true outline (the distance is then measured to it, not to the canvas edge).
-    pad = max(w, h)
+    pad = max(4, size[1] // 8)
     shift = np.float32([[1, 0, x0 + pad], [0, 1, y0 + pad]])
     canvas = cv2.warpAffine(small, shift, (size[0] + 2 * pad, size[1] + 2 * pad),
                             flags=cv2.INTER_NEAREST)
