@@ -161,3 +161,29 @@ def test_the_tracker_gives_both_touching_people_a_pose():
         if len(people) == 1:
             posed_touching.append(sorted(p.track_id for p in poses))
     assert len(posed_touching) >= 20 and all(ids == [0, 1] for ids in posed_touching)
+
+
+def test_found_touching_counts_each_person_under_their_own_id_while_the_boxes_overlap():
+    from tracker.offline.crossings import identity_measures
+
+    # Two people 100 px tall: apart in frames 0-1 and 4-5, boxes overlapping in 2-3.
+    xs = np.array([[50, 250], [80, 220], [130, 170], [170, 130], [220, 80], [250, 50]], float)
+    centroids = np.stack([xs, np.full_like(xs, 100.0)], axis=2)                # (6, 2, 2)
+    boxes = np.concatenate([centroids - [30, 50], np.full((6, 2, 2), [60, 100])], axis=2)
+
+    def reported(touching):
+        apart = {t: [(7, tuple(centroids[t, 0])), (9, tuple(centroids[t, 1]))]
+                 for t in (0, 1, 4, 5)}
+        return [apart.get(t) or touching(t) for t in range(6)]
+
+    both = identity_measures(reported(lambda t: [(7, tuple(centroids[t, 0])),
+                                                 (9, tuple(centroids[t, 1]))]),
+                             centroids, boxes)
+    one = identity_measures(reported(lambda t: [(7, tuple(centroids[t, 0]))]), centroids, boxes)
+    swapped = identity_measures(reported(lambda t: [(9, tuple(centroids[t, 0])),
+                                                    (7, tuple(centroids[t, 1]))]),
+                                centroids, boxes)
+    nobody = identity_measures(reported(lambda t: []), centroids, boxes)
+    assert (both["found_touching"], one["found_touching"], swapped["found_touching"],
+            nobody["found_touching"]) == (1.0, 0.5, 0.0, 0.0)
+    assert both["switches"] == 0 and both["crossings"] == 1

@@ -98,9 +98,9 @@ def identity_measures(reported: list[list[tuple]], centroids: np.ndarray,
     had at its last scored frame; tracks_per_person: distinct ids per person (1 is perfect);
     found: the share of scored person-frames with a track; crossings: the times the people's
     left-to-right order changes; found_touching: the share of person-frames where the true
-    boxes overlap with a report within half the person's height bearing the id the person
-    had when last apart (or will have: before it was first scored), i.e. a silhouette of
-    their own (tracker.blob_split) rather than none or the other's."""
+    boxes overlap whose report (paired as above) bears the id the person has at the nearest
+    frame apart, i.e. a silhouette of their own (tracker.blob_split) rather than none or the
+    other's."""
     x0, x1 = boxes[..., 0], boxes[..., 0] + boxes[..., 2]
     apart = (np.maximum(x0[:, 0], x0[:, 1]) >= np.minimum(x1[:, 0], x1[:, 1]))
     order = np.sign(centroids[:, 0, 0] - centroids[:, 1, 0])
@@ -129,8 +129,9 @@ def identity_measures(reported: list[list[tuple]], centroids: np.ndarray,
 def _found_touching(reported: list[list[tuple]], centroids: np.ndarray, boxes: np.ndarray,
                     apart: np.ndarray) -> float:
     """identity_measures' found_touching: over the frames where the true boxes overlap
-    (``apart`` (T,) False), the share of person-frames with a report within half the
-    person's height that bears the id the person had at the nearest frame apart."""
+    (``apart`` (T,) False), the share of person-frames whose report (reports and people
+    paired by distance, within half the person's height) bears the id the person had at the
+    nearest frame apart."""
     people = centroids.shape[1]
     known = {}                       # (frame apart, person) -> id reported there
     for t in np.flatnonzero(apart):
@@ -141,15 +142,18 @@ def _found_touching(reported: list[list[tuple]], centroids: np.ndarray, boxes: n
     touching = np.flatnonzero(~apart)
     if not len(touching) or not known:
         return 0.0
+    seen = np.array(sorted(known))                    # (n, 2): frame apart, person
     found = 0
     for t in touching:
-        for p in range(people):
-            frames = np.array([f for f, q in known if q == p])
-            if not len(frames):
-                continue
-            expected = known[int(frames[np.argmin(np.abs(frames - t))]), p]
-            found += any(track_id == expected and np.linalg.norm(centroids[t, p] - c)
-                         <= 0.5 * boxes[t, p, 3] for track_id, c in reported[t])
+        if not reported[t]:
+            continue
+        points = np.array([c for _, c in reported[t]], float)
+        distance = np.linalg.norm(points[:, None] - centroids[t][None], axis=2)
+        for r, p in zip(*linear_sum_assignment(distance)):
+            frames = seen[seen[:, 1] == p, 0]
+            if len(frames) and distance[r, p] <= 0.5 * boxes[t, p, 3]:
+                expected = known[int(frames[np.argmin(np.abs(frames - t))]), int(p)]
+                found += reported[t][r][0] == expected
     return found / (len(touching) * people)
 
 
