@@ -146,6 +146,7 @@ def test_own_track_needs_the_keypoints_covered_and_little_spill():
                             keypoints).tolist() == [True]
 
 
+@pytest.mark.slow          # loads the shipped model: ~20 s
 def test_the_tracker_gives_both_touching_people_a_pose():
     # As the frame worker hands them over: the blob described, its parts not (they are made
     # by the association, in the main process).
