@@ -7,7 +7,7 @@ to the member whose moved shape it lies deepest inside, or, outside all shapes, 
 the signed distance to each shape's outline, smallest wins. Where two shapes overlap, the
 cut runs midway between their outlines; limbs that reach out of a shape stay with the nearer
 shape. The work is done on the blob scaled to ``WORK_HEIGHT`` rows (two distance transforms
-per member on a ~100 x 100 grid), and the labels are scaled back and cut by the blob's own
+per member on that grid), and the labels are scaled back and cut by the blob's own
 full-resolution mask, so the split costs about the same for any frame size.
 
 A member whose share of the blob is under ``min_share`` of its own shape's area (hidden
@@ -68,8 +68,9 @@ def _signed_distance(shape: Shape, box: tuple[int, int, int, int], scale: float,
     x0, y0 = (sx - box[0]) * scale, (sy - box[1]) * scale
     w, h = max(1, round(sw * scale)), max(1, round(sh * scale))
     small = cv2.resize(shape.mask.astype(np.uint8), (w, h), interpolation=cv2.INTER_AREA)
-    # Translate into a canvas padded by a margin, so shapes reaching out of the blob keep
-    # their true outline (the distance is then measured to it, not to the canvas edge).
+    # Translate into a canvas padded by an eighth of the grid: a shape reaching out of the
+    # blob keeps its outline there, so a cell near the blob's edge is measured to it.
+    # (OpenCV's distance transform takes the image border as no outline.)
     pad = max(4, size[1] // 8)
     shift = np.float32([[1, 0, x0 + pad], [0, 1, y0 + pad]])
     canvas = cv2.warpAffine(small, shift, (size[0] + 2 * pad, size[1] + 2 * pad),
