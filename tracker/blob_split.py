@@ -8,7 +8,9 @@ the signed distance to each shape's outline, smallest wins. Where two shapes ove
 cut runs midway between their outlines; limbs that reach out of a shape stay with the nearer
 shape. The work is done on the blob scaled to ``WORK_HEIGHT`` rows (two distance transforms
 per member on that grid), and the labels are scaled back and cut by the blob's own
-full-resolution mask, so the split costs about the same for any frame size.
+full-resolution mask: the distance work costs the same for any frame size, the scaling back
+and cutting grow with the blob's pixels (docs/crossings.md: 0.4-0.6 ms for a 180-row blob,
+5-11 ms for a 1440-row one).
 
 A member whose share of the blob is under ``min_share`` of its own shape's area (hidden
 behind the other person) gets no silhouette rather than a fragment.
