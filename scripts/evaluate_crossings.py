@@ -10,8 +10,9 @@ part, twice per video. The track command's extractor and associator run on it (t
 are decided there), and the script prints per video and in total: crossings, identity
 switches, tracks per person (1 is perfect) and the share of person-frames tracked while the
 two are apart, and of the person-frames while their true boxes overlap, the share with a
-silhouette of their own under their id (tracker.blob_split's split of the blob). ``before`` is the association without groups or appearance (as before issue
-50's crossing item); ``after`` is track's default.
+silhouette of their own under their id (tracker.blob_split's split of the blob). ``before``
+is the association without groups or appearance (as before issue 50's crossing item);
+``after`` is track's default.
 """
 from __future__ import annotations
 

@@ -12,8 +12,9 @@ share of the mask off a generous body drawn from the keypoints: background insid
 tracks, tracks holding the subject, the fraction of frames the subject's main track
 covers, and the fraction of frames in which the subject has a track of their own (a mask
 holding at least half the keypoints, its spill at most 0.3 and at most 0.6 of it off the
-body: not joined with a second person; silhouette_evaluation.own_track_frames). "before" is the extractor and associator as they were (median background, shadows
-dropped, area gate always on), "after" the extractor primed with frames of the clip, the
+body: not joined with a second person; silhouette_evaluation.own_track_frames). "before"
+is the extractor and associator as they were (median background, shadows dropped, area gate
+always on), "after" the extractor primed with frames of the clip, the
 subtractor's foreground inside the unreliable zone sure person (``track --zone-foreground
 sure``), "colour" the same with colour also deciding on that foreground
 (tracker.silhouettes.refine_in_zone, trust_zone_foreground=False; track's default since
