@@ -1,5 +1,7 @@
 """Silhouettes of a real video against a 3-D reference: Pose2Sim's balancing trial, per view.
 
+Also for swings: --trial ../shared/data/pose2sim/swings.
+
     python scripts/evaluate_silhouettes.py [--trial ../shared/data/pose2sim/balancing]
         [--extractor before after colour] [--views cam01 ...] [--json OUT]
 
@@ -7,9 +9,12 @@ Projects the reference keypoints into each view and prints, per extractor and vi
 (keypoints on the subject's mask dilated by 3 px), spill (mask area outside the keypoints' box
 padded by 10 % of its height, over the box area; mean and 90th percentile), off-body (the
 share of the mask off a generous body drawn from the keypoints: background inside the box),
-tracks, tracks holding the subject, and the fraction of frames the subject's main track
-covers. "before" is the extractor and associator as they were (median background, shadows
-dropped, area gate always on), "after" the extractor primed with frames of the clip, the
+tracks, tracks holding the subject, the fraction of frames the subject's main track
+covers, and the fraction of frames in which the subject has a track of their own (a mask
+holding at least half the keypoints, its spill at most 0.3 and at most 0.6 of it off the
+body: not joined with a second person; silhouette_evaluation.own_track_frames). "before"
+is the extractor and associator as they were (median background, shadows dropped, area gate
+always on), "after" the extractor primed with frames of the clip, the
 subtractor's foreground inside the unreliable zone sure person (``track --zone-foreground
 sure``), "colour" the same with colour also deciding on that foreground
 (tracker.silhouettes.refine_in_zone, trust_zone_foreground=False; track's default since

@@ -32,6 +32,13 @@ appearance pick up the ids again: detections that carry a ``colour`` histogram
 (PersonMask.colour) add ``appearance_weight`` times the Bhattacharyya distance between it and
 the track's colour (a running mean over its matched frames) to the cost. A group that lasts
 longer than ``max_occluded`` is treated as one person again.
+
+While hidden, the members still get silhouettes: detections that carry a ``mask`` and ``bbox``
+(PersonMask) leave each track its last silhouette of its own, and a group's blob is split
+between its members by those shapes moved to the members' coasted boxes
+(tracker.blob_split.split_blob); each member with a share of the blob is returned with its
+part (a new PersonMask, colour None), so it keeps a pose. The parts are not folded into
+the tracks (their position is the prediction's, their shape the remembered one's).
 """
 from __future__ import annotations
 
@@ -44,6 +51,8 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from regressor.errors import SilhouettePoseError
+
+from .blob_split import Shape, split_blob
 
 
 #: How long, seconds, a track may stay hidden in a group (PoseTracker sets max_occluded from it
@@ -76,7 +85,8 @@ class Track:
     (nan when detections have none), ``hits`` frames matched, ``missed`` consecutive frames
     unmatched, ``track_id`` -1 while the track is tentative (fewer than min_hits hits),
     ``colour`` the appearance histogram (None when detections have none), ``occluded``
-    consecutive frames hidden in a group (centroid and box then coasted, not measured)."""
+    consecutive frames hidden in a group (centroid and box then coasted, not measured),
+    ``shape`` the mask (h, w) bool of its last detection of its own (None without masks)."""
 
     track_id: int
     centroid: np.ndarray
@@ -87,6 +97,7 @@ class Track:
     missed: int = 0
     colour: np.ndarray | None = None
     occluded: int = 0
+    shape: np.ndarray | None = None
 
     def predicted(self) -> np.ndarray:
         """(x, y) px expected this frame: the last centroid moved on by the missed frames + 1."""
@@ -207,7 +218,8 @@ class Associator:
     def update(self, detections: Sequence[D]) -> list[tuple[int, D]]:
         """Match this frame's detections to tracks; returns (track_id, detection) for each
         detection on a confirmed track (all of them with min_hits=1), in the order given; a
-        group's detection (several people in one blob) is on none.
+        group's detection (several people in one blob) is on none, but in its place come
+        (track_id, part) for its members that got a part of it (split_group).
         Unmatched detections start tentative tracks; stale tracks are dropped."""
         centroids = np.array([d.centroid for d in detections], float).reshape(-1, 2)
         areas = np.array([d.area for d in detections], float)
@@ -231,6 +243,7 @@ class Associator:
         pairs = []
         for j in range(len(detections)):
             if j in groups:
+                pairs += self.split_group(detections[j], groups[j])
                 continue
             colour = None if colours is None else colours[j]
             if j in matched:
@@ -240,6 +253,7 @@ class Associator:
                 track = Track(-1, centroids[j].copy(), float(areas[j]), boxes[j].copy(),
                               colour=None if colour is None else colour.copy())
                 self.tracks.append(track)
+            track.shape = getattr(detections[j], "mask", None)
             if track.track_id < 0 and (track.hits >= self.min_hits or
                                        areas[j] >= self.min_relative_area * largest):
                 track.track_id = self._next_id
@@ -255,6 +269,18 @@ class Associator:
         self.tracks = [t for t in self.tracks if t.missed <= self.max_missed
                        and (t.track_id >= 0 or t.missed == 0)]
         return pairs
+
+    def split_group(self, blob, members: np.ndarray) -> list[tuple[int, object]]:
+        """(track_id, part) for the members (track rows (M,), already coasted into the blob's
+        box) that get a part of ``blob`` (a PersonMask) split by their remembered shapes moved
+        to their boxes (tracker.blob_split); [] when the blob has no mask or a member has no
+        shape or box."""
+        tracks = [self.tracks[r] for r in members]
+        if getattr(blob, "mask", None) is None or any(
+                t.shape is None or not np.isfinite(t.bbox).all() for t in tracks):
+            return []
+        parts = split_blob(blob, [Shape(t.shape, tuple(t.bbox)) for t in tracks])
+        return [(t.track_id, part) for t, part in zip(tracks, parts) if part is not None]
 
     def _groups(self, matched: dict[int, int], boxes: np.ndarray) -> dict[int, np.ndarray]:
         """Detection index -> rows (M,) of the tracks hidden in it, for detections whose box

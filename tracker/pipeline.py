@@ -374,8 +374,9 @@ class PoseTracker:
                      else {id(person): d for person, d in zip(people, descriptions, strict=True)})
             for track_id, person in matches:
                 state = self._state(track_id)   # a track exists from its first match
-                description = (self.describe(person) if descriptions is None
-                               else known[id(person)])
+                # A part of a split blob (tracker.blob_split) was made here: described here.
+                description = (known[id(person)] if id(person) in known
+                               else self.describe(person))
                 if description is not None:
                     rows.append((slot, track_id, person) + self._stack(state, description))
         if frames:

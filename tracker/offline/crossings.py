@@ -97,7 +97,10 @@ def identity_measures(reported: list[list[tuple]], centroids: np.ndarray,
     that person's height. switches: the times a person's track id differs from the one it
     had at its last scored frame; tracks_per_person: distinct ids per person (1 is perfect);
     found: the share of scored person-frames with a track; crossings: the times the people's
-    left-to-right order changes."""
+    left-to-right order changes; found_touching: the share of person-frames where the true
+    boxes overlap whose report (paired as above) bears the id the person has at the nearest
+    frame apart, i.e. a silhouette of their own (tracker.blob_split) rather than none or the
+    other's."""
     x0, x1 = boxes[..., 0], boxes[..., 0] + boxes[..., 2]
     apart = (np.maximum(x0[:, 0], x0[:, 1]) >= np.minimum(x1[:, 0], x1[:, 1]))
     order = np.sign(centroids[:, 0, 0] - centroids[:, 1, 0])
@@ -119,7 +122,39 @@ def identity_measures(reported: list[list[tuple]], centroids: np.ndarray,
     switches = sum(int(np.count_nonzero(np.diff(seq))) for seq in ids)
     tracks = [len(set(seq)) for seq in ids]
     return {"crossings": crossings, "switches": switches, "tracks_per_person": tracks,
-            "found": found / scored if scored else 0.0}
+            "found": found / scored if scored else 0.0,
+            "found_touching": _found_touching(reported, centroids, boxes, apart)}
+
+
+def _found_touching(reported: list[list[tuple]], centroids: np.ndarray, boxes: np.ndarray,
+                    apart: np.ndarray) -> float:
+    """identity_measures' found_touching: over the frames where the true boxes overlap
+    (``apart`` (T,) False), the share of person-frames whose report (reports and people
+    paired by distance, within half the person's height) bears the id the person had at the
+    nearest frame apart."""
+    people = centroids.shape[1]
+    known = {}                       # (frame apart, person) -> id reported there
+    for t in np.flatnonzero(apart):
+        for track_id, c in reported[t]:
+            p = int(np.argmin(np.linalg.norm(centroids[t] - np.asarray(c), axis=1)))
+            if np.linalg.norm(centroids[t, p] - c) <= 0.5 * boxes[t, p, 3]:
+                known[t, p] = track_id
+    touching = np.flatnonzero(~apart)
+    if not len(touching) or not known:
+        return 0.0
+    seen = np.array(sorted(known))                    # (n, 2): frame apart, person
+    found = 0
+    for t in touching:
+        if not reported[t]:
+            continue
+        points = np.array([c for _, c in reported[t]], float)
+        distance = np.linalg.norm(points[:, None] - centroids[t][None], axis=2)
+        for r, p in zip(*linear_sum_assignment(distance)):
+            frames = seen[seen[:, 1] == p, 0]
+            if len(frames) and distance[r, p] <= 0.5 * boxes[t, p, 3]:
+                expected = known[int(frames[np.argmin(np.abs(frames - t))]), int(p)]
+                found += reported[t][r][0] == expected
+    return found / (len(touching) * people)
 
 
 def evaluate_mirror_crossing(video: str | Path, offset: int = 0, tint: bool = False,

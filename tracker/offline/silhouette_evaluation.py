@@ -19,6 +19,12 @@ since it does not change the masks or the track ids. Measures per view:
 - ``tracks``: track ids in the view; ``subject_tracks``: those whose masks hold a keypoint;
   ``main_track_fraction``: fraction of frames in which the subject's main track (the one whose
   masks hold the most keypoints) has a mask.
+- ``own_track_fraction``: fraction of frames in which the subject has a track of their own
+  (:func:`own_track_frames`): some track's mask holds at least ``OWN_MIN_COVERED`` of the
+  keypoints (dilated as for coverage) and spills at most ``OWN_MAX_SPILL`` (``spill`` above)
+  and ``OWN_MAX_OFF_BODY`` of its area off the body drawn from the keypoints (with a
+  :class:`BodyDrawing`). A mask that also holds a second person, or a wide piece of floor,
+  fails the spill or off-body bound; a subject cut into pieces fails the coverage bound.
 """
 from __future__ import annotations
 
@@ -134,6 +140,36 @@ def off_body(person: PersonMask, points_px: np.ndarray, body: BodyDrawing,
     return float(np.count_nonzero(person.mask & ~region)) / float(person.area)
 
 
+#: Bounds of "the subject has a track of their own" (own_track_frames): share of the keypoints
+#: on the mask, spill (mask area outside the keypoints' padded box over that box's area) and
+#: share of the mask off the generous body drawing. The subject alone (balancing's four views,
+#: swings' cam02 and cam04: spill up to 0.26, off-body up to 0.58 with the floor the
+#: extractor takes for him) is within them in every frame; joined with the second person
+#: (swings' cam01: off-body 0.63-0.76) in none (docs/crossings.md).
+OWN_MIN_COVERED = 0.5
+OWN_MAX_SPILL = 0.3
+OWN_MAX_OFF_BODY = 0.6
+
+
+def own_track_frames(tracked: list[FramePeople], keypoints_px: np.ndarray, dilate_px: int = 3,
+                     pad: float = 0.1, body: BodyDrawing | None = None,
+                     body_width: float = 0.14) -> np.ndarray:
+    """(T,) bool: in which of the frames ``tracked`` (keypoints (T, K, 2) px, one row per
+    frame) the subject has a track of their own: a tracked mask holding at least
+    OWN_MIN_COVERED of the keypoints (dilated by dilate_px) whose spill (pad) is at most
+    OWN_MAX_SPILL and, with ``body``, whose share off the body is at most OWN_MAX_OFF_BODY."""
+    own = np.zeros(len(tracked), bool)
+    for t, (frame, points) in enumerate(zip(tracked, keypoints_px)):
+        for _, person in frame.people:
+            if (keypoints_inside(person, points, dilate_px).mean() >= OWN_MIN_COVERED
+                    and spill(person, points, pad) <= OWN_MAX_SPILL
+                    and (body is None or off_body(person, points, body, body_width)
+                         <= OWN_MAX_OFF_BODY)):
+                own[t] = True
+                break
+    return own
+
+
 def silhouette_measures(tracked: list[FramePeople], keypoints_px: np.ndarray,
                         dilate_px: int = 3, pad: float = 0.1, body: BodyDrawing | None = None,
                         body_width: float = 0.14) -> dict:
@@ -149,10 +185,11 @@ def silhouette_measures(tracked: list[FramePeople], keypoints_px: np.ndarray,
             inside[t, track_id] = keypoints_inside(person, points, dilate_px)
             held[track_id] = held.get(track_id, 0) + int(inside[t, track_id].sum())
     all_ids = {tid for frame in tracked for tid, _ in frame.people}
+    own = float(own_track_frames(tracked, keypoints_px, dilate_px, pad, body, body_width).mean())
     if not held or max(held.values()) == 0:
         out = {"frames": len(tracked), "coverage": 0.0, "spill": float("nan"),
                "spill_p90": float("nan"), "tracks": len(all_ids), "subject_tracks": 0,
-               "main_track_fraction": 0.0}
+               "main_track_fraction": 0.0, "own_track_fraction": own}
         if body is not None:
             out["off_body"] = float("nan")
         return out
@@ -169,7 +206,7 @@ def silhouette_measures(tracked: list[FramePeople], keypoints_px: np.ndarray,
     out = {"frames": len(tracked), "coverage": covered / keypoints_px[:, :, 0].size,
            "spill": float(np.mean(spills)), "spill_p90": float(np.percentile(spills, 90)),
            "tracks": len(all_ids), "subject_tracks": sum(1 for n in held.values() if n > 0),
-           "main_track_fraction": present / len(tracked)}
+           "main_track_fraction": present / len(tracked), "own_track_fraction": own}
     if body is not None:
         out["off_body"] = float(np.mean(offs))
     return out
@@ -257,11 +294,12 @@ ASSOCIATORS = {"before": legacy_associator, "after": default_associator,
 def format_table(results: dict[str, dict[str, dict]]) -> str:
     """{label: {view: silhouette_measures dict}} as a plain-text table."""
     lines = [f"{'':7} {'view':6} {'coverage':>8} {'spill':>6} {'spill90':>7} {'off-body':>8} "
-             f"{'tracks':>6} {'subj.trk':>8} {'main-track frames':>17}"]
+             f"{'tracks':>6} {'subj.trk':>8} {'main-track frames':>17} {'own-track frames':>16}"]
     for label, views in results.items():
         for view, r in views.items():
             off = f"{r['off_body']:8.1%}" if "off_body" in r else f"{'-':>8}"
             lines.append(f"{label:7} {view:6} {r['coverage']:8.1%} {r['spill']:6.1%} "
                          f"{r['spill_p90']:7.1%} {off} {r['tracks']:6d} "
-                         f"{r['subject_tracks']:8d} {r['main_track_fraction']:17.0%}")
+                         f"{r['subject_tracks']:8d} {r['main_track_fraction']:17.0%} "
+                         f"{r.get('own_track_fraction', float('nan')):16.0%}")
     return "\n".join(lines)
