@@ -15,6 +15,7 @@ never committed: they are derived from the shared data. Without the videos,
 """
 from __future__ import annotations
 
+from functools import lru_cache
 from pathlib import Path
 
 import cv2
@@ -134,3 +135,30 @@ def background_view(plates: list[tuple[np.ndarray, np.ndarray]], size: tuple[int
         view = view[:, ::-1]
     gain = float(rng.uniform(0.8, 1.2))
     return np.clip(view.astype(np.float32) * gain, 0, 255).astype(np.uint8)
+
+
+@lru_cache(maxsize=4)
+def load_plates(spec: str = "") -> list[tuple[np.ndarray, np.ndarray]]:
+    """Plates for realistic renders: "" -> procedural_plates(); a folder holding
+    ``plate-*.png`` (as pose2sim_plates caches them) -> those; else a folder of Pose2Sim trials
+    -> pose2sim_plates(spec) (a minute: cache them with pose2sim_plates(root, cache_dir)).
+    Kept per process (the data set's views of one worker share them); do not modify them."""
+    if not str(spec):
+        return procedural_plates()
+    folder = Path(spec)
+    if not folder.is_dir():
+        raise BackgroundError(f"backgrounds folder not found: {folder}")
+    images = sorted(p for p in folder.glob("plate-*.png") if not p.stem.endswith("-inpainted"))
+    if not images:
+        return pose2sim_plates(folder)
+    plates = []
+    for path in images:
+        plate = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        hole_path = path.with_name(path.stem + "-inpainted.png")
+        hole = cv2.imread(str(hole_path), cv2.IMREAD_GRAYSCALE) if hole_path.is_file() else None
+        if plate is None:
+            raise BackgroundError(f"{path}: unreadable background image")
+        missing = (hole > 0) if hole is not None and hole.shape == plate.shape[:2] else \
+            np.zeros(plate.shape[:2], bool)
+        plates.append((plate, missing))
+    return plates

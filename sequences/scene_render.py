@@ -337,3 +337,45 @@ def film_clip(vertices: np.ndarray, body: BodyModel, parts: tuple[np.ndarray, np
         frames[t] = compose(background, person, shadow, look, noise[t % len(noise)])
         masks[t] = person[..., 3] > 0
     return frames, masks
+
+
+def clip_bounds(T: int, clip_frames: int) -> list[tuple[int, int]]:
+    """(start, stop) of ceil(T / clip_frames) clips of nearly equal length covering 0..T."""
+    n = max(1, -(-T // max(clip_frames, 1)))
+    edges = np.linspace(0, T, n + 1).round().astype(int)
+    return list(zip(edges[:-1].tolist(), edges[1:].tolist()))
+
+
+def realistic_masks(vertices_of, T: int, body: BodyModel, azimuth_deg: float, height_m: float,
+                    plates, rng: np.random.Generator, config: SceneConfig = SceneConfig(),
+                    mask_size: tuple[int, int] = (224, 224)) -> tuple[np.ndarray, dict]:
+    """Training masks (T, H, W) bool of one sequence made the realistic way (module docstring).
+
+    vertices_of(start, stop) -> posed vertices (stop - start, V, 3) metres; azimuth_deg: the
+    view's world azimuth; height_m: the body's standing height; plates: (image, inpainted)
+    pairs (sequences.backgrounds). One camera, look and room per sequence; each clip of at most
+    config.clip_frames is encoded and primed on its own. A frame where the extractor finds no
+    one gets its plain mask. Returns (masks on mask_size canvases (on_canvas), info: the
+    camera (scene_camera's dict), 'fallback' frames, 'iou' (T,) of each frame's extracted
+    mask with its plain mask in the frame)."""
+    from .backgrounds import background_view
+    parts = body_parts(body)
+    view = scene_camera(rng, config)
+    look = sample_look(rng)
+    background = background_view(plates, config.frame_size, rng)
+    masks = np.empty((T, *mask_size), bool)
+    iou = np.zeros(T)
+    fallback = 0
+    for start, stop in clip_bounds(T, config.clip_frames):
+        frames, plain = film_clip(vertices_of(start, stop), body, parts, view, azimuth_deg,
+                                  height_m, background, look, rng, config)
+        people = extract_people(h264_round_trip(frames, look.crf, config.fps))
+        for i, person in enumerate(people):
+            found = in_frame(person, config.frame_size)
+            union = (found | plain[i]).sum()
+            iou[start + i] = (found & plain[i]).sum() / union if union else 0.0
+            if person is None:
+                fallback += 1
+                found = plain[i]
+            masks[start + i] = on_canvas(found, mask_size)
+    return masks, {**view, "fallback": fallback, "iou": iou}
