@@ -357,14 +357,14 @@ def realistic_masks(vertices_of, T: int, body: BodyModel, azimuth_deg: float, he
     config.clip_frames is encoded and primed on its own. A frame where the extractor finds no
     one gets its plain mask. Returns (masks on mask_size canvases (on_canvas), info: the
     camera (scene_camera's dict), 'fallback' frames, 'iou' (T,) of each frame's extracted
-    mask with its plain mask in the frame)."""
+    mask with its plain mask in the frame, 'area' (T,) its area over the plain mask's)."""
     from .backgrounds import background_view
     parts = body_parts(body)
     view = scene_camera(rng, config)
     look = sample_look(rng)
     background = background_view(plates, config.frame_size, rng)
     masks = np.empty((T, *mask_size), bool)
-    iou = np.zeros(T)
+    iou, area = np.zeros(T), np.zeros(T)
     fallback = 0
     for start, stop in clip_bounds(T, config.clip_frames):
         frames, plain = film_clip(vertices_of(start, stop), body, parts, view, azimuth_deg,
@@ -374,8 +374,9 @@ def realistic_masks(vertices_of, T: int, body: BodyModel, azimuth_deg: float, he
             found = in_frame(person, config.frame_size)
             union = (found | plain[i]).sum()
             iou[start + i] = (found & plain[i]).sum() / union if union else 0.0
+            area[start + i] = found.sum() / max(plain[i].sum(), 1)
             if person is None:
                 fallback += 1
                 found = plain[i]
             masks[start + i] = on_canvas(found, mask_size)
-    return masks, {**view, "fallback": fallback, "iou": iou}
+    return masks, {**view, "fallback": fallback, "iou": iou, "area": area}
