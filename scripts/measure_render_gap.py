@@ -3,7 +3,8 @@ and made the realistic way (sequences.scene_render), against real video's silhou
 
     python scripts/measure_render_gap.py --bvh-dir ../shared/data/cmu/bvh \\
         --backgrounds ../shared/data/pose2sim --plates cache/plates \\
-        --real-json real.json          # from scripts/evaluate_real.py --trial all --json real.json
+        --real-json real.json --videos cache/gap_videos --sheet gap.png
+    # real.json: from scripts/evaluate_real.py --trial all --json real.json
 
 For each held-out trial (sequences.dataset.HELD_OUT_TRIALS) and --views views of it, the first
 --frames frames are made three ways: plain (the data set's rasterised masks), hand noise
@@ -35,7 +36,7 @@ from sequences.bvh import read_bvh
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, realistic_motion_masks,
                                render_motion_masks, training_files, view_settings,
                                views_by_rows, _view_rng)
-from sequences.scene_render import SceneConfig
+from sequences.scene_render import SceneConfig, write_video
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
 
 KINDS = ("plain", "hand noise", "realistic")
@@ -51,9 +52,11 @@ def pose2sim_cameras(calibration: Path) -> list[tuple[str, float, float]]:
     return out
 
 
-def trial_masks(path: Path, frames: int, views: int, plates, seed: int) -> dict:
+def trial_masks(path: Path, frames: int, views: int, plates, seed: int,
+                videos: Path | None = None) -> dict:
     """The three kinds of masks of the first `frames` frames of a trial in `views` views:
-    {kind: list of masks, 'sequence': ids, 'iou', 'area', 'seconds'}."""
+    {kind: list of masks, 'sequence': ids, 'iou', 'area', 'seconds'}. With videos, the first
+    view's realistic clips are written there as TRIAL-START.mp4."""
     from tracker.offline.training import noisy_masks
     motion = read_bvh(path, fps=30.0)
     n = min(frames, motion.n_frames)
@@ -66,10 +69,13 @@ def trial_masks(path: Path, frames: int, views: int, plates, seed: int) -> dict:
                           end_sites=motion.end_sites, shape=view["shape"])
         plain = render_motion_masks(motion, skinner, view["azimuth_deg"], view["elevation_deg"],
                                     view["distance_m"], config.person_px, config.mask_size)
+        keep = None
+        if videos is not None and v == 0:
+            keep = lambda clip, first: write_video(videos / f"{path.stem}-{first}.mp4", clip)  # noqa: E731
         start = time.perf_counter()
         real, info = realistic_motion_masks(motion, skinner, view["azimuth_deg"], plates,
                                             _view_rng(seed, path.stem + "/scene", v),
-                                            config.mask_size)
+                                            config.mask_size, on_clip=keep)
         out["seconds"] += time.perf_counter() - start
         out["plain"] += list(plain)
         out["hand noise"] += noisy_masks(plain, seed + v)
@@ -103,6 +109,27 @@ def kind_measures(model, X: np.ndarray, plain: np.ndarray, sequence: list, rng) 
     return {"novelty": float(np.median(novelty)), "above_1": float((novelty > 1).mean()),
             "distance": float(np.median(distance)), "relative": float(np.median(distance) / between),
             "described": int(ok.sum()), "rows": len(X)}
+
+
+def tracked_novelty(videos: list[Path]) -> dict:
+    """{video stem: median novelty of its frames} from the ``track`` command (this checkout's,
+    python -m tracker.cli VIDEO --json), all tracks' frames pooled."""
+    import subprocess
+    import tempfile
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for video in videos:
+            summary = Path(tmp) / "track.json"
+            run = subprocess.run([sys.executable, "-m", "tracker.cli", str(video), "--json",
+                                  str(summary)], capture_output=True, text=True)
+            if run.returncode:
+                raise OSError(f"track {video}: {run.stderr.strip().splitlines()[-1:]}")
+            tracks = json.loads(summary.read_text())["tracks"]
+            values = [x for t in (tracks.values() if isinstance(tracks, dict) else tracks)
+                      for x in t["novelty"] if x is not None]
+            if values:
+                out[video.stem] = float(np.median(values))
+    return out
 
 
 def real_novelty(paths: list[Path]) -> dict:
@@ -146,7 +173,7 @@ def write_sheet(path: Path, data: dict, n: int = 8, size: int = 112) -> None:
     cv2.imwrite(str(path), np.vstack(rows))
 
 
-def _report(args, model, data: dict, reals: dict) -> None:
+def _report(args, model, data: dict, reals: dict, tracked: dict) -> None:
     print("cameras: Pose2Sim (height m, tilt down deg): " + ", ".join(
         f"{n} {h:.2f} {t:.0f}" for n, h, t in pose2sim_cameras(args.calibration)))
     scene = SceneConfig()
@@ -172,6 +199,11 @@ def _report(args, model, data: dict, reals: dict) -> None:
     print(f"speed: {ms:.0f} ms per realistic frame (render, H.264, extraction; one process); "
           f"the default training set's {rows} rows: about {minutes:.0f} min on {args.workers} "
           f"workers")
+    if tracked:
+        values = np.array(list(tracked.values()))
+        print("realistic videos through track (first view, first clip of each trial): novelty "
+              "median " + ", ".join(f"{k} {v:.2f}" for k, v in tracked.items())
+              + f"; median of videos {np.median(values):.2f}")
     if reals:
         values = np.array(list(reals.values()))
         print("real (evaluate_real.py, tracker): novelty median per view "
@@ -195,6 +227,9 @@ def _main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2,
                     help="workers assumed for the training set's time estimate")
+    ap.add_argument("--videos", type=Path, metavar="DIR", help="also write each trial's first "
+                    "realistic view as MP4 clips in DIR and track the first clip of each with "
+                    "this checkout's track (--json): novelty as the real clips get it")
     ap.add_argument("--sheet", type=Path, metavar="PNG", help="write 8 frames of each kind "
                     "(rows: plain, hand noise, realistic) as a PNG")
     ap.add_argument("--real-json", type=Path, nargs="*", default=[],
@@ -209,20 +244,25 @@ def _main(argv=None) -> int:
         if not path.is_file():
             ap.error(f"file not found: {path}")
     try:
+        if args.videos is not None:
+            args.videos.mkdir(parents=True, exist_ok=True)
         model = load_pose_model(args.model)
         plates = (load_plates(str(args.backgrounds)) if any(args.backgrounds.glob("plate-*.png"))
                   else pose2sim_plates(args.backgrounds, args.plates))
         data: dict = {}
         for trial in HELD_OUT_TRIALS:
             one = trial_masks(args.bvh_dir / f"{trial}.bvh", args.frames, args.views, plates,
-                              args.seed)
+                              args.seed, args.videos)
             for k, v in one.items():
                 data[k] = data.get(k, 0.0 if k == "seconds" else []) + v
             print(f"  {trial}: {len(one['plain'])} frames", file=sys.stderr)
         if args.sheet is not None:
             write_sheet(args.sheet, data)
         reals = real_novelty(args.real_json)
-        _report(args, model, data, reals)
+        tracked = {}
+        if args.videos is not None:
+            tracked = tracked_novelty(sorted(args.videos.glob("*-0.mp4")))
+        _report(args, model, data, reals, tracked)
     except (OSError, ValueError, SilhouettePoseError) as exc:
         print(f"measure_render_gap: error: {exc}", file=sys.stderr)
         return 1

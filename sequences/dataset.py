@@ -231,18 +231,18 @@ def render_motion_masks(motion, skinner: Skinner, azimuth_deg: float, elevation_
 
 
 def realistic_motion_masks(motion, skinner: Skinner, azimuth_deg: float, plates,
-                           rng: np.random.Generator, mask_size: tuple[int, int]
+                           rng: np.random.Generator, mask_size: tuple[int, int], on_clip=None
                            ) -> tuple[np.ndarray, dict]:
     """Masks (T, H, W) bool of a Motion made the realistic way
-    (sequences.scene_render.realistic_masks) and its info (the camera's elevation_deg and
-    distance_m among it)."""
+    (sequences.scene_render.realistic_masks, which also says what on_clip gets) and its info
+    (the camera's elevation_deg and distance_m among it)."""
     from .scene_render import realistic_masks
     local = motion.local_rotations()
     root_m = skinner.root_from_bvh(motion.root_position)
     standing = skinner.pose(skinner.rest_local_rotations(), skinner.rest_root_m)
     return realistic_masks(lambda a, b: skinner.pose(local[a:b], root_m[a:b]), motion.n_frames,
                            skinner.body, azimuth_deg, float(np.ptp(standing[:, 1])), plates,
-                           rng, mask_size=mask_size)
+                           rng, mask_size=mask_size, on_clip=on_clip)
 
 
 def _view_masks(motion, skinner: Skinner, view: dict, config: DatasetConfig, trial: str,

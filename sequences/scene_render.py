@@ -348,14 +348,16 @@ def clip_bounds(T: int, clip_frames: int) -> list[tuple[int, int]]:
 
 def realistic_masks(vertices_of, T: int, body: BodyModel, azimuth_deg: float, height_m: float,
                     plates, rng: np.random.Generator, config: SceneConfig = SceneConfig(),
-                    mask_size: tuple[int, int] = (224, 224)) -> tuple[np.ndarray, dict]:
+                    mask_size: tuple[int, int] = (224, 224), on_clip=None
+                    ) -> tuple[np.ndarray, dict]:
     """Training masks (T, H, W) bool of one sequence made the realistic way (module docstring).
 
     vertices_of(start, stop) -> posed vertices (stop - start, V, 3) metres; azimuth_deg: the
     view's world azimuth; height_m: the body's standing height; plates: (image, inpainted)
     pairs (sequences.backgrounds). One camera, look and room per sequence; each clip of at most
     config.clip_frames is encoded and primed on its own. A frame where the extractor finds no
-    one gets its plain mask. Returns (masks on mask_size canvases (on_canvas), info: the
+    one gets its plain mask. on_clip(decoded frames (n, H, W, 3) BGR uint8, first frame index),
+    when given, sees each clip as the extractor does (e.g. to write it as a video). Returns (masks on mask_size canvases (on_canvas), info: the
     camera (scene_camera's dict), 'fallback' frames, 'iou' (T,) of each frame's extracted
     mask with its plain mask in the frame, 'area' (T,) its area over the plain mask's)."""
     from .backgrounds import background_view
@@ -369,7 +371,10 @@ def realistic_masks(vertices_of, T: int, body: BodyModel, azimuth_deg: float, he
     for start, stop in clip_bounds(T, config.clip_frames):
         frames, plain = film_clip(vertices_of(start, stop), body, parts, view, azimuth_deg,
                                   height_m, background, look, rng, config)
-        people = extract_people(h264_round_trip(frames, look.crf, config.fps))
+        decoded = h264_round_trip(frames, look.crf, config.fps)
+        if on_clip is not None:
+            on_clip(decoded, start)
+        people = extract_people(decoded)
         for i, person in enumerate(people):
             found = in_frame(person, config.frame_size)
             union = (found | plain[i]).sum()
@@ -380,3 +385,16 @@ def realistic_masks(vertices_of, T: int, body: BodyModel, azimuth_deg: float, he
                 found = plain[i]
             masks[start + i] = on_canvas(found, mask_size)
     return masks, {**view, "fallback": fallback, "iou": iou, "area": area}
+
+
+def write_video(path, frames: np.ndarray, crf: int = 12, fps: float = 30.0) -> None:
+    """frames (T, H, W, 3) BGR uint8 written as an H.264 MP4 at path (libx264, yuv420p)."""
+    T, H, W, _ = frames.shape
+    command = [ffmpeg_exe(), "-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "bgr24",
+               "-s", f"{W}x{H}", "-r", f"{fps:g}", "-i", "-", "-c:v", "libx264", "-preset",
+               "veryfast", "-crf", str(int(crf)), "-pix_fmt", "yuv420p", str(path)]
+    run = subprocess.run(command, input=np.ascontiguousarray(frames).tobytes(),
+                         capture_output=True)
+    if run.returncode:
+        raise SceneRenderError(f"ffmpeg could not write {path}: "
+                               f"{run.stderr.decode(errors='replace').strip()}")
