@@ -137,7 +137,7 @@ def real_novelty(paths: list[Path]) -> dict:
     out = {}
     for path in paths:
         result = json.loads(path.read_text())
-        trials = result if "views" not in result else {path.stem: result}
+        trials = result.get("trials", result) if "views" not in result else {path.stem: result}
         for name, trial in trials.items():
             if not isinstance(trial, dict) or "views" not in trial:
                 continue
