@@ -71,7 +71,8 @@ def trial_masks(path: Path, frames: int, views: int, plates, seed: int,
                                     view["distance_m"], config.person_px, config.mask_size)
         keep = None
         if videos is not None and v == 0:
-            keep = lambda clip, first: write_video(videos / f"{path.stem}-{first}.mp4", clip)  # noqa: E731
+            def keep(clip, first):
+                write_video(videos / f"{path.stem}-{first}.mp4", clip)
         start = time.perf_counter()
         real, info = realistic_motion_masks(motion, skinner, view["azimuth_deg"], plates,
                                             _view_rng(seed, path.stem + "/scene", v),
@@ -107,7 +108,8 @@ def kind_measures(model, X: np.ndarray, plain: np.ndarray, sequence: list, rng) 
     a, b = rng.integers(ok.sum(), size=(2, 2000))
     between = np.median(np.linalg.norm(plain[ok][a] - plain[ok][b], axis=1))
     return {"novelty": float(np.median(novelty)), "above_1": float((novelty > 1).mean()),
-            "distance": float(np.median(distance)), "relative": float(np.median(distance) / between),
+            "distance": float(np.median(distance)),
+            "relative": float(np.median(distance) / between),
             "described": int(ok.sum()), "rows": len(X)}
 
 

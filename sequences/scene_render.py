@@ -303,7 +303,8 @@ def scene_camera(rng: np.random.Generator, config: SceneConfig = SceneConfig()) 
     H, W = config.frame_size
     return {"elevation_deg": float(np.degrees(np.arcsin(np.clip((h - AIM_HEIGHT_M) / d, -1, 1)))),
             "distance_m": d, "height_m": h, "person_px": float(rng.uniform(*config.person_px)),
-            "centre_u": float(rng.uniform(0.3, 0.7) * W), "feet_v": float(rng.uniform(0.86, 0.97) * H)}
+            "centre_u": float(rng.uniform(0.3, 0.7) * W),
+            "feet_v": float(rng.uniform(0.86, 0.97) * H)}
 
 
 def film_clip(vertices: np.ndarray, body: BodyModel, parts: tuple[np.ndarray, np.ndarray],
@@ -357,9 +358,10 @@ def realistic_masks(vertices_of, T: int, body: BodyModel, azimuth_deg: float, he
     pairs (sequences.backgrounds). One camera, look and room per sequence; each clip of at most
     config.clip_frames is encoded and primed on its own. A frame where the extractor finds no
     one gets its plain mask. on_clip(decoded frames (n, H, W, 3) BGR uint8, first frame index),
-    when given, sees each clip as the extractor does (e.g. to write it as a video). Returns (masks on mask_size canvases (on_canvas), info: the
-    camera (scene_camera's dict), 'fallback' frames, 'iou' (T,) of each frame's extracted
-    mask with its plain mask in the frame, 'area' (T,) its area over the plain mask's)."""
+    when given, sees each clip as the extractor does (e.g. to write it as a video).
+    Returns (masks on mask_size canvases (on_canvas), info: the camera (scene_camera's dict),
+    'fallback' frames, 'iou' (T,) of each frame's extracted mask with its plain mask in the
+    frame, 'area' (T,) its area over the plain mask's)."""
     from .backgrounds import background_view
     parts = body_parts(body)
     view = scene_camera(rng, config)

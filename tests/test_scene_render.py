@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -120,7 +121,7 @@ def test_data_set_hook_makes_realistic_masks(tmp_path):
 def test_build_dataset_refuses_backgrounds_without_realistic_masks(tmp_path):
     run = subprocess.run([sys.executable, "scripts/build_dataset.py", "--backgrounds",
                           str(tmp_path), "--cache", str(tmp_path / "c")],
-                         capture_output=True, text=True)
+                         capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1])
     assert run.returncode == 2
     assert "--backgrounds needs --masks realistic" in run.stderr
     assert "Traceback" not in run.stderr
