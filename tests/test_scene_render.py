@@ -91,11 +91,13 @@ def test_clips_and_canvas():
     assert abs((ys.min() + ys.max()) / 2 - 111.5) <= 1
 
 
-def test_realistic_masks_of_a_sequence_have_the_canvas_shape():
+def test_realistic_masks_of_a_sequence_have_the_canvas_shape_and_repeat_under_a_seed():
     verts, height = _walk(20)
-    masks, info = realistic_masks(lambda a, b: verts[a:b], 20, BODY, 0.0, height,
-                                  procedural_plates(1), np.random.default_rng(0),
-                                  SceneConfig(clip_frames=10), mask_size=(96, 128))
+    runs = [realistic_masks(lambda a, b: verts[a:b], 20, BODY, 0.0, height,
+                            procedural_plates(1), np.random.default_rng(0),
+                            SceneConfig(clip_frames=10), mask_size=(96, 128)) for _ in range(2)]
+    masks, info = runs[0]
+    assert np.array_equal(masks, runs[1][0])
     assert masks.shape == (20, 96, 128) and masks.dtype == bool
     assert masks.reshape(20, -1).any(axis=1).all()
     assert info["iou"].shape == (20,) and 5 <= info["elevation_deg"] <= 30
