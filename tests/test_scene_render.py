@@ -127,3 +127,13 @@ def test_build_dataset_refuses_backgrounds_without_realistic_masks(tmp_path):
     assert run.returncode == 2
     assert "--backgrounds needs --masks realistic" in run.stderr
     assert "Traceback" not in run.stderr
+
+
+def test_measure_render_gap_refuses_bad_options_in_one_line(tmp_path):
+    root = Path(__file__).resolve().parents[1]
+    for args, message in ((["--frames", "0"], "--frames must be 1..10000"),
+                          (["--bvh-dir", str(tmp_path / "none")], "--bvh-dir: folder not found")):
+        run = subprocess.run([sys.executable, "scripts/measure_render_gap.py", *args],
+                             capture_output=True, text=True, cwd=root)
+        assert run.returncode == 2 and message in run.stderr, run.stderr
+        assert "Traceback" not in run.stderr and len(run.stderr.strip().splitlines()) == 1
