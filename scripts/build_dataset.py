@@ -5,7 +5,11 @@
 Held-out trials (sequences.dataset.HELD_OUT_TRIALS) are never rendered into it. With --extra
 DIR (written by scripts/convert_cmu_extra.py) the cmu_extra sequences are rendered too, as
 train.py --extra renders them (sequences.cmu_extra.extra_dataset_trials: EXTRA_HELD_OUT left
-out, windows of the long ones written beside the cache in cmu_extra_windows/). Re-running with
+out, windows of the long ones written beside the cache in cmu_extra_windows/). With --masks
+realistic the silhouettes are made the way real ones are (sequences.scene_render: a shaded body
+over a real room, H.264, cut out by the tracker's extractor; docs/render_to_real.md), over the
+Pose2Sim rooms with --backgrounds DIR (their plates are made once into CACHE/plates), else over
+procedural rooms. Re-running with
 the same settings reuses the cache; prints the build time and size. Numbers outside their
 ranges (as train.py's) are refused in one line naming the option (exit 2).
 """
@@ -19,9 +23,20 @@ from pathlib import Path
 from regressor.errors import SilhouettePoseError
 from sequences.cmu_extra import (EXTRA_HELD_OUT, EXTRA_ROWS_PER_TRIAL, CmuExtraError,
                                 extra_dataset_trials, extra_sources)
-from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, build_dataset, training_files,
-                               views_by_rows)
+from sequences.backgrounds import pose2sim_plates
+from sequences.dataset import (HELD_OUT_TRIALS, MASK_KINDS, DatasetConfig, build_dataset,
+                               training_files, views_by_rows)
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
+
+
+def _plates(backgrounds: Path, cache: Path) -> str:
+    """The folder of plates to render over: backgrounds itself when it holds plate-*.png, else
+    the Pose2Sim trials in it made into plates once, in cache/plates."""
+    if any(backgrounds.glob("plate-*.png")):
+        return str(backgrounds.resolve())
+    folder = cache / "plates"
+    pose2sim_plates(backgrounds, folder)
+    return str(folder.resolve())
 
 
 def _main(argv=None) -> int:
@@ -42,6 +57,13 @@ def _main(argv=None) -> int:
     ap.add_argument("--extra-rows-per-trial", type=int, default=EXTRA_ROWS_PER_TRIAL,
                     help="with --extra: about this many silhouettes per converted sequence "
                          f"(default {EXTRA_ROWS_PER_TRIAL})")
+    ap.add_argument("--masks", choices=MASK_KINDS, default="plain",
+                    help="plain: rasterised silhouettes (default); realistic: rendered over a "
+                         "room, H.264, cut out by the tracker (docs/render_to_real.md)")
+    ap.add_argument("--backgrounds", type=Path, default=None,
+                    help="with --masks realistic: the Pose2Sim trials' folder (its "
+                         "*/videos/camNN.mp4, people removed) or a folder of plate-*.png; "
+                         "default: procedural rooms")
     ap.add_argument("--seed", type=int, default=0, help="0..2147483647 (default 0)")
     ap.add_argument("--workers", type=int, default=2, help="rendering processes, 1..64 "
                     "(default 2)")
@@ -61,8 +83,14 @@ def _main(argv=None) -> int:
             extra_sources(args.extra)
         except CmuExtraError as exc:
             ap.error(str(exc))
+    if args.backgrounds is not None and args.masks != "realistic":
+        ap.error("--backgrounds needs --masks realistic")
+    if args.backgrounds is not None and not args.backgrounds.is_dir():
+        ap.error(f"--backgrounds: folder not found: {args.backgrounds}")
     try:
-        config = DatasetConfig(views_per_trial=args.views, seed=args.seed)
+        backgrounds = "" if args.backgrounds is None else _plates(args.backgrounds, args.cache)
+        config = DatasetConfig(views_per_trial=args.views, seed=args.seed, masks=args.masks,
+                               backgrounds=backgrounds)
         files = training_files(args.bvh_dir)
         print(f"{len(files)} training trials (held out: {', '.join(HELD_OUT_TRIALS)}), "
               + (f"about {args.rows_per_trial} silhouettes each" if args.rows_per_trial

@@ -38,6 +38,8 @@ from .render import centred_camera, silhouette_mask
 HELD_OUT_TRIALS = ("16_11", "07_12", "09_11", "06_14", "141_16", "06_06", "06_08")
 
 CACHE_FORMAT_VERSION = 1
+#: How training masks are made (DatasetConfig.masks).
+MASK_KINDS = ("plain", "realistic")
 _FRAMES_PER_BATCH = 64          # frames skinned at once: bounds memory at ~T*V*12 floats
 
 
@@ -55,6 +57,11 @@ class DatasetConfig:
     distance_m: (low, high) camera distance range, metres, uniform per view (sets perspective).
     person_px: standing height of the body in pixels; mask_size: (height, width) pixels.
     seed: everything random derives from it.
+    masks: "plain" (exact rasterised silhouettes) or "realistic" (sequences.scene_render: the
+    body shaded over a real room, filmed by a camera like the real clips', H.264, cut out by the
+    tracker's extractor; camera elevation and distance then come from scene_render.SceneConfig,
+    the person at its own scale on the canvas). backgrounds: with "realistic", the rooms
+    (sequences.backgrounds.load_plates: "" procedural, or a folder of plates or Pose2Sim trials).
     """
 
     fps: float = 30.0
@@ -64,6 +71,8 @@ class DatasetConfig:
     person_px: float = 160.0
     mask_size: tuple[int, int] = (224, 224)
     seed: int = 0
+    masks: str = "plain"
+    backgrounds: str = ""
 
     def __post_init__(self):
         checks = [
@@ -76,14 +85,20 @@ class DatasetConfig:
              f"distance_m must be an ordered range within 0.5..100, got {self.distance_m}"),
             (16 <= self.person_px <= min(self.mask_size),
              f"person_px must be within 16..min(mask_size), got {self.person_px}"),
+            (self.masks in MASK_KINDS,
+             f"masks must be one of {', '.join(MASK_KINDS)}, got {self.masks!r}"),
         ]
         for ok, message in checks:
             if not ok:
                 raise DatasetError(message)
 
     def digest(self) -> str:
-        """Short digest of the settings (cache key)."""
-        text = json.dumps(asdict(self), sort_keys=True) + f"v{CACHE_FORMAT_VERSION}"
+        """Short digest of the settings (cache key); plain masks keep the digest they had
+        before the masks and backgrounds settings existed."""
+        settings = asdict(self)
+        if self.masks == "plain":
+            del settings["masks"], settings["backgrounds"]
+        text = json.dumps(settings, sort_keys=True) + f"v{CACHE_FORMAT_VERSION}"
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
@@ -215,6 +230,37 @@ def render_motion_masks(motion, skinner: Skinner, azimuth_deg: float, elevation_
     return masks
 
 
+def realistic_motion_masks(motion, skinner: Skinner, azimuth_deg: float, plates,
+                           rng: np.random.Generator, mask_size: tuple[int, int], on_clip=None
+                           ) -> tuple[np.ndarray, dict]:
+    """Masks (T, H, W) bool of a Motion made the realistic way
+    (sequences.scene_render.realistic_masks, which also says what on_clip gets) and its info
+    (the camera's elevation_deg and distance_m among it)."""
+    from .scene_render import realistic_masks
+    local = motion.local_rotations()
+    root_m = skinner.root_from_bvh(motion.root_position)
+    standing = skinner.pose(skinner.rest_local_rotations(), skinner.rest_root_m)
+    return realistic_masks(lambda a, b: skinner.pose(local[a:b], root_m[a:b]), motion.n_frames,
+                           skinner.body, azimuth_deg, float(np.ptp(standing[:, 1])), plates,
+                           rng, mask_size=mask_size, on_clip=on_clip)
+
+
+def _view_masks(motion, skinner: Skinner, view: dict, config: DatasetConfig, trial: str,
+                v: int) -> np.ndarray:
+    """One view's masks as config.masks asks; a realistic view's camera elevation and
+    distance are written into view."""
+    if config.masks == "plain":
+        return render_motion_masks(motion, skinner, view["azimuth_deg"], view["elevation_deg"],
+                                   view["distance_m"], config.person_px, config.mask_size)
+    from .backgrounds import load_plates
+    masks, info = realistic_motion_masks(motion, skinner, view["azimuth_deg"],
+                                         load_plates(config.backgrounds),
+                                         _view_rng(config.seed, trial + "/scene", v),
+                                         config.mask_size)
+    view["elevation_deg"], view["distance_m"] = info["elevation_deg"], info["distance_m"]
+    return masks
+
+
 def render_trial(path: str | Path, config: DatasetConfig) -> TrialViews:
     """Render every view of one BVH trial (see module docstring)."""
     trial = trial_name(path)
@@ -224,8 +270,7 @@ def render_trial(path: str | Path, config: DatasetConfig) -> TrialViews:
     for v, view in enumerate(view_settings(config, trial)):
         skinner = Skinner(body, offsets=motion.offsets, names=motion.names,
                           end_sites=motion.end_sites, shape=view["shape"])
-        masks = render_motion_masks(motion, skinner, view["azimuth_deg"], view["elevation_deg"],
-                                    view["distance_m"], config.person_px, config.mask_size)
+        masks = _view_masks(motion, skinner, view, config, trial, v)
         T = motion.n_frames
         parts.append(dict(
             masks=masks, pose=motion_to_pose_vectors(motion, view["azimuth_deg"]),
