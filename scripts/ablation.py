@@ -23,7 +23,6 @@ patched for the replay only):
   raw_side        no main-head side evidence (the raw-side table flat)
   switch          no learned switch probabilities (every transition 0.5)
   travel          no direction of travel (no travel evidence, no fusion)
-  travel_memory   travel with the population prior on every frame (no per-track belief)
   mirror          no mirror-image averaging of the limbs
   member_path     smoothed limbs' member picked per frame by the smoothed heading (no Viterbi)
   limb_networks   no limb networks: the mixture's own pose and its flip as the hypotheses (the
@@ -111,8 +110,6 @@ VARIANTS = (
     Variant("raw_side", "no main-head side evidence (raw-side table flat)"),
     Variant("switch", "switch probabilities 0.5 (no learned switching)"),
     Variant("travel", "no direction of travel (no evidence, no fusion)"),
-    Variant("travel_memory", "population (facing - travel) prior every frame",
-            {"travel_offset_memory": False}),
     Variant("mirror", "no mirror-image averaging of the limbs", {"mirror_limbs": False},
             mirror=False),
     Variant("member_path", "smoothed limbs' member by the smoothed heading, no Viterbi"),
@@ -122,7 +119,7 @@ VARIANTS = (
             "networks or side classifier either)", mirror=False, describe=True),
 )
 #: Removals together (they may interact): "recommended", the ones inside the noise on the
-#: 12 forward renders (travel's removal takes its memory with it); and
+#: 12 forward renders; and
 #: "recommended_keep_ambiguity", the same without the ambiguity inflation's, which the
 #: time-reversed renders keep: the set docs/ablation.md recommends.
 RECOMMENDED_REMOVALS = ("ambiguity", "raw_side", "switch", "travel")

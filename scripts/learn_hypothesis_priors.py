@@ -4,7 +4,7 @@ the regressor's flip statistics on its validation trials rendered as spiral walk
     python scripts/learn_hypothesis_priors.py [--cmu ../shared/data/cmu/bvh] [--model FILE]
         [--skip-regressor] [--weights] [--save OUT]
 
-Prints the values that tracker/travel.py (FACING_TRAVEL_PRIOR, FACING_TRAVEL_STEPS; from the
+Prints the values that tracker/travel.py (FACING_TRAVEL_PRIOR; from the
 training trials, the held-out ones left out) and tracker/hypotheses.py (SWITCH_PROBABILITY,
 RAW_NEARER_BY_NORM; with --weights TRAVEL_WEIGHT and EVIDENCE_WEIGHT, which should be chosen
 after the others are in place) hold; for a model with limbs and a side classifier (the
@@ -26,7 +26,6 @@ from regressor.pose_model import (DEFAULT_MODEL_PATH, PoseModelError, load_pose_
                                   save_pose_model)
 from sequences.dataset import training_files
 from tracker.offline.hypothesis_priors import (choose_weights, facing_travel_histogram,
-                                               facing_travel_steps,
                                                learn_canonical_priors, prior_files,
                                                regressor_flip_statistics, replay_heading_rms,
                                                top_experts, validation_renders)
@@ -84,11 +83,6 @@ def main(argv=None) -> int:
     for stem in TRAVEL_TRIALS:
         one, _ = facing_travel_histogram([args.cmu / f"{stem}.bvh"])
         print(stem, "[" + ", ".join(f"{p:.2f}" for p in one) + "]")
-    steps, counts = facing_travel_steps(training_files(args.cmu))
-    print(f"steps between those bins per 30 fps frame over {int(counts.sum())} frame pairs of "
-          f"the training trials (tracker/travel.py FACING_TRAVEL_STEPS; down, then up):")
-    for row in steps:
-        print("[" + ", ".join(f"{p:.4f}" for p in row) + "]")
     if not args.skip_regressor:
         with threadpool_limits(1):
             stats = regressor_flip_statistics(model,

@@ -192,8 +192,6 @@ def test_learn_hypothesis_priors_saves_a_copy_with_the_learned_priors(tmp_path, 
         (cmu / f"{stem}.bvh").write_text("")
     learned = _priors()
     monkeypatch.setattr(module, "facing_travel_histogram", lambda files: (np.ones(12) / 12, {}))
-    monkeypatch.setattr(module, "facing_travel_steps",
-                        lambda files: (np.zeros((2, 12)), np.zeros(12)))
     out = tmp_path / "with_priors.npz"
     # the regressor's steps need the validation trials: refused up front, nothing written
     with pytest.raises(SystemExit) as exit_info:

@@ -17,12 +17,9 @@ a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter ban
   jump of the body.
 - e_t(j): the evidence the frame itself gives: the regressor's (its (cos, sin) norm, as a
   likelihood ratio from RAW_NEARER_BY_NORM) and, while the person moves, the direction of
-  travel's given hypothesis j's heading and the track's belief over (facing - travel).
-- The belief over (facing - travel) (``offset_memory``, on by default): each state's filter
-  carries a probability over tracker.travel.FACING_TRAVEL_PRIOR's twelve 30-degree bins,
-  moved from frame to frame by the bins' transitions learned from the CMU training trials and
-  updated by the travel seen (tempered by TRAVEL_WEIGHT): people who walk backwards or sideways
-  keep doing so. It waits on frames without travel.
+  travel's given hypothesis j's heading (tracker.travel.travel_likelihood, the population's
+  (facing - travel) distribution); the travel is also fused into each hypothesis's heading
+  (tracker.travel.fuse_with_prior).
 - Consecutive frames' evidence is correlated (stacked descriptors share frames; travel windows
   overlap), so each is tempered by an exponent per frame (EVIDENCE_WEIGHT,
   CANONICAL_EVIDENCE_WEIGHT, TRAVEL_WEIGHT).
@@ -61,8 +58,7 @@ from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from .member_path import members_over_time
 from .mirror_limbs import mirror_mean, sees_mirror
-from .travel import (FACING_TRAVEL_FPS, FACING_TRAVEL_PRIOR, fuse_with_priors,
-                     offset_likelihoods, offset_transition)
+from .travel import fuse_with_prior, travel_likelihood
 
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
 #: [RAW_NEARER_NORM_EDGES[b], next edge)), and overall; learned on validation renders by
@@ -398,13 +394,11 @@ class FrontBackTracker:
     evidence_weight: float = EVIDENCE_WEIGHT
     reference_fps: float = DEFAULT_TRAINING_FPS
     fuse_travel: bool = True
-    offset_memory: bool = True
     keep_history: bool = True
     limb_filter_factory: Callable[[float], object] | None = None
     filters: list = field(default_factory=list)
     limb_filter: object | None = None
     log_alpha: np.ndarray | None = None
-    offset_beliefs: np.ndarray | None = None
     history: list[_Frame] = field(default_factory=list)
     _log_A: tuple | None = field(default=None, repr=False)
 
@@ -417,51 +411,28 @@ class FrontBackTracker:
         evidence = rate * self.evidence_weight * hypotheses.log_evidence
         log_A = self._log_transitions(K)
         first = self.log_alpha is None or len(self.filters) != K
-        # Each predecessor state's belief over (facing - travel), predicted to this frame
-        # (rows: the states i of the last frame; the population's prior for a new track).
-        if first or not self.offset_memory:
-            predicted = np.tile(FACING_TRAVEL_PRIOR, (K, 1))
-        elif travel_deg is None:
-            # Not moving: the steps were learned on moving frames; the belief waits.
-            predicted = self.offset_beliefs
-        else:
-            predicted = self.offset_beliefs @ offset_transition(FACING_TRAVEL_FPS / self.fps)
-        travel_ll = np.zeros((K, K))          # log p(travel | state j after state i)
-        fused_poses = np.broadcast_to(poses, (K,) + poses.shape)
-        fused_variances = np.full((K, K), np.nan)
-        offset_like = None
+        fused_poses, fused_variances = poses, np.full(K, np.nan)
         if travel_deg is not None:
             headings = np.degrees(np.arctan2(poses[:, 1], poses[:, 0]))
-            offset_like = offset_likelihoods(headings, travel_deg)          # (K, bins)
-            travel_ll = rate * self.travel_weight * np.log(predicted @ offset_like.T)
+            evidence = evidence + rate * self.travel_weight * np.log(
+                travel_likelihood(headings, travel_deg))
             if self.fuse_travel and not first:
-                raw_variance = self.filters[0].heading_variance
-                fused_poses, fused_variances = fuse_with_priors(poses, travel_deg,
-                                                                raw_variance, predicted)
+                fused_poses, fused_variances = fuse_with_prior(
+                    poses, travel_deg, self.filters[0].heading_variance)
         if first:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
             stationary = np.linalg.matrix_power(np.exp(log_A), 256)[0]
-            evidence = evidence + travel_ll[0]
             self.log_alpha, link = np.log(stationary) + evidence, None
-            predecessor = np.zeros(K, dtype=np.int64)
         else:
-            ll = np.array([f.log_likelihoods(p, v) if hasattr(f, "log_likelihoods")
-                           else np.zeros(K)
-                           for f, p, v in zip(self.filters, fused_poses, fused_variances)])
-            link = log_A + rate * ll + travel_ll
+            ll = np.array([f.log_likelihoods(fused_poses, fused_variances)
+                           if hasattr(f, "log_likelihoods") else np.zeros(K)
+                           for f in self.filters])
+            link = log_A + rate * ll
             scores = self.log_alpha[:, None] + link
-            predecessor = scores.argmax(axis=0)
-            self.filters = self._continue(predecessor)
+            self.filters = self._continue(scores.argmax(axis=0))
             self.log_alpha = _logsumexp(scores, axis=0) + evidence
         self.log_alpha -= _logsumexp(self.log_alpha)
-        states = np.arange(K)
-        poses = fused_poses[predecessor, states]
-        variances = fused_variances[predecessor, states]
-        beliefs = predicted[predecessor]
-        if offset_like is not None:
-            # The same tempering as the chain's travel evidence: windows overlap.
-            beliefs = beliefs * offset_like ** (rate * self.travel_weight)
-        self.offset_beliefs = beliefs / beliefs.sum(axis=1, keepdims=True)
+        poses, variances = fused_poses, fused_variances
         if self.keep_history:
             self.history.append(_Frame(poses.copy(), evidence, link, variances,
                                        np.array(hypotheses.raw, dtype=np.float64),

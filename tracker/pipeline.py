@@ -71,8 +71,7 @@ class TrackerSettings:
     background's unreliable zone as sure person (True) or lets colour decide on it (False).
     min_area_fraction: the default extractor's smallest person, a fraction of the image.
     mirror_limbs: average the limbs with the mirror image's (tracker.mirror_limbs), for a model
-    whose limb networks saw mirror images. travel_offset_memory: each track keeps its own
-    belief over (facing - direction of travel); False: the population's prior every frame.
+    whose limb networks saw mirror images.
     """
 
     max_people: int | None = None
@@ -90,7 +89,6 @@ class TrackerSettings:
     novelty: bool = True
     trust_zone_foreground: bool = False
     mirror_limbs: bool = True
-    travel_offset_memory: bool = True
     min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION
 
     def threshold(self, estimator) -> float:
@@ -165,8 +163,7 @@ def _front_back_chain(estimator, fps: float, settings: TrackerSettings, chain, l
     """The one place a track's FrontBackTracker is built: the estimator's switch rates and
     evidence weight, the filter factories chain and limbs (filter_factories)."""
     return FrontBackTracker(chain, fps, **chain_options(estimator),
-                            keep_history=settings.keep_history, limb_filter_factory=limbs,
-                            offset_memory=settings.travel_offset_memory)
+                            keep_history=settings.keep_history, limb_filter_factory=limbs)
 
 
 class PoseEstimator(Protocol):

@@ -19,11 +19,7 @@ evidence for the front/back hypotheses (tracker/hypotheses.py), never an overrid
 not always face where they go. travel_likelihood uses the motion capture's distribution of
 (facing - travel) (FACING_TRAVEL_PRIOR: forwards mostly, backwards and sideways too), and
 fuse_with_prior fuses the travel direction into a hypothesis's heading with the offset that
-hypothesis implies (travel + ~180 for one walking backwards). A track learns its own offset
-over time (tracker.hypotheses, offset_memory): offset_likelihoods gives the travel's
-likelihood per bin, offset_transition how the offset moves between bins from frame to frame
-(FACING_TRAVEL_STEPS, from the motion capture), and fuse_with_prior takes the track's belief
-as its prior.
+hypothesis implies (travel + ~180 for one walking backwards).
 """
 from __future__ import annotations
 
@@ -54,21 +50,6 @@ TRAVEL_STD_DEG = 25.0           # error of the travel direction as a heading, se
 FACING_TRAVEL_PRIOR = np.array([0.4412, 0.1558, 0.0593, 0.0224, 0.0124, 0.0280, 0.0764, 0.0299,
                                 0.0204, 0.0229, 0.0307, 0.1006])
 _PRIOR_BIN_DEG = 360.0 / len(FACING_TRAVEL_PRIOR)
-#: How a body's (facing - travel) moves between FACING_TRAVEL_PRIOR's bins from one 30 fps frame
-#: (FACING_TRAVEL_FPS) to the next while it keeps moving: row 0 the probability of one bin down
-#: (towards -30 degrees), row 1 one bin up, from each bin; it stays in its bin otherwise (a jump
-#: of two bins or more in a frame: 2 of the 17,427 pairs, not modelled). The offset persists: a
-#: body walking backwards keeps doing so (from the 180 bin it leaves 4 % of frames), so the
-#: travel evidence of one frame is not independent of the last's. Measured by
-#: scripts/learn_hypothesis_priors.py (tracker.offline.hypothesis_priors.facing_travel_steps) on
-#: the 92 training trials of ../shared/data/cmu (the held-out ones,
-#: sequences.dataset.HELD_OUT_TRIALS, left out; 17,427 frame pairs).
-FACING_TRAVEL_STEPS = np.array([
-    [0.0173, 0.0528, 0.0570, 0.0712, 0.0948, 0.0418, 0.0192, 0.0747, 0.0774, 0.0630, 0.0705,
-     0.0295],
-    [0.0206, 0.0249, 0.0309, 0.0475, 0.0900, 0.0543, 0.0231, 0.0393, 0.0487, 0.0680, 0.0648,
-     0.0653]])
-FACING_TRAVEL_FPS = 30.0        # the frame rate FACING_TRAVEL_STEPS are per frame of
 
 
 def travel_heading(u_px: np.ndarray, height_px: np.ndarray, fps: float, frame_width: int,
@@ -126,39 +107,11 @@ def travel_likelihood(heading_deg, travel_deg: float,
     travel_std_deg, widened by the bins' own width). heading_deg: any shape; degrees, the pose
     vector's convention (as travel_heading). Soft: walking backwards is 0.076 / 0.44 as likely
     as forwards per observation, never impossible."""
-    return offset_likelihoods(heading_deg, travel_deg, travel_std_deg) @ FACING_TRAVEL_PRIOR
-
-
-def offset_likelihoods(heading_deg, travel_deg: float,
-                       travel_std_deg: float = TRAVEL_STD_DEG) -> np.ndarray:
-    """p(the image shows travel in direction travel_deg | heading heading_deg, (facing -
-    travel) in FACING_TRAVEL_PRIOR's bin b) relative to a uniform density: (..., n_bins) for
-    heading_deg of any shape (degrees), a von Mises of std travel_std_deg widened by the bins'
-    own width (see travel_likelihood, which weighs these by the prior)."""
     centres, kappa, scale = _von_mises(float(travel_std_deg))
     delta = np.radians(np.asarray(heading_deg, dtype=np.float64) - travel_deg)
-    # von Mises density relative to uniform: exp(kappa cos(d)) / I0(kappa)
-    return np.exp(kappa * (np.cos(delta[..., None] - centres) - 1.0)) / scale
-
-
-@functools.lru_cache(maxsize=8)
-def offset_transition(frame_share: float = 1.0) -> np.ndarray:
-    """The (facing - travel) bins' transition matrix (n_bins, n_bins), rows summing to 1, over
-    frame_share of a FACING_TRAVEL_FPS frame (FACING_TRAVEL_STEPS; 0.25 for a 120 fps frame),
-    while the body moves (the steps were counted on moving frames only): the
-    one-frame matrix's power for whole frames, the share of a frame's steps for the rest (for
-    a share below 1 the chance of a step is that share of a frame's)."""
-    if frame_share < 0:
-        raise ValueError(f"frame share must be >= 0, got {frame_share}")
-    n = len(FACING_TRAVEL_PRIOR)
-    bins = np.arange(n)
-    step = np.eye(n) * (1.0 - FACING_TRAVEL_STEPS.sum(axis=0))
-    step[bins, (bins - 1) % n] += FACING_TRAVEL_STEPS[0]
-    step[bins, (bins + 1) % n] += FACING_TRAVEL_STEPS[1]
-    whole, part = divmod(float(frame_share), 1.0)
-    out = np.linalg.matrix_power(step, int(whole)) @ ((1.0 - part) * np.eye(n) + part * step)
-    out.flags.writeable = False
-    return out
+    # von Mises density relative to uniform: exp(kappa cos(d)) / I0(kappa), per offset bin
+    per_bin = np.exp(kappa * (np.cos(delta[..., None] - centres) - 1.0)) / scale
+    return per_bin @ FACING_TRAVEL_PRIOR
 
 
 @functools.lru_cache(maxsize=8)
@@ -172,42 +125,29 @@ def _von_mises(travel_std_deg: float) -> tuple[np.ndarray, float, float]:
     return centres, kappa, float(np.i0(kappa)) / math.exp(kappa)
 
 
-def fuse_with_prior(raw: np.ndarray, travel_deg: float, raw_variance: float,
-                    travel_std_deg: float = TRAVEL_STD_DEG,
-                    prior: np.ndarray = FACING_TRAVEL_PRIOR) -> tuple[np.ndarray, float]:
-    """Fuse the direction of travel into one hypothesis's heading without assuming the body
+def fuse_with_prior(poses: np.ndarray, travel_deg: float, raw_variance: float,
+                    travel_std_deg: float = TRAVEL_STD_DEG):
+    """Fuse the direction of travel into each hypothesis's heading without assuming the body
     faces it. The (facing - travel) offset is unknown: its posterior over FACING_TRAVEL_PRIOR's
-    bins given this heading (prior times N(heading - travel - offset; 0, raw_variance +
+    bins given a pose's heading (prior times N(heading - travel - offset; 0, raw_variance +
     travel_std_deg^2)) is moment-matched to one direction, travel + its circular mean offset,
     whose variance adds the offsets' spread to travel_std_deg^2; then fuse_heading. A hypothesis
     facing away from a backwards walker's travel is fused with travel + ~180, one facing across
-    it barely at all (its offset is uncertain). raw (55,); raw_variance deg^2. Returns (pose
-    (55,), fused variance deg^2). prior: the offset's probabilities over the bins
-    (n_bins,), the population's by default; a track's own belief (tracker.hypotheses) knows
-    more. fuse_with_priors does many at once."""
-    fused, variance = fuse_with_priors(np.asarray(raw)[None], travel_deg, raw_variance,
-                                       np.asarray(prior)[None], travel_std_deg)
-    return fused[0, 0], float(variance[0, 0])
-
-
-def fuse_with_priors(poses: np.ndarray, travel_deg: float, raw_variance: float,
-                     priors: np.ndarray, travel_std_deg: float = TRAVEL_STD_DEG
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """fuse_with_prior for every pose under every prior: poses (K, 55), priors (M, n_bins);
-    returns the fused poses (M, K, 55) and their fused heading variances (M, K) deg^2."""
+    it barely at all (its offset is uncertain). poses (55,) or (K, 55); raw_variance deg^2.
+    Returns (the poses with fused headings, same shape; fused variances deg^2: a float for one
+    pose, else (K,))."""
     poses = np.asarray(poses, dtype=np.float64)
-    heading = np.degrees(np.arctan2(poses[:, 1], poses[:, 0]))                  # (K,)
+    heading = np.degrees(np.arctan2(poses[..., 1], poses[..., 0]))              # (...,)
     offsets = np.arange(len(FACING_TRAVEL_PRIOR)) * _PRIOR_BIN_DEG               # (B,)
-    miss = wrap_deg(heading[:, None] - travel_deg - offsets)                     # (K, B)
-    log_w = (np.log(np.maximum(priors, 1e-12))[:, None, :]
-             - 0.5 * miss[None] ** 2 / (raw_variance + travel_std_deg ** 2))     # (M, K, B)
+    miss = wrap_deg(heading[..., None] - travel_deg - offsets)                   # (..., B)
+    log_w = (np.log(FACING_TRAVEL_PRIOR)
+             - 0.5 * miss ** 2 / (raw_variance + travel_std_deg ** 2))
     w = np.exp(log_w - log_w.max(axis=-1, keepdims=True))
     w /= w.sum(axis=-1, keepdims=True)
     mean = np.degrees(np.arctan2(w @ np.sin(np.radians(offsets)),
-                                 w @ np.cos(np.radians(offsets))))              # (M, K)
+                                 w @ np.cos(np.radians(offsets))))              # (...,)
     spread = (w * wrap_deg(offsets - mean[..., None]) ** 2).sum(axis=-1)
-    return fuse_heading(np.broadcast_to(poses, mean.shape + poses.shape[1:]),
-                        travel_deg + mean, raw_variance,
+    return fuse_heading(poses, travel_deg + mean, raw_variance,
                         np.sqrt(travel_std_deg ** 2 + spread))
 
 

@@ -69,26 +69,6 @@ def facing_minus_travel(bvh: str | Path, fps: float = 30.0, window: int = DEFAUL
     return offsets[moving]
 
 
-def facing_travel_steps(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.ndarray, np.ndarray]:
-    """How (facing - travel) moves between FACING_TRAVEL_PRIOR's bins from one 30 fps frame to
-    the next while the body keeps moving: steps (2, n_bins), row 0 the probability of moving
-    one bin down (towards -bin_deg), row 1 one bin up, from each bin; and the transitions
-    counted from each bin (n_bins,). The offset drifts a bin at a time (a body turns); the
-    rare jump of two bins or more in a frame (2 of the training trials' 17,427 pairs) is not
-    a step either way."""
-    n_bins = _n_bins(bin_deg)
-    counts = np.zeros((n_bins, n_bins))
-    for path in bvh_files:
-        offsets, moving = facing_minus_travel_series(path)
-        bins = _bin_of(offsets, bin_deg)
-        both = moving[1:] & moving[:-1]
-        np.add.at(counts, (bins[:-1][both], bins[1:][both]), 1.0)
-    total = counts.sum(axis=1)
-    rows = np.arange(n_bins)
-    steps = np.array([counts[rows, (rows - 1) % n_bins], counts[rows, (rows + 1) % n_bins]])
-    return steps / np.maximum(total, 1.0), total
-
-
 def facing_travel_histogram(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.ndarray, dict]:
     """Probabilities (360 / bin_deg,) of (facing - travel) in bins centred on 0, bin_deg, ...
     (wrapped), over all moving frames of all files; and moving frames per file."""
