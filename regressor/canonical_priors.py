@@ -2,8 +2,7 @@
 
 A model with limbs and a side classifier gives the tracker two hypotheses per frame: the limb
 networks' canonical member and its front/back flip (tracker.hypotheses, "Canonical
-hypotheses"). How often the truer of the two changes from frame to frame, how often the main
-head's heading side picks the true one, and how right the side classifier is at each of its
+hypotheses"). How often the main head's heading side picks the true one, and how right the side classifier is at each of its
 probabilities are properties of that model's networks, learned on validation renders
 (tracker.offline.hypothesis_priors.canonical_statistics). They are stored with the model
 (under "canonical_prior_", float64), so a model trained anew carries its own rather than the
@@ -18,22 +17,22 @@ import numpy as np
 
 PREFIX = "canonical_prior_"
 _FLOOR = 1e-3
-_PARTS = ("switch", "raw_side_edges", "raw_side_by_norm", "raw_side_overall", "front_edges",
-          "by_front", "overall")
+_PARTS = ("raw_side_edges", "raw_side_by_norm", "raw_side_overall", "front_edges", "by_front",
+          "overall")
+#: Parts of mechanisms since removed (docs/ablation.md): older model files carry them; ignored.
+_REMOVED_PARTS = ("switch",)
 
 
 @dataclass(frozen=True)
 class CanonicalPriors:
-    """switch: (P(canonical -> flip), P(flip -> canonical)) per frame, how often the truer
-    member changes. raw_side_by_norm (B,): P(the member on the main head's heading side is
+    """raw_side_by_norm (B,): P(the member on the main head's heading side is
     the true one | that head's heading norm in [raw_side_edges[b], next edge)), the last bin
     open-ended; raw_side_overall: the same over all frames. by_front (C,): P(the canonical
     member is the true one | the side classifier's probability for that member in
     [front_edges[c], next edge)); overall: the same over all frames. Table probabilities in
-    [0, 1]; the switch and overall rates strictly between 0 and 1; edges increasing from 0
+    [0, 1]; the overall rates strictly between 0 and 1; edges increasing from 0
     (the front edges below 1)."""
 
-    switch: tuple[float, float]
     raw_side_edges: tuple[float, ...]
     raw_side_by_norm: tuple[float, ...]
     raw_side_overall: float
@@ -42,7 +41,7 @@ class CanonicalPriors:
     overall: float
 
     def __post_init__(self):
-        for name in ("switch", "raw_side_edges", "raw_side_by_norm", "front_edges", "by_front"):
+        for name in ("raw_side_edges", "raw_side_by_norm", "front_edges", "by_front"):
             values = np.asarray(getattr(self, name), dtype=np.float64)
             if values.ndim != 1:
                 raise ValueError(f"invalid canonical priors: {name} must be a list of numbers")
@@ -55,14 +54,10 @@ class CanonicalPriors:
 
     def _problem(self) -> str | None:
         """The first inconsistency, or None."""
-        values = [*self.switch, *self.raw_side_edges, *self.raw_side_by_norm,
+        values = [*self.raw_side_edges, *self.raw_side_by_norm,
                   self.raw_side_overall, *self.front_edges, *self.by_front, self.overall]
         if not np.isfinite(values).all():
             return "non-finite values"
-        if len(self.switch) != 2 or not all(0.0 < p < 1.0 for p in self.switch):
-            # 0 would make the flip state unreachable, 1 a certain switch every frame
-            return f"switch must be two probabilities strictly between 0 and 1, got " \
-                   f"{self.switch}"
         for edges, table, name in ((self.raw_side_edges, self.raw_side_by_norm, "raw side"),
                                    (self.front_edges, self.by_front, "front")):
             if len(edges) < 1 or len(table) != len(edges):
@@ -87,7 +82,8 @@ class CanonicalPriors:
     @classmethod
     def from_arrays(cls, a) -> "CanonicalPriors | None":
         """The priors in a file's parts a (mapping), None when it has none; ValueError when
-        they are incomplete, carry an unknown part, or are inconsistent."""
+        they are incomplete, carry an unknown part, or are inconsistent (the parts of removed
+        mechanisms, _REMOVED_PARTS, are ignored)."""
         present = sorted(str(k) for k in a.keys() if str(k).startswith(PREFIX))
         if not present:
             return None
@@ -95,7 +91,8 @@ class CanonicalPriors:
         missing = [k for k in needed if k not in present]
         if missing:
             raise ValueError(f"canonical priors are incomplete (no {missing[0]})")
-        extra = [k for k in present if k not in needed]
+        removed = [f"{PREFIX}{name}" for name in _REMOVED_PARTS]
+        extra = [k for k in present if k not in needed and k not in removed]
         if extra:
             raise ValueError(f"canonical priors have an unknown part ({extra[0]})")
         arrays = {}
@@ -112,16 +109,13 @@ class CanonicalPriors:
     def from_statistics(cls, stats: dict, raw_side_edges, front_edges) -> "CanonicalPriors":
         """The priors from canonical_statistics' dict (tracker.offline.hypothesis_priors) with
         the edges its tables were binned by. A bin without frames (None) takes the overall
-        rate: no evidence either way. Overall and switch rates of 0 or 1 (a side always right
-        or always wrong on the renders, a state never left) are taken as 0.001 and 0.999: no
-        evidence is ever certain, and neither state is unreachable."""
+        rate: no evidence either way. Overall rates of 0 or 1 (a side always right or always
+        wrong on the renders) are taken as 0.001 and 0.999: no evidence is ever certain."""
         def filled(table, overall):
             return [overall if p is None else p for p in table]
         raw_overall = float(np.clip(stats["raw_side_overall"], _FLOOR, 1.0 - _FLOOR))
         overall = float(np.clip(stats["canonical_overall"], _FLOOR, 1.0 - _FLOOR))
-        return cls(switch=tuple(float(np.clip(p, _FLOOR, 1.0 - _FLOOR))
-                                for p in stats["switch_probability"]),
-                   raw_side_edges=tuple(raw_side_edges),
+        return cls(raw_side_edges=tuple(raw_side_edges),
                    raw_side_by_norm=filled(stats["raw_side_by_norm"], raw_overall),
                    raw_side_overall=raw_overall,
                    front_edges=tuple(front_edges),

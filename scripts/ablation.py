@@ -21,7 +21,6 @@ patched for the replay only):
                   flip by that frame's own evidence (side classifier and raw side), no chain
   side_classifier no side classifier evidence (its table flat at its overall rate)
   raw_side        no main-head side evidence (the raw-side table flat)
-  switch          no learned switch probabilities (every transition 0.5)
   travel          no direction of travel (no travel evidence, no fusion)
   mirror          no mirror-image averaging of the limbs
   member_path     smoothed limbs' member picked per frame by the smoothed heading (no Viterbi)
@@ -108,7 +107,6 @@ VARIANTS = (
     Variant("flips", "one hypothesis a frame (member or flip by its own evidence), no chain"),
     Variant("side_classifier", "no side-classifier evidence (table flat)"),
     Variant("raw_side", "no main-head side evidence (raw-side table flat)"),
-    Variant("switch", "switch probabilities 0.5 (no learned switching)"),
     Variant("travel", "no direction of travel (no evidence, no fusion)"),
     Variant("mirror", "no mirror-image averaging of the limbs", {"mirror_limbs": False},
             mirror=False),
@@ -122,7 +120,7 @@ VARIANTS = (
 #: 12 forward renders; and
 #: "recommended_keep_ambiguity", the same without the ambiguity inflation's, which the
 #: time-reversed renders keep: the set docs/ablation.md recommends.
-RECOMMENDED_REMOVALS = ("ambiguity", "raw_side", "switch", "travel")
+RECOMMENDED_REMOVALS = ("ambiguity", "raw_side", "travel")
 VARIANTS += (Variant("recommended", "all of " + ", ".join(RECOMMENDED_REMOVALS) + " at once",
                      parts=RECOMMENDED_REMOVALS),
              Variant("recommended_keep_ambiguity", "the same but the ambiguity inflation kept",
@@ -183,8 +181,6 @@ def _removed(name: str, model, patch):
     elif name == "raw_side":
         model = replace(model, canonical_priors=_flat(priors,
                                                       raw_side_by_norm="raw_side_overall"))
-    elif name == "switch":
-        model = replace(model, canonical_priors=replace(priors, switch=(0.5, 0.5)))
     elif name == "travel":
         patch(TravelDirection, "push", lambda self, x, h: None)
     elif name == "member_path":

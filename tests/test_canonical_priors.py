@@ -9,12 +9,12 @@ import pytest
 from regressor.canonical_priors import CanonicalPriors
 from tracker.hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES,
                                 DEFAULT_CANONICAL_PRIORS, canonical_hypotheses,
-                                canonical_priors, switch_probability)
+                                canonical_priors)
 from test_side_classifier import _body, _classifier
 
 
 def _priors(**changes) -> CanonicalPriors:
-    values = dict(switch=(0.01, 0.02), raw_side_edges=(0.0, 0.5), raw_side_by_norm=(0.5, 0.7),
+    values = dict(raw_side_edges=(0.0, 0.5), raw_side_by_norm=(0.5, 0.7),
                   raw_side_overall=0.6, front_edges=(0.0, 0.5), by_front=(0.2, 0.9),
                   overall=0.55)
     values.update(changes)
@@ -30,11 +30,16 @@ def test_the_priors_survive_the_file_parts_round_trip():
     assert CanonicalPriors.from_arrays({"other": np.zeros(1)}) is None
 
 
+def test_a_file_with_the_parts_of_removed_mechanisms_still_loads_without_them():
+    """Model files written before the learned switching was removed carry
+    canonical_prior_switch: read as if it were not there; not written any more."""
+    parts = {**_priors().to_arrays(), "canonical_prior_switch": np.array([0.025, 0.041])}
+    assert CanonicalPriors.from_arrays(parts) == _priors()
+    assert "canonical_prior_switch" not in _priors().to_arrays()
+
+
 @pytest.mark.parametrize("change, message", [
-    ({"switch": (0.1, 1.0)}, "switch must be two probabilities"),
-    ({"switch": (0.0, 0.04)}, "switch must be two probabilities"),
     ({"front_edges": (0.0, 5.0)}, "must stay below 1"),
-    ({"switch": (0.1,)}, "switch must be two probabilities"),
     ({"raw_side_by_norm": (0.5,)}, "one value per edge"),
     ({"front_edges": (0.1, 0.5)}, "edges must increase from 0"),
     ({"front_edges": (0.0, 0.0)}, "edges must increase from 0"),
@@ -57,7 +62,7 @@ def test_inconsistent_priors_are_refused_with_a_named_problem(change, message):
 @pytest.mark.parametrize("tamper, message", [
     (lambda p: p.pop("canonical_prior_overall"), "incomplete"),
     (lambda p: p.update(canonical_prior_extra=np.zeros(2)), "unknown part"),
-    (lambda p: p.update(canonical_prior_switch=np.array([0, 0], np.int64)), "must hold floats"),
+    (lambda p: p.update(canonical_prior_overall=np.array(1, np.int64)), "must hold floats"),
     (lambda p: p.update(canonical_prior_overall=np.array([0.5, 0.5])), "has shape"),
     (lambda p: p.update(canonical_prior_by_front=np.float64(0.5)), "has shape"),
 ])
@@ -69,19 +74,17 @@ def test_tampered_parts_are_refused(tamper, message):
 
 
 def test_learned_statistics_become_priors_with_empty_bins_taking_the_overall_rate():
-    stats = {"switch_probability": [0.03, 0.0], "raw_side_by_norm": [None, 0.6, 0.7, 0.8, 0.9],
+    stats = {"raw_side_by_norm": [None, 0.6, 0.7, 0.8, 0.9],
              "raw_side_overall": 1.0, "by_front": [0.3, None, 0.5, 0.6, 0.7, 0.8],
              "canonical_overall": 0.62}
     priors = CanonicalPriors.from_statistics(stats, CANONICAL_RAW_SIDE_EDGES,
                                              CANONICAL_FRONT_EDGES)
-    assert priors.switch == (0.03, 0.001)            # a state never left stays reachable
     assert priors.raw_side_overall == pytest.approx(0.999)      # never certain
     assert priors.raw_side_by_norm[0] == pytest.approx(0.999)
     assert priors.by_front[1] == pytest.approx(0.62) and priors.overall == pytest.approx(0.62)
 
 
 def test_the_shipped_tables_are_the_default_priors():
-    assert DEFAULT_CANONICAL_PRIORS.switch == (0.025, 0.041)
     assert DEFAULT_CANONICAL_PRIORS.front_edges == CANONICAL_FRONT_EDGES
 
 
@@ -108,10 +111,8 @@ def test_the_tracker_takes_a_models_own_priors_else_the_default():
 
     model = Model()
     assert canonical_priors(model) is DEFAULT_CANONICAL_PRIORS
-    assert switch_probability(model) == DEFAULT_CANONICAL_PRIORS.switch
     model.canonical_priors = _priors()
     assert canonical_priors(model) is model.canonical_priors
-    assert switch_probability(model) == (0.01, 0.02)
 
 
 def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_path):
@@ -141,7 +142,6 @@ def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_p
     for h in hyps:
         again = canonical_hypotheses(h.raw, h.limbs, h.front, model.canonical_priors)
         np.testing.assert_allclose(h.log_evidence, again.log_evidence)
-    assert switch_probability(loaded) == (0.01, 0.02)
     # priors without the classifier, or broken, are refused on load
     side_parts = [k for k in load_model(path).parts if k.startswith("side_net_")]
     assert_refused_when_changed(path, [

@@ -198,14 +198,13 @@ def top_experts(render: dict, n_experts: int) -> dict:
 
 
 def canonical_statistics(renders: dict) -> dict:
-    """The canonical chain's tables (regressor.canonical_priors.CanonicalPriors: the switch
-    probabilities, raw_side_by_norm, by_front and their overall rates) from
+    """The canonical chain's tables (regressor.canonical_priors.CanonicalPriors:
+    raw_side_by_norm, by_front and their overall rates) from
     validation_renders of a model with limbs and a side classifier (canonical hypotheses,
     which keep the classifier's probability). The true member: the nearer the truth over the
     54 angles (raw_is_nearer)."""
     from ..hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES, bin_index,
                               deaveraged_heading, member_on_side, member_probability)
-    leave, count = np.zeros(2), np.zeros(2)
     raw_side, norms, canonical_true, p_member = [], [], [], []
     for render in renders.values():
         hyps = render["hypotheses"]
@@ -214,10 +213,6 @@ def canonical_statistics(renders: dict) -> dict:
         member = np.array([h.poses[0] for h in hyps])
         raw = np.array([h.raw for h in hyps])
         true = raw_is_nearer(member, render["truth"])          # the member, not its flip
-        state = (~true).astype(int)
-        for s in (0, 1):                    # frames in state s, and those followed by the other
-            count[s] += np.sum(state[:-1] == s)
-            leave[s] += np.sum((state[:-1] == s) & (state[1:] != s))
         on_side = member_on_side(member, deaveraged_heading(raw)[:, :2])
         raw_side.append(on_side == true)
         norms.append(heading_norm(raw))
@@ -232,9 +227,7 @@ def canonical_statistics(renders: dict) -> dict:
     canonical_true, p_member = np.concatenate(canonical_true), np.concatenate(p_member)
     by_norm, n_norm = table(CANONICAL_RAW_SIDE_EDGES, norms, raw_side)
     by_front, n_front = table(CANONICAL_FRONT_EDGES, p_member, canonical_true)
-    return {"switch_probability": [round(float(leave[0] / max(count[0], 1)), 3),
-                                   round(float(leave[1] / max(count[1], 1)), 3)],
-            "raw_side_by_norm": by_norm, "frames_by_norm": n_norm,
+    return {"raw_side_by_norm": by_norm, "frames_by_norm": n_norm,
             "raw_side_overall": round(float(raw_side.mean()), 3),
             "by_front": by_front, "frames_by_front": n_front,
             "canonical_overall": round(float(canonical_true.mean()), 3)}
