@@ -2,7 +2,7 @@
 
 A model with limbs and a side classifier gives the tracker two hypotheses per frame: the limb
 networks' canonical member and its front/back flip (tracker.hypotheses, "Canonical
-hypotheses"). How often the main head's heading side picks the true one, and how right the side classifier is at each of its
+hypotheses"). How right the side classifier is at each of its
 probabilities are properties of that model's networks, learned on validation renders
 (tracker.offline.hypothesis_priors.canonical_statistics). They are stored with the model
 (under "canonical_prior_", float64), so a model trained anew carries its own rather than the
@@ -17,36 +17,29 @@ import numpy as np
 
 PREFIX = "canonical_prior_"
 _FLOOR = 1e-3
-_PARTS = ("raw_side_edges", "raw_side_by_norm", "raw_side_overall", "front_edges", "by_front",
-          "overall")
+_PARTS = ("front_edges", "by_front", "overall")
 #: Parts of mechanisms since removed (docs/ablation.md): older model files carry them; ignored.
-_REMOVED_PARTS = ("switch",)
+_REMOVED_PARTS = ("switch", "raw_side_edges", "raw_side_by_norm", "raw_side_overall")
 
 
 @dataclass(frozen=True)
 class CanonicalPriors:
-    """raw_side_by_norm (B,): P(the member on the main head's heading side is
-    the true one | that head's heading norm in [raw_side_edges[b], next edge)), the last bin
-    open-ended; raw_side_overall: the same over all frames. by_front (C,): P(the canonical
+    """by_front (C,): P(the canonical
     member is the true one | the side classifier's probability for that member in
     [front_edges[c], next edge)); overall: the same over all frames. Table probabilities in
     [0, 1]; the overall rates strictly between 0 and 1; edges increasing from 0
     (the front edges below 1)."""
 
-    raw_side_edges: tuple[float, ...]
-    raw_side_by_norm: tuple[float, ...]
-    raw_side_overall: float
     front_edges: tuple[float, ...]
     by_front: tuple[float, ...]
     overall: float
 
     def __post_init__(self):
-        for name in ("raw_side_edges", "raw_side_by_norm", "front_edges", "by_front"):
+        for name in ("front_edges", "by_front"):
             values = np.asarray(getattr(self, name), dtype=np.float64)
             if values.ndim != 1:
                 raise ValueError(f"invalid canonical priors: {name} must be a list of numbers")
             object.__setattr__(self, name, tuple(float(v) for v in values))
-        object.__setattr__(self, "raw_side_overall", float(self.raw_side_overall))
         object.__setattr__(self, "overall", float(self.overall))
         problem = self._problem()
         if problem:
@@ -54,24 +47,22 @@ class CanonicalPriors:
 
     def _problem(self) -> str | None:
         """The first inconsistency, or None."""
-        values = [*self.raw_side_edges, *self.raw_side_by_norm,
-                  self.raw_side_overall, *self.front_edges, *self.by_front, self.overall]
+        values = [*self.front_edges, *self.by_front, self.overall]
         if not np.isfinite(values).all():
             return "non-finite values"
-        for edges, table, name in ((self.raw_side_edges, self.raw_side_by_norm, "raw side"),
-                                   (self.front_edges, self.by_front, "front")):
-            if len(edges) < 1 or len(table) != len(edges):
-                return f"the {name} table needs one value per edge ({len(edges)} edges, " \
-                       f"{len(table)} values)"
-            if edges[0] != 0.0 or np.any(np.diff(edges) <= 0):
-                return f"the {name} edges must increase from 0, got {edges}"
-            if not all(0.0 <= p <= 1.0 for p in table):
-                return f"the {name} table must hold probabilities, got {table}"
+        edges, table = self.front_edges, self.by_front
+        if len(edges) < 1 or len(table) != len(edges):
+            return f"the front table needs one value per edge ({len(edges)} edges, " \
+                   f"{len(table)} values)"
+        if edges[0] != 0.0 or np.any(np.diff(edges) <= 0):
+            return f"the front edges must increase from 0, got {edges}"
+        if not all(0.0 <= p <= 1.0 for p in table):
+            return f"the front table must hold probabilities, got {table}"
         if self.front_edges[-1] >= 1.0:
             return f"the front edges bin a probability: they must stay below 1, got " \
                    f"{self.front_edges}"
-        if not (0.0 < self.raw_side_overall < 1.0 and 0.0 < self.overall < 1.0):
-            return "the overall rates must be strictly between 0 and 1"
+        if not 0.0 < self.overall < 1.0:
+            return "the overall rate must be strictly between 0 and 1"
         return None
 
     def to_arrays(self) -> dict:
@@ -100,24 +91,18 @@ class CanonicalPriors:
             v = np.asarray(a[f"{PREFIX}{name}"])
             if v.dtype.kind != "f":
                 raise ValueError(f"canonical prior {name} must hold floats, not {v.dtype}")
-            if (v.ndim != 0) != (name not in ("raw_side_overall", "overall")):
+            if (v.ndim != 0) != (name != "overall"):
                 raise ValueError(f"canonical prior {name} has shape {v.shape}")
             arrays[name] = v
         return cls(**arrays)
 
     @classmethod
-    def from_statistics(cls, stats: dict, raw_side_edges, front_edges) -> "CanonicalPriors":
+    def from_statistics(cls, stats: dict, front_edges) -> "CanonicalPriors":
         """The priors from canonical_statistics' dict (tracker.offline.hypothesis_priors) with
-        the edges its tables were binned by. A bin without frames (None) takes the overall
-        rate: no evidence either way. Overall rates of 0 or 1 (a side always right or always
-        wrong on the renders) are taken as 0.001 and 0.999: no evidence is ever certain."""
-        def filled(table, overall):
-            return [overall if p is None else p for p in table]
-        raw_overall = float(np.clip(stats["raw_side_overall"], _FLOOR, 1.0 - _FLOOR))
+        the edges its table was binned by. A bin without frames (None) takes the overall
+        rate: no evidence either way. An overall rate of 0 or 1 (a member always right or
+        always wrong on the renders) is taken as 0.001 or 0.999: no evidence is ever certain."""
         overall = float(np.clip(stats["canonical_overall"], _FLOOR, 1.0 - _FLOOR))
-        return cls(raw_side_edges=tuple(raw_side_edges),
-                   raw_side_by_norm=filled(stats["raw_side_by_norm"], raw_overall),
-                   raw_side_overall=raw_overall,
-                   front_edges=tuple(front_edges),
-                   by_front=filled(stats["by_front"], overall),
+        return cls(front_edges=tuple(front_edges),
+                   by_front=[overall if p is None else p for p in stats["by_front"]],
                    overall=overall)

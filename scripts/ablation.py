@@ -18,9 +18,8 @@ patched for the replay only):
 
   ambiguity       no R inflation on ambiguous frames (heading and joints factor 1)
   flips           no front/back flip hypotheses: one hypothesis per frame, the member or its
-                  flip by that frame's own evidence (side classifier and raw side), no chain
+                  flip by that frame's own evidence (the side classifier), no chain
   side_classifier no side classifier evidence (its table flat at its overall rate)
-  raw_side        no main-head side evidence (the raw-side table flat)
   travel          no direction of travel (no travel evidence, no fusion)
   mirror          no mirror-image averaging of the limbs
   member_path     smoothed limbs' member picked per frame by the smoothed heading (no Viterbi)
@@ -106,7 +105,6 @@ VARIANTS = (
             {"ambiguous_heading_factor": 1.0, "ambiguous_joint_factor": 1.0}),
     Variant("flips", "one hypothesis a frame (member or flip by its own evidence), no chain"),
     Variant("side_classifier", "no side-classifier evidence (table flat)"),
-    Variant("raw_side", "no main-head side evidence (raw-side table flat)"),
     Variant("travel", "no direction of travel (no evidence, no fusion)"),
     Variant("mirror", "no mirror-image averaging of the limbs", {"mirror_limbs": False},
             mirror=False),
@@ -120,7 +118,7 @@ VARIANTS = (
 #: 12 forward renders; and
 #: "recommended_keep_ambiguity", the same without the ambiguity inflation's, which the
 #: time-reversed renders keep: the set docs/ablation.md recommends.
-RECOMMENDED_REMOVALS = ("ambiguity", "raw_side", "travel")
+RECOMMENDED_REMOVALS = ("ambiguity", "travel")
 VARIANTS += (Variant("recommended", "all of " + ", ".join(RECOMMENDED_REMOVALS) + " at once",
                      parts=RECOMMENDED_REMOVALS),
              Variant("recommended_keep_ambiguity", "the same but the ambiguity inflation kept",
@@ -178,9 +176,6 @@ def _removed(name: str, model, patch):
         patch(hyp, "transition_matrix", _transition_matrix(hyp.transition_matrix))
     elif name == "side_classifier":
         model = replace(model, canonical_priors=_flat(priors, by_front="overall"))
-    elif name == "raw_side":
-        model = replace(model, canonical_priors=_flat(priors,
-                                                      raw_side_by_norm="raw_side_overall"))
     elif name == "travel":
         patch(TravelDirection, "push", lambda self, x, h: None)
     elif name == "member_path":

@@ -84,11 +84,6 @@ UNIFORM_SWITCH = (0.5, 0.5)
 #: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
 #: the member's every frame, scores a few nats below it and weaker evidence never catches up.
 CANONICAL_EVIDENCE_WEIGHT = 2.0
-#: P(the member on the main head's heading side is the true one | that head's heading norm
-#: bin), and overall: weak, but not nothing.
-CANONICAL_RAW_SIDE_EDGES = (0.0, 0.2, 0.4, 0.6, 0.8)
-CANONICAL_RAW_SIDE_BY_NORM = (0.504, 0.507, 0.538, 0.613, 0.669)
-CANONICAL_RAW_SIDE_OVERALL = 0.578
 #: P(the canonical member is the true one | the side classifier's probability for it in
 #: [CANONICAL_FRONT_EDGES[b], next edge)), and overall: the classifier is over-confident on
 #: video-like renders, so its probability is calibrated by this table.
@@ -96,8 +91,6 @@ CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
 CANONICAL_BY_FRONT = (0.407, 0.634, 0.608, 0.633, 0.654, 0.797)
 CANONICAL_OVERALL = 0.624
 DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
-    raw_side_edges=CANONICAL_RAW_SIDE_EDGES,
-    raw_side_by_norm=CANONICAL_RAW_SIDE_BY_NORM, raw_side_overall=CANONICAL_RAW_SIDE_OVERALL,
     front_edges=CANONICAL_FRONT_EDGES, by_front=CANONICAL_BY_FRONT, overall=CANONICAL_OVERALL)
 #: Experts asked of a mixture model's predict_hypotheses (2 states each: pose and flip): the
 #: other experts' poses added wrong headings more often than right ones.
@@ -195,9 +188,10 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
                          priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
     """The two hypotheses of a model with limbs and a side classifier: the limbs' canonical
     member (55,) and its front/back flip, whole (heading and body angles). Evidence (log
-    likelihood ratios): the side of the main head's pose raw (55,) by its heading norm
-    (priors.raw_side_by_norm), and the side classifier's probability front that the body
-    faces the camera's half (priors.by_front); priors: the model's (:func:`canonical_priors`)."""
+    likelihood ratios): the side classifier's probability front that the body faces the
+    camera's half, calibrated by priors.by_front; priors: the model's
+    (:func:`canonical_priors`). raw (55,): the main head's pose, whose heading norm says how
+    ambiguous the frame is."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
     # The member commits to one body, so its (cos, sin) norm is ~1 even where the silhouette
@@ -206,13 +200,8 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
     norm = heading_norm(raw)
     unit = pair[:, :2] / np.maximum(np.linalg.norm(pair[:, :2], axis=1, keepdims=True), 1e-9)
     pair[:, :2] = unit * norm
-    evidence = np.zeros(2)
-    on_raw_side = 0 if member_on_side(pair[0], deaveraged_direction(raw)) else 1
-    p = _table(priors.raw_side_edges, priors.raw_side_by_norm, norm)
-    evidence[on_raw_side] += np.log(p / priors.raw_side_overall)
-    evidence[1 - on_raw_side] += np.log((1 - p) / (1 - priors.raw_side_overall))
     q = _table(priors.front_edges, priors.by_front, member_probability(pair[0], front))
-    evidence += np.log([q / priors.overall, (1 - q) / (1 - priors.overall)])
+    evidence = np.log([q / priors.overall, (1 - q) / (1 - priors.overall)])
     return Hypotheses(pair, evidence, np.asarray(raw, dtype=np.float64), limbs, canonical=True,
                       front=float(front))
 
@@ -223,12 +212,6 @@ def member_probability(members: np.ndarray, front) -> np.ndarray:
     member faces that half (cos >= 0), 1 - front elsewhere."""
     front = np.asarray(front, dtype=np.float64)
     return np.where(np.asarray(members)[..., 0] >= 0, front, 1.0 - front)
-
-
-def deaveraged_direction(raw: np.ndarray) -> np.ndarray:
-    """(cos, sin) (2,) of the main head's pose raw (55,) with its heading de-averaged
-    (:func:`deaveraged_heading`)."""
-    return deaveraged_heading(np.asarray(raw, dtype=np.float64)[None])[0, :2]
 
 
 def canonical_priors(estimator) -> CanonicalPriors:

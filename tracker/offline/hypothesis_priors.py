@@ -198,24 +198,19 @@ def top_experts(render: dict, n_experts: int) -> dict:
 
 
 def canonical_statistics(renders: dict) -> dict:
-    """The canonical chain's tables (regressor.canonical_priors.CanonicalPriors:
-    raw_side_by_norm, by_front and their overall rates) from
+    """The canonical chain's table (regressor.canonical_priors.CanonicalPriors: by_front
+    and its overall rate) from
     validation_renders of a model with limbs and a side classifier (canonical hypotheses,
     which keep the classifier's probability). The true member: the nearer the truth over the
     54 angles (raw_is_nearer)."""
-    from ..hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES, bin_index,
-                              deaveraged_heading, member_on_side, member_probability)
-    raw_side, norms, canonical_true, p_member = [], [], [], []
+    from ..hypotheses import CANONICAL_FRONT_EDGES, bin_index, member_probability
+    canonical_true, p_member = [], []
     for render in renders.values():
         hyps = render["hypotheses"]
         if not all(h.canonical and h.front is not None for h in hyps):
             raise ValueError("canonical statistics need a model with limbs and a side classifier")
         member = np.array([h.poses[0] for h in hyps])
-        raw = np.array([h.raw for h in hyps])
         true = raw_is_nearer(member, render["truth"])          # the member, not its flip
-        on_side = member_on_side(member, deaveraged_heading(raw)[:, :2])
-        raw_side.append(on_side == true)
-        norms.append(heading_norm(raw))
         p_member.append(member_probability(member, [h.front for h in hyps]))
         canonical_true.append(true)
 
@@ -223,13 +218,9 @@ def canonical_statistics(renders: dict) -> dict:
         b = bin_index(edges, x)
         return [round(float(y[b == k].mean()), 3) if np.any(b == k) else None
                 for k in range(len(edges))], [int(np.sum(b == k)) for k in range(len(edges))]
-    raw_side, norms = np.concatenate(raw_side), np.concatenate(norms)
     canonical_true, p_member = np.concatenate(canonical_true), np.concatenate(p_member)
-    by_norm, n_norm = table(CANONICAL_RAW_SIDE_EDGES, norms, raw_side)
     by_front, n_front = table(CANONICAL_FRONT_EDGES, p_member, canonical_true)
-    return {"raw_side_by_norm": by_norm, "frames_by_norm": n_norm,
-            "raw_side_overall": round(float(raw_side.mean()), 3),
-            "by_front": by_front, "frames_by_front": n_front,
+    return {"by_front": by_front, "frames_by_front": n_front,
             "canonical_overall": round(float(canonical_true.mean()), 3)}
 
 
@@ -251,12 +242,11 @@ def learn_canonical_priors(model, bvh_files) -> tuple[CanonicalPriors, dict]:
     """The canonical chain's priors for a model with limbs and a side classifier, learned on
     validation_renders of bvh_files (prior_files), and canonical_statistics' dict they came
     from (with each bin's frame count)."""
-    from ..hypotheses import CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES
+    from ..hypotheses import CANONICAL_FRONT_EDGES
     if not getattr(model, "gives_canonical_pairs", False):
         raise ValueError("canonical priors need a model with limbs and a side classifier")
     stats = canonical_statistics(validation_renders(model, bvh_files))
-    return (CanonicalPriors.from_statistics(stats, CANONICAL_RAW_SIDE_EDGES,
-                                            CANONICAL_FRONT_EDGES), stats)
+    return CanonicalPriors.from_statistics(stats, CANONICAL_FRONT_EDGES), stats
 
 
 def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOptions(),
