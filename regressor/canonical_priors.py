@@ -2,8 +2,8 @@
 
 A model with limbs and a side classifier gives the tracker two hypotheses per frame: the limb
 networks' canonical member and its front/back flip (tracker.hypotheses, "Canonical
-hypotheses"). How right the side classifier is at each of its
-probabilities are properties of that model's networks, learned on validation renders
+hypotheses"). How often the truer of the two changes from frame to frame and how right the
+side classifier is at each of its probabilities are properties of that model's networks, learned on validation renders
 (tracker.offline.hypothesis_priors.canonical_statistics). They are stored with the model
 (under "canonical_prior_", float64), so a model trained anew carries its own rather than the
 shipped model's: ``scripts/train.py`` learns them after fitting, and
@@ -17,25 +17,26 @@ import numpy as np
 
 PREFIX = "canonical_prior_"
 _FLOOR = 1e-3
-_PARTS = ("front_edges", "by_front", "overall")
+_PARTS = ("switch", "front_edges", "by_front", "overall")
 #: Parts of mechanisms since removed (docs/ablation.md): older model files carry them; ignored.
-_REMOVED_PARTS = ("switch", "raw_side_edges", "raw_side_by_norm", "raw_side_overall")
+_REMOVED_PARTS = ("raw_side_edges", "raw_side_by_norm", "raw_side_overall")
 
 
 @dataclass(frozen=True)
 class CanonicalPriors:
-    """by_front (C,): P(the canonical
-    member is the true one | the side classifier's probability for that member in
-    [front_edges[c], next edge)); overall: the same over all frames. Table probabilities in
-    [0, 1]; the overall rates strictly between 0 and 1; edges increasing from 0
-    (the front edges below 1)."""
+    """switch: (P(canonical -> flip), P(flip -> canonical)) per frame, how often the truer
+    member changes. by_front (C,): P(the canonical member is the true one | the side
+    classifier's probability for that member in [front_edges[c], next edge)); overall: the
+    same over all frames. Table probabilities in [0, 1]; the switch and overall rates
+    strictly between 0 and 1; edges increasing from 0 and below 1."""
 
+    switch: tuple[float, float]
     front_edges: tuple[float, ...]
     by_front: tuple[float, ...]
     overall: float
 
     def __post_init__(self):
-        for name in ("front_edges", "by_front"):
+        for name in ("switch", "front_edges", "by_front"):
             values = np.asarray(getattr(self, name), dtype=np.float64)
             if values.ndim != 1:
                 raise ValueError(f"invalid canonical priors: {name} must be a list of numbers")
@@ -47,9 +48,13 @@ class CanonicalPriors:
 
     def _problem(self) -> str | None:
         """The first inconsistency, or None."""
-        values = [*self.front_edges, *self.by_front, self.overall]
+        values = [*self.switch, *self.front_edges, *self.by_front, self.overall]
         if not np.isfinite(values).all():
             return "non-finite values"
+        if len(self.switch) != 2 or not all(0.0 < p < 1.0 for p in self.switch):
+            # 0 would make the flip state unreachable, 1 a certain switch every frame
+            return f"switch must be two probabilities strictly between 0 and 1, got " \
+                   f"{self.switch}"
         edges, table = self.front_edges, self.by_front
         if len(edges) < 1 or len(table) != len(edges):
             return f"the front table needs one value per edge ({len(edges)} edges, " \
@@ -100,9 +105,12 @@ class CanonicalPriors:
     def from_statistics(cls, stats: dict, front_edges) -> "CanonicalPriors":
         """The priors from canonical_statistics' dict (tracker.offline.hypothesis_priors) with
         the edges its table was binned by. A bin without frames (None) takes the overall
-        rate: no evidence either way. An overall rate of 0 or 1 (a member always right or
-        always wrong on the renders) is taken as 0.001 or 0.999: no evidence is ever certain."""
+        rate: no evidence either way. Overall and switch rates of 0 or 1 (a member always
+        right or always wrong on the renders, a state never left) are taken as 0.001 and
+        0.999: no evidence is ever certain, and neither state is unreachable."""
         overall = float(np.clip(stats["canonical_overall"], _FLOOR, 1.0 - _FLOOR))
-        return cls(front_edges=tuple(front_edges),
+        return cls(switch=tuple(float(np.clip(p, _FLOOR, 1.0 - _FLOOR))
+                                for p in stats["switch_probability"]),
+                   front_edges=tuple(front_edges),
                    by_front=[overall if p is None else p for p in stats["by_front"]],
                    overall=overall)

@@ -20,6 +20,7 @@ patched for the replay only):
   flips           no front/back flip hypotheses: one hypothesis per frame, the member or its
                   flip by that frame's own evidence (the side classifier), no chain
   side_classifier no side classifier evidence (its table flat at its overall rate)
+  switch          no learned switch probabilities (every transition 0.5)
   travel          no direction of travel (no travel evidence, no fusion)
   mirror          no mirror-image averaging of the limbs
   member_path     smoothed limbs' member picked per frame by the smoothed heading (no Viterbi)
@@ -105,6 +106,7 @@ VARIANTS = (
             {"ambiguous_heading_factor": 1.0, "ambiguous_joint_factor": 1.0}),
     Variant("flips", "one hypothesis a frame (member or flip by its own evidence), no chain"),
     Variant("side_classifier", "no side-classifier evidence (table flat)"),
+    Variant("switch", "switch probabilities 0.5 (no learned switching)"),
     Variant("travel", "no direction of travel (no evidence, no fusion)"),
     Variant("mirror", "no mirror-image averaging of the limbs", {"mirror_limbs": False},
             mirror=False),
@@ -176,6 +178,8 @@ def _removed(name: str, model, patch):
         patch(hyp, "transition_matrix", _transition_matrix(hyp.transition_matrix))
     elif name == "side_classifier":
         model = replace(model, canonical_priors=_flat(priors, by_front="overall"))
+    elif name == "switch":
+        model = replace(model, canonical_priors=replace(priors, switch=(0.5, 0.5)))
     elif name == "travel":
         patch(TravelDirection, "push", lambda self, x, h: None)
     elif name == "member_path":

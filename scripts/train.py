@@ -495,7 +495,7 @@ def _learn_priors(args, model, report: dict, log) -> None:
     saved.canonical_priors = model.canonical_priors = priors
     saved.description["validation"]["canonical_priors"] = stats
     save_pose_model(args.out, saved)
-    log(f"  canonical priors: the canonical member the "
+    log(f"  canonical priors: switch {stats['switch_probability']}, the canonical member the "
         f"truer on {stats['canonical_overall']:.3f} of frames "
         f"({time.perf_counter() - start:.0f} s)")
 

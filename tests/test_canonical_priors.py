@@ -8,12 +8,13 @@ import pytest
 
 from regressor.canonical_priors import CanonicalPriors
 from tracker.hypotheses import (CANONICAL_FRONT_EDGES, DEFAULT_CANONICAL_PRIORS,
-                                canonical_hypotheses, canonical_priors)
+                                canonical_hypotheses, canonical_priors, switch_probability)
 from test_side_classifier import _body, _classifier
 
 
 def _priors(**changes) -> CanonicalPriors:
-    values = dict(front_edges=(0.0, 0.5), by_front=(0.2, 0.9), overall=0.55)
+    values = dict(switch=(0.01, 0.02), front_edges=(0.0, 0.5), by_front=(0.2, 0.9),
+                  overall=0.55)
     values.update(changes)
     return CanonicalPriors(**values)
 
@@ -28,11 +29,9 @@ def test_the_priors_survive_the_file_parts_round_trip():
 
 
 def test_a_file_with_the_parts_of_removed_mechanisms_still_loads_without_them():
-    """Model files written before the learned switching and the raw-side table were removed
-    carry canonical_prior_switch and canonical_prior_raw_side_*: read as if they were not
-    there; not written any more."""
-    removed = {"canonical_prior_switch": np.array([0.025, 0.041]),
-               "canonical_prior_raw_side_edges": np.array([0.0, 0.5]),
+    """Model files written before the raw-side table was removed carry
+    canonical_prior_raw_side_*: read as if they were not there; not written any more."""
+    removed = {"canonical_prior_raw_side_edges": np.array([0.0, 0.5]),
                "canonical_prior_raw_side_by_norm": np.array([0.5, 0.7]),
                "canonical_prior_raw_side_overall": np.float64(0.6)}
     assert CanonicalPriors.from_arrays({**_priors().to_arrays(), **removed}) == _priors()
@@ -40,6 +39,9 @@ def test_a_file_with_the_parts_of_removed_mechanisms_still_loads_without_them():
 
 
 @pytest.mark.parametrize("change, message", [
+    ({"switch": (0.1, 1.0)}, "switch must be two probabilities"),
+    ({"switch": (0.0, 0.04)}, "switch must be two probabilities"),
+    ({"switch": (0.1,)}, "switch must be two probabilities"),
     ({"front_edges": (0.0, 5.0)}, "must stay below 1"),
     ({"by_front": (0.5,)}, "one value per edge"),
     ({"front_edges": (0.1, 0.5)}, "edges must increase from 0"),
@@ -63,7 +65,7 @@ def test_inconsistent_priors_are_refused_with_a_named_problem(change, message):
 @pytest.mark.parametrize("tamper, message", [
     (lambda p: p.pop("canonical_prior_overall"), "incomplete"),
     (lambda p: p.update(canonical_prior_extra=np.zeros(2)), "unknown part"),
-    (lambda p: p.update(canonical_prior_overall=np.array(1, np.int64)), "must hold floats"),
+    (lambda p: p.update(canonical_prior_switch=np.array([0, 0], np.int64)), "must hold floats"),
     (lambda p: p.update(canonical_prior_overall=np.array([0.5, 0.5])), "has shape"),
     (lambda p: p.update(canonical_prior_by_front=np.float64(0.5)), "has shape"),
 ])
@@ -75,16 +77,19 @@ def test_tampered_parts_are_refused(tamper, message):
 
 
 def test_learned_statistics_become_priors_with_empty_bins_taking_the_overall_rate():
-    stats = {"by_front": [0.3, None, 0.5, 0.6, 0.7, 0.8],
+    stats = {"switch_probability": [0.03, 0.0], "by_front": [0.3, None, 0.5, 0.6, 0.7, 0.8],
              "canonical_overall": 0.62}
     priors = CanonicalPriors.from_statistics(stats, CANONICAL_FRONT_EDGES)
+    assert priors.switch == (0.03, 0.001)            # a state never left stays reachable
     assert priors.by_front[1] == pytest.approx(0.62) and priors.overall == pytest.approx(0.62)
-    always = CanonicalPriors.from_statistics({"by_front": [1.0] * 6, "canonical_overall": 1.0},
+    always = CanonicalPriors.from_statistics({"switch_probability": [0.03, 0.04],
+                                              "by_front": [1.0] * 6, "canonical_overall": 1.0},
                                              CANONICAL_FRONT_EDGES)
     assert always.overall == pytest.approx(0.999)          # never certain
 
 
 def test_the_shipped_tables_are_the_default_priors():
+    assert DEFAULT_CANONICAL_PRIORS.switch == (0.025, 0.041)
     assert DEFAULT_CANONICAL_PRIORS.front_edges == CANONICAL_FRONT_EDGES
 
 
@@ -111,8 +116,10 @@ def test_the_tracker_takes_a_models_own_priors_else_the_default():
 
     model = Model()
     assert canonical_priors(model) is DEFAULT_CANONICAL_PRIORS
+    assert switch_probability(model) == DEFAULT_CANONICAL_PRIORS.switch
     model.canonical_priors = _priors()
     assert canonical_priors(model) is model.canonical_priors
+    assert switch_probability(model) == (0.01, 0.02)
 
 
 def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_path):
@@ -142,6 +149,7 @@ def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_p
     for h in hyps:
         again = canonical_hypotheses(h.raw, h.limbs, h.front, model.canonical_priors)
         np.testing.assert_allclose(h.log_evidence, again.log_evidence)
+    assert switch_probability(loaded) == (0.01, 0.02)
     # priors without the classifier, or broken, are refused on load
     side_parts = [k for k in load_model(path).parts if k.startswith("side_net_")]
     assert_refused_when_changed(path, [

@@ -10,9 +10,9 @@ from regressor.angles import pose_angles, wrap_deg
 from regressor.side_classifier import SideClassifier
 from sequences.pose_vector import front_back_flip
 from tracker.filtering import PoseKalmanFilter
-from tracker.hypotheses import (CANONICAL_EVIDENCE_WEIGHT, EVIDENCE_WEIGHT, SWITCH_PROBABILITY,
-                                UNIFORM_SWITCH, FrontBackTracker, canonical_hypotheses,
-                                evidence_weight, switch_probability)
+from tracker.hypotheses import (CANONICAL_EVIDENCE_WEIGHT, CANONICAL_SWITCH_PROBABILITY,
+                                EVIDENCE_WEIGHT, SWITCH_PROBABILITY, FrontBackTracker,
+                                canonical_hypotheses, evidence_weight, switch_probability)
 from tracker.pipeline import front_back_tracker
 
 FPS = 30.0
@@ -111,7 +111,7 @@ def test_canonical_hypotheses_are_the_member_and_its_flip_weighed_by_the_classif
     assert same.log_evidence == pytest.approx([0.0, 0.0], abs=0.3)
 
 
-def test_only_a_model_with_limbs_and_a_side_classifier_has_no_switching_prior():
+def test_only_a_model_with_limbs_and_a_side_classifier_switches_canonically():
     class Plain:
         pass
 
@@ -119,7 +119,7 @@ def test_only_a_model_with_limbs_and_a_side_classifier_has_no_switching_prior():
         gives_canonical_pairs = True
 
     assert switch_probability(Plain()) == SWITCH_PROBABILITY
-    assert switch_probability(Canonical()) == UNIFORM_SWITCH == (0.5, 0.5)
+    assert switch_probability(Canonical()) == CANONICAL_SWITCH_PROBABILITY
     # and weighs its evidence by the canonical chain's own exponent
     assert evidence_weight(Plain()) == EVIDENCE_WEIGHT
     assert evidence_weight(Canonical()) == CANONICAL_EVIDENCE_WEIGHT != EVIDENCE_WEIGHT
@@ -157,7 +157,8 @@ def _backward_walker(classifier_right: float):
     rest. Returns (filtered headings of the last 30 frames, smoothed headings), degrees."""
     T, rng = 150, np.random.default_rng(5)
     truth = _body(0.0)
-    bank = FrontBackTracker(lambda fps: PoseKalmanFilter(fps), FPS, switch=UNIFORM_SWITCH)
+    bank = FrontBackTracker(lambda fps: PoseKalmanFilter(fps), FPS,
+                            switch=CANONICAL_SWITCH_PROBABILITY)
     out = []
     with threadpool_limits(limits=1, user_api="blas"):
         for t in range(T):
@@ -215,9 +216,10 @@ def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pai
     direction = hyps[0].poses[0, :2] / np.linalg.norm(hyps[0].poses[0, :2])
     np.testing.assert_allclose(direction, limbs[0, :2] / np.linalg.norm(limbs[0, :2]))
     assert np.linalg.norm(hyps[0].poses[0, :2]) == pytest.approx(np.linalg.norm(poses[0, 0, :2]))
-    # the tracker's chains (built by one helper): no switching prior, the canonical weight
+    assert switch_probability(model) == CANONICAL_SWITCH_PROBABILITY
+    # the tracker's chains (built by one helper) take the canonical switch rates and weight
     chain = front_back_tracker(model, 30.0)
-    assert chain.switch == UNIFORM_SWITCH
+    assert chain.switch == CANONICAL_SWITCH_PROBABILITY
     assert chain.evidence_weight == CANONICAL_EVIDENCE_WEIGHT
     path = tmp_path / "side.npz"
     save_pose_model(path, model)
@@ -235,7 +237,7 @@ def test_only_a_mixture_carries_a_side_classifier(tmp_path):
     assert_only_a_mixture_carries(tmp_path, "side_classifier", clf, clf.to_arrays())
 
 
-def test_canonical_statistics_count_the_true_member_and_the_classifier():
+def test_canonical_statistics_count_the_true_member_its_switches_and_the_classifier():
     """Hand-made renders: the member is the truth for 30 frames, then its flip for 30; the
     classifier gives the true member 0.95."""
     from tracker.offline.hypothesis_priors import canonical_statistics
@@ -248,5 +250,6 @@ def test_canonical_statistics_count_the_true_member_and_the_classifier():
         hyps.append(canonical_hypotheses(truth[t], member, front))
     stats = canonical_statistics({"one": {"hypotheses": hyps, "truth": truth}})
     assert stats["canonical_overall"] == pytest.approx(0.5)
+    assert stats["switch_probability"] == [pytest.approx(1 / 30, abs=1e-3), 0.0]
     assert stats["by_front"][-1] == 1.0 and stats["frames_by_front"][-1] == 30
     assert stats["by_front"][0] == 0.0 and stats["frames_by_front"][0] == 30

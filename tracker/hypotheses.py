@@ -9,9 +9,8 @@ a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter ban
 
     alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
 
-- A: the switching probabilities: a pose and its flip switch only where the regressor's flips
-  do (SWITCH_PROBABILITY, learned by scripts/learn_hypothesis_priors.py); canonical pairs
-  have none (UNIFORM_SWITCH: A is flat, every state may follow every other).
+- A: the switching probabilities: the state switches only where the regressor's flips do
+  (SWITCH_PROBABILITY, learned by scripts/learn_hypothesis_priors.py).
 - N(...): the innovation likelihood of hypothesis j under the filter of the predecessor i
   (PoseKalmanFilter.log_likelihoods, 54 angles). Filter j continues the best predecessor's
   filter, updated with hypothesis j: a regressor flip is explained by switching state, not by a
@@ -77,10 +76,9 @@ CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this p
 
 #: The canonical chain's priors (module docstring) for a model file without its own
 #: (PoseModel.canonical_priors), learned on the 28 validation renders for the shipped model's
-#: networks.
-#: The canonical chain's switching: none (a flat A); what keeps its state is the filters'
-#: innovations and the evidence (a learned rate paid nothing measurable, docs/ablation.md).
-UNIFORM_SWITCH = (0.5, 0.5)
+#: networks. (P(canonical -> flip), P(flip -> canonical)) per frame: how often the truer
+#: member changes (only where the member's rule does, mostly in profile).
+CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 #: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
 #: the member's every frame, scores a few nats below it and weaker evidence never catches up.
 CANONICAL_EVIDENCE_WEIGHT = 2.0
@@ -91,7 +89,8 @@ CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
 CANONICAL_BY_FRONT = (0.407, 0.634, 0.608, 0.633, 0.654, 0.797)
 CANONICAL_OVERALL = 0.624
 DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
-    front_edges=CANONICAL_FRONT_EDGES, by_front=CANONICAL_BY_FRONT, overall=CANONICAL_OVERALL)
+    switch=CANONICAL_SWITCH_PROBABILITY, front_edges=CANONICAL_FRONT_EDGES,
+    by_front=CANONICAL_BY_FRONT, overall=CANONICAL_OVERALL)
 #: Experts asked of a mixture model's predict_hypotheses (2 states each: pose and flip): the
 #: other experts' poses added wrong headings more often than right ones.
 DEFAULT_EXPERTS = 1
@@ -221,11 +220,11 @@ def canonical_priors(estimator) -> CanonicalPriors:
 
 
 def switch_probability(estimator) -> tuple[float, float]:
-    """The chain's switching probabilities for this estimator's hypotheses: none for
-    canonical ones (a model with limbs and a side classifier: UNIFORM_SWITCH), the
-    regressor's flip rates (SWITCH_PROBABILITY) for a pose and its flip."""
+    """The chain's switching probabilities for this estimator's hypotheses: canonical ones
+    (a model with limbs and a side classifier; its priors' switch) switch far less often
+    than a pose and its flip."""
     if getattr(estimator, "gives_canonical_pairs", False):
-        return UNIFORM_SWITCH
+        return canonical_priors(estimator).switch
     return SWITCH_PROBABILITY
 
 

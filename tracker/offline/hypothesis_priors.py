@@ -198,12 +198,13 @@ def top_experts(render: dict, n_experts: int) -> dict:
 
 
 def canonical_statistics(renders: dict) -> dict:
-    """The canonical chain's table (regressor.canonical_priors.CanonicalPriors: by_front
-    and its overall rate) from
+    """The canonical chain's priors (regressor.canonical_priors.CanonicalPriors: the switch
+    probabilities, by_front and its overall rate) from
     validation_renders of a model with limbs and a side classifier (canonical hypotheses,
     which keep the classifier's probability). The true member: the nearer the truth over the
     54 angles (raw_is_nearer)."""
     from ..hypotheses import CANONICAL_FRONT_EDGES, bin_index, member_probability
+    leave, count = np.zeros(2), np.zeros(2)
     canonical_true, p_member = [], []
     for render in renders.values():
         hyps = render["hypotheses"]
@@ -211,6 +212,10 @@ def canonical_statistics(renders: dict) -> dict:
             raise ValueError("canonical statistics need a model with limbs and a side classifier")
         member = np.array([h.poses[0] for h in hyps])
         true = raw_is_nearer(member, render["truth"])          # the member, not its flip
+        state = (~true).astype(int)
+        for s in (0, 1):                    # frames in state s, and those followed by the other
+            count[s] += np.sum(state[:-1] == s)
+            leave[s] += np.sum((state[:-1] == s) & (state[1:] != s))
         p_member.append(member_probability(member, [h.front for h in hyps]))
         canonical_true.append(true)
 
@@ -220,7 +225,9 @@ def canonical_statistics(renders: dict) -> dict:
                 for k in range(len(edges))], [int(np.sum(b == k)) for k in range(len(edges))]
     canonical_true, p_member = np.concatenate(canonical_true), np.concatenate(p_member)
     by_front, n_front = table(CANONICAL_FRONT_EDGES, p_member, canonical_true)
-    return {"by_front": by_front, "frames_by_front": n_front,
+    return {"switch_probability": [round(float(leave[0] / max(count[0], 1)), 3),
+                                   round(float(leave[1] / max(count[1], 1)), 3)],
+            "by_front": by_front, "frames_by_front": n_front,
             "canonical_overall": round(float(canonical_true.mean()), 3)}
 
 
