@@ -196,10 +196,7 @@ def test_learn_hypothesis_priors_saves_a_copy_with_the_learned_priors(tmp_path, 
     module = load_script("learn_hypothesis_priors")
     cmu = tmp_path / "cmu"
     cmu.mkdir()
-    for stem in module.TRAVEL_TRIALS:           # the travel histogram reads these four
-        (cmu / f"{stem}.bvh").write_text("")
     learned = _priors()
-    monkeypatch.setattr(module, "facing_travel_histogram", lambda files: (np.ones(12) / 12, {}))
     out = tmp_path / "with_priors.npz"
     # the regressor's steps need the validation trials: refused up front, nothing written
     with pytest.raises(SystemExit) as exit_info:

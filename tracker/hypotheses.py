@@ -16,13 +16,9 @@ a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter ban
   filter, updated with hypothesis j: a regressor flip is explained by switching state, not by a
   jump of the body.
 - e_t(j): the evidence the frame itself gives: the regressor's (its (cos, sin) norm, as a
-  likelihood ratio from RAW_NEARER_BY_NORM) and, while the person moves, the direction of
-  travel's given hypothesis j's heading (tracker.travel.travel_likelihood, the population's
-  (facing - travel) distribution); the travel is also fused into each hypothesis's heading
-  (tracker.travel.fuse_with_prior).
-- Consecutive frames' evidence is correlated (stacked descriptors share frames; travel windows
-  overlap), so each is tempered by an exponent per frame (EVIDENCE_WEIGHT,
-  CANONICAL_EVIDENCE_WEIGHT, TRAVEL_WEIGHT).
+  likelihood ratio from RAW_NEARER_BY_NORM; for canonical pairs the side classifier's).
+- Consecutive frames' evidence is correlated (stacked descriptors share frames), so it is
+  tempered by an exponent per frame (EVIDENCE_WEIGHT, CANONICAL_EVIDENCE_WEIGHT).
 
 Canonical hypotheses (a model with limb networks and a side classifier, as the shipped one):
 the two states are the limb networks' canonical member and its flip, whole
@@ -58,7 +54,6 @@ from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from .member_path import members_over_time
 from .mirror_limbs import mirror_mean, sees_mirror
-from .travel import fuse_with_prior, travel_likelihood
 
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
 #: [RAW_NEARER_NORM_EDGES[b], next edge)), and overall; learned on validation renders by
@@ -68,9 +63,8 @@ RAW_NEARER_BY_NORM = (0.672, 0.617, 0.646, 0.703, 0.744, 0.688)
 RAW_NEARER_OVERALL = 0.681
 #: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps: the regressor's flips, same data.
 SWITCH_PROBABILITY = (0.117, 0.248)
-#: Exponents per frame of the travel likelihood and of the regressor's evidence (log
-#: likelihoods are multiplied by them): consecutive frames' evidence is correlated.
-TRAVEL_WEIGHT = 0.04
+#: Exponent per frame of the regressor's evidence (log likelihoods are multiplied by it):
+#: consecutive frames' evidence is correlated.
 EVIDENCE_WEIGHT = 1.0
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
 
@@ -348,7 +342,6 @@ class _Frame:
     poses: np.ndarray            # (K, 55)
     evidence: np.ndarray         # (K,) log
     link: np.ndarray | None      # (K, K) log A + innovation log-likelihoods, None at t = 0
-    heading_variance: np.ndarray  # (K,) deg^2 of travel-fused headings, NaN = the filter's
     raw: np.ndarray              # (55,) the regressor's own pose (limb input without a head)
     limbs: np.ndarray | None     # (55,) the limb head's pose (before picking), or None
 
@@ -359,9 +352,8 @@ class FrontBackTracker:
 
     filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; its ``log_likelihoods``
     is used when it has one, else hypotheses are scored by their evidence only); fps: frames
-    per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; travel_weight and
-    evidence_weight: exponents per frame of the travel likelihood and of the regressor's
-    evidence. These per-frame figures hold at reference_fps (the rate of the sequences they
+    per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; evidence_weight: the
+    exponent per frame of the regressor's evidence. These per-frame figures hold at reference_fps (the rate of the sequences they
     were learned and chosen on, the model's training rate): at another fps the chain keeps
     them per second instead (:meth:`frame_rate_ratio`), so a 120 fps video's four frames
     count as one 30 fps frame did, not four times its evidence. keep_history: keep every
@@ -374,10 +366,8 @@ class FrontBackTracker:
     filter_factory: Callable[[float], object]
     fps: float
     switch: tuple[float, float] = SWITCH_PROBABILITY
-    travel_weight: float = TRAVEL_WEIGHT
     evidence_weight: float = EVIDENCE_WEIGHT
     reference_fps: float = DEFAULT_TRAINING_FPS
-    fuse_travel: bool = True
     keep_history: bool = True
     limb_filter_factory: Callable[[float], object] | None = None
     filters: list = field(default_factory=list)
@@ -386,44 +376,32 @@ class FrontBackTracker:
     history: list[_Frame] = field(default_factory=list)
     _log_A: tuple | None = field(default=None, repr=False)
 
-    def step(self, hypotheses: Hypotheses, travel_deg: float | None = None) -> Decision:
-        """Take one frame's hypotheses and the direction of travel (degrees, None when the
-        person is not moving); returns the decision."""
+    def step(self, hypotheses: Hypotheses) -> Decision:
+        """Take one frame's hypotheses; returns the decision."""
         poses = hypotheses.poses
         K = len(poses)
         rate = self.frame_rate_ratio
         evidence = rate * self.evidence_weight * hypotheses.log_evidence
         log_A = self._log_transitions(K)
-        first = self.log_alpha is None or len(self.filters) != K
-        fused_poses, fused_variances = poses, np.full(K, np.nan)
-        if travel_deg is not None:
-            headings = np.degrees(np.arctan2(poses[:, 1], poses[:, 0]))
-            evidence = evidence + rate * self.travel_weight * np.log(
-                travel_likelihood(headings, travel_deg))
-            if self.fuse_travel and not first:
-                fused_poses, fused_variances = fuse_with_prior(
-                    poses, travel_deg, self.filters[0].heading_variance)
-        if first:
+        if self.log_alpha is None or len(self.filters) != K:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
             stationary = np.linalg.matrix_power(np.exp(log_A), 256)[0]
             self.log_alpha, link = np.log(stationary) + evidence, None
         else:
-            ll = np.array([f.log_likelihoods(fused_poses, fused_variances)
-                           if hasattr(f, "log_likelihoods") else np.zeros(K)
+            ll = np.array([f.log_likelihoods(poses) if hasattr(f, "log_likelihoods")
+                           else np.zeros(K)
                            for f in self.filters])
             link = log_A + rate * ll
             scores = self.log_alpha[:, None] + link
             self.filters = self._continue(scores.argmax(axis=0))
             self.log_alpha = _logsumexp(scores, axis=0) + evidence
         self.log_alpha -= _logsumexp(self.log_alpha)
-        poses, variances = fused_poses, fused_variances
         if self.keep_history:
-            self.history.append(_Frame(poses.copy(), evidence, link, variances,
+            self.history.append(_Frame(np.array(poses, dtype=np.float64), evidence, link,
                                        np.array(hypotheses.raw, dtype=np.float64),
                                        None if hypotheses.limbs is None
                                        else np.array(hypotheses.limbs, dtype=np.float64)))
-        outputs = [f.step(pose, heading_variance=None if np.isnan(v) else float(v))
-                   for f, pose, v in zip(self.filters, poses, variances)]
+        outputs = [f.step(pose) for f, pose in zip(self.filters, poses)]
         prob = np.exp(self.log_alpha)
         order = np.argsort(-prob)
         best = int(order[0])
@@ -446,7 +424,7 @@ class FrontBackTracker:
     @property
     def frame_rate_ratio(self) -> float:
         """reference_fps / fps: the share of a reference frame one of this video's frames is
-        (0.25 at 120 fps for a 30 fps reference); evidence, travel and the filters'
+        (0.25 at 120 fps for a 30 fps reference); evidence and the filters'
         likelihoods are tempered by it (exponents), and the switch probabilities are those
         of that share of a frame (:meth:`frame_switch`). 1 at the reference rate."""
         return self.reference_fps / self.fps
@@ -497,14 +475,12 @@ class FrontBackTracker:
             path.append(int(pointers[path[-1]]))
         return np.array(path[::-1], dtype=np.int64)
 
-    def chosen_poses(self, start: int = 0, stop: int | None = None
-                     ) -> tuple[np.ndarray, np.ndarray]:
+    def chosen_poses(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """The hypotheses (n, 55) on the Viterbi path of history[start:stop] (the smoother's
-        input) and their heading variances (n,) deg^2 (NaN: the filter's own)."""
+        input)."""
         frames = self.history[start:stop]
         path = self.viterbi_path(start, stop)
-        return (np.array([frame.poses[s] for frame, s in zip(frames, path)]),
-                np.array([frame.heading_variance[s] for frame, s in zip(frames, path)]))
+        return np.array([frame.poses[s] for frame, s in zip(frames, path)])
 
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``): of the
@@ -514,8 +490,7 @@ class FrontBackTracker:
         probable chain given the smoothed heading when every frame has them, as a model's
         frames all do: tracker.member_path), with the smoothed heading as theirs."""
         frames = self.history[start:stop]
-        poses, variances = self.chosen_poses(start, stop)
-        out = self.filter_factory(self.fps).rts_smooth(poses, heading_variance=variances)
+        out = self.filter_factory(self.fps).rts_smooth(self.chosen_poses(start, stop))
         if self.limb_filter_factory is not None and len(out):
             raws = np.array([frame.raw for frame in frames])
             if all(frame.limbs is not None for frame in frames):

@@ -31,7 +31,6 @@ from .mirror_limbs import sees_mirror
 from .silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
 from .root_path import RootHistory, smoothed_roots
 from .sinks.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
-from .travel import TravelDirection
 from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 
 
@@ -182,12 +181,10 @@ class PoseEstimator(Protocol):
 class PoseFilter(Protocol):
     """What the tracker needs of a per-track filter (PoseKalmanFilter is one)."""
 
-    heading_variance: float                 # deg^2, the heading's measurement variance
+    def step(self, raw55: np.ndarray) -> tuple[np.ndarray, bool]: ...
+    # (55,) -> (filtered (55,), ambiguous)
 
-    def step(self, raw55: np.ndarray, heading_variance: float | None = None
-             ) -> tuple[np.ndarray, bool]: ...    # (55,) -> (filtered (55,), ambiguous)
-
-    def rts_smooth(self, raws: np.ndarray, heading_variance=None) -> np.ndarray: ...
+    def rts_smooth(self, raws: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass
@@ -224,12 +221,11 @@ class TrackedPose:
 
 @dataclass
 class _TrackState:
-    """What the tracker keeps per track id: its descriptor history, its front/back hypotheses
-    (one filter each) and its direction of travel."""
+    """What the tracker keeps per track id: its descriptor history and its front/back
+    hypotheses (one filter each)."""
 
     stacker: FrameStacker
     hypotheses: FrontBackTracker
-    travel: TravelDirection
     mirror_stacker: FrameStacker | None = None      # the mirror images' (mirror_limbs only)
     measured: list = field(default_factory=list)    # (55,) raw poses (keep_history only)
     frames: int = 0                                  # frames with a pose
@@ -397,12 +393,11 @@ class PoseTracker:
 
     def _state(self, track_id: int) -> _TrackState:
         if track_id not in self.tracks:
-            travel = TravelDirection(self.fps, self.frame_shape[1], focal_px=self._focal_px)
             step = self.stack_step
             self.tracks[track_id] = _TrackState(
                 FrameStacker(self.estimator.stack_depth, step),
                 _front_back_chain(self.estimator, self.fps, self.settings, self.filter_factory,
-                                  self.limb_filter_factory), travel,
+                                  self.limb_filter_factory),
                 FrameStacker(self.estimator.stack_depth, step) if self._mirror else None)
         return self.tracks[track_id]
 
@@ -432,11 +427,10 @@ class PoseTracker:
 
     def _decide(self, track_id: int, person: PersonMask, hypotheses):
         """A track's front/back decision (tracker.hypotheses.Decision) for one frame from its
-        hypotheses, the direction of travel as soft evidence."""
+        hypotheses."""
         state = self._state(track_id)
         clock = time.perf_counter()
-        travel = state.travel.push(person.centroid[0], person.bbox[3])
-        decision = state.hypotheses.step(hypotheses, travel)
+        decision = state.hypotheses.step(hypotheses)
         state.frames += 1
         if self.settings.keep_history:
             state.measured.append(hypotheses.raw)
