@@ -2,9 +2,8 @@
 
 A model with limbs and a side classifier gives the tracker two hypotheses per frame: the limb
 networks' canonical member and its front/back flip (tracker.hypotheses, "Canonical
-hypotheses"). How often the truer of the two changes from frame to frame, how often the main
-head's heading side picks the true one, and how right the side classifier is at each of its
-probabilities are properties of that model's networks, learned on validation renders
+hypotheses"). How often the truer of the two changes from frame to frame and how right the
+side classifier is at each of its probabilities are properties of that model's networks, learned on validation renders
 (tracker.offline.hypothesis_priors.canonical_statistics). They are stored with the model
 (under "canonical_prior_", float64), so a model trained anew carries its own rather than the
 shipped model's: ``scripts/train.py`` learns them after fitting, and
@@ -18,36 +17,30 @@ import numpy as np
 
 PREFIX = "canonical_prior_"
 _FLOOR = 1e-3
-_PARTS = ("switch", "raw_side_edges", "raw_side_by_norm", "raw_side_overall", "front_edges",
-          "by_front", "overall")
+_PARTS = ("switch", "front_edges", "by_front", "overall")
+#: Parts of mechanisms since removed (docs/ablation.md): older model files carry them; ignored.
+_REMOVED_PARTS = ("raw_side_edges", "raw_side_by_norm", "raw_side_overall")
 
 
 @dataclass(frozen=True)
 class CanonicalPriors:
     """switch: (P(canonical -> flip), P(flip -> canonical)) per frame, how often the truer
-    member changes. raw_side_by_norm (B,): P(the member on the main head's heading side is
-    the true one | that head's heading norm in [raw_side_edges[b], next edge)), the last bin
-    open-ended; raw_side_overall: the same over all frames. by_front (C,): P(the canonical
-    member is the true one | the side classifier's probability for that member in
-    [front_edges[c], next edge)); overall: the same over all frames. Table probabilities in
-    [0, 1]; the switch and overall rates strictly between 0 and 1; edges increasing from 0
-    (the front edges below 1)."""
+    member changes. by_front (C,): P(the canonical member is the true one | the side
+    classifier's probability for that member in [front_edges[c], next edge)); overall: the
+    same over all frames. Table probabilities in [0, 1]; the switch and overall rates
+    strictly between 0 and 1; edges increasing from 0 and below 1."""
 
     switch: tuple[float, float]
-    raw_side_edges: tuple[float, ...]
-    raw_side_by_norm: tuple[float, ...]
-    raw_side_overall: float
     front_edges: tuple[float, ...]
     by_front: tuple[float, ...]
     overall: float
 
     def __post_init__(self):
-        for name in ("switch", "raw_side_edges", "raw_side_by_norm", "front_edges", "by_front"):
+        for name in ("switch", "front_edges", "by_front"):
             values = np.asarray(getattr(self, name), dtype=np.float64)
             if values.ndim != 1:
                 raise ValueError(f"invalid canonical priors: {name} must be a list of numbers")
             object.__setattr__(self, name, tuple(float(v) for v in values))
-        object.__setattr__(self, "raw_side_overall", float(self.raw_side_overall))
         object.__setattr__(self, "overall", float(self.overall))
         problem = self._problem()
         if problem:
@@ -55,28 +48,26 @@ class CanonicalPriors:
 
     def _problem(self) -> str | None:
         """The first inconsistency, or None."""
-        values = [*self.switch, *self.raw_side_edges, *self.raw_side_by_norm,
-                  self.raw_side_overall, *self.front_edges, *self.by_front, self.overall]
+        values = [*self.switch, *self.front_edges, *self.by_front, self.overall]
         if not np.isfinite(values).all():
             return "non-finite values"
         if len(self.switch) != 2 or not all(0.0 < p < 1.0 for p in self.switch):
             # 0 would make the flip state unreachable, 1 a certain switch every frame
             return f"switch must be two probabilities strictly between 0 and 1, got " \
                    f"{self.switch}"
-        for edges, table, name in ((self.raw_side_edges, self.raw_side_by_norm, "raw side"),
-                                   (self.front_edges, self.by_front, "front")):
-            if len(edges) < 1 or len(table) != len(edges):
-                return f"the {name} table needs one value per edge ({len(edges)} edges, " \
-                       f"{len(table)} values)"
-            if edges[0] != 0.0 or np.any(np.diff(edges) <= 0):
-                return f"the {name} edges must increase from 0, got {edges}"
-            if not all(0.0 <= p <= 1.0 for p in table):
-                return f"the {name} table must hold probabilities, got {table}"
+        edges, table = self.front_edges, self.by_front
+        if len(edges) < 1 or len(table) != len(edges):
+            return f"the front table needs one value per edge ({len(edges)} edges, " \
+                   f"{len(table)} values)"
+        if edges[0] != 0.0 or np.any(np.diff(edges) <= 0):
+            return f"the front edges must increase from 0, got {edges}"
+        if not all(0.0 <= p <= 1.0 for p in table):
+            return f"the front table must hold probabilities, got {table}"
         if self.front_edges[-1] >= 1.0:
             return f"the front edges bin a probability: they must stay below 1, got " \
                    f"{self.front_edges}"
-        if not (0.0 < self.raw_side_overall < 1.0 and 0.0 < self.overall < 1.0):
-            return "the overall rates must be strictly between 0 and 1"
+        if not 0.0 < self.overall < 1.0:
+            return "the overall rate must be strictly between 0 and 1"
         return None
 
     def to_arrays(self) -> dict:
@@ -87,7 +78,8 @@ class CanonicalPriors:
     @classmethod
     def from_arrays(cls, a) -> "CanonicalPriors | None":
         """The priors in a file's parts a (mapping), None when it has none; ValueError when
-        they are incomplete, carry an unknown part, or are inconsistent."""
+        they are incomplete, carry an unknown part, or are inconsistent (the parts of removed
+        mechanisms, _REMOVED_PARTS, are ignored)."""
         present = sorted(str(k) for k in a.keys() if str(k).startswith(PREFIX))
         if not present:
             return None
@@ -95,7 +87,8 @@ class CanonicalPriors:
         missing = [k for k in needed if k not in present]
         if missing:
             raise ValueError(f"canonical priors are incomplete (no {missing[0]})")
-        extra = [k for k in present if k not in needed]
+        removed = [f"{PREFIX}{name}" for name in _REMOVED_PARTS]
+        extra = [k for k in present if k not in needed and k not in removed]
         if extra:
             raise ValueError(f"canonical priors have an unknown part ({extra[0]})")
         arrays = {}
@@ -103,27 +96,21 @@ class CanonicalPriors:
             v = np.asarray(a[f"{PREFIX}{name}"])
             if v.dtype.kind != "f":
                 raise ValueError(f"canonical prior {name} must hold floats, not {v.dtype}")
-            if (v.ndim != 0) != (name not in ("raw_side_overall", "overall")):
+            if (v.ndim != 0) != (name != "overall"):
                 raise ValueError(f"canonical prior {name} has shape {v.shape}")
             arrays[name] = v
         return cls(**arrays)
 
     @classmethod
-    def from_statistics(cls, stats: dict, raw_side_edges, front_edges) -> "CanonicalPriors":
+    def from_statistics(cls, stats: dict, front_edges) -> "CanonicalPriors":
         """The priors from canonical_statistics' dict (tracker.offline.hypothesis_priors) with
-        the edges its tables were binned by. A bin without frames (None) takes the overall
-        rate: no evidence either way. Overall and switch rates of 0 or 1 (a side always right
-        or always wrong on the renders, a state never left) are taken as 0.001 and 0.999: no
-        evidence is ever certain, and neither state is unreachable."""
-        def filled(table, overall):
-            return [overall if p is None else p for p in table]
-        raw_overall = float(np.clip(stats["raw_side_overall"], _FLOOR, 1.0 - _FLOOR))
+        the edges its table was binned by. A bin without frames (None) takes the overall
+        rate: no evidence either way. Overall and switch rates of 0 or 1 (a member always
+        right or always wrong on the renders, a state never left) are taken as 0.001 and
+        0.999: no evidence is ever certain, and neither state is unreachable."""
         overall = float(np.clip(stats["canonical_overall"], _FLOOR, 1.0 - _FLOOR))
         return cls(switch=tuple(float(np.clip(p, _FLOOR, 1.0 - _FLOOR))
                                 for p in stats["switch_probability"]),
-                   raw_side_edges=tuple(raw_side_edges),
-                   raw_side_by_norm=filled(stats["raw_side_by_norm"], raw_overall),
-                   raw_side_overall=raw_overall,
                    front_edges=tuple(front_edges),
-                   by_front=filled(stats["by_front"], overall),
+                   by_front=[overall if p is None else p for p in stats["by_front"]],
                    overall=overall)

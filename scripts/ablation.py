@@ -18,12 +18,9 @@ patched for the replay only):
 
   ambiguity       no R inflation on ambiguous frames (heading and joints factor 1)
   flips           no front/back flip hypotheses: one hypothesis per frame, the member or its
-                  flip by that frame's own evidence (side classifier and raw side), no chain
+                  flip by that frame's own evidence (the side classifier), no chain
   side_classifier no side classifier evidence (its table flat at its overall rate)
-  raw_side        no main-head side evidence (the raw-side table flat)
   switch          no learned switch probabilities (every transition 0.5)
-  travel          no direction of travel (no travel evidence, no fusion)
-  travel_memory   travel with the population prior on every frame (no per-track belief)
   mirror          no mirror-image averaging of the limbs
   member_path     smoothed limbs' member picked per frame by the smoothed heading (no Viterbi)
   limb_networks   no limb networks: the mixture's own pose and its flip as the hypotheses (the
@@ -33,8 +30,6 @@ patched for the replay only):
                   same tracker; not a clean ablation: that file is a single RVM on the
                   shape-context histogram alone (no layout, mixture, limb networks, side
                   classifier), described anew from the kept silhouettes
-  recommended     every removal of RECOMMENDED_REMOVALS at once (they may interact);
-                  recommended_keep_ambiguity: the same but the first (ambiguity)
 
 Measures. Validation renders (the model's validation trials 02_02, 08_03, 05_02, 09_04, 02_05
 as 30 deg/s spiral walks and from a fixed camera, 06_10 and 07_12 from a fixed camera; 12
@@ -73,7 +68,6 @@ from tracker.offline.evaluation import CameraOptions, cmu_motion, constant_pose,
 from tracker.pipeline import PoseTracker, TrackerSettings
 from tracker.run import track_video
 from tracker.sinks import PoseRecorder
-from tracker.travel import TravelDirection
 from tracker.video import open_video
 
 REPO = Path(__file__).resolve().parents[1]
@@ -108,11 +102,7 @@ VARIANTS = (
             {"ambiguous_heading_factor": 1.0, "ambiguous_joint_factor": 1.0}),
     Variant("flips", "one hypothesis a frame (member or flip by its own evidence), no chain"),
     Variant("side_classifier", "no side-classifier evidence (table flat)"),
-    Variant("raw_side", "no main-head side evidence (raw-side table flat)"),
     Variant("switch", "switch probabilities 0.5 (no learned switching)"),
-    Variant("travel", "no direction of travel (no evidence, no fusion)"),
-    Variant("travel_memory", "population (facing - travel) prior every frame",
-            {"travel_offset_memory": False}),
     Variant("mirror", "no mirror-image averaging of the limbs", {"mirror_limbs": False},
             mirror=False),
     Variant("member_path", "smoothed limbs' member by the smoothed heading, no Viterbi"),
@@ -121,15 +111,6 @@ VARIANTS = (
     Variant("stacking", "the per-frame model (k = 1; a single RVM: no layout, mixture, limb "
             "networks or side classifier either)", mirror=False, describe=True),
 )
-#: Removals together (they may interact): "recommended", the ones inside the noise on the
-#: 12 forward renders (travel's removal takes its memory with it); and
-#: "recommended_keep_ambiguity", the same without the ambiguity inflation's, which the
-#: time-reversed renders keep: the set docs/ablation.md recommends.
-RECOMMENDED_REMOVALS = ("ambiguity", "raw_side", "switch", "travel")
-VARIANTS += (Variant("recommended", "all of " + ", ".join(RECOMMENDED_REMOVALS) + " at once",
-                     parts=RECOMMENDED_REMOVALS),
-             Variant("recommended_keep_ambiguity", "the same but the ambiguity inflation kept",
-                     parts=RECOMMENDED_REMOVALS[1:]))
 BY_NAME = {v.name: v for v in VARIANTS}
 PER_FRAME_MODEL = REPO / "regressor" / "models" / "per_frame_model.npz"
 
@@ -183,13 +164,8 @@ def _removed(name: str, model, patch):
         patch(hyp, "transition_matrix", _transition_matrix(hyp.transition_matrix))
     elif name == "side_classifier":
         model = replace(model, canonical_priors=_flat(priors, by_front="overall"))
-    elif name == "raw_side":
-        model = replace(model, canonical_priors=_flat(priors,
-                                                      raw_side_by_norm="raw_side_overall"))
     elif name == "switch":
         model = replace(model, canonical_priors=replace(priors, switch=(0.5, 0.5)))
-    elif name == "travel":
-        patch(TravelDirection, "push", lambda self, x, h: None)
     elif name == "member_path":
         patch(hyp, "members_over_time",
               lambda limbs, headings, ratio=1.0: hyp.pick_member(limbs, headings))

@@ -1,13 +1,11 @@
-"""Learn the front/back hypotheses' priors: (facing - travel) from the CMU training trials, and
-the regressor's flip statistics on its validation trials rendered as spiral walks.
+"""Learn the front/back hypotheses' priors: the regressor's flip statistics on its validation
+trials rendered as spiral walks.
 
     python scripts/learn_hypothesis_priors.py [--cmu ../shared/data/cmu/bvh] [--model FILE]
         [--skip-regressor] [--weights] [--save OUT]
 
-Prints the values that tracker/travel.py (FACING_TRAVEL_PRIOR, FACING_TRAVEL_STEPS; from the
-training trials, the held-out ones left out) and tracker/hypotheses.py (SWITCH_PROBABILITY,
-RAW_NEARER_BY_NORM; with --weights TRAVEL_WEIGHT and EVIDENCE_WEIGHT, which should be chosen
-after the others are in place) hold; for a model with limbs and a side classifier (the
+Prints the values that tracker/hypotheses.py (SWITCH_PROBABILITY, RAW_NEARER_BY_NORM; with
+--weights EVIDENCE_WEIGHT, which should be chosen after the others are in place) holds; for a model with limbs and a side classifier (the
 default), also the canonical chain's priors on the 28 validation renders
 (regressor.canonical_priors; the model file carries them), and with --save OUT writes the
 model with those priors to OUT (a new file: never the model itself).
@@ -24,17 +22,13 @@ import numpy as np
 
 from regressor.pose_model import (DEFAULT_MODEL_PATH, PoseModelError, load_pose_model,
                                   save_pose_model)
-from sequences.dataset import training_files
-from tracker.offline.hypothesis_priors import (choose_weights, facing_travel_histogram,
-                                               facing_travel_steps,
-                                               learn_canonical_priors, prior_files,
+from tracker.offline.hypothesis_priors import (choose_weights, learn_canonical_priors, prior_files,
                                                regressor_flip_statistics, replay_heading_rms,
                                                top_experts, validation_renders)
 from tracker.offline.training import VALIDATION_TRIALS
 from tracker.one_line_parser import OneLineParser
 
 CMU = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cmu" / "bvh"
-TRAVEL_TRIALS = ("06_06", "06_07", "06_08", "06_09")   # their facing - travel is printed
 
 
 def main(argv=None) -> int:
@@ -43,14 +37,11 @@ def main(argv=None) -> int:
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)
     ap.add_argument("--skip-regressor", action="store_true")
     ap.add_argument("--weights", action="store_true",
-                    help="also choose TRAVEL_WEIGHT and EVIDENCE_WEIGHT on validation renders")
-    ap.add_argument("--travel-weights", type=_numbers(float), default=None,
-                    help="comma-separated travel weights to try with --weights (default: "
-                         "choose_weights'; split the grid to run it on several cores)")
+                    help="also choose EVIDENCE_WEIGHT on validation renders")
     ap.add_argument("--experts", type=_numbers(int), default=None,
                     help="comma-separated numbers of a mixture's experts (DEFAULT_EXPERTS) to "
                          "compare by filtered heading RMS on the same validation renders, with "
-                         "the current TRAVEL_WEIGHT and EVIDENCE_WEIGHT")
+                         "the current EVIDENCE_WEIGHT")
     ap.add_argument("--save", type=Path, default=None,
                     help="write the model with the canonical priors learned here to this new "
                          "file (a model with limbs and a side classifier)")
@@ -69,26 +60,12 @@ def main(argv=None) -> int:
     # Every file the run reads, checked before the slow steps.
     files = (prior_files(args.cmu, check=False)
              if not args.skip_regressor or args.weights or args.experts else [])
-    needed = [args.cmu / f"{stem}.bvh" for stem in TRAVEL_TRIALS] + files
-    missing = [f for f in needed if not f.is_file()]
+    missing = [f for f in files if not f.is_file()]
     if missing:
         ap.error(f"--cmu {args.cmu}: {missing[0].name} not found (the run needs the CMU trials "
-                 f"{', '.join(sorted({f.stem for f in needed}))})")
+                 f"{', '.join(sorted({f.stem for f in files}))})")
     if args.save is not None and not model.gives_canonical_pairs:
         ap.error(f"--save: {args.model} has no side classifier and limbs, so no canonical priors")
-    prior, per_file = facing_travel_histogram(training_files(args.cmu))
-    moving = {k: v for k, v in per_file.items() if v}
-    print(f"facing - travel over {sum(moving.values())} moving frames of {len(moving)} trials "
-          f"(bins of 30 deg centred on 0, 30, ..., -30):")
-    print("[" + ", ".join(f"{p:.4f}" for p in prior) + "]")
-    for stem in TRAVEL_TRIALS:
-        one, _ = facing_travel_histogram([args.cmu / f"{stem}.bvh"])
-        print(stem, "[" + ", ".join(f"{p:.2f}" for p in one) + "]")
-    steps, counts = facing_travel_steps(training_files(args.cmu))
-    print(f"steps between those bins per 30 fps frame over {int(counts.sum())} frame pairs of "
-          f"the training trials (tracker/travel.py FACING_TRAVEL_STEPS; down, then up):")
-    for row in steps:
-        print("[" + ", ".join(f"{p:.4f}" for p in row) + "]")
     if not args.skip_regressor:
         with threadpool_limits(1):
             stats = regressor_flip_statistics(model,
@@ -113,7 +90,7 @@ def main(argv=None) -> int:
             print(f"wrote {args.save}: the model with these priors")
     # The model as it now is (with the priors learned above when --save wrote them).
     if args.weights:
-        _choose_weights(model, files, args.travel_weights)
+        _choose_weights(model, files)
     if args.experts:
         _compare_experts(model, files, list(args.experts))
     return 0
@@ -142,15 +119,14 @@ def _compare_experts(model, files, counts) -> None:
                   f"{len(rms)} validation renders", flush=True)
 
 
-def _choose_weights(model, files, travel_weights=None) -> None:
+def _choose_weights(model, files) -> None:
     with threadpool_limits(1):
         renders = validation_renders(model, files)
-        kw = {} if travel_weights is None else {"travel_weights": travel_weights}
-        best, table = choose_weights(model, renders, **kw)
+        best, table = choose_weights(model, renders)
     print("mean filtered heading RMS (deg) over", len(renders), "validation renders:")
-    for (tw, ew), rms in table.items():
-        print(f"  travel_weight {tw:.3f} evidence_weight {ew:.2f}: {np.mean(list(rms.values())):.1f}")
-    print(f"TRAVEL_WEIGHT = {best[0]:.3g}\nEVIDENCE_WEIGHT = {best[1]:.3g}")
+    for ew, rms in table.items():
+        print(f"  evidence_weight {ew:.2f}: {np.mean(list(rms.values())):.1f}")
+    print(f"EVIDENCE_WEIGHT = {best:.3g}")
 
 
 if __name__ == "__main__":

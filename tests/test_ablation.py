@@ -11,7 +11,6 @@ from regressor.pose_model import load_pose_model
 from sequences.video import Actor, write_video
 from tests.conftest import ROOT
 from tests.synthetic import gait_walk
-from tracker.travel import TravelDirection
 
 
 
@@ -70,7 +69,7 @@ def test_the_default_variant_replays_the_track_run_exactly(captured):
 def test_every_toggle_changes_the_output_and_is_undone(captured):
     model, cap = captured
     saved = (hyp.canonical_hypotheses, hyp.transition_matrix, hyp.members_over_time,
-             TravelDirection.push, model.canonical_priors,
+             model.canonical_priors,
              model.limb_net, model.side_classifier)
     with ablation.applied(ablation.BY_NAME["present"], model) as (m, settings):
         base = _outputs(*ablation.replay(cap, m, settings))
@@ -82,5 +81,5 @@ def test_every_toggle_changes_the_output_and_is_undone(captured):
                    for a, b in zip(base, out)]
         assert any(changed), variant.name
     assert saved == (hyp.canonical_hypotheses, hyp.transition_matrix, hyp.members_over_time,
-                     TravelDirection.push, model.canonical_priors,
+                     model.canonical_priors,
                      model.limb_net, model.side_classifier)

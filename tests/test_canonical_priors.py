@@ -7,15 +7,13 @@ import numpy as np
 import pytest
 
 from regressor.canonical_priors import CanonicalPriors
-from tracker.hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES,
-                                DEFAULT_CANONICAL_PRIORS, canonical_hypotheses,
-                                canonical_priors, switch_probability)
+from tracker.hypotheses import (CANONICAL_FRONT_EDGES, DEFAULT_CANONICAL_PRIORS,
+                                canonical_hypotheses, canonical_priors, switch_probability)
 from test_side_classifier import _body, _classifier
 
 
 def _priors(**changes) -> CanonicalPriors:
-    values = dict(switch=(0.01, 0.02), raw_side_edges=(0.0, 0.5), raw_side_by_norm=(0.5, 0.7),
-                  raw_side_overall=0.6, front_edges=(0.0, 0.5), by_front=(0.2, 0.9),
+    values = dict(switch=(0.01, 0.02), front_edges=(0.0, 0.5), by_front=(0.2, 0.9),
                   overall=0.55)
     values.update(changes)
     return CanonicalPriors(**values)
@@ -30,17 +28,27 @@ def test_the_priors_survive_the_file_parts_round_trip():
     assert CanonicalPriors.from_arrays({"other": np.zeros(1)}) is None
 
 
+def test_a_file_with_the_parts_of_removed_mechanisms_still_loads_without_them():
+    """Model files written before the raw-side table was removed carry
+    canonical_prior_raw_side_*: read as if they were not there; not written any more."""
+    removed = {"canonical_prior_raw_side_edges": np.array([0.0, 0.5]),
+               "canonical_prior_raw_side_by_norm": np.array([0.5, 0.7]),
+               "canonical_prior_raw_side_overall": np.float64(0.6)}
+    assert CanonicalPriors.from_arrays({**_priors().to_arrays(), **removed}) == _priors()
+    assert not set(removed) & set(_priors().to_arrays())
+
+
 @pytest.mark.parametrize("change, message", [
     ({"switch": (0.1, 1.0)}, "switch must be two probabilities"),
     ({"switch": (0.0, 0.04)}, "switch must be two probabilities"),
-    ({"front_edges": (0.0, 5.0)}, "must stay below 1"),
     ({"switch": (0.1,)}, "switch must be two probabilities"),
-    ({"raw_side_by_norm": (0.5,)}, "one value per edge"),
+    ({"front_edges": (0.0, 5.0)}, "must stay below 1"),
+    ({"by_front": (0.5,)}, "one value per edge"),
     ({"front_edges": (0.1, 0.5)}, "edges must increase from 0"),
     ({"front_edges": (0.0, 0.0)}, "edges must increase from 0"),
     ({"by_front": (0.2, 1.5)}, "must hold probabilities"),
     ({"overall": 1.0}, "strictly between 0 and 1"),
-    ({"raw_side_overall": 0.0}, "strictly between 0 and 1"),
+    ({"overall": 0.0}, "strictly between 0 and 1"),
     ({"by_front": (np.nan, 0.5)}, "non-finite"),
 ])
 def test_inconsistent_priors_are_refused_with_a_named_problem(change, message):
@@ -69,15 +77,15 @@ def test_tampered_parts_are_refused(tamper, message):
 
 
 def test_learned_statistics_become_priors_with_empty_bins_taking_the_overall_rate():
-    stats = {"switch_probability": [0.03, 0.0], "raw_side_by_norm": [None, 0.6, 0.7, 0.8, 0.9],
-             "raw_side_overall": 1.0, "by_front": [0.3, None, 0.5, 0.6, 0.7, 0.8],
+    stats = {"switch_probability": [0.03, 0.0], "by_front": [0.3, None, 0.5, 0.6, 0.7, 0.8],
              "canonical_overall": 0.62}
-    priors = CanonicalPriors.from_statistics(stats, CANONICAL_RAW_SIDE_EDGES,
-                                             CANONICAL_FRONT_EDGES)
+    priors = CanonicalPriors.from_statistics(stats, CANONICAL_FRONT_EDGES)
     assert priors.switch == (0.03, 0.001)            # a state never left stays reachable
-    assert priors.raw_side_overall == pytest.approx(0.999)      # never certain
-    assert priors.raw_side_by_norm[0] == pytest.approx(0.999)
     assert priors.by_front[1] == pytest.approx(0.62) and priors.overall == pytest.approx(0.62)
+    always = CanonicalPriors.from_statistics({"switch_probability": [0.03, 0.04],
+                                              "by_front": [1.0] * 6, "canonical_overall": 1.0},
+                                             CANONICAL_FRONT_EDGES)
+    assert always.overall == pytest.approx(0.999)          # never certain
 
 
 def test_the_shipped_tables_are_the_default_priors():
@@ -89,8 +97,8 @@ def test_the_chain_weighs_a_pair_by_the_priors_it_is_given():
     """A classifier that is right only half the time at a given probability carries no
     evidence; one right 9 times in 10 there does."""
     member, raw = _body(20.0), _body(20.0, seed=3)
-    blind = _priors(raw_side_by_norm=(0.6, 0.6), by_front=(0.55, 0.55))
-    sure = _priors(raw_side_by_norm=(0.6, 0.6), by_front=(0.1, 0.9))
+    blind = _priors(by_front=(0.55, 0.55))
+    sure = _priors(by_front=(0.1, 0.9))
     e_blind = canonical_hypotheses(raw, member, 0.97, blind).log_evidence
     e_sure = canonical_hypotheses(raw, member, 0.97, sure).log_evidence
     assert e_blind[0] - e_blind[1] == pytest.approx(0.0, abs=1e-9)
@@ -188,12 +196,7 @@ def test_learn_hypothesis_priors_saves_a_copy_with_the_learned_priors(tmp_path, 
     module = load_script("learn_hypothesis_priors")
     cmu = tmp_path / "cmu"
     cmu.mkdir()
-    for stem in module.TRAVEL_TRIALS:           # the travel histogram reads these four
-        (cmu / f"{stem}.bvh").write_text("")
     learned = _priors()
-    monkeypatch.setattr(module, "facing_travel_histogram", lambda files: (np.ones(12) / 12, {}))
-    monkeypatch.setattr(module, "facing_travel_steps",
-                        lambda files: (np.zeros((2, 12)), np.zeros(12)))
     out = tmp_path / "with_priors.npz"
     # the regressor's steps need the validation trials: refused up front, nothing written
     with pytest.raises(SystemExit) as exit_info:

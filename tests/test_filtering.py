@@ -192,13 +192,12 @@ def test_bad_settings_are_refused(options):
         PoseKalmanFilter(**settings)
 
 
-def test_step_matches_the_filterpy_filter_with_heading_variances():
+def test_step_matches_the_batch_filter():
     poses = noisy_poses(true_angles(60), std=5.0)
-    variances = np.where(np.arange(60) % 4 == 0, 300.0, np.nan)
+    poses[::4, :2] *= 0.2                      # ambiguous frames too (R inflated)
     kf = PoseKalmanFilter(FPS)
-    stepped = np.array([kf.step(p, None if np.isnan(v) else v)[0]
-                        for p, v in zip(poses, variances)])
-    batch, _ = PoseKalmanFilter(FPS).filter(poses, variances)
+    stepped = np.array([kf.step(p)[0] for p in poses])
+    batch, _ = PoseKalmanFilter(FPS).filter(poses)
     np.testing.assert_allclose(pose_angles(stepped), pose_angles(batch), atol=1e-8)
 
 

@@ -1,4 +1,4 @@
-"""Front/back hypotheses over time (tracker.hypotheses) and the soft direction of travel."""
+"""Front/back hypotheses over time (tracker.hypotheses)."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,7 +10,6 @@ from sequences.pose_vector import front_back_flip
 from tracker.filtering import PoseKalmanFilter
 from tracker.hypotheses import (FrontBackTracker, Hypotheses, _with_flips, propose,
                                 transition_matrix)
-from tracker.travel import FACING_TRAVEL_PRIOR, fuse_with_prior, travel_likelihood
 
 FPS = 30.0
 
@@ -35,7 +34,7 @@ def _factory(fps):
     return PoseKalmanFilter(fps)
 
 
-def _run(truth_headings, flipped, norms, travel=None, seed=1):
+def _run(truth_headings, flipped, norms, seed=1):
     """Feed the tracker a regressor that outputs the truth (plus noise) or its flip."""
     rng = np.random.default_rng(seed)
     bank = FrontBackTracker(_factory, FPS)
@@ -47,26 +46,8 @@ def _run(truth_headings, flipped, norms, travel=None, seed=1):
         raw = true + np.concatenate([[0, 0], rng.normal(0, 3, 53)])
         if flipped[t]:
             raw = front_back_flip(raw)
-        out.append(bank.step(_with_flips(raw[None], np.ones(1)),
-                             None if travel is None else travel[t]))
+        out.append(bank.step(_with_flips(raw[None], np.ones(1))))
     return bank, out
-
-
-def test_soft_travel_likelihood_prefers_forwards_but_allows_backwards_and_sideways():
-    assert FACING_TRAVEL_PRIOR.sum() == pytest.approx(1.0, abs=1e-3)
-    grid = np.linspace(-180, 180, 721)[:-1]
-    assert travel_likelihood(grid, 40.0).mean() == pytest.approx(1.0, abs=1e-6)
-    forwards, backwards, sideways = travel_likelihood(np.array([40.0, 220.0, 130.0]), 40.0)
-    assert forwards > 2.5 and forwards > 4 * backwards
-    assert backwards > sideways > 0.2          # never excluded
-
-
-def test_fusing_travel_keeps_a_backwards_hypothesis_backwards():
-    fused, variance = fuse_with_prior(_pose(178.0), travel_deg=0.0, raw_variance=400.0)
-    assert abs(wrap_deg(np.degrees(np.arctan2(fused[1], fused[0])) - 180.0)) < 5.0
-    assert variance < 400.0
-    forwards, _ = fuse_with_prior(_pose(20.0), travel_deg=0.0, raw_variance=400.0)
-    assert np.degrees(np.arctan2(forwards[1], forwards[0])) < 20.0
 
 
 def test_hypotheses_are_the_pose_and_its_flip_and_a_mixture_adds_its_experts():
@@ -92,15 +73,14 @@ def test_hypotheses_are_the_pose_and_its_flip_and_a_mixture_adds_its_experts():
 
 
 def test_a_person_walking_backwards_ends_up_facing_the_right_way():
-    """Walking away from the camera while facing it (travel 180, heading 0): the regressor is
-    ambiguous and flips often at first, then mostly right; the soft travel evidence (which
-    prefers forwards) must give way."""
+    """Walking away from the camera while facing it (heading 0): the regressor is ambiguous
+    and flips often at first, then mostly right; the chain must settle on the right side."""
     T = 150
     rng = np.random.default_rng(3)
     truth = np.zeros(T)
     flipped = np.where(np.arange(T) < 40, rng.random(T) < 0.5, rng.random(T) < 0.15)
     norms = np.where(np.arange(T) < 40, 0.2, 0.7)
-    bank, out = _run(truth, flipped, norms, travel=np.full(T, 180.0))
+    bank, out = _run(truth, flipped, norms)
     late = np.array([pose_angles(d.filtered)[0] for d in out[-30:]])
     assert np.all(np.abs(wrap_deg(late)) < 30.0)
     smoothed = pose_angles(bank.smoothed())[:, 0]
@@ -108,7 +88,7 @@ def test_a_person_walking_backwards_ends_up_facing_the_right_way():
 
 
 def test_a_turn_on_the_spot_is_followed_through_the_regressor_flips():
-    """Turning on the spot at 60 deg/s, no travel: regressor flips on 20% of frames."""
+    """Turning on the spot at 60 deg/s: regressor flips on 20% of frames."""
     T = 180
     rng = np.random.default_rng(4)
     truth = wrap_deg(np.arange(T) * 60.0 / FPS)
@@ -242,7 +222,7 @@ def test_weights_are_chosen_by_replaying_the_tracker_on_validation_renders(cmu_b
                                "07_12 spiral reversed"]
     forwards, backwards = (renders[f"07_12 fixed{s}"]["truth"] for s in ("", " reversed"))
     assert len(forwards) == len(backwards) == 24
-    best, table = choose_weights(model, renders, travel_weights=(0.1, 1.0), evidence_weights=(0.5,))
+    best, table = choose_weights(model, renders, evidence_weights=(0.5, 1.0))
     assert best in table and len(table) == 2
     assert all(0 <= rms <= 180 for rms in table[best].values())
 

@@ -16,16 +16,9 @@ a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter ban
   filter, updated with hypothesis j: a regressor flip is explained by switching state, not by a
   jump of the body.
 - e_t(j): the evidence the frame itself gives: the regressor's (its (cos, sin) norm, as a
-  likelihood ratio from RAW_NEARER_BY_NORM) and, while the person moves, the direction of
-  travel's given hypothesis j's heading and the track's belief over (facing - travel).
-- The belief over (facing - travel) (``offset_memory``, on by default): each state's filter
-  carries a probability over tracker.travel.FACING_TRAVEL_PRIOR's twelve 30-degree bins,
-  moved from frame to frame by the bins' transitions learned from the CMU training trials and
-  updated by the travel seen (tempered by TRAVEL_WEIGHT): people who walk backwards or sideways
-  keep doing so. It waits on frames without travel.
-- Consecutive frames' evidence is correlated (stacked descriptors share frames; travel windows
-  overlap), so each is tempered by an exponent per frame (EVIDENCE_WEIGHT,
-  CANONICAL_EVIDENCE_WEIGHT, TRAVEL_WEIGHT).
+  likelihood ratio from RAW_NEARER_BY_NORM; for canonical pairs the side classifier's).
+- Consecutive frames' evidence is correlated (stacked descriptors share frames), so it is
+  tempered by an exponent per frame (EVIDENCE_WEIGHT, CANONICAL_EVIDENCE_WEIGHT).
 
 Canonical hypotheses (a model with limb networks and a side classifier, as the shipped one):
 the two states are the limb networks' canonical member and its flip, whole
@@ -61,8 +54,6 @@ from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from .member_path import members_over_time
 from .mirror_limbs import mirror_mean, sees_mirror
-from .travel import (FACING_TRAVEL_FPS, FACING_TRAVEL_PRIOR, fuse_with_priors,
-                     offset_likelihoods, offset_transition)
 
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
 #: [RAW_NEARER_NORM_EDGES[b], next edge)), and overall; learned on validation renders by
@@ -72,9 +63,8 @@ RAW_NEARER_BY_NORM = (0.672, 0.617, 0.646, 0.703, 0.744, 0.688)
 RAW_NEARER_OVERALL = 0.681
 #: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps: the regressor's flips, same data.
 SWITCH_PROBABILITY = (0.117, 0.248)
-#: Exponents per frame of the travel likelihood and of the regressor's evidence (log
-#: likelihoods are multiplied by them): consecutive frames' evidence is correlated.
-TRAVEL_WEIGHT = 0.04
+#: Exponent per frame of the regressor's evidence (log likelihoods are multiplied by it):
+#: consecutive frames' evidence is correlated.
 EVIDENCE_WEIGHT = 1.0
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
 
@@ -86,11 +76,6 @@ CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 #: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
 #: the member's every frame, scores a few nats below it and weaker evidence never catches up.
 CANONICAL_EVIDENCE_WEIGHT = 2.0
-#: P(the member on the main head's heading side is the true one | that head's heading norm
-#: bin), and overall: weak, but not nothing.
-CANONICAL_RAW_SIDE_EDGES = (0.0, 0.2, 0.4, 0.6, 0.8)
-CANONICAL_RAW_SIDE_BY_NORM = (0.504, 0.507, 0.538, 0.613, 0.669)
-CANONICAL_RAW_SIDE_OVERALL = 0.578
 #: P(the canonical member is the true one | the side classifier's probability for it in
 #: [CANONICAL_FRONT_EDGES[b], next edge)), and overall: the classifier is over-confident on
 #: video-like renders, so its probability is calibrated by this table.
@@ -98,9 +83,8 @@ CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
 CANONICAL_BY_FRONT = (0.407, 0.634, 0.608, 0.633, 0.654, 0.797)
 CANONICAL_OVERALL = 0.624
 DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
-    switch=CANONICAL_SWITCH_PROBABILITY, raw_side_edges=CANONICAL_RAW_SIDE_EDGES,
-    raw_side_by_norm=CANONICAL_RAW_SIDE_BY_NORM, raw_side_overall=CANONICAL_RAW_SIDE_OVERALL,
-    front_edges=CANONICAL_FRONT_EDGES, by_front=CANONICAL_BY_FRONT, overall=CANONICAL_OVERALL)
+    switch=CANONICAL_SWITCH_PROBABILITY, front_edges=CANONICAL_FRONT_EDGES,
+    by_front=CANONICAL_BY_FRONT, overall=CANONICAL_OVERALL)
 #: Experts asked of a mixture model's predict_hypotheses (2 states each: pose and flip): the
 #: other experts' poses added wrong headings more often than right ones.
 DEFAULT_EXPERTS = 1
@@ -197,9 +181,10 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
                          priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
     """The two hypotheses of a model with limbs and a side classifier: the limbs' canonical
     member (55,) and its front/back flip, whole (heading and body angles). Evidence (log
-    likelihood ratios): the side of the main head's pose raw (55,) by its heading norm
-    (priors.raw_side_by_norm), and the side classifier's probability front that the body
-    faces the camera's half (priors.by_front); priors: the model's (:func:`canonical_priors`)."""
+    likelihood ratios): the side classifier's probability front that the body faces the
+    camera's half, calibrated by priors.by_front; priors: the model's
+    (:func:`canonical_priors`). raw (55,): the main head's pose, whose heading norm says how
+    ambiguous the frame is."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
     # The member commits to one body, so its (cos, sin) norm is ~1 even where the silhouette
@@ -208,13 +193,8 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
     norm = heading_norm(raw)
     unit = pair[:, :2] / np.maximum(np.linalg.norm(pair[:, :2], axis=1, keepdims=True), 1e-9)
     pair[:, :2] = unit * norm
-    evidence = np.zeros(2)
-    on_raw_side = 0 if member_on_side(pair[0], deaveraged_direction(raw)) else 1
-    p = _table(priors.raw_side_edges, priors.raw_side_by_norm, norm)
-    evidence[on_raw_side] += np.log(p / priors.raw_side_overall)
-    evidence[1 - on_raw_side] += np.log((1 - p) / (1 - priors.raw_side_overall))
     q = _table(priors.front_edges, priors.by_front, member_probability(pair[0], front))
-    evidence += np.log([q / priors.overall, (1 - q) / (1 - priors.overall)])
+    evidence = np.log([q / priors.overall, (1 - q) / (1 - priors.overall)])
     return Hypotheses(pair, evidence, np.asarray(raw, dtype=np.float64), limbs, canonical=True,
                       front=float(front))
 
@@ -225,12 +205,6 @@ def member_probability(members: np.ndarray, front) -> np.ndarray:
     member faces that half (cos >= 0), 1 - front elsewhere."""
     front = np.asarray(front, dtype=np.float64)
     return np.where(np.asarray(members)[..., 0] >= 0, front, 1.0 - front)
-
-
-def deaveraged_direction(raw: np.ndarray) -> np.ndarray:
-    """(cos, sin) (2,) of the main head's pose raw (55,) with its heading de-averaged
-    (:func:`deaveraged_heading`)."""
-    return deaveraged_heading(np.asarray(raw, dtype=np.float64)[None])[0, :2]
 
 
 def canonical_priors(estimator) -> CanonicalPriors:
@@ -368,7 +342,6 @@ class _Frame:
     poses: np.ndarray            # (K, 55)
     evidence: np.ndarray         # (K,) log
     link: np.ndarray | None      # (K, K) log A + innovation log-likelihoods, None at t = 0
-    heading_variance: np.ndarray  # (K,) deg^2 of travel-fused headings, NaN = the filter's
     raw: np.ndarray              # (55,) the regressor's own pose (limb input without a head)
     limbs: np.ndarray | None     # (55,) the limb head's pose (before picking), or None
 
@@ -379,9 +352,8 @@ class FrontBackTracker:
 
     filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; its ``log_likelihoods``
     is used when it has one, else hypotheses are scored by their evidence only); fps: frames
-    per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; travel_weight and
-    evidence_weight: exponents per frame of the travel likelihood and of the regressor's
-    evidence. These per-frame figures hold at reference_fps (the rate of the sequences they
+    per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; evidence_weight: the
+    exponent per frame of the regressor's evidence. These per-frame figures hold at reference_fps (the rate of the sequences they
     were learned and chosen on, the model's training rate): at another fps the chain keeps
     them per second instead (:meth:`frame_rate_ratio`), so a 120 fps video's four frames
     count as one 30 fps frame did, not four times its evidence. keep_history: keep every
@@ -394,81 +366,42 @@ class FrontBackTracker:
     filter_factory: Callable[[float], object]
     fps: float
     switch: tuple[float, float] = SWITCH_PROBABILITY
-    travel_weight: float = TRAVEL_WEIGHT
     evidence_weight: float = EVIDENCE_WEIGHT
     reference_fps: float = DEFAULT_TRAINING_FPS
-    fuse_travel: bool = True
-    offset_memory: bool = True
     keep_history: bool = True
     limb_filter_factory: Callable[[float], object] | None = None
     filters: list = field(default_factory=list)
     limb_filter: object | None = None
     log_alpha: np.ndarray | None = None
-    offset_beliefs: np.ndarray | None = None
     history: list[_Frame] = field(default_factory=list)
     _log_A: tuple | None = field(default=None, repr=False)
 
-    def step(self, hypotheses: Hypotheses, travel_deg: float | None = None) -> Decision:
-        """Take one frame's hypotheses and the direction of travel (degrees, None when the
-        person is not moving); returns the decision."""
+    def step(self, hypotheses: Hypotheses) -> Decision:
+        """Take one frame's hypotheses; returns the decision."""
         poses = hypotheses.poses
         K = len(poses)
         rate = self.frame_rate_ratio
         evidence = rate * self.evidence_weight * hypotheses.log_evidence
         log_A = self._log_transitions(K)
-        first = self.log_alpha is None or len(self.filters) != K
-        # Each predecessor state's belief over (facing - travel), predicted to this frame
-        # (rows: the states i of the last frame; the population's prior for a new track).
-        if first or not self.offset_memory:
-            predicted = np.tile(FACING_TRAVEL_PRIOR, (K, 1))
-        elif travel_deg is None:
-            # Not moving: the steps were learned on moving frames; the belief waits.
-            predicted = self.offset_beliefs
-        else:
-            predicted = self.offset_beliefs @ offset_transition(FACING_TRAVEL_FPS / self.fps)
-        travel_ll = np.zeros((K, K))          # log p(travel | state j after state i)
-        fused_poses = np.broadcast_to(poses, (K,) + poses.shape)
-        fused_variances = np.full((K, K), np.nan)
-        offset_like = None
-        if travel_deg is not None:
-            headings = np.degrees(np.arctan2(poses[:, 1], poses[:, 0]))
-            offset_like = offset_likelihoods(headings, travel_deg)          # (K, bins)
-            travel_ll = rate * self.travel_weight * np.log(predicted @ offset_like.T)
-            if self.fuse_travel and not first:
-                raw_variance = self.filters[0].heading_variance
-                fused_poses, fused_variances = fuse_with_priors(poses, travel_deg,
-                                                                raw_variance, predicted)
-        if first:
+        if self.log_alpha is None or len(self.filters) != K:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
             stationary = np.linalg.matrix_power(np.exp(log_A), 256)[0]
-            evidence = evidence + travel_ll[0]
             self.log_alpha, link = np.log(stationary) + evidence, None
-            predecessor = np.zeros(K, dtype=np.int64)
         else:
-            ll = np.array([f.log_likelihoods(p, v) if hasattr(f, "log_likelihoods")
+            ll = np.array([f.log_likelihoods(poses) if hasattr(f, "log_likelihoods")
                            else np.zeros(K)
-                           for f, p, v in zip(self.filters, fused_poses, fused_variances)])
-            link = log_A + rate * ll + travel_ll
+                           for f in self.filters])
+            link = log_A + rate * ll
             scores = self.log_alpha[:, None] + link
-            predecessor = scores.argmax(axis=0)
-            self.filters = self._continue(predecessor)
+            self.filters = self._continue(scores.argmax(axis=0))
             self.log_alpha = _logsumexp(scores, axis=0) + evidence
         self.log_alpha -= _logsumexp(self.log_alpha)
-        states = np.arange(K)
-        poses = fused_poses[predecessor, states]
-        variances = fused_variances[predecessor, states]
-        beliefs = predicted[predecessor]
-        if offset_like is not None:
-            # The same tempering as the chain's travel evidence: windows overlap.
-            beliefs = beliefs * offset_like ** (rate * self.travel_weight)
-        self.offset_beliefs = beliefs / beliefs.sum(axis=1, keepdims=True)
         if self.keep_history:
-            self.history.append(_Frame(poses.copy(), evidence, link, variances,
+            self.history.append(_Frame(np.array(poses, dtype=np.float64), evidence, link,
                                        np.array(hypotheses.raw, dtype=np.float64),
                                        None if hypotheses.limbs is None
                                        else np.array(hypotheses.limbs, dtype=np.float64)))
-        outputs = [f.step(pose, heading_variance=None if np.isnan(v) else float(v))
-                   for f, pose, v in zip(self.filters, poses, variances)]
+        outputs = [f.step(pose) for f, pose in zip(self.filters, poses)]
         prob = np.exp(self.log_alpha)
         order = np.argsort(-prob)
         best = int(order[0])
@@ -491,7 +424,7 @@ class FrontBackTracker:
     @property
     def frame_rate_ratio(self) -> float:
         """reference_fps / fps: the share of a reference frame one of this video's frames is
-        (0.25 at 120 fps for a 30 fps reference); evidence, travel and the filters'
+        (0.25 at 120 fps for a 30 fps reference); evidence and the filters'
         likelihoods are tempered by it (exponents), and the switch probabilities are those
         of that share of a frame (:meth:`frame_switch`). 1 at the reference rate."""
         return self.reference_fps / self.fps
@@ -542,14 +475,12 @@ class FrontBackTracker:
             path.append(int(pointers[path[-1]]))
         return np.array(path[::-1], dtype=np.int64)
 
-    def chosen_poses(self, start: int = 0, stop: int | None = None
-                     ) -> tuple[np.ndarray, np.ndarray]:
+    def chosen_poses(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """The hypotheses (n, 55) on the Viterbi path of history[start:stop] (the smoother's
-        input) and their heading variances (n,) deg^2 (NaN: the filter's own)."""
+        input)."""
         frames = self.history[start:stop]
         path = self.viterbi_path(start, stop)
-        return (np.array([frame.poses[s] for frame, s in zip(frames, path)]),
-                np.array([frame.heading_variance[s] for frame, s in zip(frames, path)]))
+        return np.array([frame.poses[s] for frame, s in zip(frames, path)])
 
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``): of the
@@ -559,8 +490,7 @@ class FrontBackTracker:
         probable chain given the smoothed heading when every frame has them, as a model's
         frames all do: tracker.member_path), with the smoothed heading as theirs."""
         frames = self.history[start:stop]
-        poses, variances = self.chosen_poses(start, stop)
-        out = self.filter_factory(self.fps).rts_smooth(poses, heading_variance=variances)
+        out = self.filter_factory(self.fps).rts_smooth(self.chosen_poses(start, stop))
         if self.limb_filter_factory is not None and len(out):
             raws = np.array([frame.raw for frame in frames])
             if all(frame.limbs is not None for frame in frames):

@@ -31,7 +31,6 @@ from .mirror_limbs import sees_mirror
 from .silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
 from .root_path import RootHistory, smoothed_roots
 from .sinks.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
-from .travel import TravelDirection
 from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
 
 
@@ -71,8 +70,7 @@ class TrackerSettings:
     background's unreliable zone as sure person (True) or lets colour decide on it (False).
     min_area_fraction: the default extractor's smallest person, a fraction of the image.
     mirror_limbs: average the limbs with the mirror image's (tracker.mirror_limbs), for a model
-    whose limb networks saw mirror images. travel_offset_memory: each track keeps its own
-    belief over (facing - direction of travel); False: the population's prior every frame.
+    whose limb networks saw mirror images.
     """
 
     max_people: int | None = None
@@ -90,7 +88,6 @@ class TrackerSettings:
     novelty: bool = True
     trust_zone_foreground: bool = False
     mirror_limbs: bool = True
-    travel_offset_memory: bool = True
     min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION
 
     def threshold(self, estimator) -> float:
@@ -165,8 +162,7 @@ def _front_back_chain(estimator, fps: float, settings: TrackerSettings, chain, l
     """The one place a track's FrontBackTracker is built: the estimator's switch rates and
     evidence weight, the filter factories chain and limbs (filter_factories)."""
     return FrontBackTracker(chain, fps, **chain_options(estimator),
-                            keep_history=settings.keep_history, limb_filter_factory=limbs,
-                            offset_memory=settings.travel_offset_memory)
+                            keep_history=settings.keep_history, limb_filter_factory=limbs)
 
 
 class PoseEstimator(Protocol):
@@ -185,12 +181,10 @@ class PoseEstimator(Protocol):
 class PoseFilter(Protocol):
     """What the tracker needs of a per-track filter (PoseKalmanFilter is one)."""
 
-    heading_variance: float                 # deg^2, the heading's measurement variance
+    def step(self, raw55: np.ndarray) -> tuple[np.ndarray, bool]: ...
+    # (55,) -> (filtered (55,), ambiguous)
 
-    def step(self, raw55: np.ndarray, heading_variance: float | None = None
-             ) -> tuple[np.ndarray, bool]: ...    # (55,) -> (filtered (55,), ambiguous)
-
-    def rts_smooth(self, raws: np.ndarray, heading_variance=None) -> np.ndarray: ...
+    def rts_smooth(self, raws: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass
@@ -227,12 +221,11 @@ class TrackedPose:
 
 @dataclass
 class _TrackState:
-    """What the tracker keeps per track id: its descriptor history, its front/back hypotheses
-    (one filter each) and its direction of travel."""
+    """What the tracker keeps per track id: its descriptor history and its front/back
+    hypotheses (one filter each)."""
 
     stacker: FrameStacker
     hypotheses: FrontBackTracker
-    travel: TravelDirection
     mirror_stacker: FrameStacker | None = None      # the mirror images' (mirror_limbs only)
     measured: list = field(default_factory=list)    # (55,) raw poses (keep_history only)
     frames: int = 0                                  # frames with a pose
@@ -401,12 +394,11 @@ class PoseTracker:
 
     def _state(self, track_id: int) -> _TrackState:
         if track_id not in self.tracks:
-            travel = TravelDirection(self.fps, self.frame_shape[1], focal_px=self._focal_px)
             step = self.stack_step
             self.tracks[track_id] = _TrackState(
                 FrameStacker(self.estimator.stack_depth, step),
                 _front_back_chain(self.estimator, self.fps, self.settings, self.filter_factory,
-                                  self.limb_filter_factory), travel,
+                                  self.limb_filter_factory),
                 FrameStacker(self.estimator.stack_depth, step) if self._mirror else None)
         return self.tracks[track_id]
 
@@ -436,11 +428,10 @@ class PoseTracker:
 
     def _decide(self, track_id: int, person: PersonMask, hypotheses):
         """A track's front/back decision (tracker.hypotheses.Decision) for one frame from its
-        hypotheses, the direction of travel as soft evidence."""
+        hypotheses."""
         state = self._state(track_id)
         clock = time.perf_counter()
-        travel = state.travel.push(person.centroid[0], person.bbox[3])
-        decision = state.hypotheses.step(hypotheses, travel)
+        decision = state.hypotheses.step(hypotheses)
         state.frames += 1
         if self.settings.keep_history:
             state.measured.append(hypotheses.raw)

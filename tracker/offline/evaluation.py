@@ -48,8 +48,7 @@ from ..hypotheses import propose_sequence
 from ..pipeline import PoseTracker, TrackerSettings, front_back_tracker
 from ..run import track_video
 from ..sinks import PoseRecorder
-from ..travel import TravelDirection
-from ..video import focal_length_px, open_video
+from ..video import open_video
 
 METHODS = ("per_frame", "stacked", "kalman", "smoothed")
 ANKUR_TRAIN_STARTS = (0, 100, 336, 405, 471, 1530, 1768)   # the 7 training sequences (README)
@@ -396,16 +395,12 @@ def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model
     if frames is not None:
         motion = replace(motion, euler_deg=motion.euler_deg[:frames],
                          root_position=motion.root_position[:frames])
-    masks, truth, image_track = render_silhouettes(motion, camera)
+    masks, truth, _ = render_silhouettes(motion, camera)
     hypotheses = propose_sequence(stacked_model, masks, mirror=settings.mirror_limbs)
     name = Path(bvh).stem + (f" spiral {spiral_deg_per_s:g} deg/s" if spiral_deg_per_s else "")
-    # As the tracker does: front/back hypotheses over time, the direction of travel as soft
-    # evidence while the person moves.
+    # As the tracker does: front/back hypotheses over time.
     bank = front_back_tracker(stacked_model, camera.fps, replace(settings, keep_history=True))
-    width = camera.size[1]
-    travel = TravelDirection(camera.fps, width, focal_px=focal_length_px(width, settings.fov_deg))
-    decisions = [bank.step(h, travel.push(u, hgt))
-                 for h, (u, hgt) in zip(hypotheses, image_track)]
+    decisions = [bank.step(h) for h in hypotheses]
     return _pose_sequence(name, truth, _model_poses(per_frame_model, masks),
                           np.array([h.raw for h in hypotheses]),
                           np.array([d.filtered for d in decisions]), bank.smoothed(),

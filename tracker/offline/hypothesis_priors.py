@@ -1,8 +1,5 @@
-"""Learning the front/back hypotheses' priors (tracker/hypotheses.py, tracker/travel.py) from data.
+"""Learning the front/back hypotheses' priors (tracker/hypotheses.py) from data.
 
-- facing_travel_histogram: from motion capture, the distribution of (facing - direction of
-  travel) over every frame where the root moves: how likely a moving body faces its direction
-  of travel (forwards), away from it (backwards) or across it (sideways).
 - regressor_flip_statistics: from a model's raw outputs on rendered validation trials, how
   often the raw pose is nearer the truth than its front/back flip, as a function of the
   (cos, sin) norm, and how often that changes from one frame to the next (the HMM's switching
@@ -11,9 +8,9 @@
 - canonical_statistics, learn_canonical_priors: for a model with limbs and a side classifier,
   the canonical chain's priors (regressor.canonical_priors; tracker.hypotheses CANONICAL_*)
   on the validation renders.
-- choose_weights: the exponents per frame of the travel likelihood and of the regressor's
-  evidence (consecutive frames' evidence is correlated), by replaying the tracker over the
-  validation trials rendered as spirals and from a fixed camera, forwards and time-reversed.
+- choose_weights: the exponent per frame of the regressor's evidence (consecutive frames'
+  evidence is correlated), by replaying the tracker over the validation trials rendered as
+  spirals and from a fixed camera, forwards and time-reversed.
 """
 from __future__ import annotations
 
@@ -25,90 +22,12 @@ import numpy as np
 from regressor.angles import heading_norm, pose_angles, wrap_deg
 from regressor.canonical_priors import CanonicalPriors
 from sequences.bvh import read_bvh
-from sequences.pose_vector import front_back_flip, heading_deg, motion_to_pose_vectors
+from sequences.pose_vector import front_back_flip
 from regressor.stacking import stack_frames
-from sequences.skeleton import CMU_UNIT_M
 from sequences.spiral import spiral_walk
 from ..hypotheses import DEFAULT_EXPERTS, FrontBackTracker, chain_options, propose_sequence
 from ..pipeline import kalman_factory
-from ..travel import DEFAULT_MIN_SPEED, DEFAULT_WINDOW, TravelDirection
-from ..video import focal_length_px
 from .evaluation import CameraOptions, _model_poses, cmu_motion, render_silhouettes
-
-BODY_HEIGHT_M = 1.7
-BIN_DEG = 30.0
-
-
-def facing_minus_travel_series(bvh: str | Path, fps: float = 30.0, window: int = DEFAULT_WINDOW,
-                               min_speed: float = DEFAULT_MIN_SPEED
-                               ) -> tuple[np.ndarray, np.ndarray]:
-    """(facing - travel) in degrees (n,) at every frame of a BVH motion from the window's end
-    on, and whether the root moves there (n,) bool: faster than min_speed body heights per
-    second, travel by least-squares slopes of the root's ground position over ``window``
-    frames (as tracker.travel), facing = the root's yaw. Empty for a motion shorter than the
-    window."""
-    motion = read_bvh(bvh, fps=fps)
-    if motion.n_frames < window:
-        return np.empty(0), np.zeros(0, dtype=bool)
-    facing = heading_deg(motion_to_pose_vectors(motion, 0.0))
-    xz = motion.root_position[:, [0, 2]] * CMU_UNIT_M / BODY_HEIGHT_M      # body heights
-    t = (np.arange(window) - (window - 1) / 2.0) / fps
-    kernel = t / (t @ t)
-    vx = np.convolve(xz[:, 0], kernel[::-1], mode="valid")
-    vz = np.convolve(xz[:, 1], kernel[::-1], mode="valid")
-    centre = np.arange(window - 1, motion.n_frames)     # causal: the window's last frame
-    travel = np.degrees(np.arctan2(vx, vz))
-    return wrap_deg(facing[centre] - travel), np.hypot(vx, vz) >= min_speed
-
-
-def facing_minus_travel(bvh: str | Path, fps: float = 30.0, window: int = DEFAULT_WINDOW,
-                        min_speed: float = DEFAULT_MIN_SPEED) -> np.ndarray:
-    """(facing - travel) in degrees (n,) at the frames of a BVH motion where the root moves
-    (facing_minus_travel_series)."""
-    offsets, moving = facing_minus_travel_series(bvh, fps, window, min_speed)
-    return offsets[moving]
-
-
-def facing_travel_steps(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.ndarray, np.ndarray]:
-    """How (facing - travel) moves between FACING_TRAVEL_PRIOR's bins from one 30 fps frame to
-    the next while the body keeps moving: steps (2, n_bins), row 0 the probability of moving
-    one bin down (towards -bin_deg), row 1 one bin up, from each bin; and the transitions
-    counted from each bin (n_bins,). The offset drifts a bin at a time (a body turns); the
-    rare jump of two bins or more in a frame (2 of the training trials' 17,427 pairs) is not
-    a step either way."""
-    n_bins = _n_bins(bin_deg)
-    counts = np.zeros((n_bins, n_bins))
-    for path in bvh_files:
-        offsets, moving = facing_minus_travel_series(path)
-        bins = _bin_of(offsets, bin_deg)
-        both = moving[1:] & moving[:-1]
-        np.add.at(counts, (bins[:-1][both], bins[1:][both]), 1.0)
-    total = counts.sum(axis=1)
-    rows = np.arange(n_bins)
-    steps = np.array([counts[rows, (rows - 1) % n_bins], counts[rows, (rows + 1) % n_bins]])
-    return steps / np.maximum(total, 1.0), total
-
-
-def facing_travel_histogram(bvh_files, bin_deg: float = BIN_DEG) -> tuple[np.ndarray, dict]:
-    """Probabilities (360 / bin_deg,) of (facing - travel) in bins centred on 0, bin_deg, ...
-    (wrapped), over all moving frames of all files; and moving frames per file."""
-    n_bins = _n_bins(bin_deg)
-    counts, per_file = np.zeros(n_bins), {}
-    for path in bvh_files:
-        delta = facing_minus_travel(path)
-        per_file[Path(path).stem] = int(len(delta))
-        counts += np.bincount(_bin_of(delta, bin_deg), minlength=n_bins)
-    return counts / counts.sum(), per_file
-
-
-def _n_bins(bin_deg: float) -> int:
-    """Bins of bin_deg degrees round the circle."""
-    return int(round(360.0 / bin_deg))
-
-
-def _bin_of(offsets_deg: np.ndarray, bin_deg: float) -> np.ndarray:
-    """The bin (centred on 0, bin_deg, ..., wrapped) of each angle (degrees), as ints."""
-    return np.round(wrap_deg(offsets_deg) / bin_deg).astype(int) % _n_bins(bin_deg)
 
 
 def raw_is_nearer(raw: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -181,9 +100,8 @@ def validation_renders(model, bvh_files, spiral_deg_per_s: float = 30.0,
                        frames: int | None = 600, camera: CameraOptions = CameraOptions(),
                        n_experts: int = DEFAULT_EXPERTS, video: bool = True) -> dict[str, dict]:
     """Each BVH rendered as a spiral walk and from the fixed camera, as recorded and
-    time-reversed (a forward walk played backwards is a backward walk, the rarer case the
-    travel evidence must not overrule): name -> {"hypotheses": list of Hypotheses,
-    "image_track": (T, 2), "truth": (T, 55)}, the model's hypotheses frame by frame. video:
+    time-reversed (a forward walk played backwards is a backward walk): name ->
+    {"hypotheses": list of Hypotheses, "image_track": (T, 2), "truth": (T, 55)}, the model's hypotheses frame by frame. video:
     the model sees video-like masks (video_like)."""
     renders = {}
     for path in bvh_files:
@@ -218,29 +136,24 @@ def top_experts(render: dict, n_experts: int) -> dict:
 
 
 def canonical_statistics(renders: dict) -> dict:
-    """The canonical chain's tables (regressor.canonical_priors.CanonicalPriors: the switch
-    probabilities, raw_side_by_norm, by_front and their overall rates) from
+    """The canonical chain's priors (regressor.canonical_priors.CanonicalPriors: the switch
+    probabilities, by_front and its overall rate) from
     validation_renders of a model with limbs and a side classifier (canonical hypotheses,
     which keep the classifier's probability). The true member: the nearer the truth over the
     54 angles (raw_is_nearer)."""
-    from ..hypotheses import (CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES, bin_index,
-                              deaveraged_heading, member_on_side, member_probability)
+    from ..hypotheses import CANONICAL_FRONT_EDGES, bin_index, member_probability
     leave, count = np.zeros(2), np.zeros(2)
-    raw_side, norms, canonical_true, p_member = [], [], [], []
+    canonical_true, p_member = [], []
     for render in renders.values():
         hyps = render["hypotheses"]
         if not all(h.canonical and h.front is not None for h in hyps):
             raise ValueError("canonical statistics need a model with limbs and a side classifier")
         member = np.array([h.poses[0] for h in hyps])
-        raw = np.array([h.raw for h in hyps])
         true = raw_is_nearer(member, render["truth"])          # the member, not its flip
         state = (~true).astype(int)
         for s in (0, 1):                    # frames in state s, and those followed by the other
             count[s] += np.sum(state[:-1] == s)
             leave[s] += np.sum((state[:-1] == s) & (state[1:] != s))
-        on_side = member_on_side(member, deaveraged_heading(raw)[:, :2])
-        raw_side.append(on_side == true)
-        norms.append(heading_norm(raw))
         p_member.append(member_probability(member, [h.front for h in hyps]))
         canonical_true.append(true)
 
@@ -248,14 +161,10 @@ def canonical_statistics(renders: dict) -> dict:
         b = bin_index(edges, x)
         return [round(float(y[b == k].mean()), 3) if np.any(b == k) else None
                 for k in range(len(edges))], [int(np.sum(b == k)) for k in range(len(edges))]
-    raw_side, norms = np.concatenate(raw_side), np.concatenate(norms)
     canonical_true, p_member = np.concatenate(canonical_true), np.concatenate(p_member)
-    by_norm, n_norm = table(CANONICAL_RAW_SIDE_EDGES, norms, raw_side)
     by_front, n_front = table(CANONICAL_FRONT_EDGES, p_member, canonical_true)
     return {"switch_probability": [round(float(leave[0] / max(count[0], 1)), 3),
                                    round(float(leave[1] / max(count[1], 1)), 3)],
-            "raw_side_by_norm": by_norm, "frames_by_norm": n_norm,
-            "raw_side_overall": round(float(raw_side.mean()), 3),
             "by_front": by_front, "frames_by_front": n_front,
             "canonical_overall": round(float(canonical_true.mean()), 3)}
 
@@ -278,41 +187,29 @@ def learn_canonical_priors(model, bvh_files) -> tuple[CanonicalPriors, dict]:
     """The canonical chain's priors for a model with limbs and a side classifier, learned on
     validation_renders of bvh_files (prior_files), and canonical_statistics' dict they came
     from (with each bin's frame count)."""
-    from ..hypotheses import CANONICAL_FRONT_EDGES, CANONICAL_RAW_SIDE_EDGES
+    from ..hypotheses import CANONICAL_FRONT_EDGES
     if not getattr(model, "gives_canonical_pairs", False):
         raise ValueError("canonical priors need a model with limbs and a side classifier")
     stats = canonical_statistics(validation_renders(model, bvh_files))
-    return (CanonicalPriors.from_statistics(stats, CANONICAL_RAW_SIDE_EDGES,
-                                            CANONICAL_FRONT_EDGES), stats)
+    return CanonicalPriors.from_statistics(stats, CANONICAL_FRONT_EDGES), stats
 
 
 def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOptions(),
                        **tracker_options) -> float:
     """Filtered heading RMS (deg) of FrontBackTracker (with tracker_options, e.g.
-    travel_weight, evidence_weight) over one of validation_renders' sequences."""
+    evidence_weight) over one of validation_renders' sequences."""
     bank = FrontBackTracker(kalman_factory(model), camera.fps, keep_history=False,
                             **{**chain_options(model), **tracker_options})
-    width = camera.size[1]
-    travel = TravelDirection(camera.fps, width, focal_px=focal_length_px(width))
-    filtered = np.array([bank.step(h, travel.push(u, height)).filtered
-                         for h, (u, height) in zip(render["hypotheses"], render["image_track"])])
+    filtered = np.array([bank.step(h).filtered for h in render["hypotheses"]])
     err = wrap_deg(pose_angles(filtered)[:, 0] - pose_angles(render["truth"])[:, 0])
     return float(np.sqrt(np.mean(err ** 2)))
 
 
-def choose_weights(model, renders: dict, travel_weights=(1 / 15, 0.1, 0.2, 0.5),
-                   evidence_weights=(0.4, 0.6, 0.8, 1.0, 2.0, 3.0)
-                   ) -> tuple[tuple[float, float], dict]:
-    """The (travel_weight, evidence_weight) pair with the lowest mean filtered heading RMS
-    over renders (validation_renders); and every pair -> per-sequence RMS table. The caller
-    should still check the pair against a backward walker (tracker/hypotheses.py
-    TRAVEL_WEIGHT): time-reversed renders are hard for the regressor too, so they barely
-    weigh against a strong travel prior."""
-    table = {}
-    for tw in travel_weights:
-        for ew in evidence_weights:
-            table[(tw, ew)] = {name: replay_heading_rms(model, r, travel_weight=tw,
-                                                        evidence_weight=ew)
-                               for name, r in renders.items()}
+def choose_weights(model, renders: dict, evidence_weights=(0.4, 0.6, 0.8, 1.0, 2.0, 3.0)
+                   ) -> tuple[float, dict]:
+    """The evidence_weight with the lowest mean filtered heading RMS over renders
+    (validation_renders); and every weight -> per-sequence RMS table."""
+    table = {ew: {name: replay_heading_rms(model, r, evidence_weight=ew)
+                  for name, r in renders.items()} for ew in evidence_weights}
     best = min(table, key=lambda k: np.mean(list(table[k].values())))
     return best, table
