@@ -44,17 +44,21 @@ sys.path.insert(0, str(REPO))
 from regressor.pose_model import load_pose_model  # noqa: E402
 from sequences.bvh import read_bvh  # noqa: E402
 from sequences.gait_measures import best_of, gait_measures, knee_flexion, swapped  # noqa: E402
-from sequences.pose_vector import front_back_flip, heading_deg  # noqa: E402
+from sequences.pose_vector import front_back_flip, heading_deg, pose_vector_names  # noqa: E402
 from sequences.video import load_truth, replace_video  # noqa: E402
+from scipy.ndimage import uniform_filter1d  # noqa: E402
+from scipy.signal import argrelmin  # noqa: E402
+
 from regressor.angles import wrap_deg  # noqa: E402
 from tracker import hypotheses  # noqa: E402
 from tracker.member_path import MEMBER_HEADING_SD_DEG  # noqa: E402
 from tracker.offline.evaluation import CameraOptions, write_camera_video  # noqa: E402
-from tracker.pipeline import HEADING_Q_SCALE, PoseTracker, TrackerSettings  # noqa: E402
+from tracker.pipeline import HEADING_Q_SCALE, LIMB_R_SCALE, PoseTracker, TrackerSettings  # noqa: E402
 from tracker.run import track_video  # noqa: E402
 from tracker.sinks import PoseRecorder  # noqa: E402
 from tracker.video import open_video  # noqa: E402
 
+NAMES = pose_vector_names()
 OUTPUTS = ("raw", "member", "best2", "truehead", "picked", "filtered", "chain", "smoothed")
 FIGURES = ("timing", "alternation", "range", "lr_corr")
 
@@ -202,6 +206,41 @@ def second_order_chain(acc_var: float, sd_deg: float = MEMBER_HEADING_SD_DEG):
     return chain
 
 
+def unfolded_chain(profile_deg: float = 20.0, order: int = 3, depth: float = 0.5):
+    """members_over_time for gait in profile, by unfolding the legs: the members' thigh
+    difference g = LeftUpLeg_x - RightUpLeg_x (degrees; the flip's is -g) has |g| with a
+    minimum at each leg crossing (local minima of |g| smoothed over 3 frames, within order
+    frames, below depth x its median); between crossings the true g keeps one sign, and it
+    changes sign at each. So the members are taken with alternating signs of g segment by
+    segment, and of the two such sequences the one whose headings are nearer the smoothed
+    heading over the whole track (summed squared error). Frames whose smoothed heading is
+    more than profile_deg from profile keep the shipped chain's choice (the heading decides
+    there)."""
+    left, right = (NAMES.index(n) for n in ("LeftUpLeg_x", "RightUpLeg_x"))
+
+    def chain(limbs, headings, frame_rate_ratio=1.0, **kw):
+        limbs = np.asarray(limbs, dtype=np.float64)
+        headings = np.asarray(headings, dtype=np.float64)
+        shipped = _ORIGINAL["members_over_time"](limbs, headings, frame_rate_ratio, **kw)
+        T = len(limbs)
+        if T < 2 * order + 1:
+            return shipped
+        pair = np.stack([limbs, front_back_flip(limbs)], axis=1)
+        g = limbs[:, left] - limbs[:, right]
+        a = uniform_filter1d(np.abs(g), 3)
+        crossings = [i for i in argrelmin(a, order=order)[0] if a[i] < depth * np.median(a)]
+        segment = np.zeros(T, dtype=np.int64)
+        for i in crossings:
+            segment[i:] += 1
+        sel = (np.sign(g) != np.where(segment % 2 == 0, 1.0, -1.0)).astype(np.int64)
+        cands = [pair[np.arange(T), sel], pair[np.arange(T), 1 - sel]]
+        errs = [(wrap_deg(heading_deg(c) - headings) ** 2).sum() for c in cands]
+        unfolded = cands[int(np.argmin(errs))]
+        near = np.abs(wrap_deg(np.abs(headings) - 90.0)) <= profile_deg
+        return np.where(near[:, None], unfolded, shipped)
+    return chain
+
+
 @contextmanager
 def patched(pick=None, chain=None):
     """The tracker with pick_member / members_over_time replaced (None: the shipped ones),
@@ -247,6 +286,11 @@ for _f in (4.0, 16.0):
     VARIANTS[f"headq{_f:g}"] = (lambda: patched(), {"heading_q_scale": HEADING_Q_SCALE * _f})
 for _w in (0.1, 0.3, 1.0):
     VARIANTS[f"predict{_w:g}"] = (lambda w=_w: patched(pick=predicted_pick(w)), {})
+for _p in (20.0, 45.0, 90.0):
+    VARIANTS[f"unfold{_p:g}"] = (lambda p=_p: patched(chain=unfolded_chain(p)), {})
+for _f in (0.25, 0.5):
+    VARIANTS[f"unfold20_limbr{_f:g}"] = (lambda: patched(chain=unfolded_chain(20.0)),
+                                         {"limb_r_scale": LIMB_R_SCALE * _f})
 for _v in (50.0, 200.0, 800.0):
     VARIANTS[f"chain2_{_v:g}"] = (lambda v=_v: patched(chain=second_order_chain(v)), {})
 
