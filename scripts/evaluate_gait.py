@@ -24,7 +24,15 @@ kept to read its hypotheses). Knee flexion of each output against the truth
             before the limb smoother
   smoothed  what ``track --smooth`` writes
 
-Variants patch the tracker for one run (as scripts/ablation.py does), see VARIANTS.
+Variants patch the tracker for one run (as scripts/ablation.py does; VARIANTS): shipped;
+no_mirror (no mirror-image average of the limbs); headqF (heading process noise x F);
+predictW (online member by the limb filter's prediction, weight W); chain2_V (offline
+members by a second-order chain); unfoldP (offline members by unfolding the legs within P
+degrees of profile); unfold20_limbrF (that, limb filter R x F); signchainC (offline members
+by heading evidence plus a C-nat cost for a leg-sign change off a leg crossing). The figures
+and what they showed: docs/left_right.md.
+
+A missing trial, a model or video that cannot be read: one line on stderr, exit 2 or 1.
 """
 from __future__ import annotations
 
@@ -36,27 +44,26 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
+from scipy.signal import argrelmin
 from threadpoolctl import threadpool_limits
 
+from regressor.angles import wrap_deg
+from regressor.errors import SilhouettePoseError
+from regressor.pose_model import load_pose_model
+from sequences.bvh import read_bvh
+from sequences.gait_measures import best_of, gait_measures, knee_flexion, swapped
+from sequences.pose_vector import front_back_flip, heading_deg, pose_vector_names
+from sequences.video import load_truth, replace_video
+from tracker import hypotheses
+from tracker.member_path import MEMBER_HEADING_SD_DEG
+from tracker.offline.evaluation import CameraOptions, write_camera_video
+from tracker.pipeline import HEADING_Q_SCALE, LIMB_R_SCALE, PoseTracker, TrackerSettings
+from tracker.run import track_video
+from tracker.sinks import PoseRecorder
+from tracker.video import open_video
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from regressor.pose_model import load_pose_model  # noqa: E402
-from sequences.bvh import read_bvh  # noqa: E402
-from sequences.gait_measures import best_of, gait_measures, knee_flexion, swapped  # noqa: E402
-from sequences.pose_vector import front_back_flip, heading_deg, pose_vector_names  # noqa: E402
-from sequences.video import load_truth, replace_video  # noqa: E402
-from scipy.ndimage import uniform_filter1d  # noqa: E402
-from scipy.signal import argrelmin  # noqa: E402
-
-from regressor.angles import wrap_deg  # noqa: E402
-from tracker import hypotheses  # noqa: E402
-from tracker.member_path import MEMBER_HEADING_SD_DEG  # noqa: E402
-from tracker.offline.evaluation import CameraOptions, write_camera_video  # noqa: E402
-from tracker.pipeline import HEADING_Q_SCALE, LIMB_R_SCALE, PoseTracker, TrackerSettings  # noqa: E402
-from tracker.run import track_video  # noqa: E402
-from tracker.sinks import PoseRecorder  # noqa: E402
-from tracker.video import open_video  # noqa: E402
 
 NAMES = pose_vector_names()
 OUTPUTS = ("raw", "member", "best2", "truehead", "picked", "filtered", "chain", "smoothed")
@@ -92,6 +99,8 @@ def track(video: Path, model, settings: TrackerSettings) -> dict:
     tracker = PoseTracker(model, source.fps, replace(settings, max_people=1, keep_history=True))
     track_video(source, tracker, [recorder], workers=1).stop_if_interrupted()
     by_track = recorder.by_track()
+    if not by_track:
+        raise RuntimeError(f"{video}: nobody was tracked")
     tid = max(by_track, key=lambda t: len(by_track[t]))
     poses = by_track[tid]
     chain = tracker.tracks[tid].hypotheses
@@ -241,6 +250,39 @@ def unfolded_chain(profile_deg: float = 20.0, order: int = 3, depth: float = 0.5
     return chain
 
 
+def gait_sign_chain(cost: float, sd_deg: float = MEMBER_HEADING_SD_DEG, order: int = 3,
+                    depth: float = 0.5):
+    """members_over_time as a two-state chain over (member, flip): each frame's evidence is
+    its heading's (as tracker.member_path, a Gaussian of sd_deg about the smoothed heading);
+    a step costs `cost` nats when the chosen body's thigh difference g (unfolded_chain's)
+    changes sign between frames with no leg crossing between them, or keeps its sign across
+    a crossing. Away from profile the heading outweighs it; in profile it unfolds the legs."""
+    left, right = (NAMES.index(n) for n in ("LeftUpLeg_x", "RightUpLeg_x"))
+
+    def chain(limbs, headings, frame_rate_ratio=1.0, **_):
+        limbs = np.asarray(limbs, dtype=np.float64)
+        T = len(limbs)
+        pair = np.stack([limbs, front_back_flip(limbs)], axis=1)
+        lw = frame_rate_ratio * _heading_log_weight(pair, np.asarray(headings), sd_deg)
+        g = limbs[:, left] - limbs[:, right]
+        a = uniform_filter1d(np.abs(g), 3)
+        crossing = np.zeros(T, dtype=bool)
+        crossing[[i for i in argrelmin(a, order=order)[0] if a[i] < depth * np.median(a)]] = True
+        sign = np.stack([np.sign(g), -np.sign(g)], axis=1)             # (T, 2) chosen g sign
+        delta, back = lw[0].copy(), []
+        for t in range(1, T):
+            flips = sign[t - 1][:, None] != sign[t][None, :]          # (i, j)
+            bad = flips != crossing[t]
+            scores = delta[:, None] - cost * bad
+            back.append(scores.argmax(axis=0))
+            delta = scores.max(axis=0) + lw[t]
+        path = [int(delta.argmax())]
+        for arg in reversed(back):
+            path.append(int(arg[path[-1]]))
+        return pair[np.arange(T), np.array(path[::-1])]
+    return chain
+
+
 @contextmanager
 def patched(pick=None, chain=None):
     """The tracker with pick_member / members_over_time replaced (None: the shipped ones),
@@ -291,6 +333,8 @@ for _p in (20.0, 45.0, 90.0):
 for _f in (0.25, 0.5):
     VARIANTS[f"unfold20_limbr{_f:g}"] = (lambda: patched(chain=unfolded_chain(20.0)),
                                          {"limb_r_scale": LIMB_R_SCALE * _f})
+for _c in (1.0, 3.0, 10.0):
+    VARIANTS[f"signchain{_c:g}"] = (lambda c=_c: patched(chain=gait_sign_chain(c)), {})
 for _v in (50.0, 200.0, 800.0):
     VARIANTS[f"chain2_{_v:g}"] = (lambda v=_v: patched(chain=second_order_chain(v)), {})
 
@@ -308,7 +352,20 @@ def _main(argv=None) -> int:
     for trial in args.trials:
         if not (args.bvh_dir / f"{trial}.bvh").is_file():
             ap.error(f"trial {trial}: no {args.bvh_dir / f'{trial}.bvh'}")
-    model = load_pose_model(args.model)
+    try:
+        model = load_pose_model(args.model)
+    except (OSError, SilhouettePoseError) as exc:
+        ap.error(f"--model {args.model}: {exc}")
+    try:
+        return _evaluate(args, model)
+    except (OSError, ValueError, RuntimeError, SilhouettePoseError) as exc:
+        print(f"evaluate_gait: error: {' '.join(str(exc).split()) or type(exc).__name__}",
+              file=sys.stderr)
+        return 1
+
+
+def _evaluate(args, model) -> int:
+    """The table (and --json) of the parsed options."""
     rows = []
     print(f"{'trial':6s} {'az':>4s} {'variant':10s} {'output':9s} "
           + " ".join(f"{c:>11s}" for c in FIGURES))
