@@ -256,7 +256,9 @@ def gait_sign_chain(cost: float, sd_deg: float = MEMBER_HEADING_SD_DEG, order: i
     its heading's (as tracker.member_path, a Gaussian of sd_deg about the smoothed heading);
     a step costs `cost` nats when the chosen body's thigh difference g (unfolded_chain's)
     changes sign between frames with no leg crossing between them, or keeps its sign across
-    a crossing. Away from profile the heading outweighs it; in profile it unfolds the legs."""
+    a crossing (a crossing: a minimum of |g| smoothed over 3 frames, within order frames,
+    below depth x its median, placed between the minimum's frame and its neighbour of smaller
+    |g|). Away from profile the heading outweighs it; in profile it unfolds the legs."""
     left, right = (NAMES.index(n) for n in ("LeftUpLeg_x", "RightUpLeg_x"))
 
     def chain(limbs, headings, frame_rate_ratio=1.0, **_):
@@ -266,8 +268,12 @@ def gait_sign_chain(cost: float, sd_deg: float = MEMBER_HEADING_SD_DEG, order: i
         lw = frame_rate_ratio * _heading_log_weight(pair, np.asarray(headings), sd_deg)
         g = limbs[:, left] - limbs[:, right]
         a = uniform_filter1d(np.abs(g), 3)
-        crossing = np.zeros(T, dtype=bool)
-        crossing[[i for i in argrelmin(a, order=order)[0] if a[i] < depth * np.median(a)]] = True
+        crossing = np.zeros(T, dtype=bool)           # crossing[t]: between frames t-1 and t
+        for i in argrelmin(a, order=order)[0]:
+            if a[i] < depth * np.median(a):
+                # the zero lies between the minimum and its neighbour of smaller |g|
+                after = i + 1 < T and (i == 0 or abs(g[i + 1]) < abs(g[i - 1]))
+                crossing[i + 1 if after else i] = True
         sign = np.stack([np.sign(g), -np.sign(g)], axis=1)             # (T, 2) chosen g sign
         delta, back = lw[0].copy(), []
         for t in range(1, T):
@@ -335,6 +341,8 @@ for _f in (0.25, 0.5):
                                          {"limb_r_scale": LIMB_R_SCALE * _f})
 for _c in (1.0, 3.0, 10.0):
     VARIANTS[f"signchain{_c:g}"] = (lambda c=_c: patched(chain=gait_sign_chain(c)), {})
+VARIANTS["signchain1_limbr0.5"] = (lambda: patched(chain=gait_sign_chain(1.0)),
+                                  {"limb_r_scale": LIMB_R_SCALE * 0.5})
 for _v in (50.0, 200.0, 800.0):
     VARIANTS[f"chain2_{_v:g}"] = (lambda v=_v: patched(chain=second_order_chain(v)), {})
 
