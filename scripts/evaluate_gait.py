@@ -6,7 +6,7 @@
 
 Each held-out CMU walk (tracker.offline.training.VALIDATION_TRIALS) is rendered as a 320x240
 video from a fixed camera at each azimuth relative to its walking direction (0: walking
-towards the camera, 90: in profile, the camera on the walker's left), cached in --cache-dir,
+towards the camera, 90 and 270: in profile from either side), cached in --cache-dir,
 and run through the ``track`` loop (tracker.offline.evaluation.track_longest's, the tracker
 kept to read its hypotheses). Knee flexion of each output against the truth
 (sequences.gait_measures: timing, alternation, range, our L-R correlation), for:
