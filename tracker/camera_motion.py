@@ -5,7 +5,9 @@ changes and the background model's "foreground" is the scene, not the people. A 
 shift between two frames shows as the peak of their phase correlation (OpenCV's
 ``phaseCorrelate``, on grey copies ANALYSIS_WIDTH px wide with a Hanning window against the
 borders): people cover a minority of the image and move on their own, so the peak is the
-background's. A shift of at least MIN_SHIFT of the frame's width counts as camera motion.
+background's, and where it is not (a person crossing a faintly textured scene), moving the
+whole image by it misaligns the scene, and it is dropped (:func:`frame_shift`). A shift of at
+least MIN_SHIFT of the frame's width counts as camera motion.
 Per frame (:class:`CameraMotionMeter`) a frame is compared with the one STEP_FRAMES earlier, so a
 slow pan adds up to a measurable shift; over a clip's sampled frames (:func:`camera_moves`) the
 samples are compared one with the next.
@@ -44,10 +46,36 @@ def small_grey(frame: np.ndarray, width: int = ANALYSIS_WIDTH) -> np.ndarray:
 
 def frame_shift(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     """(shift of ``b`` against ``a`` as a fraction of the width (>= 0), peak response 0..1) of
-    two :func:`small_grey` images of one size."""
+    two :func:`small_grey` images of one size. The shift is the phase correlation's peak, kept
+    only where it explains the two images better than no shift at all (the median absolute
+    difference over their overlap falls to under ALIGNED_SHARE of the unshifted one's): a
+    person moving in front of a still, faintly textured scene can make the peak theirs, but
+    moving the whole image by it misaligns the scene. Otherwise the shift is 0."""
     window = _hanning(a.shape)
-    (dx, dy), response = cv2.phaseCorrelate(a, b, window)
-    return float(np.hypot(dx, dy)) / a.shape[1], float(response)
+    # Copies: OpenCV 4.11's phaseCorrelate multiplies its inputs by the window in place.
+    (dx, dy), response = cv2.phaseCorrelate(a.copy(), b.copy(), window)
+    shift = float(np.hypot(dx, dy)) / a.shape[1]
+    if shift > 0 and not _explains(a, b, dx, dy):
+        return 0.0, float(response)
+    return shift, float(response)
+
+
+#: A shift explains two frames when it brings their median absolute difference to under this
+#: share of the unshifted frames'.
+ALIGNED_SHARE = 0.8
+
+
+def _explains(a: np.ndarray, b: np.ndarray, dx: float, dy: float) -> bool:
+    """Whether ``b`` moved back by (dx, dy) px matches ``a`` better than ``b`` as it is, over
+    the part of the image both cover (ALIGNED_SHARE)."""
+    height, width = a.shape
+    mx, my = int(np.ceil(abs(dx))) + 1, int(np.ceil(abs(dy))) + 1
+    if 2 * mx >= width or 2 * my >= height:
+        return True                 # nothing left to compare: the view changed wholesale
+    back = cv2.warpAffine(b, np.float32([[1, 0, -dx], [0, 1, -dy]]), (width, height))
+    inner = (slice(my, height - my), slice(mx, width - mx))
+    still = float(np.median(np.abs(a[inner] - b[inner])))
+    return float(np.median(np.abs(a[inner] - back[inner]))) < ALIGNED_SHARE * still
 
 
 _WINDOWS: dict[tuple[int, int], np.ndarray] = {}

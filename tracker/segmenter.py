@@ -23,6 +23,7 @@ fork breaks the forked process's own (tracker.frame_worker forks after priming).
 from __future__ import annotations
 
 import importlib.util
+import os
 import warnings
 
 import cv2
@@ -69,6 +70,17 @@ def require_segmenter(option: str = "--silhouettes segment") -> None:
                                     f"installed: {INSTALL_HINT}")
 
 
+#: The process ids in which a MediaPipe graph was made (forking them breaks: made_a_graph).
+_GRAPH_PROCESSES: set[int] = set()
+
+
+def made_a_graph() -> bool:
+    """Whether this process has made a MediaPipe graph: a process forked from it then crashes
+    when it makes its own (seen: malloc's "unaligned tcache chunk", a segfault), so
+    tracker.run keeps such a run in one process."""
+    return os.getpid() in _GRAPH_PROCESSES
+
+
 class SelfieModel:
     """MediaPipe's selfie segmentation (general model), made on first call: ``model(image)``
     with a BGR uint8 (h, w, 3) image gives float32 (h, w) person probabilities 0..1."""
@@ -79,6 +91,7 @@ class SelfieModel:
     def __call__(self, image: np.ndarray) -> np.ndarray:
         if self._graph is None:
             import mediapipe as mp
+            _GRAPH_PROCESSES.add(os.getpid())
             self._graph = mp.solutions.selfie_segmentation.SelfieSegmentation(model_selection=0)
         rgb = cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
         return self._graph.process(rgb).segmentation_mask
@@ -132,6 +145,28 @@ def merge_boxes(boxes: np.ndarray) -> np.ndarray:
             if merged:
                 break
     return np.array(boxes, int).reshape(-1, 4)
+
+
+#: A person's next crop is at least this share of the box it was found in, on each axis: a
+#: frame whose mask lost a limb or the head does not shrink the next crop around what is left.
+BOX_HOLD = 0.9
+
+
+def held_boxes(found: np.ndarray, proposed: np.ndarray, hold: float = BOX_HOLD) -> np.ndarray:
+    """The boxes (n, 4) x0, y0, x1, y1 to look in next frame: each found box (n, 4), grown
+    about its centre to at least ``hold`` x the width and height of the proposed box (m, 4)
+    holding that centre, if any."""
+    out = []
+    for box in np.asarray(found).reshape(-1, 4):
+        cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
+        width, height = box[2] - box[0], box[3] - box[1]
+        for p in np.asarray(proposed).reshape(-1, 4):
+            if p[0] <= cx <= p[2] and p[1] <= cy <= p[3]:
+                width = max(width, hold * (p[2] - p[0]))
+                height = max(height, hold * (p[3] - p[1]))
+                break
+        out.append((cx - width / 2, cy - height / 2, cx + width / 2, cy + height / 2))
+    return np.round(np.array(out, float).reshape(-1, 4)).astype(int)
 
 
 def crop_window(box, size: tuple[int, int], margin: float = CROP_MARGIN
@@ -210,12 +245,13 @@ class PersonSegmenter:
         if self.frames % self.search_every == 0:
             proposals.append(self.search(small))
         self.frames += 1
-        mask = self.segment(frame, small, merge_boxes(np.vstack(proposals)))
+        crops = merge_boxes(np.vstack(proposals))
+        mask = self.segment(frame, small, crops)
         people = person_masks(mask, size, self.min_area_fraction, image=small,
                               max_area_fraction=self.max_area_fraction)
         scale = np.array([work[0] / size[0], work[1] / size[1]] * 2)
         boxes = np.array([(x, y, x + w, y + h) for x, y, w, h in (p.bbox for p in people)])
-        self._previous = np.round(boxes.reshape(-1, 4) * scale).astype(int)
+        self._previous = held_boxes(np.round(boxes.reshape(-1, 4) * scale).astype(int), crops)
         return people
 
     def search(self, small: np.ndarray) -> np.ndarray:
