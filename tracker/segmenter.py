@@ -97,18 +97,23 @@ class SelfieModel:
         return self._graph.process(rgb).segmentation_mask
 
 
-def hog_detector() -> cv2.HOGDescriptor:
-    """OpenCV's HOG people detector with its built-in (Dalal-Triggs) weights."""
+def hog_detector() -> cv2.HOGDescriptor | None:
+    """OpenCV's HOG people detector with its built-in (Dalal-Triggs) weights; None where this
+    OpenCV has none (OpenCV 5 moved it out of the main modules; the segment extra's OpenCV 4
+    has it)."""
+    if not hasattr(cv2, "HOGDescriptor"):
+        return None
     hog = cv2.HOGDescriptor()
     hog.setSVMDetector(cv2.HOGDescriptor_getDefaultPeopleDetector())
     return hog
 
 
-def hog_boxes(hog: cv2.HOGDescriptor, image: np.ndarray, min_score: float = MIN_HOG_SCORE
-              ) -> np.ndarray:
-    """People HOG finds in ``image`` (BGR uint8): boxes (n, 4) x0, y0, x1, y1 px of the image.
-    The detector's window is 64x128 px: smaller people are not found."""
-    if image.shape[0] < 128 or image.shape[1] < 64:
+def hog_boxes(hog: cv2.HOGDescriptor | None, image: np.ndarray,
+              min_score: float = MIN_HOG_SCORE) -> np.ndarray:
+    """People HOG finds in ``image`` (BGR uint8): boxes (n, 4) x0, y0, x1, y1 px of the image
+    (none without a detector). The detector's window is 64x128 px: smaller people are not
+    found."""
+    if hog is None or image.shape[0] < 128 or image.shape[1] < 64:
         return np.zeros((0, 4), int)
     rects, scores = hog.detectMultiScale(image, winStride=(8, 8), padding=(8, 8), scale=1.05)
     if len(rects) == 0:
@@ -304,7 +309,8 @@ class AutoExtractor:
       it nothing is measured per frame); the segmenter then proposes no moving blobs;
     - a person who never leaves the spot: the background learned from the clip shows a person
       (segmented, or without the segmenter found by HOG) in its unreliable zone. Checked at
-      the first frame, in the process that segments (never before a fork).
+      the first frame, in the process that segments (never before a fork). Without the
+      segmenter and without OpenCV's HOG (OpenCV 5) this is not checked.
 
     Without the segmenter, such a clip stays with background subtraction and one warning says
     how to install it. :attr:`source` is "background" or "segment"; :attr:`reason` why.
