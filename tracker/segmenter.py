@@ -154,17 +154,29 @@ def blob_boxes(mask: np.ndarray, min_area: float, max_area: float) -> np.ndarray
     return np.column_stack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
 
 
-def merge_boxes(boxes: np.ndarray) -> np.ndarray:
-    """Boxes (n, 4) x0, y0, x1, y1 with every group of overlapping ones replaced by their union
-    (repeated until none overlap), so one person is segmented once."""
+#: A box under max_part of another's height is a part of it (a moving limb's blob) when at
+#: least this share of it lies inside the other: a person standing behind has less (Pose2Sim
+#: balancing cam02: 0.15).
+PART_INSIDE = 0.3
+
+
+def merge_boxes(boxes: np.ndarray, min_iou: float = 0.3, min_inside: float = 0.6,
+                max_part: float = 0.5) -> np.ndarray:
+    """Boxes (n, 4) x0, y0, x1, y1 with those that show one person replaced by their union
+    (repeated until none are left), so a person is segmented once: two boxes are one person
+    when their intersection over union is at least ``min_iou``, or covers ``min_inside`` of
+    the smaller box, or when the smaller is under ``max_part`` of the other's height and
+    PART_INSIDE of it lies in the other (a moving limb's blob). People side by side whose boxes overlap less stay
+    apart: a crop holding two people gives the segmenter's attention to the more prominent
+    (Pose2Sim balancing cam02: the still woman behind the subject was never segmented)."""
     boxes = [tuple(int(v) for v in b) for b in np.asarray(boxes).reshape(-1, 4)]
     merged = True
     while merged and len(boxes) > 1:
         merged = False
         for i in range(len(boxes)):
             for j in range(i + 1, len(boxes)):
-                a, b = boxes[i], boxes[j]
-                if min(a[2], b[2]) > max(a[0], b[0]) and min(a[3], b[3]) > max(a[1], b[1]):
+                if _one_person(boxes[i], boxes[j], min_iou, min_inside, max_part):
+                    a, b = boxes[i], boxes[j]
                     boxes[i] = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]),
                                 max(a[3], b[3]))
                     del boxes[j]
@@ -173,6 +185,19 @@ def merge_boxes(boxes: np.ndarray) -> np.ndarray:
             if merged:
                 break
     return np.array(boxes, int).reshape(-1, 4)
+
+
+def _one_person(a, b, min_iou: float, min_inside: float, max_part: float) -> bool:
+    """Whether boxes a and b (x0, y0, x1, y1) show one person (:func:`merge_boxes`)."""
+    w = min(a[2], b[2]) - max(a[0], b[0])
+    h = min(a[3], b[3]) - max(a[1], b[1])
+    if w <= 0 or h <= 0:
+        return False
+    areas = [max(1, (a[2] - a[0]) * (a[3] - a[1])), max(1, (b[2] - b[0]) * (b[3] - b[1]))]
+    heights = sorted([a[3] - a[1], b[3] - b[1]])
+    inter = w * h
+    return (inter >= min_iou * (sum(areas) - inter) or inter >= min_inside * min(areas)
+            or (heights[0] < max_part * heights[1] and inter >= PART_INSIDE * min(areas)))
 
 
 #: A person's next crop is at least this share of the box it was found in, on each axis: a
@@ -211,16 +236,20 @@ def confirmed(boxes: np.ndarray, found: np.ndarray) -> np.ndarray:
     return boxes[(overlap_x & overlap_y).any(axis=1)]
 
 
-def crop_window(box, size: tuple[int, int], margin: float = CROP_MARGIN
-                ) -> tuple[int, int, int, int]:
-    """The square-as-possible window (x0, y0, x1, y1) px around a box, reaching ``margin`` x
-    its height beyond it, clipped to an image of ``size`` (width, height)."""
+def crop_window(box, size: tuple[int, int], margin: float = CROP_MARGIN,
+                min_aspect: float = 0.5) -> tuple[int, int, int, int]:
+    """The window (x0, y0, x1, y1) px around a box (x0, y0, x1, y1), reaching ``margin`` x
+    its size beyond it on every side and at least ``min_aspect`` x its height wide, clipped
+    to an image of ``size`` (width, height). Not square: a standing person's square window
+    takes in the people beside them, and the segmenter then follows the more prominent."""
     x0, y0, x1, y1 = box
-    side = max(x1 - x0, y1 - y0) * (1 + 2 * margin)
+    height = (y1 - y0) * (1 + 2 * margin)
+    width = max((x1 - x0) * (1 + 2 * margin), min_aspect * height)
     cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
-    width, height = size
-    return (max(0, int(cx - side / 2)), max(0, int(cy - side / 2)),
-            min(width, int(np.ceil(cx + side / 2))), min(height, int(np.ceil(cy + side / 2))))
+    frame_width, frame_height = size
+    return (max(0, int(cx - width / 2)), max(0, int(cy - height / 2)),
+            min(frame_width, int(np.ceil(cx + width / 2))),
+            min(frame_height, int(np.ceil(cy + height / 2))))
 
 
 class PersonSegmenter:
@@ -290,9 +319,7 @@ class PersonSegmenter:
             proposals.append(found)
         self.frames += 1
         crops = merge_boxes(np.vstack(proposals))
-        mask = self.segment(frame, small, crops)
-        people = person_masks(mask, size, self.min_area_fraction, image=small,
-                              max_area_fraction=self.max_area_fraction)
+        people = self.people_in_crops(frame, small, crops)
         scale = np.array([work[0] / size[0], work[1] / size[1]] * 2)
         boxes = np.array([(x, y, x + w, y + h) for x, y, w, h in (p.bbox for p in people)])
         self._previous = held_boxes(np.round(boxes.reshape(-1, 4) * scale).astype(int), crops)
@@ -308,27 +335,92 @@ class PersonSegmenter:
                           blob_boxes(found, self.min_area_fraction * area,
                                      self.max_area_fraction * area)])
 
-    def segment(self, frame: np.ndarray, small: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-        """uint8 (h, w) at ``small``'s size, 255 = person: each box (working px) cropped from
-        the full ``frame`` with a margin (:func:`crop_window`), segmented, and its
-        probabilities pasted (the highest where crops overlap), then thresholded."""
+    def crop_probability(self, frame: np.ndarray, small: np.ndarray, box
+                         ) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
+        """(the window (x0, y0, x1, y1) working px around ``box`` (working px), its person
+        probabilities float32 at the window's working size): cut from the full ``frame``
+        (:func:`crop_window`), shrunk to MAX_CROP_SIDE, segmented; None for a degenerate
+        window."""
         height, width = small.shape[:2]
         sx, sy = frame.shape[1] / width, frame.shape[0] / height
-        canvas = np.zeros((height, width), np.float32)
+        x0, y0, x1, y1 = crop_window(box, (width, height), self.margin)
+        if x1 - x0 < 2 or y1 - y0 < 2:
+            return None
+        crop = frame[int(y0 * sy):int(np.ceil(y1 * sy)), int(x0 * sx):int(np.ceil(x1 * sx))]
+        scale = min(1.0, MAX_CROP_SIDE / max(crop.shape[:2]))
+        if scale < 1.0:
+            crop = shrink(crop, (max(1, int(crop.shape[1] * scale)),
+                                 max(1, int(crop.shape[0] * scale))))
+        self.crops += 1
+        return (x0, y0, x1, y1), cv2.resize(self.model(crop), (x1 - x0, y1 - y0),
+                                            interpolation=cv2.INTER_LINEAR)
+
+    def segment(self, frame: np.ndarray, small: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        """uint8 (h, w) at ``small``'s size, 255 = person: every box's
+        :meth:`crop_probability` pasted (the highest where crops overlap), thresholded."""
+        canvas = np.zeros(small.shape[:2], np.float32)
         for box in boxes:
-            x0, y0, x1, y1 = crop_window(box, (width, height), self.margin)
-            if x1 - x0 < 2 or y1 - y0 < 2:
-                continue
-            crop = frame[int(y0 * sy):int(np.ceil(y1 * sy)), int(x0 * sx):int(np.ceil(x1 * sx))]
-            scale = min(1.0, MAX_CROP_SIDE / max(crop.shape[:2]))
-            if scale < 1.0:
-                crop = shrink(crop, (max(1, int(crop.shape[1] * scale)),
-                                     max(1, int(crop.shape[0] * scale))))
-            probability = cv2.resize(self.model(crop), (x1 - x0, y1 - y0),
-                                     interpolation=cv2.INTER_LINEAR)
-            np.maximum(canvas[y0:y1, x0:x1], probability, out=canvas[y0:y1, x0:x1])
-            self.crops += 1
+            cut = self.crop_probability(frame, small, box)
+            if cut is not None:
+                (x0, y0, x1, y1), probability = cut
+                np.maximum(canvas[y0:y1, x0:x1], probability, out=canvas[y0:y1, x0:x1])
         return np.where(canvas >= self.probability, 255, 0).astype(np.uint8)
+
+    def people_in_crops(self, frame: np.ndarray, small: np.ndarray, boxes: np.ndarray
+                        ) -> list[PersonMask]:
+        """One person per box (working px) at most: the person of its crop
+        (:meth:`crop_probability`, thresholded, kept within half the crop's margin of the box,
+        split by :func:`person_masks`) whose box overlaps it most. Each crop gives its own mask, so two people whose masks touch stay
+        two (one shared foreground image made them one blob); a person found by two crops is
+        kept once (box IoU over DUPLICATE_IOU: the larger mask). Largest first."""
+        size = (frame.shape[1], frame.shape[0])
+        height, width = small.shape[:2]
+        scale = np.array([size[0] / width, size[1] / height] * 2)
+        people: list[PersonMask] = []
+        for box in boxes:
+            cut = self.crop_probability(frame, small, box)
+            if cut is None:
+                continue
+            (x0, y0, x1, y1), probability = cut
+            canvas = np.zeros((height, width), np.uint8)
+            canvas[y0:y1, x0:x1] = np.where(probability >= self.probability, 255, 0)
+            # Only near the box: a neighbour in the crop must not draw the mask to them.
+            a0, b0, a1, b1 = crop_window(box, (width, height), self.margin / 2, 0.0)
+            canvas[:b0], canvas[b1:], canvas[:, :a0], canvas[:, a1:] = 0, 0, 0, 0
+            found = person_masks(canvas, size, self.min_area_fraction, image=small,
+                                 max_area_fraction=self.max_area_fraction)
+            overlaps = [_iou(_corners(p.bbox), np.asarray(box) * scale) for p in found]
+            if found and max(overlaps) > 0:
+                people.append(found[int(np.argmax(overlaps))])
+        return _distinct(people)
+
+
+#: Two crops' people whose boxes overlap by more than this intersection over union are one.
+DUPLICATE_IOU = 0.5
+
+
+def _corners(bbox) -> np.ndarray:
+    """(x, y, w, h) -> (x0, y0, x1, y1)."""
+    x, y, w, h = bbox
+    return np.array([x, y, x + w, y + h], float)
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    """Intersection over union of two boxes (x0, y0, x1, y1)."""
+    w = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
+    h = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - w * h
+    return float(w * h / union) if union > 0 else 0.0
+
+
+def _distinct(people: list[PersonMask]) -> list[PersonMask]:
+    """People (largest first) without those whose box overlaps a larger one's by more than
+    DUPLICATE_IOU."""
+    kept: list[PersonMask] = []
+    for person in sorted(people, key=lambda p: -p.area):
+        if all(_iou(_corners(person.bbox), _corners(k.bbox)) <= DUPLICATE_IOU for k in kept):
+            kept.append(person)
+    return kept
 
 
 #: A person segmented in the learned background counts as one who never leaves the spot when
