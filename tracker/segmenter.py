@@ -260,8 +260,8 @@ class PersonSegmenter:
     image, as :func:`person_masks` takes them. ``working_width``: px width of the foreground
     image the crops' masks are pasted into (and of the motion model), as the background path's.
     ``search_every``: frames between searches (HOG and the whole frame segmented), the first
-    frame included. ``use_motion``: propose the moving blobs of a background model (a still
-    camera; False for a moving one). ``model``: image -> person probabilities (default
+    frame included. ``use_motion``: propose the moving blobs of a background model, while the
+    camera stays still (:class:`tracker.camera_motion.CameraMotionMeter`); False: never. ``model``: image -> person probabilities (default
     :class:`SelfieModel`). :attr:`crops` counts the crops segmented.
     """
 
@@ -278,6 +278,7 @@ class PersonSegmenter:
         self.use_motion = use_motion
         self.model = model if model is not None else SelfieModel()
         self.hog = hog_detector()
+        self.meter = CameraMotionMeter()
         self.frames = 0
         self.crops = 0
         self._previous = np.zeros((0, 4), int)       # last frame's people, working px
@@ -306,7 +307,8 @@ class PersonSegmenter:
         work = self.subtractor.working_size(*size)
         area = work[0] * work[1]
         limits = (self.min_area_fraction * area, self.max_area_fraction * area)
-        if self.use_motion and self.subtractor.reference is not None:
+        # A moving camera makes everything a moving blob: none is proposed then.
+        if self.use_motion and self.subtractor.reference is not None and not self.meter(frame):
             small, raw = self.subtractor.subtract(frame)
             moving = clean_mask(np.where(raw > FOREGROUND_LEVEL, 255, 0).astype(np.uint8))
             proposals = [self._previous, blob_boxes(moving, *limits)]
@@ -372,7 +374,7 @@ class PersonSegmenter:
         (:meth:`crop_probability`, thresholded, kept within half the crop's margin of the box,
         split by :func:`person_masks`) whose box overlaps it most. Each crop gives its own mask, so two people whose masks touch stay
         two (one shared foreground image made them one blob); a person found by two crops is
-        kept once (box IoU over DUPLICATE_IOU: the larger mask). Largest first."""
+        kept once (:func:`_distinct`). Largest first."""
         size = (frame.shape[1], frame.shape[0])
         height, width = small.shape[:2]
         scale = np.array([size[0] / width, size[1] / height] * 2)
@@ -395,8 +397,8 @@ class PersonSegmenter:
         return _distinct(people)
 
 
-#: Two crops' people whose boxes overlap by more than this intersection over union are one.
-DUPLICATE_IOU = 0.5
+#: Two crops' people are one when this share of the smaller one's box lies in the other's.
+DUPLICATE_SHARE = 0.5
 
 
 def _corners(bbox) -> np.ndarray:
@@ -405,20 +407,29 @@ def _corners(bbox) -> np.ndarray:
     return np.array([x, y, x + w, y + h], float)
 
 
-def _iou(a: np.ndarray, b: np.ndarray) -> float:
-    """Intersection over union of two boxes (x0, y0, x1, y1)."""
+def _intersection(a: np.ndarray, b: np.ndarray) -> float:
+    """Area of the intersection of two boxes (x0, y0, x1, y1)."""
     w = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
     h = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
-    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - w * h
-    return float(w * h / union) if union > 0 else 0.0
+    return float(w * h)
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    """Intersection over union of two boxes (x0, y0, x1, y1)."""
+    inter = _intersection(a, b)
+    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+    return float(inter / union) if union > 0 else 0.0
 
 
 def _distinct(people: list[PersonMask]) -> list[PersonMask]:
-    """People (largest first) without those whose box overlaps a larger one's by more than
-    DUPLICATE_IOU."""
+    """People (largest first) without those whose box lies by DUPLICATE_SHARE or more inside
+    a larger one's: a second crop on one person (a moving blob beside the followed box)
+    finds a piece of them, which as a second person had split their track."""
     kept: list[PersonMask] = []
     for person in sorted(people, key=lambda p: -p.area):
-        if all(_iou(_corners(person.bbox), _corners(k.bbox)) <= DUPLICATE_IOU for k in kept):
+        box = _corners(person.bbox)
+        own = max(1.0, (box[2] - box[0]) * (box[3] - box[1]))
+        if all(_intersection(box, _corners(k.bbox)) < DUPLICATE_SHARE * own for k in kept):
             kept.append(person)
     return kept
 
