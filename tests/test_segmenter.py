@@ -109,8 +109,9 @@ def test_boxes_of_one_person_merge_and_people_side_by_side_stay_apart():
 def test_segmenter_follows_the_still_person_on_a_real_view(pose2sim_trial):
     """Pose2Sim's balancing, cam01's first 30 frames at full size: the median of the clip
     holds the person, the segmenter needs no empty scene. One track in every frame holding
-    most keypoints (the whole view: 81.5 %, docs/segmenter.md), little spill; auto turns to
-    the segmenter because the learned background shows the person."""
+    most keypoints (the whole view: 88.8 %, docs/segmenter.md), little spill. Auto with
+    still_person turns to the segmenter because the learned background shows the person;
+    track's auto (still_person off) keeps background subtraction."""
     from sequences.pose2sim import load_trial, project_reference
     from tracker.video import open_video
     trial = load_trial(pose2sim_trial)
@@ -123,10 +124,16 @@ def test_segmenter_follows_the_still_person_on_a_real_view(pose2sim_trial):
                                    project_reference("cam01", np.arange(30), trial))
     assert measures["coverage"] >= 0.75 and measures["spill"] <= 0.15, measures
     assert measures["main_track_fraction"] == 1.0, measures
-    auto = silhouette_extractor("auto", TrackerSettings())
+    settings = TrackerSettings()
+    auto = AutoExtractor(lambda **o: default_extractor(settings, **o), PersonSegmenter(),
+                         still_person=True)
     auto.prime(samples)
     auto(frames[0][1])
     assert auto.source == "segment" and "never leaves" in auto.reason
+    default = silhouette_extractor("auto", settings)       # still_person off: background
+    default.prime(samples)
+    default(frames[0][1])
+    assert default.source == "background" and default.reason is None
 
 
 @needs_segmenter

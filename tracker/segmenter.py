@@ -449,19 +449,24 @@ class AutoExtractor:
       (:func:`tracker.camera_motion.camera_moves`), or, frame by frame, the camera starts to
       move (:class:`tracker.camera_motion.CameraMotionMeter`, only with the segmenter: without
       it nothing is measured per frame); the segmenter then proposes no moving blobs;
-    - a person who never leaves the spot: the background learned from the clip shows a person
-      (segmented, or without the segmenter found by HOG) in its unreliable zone. Checked at
-      the first frame, in the process that segments (never before a fork). Without the
-      segmenter and without OpenCV's HOG (OpenCV 5) this is not checked.
+    - with ``still_person`` (off by default), a person who never leaves the spot: the
+      background learned from the clip shows a person (segmented, or without the segmenter
+      found by HOG) in its unreliable zone. Checked at the first frame, in the process that
+      segments (never before a fork); without the segmenter and without OpenCV's HOG
+      (OpenCV 5) not at all. Off because on such clips (Pose2Sim's balancing and swings) the
+      background path with its colour-decided zone gave masks as good or better than the
+      segmenter's (docs/segmenter.md).
 
     Without the segmenter, such a clip stays with background subtraction and one warning says
     how to install it. :attr:`source` is "background" or "segment"; :attr:`reason` why.
     """
 
-    def __init__(self, make_background, segmenter: PersonSegmenter | None):
+    def __init__(self, make_background, segmenter: PersonSegmenter | None,
+                 still_person: bool = False):
         self.make_background = make_background
         self.background: SilhouetteExtractor = make_background()
         self.segmenter = segmenter
+        self.still_person = still_person
         self.meter = CameraMotionMeter()
         self.source, self.reason = "background", None
         self._check_background = False
@@ -493,7 +498,7 @@ class AutoExtractor:
         if camera_moves(frames):
             self._choose("the camera moves", motion=False)
         else:
-            self._check_background = True
+            self._check_background = self.still_person
 
     def _choose(self, reason: str, motion: bool = True) -> None:
         """Turn to the segmenter for ``reason`` (or warn once that it is missing)."""
