@@ -1,6 +1,7 @@
 """A walk seen by a panning camera against its static-camera twin, through each silhouette source.
 
-    python scripts/evaluate_panning.py --background-video ../shared/data/pose2sim/balancing/videos/cam03.mp4 \
+    python scripts/evaluate_panning.py \
+        --background-video ../shared/data/pose2sim/balancing/videos/cam03.mp4 \
         [--bvh ../shared/data/cmu/bvh/16_11.bvh] [--frames 300] [--pan 4] \
         [--silhouettes background segment auto] [--out-dir out/panning] [--json OUT]
 

@@ -166,8 +166,8 @@ def merge_boxes(boxes: np.ndarray, min_iou: float = 0.3, min_inside: float = 0.6
     (repeated until none are left), so a person is segmented once: two boxes are one person
     when their intersection over union is at least ``min_iou``, or covers ``min_inside`` of
     the smaller box, or when the smaller is under ``max_part`` of the other's height and
-    PART_INSIDE of it lies in the other (a moving limb's blob). People side by side whose boxes overlap less stay
-    apart: a crop holding two people gives the segmenter's attention to the more prominent
+    PART_INSIDE of it lies in the other (a moving limb's blob). People side by side whose
+    boxes overlap less stay apart: a crop holding two people gives the segmenter's attention to the more prominent
     (Pose2Sim balancing cam02: the still woman behind the subject was never segmented)."""
     boxes = [tuple(int(v) for v in b) for b in np.asarray(boxes).reshape(-1, 4)]
     merged = True
@@ -261,8 +261,9 @@ class PersonSegmenter:
     image the crops' masks are pasted into (and of the motion model), as the background path's.
     ``search_every``: frames between searches (HOG and the whole frame segmented), the first
     frame included. ``use_motion``: propose the moving blobs of a background model, while the
-    camera stays still (:class:`tracker.camera_motion.CameraMotionMeter`); False: never. ``model``: image -> person probabilities (default
-    :class:`SelfieModel`). :attr:`crops` counts the crops segmented.
+    camera stays still (:class:`tracker.camera_motion.CameraMotionMeter`); False: never.
+    ``model``: image -> person probabilities (default :class:`SelfieModel`). :attr:`crops`
+    counts the crops segmented.
     """
 
     def __init__(self, min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION,
@@ -372,9 +373,10 @@ class PersonSegmenter:
                         ) -> list[PersonMask]:
         """One person per box (working px) at most: the person of its crop
         (:meth:`crop_probability`, thresholded, kept within half the crop's margin of the box,
-        split by :func:`person_masks`) whose box overlaps it most. Each crop gives its own mask, so two people whose masks touch stay
-        two (one shared foreground image made them one blob); a person found by two crops is
-        kept once (:func:`_distinct`). Largest first."""
+        split by :func:`person_masks`) whose box overlaps it most. Each crop gives its own
+        mask, so two people whose masks touch stay two (one shared foreground image made them
+        one blob); a person found by two crops is kept once (:func:`_distinct`). Largest
+        first."""
         size = (frame.shape[1], frame.shape[0])
         height, width = small.shape[:2]
         scale = np.array([size[0] / width, size[1] / height] * 2)
