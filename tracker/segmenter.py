@@ -167,8 +167,9 @@ def merge_boxes(boxes: np.ndarray, min_iou: float = 0.3, min_inside: float = 0.6
     when their intersection over union is at least ``min_iou``, or covers ``min_inside`` of
     the smaller box, or when the smaller is under ``max_part`` of the other's height and
     PART_INSIDE of it lies in the other (a moving limb's blob). People side by side whose
-    boxes overlap less stay apart: a crop holding two people gives the segmenter's attention to the more prominent
-    (Pose2Sim balancing cam02: the still woman behind the subject was never segmented)."""
+    boxes overlap less stay apart: a crop holding two people gives the segmenter's attention
+    to the more prominent (Pose2Sim balancing cam02: the still woman behind the subject was
+    never segmented)."""
     boxes = [tuple(int(v) for v in b) for b in np.asarray(boxes).reshape(-1, 4)]
     merged = True
     while merged and len(boxes) > 1:
