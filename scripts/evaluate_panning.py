@@ -1,15 +1,15 @@
 """A walk seen by a panning camera against its static-camera twin, through each silhouette source.
 
     python scripts/evaluate_panning.py \
-        --background-video ../shared/data/pose2sim/balancing/videos/cam03.mp4 \
+        --background-video ../shared/data/pose2sim/balancing/videos/cam01.mp4 \
         [--bvh ../shared/data/cmu/bvh/16_11.bvh] [--frames 300] [--pan 4] \
         [--silhouettes background segment auto] [--out-dir out/panning] [--json OUT]
 
 A CMU walk is rendered as a 30 deg/s spiral walk at 640x480 without sensor noise
 (tracker.offline.evaluation.write_camera_video), its body cut out of the frames (where they
-differ from the render's own textured scene) and pasted over a real background: the floor of a
-video's first frame below its subject (the bottom 35 % of the frame, scaled 2x), 640x480 of it
-seen through a window that stays put (the static twin) or pans left and right at --pan px per
+differ from the render's own textured scene, holes filled) and pasted over a real background:
+the top 15 % of a video's first frame, above its subject (ceiling, lights, cameras), scaled 2x;
+640x480 of it seen through a window that stays put (the static twin) or pans left and right at --pan px per
 frame (the panning video); sensor noise (2 grey levels) is added to both. The body itself does
 not move with the pan: the background moves behind it, which is what a camera turning to follow
 its subject shows. Each video is tracked (tracker.run.track_video, one process, at most one
@@ -31,6 +31,7 @@ from threadpoolctl import threadpool_limits
 from regressor.pose_model import load_pose_model
 from sequences.measures import pose_measures
 from sequences.video import load_truth, textured_background, truth_path
+from tracker.background import fill_holes
 from tracker.offline.evaluation import CameraOptions, cmu_motion, constant_pose, write_camera_video
 from tracker.one_line_parser import OneLineParser
 from tracker.pipeline import PoseTracker, TrackerSettings
@@ -42,16 +43,25 @@ REPO = Path(__file__).resolve().parents[1]
 SIZE = (480, 640)                     # (height, width)
 
 
-def floor_image(video: Path) -> np.ndarray:
-    """The bottom 35 % of the video's first frame, scaled 2x: BGR uint8."""
+def scene_image(video: Path) -> np.ndarray:
+    """The top 15 % of the video's first frame (above its subject's head: ceiling, lights,
+    cameras, a textured view), scaled 2x: BGR uint8."""
     capture = cv2.VideoCapture(str(video))
     ok, frame = capture.read()
     capture.release()
     if not ok:
         raise SystemExit(f"evaluate_panning: error: {video}: no frame decodes")
-    floor = frame[int(0.65 * frame.shape[0]):]
-    return cv2.resize(floor, (floor.shape[1] * 2, floor.shape[0] * 2),
-                      interpolation=cv2.INTER_CUBIC)
+    top = frame[:int(0.15 * frame.shape[0])]
+    return cv2.resize(top, (top.shape[1] * 2, top.shape[0] * 2), interpolation=cv2.INTER_CUBIC)
+
+
+def body_mask(frame: np.ndarray, scene: np.ndarray) -> np.ndarray:
+    """Where the noiseless render ``frame`` (BGR uint8) shows the body: it differs from the
+    render's own scene (int16) by over 20 grey levels, closed (5 px) and with enclosed holes
+    filled (where the shaded body matches the scene's colour). uint8 (H, W), 255 = body."""
+    body = (np.abs(frame.astype(np.int16) - scene).max(axis=2) > 20).astype(np.uint8) * 255
+    body = cv2.morphologyEx(body, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
+    return fill_holes(cv2.morphologyEx(body, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)))
 
 
 def window_x(t: int, pan: float, span: int) -> int:
@@ -82,8 +92,7 @@ def composite(render: Path, background: np.ndarray, pan: float, out: Path,
         ok, frame = capture.read()
         if not ok:
             break
-        body = np.abs(frame.astype(np.int16) - scene).max(axis=2) > 30
-        body = cv2.morphologyEx(body.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+        body = body_mask(frame, scene)
         x0 = window_x(t, pan, span)
         image = background[y0:y0 + height, x0:x0 + width].astype(np.float32)
         image[body > 0] = frame[body > 0]
@@ -130,7 +139,7 @@ def main(argv=None) -> int:
     if not render.is_file():
         camera = replace(CameraOptions(), size=SIZE, noise_sigma=0.0)
         write_camera_video(render, cmu_motion(args.bvh, 30.0), camera, frames=args.frames)
-    background = floor_image(args.background_video)
+    background = scene_image(args.background_video)
     videos = {"static": args.out_dir / "walk_static.mp4", "panning": args.out_dir / "walk_pan.mp4"}
     for name, video in videos.items():
         composite(render, background, 0.0 if name == "static" else args.pan, video)

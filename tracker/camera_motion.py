@@ -47,8 +47,9 @@ def small_grey(frame: np.ndarray, width: int = ANALYSIS_WIDTH) -> np.ndarray:
 def frame_shift(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     """(shift of ``b`` against ``a`` as a fraction of the width (>= 0), peak response 0..1) of
     two :func:`small_grey` images of one size. The shift is the phase correlation's peak, kept
-    only where it explains the two images better than no shift at all (the median absolute
-    difference over their overlap falls to under ALIGNED_SHARE of the unshifted one's): a
+    only where it explains the two images better than no shift at all (the mean absolute
+    difference over their overlap falls to under ALIGNED_SHARE of the unshifted one's; not the
+    median, which a scene of flat surfaces keeps at the noise level either way): a
     person moving in front of a still, faintly textured scene can make the peak theirs, but
     moving the whole image by it misaligns the scene. Otherwise the shift is 0."""
     window = _hanning(a.shape)
@@ -60,7 +61,7 @@ def frame_shift(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return shift, float(response)
 
 
-#: A shift explains two frames when it brings their median absolute difference to under this
+#: A shift explains two frames when it brings their mean absolute difference to under this
 #: share of the unshifted frames'.
 ALIGNED_SHARE = 0.8
 
@@ -74,8 +75,8 @@ def _explains(a: np.ndarray, b: np.ndarray, dx: float, dy: float) -> bool:
         return True                 # nothing left to compare: the view changed wholesale
     back = cv2.warpAffine(b, np.float32([[1, 0, -dx], [0, 1, -dy]]), (width, height))
     inner = (slice(my, height - my), slice(mx, width - mx))
-    still = float(np.median(np.abs(a[inner] - b[inner])))
-    return float(np.median(np.abs(a[inner] - back[inner]))) < ALIGNED_SHARE * still
+    still = float(np.mean(np.abs(a[inner] - b[inner])))
+    return float(np.mean(np.abs(a[inner] - back[inner]))) < ALIGNED_SHARE * still
 
 
 _WINDOWS: dict[tuple[int, int], np.ndarray] = {}
