@@ -26,8 +26,6 @@ ANALYSIS_WIDTH = 160
 #: A shift between two frames of at least this fraction of the frame width is camera motion
 #: (1.6 px at ANALYSIS_WIDTH; phase correlation of a still scene stays within about 0.2 px).
 MIN_SHIFT = 0.01
-#: Below this peak response the two frames share too little to be compared (a cut, a blank).
-MIN_RESPONSE = 0.05
 #: The per-frame meter compares a frame with the one this many frames earlier.
 STEP_FRAMES = 5
 #: Consecutive comparisons that must show motion before the meter says the camera moves.
@@ -47,9 +45,7 @@ def small_grey(frame: np.ndarray, width: int = ANALYSIS_WIDTH) -> np.ndarray:
 def frame_shift(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     """(shift of ``b`` against ``a`` as a fraction of the width (>= 0), peak response 0..1) of
     two :func:`small_grey` images of one size. The shift is the phase correlation's peak, kept
-    only where it explains the two images better than no shift at all (the mean absolute
-    difference over their overlap falls to under ALIGNED_SHARE of the unshifted one's; not the
-    median, which a scene of flat surfaces keeps at the noise level either way): a
+    only where it explains the two images better than no shift at all (:func:`_explains`): a
     person moving in front of a still, faintly textured scene can make the peak theirs, but
     moving the whole image by it misaligns the scene. Otherwise the shift is 0."""
     window = _hanning(a.shape)
@@ -61,22 +57,39 @@ def frame_shift(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return shift, float(response)
 
 
-#: A shift explains two frames when it brings their mean absolute difference to under this
-#: share of the unshifted frames'.
+#: A shift explains two frames in a cell of a GRID x GRID division of the image when it brings
+#: the cell's mean absolute difference to under this share of the unshifted frames' (and
+#: fails to where it raises it above the unshifted's over this share).
 ALIGNED_SHARE = 0.8
+GRID = 3
 
 
 def _explains(a: np.ndarray, b: np.ndarray, dx: float, dy: float) -> bool:
-    """Whether ``b`` moved back by (dx, dy) px matches ``a`` better than ``b`` as it is, over
-    the part of the image both cover (ALIGNED_SHARE)."""
+    """Whether ``b`` moved back by (dx, dy) px matches ``a`` better than ``b`` as it is: in
+    more cells of a GRID x GRID division of their common part than it matches worse. A moving
+    camera moves every textured cell the same way (flat cells, a blank wall or a mat, change
+    neither way); a person moving across a still scene improves only their own cells and
+    misaligns the scene's texture in the others. (One statistic over the whole image failed
+    both ways: a median stayed at the noise level over flat surfaces and missed a pan, a mean
+    followed a person across a blank wall.)"""
     height, width = a.shape
     mx, my = int(np.ceil(abs(dx))) + 1, int(np.ceil(abs(dy))) + 1
     if 2 * mx >= width or 2 * my >= height:
         return True                 # nothing left to compare: the view changed wholesale
     back = cv2.warpAffine(b, np.float32([[1, 0, -dx], [0, 1, -dy]]), (width, height))
     inner = (slice(my, height - my), slice(mx, width - mx))
-    still = float(np.mean(np.abs(a[inner] - b[inner])))
-    return float(np.mean(np.abs(a[inner] - back[inner]))) < ALIGNED_SHARE * still
+    still = _cell_means(np.abs(a[inner] - b[inner]))
+    moved_back = _cell_means(np.abs(a[inner] - back[inner]))
+    better = int(np.count_nonzero(moved_back < ALIGNED_SHARE * still))
+    worse = int(np.count_nonzero(ALIGNED_SHARE * moved_back > still))
+    return better > worse
+
+
+def _cell_means(image: np.ndarray) -> np.ndarray:
+    """Means (GRID * GRID,) of the cells of a GRID x GRID division of ``image`` (h, w)."""
+    rows = np.array_split(np.arange(image.shape[0]), GRID)
+    cols = np.array_split(np.arange(image.shape[1]), GRID)
+    return np.array([image[r[0]:r[-1] + 1, c[0]:c[-1] + 1].mean() for r in rows for c in cols])
 
 
 _WINDOWS: dict[tuple[int, int], np.ndarray] = {}
@@ -89,15 +102,13 @@ def _hanning(shape: tuple[int, int]) -> np.ndarray:
     return _WINDOWS[shape]
 
 
-def moved(shift: float, response: float, min_shift: float = MIN_SHIFT,
-          min_response: float = MIN_RESPONSE) -> bool:
-    """Whether a :func:`frame_shift` result is camera motion: a clear peak away from zero, or
-    no clear peak at all (the view changed too much to match)."""
-    return response < min_response or shift >= min_shift
+def moved(shift: float, min_shift: float = MIN_SHIFT) -> bool:
+    """Whether a :func:`frame_shift` shift (a fraction of the width) is camera motion. A weak
+    peak alone is not: two frames of a still camera on a blank wall have none either."""
+    return shift >= min_shift
 
 
-def camera_moves(frames, min_shift: float = MIN_SHIFT, min_response: float = MIN_RESPONSE
-                 ) -> bool:
+def camera_moves(frames, min_shift: float = MIN_SHIFT) -> bool:
     """Whether frames spread over a clip (a list or (N, H, W, 3) BGR uint8, in time order, e.g.
     ``VideoSource.sample_frames``) were taken by a moving camera: more than half of the pairs
     of consecutive samples moved (:func:`moved`). A still camera's samples all line up, people
@@ -105,7 +116,7 @@ def camera_moves(frames, min_shift: float = MIN_SHIFT, min_response: float = MIN
     greys = [small_grey(f) for f in frames]
     if len(greys) < 2:
         return False
-    moves = [moved(*frame_shift(a, b), min_shift, min_response) for a, b in zip(greys, greys[1:])]
+    moves = [moved(frame_shift(a, b)[0], min_shift) for a, b in zip(greys, greys[1:])]
     return sum(moves) > len(moves) / 2
 
 
@@ -116,11 +127,11 @@ class CameraMotionMeter:
     count at the first such answer (None while the camera has stayed still)."""
 
     def __init__(self, step: int = STEP_FRAMES, run: int = MOVING_RUN,
-                 min_shift: float = MIN_SHIFT, min_response: float = MIN_RESPONSE):
+                 min_shift: float = MIN_SHIFT):
         if step < 1 or run < 1:
             raise ValueError(f"step={step} and run={run} must be at least 1")
         self.step, self.run = step, run
-        self.min_shift, self.min_response = min_shift, min_response
+        self.min_shift = min_shift
         self._recent: deque = deque(maxlen=step + 1)
         self._streak = 0
         self.frames = 0
@@ -134,9 +145,8 @@ class CameraMotionMeter:
         self._recent.append(grey)
         if len(self._recent) <= self.step:
             return False
-        shift, response = frame_shift(self._recent[0], grey)
-        self._streak = self._streak + 1 if moved(shift, response, self.min_shift,
-                                                 self.min_response) else 0
+        shift, _ = frame_shift(self._recent[0], grey)
+        self._streak = self._streak + 1 if moved(shift, self.min_shift) else 0
         moving = self._streak >= self.run
         if moving and self.moving_since is None:
             self.moving_since = self.frames
