@@ -36,7 +36,7 @@ from tracker.offline.evaluation import CameraOptions, cmu_motion, constant_pose,
 from tracker.one_line_parser import OneLineParser
 from tracker.pipeline import PoseTracker, TrackerSettings
 from tracker.run import track_video
-from tracker.segmenter import SOURCES, silhouette_extractor
+from tracker.segmenter import INSTALL_HINT, SOURCES, segmenter_available, silhouette_extractor
 from tracker.sinks import PoseRecorder
 
 REPO = Path(__file__).resolve().parents[1]
@@ -134,6 +134,12 @@ def main(argv=None) -> int:
     ap.add_argument("--out-dir", type=Path, default=Path("out/panning"))
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
+    if {"segment", "auto"} & set(args.silhouettes) and not segmenter_available():
+        ap.error(f"--silhouettes segment and auto need the person segmenter: {INSTALL_HINT}")
+    if not args.background_video.is_file():
+        ap.error(f"--background-video {args.background_video}: no such file")
+    if not args.bvh.is_file():
+        ap.error(f"--bvh {args.bvh}: no such file")
     args.out_dir.mkdir(parents=True, exist_ok=True)
     render = args.out_dir / "walk_noiseless.mp4"
     if not render.is_file():
