@@ -6,16 +6,16 @@
         [--silhouettes background segment auto] [--out-dir out/panning] [--json OUT]
 
 A CMU walk is rendered as a 30 deg/s spiral walk at 640x480 without sensor noise
-(tracker.offline.evaluation.write_camera_video), its body cut out of the frames (where they
-differ from the render's own textured scene, holes filled) and pasted over a real background:
-the top 15 % of a video's first frame, above its subject (ceiling, lights, cameras), scaled 2x;
-640x480 of it seen through a window that stays put (the static twin) or pans left and right at
---pan px per frame (the panning video); sensor noise (2 grey levels) is added to both. The
-body itself does not move with the pan: the background moves behind it, which is what a camera
-turning to follow its subject shows. Each video is tracked (tracker.run.track_video, one process, at most one
-person) with each silhouette source and its longest track's poses compared with the render's
-ground truth (sequences.measures.pose_measures: err53, corr8, flexion, heading, MPJPE), filtered
-and smoothed, with the share of frames tracked. Needs the segment extra for segment and auto.
+(tracker.offline.evaluation.write_camera_video), its body cut out of the frames (where they differ
+from the render's own textured scene, holes filled) and pasted over a real background: the top 15 %
+of a video's first frame, above its subject (ceiling, lights, cameras), scaled 2x; 640x480 of it
+seen through a window that stays put (the static twin) or pans left and right at --pan px per frame
+(the panning video); sensor noise (2 grey levels) is added to both. The body itself does not move
+with the pan: the background moves behind it, which is what a camera turning to follow its subject
+shows. Each video is tracked (tracker.run.track_video, one process, at most one person) with each
+silhouette source and its longest track's poses compared with the render's ground truth
+(sequences.measures.pose_measures: err53, corr8, flexion, heading, MPJPE), filtered and smoothed,
+with the share of frames tracked. Needs the segment extra for segment and auto.
 """
 from __future__ import annotations
 
