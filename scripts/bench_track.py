@@ -42,6 +42,7 @@ from threadpoolctl import threadpool_limits
 from regressor.errors import SilhouettePoseError
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from tracker import PoseTracker, TrackerSettings, track_video
+from tracker.segmenter import INSTALL_HINT, SOURCES, segmenter_available, silhouette_extractor
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.sinks.json_summary import JsonSummarySink
 from tracker.sinks.mcap import McapSink
@@ -114,16 +115,19 @@ class _MemorySampler:
         pass
 
 
-def _track(video: Path, model_path: Path, workdir: Path, workers: int):
+def _track(video: Path, model_path: Path, workdir: Path, workers: int,
+           silhouettes: str = "background"):
     """`track`'s loop (tracker.run.track_video) with MCAP and JSON outputs, in one process or
     with the frame worker (workers 2, `track`'s default on two cores); returns fps, stage
     ms, memory samples (the main process's), frames, the start-up seconds (open, sample,
-    prime) and the frames with someone in view."""
+    prime) and the frames with someone in view. silhouettes: track --silhouettes."""
     model = load_pose_model(model_path)
     start = time.perf_counter()
     source = open_video(video)
     opened = time.perf_counter() - start
-    tracker = PoseTracker(model, source.fps, TrackerSettings(keep_history=False))
+    settings = TrackerSettings(keep_history=False)
+    tracker = PoseTracker(model, source.fps, settings,
+                          extractor=silhouette_extractor(silhouettes, settings))
     sampler = _MemorySampler()
     result = track_video(source, tracker, [McapSink(workdir / "bench.mcap"),
                                            JsonSummarySink(workdir / "bench.json", source.fps)],
@@ -143,7 +147,12 @@ def _main(argv) -> int:
                     help=f"frames of the default video, 10..100000 (default {DEFAULT_FRAMES}; "
                          "each count rendered once, then reused); not with --video")
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL_PATH)
+    ap.add_argument("--silhouettes", choices=SOURCES, default="background",
+                    help="track --silhouettes (default background: the benchmark as before; "
+                         f"segment and auto need {INSTALL_HINT})")
     args = ap.parse_args(argv)
+    if args.silhouettes == "segment" and not segmenter_available():
+        ap.error(f"--silhouettes segment needs the person segmenter: {INSTALL_HINT}")
     if args.frames is not None and not 10 <= args.frames <= 100000:
         ap.error(f"--frames must be in 10..100000, got {args.frames}")
     if args.video is not None and args.frames is not None:
@@ -173,10 +182,12 @@ def _main(argv) -> int:
                 _make_video(video, frames)
         with threadpool_limits(1), tempfile.TemporaryDirectory() as tmp:
             decode_fps, n = _decode_fps(video)
+            # The frame worker first: a process that has run MediaPipe forks none
+            # (tracker.segmenter.made_a_graph), so one process after it would measure nothing.
+            two_fps, two_ms, two_memory, _, two_startup_s, _ = _track(
+                video, args.model, Path(tmp), 2, args.silhouettes)
             track_fps, stage_ms, memory, frames, startup_s, with_people = _track(
-                video, args.model, Path(tmp), 1)
-            two_fps, two_ms, two_memory, _, two_startup_s, _ = _track(video, args.model,
-                                                                      Path(tmp), 2)
+                video, args.model, Path(tmp), 1, args.silhouettes)
     except BAD_DATA as exc:
         print(f"bench_track: error: {_one_line(exc)}", file=sys.stderr)
         return 1

@@ -2,7 +2,8 @@
 
     python scripts/evaluate_real.py [--trial all|balancing|swings|FOLDER] [--model FILE]
         [--peer mediapipe [--peer-results DIR]] [--max-people N] [--roll calibration]
-        [--zone-foreground sure] [--json OUT] [--masks PNG] [--reference-masks cut|drawn|rendered]
+        [--zone-foreground sure] [--silhouettes background|segment|auto] [--json OUT]
+        [--masks PNG] [--reference-masks cut|drawn|rendered]
 
 For each trial (default both), a table of the 8 limb angles (knee and elbow flexion, hip and
 shoulder as thigh and upper arm against the trunk; sequences.measures.limb_angles_from_points)
@@ -71,6 +72,7 @@ from tracker.offline.evaluation import constant_pose
 from tracker.offline.pose2sim_trial import checked_trial, missing_trial, trial_files
 from tracker.offline.report import ReportError, check_plotting, plot_real_video
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
+from tracker.segmenter import INSTALL_HINT, SOURCES, segmenter_available
 from tracker.sinks import PoseRecorder
 from tracker.sinks.files import OutputWriteError, write_whole
 from tracker.video import VideoError
@@ -124,20 +126,22 @@ class _MaskRecorder(PoseRecorder):
 
 def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.0,
                 keep_masks: bool = False, trust_zone_foreground: bool = False,
-                reference_extractor=None) -> ViewTrack:
+                reference_extractor=None, silhouettes: str = "background") -> ViewTrack:
     """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
     with ``--roll roll_deg``; keep_masks: also keep the silhouettes (ViewTrack.tiles);
     trust_zone_foreground: the extractor's (tracker.silhouettes.refine_in_zone);
     reference_extractor: a function of the extractor giving the extractor to use
-    (``--reference-masks``), or None."""
+    (``--reference-masks``), or None; silhouettes: ``track --silhouettes`` (when no
+    reference_extractor)."""
     from tracker import PoseTracker, track_video
+    from tracker.segmenter import silhouette_extractor
     from tracker.pipeline import TrackerSettings, default_extractor
     from tracker.video import open_video
 
     source = open_video(video)
     settings = TrackerSettings(max_people=max_people, roll_deg=roll_deg, novelty=True,
                                trust_zone_foreground=trust_zone_foreground)
-    extractor = (None if reference_extractor is None
+    extractor = (silhouette_extractor(silhouettes, settings) if reference_extractor is None
                  else reference_extractor(default_extractor(settings)))
     tracker = PoseTracker(model, source.fps, settings, extractor=extractor)
     recorder = _MaskRecorder(roll_deg) if keep_masks else PoseRecorder()
@@ -218,7 +222,7 @@ def _fit_progress(done: int, total: int) -> None:
 def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
              sheet: list | None = None, trust_zone_foreground: bool = False,
              reference_masks: str = "none", series: list | None = None,
-             peer=None) -> dict:
+             peer=None, silhouettes: str = "background") -> dict:
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
     trust_zone_foreground: True takes the subtractor's foreground inside the unreliable zone
@@ -231,7 +235,7 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
     series: a list that gets, per view, the subject's flexions and headings over time beside
     the reference's (tracker.offline.report.plot_real_video draws them).
     peer: a function of a view giving MediaPipe's results there (mediapipe_peer.read_results),
-    to score on the same frames as ours, or None."""
+    to score on the same frames as ours, or None. silhouettes: ``track --silhouettes``."""
     per_view, subject = {}, {}
     constant = constant_pose(model)
     fit = reference_body(trial, progress=_fit_progress)
@@ -242,7 +246,8 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
                             keep_masks=sheet is not None,
                             trust_zone_foreground=trust_zone_foreground,
                             reference_extractor=None if reference_masks == "none" else
-                            _reference_extractor(trial, view, reference_masks, fitted))
+                            _reference_extractor(trial, view, reference_masks, fitted),
+                            silhouettes=silhouettes)
         per_view[view], rows = evaluate_view(trial, view, track, constant, fit)
         if sheet is not None:
             picked = rows[np.linspace(0, len(rows) - 1, 8).astype(int)]
@@ -514,6 +519,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--roll", choices=("none", "calibration"), default="none",
                     help="track each view with its camera's roll from the calibration "
                          "(track --roll), or without (the default, as track)")
+    ap.add_argument("--silhouettes", choices=SOURCES, default="background",
+                    help="as track --silhouettes (default background, the figures of "
+                         f"docs/real_video.md; segment and auto need {INSTALL_HINT})")
     ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
                     help="as track --zone-foreground: inside the background's unreliable zone, "
                          "let colour decide on the subtractor's foreground too (the default) "
@@ -537,6 +545,8 @@ def build_parser() -> argparse.ArgumentParser:
 def _main(argv) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
+    if args.silhouettes == "segment" and not segmenter_available():
+        ap.error(f"--silhouettes segment needs the person segmenter: {INSTALL_HINT}")
     if args.max_people is not None and args.max_people < 1:
         ap.error(f"--max-people must be at least 1, got {args.max_people} (leave it out to "
                  f"track everyone)")
@@ -578,7 +588,7 @@ def _main(argv) -> int:
                                   trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
                                   reference_masks=args.reference_masks, series=series,
                                   peer=_peer_source(trial, name, args.peer_results)
-                                  if peer else None)
+                                  if peer else None, silhouettes=args.silhouettes)
             print(format_table(result), format_limb_table(name, result), sep="\n\n",
                   end="\n\n", flush=True)
             results["trials"][name] = result

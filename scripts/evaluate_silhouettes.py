@@ -4,6 +4,7 @@ Also for swings: --trial ../shared/data/pose2sim/swings.
 
     python scripts/evaluate_silhouettes.py [--trial ../shared/data/pose2sim/balancing]
         [--extractor before after colour] [--views cam01 ...] [--json OUT]
+        [--silhouettes background segment auto]
 
 Projects the reference keypoints into each view and prints, per extractor and view: coverage
 (keypoints on the subject's mask dilated by 3 px), spill (mask area outside the keypoints' box
@@ -18,7 +19,9 @@ always on), "after" the extractor primed with frames of the clip, the
 subtractor's foreground inside the unreliable zone sure person (``track --zone-foreground
 sure``), "colour" the same with colour also deciding on that foreground
 (tracker.silhouettes.refine_in_zone, trust_zone_foreground=False; track's default since
-2026-12-04). Measures:
+2026-12-04). ``--silhouettes`` measures ``track --silhouettes``'s sources instead (background:
+the "colour" extractor; segment and auto: tracker.segmenter, which needs the segment extra).
+Measures:
 tracker.offline.silhouette_evaluation.
 
 A --trial folder that does not exist, or a --json that could not be written or is one of the
@@ -36,8 +39,11 @@ from pathlib import Path
 from regressor.errors import SilhouettePoseError
 from sequences.pose2sim import DEFAULT_TRIAL, VIEWS, Pose2SimError
 from tracker.offline.pose2sim_trial import checked_trial, missing_trial, trial_files
-from tracker.offline.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, evaluate_pose2sim_view,
-                                                   format_table)
+from tracker.offline.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, default_associator,
+                                                   evaluate_pose2sim_view, format_table)
+from tracker.pipeline import TrackerSettings
+from tracker.segmenter import (INSTALL_HINT, SOURCES, PersonSegmenter, segmenter_available,
+                               silhouette_extractor)
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.sinks.files import OutputWriteError, write_whole
 
@@ -51,7 +57,19 @@ def _main(argv) -> int:
                     "11; after: track --zone-foreground sure; colour: track's default")
     ap.add_argument("--views", nargs="+", choices=VIEWS, default=list(VIEWS))
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
+    ap.add_argument("--silhouettes", nargs="+", choices=SOURCES, help="measure track "
+                    "--silhouettes's sources instead of --extractor's (segment and auto need "
+                    f"the segment extra: {INSTALL_HINT})")
     args = ap.parse_args(argv)
+    extractors, associators = dict(EXTRACTORS), dict(ASSOCIATORS)
+    if args.silhouettes:
+        if "segment" in args.silhouettes and not segmenter_available():
+            ap.error(f"--silhouettes segment needs the person segmenter: {INSTALL_HINT}")
+        args.extractor = args.silhouettes
+        extractors.update(background=EXTRACTORS["colour"], segment=_segmenter,
+                          auto=_auto_extractor)
+        associators.update(background=default_associator, segment=default_associator,
+                           auto=default_associator)
     if missing_trial(args.trial):
         ap.error(missing_trial(args.trial))
     # Before minutes of work: writable, and none of the files read.
@@ -64,8 +82,8 @@ def _main(argv) -> int:
         for done, (label, view) in enumerate(runs, 1):      # a minute or so each
             print(f"[{done}/{len(runs)}] extractor {label}, view {view}", file=sys.stderr,
                   flush=True)
-            results[label][view] = evaluate_pose2sim_view(trial, view, EXTRACTORS[label],
-                                                          make_associator=ASSOCIATORS[label])
+            results[label][view] = evaluate_pose2sim_view(trial, view, extractors[label],
+                                                          make_associator=associators[label])
     except (Pose2SimError, SilhouettePoseError) as exc:
         print(f"evaluate_silhouettes: error: {exc}", file=sys.stderr)
         return 1
@@ -77,6 +95,20 @@ def _main(argv) -> int:
             print(f"evaluate_silhouettes: error: {exc}", file=sys.stderr)
             return 1
     return 0
+
+
+def _segmenter(frames) -> PersonSegmenter:
+    """``track --silhouettes segment``'s extractor primed with the sampled frames."""
+    extractor = PersonSegmenter()
+    extractor.prime(frames)
+    return extractor
+
+
+def _auto_extractor(frames):
+    """``track --silhouettes auto``'s extractor primed with the sampled frames."""
+    extractor = silhouette_extractor("auto", TrackerSettings())
+    extractor.prime(list(frames))
+    return extractor
 
 
 main = stops_in_one_line("evaluate_silhouettes", _main)       # Ctrl-C: one line, no traceback

@@ -2,8 +2,9 @@
 # Set up what the tests need and run them: bash scripts/test.sh [PYTEST ARGS]
 #   (no args: the fast tier; -m slow: the whole-video tier; -m "slow or not slow": both, as CI)
 # Makes .venv (a stock Debian python refuses a bare pip install), installs the package with its
-# test extra, and, as root, Debian's chromium for the browser test of track --view (skipped
-# with a reason without it).
+# test and segment extras (the person segmenter's tests run too: tracker.segmenter), and, as
+# root, Debian's chromium for the browser test of track --view (skipped with a reason without
+# it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -34,5 +35,5 @@ if ! command -v chromium >/dev/null 2>&1; then
     apt_install chromium || echo "chromium not installed: the browser test will be skipped" >&2
 fi
 .venv/bin/python -m pip install --quiet --upgrade pip
-.venv/bin/python -m pip install --quiet -e ".[test]"
+.venv/bin/python -m pip install --quiet -e ".[test,segment]"
 exec .venv/bin/python -m pytest -q "$@"

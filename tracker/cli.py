@@ -3,7 +3,8 @@
     track VIDEO [--out FILE.mcap] [--bvh DIR] [--json FILE] [--view] [--smooth | --no-smooth]
           [--lag S] [--model FILE]
           [--background IMAGE] [--max-people N] [--roll DEG] [--start S] [--end S] [--fps F]
-          [--zone-foreground {sure,colour}] [--min-area PERCENT] [--workers {1,2}] [--quiet]
+          [--zone-foreground {sure,colour}] [--min-area PERCENT] [--workers {1,2}]
+          [--silhouettes {background,segment,auto}] [--quiet]
     track --version
 
 Without --out/--json/--bvh/--view it records to VIDEO_STEM.mcap in the current folder. Errors
@@ -40,6 +41,11 @@ ZONE_FOREGROUND = {"sure": True, "colour": False}
 _CORES = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
           else os.cpu_count() or 1)
 DEFAULT_WORKERS = 2 if _CORES >= 2 else 1
+#: --silhouettes's choices and the segmenter's install command (tracker.segmenter.SOURCES and
+#: INSTALL_HINT, written out so that parsing the options loads no OpenCV; a test keeps them
+#: equal).
+SILHOUETTE_SOURCES = ("background", "segment", "auto")
+SEGMENT_INSTALL = "pip install 'silhouette-pose[segment]'"
 #: Ctrl-C, SIGTERM and SIGHUP received during main() (those the command handles: not one the
 #: shell ignores). If anything swallows the KeyboardInterrupt they raise (a library's bare
 #: ``except:`` round an optional import, say), the command would run on. In one full test run
@@ -196,6 +202,13 @@ def build_parser() -> argparse.ArgumentParser:
                          "tracks them (about 1.7x the frames per second, the same poses; not "
                          f"with --view), 1 keeps to one (default {DEFAULT_WORKERS} on this "
                          "machine)")
+    ap.add_argument("--silhouettes", choices=SILHOUETTE_SOURCES, default="auto",
+                    help="where people's silhouettes come from: background subtraction (a "
+                         "still camera, people who move), a learned person segmenter (needs "
+                         f"{SEGMENT_INSTALL}), or auto (the default): background subtraction, "
+                         "the segmenter where the camera moves or someone never leaves the "
+                         "spot (without the segmenter installed: background subtraction, and "
+                         "a warning when the clip needs the segmenter)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
 
@@ -250,6 +263,12 @@ def _check_options(args) -> None:
                                           and low <= args.min_area <= high):
         raise TrackError(f"--min-area must be between {low:g} and {high:g} percent of the "
                          f"image, got {args.min_area}")
+    if args.silhouettes == "segment":
+        from .segmenter import SegmenterMissingError, require_segmenter
+        try:
+            require_segmenter()
+        except SegmenterMissingError as exc:
+            raise TrackError(str(exc)) from None
     if args.background is not None and args.background.is_dir():
         raise TrackError(f"--background {args.background} is a folder; give an image file")
     if args.background is not None and not args.background.exists():
@@ -519,6 +538,7 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
     from .pipeline import PoseTracker
     from .progress import Progress
     from .run import track_video
+    from .segmenter import silhouette_extractor
     from .sinks import close_sinks, open_sinks
     from .sinks.files import OutputBusyError, OutputWriteError
 
@@ -528,7 +548,9 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
     except (OutputBusyError, OutputWriteError) as exc:    # nothing of this run's is kept
         raise TrackError(_output_failure(args, exc, kept=False)) from None
     try:
-        tracker = PoseTracker(model, source.fps, tracker_settings(args))
+        settings = tracker_settings(args)
+        tracker = PoseTracker(model, source.fps, settings,
+                              extractor=silhouette_extractor(args.silhouettes, settings))
         result = track_video(source, tracker, sinks[:len(streaming)],
                              _StopOnInterrupt(Progress(source.expected_frames(),
                                                        quiet=args.quiet)),

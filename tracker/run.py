@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 import threading
 import time
 from collections import deque
@@ -107,7 +108,8 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     cost), "decode", "outputs" and, with a lag, "fixed-lag smoothing". workers: 2 finds and
     describes the people in a second process (tracker.frame_worker) while this one tracks them,
     for the same results on two cores; sinks that show the video get no frames from it, so with
-    one of those (and where processes cannot fork) the run stays in one process. The
+    one of those (where processes cannot fork, and where this process has run the person
+    segmenter: tracker.segmenter.made_a_graph) the run stays in one process. The
     tracker's stages then include the worker's, and "waiting" (for it). lag_s: 0, or give
     the sinks each frame about twice that many seconds of video late (tracker.fixed_lag's
     2 lag - 1 frames), its poses smoothed over at least lag_s seconds that followed (needs
@@ -151,10 +153,17 @@ def _frames_in(run: _Run, source: VideoSource, tracker: PoseTracker, workers: in
     """The tracked frames: from a second process (run.worker) when asked for and possible
     (no sink shows the video, processes can fork), else tracked here, one at a time for a
     live view, in batches for files."""
-    if workers > 1 and not run.watching and can_fork():
+    if workers > 1 and not run.watching and can_fork() and not _segmented_here():
         run.worker = FrameWorker(source, tracker)          # a copy of the primed tracker
         return _from_worker(run.worker, tracker)
     return _in_process(source, tracker, 1 if run.watching else BATCH_FRAMES)
+
+
+def _segmented_here() -> bool:
+    """Whether this process has run the person segmenter (tracker.segmenter.made_a_graph):
+    a worker forked from it would crash, so the run stays in one process."""
+    segmenter = sys.modules.get("tracker.segmenter")
+    return segmenter is not None and segmenter.made_a_graph()
 
 
 class _Run:
