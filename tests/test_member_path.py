@@ -104,50 +104,14 @@ def test_the_heading_evidence_is_tempered_by_the_frame_rate():
     frames' heading (60) says the body, the last 12's (120) the flip, each by 0.67 a frame.
     Changing body costs the legs' jump (3200 deg^2 / 800 = 4); each half's evidence is 8 at
     the rate the settings were chosen at, and a quarter of that at 120 fps, where the chain no
-    longer pays for the change. (The legs' continuity: leg_sign_cost 0.)"""
+    longer pays for the change."""
     T = 24
     body = np.zeros((T, 55))
     body[:, 0], body[:, 1] = np.cos(np.radians(80.0)), np.sin(np.radians(80.0))
     body[:, LEFT_HIP], body[:, RIGHT_HIP] = 20.0, -20.0
     flip = front_back_flip(body)                                 # heading 100, legs swapped
     headings = np.where(np.arange(T) < 12, 60.0, 120.0)
-    full = members_over_time(body, headings, step_variance=400.0, leg_sign_cost=0.0)
+    full = members_over_time(body, headings, step_variance=400.0)
     np.testing.assert_allclose(full, np.concatenate([body[:12], flip[12:]]))
-    quarter = members_over_time(body, headings, frame_rate_ratio=0.25, step_variance=400.0,
-                                leg_sign_cost=0.0)
+    quarter = members_over_time(body, headings, frame_rate_ratio=0.25, step_variance=400.0)
     assert np.allclose(quarter, body) or np.allclose(quarter, flip)
-
-
-def _rectified_profile_walk():
-    """(truth, members, smoothed heading) of a walk in profile whose members are a rectified
-    gait, as the networks give there (docs/left_right.md): the body's own arms and heading,
-    but the legs of the body or of its flip, whichever has the left thigh ahead. The thighs
-    and knees meet at each leg crossing (every 15 frames), so the members' legs are continuous
-    through it; the arms are held asymmetrically (left 20 deg up), so a member's flip is not."""
-    T = 90
-    phase = 2 * np.pi * (np.arange(T) + 0.3) / 30.0
-    truth = np.zeros((T, 55))
-    h = np.radians(87.0 + 8.0 * np.sin(phase + 0.9))
-    truth[:, 0], truth[:, 1] = np.cos(h), np.sin(h)
-    truth[:, LEFT_HIP], truth[:, RIGHT_HIP] = -25 * np.sin(phase), 25 * np.sin(phase)
-    truth[:, NAMES.index("LeftLeg_x")] = 30 - 25 * np.sin(phase)        # the flip keeps x
-    truth[:, NAMES.index("RightLeg_x")] = 30 + 25 * np.sin(phase)
-    truth[:, NAMES.index("LeftArm_z")] = 20.0
-    legs = np.array(["Leg" in n or "Foot" in n for n in NAMES])
-    members = truth.copy()
-    behind = truth[:, LEFT_HIP] < truth[:, RIGHT_HIP]
-    members[np.ix_(behind, legs)] = front_back_flip(truth[behind])[:, legs]
-    return truth, members, np.degrees(h)
-
-
-def test_the_leg_sign_cost_unfolds_a_rectified_gait_that_continuity_follows():
-    """With the leg-sign cost the chosen legs alternate as the truth's; with the legs'
-    continuity (leg_sign_cost=0) the chain keeps the rectified member and they do not."""
-    from sequences.gait_measures import gait_measures, knee_flexion
-    truth, members, heading = _rectified_profile_walk()
-    assert gait_measures(knee_flexion(members), knee_flexion(truth))["alternation"] < 0.3
-    with_cost = members_over_time(members, heading)
-    without = members_over_time(members, heading, leg_sign_cost=0.0)
-    assert gait_measures(knee_flexion(with_cost), knee_flexion(truth))["alternation"] > 0.9
-    assert gait_measures(knee_flexion(without), knee_flexion(truth))["alternation"] < 0.3
-    np.testing.assert_allclose(with_cost[:, LEFT_HIP], truth[:, LEFT_HIP], atol=1e-9)
