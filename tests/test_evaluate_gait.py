@@ -106,3 +106,15 @@ def test_the_leg_sign_chain_unfolds_a_rectified_gait_the_shipped_chain_keeps():
     assert gait_measures(knee_flexion(shipped), knees)["alternation"] < 0.3
     chosen = evaluate_gait.gait_sign_chain(1.0)(members, heading)
     assert gait_measures(knee_flexion(chosen), knees)["alternation"] > 0.9
+
+
+def test_a_video_of_several_tracks_is_scored_without_its_picks():
+    """Where the online picks cannot be matched to the longest track (several tracks), the
+    `picked` row is NaN and every other output is still scored."""
+    truth = _profile_walk()
+    out = {name: truth for name in evaluate_gait.OUTPUTS}
+    out["member"], out["pairs"] = truth, np.stack([truth, truth], axis=1)
+    out["picked"] = np.full_like(truth, np.nan)
+    res = evaluate_gait.figures(out, truth)
+    assert all(np.isnan(res["picked"][c]) for c in evaluate_gait.FIGURES)
+    assert res["smoothed"]["alternation"] > 0.99
