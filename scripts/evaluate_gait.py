@@ -18,7 +18,7 @@ kept to read its hypotheses). Knee flexion of each output against the truth
   truehead  the member or flip whose heading is nearer the TRUE heading (an oracle: how far
             a perfect heading would get, the way the tracker picks)
   picked    the member or flip the online tracker takes (nearer the filtered heading),
-            before the limb filter
+            before the limb filter (NaN when the video held more than one track)
   filtered  what ``track`` streams
   chain     the members chosen offline over the smoothed heading (tracker.member_path),
             before the limb smoother
@@ -112,8 +112,10 @@ def track(video: Path, model, settings: TrackerSettings) -> dict:
     limbs = np.array([f.limbs for f in frames])
     pairs = np.stack([limbs, front_back_flip(limbs)], axis=1)
     picked, chosen = np.array(RECORD["picked"]), RECORD["chain"]
-    if len(picked) != len(poses) or len(chosen) != 1:
-        raise RuntimeError(f"{video}: {len(picked)} picks, {len(chosen)} chains recorded")
+    if len(chosen) != 1:
+        raise RuntimeError(f"{video}: {len(chosen)} chains recorded")
+    if len(picked) != len(poses):     # picks of other (shorter) tracks too: not this one's
+        picked = np.full((len(poses), 55), np.nan)
     return {"index": np.array([p.frame_index for p in poses]),
             "raw": np.array([p.raw for p in poses]), "member": limbs, "pairs": pairs,
             "picked": picked, "filtered": filtered, "chain": chosen[0], "smoothed": smoothed,
@@ -131,6 +133,9 @@ def figures(out: dict, truth: np.ndarray) -> dict:
             est = best_of(np.stack([pk, swapped(pk)], axis=1), tk)
         elif name == "truehead":
             est = knee_flexion(_ORIGINAL["pick_member"](out["member"], heading_deg(truth)))
+        elif not np.isfinite(out[name]).all():              # picked of a multi-track video
+            res[name] = dict.fromkeys(FIGURES, np.nan)
+            continue
         else:
             est = knee_flexion(out[name])
         res[name] = gait_measures(est, tk)
