@@ -2,7 +2,7 @@
 
     python scripts/evaluate_gait.py [--model regressor/models/default_model.npz] \
         [--trials 02_02 08_03] [--azimuths 0 45 90 135] [--variants shipped no_mirror] \
-        [--cache-dir /work/cache/gait] [--json out.json]
+        [--cache-dir cache/gait] [--json out.json]
 
 Each held-out CMU walk (tracker.offline.training.VALIDATION_TRIALS) is rendered as a 320x240
 video from a fixed camera at each azimuth relative to its walking direction (0: walking
@@ -36,7 +36,6 @@ A missing trial, a model or video that cannot be read: one line on stderr, exit 
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from contextlib import contextmanager
@@ -57,6 +56,7 @@ from sequences.pose_vector import front_back_flip, heading_deg, pose_vector_name
 from sequences.video import load_truth, replace_video
 from tracker import hypotheses
 from tracker.member_path import MEMBER_HEADING_SD_DEG
+from tracker.one_line_parser import OneLineParser, stops_in_one_line
 from tracker.offline.evaluation import CameraOptions, write_camera_video
 from tracker.pipeline import HEADING_Q_SCALE, LIMB_R_SCALE, PoseTracker, TrackerSettings
 from tracker.run import track_video
@@ -353,13 +353,13 @@ for _v in (50.0, 200.0, 800.0):
 
 
 def _main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = OneLineParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", type=Path, default=REPO / "regressor/models/default_model.npz")
     ap.add_argument("--trials", nargs="+", default=["02_02", "08_03"])
     ap.add_argument("--azimuths", nargs="+", type=float, default=[0, 45, 90, 135])
     ap.add_argument("--variants", nargs="+", default=["shipped"], choices=sorted(VARIANTS))
-    ap.add_argument("--bvh-dir", type=Path, default=Path("/work/shared/data/cmu/bvh"))
-    ap.add_argument("--cache-dir", type=Path, default=Path("/work/cache/gait"))
+    ap.add_argument("--bvh-dir", type=Path, default=REPO.parent / "shared/data/cmu/bvh")
+    ap.add_argument("--cache-dir", type=Path, default=REPO / "cache/gait")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
     for trial in args.trials:
@@ -419,5 +419,8 @@ def _summary(rows: list[dict]) -> None:
               + " ".join(f"{np.mean([r[c] for r in sel]):11.3f}" for c in FIGURES))
 
 
+main = stops_in_one_line("evaluate_gait", _main)       # Ctrl-C: one line, no traceback
+
+
 if __name__ == "__main__":
-    sys.exit(_main())
+    sys.exit(main())

@@ -63,6 +63,21 @@ def test_camera_motion_is_seen_in_a_pan_and_not_with_a_still_camera():
     assert camera_moves(pan[::4]) and not camera_moves(still[::4])
 
 
+def test_black_frames_before_a_still_scene_are_not_camera_motion():
+    """A clip that starts black (a fade-in) and has a black glitch inside: comparing the first
+    scene frames with the black ones made a run of "moved" answers (track's auto mode then
+    switched to the segmenter); frames with nothing to align are skipped."""
+    still = still_frames(30)
+    black = np.zeros_like(still[0])
+    frames = [black] * 12 + still[:10] + [black] + still[10:]
+    meter = CameraMotionMeter()
+    assert not any(meter(f) for f in frames) and meter.moving_since is None
+    assert not camera_moves(frames[::3])
+    pan = panning_frames(40, 2)
+    meter = CameraMotionMeter()                             # a pan after black still counts
+    assert [meter(f) for f in [black] * 12 + pan][-1]
+
+
 def test_auto_without_the_segmenter_stays_with_background_and_says_how_to_get_it():
     """A panning clip's samples: the camera moves; without the extra the background path is
     kept and one warning names the install command."""

@@ -30,6 +30,10 @@ MIN_SHIFT = 0.01
 STEP_FRAMES = 5
 #: Consecutive comparisons that must show motion before the meter says the camera moves.
 MOVING_RUN = 3
+#: A frame whose grey copy varies less than this (grey levels, standard deviation) shows nothing
+#: to align (black, a fade, a covered lens): it is left out of the comparisons, else the first
+#: frames after a fade-in all "moved" against the black ones.
+FLAT_STD = 2.0
 
 
 def small_grey(frame: np.ndarray, width: int = ANALYSIS_WIDTH) -> np.ndarray:
@@ -102,6 +106,11 @@ def _hanning(shape: tuple[int, int]) -> np.ndarray:
     return _WINDOWS[shape]
 
 
+def flat(grey: np.ndarray) -> bool:
+    """Whether a :func:`small_grey` image has too little texture to align (:data:`FLAT_STD`)."""
+    return float(grey.std()) < FLAT_STD
+
+
 def moved(shift: float, min_shift: float = MIN_SHIFT) -> bool:
     """Whether a :func:`frame_shift` shift (a fraction of the width) is camera motion. A weak
     peak alone is not: two frames of a still camera on a blank wall have none either."""
@@ -111,9 +120,9 @@ def moved(shift: float, min_shift: float = MIN_SHIFT) -> bool:
 def camera_moves(frames, min_shift: float = MIN_SHIFT) -> bool:
     """Whether frames spread over a clip (a list or (N, H, W, 3) BGR uint8, in time order, e.g.
     ``VideoSource.sample_frames``) were taken by a moving camera: more than half of the pairs
-    of consecutive samples moved (:func:`moved`). A still camera's samples all line up, people
-    or not; fewer than two frames say nothing (False)."""
-    greys = [small_grey(f) for f in frames]
+    of consecutive samples moved (:func:`moved`), flat samples (:func:`flat`) left out. A still
+    camera's samples all line up, people or not; fewer than two frames say nothing (False)."""
+    greys = [g for g in (small_grey(f) for f in frames) if not flat(g)]
     if len(greys) < 2:
         return False
     moves = [moved(frame_shift(a, b)[0], min_shift) for a, b in zip(greys, greys[1:])]
@@ -123,7 +132,8 @@ def camera_moves(frames, min_shift: float = MIN_SHIFT) -> bool:
 class CameraMotionMeter:
     """Per-frame camera motion: call it with each frame (BGR uint8 (H, W, 3)) in order; it
     returns whether the camera moves, i.e. the last ``run`` comparisons of a frame with the
-    one ``step`` frames earlier all moved (:func:`moved`). :attr:`moving_since` is the frame
+    one ``step`` frames earlier all moved (:func:`moved`); flat frames (:func:`flat`) are skipped.
+    :attr:`moving_since` is the frame
     count at the first such answer (None while the camera has stayed still)."""
 
     def __init__(self, step: int = STEP_FRAMES, run: int = MOVING_RUN,
@@ -140,6 +150,8 @@ class CameraMotionMeter:
     def __call__(self, frame: np.ndarray) -> bool:
         grey = small_grey(frame)
         self.frames += 1
+        if flat(grey):                      # nothing to compare: the answer stays as it was
+            return self._streak >= self.run
         if self._recent and self._recent[0].shape != grey.shape:
             self._recent.clear()
         self._recent.append(grey)
