@@ -215,3 +215,35 @@ def test_copy_is_independent_and_scoring_leaves_the_state_alone():
     for p in poses[:10]:
         fresh.step(p)
     assert np.array_equal(a.step(poses[10])[0], fresh.step(poses[10])[0])
+
+
+def test_a_per_frame_noise_scale_trusts_the_confident_frames_more():
+    """Frames whose noise is known per frame (std 2 or 12 deg, the scale their variance over
+    the average's): scaling R by it beats one R for all, step by step as in batch."""
+    truth = true_angles(200, seed=5)
+    rng = np.random.default_rng(6)
+    std = np.where(rng.random(200) < 0.5, 2.0, 12.0)
+    raws = angles_to_pose(truth + rng.normal(0.0, 1.0, truth.shape) * std[:, None])
+    R = np.full(54, np.mean(std ** 2))
+    scale = std ** 2 / np.mean(std ** 2)
+    fixed, _ = PoseKalmanFilter(FPS, R=R).filter(raws)
+    scaled, _ = PoseKalmanFilter(FPS, R=R).filter(raws, noise_scale=scale)
+    kf = PoseKalmanFilter(FPS, R=R)
+    stepped = np.array([kf.step(p, noise_scale=s)[0] for p, s in zip(raws, scale)])
+    np.testing.assert_allclose(pose_angles(stepped), pose_angles(scaled), atol=1e-8)
+    rms = {name: np.sqrt(np.mean(angle_error(poses, truth)[30:] ** 2))
+           for name, poses in (("fixed", fixed), ("scaled", scaled))}
+    assert rms["scaled"] < 0.8 * rms["fixed"]
+    smoothed = PoseKalmanFilter(FPS, R=R).rts_smooth(raws, noise_scale=scale)
+    assert np.sqrt(np.mean(angle_error(smoothed, truth)[30:] ** 2)) < rms["scaled"]
+    a, b = PoseKalmanFilter(FPS, R=R), PoseKalmanFilter(FPS, R=R)
+    for p in raws[:10]:
+        a.step(p)
+        b.step(p)
+    # A candidate scored with a larger R is less surprising when it is far off.
+    far = angles_to_pose(truth[10] + 30.0)
+    assert a.log_likelihoods(far[None], noise_scale=[4.0]) > b.log_likelihoods(far[None])
+    with pytest.raises(FilterError, match="noise_scale"):
+        a.step(raws[10], noise_scale=0.0)
+    with pytest.raises(FilterError, match="noise_scale"):
+        PoseKalmanFilter(FPS).filter(raws, noise_scale=scale[:5])

@@ -156,6 +156,7 @@ def _mixture_model(k=2, D=4, **gate):
     rng = np.random.default_rng(4)
     x = rng.normal(0, 1, (600, k * D))
     y = np.column_stack([np.cos(x[:, 0]), np.sin(x[:, 0]), 10 * rng.normal(size=(600, 53))])
+    y[:, 2:] += 20 * np.sin(x[:, 1:2])
     mix = MixtureRegressor(n_experts=3, **SMALL, **gate).fit(x, y)
     settings = DescriptorSettings()
     model = PoseModel(settings=settings, codebook=Codebook(rng.random((D, settings.context_size)), 0.2),
@@ -181,6 +182,67 @@ def test_mixture_model_file_round_trip(tmp_path):
     np.testing.assert_allclose(w1, w0, atol=1e-2)
     assert loaded.summary()["basis"] == "mixture" and loaded.description["source"] == "synthetic"
     assert loaded.predict(x[0]).shape == (55,)
+
+
+def test_sparse_rvm_experts_round_trip_with_their_variance(tmp_path):
+    from regressor.describe import describe_model
+    model, x = _mixture_model(expert="sparse_rvm")
+    path = tmp_path / "rvm.npz"
+    with pytest.raises(PoseModelError, match="variance_calibration"):
+        save_pose_model(path, model)                 # the filter's scale must come with it
+    model.variance_calibration = 0.01
+    save_pose_model(path, model)
+    loaded = load_pose_model(path)
+    experts = describe_model(loaded)["regressor"]["experts"]
+    kept = [len(e.relevance_) for e in model.mixture.experts_]
+    assert [e["kind"] for e in experts] == ["rvm"] * 3
+    assert [e["relevance_vectors"] for e in experts] == kept and max(kept) < SMALL["n_centres"]
+    a, b = loaded.predict_batch(x[:20]), model.predict_batch(x[:20])
+    assert np.abs(a - b).max() < 0.02 * np.abs(b).max()
+    np.testing.assert_allclose(loaded.predict_variance(x[:20]), model.predict_variance(x[:20]),
+                               rtol=1e-3)
+    scales = loaded.noise_scales(x[:20], 2)
+    _, std = model.mixture.predict(x[:20], return_std=True)
+    assert scales.shape == (20, 2) and np.all(scales > 0)
+    np.testing.assert_allclose(scales[:, 0], 0.01 * (std[:, 2:] ** 2).mean(1), rtol=1e-3)
+    assert _mixture_model()[0].noise_scales(x[:3]) is None       # damped least squares
+
+
+def test_a_broken_sparse_rvm_expert_part_is_refused_in_one_line(tmp_path):
+    from regressor.model_file import load_model, save_model
+    model, _ = _mixture_model(expert="sparse_rvm")
+    model.variance_calibration = 0.01
+    path = tmp_path / "rvm.npz"
+    save_pose_model(path, model)
+    raw = dict(load_model(path).parts)
+    assert_refused_when_changed(path, [
+        ({"mixture_expert_sigma": raw["mixture_expert_sigma"][:-1]}, "do not match"),
+        ({"mixture_expert_beta": -raw["mixture_expert_beta"]}, "must be positive"),
+        ({"mixture_expert_y_scale": None}, "incomplete"),
+        ({"mixture_expert_kind": np.str_("ridge")}, "must be 'rvm'"),
+        ({"mixture_expert_rows": 0 * raw["mixture_expert_rows"]}, "must be positive"),
+        ({"mixture_params": raw["mixture_params"].item().replace("sparse_rvm", "ridge")},
+         "holds sparse RVM experts")])
+    for name in ("mixture_expert_kind", "mixture_expert_sigma", "mixture_expert_phi_mean",
+                 "mixture_expert_beta", "mixture_expert_rows", "mixture_expert_y_scale",
+                 "mixture_variance_calibration"):
+        save_model(path, {k: v for k, v in raw.items() if k != name})
+        with pytest.raises(PoseModelError) as refused:
+            load_pose_model(path)
+        assert len(str(refused.value).splitlines()) == 1
+
+
+def test_a_version_1_file_of_damped_least_squares_experts_still_loads(tmp_path):
+    from regressor.model_file import checksum, load_model
+    model, x = _mixture_model()
+    path = tmp_path / "old.npz"
+    save_pose_model(path, model)
+    parts = dict(load_model(path).parts)
+    np.savez(path, **parts, format_version=np.int64(1), checksum=np.str_(checksum(parts)))
+    loaded = load_pose_model(path)
+    assert load_model(path).format_version == 1 and not loaded.gives_variance
+    np.testing.assert_allclose(loaded.predict_batch(x[:5]), model.predict_batch(x[:5]),
+                               atol=0.02 * np.abs(model.predict_batch(x[:5])).max())
 
 
 def test_a_neighbour_gated_mixture_is_not_saved_into_a_model_file(tmp_path):

@@ -263,12 +263,13 @@ def _spd_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def innovation_factor(P_pred: np.ndarray, factors: dict, R: np.ndarray, ambiguous: bool,
-                      variance) -> tuple[np.ndarray, float]:
+                      variance, scale=None) -> tuple[np.ndarray, float]:
     """Lower Cholesky factor of H P_pred H' + R (54, 54) for a predicted covariance P_pred
     (108, 108), and its log-determinant; kept in ``factors`` (a dict per prediction) under R's
-    key: it is known by the frame's ambiguity and heading variance (NaN or None: R's own)."""
+    key: it is known by the frame's ambiguity, heading variance (NaN or None: R's own) and
+    noise scale (None: 1)."""
     key = (ambiguous, None if variance is None or not np.isfinite(variance)
-           else float(variance))
+           else float(variance), None if scale is None else float(scale))
     if key not in factors:
         L, info = _potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1)
         if info != 0:
@@ -361,12 +362,13 @@ class PoseKalmanFilter:
         """The heading's measurement variance R[0, 0] (deg^2) on an unambiguous frame."""
         return float(self.R[0, 0])
 
-    def _measure(self, raw55, heading_variance: float | None = None
+    def _measure(self, raw55, heading_variance: float | None = None, noise_scale=None
                  ) -> tuple[np.ndarray, np.ndarray, bool]:
         """Check one raw pose; returns (angles (54,), R to use, ambiguous). heading_variance
         (deg^2): the heading's measurement variance for this frame, replacing R's (e.g. after
         fusing the direction of travel, tracker/travel.py); None keeps R's, inflated when the
-        frame is ambiguous."""
+        frame is ambiguous. noise_scale: a factor > 0 on the whole R for this frame (the
+        regressor's own confidence: regressor.pose_model.PoseModel.noise_scales); None: 1."""
         raw = np.asarray(raw55, float)
         if raw.shape != (POSE_DIM,):
             raise FilterError(f"pose vector must have shape (55,), got {raw.shape}")
@@ -383,13 +385,17 @@ class PoseKalmanFilter:
             scale = np.ones(N_ANGLES)
             scale[0] = np.sqrt(heading_variance / R[0, 0])
             R = R * np.outer(scale, scale)
+        if noise_scale is not None:
+            if not (np.isfinite(noise_scale) and noise_scale > 0):
+                raise FilterError(f"noise_scale must be a positive number, got {noise_scale}")
+            R = R * float(noise_scale)
         return angles, R, ambiguous
 
-    def log_likelihoods(self, raws, heading_variance=None) -> np.ndarray:
+    def log_likelihoods(self, raws, heading_variance=None, noise_scale=None) -> np.ndarray:
         """Innovation log-likelihoods (K,) of candidate raw poses raws (K, 55) for the next
         frame: log N(z_k - H x_pred; 0, H P_pred H' + R_k), z_k the angles unwrapped against the
         prediction, R_k as :meth:`step` would use (inflated on ambiguous frames; heading_variance
-        (K,) deg^2, NaN = R's, as step's). Does not change the filter (the prediction and the
+        (K,) deg^2, NaN = R's, and noise_scale (K,) or None, as step's). Does not change the filter (the prediction and the
         factorizations are kept for the next :meth:`step`, and shared by :meth:`copy`); zeros
         before its first step (nothing to predict from)."""
         raws = np.asarray(raws, float)
@@ -397,11 +403,12 @@ class PoseKalmanFilter:
             return np.zeros(len(raws))
         x_pred = self._prediction()[0]
         variances = np.full(len(raws), np.nan) if heading_variance is None else heading_variance
+        scales = [None] * len(raws) if noise_scale is None else noise_scale
         out = np.empty(len(raws))
-        for k, (raw, variance) in enumerate(zip(raws, variances)):
-            angles, R, ambiguous = self._measure(raw, variance)
-            out[k] = innovation_log_likelihood(*self._factor(R, ambiguous, variance), angles,
-                                               x_pred)
+        for k, (raw, variance, scale) in enumerate(zip(raws, variances, scales)):
+            angles, R, ambiguous = self._measure(raw, variance, scale)
+            out[k] = innovation_log_likelihood(*self._factor(R, ambiguous, variance, scale),
+                                               angles, x_pred)
         return out
 
     def _prediction(self) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -411,11 +418,13 @@ class PoseKalmanFilter:
             self._predicted = (*self.cv._predict(self._x, self._P), {})
         return self._predicted
 
-    def _factor(self, R: np.ndarray, ambiguous: bool, variance) -> tuple[np.ndarray, float]:
+    def _factor(self, R: np.ndarray, ambiguous: bool, variance, scale=None
+                ) -> tuple[np.ndarray, float]:
         """Lower Cholesky factor of the innovation covariance H P_pred H' + R (54, 54) and its
-        log-determinant, cached per prediction (R is known by ambiguity and heading variance)."""
+        log-determinant, cached per prediction (R is known by ambiguity, heading variance and
+        noise scale)."""
         _, P_pred, factors = self._prediction()
-        return innovation_factor(P_pred, factors, R, ambiguous, variance)
+        return innovation_factor(P_pred, factors, R, ambiguous, variance, scale)
 
     def copy(self) -> "PoseKalmanFilter":
         """An independent filter in the same state (the pending prediction is shared: it is
@@ -427,33 +436,35 @@ class PoseKalmanFilter:
         """Forget the track: the next :meth:`step` starts afresh."""
         self._x, self._P, self._predicted = None, None, None
 
-    def step(self, raw55, heading_variance: float | None = None) -> tuple[np.ndarray, bool]:
+    def step(self, raw55, heading_variance: float | None = None, noise_scale=None
+             ) -> tuple[np.ndarray, bool]:
         """Filter one raw regressor output (55,) -> (filtered pose (55,), ambiguous flag).
-        heading_variance: this frame's heading variance (deg^2), see _measure.
+        heading_variance: this frame's heading variance (deg^2), noise_scale: its factor on R
+        (see _measure).
         The Kalman update in covariance form, x = x_pred + K y, P = P_pred - K S K' with
         K = P_pred H' S^-1: the same as ConstantVelocityFilter's up to rounding."""
-        angles, R, ambiguous = self._measure(raw55, heading_variance)
+        angles, R, ambiguous = self._measure(raw55, heading_variance, noise_scale)
         if self._x is None:
             self._x, self._P = initial_state(angles, R, self.rate_std)
         else:
             x_pred, P_pred, _ = self._prediction()
-            L, _ = self._factor(R, ambiguous, heading_variance)
+            L, _ = self._factor(R, ambiguous, heading_variance, noise_scale)
             self._x, self._P, _ = kalman_update(x_pred, P_pred, L, angles)
         self._predicted = None
         return angles_to_pose(self._x[:N_ANGLES]), ambiguous
 
-    def filter(self, raws: Sequence | np.ndarray, heading_variance=None
+    def filter(self, raws: Sequence | np.ndarray, heading_variance=None, noise_scale=None
                ) -> tuple[np.ndarray, np.ndarray]:
         """Forward-filter a whole track: raws (T, 55) -> (filtered poses (T, 55), ambiguous
         flags (T,) bool). heading_variance: (T,) deg^2 as in :meth:`step`, NaN where none;
-        None = none at all.
+        None = none at all. noise_scale: (T,) factors on R as in :meth:`step`, or None.
         Same results as :meth:`step` frame by frame from a reset; does not touch the state
         used by :meth:`step`."""
-        angles, Rs, ambiguous = self._measure_all(raws, "filter", heading_variance)
+        angles, Rs, ambiguous = self._measure_all(raws, "filter", heading_variance, noise_scale)
         return angles_to_pose(self.cv.filter(angles, Rs)), ambiguous
 
     def rts_smooth(self, raws: Sequence | np.ndarray, window: int = 256,
-                   lag: int = 64, heading_variance=None) -> np.ndarray:
+                   lag: int = 64, heading_variance=None, noise_scale=None) -> np.ndarray:
         """Forward filter then Rauch-Tung-Striebel smoothing of a whole track
         (ConstantVelocityFilter.smooth: filterpy's filter and smoother, to rounding).
 
@@ -465,10 +476,10 @@ class PoseKalmanFilter:
         """
         if window < 1 or lag < 0:
             raise FilterError(f"window={window} must be >= 1 and lag={lag} >= 0")
-        angles, Rs, _ = self._measure_all(raws, "rts_smooth", heading_variance)
+        angles, Rs, _ = self._measure_all(raws, "rts_smooth", heading_variance, noise_scale)
         return angles_to_pose(self.cv.smooth(angles, Rs, window=window, lag=lag))
 
-    def _measure_all(self, raws, name: str, heading_variance=None
+    def _measure_all(self, raws, name: str, heading_variance=None, noise_scale=None
                      ) -> tuple[np.ndarray, list, np.ndarray]:
         raws = np.asarray(raws, float)
         if raws.ndim != 2 or raws.shape[1] != POSE_DIM or len(raws) == 0:
@@ -478,6 +489,10 @@ class PoseKalmanFilter:
         if variances.shape != (len(raws),):
             raise FilterError(f"{name}: heading_variance must be ({len(raws)},), got "
                               f"{variances.shape}")
-        measured = [self._measure(raw, v) for raw, v in zip(raws, variances)]
+        scales = [None] * len(raws) if noise_scale is None else np.asarray(noise_scale, float)
+        if len(scales) != len(raws) or np.ndim(scales) != 1:
+            raise FilterError(f"{name}: noise_scale must be ({len(raws)},), got "
+                              f"{np.shape(scales)}")
+        measured = [self._measure(raw, v, s) for raw, v, s in zip(raws, variances, scales)]
         return (np.array([m[0] for m in measured]), [m[1] for m in measured],
                 np.array([m[2] for m in measured], bool))
