@@ -630,9 +630,35 @@ def calibrate_variance(predicted: np.ndarray, truth: np.ndarray, R: np.ndarray,
     z = wrap_deg(pose_angles(predicted) - pose_angles(truth))
     q = np.einsum("ni,ij,nj->n", z, np.linalg.inv(R), z) / z.shape[1]
     v = np.maximum(np.asarray(variance, float), 1e-12)
-    c = 1.0 / float(np.mean(q / v))
+    c = float(np.mean(q / v))
     return c, {"variance_calibration": c, "z2_fixed_R": float(q.mean()),
                "z2_rvm_variance_raw": float(np.mean((z[:, 1:] ** 2).mean(1) / v))}
+
+
+def filtered_measures(model: PoseModel, predicted: np.ndarray, truth: np.ndarray,
+                      sequence: np.ndarray, fps: float, scale: np.ndarray | None) -> dict:
+    """angle_measures of the raw poses predicted (N, 55) filtered and smoothed sequence by
+    sequence (sequence (N,) ids, rows in time order) by the model's Kalman filter
+    (tracker.filtering.PoseKalmanFilter with its R and q), each frame's R times scale (N,) or
+    fixed (None): whether the experts' per-frame variance helps the filter."""
+    from threadpoolctl import threadpool_limits
+    filtered, smoothed = np.empty_like(predicted), np.empty_like(predicted)
+    with threadpool_limits(limits=1, user_api="blas"):   # 108 x 108: too small to share
+        _filter_sequences(model, predicted, sequence, fps, scale, filtered, smoothed)
+    return {"filtered": angle_measures(filtered, truth, model.angle_centre_deg),
+            "smoothed": angle_measures(smoothed, truth, model.angle_centre_deg)}
+
+
+def _filter_sequences(model, predicted, sequence, fps, scale, filtered, smoothed) -> None:
+    """filtered_measures' filtering and smoothing into filtered, smoothed (N, 55)."""
+    from tracker.filtering import PoseKalmanFilter
+    for sid in np.unique(sequence):
+        rows = np.flatnonzero(sequence == sid)
+        kf = PoseKalmanFilter(fps, R=model.measurement_covariance, q=model.process_noise,
+                              ambiguity_threshold=model.ambiguity_threshold)
+        s = None if scale is None else scale[rows]
+        filtered[rows] = kf.filter(predicted[rows], noise_scale=s)[0]
+        smoothed[rows] = kf.rts_smooth(predicted[rows], noise_scale=s)
 
 
 def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
@@ -801,6 +827,12 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         model.variance_calibration, z2 = calibrate_variance(predicted, truth[val_rows], R,
                                                             variance)
         facts.update(z2)
+        model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
+        scale = model.variance_calibration * variance
+        facts["per_frame_R"] = {
+            name: filtered_measures(model, predicted, truth[val_rows],
+                                    dataset.sequence[val_rows], fps, s)
+            for name, s in (("fixed", None), ("per_frame", scale))}
     model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
     errors = np.abs(wrap_deg(pose_angles(predicted) - pose_angles(truth[val_rows])))
     gate_val = mixture.predict_proba(Xin[val_rows]).argmax(axis=1)
@@ -819,7 +851,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               "limb_net_members": options.limb_net_members if use_net else 0,
               **({"limb_net_int8_max_deg": round(int8_max_deg, 3)} if use_net else {}),
               "side_classifier": side_classifier is not None,
-              **{k: round(v, 3) for k, v in facts.items()}}
+              **{k: (round(v, 3) if isinstance(v, float) else v) for k, v in facts.items()}}
     if model.has_limbs:
         # The head's member picked by the true heading: what the tracker gets when its chain
         # decides the heading right (an upper bound, hence the name).
