@@ -366,10 +366,13 @@ class MixtureRegressor(Estimator):
             idx = np.flatnonzero(member)
             if self.expert == "rvm" and len(idx) > self.rvm_rows:
                 idx = idx[np.linspace(0, len(idx) - 1, self.rvm_rows).astype(int)]
-            self.experts_.append(self._new_expert(e).fit(X[idx], Y[idx]))
+            expert = self._new_expert(e).fit(X[idx], Y[idx])
+            self.experts_.append(expert)
             rows.append(len(idx))
             if log:
-                log(f"  expert {e}: {int((labels == e).sum())} rows of its own, {len(idx)} fitted")
+                kept = getattr(expert, "relevance_", None)
+                log(f"  expert {e}: {int((labels == e).sum())} rows of its own, {len(idx)} fitted"
+                    + ("" if kept is None else f", {len(kept)} relevance vectors kept"))
         self.expert_rows_ = np.array(rows)
         if self.gate == "neighbours":
             self.gate_ = NeighbourGate(self.gate_neighbours).fit(X, labels, n_classes=E)

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from regressor.angles import POSE_DIM, pose_angles, regression_targets, wrap_deg
 from regressor.codebook import Codebook
@@ -641,7 +642,6 @@ def filtered_measures(model: PoseModel, predicted: np.ndarray, truth: np.ndarray
     sequence (sequence (N,) ids, rows in time order) by the model's Kalman filter
     (tracker.filtering.PoseKalmanFilter with its R and q), each frame's R times scale (N,) or
     fixed (None): whether the experts' per-frame variance helps the filter."""
-    from threadpoolctl import threadpool_limits
     filtered, smoothed = np.empty_like(predicted), np.empty_like(predicted)
     with threadpool_limits(limits=1, user_api="blas"):   # 108 x 108: too small to share
         _filter_sequences(model, predicted, sequence, fps, scale, filtered, smoothed)
@@ -743,7 +743,11 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         head_centre = angle_centres(head_truth[~val])
         if not use_net:
             targets = np.hstack([Y, regression_targets(head_truth, head_centre)])
-    mixture.fit(Xin[train_rows], targets[train_rows], Z[train_rows], log=log)
+    # A sparse RVM's steps factor R x R matrices (R <= n_centres): on the shared 2-core
+    # machine one BLAS thread fits an expert about 3x faster than two (docs/rvm_experts.md).
+    with threadpool_limits(limits=1 if options.expert == "sparse_rvm" else None,
+                           user_api="blas"):
+        mixture.fit(Xin[train_rows], targets[train_rows], Z[train_rows], log=log)
     limb_head = limb_net = None
     if use_net:
         log(f"fitting {options.limb_net_members} limb networks "
