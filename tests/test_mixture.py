@@ -420,3 +420,13 @@ def test_training_masks_pass_through_the_trackers_own_cleaning():
     for crop in a:
         assert crop.dtype == bool and 55 <= crop.shape[0] <= 160
         assert crop.mean() > 0.3                     # the body fills its box: not a speck
+
+
+def test_experts_fitted_at_once_are_the_experts_fitted_in_turn():
+    x, y, _ = _two_modes(n=400)
+    one = MixtureRegressor(n_experts=3, expert="sparse_rvm", **SMALL).fit(x, y)
+    two = MixtureRegressor(n_experts=3, expert="sparse_rvm", **SMALL).fit(x, y, workers=2)
+    for a, b in zip(one.experts_, two.experts_):
+        np.testing.assert_array_equal(a.relevance_, b.relevance_)
+        np.testing.assert_allclose(a.coef_, b.coef_, rtol=1e-9)
+    np.testing.assert_array_equal(one.expert_rows_, two.expert_rows_)

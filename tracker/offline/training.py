@@ -673,8 +673,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     the masks X describes (noisy_dataset_layouts), needed when options.layout_grid > 0.
     mirrored: (histograms (N, D), layouts (N, layout_grid^2) or None) of the same masks
     flipped left to right, needed for limb networks with options.limb_net_mirror. workers:
-    limb networks fitted at once (regressor.limb_net.fit_limb_net; the arrays do not depend
-    on it)."""
+    experts and limb networks fitted at once (regressor.mixture, regressor.limb_net
+    .fit_limb_net; the arrays do not depend on it)."""
     from regressor.mixture import MixtureRegressor
     if options.canonical not in CANONICAL_RULES:
         raise ValueError(f"canonical {options.canonical!r} is not one of {CANONICAL_RULES}")
@@ -747,7 +747,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     # machine one BLAS thread fits an expert about 3x faster than two (docs/rvm_experts.md).
     with threadpool_limits(limits=1 if options.expert == "sparse_rvm" else None,
                            user_api="blas"):
-        mixture.fit(Xin[train_rows], targets[train_rows], Z[train_rows], log=log)
+        mixture.fit(Xin[train_rows], targets[train_rows], Z[train_rows], log=log,
+                    workers=workers)
     limb_head = limb_net = None
     if use_net:
         log(f"fitting {options.limb_net_members} limb networks "
