@@ -265,9 +265,11 @@ class PoseModel:
 
     @property
     def gives_variance(self) -> bool:
-        """Whether the model's experts give a predictive variance per frame (sparse RVMs)."""
-        return self.mixture is not None and all(isinstance(e, SparseRVMRegressor)
-                                                for e in self.mixture.experts_)
+        """Whether the model's experts give a predictive variance per frame (sparse RVMs whose
+        posterior covariance the model keeps)."""
+        return self.mixture is not None and all(
+            isinstance(e, SparseRVMRegressor) and hasattr(e, "sigma_")
+            for e in self.mixture.experts_)
 
     def predict_variance(self, stacked: np.ndarray) -> np.ndarray:
         """Predictive variance (N,) deg^2 of :meth:`predict_batch`'s pose for stacked
@@ -616,9 +618,10 @@ def _validate(path: Path, m: PoseModel) -> None:
 # "side_net_" (regressor.side_classifier.SideClassifier.to_arrays), and with its priors, under
 # "canonical_prior_" (regressor.canonical_priors.CanonicalPriors.to_arrays).
 # Sparse RVM experts (regressor.sparse_rvm; files of format version 2) add expert_kind "rvm",
-# expert_sigma (sum of R_e^2,) float32 each expert's posterior weight covariance flattened in
-# order, expert_phi_mean (R,), expert_beta (E,), expert_rows (E,), expert_y_scale (E, 55) and
-# variance_calibration (); without expert_kind the experts are damped least squares.
+# expert_beta (E,), expert_rows (E,), expert_y_scale (E, 55), and, when the model keeps their
+# predictive variance, expert_sigma (sum of R_e^2,) float32 each expert's posterior weight
+# covariance flattened in order, expert_phi_mean (R,) and variance_calibration (); without
+# expert_kind the experts are damped least squares.
 
 
 def _mixture_arrays(model: PoseModel) -> dict:
@@ -670,17 +673,19 @@ def _mixture_arrays(model: PoseModel) -> dict:
 
 
 def _rvm_expert_arrays(model: PoseModel) -> dict:
-    """The parts only sparse RVM experts have (module comment above)."""
+    """The parts only sparse RVM experts have (module comment above); their predictive
+    variance's only when the model keeps it (variance_calibration set)."""
     experts = model.mixture.experts_
+    out = {"mixture_expert_kind": np.str_("rvm"),
+           "mixture_expert_beta": np.array([e.beta_ for e in experts], dtype=np.float64),
+           "mixture_expert_rows": np.array([e.n_train_ for e in experts], dtype=np.int64),
+           "mixture_expert_y_scale": np.vstack([e.y_scale_ for e in experts])}
     if model.variance_calibration is None:
-        raise PoseModelError("a mixture of sparse RVM experts needs its variance_calibration")
-    return {"mixture_expert_kind": np.str_("rvm"),
+        return out
+    return {**out,
             "mixture_expert_sigma": np.concatenate([e.sigma_.ravel() for e in experts]
                                                    ).astype(np.float32),
             "mixture_expert_phi_mean": np.concatenate([e.phi_mean_ for e in experts]),
-            "mixture_expert_beta": np.array([e.beta_ for e in experts], dtype=np.float64),
-            "mixture_expert_rows": np.array([e.n_train_ for e in experts], dtype=np.int64),
-            "mixture_expert_y_scale": np.vstack([e.y_scale_ for e in experts]),
             "mixture_variance_calibration": np.float64(model.variance_calibration)}
 
 
@@ -875,9 +880,10 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
             mix.experts_, mix.expert_rows_, calibration = _rvm_experts(a, mix.experts_, offsets)
         except ValueError as exc:
             fail(str(exc))
-    if (mix.expert == "sparse_rvm") != (calibration is not None):
+    rvm = "mixture_expert_kind" in a
+    if (mix.expert == "sparse_rvm") != rvm:
         fail(f"mixture_params names {mix.expert!r} experts, the file holds "
-             f"{'sparse RVM' if calibration is not None else 'damped least squares'} experts")
+             f"{'sparse RVM' if rvm else 'damped least squares'} experts")
     mix.top_experts = int(a["mixture_top_experts"])
     mix.n_features_in_, mix.n_outputs_ = kD, POSE_DIM
     try:
@@ -903,41 +909,57 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         canonical_priors=canonical_priors, variance_calibration=calibration, **inputs)
 
 
-_RVM_PARTS = ("mixture_expert_kind", "mixture_expert_sigma", "mixture_expert_phi_mean",
-              "mixture_expert_beta", "mixture_expert_rows", "mixture_expert_y_scale",
-              "mixture_variance_calibration")
+_RVM_PARTS = ("mixture_expert_kind", "mixture_expert_beta", "mixture_expert_rows",
+              "mixture_expert_y_scale")
+_VARIANCE_PARTS = ("mixture_expert_sigma", "mixture_expert_phi_mean",
+                   "mixture_variance_calibration")
 
 
-def _rvm_experts(a, experts: list, offsets: np.ndarray) -> tuple[list, np.ndarray, float]:
+def _rvm_experts(a, experts: list, offsets: np.ndarray
+                 ) -> tuple[list, np.ndarray, float | None]:
     """A file's sparse RVM experts built on the damped least squares experts read from the
     shared parts (experts: their centres, weights, widths), their own parts checked against
-    the offsets (E+1,); returns (experts, rows (E,), variance calibration) or a
-    PoseModelError-ready ValueError."""
+    the offsets (E+1,); returns (experts, rows (E,), variance calibration or None when the
+    file keeps no predictive variance) or a PoseModelError-ready ValueError."""
     if not _has_parts(a, _RVM_PARTS, "sparse RVM experts") or \
             str(a["mixture_expert_kind"]) != "rvm":
         raise ValueError("mixture_expert_kind must be 'rvm' with all the sparse RVM parts")
     E, sizes = len(experts), np.diff(offsets)
-    sigma, phi_mean = a["mixture_expert_sigma"], a["mixture_expert_phi_mean"]
     beta, rows, y_scale = a["mixture_expert_beta"], a["mixture_expert_rows"], \
         a["mixture_expert_y_scale"]
-    calibration = np.asarray(a["mixture_variance_calibration"])
-    if sigma.shape != (int((sizes ** 2).sum()),) or phi_mean.shape != (int(offsets[-1]),) \
-            or beta.shape != (E,) or rows.shape != (E,) or y_scale.shape != (E, POSE_DIM) \
-            or calibration.shape != ():
+    if beta.shape != (E,) or rows.shape != (E,) or y_scale.shape != (E, POSE_DIM):
         raise ValueError("sparse RVM expert parts do not match the experts' sizes")
-    if np.any(beta <= 0) or np.any(rows < 1) or np.any(y_scale <= 0) or not calibration > 0:
-        raise ValueError("sparse RVM noise precisions, rows, output scales and the variance "
-                         "calibration must be positive")
-    starts = np.concatenate([[0], np.cumsum(sizes ** 2)])
+    if np.any(beta <= 0) or np.any(rows < 1) or np.any(y_scale <= 0):
+        raise ValueError("sparse RVM noise precisions, rows and output scales must be positive")
     out = []
     for e, dls in enumerate(experts):
         ex, R = SparseRVMRegressor(n_candidates=int(sizes[e])), int(sizes[e])
         ex.centres_, ex.width_, ex.n_features_in_ = dls.centres_, dls.width_, dls.n_features_in_
         ex.coef_, ex.intercept_ = dls.coef_, dls.intercept_
         ex.candidates_, ex.relevance_ = dls.centres_, np.arange(R, dtype=np.int64)
-        ex.sigma_ = sigma[starts[e]:starts[e + 1]].astype(np.float64).reshape(R, R)
-        ex.phi_mean_ = phi_mean[offsets[e]:offsets[e + 1]].astype(np.float64)
         ex.beta_, ex.n_train_, ex.y_scale_ = float(beta[e]), int(rows[e]), y_scale[e].astype(float)
         ex.noise_, ex._y_1d = ex.y_scale_ ** 2 / ex.beta_, False
         out.append(ex)
-    return out, rows.astype(np.int64), float(calibration)
+    calibration = _rvm_variance(a, out, offsets)
+    return out, rows.astype(np.int64), calibration
+
+
+def _rvm_variance(a, experts: list, offsets: np.ndarray) -> float | None:
+    """Give the experts their stored posterior covariance and kernel means (for the
+    predictive variance) and return the variance calibration; None when the file has none."""
+    if not _has_parts(a, _VARIANCE_PARTS, "sparse RVM predictive variance"):
+        return None
+    sizes = np.diff(offsets)
+    sigma, phi_mean = a["mixture_expert_sigma"], a["mixture_expert_phi_mean"]
+    calibration = np.asarray(a["mixture_variance_calibration"])
+    if sigma.shape != (int((sizes ** 2).sum()),) or phi_mean.shape != (int(offsets[-1]),) \
+            or calibration.shape != ():
+        raise ValueError("sparse RVM variance parts do not match the experts' sizes")
+    if not calibration > 0:
+        raise ValueError("the variance calibration must be positive")
+    starts = np.concatenate([[0], np.cumsum(sizes ** 2)])
+    for e, ex in enumerate(experts):
+        R = int(sizes[e])
+        ex.sigma_ = sigma[starts[e]:starts[e + 1]].astype(np.float64).reshape(R, R)
+        ex.phi_mean_ = phi_mean[offsets[e]:offsets[e + 1]].astype(np.float64)
+    return float(calibration)

@@ -232,6 +232,11 @@ def _main(argv) -> int:
                     help="the mixture's experts: sparse RVMs over --centres candidate kernels "
                          "each, fitted on all their rows, with a predictive variance per "
                          "frame (default), or damped least squares on --centres kernels (dls)")
+    ap.add_argument("--variance", choices=("off", "on"), default="off",
+                    help="with sparse RVM experts, also store their predictive variance (the "
+                         "filter's per-frame R, PoseModel.noise_scales): about 15 MB at 24 x "
+                         "400 centres, and it did not pay (docs/rvm_experts.md); default off. "
+                         "The training report compares the two either way")
     ap.add_argument("--experts", type=int, default=MixtureOptions.n_experts)
     ap.add_argument("--centres", type=int, default=MixtureOptions.n_centres)
     ap.add_argument("--lam", type=float, default=MixtureOptions.lam)
@@ -433,6 +438,8 @@ def _main(argv) -> int:
                                                     config.fps, log=log, layouts=layouts,
                                                     mirrored=mirrored, workers=args.workers)
         report["noise_aware"] = not args.clean
+        if args.variance == "off":
+            model.variance_calibration = None
         model.description = model_description(data, config, options, report,
                                               extra=args.extra is not None)
         args.out.parent.mkdir(parents=True, exist_ok=True)

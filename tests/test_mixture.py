@@ -10,6 +10,7 @@ from regressor.mixture import (DampedKernelRegressor, MixtureRegressor, Neighbou
                               SoftmaxGate, kmeans)
 from regressor.pose_model import (PoseModel, PoseModelError, load_pose_model,
                                   save_pose_model)
+from regressor.sparse_rvm import SparseRVMRegressor
 
 SMALL = dict(n_centres=40, gate_centres=30, gate_l2=1e-2, overlap=0.0)
 
@@ -188,10 +189,15 @@ def test_sparse_rvm_experts_round_trip_with_their_variance(tmp_path):
     from regressor.describe import describe_model
     model, x = _mixture_model(expert="sparse_rvm")
     path = tmp_path / "rvm.npz"
-    with pytest.raises(PoseModelError, match="variance_calibration"):
-        save_pose_model(path, model)                 # the filter's scale must come with it
+    save_pose_model(tmp_path / "plain.npz", model)   # without its variance: a smaller file
+    plain = load_pose_model(tmp_path / "plain.npz")
+    assert not plain.gives_variance and plain.noise_scales(x[:3]) is None
+    assert all(isinstance(e, SparseRVMRegressor) for e in plain.mixture.experts_)
+    np.testing.assert_allclose(plain.predict_batch(x[:20]), model.predict_batch(x[:20]),
+                               atol=0.02 * np.abs(model.predict_batch(x[:20])).max())
     model.variance_calibration = 0.01
     save_pose_model(path, model)
+    assert path.stat().st_size > (tmp_path / "plain.npz").stat().st_size
     loaded = load_pose_model(path)
     experts = describe_model(loaded)["regressor"]["experts"]
     kept = [len(e.relevance_) for e in model.mixture.experts_]
@@ -216,7 +222,9 @@ def test_a_broken_sparse_rvm_expert_part_is_refused_in_one_line(tmp_path):
     save_pose_model(path, model)
     raw = dict(load_model(path).parts)
     assert_refused_when_changed(path, [
-        ({"mixture_expert_sigma": raw["mixture_expert_sigma"][:-1]}, "do not match"),
+        ({"mixture_expert_sigma": raw["mixture_expert_sigma"][:-1]}, "variance parts do not"),
+        ({"mixture_variance_calibration": np.float64(0.0)}, "calibration must be positive"),
+        ({"mixture_expert_sigma": None}, "variance is incomplete"),
         ({"mixture_expert_beta": -raw["mixture_expert_beta"]}, "must be positive"),
         ({"mixture_expert_y_scale": None}, "incomplete"),
         ({"mixture_expert_kind": np.str_("ridge")}, "must be 'rvm'"),
@@ -224,8 +232,7 @@ def test_a_broken_sparse_rvm_expert_part_is_refused_in_one_line(tmp_path):
         ({"mixture_params": raw["mixture_params"].item().replace("sparse_rvm", "ridge")},
          "holds sparse RVM experts")])
     for name in ("mixture_expert_kind", "mixture_expert_sigma", "mixture_expert_phi_mean",
-                 "mixture_expert_beta", "mixture_expert_rows", "mixture_expert_y_scale",
-                 "mixture_variance_calibration"):
+                 "mixture_expert_beta", "mixture_expert_rows", "mixture_expert_y_scale"):
         save_model(path, {k: v for k, v in raw.items() if k != name})
         with pytest.raises(PoseModelError) as refused:
             load_pose_model(path)
