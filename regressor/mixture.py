@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import inspect
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import scipy.linalg
 import scipy.optimize
@@ -340,9 +342,10 @@ class MixtureRegressor(Estimator):
         from .rvm import RVMRegressor
         return RVMRegressor("gaussian", width_scale=self.width_scale)
 
-    def fit(self, X, Y, Z=None, log=None):
+    def fit(self, X, Y, Z=None, log=None, workers: int = 1):
         """X (N, D) inputs, Y (N, K) targets, Z (N, dZ) the space partitioned (default Y).
-        log(str) reports progress."""
+        log(str) reports progress. workers: experts fitted at once (threads; the experts do
+        not depend on it)."""
         if self.expert not in EXPERT_KINDS:
             raise ValueError(f"expert must be one of {EXPERT_KINDS}, got {self.expert!r}")
         if self.gate not in GATE_KINDS:
@@ -360,16 +363,29 @@ class MixtureRegressor(Estimator):
         D = squared_distances(Z, self.partition_centres_)
         labels = D.argmin(axis=1)
         own = D[np.arange(len(Z)), labels]
-        self.experts_, rows = [], []
+        members = []
         for e in range(E):
             member = (labels == e) | (np.sqrt(D[:, e]) <= (1.0 + self.overlap) * np.sqrt(own))
             idx = np.flatnonzero(member)
             if self.expert == "rvm" and len(idx) > self.rvm_rows:
                 idx = idx[np.linspace(0, len(idx) - 1, self.rvm_rows).astype(int)]
-            self.experts_.append(self._new_expert(e).fit(X[idx], Y[idx]))
-            rows.append(len(idx))
+            members.append(idx)
+
+        def fit_one(e: int):
+            expert = self._new_expert(e).fit(X[members[e]], Y[members[e]])
             if log:
-                log(f"  expert {e}: {int((labels == e).sum())} rows of its own, {len(idx)} fitted")
+                kept = getattr(expert, "relevance_", None)
+                log(f"  expert {e}: {int((labels == e).sum())} rows of its own, "
+                    f"{len(members[e])} fitted"
+                    + ("" if kept is None else f", {len(kept)} relevance vectors kept"))
+            return expert
+
+        if int(workers) > 1:         # numpy releases the GIL in its matrix work
+            with ThreadPoolExecutor(int(workers)) as pool:
+                self.experts_ = list(pool.map(fit_one, range(E)))
+        else:
+            self.experts_ = [fit_one(e) for e in range(E)]
+        rows = [len(idx) for idx in members]
         self.expert_rows_ = np.array(rows)
         if self.gate == "neighbours":
             self.gate_ = NeighbourGate(self.gate_neighbours).fit(X, labels, n_classes=E)

@@ -44,8 +44,10 @@ import numpy as np
 
 from .errors import SilhouettePoseError
 
-FORMAT_VERSION = 1
-SUPPORTED_VERSIONS = (1,)
+#: 2: a mixture's experts may be sparse RVMs (regressor.pose_model, mixture_expert_* parts);
+#: version 1 files (damped least squares experts) still load.
+FORMAT_VERSION = 2
+SUPPORTED_VERSIONS = (1, 2)
 _RESERVED = ("format_version", "checksum")
 _KIND_NAMES = {"fiu": "numbers", "iu": "whole numbers", "b": "a boolean", "U": "text"}
 BASIS_KINDS = ("linear", "gaussian")
@@ -61,15 +63,17 @@ _FLOAT_PARTS = (
     "mixture_expert_intercept", "mixture_partition_centres", "mixture_gate_centres",
     "mixture_gate_width", "mixture_gate_feature_mean", "mixture_gate_feature_std",
     "mixture_gate_weights", "heading_index_inputs", "heading_index_folded_deg",
-    "heading_index_limit_deg", "heading_index_typical_distance")
+    "heading_index_limit_deg", "heading_index_typical_distance", "mixture_expert_sigma",
+    "mixture_expert_phi_mean", "mixture_expert_beta", "mixture_expert_y_scale",
+    "mixture_variance_calibration")
 _INTEGER_PARTS = (
     "descriptor_n_points", "descriptor_n_angular", "descriptor_n_radial", "descriptor_n_votes",
     "stack_depth", "relevance", "layout_grid", "mixture_expert_offsets", "mixture_top_experts",
-    "heading_index_k")
+    "heading_index_k", "mixture_expert_rows")
 PART_KINDS = {**{name: "fiu" for name in _FLOAT_PARTS}, **{name: "iu" for name in _INTEGER_PARTS},
               "descriptor_include_holes": "b",
               **{name: "U" for name in ("model_kind", "transform", "basis", "description",
-                                        "mixture_params")}}
+                                        "mixture_params", "mixture_expert_kind")}}
 
 
 class ModelFileError(SilhouettePoseError, ValueError):

@@ -51,6 +51,7 @@ from .descriptor import (DescriptorSettings, DescriptorSettingsError, descriptor
                          descriptor_for_mask)
 from .layout import MAX_GRID, silhouette_layout
 from .mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate
+from .sparse_rvm import SparseRVMRegressor
 from .model_file import ModelFileError, load_model, save_model
 from .errors import SilhouettePoseError
 from .heading_index import HeadingIndex
@@ -159,6 +160,7 @@ class PoseModel:
     limb_net: LimbNet | None = None
     side_classifier: SideClassifier | None = None
     canonical_priors: CanonicalPriors | None = None
+    variance_calibration: float | None = None   # sparse RVM experts: see noise_scales
 
     @property
     def descriptor_length(self) -> int:
@@ -260,6 +262,36 @@ class PoseModel:
         gives one hypothesis with probability 1."""
         poses, prob, _ = self._hypotheses(self._stacked(stacked), m, with_limbs=False)
         return poses, prob
+
+    @property
+    def gives_variance(self) -> bool:
+        """Whether the model's experts give a predictive variance per frame (sparse RVMs whose
+        posterior covariance the model keeps)."""
+        return self.mixture is not None and all(
+            isinstance(e, SparseRVMRegressor) and hasattr(e, "sigma_")
+            for e in self.mixture.experts_)
+
+    def predict_variance(self, stacked: np.ndarray) -> np.ndarray:
+        """Predictive variance (N,) deg^2 of :meth:`predict_batch`'s pose for stacked
+        descriptors (N, k*D): the mean over the 53 body angles of the experts' variance of a
+        new observation (regressor.sparse_rvm). Needs :attr:`gives_variance`."""
+        if not self.gives_variance:
+            raise PoseModelError("this model's experts give no predictive variance "
+                                 "(only sparse RVM experts do)")
+        _, std = self.mixture.predict(self._stacked(stacked), return_std=True)
+        return (std[:, 2:] ** 2).mean(axis=1)
+
+    def noise_scales(self, stacked: np.ndarray, m: int = 2) -> np.ndarray | None:
+        """Per-frame factors (N, m') on the filter's measurement covariance R for the m most
+        probable experts' poses (:meth:`predict_hypotheses`' order): each pose's predictive
+        variance times variance_calibration, which makes R_t = R x factor calibrated on the
+        validation rows (mean z^2 = 1; tracker.offline.training.calibrate_variance). A
+        confident frame gets a factor below 1, a doubtful one above. None for a model without
+        it."""
+        if not self.gives_variance or self.variance_calibration is None:
+            return None
+        _, _, std = self.mixture.predict_hypotheses(self._stacked(stacked), m, return_std=True)
+        return self.variance_calibration * (std[..., 2:] ** 2).mean(axis=-1)
 
     def novelty(self, stacked: np.ndarray) -> np.ndarray:
         """How unlike the training silhouettes each row of stacked descriptors (N, k*D) is,
@@ -585,13 +617,20 @@ def _validate(path: Path, m: PoseModel) -> None:
 # "limb_net_" (regressor.limb_net.LimbNet.to_arrays); with a side classifier, under
 # "side_net_" (regressor.side_classifier.SideClassifier.to_arrays), and with its priors, under
 # "canonical_prior_" (regressor.canonical_priors.CanonicalPriors.to_arrays).
+# Sparse RVM experts (regressor.sparse_rvm; files of format version 2) add expert_kind "rvm",
+# expert_beta (E,), expert_rows (E,), expert_y_scale (E, 55), and, when the model keeps their
+# predictive variance, expert_sigma (sum of R_e^2,) float32 each expert's posterior weight
+# covariance flattened in order, expert_phi_mean (R,) and variance_calibration (); without
+# expert_kind the experts are damped least squares.
 
 
 def _mixture_arrays(model: PoseModel) -> dict:
     mix = model.mixture
     experts = mix.experts_
-    if not all(isinstance(e, DampedKernelRegressor) for e in experts):
-        raise PoseModelError("only mixtures of DampedKernelRegressor experts can be saved")
+    rvm = all(isinstance(e, SparseRVMRegressor) for e in experts)
+    if not rvm and not all(isinstance(e, DampedKernelRegressor) for e in experts):
+        raise PoseModelError("only mixtures of DampedKernelRegressor or SparseRVMRegressor "
+                             "experts can be saved")
     offsets = np.cumsum([0] + [len(e.centres_) for e in experts]).astype(np.int64)
     gate = mix.gate_
     if not isinstance(gate, SoftmaxGate):
@@ -624,12 +663,30 @@ def _mixture_arrays(model: PoseModel) -> dict:
         "mixture_gate_weights": gate.weights_,
         "mixture_top_experts": np.int64(mix.top_experts),
         "mixture_params": np.str_(json.dumps(mix.get_params(), sort_keys=True)),
+        **(_rvm_expert_arrays(model) if rvm else {}),
         **_limb_head_arrays(model.limb_head),
         **_heading_index_arrays(model.heading_index),
         **(model.limb_net.to_arrays() if model.limb_net is not None else {}),
         **(model.side_classifier.to_arrays() if model.side_classifier is not None else {}),
         **(model.canonical_priors.to_arrays() if model.canonical_priors is not None else {}),
     }
+
+
+def _rvm_expert_arrays(model: PoseModel) -> dict:
+    """The parts only sparse RVM experts have (module comment above); their predictive
+    variance's only when the model keeps it (variance_calibration set)."""
+    experts = model.mixture.experts_
+    out = {"mixture_expert_kind": np.str_("rvm"),
+           "mixture_expert_beta": np.array([e.beta_ for e in experts], dtype=np.float64),
+           "mixture_expert_rows": np.array([e.n_train_ for e in experts], dtype=np.int64),
+           "mixture_expert_y_scale": np.vstack([e.y_scale_ for e in experts])}
+    if model.variance_calibration is None:
+        return out
+    return {**out,
+            "mixture_expert_sigma": np.concatenate([e.sigma_.ravel() for e in experts]
+                                                   ).astype(np.float32),
+            "mixture_expert_phi_mean": np.concatenate([e.phi_mean_ for e in experts]),
+            "mixture_variance_calibration": np.float64(model.variance_calibration)}
 
 
 def _limb_head_arrays(head: LimbHead | None) -> dict:
@@ -817,6 +874,16 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         mix.experts_.append(ex)
     mix.gate_, mix.partition_centres_ = gate, partition
     mix.expert_rows_ = np.zeros(E, np.int64)
+    calibration = None
+    if "mixture_expert_kind" in a:
+        try:
+            mix.experts_, mix.expert_rows_, calibration = _rvm_experts(a, mix.experts_, offsets)
+        except ValueError as exc:
+            fail(str(exc))
+    rvm = "mixture_expert_kind" in a
+    if (mix.expert == "sparse_rvm") != rvm:
+        fail(f"mixture_params names {mix.expert!r} experts, the file holds "
+             f"{'sparse RVM' if rvm else 'damped least squares'} experts")
     mix.top_experts = int(a["mixture_top_experts"])
     mix.n_features_in_, mix.n_outputs_ = kD, POSE_DIM
     try:
@@ -839,4 +906,60 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
         ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
         description=_description(a), mixture=mix, limb_head=limb_head,
         heading_index=heading_index, limb_net=limb_net, side_classifier=side_classifier,
-        canonical_priors=canonical_priors, **inputs)
+        canonical_priors=canonical_priors, variance_calibration=calibration, **inputs)
+
+
+_RVM_PARTS = ("mixture_expert_kind", "mixture_expert_beta", "mixture_expert_rows",
+              "mixture_expert_y_scale")
+_VARIANCE_PARTS = ("mixture_expert_sigma", "mixture_expert_phi_mean",
+                   "mixture_variance_calibration")
+
+
+def _rvm_experts(a, experts: list, offsets: np.ndarray
+                 ) -> tuple[list, np.ndarray, float | None]:
+    """A file's sparse RVM experts built on the damped least squares experts read from the
+    shared parts (experts: their centres, weights, widths), their own parts checked against
+    the offsets (E+1,); returns (experts, rows (E,), variance calibration or None when the
+    file keeps no predictive variance) or a PoseModelError-ready ValueError."""
+    if not _has_parts(a, _RVM_PARTS, "sparse RVM experts") or \
+            str(a["mixture_expert_kind"]) != "rvm":
+        raise ValueError("mixture_expert_kind must be 'rvm' with all the sparse RVM parts")
+    E, sizes = len(experts), np.diff(offsets)
+    beta, rows, y_scale = a["mixture_expert_beta"], a["mixture_expert_rows"], \
+        a["mixture_expert_y_scale"]
+    if beta.shape != (E,) or rows.shape != (E,) or y_scale.shape != (E, POSE_DIM):
+        raise ValueError("sparse RVM expert parts do not match the experts' sizes")
+    if np.any(beta <= 0) or np.any(rows < 1) or np.any(y_scale <= 0):
+        raise ValueError("sparse RVM noise precisions, rows and output scales must be positive")
+    out = []
+    for e, dls in enumerate(experts):
+        ex, R = SparseRVMRegressor(n_candidates=int(sizes[e])), int(sizes[e])
+        ex.centres_, ex.width_, ex.n_features_in_ = dls.centres_, dls.width_, dls.n_features_in_
+        ex.coef_, ex.intercept_ = dls.coef_, dls.intercept_
+        ex.candidates_, ex.relevance_ = dls.centres_, np.arange(R, dtype=np.int64)
+        ex.beta_, ex.n_train_, ex.y_scale_ = float(beta[e]), int(rows[e]), y_scale[e].astype(float)
+        ex.noise_, ex._y_1d = ex.y_scale_ ** 2 / ex.beta_, False
+        out.append(ex)
+    calibration = _rvm_variance(a, out, offsets)
+    return out, rows.astype(np.int64), calibration
+
+
+def _rvm_variance(a, experts: list, offsets: np.ndarray) -> float | None:
+    """Give the experts their stored posterior covariance and kernel means (for the
+    predictive variance) and return the variance calibration; None when the file has none."""
+    if not _has_parts(a, _VARIANCE_PARTS, "sparse RVM predictive variance"):
+        return None
+    sizes = np.diff(offsets)
+    sigma, phi_mean = a["mixture_expert_sigma"], a["mixture_expert_phi_mean"]
+    calibration = np.asarray(a["mixture_variance_calibration"])
+    if sigma.shape != (int((sizes ** 2).sum()),) or phi_mean.shape != (int(offsets[-1]),) \
+            or calibration.shape != ():
+        raise ValueError("sparse RVM variance parts do not match the experts' sizes")
+    if not calibration > 0:
+        raise ValueError("the variance calibration must be positive")
+    starts = np.concatenate([[0], np.cumsum(sizes ** 2)])
+    for e, ex in enumerate(experts):
+        R = int(sizes[e])
+        ex.sigma_ = sigma[starts[e]:starts[e + 1]].astype(np.float64).reshape(R, R)
+        ex.phi_mean_ = phi_mean[offsets[e]:offsets[e + 1]].astype(np.float64)
+    return float(calibration)

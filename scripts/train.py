@@ -38,8 +38,8 @@ from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, trial_name, training_files, views_by_rows)
 from sequences.splice import SpliceConfig, SpliceError, recipe_name, write_spliced_files
 from tracker.offline.hypothesis_priors import learn_canonical_priors, prior_files
-from tracker.offline.training import (CANONICAL_RULES, VALIDATION_TRIALS, MixtureOptions,
-                                      TrainingOptions,
+from tracker.offline.training import (CANONICAL_RULES, EXPERT_CHOICES, VALIDATION_TRIALS,
+                                      MixtureOptions, TrainingOptions,
                                       cached_descriptors, cached_layouts, codebook_digest,
                                       dataset_descriptors, descriptor_cache_key,
                                       fit_dataset_codebook, fit_noisy_codebook,
@@ -228,6 +228,15 @@ def _main(argv) -> int:
     ap.add_argument("--clean", action="store_true",
                     help="train on the clean renders (default: video-like silhouettes, "
                          "sequences.mask_noise)")
+    ap.add_argument("--expert", choices=tuple(EXPERT_CHOICES), default=MixtureOptions.expert,
+                    help="the mixture's experts: sparse RVMs over --centres candidate kernels "
+                         "each, fitted on all their rows, with a predictive variance per "
+                         "frame (default), or damped least squares on --centres kernels (dls)")
+    ap.add_argument("--variance", choices=("off", "on"), default="off",
+                    help="with sparse RVM experts, also store their predictive variance (the "
+                         "filter's per-frame R, PoseModel.noise_scales): about 15 MB at 24 x "
+                         "400 centres, and it did not pay (docs/rvm_experts.md); default off. "
+                         "The training report compares the two either way")
     ap.add_argument("--experts", type=int, default=MixtureOptions.n_experts)
     ap.add_argument("--centres", type=int, default=MixtureOptions.n_centres)
     ap.add_argument("--lam", type=float, default=MixtureOptions.lam)
@@ -303,6 +312,9 @@ def _main(argv) -> int:
     else:
         args.limb_nets = 0
     has_limbs = args.regressor == "mixture" and _limb_head(args) != "none"
+    if has_limbs and not args.limb_nets and args.expert != "dls":
+        ap.error("a limb head of expert weights (--limb-nets 0) needs --expert dls; pass "
+                 "--limb-head none for a model without limbs")
     if args.side_classifier == "on" and not has_limbs:
         ap.error("--side-classifier needs the mixture regressor with a limb head")
     if args.side_classifier is None:
@@ -405,6 +417,7 @@ def _main(argv) -> int:
                                                  config.fps, log=log)
         else:
             options = MixtureOptions(stack_depth=args.stack, n_experts=args.experts,
+                                     expert=args.expert,
                                      n_centres=args.centres, lam=args.lam, seed=args.seed,
                                      partition=args.partition, layout_grid=args.layout_grid,
                                      components=args.components, canonical=args.canonical,
@@ -425,6 +438,8 @@ def _main(argv) -> int:
                                                     config.fps, log=log, layouts=layouts,
                                                     mirrored=mirrored, workers=args.workers)
         report["noise_aware"] = not args.clean
+        if args.variance == "off":
+            model.variance_calibration = None
         model.description = model_description(data, config, options, report,
                                               extra=args.extra is not None)
         args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -214,3 +214,4 @@ def test_copy_is_independent_and_scoring_leaves_the_state_alone():
     for p in poses[:10]:
         fresh.step(p)
     assert np.array_equal(a.step(poses[10])[0], fresh.step(poses[10])[0])
+

@@ -10,6 +10,7 @@ from regressor.mixture import (DampedKernelRegressor, MixtureRegressor, Neighbou
                               SoftmaxGate, kmeans)
 from regressor.pose_model import (PoseModel, PoseModelError, load_pose_model,
                                   save_pose_model)
+from regressor.sparse_rvm import SparseRVMRegressor
 
 SMALL = dict(n_centres=40, gate_centres=30, gate_l2=1e-2, overlap=0.0)
 
@@ -156,6 +157,7 @@ def _mixture_model(k=2, D=4, **gate):
     rng = np.random.default_rng(4)
     x = rng.normal(0, 1, (600, k * D))
     y = np.column_stack([np.cos(x[:, 0]), np.sin(x[:, 0]), 10 * rng.normal(size=(600, 53))])
+    y[:, 2:] += 20 * np.sin(x[:, 1:2])
     mix = MixtureRegressor(n_experts=3, **SMALL, **gate).fit(x, y)
     settings = DescriptorSettings()
     model = PoseModel(settings=settings, codebook=Codebook(rng.random((D, settings.context_size)), 0.2),
@@ -181,6 +183,73 @@ def test_mixture_model_file_round_trip(tmp_path):
     np.testing.assert_allclose(w1, w0, atol=1e-2)
     assert loaded.summary()["basis"] == "mixture" and loaded.description["source"] == "synthetic"
     assert loaded.predict(x[0]).shape == (55,)
+
+
+def test_sparse_rvm_experts_round_trip_with_their_variance(tmp_path):
+    from regressor.describe import describe_model
+    model, x = _mixture_model(expert="sparse_rvm")
+    path = tmp_path / "rvm.npz"
+    save_pose_model(tmp_path / "plain.npz", model)   # without its variance: a smaller file
+    plain = load_pose_model(tmp_path / "plain.npz")
+    assert not plain.gives_variance and plain.noise_scales(x[:3]) is None
+    assert all(isinstance(e, SparseRVMRegressor) for e in plain.mixture.experts_)
+    np.testing.assert_allclose(plain.predict_batch(x[:20]), model.predict_batch(x[:20]),
+                               atol=0.02 * np.abs(model.predict_batch(x[:20])).max())
+    model.variance_calibration = 0.01
+    save_pose_model(path, model)
+    assert path.stat().st_size > (tmp_path / "plain.npz").stat().st_size
+    loaded = load_pose_model(path)
+    experts = describe_model(loaded)["regressor"]["experts"]
+    kept = [len(e.relevance_) for e in model.mixture.experts_]
+    assert [e["kind"] for e in experts] == ["rvm"] * 3
+    assert [e["relevance_vectors"] for e in experts] == kept and max(kept) < SMALL["n_centres"]
+    a, b = loaded.predict_batch(x[:20]), model.predict_batch(x[:20])
+    assert np.abs(a - b).max() < 0.02 * np.abs(b).max()
+    np.testing.assert_allclose(loaded.predict_variance(x[:20]), model.predict_variance(x[:20]),
+                               rtol=1e-3)
+    scales = loaded.noise_scales(x[:20], 2)
+    _, std = model.mixture.predict(x[:20], return_std=True)
+    assert scales.shape == (20, 2) and np.all(scales > 0)
+    np.testing.assert_allclose(scales[:, 0], 0.01 * (std[:, 2:] ** 2).mean(1), rtol=1e-3)
+    assert _mixture_model()[0].noise_scales(x[:3]) is None       # damped least squares
+
+
+def test_a_broken_sparse_rvm_expert_part_is_refused_in_one_line(tmp_path):
+    from regressor.model_file import load_model, save_model
+    model, _ = _mixture_model(expert="sparse_rvm")
+    model.variance_calibration = 0.01
+    path = tmp_path / "rvm.npz"
+    save_pose_model(path, model)
+    raw = dict(load_model(path).parts)
+    assert_refused_when_changed(path, [
+        ({"mixture_expert_sigma": raw["mixture_expert_sigma"][:-1]}, "variance parts do not"),
+        ({"mixture_variance_calibration": np.float64(0.0)}, "calibration must be positive"),
+        ({"mixture_expert_sigma": None}, "variance is incomplete"),
+        ({"mixture_expert_beta": -raw["mixture_expert_beta"]}, "must be positive"),
+        ({"mixture_expert_y_scale": None}, "incomplete"),
+        ({"mixture_expert_kind": np.str_("ridge")}, "must be 'rvm'"),
+        ({"mixture_expert_rows": 0 * raw["mixture_expert_rows"]}, "must be positive"),
+        ({"mixture_params": raw["mixture_params"].item().replace("sparse_rvm", "ridge")},
+         "holds sparse RVM experts")])
+    for name in ("mixture_expert_kind", "mixture_expert_sigma", "mixture_expert_phi_mean",
+                 "mixture_expert_beta", "mixture_expert_rows", "mixture_expert_y_scale"):
+        save_model(path, {k: v for k, v in raw.items() if k != name})
+        with pytest.raises(PoseModelError) as refused:
+            load_pose_model(path)
+        assert len(str(refused.value).splitlines()) == 1
+
+
+def test_a_version_1_file_of_damped_least_squares_experts_still_loads(tmp_path):
+    from regressor.model_file import checksum, load_model
+    model, x = _mixture_model()
+    path = tmp_path / "old.npz"
+    save_pose_model(path, model)
+    parts = dict(load_model(path).parts)
+    np.savez(path, **parts, format_version=np.int64(1), checksum=np.str_(checksum(parts)))
+    loaded = load_pose_model(path)
+    assert load_model(path).format_version == 1 and not loaded.gives_variance
+    np.testing.assert_allclose(loaded.predict_batch(x[:5]), model.predict_batch(x[:5]),
+                               atol=0.02 * np.abs(model.predict_batch(x[:5])).max())
 
 
 def test_a_neighbour_gated_mixture_is_not_saved_into_a_model_file(tmp_path):
@@ -358,3 +427,13 @@ def test_training_masks_pass_through_the_trackers_own_cleaning():
     for crop in a:
         assert crop.dtype == bool and 55 <= crop.shape[0] <= 160
         assert crop.mean() > 0.3                     # the body fills its box: not a speck
+
+
+def test_experts_fitted_at_once_are_the_experts_fitted_in_turn():
+    x, y, _ = _two_modes(n=400)
+    one = MixtureRegressor(n_experts=3, expert="sparse_rvm", **SMALL).fit(x, y)
+    two = MixtureRegressor(n_experts=3, expert="sparse_rvm", **SMALL).fit(x, y, workers=2)
+    for a, b in zip(one.experts_, two.experts_):
+        np.testing.assert_array_equal(a.relevance_, b.relevance_)
+        np.testing.assert_allclose(a.coef_, b.coef_, rtol=1e-9)
+    np.testing.assert_array_equal(one.expert_rows_, two.expert_rows_)

@@ -23,6 +23,8 @@ def train():
     (["--clean"], "--layout-grid needs the video-like masks"),
     (["--limb-net-reversed", "1.5"], "--limb-net-reversed must be in 0..1, got 1.5"),
     (["--spliced", "-1"], "--spliced must be in 0..10000, got -1"),
+    (["--limb-nets", "0"], "a limb head of expert weights (--limb-nets 0) needs --expert dls"),
+    (["--expert", "svm"], "argument --expert: invalid choice"),
 ])
 def test_absurd_options_are_refused_before_rendering(train, tmp_path, capsys, options, says):
     cache, out = tmp_path / "cache", tmp_path / "model.npz"

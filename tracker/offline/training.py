@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from regressor.angles import POSE_DIM, pose_angles, regression_targets, wrap_deg
 from regressor.codebook import Codebook
@@ -450,6 +451,10 @@ def descriptor_cache_key(config, views: dict | None, noisy: bool) -> str:
 @dataclass
 class MixtureOptions:
     """Choices of the mixture model (regressor.mixture.MixtureRegressor). stack_depth: k;
+    expert: "sparse_rvm" (each expert a sparse RVM over n_centres candidate kernels, fitted on
+    all its rows: regressor.sparse_rvm; it gives each frame's predictive variance, which
+    calibrate_variance turns into a scale of the filter's R) or "dls" (damped least squares on
+    n_centres kernels with ridge lam);
     n_experts, overlap, n_centres, width_scale, lam: the experts; gate_*: the gate;
     partition: what k-means splits into experts: "pose" (partition_space, with heading_scale
     and standardise), "descriptor" (standardised stacked descriptors), "joint" (both) or
@@ -534,6 +539,7 @@ class MixtureOptions:
 
     stack_depth: int = 3
     transform: str = "sqrt"
+    expert: str = "sparse_rvm"
     n_experts: int = 12
     overlap: float = 0.2
     n_centres: int = 400
@@ -610,6 +616,26 @@ def angle_measures(predicted: np.ndarray, truth: np.ndarray, constant_deg: np.nd
             "corr8": round(corr, 3)}
 
 
+#: train.py's --expert choices and the regressor.mixture expert each names.
+EXPERT_CHOICES = {"sparse_rvm": "sparse_rvm", "dls": "ridge"}
+
+
+def calibrate_variance(predicted: np.ndarray, truth: np.ndarray, R: np.ndarray,
+                       variance: np.ndarray) -> tuple[float, dict]:
+    """The factor c that makes each frame's R_t = R x c x variance_t (variance (N,): the
+    experts' predictive variance, PoseModel.predict_variance) calibrated on held-out rows:
+    the mean over rows of z_t^T R_t^-1 z_t / 54 is 1 for the raw residuals z_t (N, 54) deg of
+    predicted (N, 55) against truth (N, 55). Also returns the mean z^2 before (R alone, c x
+    variance = 1) and of the experts' own variance taken as is (z^2 / variance_t in
+    mean-angle-variance units), for the report."""
+    z = wrap_deg(pose_angles(predicted) - pose_angles(truth))
+    q = np.einsum("ni,ij,nj->n", z, np.linalg.inv(R), z) / z.shape[1]
+    v = np.maximum(np.asarray(variance, float), 1e-12)
+    c = float(np.mean(q / v))
+    return c, {"variance_calibration": c, "z2_fixed_R": float(q.mean()),
+               "z2_rvm_variance_raw": float(np.mean((z[:, 1:] ** 2).mean(1) / v))}
+
+
 def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                         settings: DescriptorSettings, options: MixtureOptions, fps: float,
                         log: Callable[[str], None] = print,
@@ -622,8 +648,8 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     the masks X describes (noisy_dataset_layouts), needed when options.layout_grid > 0.
     mirrored: (histograms (N, D), layouts (N, layout_grid^2) or None) of the same masks
     flipped left to right, needed for limb networks with options.limb_net_mirror. workers:
-    limb networks fitted at once (regressor.limb_net.fit_limb_net; the arrays do not depend
-    on it)."""
+    experts and limb networks fitted at once (regressor.mixture, regressor.limb_net
+    .fit_limb_net; the arrays do not depend on it)."""
     from regressor.mixture import MixtureRegressor
     if options.canonical not in CANONICAL_RULES:
         raise ValueError(f"canonical {options.canonical!r} is not one of {CANONICAL_RULES}")
@@ -671,7 +697,12 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         f"rows (k = {options.stack_depth}, {Xs.shape[1]}-D input"
         f"{f' projected to {Xin.shape[1]}' if projection is not None else ''}) ...")
     start = time.perf_counter()
+    if options.expert not in EXPERT_CHOICES:
+        raise ValueError(f"expert {options.expert!r} is not one of {EXPERT_CHOICES}")
+    if options.expert != "dls" and options.limb_head != "none" and not use_net:
+        raise ValueError("a limb head of expert weights (limb_net_members 0) needs dls experts")
     mixture = MixtureRegressor(
+        expert=EXPERT_CHOICES[options.expert],
         n_experts=options.n_experts, overlap=options.overlap, n_centres=options.n_centres,
         width_scale=options.width_scale, lam=options.lam, gate_centres=options.gate_centres,
         gate_width_scale=options.gate_width_scale, gate_l2=options.gate_l2,
@@ -687,7 +718,12 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
         head_centre = angle_centres(head_truth[~val])
         if not use_net:
             targets = np.hstack([Y, regression_targets(head_truth, head_centre)])
-    mixture.fit(Xin[train_rows], targets[train_rows], Z[train_rows], log=log)
+    # A sparse RVM's steps factor R x R matrices (R <= n_centres): on the shared 2-core
+    # machine one BLAS thread fits an expert about 3x faster than two (docs/rvm_experts.md).
+    with threadpool_limits(limits=1 if options.expert == "sparse_rvm" else None,
+                           user_api="blas"):
+        mixture.fit(Xin[train_rows], targets[train_rows], Z[train_rows], log=log,
+                    workers=workers)
     limb_head = limb_net = None
     if use_net:
         log(f"fitting {options.limb_net_members} limb networks "
@@ -766,6 +802,11 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
     # the chain's hypothesis, not yet the decision.
     R, facts = measurement_noise(predicted, truth[val_rows], options.ambiguity_threshold)
     model.measurement_covariance = R
+    if options.expert == "sparse_rvm":
+        variance = model.predict_variance(Xs[val_rows])
+        model.variance_calibration, z2 = calibrate_variance(predicted, truth[val_rows], R,
+                                                            variance)
+        facts.update(z2)
     model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
     errors = np.abs(wrap_deg(pose_angles(predicted) - pose_angles(truth[val_rows])))
     gate_val = mixture.predict_proba(Xin[val_rows]).argmax(axis=1)
@@ -784,7 +825,7 @@ def train_mixture_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
               "limb_net_members": options.limb_net_members if use_net else 0,
               **({"limb_net_int8_max_deg": round(int8_max_deg, 3)} if use_net else {}),
               "side_classifier": side_classifier is not None,
-              **{k: round(v, 3) for k, v in facts.items()}}
+              **{k: (round(v, 3) if isinstance(v, float) else v) for k, v in facts.items()}}
     if model.has_limbs:
         # The head's member picked by the true heading: what the tracker gets when its chain
         # decides the heading right (an upper bound, hence the name).
