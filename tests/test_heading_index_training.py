@@ -104,9 +104,9 @@ def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
     members = canonical_member(data.pose[val], np.eye(55)[0])
     err = np.abs(limbs[val, 1] - members[:, 1]).mean()
     assert err < np.abs(members[:, 1] - members[:, 1].mean()).mean()
-    # Without networks the experts' limb head as before.
+    # Without networks the experts' limb head as before (a head of dls experts' weights).
     plain, _ = train_mixture_model(data, X, codebook, settings,
-                                   replace(_options(), limb_head="facing",
+                                   replace(_options(), limb_head="facing", expert="dls",
                                            limb_net_members=0), 30.0,
                                    log=lambda m: None)
     assert plain.limb_head is not None and plain.limb_net is None
