@@ -124,9 +124,8 @@ def test_boxes_of_one_person_merge_and_people_side_by_side_stay_apart():
 def test_segmenter_follows_the_still_person_on_a_real_view(pose2sim_trial):
     """Pose2Sim's balancing, cam01's first 30 frames at full size: the median of the clip
     holds the person, the segmenter needs no empty scene. One track in every frame holding
-    most keypoints (the whole view: 88.8 %, docs/segmenter.md), little spill. Auto with
-    still_person turns to the segmenter because the learned background shows the person;
-    track's auto (still_person off) keeps background subtraction."""
+    most keypoints (the whole view: 88.8 %, docs/segmenter.md), little spill. track's auto
+    keeps background subtraction there (a still camera)."""
     from sequences.pose2sim import load_trial, project_reference
     from tracker.video import open_video
     trial = load_trial(pose2sim_trial)
@@ -140,12 +139,7 @@ def test_segmenter_follows_the_still_person_on_a_real_view(pose2sim_trial):
     assert measures["coverage"] >= 0.75 and measures["spill"] <= 0.15, measures
     assert measures["main_track_fraction"] == 1.0, measures
     settings = TrackerSettings()
-    auto = AutoExtractor(lambda **o: default_extractor(settings, **o), PersonSegmenter(),
-                         still_person=True)
-    auto.prime(samples)
-    auto(frames[0][1])
-    assert auto.source == "segment" and "never leaves" in auto.reason
-    default = silhouette_extractor("auto", settings)       # still_person off: background
+    default = silhouette_extractor("auto", settings)
     default.prime(samples)
     default(frames[0][1])
     assert default.source == "background" and default.reason is None

@@ -15,7 +15,7 @@ foreground is: the rest of the pipeline sees the same :class:`PersonMask` object
 The segmenter is an optional extra: ``pip install 'silhouette-pose[segment]'``
 (:data:`INSTALL_HINT`). :class:`AutoExtractor` (``track --silhouettes auto``) keeps background
 subtraction where it works and turns to the segmenter where it cannot: a camera that moves
-(:mod:`tracker.camera_motion`), or a clip whose learned background shows a person.
+(:mod:`tracker.camera_motion`).
 
 MediaPipe's graph is made on first use, in the process that segments: a graph made before a
 fork breaks the forked process's own (tracker.frame_worker forks after priming).
@@ -437,42 +437,28 @@ def _distinct(people: list[PersonMask]) -> list[PersonMask]:
     return kept
 
 
-#: A person segmented in the learned background counts as one who never leaves the spot when
-#: at least this share of it lies in the background's unreliable zone (where people stood or
-#: moved: a picture of a person on a wall is outside it).
-MIN_ZONE_SHARE = 0.3
-
-
 class AutoExtractor:
     """``track --silhouettes auto``: background subtraction (``make_background(**options)``,
     a :class:`SilhouetteExtractor` factory) where it works, ``segmenter`` (a
-    :class:`PersonSegmenter`, or None where the extra is missing) where it cannot:
-
-    - a camera that moves: the clip's sampled frames do not line up
-      (:func:`tracker.camera_motion.camera_moves`), or, frame by frame, the camera starts to
-      move (:class:`tracker.camera_motion.CameraMotionMeter`, only with the segmenter: without
-      it nothing is measured per frame); the segmenter then proposes no moving blobs;
-    - with ``still_person`` (off by default), a person who never leaves the spot: the
-      background learned from the clip shows a person (segmented, or without the segmenter
-      found by HOG) in its unreliable zone. Checked at the first frame, in the process that
-      segments (never before a fork); without the segmenter and without OpenCV's HOG
-      (OpenCV 5) not at all. Off because on such clips (Pose2Sim's balancing and swings) the
-      background path with its colour-decided zone gave masks as good or better than the
-      segmenter's (docs/segmenter.md).
+    :class:`PersonSegmenter`, or None where the extra is missing) where it cannot: a camera
+    that moves, i.e. the clip's sampled frames do not line up
+    (:func:`tracker.camera_motion.camera_moves`), or, frame by frame, the camera starts to move
+    (:class:`tracker.camera_motion.CameraMotionMeter`, only with the segmenter: without it
+    nothing is measured per frame); the segmenter then proposes no moving blobs.
+    A person who never leaves the spot stays with background subtraction: on such clips
+    (Pose2Sim's balancing and swings) its colour-decided zone gave masks as good as or better
+    than the segmenter's (docs/segmenter.md).
 
     Without the segmenter, such a clip stays with background subtraction and one warning says
     how to install it. :attr:`source` is "background" or "segment"; :attr:`reason` why.
     """
 
-    def __init__(self, make_background, segmenter: PersonSegmenter | None,
-                 still_person: bool = False):
+    def __init__(self, make_background, segmenter: PersonSegmenter | None):
         self.make_background = make_background
         self.background: SilhouetteExtractor = make_background()
         self.segmenter = segmenter
-        self.still_person = still_person
         self.meter = CameraMotionMeter()
         self.source, self.reason = "background", None
-        self._check_background = False
 
     @property
     def subtractor(self) -> BackgroundSubtractor:
@@ -481,7 +467,7 @@ class AutoExtractor:
 
     def prime(self, background, frame_size: tuple[int, int] | None = None) -> None:
         """Prime both paths (:meth:`SilhouetteExtractor.prime`); frames of the clip are also
-        judged (camera motion, a person in the learned background)."""
+        judged (camera motion)."""
         image = background if isinstance(background, np.ndarray) and background.ndim == 3 \
             else None
         if colourless(image if image is not None else np.asarray(background)[0]):
@@ -500,8 +486,6 @@ class AutoExtractor:
     def _judge(self, frames: list) -> None:
         if camera_moves(frames):
             self._choose("the camera moves", motion=False)
-        else:
-            self._check_background = self.still_person
 
     def _choose(self, reason: str, motion: bool = True) -> None:
         """Turn to the segmenter for ``reason`` (or warn once that it is missing)."""
@@ -517,36 +501,11 @@ class AutoExtractor:
 
     def __call__(self, frame: np.ndarray) -> list[PersonMask]:
         """The people in ``frame`` (BGR uint8 (H, W, 3)) from the path in use."""
-        if self._check_background:
-            self._check_background = False
-            if self._background_shows_person():
-                self._choose("the learned background shows a person who never leaves the spot")
         if self.source == "background" and self.segmenter is not None and self.meter(frame):
             self._choose("the camera moves", motion=False)
         if self.source == "segment":
             return self.segmenter(frame)
         return self.background(frame)
-
-    def _background_shows_person(self) -> bool:
-        """Whether the learned background (working size) shows a person in its unreliable
-        zone: segmented (whole image and crops around the zone's blobs) or, without the
-        segmenter, a HOG detection."""
-        learned = self.background.background
-        if learned is None or not learned.unreliable.any():
-            return False
-        image, zone = learned.image, learned.unreliable
-        area = zone.size
-        min_area = self.background.min_area_fraction * area
-        if self.segmenter is None:
-            person = np.zeros(zone.shape, bool)
-            for x0, y0, x1, y1 in hog_boxes(hog_detector(), image):
-                person[y0:y1, x0:x1] = True
-        else:
-            zone_blobs = blob_boxes(zone.astype(np.uint8) * 255, min_area, area)
-            boxes = np.vstack([self.segmenter.search(image), zone_blobs])
-            person = self.segmenter.segment(image, image, merge_boxes(boxes)) > 0
-        inside = np.count_nonzero(person & zone)
-        return inside >= min_area and inside >= MIN_ZONE_SHARE * np.count_nonzero(person)
 
 
 def silhouette_extractor(source: str, settings):
