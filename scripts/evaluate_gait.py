@@ -39,7 +39,6 @@ from __future__ import annotations
 import json
 import sys
 from contextlib import contextmanager
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -57,11 +56,8 @@ from sequences.video import load_truth, replace_video
 from tracker import hypotheses
 from tracker.member_path import MEMBER_HEADING_SD_DEG
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
-from tracker.offline.evaluation import CameraOptions, write_camera_video
-from tracker.pipeline import HEADING_Q_SCALE, LIMB_R_SCALE, PoseTracker, TrackerSettings
-from tracker.run import track_video
-from tracker.sinks import PoseRecorder
-from tracker.video import open_video
+from tracker.offline.evaluation import CameraOptions, run_longest_track, write_camera_video
+from tracker.pipeline import HEADING_Q_SCALE, LIMB_R_SCALE, TrackerSettings
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -94,15 +90,8 @@ def gait_video(trial: str, relative_deg: float, bvh_dir: Path, cache: Path) -> P
 def track(video: Path, model, settings: TrackerSettings) -> dict:
     """The track loop on a one-person video; its longest track's frame indices (n,) and each
     OUTPUTS' poses (n, 55), plus the member pairs (n, 2, 55) the hypotheses held."""
-    recorder = PoseRecorder()
-    source = open_video(video)
-    tracker = PoseTracker(model, source.fps, replace(settings, max_people=1, keep_history=True))
-    track_video(source, tracker, [recorder], workers=1).stop_if_interrupted()
-    by_track = recorder.by_track()
-    if not by_track:
-        raise RuntimeError(f"{video}: nobody was tracked")
-    tid = max(by_track, key=lambda t: len(by_track[t]))
-    poses = by_track[tid]
+    tracker, recorder, tid = run_longest_track(video, model, settings)
+    poses = recorder.by_track()[tid]
     chain = tracker.tracks[tid].hypotheses
     frames = chain.history
     if len(frames) != len(poses):

@@ -438,6 +438,21 @@ def _pose_sequence(name, truth, per_frame, raw, filtered, smoothed, ambiguous, r
                                          "ambiguity_threshold": threshold}})
 
 
+def run_longest_track(video: Path, model: PoseModel, settings: TrackerSettings,
+                      workers: int = 1) -> tuple[PoseTracker, PoseRecorder, int]:
+    """Run the ``track`` loop on a one-person video (one person at most, history kept); returns
+    the tracker, what it recorded and the id of its longest track. A run cut short by Ctrl-C
+    is not measured; nobody tracked is an EvaluationError."""
+    recorder = PoseRecorder()
+    source = open_video(video)
+    tracker = PoseTracker(model, source.fps, replace(settings, max_people=1, keep_history=True))
+    track_video(source, tracker, [recorder], workers=workers).stop_if_interrupted()
+    by_track = recorder.by_track()
+    if not by_track:
+        raise EvaluationError(f"{video}: nobody was tracked")
+    return tracker, recorder, max(by_track, key=lambda t: len(by_track[t]))
+
+
 def track_longest(video: Path, model: PoseModel, settings: TrackerSettings,
                   lag_s: float = VIEW_LAG_S):
     """Run the ``track`` loop (tracker.run.track_video) on a one-person video: (frame indices
@@ -445,16 +460,9 @@ def track_longest(video: Path, model: PoseModel, settings: TrackerSettings,
     (n, 55) and probabilities (n,), NaN where none, novelty (n,), NaN unless
     settings.novelty, and the poses ``track --lag lag_s`` gives (n, 55): tracker.fixed_lag)
     of its longest track."""
-    recorder = PoseRecorder()
-    source = open_video(video)
-    tracker = PoseTracker(model, source.fps, replace(settings, max_people=1, keep_history=True))
-    # The same poses on two cores; a run cut short by Ctrl-C is not measured.
-    track_video(source, tracker, [recorder], workers=2).stop_if_interrupted()
-    by_track = recorder.by_track()
-    if not by_track:
-        raise EvaluationError(f"{video}: nobody was tracked")
-    track_id = max(by_track, key=lambda t: len(by_track[t]))
-    poses = by_track[track_id]
+    # The same poses on two cores.
+    tracker, recorder, track_id = run_longest_track(video, model, settings, workers=2)
+    poses = recorder.by_track()[track_id]
     lagged = [p.filtered for p in replay(tracker, recorder.frames(), lag_s)
               if p.track_id == track_id]
     return (np.array([p.frame_index for p in poses]), np.array([p.raw for p in poses]),
