@@ -485,10 +485,11 @@ class AutoExtractor:
 
     def _judge(self, frames: list) -> None:
         if camera_moves(frames):
-            self._choose("the camera moves", motion=False)
+            self._choose("the camera moves")
 
-    def _choose(self, reason: str, motion: bool = True) -> None:
-        """Turn to the segmenter for ``reason`` (or warn once that it is missing)."""
+    def _choose(self, reason: str) -> None:
+        """Turn to the segmenter for ``reason`` (or warn once that it is missing); a moving
+        camera makes everything a moving blob, so it proposes none."""
         if self.source == "segment" or self.reason is not None:
             return
         self.reason = reason
@@ -497,12 +498,12 @@ class AutoExtractor:
                           f"segmenter can ({INSTALL_HINT}; then track --silhouettes auto)")
             return
         self.source = "segment"
-        self.segmenter.use_motion = motion
+        self.segmenter.use_motion = False
 
     def __call__(self, frame: np.ndarray) -> list[PersonMask]:
         """The people in ``frame`` (BGR uint8 (H, W, 3)) from the path in use."""
         if self.source == "background" and self.segmenter is not None and self.meter(frame):
-            self._choose("the camera moves", motion=False)
+            self._choose("the camera moves")
         if self.source == "segment":
             return self.segmenter(frame)
         return self.background(frame)
