@@ -244,12 +244,18 @@ class NeighbourGate(Estimator):
     estimates p(x | c) and the class frequencies as the prior: the gate as a density per
     expert in descriptor space (Agarwal and Triggs 2005), estimated without a parametric form.
     It keeps every training input, so it suits small sets (the paper's 1,927 frames), not the
-    tracker's model file. Ties between classes go to the class of the nearer neighbours
-    (each vote is weighted 1 + 1e-6 x (k - rank)). Learned: X_ (N, D), labels_ (N,)."""
+    tracker's model file; with ``prototypes`` P it keeps P k-means centres of the inputs
+    instead, each voting with the class counts of the rows nearest it (a compact gate: its
+    basis is P points, not N rows). Ties between classes go to the class of the nearer
+    neighbours (each vote is weighted 1 + 1e-6 x (k - rank)). Learned: X_ (N or P, D),
+    counts_ (N or P, C) the classes each stored point votes for."""
 
-    def __init__(self, n_neighbours: int = 3, chunk_rows: int = 2048):
+    def __init__(self, n_neighbours: int = 3, chunk_rows: int = 2048,
+                 prototypes: int | None = None, seed: int = 0):
         self.n_neighbours = n_neighbours
         self.chunk_rows = chunk_rows
+        self.prototypes = prototypes
+        self.seed = seed
 
     def fit(self, X, labels, n_classes: int | None = None):
         """X (N, D) training inputs, labels (N,) int classes 0..C-1; n_classes C (default:
@@ -258,17 +264,28 @@ class NeighbourGate(Estimator):
         labels = np.asarray(labels, dtype=np.int64)
         if len(labels) != len(X):
             raise ValueError("X and labels must have the same number of rows")
-        if not 1 <= int(self.n_neighbours) <= len(X):
-            raise ValueError(f"n_neighbours must be within 1..{len(X)} (the training rows), "
-                             f"got {self.n_neighbours}")
         self.n_classes_ = int(labels.max()) + 1 if n_classes is None else int(n_classes)
-        self.X_, self.labels_ = X, labels
+        if self.prototypes is None:
+            self.X_, owner = X, np.arange(len(X))
+        else:
+            if not 1 <= int(self.prototypes) <= len(X):
+                raise ValueError(f"prototypes must be within 1..{len(X)} (the training rows), "
+                                 f"got {self.prototypes}")
+            self.X_ = kmeans(X, int(self.prototypes), seed=self.seed)
+            owner = squared_distances(X, self.X_).argmin(axis=1)
+        counts = np.zeros((len(self.X_), self.n_classes_))
+        np.add.at(counts, (owner, labels), 1.0)
+        keep = counts.sum(axis=1) > 0               # a centre no row is nearest to votes for none
+        self.X_, self.counts_ = self.X_[keep], counts[keep]
+        if not 1 <= int(self.n_neighbours) <= len(self.X_):
+            raise ValueError(f"n_neighbours must be within 1..{len(self.X_)} (the points kept), "
+                             f"got {self.n_neighbours}")
         self.n_features_in_ = X.shape[1]
         return self
 
     def predict_proba(self, X) -> np.ndarray:
         """p(class | x), (N, C), rows summing to 1."""
-        self._check_fitted("labels_")
+        self._check_fitted("counts_")
         X = validate_X(X, self.n_features_in_)
         k = int(self.n_neighbours)
         votes = 1.0 + 1e-6 * np.arange(k, 0, -1)         # ties: the nearer neighbours' class
@@ -276,8 +293,8 @@ class NeighbourGate(Estimator):
         for start in range(0, len(X), self.chunk_rows):  # bounded memory: chunk x N distances
             D = squared_distances(X[start:start + self.chunk_rows], self.X_)
             near, _ = nearest_columns(D, k)
-            rows = np.arange(len(D))[:, None]
-            np.add.at(P, (start + rows, self.labels_[near]), votes)
+            P[start:start + len(D)] = np.einsum("nk,nkc->nc", np.broadcast_to(votes, near.shape),
+                                                self.counts_[near])
         return P / P.sum(axis=1, keepdims=True)
 
     def predict(self, X) -> np.ndarray:
@@ -298,7 +315,8 @@ class MixtureRegressor(Estimator):
     (regressor.sparse_rvm.SparseRVMRegressor on all the expert's rows: n_centres candidate
     kernels, width_scale, further arguments in expert_params, a dict). gate_centres,
     gate_width_scale, gate_l2: the SoftmaxGate. gate: "softmax" (SoftmaxGate) or "neighbours"
-    (NeighbourGate over gate_neighbours training inputs). top_experts: experts evaluated per row in
+    (NeighbourGate over gate_neighbours training inputs, or over gate_prototypes k-means
+    centres of them when that is set). top_experts: experts evaluated per row in
     predict (the gate's most probable ones; their poses are the hypotheses). combine: what
     predict returns, "most_probable" (the most probable expert's pose) or "mean" (the experts'
     poses weighted by the gate: smoother where the gate hesitates, but an average of the
@@ -312,7 +330,8 @@ class MixtureRegressor(Estimator):
                  n_centres: int = 500, width_scale: float = 0.25, lam: float = 0.01,
                  gate_centres: int = 300, gate_width_scale: float = 0.5, gate_l2: float = 1e-4,
                  top_experts: int = 2, rvm_rows: int = 2000, seed: int = 0,
-                 gate: str = "softmax", gate_neighbours: int = 3, expert_params: dict | None = None,
+                 gate: str = "softmax", gate_neighbours: int = 3, gate_prototypes: int | None = None,
+                 expert_params: dict | None = None,
                  combine: str = "most_probable"):
         self.n_experts = n_experts
         self.overlap = overlap
@@ -328,6 +347,7 @@ class MixtureRegressor(Estimator):
         self.seed = seed
         self.gate = gate
         self.gate_neighbours = gate_neighbours
+        self.gate_prototypes = gate_prototypes
         self.expert_params = expert_params
         self.combine = combine
 
@@ -388,7 +408,8 @@ class MixtureRegressor(Estimator):
         rows = [len(idx) for idx in members]
         self.expert_rows_ = np.array(rows)
         if self.gate == "neighbours":
-            self.gate_ = NeighbourGate(self.gate_neighbours).fit(X, labels, n_classes=E)
+            self.gate_ = NeighbourGate(self.gate_neighbours, prototypes=self.gate_prototypes,
+                                       seed=self.seed).fit(X, labels, n_classes=E)
         else:
             self.gate_ = SoftmaxGate(self.gate_centres, self.gate_width_scale, self.gate_l2,
                                      seed=self.seed).fit(X, labels, n_classes=E)

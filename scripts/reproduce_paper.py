@@ -155,7 +155,7 @@ class SparseMixture(MixtureRegressor):
     sparse Bayesian learning on all the rows of its region, over n_centres candidate kernels;
     the softmax gate; each frame's pose the gate's weighting of the experts' poses
     (combine="mean"). Its count of basis functions: the experts' relevance vectors plus the
-    gate's kernel centres (or, for the neighbour gate, its training rows)."""
+    gate's kernel centres (or, for the neighbour gate, the rows or prototypes it keeps)."""
 
     @property
     def n_basis_(self) -> int:
@@ -351,13 +351,13 @@ class _Choices:
 
     @cached_property
     def sparse_tracked(self):
-        """As the RVM mixture's (tracked), with the sparse RVM experts; the gate (neighbours, as
-        there, or softmax, whose model keeps fewer basis functions than training rows) chosen
-        by the same cross-validation."""
+        """As the RVM mixture's (tracked), with the sparse RVM experts and a gate whose model
+        keeps fewer basis functions than training rows: the neighbour gate over k-means
+        prototypes of the inputs, or the softmax gate, chosen by the same cross-validation."""
         experts = self.sparse_experts
         print("  mixture of sparse RVM experts resolved over time")
-        found = [choose_tracked(grid(n_experts=[8, 16, 32], overlap=[0.2, 0.5]),
-                                [1.0, 2.0, 3.0, 5.0], [1, 3, 5], self.X, self.Y, self.folds,
+        found = [choose_tracked(grid(n_experts=[8, 16], overlap=[0.5], gate_prototypes=[200, 400]),
+                                [1.0, 2.0, 3.0], [1, 3, 5], self.X, self.Y, self.folds,
                                 self.train_ids, make=lambda **p: sparse_mixture(
                                     gate="neighbours", **experts, **p)),
                  choose_tracked(grid(n_experts=[8, 16], overlap=[0.5], gate_l2=[1e-4, 1e-3]),

@@ -79,6 +79,25 @@ def test_neighbour_gate_gives_the_shares_of_the_nearest_rows_classes():
         NeighbourGate(n_neighbours=6).fit(x, [0, 0, 1, 2, 2])
 
 
+def test_prototype_gate_keeps_centres_that_vote_with_their_rows_classes():
+    """With prototypes P the gate stores P k-means centres, not the rows; each centre votes
+    with the classes of the rows nearest it, so a query near a cluster gets its class mix."""
+    rng = np.random.default_rng(2)
+    centres = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]])
+    x = np.repeat(centres, 40, axis=0) + rng.normal(0, 0.1, (120, 2))
+    labels = np.repeat([0, 1, 2], 40)
+    labels[40:50] = 0                                   # cluster 1 is a quarter class 0
+    gate = NeighbourGate(n_neighbours=1, prototypes=3).fit(x, labels, n_classes=4)
+    assert gate.X_.shape == (3, 2) and gate.counts_.sum() == 120
+    P = gate.predict_proba(np.array([[0.2, 0.1], [9.8, 0.3], [0.1, 9.7]]))
+    np.testing.assert_allclose(P, [[1, 0, 0, 0], [0.25, 0.75, 0, 0], [0, 0, 1, 0]], atol=1e-5)
+    mix = MixtureRegressor(n_experts=3, gate="neighbours", gate_prototypes=3, gate_neighbours=1,
+                           **SMALL).fit(x, np.column_stack([labels * 1.0, x[:, 0]]))
+    assert len(mix.gate_.X_) == 3
+    with pytest.raises(ValueError, match="prototypes"):
+        NeighbourGate(prototypes=500).fit(x, labels)
+
+
 def test_neighbour_gated_mixture_keeps_both_modes_and_picks_distinct_experts():
     x, y, _ = _two_modes()
     mix = MixtureRegressor(n_experts=2, gate="neighbours", gate_neighbours=200,
