@@ -103,7 +103,7 @@ def kind_measures(model, X: np.ndarray, plain: np.ndarray, sequence: list, rng) 
     ok = np.isfinite(X).all(axis=1) & np.isfinite(plain).all(axis=1)
     ids = np.unique(sequence, return_inverse=True)[1]
     Xf = np.where(np.isfinite(X), X, 0.0)
-    novelty = model.novelty(stack_frames(Xf, model.stack_depth, ids))[ok]
+    novelty = model.hypotheses(stack_frames(Xf, model.stack_depth, ids)).novelty[ok]
     distance = np.linalg.norm(X[ok] - plain[ok], axis=1)
     a, b = rng.integers(ok.sum(), size=(2, 2000))
     between = np.median(np.linalg.norm(plain[ok][a] - plain[ok][b], axis=1))
