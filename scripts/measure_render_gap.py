@@ -10,7 +10,7 @@ For each held-out trial (sequences.dataset.HELD_OUT_TRIALS) and --views views of
 --frames frames are made three ways: plain (the data set's rasterised masks), hand noise
 (sequences.mask_noise through the extractor's cleaning, what training uses today) and
 realistic. Printed: the Pose2Sim cameras' heights and tilts beside the realistic cameras';
-per kind, the model's novelty (PoseModel.novelty of the stacked descriptors: median and share
+per kind, the model's novelty (PoseEstimates.novelty of the stacked descriptors: median and share
 above 1) and the descriptor distance to the plain mask of the same frame (median, and over the
 median distance between two random plain frames); for the realistic masks their IoU with the
 plain mask in the frame and their area over it, and the milliseconds per frame with the

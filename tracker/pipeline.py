@@ -184,7 +184,7 @@ class TrackedPose:
     image); centroid_px: (x, y) pixels; bbox_px: (x, y, w, h) pixels (None when unknown);
     runner_up: (55,) the filtered pose of the next most probable front/back hypothesis and
     runner_up_probability, when that is close (tracker.hypotheses.CLOSE_PROBABILITY), else None;
-    novelty: how unlike the training silhouettes the frame's input is (PoseModel.novelty; about
+    novelty: how unlike the training silhouettes the frame's input is (PoseEstimates.novelty; about
     1 % of training rows are above 1), with TrackerSettings(novelty=True), else None."""
 
     frame_index: int
