@@ -7,7 +7,7 @@ around, the Kalman filter's noise models, and a description of the training data
 
 Angles are regressed around per-angle centres (their circular means on the training data):
 the regressor predicts wrap(angle - centre), so an angle whose range straddles +-180 degrees
-(shoulders, in Euler angles) is continuous for the regressor. predict() adds the centres back
+(shoulders, in Euler angles) is continuous for the regressor. The predictions add the centres back
 and wraps to (-180, 180].
 
 Input: each frame's descriptor is the transformed histogram of shape contexts (D_h =
@@ -54,6 +54,7 @@ from .mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate
 from .sparse_rvm import SparseRVMRegressor
 from .model_file import ModelFileError, load_model, save_model
 from .errors import SilhouettePoseError
+from .estimator import PoseEstimates
 from .heading_index import HeadingIndex
 from .limb_net import LimbNet
 from .canonical_priors import PREFIX as CANONICAL_PRIOR_PREFIX, CanonicalPriors
@@ -73,22 +74,15 @@ MIN_TRAINING_FPS, MAX_TRAINING_FPS = 1.0, 1000.0
 MIXTURE_KIND = "silhouette-pose-mixture"    # a mixture of experts (regressor.mixture)
 
 
-def training_fps_of(estimator) -> float:
-    """The frame rate (frames per second) an estimator's stacked input and the tracker's
-    per-frame figures were learned at: a PoseModel's ``training_fps``, DEFAULT_TRAINING_FPS
-    for any other estimator (a bare regressor in tests, a stand-in)."""
-    return float(getattr(estimator, "training_fps", DEFAULT_TRAINING_FPS))
-
-
 class PoseModelError(SilhouettePoseError, ValueError):
     """A model file that is missing, unreadable, tampered with or inconsistent."""
 
 
-#: A frame whose novelty (:meth:`PoseModel.novelty`) is above this is unlike the training
-#: silhouettes: about 1 % of the training rows themselves are, no frame of the rendered
-#: validation and test videos is (medians 0.50-0.82, maximum 0.98), and 26-79 % of the real
-#: Pose2Sim views' frames are (docs/accuracy.md), where the poses are no better than a
-#: constant. ``track`` counts such frames per track (the JSON's "unfamiliar_frames").
+#: A frame whose novelty (:meth:`PoseModel.hypotheses`' PoseEstimates.novelty) is above this
+#: is unlike the training silhouettes: about 1 % of the training rows themselves are, no frame
+#: of the rendered validation and test videos is (medians 0.50-0.82, maximum 0.98), and 26-79 %
+#: of the real Pose2Sim views' frames are (docs/accuracy.md), where the poses are no better
+#: than a constant. ``track`` counts such frames per track (the JSON's "unfamiliar_frames").
 UNFAMILIAR_NOVELTY = 1.0
 
 
@@ -132,6 +126,13 @@ class PoseModel:
     canonical_priors: with a side classifier, how far the tracker trusts that weighing
     (regressor.canonical_priors.CanonicalPriors, learned on validation renders), or None (the
     tracker then takes the shipped model's, tracker.hypotheses.DEFAULT_CANONICAL_PRIORS).
+    variance_calibration: for sparse RVM experts that keep their predictive variance, the
+    factor on :meth:`predict_variance` that makes it the measurement covariance's scale on
+    validation rows (tracker.offline.training.calibrate_variance), or None.
+
+    The tracker calls only regressor.estimator.PoseEstimator's members (:meth:`hypotheses`,
+    :meth:`describe`, ...); predict_batch, predict_limbs and predict_variance serve training
+    and evaluation.
     """
 
     settings: DescriptorSettings
@@ -160,7 +161,7 @@ class PoseModel:
     limb_net: LimbNet | None = None
     side_classifier: SideClassifier | None = None
     canonical_priors: CanonicalPriors | None = None
-    variance_calibration: float | None = None   # sparse RVM experts: see noise_scales
+    variance_calibration: float | None = None   # sparse RVM experts: see the class docstring
 
     @property
     def descriptor_length(self) -> int:
@@ -226,12 +227,9 @@ class PoseModel:
         return (self.limb_net is not None and isinstance(options, dict)
                 and options.get("limb_net_mirror") is True)
 
-    def predict(self, stacked: np.ndarray) -> np.ndarray:
-        """Raw pose (55,) from one stacked, transformed descriptor (k*D,)."""
-        return self.predict_batch(np.asarray(stacked, dtype=np.float64)[None])[0]
-
     def predict_batch(self, stacked: np.ndarray) -> np.ndarray:
-        """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D)."""
+        """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D): the regressor's
+        single answer (a mixture's gate-weighted one), for training and evaluation."""
         return self._regress(self._stacked(stacked))
 
     def _regress(self, X: np.ndarray) -> np.ndarray:
@@ -256,12 +254,52 @@ class PoseModel:
             X = (X - self.projection_mean) @ self.projection
         return X
 
-    def predict_hypotheses(self, stacked: np.ndarray, m: int = 2) -> tuple[np.ndarray, np.ndarray]:
-        """Up to m raw poses per row with probabilities: (poses (N, m', 55), probabilities
-        (N, m')), most probable first, from stacked descriptors (N, k*D). A single regressor
-        gives one hypothesis with probability 1."""
-        poses, prob, _ = self._hypotheses(self._stacked(stacked), m, with_limbs=False)
-        return poses, prob
+    def hypotheses(self, stacked: np.ndarray, m: int = 1, mirrored: np.ndarray | None = None,
+                   novelty: bool = True) -> PoseEstimates:
+        """Everything the tracker asks of the model for stacked descriptors (N, k*D), in one
+        pass (the input projected and the gate evaluated once): the m most probable experts'
+        raw poses and probabilities (a single regressor: its one pose, probability 1), the
+        limbs, the side classifier's front probability and the novelty (regressor.estimator
+        .PoseEstimates: None / NaN for the parts the model lacks). mirrored (N, k*D): the
+        frames' mirror images' stacked descriptors; their limbs go through the limb networks
+        with the frames' in one pass (one matrix product per layer instead of two)."""
+        X = self._stacked(stacked)
+        rows = self._novelty(X) if novelty else np.full(len(X), np.nan)
+        if self.mixture is None:
+            return PoseEstimates(self._regress(X)[:, None], np.ones((len(X), 1)), novelty=rows)
+        gate = self.mixture.predict_proba(X)
+        poses, prob = self.mixture.predict_hypotheses(X, m, proba=gate)
+        poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
+        limbs, mirror_limbs = self._limbs_of(X, gate, mirrored)
+        front = (self.side_classifier.front_probability(X) if self.gives_canonical_pairs
+                 else None)
+        return PoseEstimates(poses, prob, limbs, mirror_limbs, front, rows)
+
+    def _limbs_of(self, X: np.ndarray, gate: np.ndarray, mirrored: np.ndarray | None
+                  ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(limbs (N, 55), the mirror images' limbs (N, 55) or None) for the regressor's
+        input X (N, input_length) with the gate's probabilities (N, E); (None, None) without
+        limbs. mirrored: the mirror images' stacked descriptors (N, k*D) or None."""
+        if not self.has_limbs:
+            return None, None
+        if mirrored is None:
+            return self._limbs(X, gate), None
+        X_mirror = self._stacked(mirrored)
+        if X_mirror.shape != X.shape:
+            raise PoseModelError(f"the mirror images' stacked descriptors must be shaped as "
+                                 f"the frames' {X.shape}, got {X_mirror.shape}")
+        both = self._limbs(np.vstack([X, X_mirror]))
+        return both[:len(X)], both[len(X):]
+
+    def _novelty(self, X: np.ndarray) -> np.ndarray:
+        """How unlike the training silhouettes each row of the regressor's input X (N,
+        input_length) is, (N,): the heading index's mean distance to its nearest training
+        rows over their own 99th percentile (regressor.heading_index.HeadingIndex.novelty;
+        about 1 % of training rows are above 1, inputs well above it are extrapolation). NaN
+        (unknown) for a model without a heading index."""
+        if self.heading_index is None:
+            return np.full(len(X), np.nan)
+        return self.heading_index.novelty(X)
 
     @property
     def gives_variance(self) -> bool:
@@ -274,41 +312,17 @@ class PoseModel:
     def predict_variance(self, stacked: np.ndarray) -> np.ndarray:
         """Predictive variance (N,) deg^2 of :meth:`predict_batch`'s pose for stacked
         descriptors (N, k*D): the mean over the 53 body angles of the experts' variance of a
-        new observation (regressor.sparse_rvm). Needs :attr:`gives_variance`."""
+        new observation (regressor.sparse_rvm), for training's calibration. Needs
+        :attr:`gives_variance`."""
         if not self.gives_variance:
             raise PoseModelError("this model's experts give no predictive variance "
                                  "(only sparse RVM experts do)")
         _, std = self.mixture.predict(self._stacked(stacked), return_std=True)
         return (std[:, 2:] ** 2).mean(axis=1)
 
-    def noise_scales(self, stacked: np.ndarray, m: int = 2) -> np.ndarray | None:
-        """Per-frame factors (N, m') on the filter's measurement covariance R for the m most
-        probable experts' poses (:meth:`predict_hypotheses`' order): each pose's predictive
-        variance times variance_calibration, which makes R_t = R x factor calibrated on the
-        validation rows (mean z^2 = 1; tracker.offline.training.calibrate_variance). A
-        confident frame gets a factor below 1, a doubtful one above. None for a model without
-        it."""
-        if not self.gives_variance or self.variance_calibration is None:
-            return None
-        _, _, std = self.mixture.predict_hypotheses(self._stacked(stacked), m, return_std=True)
-        return self.variance_calibration * (std[..., 2:] ** 2).mean(axis=-1)
-
-    def novelty(self, stacked: np.ndarray) -> np.ndarray:
-        """How unlike the training silhouettes each row of stacked descriptors (N, k*D) is,
-        (N,): the heading index's mean distance to its nearest training rows over their own
-        99th percentile (regressor.heading_index.HeadingIndex.novelty; about 1 % of training
-        rows are above 1, inputs well above it are extrapolation). NaN (unknown) for a model
-        without a heading index."""
-        X = self._stacked(stacked)
-        if self.heading_index is None:
-            return np.full(len(X), np.nan)
-        return self.heading_index.novelty(X)
-
     def predict_limbs(self, stacked: np.ndarray) -> np.ndarray | None:
-        """Canonical poses (N, 55) for the limbs from stacked descriptors (N, k*D): the limb
-        network's (:attr:`limb_net`) or, without one, the limb head's (for each row, the gate's
-        most probable expert with the head's weights); either body of the silhouette, its
-        heading picks which. None without either."""
+        """Canonical poses (N, 55) for the limbs from stacked descriptors (N, k*D), as
+        :meth:`hypotheses` gives them, for training and evaluation. None without limbs."""
         return self._limbs(self._stacked(stacked)) if self.has_limbs else None
 
     @property
@@ -318,49 +332,6 @@ class PoseModel:
         return self.limb_net is not None or (self.limb_head is not None
                                              and self.mixture is not None)
 
-    def predict_hypotheses_and_limbs(self, stacked: np.ndarray, m: int = 2
-                                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """:meth:`predict_hypotheses` and :meth:`predict_limbs` in one pass (the tracker's
-        per-frame call): the input is projected and the gate evaluated once. Returns (poses
-        (N, m', 55), probabilities (N, m'), limbs (N, 55) or None)."""
-        return self._hypotheses(self._stacked(stacked), m, with_limbs=True)
-
-    def predict_frame(self, stacked: np.ndarray, m: int = 2
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
-        """:meth:`predict_hypotheses_and_limbs` and the side classifier's probability that the
-        body faces the camera's half (N,) (None unless :attr:`gives_canonical_pairs`) in one
-        pass: the tracker's per-frame call."""
-        X = self._stacked(stacked)
-        poses, prob, limbs = self._hypotheses(X, m, with_limbs=True)
-        front = self._front_probability(X)
-        return poses, prob, limbs, front
-
-    def predict_frame_and_mirror(self, stacked: np.ndarray, mirrored: np.ndarray, m: int = 2
-                                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None,
-                                            np.ndarray | None, np.ndarray | None]:
-        """:meth:`predict_frame` for stacked descriptors (N, k*D), and the limbs (N, 55) for
-        the frames' mirror images' stacked descriptors mirrored (N, k*D) (the mirror images'
-        own bodies, not mirrored back; None without limbs): (poses, probabilities, limbs,
-        front, mirror_limbs). Both inputs go through the limb networks in one pass, one
-        matrix product per layer instead of two (for one frame 0.45 ms against 0.76 ms)."""
-        X, X_mirror = self._stacked(stacked), self._stacked(mirrored)
-        if X_mirror.shape != X.shape:
-            raise PoseModelError(f"the mirror images' stacked descriptors must be shaped as "
-                                 f"the frames' {X.shape}, got {X_mirror.shape}")
-        poses, prob, _ = self._hypotheses(X, m, with_limbs=False)
-        limbs = mirror_limbs = None
-        if self.has_limbs and self.mixture is not None:
-            both = self._limbs(np.vstack([X, X_mirror]))
-            limbs, mirror_limbs = both[:len(X)], both[len(X):]
-        front = self._front_probability(X)
-        return poses, prob, limbs, front, mirror_limbs
-
-    def _front_probability(self, X: np.ndarray) -> np.ndarray | None:
-        """The side classifier's probability (N,) that each row of the regressor's input X
-        (N, input_length) faces the camera's half; None unless :attr:`gives_canonical_pairs`."""
-        return (self.side_classifier.front_probability(X) if self.gives_canonical_pairs
-                else None)
-
     @property
     def gives_canonical_pairs(self) -> bool:
         """Whether the tracker's front/back chain carries this model's canonical limbs and
@@ -368,18 +339,6 @@ class PoseModel:
         test both the hypotheses and their switching rates go by."""
         return (self.side_classifier is not None and self.mixture is not None
                 and self.has_limbs)
-
-    def _hypotheses(self, X: np.ndarray, m: int, with_limbs: bool
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """(poses, probabilities, limbs or None) from the regressor's input X (N,
-        input_length); limbs only when asked and the model has a head."""
-        if self.mixture is None:
-            return self._regress(X)[:, None], np.ones((len(X), 1)), None
-        gate = self.mixture.predict_proba(X)
-        poses, prob = self.mixture.predict_hypotheses(X, m, proba=gate)
-        poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
-        limbs = self._limbs(X, gate) if with_limbs and self.has_limbs else None
-        return poses, prob, limbs
 
     def _limbs(self, X: np.ndarray, gate: np.ndarray | None = None) -> np.ndarray:
         """Canonical poses (N, 55) for the limbs from the regressor's input X (N,

@@ -24,7 +24,7 @@ default 0.5) and the smoothed output of `track --smooth`:
   head    heading RMS error, degrees
   mpjpe   mean per-joint position error, millimetres (root-aligned)
 
-and, per trial and model, the inputs' novelty (PoseModel.novelty: distance to the training
+and, per trial and model, the inputs' novelty (PoseEstimates.novelty: distance to the training
 silhouettes over their own 99th percentile; fps includes its extra query per frame).
 
 A --video-dir that is a file, or a --json that could not be written or would overwrite what

@@ -20,7 +20,7 @@ tracks, the 53 body angles against the project's body fitted to the reference ke
 (sequences.keypoint_fit; error beside the training-mean pose's, correlation of the 8
 most-moving angles), and across views the heading consistency (heading differences against
 camera azimuth differences) and disagreement of the 53 body angles, and the novelty of the
-subject's silhouettes (how unlike the training silhouettes they are: PoseModel.novelty;
+subject's silhouettes (how unlike the training silhouettes they are: PoseEstimates.novelty;
 --masks draws them); the flexion and heading figures also for the smoothed poses (track's
 JSON and BVH) and the lagged ones (``track --lag 0.5``, the live view's). In each view the
 subject is, per
@@ -83,7 +83,7 @@ class ViewTrack(NamedTuple):
     """Every pose the tracker output on one video, one row per (frame, person): frames (n,)
     int video frame indices, filtered, raw and smoothed (each whole track RTS-smoothed, as
     track's JSON and BVH get them) (n, 55) pose vectors, track_ids (n,) int, bbox_px (n, 4)
-    (x, y, w, h) pixels, novelty (n,) (PoseModel.novelty; NaN if unknown), lagged (n, 55): as
+    (x, y, w, h) pixels, novelty (n,) (PoseEstimates.novelty; NaN if unknown), lagged (n, 55): as
     ``track --lag LAG_S`` streams them (the live view's default; tracker.fixed_lag)."""
 
     frames: np.ndarray

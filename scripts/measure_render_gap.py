@@ -10,7 +10,7 @@ For each held-out trial (sequences.dataset.HELD_OUT_TRIALS) and --views views of
 --frames frames are made three ways: plain (the data set's rasterised masks), hand noise
 (sequences.mask_noise through the extractor's cleaning, what training uses today) and
 realistic. Printed: the Pose2Sim cameras' heights and tilts beside the realistic cameras';
-per kind, the model's novelty (PoseModel.novelty of the stacked descriptors: median and share
+per kind, the model's novelty (PoseEstimates.novelty of the stacked descriptors: median and share
 above 1) and the descriptor distance to the plain mask of the same frame (median, and over the
 median distance between two random plain frames); for the realistic masks their IoU with the
 plain mask in the frame and their area over it, and the milliseconds per frame with the
@@ -103,7 +103,7 @@ def kind_measures(model, X: np.ndarray, plain: np.ndarray, sequence: list, rng) 
     ok = np.isfinite(X).all(axis=1) & np.isfinite(plain).all(axis=1)
     ids = np.unique(sequence, return_inverse=True)[1]
     Xf = np.where(np.isfinite(X), X, 0.0)
-    novelty = model.novelty(stack_frames(Xf, model.stack_depth, ids))[ok]
+    novelty = model.hypotheses(stack_frames(Xf, model.stack_depth, ids)).novelty[ok]
     distance = np.linalg.norm(X[ok] - plain[ok], axis=1)
     a, b = rng.integers(ok.sum(), size=(2, 2000))
     between = np.median(np.linalg.norm(plain[ok][a] - plain[ok][b], axis=1))

@@ -403,7 +403,7 @@ def pose_measures(estimate, truth, constant_pose, m: int = DEFAULT_TOP_ANGLES,
 
 
 def novelty_summary(novelty) -> dict:
-    """Per-frame novelty (n,) (regressor.pose_model.PoseModel.novelty: distance to the
+    """Per-frame novelty (n,) (regressor.estimator.PoseEstimates.novelty: distance to the
     training silhouettes over their own 99th percentile; NaN where unknown) summarised:
     {"median", "share_above_1"} (share of known frames above 1, where the regressor
     extrapolates); both None when no frame is known."""

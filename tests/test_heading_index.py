@@ -54,17 +54,17 @@ def _indexed_model():
 def test_mixture_model_with_an_index_round_trips_and_its_poses_are_the_experts(tmp_path):
     """The index gives novelty only: the poses are the experts' own, index or not."""
     model, x = _indexed_model()
-    poses, prob = model.predict_hypotheses(x[:30], 2)
-    own, _ = _mixture_model()[0].predict_hypotheses(x[:30], 2)
+    poses = model.hypotheses(x[:30], 2).poses
+    own = _mixture_model()[0].hypotheses(x[:30], 2).poses
     np.testing.assert_allclose(poses, own, atol=1e-9)
-    assert np.all(np.isfinite(model.novelty(x[:30])))
+    assert np.all(np.isfinite(model.hypotheses(x[:30]).novelty))
     path = tmp_path / "indexed.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)
     assert loaded.heading_index is not None and loaded.heading_index.k == 5
     np.testing.assert_allclose(loaded.heading_index.folded_deg, model.heading_index.folded_deg,
                                atol=1e-4)
-    a, _ = loaded.predict_hypotheses(x[:30], 2)       # the file keeps some parts as float16
+    a = loaded.hypotheses(x[:30], 2).poses       # the file keeps some parts as float16
     assert np.abs(heading_deg(a[:, 0]) - heading_deg(poses[:, 0])).max() < 1.0
 
 
@@ -156,10 +156,11 @@ def test_novelty_is_low_near_training_rows_and_high_far_from_them():
 
 def test_a_model_reports_novelty_only_with_an_index():
     model, x = _indexed_model()
-    n = model.novelty(x[:20])
+    n = model.hypotheses(x[:20]).novelty
     assert n.shape == (20,) and np.isfinite(n).all() and np.median(n) < 1.0
-    assert (model.novelty(x[:20] + 50.0) > 1.0).all()
-    assert np.isnan(_mixture_model()[0].novelty(x[:5])).all()
+    assert (model.hypotheses(x[:20] + 50.0).novelty > 1.0).all()
+    assert np.isnan(_mixture_model()[0].hypotheses(x[:5]).novelty).all()
+    assert np.isnan(model.hypotheses(x[:5], novelty=False).novelty).all()    # not asked
 
 
 def test_typical_distance_leaves_each_row_out_also_with_duplicates_and_few_rows():
@@ -215,7 +216,7 @@ def test_a_small_index_without_a_typical_distance_still_saves_and_loads(tmp_path
     model.heading_index = build_heading_index(x, heading, rows=4, dims=3, k=5)
     save_pose_model(tmp_path / "small.npz", model)
     assert "heading_index_typical_distance" not in load_model(tmp_path / "small.npz").parts
-    assert np.isnan(load_pose_model(tmp_path / "small.npz").novelty(x[:3])).all()
+    assert np.isnan(load_pose_model(tmp_path / "small.npz").hypotheses(x[:3]).novelty).all()
 
 
 def test_a_repeated_small_query_reuses_its_neighbours_and_others_search_again():

@@ -6,6 +6,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from regressor.angles import pose_angles, wrap_deg
+from regressor.estimator import PoseEstimates
 from sequences.pose_vector import front_back_flip
 from tracker.filtering import PoseKalmanFilter
 from tracker.hypotheses import (FrontBackTracker, Hypotheses, _with_flips, propose,
@@ -56,11 +57,13 @@ def test_hypotheses_are_the_pose_and_its_flip_and_a_mixture_adds_its_experts():
     assert h.poses.shape == (2, 55) and np.array_equal(h.raw, raw)
     np.testing.assert_allclose(h.poses[1], front_back_flip(h.poses[0]))
 
-    class Mixture:
-        def predict_hypotheses(self, stacked, m):      # PoseModel's contract: rows (N, k*D)
+    class Mixture:                      # PoseEstimator's members that propose uses
+        canonical_priors = None
+
+        def hypotheses(self, stacked, m, mirrored=None, novelty=True):   # rows (N, k*D)
             n = len(stacked)
             poses = np.array([_pose(10.0, 0.9), _pose(-60.0, 0.5)])
-            return np.repeat(poses[None], n, axis=0), np.tile([0.7, 0.3], (n, 1))
+            return PoseEstimates(np.repeat(poses[None], n, axis=0), np.tile([0.7, 0.3], (n, 1)))
 
     h = propose(Mixture(), np.zeros(6))
     assert h.poses.shape == (4, 55) and h.log_evidence[0] > h.log_evidence[2]

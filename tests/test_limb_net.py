@@ -246,8 +246,9 @@ def test_the_tracker_never_imports_scikit_learn():
             "from regressor.pose_model import load_pose_model, DEFAULT_MODEL_PATH\n"
             "m = load_pose_model(DEFAULT_MODEL_PATH)\n"
             "x = np.full((2, m.stack_depth * m.descriptor_length), 0.1)\n"
-            "assert m.predict_hypotheses_and_limbs(x, 2)[2].shape == (2, 55)\n"
-            "front = m.predict_frame(x, 2)[3]\n"
+            "estimates = m.hypotheses(x, 2)\n"
+            "assert estimates.limbs.shape == (2, 55)\n"
+            "front = estimates.front\n"
             "print(len(m.limb_net.members), front.shape == (2,), 'sklearn' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120)
@@ -267,8 +268,7 @@ def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp
                                   hidden=(16,), max_iter=40)
     assert model.has_limbs
     np.testing.assert_allclose(model.predict_limbs(x[:20]), model.limb_net.predict(x[:20]))
-    _, _, limbs = model.predict_hypotheses_and_limbs(x[:20], 2)
-    np.testing.assert_array_equal(limbs, model.predict_limbs(x[:20]))
+    np.testing.assert_array_equal(model.hypotheses(x[:20], 2).limbs, model.predict_limbs(x[:20]))
     path = tmp_path / "net.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)

@@ -130,14 +130,14 @@ def test_one_pass_for_the_frames_and_their_mirror_images_gives_each_ones_answer(
     from regressor.stacking import stack_frames
     pairs = [model.describe_with_mirror(m) for m in masks]
     X, M = (stack_frames(np.array([p[i] for p in pairs]), model.stack_depth) for i in (0, 1))
-    poses, prob, limbs, front, mirror_limbs = model.predict_frame_and_mirror(X, M)
-    alone = model.predict_frame(X)
-    for got, want in zip((poses, prob, limbs, front), alone):
-        np.testing.assert_allclose(got, want, atol=1e-4)
-    np.testing.assert_allclose(mirror_limbs, model.predict_limbs(M), atol=1e-4)
-    assert not np.allclose(mirror_limbs[:, 2:], limbs[:, 2:], atol=1.0)
+    both, alone = model.hypotheses(X, mirrored=M), model.hypotheses(X)
+    assert alone.mirror_limbs is None
+    for name in ("poses", "probabilities", "limbs", "front", "novelty"):
+        np.testing.assert_allclose(getattr(both, name), getattr(alone, name), atol=1e-4)
+    np.testing.assert_allclose(both.mirror_limbs, model.predict_limbs(M), atol=1e-4)
+    assert not np.allclose(both.mirror_limbs[:, 2:], both.limbs[:, 2:], atol=1.0)
     with pytest.raises(PoseModelError, match="mirror"):
-        model.predict_frame_and_mirror(X, M[:2])
+        model.hypotheses(X, mirrored=M[:2])
 
 
 @pytest.mark.slow

@@ -197,11 +197,10 @@ def test_mixture_model_file_round_trip(tmp_path):
     # Centres are stored as float16, weights as float32: predictions agree closely.
     a, b = loaded.predict_batch(x[:20]), model.predict_batch(x[:20])
     assert np.abs(a - b).max() < 0.02 * np.abs(b).max()
-    p0, w0 = model.predict_hypotheses(x[:20], 2)
-    p1, w1 = loaded.predict_hypotheses(x[:20], 2)
+    w0 = model.hypotheses(x[:20], 2).probabilities
+    w1 = loaded.hypotheses(x[:20], 2).probabilities
     np.testing.assert_allclose(w1, w0, atol=1e-2)
     assert loaded.summary()["basis"] == "mixture" and loaded.description["source"] == "synthetic"
-    assert loaded.predict(x[0]).shape == (55,)
 
 
 def test_sparse_rvm_experts_round_trip_with_their_variance(tmp_path):
@@ -210,7 +209,7 @@ def test_sparse_rvm_experts_round_trip_with_their_variance(tmp_path):
     path = tmp_path / "rvm.npz"
     save_pose_model(tmp_path / "plain.npz", model)   # without its variance: a smaller file
     plain = load_pose_model(tmp_path / "plain.npz")
-    assert not plain.gives_variance and plain.noise_scales(x[:3]) is None
+    assert not plain.gives_variance
     assert all(isinstance(e, SparseRVMRegressor) for e in plain.mixture.experts_)
     np.testing.assert_allclose(plain.predict_batch(x[:20]), model.predict_batch(x[:20]),
                                atol=0.02 * np.abs(model.predict_batch(x[:20])).max())
@@ -226,11 +225,11 @@ def test_sparse_rvm_experts_round_trip_with_their_variance(tmp_path):
     assert np.abs(a - b).max() < 0.02 * np.abs(b).max()
     np.testing.assert_allclose(loaded.predict_variance(x[:20]), model.predict_variance(x[:20]),
                                rtol=1e-3)
-    scales = loaded.noise_scales(x[:20], 2)
     _, std = model.mixture.predict(x[:20], return_std=True)
-    assert scales.shape == (20, 2) and np.all(scales > 0)
-    np.testing.assert_allclose(scales[:, 0], 0.01 * (std[:, 2:] ** 2).mean(1), rtol=1e-3)
-    assert _mixture_model()[0].noise_scales(x[:3]) is None       # damped least squares
+    np.testing.assert_allclose(loaded.predict_variance(x[:20]), (std[:, 2:] ** 2).mean(1),
+                               rtol=1e-3)
+    assert loaded.variance_calibration == 0.01
+    assert not _mixture_model()[0].gives_variance                 # damped least squares
 
 
 def test_a_broken_sparse_rvm_expert_part_is_refused_in_one_line(tmp_path):
@@ -349,12 +348,10 @@ def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
     expected = alone.predict(x[:50])
     expected[:, 2:] = wrap_deg(expected[:, 2:] + model.limb_head.angle_centre_deg)
     np.testing.assert_allclose(model.predict_limbs(x[:50]), expected, atol=1e-6)
-    # the tracker's one-pass call gives the same as the two separate ones
-    poses, prob, limbs = model.predict_hypotheses_and_limbs(x[:50], 2)
-    p0, w0 = model.predict_hypotheses(x[:50], 2)
-    np.testing.assert_array_equal(poses, p0)
-    np.testing.assert_array_equal(prob, w0)
-    np.testing.assert_array_equal(limbs, model.predict_limbs(x[:50]))
+    # the tracker's one-pass call gives the limbs as the separate one does
+    estimates = model.hypotheses(x[:50], 2)
+    assert estimates.poses.shape == (50, 2, 55) and estimates.front is None
+    np.testing.assert_array_equal(estimates.limbs, model.predict_limbs(x[:50]))
     path = tmp_path / "mixture.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)
@@ -416,8 +413,11 @@ def test_single_rvm_model_still_gives_one_hypothesis():
     model = load_pose_model(DEFAULT_MODEL_PATH.with_name("per_frame_model.npz"))   # one RVM
     assert model.mixture is None
     x = np.full((2, model.stack_depth * model.descriptor_length), 0.5)
-    poses, prob = model.predict_hypotheses(x, 3)
-    assert poses.shape == (2, 1, 55) and np.all(prob == 1)
+    estimates = model.hypotheses(x, 3)
+    assert estimates.poses.shape == (2, 1, 55) and np.all(estimates.probabilities == 1)
+    np.testing.assert_array_equal(estimates.poses[:, 0], model.predict_batch(x))
+    assert estimates.limbs is None and estimates.front is None
+    assert np.isnan(estimates.novelty).all()                      # no heading index
 
 
 def test_mask_noise_is_reproducible_and_video_like():

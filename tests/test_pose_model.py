@@ -9,7 +9,7 @@ import pytest
 
 from regressor.model_file import load_model, save_model
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, DEFAULT_MODEL_PATH, PoseModelError,
-                                  load_pose_model, save_pose_model, training_fps_of)
+                                  load_pose_model, save_pose_model)
 from tracker import PoseTracker, TrackerSettings
 from tracker.hypotheses import chain_options
 
@@ -56,8 +56,7 @@ def test_the_tracker_stacks_and_tempers_at_the_models_training_frame_rate():
     assert PoseTracker(described, 60.0, TrackerSettings()).stack_step == 1
     assert chain_options(described)["reference_fps"] == 60.0
     assert replace(model, description={}).training_fps == 30.0
-    # A bare estimator (no training_fps) is taken as trained at the data sets' 30 fps.
-    assert training_fps_of(object()) == 30.0 == chain_options(object())["reference_fps"]
+    assert chain_options(replace(model, description={}))["reference_fps"] == 30.0
 
 
 # ------------------------------------------------------------------ edited model files

@@ -52,7 +52,7 @@ def test_the_trained_model_round_trips_with_its_variance(trained, tmp_path):
     save_pose_model(tmp_path / "m.npz", model)
     loaded = load_pose_model(tmp_path / "m.npz")
     assert loaded.variance_calibration == model.variance_calibration
-    np.testing.assert_allclose(loaded.noise_scales(Xs[:30]), model.noise_scales(Xs[:30]),
+    np.testing.assert_allclose(loaded.predict_variance(Xs[:30]), model.predict_variance(Xs[:30]),
                                rtol=1e-2)
 
 

@@ -113,10 +113,10 @@ def test_canonical_hypotheses_are_the_member_and_its_flip_weighed_by_the_classif
 
 def test_only_a_model_with_limbs_and_a_side_classifier_switches_canonically():
     class Plain:
-        pass
+        gives_canonical_pairs, canonical_priors = False, None
 
     class Canonical:
-        gives_canonical_pairs = True
+        gives_canonical_pairs, canonical_priors = True, None
 
     assert switch_probability(Plain()) == SWITCH_PROBABILITY
     assert switch_probability(Canonical()) == CANONICAL_SWITCH_PROBABILITY
@@ -200,13 +200,14 @@ def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pai
     targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),
                                wrap_deg(40 * np.tanh(x[:, :1]) + rng.normal(0, 1, (len(x), 53)))])
     model.side_classifier = _classifier(P=8)
-    assert not model.gives_canonical_pairs and model.predict_frame(x[:2], 2)[3] is None
+    assert not model.gives_canonical_pairs and model.hypotheses(x[:2], 2).front is None
     with pytest.raises(PoseModelError, match="needs the model's limbs"):
         save_pose_model(tmp_path / "nolimbs.npz", model)
     model.limb_net = fit_limb_net(x, targets, np.zeros(53), np.eye(55)[0], members=1,
                                   hidden=(8,), max_iter=20)
     assert model.gives_canonical_pairs
-    poses, gate, limbs, front = model.predict_frame(x[:5], 2)
+    estimates = model.hypotheses(x[:5], 2)
+    poses, limbs, front = estimates.poses, estimates.limbs, estimates.front
     np.testing.assert_allclose(front, model.side_classifier.front_probability(x[:5]))
     hyps = propose_batch(model, x[:5])
     assert all(h.canonical and len(h.poses) == 2 for h in hyps)
@@ -223,7 +224,7 @@ def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pai
     path = tmp_path / "side.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)
-    np.testing.assert_allclose(loaded.predict_frame(x[:5], 2)[3], front, atol=1e-3)
+    np.testing.assert_allclose(loaded.hypotheses(x[:5], 2).front, front, atol=1e-3)
     limb_parts = [k for k in load_model(path).parts if k.startswith("limb_net_")]
     assert_refused_when_changed(path, [(dict.fromkeys(limb_parts), "needs the model's limbs"),
                                        (_classifier(P=5).to_arrays(), "takes 5 inputs"),

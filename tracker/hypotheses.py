@@ -3,9 +3,9 @@
 A silhouette cannot tell a body from its reflection in depth (sequences.pose_vector.
 front_back_flip: heading h -> 180 - h, left and right exchanged). So each frame the regressor
 proposes K hypotheses (:func:`propose`): its pose and that pose's flip, or, for a mixture of
-experts with ``predict_hypotheses(stacked, m)``, each expert's pose and its flip. The tracker
-keeps a discrete state per track, s_t in {0..K-1}: which hypothesis of frame t is the truth, in
-a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter bank):
+experts, each expert's pose and its flip (regressor.estimator.PoseEstimator.hypotheses). The
+tracker keeps a discrete state per track, s_t in {0..K-1}: which hypothesis of frame t is the
+truth, in a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter bank):
 
     alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
 
@@ -49,7 +49,8 @@ import numpy as np
 
 from regressor.angles import heading_norm
 from regressor.canonical_priors import CanonicalPriors
-from regressor.pose_model import DEFAULT_TRAINING_FPS, training_fps_of
+from regressor.estimator import PoseEstimates, PoseEstimator
+from regressor.pose_model import DEFAULT_TRAINING_FPS
 from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from .member_path import members_over_time
@@ -85,7 +86,7 @@ CANONICAL_OVERALL = 0.624
 DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
     switch=CANONICAL_SWITCH_PROBABILITY, front_edges=CANONICAL_FRONT_EDGES,
     by_front=CANONICAL_BY_FRONT, overall=CANONICAL_OVERALL)
-#: Experts asked of a mixture model's predict_hypotheses (2 states each: pose and flip): the
+#: Experts asked of a mixture model's hypotheses (2 states each: pose and flip): the
 #: other experts' poses added wrong headings more often than right ones.
 DEFAULT_EXPERTS = 1
 _FLOOR = 1e-3                            # no evidence is ever certain
@@ -207,95 +208,79 @@ def member_probability(members: np.ndarray, front) -> np.ndarray:
     return np.where(np.asarray(members)[..., 0] >= 0, front, 1.0 - front)
 
 
-def canonical_priors(estimator) -> CanonicalPriors:
+def canonical_priors(estimator: PoseEstimator) -> CanonicalPriors:
     """The priors the chain weighs an estimator's canonical pairs by: its own
     (PoseModel.canonical_priors) when it carries them, else DEFAULT_CANONICAL_PRIORS."""
-    return getattr(estimator, "canonical_priors", None) or DEFAULT_CANONICAL_PRIORS
+    return estimator.canonical_priors or DEFAULT_CANONICAL_PRIORS
 
 
-def switch_probability(estimator) -> tuple[float, float]:
+def switch_probability(estimator: PoseEstimator) -> tuple[float, float]:
     """The chain's switching probabilities for this estimator's hypotheses: canonical ones
     (a model with limbs and a side classifier; its priors' switch) switch far less often
     than a pose and its flip."""
-    if getattr(estimator, "gives_canonical_pairs", False):
+    if estimator.gives_canonical_pairs:
         return canonical_priors(estimator).switch
     return SWITCH_PROBABILITY
 
 
-def evidence_weight(estimator) -> float:
+def evidence_weight(estimator: PoseEstimator) -> float:
     """The chain's exponent per frame on this estimator's evidence: CANONICAL_EVIDENCE_WEIGHT
     for canonical pairs (a model with limbs and a side classifier), else EVIDENCE_WEIGHT."""
-    if getattr(estimator, "gives_canonical_pairs", False):
+    if estimator.gives_canonical_pairs:
         return CANONICAL_EVIDENCE_WEIGHT
     return EVIDENCE_WEIGHT
 
 
-def chain_options(estimator) -> dict:
+def chain_options(estimator: PoseEstimator) -> dict:
     """FrontBackTracker's keyword arguments that depend on the estimator: its switch rates
     (switch_probability), evidence weight (evidence_weight) and the frame rate they hold at
     (its training_fps). The tracker's chains and the
     offline replays that choose their weights both take them from here."""
     return {"switch": switch_probability(estimator),
             "evidence_weight": evidence_weight(estimator),
-            "reference_fps": training_fps_of(estimator)}
+            "reference_fps": estimator.training_fps}
 
 
-def propose(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
+def propose(estimator: PoseEstimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
             mirrored: np.ndarray | None = None) -> Hypotheses:
-    """The hypotheses of one frame from a stacked descriptor (k*D,): the estimator's
-    ``predict_hypotheses(stacked (N, k*D), n_experts) -> (poses (N, m, 55), probabilities
-    (N, m))`` if it has one (regressor.pose_model.PoseModel: a mixture's top experts, or a
-    single regressor's one pose; with ``predict_hypotheses_and_limbs``, also its limb head's
-    pose), else its ``predict``; each pose and its front/back flip. An estimator with
-    ``predict_frame`` (PoseModel) gives all of these and the side classifier's probability
-    in one pass; with a side classifier and limbs, the hypotheses are
-    :func:`canonical_hypotheses` instead. mirrored: the stacked descriptor (k*D,) of the
-    frames' mirror images (tracker.mirror_limbs); its limbs are averaged into the frame's."""
+    """The hypotheses of one frame from a stacked descriptor (k*D,): :func:`propose_batch`
+    of one row. mirrored: the stacked descriptor (k*D,) of the frames' mirror images
+    (tracker.mirror_limbs); its limbs are averaged into the frame's."""
     return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts,
                          None if mirrored is None else np.asarray(mirrored, float)[None])[0]
 
 
-def propose_batch(estimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
-                  mirrored: np.ndarray | None = None) -> list[Hypotheses]:
-    """:func:`propose` for stacked descriptors (N, k*D) at once (offline evaluation);
-    mirrored (N, k*D) or None as there."""
-    if hasattr(estimator, "predict_frame") or hasattr(estimator, "predict_hypotheses"):
-        if hasattr(estimator, "predict_frame"):
-            if mirrored is not None and hasattr(estimator, "predict_frame_and_mirror"):
-                # the frames and their mirror images through the limb networks at once
-                poses, gate, limbs, front, mirror_limbs = estimator.predict_frame_and_mirror(
-                    stacked, mirrored, n_experts)
-                if limbs is not None:
-                    limbs = mirror_mean(limbs, mirror_limbs)
-            else:
-                poses, gate, limbs, front = estimator.predict_frame(stacked, n_experts)
-                limbs = _with_mirror(estimator, limbs, mirrored)
-            if front is not None and limbs is not None:
-                priors = canonical_priors(estimator)
-                return [canonical_hypotheses(p[0], lb, f, priors)
-                        for p, lb, f in zip(poses, limbs, front)]
-        elif hasattr(estimator, "predict_hypotheses_and_limbs"):
-            poses, gate, limbs = estimator.predict_hypotheses_and_limbs(stacked, n_experts)
-            limbs = _with_mirror(estimator, limbs, mirrored)
-        else:
-            (poses, gate), limbs = estimator.predict_hypotheses(stacked, n_experts), None
-        if limbs is None:
-            limbs = [None] * len(poses)
-        return [_with_flips(np.asarray(p, float), np.asarray(g, float), lb)
-                for p, g, lb in zip(poses, gate, limbs)]
-    raws = estimator.predict_batch(stacked)
-    return [_with_flips(raw[None], np.ones(1)) for raw in raws]
+def propose_batch(estimator: PoseEstimator, stacked: np.ndarray,
+                  n_experts: int = DEFAULT_EXPERTS, mirrored: np.ndarray | None = None
+                  ) -> list[Hypotheses]:
+    """The hypotheses of stacked descriptors (N, k*D) (one per row): the estimator's
+    :meth:`~regressor.estimator.PoseEstimator.hypotheses` with n_experts experts, turned into
+    front/back hypotheses by :func:`hypotheses_from`. mirrored (N, k*D) or None: the mirror
+    images' stacked descriptors (tracker.mirror_limbs)."""
+    estimates = estimator.hypotheses(stacked, n_experts, mirrored=mirrored, novelty=False)
+    return hypotheses_from(estimates, canonical_priors(estimator))
 
 
-def _with_mirror(estimator, limbs: np.ndarray | None, mirrored: np.ndarray | None):
-    """limbs (N, 55) averaged with the estimator's limbs for the mirror images' stacked
-    descriptors (tracker.mirror_limbs.mirror_mean); as they are without either."""
-    if limbs is None or mirrored is None:
-        return limbs
-    return mirror_mean(limbs, estimator.predict_limbs(mirrored))
+def hypotheses_from(estimates: PoseEstimates,
+                    priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> list[Hypotheses]:
+    """Each row's front/back hypotheses from a model's answer (regressor.estimator
+    .PoseEstimates): with limbs and the side classifier's front probability, the limbs'
+    member and its flip (:func:`canonical_hypotheses`, weighed by priors); else each expert's
+    pose and its flip (:func:`_with_flips`), carrying the limbs. The limbs are first averaged
+    with the mirror images' when the answer has those (tracker.mirror_limbs.mirror_mean)."""
+    poses, gate, limbs = estimates.poses, estimates.probabilities, estimates.limbs
+    if limbs is not None and estimates.mirror_limbs is not None:
+        limbs = mirror_mean(limbs, estimates.mirror_limbs)
+    if estimates.front is not None and limbs is not None:
+        return [canonical_hypotheses(p[0], lb, f, priors)
+                for p, lb, f in zip(poses, limbs, estimates.front)]
+    if limbs is None:
+        limbs = [None] * len(poses)
+    return [_with_flips(np.asarray(p, float), np.asarray(g, float), lb)
+            for p, g, lb in zip(poses, gate, limbs)]
 
 
-def propose_sequence(estimator, masks, n_experts: int = DEFAULT_EXPERTS,
+def propose_sequence(estimator: PoseEstimator, masks, n_experts: int = DEFAULT_EXPERTS,
                      mirror: bool = True, step: int = 1) -> list[Hypotheses]:
     """The hypotheses of one person's silhouette sequence (masks (H, W) bool, in order), as
     the tracker makes them frame by frame: each mask described (with its mirror image's

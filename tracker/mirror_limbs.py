@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from regressor.angles import wrap_deg
+from regressor.estimator import PoseEstimator
 from sequences.pose_vector import image_mirror
 
 
@@ -51,10 +52,7 @@ def mirror_mean(limbs: np.ndarray, mirror_limbs: np.ndarray) -> np.ndarray:
     return out
 
 
-def sees_mirror(estimator, enabled: bool = True) -> bool:
+def sees_mirror(estimator: PoseEstimator, enabled: bool = True) -> bool:
     """Whether the tracker should describe each frame's mirror image for this estimator: the
-    setting (``enabled``) and the model's own say (PoseModel.limbs_see_mirror, with
-    describe_with_mirror and predict_limbs)."""
-    return (enabled and bool(getattr(estimator, "limbs_see_mirror", False))
-            and hasattr(estimator, "describe_with_mirror")
-            and hasattr(estimator, "predict_limbs"))
+    setting (``enabled``) and the model's own say (PoseEstimator.limbs_see_mirror)."""
+    return enabled and estimator.limbs_see_mirror

@@ -1,10 +1,10 @@
 """The per-frame tracking loop: frame -> people -> track ids -> pose per track, filtered.
 
 Reads like DESIGN.md's data flow, one stage a line (see PoseTracker.process). The regressor side
-is an estimator object (regressor.pose_model.PoseModel) with three things: describe(mask) ->
-descriptor, stack_depth, predict(stacked) -> raw 55-D pose (or, for a mixture of experts,
-predict_hypotheses(stacked, m) -> (poses (m, 55), probabilities (m,))); plus the filter's noise
-models and the ambiguity threshold it was trained with. Front/back is decided per track by
+is an estimator (regressor.estimator.PoseEstimator; regressor.pose_model.PoseModel is one):
+describe(mask) -> descriptor, stack_depth, hypotheses(stacked) -> poses, probabilities, limbs,
+front probability, novelty; plus the filter's noise models, the ambiguity threshold it was
+trained with and its front/back figures. Front/back is decided per track by
 tracker.hypotheses.FrontBackTracker (one filter from the factory per hypothesis). Every stage
 is injectable: the silhouette extractor, the associator and the filter factory (norfair's
 ``filter_factory``).
@@ -21,12 +21,13 @@ import numpy as np
 
 from regressor.angles import N_ANGLES
 from regressor.edges import SilhouetteError
-from regressor.pose_model import training_fps_of
+from regressor.estimator import PoseEstimator
 from regressor.stacking import FrameStacker, stack_step
 from .association import MAX_OCCLUDED_S, Associator
 from .roll import upright_mask
 from .filtering import PoseKalmanFilter
-from .hypotheses import FrontBackTracker, chain_options, propose_batch
+from .hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, canonical_priors, chain_options,
+                         hypotheses_from)
 from .mirror_limbs import sees_mirror
 from .silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
 from .root_path import RootHistory, smoothed_roots
@@ -65,7 +66,7 @@ class TrackerSettings:
     horizontal field of view assumed for the focal length. keep_history: keep every track's
     filter inputs for PoseTracker.smoothed_track (about 0.6 KB per person per frame).
     novelty: give each pose the estimator's novelty and count each track's frames above
-    UNFAMILIAR_NOVELTY (None from an estimator without ``novelty``).
+    UNFAMILIAR_NOVELTY (NaN from a model that cannot tell, None when False).
     trust_zone_foreground: the default extractor takes the subtractor's foreground inside the
     background's unreliable zone as sure person (True) or lets colour decide on it (False).
     min_area_fraction: the default extractor's smallest person, a fraction of the image.
@@ -90,24 +91,24 @@ class TrackerSettings:
     mirror_limbs: bool = True
     min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION
 
-    def threshold(self, estimator) -> float:
+    def threshold(self, estimator: PoseEstimator) -> float:
         """The ambiguity threshold in use: this setting, else the estimator's own."""
         if self.ambiguity_threshold is not None:
             return self.ambiguity_threshold
         return estimator.ambiguity_threshold
 
-    def joint_factor(self, estimator) -> float:
+    def joint_factor(self, estimator: PoseEstimator) -> float:
         """The joints' R inflation on ambiguous frames: this setting, else the estimator's
         (CANONICAL_AMBIGUOUS_JOINT_FACTOR for one that gives canonical pairs,
         AMBIGUOUS_JOINT_FACTOR otherwise)."""
         if self.ambiguous_joint_factor is not None:
             return self.ambiguous_joint_factor
-        if getattr(estimator, "gives_canonical_pairs", False):
+        if estimator.gives_canonical_pairs:
             return CANONICAL_AMBIGUOUS_JOINT_FACTOR
         return AMBIGUOUS_JOINT_FACTOR
 
 
-def kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
+def kalman_factory(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings()
                    ) -> Callable[[float], PoseKalmanFilter]:
     """The default filter factory: fps -> a PoseKalmanFilter with the estimator's noise models
     (scaled by settings.r_scale / q_scale / heading_q_scale) and the settings' ambiguity
@@ -126,7 +127,7 @@ def kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
     return make
 
 
-def limb_kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
+def limb_kalman_factory(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings()
                         ) -> Callable[[float], PoseKalmanFilter]:
     """fps -> the PoseKalmanFilter of the output's body angles: kalman_factory's with R
     further scaled by settings.limb_r_scale (LIMB_R_SCALE)."""
@@ -134,7 +135,7 @@ def limb_kalman_factory(estimator, settings: TrackerSettings = TrackerSettings()
                                              r_scale=settings.r_scale * settings.limb_r_scale))
 
 
-def filter_factories(estimator, settings: TrackerSettings = TrackerSettings(),
+def filter_factories(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings(),
                      filter_factory: Callable[[float], PoseFilter] | None = None,
                      ) -> tuple[Callable[[float], PoseFilter], Callable[[float], PoseFilter] | None]:
     """(the front/back hypotheses' filter factory, the body angles' filter factory) as the
@@ -144,12 +145,13 @@ def filter_factories(estimator, settings: TrackerSettings = TrackerSettings(),
     raw limbs may be the other body's, and the chain's choice of member is the limbs' too."""
     if filter_factory is not None:
         return filter_factory, None
-    limbs = (None if getattr(estimator, "canonical_direction", None) is not None
+    limbs = (None if estimator.canonical_direction is not None
              else limb_kalman_factory(estimator, settings))
     return kalman_factory(estimator, settings), limbs
 
 
-def front_back_tracker(estimator, fps: float, settings: TrackerSettings = TrackerSettings(),
+def front_back_tracker(estimator: PoseEstimator, fps: float,
+                       settings: TrackerSettings = TrackerSettings(),
                        filter_factory: Callable[[float], PoseFilter] | None = None,
                        ) -> FrontBackTracker:
     """A track's front/back hypotheses with the filters of filter_factories."""
@@ -157,25 +159,12 @@ def front_back_tracker(estimator, fps: float, settings: TrackerSettings = Tracke
                              *filter_factories(estimator, settings, filter_factory))
 
 
-def _front_back_chain(estimator, fps: float, settings: TrackerSettings, chain, limbs
-                      ) -> FrontBackTracker:
+def _front_back_chain(estimator: PoseEstimator, fps: float, settings: TrackerSettings, chain,
+                      limbs) -> FrontBackTracker:
     """The one place a track's FrontBackTracker is built: the estimator's switch rates and
     evidence weight, the filter factories chain and limbs (filter_factories)."""
     return FrontBackTracker(chain, fps, **chain_options(estimator),
                             keep_history=settings.keep_history, limb_filter_factory=limbs)
-
-
-class PoseEstimator(Protocol):
-    """What the tracker needs of a trained model."""
-
-    stack_depth: int
-    measurement_covariance: np.ndarray      # (54, 54) deg^2, filter R
-    process_noise: np.ndarray               # (54,) (deg/s^2)^2, filter q
-    ambiguity_threshold: float              # raw heading norm it was trained with
-
-    def describe(self, mask: np.ndarray) -> np.ndarray: ...        # (H, W) bool -> (D,)
-
-    def predict(self, stacked: np.ndarray) -> np.ndarray: ...      # (k*D,) -> (55,)
 
 
 class PoseFilter(Protocol):
@@ -195,7 +184,7 @@ class TrackedPose:
     image); centroid_px: (x, y) pixels; bbox_px: (x, y, w, h) pixels (None when unknown);
     runner_up: (55,) the filtered pose of the next most probable front/back hypothesis and
     runner_up_probability, when that is close (tracker.hypotheses.CLOSE_PROBABILITY), else None;
-    novelty: how unlike the training silhouettes the frame's input is (PoseModel.novelty; about
+    novelty: how unlike the training silhouettes the frame's input is (PoseEstimates.novelty; about
     1 % of training rows are above 1), with TrackerSettings(novelty=True), else None."""
 
     frame_index: int
@@ -273,10 +262,7 @@ class PoseTracker:
         self._mirror = sees_mirror(estimator, settings.mirror_limbs)
         #: Frames between a track's stacked descriptors: a video faster than the model's
         #: training sequences stacks frames as far apart in time as those were.
-        self.stack_step = stack_step(self.fps, training_fps_of(estimator))
-        index = getattr(estimator, "heading_index", None)
-        if settings.novelty and index is not None:
-            index.typical_distance()     # novelty's scale, computed once: here, not at frame 1
+        self.stack_step = stack_step(self.fps, estimator.training_fps)
         self.frame_shape: tuple[int, int] | None = None      # (height, width) pixels
         self._focal_px = 0.0
         self.tracks: dict[int, _TrackState] = {}
@@ -419,9 +405,10 @@ class PoseTracker:
         clock = time.perf_counter()
         X = np.asarray(stacked, dtype=np.float64)
         X_mirror = None if mirrored[0] is None else np.asarray(mirrored, dtype=np.float64)
-        hypotheses = propose_batch(self.estimator, X, mirrored=X_mirror)
-        novelty = ([float(v) for v in self.estimator.novelty(X)]
-                   if self.settings.novelty and hasattr(self.estimator, "novelty")
+        estimates = self.estimator.hypotheses(X, DEFAULT_EXPERTS, mirrored=X_mirror,
+                                              novelty=self.settings.novelty)
+        hypotheses = hypotheses_from(estimates, canonical_priors(self.estimator))
+        novelty = ([float(v) for v in estimates.novelty] if self.settings.novelty
                    else [None] * len(X))
         self._lap("regression", clock)
         return hypotheses, novelty

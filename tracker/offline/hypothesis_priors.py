@@ -27,7 +27,7 @@ from regressor.stacking import stack_frames
 from sequences.spiral import spiral_walk
 from ..hypotheses import DEFAULT_EXPERTS, FrontBackTracker, chain_options, propose_sequence
 from ..pipeline import kalman_factory
-from .evaluation import CameraOptions, _model_poses, cmu_motion, render_silhouettes
+from .evaluation import CameraOptions, cmu_motion, render_silhouettes
 
 
 def raw_is_nearer(raw: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -56,8 +56,8 @@ def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
                               n_experts: int = DEFAULT_EXPERTS, video: bool = True) -> dict:
     """The model's raw outputs on each BVH rendered as a spiral walk (all headings): per norm
     bin the fraction of frames whose raw pose is nearer the truth than its flip, and the rate
-    per frame at which that changes (the switching probability). For a mixture (a model with
-    ``predict_hypotheses``) each of the top n_experts experts' poses counts as a raw pose, as
+    per frame at which that changes (the switching probability). For a mixture each of the
+    top n_experts experts' poses (PoseModel.hypotheses) counts as a raw pose, as
     each gets its own evidence in tracker.hypotheses; switches are counted per expert slot
     (slot i at t -> slot i at t + 1) and pooled. video: describe video-like masks
     (video_like)."""
@@ -89,10 +89,8 @@ def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
 
 def _slot_poses(model, masks, n_experts: int) -> list[np.ndarray]:
     """Raw poses (T, 55) per expert slot: the top n_experts of a mixture, else the one pose."""
-    if not hasattr(model, "predict_hypotheses"):
-        return [_model_poses(model, masks)]
     X = np.array([model.describe(m) for m in masks])
-    poses, _ = model.predict_hypotheses(stack_frames(X, model.stack_depth), n_experts)
+    poses = model.hypotheses(stack_frames(X, model.stack_depth), n_experts, novelty=False).poses
     return [poses[:, i] for i in range(poses.shape[1])]
 
 
@@ -188,7 +186,7 @@ def learn_canonical_priors(model, bvh_files) -> tuple[CanonicalPriors, dict]:
     validation_renders of bvh_files (prior_files), and canonical_statistics' dict they came
     from (with each bin's frame count)."""
     from ..hypotheses import CANONICAL_FRONT_EDGES
-    if not getattr(model, "gives_canonical_pairs", False):
+    if not model.gives_canonical_pairs:
         raise ValueError("canonical priors need a model with limbs and a side classifier")
     stats = canonical_statistics(validation_renders(model, bvh_files))
     return CanonicalPriors.from_statistics(stats, CANONICAL_FRONT_EDGES), stats

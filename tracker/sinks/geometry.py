@@ -107,7 +107,7 @@ def pose_label(track_id: int, ambiguous: bool = False, unfamiliar: bool = False)
 
 
 def known_novelty(value) -> float | None:
-    """A pose's novelty (PoseModel.novelty, a unitless ratio) checked: a float >= 0, or None
+    """A pose's novelty (PoseEstimates.novelty, a unitless ratio) checked: a float >= 0, or None
     when unknown (None, or NaN from a model without a heading index); SinkInputError for
     anything else (negative, infinite, not one number). Sinks round it only when writing."""
     if value is None:

@@ -28,7 +28,7 @@ Layout (format version 1)::
                                            # (the filtered one is 1 by construction)
                  "ambiguous": [bool], "ambiguous_frames": int,
                  "novelty": [float or null],  # how unlike the training silhouettes each
-                                              # frame's is (PoseModel.novelty; null: unknown)
+                                              # frame's is (PoseEstimates.novelty; null: unknown)
                  "unfamiliar_frames": int,    # frames with novelty above
                                               # regressor.pose_model.UNFAMILIAR_NOVELTY (1)
                  "heading_mean_deg": float,  # circular mean of heading_deg

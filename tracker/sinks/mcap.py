@@ -3,7 +3,7 @@
 Channels (JSON messages, JSON-schema schemas):
 - ``/pose`` (schema ``silhouette_pose.TrackedPose``): one message per track per frame: frame
   index, time, track id, ambiguous flag, the centroid in pixels and the novelty (how unlike the
-  training silhouettes the frame's is: PoseModel.novelty) when known, and for both the raw
+  training silhouettes the frame's is: PoseEstimates.novelty) when known, and for both the raw
   regressor output and the Kalman-filtered pose (with ``track --lag``, the pose fixed-lag
   smoothed instead: tracker.fixed_lag; the ``settings`` metadata says which): heading in
   degrees, heading norm and the 55 values keyed by ``sequences.pose_vector.pose_vector_names()``
