@@ -7,6 +7,7 @@ Everything per frame is an OpenCV or numpy whole-image operation; Python loops r
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import cv2
@@ -291,16 +292,23 @@ def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5,
     """
     cleaned = mask
     if open_px > 1:
-        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (open_px, open_px))
-        opened = cv2.morphologyEx(cleaned, cv2.MORPH_OPEN, kernel)
+        opened = cv2.morphologyEx(cleaned, cv2.MORPH_OPEN, _ellipse(open_px))
         if restore_px > 0:
-            near = cv2.dilate(opened, np.ones((3, 3), np.uint8), iterations=restore_px)
+            near = cv2.dilate(opened, _SQUARE_3, iterations=restore_px)
             opened = cv2.bitwise_or(opened, cv2.bitwise_and(near, cleaned))
         cleaned = opened
     if close_px > 1:
-        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (close_px, close_px))
-        cleaned = cv2.morphologyEx(cleaned, cv2.MORPH_CLOSE, kernel)
+        cleaned = cv2.morphologyEx(cleaned, cv2.MORPH_CLOSE, _ellipse(close_px))
     return cleaned
+
+
+_SQUARE_3 = np.ones((3, 3), np.uint8)
+
+
+@functools.lru_cache(maxsize=16)
+def _ellipse(size: int) -> np.ndarray:
+    """OpenCV's elliptical structuring element of size x size px (uint8), made once."""
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
 
 
 def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
