@@ -237,11 +237,12 @@ class BackgroundSubtractor:
         saturated = None
         if self.reference is not None and self.normalise_brightness:
             gain = self._gain(small)
-            if not (np.all(gain >= 1 / _MAX_GAIN_FACTOR) and np.all(gain <= _MAX_GAIN_FACTOR)):
+            low, high = float(gain.min()), float(gain.max())
+            if not (low >= 1 / _MAX_GAIN_FACTOR and high <= _MAX_GAIN_FACTOR):
                 # Nobody can be told from such a frame; the model does not learn it either.
                 self.frames_seen += 1
                 return small, np.zeros(small.shape[:2], np.uint8)
-            if np.abs(gain - 1).max() > MIN_GAIN_CHANGE:
+            if max(1.0 - low, high - 1.0) > MIN_GAIN_CHANGE:
                 # Where the brighter light clips the background, the frame cannot be undone:
                 # such pixels are background, not a blob.
                 expected = cv2.multiply(self.reference, tuple(float(g) for g in gain) + (0.0,))
