@@ -106,3 +106,27 @@ def test_relit_blobs_are_dropped_as_the_plain_rule_drops_them():
         if trial == 0:               # noiseless relit patches: all gone, the person alone left
             assert len(cv2.findContours(out, cv2.RETR_EXTERNAL,
                                         cv2.CHAIN_APPROX_SIMPLE)[0]) == 1
+
+
+def test_people_touching_the_image_edge_are_traced_as_away_from_it():
+    """person_masks traces contours in the box around the foreground: people cut by the
+    image's edges (with holes kept and filled) come out as the same people placed further
+    inside a larger image."""
+    rng = np.random.default_rng(8)
+    for _ in range(10):
+        mask = np.zeros((120, 160), np.uint8)
+        for _ in range(3):
+            centre = (int(rng.integers(0, 160)), int(rng.integers(0, 120)))
+            axes = (int(rng.integers(8, 40)), int(rng.integers(15, 60)))
+            cv2.ellipse(mask, centre, axes, 0, 0, 360, 255, -1)
+            cv2.circle(mask, centre, int(rng.integers(1, 6)), 0, -1)        # a hole, or none
+        big = cv2.copyMakeBorder(mask, 7, 9, 5, 11, cv2.BORDER_CONSTANT, value=0)
+        ratio = mask.size / big.size
+        near = person_masks(mask, (160, 120), 0.0, 0.002, max_area_fraction=1.0)
+        far = person_masks(big, (176, 136), 0.0, 0.002 * ratio, max_area_fraction=1.0)
+        assert len(near) == len(far) >= 1
+        for a, b in zip(near, far):
+            assert a.bbox == (b.bbox[0] - 5, b.bbox[1] - 7, b.bbox[2], b.bbox[3])
+            assert a.area == b.area
+            np.testing.assert_allclose(a.centroid, (b.centroid[0] - 5, b.centroid[1] - 7))
+            np.testing.assert_array_equal(a.mask, b.mask)
