@@ -130,3 +130,22 @@ def test_people_touching_the_image_edge_are_traced_as_away_from_it():
             assert a.area == b.area
             np.testing.assert_allclose(a.centroid, (b.centroid[0] - 5, b.centroid[1] - 7))
             np.testing.assert_array_equal(a.mask, b.mask)
+
+
+def test_a_frame_without_foreground_still_clears_the_kept_colour_models():
+    """With an unreliable zone, a frame where nobody is found passes through the zone
+    refiner as before the box-cropped cleaning: its kept colour models are dropped, so the
+    next person is cut with models learned anew."""
+    from tracker.background import ClipBackground
+    bg = background(320, 240, seed=9)
+    extractor = SilhouetteExtractor()
+    extractor.prime(bg)
+    zone = np.zeros((240, 320), bool)
+    zone[60:200, 100:220] = True
+    extractor.background = ClipBackground(extractor.background.image, zone)
+    rng = np.random.default_rng(10)
+    person = bg.copy()
+    draw_person(person, (150, 130), 160)
+    for frame in (person, bg, person):
+        extractor(cv2.add(frame, rng.integers(0, 4, bg.shape, dtype=np.uint8)))
+    assert (extractor.refiner.learned, extractor.refiner.kept) == (2, 0)

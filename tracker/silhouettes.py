@@ -3,7 +3,8 @@
 The subtractor works on a copy of the frame shrunk to ``working_width`` px (default 320): OpenCV's
 MOG2 costs about 4x less at half of 640 px and a silhouette loses little, because each person's
 mask is scaled back up to frame resolution with linear interpolation (smooth edges, not blocks).
-Everything per frame is an OpenCV or numpy whole-image operation; Python loops run over people.
+Everything per frame is an OpenCV or numpy operation on the whole image or on the box around
+its foreground (the mask cleaning); Python loops run over people.
 """
 from __future__ import annotations
 
@@ -882,11 +883,10 @@ class SilhouetteExtractor:
             return []
         _, foreground = cv2.threshold(raw, _FOREGROUND_LEVEL, 255, cv2.THRESH_BINARY)
         box = _padded_box(foreground, self.open_px + self.close_px + 2 * self.restore_px + 2)
-        if box is None:
-            return []
         cleaned = np.zeros_like(foreground)
-        cleaned[box] = self._cleaned(foreground[box], raw[box] == _SHADOW_LEVEL, small[box], box,
-                                     raw.size)
+        if box is not None:
+            cleaned[box] = self._cleaned(foreground[box], raw[box] == _SHADOW_LEVEL, small[box],
+                                         box, raw.size)
         if self.refine and self.background is not None and self.background.unreliable.any():
             cleaned = self.refiner(cleaned, small, raw == _SHADOW_LEVEL,
                                    self.background.unreliable)
