@@ -54,12 +54,13 @@ def shape_contexts(
     # Below, (N, N) work is done in place on float32 / int32 arrays: at N = 300 the cost is memory
     # traffic, not arithmetic.
 
-    # Sector in a doubled range [n_angular/2, 3 n_angular/2] so a plain truncating cast floors it;
-    # the wrap-around (sectors >= n_angular) is folded back on the small (N, bins) result below.
+    # Sector in a doubled range [n_angular/2, 3 n_angular/2] so a plain truncating cast floors it,
+    # then the wrap-around (sectors >= n_angular) folded back: a histogram of n_angular sectors.
     angle = np.arctan2(v, u)
     angle *= np.float32(n_angular / (2 * np.pi))
     angle += np.float32(n_angular)
     sector = angle.astype(np.int32)
+    np.subtract(sector, n_angular, out=sector, where=sector >= n_angular)
 
     # Ring k holds log distances in [k, k+1) steps above r_inner * scale (step = log ratio / n_radial).
     log_step = np.log(r_outer / r_inner) / n_radial
@@ -73,17 +74,14 @@ def shape_contexts(
     ring *= np.float32(0.5 / log_step)
     np.clip(ring, np.float32(0.0), np.float32(n_radial - 0.5), out=ring)
 
-    width = 2 * n_angular  # columns per ring in the doubled-sector layout
-    spare = n_radial * width
+    size = n_radial * n_angular
     bins = ring.astype(np.int32)
-    bins *= width
+    bins *= n_angular
     bins += sector
-    bins.flat[:: n + 1] = spare  # a point is not its own neighbour: send it to a spare column
-    bins += np.arange(0, n * (spare + 1), spare + 1, dtype=np.int32)[:, None]
-    counts = np.bincount(bins.ravel(), minlength=n * (spare + 1)).reshape(n, spare + 1)
-    counts = counts[:, :spare].reshape(n * n_radial, 2, n_angular)
-    folded = counts[:, 0, :] + counts[:, 1, :]
-    return folded.reshape(n, n_radial * n_angular) / float(n - 1)
+    bins.flat[:: n + 1] = size  # a point is not its own neighbour: send it to a spare column
+    bins += np.arange(0, n * (size + 1), size + 1, dtype=np.int32)[:, None]
+    counts = np.bincount(bins.ravel(), minlength=n * (size + 1)).reshape(n, size + 1)
+    return counts[:, :size] / float(n - 1)
 
 
 def mirrored_bins(n_angular: int = 12, n_radial: int = 5) -> np.ndarray:

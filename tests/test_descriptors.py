@@ -127,6 +127,16 @@ def test_shape_contexts_match_a_plain_loop_reference():
     np.testing.assert_allclose(shape_contexts(points), reference_shape_contexts(points), atol=1e-12)
 
 
+@pytest.mark.parametrize("n_angular, n_radial", [(7, 3), (8, 5), (1, 2)])
+def test_other_sector_and_ring_counts_match_the_plain_loop_reference(n_angular, n_radial):
+    """The sectors' wrap-around folded on the pairs (before counting) for any sector count,
+    odd ones and a single sector too."""
+    rng = np.random.default_rng(4)
+    points = rng.random((30, 2)) * np.array([60.0, 150.0])
+    np.testing.assert_allclose(shape_contexts(points, n_angular, n_radial),
+                               reference_shape_contexts(points, n_angular, n_radial), atol=1e-12)
+
+
 def test_each_context_sums_to_one():
     contexts = mask_contexts(person_mask(), SETTINGS)
     assert contexts.shape == (SETTINGS.n_points, 60)

@@ -3,10 +3,12 @@
 The subtractor works on a copy of the frame shrunk to ``working_width`` px (default 320): OpenCV's
 MOG2 costs about 4x less at half of 640 px and a silhouette loses little, because each person's
 mask is scaled back up to frame resolution with linear interpolation (smooth edges, not blocks).
-Everything per frame is an OpenCV or numpy whole-image operation; Python loops run over people.
+Everything per frame is an OpenCV or numpy operation on the whole image or on the box around
+its foreground (the mask cleaning); Python loops run over people.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import cv2
@@ -236,11 +238,12 @@ class BackgroundSubtractor:
         saturated = None
         if self.reference is not None and self.normalise_brightness:
             gain = self._gain(small)
-            if not (np.all(gain >= 1 / _MAX_GAIN_FACTOR) and np.all(gain <= _MAX_GAIN_FACTOR)):
+            low, high = float(gain.min()), float(gain.max())
+            if not (low >= 1 / _MAX_GAIN_FACTOR and high <= _MAX_GAIN_FACTOR):
                 # Nobody can be told from such a frame; the model does not learn it either.
                 self.frames_seen += 1
                 return small, np.zeros(small.shape[:2], np.uint8)
-            if np.abs(gain - 1).max() > MIN_GAIN_CHANGE:
+            if max(1.0 - low, high - 1.0) > MIN_GAIN_CHANGE:
                 # Where the brighter light clips the background, the frame cannot be undone:
                 # such pixels are background, not a blob.
                 expected = cv2.multiply(self.reference, tuple(float(g) for g in gain) + (0.0,))
@@ -291,16 +294,23 @@ def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5,
     """
     cleaned = mask
     if open_px > 1:
-        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (open_px, open_px))
-        opened = cv2.morphologyEx(cleaned, cv2.MORPH_OPEN, kernel)
+        opened = cv2.morphologyEx(cleaned, cv2.MORPH_OPEN, _ellipse(open_px))
         if restore_px > 0:
-            near = cv2.dilate(opened, np.ones((3, 3), np.uint8), iterations=restore_px)
+            near = cv2.dilate(opened, _SQUARE_3, iterations=restore_px)
             opened = cv2.bitwise_or(opened, cv2.bitwise_and(near, cleaned))
         cleaned = opened
     if close_px > 1:
-        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (close_px, close_px))
-        cleaned = cv2.morphologyEx(cleaned, cv2.MORPH_CLOSE, kernel)
+        cleaned = cv2.morphologyEx(cleaned, cv2.MORPH_CLOSE, _ellipse(close_px))
     return cleaned
+
+
+_SQUARE_3 = np.ones((3, 3), np.uint8)
+
+
+@functools.lru_cache(maxsize=16)
+def _ellipse(size: int) -> np.ndarray:
+    """OpenCV's elliptical structuring element of size x size px (uint8), made once."""
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
 
 
 def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
@@ -328,11 +338,16 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
     """
     height, width = mask.shape
     image_area = float(height * width)
+    points = cv2.findNonZero(mask)
+    if points is None:
+        return []
     # Contours with a two-level hierarchy (outer boundaries, their holes) are ~20x cheaper than
     # connectedComponentsWithStats here, and filling them reproduces each component exactly.
-    contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE)
-    if not contours:
-        return []
+    # Traced in the box around the foreground only (OpenCV pads the image with background):
+    # the same contours, in image coordinates, for the box's cost.
+    x, y, w, h = cv2.boundingRect(points)
+    contours, hierarchy = cv2.findContours(mask[y:y + h, x:x + w], cv2.RETR_CCOMP,
+                                           cv2.CHAIN_APPROX_SIMPLE, offset=(x, y))
     parents = hierarchy[0][:, 3]
     areas = np.array([cv2.contourArea(c) for c in contours])
     # contourArea runs through boundary pixel centres, so it undercounts by about half the
@@ -365,6 +380,8 @@ def _fragment_groups(rects: np.ndarray, areas: np.ndarray | None = None,
     hand, a floor blob at the feet). (People side by side do not overlap in x and are of like
     size; one standing behind another usually touches and is one component anyway.)"""
     n = len(rects)
+    if n < 2:
+        return [[i] for i in range(n)]
     group = list(range(n))
 
     def root(i: int) -> int:
@@ -484,17 +501,43 @@ def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndar
             continue
         blob = np.zeros((h, w), np.uint8)
         cv2.drawContours(blob, [contour], -1, 255, cv2.FILLED, offset=(-x, -y))
-        inside = blob > 0
-        f = frame[y:y + h, x:x + w][inside].astype(np.float32) + 4.0          # (n, 3)
-        b = background[y:y + h, x:x + w][inside].astype(np.float32) + 4.0
-        log_ratio = np.log(f / b)
-        spread = float(np.median(np.abs(log_ratio - np.median(log_ratio))))
-        fg, bg = f.mean(axis=1) - f.mean(), b.mean(axis=1) - b.mean()
-        denominator = float(np.sqrt((fg * fg).sum() * (bg * bg).sum()))
-        correlation = float((fg * bg).sum()) / denominator if denominator > 0 else 0.0
-        if correlation > min_correlation or spread < max_ratio_spread:
-            out[y:y + h, x:x + w][inside] = 0
+        inside = np.flatnonzero(blob)
+        f = frame[y:y + h, x:x + w].reshape(-1, 3)[inside]          # (n, 3) uint8
+        b = background[y:y + h, x:x + w].reshape(-1, 3)[inside]
+        if _relit(f, b, min_correlation, max_ratio_spread):
+            out[y:y + h, x:x + w][blob > 0] = 0
     return out
+
+
+def _relit(frame: np.ndarray, background: np.ndarray, min_correlation: float,
+           max_ratio_spread: float) -> bool:
+    """Whether a blob's pixels, frame and background BGR uint8 (n, 3), are the background under
+    other light (:func:`drop_lighting_blobs`'s two tests; the ratio's spread, the dearer one,
+    only when the correlation has not decided)."""
+    f = frame.astype(np.float32)
+    f += 4.0
+    b = background.astype(np.float32)
+    b += 4.0
+    third = np.full(3, 1 / 3, np.float32)
+    fg, bg = f @ third, b @ third                   # grey levels (n,), then their deviations
+    fg -= fg.mean()
+    bg -= bg.mean()
+    denominator = float(np.sqrt(np.dot(fg, fg) * np.dot(bg, bg)))
+    if denominator > 0 and float(np.dot(fg, bg)) / denominator > min_correlation:
+        return True
+    log_ratio = np.log(np.divide(f, b, out=f), out=f).ravel()
+    log_ratio -= _median(log_ratio)
+    return float(_median(np.abs(log_ratio, out=log_ratio))) < max_ratio_spread
+
+
+def _median(values: np.ndarray) -> np.floating:
+    """np.median of a 1-D float array (not empty), by a partial sort of it in place."""
+    half = len(values) // 2
+    if len(values) % 2:
+        values.partition(half)
+        return values[half]
+    values.partition((half - 1, half))
+    return (values[half - 1] + values[half]) / 2
 
 
 def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone: np.ndarray,
@@ -838,19 +881,45 @@ class SilhouetteExtractor:
         small, raw = self.subtractor.subtract(frame)
         if learning_only:
             return []
-        foreground = raw > _FOREGROUND_LEVEL
-        shadow = raw == _SHADOW_LEVEL
-        mask = foreground.astype(np.uint8) * 255
+        _, foreground = cv2.threshold(raw, _FOREGROUND_LEVEL, 255, cv2.THRESH_BINARY)
+        box = _padded_box(foreground, self.open_px + self.close_px + 2 * self.restore_px + 2)
+        cleaned = np.zeros_like(foreground)
+        if box is not None:
+            cleaned[box] = self._cleaned(foreground[box], raw[box] == _SHADOW_LEVEL, small[box],
+                                         box, raw.size)
+        if self.refine and self.background is not None and self.background.unreliable.any():
+            cleaned = self.refiner(cleaned, small, raw == _SHADOW_LEVEL,
+                                   self.background.unreliable)
+        return person_masks(cleaned, (frame.shape[1], frame.shape[0]), self.min_area_fraction,
+                            self.max_hole_fraction,
+                            max_fragment_area=self.max_fragment_area, image=small)
+
+    def _cleaned(self, mask: np.ndarray, shadow: np.ndarray, small: np.ndarray,
+                 box: tuple[slice, slice], image_area: int) -> np.ndarray:
+        """The cleaned foreground (uint8 (h, w), 255 = person) of one ``box`` (rows, columns)
+        of the working-size image, from MOG2's foreground there (uint8, 255; changed in place),
+        its shadow (bool) and the frame (BGR uint8); image_area: px of the whole working-size
+        image (the area gate is a fraction of it). The box holds all of the frame's
+        foreground with a margin wider than the morphology reaches (_padded_box), so the result
+        is the whole image's, cropped: the cleaning costs what the box's size does."""
         if self.keep_enclosed_shadow:
             # Bodies enclose shadow, specks (flicker on a window, noise on the ceiling) do not.
             solid = clean_mask(mask, self.open_px, 1, self.restore_px) > 0
             mask |= enclosed_shadow(solid, shadow)
         cleaned = clean_mask(mask, self.open_px, self.close_px, self.restore_px)
         if self.drop_lighting and self.background is not None:
-            cleaned = drop_lighting_blobs(cleaned, small, self.background.image,
-                                          min_area=int(self.min_area_fraction * cleaned.size))
-        if self.refine and self.background is not None and self.background.unreliable.any():
-            cleaned = self.refiner(cleaned, small, shadow, self.background.unreliable)
-        return person_masks(cleaned, (frame.shape[1], frame.shape[0]), self.min_area_fraction,
-                            self.max_hole_fraction,
-                            max_fragment_area=self.max_fragment_area, image=small)
+            cleaned = drop_lighting_blobs(cleaned, small, self.background.image[box],
+                                          min_area=int(self.min_area_fraction * image_area))
+        return cleaned
+
+
+def _padded_box(mask: np.ndarray, margin: int) -> tuple[slice, slice] | None:
+    """(rows, columns) slices of the box around the nonzero pixels of ``mask`` (uint8 (h, w)),
+    widened by ``margin`` px on each side within the image; None when the mask is empty."""
+    points = cv2.findNonZero(mask)
+    if points is None:
+        return None
+    x, y, w, h = cv2.boundingRect(points)
+    height, width = mask.shape
+    return (slice(max(y - margin, 0), min(y + h + margin, height)),
+            slice(max(x - margin, 0), min(x + w + margin, width)))
