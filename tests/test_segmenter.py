@@ -156,3 +156,47 @@ def test_track_with_the_segmenter_follows_the_sample_walker(tmp_path):
     tracks = json.loads(out.read_text())["tracks"]
     frames = sorted((len(t["frames"]) for t in tracks), reverse=True)
     assert frames[0] >= 55, frames
+
+
+def dark_person_model(image: np.ndarray) -> np.ndarray:
+    """A stand-in for the selfie model: person probability 1 where the image (BGR uint8) is
+    dark red-brown (the figure of :func:`panning_figure_frames`), else 0."""
+    return ((image[..., 2] > 120) & (image[..., 1] < 100)).astype(np.float32)
+
+
+def panning_figure_frames(count: int, step_px: int) -> list:
+    """:func:`panning_frames` with a figure standing in the middle of the view (a camera
+    turning to follow its subject: the scene moves behind it)."""
+    frames = panning_frames(count, step_px)
+    for frame in frames:
+        cv2.ellipse(frame, (160, 130), (12, 45), 0, 0, 360, (40, 60, 160), -1)
+    return frames
+
+
+def test_segment_sees_a_pan_in_the_samples_and_proposes_no_moving_blobs_as_auto():
+    """A panning clip: the samples run._prime gives (learn_zone) show the pan, so the
+    segmenter proposes no moving blobs of its background model from the first frame on,
+    and ``--silhouettes segment`` gives the same masks as ``auto``. Its own per-frame meter
+    sees the pan only after about ten frames: those frames' blobs (the whole moving scene)
+    had changed its first crops, and the filter's first headings with them (16_11's
+    panning render, docs/segmenter.md). A still camera's samples keep the blobs."""
+    frames = panning_figure_frames(40, 4)
+    samples, median = frames[::4], np.median(np.stack(frames[::4]), axis=0).astype(np.uint8)
+    settings = TrackerSettings()
+    segment = PersonSegmenter(model=dark_person_model)
+    auto = AutoExtractor(lambda **o: default_extractor(settings, **o),
+                         PersonSegmenter(model=dark_person_model))
+    subtracted, subtract = [], segment.subtractor.subtract
+    segment.subtractor.subtract = lambda frame: subtracted.append(1) or subtract(frame)
+    for extractor in (segment, auto):
+        extractor.prime(median)
+        extractor.learn_zone(samples)
+    assert auto.source == "segment"
+    for frame in frames:
+        ours, theirs = segment(frame), auto(frame)
+        assert len(ours) == len(theirs) == 1
+        assert np.array_equal(ours[0].mask, theirs[0].mask)
+    assert not subtracted and segment.crops == auto.segmenter.crops
+    still = PersonSegmenter(model=dark_person_model)
+    still.learn_zone(still_frames(40)[::4])
+    assert still.use_motion

@@ -301,7 +301,13 @@ class PersonSegmenter:
         self.subtractor.prime(background, frame_size)
 
     def learn_zone(self, frames) -> None:
-        """Nothing to learn: the segmenter needs no unreliable zone (kept for run._prime)."""
+        """Judge frames spread over the clip (run._prime gives them): when they do not line up
+        (:func:`tracker.camera_motion.camera_moves`) the camera moves and no moving blob is
+        proposed from the first frame on, as ``auto`` does; otherwise the per-frame meter only
+        sees a pan after about ten frames, whose blobs (the whole moving scene) mislead the
+        first crops. The segmenter needs no unreliable zone."""
+        if self.use_motion and camera_moves(list(frames)):
+            self.use_motion = False
 
     def __call__(self, frame: np.ndarray) -> list[PersonMask]:
         """The people in ``frame`` (BGR uint8 (H, W, 3)); frames go in order."""
