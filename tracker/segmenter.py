@@ -289,7 +289,10 @@ class PersonSegmenter:
     image the crops' masks are pasted into (and of the motion model), as the background path's.
     ``search_every``: frames between searches (HOG and the whole frame segmented), the first
     frame included. ``use_motion``: propose the moving blobs of a background model, while the
-    camera stays still (:class:`tracker.camera_motion.CameraMotionMeter`); False: never.
+    camera stays still (the clip's samples line up, :meth:`learn_zone`, and frame by frame,
+    :class:`tracker.camera_motion.CameraMotionMeter`); False: never. A person followed from
+    frame to frame whom a search misses stays while HOG confirms them in their crop
+    (:meth:`_confirm`).
     ``model``: image -> person probabilities (default :class:`SelfieModel`). :attr:`crops`
     counts the crops segmented.
     """
