@@ -260,3 +260,22 @@ def test_hog_finds_a_person_in_their_crop_whom_it_misses_at_working_size():
     hog = segmenter.hog_detector()
     assert len(segmenter.hog_boxes(hog, cv2.resize(big, (320, 240)))) == 0
     assert segmenter.hog_confirms(hog, big, (x0 + 160, y0 + 120, x1 + 161, y1 + 121))
+
+
+@pytest.mark.parametrize("axes", [(16, 55), (40, 110)])
+def test_a_pan_is_seen_behind_a_subject_the_camera_follows(axes):
+    """A camera turning to follow its subject: the figure stays in the middle of the view (3.6
+    and 18 % of it) while the scene pans 4 px a frame behind. The figure held the phase
+    correlation's highest peak at no shift, and the pan went unseen (samples and per frame);
+    the runner-up peak, kept where it aligns the scene, is the pan. A still camera with a
+    figure walking across still never moves."""
+    frames = panning_frames(40, 4)
+    for frame in frames:
+        cv2.ellipse(frame, (160, 130), axes, 0, 0, 360, (40, 60, 160), -1)
+    meter = CameraMotionMeter()
+    answers = [meter(f) for f in frames]
+    assert camera_moves(frames[::4]) and answers[-1] and meter.moving_since <= 10
+    for speed in (2, 6):
+        meter = CameraMotionMeter()
+        still = still_frames(40, speed=speed)
+        assert not any(meter(f) for f in still) and not camera_moves(still[::4])
