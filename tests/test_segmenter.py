@@ -37,16 +37,16 @@ def panning_frames(count: int, step_px: int, size=(240, 320), seed: int = 5) -> 
             for t in range(count)]
 
 
-def still_frames(count: int, size=(240, 320), seed: int = 5) -> list:
+def still_frames(count: int, size=(240, 320), seed: int = 5, speed: int = 6) -> list:
     """``count`` frames of a still camera on the same kind of scene, a dark figure walking
-    across it, with sensor noise."""
+    across it (``speed`` px a frame), with sensor noise."""
     height, width = size
     scene = cv2.cvtColor(textured_background(size, seed), cv2.COLOR_RGB2BGR)
     rng = np.random.default_rng(seed)
     frames = []
     for t in range(count):
         frame = scene.copy()
-        cv2.ellipse(frame, (40 + 6 * t, 140), (18, 60), 0, 0, 360, (40, 60, 160), -1)
+        cv2.ellipse(frame, (40 + speed * t, 140), (18, 60), 0, 0, 360, (40, 60, 160), -1)
         frames.append(cv2.add(frame, rng.integers(0, 4, frame.shape, dtype=np.uint8)))
     return frames
 
@@ -156,3 +156,126 @@ def test_track_with_the_segmenter_follows_the_sample_walker(tmp_path):
     tracks = json.loads(out.read_text())["tracks"]
     frames = sorted((len(t["frames"]) for t in tracks), reverse=True)
     assert frames[0] >= 55, frames
+
+
+def dark_person_model(image: np.ndarray) -> np.ndarray:
+    """A stand-in for the selfie model: person probability 1 where the image (BGR uint8) is
+    dark red-brown (the figure of :func:`panning_figure_frames`), else 0."""
+    near = np.abs(image.astype(np.int16) - (42, 62, 162)).max(axis=-1) <= 6
+    return near.astype(np.float32)
+
+
+def panning_figure_frames(count: int, step_px: int) -> list:
+    """:func:`panning_frames` with a figure standing in the middle of the view (a camera
+    turning to follow its subject: the scene moves behind it)."""
+    frames = panning_frames(count, step_px)
+    for frame in frames:
+        cv2.ellipse(frame, (160, 130), (12, 45), 0, 0, 360, (40, 60, 160), -1)
+    return frames
+
+
+def test_segment_sees_a_pan_in_the_samples_and_proposes_no_moving_blobs_as_auto():
+    """A panning clip: the samples run._prime gives (learn_zone) show the pan, so the
+    segmenter proposes no moving blobs of its background model from the first frame on,
+    and ``--silhouettes segment`` gives the same masks as ``auto``. Its own per-frame meter
+    sees the pan only after about ten frames: those frames' blobs (the whole moving scene)
+    had changed its first crops, and the filter's first headings with them (16_11's
+    panning render, docs/segmenter.md). A still camera's samples keep the blobs."""
+    frames = panning_figure_frames(40, 4)
+    samples, median = frames[::4], np.median(np.stack(frames[::4]), axis=0).astype(np.uint8)
+    settings = TrackerSettings()
+    segment = PersonSegmenter(model=dark_person_model)
+    auto = AutoExtractor(lambda **o: default_extractor(settings, **o),
+                         PersonSegmenter(model=dark_person_model))
+    subtracted, subtract = [], segment.subtractor.subtract
+    segment.subtractor.subtract = lambda frame: subtracted.append(1) or subtract(frame)
+    for extractor in (segment, auto):
+        extractor.prime(median)
+        extractor.learn_zone(samples)
+    assert auto.source == "segment"
+    for frame in frames:
+        ours, theirs = segment(frame), auto(frame)
+        assert len(ours) == len(theirs) == 1
+        assert np.array_equal(ours[0].mask, theirs[0].mask)
+    assert not subtracted and segment.crops == auto.segmenter.crops
+    still = PersonSegmenter(model=dark_person_model)
+    still.learn_zone(still_frames(40)[::4])
+    assert still.use_motion
+
+
+class FirstSearchModel:
+    """A stand-in for the selfie model (:func:`dark_person_model`) whose search of the whole
+    frame (an image of ``frame_shape``) finds the figure the first time only, as a search at
+    working size misses a smaller person (CMU 02_02's panning walker)."""
+
+    def __init__(self, frame_shape):
+        self.frame_shape, self.searched = frame_shape, False
+
+    def __call__(self, image):
+        if image.shape[:2] == self.frame_shape:
+            if self.searched:
+                return np.zeros(image.shape[:2], np.float32)
+            self.searched = True
+        return dark_person_model(image)
+
+
+class CropHog:
+    """A stand-in for OpenCV's HOG detector: a person in every image CONFIRM_HEIGHT px high
+    (a followed person's crop, :func:`segmenter.hog_confirms`) when ``sees``, none elsewhere."""
+
+    def __init__(self, sees: bool):
+        self.sees = sees
+
+    def detectMultiScale(self, image, **options):
+        if self.sees and image.shape[0] == segmenter.CONFIRM_HEIGHT:
+            return np.array([[0, 0, 64, 128]]), np.array([[1.0]])
+        return (), ()
+
+
+@pytest.mark.parametrize("sees", [True, False])
+def test_a_followed_person_the_search_misses_stays_while_hog_confirms_them_in_their_crop(sees):
+    """A person found once and then followed from crop to crop, whom later searches (at
+    working size) miss: HOG in their own crop keeps them (every frame); without it they are
+    dropped search_every frames after the search that missed them, not at once."""
+    frames = still_frames(50, speed=2)
+    extractor = PersonSegmenter(model=FirstSearchModel(frames[0].shape[:2]), use_motion=False)
+    extractor.hog = CropHog(sees)
+    found = [len(extractor(frame)) for frame in frames]
+    expected = [1] * 50 if sees else [1] * 30 + [0] * 20
+    assert found == expected
+
+
+@pytest.mark.skipif(segmenter.hog_detector() is None, reason="this OpenCV has no HOG detector")
+def test_hog_finds_a_person_in_their_crop_whom_it_misses_at_working_size():
+    """The sample's walker in a frame twice the size (the person about 140 px of 480): HOG on
+    the frame at working size (320 px wide) misses them, in their own crop it finds them."""
+    from tracker.video import open_video
+    source = open_video(SAMPLE)
+    plate = np.median(np.stack(source.sample_frames(15)), axis=0).astype(np.int16)
+    frame = next(f for i, _, f in source if i == 30)
+    body = np.argwhere(np.abs(frame.astype(np.int16) - plate).max(axis=2) > 30)
+    (y0, x0), (y1, x1) = body.min(axis=0), body.max(axis=0)
+    big = np.zeros((480, 640, 3), np.uint8)
+    big[120:360, 160:480] = frame
+    hog = segmenter.hog_detector()
+    assert len(segmenter.hog_boxes(hog, cv2.resize(big, (320, 240)))) == 0
+    assert segmenter.hog_confirms(hog, big, (x0 + 160, y0 + 120, x1 + 161, y1 + 121))
+
+
+@pytest.mark.parametrize("axes", [(16, 55), (40, 110)])
+def test_a_pan_is_seen_behind_a_subject_the_camera_follows(axes):
+    """A camera turning to follow its subject: the figure stays in the middle of the view (3.6
+    and 18 % of it) while the scene pans 4 px a frame behind. The figure held the phase
+    correlation's highest peak at no shift, and the pan went unseen (samples and per frame);
+    the runner-up peak, kept where it aligns the scene, is the pan. A still camera with a
+    figure walking across still never moves."""
+    frames = panning_frames(40, 4)
+    for frame in frames:
+        cv2.ellipse(frame, (160, 130), axes, 0, 0, 360, (40, 60, 160), -1)
+    meter = CameraMotionMeter()
+    answers = [meter(f) for f in frames]
+    assert camera_moves(frames[::4]) and answers[-1] and meter.moving_since <= 10
+    for speed in (2, 6):
+        meter = CameraMotionMeter()
+        still = still_frames(40, speed=speed)
+        assert not any(meter(f) for f in still) and not camera_moves(still[::4])

@@ -223,18 +223,45 @@ def held_boxes(found: np.ndarray, proposed: np.ndarray, hold: float = BOX_HOLD) 
     return np.round(np.array(out, float).reshape(-1, 4)).astype(int)
 
 
+def overlapping(boxes: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """bool (n,): whether each box (n, 4) x0, y0, x1, y1 overlaps one of ``others`` (m, 4)."""
+    boxes, others = np.asarray(boxes).reshape(-1, 4), np.asarray(others).reshape(-1, 4)
+    if not len(boxes) or not len(others):
+        return np.zeros(len(boxes), bool)
+    overlap_x = np.minimum(boxes[:, None, 2], others[None, :, 2]) > np.maximum(
+        boxes[:, None, 0], others[None, :, 0])
+    overlap_y = np.minimum(boxes[:, None, 3], others[None, :, 3]) > np.maximum(
+        boxes[:, None, 1], others[None, :, 1])
+    return (overlap_x & overlap_y).any(axis=1)
+
+
 def confirmed(boxes: np.ndarray, found: np.ndarray) -> np.ndarray:
     """The boxes (n, 4) x0, y0, x1, y1 that overlap one of ``found`` (m, 4): people followed
     from frame to frame stay only while a search (or a moving blob) still finds them, so that
     a false find (a heap of clothes) does not feed itself for ever."""
-    boxes, found = np.asarray(boxes).reshape(-1, 4), np.asarray(found).reshape(-1, 4)
-    if not len(boxes) or not len(found):
-        return boxes[:0]
-    overlap_x = np.minimum(boxes[:, None, 2], found[None, :, 2]) > np.maximum(
-        boxes[:, None, 0], found[None, :, 0])
-    overlap_y = np.minimum(boxes[:, None, 3], found[None, :, 3]) > np.maximum(
-        boxes[:, None, 1], found[None, :, 1])
-    return boxes[(overlap_x & overlap_y).any(axis=1)]
+    boxes = np.asarray(boxes).reshape(-1, 4)
+    return boxes[overlapping(boxes, found)]
+
+
+#: A followed person's crop is scaled to this height (px) for HOG to confirm them: their box
+#: is then about 100 px high, inside the detector's 64x128 window.
+CONFIRM_HEIGHT = 160
+
+
+def hog_confirms(hog: cv2.HOGDescriptor | None, frame: np.ndarray, box,
+                 height: int = CONFIRM_HEIGHT) -> bool:
+    """Whether HOG finds a person in the window around ``box`` (x0, y0, x1, y1 px of
+    ``frame``, BGR uint8; :func:`crop_window`) scaled to ``height`` px high. A search runs
+    HOG on the frame at working size, where a person under 128 px high is never found; in
+    their own crop at this scale most are (CMU 02_02's panning render, 116-182 px high in a
+    640x480 frame: 3 checks in 4, none on crops of the empty scene). False without HOG."""
+    x0, y0, x1, y1 = crop_window(box, (frame.shape[1], frame.shape[0]))
+    if hog is None or x1 - x0 < 2 or y1 - y0 < 2:
+        return False
+    scale = height / (y1 - y0)
+    crop = cv2.resize(frame[y0:y1, x0:x1], (max(64, round((x1 - x0) * scale)), height),
+                      interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
+    return len(hog_boxes(hog, crop)) > 0
 
 
 def crop_window(box, size: tuple[int, int], margin: float = CROP_MARGIN,
@@ -262,7 +289,10 @@ class PersonSegmenter:
     image the crops' masks are pasted into (and of the motion model), as the background path's.
     ``search_every``: frames between searches (HOG and the whole frame segmented), the first
     frame included. ``use_motion``: propose the moving blobs of a background model, while the
-    camera stays still (:class:`tracker.camera_motion.CameraMotionMeter`); False: never.
+    camera stays still (the clip's samples line up, :meth:`learn_zone`, and frame by frame,
+    :class:`tracker.camera_motion.CameraMotionMeter`); False: never. A person followed from
+    frame to frame whom a search misses stays while HOG confirms them in their crop
+    (:meth:`_confirm`).
     ``model``: image -> person probabilities (default :class:`SelfieModel`). :attr:`crops`
     counts the crops segmented.
     """
@@ -284,6 +314,8 @@ class PersonSegmenter:
         self.frames = 0
         self.crops = 0
         self._previous = np.zeros((0, 4), int)       # last frame's people, working px
+        self._unconfirmed = np.zeros((0, 4), int)    # of those, the last search's unfound
+        self._confirm_left = 0                       # frames left to confirm them
 
     def prime(self, background, frame_size: tuple[int, int] | None = None) -> None:
         """Teach the motion model the scene, as :meth:`SilhouetteExtractor.prime` takes it: an
@@ -301,7 +333,13 @@ class PersonSegmenter:
         self.subtractor.prime(background, frame_size)
 
     def learn_zone(self, frames) -> None:
-        """Nothing to learn: the segmenter needs no unreliable zone (kept for run._prime)."""
+        """Judge frames spread over the clip (run._prime gives them): when they do not line up
+        (:func:`tracker.camera_motion.camera_moves`) the camera moves and no moving blob is
+        proposed from the first frame on, as ``auto`` does; otherwise the per-frame meter only
+        sees a pan after about ten frames, whose blobs (the whole moving scene) mislead the
+        first crops. The segmenter needs no unreliable zone."""
+        if self.use_motion and camera_moves(list(frames)):
+            self.use_motion = False
 
     def __call__(self, frame: np.ndarray) -> list[PersonMask]:
         """The people in ``frame`` (BGR uint8 (H, W, 3)); frames go in order."""
@@ -319,15 +357,39 @@ class PersonSegmenter:
             proposals = [self._previous]
         if self.frames % self.search_every == 0:
             found = np.vstack([self.search(small)] + proposals[1:])
-            proposals[0] = confirmed(self._previous, found)
+            if self.hog is None:
+                proposals[0] = confirmed(self._previous, found)
+            else:               # the unfound are kept while HOG is asked in their crops
+                self._unconfirmed = self._previous[~overlapping(self._previous, found)]
+                self._confirm_left = self.search_every
             proposals.append(found)
         self.frames += 1
         crops = merge_boxes(np.vstack(proposals))
         people = self.people_in_crops(frame, small, crops)
         scale = np.array([work[0] / size[0], work[1] / size[1]] * 2)
         boxes = np.array([(x, y, x + w, y + h) for x, y, w, h in (p.bbox for p in people)])
-        self._previous = held_boxes(np.round(boxes.reshape(-1, 4) * scale).astype(int), crops)
+        followed = held_boxes(np.round(boxes.reshape(-1, 4) * scale).astype(int), crops)
+        self._previous = self._confirm(frame, followed, scale)
         return people
+
+    def _confirm(self, frame: np.ndarray, boxes: np.ndarray, scale: np.ndarray) -> np.ndarray:
+        """The boxes (n, 4) working px to follow next frame: ``boxes`` without those of
+        people the last search did not find (:attr:`_unconfirmed`) that HOG has not
+        confirmed in their own crop (:func:`hog_confirms`, the full ``frame``; ``scale``:
+        working px per frame px, x and y twice) within ``search_every`` frames. A search at
+        working size misses the smaller people the crops still follow: dropping them at once
+        had split a panning walker's track for a whole search period each time."""
+        if not len(self._unconfirmed):
+            return boxes
+        waiting = overlapping(boxes, self._unconfirmed)
+        for i in np.flatnonzero(waiting):
+            waiting[i] = not hog_confirms(self.hog, frame, boxes[i] / scale)
+        self._confirm_left -= 1
+        if self._confirm_left <= 0:
+            self._unconfirmed = boxes[:0]
+            return boxes[~waiting]
+        self._unconfirmed = boxes[waiting]
+        return boxes
 
     def search(self, small: np.ndarray) -> np.ndarray:
         """Boxes (n, 4) x0, y0, x1, y1 px of the people in ``small`` (a frame at working
