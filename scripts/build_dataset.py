@@ -23,20 +23,10 @@ from pathlib import Path
 from regressor.errors import SilhouettePoseError
 from sequences.cmu_extra import (EXTRA_HELD_OUT, EXTRA_ROWS_PER_TRIAL, CmuExtraError,
                                 extra_dataset_trials, extra_sources)
-from sequences.backgrounds import pose2sim_plates
+from sequences.backgrounds import plates_folder
 from sequences.dataset import (HELD_OUT_TRIALS, MASK_KINDS, DatasetConfig, build_dataset,
                                training_files, views_by_rows)
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
-
-
-def _plates(backgrounds: Path, cache: Path) -> str:
-    """The folder of plates to render over: backgrounds itself when it holds plate-*.png, else
-    the Pose2Sim trials in it made into plates once, in cache/plates."""
-    if any(backgrounds.glob("plate-*.png")):
-        return str(backgrounds.resolve())
-    folder = cache / "plates"
-    pose2sim_plates(backgrounds, folder)
-    return str(folder.resolve())
 
 
 def _main(argv=None) -> int:
@@ -88,7 +78,8 @@ def _main(argv=None) -> int:
     if args.backgrounds is not None and not args.backgrounds.is_dir():
         ap.error(f"--backgrounds: folder not found: {args.backgrounds}")
     try:
-        backgrounds = "" if args.backgrounds is None else _plates(args.backgrounds, args.cache)
+        backgrounds = ("" if args.backgrounds is None
+                       else plates_folder(args.backgrounds, args.cache))
         config = DatasetConfig(views_per_trial=args.views, seed=args.seed, masks=args.masks,
                                backgrounds=backgrounds)
         files = training_files(args.bvh_dir)

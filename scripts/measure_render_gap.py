@@ -113,17 +113,19 @@ def kind_measures(model, X: np.ndarray, plain: np.ndarray, sequence: list, rng) 
             "described": int(ok.sum()), "rows": len(X)}
 
 
-def tracked_novelty(videos: list[Path]) -> dict:
+def tracked_novelty(videos: list[Path], model: Path) -> dict:
     """{video stem: median novelty of its frames} from the ``track`` command (this checkout's,
-    python -m tracker.cli VIDEO --json), all tracks' frames pooled."""
+    python -m tracker.cli VIDEO --model MODEL --json), all tracks' frames pooled: the novelty
+    under the model being measured, as the real views' is."""
     import subprocess
     import tempfile
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
         for video in videos:
             summary = Path(tmp) / "track.json"
-            run = subprocess.run([sys.executable, "-m", "tracker.cli", str(video), "--json",
-                                  str(summary)], capture_output=True, text=True)
+            run = subprocess.run([sys.executable, "-m", "tracker.cli", str(video), "--model",
+                                  str(model), "--json", str(summary)],
+                                 capture_output=True, text=True)
             if run.returncode:
                 raise OSError(f"track {video}: {run.stderr.strip().splitlines()[-1:]}")
             tracks = json.loads(summary.read_text())["tracks"]
@@ -263,7 +265,7 @@ def _main(argv=None) -> int:
         reals = real_novelty(args.real_json)
         tracked = {}
         if args.videos is not None:
-            tracked = tracked_novelty(sorted(args.videos.glob("*-0.mp4")))
+            tracked = tracked_novelty(sorted(args.videos.glob("*-0.mp4")), args.model)
         _report(args, model, data, reals, tracked)
     except (OSError, ValueError, SilhouettePoseError) as exc:
         print(f"measure_render_gap: error: {exc}", file=sys.stderr)

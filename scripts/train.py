@@ -31,6 +31,7 @@ from regressor.errors import SilhouettePoseError
 from regressor.layout import MAX_GRID
 from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model, save_pose_model
+from sequences.backgrounds import plates_folder
 from sequences.cmu_extra import (EXTRA_HELD_OUT, EXTRA_ROWS_PER_TRIAL, CmuExtraError,
                                  extra_dataset_trials, extra_sources, source_sequence,
                                  training_sources)
@@ -97,11 +98,13 @@ def _mirrored_inputs(args, data, settings, codebook, key: str, start: float, log
 def _noisy_inputs(args, masks, settings, codebook, mirror: bool, start: float, log,
                   what: str) -> dict:
     """noisy_dataset_inputs of masks (their histograms, layouts with --layout-grid, and with
-    mirror their mirror images'), progress logged as ``what``."""
+    mirror their mirror images'), progress logged as ``what``; --masks realistic: of the masks
+    as they are (no hand noise)."""
     grid = args.layout_grid if args.regressor == "mixture" else 0
     return noisy_dataset_inputs(masks, settings, codebook, grid=grid, mirror=mirror,
                                 seed=args.seed, workers=args.workers,
-                                progress=_every_10000(start, log, what))
+                                progress=_every_10000(start, log, what),
+                                degrade=args.masks == "noisy")
 
 
 def _check_numbers(ap, args) -> None:
@@ -131,9 +134,29 @@ def _check_numbers(ap, args) -> None:
         ap.error(f"the heading index (--heading-index-rows > 0) compares the first {dims} "
                  f"principal directions: it needs --components >= {dims}, got "
                  f"{args.components} (or pass --heading-index-rows 0)")
+    if args.masks == "realistic" and args.clean:
+        ap.error("--masks realistic makes video-like masks; --clean trains on the plain "
+                 "renders: pass one of them")
+    if args.backgrounds is not None and args.masks != "realistic":
+        ap.error("--backgrounds needs --masks realistic")
+    if args.backgrounds not in (None, "procedural") and not Path(args.backgrounds).is_dir():
+        ap.error(f"--backgrounds: folder not found: {args.backgrounds} (a folder, or "
+                 f"procedural)")
     if args.clean and args.regressor == "mixture" and args.layout_grid:
         ap.error("--layout-grid needs the video-like masks (drop --clean, or pass "
                  "--layout-grid 0)")
+
+
+def _mask_settings(args) -> dict:
+    """DatasetConfig's mask settings of --masks and --backgrounds: none for noisy (plain
+    renders, the data set's default, so its cache key stays), else realistic masks over the
+    procedural rooms ("") or the plates of --backgrounds DIR
+    (sequences.backgrounds.plates_folder)."""
+    if args.masks == "noisy":
+        return {}
+    rooms = args.backgrounds or "procedural"
+    return {"masks": "realistic",
+            "backgrounds": "" if rooms == "procedural" else plates_folder(rooms, args.cache)}
 
 
 def _check_out(ap, args) -> None:
@@ -228,6 +251,17 @@ def _main(argv) -> int:
     ap.add_argument("--clean", action="store_true",
                     help="train on the clean renders (default: video-like silhouettes, "
                          "sequences.mask_noise)")
+    ap.add_argument("--masks", choices=("noisy", "realistic"), default="noisy",
+                    help="noisy: plain renders degraded by hand-written noise "
+                         "(sequences.mask_noise; default); realistic: rendered over a room, "
+                         "H.264, cut out by the tracker's extractor (docs/render_to_real.md), "
+                         "learnt from as they are (no hand noise on top)")
+    ap.add_argument("--backgrounds", default=None, metavar="DIR|procedural",
+                    help="with --masks realistic: the rooms, procedural (our synthetic rooms; "
+                         "the default) or a folder of plate-*.png or of Pose2Sim trials (their "
+                         "plates made once into CACHE/plates; they are the real test trials' "
+                         "rooms: a model trained over them and judged on Pose2Sim has seen "
+                         "the test scenes)")
     ap.add_argument("--expert", choices=tuple(EXPERT_CHOICES), default=MixtureOptions.expert,
                     help="the mixture's experts: sparse RVMs over --centres candidate kernels "
                          "each, fitted on all their rows, with a predictive variance per "
@@ -344,7 +378,8 @@ def _main(argv) -> int:
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     start = time.perf_counter()
     try:
-        config = DatasetConfig(views_per_trial=args.views, seed=args.seed)
+        config = DatasetConfig(views_per_trial=args.views, seed=args.seed,
+                               **_mask_settings(args))
         files = training_files(args.bvh_dir)
         per_trial = (f"1-{args.max_views} views each for about {args.rows_per_trial} "
                      f"silhouettes" if args.rows_per_trial else f"{args.views} views")
@@ -380,8 +415,10 @@ def _main(argv) -> int:
 
         def compute():
             log("codebook and descriptors ...")
-            fit = fit_dataset_codebook if args.clean else fit_noisy_codebook
-            codebook = fit(data, settings, n_centres=args.codebook_centres, seed=args.seed)
+            codebook = (fit_dataset_codebook(data, settings, n_centres=args.codebook_centres,
+                                             seed=args.seed) if args.clean else
+                        fit_noisy_codebook(data, settings, n_centres=args.codebook_centres,
+                                           seed=args.seed, degrade=args.masks == "noisy"))
             if args.clean:
                 return _describe_clean(args, data.masks, settings, codebook, start, log,
                                        "descriptors"), codebook
@@ -390,7 +427,8 @@ def _main(argv) -> int:
             return made["histograms"], codebook
 
         key = (f"v1-{config.digest()}" if views is None and args.clean else
-               descriptor_cache_key(config, views, noisy=not args.clean))
+               descriptor_cache_key(config, views,
+                                    noisy=not args.clean and args.masks == "noisy"))
         if args.codebook_centres != 100:     # the default's key stays what its caches are under
             key += f"-cb{args.codebook_centres}"
         if splice is not None and views is None:  # the views then name no trial: say which
@@ -403,7 +441,7 @@ def _main(argv) -> int:
                 args.cache, key, args.layout_grid,
                 lambda: made["layouts"] if "layouts" in made else
                 noisy_dataset_layouts(data.masks, args.layout_grid, seed=args.seed,
-                                      workers=args.workers))
+                                      workers=args.workers, degrade=args.masks == "noisy"))
             log(f"  layouts ready ({time.perf_counter() - start:.0f} s so far)")
         mirrored = None
         if want_mirror:

@@ -104,6 +104,19 @@ def pose2sim_plates(root: str | Path, cache_dir: str | Path | None = None
     return plates
 
 
+def plates_folder(backgrounds: str | Path, cache_dir: str | Path) -> str:
+    """The folder of plates to render over (DatasetConfig.backgrounds): backgrounds itself
+    when it holds plate-*.png, else the Pose2Sim trials in it made into plates once, in
+    cache_dir/plates. Absolute, so the data set's cache key does not depend on the working
+    folder."""
+    backgrounds = Path(backgrounds)
+    if any(backgrounds.glob("plate-*.png")):
+        return str(backgrounds.resolve())
+    folder = Path(cache_dir) / "plates"
+    pose2sim_plates(backgrounds, folder)
+    return str(folder.resolve())
+
+
 def procedural_plates(n: int = 4, size: tuple[int, int] = (480, 320), seed: int = 0
                       ) -> list[tuple[np.ndarray, np.ndarray]]:
     """n synthetic rooms (sequences.video.textured_background), (BGR uint8 (H, W, 3), nothing

@@ -137,3 +137,20 @@ def test_measure_render_gap_refuses_bad_options_in_one_line(tmp_path):
                              capture_output=True, text=True, cwd=root)
         assert run.returncode == 2 and message in run.stderr, run.stderr
         assert "Traceback" not in run.stderr and len(run.stderr.strip().splitlines()) == 1
+
+
+def test_measure_render_gap_tracks_its_clips_with_the_model_it_measures(tmp_path, monkeypatch):
+    """The "through track" novelty is the --model's (as the real views' is), not the default
+    model's: track is run with --model."""
+    from conftest import load_script
+    gap = load_script("measure_render_gap")
+    seen = []
+
+    def fake_run(argv, **kw):
+        seen.append(argv)
+        Path(argv[argv.index("--json") + 1]).write_text('{"tracks": {"1": {"novelty": [0.5]}}}')
+        return subprocess.CompletedProcess(argv, 0, "", "")
+    monkeypatch.setattr(subprocess, "run", fake_run)
+    model = tmp_path / "other_model.npz"
+    assert gap.tracked_novelty([tmp_path / "a-0.mp4"], model) == {"a-0": 0.5}
+    assert seen[0][seen[0].index("--model") + 1] == str(model)

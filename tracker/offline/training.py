@@ -103,6 +103,13 @@ def noisy_masks(masks, seed: int, noise=None, start: int = 0) -> list[np.ndarray
     return degrade_all(masks, seed, noise or MaskNoise(), extractor_cleaner, start=start)
 
 
+def video_like_masks(masks, seed: int, start: int = 0, degrade: bool = True) -> list:
+    """The masks the model learns from: noisy_masks of masks (hand noise on plain renders),
+    or with degrade=False the masks themselves (already video-like: the data set's realistic
+    masks, cut out of rendered video by the tracker's extractor)."""
+    return noisy_masks(masks, seed, start=start) if degrade else list(masks)
+
+
 def _pooled_rows(masks: np.ndarray, task, args: tuple, width: int, workers: int,
                  progress: Callable[[int, int], None] | None) -> np.ndarray:
     """Rows (N, width), task((start, stop, *args)) -> rows start:stop, over chunks of masks
@@ -122,22 +129,27 @@ def _pooled_rows(masks: np.ndarray, task, args: tuple, width: int, workers: int,
 
 
 def _noisy_layout_chunk(args) -> np.ndarray:
-    start, stop, grid, seed = args
-    return layouts_for_masks(noisy_masks(_SHARED["masks"][start:stop], seed, start=start), grid)
+    start, stop, grid, seed, degrade = args
+    return layouts_for_masks(video_like_masks(_SHARED["masks"][start:stop], seed, start, degrade),
+                             grid)
 
 
 def noisy_dataset_layouts(masks: np.ndarray, grid: int, seed: int = 0, workers: int = 2,
-                          progress: Callable[[int, int], None] | None = None) -> np.ndarray:
+                          progress: Callable[[int, int], None] | None = None,
+                          degrade: bool = True) -> np.ndarray:
     """Layouts (N, grid^2) (regressor.layout) of the same video-like masks as
-    noisy_dataset_inputs (same seeds, so row i's layout and descriptor describe one mask), by
-    ``workers`` forked processes; for a cache that has the descriptors but not the layouts."""
-    return _pooled_rows(masks, _noisy_layout_chunk, (grid, seed), grid * grid, workers, progress)
+    noisy_dataset_inputs (same seeds and degrade, so row i's layout and descriptor describe one
+    mask), by ``workers`` forked processes; for a cache that has the descriptors but not the
+    layouts."""
+    return _pooled_rows(masks, _noisy_layout_chunk, (grid, seed, bool(degrade)), grid * grid,
+                        workers, progress)
 
 
 def _noisy_inputs_chunk(args) -> np.ndarray:
-    start, stop, settings, codebook, seed, grid, mirror = args
+    start, stop, settings, codebook, seed, grid, mirror, degrade = args
     rows = []
-    for i, mask in enumerate(noisy_masks(_SHARED["masks"][start:stop], seed, start=start)):
+    for i, mask in enumerate(video_like_masks(_SHARED["masks"][start:stop], seed, start,
+                                              degrade)):
         try:
             own, reflected = (descriptor_and_mirror(mask, settings, codebook) if mirror
                               else (descriptor_for_mask(mask, settings, codebook), None))
@@ -152,22 +164,23 @@ def _noisy_inputs_chunk(args) -> np.ndarray:
 
 def noisy_dataset_inputs(masks: np.ndarray, settings: DescriptorSettings, codebook: Codebook,
                          grid: int = 0, mirror: bool = False, seed: int = 0, workers: int = 2,
-                         progress: Callable[[int, int], None] | None = None
-                         ) -> dict[str, np.ndarray]:
+                         progress: Callable[[int, int], None] | None = None,
+                         degrade: bool = True) -> dict[str, np.ndarray]:
     """The video-like masks' inputs in one pass (each mask degraded and its shape contexts
     computed once, by ``workers`` forked processes; reproducible whatever their number):
     {"histograms": (N, K) (descriptors_for_masks of noisy_masks(masks, seed)), "layouts":
     (N, grid^2) with grid > 0 (equal to noisy_dataset_layouts), and with mirror
     "mirror_histograms" (N, K), "mirror_layouts" (N, grid^2): the same video-like masks'
     mirror images (flipped left to right), described as the tracker describes a frame's
-    mirror (regressor.descriptor.descriptor_and_mirror)}.
+    mirror (regressor.descriptor.descriptor_and_mirror)}. degrade=False: the masks are already
+    video-like (realistic ones) and are described as they are (video_like_masks).
     Raises DegenerateSilhouetteError naming the first unusable mask's index."""
     K, cells = codebook.n_centres, int(grid) ** 2 if grid else 0
     widths = {"histograms": K, "layouts": cells}
     if mirror:
         widths.update(mirror_histograms=K, mirror_layouts=cells)
     rows = _pooled_rows(masks, _noisy_inputs_chunk,
-                        (settings, codebook, seed, int(grid), bool(mirror)),
+                        (settings, codebook, seed, int(grid), bool(mirror), bool(degrade)),
                         sum(widths.values()), workers, progress)
     out, at = {}, 0
     for name, width in widths.items():
@@ -236,11 +249,12 @@ def fit_projection(X: np.ndarray, components: int, max_rows: int = 15000,
 
 
 def fit_noisy_codebook(dataset: Dataset, settings: DescriptorSettings, n_centres: int = 100,
-                       n_masks: int = 2000, seed: int = 0) -> Codebook:
-    """As fit_dataset_codebook, on video-like versions of the drawn masks."""
+                       n_masks: int = 2000, seed: int = 0, degrade: bool = True) -> Codebook:
+    """As fit_dataset_codebook, on video-like versions of the drawn masks (video_like_masks:
+    degrade=False takes realistic masks as they are)."""
     rng = np.random.default_rng(seed)
     pick = np.sort(rng.choice(len(dataset), size=min(n_masks, len(dataset)), replace=False))
-    masks = [noisy_masks(dataset.masks[i:i + 1], seed, start=int(i))[0] for i in pick]
+    masks = [video_like_masks(dataset.masks[i:i + 1], seed, int(i), degrade)[0] for i in pick]
     return fit_codebook_for_masks(masks, settings, n_centres=n_centres, seed=seed)
 
 
