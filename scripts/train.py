@@ -268,7 +268,7 @@ def _main(argv) -> int:
                          "frame (default), or damped least squares on --centres kernels (dls)")
     ap.add_argument("--variance", choices=("off", "on"), default="off",
                     help="with sparse RVM experts, also store their predictive variance "
-                         "(PoseModel.noise_scales): about 15 MB at 24 x 400 centres; as the "
+                         "(PoseModel.predict_variance): about 15 MB at 24 x 400 centres; as the "
                          "filter's per-frame R it did not pay (docs/rvm_experts.md); default off")
     ap.add_argument("--experts", type=int, default=MixtureOptions.n_experts)
     ap.add_argument("--centres", type=int, default=MixtureOptions.n_centres)
