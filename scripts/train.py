@@ -415,10 +415,10 @@ def _main(argv) -> int:
 
         def compute():
             log("codebook and descriptors ...")
-            codebook = (fit_dataset_codebook(data, settings, n_centres=args.codebook_centres,
-                                             seed=args.seed) if args.clean else
-                        fit_noisy_codebook(data, settings, n_centres=args.codebook_centres,
-                                           seed=args.seed, degrade=args.masks == "noisy"))
+            # Realistic masks are video-like already: their codebook is the plain one's.
+            fit = (fit_noisy_codebook if args.masks == "noisy" and not args.clean
+                   else fit_dataset_codebook)
+            codebook = fit(data, settings, n_centres=args.codebook_centres, seed=args.seed)
             if args.clean:
                 return _describe_clean(args, data.masks, settings, codebook, start, log,
                                        "descriptors"), codebook

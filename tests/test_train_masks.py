@@ -128,14 +128,15 @@ def test_realistic_masks_skip_the_hand_noise_in_every_input(train, tmp_path, mon
     _stub_training(train, monkeypatch, _tiny_dataset())
     codebook, calls = _codebook(DescriptorSettings()), {}
 
-    def record(name, result):
+    def record(name, result, degrades=None):
         def stub(*args, **kw):
-            calls[name] = kw.get("degrade", True)
+            calls[name] = kw.get("degrade", True) if degrades is None else degrades
             if result is None:
                 raise DatasetError("stopped")
             return result
         return stub
-    monkeypatch.setattr(train, "fit_noisy_codebook", record("codebook", codebook))
+    monkeypatch.setattr(train, "fit_noisy_codebook", record("codebook", codebook, True))
+    monkeypatch.setattr(train, "fit_dataset_codebook", record("codebook", codebook, False))
     monkeypatch.setattr(train, "noisy_dataset_inputs", record("inputs", None))
     assert train.main(_argv(tmp_path, "--masks", masks)) == 1
     # Descriptors from the cache, layouts not: the layouts are made on their own.

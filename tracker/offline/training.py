@@ -249,12 +249,12 @@ def fit_projection(X: np.ndarray, components: int, max_rows: int = 15000,
 
 
 def fit_noisy_codebook(dataset: Dataset, settings: DescriptorSettings, n_centres: int = 100,
-                       n_masks: int = 2000, seed: int = 0, degrade: bool = True) -> Codebook:
-    """As fit_dataset_codebook, on video-like versions of the drawn masks (video_like_masks:
-    degrade=False takes realistic masks as they are)."""
+                       n_masks: int = 2000, seed: int = 0) -> Codebook:
+    """As fit_dataset_codebook, on video-like versions of the drawn masks (hand noise; realistic
+    masks, video-like already, take fit_dataset_codebook)."""
     rng = np.random.default_rng(seed)
     pick = np.sort(rng.choice(len(dataset), size=min(n_masks, len(dataset)), replace=False))
-    masks = [video_like_masks(dataset.masks[i:i + 1], seed, int(i), degrade)[0] for i in pick]
+    masks = [noisy_masks(dataset.masks[i:i + 1], seed, start=int(i))[0] for i in pick]
     return fit_codebook_for_masks(masks, settings, n_centres=n_centres, seed=seed)
 
 
