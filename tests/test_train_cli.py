@@ -25,6 +25,12 @@ def train():
     (["--spliced", "-1"], "--spliced must be in 0..10000, got -1"),
     (["--limb-nets", "0"], "a limb head of expert weights (--limb-nets 0) needs --expert dls"),
     (["--expert", "svm"], "argument --expert: invalid choice"),
+    (["--backgrounds", "procedural"], "--backgrounds needs --masks realistic"),
+    (["--masks", "realistic", "--clean", "--layout-grid", "0"],
+     "--masks realistic makes video-like masks; --clean trains on the plain renders"),
+    (["--masks", "realistic", "--backgrounds", "no-such-rooms"],
+     "--backgrounds: folder not found: no-such-rooms"),
+    (["--masks", "plain"], "argument --masks: invalid choice: 'plain'"),
 ])
 def test_absurd_options_are_refused_before_rendering(train, tmp_path, capsys, options, says):
     cache, out = tmp_path / "cache", tmp_path / "model.npz"

@@ -1,13 +1,13 @@
 """scripts/train.py --masks {noisy,realistic} and --backgrounds: the options reach the data
-set's settings, bad combinations are refused in one line, and realistic masks (already
-video-like) are learnt from as they are: no hand noise (sequences.mask_noise) on top, their
-layouts and mirror images taken from them."""
+set's settings (bad combinations are refused in one line: tests/test_train_cli.py), and
+realistic masks (already video-like) are learnt from as they are: no hand noise
+(sequences.mask_noise) on top, their layouts and mirror images taken from them."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from conftest import load_script, refused_in_one_line
+from conftest import load_script
 from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings, descriptor_and_mirror
 from regressor.layout import layouts_for_masks
@@ -52,23 +52,6 @@ def test_realistic_masks_are_described_as_they_are_with_their_layouts_and_mirror
     # The default still degrades: the hand noise changes every mask's layout.
     noisy = noisy_dataset_layouts(masks, 4, workers=1)
     assert np.abs(noisy - layouts_for_masks(masks, 4)).max(axis=1).min() > 0
-
-
-@pytest.mark.parametrize("options, says", [
-    (["--backgrounds", "procedural"], "--backgrounds needs --masks realistic"),
-    (["--masks", "realistic", "--clean", "--layout-grid", "0"],
-     "--masks realistic makes video-like masks; --clean trains on the plain renders"),
-    (["--masks", "realistic", "--backgrounds", "no-such-rooms"],
-     "--backgrounds: folder not found: no-such-rooms"),
-    (["--masks", "plain"], "argument --masks: invalid choice: 'plain'"),
-])
-def test_bad_mask_options_are_refused_before_rendering(train, tmp_path, capsys, options, says):
-    cache, out = tmp_path / "cache", tmp_path / "model.npz"
-    err = refused_in_one_line(train, options + ["--bvh-dir", str(tmp_path / "no-bvh"),
-                                                "--cache", str(cache), "--out", str(out)],
-                              capsys)
-    assert says in err
-    assert not cache.exists() and not out.exists()
 
 
 def _stub_training(train, monkeypatch, dataset=None) -> dict:
