@@ -338,16 +338,15 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
     """
     height, width = mask.shape
     image_area = float(height * width)
-    points = cv2.findNonZero(mask)
-    if points is None:
+    box = _padded_box(mask, 0)
+    if box is None:
         return []
     # Contours with a two-level hierarchy (outer boundaries, their holes) are ~20x cheaper than
     # connectedComponentsWithStats here, and filling them reproduces each component exactly.
     # Traced in the box around the foreground only (OpenCV pads the image with background):
     # the same contours, in image coordinates, for the box's cost.
-    x, y, w, h = cv2.boundingRect(points)
-    contours, hierarchy = cv2.findContours(mask[y:y + h, x:x + w], cv2.RETR_CCOMP,
-                                           cv2.CHAIN_APPROX_SIMPLE, offset=(x, y))
+    contours, hierarchy = cv2.findContours(mask[box], cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE,
+                                           offset=(box[1].start, box[0].start))
     parents = hierarchy[0][:, 3]
     areas = np.array([cv2.contourArea(c) for c in contours])
     # contourArea runs through boundary pixel centres, so it undercounts by about half the
