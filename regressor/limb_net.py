@@ -160,7 +160,7 @@ class LimbNet:
         the poses move by 0.13 deg mean, 0.8 deg at the 99th percentile (float16: hundredths
         of a degree), and the correlation of the 8 most-moving angles is unchanged (0.6471
         -> 0.6475); training reports the largest change on the validation rows as
-        limb_net_int8_max_deg (tracker.offline.training.train_mixture_model). Files written
+        limb_net_int8_max_deg (lab.training.train_mixture_model). Files written
         before that hold float16 weights and no scales; from_arrays reads both."""
         out = {f"{prefix}shape": np.array([len(self.members), len(self.members[0])], np.int64),
                f"{prefix}input_mean": self.input_mean,

@@ -26,7 +26,7 @@ flip} (sequences.pose_vector.canonical_member). The main head must average a sil
 bodies where it cannot tell them apart (in profile, which leg is forward); the limb head sees
 one silhouette with one target except near its rule's boundary (for "facing", exactly in
 profile), so its limbs are one body's or the other's, and the tracker takes the member that
-agrees with the heading it decided (tracker/hypotheses.py, "Limbs").
+agrees with the heading it decided (tracker/tracks/hypotheses.py, "Limbs").
 
 Its limbs may instead come from a limb network (regressor.limb_net.LimbNet): an ensemble of
 small neural networks on the same input and the same canonical targets, fitted on all the
@@ -125,10 +125,10 @@ class PoseModel:
     tracker weighs the limbs' canonical member against its flip with it), or None.
     canonical_priors: with a side classifier, how far the tracker trusts that weighing
     (regressor.canonical_priors.CanonicalPriors, learned on validation renders), or None (the
-    tracker then takes the shipped model's, tracker.hypotheses.DEFAULT_CANONICAL_PRIORS).
+    tracker then takes the shipped model's, tracker.tracks.hypotheses.DEFAULT_CANONICAL_PRIORS).
     variance_calibration: for sparse RVM experts that keep their predictive variance, the
     factor on :meth:`predict_variance` that makes it the measurement covariance's scale on
-    validation rows (tracker.offline.training.calibrate_variance), or None.
+    validation rows (regressor.training.calibrate_variance), or None.
 
     The tracker calls only regressor.estimator.PoseEstimator's members (:meth:`hypotheses`,
     :meth:`describe`, ...); predict_batch, predict_limbs and predict_variance serve training
@@ -219,9 +219,9 @@ class PoseModel:
     def limbs_see_mirror(self) -> bool:
         """Whether the limbs are best averaged with the limbs of the mirror image (mirrored
         back): the model's limb networks were fitted on mirror images too
-        (tracker.offline.training.MixtureOptions.limb_net_mirror, recorded in the
+        (regressor.training.MixtureOptions.limb_net_mirror, recorded in the
         description's options), so they answer for a mirror image as well as for the image.
-        The tracker then describes each frame's mirror too (tracker.mirror_limbs)."""
+        The tracker then describes each frame's mirror too (tracker.tracks.mirror_limbs)."""
         options = (self.description.get("options") if isinstance(self.description, dict)
                    else None)
         return (self.limb_net is not None and isinstance(options, dict)
@@ -335,7 +335,7 @@ class PoseModel:
     @property
     def gives_canonical_pairs(self) -> bool:
         """Whether the tracker's front/back chain carries this model's canonical limbs and
-        their flips (a mixture with limbs and a side classifier; tracker.hypotheses), the one
+        their flips (a mixture with limbs and a side classifier; tracker.tracks.hypotheses), the one
         test both the hypotheses and their switching rates go by."""
         return (self.side_classifier is not None and self.mixture is not None
                 and self.has_limbs)

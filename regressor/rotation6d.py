@@ -15,7 +15,7 @@ the same recipe with Euler targets: on the 28 validation renders, the limbs at t
 heading err53 / corr8 / flexion 6.883 / 0.600 / 14.59 against 6.874 / 0.605 / 14.38; through
 ``track`` on 12 validation videos filtered 8.364 / 0.412 against 8.397 / 0.409, smoothed
 8.169 / 0.468 against 8.166 / 0.469; and its file is 10,002,009 bytes. So the shipped model
-keeps Euler targets (tracker.offline.training.MixtureOptions.limb_net_output); this stays an
+keeps Euler targets (regressor.training.MixtureOptions.limb_net_output); this stays an
 option of training.
 
 Layout of the 53 angles (regressor.angles, sequences.pose_vector): the root's two tilts

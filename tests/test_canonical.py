@@ -15,7 +15,7 @@ from sequences.pose_vector import (PoseVectorError, canonical_member, flip_odd_p
                                    front_back_flip)
 from tests.test_layout import _projected_model, _write_unchecked
 from tests.test_pose_vector import _random_vectors
-from tracker.offline.training import canonical_direction
+from lab.training import canonical_direction
 from tracker.pipeline import TrackerSettings, filter_factories
 
 

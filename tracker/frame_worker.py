@@ -205,7 +205,7 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
 
 class _PassingWarnings:
     """The worker's end of the pipe, sending the warnings caught since the last message
-    (e.g. a video cut short: tracker.video.VideoTruncatedWarning) before each message, for the
+    (e.g. a video cut short: tracker.video.decode.VideoTruncatedWarning) before each message, for the
     main process to issue in their place among the frames."""
 
     def __init__(self, writer, caught: list):
