@@ -39,6 +39,7 @@ rows' projected inputs and folded headings, whose nearest neighbours give each f
 from __future__ import annotations
 
 import json
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,7 +52,6 @@ from .descriptor import (DescriptorSettings, DescriptorSettingsError, descriptor
                          descriptor_for_mask)
 from .layout import MAX_GRID, silhouette_layout
 from .mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate
-from .sparse_rvm import SparseRVMRegressor
 from .model_file import ModelFileError, load_model, save_model
 from .errors import SilhouettePoseError
 from .estimator import PoseEstimates
@@ -306,8 +306,7 @@ class PoseModel:
         """Whether the model's experts give a predictive variance per frame (sparse RVMs whose
         posterior covariance the model keeps)."""
         return self.mixture is not None and all(
-            isinstance(e, SparseRVMRegressor) and hasattr(e, "sigma_")
-            for e in self.mixture.experts_)
+            _is_sparse_rvm(e) and hasattr(e, "sigma_") for e in self.mixture.experts_)
 
     def predict_variance(self, stacked: np.ndarray) -> np.ndarray:
         """Predictive variance (N,) deg^2 of :meth:`predict_batch`'s pose for stacked
@@ -583,10 +582,17 @@ def _validate(path: Path, m: PoseModel) -> None:
 # expert_kind the experts are damped least squares.
 
 
+def _is_sparse_rvm(expert) -> bool:
+    """isinstance(expert, SparseRVMRegressor) without importing regressor.sparse_rvm: a model
+    without sparse RVM experts never loads it."""
+    module = sys.modules.get("regressor.sparse_rvm")
+    return module is not None and isinstance(expert, module.SparseRVMRegressor)
+
+
 def _mixture_arrays(model: PoseModel) -> dict:
     mix = model.mixture
     experts = mix.experts_
-    rvm = all(isinstance(e, SparseRVMRegressor) for e in experts)
+    rvm = all(_is_sparse_rvm(e) for e in experts)
     if not rvm and not all(isinstance(e, DampedKernelRegressor) for e in experts):
         raise PoseModelError("only mixtures of DampedKernelRegressor or SparseRVMRegressor "
                              "experts can be saved")
@@ -890,6 +896,7 @@ def _rvm_experts(a, experts: list, offsets: np.ndarray
         raise ValueError("sparse RVM expert parts do not match the experts' sizes")
     if np.any(beta <= 0) or np.any(rows < 1) or np.any(y_scale <= 0):
         raise ValueError("sparse RVM noise precisions, rows and output scales must be positive")
+    from .sparse_rvm import SparseRVMRegressor
     out = []
     for e, dls in enumerate(experts):
         ex, R = SparseRVMRegressor(n_candidates=int(sizes[e])), int(sizes[e])

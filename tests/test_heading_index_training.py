@@ -178,7 +178,7 @@ def test_limb_networks_also_fit_a_share_of_the_rows_played_backwards(monkeypatch
     """limb_net_reversed: that share of the training rows (and their mirror images) is added
     with its stacked frames in reverse order and the same targets."""
     pytest.importorskip("sklearn")
-    import regressor.training as training
+    from lab.training import _time_reversed_rows
     from sequences.pose_vector import canonical_member, image_mirror
     data, X, codebook, settings = _dataset()
     X_mirror = X.copy()
@@ -202,8 +202,8 @@ def test_limb_networks_also_fit_a_share_of_the_rows_played_backwards(monkeypatch
     np.testing.assert_allclose(seen["targets"][2 * n + m:],
                                canonical_member(image_mirror(data.pose[picked]), direction))
     for k, hist in enumerate((X, X_mirror)):
-        played_back = training._time_reversed_rows(data, hist, model.transform,
-                                                   model.stack_depth, None, 0.0)[picked]
+        played_back = _time_reversed_rows(data, hist, model.transform,
+                                          model.stack_depth, None, 0.0)[picked]
         block = seen["inputs"][2 * n + k * m:2 * n + (k + 1) * m]
         np.testing.assert_allclose(block, model._stacked(played_back), atol=1e-9)
         forwards = stack_frames(frame_descriptors(hist, model.transform), model.stack_depth,
