@@ -42,7 +42,8 @@ from threadpoolctl import threadpool_limits
 from regressor.errors import SilhouettePoseError
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from tracker import PoseTracker, TrackerSettings, track_video
-from tracker.video.segmenter import INSTALL_HINT, SOURCES, segmenter_available, silhouette_extractor
+from tracker.video.sources import (INSTALL_HINT, SOURCES, segmenter_available,
+                                   silhouette_extractor)
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.outputs.json_summary import JsonSummarySink
 from tracker.outputs.mcap import McapSink

@@ -36,7 +36,8 @@ from lab.evaluation import CameraOptions, cmu_motion, constant_pose, write_camer
 from tracker.one_line_parser import OneLineParser
 from tracker.pipeline import PoseTracker, TrackerSettings
 from tracker.run import track_video
-from tracker.video.segmenter import INSTALL_HINT, SOURCES, segmenter_available, silhouette_extractor
+from tracker.video.sources import (INSTALL_HINT, SOURCES, segmenter_available,
+                                   silhouette_extractor)
 from tracker.outputs import PoseRecorder
 
 REPO = Path(__file__).resolve().parents[1]

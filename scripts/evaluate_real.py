@@ -72,7 +72,7 @@ from lab.evaluation import constant_pose
 from lab.pose2sim_trial import checked_trial, missing_trial, trial_files
 from lab.report import ReportError, check_plotting, plot_real_video
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
-from tracker.video.segmenter import INSTALL_HINT, SOURCES, segmenter_available
+from tracker.video.sources import INSTALL_HINT, SOURCES, segmenter_available
 from tracker.outputs import PoseRecorder
 from tracker.outputs.files import OutputWriteError, write_whole
 from tracker.video.decode import VideoError
@@ -134,7 +134,7 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
     (``--reference-masks``), or None; silhouettes: ``track --silhouettes`` (when no
     reference_extractor)."""
     from tracker import PoseTracker, track_video
-    from tracker.video.segmenter import silhouette_extractor
+    from tracker.video.sources import silhouette_extractor
     from tracker.pipeline import TrackerSettings, default_extractor
     from tracker.video.decode import open_video
 

@@ -42,8 +42,9 @@ from lab.pose2sim_trial import checked_trial, missing_trial, trial_files
 from lab.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, default_associator,
                                                    evaluate_pose2sim_view, format_table)
 from tracker.pipeline import TrackerSettings
-from tracker.video.segmenter import (INSTALL_HINT, SOURCES, PersonSegmenter, segmenter_available,
-                               silhouette_extractor)
+from tracker.video.sources import (INSTALL_HINT, SOURCES, segmenter_available,
+                                   silhouette_extractor)
+from tracker.video.segmenter import PersonSegmenter
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.outputs.files import OutputWriteError, write_whole
 

@@ -13,12 +13,13 @@ import pytest
 from sequences.video import textured_background
 from tests.test_track_cli import _assert_one_line_error, _noise_video, _track
 from tracker import cli
-from tracker.video import segmenter
+from tracker.video import segmenter, sources
 from tracker.video.camera_motion import CameraMotionMeter, camera_moves
 from lab.silhouette_evaluation import silhouette_measures, track_masks
 from tracker.pipeline import TrackerSettings, default_extractor
-from tracker.video.segmenter import (INSTALL_HINT, AutoExtractor, PersonSegmenter, merge_boxes,
-                               segmenter_available, silhouette_extractor)
+from tracker.video.sources import (INSTALL_HINT, AutoExtractor, segmenter_available,
+                                   silhouette_extractor)
+from tracker.video.segmenter import PersonSegmenter, merge_boxes
 
 SAMPLE = "sequences/data/sample_spiral_walk.mp4"
 needs_segmenter = pytest.mark.skipif(
@@ -92,7 +93,7 @@ def test_auto_without_the_segmenter_stays_with_background_and_says_how_to_get_it
 
 
 def test_segment_without_the_extra_is_one_line_naming_the_install(tmp_path, monkeypatch):
-    monkeypatch.setattr(segmenter, "segmenter_available", lambda: False)
+    monkeypatch.setattr(sources, "segmenter_available", lambda: False)
     video = _noise_video(tmp_path / "v.mp4", frames=5)
     result = _track(video, "--silhouettes", "segment", "--json", tmp_path / "o.json")
     _assert_one_line_error(result, "--silhouettes segment", INSTALL_HINT)
@@ -105,8 +106,8 @@ def test_silhouettes_option_refuses_other_sources(tmp_path):
     assert result.returncode == 2 and "--silhouettes" in result.stderr
     assert "Traceback" not in result.stderr
     # The command's copies (kept import-free) are the module's.
-    assert cli.SILHOUETTE_SOURCES == segmenter.SOURCES
-    assert cli.SEGMENT_INSTALL == segmenter.INSTALL_HINT
+    assert cli.SILHOUETTE_SOURCES == sources.SOURCES
+    assert cli.SEGMENT_INSTALL == sources.INSTALL_HINT
     with pytest.raises(ValueError, match="grabcut"):
         silhouette_extractor("grabcut", TrackerSettings())
 

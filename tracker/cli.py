@@ -41,8 +41,8 @@ ZONE_FOREGROUND = {"sure": True, "colour": False}
 _CORES = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
           else os.cpu_count() or 1)
 DEFAULT_WORKERS = 2 if _CORES >= 2 else 1
-#: --silhouettes's choices and the segmenter's install command (tracker.video.segmenter.SOURCES and
-#: INSTALL_HINT, written out so that parsing the options loads no OpenCV; a test keeps them
+#: --silhouettes's choices and the segmenter's install command (tracker.video.sources.SOURCES
+#: and INSTALL_HINT, written out so that parsing the options loads no OpenCV; a test keeps them
 #: equal).
 SILHOUETTE_SOURCES = ("background", "segment", "auto")
 SEGMENT_INSTALL = "pip install 'silhouette-pose[segment]'"
@@ -264,7 +264,7 @@ def _check_options(args) -> None:
         raise TrackError(f"--min-area must be between {low:g} and {high:g} percent of the "
                          f"image, got {args.min_area}")
     if args.silhouettes == "segment":
-        from tracker.video.segmenter import SegmenterMissingError, require_segmenter
+        from tracker.video.sources import SegmenterMissingError, require_segmenter
         try:
             require_segmenter()
         except SegmenterMissingError as exc:
@@ -538,7 +538,7 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
     from tracker.pipeline import PoseTracker
     from tracker.progress import Progress
     from tracker.run import track_video
-    from tracker.video.segmenter import silhouette_extractor
+    from tracker.video.sources import silhouette_extractor
     from tracker.outputs import close_sinks, open_sinks
     from tracker.outputs.files import OutputBusyError, OutputWriteError
 

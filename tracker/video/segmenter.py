@@ -13,9 +13,8 @@ split into people by :func:`tracker.video.silhouettes.person_masks`, exactly as 
 foreground is: the rest of the pipeline sees the same :class:`PersonMask` objects.
 
 The segmenter is an optional extra: ``pip install 'silhouette-pose[segment]'``
-(:data:`INSTALL_HINT`). :class:`AutoExtractor` (``track --silhouettes auto``) keeps background
-subtraction where it works and turns to the segmenter where it cannot: a camera that moves
-(:mod:`tracker.video.camera_motion`).
+(:data:`tracker.video.sources.INSTALL_HINT`); tracker.video.sources chooses between it and
+background subtraction (``track --silhouettes``).
 
 MediaPipe's graph is made on first use, in the process that segments: a graph made before a
 fork breaks the forked process's own (tracker.frame_worker forks after priming).
@@ -23,26 +22,19 @@ fork breaks the forked process's own (tracker.frame_worker forks after priming).
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import os
 import sys
-import warnings
 
 import cv2
 import numpy as np
 
-from regressor.errors import SilhouettePoseError
 from tracker.video.area_shrink import shrink
 from tracker.video.camera_motion import CameraMotionMeter, camera_moves
 from tracker.video.noise_floor import FOREGROUND_LEVEL
-from tracker.video.silhouettes import (DEFAULT_MIN_AREA_FRACTION, BackgroundSubtractor, PersonMask,
-                          SilhouetteExtractor, clean_mask, median_background, person_masks)
+from tracker.video.silhouettes import (DEFAULT_MIN_AREA_FRACTION, BackgroundSubtractor,
+                                       PersonMask, clean_mask, median_background, person_masks)
 from tracker.video.decode import colourless
 
-#: How to get the segmenter, in the words every message uses.
-INSTALL_HINT = "pip install 'silhouette-pose[segment]'"
-#: ``track --silhouettes`` choices.
-SOURCES = ("background", "segment", "auto")
 #: Frames between searches for new people (HOG and the whole frame segmented); in between,
 #: people are followed from their previous boxes and from the moving blobs.
 SEARCH_EVERY = 15
@@ -56,22 +48,6 @@ MAX_CROP_SIDE = 256
 PERSON_PROBABILITY = 0.3
 #: HOG detections below this SVM score are dropped (OpenCV's default people detector).
 MIN_HOG_SCORE = 0.5
-
-
-class SegmenterMissingError(SilhouettePoseError, ImportError):
-    """The person segmenter was asked for but its extra is not installed."""
-
-
-def segmenter_available() -> bool:
-    """Whether MediaPipe (the ``segment`` extra) can be imported here."""
-    return importlib.util.find_spec("mediapipe") is not None
-
-
-def require_segmenter(option: str = "--silhouettes segment") -> None:
-    """SegmenterMissingError naming ``option`` and how to install it, unless available."""
-    if not segmenter_available():
-        raise SegmenterMissingError(f"{option} needs the person segmenter, which is not "
-                                    f"installed: {INSTALL_HINT}")
 
 
 #: The process ids in which a MediaPipe graph was made (forking them breaks: made_a_graph).
@@ -497,93 +473,3 @@ def _distinct(people: list[PersonMask]) -> list[PersonMask]:
         if all(_intersection(box, _corners(k.bbox)) < DUPLICATE_SHARE * own for k in kept):
             kept.append(person)
     return kept
-
-
-class AutoExtractor:
-    """``track --silhouettes auto``: background subtraction (``make_background(**options)``,
-    a :class:`SilhouetteExtractor` factory) where it works, ``segmenter`` (a
-    :class:`PersonSegmenter`, or None where the extra is missing) where it cannot: a camera
-    that moves, i.e. the clip's sampled frames do not line up
-    (:func:`tracker.video.camera_motion.camera_moves`), or, frame by frame, the camera starts to move
-    (:class:`tracker.video.camera_motion.CameraMotionMeter`, only with the segmenter: without it
-    nothing is measured per frame); the segmenter then proposes no moving blobs.
-    A person who never leaves the spot stays with background subtraction: on such clips
-    (Pose2Sim's balancing and swings) its colour-decided zone gave masks as good as or better
-    than the segmenter's (docs/segmenter.md).
-
-    Without the segmenter, such a clip stays with background subtraction and one warning says
-    how to install it. :attr:`source` is "background" or "segment"; :attr:`reason` why.
-    """
-
-    def __init__(self, make_background, segmenter: PersonSegmenter | None):
-        self.make_background = make_background
-        self.background: SilhouetteExtractor = make_background()
-        self.segmenter = segmenter
-        self.meter = CameraMotionMeter()
-        self.source, self.reason = "background", None
-
-    @property
-    def subtractor(self) -> BackgroundSubtractor:
-        """The background path's subtractor (its working size decides the samples' size)."""
-        return self.background.subtractor
-
-    def prime(self, background, frame_size: tuple[int, int] | None = None) -> None:
-        """Prime both paths (:meth:`SilhouetteExtractor.prime`); frames of the clip are also
-        judged (camera motion)."""
-        image = background if isinstance(background, np.ndarray) and background.ndim == 3 \
-            else None
-        if colourless(image if image is not None else np.asarray(background)[0]):
-            self.background = self.make_background(detect_shadows=False)
-        self.background.prime(background, frame_size)
-        if self.segmenter is not None:
-            self.segmenter.prime(background, frame_size)
-        if image is None:
-            self._judge(list(background))
-
-    def learn_zone(self, frames) -> None:
-        """As :meth:`SilhouetteExtractor.learn_zone`, and judge the frames (:meth:`prime`)."""
-        self.background.learn_zone(frames)
-        self._judge(list(frames))
-
-    def _judge(self, frames: list) -> None:
-        if camera_moves(frames):
-            self._choose("the camera moves")
-
-    def _choose(self, reason: str) -> None:
-        """Turn to the segmenter for ``reason`` (or warn once that it is missing); a moving
-        camera makes everything a moving blob, so it proposes none."""
-        if self.source == "segment" or self.reason is not None:
-            return
-        self.reason = reason
-        if self.segmenter is None:
-            warnings.warn(f"{reason}: background subtraction cannot follow it; a person "
-                          f"segmenter can ({INSTALL_HINT}; then track --silhouettes auto)")
-            return
-        self.source = "segment"
-        self.segmenter.use_motion = False
-
-    def __call__(self, frame: np.ndarray) -> list[PersonMask]:
-        """The people in ``frame`` (BGR uint8 (H, W, 3)) from the path in use."""
-        if self.source == "background" and self.segmenter is not None and self.meter(frame):
-            self._choose("the camera moves")
-        if self.source == "segment":
-            return self.segmenter(frame)
-        return self.background(frame)
-
-
-def silhouette_extractor(source: str, settings):
-    """The extractor ``track --silhouettes SOURCE`` uses with tracker.pipeline.TrackerSettings
-    ``settings``: None for "background" (PoseTracker's default), a PersonSegmenter for
-    "segment" (SegmenterMissingError without the extra), an AutoExtractor for "auto" (with the
-    segmenter where installed)."""
-    from tracker.pipeline import default_extractor
-    if source not in SOURCES:
-        raise ValueError(f"silhouette source {source!r} is not one of {', '.join(SOURCES)}")
-    if source == "background":
-        return None
-    if source == "segment":
-        require_segmenter()
-        return PersonSegmenter(min_area_fraction=settings.min_area_fraction)
-    segmenter = (PersonSegmenter(min_area_fraction=settings.min_area_fraction)
-                 if segmenter_available() else None)
-    return AutoExtractor(lambda **options: default_extractor(settings, **options), segmenter)
