@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 from regressor.angles import POSE_DIM, wrap_deg
 from regressor.errors import SilhouettePoseError
 
-from .bvh import Motion
+from .motion import Motion
 from .skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, FOLDED, POSE_JOINT_PART,
                        POSE_JOINTS, pose_joint_indices)
 
