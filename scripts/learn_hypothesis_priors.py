@@ -20,8 +20,9 @@ from threadpoolctl import threadpool_limits
 
 import numpy as np
 
-from regressor.pose_model import (DEFAULT_MODEL_PATH, PoseModelError, load_pose_model,
-                                  save_pose_model)
+from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
+
+from regressor.model_writer import save_pose_model
 from lab.hypothesis_priors import (choose_weights, learn_canonical_priors, prior_files,
                                                regressor_flip_statistics, replay_heading_rms,
                                                top_experts, validation_renders)

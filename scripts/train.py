@@ -29,8 +29,10 @@ from regressor.angles import wrap_deg
 from regressor.descriptor import DescriptorSettings
 from regressor.errors import SilhouettePoseError
 from regressor.layout import MAX_GRID
-from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
-from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model, save_pose_model
+from regressor.limb_net import MAX_MEMBERS
+from regressor.limb_net_training import require_training_dependencies
+from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+from regressor.model_writer import save_pose_model
 from sequences.backgrounds import plates_folder
 from sequences.cmu_extra import (EXTRA_HELD_OUT, EXTRA_ROWS_PER_TRIAL, CmuExtraError,
                                  extra_dataset_trials, extra_sources, source_sequence,

@@ -10,7 +10,8 @@ from regressor.edges import DegenerateSilhouetteError
 from regressor.layout import silhouette_layout
 from regressor.mixture import MixtureRegressor
 from regressor.model_file import FORMAT_VERSION, checksum, load_model, save_model
-from regressor.pose_model import PoseModel, PoseModelError, load_pose_model, save_pose_model
+from regressor.pose_model import PoseModel, PoseModelError, load_pose_model
+from regressor.model_writer import save_pose_model
 
 
 def _figure(scale: int = 1, shift: tuple[int, int] = (0, 0)) -> np.ndarray:

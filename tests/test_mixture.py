@@ -8,8 +8,8 @@ from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings
 from regressor.mixture import (DampedKernelRegressor, MixtureRegressor, NeighbourGate,
                               SoftmaxGate, kmeans)
-from regressor.pose_model import (PoseModel, PoseModelError, load_pose_model,
-                                  save_pose_model)
+from regressor.pose_model import PoseModel, PoseModelError, load_pose_model
+from regressor.model_writer import save_pose_model
 from regressor.sparse_rvm import SparseRVMRegressor
 
 SMALL = dict(n_centres=40, gate_centres=30, gate_l2=1e-2, overlap=0.0)

@@ -9,7 +9,8 @@ import pytest
 
 from regressor.model_file import load_model, save_model
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, DEFAULT_MODEL_PATH, PoseModelError,
-                                  load_pose_model, save_pose_model)
+                                  load_pose_model)
+from regressor.model_writer import save_pose_model
 from tracker import PoseTracker, TrackerSettings
 from tracker.tracks.hypotheses import chain_options
 

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from regressor.angles import pose_angles, wrap_deg
-from regressor.pose_model import load_pose_model, save_pose_model
+from regressor.pose_model import load_pose_model
+from regressor.model_writer import save_pose_model
 from regressor.sparse_rvm import SparseRVMRegressor
 from regressor.stacking import stack_frames
 from tests.test_heading_index_training import _dataset, _options

@@ -191,9 +191,10 @@ def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pai
     the tracker's hypotheses become the limbs' member and its flip."""
     pytest.importorskip("sklearn")
     from test_mixture import _mixture_model, assert_refused_when_changed
-    from regressor.limb_net import fit_limb_net
+    from regressor.limb_net_training import fit_limb_net
     from regressor.model_file import load_model
-    from regressor.pose_model import PoseModelError, load_pose_model, save_pose_model
+    from regressor.pose_model import PoseModelError, load_pose_model
+    from regressor.model_writer import save_pose_model
     from tracker.tracks.hypotheses import propose_batch
     model, x = _mixture_model()                              # input length 8
     rng = np.random.default_rng(3)

@@ -23,15 +23,15 @@ import numpy as np
 from regressor.angles import POSE_DIM, pose_angles, regression_targets, wrap_deg
 from regressor.codebook import Codebook
 from regressor.descriptor import (DescriptorSettings, SilhouetteError, descriptor_and_mirror,
-                                  descriptor_for_mask, descriptors_for_masks,
-                                  fit_codebook_for_masks)
+                                  descriptor_for_mask, descriptors_for_masks)
 from regressor.layout import layouts_for_masks, silhouette_layout
-from regressor.limb_net import require_training_dependencies
+from regressor.limb_net_training import require_training_dependencies
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
                                   frame_descriptors, transform_descriptors)
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
 from regressor.training import (MixtureOptions, angle_centres, block_spread, calibrate_variance,
+                                fit_codebook_for_masks,
                                 check_mixture_options, fit_experts, fit_heading_index_part,
                                 fit_limb_networks, fit_projection, fit_side_classifier_part,
                                 measurement_noise, mixture_space, process_noise,
