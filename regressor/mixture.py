@@ -49,7 +49,7 @@ COMBINE_KINDS = ("most_probable", "mean")
 
 
 class Estimator:
-    """scikit-learn's parameter protocol by hand (as regressor.basis.BasisRegressor)."""
+    """scikit-learn's parameter protocol by hand (as regressor.basis_regressor.BasisRegressor)."""
 
     @classmethod
     def _param_names(cls) -> list[str]:
