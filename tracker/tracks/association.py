@@ -52,7 +52,6 @@ from scipy.optimize import linear_sum_assignment
 
 from regressor.errors import SilhouettePoseError
 
-from tracker.video.blob_split import Shape, split_blob
 
 
 #: How long, seconds, a track may stay hidden in a group (PoseTracker sets max_occluded from it
@@ -279,6 +278,7 @@ class Associator:
         if getattr(blob, "mask", None) is None or any(
                 t.shape is None or not np.isfinite(t.bbox).all() for t in tracks):
             return []
+        from tracker.video.blob_split import Shape, split_blob   # only where people merge
         parts = split_blob(blob, [Shape(t.shape, tuple(t.bbox)) for t in tracks])
         return [(t.track_id, part) for t, part in zip(tracks, parts) if part is not None]
 
