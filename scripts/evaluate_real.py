@@ -129,7 +129,7 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
                 reference_extractor=None, silhouettes: str = "background") -> ViewTrack:
     """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
     with ``--roll roll_deg``; keep_masks: also keep the silhouettes (ViewTrack.tiles);
-    trust_zone_foreground: the extractor's (tracker.video.silhouettes.refine_in_zone);
+    trust_zone_foreground: the extractor's (tracker.video.zone.refine_in_zone);
     reference_extractor: a function of the extractor giving the extractor to use
     (``--reference-masks``), or None; silhouettes: ``track --silhouettes`` (when no
     reference_extractor)."""
@@ -226,7 +226,7 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
     trust_zone_foreground: True takes the subtractor's foreground inside the unreliable zone
-    as sure person (tracker.video.silhouettes.refine_in_zone; ``--zone-foreground sure``), False
+    as sure person (tracker.video.zone.refine_in_zone; ``--zone-foreground sure``), False
     (the default, as track's) lets colour decide on it too.
     sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
     at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them).
@@ -525,7 +525,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
                     help="as track --zone-foreground: inside the background's unreliable zone, "
                          "let colour decide on the subtractor's foreground too (the default) "
-                         "or take it as sure person (tracker.video.silhouettes.refine_in_zone)")
+                         "or take it as sure person (tracker.video.zone.refine_in_zone)")
     ap.add_argument("--reference-masks", choices=("none", "cut", "drawn", "rendered"),
                     default="none",
                     help="a diagnostic that reads the reference: cut each silhouette to the "

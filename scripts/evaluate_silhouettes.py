@@ -18,7 +18,7 @@ is the extractor and associator as they were (median background, shadows dropped
 always on), "after" the extractor primed with frames of the clip, the
 subtractor's foreground inside the unreliable zone sure person (``track --zone-foreground
 sure``), "colour" the same with colour also deciding on that foreground
-(tracker.video.silhouettes.refine_in_zone, trust_zone_foreground=False; track's default since
+(tracker.video.zone.refine_in_zone, trust_zone_foreground=False; track's default since
 2026-12-04). ``--silhouettes`` measures ``track --silhouettes``'s sources instead (background:
 the "colour" extractor; segment and auto: tracker.video.segmenter, which needs the segment extra).
 Measures:

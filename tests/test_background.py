@@ -37,7 +37,7 @@ def test_gap_between_two_people_side_by_side_stays_reliable():
 
 def test_a_slow_change_of_light_makes_no_unreliable_zone():
     """Brightness rising 0.85x -> 1.15x over the clip had made a bright sky busy in most
-    frames, and its zone was taken for a person (tracker.video.silhouettes.refine_in_zone)."""
+    frames, and its zone was taken for a person (tracker.video.zone.refine_in_zone)."""
     rng = np.random.default_rng(0)
     scene = np.clip(rng.normal(120, 40, (120, 160, 3)), 0, 255)
     scene[:50] = 200                                     # a bright, flat sky

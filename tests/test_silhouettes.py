@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from tracker.video.silhouettes import (BackgroundSubtractor, PersonMask, ExtractionError,
-                                 SilhouetteExtractor, ZoneRefiner, clean_mask, median_background,
-                                 person_masks, refine_in_zone, _unless_collapsed, _zone_labels)
+                                        SilhouetteExtractor, clean_mask, median_background,
+                                        person_masks)
+from tracker.video.zone import ZoneRefiner, refine_in_zone, _unless_collapsed, _zone_labels
 
 
 def background(width: int, height: int, seed: int = 0) -> np.ndarray:
@@ -368,7 +369,7 @@ def test_colour_decides_on_a_ghost_only_when_the_zone_foreground_is_not_trusted(
 def test_a_colour_cut_that_loses_the_person_is_cut_again_with_the_foreground_sure():
     """A person the colours cannot tell from the background inside the zone (here: not drawn
     at all, only found by the subtractor) would be cut away whole; the box is cut again with
-    the foreground sure instead (tracker.video.silhouettes.COLLAPSED_SHARE)."""
+    the foreground sure instead (tracker.video.zone.COLLAPSED_SHARE)."""
     frame = background(320, 240, seed=9)
     found = np.zeros((240, 320), np.uint8)
     found[60:200, 140:180] = 255                  # a person-sized blob...

@@ -268,7 +268,7 @@ def clip_extractor(frames) -> "SilhouetteExtractor":
 def colour_zone_extractor(frames) -> "SilhouetteExtractor":
     """The extractor as ``track`` builds it by default since 2026-12-04: colour also decides
     on the foreground inside the unreliable zone (``trust_zone_foreground=False``:
-    tracker.video.silhouettes.refine_in_zone)."""
+    tracker.video.zone.refine_in_zone)."""
     from tracker.video.silhouettes import SilhouetteExtractor
     extractor = SilhouetteExtractor(trust_zone_foreground=False)
     extractor.prime(frames)

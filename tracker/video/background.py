@@ -6,7 +6,7 @@ model can see behind it. What the clip does tell is *where* the background is un
 pixels that differ from the clip's median in a large share of the frames, i.e. where the person
 stood or moved, closed and hole-filled so that a torso which barely changed (and so matches the
 median) is included. Inside that zone the silhouette extractor decides person or background by
-colour (``tracker.video.silhouettes.refine_in_zone``), outside it background subtraction is trusted.
+colour (``tracker.video.zone.refine_in_zone``), outside it background subtraction is trusted.
 
 Everything works on frames shrunk to the subtractor's working size: 25 frames of 320x569 px cost
 a few milliseconds.
