@@ -152,12 +152,8 @@ class LimbNet:
     def to_arrays(self, prefix: str = PREFIX) -> dict:
         """The file parts, keyed by ``prefix``; each weight matrix as int8 with a float32
         scale per output column (``S{m}_{i}``; relu_layers.quantised_int8), half of float16's
-        space. Measured on the 4,509 validation rows with the four networks of 2026-12-02:
-        the poses move by 0.13 deg mean, 0.8 deg at the 99th percentile (float16: hundredths
-        of a degree), and the correlation of the 8 most-moving angles is unchanged (0.6471
-        -> 0.6475); training reports the largest change on the validation rows as
-        limb_net_int8_max_deg (lab.training.train_mixture_model). Files written
-        before that hold float16 weights and no scales; from_arrays reads both."""
+        space (what it changes: docs/tuning.md; training reports limb_net_int8_max_deg). Older
+        files hold float16 weights and no scales; from_arrays reads both."""
         out = {f"{prefix}shape": np.array([len(self.members), len(self.members[0])], np.int64),
                f"{prefix}input_mean": self.input_mean,
                f"{prefix}input_scale": np.float64(self.input_scale),

@@ -47,15 +47,9 @@ DEFAULT_WORKERS = 2 if _CORES >= 2 else 1
 SILHOUETTE_SOURCES = ("background", "segment", "auto")
 SEGMENT_INSTALL = "pip install 'silhouette-pose[segment]'"
 #: Ctrl-C, SIGTERM and SIGHUP received during main() (those the command handles: not one the
-#: shell ignores). If anything swallows the KeyboardInterrupt they raise (a library's bare
-#: ``except:`` round an optional import, say), the command would run on. In one full test run
-#: (2026-12-02) a Ctrl-C 0.2-0.5 s into start-up let the process run to the end and exit 0,
-#: silently; it did not recur in 11 more runs of that test, and its cause was not found: this
-#: guards against a swallowed interrupt, whatever swallows it. One such place showed on
-#: 2026-12-03 (a fresh-clone CI run, the same test): the import system's module-lock callback,
-#: a weakref callback, took the KeyboardInterrupt, which CPython can only print ("Exception
-#: ignored in ... Traceback") and drop; during main() such an interrupt is recorded instead
-#: (_unraisable_interrupt_recorded).
+#: shell ignores): if anything swallows the KeyboardInterrupt they raise (a library's bare
+#: ``except:``, the import system's module-lock weakref callback, which CPython can only print
+#: and drop: _unraisable_interrupt_recorded), the command still stops (docs/tuning.md).
 _interrupts: list[int] = []
 _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 

@@ -1,22 +1,14 @@
 """Which body the limbs are, decided over a whole track (``--smooth``).
 
-The limb networks give one of a silhouette's two bodies (their canonical member), and the
-tracker takes it or its front/back flip (tracker.tracks.hypotheses.pick_member). Online it takes the
-one whose heading is nearer the heading the front/back chain decided. In profile the two
-headings (h and 180 - h) nearly meet, so a few degrees of heading error pick the wrong one, and
-what differs between the two there is which leg is forward: the output's legs swap for a few
-frames. Offline the whole track is known, and the choice can be made as the most probable
-chain of members (regressor.hypothesis_path): each frame's evidence for a member is how near
-its heading is to the smoothed heading (a Gaussian of MEMBER_HEADING_SD_DEG), and each step
-from one frame's member to the next costs the squared change of the 53 body angles over
-2 MEMBER_STEP_VARIANCE. Away from profile the heading decides; in profile, where it cannot,
-the legs' continuity does. The heading itself is not changed, nor is the online (filtered)
-output: the same recursion forward only, without look-ahead, gained nothing.
-
-Only the ratio MEMBER_STEP_VARIANCE / MEMBER_HEADING_SD_DEG^2 matters; 0.44 was chosen on the
-validation renders and videos (smoothed corr8 of the 28 renders 0.6356 -> 0.6407, of the 12
-videos 0.618 -> 0.626). The measurements, the other ratios tried and the held-out figures:
-docs/accuracy.md, "2026-12-04 (stop 42)".
+The limb networks give one of a silhouette's two bodies (their canonical member); online the
+tracker takes it or its front/back flip, whichever heading is nearer the chain's
+(tracker.tracks.hypotheses.pick_member). In profile the two headings nearly meet and what
+differs is which leg is forward, so offline the choice is the most probable chain of members
+(regressor.hypothesis_path): each frame's evidence for a member is a Gaussian
+(MEMBER_HEADING_SD_DEG) of its heading's distance to the smoothed heading, and each step costs
+the squared change of the 53 body angles over 2 MEMBER_STEP_VARIANCE. Away from profile the
+heading decides; in profile the legs' continuity does. Only the ratio MEMBER_STEP_VARIANCE /
+MEMBER_HEADING_SD_DEG^2 matters (0.44; docs/accuracy.md, "2026-12-04 (stop 42)").
 """
 from __future__ import annotations
 

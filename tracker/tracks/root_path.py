@@ -1,19 +1,12 @@
 """Each track's root (hip) path smoothed over the whole track, for the smoothed outputs.
 
 The root is not measured in 3-D: each frame's is placed from the silhouette's box alone
-(tracker.outputs.geometry.ground_position_from_image: depth from an assumed body height and
-field of view), so it jitters with the box as the limbs move (on the sample its depth
-strays 45 mm (standard deviation) about its own 15-frame mean, the truth's 5 mm once scaled
-alike; a review's measurement, 2026-12-04). The smoothed outputs
-(JSON, BVH, the MCAP's /smoothed topics) draw their bodies at the root smoothed here: a
-straight line fitted with Gaussian weights about each pose's time (a local linear smoother,
-zero phase, since the whole track is known: no lag, and no pull at the track's ends or beside
-a gap); with ``--lag`` the streamed
-outputs (the live view, the MCAP's /pose and /skeleton) are drawn at the same path smoothed
-over their window (tracker.tracks.fixed_lag), without one at each frame's own root.
-
-ROOT_SMOOTHING_S (0.2 s) brought the root nearest the truth's hips on the validation videos
-(docs/tuning.md, "tracker/tracks/root_path.py").
+(tracker.outputs.geometry.ground_position_from_image), so it jitters with the box as the limbs
+move. The smoothed outputs (JSON, BVH, the MCAP's /smoothed topics) draw their bodies at the
+root smoothed here: a straight line fitted with Gaussian weights about each pose's time (a
+local linear smoother, zero phase: no lag, no pull at the track's ends or beside a gap); with
+``--lag`` the streamed outputs use the same path smoothed over their window
+(tracker.tracks.fixed_lag). ROOT_SMOOTHING_S: docs/tuning.md.
 """
 from __future__ import annotations
 

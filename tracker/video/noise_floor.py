@@ -1,34 +1,15 @@
 """The background model's noise floor, chosen per clip from how speckled its foreground is.
 
-MOG2 calls a pixel foreground when it is more than sqrt(var_threshold) standard deviations from
-the background, and a background primed from one image (a clean plate or the clip's median) has
-every variance at MOG2's floor ``varMin`` (4 grey levels squared by default). That floor suits a
-clean camera. A compressed video is not clean: around a moving person, a low-bitrate codec
-(mp4v at 320x240, as our own evaluation videos and the shipped sample) smears the background
-texture by more than 8 grey levels, so MOG2 marks a speckled halo 2-3 px thick around the body.
-After cleaning, the halo closes the gaps between the legs and between an arm and the torso and
-makes the silhouette ~45 % larger than the body (measured on the spiral-walk videos against
-their true renders), and the regressor reads every pose as the same blob.
-
-The halo is mostly specks: isolated foreground pixels that a 3 px opening removes. Their share
-of the solid foreground is a measure of the noise that needs no ground truth. Measured on 25
-frames sampled over each clip, background primed from their median (a one-off driver calling
-speck_ratio on each rung, 2026-12-01), specks per pixel of opened foreground for floors
-4 / 9 / 16 / 25 / 36:
-
-    Pose2Sim cam01..cam04 (real, 1080x1920 shrunk to 320 px wide)
-        0.13-0.24 / 0.07-0.10 / 0.04-0.07 / 0.03-0.07 / 0.03-0.07   -> 9
-    spiral-walk videos 02_02, 08_03 (mp4v 320x240)
-        1.36-1.39 / 0.26-0.27 / 0.06 / 0.04 / 0.03                    -> 16
-    shipped sample 16_11 (mp4v 320x240)      0.60 / 0.12 / 0.03 / 0.02 / 0.02   -> 16
-    16 JPEG tiles of Pose2Sim cam01 (tests/data, 108x192)
-        0.65 / 0.34 / 0.21 / 0.18 / 0.17                              -> 16
-
-Some specks stay whatever the floor (JPEG blocks, a person's small movements): only those a
-higher floor still removes are noise. :func:`choose_var_min` takes the lowest floor of a ladder
-whose specks exceed the top rung's by at most ``max_excess_specks`` and whose foreground is at
-most ``max_growth`` times the top rung's (strong noise can make a low floor's foreground one
-solid sheet with few specks left to count).
+A background primed from one image has every MOG2 variance at the floor ``varMin`` (4 grey
+levels squared by default), which suits a clean camera. Around a moving person a compressed
+video's codec smears the background by more than that, so MOG2 marks a speckled halo a few px
+thick round the body; cleaned, it closes the gaps between the limbs and the regressor reads
+every pose as the same blob. The halo is mostly specks (isolated pixels a 3 px opening
+removes): their share of the solid foreground measures the noise without ground truth.
+:func:`choose_var_min` takes the lowest floor of a ladder whose specks exceed the top rung's by
+at most ``max_excess_specks`` and whose foreground is at most ``max_growth`` times the top
+rung's (strong noise can make a low floor's foreground one solid sheet with few specks).
+The floors measured on real and rendered clips: docs/tuning.md.
 """
 from __future__ import annotations
 
