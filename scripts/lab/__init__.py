@@ -1,4 +1,6 @@
-"""Offline work: training the model, evaluating methods on whole sequences, reports.
+"""The scripts' shared research steps: training's data sets and masks (the fitting itself is
+regressor.training), evaluation on whole sequences, reports, silhouette measures.
 
-May import everything (tracker, regressor, sequences); nothing in the online tracker imports it.
+Not installed: scripts/ puts it on the path (``python scripts/X.py``; pytest's pythonpath). May
+import everything (tracker, regressor, sequences); nothing ``track`` runs imports it.
 """
