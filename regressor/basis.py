@@ -46,7 +46,7 @@ def squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 def nearest_columns(d2: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """The k smallest entries of each row of d2 (n, N), nearest first (k <= N): their column
     indices (n, k) int and values (n, k). For a block of squared distances from n queries to
-    N rows (regressor.heading_index, regressor.mixture.NeighbourGate)."""
+    N rows (regressor.heading_index, regressor.neighbour_gate.NeighbourGate)."""
     nearest = (np.argpartition(d2, k - 1, axis=1)[:, :k] if k < d2.shape[1]
                else np.broadcast_to(np.arange(k), (len(d2), k)))
     near_d2 = np.take_along_axis(d2, nearest, axis=1)
