@@ -425,3 +425,31 @@ def test_a_component_over_half_the_image_is_no_person():
     mask[:] = 0
     mask[20:110, 60:100] = 255                         # 19 %: a person close to the camera
     assert len(person_masks(mask, (160, 120))) == 1
+
+
+@pytest.mark.parametrize("trust", [True, False])
+def test_the_zone_refiner_is_made_on_first_use_with_the_extractors_settings(trust):
+    """The extractor makes its ZoneRefiner (tracker.video.zone) only for a frame with an
+    unreliable zone, with its refine_relearn_every and trust_zone_foreground; priming again
+    drops it (a new scene)."""
+    from tracker.video.background import ClipBackground
+    bg = background(160, 120, seed=3)
+    extractor = SilhouetteExtractor(refine_relearn_every=4, trust_zone_foreground=trust,
+                                    warmup_frames=0, adapt_noise_floor=False)
+    extractor.prime(bg)
+    extractor(bg)
+    assert extractor.refiner is None                      # a clean plate: no zone
+    zone = np.zeros(bg.shape[:2], bool)
+    zone[30:90, 60:100] = True
+    extractor.background = ClipBackground(extractor.subtractor.reference, zone)
+    extractor(bg)
+    refiner = extractor.refiner
+    assert isinstance(refiner, ZoneRefiner)
+    assert (refiner.relearn_every, refiner.trust_zone_foreground) == (4, trust)
+    extractor.prime(bg)
+    assert extractor.refiner is None
+
+
+def test_bad_refine_relearn_every_is_refused():
+    with pytest.raises(ExtractionError, match="refine_relearn_every"):
+        SilhouetteExtractor(refine_relearn_every=0)

@@ -180,10 +180,10 @@ def test_the_tracker_builds_its_extractor_with_the_zone_setting(trust):
     model = load_pose_model(DEFAULT_MODEL_PATH)
     settings = TrackerSettings(trust_zone_foreground=trust)
     tracker = PoseTracker(model, 30.0, settings)
-    assert tracker.extractor.refiner.trust_zone_foreground is trust
+    assert tracker.extractor.trust_zone_foreground is trust
     # A grey scene rebuilds the extractor without shadow detection: the setting stays.
     before = tracker.extractor
     tracker.prime(np.full((120, 160, 3), 90, np.uint8))
     assert tracker.extractor is not before
     assert not tracker.extractor.subtractor._mog2_options["detectShadows"]
-    assert tracker.extractor.refiner.trust_zone_foreground is trust
+    assert tracker.extractor.trust_zone_foreground is trust
