@@ -10,7 +10,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .basis import squared_distances
 from .errors import SilhouettePoseError
 
 
@@ -68,84 +67,6 @@ class Codebook:
         if sigma.shape != () or not np.issubdtype(sigma.dtype, np.floating):
             raise CodebookError(f"{prefix}sigma must be a float scalar, got shape {sigma.shape} dtype {sigma.dtype}")
         return cls(np.asarray(arrays[prefix + "centres"], dtype=np.float64), float(sigma))
-
-
-def _kmeans_plus_plus(x: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
-    """k-means++ seeding: k rows of x (k, D), each drawn with probability ~ squared distance to
-    the nearest centre drawn so far."""
-    n = len(x)
-    chosen = np.empty(k, dtype=np.int64)
-    chosen[0] = rng.integers(n)
-    nearest = squared_distances(x, x[chosen[:1]])[:, 0]
-    for j in range(1, k):  # k steps, each vectorized over all points
-        total = nearest.sum()
-        chosen[j] = rng.choice(n, p=nearest / total) if total > 0 else rng.integers(n)
-        nearest = np.minimum(nearest, squared_distances(x, x[chosen[j : j + 1]])[:, 0])
-    return x[chosen].copy()
-
-
-def kmeans(x: np.ndarray, k: int, seed: int, max_iter: int = 100) -> tuple[np.ndarray, np.ndarray]:
-    """Seeded k-means (k-means++ then Lloyd) on rows of x.
-
-    x: (N, D) float, N >= k. seed: integer seed of numpy's default Generator.
-    Returns (centres (k, D) float64, labels (N,) int64). An empty cluster is re-seeded with the
-    point farthest from its centre, so all k centres are distinct data-supported points/means.
-    Stops when no label changes, or after max_iter iterations.
-    """
-    x = np.asarray(x, dtype=np.float64)
-    if x.ndim != 2 or len(x) < k or k < 1:
-        raise CodebookError(f"k-means needs (N, D) data with N >= k = {k}, got shape {x.shape}")
-    rng = np.random.default_rng(seed)
-    centres = _kmeans_plus_plus(x, k, rng)
-    labels = np.full(len(x), -1, dtype=np.int64)
-    for _ in range(max_iter):
-        d2 = squared_distances(x, centres)
-        new_labels = d2.argmin(axis=1)
-        if np.array_equal(new_labels, labels):
-            break
-        labels = new_labels
-        counts = np.bincount(labels, minlength=k)
-        dims = x.shape[1]
-        flat = (labels[:, None] * dims + np.arange(dims)).ravel()
-        sums = np.bincount(flat, weights=x.ravel(), minlength=k * dims).reshape(k, dims)
-        empty = np.flatnonzero(counts == 0)
-        centres = sums / np.maximum(counts, 1)[:, None]
-        if len(empty):
-            far = np.argsort(-d2[np.arange(len(x)), labels], kind="stable")[: len(empty)]
-            centres[empty] = x[far]
-    return centres, labels
-
-
-def fit_codebook(
-    contexts: np.ndarray,
-    n_centres: int = 100,
-    seed: int = 0,
-    max_samples: int = 20000,
-    max_iter: int = 100,
-) -> Codebook:
-    """Fit a codebook to shape contexts pooled from many silhouettes.
-
-    contexts: (M, D) float, one context per row (each row sums to 1).
-    n_centres: K. seed: integer seed (subsampling and k-means++). max_samples: at most this many
-        rows (drawn without replacement) are clustered, for speed.
-    sigma is set to the root-mean-square distance from the clustered rows to their nearest centre,
-    so votes fall off on the scale at which contexts actually scatter around the centres.
-    Returns a Codebook with centres (K, D).
-    """
-    contexts = np.asarray(contexts, dtype=np.float64)
-    if contexts.ndim != 2 or not np.all(np.isfinite(contexts)):
-        raise CodebookError(f"contexts must be a finite (M, D) array, got shape {contexts.shape}")
-    if len(contexts) < n_centres:
-        raise CodebookError(f"need at least n_centres = {n_centres} contexts to fit a codebook, got {len(contexts)}")
-    rng = np.random.default_rng(seed)
-    if len(contexts) > max_samples:
-        contexts = contexts[np.sort(rng.choice(len(contexts), size=max_samples, replace=False))]
-    centres, labels = kmeans(contexts, n_centres, seed=int(rng.integers(2**31)), max_iter=max_iter)
-    residual = ((contexts - centres[labels]) ** 2).sum(axis=1)
-    sigma = float(np.sqrt(residual.mean()))
-    if not sigma > 0:
-        raise CodebookError("all contexts coincide with a centre; give more varied contexts or fewer centres")
-    return Codebook(centres, sigma)
 
 
 def soft_histogram(contexts: np.ndarray, codebook: Codebook, n_votes: int = 5, total: float = 100.0) -> np.ndarray:

@@ -11,7 +11,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from regressor.codebook import Codebook, CodebookError, fit_codebook, soft_histogram
+from regressor.codebook import Codebook, CodebookError, soft_histogram
 from regressor.edges import DegenerateSilhouetteError, SilhouetteError, sample_edge_points
 from regressor.shape_context import mirrored_bins, shape_contexts
 
@@ -28,7 +28,6 @@ __all__ = [
     "descriptor_and_mirror",
     "descriptor_for_mask",
     "descriptors_for_masks",
-    "fit_codebook_for_masks",
     "mask_contexts",
 ]
 
@@ -217,22 +216,3 @@ def contexts_for_masks(
     if not pooled:
         raise CodebookError("no masks given to pool shape contexts from")
     return np.vstack(pooled)
-
-
-def fit_codebook_for_masks(
-    masks: Iterable[np.ndarray],
-    settings: DescriptorSettings,
-    n_centres: int = 100,
-    seed: int = 0,
-    per_mask: int | None = 50,
-    max_samples: int = 20000,
-    progress: Progress | None = None,
-) -> Codebook:
-    """Fit a codebook (K = n_centres) on contexts pooled from training silhouettes.
-
-    per_mask contexts are kept per silhouette and at most max_samples are clustered; the same
-    masks, settings and seed give identical centres. Returns a Codebook with centres
-    (n_centres, settings.context_size).
-    """
-    contexts = contexts_for_masks(masks, settings, per_mask=per_mask, seed=seed, progress=progress)
-    return fit_codebook(contexts, n_centres=n_centres, seed=seed, max_samples=max_samples)

@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from .basis import BasisRegressor, RegressorInputError
+from .basis import RegressorInputError
+from .basis_regressor import BasisRegressor
 
 
 class DLSRegressor(BasisRegressor):

@@ -1,7 +1,7 @@
 """The one interface the tracker calls on a trained model (regressor.pose_model.PoseModel
 implements it).
 
-The tracker (tracker.pipeline, tracker.hypotheses) uses these members and no others, and
+The tracker (tracker.pipeline, tracker.tracks.hypotheses) uses these members and no others, and
 never asks whether a model has one: a model's optional parts (limb networks, side classifier,
 heading index) show up as None, NaN or False in what it answers, not as missing methods.
 
@@ -54,9 +54,9 @@ class PoseEstimator(Protocol):
     canonical_direction (55,) or None: set when the model was fitted on canonical members (its
     raw pose may be either body; the tracker then runs no separate limb filter).
     gives_canonical_pairs: the front/back hypotheses are the limbs' canonical member and its
-    flip, weighed by the side classifier (tracker.hypotheses.canonical_hypotheses);
+    flip, weighed by the side classifier (tracker.tracks.hypotheses.canonical_hypotheses);
     canonical_priors: the model's own weighing of them, or None (the tracker's default).
-    limbs_see_mirror: the limbs answer for a frame's mirror image too (tracker.mirror_limbs):
+    limbs_see_mirror: the limbs answer for a frame's mirror image too (tracker.tracks.mirror_limbs):
     the tracker then describes each frame's mirror image and asks for its limbs.
     """
 

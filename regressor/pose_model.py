@@ -26,7 +26,7 @@ flip} (sequences.pose_vector.canonical_member). The main head must average a sil
 bodies where it cannot tell them apart (in profile, which leg is forward); the limb head sees
 one silhouette with one target except near its rule's boundary (for "facing", exactly in
 profile), so its limbs are one body's or the other's, and the tracker takes the member that
-agrees with the heading it decided (tracker/hypotheses.py, "Limbs").
+agrees with the heading it decided (tracker/tracks/hypotheses.py, "Limbs").
 
 Its limbs may instead come from a limb network (regressor.limb_net.LimbNet): an ensemble of
 small neural networks on the same input and the same canonical targets, fitted on all the
@@ -39,6 +39,7 @@ rows' projected inputs and folded headings, whose nearest neighbours give each f
 from __future__ import annotations
 
 import json
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,8 +52,7 @@ from .descriptor import (DescriptorSettings, DescriptorSettingsError, descriptor
                          descriptor_for_mask)
 from .layout import MAX_GRID, silhouette_layout
 from .mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate
-from .sparse_rvm import SparseRVMRegressor
-from .model_file import ModelFileError, load_model, save_model
+from .model_file import ModelFileError, load_model
 from .errors import SilhouettePoseError
 from .estimator import PoseEstimates
 from .heading_index import HeadingIndex
@@ -125,10 +125,10 @@ class PoseModel:
     tracker weighs the limbs' canonical member against its flip with it), or None.
     canonical_priors: with a side classifier, how far the tracker trusts that weighing
     (regressor.canonical_priors.CanonicalPriors, learned on validation renders), or None (the
-    tracker then takes the shipped model's, tracker.hypotheses.DEFAULT_CANONICAL_PRIORS).
+    tracker then takes the shipped model's, tracker.tracks.hypotheses.DEFAULT_CANONICAL_PRIORS).
     variance_calibration: for sparse RVM experts that keep their predictive variance, the
     factor on :meth:`predict_variance` that makes it the measurement covariance's scale on
-    validation rows (tracker.offline.training.calibrate_variance), or None.
+    validation rows (regressor.training.calibrate_variance), or None.
 
     The tracker calls only regressor.estimator.PoseEstimator's members (:meth:`hypotheses`,
     :meth:`describe`, ...); predict_batch, predict_limbs and predict_variance serve training
@@ -219,9 +219,9 @@ class PoseModel:
     def limbs_see_mirror(self) -> bool:
         """Whether the limbs are best averaged with the limbs of the mirror image (mirrored
         back): the model's limb networks were fitted on mirror images too
-        (tracker.offline.training.MixtureOptions.limb_net_mirror, recorded in the
+        (regressor.training.MixtureOptions.limb_net_mirror, recorded in the
         description's options), so they answer for a mirror image as well as for the image.
-        The tracker then describes each frame's mirror too (tracker.mirror_limbs)."""
+        The tracker then describes each frame's mirror too (tracker.tracks.mirror_limbs)."""
         options = (self.description.get("options") if isinstance(self.description, dict)
                    else None)
         return (self.limb_net is not None and isinstance(options, dict)
@@ -306,8 +306,7 @@ class PoseModel:
         """Whether the model's experts give a predictive variance per frame (sparse RVMs whose
         posterior covariance the model keeps)."""
         return self.mixture is not None and all(
-            isinstance(e, SparseRVMRegressor) and hasattr(e, "sigma_")
-            for e in self.mixture.experts_)
+            _is_sparse_rvm(e) and hasattr(e, "sigma_") for e in self.mixture.experts_)
 
     def predict_variance(self, stacked: np.ndarray) -> np.ndarray:
         """Predictive variance (N,) deg^2 of :meth:`predict_batch`'s pose for stacked
@@ -335,7 +334,7 @@ class PoseModel:
     @property
     def gives_canonical_pairs(self) -> bool:
         """Whether the tracker's front/back chain carries this model's canonical limbs and
-        their flips (a mixture with limbs and a side classifier; tracker.hypotheses), the one
+        their flips (a mixture with limbs and a side classifier; tracker.tracks.hypotheses), the one
         test both the hypotheses and their switching rates go by."""
         return (self.side_classifier is not None and self.mixture is not None
                 and self.has_limbs)
@@ -389,20 +388,6 @@ def frame_descriptors(histograms: np.ndarray, transform: str, layouts: np.ndarra
     return np.hstack([H, float(layout_weight) * np.asarray(layouts, dtype=np.float64)])
 
 
-def _input_arrays(model: PoseModel) -> dict:
-    """The file parts of the input's layout block and projection (none for models without)."""
-    out = {}
-    if model.layout_grid:
-        out.update(layout_grid=np.int64(model.layout_grid),
-                   layout_weight=np.float64(model.layout_weight))
-    if model.projection is not None:
-        out.update(projection=np.asarray(model.projection, dtype=np.float32),
-                   projection_mean=np.asarray(model.projection_mean, dtype=np.float64))
-    if model.canonical_direction is not None:
-        out["canonical_direction"] = np.asarray(model.canonical_direction, dtype=np.float64)
-    return out
-
-
 def _input_from_arrays(a) -> dict:
     """PoseModel keyword arguments for the input parts of a file (absent: none)."""
     grid = int(a["layout_grid"]) if "layout_grid" in a else 0
@@ -417,49 +402,6 @@ def _input_from_arrays(a) -> dict:
     if "canonical_direction" in a:
         out["canonical_direction"] = a["canonical_direction"].astype(np.float64)
     return out
-
-
-def save_pose_model(path: str | Path, model: PoseModel) -> None:
-    """Write the model as one versioned, checksummed .npz (no pickle)."""
-    if model.mixture is not None:
-        if model.limb_head is not None and model.limb_net is not None:
-            raise PoseModelError("a model carries a limb head or a limb network, not both")
-        if model.side_classifier is not None and not model.has_limbs:
-            raise PoseModelError("a side classifier needs the model's limbs")
-        if model.canonical_priors is not None and model.side_classifier is None:
-            raise PoseModelError("canonical priors need the model's side classifier")
-        try:
-            arrays = _mixture_arrays(model)
-        except ValueError as exc:
-            raise PoseModelError(f"cannot save the model: {exc}") from None
-        save_model(path, arrays)
-        return
-    if model.limb_head is not None:
-        raise PoseModelError("only a mixture model can carry a limb head")
-    if model.heading_index is not None:
-        raise PoseModelError("only a mixture model can carry a heading index")
-    if model.limb_net is not None:
-        raise PoseModelError("only a mixture model can carry a limb network")
-    if model.side_classifier is not None or model.canonical_priors is not None:
-        raise PoseModelError("only a mixture model can carry a side classifier or canonical "
-                             "priors")
-    arrays = {
-        **model.codebook.to_arrays(), **model.settings.to_arrays(),
-        "model_kind": np.str_(MODEL_KIND),
-        "stack_depth": np.int64(model.stack_depth),
-        "transform": np.str_(model.transform), "basis": np.str_(model.basis),
-        "width": np.float64(np.nan if model.width is None else model.width),
-        "centres": (np.zeros((0, 0)) if model.centres is None else model.centres),
-        "relevance": np.asarray(model.relevance, dtype=np.int64),
-        "coef": model.coef, "intercept": model.intercept,
-        "angle_centre_deg": model.angle_centre_deg,
-        "measurement_covariance": model.measurement_covariance,
-        "process_noise": model.process_noise,
-        "ambiguity_threshold": np.float64(model.ambiguity_threshold),
-        "description": np.str_(json.dumps(model.description, sort_keys=True)),
-        **_input_arrays(model),
-    }
-    save_model(path, arrays)
 
 
 def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
@@ -583,100 +525,11 @@ def _validate(path: Path, m: PoseModel) -> None:
 # expert_kind the experts are damped least squares.
 
 
-def _mixture_arrays(model: PoseModel) -> dict:
-    mix = model.mixture
-    experts = mix.experts_
-    rvm = all(isinstance(e, SparseRVMRegressor) for e in experts)
-    if not rvm and not all(isinstance(e, DampedKernelRegressor) for e in experts):
-        raise PoseModelError("only mixtures of DampedKernelRegressor or SparseRVMRegressor "
-                             "experts can be saved")
-    offsets = np.cumsum([0] + [len(e.centres_) for e in experts]).astype(np.int64)
-    gate = mix.gate_
-    if not isinstance(gate, SoftmaxGate):
-        raise PoseModelError("only mixtures with a softmax gate can be saved (a neighbour gate "
-                             "keeps every training row)")
-    return {
-        **model.codebook.to_arrays(), **model.settings.to_arrays(),
-        "model_kind": np.str_(MIXTURE_KIND),
-        "stack_depth": np.int64(model.stack_depth), "transform": np.str_(model.transform),
-        "basis": np.str_("gaussian"),
-        "width": np.float64(np.median([e.width_ for e in experts])),
-        "centres": np.vstack([e.centres_ for e in experts]).astype(np.float16),
-        "relevance": np.arange(offsets[-1], dtype=np.int64),
-        "coef": np.vstack([e.coef_ for e in experts]).astype(np.float32),
-        "intercept": np.zeros(POSE_DIM),
-        "angle_centre_deg": model.angle_centre_deg,
-        "measurement_covariance": model.measurement_covariance,
-        "process_noise": model.process_noise,
-        "ambiguity_threshold": np.float64(model.ambiguity_threshold),
-        "description": np.str_(json.dumps(model.description, sort_keys=True)),
-        **_input_arrays(model),
-        "mixture_expert_offsets": offsets,
-        "mixture_expert_width": np.array([e.width_ for e in experts], dtype=np.float64),
-        "mixture_expert_intercept": np.vstack([e.intercept_ for e in experts]),
-        "mixture_partition_centres": np.asarray(mix.partition_centres_, dtype=np.float64),
-        "mixture_gate_centres": gate.centres_.astype(np.float16),
-        "mixture_gate_width": np.float64(gate.width_),
-        "mixture_gate_feature_mean": gate.feature_mean_,
-        "mixture_gate_feature_std": gate.feature_std_,
-        "mixture_gate_weights": gate.weights_,
-        "mixture_top_experts": np.int64(mix.top_experts),
-        "mixture_params": np.str_(json.dumps(mix.get_params(), sort_keys=True)),
-        **(_rvm_expert_arrays(model) if rvm else {}),
-        **_limb_head_arrays(model.limb_head),
-        **_heading_index_arrays(model.heading_index),
-        **(model.limb_net.to_arrays() if model.limb_net is not None else {}),
-        **(model.side_classifier.to_arrays() if model.side_classifier is not None else {}),
-        **(model.canonical_priors.to_arrays() if model.canonical_priors is not None else {}),
-    }
-
-
-def _rvm_expert_arrays(model: PoseModel) -> dict:
-    """The parts only sparse RVM experts have (module comment above); their predictive
-    variance's only when the model keeps it (variance_calibration set)."""
-    experts = model.mixture.experts_
-    out = {"mixture_expert_kind": np.str_("rvm"),
-           "mixture_expert_beta": np.array([e.beta_ for e in experts], dtype=np.float64),
-           "mixture_expert_rows": np.array([e.n_train_ for e in experts], dtype=np.int64),
-           "mixture_expert_y_scale": np.vstack([e.y_scale_ for e in experts])}
-    if model.variance_calibration is None:
-        return out
-    return {**out,
-            "mixture_expert_sigma": np.concatenate([e.sigma_.ravel() for e in experts]
-                                                   ).astype(np.float32),
-            "mixture_expert_phi_mean": np.concatenate([e.phi_mean_ for e in experts]),
-            "mixture_variance_calibration": np.float64(model.variance_calibration)}
-
-
-def _limb_head_arrays(head: LimbHead | None) -> dict:
-    """The file parts of a limb head (coef float32, as the main head's), none without one."""
-    if head is None:
-        return {}
-    return {"limbs_coef": np.asarray(head.coef, dtype=np.float32),
-            "limbs_expert_intercept": np.asarray(head.expert_intercept, dtype=np.float64),
-            "limbs_angle_centre_deg": np.asarray(head.angle_centre_deg, dtype=np.float64),
-            "limbs_canonical_direction": np.asarray(head.canonical_direction, dtype=np.float64)}
-
-
-def _heading_index_arrays(index: HeadingIndex | None) -> dict:
-    """The file parts of a heading index (inputs float16, as the experts' centres), none
-    without one."""
-    if index is None:
-        return {}
-    inputs = np.asarray(index.inputs, dtype=np.float16)
-    # novelty's scale, as the index read back from the file (float16 inputs) computes it:
-    # stored, so that loading the model does not take 0.35 s to recompute it. An index that
-    # already holds those inputs (a loaded model saved again) knows it.
-    stored = (index if np.array_equal(index.inputs, inputs.astype(np.float32))
-              else HeadingIndex(inputs, index.folded_deg, index.k, index.limit_deg))
-    typical = stored.typical_distance()
-    return {"heading_index_inputs": inputs,
-            "heading_index_folded_deg": np.asarray(index.folded_deg, dtype=np.float32),
-            "heading_index_k": np.int64(index.k),
-            "heading_index_limit_deg": np.float64(index.limit_deg),
-            # unknown (NaN) for an index of k rows or fewer: not stored, as for older files
-            **({"heading_index_typical_distance": np.float64(typical)}
-               if np.isfinite(typical) else {})}
+def _is_sparse_rvm(expert) -> bool:
+    """isinstance(expert, SparseRVMRegressor) without importing regressor.sparse_rvm: a model
+    without sparse RVM experts never loads it."""
+    module = sys.modules.get("regressor.sparse_rvm")
+    return module is not None and isinstance(expert, module.SparseRVMRegressor)
 
 
 #: The most neighbours a model file's heading index may ask for (the shipped one: 20).
@@ -890,6 +743,7 @@ def _rvm_experts(a, experts: list, offsets: np.ndarray
         raise ValueError("sparse RVM expert parts do not match the experts' sizes")
     if np.any(beta <= 0) or np.any(rows < 1) or np.any(y_scale <= 0):
         raise ValueError("sparse RVM noise precisions, rows and output scales must be positive")
+    from .sparse_rvm import SparseRVMRegressor
     out = []
     for e, dls in enumerate(experts):
         ex, R = SparseRVMRegressor(n_candidates=int(sizes[e])), int(sizes[e])

@@ -1,27 +1,16 @@
 """The 53 body angles as 6-D rotations, a continuous representation for regression targets.
 
-A joint's three Euler angles are a discontinuous chart of its rotation: near the middle angle's
-+-90 degrees very different triples give nearly the same rotation, and a network fitted by
-least squares on the triples averages them into a rotation neither is. The first two columns
-of the joint's rotation matrix (6 numbers) are continuous everywhere, and any 6 numbers map
-back to a rotation by Gram-Schmidt (Zhou, Barnes, Lu, Yang and Li, "On the continuity of
-rotation representations in neural networks", CVPR 2019). Measured on 2026-12-03 (one
-network (512, 256) on the 6 validation trials' video-like rows at the true heading): the 53
-angles' error 8.43 / 8.40 degrees with Euler targets (two seeds), 8.04 / 8.06 with these;
-four networks averaged 7.80 against 7.59, corr8 0.558 against 0.560. But the default recipe
-retrained with them (``scripts/train.py --experts 24 --centres 400 --limb-net-output rot6d``:
-eight networks on the stacked, projected inputs and their mirror images) gains nothing over
-the same recipe with Euler targets: on the 28 validation renders, the limbs at the true
-heading err53 / corr8 / flexion 6.883 / 0.600 / 14.59 against 6.874 / 0.605 / 14.38; through
-``track`` on 12 validation videos filtered 8.364 / 0.412 against 8.397 / 0.409, smoothed
-8.169 / 0.468 against 8.166 / 0.469; and its file is 10,002,009 bytes. So the shipped model
-keeps Euler targets (tracker.offline.training.MixtureOptions.limb_net_output); this stays an
-option of training.
+A joint's three Euler angles are a discontinuous chart of its rotation (near the middle angle's
++-90 degrees very different triples give nearly the same rotation); the first two columns of
+its rotation matrix (6 numbers) are continuous, and any 6 numbers map back to a rotation by
+Gram-Schmidt (Zhou et al., "On the continuity of rotation representations in neural networks",
+CVPR 2019). An option of training (regressor.training.MixtureOptions.limb_net_output); the
+shipped model keeps Euler targets (docs/tuning.md).
 
-Layout of the 53 angles (regressor.angles, sequences.pose_vector): the root's two tilts
-(Hips x, z), then 17 joints' (z, y, x) angles in degrees, R = Rz @ Ry @ Rx (intrinsic ZYX, the
-CMU BVH channels). Here: the root's tilts stay angles (they stay far from +-90); each joint
-becomes its matrix's columns 0 and 1, (x0, y0, z0, x1, y1, z1).
+Layout of the 53 angles (regressor.angles): the root's two tilts (Hips x, z), then 17 joints'
+(z, y, x) angles in degrees, R = Rz @ Ry @ Rx (intrinsic ZYX, the CMU BVH channels). Here the
+root's tilts stay angles; each joint becomes its matrix's columns 0 and 1, (x0, y0, z0, x1,
+y1, z1).
 """
 from __future__ import annotations
 

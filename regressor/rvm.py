@@ -31,7 +31,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from .basis import BasisRegressor, RegressorInputError
+from .basis import RegressorInputError
+from .basis_regressor import BasisRegressor
 
 _ALPHA_MAX = 1e12      # precisions above this count as "pruned"
 _BETA_MAX = 1e6        # noise variance floor 1e-6 of the output variance (avoids interpolation)

@@ -24,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from .basis import (BasisRegressor, RegressorInputError, default_width, gaussian_design,
-                    validate_X, validate_Xy)
+from .basis import RegressorInputError, default_width, gaussian_design, validate_X
+from .basis_regressor import BasisRegressor, validate_Xy
 from .rvm import _ALPHA_MAX, _BETA_MAX, _Stats, check_learning_options, step_gains
 
 _REFRESH = 50          # steps between exact recomputations of the factors (and noise updates)

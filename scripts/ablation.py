@@ -57,18 +57,18 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-import tracker.hypotheses as hyp
+import tracker.tracks.hypotheses as hyp
 from regressor.pose_model import load_pose_model
 from sequences.measures import pose_measures
 from sequences.pose2sim import TRIALS
-from tracker.offline.pose2sim_trial import missing_trial
+from lab.pose2sim_trial import missing_trial
 from tracker.one_line_parser import OneLineParser
-from tracker.offline.evaluation import CameraOptions, cmu_motion, constant_pose, \
+from lab.evaluation import CameraOptions, cmu_motion, constant_pose, \
     write_camera_video
 from tracker.pipeline import PoseTracker, TrackerSettings
 from tracker.run import track_video
-from tracker.sinks import PoseRecorder
-from tracker.video import open_video
+from tracker.outputs import PoseRecorder
+from tracker.video.decode import open_video
 
 REPO = Path(__file__).resolve().parents[1]
 SPIRAL_TRIALS = ("02_02", "08_03", "05_02", "09_04", "02_05")
@@ -277,7 +277,7 @@ def longest_track(poses: list, smoothed: dict) -> tuple[np.ndarray, np.ndarray, 
 def render_videos(bvh_dir: Path, out: Path, reverse: bool = False) -> list[tuple[str, Path]]:
     """The 12 validation videos (rendered once into out): (name, path); reverse: the same
     motions time-reversed (backward walks; reversed before the spiral, as
-    tracker.offline.hypothesis_priors.validation_renders)."""
+    lab.hypothesis_priors.validation_renders)."""
     out.mkdir(parents=True, exist_ok=True)
     videos = []
     tag = " reversed" if reverse else ""
@@ -346,7 +346,7 @@ def run_real(trial_dirs: list[Path], model, variants, log) -> dict:
 def _run_trial(trial_dir: Path, model, variants, log) -> dict:
     """One Pose2Sim trial: every variant's _real_summary and CPU seconds."""
     from sequences.pose2sim import VIEWS
-    from tracker.offline.pose2sim_trial import checked_trial
+    from lab.pose2sim_trial import checked_trial
     real = _load_script("evaluate_real")
     trial = checked_trial(trial_dir)
     constant = constant_pose(model)

@@ -16,7 +16,8 @@ import cv2
 import numpy as np
 
 from regressor.codebook import soft_histogram
-from regressor.descriptor import DescriptorSettings, descriptor_for_mask, fit_codebook_for_masks
+from regressor.descriptor import DescriptorSettings, descriptor_for_mask
+from regressor.training import fit_codebook_for_masks
 from regressor.edges import sample_edge_points
 from regressor.shape_context import shape_contexts
 from tracker.one_line_parser import OneLineParser

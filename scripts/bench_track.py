@@ -42,11 +42,12 @@ from threadpoolctl import threadpool_limits
 from regressor.errors import SilhouettePoseError
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from tracker import PoseTracker, TrackerSettings, track_video
-from tracker.segmenter import INSTALL_HINT, SOURCES, segmenter_available, silhouette_extractor
+from tracker.video.sources import (INSTALL_HINT, SOURCES, segmenter_available,
+                                   silhouette_extractor)
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
-from tracker.sinks.json_summary import JsonSummarySink
-from tracker.sinks.mcap import McapSink
-from tracker.video import open_video
+from tracker.outputs.json_summary import JsonSummarySink
+from tracker.outputs.mcap import McapSink
+from tracker.video.decode import open_video
 
 #: What a bad video, model or motion capture raises: the project's errors, and what numpy and
 #: the standard library raise on a file that is not what it says.
@@ -183,7 +184,7 @@ def _main(argv) -> int:
         with threadpool_limits(1), tempfile.TemporaryDirectory() as tmp:
             decode_fps, n = _decode_fps(video)
             # The frame worker first: a process that has run MediaPipe forks none
-            # (tracker.segmenter.made_a_graph), so one process after it would measure nothing.
+            # (tracker.video.segmenter.made_a_graph), so one process after it would measure nothing.
             two_fps, two_ms, two_memory, _, two_startup_s, _ = _track(
                 video, args.model, Path(tmp), 2, args.silhouettes)
             track_fps, stage_ms, memory, frames, startup_s, with_people = _track(

@@ -3,12 +3,12 @@
     python scripts/bench_view.py                         # the shipped sample, lags 0 0.5 2
     python scripts/bench_view.py --video my.mp4 --lag 0.5 5
 
-For each lag (`track --lag`), tracks the video into a live view (tracker.sinks.meshcat_view,
+For each lag (`track --lag`), tracks the video into a live view (tracker.outputs.meshcat_view,
 its own server on 127.0.0.1, as `track --view` opens it; no browser needed) that plays at the
 video's own speed, and prints the wall-clock gaps between frames shown (median, 99th
 percentile, largest, how many over 50 ms) against the video's frame interval, and the wall time
 of the run. Each run lasts about as long as the video. Since 2026-12-04 the view draws from a
-thread of its own (tracker.sinks.playout); before, every pause of the tracking loop (the
+thread of its own (tracker.outputs.playout); before, every pause of the tracking loop (the
 smoothing of a block with a lag) showed as a pause of the view, which this measures.
 
 A video that cannot be opened or an absurd lag is refused in one line (exit 2); Ctrl-C stops
@@ -44,8 +44,8 @@ def measure(video: Path, lag_s: float, model) -> dict:
     each frame was shown and the video times (s) they belong to."""
     from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
-    from tracker.sinks.meshcat_view import MeshcatView
-    from tracker.video import open_video
+    from tracker.outputs.meshcat_view import MeshcatView
+    from tracker.video.decode import open_video
 
     class TimedView(MeshcatView):
         """The live view, noting when each frame's drawing is done."""
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.video.is_file():
         parser.error(f"--video {args.video}: no such file")
     from regressor.pose_model import load_pose_model
-    from tracker.video import VideoError, open_video
+    from tracker.video.decode import VideoError, open_video
     quiet_decoder_logs()
     try:
         open_video(args.video)

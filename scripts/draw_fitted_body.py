@@ -13,7 +13,7 @@ rendered` gives the regressor.
 An output that is not a .jpg or .png name, could not be written or is one of the trial's files,
 and a --trial folder that does not exist, are refused before any work (exit 2); bad data (a
 trial file that is not text, a view's video missing or undecodable:
-tracker.offline.pose2sim_trial's checks) ends the run in one line naming the file (exit 1);
+lab.pose2sim_trial's checks) ends the run in one line naming the file (exit 1);
 Ctrl-C in one line (exit 130). The image is written whole or not at all."""
 from __future__ import annotations
 
@@ -27,10 +27,10 @@ from sequences.body import load_body
 from sequences.keypoint_fit import KeypointFitError, fit_body, posed_vertices
 from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, render_view_masks,
                                 video_frames)
-from tracker.offline.pose2sim_trial import checked_trial, missing_trial, trial_files
+from lab.pose2sim_trial import checked_trial, missing_trial, trial_files
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
-from tracker.sinks.files import OutputWriteError, write_whole
-from tracker.video import VideoError, open_video
+from tracker.outputs.files import OutputWriteError, write_whole
+from tracker.video.decode import VideoError, open_video
 
 _TILE_PX = 260          # tile height
 _MARGIN_PX = 100        # around the body's box in the frame

@@ -53,12 +53,12 @@ from sequences.measures import novelty_summary, pose_measures
 from sequences.pose_vector import POSE_DIM
 from sequences.video import load_truth, replace_video, truth_path
 from tracker.cli import VIEW_LAG_S
-from tracker.fixed_lag import MAX_LAG_S
-from tracker.offline.evaluation import (CameraOptions, cmu_motion, constant_pose, track_longest,
+from tracker.tracks.fixed_lag import MAX_LAG_S
+from lab.evaluation import (CameraOptions, cmu_motion, constant_pose, track_longest,
                                         write_camera_video)
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.pipeline import TrackerSettings
-from tracker.sinks.files import OutputWriteError, write_whole
+from tracker.outputs.files import OutputWriteError, write_whole
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE = REPO / "sequences" / "data" / "sample_spiral_walk.mp4"

@@ -4,13 +4,13 @@
     python scripts/evaluate_crossings.py --associator after --offsets 0 30
 
 Each video is a one-walker render (default the shipped sample) with the walker of ``offset``
-frames later pasted in mirrored (tracker.offline.crossings.mirror_crossing), once as a twin and
+frames later pasted in mirrored (lab.crossings.mirror_crossing), once as a twin and
 once in other (tinted) colours: the two walk towards each other, merge into one blob, and
 part, twice per video. The track command's extractor and associator run on it (the identities
 are decided there), and the script prints per video and in total: crossings, identity
 switches, tracks per person (1 is perfect) and the share of person-frames tracked while the
 two are apart, and of the person-frames while their true boxes overlap, the share with a
-silhouette of their own under their id (tracker.blob_split's split of the blob). ``before``
+silhouette of their own under their id (tracker.video.blob_split's split of the blob). ``before``
 is the association without groups or appearance (as before issue 50's crossing item);
 ``after`` is track's default.
 """
@@ -20,8 +20,8 @@ import sys
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
-from tracker.association import Associator
-from tracker.offline.crossings import (identity_measures, mirror_crossing, read_frames,
+from tracker.tracks.association import Associator
+from lab.crossings import (identity_measures, mirror_crossing, read_frames,
                                        track_identities)
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from sequences.video import load_truth, truth_path

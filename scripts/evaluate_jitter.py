@@ -33,14 +33,14 @@ from regressor.errors import SilhouettePoseError
 from sequences.body import BodyPoseError
 from sequences.video import VIDEO_SUFFIXES, partial_video, replace_video, truth_path
 from tracker import TrackerSettings
-from tracker.offline.evaluation import (AnkurOptions, CameraOptions, ankur_sequence, evaluate,
+from lab.evaluation import (AnkurOptions, CameraOptions, ankur_sequence, evaluate,
                                         rendered_sequence, video_sequence)
-from tracker.offline.report import format_table, write_report
+from lab.report import format_table, write_report
 from tracker.one_line_parser import EXIT_INTERRUPTED, OneLineParser
-from tracker.sinks.files import write_whole
+from tracker.outputs.files import write_whole
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
-#: What tracker.offline.report.write_report puts in the --report folder.
+#: What lab.report.write_report puts in the --report folder.
 REPORT_FILES = ("README.md", "result.json", "parts.png", "jitter.png", "heading.png")
 MIN_FRAMES = 3              # the jitter and acceleration measures take second differences
 MAX_FRAMES = 1_000_000

@@ -6,7 +6,7 @@
         [--silhouettes background segment auto] [--out-dir out/panning] [--json OUT]
 
 A CMU walk is rendered as a 30 deg/s spiral walk at 640x480 without sensor noise
-(tracker.offline.evaluation.write_camera_video), its body cut out of the frames (where they differ
+(lab.evaluation.write_camera_video), its body cut out of the frames (where they differ
 from the render's own textured scene, holes filled) and pasted over a real background: the top 15 %
 of a video's first frame, above its subject (ceiling, lights, cameras), scaled 2x; 640x480 of it
 seen through a window that stays put (the static twin) or pans left and right at --pan px per frame
@@ -31,13 +31,14 @@ from threadpoolctl import threadpool_limits
 from regressor.pose_model import load_pose_model
 from sequences.measures import pose_measures
 from sequences.video import load_truth, textured_background, truth_path
-from tracker.background import fill_holes
-from tracker.offline.evaluation import CameraOptions, cmu_motion, constant_pose, write_camera_video
+from tracker.video.background import fill_holes
+from lab.evaluation import CameraOptions, cmu_motion, constant_pose, write_camera_video
 from tracker.one_line_parser import OneLineParser
 from tracker.pipeline import PoseTracker, TrackerSettings
 from tracker.run import track_video
-from tracker.segmenter import INSTALL_HINT, SOURCES, segmenter_available, silhouette_extractor
-from tracker.sinks import PoseRecorder
+from tracker.video.sources import (INSTALL_HINT, SOURCES, segmenter_available,
+                                   silhouette_extractor)
+from tracker.outputs import PoseRecorder
 
 REPO = Path(__file__).resolve().parents[1]
 SIZE = (480, 640)                     # (height, width)
@@ -110,7 +111,7 @@ def track_one(video: Path, model, source: str) -> tuple[np.ndarray, np.ndarray, 
     tracked with silhouette source ``source``."""
     settings = TrackerSettings(max_people=1, keep_history=True)
     recorder = PoseRecorder()
-    from tracker.video import open_video
+    from tracker.video.decode import open_video
     opened = open_video(video)
     tracker = PoseTracker(model, opened.fps, settings,
                           extractor=silhouette_extractor(source, settings))

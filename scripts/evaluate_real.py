@@ -29,7 +29,7 @@ walks behind in cam02; background subtraction splits the subject into several tr
 views).
 
 ``--reference-masks`` is a diagnostic, not a result: it reads the reference to correct the
-silhouettes (tracker.offline.reference_masks: ``cut`` removes whatever lies off the body drawn
+silhouettes (lab.reference_masks: ``cut`` removes whatever lies off the body drawn
 from the reference keypoints, ``drawn`` uses that drawing as the silhouette, ``rendered`` the
 training renderer's body fitted to the reference and rendered through each calibrated camera),
 to tell how much of the error the silhouettes cause and how much the regressor.
@@ -66,16 +66,16 @@ from sequences.pose2sim_measures import (cross_view_heading_rms, cross_view_meas
                                          reference_body, reference_cross_view_check,
                                          subject_rows, view_measures)
 from tracker.cli import VIEW_LAG_S, ZONE_FOREGROUND
-from tracker.fixed_lag import replay
+from tracker.tracks.fixed_lag import replay
 from sequences.pose_vector import heading_deg
-from tracker.offline.evaluation import constant_pose
-from tracker.offline.pose2sim_trial import checked_trial, missing_trial, trial_files
-from tracker.offline.report import ReportError, check_plotting, plot_real_video
+from lab.evaluation import constant_pose
+from lab.pose2sim_trial import checked_trial, missing_trial, trial_files
+from lab.report import ReportError, check_plotting, plot_real_video
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
-from tracker.segmenter import INSTALL_HINT, SOURCES, segmenter_available
-from tracker.sinks import PoseRecorder
-from tracker.sinks.files import OutputWriteError, write_whole
-from tracker.video import VideoError
+from tracker.video.sources import INSTALL_HINT, SOURCES, segmenter_available
+from tracker.outputs import PoseRecorder
+from tracker.outputs.files import OutputWriteError, write_whole
+from tracker.video.decode import VideoError
 
 
 
@@ -84,7 +84,7 @@ class ViewTrack(NamedTuple):
     int video frame indices, filtered, raw and smoothed (each whole track RTS-smoothed, as
     track's JSON and BVH get them) (n, 55) pose vectors, track_ids (n,) int, bbox_px (n, 4)
     (x, y, w, h) pixels, novelty (n,) (PoseEstimates.novelty; NaN if unknown), lagged (n, 55): as
-    ``track --lag LAG_S`` streams them (the live view's default; tracker.fixed_lag)."""
+    ``track --lag LAG_S`` streams them (the live view's default; tracker.tracks.fixed_lag)."""
 
     frames: np.ndarray
     filtered: np.ndarray
@@ -116,7 +116,7 @@ class _MaskRecorder(PoseRecorder):
     def write_frame(self, frame_index: int, time_s: float, frame, people: dict) -> None:
         import cv2
 
-        from tracker.roll import upright_mask
+        from tracker.video.roll import upright_mask
         for track_id, person in people.items():
             mask = upright_mask(person.mask, self.roll_deg).astype(np.uint8) * 255
             width = max(1, round(mask.shape[1] * _TILE_PX / mask.shape[0]))
@@ -129,14 +129,14 @@ def _track_view(video: Path, model, max_people: int | None, roll_deg: float = 0.
                 reference_extractor=None, silhouettes: str = "background") -> ViewTrack:
     """Run the tracker on one video as the ``track`` command does (tracker.run.track_video),
     with ``--roll roll_deg``; keep_masks: also keep the silhouettes (ViewTrack.tiles);
-    trust_zone_foreground: the extractor's (tracker.silhouettes.refine_in_zone);
+    trust_zone_foreground: the extractor's (tracker.video.zone.refine_in_zone);
     reference_extractor: a function of the extractor giving the extractor to use
     (``--reference-masks``), or None; silhouettes: ``track --silhouettes`` (when no
     reference_extractor)."""
     from tracker import PoseTracker, track_video
-    from tracker.segmenter import silhouette_extractor
+    from tracker.video.sources import silhouette_extractor
     from tracker.pipeline import TrackerSettings, default_extractor
-    from tracker.video import open_video
+    from tracker.video.decode import open_video
 
     source = open_video(video)
     settings = TrackerSettings(max_people=max_people, roll_deg=roll_deg, novelty=True,
@@ -195,13 +195,13 @@ def _reference_extractor(trial: Trial, view: str, mode: str, fitted=None):
     "drawn") fed with the reference keypoints projected into ``view``, or for "rendered" in a
     RenderedMaskExtractor fed with the fitted body (fitted: _fitted_body) rendered through the
     view's camera at the video's size."""
-    from tracker.offline.reference_masks import ReferenceMaskExtractor, RenderedMaskExtractor
-    from tracker.offline.silhouette_evaluation import pose2sim_body
+    from lab.reference_masks import ReferenceMaskExtractor, RenderedMaskExtractor
+    from lab.silhouette_evaluation import pose2sim_body
 
     frames = video_frames(trial)
     if mode == "rendered":
         from sequences.pose2sim import render_view_masks
-        from tracker.video import open_video
+        from tracker.video.decode import open_video
 
         source = open_video(trial.video(view))
         body, vertices = fitted
@@ -226,14 +226,14 @@ def evaluate(trial: Trial, model, max_people: int | None, roll: bool = False,
     """The whole evaluation as a JSON-ready dict: per view, their means, and cross-view.
     roll: track each view with its camera's roll from the calibration (``track --roll``).
     trust_zone_foreground: True takes the subtractor's foreground inside the unreliable zone
-    as sure person (tracker.silhouettes.refine_in_zone; ``--zone-foreground sure``), False
+    as sure person (tracker.video.zone.refine_in_zone; ``--zone-foreground sure``), False
     (the default, as track's) lets colour decide on it too.
     sheet: a list that gets, per view, the subject's silhouettes as the regressor saw them
     at 8 frames spread over the clip (uint8 masks, write_mask_sheet draws them).
     reference_masks: "none", or "cut" / "drawn" / "rendered" to correct the silhouettes by the
-    reference (a diagnostic: tracker.offline.reference_masks).
+    reference (a diagnostic: lab.reference_masks).
     series: a list that gets, per view, the subject's flexions and headings over time beside
-    the reference's (tracker.offline.report.plot_real_video draws them).
+    the reference's (lab.report.plot_real_video draws them).
     peer: a function of a view giving MediaPipe's results there (mediapipe_peer.read_results),
     to score on the same frames as ours, or None. silhouettes: ``track --silhouettes``."""
     per_view, subject = {}, {}
@@ -426,7 +426,7 @@ def format_table(result: dict) -> str:
     reference = {r.get("reference_masks", "none") for r in result["views"].values()}
     if reference != {"none"}:
         lines.append(f"silhouettes corrected by the reference ({', '.join(sorted(reference))}; "
-                     "a diagnostic, not a result: tracker.offline.reference_masks)")
+                     "a diagnostic, not a result: lab.reference_masks)")
     return "\n".join(lines)
 
 
@@ -525,13 +525,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
                     help="as track --zone-foreground: inside the background's unreliable zone, "
                          "let colour decide on the subtractor's foreground too (the default) "
-                         "or take it as sure person (tracker.silhouettes.refine_in_zone)")
+                         "or take it as sure person (tracker.video.zone.refine_in_zone)")
     ap.add_argument("--reference-masks", choices=("none", "cut", "drawn", "rendered"),
                     default="none",
                     help="a diagnostic that reads the reference: cut each silhouette to the "
                          "body drawn from the reference keypoints, use that drawing as the "
                          "silhouette, or the training renderer's body fitted to the reference "
-                         "and rendered through each camera (tracker.offline.reference_masks); "
+                         "and rendered through each camera (lab.reference_masks); "
                          "default none")
     ap.add_argument("--json", type=Path, metavar="OUT", help="write the measures as JSON")
     ap.add_argument("--masks", type=Path, metavar="PNG", help="write the subject's "

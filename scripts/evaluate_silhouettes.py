@@ -18,15 +18,15 @@ is the extractor and associator as they were (median background, shadows dropped
 always on), "after" the extractor primed with frames of the clip, the
 subtractor's foreground inside the unreliable zone sure person (``track --zone-foreground
 sure``), "colour" the same with colour also deciding on that foreground
-(tracker.silhouettes.refine_in_zone, trust_zone_foreground=False; track's default since
+(tracker.video.zone.refine_in_zone, trust_zone_foreground=False; track's default since
 2026-12-04). ``--silhouettes`` measures ``track --silhouettes``'s sources instead (background:
-the "colour" extractor; segment and auto: tracker.segmenter, which needs the segment extra).
+the "colour" extractor; segment and auto: tracker.video.segmenter, which needs the segment extra).
 Measures:
-tracker.offline.silhouette_evaluation.
+lab.silhouette_evaluation.
 
 A --trial folder that does not exist, or a --json that could not be written or is one of the
 files read, is refused before any work (exit 2); bad data (a trial file that is not text, a NaN
-in the calibration, a view's video missing or undecodable: tracker.offline.pose2sim_trial's
+in the calibration, a view's video missing or undecodable: lab.pose2sim_trial's
 checks, also before any work) ends the run in one line naming the file (exit 1); Ctrl-C in one
 line (exit 130). It prints each extractor and view as it starts it. --json is written whole or
 not at all."""
@@ -38,14 +38,15 @@ from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
 from sequences.pose2sim import DEFAULT_TRIAL, VIEWS, Pose2SimError
-from tracker.offline.pose2sim_trial import checked_trial, missing_trial, trial_files
-from tracker.offline.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, default_associator,
+from lab.pose2sim_trial import checked_trial, missing_trial, trial_files
+from lab.silhouette_evaluation import (ASSOCIATORS, EXTRACTORS, default_associator,
                                                    evaluate_pose2sim_view, format_table)
 from tracker.pipeline import TrackerSettings
-from tracker.segmenter import (INSTALL_HINT, SOURCES, PersonSegmenter, segmenter_available,
-                               silhouette_extractor)
+from tracker.video.sources import (INSTALL_HINT, SOURCES, segmenter_available,
+                                   silhouette_extractor)
+from tracker.video.segmenter import PersonSegmenter
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
-from tracker.sinks.files import OutputWriteError, write_whole
+from tracker.outputs.files import OutputWriteError, write_whole
 
 
 def _main(argv) -> int:

@@ -4,7 +4,7 @@ trials rendered as spiral walks.
     python scripts/learn_hypothesis_priors.py [--cmu ../shared/data/cmu/bvh] [--model FILE]
         [--skip-regressor] [--weights] [--save OUT]
 
-Prints the values that tracker/hypotheses.py (SWITCH_PROBABILITY, RAW_NEARER_BY_NORM; with
+Prints the values that tracker/tracks/hypotheses.py (SWITCH_PROBABILITY, RAW_NEARER_BY_NORM; with
 --weights EVIDENCE_WEIGHT, which should be chosen after the others are in place) holds; for a model with limbs and a side classifier (the
 default), also the canonical chain's priors on the 28 validation renders
 (regressor.canonical_priors; the model file carries them), and with --save OUT writes the
@@ -20,12 +20,13 @@ from threadpoolctl import threadpool_limits
 
 import numpy as np
 
-from regressor.pose_model import (DEFAULT_MODEL_PATH, PoseModelError, load_pose_model,
-                                  save_pose_model)
-from tracker.offline.hypothesis_priors import (choose_weights, learn_canonical_priors, prior_files,
+from regressor.pose_model import DEFAULT_MODEL_PATH, PoseModelError, load_pose_model
+
+from regressor.model_writer import save_pose_model
+from lab.hypothesis_priors import (choose_weights, learn_canonical_priors, prior_files,
                                                regressor_flip_statistics, replay_heading_rms,
                                                top_experts, validation_renders)
-from tracker.offline.training import VALIDATION_TRIALS
+from lab.training import VALIDATION_TRIALS
 from tracker.one_line_parser import OneLineParser
 
 CMU = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cmu" / "bvh"

@@ -57,7 +57,7 @@ def trial_masks(path: Path, frames: int, views: int, plates, seed: int,
     """The three kinds of masks of the first `frames` frames of a trial in `views` views:
     {kind: list of masks, 'sequence': ids, 'iou', 'area', 'seconds'}. With videos, the first
     view's realistic clips are written there as TRIAL-START.mp4."""
-    from tracker.offline.training import noisy_masks
+    from lab.training import noisy_masks
     motion = read_bvh(path, fps=30.0)
     n = min(frames, motion.n_frames)
     motion = replace(motion, euler_deg=motion.euler_deg[:n], root_position=motion.root_position[:n])

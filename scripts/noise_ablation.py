@@ -25,9 +25,10 @@ from regressor.pose_model import transform_descriptors
 from regressor.stacking import stack_frames
 from sequences.dataset import DatasetConfig, build_dataset, training_files, views_by_rows
 from sequences.video import load_truth
-from tracker.offline.training import (VALIDATION_TRIALS, angle_centres, angle_measures,
-                              MixtureOptions, dataset_descriptors, descriptor_cache_key, mixture_space,
-                              regression_targets)
+from lab.training import (VALIDATION_TRIALS, angle_measures, dataset_descriptors,
+                          descriptor_cache_key)
+from regressor.angles import regression_targets
+from regressor.training import MixtureOptions, angle_centres, mixture_space
 from tracker.one_line_parser import OneLineParser
 from select_mixture import VIDEO_TRIALS, video_descriptors
 

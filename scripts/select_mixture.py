@@ -9,7 +9,7 @@ fitted on the training rows (validation trials excluded) and scored two ways, bo
 validation trials only: (1) the data set's own validation rows (02_02, 08_03, 05_02, 06_10,
 09_04, 02_05, as rendered for training, video-like noise), (2) spiral-walk videos of 02_02 and
 08_03 through the tracker's silhouette extractor, raw stacked output (no filter). Measures:
-err53, skill against the training-mean pose, corr8 (tracker.offline.training.angle_measures).
+err53, skill against the training-mean pose, corr8 (lab.training.angle_measures).
 """
 from __future__ import annotations
 
@@ -30,10 +30,11 @@ from regressor.stacking import stack_frames
 from sequences.dataset import DatasetConfig, build_dataset, training_files, views_by_rows
 from sequences.video import load_truth
 from tracker.one_line_parser import OneLineParser
-from tracker.silhouettes import SilhouetteExtractor, median_background
-from tracker.offline.training import (VALIDATION_TRIALS, angle_centres, angle_measures,
-                              descriptor_cache_key, partition_space, regression_targets)
-from tracker.video import open_video
+from tracker.video.silhouettes import SilhouetteExtractor, median_background
+from lab.training import VALIDATION_TRIALS, angle_measures, descriptor_cache_key
+from regressor.angles import regression_targets
+from regressor.training import angle_centres, partition_space
+from tracker.video.decode import open_video
 
 VIDEO_TRIALS = ("02_02", "08_03")
 

@@ -2,7 +2,7 @@
 # Set up what the tests need and run them: bash scripts/test.sh [PYTEST ARGS]
 #   (no args: the fast tier; -m slow: the whole-video tier; -m "slow or not slow": both, as CI)
 # Makes .venv (a stock Debian python refuses a bare pip install), installs the package with its
-# test and segment extras (the person segmenter's tests run too: tracker.segmenter), and, as
+# test and segment extras (the person segmenter's tests run too: tracker.video.segmenter), and, as
 # root, Debian's chromium for the browser test of track --view (skipped with a reason without
 # it).
 set -euo pipefail

@@ -29,8 +29,10 @@ from regressor.angles import wrap_deg
 from regressor.descriptor import DescriptorSettings
 from regressor.errors import SilhouettePoseError
 from regressor.layout import MAX_GRID
-from regressor.limb_net import MAX_MEMBERS, require_training_dependencies
-from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model, save_pose_model
+from regressor.limb_net import MAX_MEMBERS
+from regressor.limb_net_training import require_training_dependencies
+from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
+from regressor.model_writer import save_pose_model
 from sequences.backgrounds import plates_folder
 from sequences.cmu_extra import (EXTRA_HELD_OUT, EXTRA_ROWS_PER_TRIAL, CmuExtraError,
                                  extra_dataset_trials, extra_sources, source_sequence,
@@ -38,15 +40,13 @@ from sequences.cmu_extra import (EXTRA_HELD_OUT, EXTRA_ROWS_PER_TRIAL, CmuExtraE
 from sequences.dataset import (HELD_OUT_TRIALS, DatasetConfig, DatasetError,
                                build_dataset, trial_name, training_files, views_by_rows)
 from sequences.splice import SpliceConfig, SpliceError, recipe_name, write_spliced_files
-from tracker.offline.hypothesis_priors import learn_canonical_priors, prior_files
-from tracker.offline.training import (CANONICAL_RULES, EXPERT_CHOICES, VALIDATION_TRIALS,
-                                      MixtureOptions, TrainingOptions,
-                                      cached_descriptors, cached_layouts, codebook_digest,
-                                      dataset_descriptors, descriptor_cache_key,
-                                      fit_dataset_codebook, fit_noisy_codebook,
-                                      noisy_dataset_inputs, noisy_dataset_layouts,
-                                      train_mixture_model,
-                                      train_pose_model)
+from lab.hypothesis_priors import learn_canonical_priors, prior_files
+from lab.training import (VALIDATION_TRIALS, TrainingOptions, cached_descriptors,
+                          cached_layouts, codebook_digest, dataset_descriptors,
+                          descriptor_cache_key, fit_dataset_codebook, fit_noisy_codebook,
+                          noisy_dataset_inputs, noisy_dataset_layouts, train_mixture_model,
+                          train_pose_model)
+from regressor.training import CANONICAL_RULES, EXPERT_CHOICES, MixtureOptions
 from tracker.one_line_parser import EXIT_INTERRUPTED, OneLineParser
 
 
@@ -541,7 +541,7 @@ def _learn_priors(args, model, report: dict, log) -> None:
             priors, stats = learn_canonical_priors(saved, prior_files(args.bvh_dir))
     except ValueError as exc:
         log(f"train: warning: no canonical priors ({exc}); {args.out} is kept without them "
-            f"(tracker.hypotheses' defaults apply)")
+            f"(tracker.tracks.hypotheses' defaults apply)")
         return
     report["canonical_priors"] = stats
     saved.canonical_priors = model.canonical_priors = priors

@@ -5,7 +5,7 @@ The Pose2Sim demonstration videos (BSD 3-Clause, perfanalytics 2022; the shared 
 (balancing, swings) is filmed by the same four cameras from the same places, so one camera's
 two clips show the same room. A clip's per-pixel median removes people who move; where someone
 stays on the spot (balancing) the median shows them, and the tracker's own estimate of where
-the median cannot be trusted (``tracker.background.clip_background``'s unreliable zone) says
+the median cannot be trusted (``tracker.video.background.clip_background``'s unreliable zone) says
 where. A camera's plate takes each pixel from the clip that is reliable there, and what no clip
 shows empty is inpainted (OpenCV's Telea method, a few per cent of the image at most).
 
@@ -25,7 +25,7 @@ from regressor.errors import SilhouettePoseError
 
 from .video import textured_background
 
-PLATE_WIDTH = 320               # the tracker's working width (tracker.silhouettes)
+PLATE_WIDTH = 320               # the tracker's working width (tracker.video.silhouettes)
 _SAMPLES = 25                   # frames per clip for the median, as `track` takes
 
 
@@ -35,7 +35,7 @@ class BackgroundError(SilhouettePoseError, ValueError):
 
 def _sample_frames(path: Path, n: int, width: int) -> np.ndarray:
     """n frames spread over a video, BGR uint8 (n', h, width, 3) shrunk by area averaging."""
-    from tracker.area_shrink import shrink
+    from tracker.video.area_shrink import shrink
     cap = cv2.VideoCapture(str(path))
     total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
     frames = []
@@ -57,7 +57,7 @@ def camera_plate(videos: list[Path], width: int = PLATE_WIDTH) -> tuple[np.ndarr
     Returns (plate BGR uint8 (h, width, 3), bool (h, width): True where no clip showed the
     scene empty, inpainted). Each pixel comes from the first clip whose median is reliable there
     (clip_background's zone)."""
-    from tracker.background import clip_background
+    from tracker.video.background import clip_background
     plate, missing = None, None
     for path in videos:
         estimate = clip_background(_sample_frames(path, _SAMPLES, width))

@@ -5,7 +5,7 @@ gives knee and elbow flexion and a heading, but no pose vector, so it cannot say
 estimate comes from the silhouettes or from poses the regressor never learned. Fitting the
 training renderer's body (sequences.body) to the keypoints gives a pose vector per frame; that
 body rendered through the real cameras is a silhouette of the true pose that looks exactly like
-a training render (tracker.offline.reference_masks ``rendered``).
+a training render (lab.reference_masks ``rendered``).
 
 The fit matches bone *directions*, not positions: the keypoints come from another skeleton
 (a pose estimator's hips and shoulders, not CMU's joints), so positions cannot all be matched

@@ -3,7 +3,7 @@
 The data set's renders (sequences.dataset) are crisp, 160 px tall, with every gap between the
 legs and between an arm and the torso open. What the tracker's extractor (MOG2 background
 subtraction at 320 px working width, then an opening, a closing and hole filling,
-tracker/silhouettes.py) gives from a video of the same body is different. Measured on the
+tracker/video/silhouettes.py) gives from a video of the same body is different. Measured on the
 shipped sample (CMU 16_11 spiral walk, 320x240; the evaluation's own renders of the same
 frames): the person is ~117 px tall, the masks are ~4 px wider and cover 1.20x the area, edges
 are ragged at the 1-2 px scale, narrow gaps (between the legs, arm and torso) are closed, and
@@ -16,7 +16,7 @@ probability punch holes, bite fragments off the outline, add a shadow at the fee
 separate speck; then the extractor's own cleaning (``clean_mask``: opening 3 px, closing 5 px)
 and splitting (``person_masks``: small holes filled, fragments of one person merged, clutter
 dropped) on a 320x240 canvas. The cleaning functions are passed in (``cleaner``) so this
-module does not import ``tracker``; :func:`tracker.offline.training.noisy_masks` wires them.
+module does not import ``tracker``; :func:`lab.training.noisy_masks` wires them.
 
 Everything is deterministic in the generator passed in.
 """

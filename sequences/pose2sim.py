@@ -49,7 +49,7 @@ FLEXION_KEYPOINTS: tuple[tuple[str, str, str], ...] = (
     ("LShoulder", "LElbow", "LWrist"), ("RShoulder", "RElbow", "RWrist"),
 )
 #: The reference's keypoints drawn as a body, for measuring a silhouette against it
-#: (tracker.offline.silhouette_evaluation.body_region): the torso quadrilateral, the head
+#: (lab.silhouette_evaluation.body_region): the torso quadrilateral, the head
 #: keypoint, and the bones drawn as thick lines (feet included; Nose and the small toes
 #: unused).
 BODY_TORSO: tuple[str, ...] = ("RShoulder", "LShoulder", "LHip", "RHip")

@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 from regressor.angles import POSE_DIM, wrap_deg
 from regressor.errors import SilhouettePoseError
 
-from .bvh import Motion
+from .motion import Motion
 from .skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, FOLDED, POSE_JOINT_PART,
                        POSE_JOINTS, pose_joint_indices)
 
@@ -337,7 +337,7 @@ def image_mirror(vectors: np.ndarray) -> np.ndarray:
     turned 180 degrees about the vertical: the flipped pose with its heading h -> -h, i.e.
     (cos, sin) -> (cos, -sin) (norm kept), left and right joints exchanged. Mirroring twice is
     the identity exactly; the member facing the camera's half stays so (cos is kept). The
-    training mirrors its silhouettes with it (tracker.offline.training, limb networks).
+    training mirrors its silhouettes with it (lab.training, limb networks).
     """
     out = front_back_flip(vectors)
     out[..., 0] = -out[..., 0]

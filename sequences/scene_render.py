@@ -17,7 +17,7 @@ phone video. This module goes that way for each motion-capture sequence:
    the person crosses a static room (bouncing at the frame's sides), feet on the floor.
 4. Lens blur and sensor noise, then H.264 (libx264, CRF 17-25, yuv420p) and decoding, through
    an ffmpeg binary (imageio-ffmpeg's bundled one when installed, else ffmpeg on PATH).
-5. The tracker's own extractor (tracker.silhouettes.SilhouetteExtractor, default settings)
+5. The tracker's own extractor (tracker.video.silhouettes.SilhouetteExtractor, default settings)
    primed as ``track`` primes it without a clean plate: the median of 25 frames spread over
    the clip, and learn_zone on them. Its largest person is the training mask.
 
@@ -232,7 +232,7 @@ def extract_people(frames: np.ndarray, samples: int = 25) -> list:
     """The tracker's extractor on decoded frames (T, H, W, 3) BGR uint8, primed as ``track``
     primes it without a clean plate (the median of ``samples`` frames spread over the clip,
     then learn_zone on them). Per frame its largest PersonMask, or None."""
-    from tracker.silhouettes import SilhouetteExtractor
+    from tracker.video.silhouettes import SilhouetteExtractor
     extractor = SilhouetteExtractor()
     picks = np.unique(np.linspace(0, len(frames) - 1, min(samples, len(frames))).round()
                       .astype(int))

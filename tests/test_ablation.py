@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
-import tracker.hypotheses as hyp
+import tracker.tracks.hypotheses as hyp
 from regressor.pose_model import load_pose_model
 from sequences.video import Actor, write_video
 from tests.conftest import ROOT

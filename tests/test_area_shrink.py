@@ -1,9 +1,9 @@
-"""tracker.area_shrink.shrink: INTER_AREA's averages, faster, for any ratio."""
+"""tracker.video.area_shrink.shrink: INTER_AREA's averages, faster, for any ratio."""
 import cv2
 import numpy as np
 import pytest
 
-from tracker.area_shrink import shrink
+from tracker.video.area_shrink import shrink
 
 
 def _scene(height: int, width: int) -> np.ndarray:

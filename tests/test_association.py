@@ -7,8 +7,8 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.association import AssociationError, Associator
-from tracker.silhouettes import SilhouetteExtractor
+from tracker.tracks.association import AssociationError, Associator
+from tracker.video.silhouettes import SilhouetteExtractor
 
 
 @dataclass

@@ -1,9 +1,9 @@
-"""The clip background without a clean plate: where it cannot be trusted (tracker.background)."""
+"""The clip background without a clean plate: where it cannot be trusted (tracker.video.background)."""
 from __future__ import annotations
 
 import numpy as np
 
-from tracker.background import clip_background
+from tracker.video.background import clip_background
 
 
 def frames_with(boxes_per_frame, shape=(120, 160)) -> np.ndarray:
@@ -37,7 +37,7 @@ def test_gap_between_two_people_side_by_side_stays_reliable():
 
 def test_a_slow_change_of_light_makes_no_unreliable_zone():
     """Brightness rising 0.85x -> 1.15x over the clip had made a bright sky busy in most
-    frames, and its zone was taken for a person (tracker.silhouettes.refine_in_zone)."""
+    frames, and its zone was taken for a person (tracker.video.zone.refine_in_zone)."""
     rng = np.random.default_rng(0)
     scene = np.clip(rng.normal(120, 40, (120, 160, 3)), 0, 255)
     scene[:50] = 200                                     # a bright, flat sky

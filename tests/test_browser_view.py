@@ -17,8 +17,8 @@ import pytest
 
 from tests.chromium import CHROMIUM, Chromium
 from tracker import TrackedPose
-from tracker.sinks.geometry import SIDE_HUE_TURN_DEG, body_colours, pose_joints_m
-from tracker.sinks.meshcat_view import BEZEL_COLOUR, MeshcatView
+from tracker.outputs.geometry import SIDE_HUE_TURN_DEG, body_colours, pose_joints_m
+from tracker.outputs.meshcat_view import BEZEL_COLOUR, MeshcatView
 
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="needs Chromium (apt-get install chromium)")
 

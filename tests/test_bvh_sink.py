@@ -9,8 +9,8 @@ import pytest
 from sequences.bvh import read_bvh
 from sequences.pose_vector import joint_positions, motion_to_pose_vectors
 from sequences.skeleton import CMU_UNIT_M
-from tracker.sinks.bvh import BVHSink
-from tracker.sinks.geometry import SinkInputError, pose_joints_m
+from tracker.outputs.bvh import BVHSink
+from tracker.outputs.geometry import SinkInputError, pose_joints_m
 from tracker import TrackedPose
 
 FPS = 25.0
@@ -114,7 +114,7 @@ def test_a_cmu_file_can_be_the_template(tmp_path, cmu_bvh_dir):
 
 
 def test_abandon_writes_no_file_and_frees_the_folder(tmp_path):
-    """A run that tracked nobody abandons its BVH output (tracker.sinks.close_sinks)."""
+    """A run that tracked nobody abandons its BVH output (tracker.outputs.close_sinks)."""
     sink = BVHSink(tmp_path, fps=30.0, prefix="clip")
     sink.abandon()
     sink.abandon()                                   # idempotent

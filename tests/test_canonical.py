@@ -10,12 +10,13 @@ import pytest
 from regressor.angles import wrap_deg
 from regressor.errors import SilhouettePoseError
 from regressor.model_file import load_model
-from regressor.pose_model import load_pose_model, save_pose_model
+from regressor.pose_model import load_pose_model
+from regressor.model_writer import save_pose_model
 from sequences.pose_vector import (PoseVectorError, canonical_member, flip_odd_part,
                                    front_back_flip)
 from tests.test_layout import _projected_model, _write_unchecked
 from tests.test_pose_vector import _random_vectors
-from tracker.offline.training import canonical_direction
+from lab.training import canonical_direction
 from tracker.pipeline import TrackerSettings, filter_factories
 
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from regressor.canonical_priors import CanonicalPriors
-from tracker.hypotheses import (CANONICAL_FRONT_EDGES, DEFAULT_CANONICAL_PRIORS,
+from tracker.tracks.hypotheses import (CANONICAL_FRONT_EDGES, DEFAULT_CANONICAL_PRIORS,
                                 canonical_hypotheses, canonical_priors, switch_probability)
 from test_side_classifier import _body, _classifier
 
@@ -126,10 +126,11 @@ def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_p
     pytest.importorskip("sklearn")
     from test_mixture import _mixture_model, assert_refused_when_changed
     from regressor.angles import wrap_deg
-    from regressor.limb_net import fit_limb_net
+    from regressor.limb_net_training import fit_limb_net
     from regressor.model_file import load_model
-    from regressor.pose_model import PoseModelError, load_pose_model, save_pose_model
-    from tracker.hypotheses import propose_batch
+    from regressor.pose_model import PoseModelError, load_pose_model
+    from regressor.model_writer import save_pose_model
+    from tracker.tracks.hypotheses import propose_batch
     model, x = _mixture_model()
     rng = np.random.default_rng(3)
     targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),

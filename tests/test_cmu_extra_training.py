@@ -127,7 +127,7 @@ def test_the_model_description_records_the_sources():
     prints them; windows of one dance are one sequence there, and the cmu_extra held-out
     sequences join the held-out trials when the extras trained."""
     from sequences.dataset import HELD_OUT_TRIALS, Dataset, DatasetConfig
-    from tracker.offline.training import TrainingOptions
+    from lab.training import TrainingOptions
     train = load_script("train")
     n = 7
     data = Dataset(masks=np.zeros((n, 2, 2), bool), pose=np.zeros((n, 55)),

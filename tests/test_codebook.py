@@ -5,8 +5,9 @@ import cv2
 import numpy as np
 import pytest
 
-from regressor.codebook import Codebook, CodebookError, fit_codebook, kmeans
-from regressor.descriptor import DescriptorSettings, contexts_for_masks, fit_codebook_for_masks
+from regressor.codebook import Codebook, CodebookError
+from regressor.descriptor import DescriptorSettings, contexts_for_masks
+from regressor.training import fit_codebook, fit_codebook_for_masks, kmeans
 
 
 def blobs(seed: int = 0, per_blob: int = 200) -> tuple[np.ndarray, np.ndarray]:

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from conftest import load_script, refused_in_one_line
-from tracker.association import AssociationError, Associator
-from tracker.offline.crossings import (identity_measures, mirror_crossing, read_frames,
+from tracker.tracks.association import AssociationError, Associator
+from lab.crossings import (identity_measures, mirror_crossing, read_frames,
                                        track_identities)
-from tracker.silhouettes import COLOUR_BINS, colour_histogram
+from tracker.video.silhouettes import COLOUR_BINS, colour_histogram
 from sequences.video import load_truth
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sequences" / "data" / "sample_spiral_walk.mp4"

@@ -9,7 +9,7 @@ import types
 
 import pytest
 
-import tracker.offline.evaluation as evaluation
+import lab.evaluation as evaluation
 from conftest import cut_run, load_script, refused_in_one_line
 
 

@@ -37,7 +37,7 @@ def test_unwritable_mask_sheets_and_plots_are_refused_in_one_line_before_trackin
 
 def test_the_plot_has_a_row_per_view(evaluate_real, tmp_path):
     pytest.importorskip("matplotlib")
-    from tracker.offline.report import plot_real_video
+    from lab.report import plot_real_video
     t = np.arange(50)
     view = {"view": "cam01", "frames": t, "reference": np.full((50, 4), 40.0),
             "filtered": np.full((50, 4), 50.0), "smoothed": np.full((50, 4), 45.0),

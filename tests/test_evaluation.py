@@ -9,12 +9,12 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-from tracker.offline.evaluation import (AnkurOptions, EvaluatedSequence, angle_parts, ankur_sequence,
+from lab.evaluation import (AnkurOptions, EvaluatedSequence, angle_parts, ankur_sequence,
                                 evaluate, heading_ambiguity, measure_angles, measure_points,
                                 rendered_sequence)
 from regressor.angles import angles_to_pose
-from tracker.filtering import ConstantVelocityFilter, FilterError
-from tracker.offline.report import format_table
+from tracker.tracks.filtering import ConstantVelocityFilter, FilterError
+from lab.report import format_table
 from tracker.pipeline import TrackerSettings
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
@@ -143,7 +143,7 @@ def test_constant_velocity_filter_reduces_noise_on_points():
 
 def test_end_to_end_on_rendered_frames_with_report(cmu_bvh_dir, tmp_path):
     pytest.importorskip("matplotlib")
-    from tracker.offline.report import format_table, write_report
+    from lab.report import format_table, write_report
     stacked, per_frame = load_pose_model(), load_pose_model(PER_FRAME_MODEL)
     seq = rendered_sequence(cmu_bvh_dir / "16_11.bvh", stacked, per_frame, spiral_deg_per_s=30.0,
                             frames=40)

@@ -6,7 +6,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from regressor.angles import angles_to_pose, heading_norm, pose_angles, wrap_deg
-from tracker.filtering import FilterError, PoseKalmanFilter
+from tracker.tracks.filtering import FilterError, PoseKalmanFilter
 
 FPS = 30.0
 

@@ -1,4 +1,4 @@
-"""Fixed-lag smoothing (tracker.fixed_lag): which frames go out when, smoothed over which
+"""Fixed-lag smoothing (tracker.tracks.fixed_lag): which frames go out when, smoothed over which
 window; and on a rendered walk through track_video, that it follows the body better than the
 filter and, with a lag longer than the video, gives exactly the whole-track smoothing."""
 from __future__ import annotations
@@ -11,9 +11,9 @@ import pytest
 from regressor.pose_model import load_pose_model
 from sequences.video import Actor, load_truth, write_video
 from tests.synthetic import gait_walk
-from tracker.fixed_lag import MAX_LAG_S, FixedLagSmoother
+from tracker.tracks.fixed_lag import MAX_LAG_S, FixedLagSmoother
 from tracker.pipeline import TrackedPose
-from tracker.sinks.geometry import pose_joints_m
+from tracker.outputs.geometry import pose_joints_m
 
 
 class _Tracker:
@@ -170,7 +170,7 @@ def walk(tmp_path_factory):
 def _tracked(video, model, lag_s, workers=1):
     from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
-    from tracker.sinks import PoseRecorder
+    from tracker.outputs import PoseRecorder
     tracker = PoseTracker(model, 30.0, TrackerSettings(max_people=1, keep_history=True))
     recorder = PoseRecorder()
     run = track_video(video, tracker, [recorder], workers=workers, lag_s=lag_s)
@@ -226,7 +226,7 @@ def test_a_ctrl_c_still_writes_the_frames_held_back(walk):
 
     from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
-    from tracker.sinks import PoseRecorder
+    from tracker.outputs import PoseRecorder
 
     class CtrlC(PoseRecorder):
         def write(self, pose):
@@ -251,9 +251,9 @@ def test_a_ctrl_c_still_writes_the_frames_held_back(walk):
 
 @pytest.mark.slow
 def test_a_replay_of_a_run_without_lag_gives_the_lagged_runs_poses(walk):
-    """tracker.fixed_lag.replay (what the evaluation scripts use: one run gives the filtered
+    """tracker.tracks.fixed_lag.replay (what the evaluation scripts use: one run gives the filtered
     and the lagged poses) equals a run with the lag, pose for pose."""
-    from tracker.offline.evaluation import track_longest
+    from lab.evaluation import track_longest
     from tracker.pipeline import TrackerSettings
     model = load_pose_model()
     tracked = track_longest(walk, model, TrackerSettings(), lag_s=0.5)
@@ -264,8 +264,8 @@ def test_a_replay_of_a_run_without_lag_gives_the_lagged_runs_poses(walk):
 
 
 def test_video_frames_held_back_are_kept_small_with_their_people():
-    from tracker.fixed_lag import HELD_FRAME_WIDTH_PX
-    from tracker.silhouettes import PersonMask
+    from tracker.tracks.fixed_lag import HELD_FRAME_WIDTH_PX
+    from tracker.video.silhouettes import PersonMask
     x = np.linspace(0, 255, 1920)[None, :, None]
     image = np.broadcast_to(x, (1080, 1920, 3)).astype(np.uint8)       # a smooth ramp
     mask = np.zeros((600, 300), bool)
@@ -303,7 +303,7 @@ def test_after_a_stop_the_frames_held_back_go_to_the_files_not_the_live_view(wal
     held back (a review measured a 7 s exit at --lag 5)."""
     from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
-    from tracker.sinks import PoseRecorder
+    from tracker.outputs import PoseRecorder
 
     class Watching(PoseRecorder):
         def __init__(self):

@@ -19,7 +19,7 @@ from tests.test_track_safety import cut_off_avi
 from tracker import PoseRecorder, PoseTracker, TrackerSettings, track_video
 from tracker.frame_worker import FrameWorker, can_fork
 from tracker.run import _prime
-from tracker.video import VideoError, VideoSource, open_video
+from tracker.video.decode import VideoError, VideoSource, open_video
 
 ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.skipif(not can_fork(), reason="the frame worker needs fork")
@@ -146,7 +146,7 @@ from regressor.pose_model import load_pose_model
 from tracker import PoseTracker, TrackerSettings
 from tracker.frame_worker import FrameWorker
 from tracker.run import _prime
-from tracker.video import open_video
+from tracker.video.decode import open_video
 source = open_video(sys.argv[1])
 tracker = PoseTracker(load_pose_model(), source.fps, TrackerSettings())
 _prime(source, tracker, None)
@@ -208,7 +208,7 @@ def test_track_with_one_or_two_workers_writes_the_same_json(walk, tmp_path):
 
 def test_the_workers_warnings_are_issued_in_the_main_process(tmp_path):
     """A video cut short warns in the worker, which reads it; the user must still see it."""
-    from tracker.video import VideoTruncatedWarning
+    from tracker.video.decode import VideoTruncatedWarning
     source = open_video(cut_off_avi(tmp_path))
     with pytest.warns(VideoTruncatedWarning, match="decoding stopped"):
         run = track_video(source, workers=2)

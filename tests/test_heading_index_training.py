@@ -11,8 +11,9 @@ from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings
 from regressor.stacking import stack_frames
 from sequences.dataset import Dataset
-from tracker.offline.training import (MixtureOptions, frame_descriptors, measurement_noise,
-                                      train_mixture_model, validation_mask)
+from lab.training import train_mixture_model, validation_mask
+from regressor.pose_model import frame_descriptors
+from regressor.training import MixtureOptions, measurement_noise
 
 
 def _dataset(seed=0):
@@ -113,9 +114,9 @@ def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
 
 
 def _capture_limb_net_fit(monkeypatch) -> dict:
-    """Make training's fit_limb_net record the rows and targets it is given (in the dict
+    """Make regressor.training's fit_limb_net record the rows and targets it is given (in the dict
     returned) and then fit as usual."""
-    import tracker.offline.training as training
+    import regressor.training as training
     seen = {}
     real_fit = training.fit_limb_net
 
@@ -160,7 +161,7 @@ def test_limb_networks_also_fit_every_training_rows_mirror_image(monkeypatch):
 
 
 def test_rows_played_backwards_stack_the_following_frames_within_each_sequence():
-    from tracker.offline.training import _time_reversed_rows, reversed_in_sequence
+    from lab.training import _time_reversed_rows, reversed_in_sequence
     sequence = np.array([0, 0, 0, 0, 1, 1, 1])
     order = reversed_in_sequence(sequence)
     assert order.tolist() == [3, 2, 1, 0, 6, 5, 4] and order[order].tolist() == list(range(7))
@@ -177,7 +178,7 @@ def test_limb_networks_also_fit_a_share_of_the_rows_played_backwards(monkeypatch
     """limb_net_reversed: that share of the training rows (and their mirror images) is added
     with its stacked frames in reverse order and the same targets."""
     pytest.importorskip("sklearn")
-    import tracker.offline.training as training
+    from lab.training import _time_reversed_rows
     from sequences.pose_vector import canonical_member, image_mirror
     data, X, codebook, settings = _dataset()
     X_mirror = X.copy()
@@ -201,8 +202,8 @@ def test_limb_networks_also_fit_a_share_of_the_rows_played_backwards(monkeypatch
     np.testing.assert_allclose(seen["targets"][2 * n + m:],
                                canonical_member(image_mirror(data.pose[picked]), direction))
     for k, hist in enumerate((X, X_mirror)):
-        played_back = training._time_reversed_rows(data, hist, model.transform,
-                                                   model.stack_depth, None, 0.0)[picked]
+        played_back = _time_reversed_rows(data, hist, model.transform,
+                                          model.stack_depth, None, 0.0)[picked]
         block = seen["inputs"][2 * n + k * m:2 * n + (k + 1) * m]
         np.testing.assert_allclose(block, model._stacked(played_back), atol=1e-9)
         forwards = stack_frames(frame_descriptors(hist, model.transform), model.stack_depth,
@@ -215,7 +216,7 @@ def test_training_caches_are_written_whole_and_a_damaged_one_is_made_again(tmp_p
     """A cut-off cache file (as an interrupted run used to leave) is reported in a warning and
     computed again; a run interrupted while writing leaves no file behind."""
     from regressor.codebook import Codebook
-    from tracker.offline.training import cached_descriptors, cached_layouts
+    from lab.training import cached_descriptors, cached_layouts
     calls = []
 
     def layouts():

@@ -1,4 +1,4 @@
-"""Front/back hypotheses over time (tracker.hypotheses)."""
+"""Front/back hypotheses over time (tracker.tracks.hypotheses)."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,8 +8,8 @@ from threadpoolctl import threadpool_limits
 from regressor.angles import pose_angles, wrap_deg
 from regressor.estimator import PoseEstimates
 from sequences.pose_vector import front_back_flip
-from tracker.filtering import PoseKalmanFilter
-from tracker.hypotheses import (FrontBackTracker, Hypotheses, _with_flips, propose,
+from tracker.tracks.filtering import PoseKalmanFilter
+from tracker.tracks.hypotheses import (FrontBackTracker, Hypotheses, _with_flips, propose,
                                 transition_matrix)
 
 FPS = 30.0
@@ -105,7 +105,7 @@ def test_a_turn_on_the_spot_is_followed_through_the_regressor_flips():
 
 def test_body_angles_follow_the_regressors_own_pose_when_the_chain_chooses_the_flip():
     """The chain decides the heading; with a limb filter the output's 53 body angles are the
-    filtered raw pose's, not the chosen flip's mirrored limbs (tracker.hypotheses, "Limbs")."""
+    filtered raw pose's, not the chosen flip's mirrored limbs (tracker.tracks.hypotheses, "Limbs")."""
     rng = np.random.default_rng(5)
     body = _pose(30.0, norm=0.9, seed=8)
     frames = []
@@ -170,7 +170,7 @@ def test_the_heading_filter_follows_a_short_confident_misreading_less():
 
 
 def test_pick_member_takes_the_member_nearer_the_heading():
-    from tracker.hypotheses import pick_member
+    from tracker.tracks.hypotheses import pick_member
     pose = _pose(60.0, seed=2)
     flip = front_back_flip(pose)                       # heading 120, limbs exchanged
     np.testing.assert_allclose(pick_member(pose, 50.0), pose)
@@ -218,7 +218,7 @@ def test_evidence_weight_tempers_the_regressors_evidence():
 
 def test_weights_are_chosen_by_replaying_the_tracker_on_validation_renders(cmu_bvh_dir):
     from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-    from tracker.offline.hypothesis_priors import choose_weights, validation_renders
+    from lab.hypothesis_priors import choose_weights, validation_renders
     model = load_pose_model(DEFAULT_MODEL_PATH)
     renders = validation_renders(model, [cmu_bvh_dir / "07_12.bvh"], frames=24)
     assert sorted(renders) == ["07_12 fixed", "07_12 fixed reversed", "07_12 spiral",
@@ -232,7 +232,7 @@ def test_weights_are_chosen_by_replaying_the_tracker_on_validation_renders(cmu_b
 
 def test_priors_are_learned_on_video_like_masks_unless_told_otherwise():
     """The front/back priors see masks as the model does in use (trained on video-like ones)."""
-    from tracker.offline.hypothesis_priors import video_like
+    from lab.hypothesis_priors import video_like
     masks = np.zeros((2, 224, 224), bool)
     masks[:, 30:190, 90:130] = True
     assert video_like(masks, on=False) is masks

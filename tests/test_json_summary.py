@@ -8,8 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from tracker.sinks.json_summary import JsonSummarySink, write_json_atomically
-from tracker.sinks.geometry import SinkInputError
+from tracker.outputs.json_summary import JsonSummarySink, write_json_atomically
+from tracker.outputs.geometry import SinkInputError
 from tracker import TrackedPose
 
 JOINTS = np.zeros((18, 3))
@@ -125,8 +125,8 @@ def test_summary_records_novelty_and_counts_unfamiliar_frames(tmp_path):
 
 def test_both_sinks_take_and_refuse_the_same_runner_up_probabilities(tmp_path):
     """The JSON summary and the MCAP recording check a runner-up's probability by one rule
-    (tracker.sinks.geometry.checked_probability): a number in [0, 1]."""
-    from tracker.sinks.mcap import McapSink
+    (tracker.outputs.geometry.checked_probability): a number in [0, 1]."""
+    from tracker.outputs.mcap import McapSink
     alt = _pose(0, 1, 0)
     for k, probability in enumerate((0.0, 0.5, 1, np.float32(0.25), 1.5, -0.1, "0.5", True,
                                      float("nan"), None, 10 ** 400)):
@@ -147,9 +147,9 @@ def test_both_sinks_take_and_refuse_the_same_runner_up_probabilities(tmp_path):
 
 def test_both_sinks_take_and_refuse_the_same_times(tmp_path):
     """The JSON summary and the MCAP recording check a pose's time by one rule
-    (tracker.sinks.geometry.checked_time): a finite number >= 0. (The JSON summary took
+    (tracker.outputs.geometry.checked_time): a finite number >= 0. (The JSON summary took
     negative times and MCAP failed on a string with a TypeError.)"""
-    from tracker.sinks.mcap import McapSink
+    from tracker.outputs.mcap import McapSink
     pose = _pose(0, 1, 0)
     for k, time_s in enumerate((0.0, 2, np.float32(0.5), 1e6, -0.1, float("nan"), float("inf"),
                                 "0.5", True, None, 10 ** 400)):
@@ -176,7 +176,7 @@ def test_the_summary_says_whether_its_poses_are_smoothed(tmp_path):
 
 
 def test_abandon_leaves_the_destination_as_it_was(tmp_path):
-    """A run that tracked nobody abandons its outputs (tracker.sinks.close_sinks)."""
+    """A run that tracked nobody abandons its outputs (tracker.outputs.close_sinks)."""
     path = tmp_path / "summary.json"
     path.write_text('{"an": "earlier run"}')
     sink = JsonSummarySink(path, video_fps=25.0)

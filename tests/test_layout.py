@@ -10,7 +10,8 @@ from regressor.edges import DegenerateSilhouetteError
 from regressor.layout import silhouette_layout
 from regressor.mixture import MixtureRegressor
 from regressor.model_file import FORMAT_VERSION, checksum, load_model, save_model
-from regressor.pose_model import PoseModel, PoseModelError, load_pose_model, save_pose_model
+from regressor.pose_model import PoseModel, PoseModelError, load_pose_model
+from regressor.model_writer import save_pose_model
 
 
 def _figure(scale: int = 1, shift: tuple[int, int] = (0, 0)) -> np.ndarray:
@@ -125,8 +126,8 @@ def test_a_projection_that_does_not_fit_the_input_is_refused(tmp_path):
 
 def test_training_layouts_describe_the_same_noisy_masks_as_the_descriptors():
     """Row i's layout comes from the video-like mask seeded (seed, i), as its descriptor
-    does (tracker.offline.training), whatever the number of workers."""
-    from tracker.offline.training import noisy_dataset_layouts, noisy_masks
+    does (lab.training), whatever the number of workers."""
+    from lab.training import noisy_dataset_layouts, noisy_masks
     masks = np.stack([_figure(scale=2)[:224, :224] for _ in range(3)])
     L1 = noisy_dataset_layouts(masks, 8, seed=2, workers=1)
     L2 = noisy_dataset_layouts(masks, 8, seed=2, workers=2)

@@ -7,8 +7,10 @@ import pytest
 pytest.importorskip("sklearn")
 
 from regressor.angles import wrap_deg                       # noqa: E402
-from regressor.limb_net import LimbNet, fit_limb_net        # noqa: E402
-from regressor.pose_model import PoseModelError, load_pose_model, save_pose_model  # noqa: E402
+from regressor.limb_net import LimbNet                     # noqa: E402
+from regressor.limb_net_training import fit_limb_net     # noqa: E402
+from regressor.pose_model import PoseModelError, load_pose_model  # noqa: E402
+from regressor.model_writer import save_pose_model
 
 
 def _synthetic(n=3000, P=6, seed=0):

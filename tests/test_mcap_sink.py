@@ -17,11 +17,11 @@ from mcap.reader import NonSeekingReader, make_reader
 from mcap.stream_reader import StreamReader
 
 from sequences.pose_vector import pose_vector_names
-from tracker.sinks.files import partial_path
-from tracker.sinks.mcap_repair import McapRecoveryError, recover_mcap
-from tracker.sinks.mcap import McapSink, SinkInputError
+from tracker.outputs.files import partial_path
+from tracker.outputs.mcap_repair import McapRecoveryError, recover_mcap
+from tracker.outputs.mcap import McapSink, SinkInputError
 from sequences.skeleton import POSE_JOINTS
-from tracker.sinks.geometry import CENTRE, LEFT, RIGHT, body_colours, pose_joints_m
+from tracker.outputs.geometry import CENTRE, LEFT, RIGHT, body_colours, pose_joints_m
 from tracker import TrackedPose
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -239,7 +239,7 @@ _SLOW_WRITER = textwrap.dedent("""
     import sys, time
     import numpy as np
     from tracker import TrackedPose
-    from tracker.sinks.mcap import McapSink
+    from tracker.outputs.mcap import McapSink
     pose = np.r_[1.0, np.zeros(54)]
     with McapSink(sys.argv[1], flush_every_frames=int(sys.argv[2]),
                   chunk_size=int(sys.argv[3])) as sink:
@@ -357,7 +357,7 @@ def test_pose_messages_carry_the_novelty_when_known(tmp_path):
 
 
 def test_the_label_and_the_unfamiliar_rule():
-    from tracker.sinks.geometry import pose_label
+    from tracker.outputs.geometry import pose_label
     assert [pose_label(3, a, u) for a, u in ((False, False), (True, False), (False, True),
                                              (True, True))] == \
         ["track 3", "track 3 (ambiguous)", "track 3 (unfamiliar)", "track 3 (ambiguous, unfamiliar)"]
@@ -406,7 +406,7 @@ def test_bad_input_is_refused_before_the_recording_changes(tmp_path):
 def test_per_frame_messages_are_the_json_the_json_module_would_write(tmp_path, monkeypatch):
     """The per-frame messages go through orjson (speed); their content is what the json
     module writes (json.loads of both equal), numpy numbers included."""
-    import tracker.sinks.mcap as mcap_module
+    import tracker.outputs.mcap as mcap_module
     seen = []
     frame_bytes = mcap_module._frame_bytes
 
@@ -531,7 +531,7 @@ def test_every_scene_update_validates_against_foxglove_official_schema(tmp_path,
 
 
 def test_abandon_removes_the_partial_and_keeps_what_the_path_held(tmp_path):
-    """A run that tracked nobody abandons its recording (tracker.sinks.close_sinks)."""
+    """A run that tracked nobody abandons its recording (tracker.outputs.close_sinks)."""
     path = tmp_path / "run.mcap"
     path.write_bytes(b"an earlier recording")
     sink = McapSink(path)

@@ -1,4 +1,4 @@
-"""Which body the limbs are, decided over a whole track (tracker.member_path)."""
+"""Which body the limbs are, decided over a whole track (tracker.tracks.member_path)."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,8 +6,8 @@ import pytest
 
 from regressor.angles import wrap_deg
 from sequences.pose_vector import front_back_flip, pose_vector_names
-from tracker.hypotheses import pick_member
-from tracker.member_path import members_over_time
+from tracker.tracks.hypotheses import pick_member
+from tracker.tracks.member_path import members_over_time
 
 NAMES = pose_vector_names()
 LEFT_HIP, RIGHT_HIP = NAMES.index("LeftUpLeg_x"), NAMES.index("RightUpLeg_x")
@@ -72,10 +72,10 @@ def test_the_trackers_smoothed_output_takes_its_limbs_from_the_chain_of_members(
     """FrontBackTracker.smoothed hands the whole track's limbs, the smoothed heading and the
     frame-rate ratio to members_over_time, and its body angles are the RTS smoothing of what
     that returns; the online (filtered) output still takes the member by the heading."""
-    import tracker.hypotheses as hypotheses
+    import tracker.tracks.hypotheses as hypotheses
     from sequences.pose_vector import heading_deg
-    from tracker.filtering import PoseKalmanFilter
-    from tracker.hypotheses import FrontBackTracker, _with_flips
+    from tracker.tracks.filtering import PoseKalmanFilter
+    from tracker.tracks.hypotheses import FrontBackTracker, _with_flips
 
     truth, limbs, _ = _walk_in_profile(T=60)
     calls = []

@@ -17,14 +17,14 @@ import pytest
 import umsgpack
 import zmq
 
-from tracker.sinks.meshcat_server import ViewerServer
-from tracker.video import focal_length_px
-from tracker.sinks.body_mesh import body_mesh, joint_spheres
-from tracker.sinks.framing import Framing
-from tracker.sinks.meshcat_view import MeshcatView, ViewLostWarning, smooth_path, trail_ribbon
+from tracker.outputs.meshcat_server import ViewerServer
+from tracker.video.decode import focal_length_px
+from tracker.outputs.body_mesh import body_mesh, joint_spheres
+from tracker.outputs.framing import Framing
+from tracker.outputs.meshcat_view import MeshcatView, ViewLostWarning, smooth_path, trail_ribbon
 from sequences.skeleton import POSE_JOINTS
 from tracker import TrackedPose
-from tracker.sinks.geometry import (
+from tracker.outputs.geometry import (
     BONE_INDEX,
     SinkInputError,
     bone_segments,
@@ -115,7 +115,7 @@ _PARENT = textwrap.dedent("""
     import sys, time
     import numpy as np
     from tracker import TrackedPose
-    from tracker.sinks.meshcat_view import MeshcatView
+    from tracker.outputs.meshcat_view import MeshcatView
     with MeshcatView(print_url=False) as view:
         print(view.server.pid, flush=True)
         frame = 0

@@ -1,4 +1,4 @@
-"""Limbs averaged with the limbs of the mirror image (tracker.mirror_limbs): the mirrored
+"""Limbs averaged with the limbs of the mirror image (tracker.tracks.mirror_limbs): the mirrored
 shape contexts, the model's mirror descriptor, the average, and the tracker's use of it."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from regressor.shape_context import mirrored_bins, shape_contexts
 from sequences.pose_vector import image_mirror
 from synthetic import cmu_motion, joint
-from tracker.mirror_limbs import mirror_mean, sees_mirror
+from tracker.tracks.mirror_limbs import mirror_mean, sees_mirror
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +23,7 @@ def model():
 def masks():
     """Six frames of a body stepping with its right arm raised sideways (not left/right
     symmetric), rendered side-on."""
-    from tracker.offline.evaluation import CameraOptions, render_silhouettes
+    from lab.evaluation import CameraOptions, render_silhouettes
     T = 6
     euler = np.zeros((T, 31, 3))
     euler[:, joint("RightArm"), 0] = 70.0
@@ -60,12 +60,12 @@ def test_describe_with_mirror_gives_the_frame_and_near_the_flipped_masks_descrip
 
 
 def test_training_describes_mirror_images_as_the_tracker_does(model, masks):
-    """tracker.offline.training.noisy_dataset_inputs: one pass gives the video-like masks'
+    """lab.training.noisy_dataset_inputs: one pass gives the video-like masks'
     histograms and layouts exactly as describing them one by one does, and their mirror images'
     inputs as the tracker makes a frame's (the contexts reflected, the layout flipped)."""
     from regressor.descriptor import descriptor_and_mirror, descriptors_for_masks
     from regressor.layout import silhouette_layout
-    from tracker.offline.training import noisy_dataset_inputs, noisy_dataset_layouts, noisy_masks
+    from lab.training import noisy_dataset_inputs, noisy_dataset_layouts, noisy_masks
     settings, codebook = model.settings, model.codebook
     made = noisy_dataset_inputs(masks, settings, codebook, grid=8, mirror=True, seed=3,
                                 workers=2)
@@ -110,7 +110,7 @@ def test_only_a_model_whose_networks_saw_mirror_images_sees_mirrors(model):
 
 def test_the_proposals_average_the_networks_answer_for_the_mirror_image(model, masks):
     from regressor.stacking import stack_frames
-    from tracker.hypotheses import propose_sequence
+    from tracker.tracks.hypotheses import propose_sequence
     plain = propose_sequence(model, masks, mirror=False)
     seen = propose_sequence(model, masks)
     pairs = [model.describe_with_mirror(m) for m in masks]
@@ -145,8 +145,8 @@ def test_the_tracker_describes_the_mirror_frame_by_frame_as_offline(model, masks
     """The streaming path (a second stacker of the mirror images' descriptors) proposes what
     propose_sequence does for the whole sequence."""
     from tracker import PoseTracker, TrackerSettings
-    from tracker.hypotheses import propose_sequence
-    from tracker.silhouettes import PersonMask
+    from tracker.tracks.hypotheses import propose_sequence
+    from tracker.video.silhouettes import PersonMask
     for mirror in (True, False):
         tracker = PoseTracker(model, 30.0, TrackerSettings(mirror_limbs=mirror))
         tracker.prime(np.zeros((240, 320, 3), np.uint8))

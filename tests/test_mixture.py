@@ -6,10 +6,10 @@ import pytest
 
 from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings
-from regressor.mixture import (DampedKernelRegressor, MixtureRegressor, NeighbourGate,
-                              SoftmaxGate, kmeans)
-from regressor.pose_model import (PoseModel, PoseModelError, load_pose_model,
-                                  save_pose_model)
+from regressor.mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate, kmeans
+from regressor.neighbour_gate import NeighbourGate
+from regressor.pose_model import PoseModel, PoseModelError, load_pose_model
+from regressor.model_writer import save_pose_model
 from regressor.sparse_rvm import SparseRVMRegressor
 
 SMALL = dict(n_centres=40, gate_centres=30, gate_l2=1e-2, overlap=0.0)
@@ -305,11 +305,11 @@ def test_inconsistent_mixture_file_is_refused(tmp_path):
 def _with_limb_head(model, x, seed=5):
     """The model's mixture refitted with a limb head as training does: partitioned on the
     inputs, one joint fit on [own targets, canonical members' targets] split back
-    (tracker.offline.training.split_expert_outputs), the head's angles about non-zero centres.
+    (lab.training.split_expert_outputs), the head's angles about non-zero centres.
     Returns (mixture, head, members: the head's regression targets (N, 55))."""
     from regressor.pose_model import LimbHead
     from sequences.pose_vector import canonical_member
-    from tracker.offline.training import split_expert_outputs
+    from regressor.training import split_expert_outputs
     rng = np.random.default_rng(seed)
     own = model.mixture.predict(x)
     members = canonical_member(own + np.concatenate([[0, 0], rng.normal(0, 1, 53)]),
@@ -432,10 +432,10 @@ def test_mask_noise_is_reproducible_and_video_like():
 
 
 def test_training_masks_pass_through_the_trackers_own_cleaning():
-    """tracker.offline.training.noisy_masks wires the extractor's cleaning into degrade: the
+    """lab.training.noisy_masks wires the extractor's cleaning into degrade: the
     crops are reproducible per row, person-sized, and a separate speck never survives as the
     person (the cleaning keeps the largest person)."""
-    from tracker.offline.training import noisy_masks
+    from lab.training import noisy_masks
     mask = np.zeros((224, 224), bool)
     mask[30:190, 90:130] = True                      # a body
     mask[70:130, 75:90] = True                       # an arm

@@ -1,12 +1,12 @@
-"""The background model's noise floor (tracker.noise_floor) and sharp priming at working size."""
+"""The background model's noise floor (tracker.video.noise_floor) and sharp priming at working size."""
 from __future__ import annotations
 
 import cv2
 import numpy as np
 import pytest
 
-from tracker.noise_floor import choose_var_min, speck_ratio
-from tracker.silhouettes import BackgroundSubtractor, ExtractionError, SilhouetteExtractor
+from tracker.video.noise_floor import choose_var_min, speck_ratio
+from tracker.video.silhouettes import BackgroundSubtractor, ExtractionError, SilhouetteExtractor
 
 
 def textured(width: int, height: int, seed: int = 0, blur: float = 1.0) -> np.ndarray:

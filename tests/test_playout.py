@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from tracker import TrackedPose
-from tracker.sinks.meshcat_view import MeshcatView, ViewLostWarning
-from tracker.sinks.geometry import SinkInputError, pose_joints_m
-from tracker.sinks.playout import Player
+from tracker.outputs.meshcat_view import MeshcatView, ViewLostWarning
+from tracker.outputs.geometry import SinkInputError, pose_joints_m
+from tracker.outputs.playout import Player
 
 POSE = np.r_[1.0, np.zeros(54)]
 JOINTS = pose_joints_m(POSE[None])[0] + [0.0, 0.95, 0.0]

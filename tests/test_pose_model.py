@@ -9,9 +9,10 @@ import pytest
 
 from regressor.model_file import load_model, save_model
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, DEFAULT_MODEL_PATH, PoseModelError,
-                                  load_pose_model, save_pose_model)
+                                  load_pose_model)
+from regressor.model_writer import save_pose_model
 from tracker import PoseTracker, TrackerSettings
-from tracker.hypotheses import chain_options
+from tracker.tracks.hypotheses import chain_options
 
 
 def test_the_threshold_round_trips_and_older_files_get_the_old_default(tmp_path):

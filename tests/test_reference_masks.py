@@ -1,14 +1,14 @@
-"""tracker.offline.reference_masks: silhouettes cut to, or replaced by, a body drawn from
+"""lab.reference_masks: silhouettes cut to, or replaced by, a body drawn from
 reference keypoints (the Pose2Sim diagnostic), on hand-made frames and keypoints."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from tracker.offline.reference_masks import (ReferenceMaskExtractor, RenderedMaskExtractor,
+from lab.reference_masks import (ReferenceMaskExtractor, RenderedMaskExtractor,
                                              drawn_person, person_from_mask)
-from tracker.offline.silhouette_evaluation import BodyDrawing
-from tracker.silhouettes import PersonMask
+from lab.silhouette_evaluation import BodyDrawing
+from tracker.video.silhouettes import PersonMask
 
 # A stick person 100 px tall standing at x = 60: keypoints head, neck, hips, knees, ankles.
 _NAMES = ("Head", "Neck", "LHip", "RHip", "LKnee", "RKnee", "LAnkle", "RAnkle")

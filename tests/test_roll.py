@@ -1,9 +1,9 @@
-"""Silhouettes turned upright for a rolled camera (tracker.roll, track --roll)."""
+"""Silhouettes turned upright for a rolled camera (tracker.video.roll, track --roll)."""
 from __future__ import annotations
 
 import numpy as np
 
-from tracker.roll import upright_mask
+from tracker.video.roll import upright_mask
 
 
 def _leaning_bar(lean_deg: float) -> np.ndarray:
@@ -46,7 +46,7 @@ def test_the_tracker_describes_the_upright_silhouette():
     from dataclasses import replace
     from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
     from tracker import PoseTracker, TrackerSettings
-    from tracker.silhouettes import PersonMask
+    from tracker.video.silhouettes import PersonMask
     model = load_pose_model(DEFAULT_MODEL_PATH)
     seen = []
     described = replace(model)

@@ -7,8 +7,8 @@ import pytest
 from regressor.pose_model import load_pose_model
 from sequences.video import Actor, write_video
 from tests.test_fixed_lag import _walk
-from tracker.root_path import ROOT_SMOOTHING_S, RootHistory, smoothed_roots
-from tracker.sinks.geometry import pose_joints_m
+from tracker.tracks.root_path import ROOT_SMOOTHING_S, RootHistory, smoothed_roots
+from tracker.outputs.geometry import pose_joints_m
 
 
 def test_a_steady_path_is_kept_and_its_jitter_removed():
@@ -54,7 +54,7 @@ def test_the_root_history_gives_copies_of_its_slices():
 def test_the_smoothed_outputs_draw_their_bodies_on_the_smoothed_root_path(tmp_path):
     from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
-    from tracker.sinks import PoseRecorder
+    from tracker.outputs import PoseRecorder
     video = tmp_path / "walk.mp4"
     write_video(video, [Actor(_walk())], size=(240, 320), noise_sigma=2.0, seed=5)
     streamed, smoothed = PoseRecorder(), PoseRecorder()
@@ -76,7 +76,7 @@ def test_the_smoothed_outputs_draw_their_bodies_on_the_smoothed_root_path(tmp_pa
     assert wobble[1] < 0.3 * wobble[0]
     # --lag 1 draws at the same root path: its windows reach past the weights' 0.8 s; at 0.5 s
     # the line is fitted to what the window has, close to it.
-    from tracker.fixed_lag import replay
+    from tracker.tracks.fixed_lag import replay
     lagged = [p for p in replay(tracker, streamed.frames(), 1.0) if p.track_id == track_id]
     np.testing.assert_allclose([p.joints_m[0] for p in lagged], roots, atol=1e-9)
     lagged = [p for p in replay(tracker, streamed.frames(), 0.5) if p.track_id == track_id]

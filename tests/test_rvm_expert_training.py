@@ -7,12 +7,14 @@ import numpy as np
 import pytest
 
 from regressor.angles import pose_angles, wrap_deg
-from regressor.pose_model import load_pose_model, save_pose_model
+from regressor.pose_model import load_pose_model
+from regressor.model_writer import save_pose_model
 from regressor.sparse_rvm import SparseRVMRegressor
 from regressor.stacking import stack_frames
 from tests.test_heading_index_training import _dataset, _options
-from tracker.offline.training import (calibrate_variance, frame_descriptors,
-                                      train_mixture_model, validation_mask)
+from lab.training import train_mixture_model, validation_mask
+from regressor.pose_model import frame_descriptors
+from regressor.training import calibrate_variance
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import numpy as np
 import scipy.io
 
 from conftest import load_script, refused_in_one_line
-from tracker.offline.evaluation import ANKUR_SHAPES
+from lab.evaluation import ANKUR_SHAPES
 
 
 def test_reproduce_paper_refuses_what_is_not_the_papers_data(tmp_path, capsys):

@@ -12,12 +12,14 @@ import pytest
 
 from sequences.video import textured_background
 from tests.test_track_cli import _assert_one_line_error, _noise_video, _track
-from tracker import cli, segmenter
-from tracker.camera_motion import CameraMotionMeter, camera_moves
-from tracker.offline.silhouette_evaluation import silhouette_measures, track_masks
+from tracker import cli
+from tracker.video import segmenter, sources
+from tracker.video.camera_motion import CameraMotionMeter, camera_moves
+from lab.silhouette_evaluation import silhouette_measures, track_masks
 from tracker.pipeline import TrackerSettings, default_extractor
-from tracker.segmenter import (INSTALL_HINT, AutoExtractor, PersonSegmenter, merge_boxes,
-                               segmenter_available, silhouette_extractor)
+from tracker.video.sources import (INSTALL_HINT, AutoExtractor, segmenter_available,
+                                   silhouette_extractor)
+from tracker.video.segmenter import PersonSegmenter, merge_boxes
 
 SAMPLE = "sequences/data/sample_spiral_walk.mp4"
 needs_segmenter = pytest.mark.skipif(
@@ -91,7 +93,7 @@ def test_auto_without_the_segmenter_stays_with_background_and_says_how_to_get_it
 
 
 def test_segment_without_the_extra_is_one_line_naming_the_install(tmp_path, monkeypatch):
-    monkeypatch.setattr(segmenter, "segmenter_available", lambda: False)
+    monkeypatch.setattr(sources, "segmenter_available", lambda: False)
     video = _noise_video(tmp_path / "v.mp4", frames=5)
     result = _track(video, "--silhouettes", "segment", "--json", tmp_path / "o.json")
     _assert_one_line_error(result, "--silhouettes segment", INSTALL_HINT)
@@ -104,8 +106,8 @@ def test_silhouettes_option_refuses_other_sources(tmp_path):
     assert result.returncode == 2 and "--silhouettes" in result.stderr
     assert "Traceback" not in result.stderr
     # The command's copies (kept import-free) are the module's.
-    assert cli.SILHOUETTE_SOURCES == segmenter.SOURCES
-    assert cli.SEGMENT_INSTALL == segmenter.INSTALL_HINT
+    assert cli.SILHOUETTE_SOURCES == sources.SOURCES
+    assert cli.SEGMENT_INSTALL == sources.INSTALL_HINT
     with pytest.raises(ValueError, match="grabcut"):
         silhouette_extractor("grabcut", TrackerSettings())
 
@@ -127,7 +129,7 @@ def test_segmenter_follows_the_still_person_on_a_real_view(pose2sim_trial):
     most keypoints (the whole view: 88.8 %, docs/segmenter.md), little spill. track's auto
     keeps background subtraction there (a still camera)."""
     from sequences.pose2sim import load_trial, project_reference
-    from tracker.video import open_video
+    from tracker.video.decode import open_video
     trial = load_trial(pose2sim_trial)
     source = open_video(trial.video("cam01"))
     samples = source.sample_frames(25)
@@ -249,7 +251,7 @@ def test_a_followed_person_the_search_misses_stays_while_hog_confirms_them_in_th
 def test_hog_finds_a_person_in_their_crop_whom_it_misses_at_working_size():
     """The sample's walker in a frame twice the size (the person about 140 px of 480): HOG on
     the frame at working size (320 px wide) misses them, in their own crop it finds them."""
-    from tracker.video import open_video
+    from tracker.video.decode import open_video
     source = open_video(SAMPLE)
     plate = np.median(np.stack(source.sample_frames(15)), axis=0).astype(np.int16)
     frame = next(f for i, _, f in source if i == 30)

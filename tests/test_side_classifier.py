@@ -1,5 +1,5 @@
 """The front/back side classifier (regressor.side_classifier) and the chain's canonical
-hypotheses (tracker.hypotheses.canonical_hypotheses)."""
+hypotheses (tracker.tracks.hypotheses.canonical_hypotheses)."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,8 +9,8 @@ from threadpoolctl import threadpool_limits
 from regressor.angles import pose_angles, wrap_deg
 from regressor.side_classifier import SideClassifier
 from sequences.pose_vector import front_back_flip
-from tracker.filtering import PoseKalmanFilter
-from tracker.hypotheses import (CANONICAL_EVIDENCE_WEIGHT, CANONICAL_SWITCH_PROBABILITY,
+from tracker.tracks.filtering import PoseKalmanFilter
+from tracker.tracks.hypotheses import (CANONICAL_EVIDENCE_WEIGHT, CANONICAL_SWITCH_PROBABILITY,
                                 EVIDENCE_WEIGHT, SWITCH_PROBABILITY, FrontBackTracker,
                                 canonical_hypotheses, evidence_weight, switch_probability)
 from tracker.pipeline import front_back_tracker
@@ -191,10 +191,11 @@ def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pai
     the tracker's hypotheses become the limbs' member and its flip."""
     pytest.importorskip("sklearn")
     from test_mixture import _mixture_model, assert_refused_when_changed
-    from regressor.limb_net import fit_limb_net
+    from regressor.limb_net_training import fit_limb_net
     from regressor.model_file import load_model
-    from regressor.pose_model import PoseModelError, load_pose_model, save_pose_model
-    from tracker.hypotheses import propose_batch
+    from regressor.pose_model import PoseModelError, load_pose_model
+    from regressor.model_writer import save_pose_model
+    from tracker.tracks.hypotheses import propose_batch
     model, x = _mixture_model()                              # input length 8
     rng = np.random.default_rng(3)
     targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),
@@ -240,7 +241,7 @@ def test_only_a_mixture_carries_a_side_classifier(tmp_path):
 def test_canonical_statistics_count_the_true_member_its_switches_and_the_classifier():
     """Hand-made renders: the member is the truth for 30 frames, then its flip for 30; the
     classifier gives the true member 0.95."""
-    from tracker.offline.hypothesis_priors import canonical_statistics
+    from lab.hypothesis_priors import canonical_statistics
     truth = np.array([_body(20.0)] * 60)
     hyps = []
     for t in range(60):

@@ -5,9 +5,10 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.silhouettes import (BackgroundSubtractor, PersonMask, ExtractionError,
-                                 SilhouetteExtractor, ZoneRefiner, clean_mask, median_background,
-                                 person_masks, refine_in_zone, _unless_collapsed, _zone_labels)
+from tracker.video.silhouettes import (BackgroundSubtractor, PersonMask, ExtractionError,
+                                        SilhouetteExtractor, clean_mask, median_background,
+                                        person_masks)
+from tracker.video.zone import ZoneRefiner, refine_in_zone, _unless_collapsed, _zone_labels
 
 
 def background(width: int, height: int, seed: int = 0) -> np.ndarray:
@@ -368,7 +369,7 @@ def test_colour_decides_on_a_ghost_only_when_the_zone_foreground_is_not_trusted(
 def test_a_colour_cut_that_loses_the_person_is_cut_again_with_the_foreground_sure():
     """A person the colours cannot tell from the background inside the zone (here: not drawn
     at all, only found by the subtractor) would be cut away whole; the box is cut again with
-    the foreground sure instead (tracker.silhouettes.COLLAPSED_SHARE)."""
+    the foreground sure instead (tracker.video.zone.COLLAPSED_SHARE)."""
     frame = background(320, 240, seed=9)
     found = np.zeros((240, 320), np.uint8)
     found[60:200, 140:180] = 255                  # a person-sized blob...
@@ -424,3 +425,31 @@ def test_a_component_over_half_the_image_is_no_person():
     mask[:] = 0
     mask[20:110, 60:100] = 255                         # 19 %: a person close to the camera
     assert len(person_masks(mask, (160, 120))) == 1
+
+
+@pytest.mark.parametrize("trust", [True, False])
+def test_the_zone_refiner_is_made_on_first_use_with_the_extractors_settings(trust):
+    """The extractor makes its ZoneRefiner (tracker.video.zone) only for a frame with an
+    unreliable zone, with its refine_relearn_every and trust_zone_foreground; priming again
+    drops it (a new scene)."""
+    from tracker.video.background import ClipBackground
+    bg = background(160, 120, seed=3)
+    extractor = SilhouetteExtractor(refine_relearn_every=4, trust_zone_foreground=trust,
+                                    warmup_frames=0, adapt_noise_floor=False)
+    extractor.prime(bg)
+    extractor(bg)
+    assert extractor.refiner is None                      # a clean plate: no zone
+    zone = np.zeros(bg.shape[:2], bool)
+    zone[30:90, 60:100] = True
+    extractor.background = ClipBackground(extractor.subtractor.reference, zone)
+    extractor(bg)
+    refiner = extractor.refiner
+    assert isinstance(refiner, ZoneRefiner)
+    assert (refiner.relearn_every, refiner.trust_zone_foreground) == (4, trust)
+    extractor.prime(bg)
+    assert extractor.refiner is None
+
+
+def test_bad_refine_relearn_every_is_refused():
+    with pytest.raises(ExtractionError, match="refine_relearn_every"):
+        SilhouetteExtractor(refine_relearn_every=0)

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from sequences.video import textured_background
-from tracker.association import Associator
-from tracker.offline.silhouette_evaluation import (clip_extractor, legacy_associator,
+from tracker.tracks.association import Associator
+from lab.silhouette_evaluation import (clip_extractor, legacy_associator,
                                                    legacy_extractor, silhouette_measures,
                                                    track_masks)
-from tracker.silhouettes import SilhouetteExtractor
+from tracker.video.silhouettes import SilhouetteExtractor
 
 DATA = Path(__file__).parent / "data" / "pose2sim"
 #: The order of the keypoints in cam01_16frames_keypoints.txt: the reference .trc's.
@@ -130,8 +130,8 @@ def test_real_frames_give_the_same_masks_whatever_ran_before():
 
 
 def test_off_body_is_the_share_of_the_mask_away_from_the_keypoints_body():
-    from tracker.offline.silhouette_evaluation import BodyDrawing, body_region, off_body
-    from tracker.silhouettes import PersonMask
+    from lab.silhouette_evaluation import BodyDrawing, body_region, off_body
+    from tracker.video.silhouettes import PersonMask
     # A torso square, a head above it and one leg below: keypoints 100 px tall.
     points = np.array([[40, 30], [60, 30], [60, 60], [40, 60], [50, 10], [45, 110]], float)
     body = BodyDrawing(torso=(0, 1, 2, 3), head=4, bones=((3, 5),))
@@ -157,7 +157,7 @@ def test_off_body_is_the_share_of_the_mask_away_from_the_keypoints_body():
 
 def test_letting_colour_decide_in_the_zone_takes_less_background_for_the_person():
     from sequences.pose2sim import BODY_BONES, BODY_HEAD, BODY_TORSO
-    from tracker.offline.silhouette_evaluation import BodyDrawing, colour_zone_extractor
+    from lab.silhouette_evaluation import BodyDrawing, colour_zone_extractor
     body = BodyDrawing.from_names(KEYPOINT_NAMES, BODY_TORSO, BODY_HEAD, BODY_BONES)
     frames, keypoints = balancing_frames()
     sure = silhouette_measures(track_masks(enumerate(frames), clip_extractor(frames)),
@@ -180,10 +180,10 @@ def test_the_tracker_builds_its_extractor_with_the_zone_setting(trust):
     model = load_pose_model(DEFAULT_MODEL_PATH)
     settings = TrackerSettings(trust_zone_foreground=trust)
     tracker = PoseTracker(model, 30.0, settings)
-    assert tracker.extractor.refiner.trust_zone_foreground is trust
+    assert tracker.extractor.trust_zone_foreground is trust
     # A grey scene rebuilds the extractor without shadow detection: the setting stays.
     before = tracker.extractor
     tracker.prime(np.full((120, 160, 3), 90, np.uint8))
     assert tracker.extractor is not before
     assert not tracker.extractor.subtractor._mog2_options["detectShadows"]
-    assert tracker.extractor.refiner.trust_zone_foreground is trust
+    assert tracker.extractor.trust_zone_foreground is trust

@@ -4,7 +4,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from tracker.silhouettes import (SilhouetteExtractor, clean_mask, drop_lighting_blobs,
+from tracker.video.silhouettes import (SilhouetteExtractor, clean_mask, drop_lighting_blobs,
                                  enclosed_shadow, person_masks)
 
 from test_silhouettes import background, draw_person
@@ -136,7 +136,7 @@ def test_a_frame_without_foreground_still_clears_the_kept_colour_models():
     """With an unreliable zone, a frame where nobody is found passes through the zone
     refiner as before the box-cropped cleaning: its kept colour models are dropped, so the
     next person is cut with models learned anew."""
-    from tracker.background import ClipBackground
+    from tracker.video.background import ClipBackground
     bg = background(320, 240, seed=9)
     extractor = SilhouetteExtractor()
     extractor.prime(bg)

@@ -6,10 +6,10 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.association import Associator
-from tracker.blob_split import Shape, split_blob
-from tracker.offline.silhouette_evaluation import FramePeople, own_track_frames
-from tracker.silhouettes import PersonMask
+from tracker.tracks.association import Associator
+from tracker.video.blob_split import Shape, split_blob
+from lab.silhouette_evaluation import FramePeople, own_track_frames
+from tracker.video.silhouettes import PersonMask
 
 FRAME = (240, 480)                      # (height, width) px
 
@@ -165,7 +165,7 @@ def test_the_tracker_gives_both_touching_people_a_pose():
 
 
 def test_found_touching_counts_each_person_under_their_own_id_while_the_boxes_overlap():
-    from tracker.offline.crossings import identity_measures
+    from lab.crossings import identity_measures
 
     # Two people 100 px tall: apart in frames 0-1 and 4-5, boxes overlapping in 2-3.
     xs = np.array([[50, 250], [80, 220], [130, 170], [170, 130], [220, 80], [250, 50]], float)

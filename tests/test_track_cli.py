@@ -30,8 +30,8 @@ from sequences.skeleton import CMU_JOINT_NAMES
 from tests.synthetic import cmu_motion
 from sequences.video import Actor, load_truth, write_video
 from tracker.cli import main
-from tracker.sinks.files import partial_path
-from tracker.sinks.mcap_repair import recover_mcap
+from tracker.outputs.files import partial_path
+from tracker.outputs.mcap_repair import recover_mcap
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -247,7 +247,7 @@ def test_min_area_reaches_the_silhouettes(tmp_path, walk_video):
 def test_the_default_min_area_is_the_silhouettes_own():
     from tracker.cli import DEFAULT_MIN_AREA_PERCENT
     from tracker.pipeline import TrackerSettings
-    from tracker.silhouettes import DEFAULT_MIN_AREA_FRACTION
+    from tracker.video.silhouettes import DEFAULT_MIN_AREA_FRACTION
     assert DEFAULT_MIN_AREA_PERCENT / 100 == DEFAULT_MIN_AREA_FRACTION
     assert TrackerSettings().min_area_fraction == DEFAULT_MIN_AREA_FRACTION
 
@@ -316,7 +316,7 @@ def test_a_failing_smoothed_output_costs_the_others_nothing(tmp_path, walk_video
     from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
     from tracker.run import OutputError
-    from tracker.sinks import PoseRecorder
+    from tracker.outputs import PoseRecorder
 
     class Failing(PoseRecorder):
         def write(self, pose):
@@ -340,7 +340,7 @@ def test_a_ctrl_c_while_the_outputs_close_still_counts_them_smoothed(tmp_path, w
     the outputs did get the smoothed tracks, and the run says so (the summary's labels)."""
     from tracker import PoseTracker, track_video
     from tracker.pipeline import TrackerSettings
-    from tracker.sinks import PoseRecorder
+    from tracker.outputs import PoseRecorder
 
     class CtrlC(PoseRecorder):
         def write(self, pose):

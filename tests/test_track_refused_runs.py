@@ -18,11 +18,11 @@ from mcap.reader import make_reader
 from sequences.video import Actor, write_video
 from tests.test_track_cli import _assert_one_line_error, _track, _walker
 from tests.test_track_safety import cut_off_avi
-from tracker.sinks import open_sinks
-from tracker.sinks.bvh import BVHSink
-from tracker.sinks.files import OutputBusyError
-from tracker.sinks.json_summary import JsonSummarySink
-from tracker.sinks.mcap import McapSink
+from tracker.outputs import open_sinks
+from tracker.outputs.bvh import BVHSink
+from tracker.outputs.files import OutputBusyError
+from tracker.outputs.json_summary import JsonSummarySink
+from tracker.outputs.mcap import McapSink
 
 EARLIER = {"keep.mcap": b"an earlier recording", "ok.json": b'{"tracks": ["an earlier run"]}',
            "b/cut_0.bvh": b"HIERARCHY an earlier run's track"}
@@ -140,7 +140,7 @@ def test_open_sinks_abandons_every_kind_opened_before_a_refusal(tmp_path, order)
 def test_a_video_name_too_long_for_the_bvh_lock_name_is_tracked(tmp_path):
     """A legal 251-byte video name makes the lock ".STEM.bvh.lock" 257 bytes: the run had been
     refused after its MCAP and JSON were opened, replacing them with empty ones. The lock and
-    the BVH's partial file take shorter names (tracker.sinks.files.beside_name)."""
+    the BVH's partial file take shorter names (tracker.outputs.files.beside_name)."""
     video = tmp_path / ("w" * 247 + ".mp4")
     write_video(tmp_path / "w.mp4", [Actor(_walker(30))], size=(240, 320), noise_sigma=2.0,
                 seed=3)

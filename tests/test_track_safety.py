@@ -30,11 +30,11 @@ from tests.test_track_cli import (_assert_one_line_error, _noise_video, _track, 
                                   _walker)
 from tracker import PoseTracker, TrackerSettings, track_video
 from tracker.run import _background
-from tracker.sinks.bvh import BVHSink
-from tracker.sinks.files import OutputBusyError, OutputWriteError, partial_path
-from tracker.sinks.json_summary import JsonSummarySink
-from tracker.sinks.mcap import McapSink
-from tracker.video import open_video
+from tracker.outputs.bvh import BVHSink
+from tracker.outputs.files import OutputBusyError, OutputWriteError, partial_path
+from tracker.outputs.json_summary import JsonSummarySink
+from tracker.outputs.mcap import McapSink
+from tracker.video.decode import open_video
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -331,7 +331,7 @@ def test_a_bvh_or_json_cut_by_a_full_disk_is_not_left_looking_valid(tmp_path, mo
     def half_then_full(path, motion):
         Path(path).write_text("HIERARCHY\nROOT Hips\n")
         raise OSError(28, "No space left on device")
-    monkeypatch.setattr("tracker.sinks.bvh.write_bvh", half_then_full)
+    monkeypatch.setattr("tracker.outputs.bvh.write_bvh", half_then_full)
     with pytest.raises(OutputWriteError, match="t_1.bvh: No space left"):
         bvh.close()
     assert (tmp_path / "t_1.bvh").read_text() == "old"
@@ -348,7 +348,7 @@ def test_a_bvh_or_json_cut_by_a_full_disk_is_not_left_looking_valid(tmp_path, mo
 
 def test_the_command_module_imports_only_the_standard_library():
     """What makes the start-up Ctrl-C safe: numpy and OpenCV load inside main(), where the
-    interrupt is caught; a module-level import of tracker.roll once loaded OpenCV before."""
+    interrupt is caught; a module-level import of tracker.video.roll once loaded OpenCV before."""
     code = ("import sys, tracker.cli; "
             "print(sorted(m for m in ('cv2', 'numpy', 'scipy') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -552,7 +552,7 @@ def test_a_4k_video_is_tracked_with_its_background_sampled_at_the_working_size(t
 def test_background_samples_are_read_in_one_pass_not_by_seeking(walk, monkeypatch):
     """Case 17: a seek decodes from a key frame (seconds on long-GOP H.264); a short clip is
     sampled with one sequential pass and gives the frames a seek would."""
-    import tracker.video as video_module
+    import tracker.video.decode as video_module
     seeks = []
     real = video_module._seek
     monkeypatch.setattr(video_module, "_seek",

@@ -16,9 +16,9 @@ from mcap.reader import make_reader
 
 from sequences.video import Actor, write_video
 from tests.test_track_cli import _assert_one_line_error, _noise_video, _track, _walker
-from tracker.sinks.files import (NAME_MAX, OutputBusyError, OutputFile, beside_name,
+from tracker.outputs.files import (NAME_MAX, OutputBusyError, OutputFile, beside_name,
                                  partial_path, set_aside)
-from tracker.sinks.mcap_repair import recover_mcap
+from tracker.outputs.mcap_repair import recover_mcap
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings, descriptor_and_mirror
 from regressor.layout import layouts_for_masks
 from sequences.dataset import Dataset, DatasetError
-from tracker.offline.training import (noisy_dataset_inputs, noisy_dataset_layouts,
+from lab.training import (noisy_dataset_inputs, noisy_dataset_layouts,
                                       video_like_masks)
 
 

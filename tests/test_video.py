@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.video import (FrameTimes, VideoError, VideoGrowingWarning, VideoTimingWarning,
+from tracker.video.decode import (FrameTimes, VideoError, VideoGrowingWarning, VideoTimingWarning,
                            VideoTruncatedWarning, _as_bgr, open_video)
 
 #: The sample walk at 30 fps for 6 s, then 10 fps to 12 s (scripts/make_vfr_clip.py): 241 frames;
@@ -234,7 +234,8 @@ def test_a_damaged_frame_rate_names_track_s_option(tmp_path):
 
 
 def test_track_s_fps_bound_is_the_decoder_s():
-    from tracker import cli, video
+    from tracker import cli
+    from tracker.video import decode as video
     assert cli.MAX_FPS == video.MAX_FPS
 
 
@@ -280,7 +281,7 @@ class _FailingCapture:
 def test_a_damaged_frame_is_skipped_whether_or_not_the_length_is_known(tmp_path, monkeypatch,
                                                                         announced):
     """With no frame count in the container, one failed read had ended the stream, silently."""
-    import tracker.video as video
+    import tracker.video.decode as video
     source = open_video(write_video(tmp_path / "clip.mp4", flat_frames(3)))
     source.end_index = 20 if announced else None
     monkeypatch.setattr(video, "_open_capture", lambda path: _FailingCapture(20, {5}))
@@ -293,7 +294,7 @@ def test_a_damaged_frame_is_skipped_whether_or_not_the_length_is_known(tmp_path,
 
 
 def test_a_long_damaged_stretch_ends_the_stream_as_cut_off(tmp_path, monkeypatch):
-    import tracker.video as video
+    import tracker.video.decode as video
     source = open_video(write_video(tmp_path / "clip.mp4", flat_frames(3)))   # 25 fps
     source.end_index = 200
     monkeypatch.setattr(video, "_open_capture",
@@ -376,7 +377,7 @@ class _TimelessCapture(_FailingCapture):
 
 
 def test_a_container_without_frame_times_gets_even_ones_and_says_so(tmp_path, monkeypatch):
-    import tracker.video as video
+    import tracker.video.decode as video
     source = open_video(write_video(tmp_path / "clip.mp4", flat_frames(3)))     # 25 fps
     source.end_index = 12
     monkeypatch.setattr(video, "_open_capture", lambda path: _TimelessCapture(12, set()))
@@ -415,7 +416,7 @@ class _GrowingCapture:
 def test_a_file_still_being_written_stops_at_its_live_end(tmp_path, monkeypatch):
     """The last frame before the end of what was written came out half decoded (the tail of a
     half-written frame), the stream was reported cut off and nothing said it was growing."""
-    import tracker.video as video
+    import tracker.video.decode as video
     with pytest.warns(VideoTimingWarning):
         whole = {f.index: f.image for f in open_video(VFR_CLIP) if f.index < 150}
     data = VFR_CLIP.read_bytes()
@@ -438,7 +439,7 @@ def test_a_file_still_being_written_stops_at_its_live_end(tmp_path, monkeypatch)
 
 def test_a_file_that_grows_while_read_is_said_to(tmp_path, monkeypatch):
     """An MPEG-TS still being written stopped where its length when opened said, silently."""
-    import tracker.video as video
+    import tracker.video.decode as video
     path = write_video(tmp_path / "clip.mp4", flat_frames(20))
     source = open_video(path)
     monkeypatch.setattr(video, "_open_capture", lambda p: _GrowingCapture(p, b"\0" * 200_000,
@@ -486,7 +487,7 @@ class _RemovingCapture(_GrowingCapture):
 
 
 def test_a_file_removed_while_read_is_said_to(tmp_path, monkeypatch):
-    import tracker.video as video
+    import tracker.video.decode as video
     path = write_video(tmp_path / "clip.mp4", flat_frames(10))
     source = open_video(path)
     monkeypatch.setattr(video, "_open_capture", lambda p: _RemovingCapture(p, b""))

@@ -29,7 +29,7 @@ import warnings
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
-from .one_line_parser import EXIT_INTERRUPTED, EXIT_USAGE, OneLineParser, quiet_decoder_logs
+from tracker.one_line_parser import EXIT_INTERRUPTED, EXIT_USAGE, OneLineParser, quiet_decoder_logs
 
 EXIT_ERROR = 1
 #: --zone-foreground's choices and what each means for TrackerSettings.trust_zone_foreground
@@ -41,21 +41,15 @@ ZONE_FOREGROUND = {"sure": True, "colour": False}
 _CORES = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
           else os.cpu_count() or 1)
 DEFAULT_WORKERS = 2 if _CORES >= 2 else 1
-#: --silhouettes's choices and the segmenter's install command (tracker.segmenter.SOURCES and
-#: INSTALL_HINT, written out so that parsing the options loads no OpenCV; a test keeps them
+#: --silhouettes's choices and the segmenter's install command (tracker.video.sources.SOURCES
+#: and INSTALL_HINT, written out so that parsing the options loads no OpenCV; a test keeps them
 #: equal).
 SILHOUETTE_SOURCES = ("background", "segment", "auto")
 SEGMENT_INSTALL = "pip install 'silhouette-pose[segment]'"
 #: Ctrl-C, SIGTERM and SIGHUP received during main() (those the command handles: not one the
-#: shell ignores). If anything swallows the KeyboardInterrupt they raise (a library's bare
-#: ``except:`` round an optional import, say), the command would run on. In one full test run
-#: (2026-12-02) a Ctrl-C 0.2-0.5 s into start-up let the process run to the end and exit 0,
-#: silently; it did not recur in 11 more runs of that test, and its cause was not found: this
-#: guards against a swallowed interrupt, whatever swallows it. One such place showed on
-#: 2026-12-03 (a fresh-clone CI run, the same test): the import system's module-lock callback,
-#: a weakref callback, took the KeyboardInterrupt, which CPython can only print ("Exception
-#: ignored in ... Traceback") and drop; during main() such an interrupt is recorded instead
-#: (_unraisable_interrupt_recorded).
+#: shell ignores): if anything swallows the KeyboardInterrupt they raise (a library's bare
+#: ``except:``, the import system's module-lock weakref callback, which CPython can only print
+#: and drop: _unraisable_interrupt_recorded), the command still stops (docs/tuning.md).
 _interrupts: list[int] = []
 _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
@@ -214,15 +208,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # --roll beyond a quarter turn means the camera is upside down or the sign is wrong. Defined
-# here, not in tracker.roll, which imports OpenCV: a Ctrl-C during that import, before main()
+# here, not in tracker.video.roll, which imports OpenCV: a Ctrl-C during that import, before main()
 # catches it, printed a traceback (test_ctrl_c_during_start_up_gives_no_traceback).
 MAX_ROLL_DEG = 90.0
 
-#: --lag when not given, seconds: with --view (tracker.fixed_lag: 0.5 s at 30 fps is its
+#: --lag when not given, seconds: with --view (tracker.tracks.fixed_lag: 0.5 s at 30 fps is its
 #: 15 frames, mean corr8 0.516 against the filter's 0.481 on the five validation spirals);
 #: without it, outputs get the filtered poses at once, as before.
 VIEW_LAG_S = 0.5
-#: --lag's upper end, seconds (tracker.fixed_lag.MAX_LAG_S, written out so that parsing the
+#: --lag's upper end, seconds (tracker.tracks.fixed_lag.MAX_LAG_S, written out so that parsing the
 #: options loads no numpy; a test keeps the two equal).
 MAX_LAG_S = 10.0
 
@@ -232,10 +226,10 @@ MAX_TIME_S = 1e8
 #: --min-area's range, percent of the image: below it noise specks become people, above it
 #: only someone filling a fifth of the image would count.
 MIN_AREA_RANGE_PERCENT = (0.01, 20.0)
-#: tracker.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent, written out so that parsing the
+#: tracker.video.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent, written out so that parsing the
 #: options loads no OpenCV (a test keeps the two equal).
 DEFAULT_MIN_AREA_PERCENT = 0.15
-#: --fps's upper bound, tracker.video.MAX_FPS (kept equal by a test, for the same reason).
+#: --fps's upper bound, tracker.video.decode.MAX_FPS (kept equal by a test, for the same reason).
 MAX_FPS = 1000.0
 
 
@@ -264,7 +258,7 @@ def _check_options(args) -> None:
         raise TrackError(f"--min-area must be between {low:g} and {high:g} percent of the "
                          f"image, got {args.min_area}")
     if args.silhouettes == "segment":
-        from .segmenter import SegmenterMissingError, require_segmenter
+        from tracker.video.sources import SegmenterMissingError, require_segmenter
         try:
             require_segmenter()
         except SegmenterMissingError as exc:
@@ -283,18 +277,18 @@ def _check_options(args) -> None:
         if _same_file(args.out, args.video):
             raise TrackError(f"the default output {args.out} would be the input video; choose "
                              f"an output with --out")
-    from .sinks.files import stream_descriptor     # deferred: the sinks load numpy
+    from tracker.outputs.files import stream_descriptor     # deferred: the sinks load numpy
     for path, what in ((args.out, "--out"), (args.json, "--json")):
         if path is None:
             continue
         if path.is_dir():
             raise TrackError(f"{what} {path} is a folder; give a file name")
-        # A symlink's target is what gets replaced (tracker.sinks.files), in its own folder.
+        # A symlink's target is what gets replaced (tracker.outputs.files), in its own folder.
         folder = Path(os.path.realpath(path)).parent
         if not folder.is_dir():
             shown = folder if path.is_symlink() else (path.parent if str(path.parent) else ".")
             raise TrackError(f"{what} {path}: folder {shown} does not exist")
-        # /dev/null, a FIFO, /dev/stdout (tracker.sinks.files.OutputFile)
+        # /dev/null, a FIFO, /dev/stdout (tracker.outputs.files.OutputFile)
         written_in_place = stream_descriptor(path) is not None or \
             (path.exists() and not path.is_file())
         if (not written_in_place and not os.access(folder, os.W_OK)) or \
@@ -329,7 +323,7 @@ def _check_bvh_folder(bvh: Path) -> None:
 
 
 def _same_file(a: Path, b: Path) -> bool:
-    from .sinks.files import OutputPathError, check_distinct
+    from tracker.outputs.files import OutputPathError, check_distinct
     try:
         check_distinct([("", a), ("", b)])
     except OutputPathError:
@@ -342,7 +336,7 @@ def _check_collisions(args) -> None:
     the model, the background image) or another output, also through a relative path, a
     symlink or a hard link."""
     from regressor.pose_model import DEFAULT_MODEL_PATH
-    from .sinks.files import check_distinct, partial_path
+    from tracker.outputs.files import check_distinct, partial_path
     named = [("the input video", args.video),
              ("the model", args.model or DEFAULT_MODEL_PATH)]
     if args.background is not None:
@@ -368,7 +362,7 @@ def _check_collisions(args) -> None:
 
 def tracker_settings(args):
     """The tracker.pipeline.TrackerSettings the parsed options ask for."""
-    from .pipeline import TrackerSettings
+    from tracker.pipeline import TrackerSettings
     # Per-track histories are kept only to smooth (a JSON, BVH or MCAP output, or a lag):
     # without (--no-smooth --lag 0) memory stays flat.
     return TrackerSettings(max_people=args.max_people,
@@ -396,7 +390,7 @@ def lag_seconds(args) -> float:
 
 def streamed_kind(args) -> str:
     """What the poses written frame by frame are: "filtered", or "fixed-lag smoothed"."""
-    from .fixed_lag import streamed_kind as kind    # deferred: it loads numpy and OpenCV
+    from tracker.tracks.fixed_lag import streamed_kind as kind    # deferred: it loads numpy and OpenCV
     return kind(lag_seconds(args))
 
 
@@ -410,7 +404,7 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
     """(factories of the sinks fed every frame, of those fed smoothed tracks at the end
     (the JSON, the BVH and the MCAP's smoothed topics unless --no-smooth)). One entry per
     output (the MCAP has two: its frames and its smoothed topics): adding an output is adding
-    a line here. The streamed sinks are opened first (tracker.sinks.open_sinks, in order), so
+    a line here. The streamed sinks are opened first (tracker.outputs.open_sinks, in order), so
     the MCAP's smoothed topics find the MCAP open."""
     opened = {}
 
@@ -419,7 +413,7 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
         return sink
 
     def mcap():
-        from .sinks.mcap import McapSink
+        from tracker.outputs.mcap import McapSink
         opened["mcap"] = McapSink(args.out, metadata={
             "video": {"path": str(args.video), "fps": source.fps,
                       "width": source.width, "height": source.height},
@@ -446,18 +440,18 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
         return named(opened["mcap"].smoothed_channel(), "--out")   # after mcap(), in order
 
     def json_summary():
-        from .sinks.json_summary import JsonSummarySink
+        from tracker.outputs.json_summary import JsonSummarySink
         return named(JsonSummarySink(args.json, source.fps, poses="smoothed" if smoothing(args)
                                      else streamed_kind(args)), "--json")
 
     def bvh():
-        from .sinks.bvh import BVHSink
+        from tracker.outputs.bvh import BVHSink
         # Tracks of a few frames are subtraction glitches, not people worth a file.
         return named(BVHSink(args.bvh, source.fps, prefix=args.video.stem, min_frames=5),
                      "--bvh")
 
     def view():
-        from .sinks.meshcat_view import MeshcatView  # deferred: starts a server process
+        from tracker.outputs.meshcat_view import MeshcatView  # deferred: starts a server process
         return named(MeshcatView(realtime=True), "--view")   # played at the video's speed
 
     # The MCAP's smoothed topics come last of the smoothed outputs: the biggest write, and
@@ -475,7 +469,7 @@ def run(args) -> int:
     # Imported before threadpool_limits, which limits only the BLAS libraries already loaded.
     from threadpoolctl import threadpool_limits
 
-    from . import pipeline  # noqa: F401 (loads numpy, scipy, filterpy, OpenCV)
+    from tracker import pipeline  # noqa: F401 (loads numpy, scipy, filterpy, OpenCV)
     check_interrupted()
     # One BLAS thread: the per-frame matrices are small, and threads cost more than they save
     # (a filter step took 8.7 ms with default threads, 0.5 ms with one).
@@ -485,8 +479,8 @@ def run(args) -> int:
 
 def _run(args) -> int:
     from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-    from .run import BackgroundMismatchError, OutputError
-    from .sinks.files import OutputWriteError
+    from tracker.run import BackgroundMismatchError, OutputError
+    from tracker.outputs.files import OutputWriteError
 
     _check_options(args)
     args.model = args.model or DEFAULT_MODEL_PATH
@@ -508,7 +502,7 @@ def _run(args) -> int:
         try:
             bvh_files = None
             if args.bvh is not None:
-                from .sinks.bvh import BVHSink
+                from tracker.outputs.bvh import BVHSink
                 bvh_files = next(([path for _, path in sorted(sink.paths.items())]
                                   for sink in sinks if isinstance(sink, BVHSink)), None)
             _print_summary(args, source, result, bvh_files)
@@ -532,15 +526,15 @@ def _run(args) -> int:
 def _track_into_outputs(args, source, model, plate) -> tuple:
     """Open the outputs and track the video into them: (tracker.run.TrackRun, the sinks).
     A run that ends before its first pose leaves every file of the outputs' names as it was:
-    a refused output abandons those opened before it (tracker.sinks.open_sinks), track_video
+    a refused output abandons those opened before it (tracker.outputs.open_sinks), track_video
     abandons them when nobody was tracked (write_empty=False), and a stop before
     track_video took them abandons them here."""
-    from .pipeline import PoseTracker
-    from .progress import Progress
-    from .run import track_video
-    from .segmenter import silhouette_extractor
-    from .sinks import close_sinks, open_sinks
-    from .sinks.files import OutputBusyError, OutputWriteError
+    from tracker.pipeline import PoseTracker
+    from tracker.progress import Progress
+    from tracker.run import track_video
+    from tracker.video.sources import silhouette_extractor
+    from tracker.outputs import close_sinks, open_sinks
+    from tracker.outputs.files import OutputBusyError, OutputWriteError
 
     streaming, smoothed = _sink_factories(args, source, model)
     try:
@@ -567,7 +561,7 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
 def _open_source(args):
     """The video opened with --start, --end and --fps; a time range outside it is told in
     the options' terms (TrackError), not the library's."""
-    from .video import VideoError, open_video
+    from tracker.video.decode import VideoError, open_video
     try:
         return open_video(args.video, start_s=args.start, end_s=args.end, fps=args.fps)
     except VideoError:
@@ -575,7 +569,7 @@ def _open_source(args):
             raise
         whole = open_video(args.video, fps=args.fps)    # a fault of the file raises here
     count = whole.frame_count
-    # The first frame as tracker.video.open_video numbers it.
+    # The first frame as tracker.video.decode.open_video numbers it.
     if count is not None and math.floor(args.start * whole.fps + 1e-9) >= count:
         raise TrackError(f"--start {args.start:g} s is past the end of {args.video} "
                          f"({count / whole.fps:.2f} s, {count} frames at {whole.fps:g} fps)")
@@ -589,7 +583,7 @@ def _output_option(args, path: Path | None) -> str | None:
     in the --bvh folder), None if none's."""
     if path is None:
         return None
-    from .sinks.files import partial_path
+    from tracker.outputs.files import partial_path
     real = os.path.realpath(path)
     for option, given in (("--out", args.out), ("--json", args.json)):
         if given is not None:
@@ -604,14 +598,14 @@ def _output_option(args, path: Path | None) -> str | None:
 def _output_failure(args, exc, kept: bool = True) -> str:
     """An output's failure (OutputWriteError or OutputBusyError, or OutputError from closing)
     in the user's terms: the option of the file it names and, with ``kept``, where the MCAP's
-    recording so far is kept when it is (a full disk: tracker.sinks.mcap keeps its partial
+    recording so far is kept when it is (a full disk: tracker.outputs.mcap keeps its partial
     file for repair)."""
     option = _output_option(args, getattr(exc, "path", None))
     message = f"{option} {exc}" if option else str(exc)
     kept = _kept_recording(args) if kept else None
     if kept is not None and str(kept) not in message:
         message += (f"; the recording so far is kept in {kept} "
-                    f"(tracker.sinks.mcap_repair.recover_mcap makes a readable file of it)")
+                    f"(tracker.outputs.mcap_repair.recover_mcap makes a readable file of it)")
     return message
 
 
@@ -619,7 +613,7 @@ def _kept_recording(args) -> Path | None:
     """The --out MCAP's partial file when a failed run left one holding data, else None."""
     if args.out is None:
         return None
-    from .sinks.files import partial_path, stream_descriptor
+    from tracker.outputs.files import partial_path, stream_descriptor
     if stream_descriptor(args.out) is not None or (args.out.exists()
                                                    and not args.out.is_file()):
         return None
@@ -685,7 +679,7 @@ def _bvh_files(folder: Path, stem: str, written: list[Path] | None) -> str:
 
 
 def _print_summary(args, source, result, bvh_files: list[Path] | None = None) -> None:
-    from .sinks.files import stream_descriptor
+    from tracker.outputs.files import stream_descriptor
     # An output sent to standard output (--json /dev/stdout | jq) gets it alone: the summary
     # goes to standard error then.
     out = sys.stderr if any(path is not None and stream_descriptor(path) == 1

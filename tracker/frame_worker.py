@@ -1,25 +1,18 @@
 """Decoding, silhouettes and descriptors in a second process, so that ``track`` uses two cores.
 
-A frame's work splits in two halves of about the same cost (scripts/bench_track.py, one
-person at 640x480, one process, 2026-12-03): decoding, background subtraction and describing
-each silhouette (6.5 ms), then association, regression, the front/back filters, the skeleton
-and the outputs (7.2 ms). With the worker: 68.8 -> 107.1 frames/s; later that day, with the
-regression in batches and every other frame described in the main process
-(MAIN_DESCRIBES), 75.8 -> 131.5.
-The first half needs nothing from the second (PoseTracker.find_people and .describe depend
-only on the frames and the settings), so a worker process runs it ahead on its own copy of the
-tracker while the main process tracks: both cores busy, the results the same as in one process
-(the same code on the same frames, in order).
+A frame's work splits in two halves of about the same cost: decoding, background subtraction
+and describing each silhouette, then association, regression, the front/back filters, the
+skeleton and the outputs (figures: docs/tuning.md). The first half needs nothing from the second
+(PoseTracker.find_people and .describe depend only on the frames and the settings), so a
+worker process runs it ahead on its own copy of the tracker: both cores busy, the results the
+same as in one process.
 
 The worker is forked (the model is already in memory: no second load, no pickling) with
-OpenCV and BLAS held to one thread each, so the two processes do not compete for the cores
-(a spawned worker would import everything again and receive a 61 MB model: 1-2 s more).
-It sends frames in small batches through a pipe (a person's mask and two descriptors: about
-20 kB at 640x480); the main process reads them in order. Ctrl-C is the main process's to handle (the
-worker ignores it); whatever way the main process ends, the worker goes with it: it is
-terminated on close, and a worker whose reader has died fails on its next send and exits.
-An error in the worker (e.g. a frame that cannot be decoded) is raised in the main process as
-the same exception, after the frames before it; its warnings are issued there too.
+OpenCV and BLAS held to one thread each. It sends frames in small batches through a pipe; the
+main process reads them in order. Ctrl-C is the main process's to handle (the worker ignores
+it); the worker is terminated on close, and one whose reader has died fails on its next send
+and exits. An error in the worker is raised in the main process as the same exception, after
+the frames before it; its warnings are issued there too.
 """
 from __future__ import annotations
 
@@ -205,7 +198,7 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
 
 class _PassingWarnings:
     """The worker's end of the pipe, sending the warnings caught since the last message
-    (e.g. a video cut short: tracker.video.VideoTruncatedWarning) before each message, for the
+    (e.g. a video cut short: tracker.video.decode.VideoTruncatedWarning) before each message, for the
     main process to issue in their place among the frames."""
 
     def __init__(self, writer, caught: list):

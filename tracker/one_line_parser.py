@@ -60,11 +60,11 @@ class OneLineParser(argparse.ArgumentParser):
         (option or description, path or None) pairs, e.g. [("--json", args.json)] and
         [("--model", args.model)]; None entries are skipped. An output may not be a folder,
         the folder of the file it names (a symlink followed) must exist and be writable (but
-        for /dev/null and the like, written in place: tracker.sinks.files.write_whole), and
+        for /dev/null and the like, written in place: tracker.outputs.files.write_whole), and
         it may not be the same file as an input or another output, also through a relative
         path, a symlink or a hard link. Inputs that are one another (a folder of links) are
         no conflict. Exits as error() does."""
-        from .sinks.files import PARTIAL_SUFFIX, file_identity, partial_path  # deferred: numpy
+        from tracker.outputs.files import PARTIAL_SUFFIX, file_identity, partial_path  # deferred: numpy
         seen = {}
         for what, path in inputs:
             if path is not None:

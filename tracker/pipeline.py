@@ -5,7 +5,7 @@ is an estimator (regressor.estimator.PoseEstimator; regressor.pose_model.PoseMod
 describe(mask) -> descriptor, stack_depth, hypotheses(stacked) -> poses, probabilities, limbs,
 front probability, novelty; plus the filter's noise models, the ambiguity threshold it was
 trained with and its front/back figures. Front/back is decided per track by
-tracker.hypotheses.FrontBackTracker (one filter from the factory per hypothesis). Every stage
+tracker.tracks.hypotheses.FrontBackTracker (one filter from the factory per hypothesis). Every stage
 is injectable: the silhouette extractor, the associator and the filter factory (norfair's
 ``filter_factory``).
 """
@@ -23,16 +23,16 @@ from regressor.angles import N_ANGLES
 from regressor.edges import SilhouetteError
 from regressor.estimator import PoseEstimator
 from regressor.stacking import FrameStacker, stack_step
-from .association import MAX_OCCLUDED_S, Associator
-from .roll import upright_mask
-from .filtering import PoseKalmanFilter
-from .hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, canonical_priors, chain_options,
+from tracker.tracks.association import MAX_OCCLUDED_S, Associator
+from tracker.video.roll import upright_mask
+from tracker.tracks.filtering import PoseKalmanFilter
+from tracker.tracks.hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, canonical_priors, chain_options,
                          hypotheses_from)
-from .mirror_limbs import sees_mirror
-from .silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
-from .root_path import RootHistory, smoothed_roots
-from .sinks.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
-from .video import ASSUMED_FOV_DEG, colourless, focal_length_px
+from tracker.tracks.mirror_limbs import sees_mirror
+from tracker.video.silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
+from tracker.tracks.root_path import RootHistory, smoothed_roots
+from tracker.outputs.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
+from tracker.video.decode import ASSUMED_FOV_DEG, colourless, focal_length_px
 
 
 #: The body angles' filter takes as measurement noise only the white part of the regressor's
@@ -70,7 +70,7 @@ class TrackerSettings:
     trust_zone_foreground: the default extractor takes the subtractor's foreground inside the
     background's unreliable zone as sure person (True) or lets colour decide on it (False).
     min_area_fraction: the default extractor's smallest person, a fraction of the image.
-    mirror_limbs: average the limbs with the mirror image's (tracker.mirror_limbs), for a model
+    mirror_limbs: average the limbs with the mirror image's (tracker.tracks.mirror_limbs), for a model
     whose limb networks saw mirror images.
     """
 
@@ -183,7 +183,7 @@ class TrackedPose:
     (18, 3) metres, Y up, for drawing (root placed on an approximate ground position from the
     image); centroid_px: (x, y) pixels; bbox_px: (x, y, w, h) pixels (None when unknown);
     runner_up: (55,) the filtered pose of the next most probable front/back hypothesis and
-    runner_up_probability, when that is close (tracker.hypotheses.CLOSE_PROBABILITY), else None;
+    runner_up_probability, when that is close (tracker.tracks.hypotheses.CLOSE_PROBABILITY), else None;
     novelty: how unlike the training silhouettes the frame's input is (PoseEstimates.novelty; about
     1 % of training rows are above 1), with TrackerSettings(novelty=True), else None."""
 
@@ -204,7 +204,7 @@ class TrackedPose:
     def unfamiliar(self) -> bool:
         """Whether the frame's silhouette is unlike the training ones (novelty above
         regressor.pose_model.UNFAMILIAR_NOVELTY; False when unknown): the sinks' rule,
-        tracker.sinks.geometry.is_unfamiliar."""
+        tracker.outputs.geometry.is_unfamiliar."""
         return is_unfamiliar(self.novelty)
 
 
@@ -312,7 +312,7 @@ class PoseTracker:
 
     def describe(self, person: PersonMask) -> Description | None:
         """A person's silhouette descriptor (D,) and, when the tracker averages mirror images
-        (tracker.mirror_limbs), its mirror image's (D,) (else None), made upright by the
+        (tracker.tracks.mirror_limbs), its mirror image's (D,) (else None), made upright by the
         settings' roll; None for a sliver or speck that has no descriptor. Depends on nothing
         but the mask and the settings, so it can run apart from the tracking (tracker.frame_worker)."""
         clock = time.perf_counter()
@@ -353,7 +353,7 @@ class PoseTracker:
                      else {id(person): d for person, d in zip(people, descriptions, strict=True)})
             for track_id, person in matches:
                 state = self._state(track_id)   # a track exists from its first match
-                # A part of a split blob (tracker.blob_split) was made here: described here.
+                # A part of a split blob (tracker.video.blob_split) was made here: described here.
                 description = (known[id(person)] if id(person) in known
                                else self.describe(person))
                 if description is not None:
@@ -414,7 +414,7 @@ class PoseTracker:
         return hypotheses, novelty
 
     def _decide(self, track_id: int, person: PersonMask, hypotheses):
-        """A track's front/back decision (tracker.hypotheses.Decision) for one frame from its
+        """A track's front/back decision (tracker.tracks.hypotheses.Decision) for one frame from its
         hypotheses."""
         state = self._state(track_id)
         clock = time.perf_counter()
@@ -447,7 +447,7 @@ class PoseTracker:
         """RTS-smoothed poses (n, 55) of every frame of a track so far (needs
         settings.keep_history), on the most probable (Viterbi) sequence of front/back
         hypotheses; with start/stop, of the track's poses start..stop-1 (counted from its
-        first pose) smoothed as if the track were those alone (tracker.fixed_lag)."""
+        first pose) smoothed as if the track were those alone (tracker.tracks.fixed_lag)."""
         if not self.settings.keep_history:
             raise ValueError("smoothed_track needs TrackerSettings(keep_history=True)")
         return self.tracks[track_id].hypotheses.smoothed(start, stop)
@@ -455,7 +455,7 @@ class PoseTracker:
     def smoothed_root_path(self, track_id: int, start: int = 0, stop: int | None = None
                            ) -> np.ndarray:
         """The roots (n, 3) metres of a track's poses start..stop-1 (as smoothed_track's),
-        the tracker's own placements smoothed over the video's time (tracker.root_path); needs
+        the tracker's own placements smoothed over the video's time (tracker.tracks.root_path); needs
         settings.keep_history."""
         if not self.settings.keep_history:
             raise ValueError("smoothed_root_path needs TrackerSettings(keep_history=True)")

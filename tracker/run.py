@@ -24,13 +24,13 @@ import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
-from .fixed_lag import FixedLagSmoother, drawn_at, streamed_kind
-from .frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
-from .pipeline import PoseTracker
-from .background import GainMeter, undo_gain
-from .silhouettes import median_background
-from .sinks import PoseRecorder, Sink, close_sinks, problem_line
-from .video import VideoError, VideoSource, colourless, open_video, scaled_size
+from tracker.tracks.fixed_lag import FixedLagSmoother, drawn_at, streamed_kind
+from tracker.frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
+from tracker.pipeline import PoseTracker
+from tracker.video.background import GainMeter, undo_gain
+from tracker.video.silhouettes import median_background
+from tracker.outputs import PoseRecorder, Sink, close_sinks, problem_line
+from tracker.video.decode import VideoError, VideoSource, colourless, open_video, scaled_size
 
 
 class OutputError(SilhouettePoseError, RuntimeError):
@@ -109,9 +109,9 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     describes the people in a second process (tracker.frame_worker) while this one tracks them,
     for the same results on two cores; sinks that show the video get no frames from it, so with
     one of those (where processes cannot fork, and where this process has run the person
-    segmenter: tracker.segmenter.made_a_graph) the run stays in one process. The
+    segmenter: tracker.video.segmenter.made_a_graph) the run stays in one process. The
     tracker's stages then include the worker's, and "waiting" (for it). lag_s: 0, or give
-    the sinks each frame about twice that many seconds of video late (tracker.fixed_lag's
+    the sinks each frame about twice that many seconds of video late (tracker.tracks.fixed_lag's
     2 lag - 1 frames), its poses smoothed over at least lag_s seconds that followed (needs
     keep_history): they follow the body better than the filtered ones. The frames reach the
     sinks in order, each once; after a Ctrl-C the frames held back go out too, to the sinks
@@ -160,9 +160,9 @@ def _frames_in(run: _Run, source: VideoSource, tracker: PoseTracker, workers: in
 
 
 def _segmented_here() -> bool:
-    """Whether this process has run the person segmenter (tracker.segmenter.made_a_graph):
+    """Whether this process has run the person segmenter (tracker.video.segmenter.made_a_graph):
     a worker forked from it would crash, so the run stays in one process."""
-    segmenter = sys.modules.get("tracker.segmenter")
+    segmenter = sys.modules.get("tracker.video.segmenter")
     return segmenter is not None and segmenter.made_a_graph()
 
 
@@ -358,7 +358,7 @@ def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | N
     video needs no 25 full frames in memory) and given at that size (scaling it up and back down
     would blur it: SilhouetteExtractor.prime), plus, for an extractor that
     can use them (``learn_zone``), the same frames to find where that median shows a person who
-    never leaves the spot (tracker.background.clip_background)."""
+    never leaves the spot (tracker.video.background.clip_background)."""
     if background is not None:
         _check_plate(source, background)
         tracker.prime(background)
@@ -523,7 +523,7 @@ def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequenc
 def _feed(poses, sinks: Sequence[Sink]) -> list[str]:
     """Write every pose to every sink; a sink that fails (a full disk under the MCAP) is fed
     no more, the others are fed on, so one output's failure costs no other its poses.
-    Returns one line per failed sink (tracker.sinks.problem_line)."""
+    Returns one line per failed sink (tracker.outputs.problem_line)."""
     live, problems = list(sinks), []
     for pose in poses:
         for sink in list(live):

@@ -1,0 +1,175 @@
+"""Writing a PoseModel as its model file: one versioned, checksummed .npz, no pickle
+(regressor.model_file). Training writes models; ``track`` only reads them (regressor.pose_model
+.load_pose_model).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .angles import POSE_DIM
+from .heading_index import HeadingIndex
+from .mixture import DampedKernelRegressor, SoftmaxGate
+from .model_file import save_model
+from .pose_model import MIXTURE_KIND, MODEL_KIND, LimbHead, PoseModel, PoseModelError
+
+
+def _is_sparse_rvm(expert) -> bool:
+    """isinstance(expert, SparseRVMRegressor), importing regressor.sparse_rvm."""
+    from .sparse_rvm import SparseRVMRegressor
+    return isinstance(expert, SparseRVMRegressor)
+
+
+def save_pose_model(path: str | Path, model: PoseModel) -> None:
+    """Write the model as one versioned, checksummed .npz (no pickle)."""
+    if model.mixture is not None:
+        if model.limb_head is not None and model.limb_net is not None:
+            raise PoseModelError("a model carries a limb head or a limb network, not both")
+        if model.side_classifier is not None and not model.has_limbs:
+            raise PoseModelError("a side classifier needs the model's limbs")
+        if model.canonical_priors is not None and model.side_classifier is None:
+            raise PoseModelError("canonical priors need the model's side classifier")
+        try:
+            arrays = _mixture_arrays(model)
+        except ValueError as exc:
+            raise PoseModelError(f"cannot save the model: {exc}") from None
+        save_model(path, arrays)
+        return
+    if model.limb_head is not None:
+        raise PoseModelError("only a mixture model can carry a limb head")
+    if model.heading_index is not None:
+        raise PoseModelError("only a mixture model can carry a heading index")
+    if model.limb_net is not None:
+        raise PoseModelError("only a mixture model can carry a limb network")
+    if model.side_classifier is not None or model.canonical_priors is not None:
+        raise PoseModelError("only a mixture model can carry a side classifier or canonical "
+                             "priors")
+    arrays = {
+        **model.codebook.to_arrays(), **model.settings.to_arrays(),
+        "model_kind": np.str_(MODEL_KIND),
+        "stack_depth": np.int64(model.stack_depth),
+        "transform": np.str_(model.transform), "basis": np.str_(model.basis),
+        "width": np.float64(np.nan if model.width is None else model.width),
+        "centres": (np.zeros((0, 0)) if model.centres is None else model.centres),
+        "relevance": np.asarray(model.relevance, dtype=np.int64),
+        "coef": model.coef, "intercept": model.intercept,
+        "angle_centre_deg": model.angle_centre_deg,
+        "measurement_covariance": model.measurement_covariance,
+        "process_noise": model.process_noise,
+        "ambiguity_threshold": np.float64(model.ambiguity_threshold),
+        "description": np.str_(json.dumps(model.description, sort_keys=True)),
+        **_input_arrays(model),
+    }
+    save_model(path, arrays)
+
+
+def _input_arrays(model: PoseModel) -> dict:
+    """The file parts of the input's layout block and projection (none for models without)."""
+    out = {}
+    if model.layout_grid:
+        out.update(layout_grid=np.int64(model.layout_grid),
+                   layout_weight=np.float64(model.layout_weight))
+    if model.projection is not None:
+        out.update(projection=np.asarray(model.projection, dtype=np.float32),
+                   projection_mean=np.asarray(model.projection_mean, dtype=np.float64))
+    if model.canonical_direction is not None:
+        out["canonical_direction"] = np.asarray(model.canonical_direction, dtype=np.float64)
+    return out
+
+
+def _mixture_arrays(model: PoseModel) -> dict:
+    mix = model.mixture
+    experts = mix.experts_
+    rvm = all(_is_sparse_rvm(e) for e in experts)
+    if not rvm and not all(isinstance(e, DampedKernelRegressor) for e in experts):
+        raise PoseModelError("only mixtures of DampedKernelRegressor or SparseRVMRegressor "
+                             "experts can be saved")
+    offsets = np.cumsum([0] + [len(e.centres_) for e in experts]).astype(np.int64)
+    gate = mix.gate_
+    if not isinstance(gate, SoftmaxGate):
+        raise PoseModelError("only mixtures with a softmax gate can be saved (a neighbour gate "
+                             "keeps every training row)")
+    return {
+        **model.codebook.to_arrays(), **model.settings.to_arrays(),
+        "model_kind": np.str_(MIXTURE_KIND),
+        "stack_depth": np.int64(model.stack_depth), "transform": np.str_(model.transform),
+        "basis": np.str_("gaussian"),
+        "width": np.float64(np.median([e.width_ for e in experts])),
+        "centres": np.vstack([e.centres_ for e in experts]).astype(np.float16),
+        "relevance": np.arange(offsets[-1], dtype=np.int64),
+        "coef": np.vstack([e.coef_ for e in experts]).astype(np.float32),
+        "intercept": np.zeros(POSE_DIM),
+        "angle_centre_deg": model.angle_centre_deg,
+        "measurement_covariance": model.measurement_covariance,
+        "process_noise": model.process_noise,
+        "ambiguity_threshold": np.float64(model.ambiguity_threshold),
+        "description": np.str_(json.dumps(model.description, sort_keys=True)),
+        **_input_arrays(model),
+        "mixture_expert_offsets": offsets,
+        "mixture_expert_width": np.array([e.width_ for e in experts], dtype=np.float64),
+        "mixture_expert_intercept": np.vstack([e.intercept_ for e in experts]),
+        "mixture_partition_centres": np.asarray(mix.partition_centres_, dtype=np.float64),
+        "mixture_gate_centres": gate.centres_.astype(np.float16),
+        "mixture_gate_width": np.float64(gate.width_),
+        "mixture_gate_feature_mean": gate.feature_mean_,
+        "mixture_gate_feature_std": gate.feature_std_,
+        "mixture_gate_weights": gate.weights_,
+        "mixture_top_experts": np.int64(mix.top_experts),
+        "mixture_params": np.str_(json.dumps(mix.get_params(), sort_keys=True)),
+        **(_rvm_expert_arrays(model) if rvm else {}),
+        **_limb_head_arrays(model.limb_head),
+        **_heading_index_arrays(model.heading_index),
+        **(model.limb_net.to_arrays() if model.limb_net is not None else {}),
+        **(model.side_classifier.to_arrays() if model.side_classifier is not None else {}),
+        **(model.canonical_priors.to_arrays() if model.canonical_priors is not None else {}),
+    }
+
+
+def _rvm_expert_arrays(model: PoseModel) -> dict:
+    """The parts only sparse RVM experts have (module comment above); their predictive
+    variance's only when the model keeps it (variance_calibration set)."""
+    experts = model.mixture.experts_
+    out = {"mixture_expert_kind": np.str_("rvm"),
+           "mixture_expert_beta": np.array([e.beta_ for e in experts], dtype=np.float64),
+           "mixture_expert_rows": np.array([e.n_train_ for e in experts], dtype=np.int64),
+           "mixture_expert_y_scale": np.vstack([e.y_scale_ for e in experts])}
+    if model.variance_calibration is None:
+        return out
+    return {**out,
+            "mixture_expert_sigma": np.concatenate([e.sigma_.ravel() for e in experts]
+                                                   ).astype(np.float32),
+            "mixture_expert_phi_mean": np.concatenate([e.phi_mean_ for e in experts]),
+            "mixture_variance_calibration": np.float64(model.variance_calibration)}
+
+
+def _limb_head_arrays(head: LimbHead | None) -> dict:
+    """The file parts of a limb head (coef float32, as the main head's), none without one."""
+    if head is None:
+        return {}
+    return {"limbs_coef": np.asarray(head.coef, dtype=np.float32),
+            "limbs_expert_intercept": np.asarray(head.expert_intercept, dtype=np.float64),
+            "limbs_angle_centre_deg": np.asarray(head.angle_centre_deg, dtype=np.float64),
+            "limbs_canonical_direction": np.asarray(head.canonical_direction, dtype=np.float64)}
+
+
+def _heading_index_arrays(index: HeadingIndex | None) -> dict:
+    """The file parts of a heading index (inputs float16, as the experts' centres), none
+    without one."""
+    if index is None:
+        return {}
+    inputs = np.asarray(index.inputs, dtype=np.float16)
+    # novelty's scale, as the index read back from the file (float16 inputs) computes it:
+    # stored, so that loading the model does not take 0.35 s to recompute it. An index that
+    # already holds those inputs (a loaded model saved again) knows it.
+    stored = (index if np.array_equal(index.inputs, inputs.astype(np.float32))
+              else HeadingIndex(inputs, index.folded_deg, index.k, index.limit_deg))
+    typical = stored.typical_distance()
+    return {"heading_index_inputs": inputs,
+            "heading_index_folded_deg": np.asarray(index.folded_deg, dtype=np.float32),
+            "heading_index_k": np.int64(index.k),
+            "heading_index_limit_deg": np.float64(index.limit_deg),
+            # unknown (NaN) for an index of k rows or fewer: not stored, as for older files
+            **({"heading_index_typical_distance": np.float64(typical)}
+               if np.isfinite(typical) else {})}

@@ -1,0 +1,80 @@
+"""A skeleton and its motion (what a BVH file holds), and Euler angles <-> rotation matrices.
+
+sequences.bvh reads and writes it as BVH; the pose vector (sequences.pose_vector) is computed
+from it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
+
+
+@dataclass
+class Motion:
+    """A skeleton and its motion, one row per frame.
+
+    names: (J,) joint names; parents: (J,) int, -1 for the root (parents precede children).
+    offsets: (J, 3) bone offsets from the parent, CMU units.
+    end_sites: (J, 3) end-site offsets in the joint's frame, CMU units; NaN rows where the
+        joint has no end site.
+    channels: per joint, its channel names as in the file (root: 3 positions + 3 rotations).
+    euler_deg: (T, J, 3) local rotation angles in degrees, in each joint's rotation-channel
+        order (CMU: Z, Y, X, meaning R = Rz @ Ry @ Rx, intrinsic, as in BVH).
+    root_position: (T, 3) root translation, CMU units.
+    fps: frames per second; source: file name the motion came from ("" if none).
+    """
+
+    names: list[str]
+    parents: np.ndarray
+    offsets: np.ndarray
+    end_sites: np.ndarray
+    channels: list[list[str]]
+    euler_deg: np.ndarray
+    root_position: np.ndarray
+    fps: float
+    source: str = field(default="")
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames T."""
+        return int(self.euler_deg.shape[0])
+
+    def rotation_orders(self) -> list[str]:
+        """Per joint, the intrinsic Euler sequence of its rotation channels, e.g. "ZYX"."""
+        return [_rotation_order(ch) for ch in self.channels]
+
+    def local_rotations(self) -> np.ndarray:
+        """Local joint rotation matrices (T, J, 3, 3): child vector in parent frame = R @ v."""
+        return euler_to_matrices(self.euler_deg, self.rotation_orders())
+
+
+def euler_to_matrices(euler_deg: np.ndarray, orders: list[str]) -> np.ndarray:
+    """Rotation matrices (T, J, 3, 3) from angles (T, J, 3) in degrees, intrinsic ``orders[j]``."""
+    T, J, _ = euler_deg.shape
+    out = np.empty((T, J, 3, 3))
+    for order in set(orders):
+        cols = [j for j, o in enumerate(orders) if o == order]
+        angles = euler_deg[:, cols].reshape(-1, 3)
+        mats = Rotation.from_euler(order, angles, degrees=True).as_matrix()
+        out[:, cols] = mats.reshape(T, len(cols), 3, 3)
+    return out
+
+
+def matrices_to_euler(rot: np.ndarray, orders: list[str]) -> np.ndarray:
+    """Angles (T, J, 3) in degrees, intrinsic ``orders[j]``, from rotation matrices (T, J, 3, 3)."""
+    T, J = rot.shape[:2]
+    out = np.empty((T, J, 3))
+    for order in set(orders):
+        cols = [j for j, o in enumerate(orders) if o == order]
+        mats = rot[:, cols].reshape(-1, 3, 3)
+        out[:, cols] = Rotation.from_matrix(mats).as_euler(order, degrees=True).reshape(
+            T, len(cols), 3)
+    return out
+
+
+def _rotation_order(channels: list[str]) -> str:
+    return "".join(c[0] for c in channels if c in ROTATION_CHANNELS)

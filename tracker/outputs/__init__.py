@@ -1,0 +1,119 @@
+"""Outputs of the tracker: every sink takes the same three calls (the :class:`Sink` protocol).
+
+    write(pose)            one person in one frame (a tracker.pipeline.TrackedPose)
+    end_frame(frame_index) after every frame, with people in it or not
+    close()                finish the output (idempotent); also on Ctrl-C
+
+Optional, for sinks that show the video (MeshcatView): write_frame(frame_index, time_s, frame,
+people), after the frame's poses: the frame (BGR uint8, read only) and track id -> PersonMask;
+and discard(), called after a Ctrl-C before close(): drop what is held back, not shown yet.
+Optional, for sinks that record what their poses are (JsonSummarySink): a ``pose_kind``
+attribute, "filtered" or "smoothed"; a sink given smoothed poses is told "filtered" when a
+Ctrl-C makes tracker.run.track_video write the filtered ones instead (the MCAP's
+SmoothedChannel then writes nothing: the filtered poses are in its file already).
+
+Optional, for sinks a command opened from its options: an ``option`` attribute (e.g.
+"--json"), which a failure's line names instead of the sink's class (problem_line).
+
+Sinks: McapSink (mcap.py), BVHSink (bvh.py), JsonSummarySink (json_summary.py), MeshcatView
+(meshcat_view.py), and PoseRecorder here (keeps the poses in memory, e.g. in a notebook).
+``open_sinks`` opens several, abandoning those already open if one fails (a refused run leaves
+every existing file as it was); ``close_sinks`` closes them all, collecting the problems
+instead of stopping at the first.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Protocol
+
+from tracker.outputs.files import OutputWriteError
+
+if TYPE_CHECKING:
+    from tracker.pipeline import TrackedPose
+
+
+class Sink(Protocol):
+    """Where tracked poses go (see the module docstring)."""
+
+    def write(self, pose: TrackedPose) -> None: ...
+
+    def end_frame(self, frame_index: int) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class PoseRecorder:
+    """A sink that keeps every pose: ``poses`` (list of TrackedPose, in order),
+    ``by_track()`` (track id -> its poses) and ``frames()`` (every frame, with its poses)."""
+
+    def __init__(self):
+        self.poses: list[TrackedPose] = []
+        self._frame_ends: list[tuple[int, int]] = []   # (frame index, poses up to its end)
+
+    def write(self, pose: TrackedPose) -> None:
+        """Keep the pose."""
+        self.poses.append(pose)
+
+    def end_frame(self, frame_index: int) -> None:
+        """Note where the frame's poses end."""
+        self._frame_ends.append((frame_index, len(self.poses)))
+
+    def frames(self) -> list[tuple[int, list[TrackedPose]]]:
+        """Every frame ended so far, with people or without, as (frame_index, its poses) in
+        order (what tracker.tracks.fixed_lag.replay takes)."""
+        out, start = [], 0
+        for index, stop in self._frame_ends:
+            out.append((index, self.poses[start:stop]))
+            start = stop
+        return out
+
+    def close(self) -> None:
+        """Nothing to finish."""
+
+    def by_track(self) -> dict[int, list[TrackedPose]]:
+        """Track id -> its poses in frame order."""
+        tracks: dict[int, list[TrackedPose]] = {}
+        for pose in self.poses:
+            tracks.setdefault(pose.track_id, []).append(pose)
+        return tracks
+
+
+def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
+    """Call each factory in turn; if one fails (another run holds its lock, a name the file
+    system refuses, Ctrl-C), abandon the sinks already opened (close_sinks(abandon=True): a
+    file sink then writes nothing, so what its destination held stays) and re-raise."""
+    opened: list[Sink] = []
+    try:
+        for make in factories:
+            opened.append(make())
+    except BaseException:
+        close_sinks(opened, abandon=True)
+        raise
+    return opened
+
+
+def problem_line(sink: Sink, exc: BaseException) -> str:
+    """One line for a sink's failure: with its ``option`` attribute "--json /dev/full: No space
+    left on device" (an OutputWriteError's message starts with its file) or "--view: ...";
+    without, "JsonSummarySink: ..." (the sink's class)."""
+    option = getattr(sink, "option", None)
+    if option is None:
+        return f"{type(sink).__name__}: {exc}"
+    return f"{option} {exc}" if isinstance(exc, OutputWriteError) else f"{option}: {exc}"
+
+
+def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
+    """Close every sink, even when some fail (each holds the user's results); returns one
+    line per failure (problem_line). abandon: the run has nothing to give (it tracked
+    nobody): sinks with an ``abandon()`` method (the files) stop without writing, so what their
+    destinations held stays; the others are closed."""
+    problems = []
+    for sink in sinks:
+        try:
+            if abandon and hasattr(sink, "abandon"):
+                sink.abandon()
+            else:
+                sink.close()
+        except Exception as exc:
+            problems.append(problem_line(sink, exc))
+    return problems

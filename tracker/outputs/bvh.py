@@ -1,0 +1,198 @@
+"""BVH export: one file per track on the CMU skeleton, written when the sink is closed.
+
+Angles: the pose vectors given (``pose.filtered``: filtered, or smoothed when ``track``
+feeds the smoothed poses at the end, its default), converted by
+``sequences.pose_vector.pose_vectors_to_motion``
+(camera azimuth 0: the video camera sits on the subject's +Z side, so heading 0 faces it).
+
+Root translation: the tracker does not measure where a person is in 3-D. The BVH root follows
+the Hips position of the ``joints3d`` given to ``write`` (metres, converted to CMU units), so it
+is whatever placement the caller chose: with ``tracker.outputs.geometry.ground_position_from_image``
+it is the image-plane motion turned into an approximate ground-plane position (lateral position
+and depth from an assumed body height and field of view, so the depth is only as right as the
+field of view; hips at a fixed height), which ``track``'s smoothed outputs smooth over the
+track (tracker.tracks.root_path); with
+root-relative joints it stays at the origin.
+
+Frames: BVH frame i is the time ``t0 + i / fps`` (``fps`` as given, the video's rate; t0 the
+track's first frame's time), for every such time up to the track's last frame: each holds the
+pose and root of the latest frame written at or before it (to within half a BVH frame), so
+frames where the track was not written (missed detections, skipped frames) repeat the last
+written pose and root, and a video with a variable frame rate (BVH has one Frame Time) keeps
+its real timing: a video at 30 fps for 6 s and then 10 fps gives a file at 30 fps whose 10 fps
+part holds each pose for three frames, as long as it lasted. At a constant rate BVH frame i is
+video frame ``first_frame + i``. A track with fewer than ``min_frames``
+written frames gets no file. Nothing is written before close(): the MCAP recording is the
+crash-safe record. Each file is written as ``NAME.partial`` and renamed when complete (a file cut
+short by a full disk is removed, an existing NAME is left as it was); while the sink is open,
+a lock file ``.PREFIX.bvh.lock`` in the folder makes a second sink on the same folder and prefix
+(another ``track`` run) fail at once.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from sequences.bvh import Motion, write_bvh
+from sequences.pose_vector import pose_vectors_to_motion
+from sequences.skeleton import (
+    CMU_JOINT_NAMES,
+    CMU_PARENTS,
+    CMU_REST_END_SITES,
+    CMU_REST_OFFSETS,
+    CMU_UNIT_M,
+)
+from tracker.outputs.files import LockFile, beside_name, write_beside
+from tracker.outputs.geometry import SinkInputError, check_joints, check_pose, checked_time
+
+if TYPE_CHECKING:
+    from tracker.pipeline import TrackedPose
+
+_ROOT_CHANNELS = ["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]
+_JOINT_CHANNELS = ["Zrotation", "Yrotation", "Xrotation"]
+
+
+def default_cmu_template(fps: float) -> Motion:
+    """A one-frame rest Motion of the CMU skeleton (subject 02's bone lengths, ZYX channels as
+    in the CMU BVH conversion), for writing BVH without a motion-capture file at hand."""
+    names = list(CMU_JOINT_NAMES)
+    return Motion(
+        names=names, parents=CMU_PARENTS.copy(), offsets=CMU_REST_OFFSETS.copy(),
+        end_sites=CMU_REST_END_SITES.copy(),
+        channels=[list(_ROOT_CHANNELS if p < 0 else _JOINT_CHANNELS) for p in CMU_PARENTS],
+        euler_deg=np.zeros((1, len(names), 3)), root_position=np.zeros((1, 3)),
+        fps=float(fps), source="")
+
+
+def regular_rows(times_s: np.ndarray, fps: float) -> np.ndarray:
+    """Which row each frame of a regular grid at ``fps`` from times_s[0] to times_s[-1] holds:
+    the latest row whose time is at or before the grid time plus half a grid step (so a time
+    rounded a little late still lands on its own frame).
+
+    times_s: (N,) increasing seconds. Returns (round((times_s[-1] - times_s[0]) fps) + 1,) ints.
+    """
+    count = int(round((times_s[-1] - times_s[0]) * fps)) + 1
+    grid = times_s[0] + (np.arange(count) + 0.5) / fps
+    return np.maximum(np.searchsorted(times_s, grid, side="right") - 1, 0)
+
+
+class BVHSink:
+    """Collect each track's poses and root positions; write one BVH per track on close.
+
+    directory: where files go (created if missing); files are ``<prefix>_<track id>.bvh``.
+    fps: video frame rate (frames per second of the frame indices). template: the skeleton
+    (a Motion, e.g. a CMU file read with sequences.bvh.read_bvh); None uses
+    default_cmu_template. min_frames: shortest track that gets a file.
+    After close(), ``paths`` maps track id -> written file.
+    """
+
+    def __init__(self, directory: str | Path, fps: float, prefix: str = "track",
+                 template: Motion | None = None, min_frames: int = 1):
+        if not (math.isfinite(fps) and fps > 0):
+            raise SinkInputError(f"fps must be a positive number, got {fps}")
+        self.directory = Path(directory)
+        self.fps = float(fps)
+        self.prefix = prefix
+        self.template = default_cmu_template(fps) if template is None else template
+        self.min_frames = int(min_frames)
+        self._root = int(np.flatnonzero(np.asarray(self.template.parents) < 0)[0])
+        # Per track: frame indices, times (s), poses (55,) and Hips positions (3,) m.
+        self._tracks: dict[int, tuple[list[int], list[float], list[np.ndarray],
+                                      list[np.ndarray]]] = {}
+        self.paths: dict[int, Path] = {}
+        self._closed = False
+        # The top-most folder this sink makes, removed again (if still empty) by abandon().
+        missing = [p for p in (self.directory, *self.directory.parents) if not p.exists()]
+        self._made = missing[-1] if missing else None
+        self.directory.mkdir(parents=True, exist_ok=True)
+        try:
+            self._lock = LockFile(beside_name(self.directory / f".{prefix}.bvh", ".lock"))
+        except BaseException:           # another run holds it: leave no folder of ours behind
+            self._remove_made_folders()
+            raise
+
+    @property
+    def closed(self) -> bool:
+        """True after close()."""
+        return self._closed
+
+    def write(self, pose: TrackedPose) -> None:
+        """Keep pose.filtered (55,), the Hips position pose.joints_m[0] (metres) and the time
+        pose.time_s (seconds) of this track and frame. Frame indices and times of a track must
+        increase. Raises SinkInputError on bad input."""
+        if self._closed:
+            raise SinkInputError("BVH sink is closed")
+        frame_index, track_id = pose.frame_index, pose.track_id
+        filtered = check_pose("filtered55", pose.filtered)
+        joints = check_joints(pose.joints_m)
+        time_s = checked_time(pose.time_s)
+        frames, times, poses, roots = self._tracks.setdefault(int(track_id), ([], [], [], []))
+        if frames and (int(frame_index) <= frames[-1] or time_s <= times[-1]):
+            raise SinkInputError(f"track {track_id}: frame {frame_index} at {time_s:g} s does "
+                                 f"not follow frame {frames[-1]} at {times[-1]:g} s")
+        frames.append(int(frame_index))
+        times.append(time_s)
+        poses.append(filtered)
+        roots.append(joints[0])
+
+    def end_frame(self, frame_index: int) -> None:
+        """Nothing per frame: files are written on close."""
+
+    def motion(self, track_id: int) -> Motion:
+        """The Motion that close() writes for ``track_id`` (KeyError if never written)."""
+        _, times, poses, roots = self._tracks[track_id]
+        rows = regular_rows(np.asarray(times), self.fps)
+        vectors = np.asarray(poses)[rows]
+        root_cmu = np.asarray(roots)[rows] / CMU_UNIT_M - self.template.offsets[self._root]
+        motion = pose_vectors_to_motion(vectors, self.template, root_position=root_cmu)
+        motion.fps = self.fps
+        motion.source = f"{self.prefix}_{track_id}.bvh"
+        return motion
+
+    def close(self) -> None:
+        """Write one BVH per track with at least min_frames frames; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            for track_id in sorted(self._tracks):
+                if len(self._tracks[track_id][0]) < self.min_frames:
+                    continue
+                # A name past the file system's limit (a long video name, a track id of many
+                # digits) gets its prefix cut and hashed, as the partial and lock names do.
+                path = beside_name(self.directory / self.prefix, f"_{track_id}.bvh")
+                motion = self.motion(track_id)
+                write_beside(path, lambda partial: write_bvh(partial, motion))
+                self.paths[track_id] = path
+        finally:
+            self._lock.release()
+
+    def abandon(self) -> None:
+        """Stop without writing any file (a run that tracked nobody), removing the folders it
+        made if they are still empty; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._lock.release()
+        self._remove_made_folders()
+
+    def _remove_made_folders(self) -> None:
+        """Remove the folders the constructor made, innermost first, while they are empty."""
+        if self._made is None:
+            return
+        for folder in (self.directory, *self.directory.parents):
+            try:
+                folder.rmdir()
+            except OSError:                 # not empty (someone else's files): kept
+                break
+            if folder == self._made:
+                break
+
+    def __enter__(self) -> "BVHSink":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()

@@ -1,0 +1,365 @@
+"""Track association: give each person detection a track id that persists from frame to frame.
+
+Each track remembers its centroid, a smoothed velocity (px/frame), its area and, when detections
+carry one (``bbox``, as silhouettes.PersonMask does), its last bounding box. Per frame, every
+track predicts where it is now (constant velocity), a cost matrix compares predictions with
+detections, and the Hungarian algorithm (scipy's linear_sum_assignment) pairs them. Costs are in
+units of the track's size (its box height, or sqrt(area) for detections without a box), so the
+same gates work for near and far people:
+
+    cost = |centroid - predicted| / size + size_weight * |ln(detection area / track area)|
+           + appearance_weight * Bhattacharyya(detection colour, track colour)
+
+A pair is refused (gated) when the distance exceeds ``max_distance`` sizes (widened by one size
+per frame while a track coasts, missed or hidden in a group), or the areas differ by more than
+``max_area_ratio`` while the boxes do not overlap: a silhouette that grows or shrinks in place
+(legs found or lost by the extractor) keeps its id, a different-sized blob elsewhere does not.
+An unmatched detection starts a track at once when it is at least ``min_relative_area`` of the
+largest confirmed track's area (or no track is confirmed: the first people of a video are not
+delayed); a smaller one starts a tentative track, which gets an id and is reported once matched
+in ``min_hits`` consecutive frames, so a blob that flickers for a frame or two beside a tracked
+person (light on the floor, a reflection) never becomes a track. A track
+unmatched for more than ``max_missed`` frames is dropped, so a person who leaves and comes back
+later gets a new id.
+
+People who cross or walk together are one blob to background subtraction. When a detection's
+box holds the predicted centroids of two or more established tracks (each seen last frame or
+already in a group, standing side by side, matched to no other detection), it is a group:
+it is given to none of them (a two-person silhouette is nobody's pose) and starts no track,
+and each member coasts on its constant-velocity prediction, kept inside the group's box, for
+up to ``max_occluded`` frames. When the blob splits, the predictions and each person's
+appearance pick up the ids again: detections that carry a ``colour`` histogram
+(PersonMask.colour) add ``appearance_weight`` times the Bhattacharyya distance between it and
+the track's colour (a running mean over its matched frames) to the cost. A group that lasts
+longer than ``max_occluded`` is treated as one person again.
+
+While hidden, the members still get silhouettes: detections that carry a ``mask`` and ``bbox``
+(PersonMask) leave each track its last silhouette of its own, and a group's blob is split
+between its members by those shapes moved to the members' coasted boxes
+(tracker.video.blob_split.split_blob); each member with a share of the blob is returned with its
+part (a new PersonMask, colour None), so it keeps a pose. The parts are not folded into
+the tracks (their position is the prediction's, their shape the remembered one's).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol, TypeVar
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from regressor.errors import SilhouettePoseError
+
+
+
+#: How long, seconds, a track may stay hidden in a group (PoseTracker sets max_occluded from it
+#: and the video's fps; Associator's default is this at 30 fps). The sample beside its mirror
+#: image is one blob for 17-18 frames (0.6 s) per crossing; people who stop together longer
+#: are taken as one person again.
+MAX_OCCLUDED_S = 1.5
+
+
+class Detection(Protocol):
+    """Anything with a centroid (x, y) px and an area px, e.g. silhouettes.PersonMask; an
+    optional ``bbox`` (x, y, w, h) px and ``colour`` (a histogram summing to 1) are used when
+    present."""
+
+    centroid: tuple[float, float]
+    area: int
+
+
+D = TypeVar("D", bound=Detection)
+
+
+class AssociationError(SilhouettePoseError, ValueError):
+    """Bad association settings or detections; one-line message naming the problem."""
+
+
+@dataclass
+class Track:
+    """A person followed over frames. ``centroid`` (x, y) px at the last match, ``velocity``
+    (vx, vy) px/frame smoothed, ``area`` px smoothed, ``bbox`` (x, y, w, h) px at the last match
+    (nan when detections have none), ``hits`` frames matched, ``missed`` consecutive frames
+    unmatched, ``track_id`` -1 while the track is tentative (fewer than min_hits hits),
+    ``colour`` the appearance histogram (None when detections have none), ``occluded``
+    consecutive frames hidden in a group (centroid and box then coasted, not measured),
+    ``shape`` the mask (h, w) bool of its last detection of its own (None without masks)."""
+
+    track_id: int
+    centroid: np.ndarray
+    area: float
+    bbox: np.ndarray = field(default_factory=lambda: np.full(4, np.nan))
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    hits: int = 1
+    missed: int = 0
+    colour: np.ndarray | None = None
+    occluded: int = 0
+    shape: np.ndarray | None = None
+
+    def predicted(self) -> np.ndarray:
+        """(x, y) px expected this frame: the last centroid moved on by the missed frames + 1."""
+        return self.centroid + self.velocity * (self.missed + 1)
+
+    def size(self) -> float:
+        """The unit of distance, px: the box height, else sqrt(area)."""
+        return float(self.bbox[3]) if np.isfinite(self.bbox[3]) else math.sqrt(self.area)
+
+
+def box_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Intersection over the smaller box's area, (A, B), of boxes a (A, 4) and b (B, 4)
+    (x, y, w, h) px; 0 where a box is nan. 1 when one box holds the other."""
+    ax0, ay0, aw, ah = (a[:, i][:, None] for i in range(4))
+    bx0, by0, bw, bh = (b[:, i][None, :] for i in range(4))
+    iw = np.minimum(ax0 + aw, bx0 + bw) - np.maximum(ax0, bx0)
+    ih = np.minimum(ay0 + ah, by0 + bh) - np.maximum(ay0, by0)
+    inter = np.clip(iw, 0, None) * np.clip(ih, 0, None)
+    smaller = np.minimum(aw * ah, bw * bh)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        overlap = inter / smaller
+    return np.nan_to_num(overlap, nan=0.0, posinf=0.0)
+
+
+class Associator:
+    """Frame-to-frame association of detections to track ids (see the module docstring).
+
+    ``max_distance``: gate on centroid distance, in track sizes (box height, or sqrt of area).
+    ``max_area_ratio``: gate on the ratio of areas (>= 1), applied when the boxes overlap by
+    less than ``min_box_overlap`` (intersection over the smaller box). ``size_weight``: weight
+    of the log area ratio in the cost. ``max_missed``: frames a track may go unmatched before
+    it is dropped. ``smoothing``: weight of the newest observation in the velocity and area
+    updates. ``min_hits``: consecutive frames a new track smaller than ``min_relative_area`` of
+    the largest confirmed track must be matched in before it gets an id and its detections are
+    returned (1: at once). ``use_boxes``: False ignores detections' boxes
+    (sizes from sqrt(area), the area gate always applies, no groups: the associator before
+    issue 11). ``appearance_weight``: weight of the colour histograms' Bhattacharyya distance
+    (0-1) in the cost; ``colour_rate``: weight of the newest frame in a track's colour (the
+    first frames are averaged equally). ``max_occluded``: frames a track may stay hidden in a
+    group (0: no groups); ``min_height_ratio``: a group's members are at least this fraction
+    of the tallest member's box height and overlap its rows by this share of their own (a leg
+    cut off by the extractor is no person beside it).
+    """
+
+    def __init__(self, max_distance: float = 1.0, max_area_ratio: float = 1.8,
+                 size_weight: float = 1.0, max_missed: int = 15, smoothing: float = 0.5,
+                 min_box_overlap: float = 0.5, min_hits: int = 3,
+                 min_relative_area: float = 0.25, use_boxes: bool = True,
+                 appearance_weight: float = 1.0, colour_rate: float = 0.1,
+                 max_occluded: int = 45, min_height_ratio: float = 0.5):
+        if max_distance <= 0 or max_area_ratio < 1 or size_weight < 0 or max_missed < 0:
+            raise AssociationError(
+                f"need max_distance > 0, max_area_ratio >= 1, size_weight >= 0, max_missed >= 0; "
+                f"got {max_distance}, {max_area_ratio}, {size_weight}, {max_missed}")
+        if not (0 < smoothing <= 1 and 0 < colour_rate <= 1):
+            raise AssociationError(f"smoothing={smoothing} and colour_rate={colour_rate} must "
+                                   f"be in (0, 1]")
+        if min_hits < 1 or not 0 < min_box_overlap <= 1:
+            raise AssociationError(f"need min_hits >= 1 and min_box_overlap in (0, 1]; got "
+                                   f"{min_hits}, {min_box_overlap}")
+        if appearance_weight < 0 or max_occluded < 0 or not 0 <= min_height_ratio <= 1:
+            raise AssociationError(
+                f"need appearance_weight >= 0, max_occluded >= 0, min_height_ratio in [0, 1]; "
+                f"got {appearance_weight}, {max_occluded}, {min_height_ratio}")
+        self.max_distance = max_distance
+        self.max_log_area_ratio = math.log(max_area_ratio)
+        self.size_weight = size_weight
+        self.max_missed = max_missed
+        self.smoothing = smoothing
+        self.min_box_overlap = min_box_overlap
+        self.min_hits = min_hits
+        self.min_relative_area = min_relative_area
+        self.use_boxes = use_boxes
+        self.appearance_weight = appearance_weight
+        self.colour_rate = colour_rate
+        self.max_occluded = max_occluded
+        self.min_height_ratio = min_height_ratio
+        self.tracks: list[Track] = []
+        self._next_id = 0
+
+    def cost_matrix(self, centroids: np.ndarray, areas: np.ndarray,
+                    boxes: np.ndarray | None = None,
+                    colours: np.ndarray | None = None) -> np.ndarray:
+        """Costs (tracks, detections) for centroids (N, 2) px, areas (N,) px, boxes (N, 4)
+        px (x, y, w, h; nan or None: unknown) and colour histograms (N, K) (None: unknown);
+        inf = gated."""
+        if not self.tracks:
+            return np.zeros((0, len(areas)))
+        if boxes is None:
+            boxes = np.full((len(areas), 4), np.nan)
+        predicted = np.array([t.predicted() for t in self.tracks])           # (T, 2)
+        track_area = np.array([t.area for t in self.tracks])                  # (T,)
+        # Coasting, in a group or unseen, widens the gate by one size a frame.
+        missed = np.array([t.missed + t.occluded for t in self.tracks])       # (T,)
+        size = np.array([t.size() for t in self.tracks])[:, None]             # (T, 1)
+        distance = np.linalg.norm(predicted[:, None, :] - centroids[None, :, :], axis=2) / size
+        log_ratio = np.abs(np.log(areas[None, :] / track_area[:, None]))
+        overlap = box_overlap(np.array([t.bbox for t in self.tracks]), boxes)
+        cost = distance + self.size_weight * log_ratio
+        if colours is not None and self.appearance_weight > 0:
+            cost += self.appearance_weight * self._colour_distance(colours)
+        gated = (distance > self.max_distance * (1 + missed[:, None])) | \
+                ((log_ratio > self.max_log_area_ratio) & (overlap < self.min_box_overlap))
+        cost[gated] = np.inf
+        return cost
+
+    def _colour_distance(self, colours: np.ndarray) -> np.ndarray:
+        """Bhattacharyya distances (T, N) in [0, 1] between the tracks' colours and
+        histograms (N, K) summing to 1; 0 for a track without a colour."""
+        known = np.array([t.colour is not None for t in self.tracks])
+        if not known.any():
+            return np.zeros((len(self.tracks), len(colours)))
+        mean = np.stack([t.colour if t.colour is not None else np.zeros(colours.shape[1])
+                         for t in self.tracks])
+        coefficient = np.sqrt(mean) @ np.sqrt(colours).T
+        return np.sqrt(np.clip(1.0 - coefficient, 0.0, 1.0)) * known[:, None]
+
+    def update(self, detections: Sequence[D]) -> list[tuple[int, D]]:
+        """Match this frame's detections to tracks; returns (track_id, detection) for each
+        detection on a confirmed track (all of them with min_hits=1), in the order given; a
+        group's detection (several people in one blob) is on none, but in its place come
+        (track_id, part) for its members that got a part of it (split_group).
+        Unmatched detections start tentative tracks; stale tracks are dropped."""
+        centroids = np.array([d.centroid for d in detections], float).reshape(-1, 2)
+        areas = np.array([d.area for d in detections], float)
+        boxes = np.array([_box(d) if self.use_boxes else (np.nan,) * 4 for d in detections],
+                         float).reshape(-1, 4)
+        colours = _colours(detections)
+        if not (np.isfinite(centroids).all() and (areas > 0).all()):
+            raise AssociationError("detections need finite centroids and positive areas")
+        cost = self.cost_matrix(centroids, areas, boxes, colours)
+        finite = np.where(np.isfinite(cost), cost, 1e9)  # gated pairs can never win over new ids
+        rows, cols = linear_sum_assignment(finite)
+        matched = {c: r for r, c in zip(rows, cols) if np.isfinite(cost[r, c])}
+        groups = self._groups(matched, boxes)
+        hidden = {id(self.tracks[r]) for members in groups.values() for r in members}
+        for j, members in groups.items():
+            matched.pop(j, None)
+            for r in members:
+                _coast_inside(self.tracks[r], boxes[j])
+
+        largest = max((t.area for t in self.tracks if t.track_id >= 0), default=0.0)
+        pairs = []
+        for j in range(len(detections)):
+            if j in groups:
+                pairs += self.split_group(detections[j], groups[j])
+                continue
+            colour = None if colours is None else colours[j]
+            if j in matched:
+                track = self.tracks[matched[j]]
+                self._observe(track, centroids[j], areas[j], boxes[j], colour)
+            else:
+                track = Track(-1, centroids[j].copy(), float(areas[j]), boxes[j].copy(),
+                              colour=None if colour is None else colour.copy())
+                self.tracks.append(track)
+            track.shape = getattr(detections[j], "mask", None)
+            if track.track_id < 0 and (track.hits >= self.min_hits or
+                                       areas[j] >= self.min_relative_area * largest):
+                track.track_id = self._next_id
+                self._next_id += 1
+            if track.track_id >= 0:
+                pairs.append((track.track_id, detections[j]))
+        matched_tracks = {id(self.tracks[r]) for r in matched.values()} | hidden
+        for track in self.tracks[: len(cost)]:
+            if id(track) not in matched_tracks:
+                track.missed += 1
+                track.occluded = 0
+        # A tentative track must be seen in consecutive frames.
+        self.tracks = [t for t in self.tracks if t.missed <= self.max_missed
+                       and (t.track_id >= 0 or t.missed == 0)]
+        return pairs
+
+    def split_group(self, blob, members: np.ndarray) -> list[tuple[int, object]]:
+        """(track_id, part) for the members (track rows (M,), already coasted into the blob's
+        box) that get a part of ``blob`` (a PersonMask) split by their remembered shapes moved
+        to their boxes (tracker.video.blob_split); [] when the blob has no mask or a member has no
+        shape or box."""
+        tracks = [self.tracks[r] for r in members]
+        if getattr(blob, "mask", None) is None or any(
+                t.shape is None or not np.isfinite(t.bbox).all() for t in tracks):
+            return []
+        from tracker.video.blob_split import Shape, split_blob   # only where people merge
+        parts = split_blob(blob, [Shape(t.shape, tuple(t.bbox)) for t in tracks])
+        return [(t.track_id, part) for t, part in zip(tracks, parts) if part is not None]
+
+    def _groups(self, matched: dict[int, int], boxes: np.ndarray) -> dict[int, np.ndarray]:
+        """Detection index -> rows (M,) of the tracks hidden in it, for detections whose box
+        (N, 4) px holds the predicted centroids of two or more confirmed tracks that were seen
+        last frame or are in a group, have hidden no longer than max_occluded, stand side by
+        side (each at least min_height_ratio of the tallest one's height, and overlapping its
+        rows by that share of its own: pieces of one person cut apart by the extractor stand one
+        above the other) and are matched (``matched``: detection -> track row) to no other
+        detection."""
+        if not self.tracks or self.max_occluded == 0 or not len(boxes):
+            return {}
+        eligible = np.array([t.track_id >= 0 and t.missed == 0 and t.hits >= self.min_hits
+                             and t.occluded < self.max_occluded for t in self.tracks])
+        if eligible.sum() < 2:
+            return {}
+        predicted = np.array([t.predicted() for t in self.tracks])            # (T, 2)
+        x0, y0, w, h = (boxes[:, i][None, :] for i in range(4))
+        px, py = predicted[:, :1], predicted[:, 1:]
+        inside = (px >= x0) & (px <= x0 + w) & (py >= y0) & (py <= y0 + h)      # (T, N)
+        owner = np.full(len(self.tracks), -1)
+        owner[list(matched.values())] = list(matched.keys())
+        member = inside & eligible[:, None] & ((owner[:, None] == -1) |
+                                               (owner[:, None] == np.arange(len(boxes))))
+        tops = np.array([t.bbox[1] for t in self.tracks])
+        heights = np.array([t.bbox[3] for t in self.tracks])
+        groups, taken = {}, np.zeros(len(self.tracks), bool)
+        for j in np.flatnonzero(member.sum(axis=0) >= 2):
+            rows = np.flatnonzero(member[:, j] & ~taken)
+            if len(rows) < 2:               # its tracks were taken by an overlapping box
+                continue
+            tall = rows[np.argmax(heights[rows])]
+            beside = (np.minimum(tops[rows] + heights[rows], tops[tall] + heights[tall])
+                      - np.maximum(tops[rows], tops[tall]))
+            rows = rows[(heights[rows] >= self.min_height_ratio * heights[tall])
+                        & (beside >= self.min_height_ratio * heights[rows])]
+            if len(rows) >= 2:
+                groups[int(j)] = rows
+                taken[rows] = True
+        return groups
+
+    def _observe(self, track: Track, centroid: np.ndarray, area: float,
+                 bbox: np.ndarray, colour: np.ndarray | None = None) -> None:
+        """Fold a matched detection into a track's velocity, area, colour, box and position."""
+        step = (centroid - track.centroid) / (track.missed + 1)
+        a = self.smoothing
+        track.velocity = (1 - a) * track.velocity + a * step if track.hits > 1 else step
+        track.area = (1 - a) * track.area + a * area
+        if colour is not None:
+            if track.colour is None:
+                track.colour = colour.copy()
+            else:
+                rate = max(self.colour_rate, 1.0 / (track.hits + 1))
+                track.colour = (1 - rate) * track.colour + rate * colour
+        track.centroid = centroid.copy()
+        track.bbox = bbox.copy()
+        track.hits += 1
+        track.missed = 0
+        track.occluded = 0
+
+
+def _coast_inside(track: Track, box: np.ndarray) -> None:
+    """Move a track hidden in a group's box (x, y, w, h) px on to its prediction, kept inside
+    the box, its own box moved with it; its velocity and appearance are left as they were."""
+    centre = np.clip(track.predicted(), box[:2], box[:2] + box[2:])
+    track.bbox = track.bbox + np.r_[centre - track.centroid, 0.0, 0.0]
+    track.centroid = centre
+    track.missed = 0
+    track.occluded += 1
+
+
+def _colours(detections) -> np.ndarray | None:
+    """The detections' colour histograms (N, K), or None unless every one has one."""
+    colours = [getattr(d, "colour", None) for d in detections]
+    if not colours or any(c is None for c in colours):
+        return None
+    return np.asarray(colours, float)
+
+
+def _box(detection) -> tuple:
+    """A detection's (x, y, w, h) px, nan when it has no ``bbox``."""
+    box = getattr(detection, "bbox", None)
+    return (np.nan,) * 4 if box is None else tuple(box)

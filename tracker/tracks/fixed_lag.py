@@ -1,0 +1,221 @@
+"""Fixed-lag smoothing: the outputs written while tracking get each pose a little late,
+smoothed over what the video showed next (``track --lag``).
+
+The smoothed output (``--smooth``: the JSON, the BVH and the MCAP's smoothed topics) follows
+the body better than the frame-by-frame filter, but it needs each whole track, so it can only
+be written at the end. A pose held back for ``lag`` frames can already be smoothed over those
+frames: each track's own smoother (FrontBackTracker.smoothed: the front/back hypotheses'
+most probable path, the heading's and the body angles' RTS smoothers, the limb members'
+chain) is run on a window of the track's latest poses, and the window's older frames are
+handed on. One run per frame would cost about 0.5 ms per frame of window (two 55-angle
+Kalman passes with full covariances), so frames are smoothed in blocks instead: when ``2 lag``
+frames wait unsmoothed, the oldest ``lag`` are smoothed, each track in them once, over its
+poses from ``margin`` frames before the block to its newest; so each frame is smoothed over at
+least ``lag`` frames that followed it. The window's first ``margin`` frames are there only to
+start its filters (they are smoothed again, as part of their own block, with more behind
+them). The smoothed frames then go out one per frame pushed, each ``2 lag - 1`` frames after
+it came in: at a steady pace, so a live view playing the video at its own speed shows no
+pauses (handed out a block at a time, the view froze while a block was smoothed).
+
+How the block scheme and the margin were chosen: docs/tuning.md, "tracker/fixed_lag.py".
+
+The bodies are drawn at the root path smoothed over the same window (tracker.root_path, as
+the whole-track smoothed outputs are: PoseTracker.smoothed_root_path, from the roots the
+tracker keeps with its history, 32 bytes a pose), so where the window reaches far enough on both sides (the
+weights' 4 sigma, 0.8 s: lags from 0.8 s) the root is the whole track's; with shorter lags the
+line is fitted to what the window has (tested: within 25 mm of the whole track's path at
+0.5 s on a rendered walk).
+"""
+from __future__ import annotations
+
+import itertools
+from collections import deque
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from tracker.video.silhouettes import PersonMask
+from tracker.outputs.geometry import pose_joints_m
+
+if TYPE_CHECKING:
+    from tracker.pipeline import PoseTracker, TrackedPose
+
+#: Frames before a block that start its window's filters, in seconds of video (longer
+#: gained nothing on the validation spirals: docs/tuning.md).
+MARGIN_S = 1.0
+#: The longest lag ``track --lag`` takes, seconds: the frames held back (with --view, the
+#: video frames too) grow with it.
+MAX_LAG_S = 10.0
+#: Video frames held back (for a sink that shows the video: the live view) are kept at most
+#: this wide, their people with them. The view shows them 256 px wide, and a 4K frame is 25
+#: MB: a 0.5 s lag at 60 fps holds 59 of them.
+HELD_FRAME_WIDTH_PX = 640
+
+
+@dataclass
+class _Waiting:
+    """A tracked frame held back: as the tracking loop gives it (its image shrunk, above), and
+    per pose its track's pose number (0 for the track's first pose)."""
+
+    frame: tuple              # (frame_index, time_s, image or None, poses, people)
+    numbers: list[int]
+
+
+class FixedLagSmoother:
+    """Holds tracked frames back and gives them out with each pose's ``filtered`` replaced
+    by the fixed-lag smoothed pose (55,) and its ``joints_m`` (18, 3) metres redrawn from it
+    at the same root (module docstring). Everything else of a pose (raw, ambiguous, the
+    runner-up of its frame's front/back decision, novelty) is as tracked. A video frame wider
+    than HELD_FRAME_WIDTH_PX is held shrunk to that width, its people's masks, boxes and
+    centroids with it (so it comes out smaller than the video, consistent with its people).
+
+    tracker: the PoseTracker producing the frames, with TrackerSettings(keep_history=True).
+    lag_frames: >= 1; margin_frames: >= 0 (None: MARGIN_S of video at the tracker's fps).
+    Frames (frame_index, time_s, image, poses, people) go in with :meth:`push`, in the order
+    tracked, and come out in the same order, each exactly once, on :attr:`ready` (a deque the
+    caller takes them from): after the first 2 lag - 1 frames, one per frame pushed, so each
+    goes out 2 lag - 1 frames after it came in, smoothed over at least lag frames that
+    followed it; :meth:`flush` at the end puts the rest there. The smoother runs once per
+    ``lag`` frames pushed, on the oldest ``lag`` of the 2 lag held (module docstring); a
+    block leaves the queue only once smoothed, so a Ctrl-C inside the smoother loses
+    nothing."""
+
+    def __init__(self, tracker: PoseTracker, lag_frames: int, margin_frames: int | None = None):
+        if not tracker.settings.keep_history:
+            raise ValueError("fixed-lag smoothing needs TrackerSettings(keep_history=True)")
+        if not (int(lag_frames) == lag_frames and lag_frames >= 1):
+            raise ValueError(f"lag_frames={lag_frames} must be a whole number >= 1")
+        if margin_frames is None:
+            margin_frames = int(round(MARGIN_S * tracker.fps))
+        if not (int(margin_frames) == margin_frames and margin_frames >= 0):
+            raise ValueError(f"margin_frames={margin_frames} must be a whole number >= 0")
+        self.tracker = tracker
+        self.lag, self.margin = int(lag_frames), int(margin_frames)
+        self.ready: deque[tuple] = deque()           # due: for the caller to take
+        self._smoothed: deque[tuple] = deque()       # smoothed, not due yet
+        self._waiting: deque[_Waiting] = deque()     # not smoothed yet
+        self._poses_seen: dict[int, int] = {}        # track id -> its poses pushed so far
+
+    @classmethod
+    def from_seconds(cls, tracker: PoseTracker, lag_s: float) -> FixedLagSmoother:
+        """A smoother whose lag is ``lag_s`` seconds of video (> 0; rounded to whole frames
+        at the tracker's fps, at least one)."""
+        if not (np.isfinite(lag_s) and 0 < lag_s <= MAX_LAG_S):
+            raise ValueError(f"lag {lag_s} s must be above 0 and at most {MAX_LAG_S:g} s")
+        return cls(tracker, max(1, int(round(lag_s * tracker.fps))))
+
+    @property
+    def waiting(self) -> int:
+        """How many frames are held back, not yet smoothed."""
+        return len(self._waiting)
+
+    def push(self, frame: tuple) -> None:
+        """Take the next tracked frame (frame_index, time_s, image, poses, people); the frame
+        now due, if any, is put on :attr:`ready`."""
+        numbers = []
+        for pose in frame[3]:
+            number = self._poses_seen.get(pose.track_id, 0)
+            self._poses_seen[pose.track_id] = number + 1
+            numbers.append(number)
+        self._waiting.append(_Waiting(_held(frame), numbers))
+        if not self._smoothed and len(self._waiting) >= 2 * self.lag:
+            self._smooth(self.lag)
+        if self._smoothed:
+            self.ready.append(self._smoothed.popleft())
+
+    def flush(self) -> None:
+        """Put every frame still held back on :attr:`ready` (at the end of the video, or on a
+        stop), smoothed over all that was pushed."""
+        if self._waiting:
+            self._smooth(len(self._waiting))
+        self.ready.extend(self._smoothed)
+        self._smoothed.clear()
+
+    def _smooth(self, count: int) -> None:
+        """Smooth the oldest ``count`` frames held back onto the internal smoothed queue; they
+        leave the waiting queue only once done."""
+        block = list(itertools.islice(self._waiting, count))
+        # Each track's poses in the block, one smoother run per track.
+        numbers: dict[int, list[int]] = {}
+        for waiting in block:
+            for pose, number in zip(waiting.frame[3], waiting.numbers):
+                numbers.setdefault(pose.track_id, []).append(number)
+        smoothed: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+        for track_id, wanted in numbers.items():
+            start = max(0, wanted[0] - self.margin)
+            stop = self._poses_seen[track_id]
+            window = self.tracker.smoothed_track(track_id, start, stop)
+            if len(window) != stop - start:
+                raise RuntimeError(f"track {track_id} holds {len(window)} poses from pose "
+                                   f"{start}, the smoother was given {stop - start}")
+            roots = self.tracker.smoothed_root_path(track_id, start, stop)
+            for number in wanted:
+                smoothed[track_id, number] = (window[number - start], roots[number - start])
+        poses = [(pose, *smoothed[pose.track_id, number]) for waiting in block
+                 for pose, number in zip(waiting.frame[3], waiting.numbers)]
+        redrawn = iter(drawn_at(poses))
+        out = []
+        for waiting in block:
+            index, time_s, image, frame_poses, people = waiting.frame
+            out.append((index, time_s, image, [next(redrawn) for _ in frame_poses], people))
+        for _ in block:
+            self._waiting.popleft()
+        self._smoothed.extend(out)
+
+
+def streamed_kind(lag_s: float) -> str:
+    """What the poses written while tracking are, as the outputs name them: "filtered", or
+    "fixed-lag smoothed" with a lag (seconds) above 0."""
+    return "fixed-lag smoothed" if lag_s > 0 else "filtered"
+
+
+def replay(tracker: PoseTracker, frames: list[tuple[int, list[TrackedPose]]],
+           lag_s: float) -> list[TrackedPose]:
+    """The poses a run with ``track_video(..., lag_s=lag_s)`` would have given the outputs,
+    from a finished run without a lag (TrackerSettings(keep_history=True)): frames is that
+    run's every frame, with or without people, as (frame_index, its poses) in order. The same
+    smoother runs on the same histories, so the poses are the same (tests/test_fixed_lag.py);
+    an evaluation gets the filtered and the lagged poses from one run."""
+    smoother = FixedLagSmoother.from_seconds(tracker, lag_s)
+    for index, poses in frames:
+        smoother.push((index, 0.0, None, poses, {}))
+    smoother.flush()
+    return [pose for frame in smoother.ready for pose in frame[3]]
+
+
+def _held(frame: tuple) -> tuple:
+    """A tracked frame as held back: its image, when wider than HELD_FRAME_WIDTH_PX, shrunk to
+    that width, and its people (track id -> PersonMask) shrunk with it (masks, boxes,
+    centroids and areas in the shrunk image's pixels)."""
+    index, time_s, image, poses, people = frame
+    if image is None or image.shape[1] <= HELD_FRAME_WIDTH_PX:
+        return frame
+    scale = HELD_FRAME_WIDTH_PX / image.shape[1]
+    small = cv2.resize(image, (HELD_FRAME_WIDTH_PX, max(1, round(image.shape[0] * scale))),
+                       interpolation=cv2.INTER_AREA)
+    return index, time_s, small, poses, {track_id: _shrunk(person, scale)
+                                         for track_id, person in people.items()}
+
+
+def _shrunk(person: PersonMask, scale: float) -> PersonMask:
+    """A person's mask and box scaled by ``scale`` (< 1)."""
+    x, y, w, h = person.bbox
+    size = (max(1, round(w * scale)), max(1, round(h * scale)))
+    mask = cv2.resize(person.mask.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
+    return PersonMask(mask, (round(x * scale), round(y * scale), size[0], size[1]),
+                      (person.centroid[0] * scale, person.centroid[1] * scale), int(mask.sum()))
+
+
+def drawn_at(poses: list[tuple[TrackedPose, np.ndarray, np.ndarray]]) -> list[TrackedPose]:
+    """Each (pose, smoothed (55,), smoothed root (3,) metres) as the pose with filtered =
+    smoothed and its joints drawn from it at that root, all in one forward-kinematics call
+    (the fixed-lag and the whole-track smoothed outputs, tracker.run)."""
+    if not poses:
+        return []
+    vectors = np.array([vector for _, vector, _ in poses])
+    roots = np.array([root for _, _, root in poses])
+    joints = pose_joints_m(vectors, root_position_m=roots)
+    return [replace(pose, filtered=vector, joints_m=j)
+            for (pose, _, _), vector, j in zip(poses, vectors, joints)]

@@ -1,0 +1,506 @@
+"""Front/back hypotheses carried over time: which of the regressor's poses is the true one.
+
+A silhouette cannot tell a body from its reflection in depth (sequences.pose_vector.
+front_back_flip: heading h -> 180 - h, left and right exchanged). So each frame the regressor
+proposes K hypotheses (:func:`propose`): its pose and that pose's flip, or, for a mixture of
+experts, each expert's pose and its flip (regressor.estimator.PoseEstimator.hypotheses). The
+tracker keeps a discrete state per track, s_t in {0..K-1}: which hypothesis of frame t is the
+truth, in a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter bank):
+
+    alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
+
+- A: the switching probabilities: the state switches only where the regressor's flips do
+  (SWITCH_PROBABILITY, learned by scripts/learn_hypothesis_priors.py).
+- N(...): the innovation likelihood of hypothesis j under the filter of the predecessor i
+  (PoseKalmanFilter.log_likelihoods, 54 angles). Filter j continues the best predecessor's
+  filter, updated with hypothesis j: a regressor flip is explained by switching state, not by a
+  jump of the body.
+- e_t(j): the evidence the frame itself gives: the regressor's (its (cos, sin) norm, as a
+  likelihood ratio from RAW_NEARER_BY_NORM; for canonical pairs the side classifier's).
+- Consecutive frames' evidence is correlated (stacked descriptors share frames), so it is
+  tempered by an exponent per frame (EVIDENCE_WEIGHT, CANONICAL_EVIDENCE_WEIGHT).
+
+Canonical hypotheses (a model with limb networks and a side classifier, as the shipped one):
+the two states are the limb networks' canonical member and its flip, whole
+(:func:`canonical_hypotheses`); the evidence for a member is the side classifier's probability
+calibrated on validation renders and the main head's side (the model file's
+regressor.canonical_priors; the CANONICAL_* constants for a file without them).
+
+Online the chosen pose is the most probable state's filtered pose; the runner-up and its
+probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
+picks one hypothesis per frame and the Rauch-Tung-Striebel smoother runs over them.
+
+Limbs (``limb_filter_factory``, the tracker's default): the chain decides the heading; the
+output's 53 body angles come from one more filter over the limb networks' member whose heading
+is nearer the decided one (pick_member; offline, tracker.member_path's chain of members), with
+only the white part of the regressor's error as measurement noise
+(tracker.pipeline.LIMB_R_SCALE).
+
+How each piece and constant was chosen, and what was tried and not adopted:
+docs/tuning.md, "tracker/hypotheses.py".
+"""
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from regressor.angles import heading_norm
+from regressor.canonical_priors import CanonicalPriors
+from regressor.estimator import PoseEstimates, PoseEstimator
+from regressor.pose_model import DEFAULT_TRAINING_FPS
+from regressor.stacking import stack_frames
+from sequences.pose_vector import front_back_flip, heading_deg
+from tracker.tracks.member_path import members_over_time
+from tracker.tracks.mirror_limbs import mirror_mean, sees_mirror
+
+#: P(the raw pose is nearer the truth than its flip | raw heading norm in
+#: [RAW_NEARER_NORM_EDGES[b], next edge)), and overall; learned on validation renders by
+#: scripts/learn_hypothesis_priors.py ("nearer": smaller mean absolute error, 54 angles).
+RAW_NEARER_NORM_EDGES = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
+RAW_NEARER_BY_NORM = (0.672, 0.617, 0.646, 0.703, 0.744, 0.688)
+RAW_NEARER_OVERALL = 0.681
+#: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps: the regressor's flips, same data.
+SWITCH_PROBABILITY = (0.117, 0.248)
+#: Exponent per frame of the regressor's evidence (log likelihoods are multiplied by it):
+#: consecutive frames' evidence is correlated.
+EVIDENCE_WEIGHT = 1.0
+CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
+
+#: The canonical chain's priors (module docstring) for a model file without its own
+#: (PoseModel.canonical_priors), learned on the 28 validation renders for the shipped model's
+#: networks. (P(canonical -> flip), P(flip -> canonical)) per frame: how often the truer
+#: member changes (only where the member's rule does, mostly in profile).
+CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
+#: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
+#: the member's every frame, scores a few nats below it and weaker evidence never catches up.
+CANONICAL_EVIDENCE_WEIGHT = 2.0
+#: P(the canonical member is the true one | the side classifier's probability for it in
+#: [CANONICAL_FRONT_EDGES[b], next edge)), and overall: the classifier is over-confident on
+#: video-like renders, so its probability is calibrated by this table.
+CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
+CANONICAL_BY_FRONT = (0.407, 0.634, 0.608, 0.633, 0.654, 0.797)
+CANONICAL_OVERALL = 0.624
+DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
+    switch=CANONICAL_SWITCH_PROBABILITY, front_edges=CANONICAL_FRONT_EDGES,
+    by_front=CANONICAL_BY_FRONT, overall=CANONICAL_OVERALL)
+#: Experts asked of a mixture model's hypotheses (2 states each: pose and flip): the
+#: other experts' poses added wrong headings more often than right ones.
+DEFAULT_EXPERTS = 1
+_FLOOR = 1e-3                            # no evidence is ever certain
+
+
+@dataclass
+class Hypotheses:
+    """One frame's candidate poses: poses (K, 55); log_evidence (K,) the regressor's evidence
+    for each (log likelihood ratios); raw (55,) the regressor's own (first) pose; limbs (55,)
+    the model's limb head's pose (a canonical member, module docstring "Limbs") or None;
+    canonical: the poses are that member and its flip (:func:`canonical_hypotheses`); front:
+    then the side classifier's probability that the body faces the camera's half."""
+
+    poses: np.ndarray
+    log_evidence: np.ndarray
+    raw: np.ndarray
+    limbs: np.ndarray | None = None
+    canonical: bool = False
+    front: float | None = None
+
+
+def pick_member(limbs: np.ndarray, heading_deg) -> np.ndarray:
+    """Of each canonical pose (55,) or (T, 55) and its front/back flip, the one whose heading
+    is nearer heading_deg (scalar or (T,), degrees); same shape as limbs."""
+    limbs = np.asarray(limbs, dtype=np.float64)
+    h = np.radians(np.asarray(heading_deg, dtype=np.float64))
+    keep = member_on_side(limbs, np.stack([np.cos(h), np.sin(h)], axis=-1))
+    return np.where(np.asarray(keep)[..., None], limbs, front_back_flip(limbs))
+
+
+def member_on_side(members: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Whether each pose (..., 55), not its front/back flip, has the heading nearer the
+    direction (..., 2) (cos, sin): bool (...). Nearer = larger cosine with the direction
+    (norms do not matter)."""
+    members = np.asarray(members, dtype=np.float64)
+    direction = np.asarray(direction, dtype=np.float64)
+    return ((members[..., :2] * direction).sum(-1)
+            >= (front_back_flip(members)[..., :2] * direction).sum(-1))
+
+
+def raw_probability(norm) -> np.ndarray:
+    """P(the raw pose, not its flip, is the true view | raw heading norm(s)), from
+    RAW_NEARER_BY_NORM (norms beyond the last edge use the last bin)."""
+    return _table(RAW_NEARER_NORM_EDGES, RAW_NEARER_BY_NORM, norm)
+
+
+def deaveraged_heading(poses: np.ndarray) -> np.ndarray:
+    """Poses (m, 55) with the heading the regressor was averaging towards. Where it could not
+    tell a view from its flip it outputs about p (cos h, sin h) + (1 - p) (-cos h, sin h): sin h
+    is kept and cos h shrinks, so the heading is pulled towards +-90 and the norm drops. Each
+    hypothesis's heading takes |cos| = sqrt(1 - sin^2) back in proportion to the lost norm
+    (n >= 1 keeps the pose as it is; the norm itself, the ambiguity measure, is kept). On the
+    validation spirals this lowers the heading RMS of the better of (raw, flip) from 30-45 to
+    19-35 degrees."""
+    out = np.array(poses, dtype=np.float64, copy=True)
+    c, s = out[:, 0], out[:, 1]
+    n = np.hypot(c, s)
+    w = np.clip(n, 0.0, 1.0)
+    s_unit = s / np.maximum(n, 1.0)
+    c_unit = np.where(c < 0, -1.0, 1.0) * np.sqrt(np.maximum(0.0, 1.0 - s_unit ** 2))
+    h = np.arctan2(w * s + (1 - w) * s_unit, w * c + (1 - w) * c_unit)
+    out[:, 0], out[:, 1] = n * np.cos(h), n * np.sin(h)
+    return out
+
+
+def _with_flips(poses: np.ndarray, gate: np.ndarray, limbs: np.ndarray | None = None
+                ) -> Hypotheses:
+    """Each pose (m, 55) with gate probability (m,) -> 2m hypotheses (pose, flip, pose, ...),
+    headings de-averaged (deaveraged_heading); raw stays the regressor's first pose; limbs
+    (55,) the limb head's pose or None, passed on."""
+    raw = poses[0]
+    poses = deaveraged_heading(poses)
+    p_raw = raw_probability(heading_norm(poses))
+    ratio = np.stack([p_raw / RAW_NEARER_OVERALL, (1 - p_raw) / (1 - RAW_NEARER_OVERALL)], 1)
+    both = np.stack([poses, front_back_flip(poses)], axis=1).reshape(-1, poses.shape[-1])
+    evidence = np.log(np.maximum(gate, _FLOOR))[:, None] + np.log(ratio)
+    return Hypotheses(both, evidence.reshape(-1), raw, limbs)
+
+
+def bin_index(edges, x) -> np.ndarray:
+    """The bin b of each x with edges[b] <= x < edges[b + 1] (beyond the last edge: the last
+    bin; below the first: the first), as the tables above are binned."""
+    b = np.searchsorted(edges, np.asarray(x, float), side="right") - 1
+    return np.clip(b, 0, len(edges) - 1)
+
+
+def _table(edges, values, x) -> np.ndarray:
+    """values[bin_index(edges, x)] (one value per edge), clipped away from 0 and 1."""
+    return np.clip(np.asarray(values)[bin_index(edges, x)], _FLOOR, 1.0 - _FLOOR)
+
+
+def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
+                         priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
+    """The two hypotheses of a model with limbs and a side classifier: the limbs' canonical
+    member (55,) and its front/back flip, whole (heading and body angles). Evidence (log
+    likelihood ratios): the side classifier's probability front that the body faces the
+    camera's half, calibrated by priors.by_front; priors: the model's
+    (:func:`canonical_priors`). raw (55,): the main head's pose, whose heading norm says how
+    ambiguous the frame is."""
+    limbs = np.asarray(limbs, dtype=np.float64)
+    pair = np.stack([limbs, front_back_flip(limbs)])
+    # The member commits to one body, so its (cos, sin) norm is ~1 even where the silhouette
+    # is ambiguous; the main head's norm says how ambiguous it is, and the filters (their R
+    # inflation) and the outputs (the ambiguous flag) read it from the pose.
+    norm = heading_norm(raw)
+    unit = pair[:, :2] / np.maximum(np.linalg.norm(pair[:, :2], axis=1, keepdims=True), 1e-9)
+    pair[:, :2] = unit * norm
+    q = _table(priors.front_edges, priors.by_front, member_probability(pair[0], front))
+    evidence = np.log([q / priors.overall, (1 - q) / (1 - priors.overall)])
+    return Hypotheses(pair, evidence, np.asarray(raw, dtype=np.float64), limbs, canonical=True,
+                      front=float(front))
+
+
+def member_probability(members: np.ndarray, front) -> np.ndarray:
+    """The side classifier's probability for each canonical member (..., 55) itself, from
+    its probability front (...) that the body faces the camera's half: front where the
+    member faces that half (cos >= 0), 1 - front elsewhere."""
+    front = np.asarray(front, dtype=np.float64)
+    return np.where(np.asarray(members)[..., 0] >= 0, front, 1.0 - front)
+
+
+def canonical_priors(estimator: PoseEstimator) -> CanonicalPriors:
+    """The priors the chain weighs an estimator's canonical pairs by: its own
+    (PoseModel.canonical_priors) when it carries them, else DEFAULT_CANONICAL_PRIORS."""
+    return estimator.canonical_priors or DEFAULT_CANONICAL_PRIORS
+
+
+def switch_probability(estimator: PoseEstimator) -> tuple[float, float]:
+    """The chain's switching probabilities for this estimator's hypotheses: canonical ones
+    (a model with limbs and a side classifier; its priors' switch) switch far less often
+    than a pose and its flip."""
+    if estimator.gives_canonical_pairs:
+        return canonical_priors(estimator).switch
+    return SWITCH_PROBABILITY
+
+
+def evidence_weight(estimator: PoseEstimator) -> float:
+    """The chain's exponent per frame on this estimator's evidence: CANONICAL_EVIDENCE_WEIGHT
+    for canonical pairs (a model with limbs and a side classifier), else EVIDENCE_WEIGHT."""
+    if estimator.gives_canonical_pairs:
+        return CANONICAL_EVIDENCE_WEIGHT
+    return EVIDENCE_WEIGHT
+
+
+def chain_options(estimator: PoseEstimator) -> dict:
+    """FrontBackTracker's keyword arguments that depend on the estimator: its switch rates
+    (switch_probability), evidence weight (evidence_weight) and the frame rate they hold at
+    (its training_fps). The tracker's chains and the
+    offline replays that choose their weights both take them from here."""
+    return {"switch": switch_probability(estimator),
+            "evidence_weight": evidence_weight(estimator),
+            "reference_fps": estimator.training_fps}
+
+
+def propose(estimator: PoseEstimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
+            mirrored: np.ndarray | None = None) -> Hypotheses:
+    """The hypotheses of one frame from a stacked descriptor (k*D,): :func:`propose_batch`
+    of one row. mirrored: the stacked descriptor (k*D,) of the frames' mirror images
+    (tracker.mirror_limbs); its limbs are averaged into the frame's."""
+    return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts,
+                         None if mirrored is None else np.asarray(mirrored, float)[None])[0]
+
+
+def propose_batch(estimator: PoseEstimator, stacked: np.ndarray,
+                  n_experts: int = DEFAULT_EXPERTS, mirrored: np.ndarray | None = None
+                  ) -> list[Hypotheses]:
+    """The hypotheses of stacked descriptors (N, k*D) (one per row): the estimator's
+    :meth:`~regressor.estimator.PoseEstimator.hypotheses` with n_experts experts, turned into
+    front/back hypotheses by :func:`hypotheses_from`. mirrored (N, k*D) or None: the mirror
+    images' stacked descriptors (tracker.mirror_limbs)."""
+    estimates = estimator.hypotheses(stacked, n_experts, mirrored=mirrored, novelty=False)
+    return hypotheses_from(estimates, canonical_priors(estimator))
+
+
+def hypotheses_from(estimates: PoseEstimates,
+                    priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> list[Hypotheses]:
+    """Each row's front/back hypotheses from a model's answer (regressor.estimator
+    .PoseEstimates): with limbs and the side classifier's front probability, the limbs'
+    member and its flip (:func:`canonical_hypotheses`, weighed by priors); else each expert's
+    pose and its flip (:func:`_with_flips`), carrying the limbs. The limbs are first averaged
+    with the mirror images' when the answer has those (tracker.mirror_limbs.mirror_mean)."""
+    poses, gate, limbs = estimates.poses, estimates.probabilities, estimates.limbs
+    if limbs is not None and estimates.mirror_limbs is not None:
+        limbs = mirror_mean(limbs, estimates.mirror_limbs)
+    if estimates.front is not None and limbs is not None:
+        return [canonical_hypotheses(p[0], lb, f, priors)
+                for p, lb, f in zip(poses, limbs, estimates.front)]
+    if limbs is None:
+        limbs = [None] * len(poses)
+    return [_with_flips(np.asarray(p, float), np.asarray(g, float), lb)
+            for p, g, lb in zip(poses, gate, limbs)]
+
+
+def propose_sequence(estimator: PoseEstimator, masks, n_experts: int = DEFAULT_EXPERTS,
+                     mirror: bool = True, step: int = 1) -> list[Hypotheses]:
+    """The hypotheses of one person's silhouette sequence (masks (H, W) bool, in order), as
+    the tracker makes them frame by frame: each mask described (with its mirror image's
+    descriptor too when tracker.mirror_limbs.sees_mirror(estimator, mirror)), stacked with
+    ``step`` frames between stacked descriptors (regressor.stacking.stack_step of the
+    sequence's frame rate), and :func:`propose_batch` (offline evaluation and the learning
+    of priors)."""
+    k = estimator.stack_depth
+    if sees_mirror(estimator, mirror):
+        pairs = [estimator.describe_with_mirror(m) for m in masks]
+        X, M = (np.array([p[i] for p in pairs]) for i in (0, 1))
+        return propose_batch(estimator, stack_frames(X, k, step=step), n_experts,
+                             stack_frames(M, k, step=step))
+    X = np.array([estimator.describe(m) for m in masks])
+    return propose_batch(estimator, stack_frames(X, k, step=step), n_experts)
+
+
+def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
+    """A (K, K): states are (expert slot i, flipped f) as k = 2 i + f. The flip part is
+    learned (switch = (P(raw -> flip), P(flip -> raw))); the slot part is uniform, since a
+    mixture's experts are listed by gate probability, not by identity."""
+    a, b = switch
+    flip = np.array([[1 - a, a], [b, 1 - b]])
+    m = K // 2
+    return np.kron(np.full((m, m), 1.0 / m), flip)
+
+
+@dataclass
+class Decision:
+    """The tracker's output for one frame: filtered (55,) pose of the most probable state,
+    ambiguous flag (its filter's), state index and probability; the runner-up's filtered pose
+    (55,) and probability when that is at least CLOSE_PROBABILITY, else None."""
+
+    filtered: np.ndarray
+    ambiguous: bool
+    state: int
+    probability: float
+    runner_up: np.ndarray | None = None
+    runner_up_probability: float | None = None
+
+
+@dataclass
+class _Frame:
+    poses: np.ndarray            # (K, 55)
+    evidence: np.ndarray         # (K,) log
+    link: np.ndarray | None      # (K, K) log A + innovation log-likelihoods, None at t = 0
+    raw: np.ndarray              # (55,) the regressor's own pose (limb input without a head)
+    limbs: np.ndarray | None     # (55,) the limb head's pose (before picking), or None
+
+
+@dataclass
+class FrontBackTracker:
+    """Per-track front/back (and expert) hypotheses over time (see the module docstring).
+
+    filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; its ``log_likelihoods``
+    is used when it has one, else hypotheses are scored by their evidence only); fps: frames
+    per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; evidence_weight: the
+    exponent per frame of the regressor's evidence. These per-frame figures hold at reference_fps (the rate of the sequences they
+    were learned and chosen on, the model's training rate): at another fps the chain keeps
+    them per second instead (:meth:`frame_rate_ratio`), so a 120 fps video's four frames
+    count as one 30 fps frame did, not four times its evidence. keep_history: keep every
+    frame's hypotheses for viterbi_path/smoothed (memory grows with the track; off when
+    nothing needs smoothing); limb_filter_factory: fps -> a pose filter for the output's body
+    angles, stepped on each frame's raw pose, or on its limb head's member that agrees with
+    the decided heading (module docstring, "Limbs"); None: the chosen state's body angles.
+    """
+
+    filter_factory: Callable[[float], object]
+    fps: float
+    switch: tuple[float, float] = SWITCH_PROBABILITY
+    evidence_weight: float = EVIDENCE_WEIGHT
+    reference_fps: float = DEFAULT_TRAINING_FPS
+    keep_history: bool = True
+    limb_filter_factory: Callable[[float], object] | None = None
+    filters: list = field(default_factory=list)
+    limb_filter: object | None = None
+    log_alpha: np.ndarray | None = None
+    history: list[_Frame] = field(default_factory=list)
+    _log_A: tuple | None = field(default=None, repr=False)
+
+    def step(self, hypotheses: Hypotheses) -> Decision:
+        """Take one frame's hypotheses; returns the decision."""
+        poses = hypotheses.poses
+        K = len(poses)
+        rate = self.frame_rate_ratio
+        evidence = rate * self.evidence_weight * hypotheses.log_evidence
+        log_A = self._log_transitions(K)
+        if self.log_alpha is None or len(self.filters) != K:
+            self.filters = [self.filter_factory(self.fps) for _ in range(K)]
+            stationary = np.linalg.matrix_power(np.exp(log_A), 256)[0]
+            self.log_alpha, link = np.log(stationary) + evidence, None
+        else:
+            ll = np.array([f.log_likelihoods(poses) if hasattr(f, "log_likelihoods")
+                           else np.zeros(K)
+                           for f in self.filters])
+            link = log_A + rate * ll
+            scores = self.log_alpha[:, None] + link
+            self.filters = self._continue(scores.argmax(axis=0))
+            self.log_alpha = _logsumexp(scores, axis=0) + evidence
+        self.log_alpha -= _logsumexp(self.log_alpha)
+        if self.keep_history:
+            self.history.append(_Frame(np.array(poses, dtype=np.float64), evidence, link,
+                                       np.array(hypotheses.raw, dtype=np.float64),
+                                       None if hypotheses.limbs is None
+                                       else np.array(hypotheses.limbs, dtype=np.float64)))
+        outputs = [f.step(pose) for f, pose in zip(self.filters, poses)]
+        prob = np.exp(self.log_alpha)
+        order = np.argsort(-prob)
+        best = int(order[0])
+        filtered = outputs[best][0]
+        if self.limb_filter_factory is not None:
+            if self.limb_filter is None:
+                self.limb_filter = self.limb_filter_factory(self.fps)
+            source = (hypotheses.raw if hypotheses.limbs is None
+                      else pick_member(hypotheses.limbs, heading_deg(filtered[None])[0]))
+            # The limb filter measures the decided heading, not the source's: its R couples
+            # heading and joints, and a heading innovation would pull the limbs.
+            source = with_body_angles(filtered, source)
+            filtered = with_body_angles(filtered, self.limb_filter.step(source)[0])
+        decision = Decision(filtered, bool(outputs[best][1]), best, float(prob[best]))
+        if K > 1 and prob[order[1]] >= CLOSE_PROBABILITY:
+            decision.runner_up = outputs[order[1]][0]
+            decision.runner_up_probability = float(prob[order[1]])
+        return decision
+
+    @property
+    def frame_rate_ratio(self) -> float:
+        """reference_fps / fps: the share of a reference frame one of this video's frames is
+        (0.25 at 120 fps for a 30 fps reference); evidence and the filters'
+        likelihoods are tempered by it (exponents), and the switch probabilities are those
+        of that share of a frame (:meth:`frame_switch`). 1 at the reference rate."""
+        return self.reference_fps / self.fps
+
+    @property
+    def frame_switch(self) -> tuple[float, float]:
+        """The switch probabilities per frame of this video: 1 - (1 - p)^ratio of the
+        reference frame's p, the same chance of switching per second."""
+        rate = self.frame_rate_ratio
+        if rate == 1.0:
+            return tuple(self.switch)
+        return tuple(float(-np.expm1(rate * np.log1p(-p))) for p in self.switch)
+
+    def _log_transitions(self, K: int) -> np.ndarray:
+        """log A (K, K) for the current switch probabilities, computed once."""
+        key = (K, tuple(self.switch), self.fps, self.reference_fps)
+        if self._log_A is None or self._log_A[0] != key:
+            self._log_A = (key, np.log(transition_matrix(K, self.frame_switch)))
+        return self._log_A[1]
+
+    def _continue(self, predecessor: np.ndarray) -> list:
+        """Filters for the new states: state j continues predecessor[j]'s filter (a copy when
+        two states continue the same one; copies are made before any filter steps)."""
+        used, out = set(), []
+        for i in predecessor:
+            f = self.filters[int(i)]
+            out.append(_clone(f) if int(i) in used else f)
+            used.add(int(i))
+        return out
+
+    def viterbi_path(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """The most probable state sequence (n,) int over the frames so far, or over
+        history[start:stop] alone (its first frame taken as a track's first)."""
+        frames = self.history[start:stop]
+        if not frames:
+            return np.zeros(0, dtype=np.int64)
+        first = frames[0]
+        K = len(first.poses)
+        log_A = self._log_transitions(K)
+        delta = np.log(np.linalg.matrix_power(np.exp(log_A), 256)[0]) + first.evidence
+        back = []
+        for frame in frames[1:]:
+            scores = delta[:, None] + frame.link
+            back.append(scores.argmax(axis=0))
+            delta = scores.max(axis=0) + frame.evidence
+        path = [int(delta.argmax())]
+        for pointers in reversed(back):
+            path.append(int(pointers[path[-1]]))
+        return np.array(path[::-1], dtype=np.int64)
+
+    def chosen_poses(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """The hypotheses (n, 55) on the Viterbi path of history[start:stop] (the smoother's
+        input)."""
+        frames = self.history[start:stop]
+        path = self.viterbi_path(start, stop)
+        return np.array([frame.poses[s] for frame, s in zip(frames, path)])
+
+    def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``): of the
+        whole track, or of history[start:stop] as if the track were those frames alone (the
+        fixed-lag smoothing of tracker.fixed_lag). With a limb_filter_factory, the body angles
+        are its RTS smoothing of the raw poses (of the limb head's members on their most
+        probable chain given the smoothed heading when every frame has them, as a model's
+        frames all do: tracker.member_path), with the smoothed heading as theirs."""
+        frames = self.history[start:stop]
+        out = self.filter_factory(self.fps).rts_smooth(self.chosen_poses(start, stop))
+        if self.limb_filter_factory is not None and len(out):
+            raws = np.array([frame.raw for frame in frames])
+            if all(frame.limbs is not None for frame in frames):
+                raws = members_over_time(np.array([frame.limbs for frame in frames]),
+                                         heading_deg(out), self.frame_rate_ratio)
+            raws = with_body_angles(out, raws)          # the decided heading, as online
+            out = with_body_angles(out, self.limb_filter_factory(self.fps).rts_smooth(raws))
+        return out
+
+
+def with_body_angles(pose: np.ndarray, limbs: np.ndarray) -> np.ndarray:
+    """pose (..., 55) with its 53 body angles (entries 2..54) taken from limbs (..., 55); the
+    heading (cos, sin) is pose's."""
+    out = np.array(pose, dtype=np.float64, copy=True)
+    out[..., 2:] = np.asarray(limbs)[..., 2:]
+    return out
+
+
+def _clone(f):
+    """An independent copy of a filter: its own ``copy()`` when it has one (PoseKalmanFilter's
+    copies two arrays), else a deep copy."""
+    return f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
+
+
+def _logsumexp(x: np.ndarray, axis=None) -> np.ndarray:
+    top = np.max(x, axis=axis, keepdims=True)
+    out = top + np.log(np.exp(x - top).sum(axis=axis, keepdims=True))
+    return out.squeeze(axis) if axis is not None else out.reshape(())

@@ -1,0 +1,93 @@
+"""Each track's root (hip) path smoothed over the whole track, for the smoothed outputs.
+
+The root is not measured in 3-D: each frame's is placed from the silhouette's box alone
+(tracker.outputs.geometry.ground_position_from_image), so it jitters with the box as the limbs
+move. The smoothed outputs (JSON, BVH, the MCAP's /smoothed topics) draw their bodies at the
+root smoothed here: a straight line fitted with Gaussian weights about each pose's time (a
+local linear smoother, zero phase: no lag, no pull at the track's ends or beside a gap); with
+``--lag`` the streamed outputs use the same path smoothed over their window
+(tracker.tracks.fixed_lag). ROOT_SMOOTHING_S: docs/tuning.md.
+"""
+from __future__ import annotations
+
+from array import array
+
+import numpy as np
+
+#: Standard deviation of the Gaussian over time, seconds (module docstring).
+ROOT_SMOOTHING_S = 0.2
+_REACH_SIGMAS = 4.0        # the Gaussian is cut beyond this many standard deviations
+
+
+def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTHING_S,
+                   frames: np.ndarray | None = None) -> np.ndarray:
+    """roots_m (T, 3) metres, one track's root per pose in time order at fps frames per
+    second, smoothed over the video's time with Gaussian weights of sigma_s seconds (0:
+    unchanged): frames (T,) are the poses' frame indices (None: one pose per frame), so the
+    poses beyond a gap (frames where the person was missed) weigh as far as they are. Each
+    root is the value at its time of a straight line fitted by those weights to the roots
+    within 4 sigma (a local linear smoother): in the middle of a track the Gaussian's mean,
+    at its ends and beside a gap no pull towards the side that has poses (a walker's root is
+    not held back there). Returns (T, 3) metres."""
+    roots = np.asarray(roots_m, dtype=np.float64)
+    if roots.ndim != 2 or roots.shape[1] != 3:
+        raise ValueError(f"roots must be (T, 3), got {roots.shape}")
+    if not (np.isfinite(fps) and fps > 0 and np.isfinite(sigma_s) and sigma_s >= 0):
+        raise ValueError(f"fps={fps} must be > 0 and sigma_s={sigma_s} >= 0")
+    count = len(roots)
+    times = (np.arange(count, dtype=np.float64) if frames is None
+             else np.asarray(frames, dtype=np.float64))
+    if times.shape != (count,) or np.any(np.diff(times) <= 0):
+        raise ValueError(f"frames must be ({count},) and increasing")
+    if sigma_s == 0 or count < 2:
+        return roots.copy()
+    sigma = sigma_s * fps                               # frames
+    reach = _REACH_SIGMAS * sigma
+    # Weighted sums for each pose's fit: of w, w d, w d^2, w y, w d y (d: time from it).
+    s0, s1, s2 = np.zeros(count), np.zeros(count), np.zeros(count)
+    t0, t1 = np.zeros_like(roots), np.zeros_like(roots)
+    # Neighbours within reach in time are within reach in pose order (a gap only removes
+    # some): one vectorised pass per offset in pose order.
+    for offset in range(-int(reach), int(reach) + 1):
+        lo, hi = max(0, -offset), min(count, count - offset)
+        if lo >= hi:
+            continue
+        d = times[lo + offset:hi + offset] - times[lo:hi]
+        w = np.exp(-0.5 * (d / sigma) ** 2) * (np.abs(d) <= reach)
+        y = roots[lo + offset:hi + offset]
+        s0[lo:hi] += w
+        s1[lo:hi] += w * d
+        s2[lo:hi] += w * d * d
+        t0[lo:hi] += w[:, None] * y
+        t1[lo:hi] += (w * d)[:, None] * y
+    det = s0 * s2 - s1 * s1
+    mean = t0 / s0[:, None]
+    # A lone pose (no neighbour within reach) has no line: its mean, which is itself.
+    line = det > 1e-9 * s0 * s0
+    out = mean.copy()
+    out[line] = ((s2[line, None] * t0[line] - s1[line, None] * t1[line])
+                 / det[line, None])
+    return out
+
+
+class RootHistory:
+    """Each track's raw roots (metres) and frame indices as they come, 32 bytes a pose."""
+
+    def __init__(self):
+        self._tracks: dict[int, tuple[array, array]] = {}
+
+    def add(self, track_id: int, frame_index: int, root_m) -> None:
+        """Keep a track's next pose's root (3,) metres and frame index."""
+        roots, frames = self._tracks.setdefault(int(track_id), (array("d"), array("q")))
+        roots.extend(float(c) for c in np.asarray(root_m, dtype=np.float64)[:3])
+        frames.append(int(frame_index))
+
+    def get(self, track_id: int, start: int = 0, stop: int | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
+        """Poses start:stop of a track: roots (n, 3) metres and frame indices (n,), copies."""
+        roots, frames = self._tracks[int(track_id)]
+        start, stop, _ = slice(start, stop).indices(len(frames))
+        count = max(0, stop - start)
+        # Only the slice is copied: a long track's history is read a block at a time.
+        return (np.frombuffer(roots, np.float64, 3 * count, 24 * start).reshape(-1, 3).copy(),
+                np.frombuffer(frames, np.int64, count, 8 * start).copy())

@@ -1,0 +1,626 @@
+"""Video decoding: a file becomes a stream of (index, time, BGR frame) with checked metadata.
+
+Every failure to read a file is a :class:`VideoError` whose one-line message names the file.
+A damaged frame inside a stream is skipped (its index is not yielded) and reading goes on: a
+glitch in one frame of a long video used to end the stream there, losing the rest. A stream
+that stops before the container's announced end (a cut-off file, or a damaged stretch longer
+than :data:`UNREADABLE_RUN_S`) does not raise: it ends cleanly with what was decoded. Either
+emits a :class:`VideoTruncatedWarning` saying which frames were lost. The indices stay right
+where the decoder reports each damaged frame as a failed read (MP4); where FFmpeg drops
+damaged packets without a word (AVI, MPEG-PS) the frames after them come a few indices early,
+and the stream then seems to end short of its announced length.
+
+Times: each frame's ``time_s`` is its own time in the container (its presentation time), so a
+variable frame rate (a phone's, or 30 fps then 10 fps) keeps its real timing; a
+:class:`VideoTimingWarning` says so once. Where the container gives no times, or times that do
+not increase, frames are spaced evenly at the frame rate from there on (also said once); with
+``fps`` stated (``track --fps``) they are spaced evenly throughout.
+
+A file still being written (a recording in progress) is read up to where its data ended when
+reading reached it: a failed read on a file that has grown since it was opened ends the stream
+there, without the last frame decoded before it (the tail of a half-written frame decodes as a
+damaged picture), and a :class:`VideoGrowingWarning` says how far the file grew and how much of
+it was used; also when the stream ends at the length stated when it was opened (MPEG-TS).
+"""
+from __future__ import annotations
+
+import copy
+import math
+import os
+import warnings
+from collections.abc import Iterator
+from pathlib import Path
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+
+from regressor.errors import SilhouettePoseError
+from tracker.video.area_shrink import shrink
+
+MIN_SIDE_PX = 16
+# Longer than any camera or 8K video; beyond this a file is almost certainly damaged metadata.
+MAX_SIDE_PX = 16384
+MAX_FPS = 1000.0
+#: Horizontal field of view (degrees) assumed for a video's camera when its focal length matters
+#: (direction of travel, ground position); a typical phone or webcam lens.
+ASSUMED_FOV_DEG = 60.0
+#: Background samples at most this many frames apart are read by decoding straight through
+#: rather than by seeking (x264's default key-frame interval is 250 frames).
+SEQUENTIAL_SPACING = 250
+#: Undecodable frames in a row after which a stream whose container announces more counts as
+#: ended (cut off), in seconds of video; at least UNREADABLE_RUN_MIN frames. Shorter runs are
+#: damaged frames, skipped. Reads past a file's real end fail at once, so waiting costs little.
+UNREADABLE_RUN_S = 2.0
+UNREADABLE_RUN_MIN = 30
+#: Frame intervals further than this fraction from 1/fps make a video's timing irregular
+#: (a variable frame rate, said once); a container's millisecond rounding (33 or 34 ms at
+#: 30 fps) stays well inside.
+IRREGULAR_INTERVAL = 0.25
+
+
+def focal_length_px(frame_width_px: int, fov_deg: float = ASSUMED_FOV_DEG) -> float:
+    """Pinhole focal length in pixels of a camera with this horizontal field of view:
+    f = (W / 2) / tan(fov / 2)."""
+    return 0.5 * frame_width_px / math.tan(math.radians(fov_deg) / 2.0)
+
+
+def colourless(image: np.ndarray, max_chroma_std: float = 1.5) -> bool:
+    """True when a BGR uint8 (H, W, 3) image carries no colour: a grayscale video (decoded to
+    three equal channels) or a black-and-white one stored in colour (at most a constant tint).
+    Measured by the spread over the image of its chroma (standard deviations of Cr and Cb,
+    levels): 0.0 on such videos, 10-19 on the sample and the Pose2Sim views."""
+    chroma = cv2.cvtColor(image, cv2.COLOR_BGR2YCrCb)[..., 1:].reshape(-1, 2)
+    return bool(np.all(chroma.std(axis=0) < max_chroma_std))
+
+
+class VideoError(SilhouettePoseError, ValueError):
+    """A video file that cannot be used; the message is one line and names the file."""
+
+
+class VideoTruncatedWarning(UserWarning):
+    """Decoding stopped before the end the container announced (corrupt or cut-off file)."""
+
+
+class VideoTimingWarning(UserWarning):
+    """The frames are not evenly spaced in time (a variable frame rate), or the container gives
+    no usable frame times (evenly spaced ones are assumed)."""
+
+
+class VideoGrowingWarning(UserWarning):
+    """The file grew (or changed) while it was read: a recording still being written."""
+
+
+def _mp4_top_level_boxes(path: Path) -> dict[bytes, int] | None:
+    """Top-level ISO-BMFF boxes of ``path`` as {type: payload size}, or None if not an MP4/MOV.
+
+    Reads only the 8-16 byte box headers (seeking past payloads), so it is cheap on large files.
+    Used only to explain why OpenCV refused a file.
+    """
+    boxes: dict[bytes, int] = {}
+    size_total = path.stat().st_size
+    with path.open("rb") as f:
+        offset = 0
+        while offset + 8 <= size_total:
+            f.seek(offset)
+            header = f.read(16)
+            size = int.from_bytes(header[:4], "big")
+            kind = header[4:8]
+            header_len = 8
+            if size == 1 and len(header) == 16:
+                size, header_len = int.from_bytes(header[8:16], "big"), 16
+            elif size == 0:  # box runs to the end of the file
+                size = size_total - offset
+            if offset == 0 and kind != b"ftyp":
+                return None
+            if size < header_len:
+                break
+            boxes[kind] = boxes.get(kind, 0) + min(size, size_total - offset) - header_len
+            offset += size
+    return boxes
+
+
+def _why_unopenable(path: Path) -> str:
+    """One-line reason OpenCV could not open an existing file."""
+    if path.stat().st_size == 0:
+        return "is empty (0 bytes)"
+    boxes = _mp4_top_level_boxes(path)
+    if boxes is None:
+        return "is not a video OpenCV can decode (unknown format or not a video file)"
+    if b"moov" not in boxes:
+        return "is a truncated MP4: its index ('moov' box) is missing (file cut off?)"
+    if boxes.get(b"mdat", 0) == 0:
+        return "contains no video frames"
+    return "is an MP4 OpenCV cannot decode (no supported video stream)"
+
+
+class VideoFrame(NamedTuple):
+    """One decoded frame: ``index`` from 0 at the file's start, ``time_s`` its time in the video
+    (seconds: the container's time for it, else index / fps; see the module docstring),
+    ``image`` BGR uint8 (H, W, 3)."""
+
+    index: int
+    time_s: float
+    image: np.ndarray
+
+
+class FrameTimes:
+    """Each frame's time, seconds: the container's (``CAP_PROP_POS_MSEC`` after a read) while it
+    gives times that increase, else the last good time plus (index - its index) / fps.
+    ``problem`` says why the container's times were given up (None while they are used);
+    ``intervals`` is (shortest, longest) seconds per frame seen so far."""
+
+    def __init__(self, fps: float, from_container: bool = True):
+        self.fps = float(fps)
+        self.from_container = from_container
+        self.problem: str | None = None
+        self.last: tuple[int, float] | None = None          # (index, time_s) of the last frame
+        self.intervals = (math.inf, 0.0)
+
+    def __call__(self, index: int, container_ms: float) -> float:
+        """The time of frame ``index``, whose container time is ``container_ms``."""
+        time_s = container_ms / 1000.0
+        # After a seek, a container without times reports 0 ms for a frame past the first.
+        unset = self.last is None and index > 0 and time_s <= 0.0
+        if self.from_container and (unset or not (math.isfinite(time_s) and time_s >= 0.0 and (
+                self.last is None or time_s > self.last[1]))):
+            self.from_container = False
+            self.problem = ("gives no frame times" if self.last is None else
+                            f"gives frame {index} a time not after frame {self.last[0]}'s")
+        if not self.from_container:
+            last_index, last_time = self.last or (0, 0.0)
+            time_s = last_time + (index - last_index) / self.fps
+        if self.last is not None:
+            step = (time_s - self.last[1]) / (index - self.last[0])
+            self.intervals = (min(self.intervals[0], step), max(self.intervals[1], step))
+        self.last = (index, time_s)
+        return time_s
+
+    def irregular(self) -> bool:
+        """Whether some frame interval is more than IRREGULAR_INTERVAL off 1 / fps."""
+        shortest, longest = self.intervals
+        return shortest < (1.0 - IRREGULAR_INTERVAL) / self.fps or \
+            longest > (1.0 + IRREGULAR_INTERVAL) / self.fps
+
+
+def _file_state(path: Path) -> tuple[int, int] | None:
+    """(size in bytes, modification time in ns) of ``path``, to see it change while read; None
+    once it is gone (removed or renamed while read)."""
+    try:
+        stat = os.stat(path)
+    except OSError:
+        return None
+    return stat.st_size, stat.st_mtime_ns
+
+
+def _megabytes(size: int) -> str:
+    return f"{size / 1e6:.1f} MB" if size >= 100_000 else f"{size / 1e3:.0f} KB"
+
+
+class VideoSource:
+    """A checked video file; iterate to get :class:`VideoFrame` (unpacks as index, time_s, frame).
+
+    Attributes: ``path``, ``fps`` (frames/s: the container's, or the one stated), ``frame_count``
+    (frames the container announces for the whole file, None when it does not say; may be
+    approximate: with a variable frame rate it is the duration times ``fps``),
+    ``width``/``height`` (px of the frames yielded, after any downscaling),
+    ``source_width``/``source_height`` (px in the file), ``start_index``/``end_index`` (frame
+    range yielded, end exclusive; end None = until the stream ends), ``start_s``/``end_s``
+    (the time range asked for, seconds, end None: to the end; frames outside it are not
+    yielded, so a variable frame rate's range is by time), ``container_times`` (False: frames
+    evenly spaced at ``fps``, as with a stated rate), ``frames_read`` (frames yielded by the
+    last iteration), ``frames_skipped`` (undecodable frames it skipped inside the stream),
+    ``truncated`` (True when it stopped before ``end_index``), ``grew`` (True when the file
+    grew while it was read) and ``read_until_s`` (the time of the last frame yielded, None
+    before any).
+    Each iteration reopens the file, so a source can be iterated more than once.
+    """
+
+    def __init__(self, path: Path, fps: float, frame_count: int | None,
+                 source_size: tuple[int, int], size: tuple[int, int], start_index: int,
+                 end_index: int | None, end_s: float | None = None,
+                 container_times: bool = True, start_s: float = 0.0):
+        self.path = path
+        self.fps = fps
+        self.frame_count = frame_count
+        self.source_width, self.source_height = source_size
+        self.width, self.height = size
+        self.start_index = start_index
+        self.end_index = end_index
+        self.start_s, self.end_s = start_s, end_s
+        self.container_times = container_times
+        self.frames_read = 0
+        self.frames_skipped = 0
+        self.truncated = False
+        self.grew = False
+        self.read_until_s: float | None = None      # the last frame yielded's time_s
+
+    def expected_frames(self) -> int | None:
+        """Frames this source should yield (``end_index - start_index``), None if unknown."""
+        return None if self.end_index is None else self.end_index - self.start_index
+
+    def __iter__(self) -> Iterator[VideoFrame]:
+        capture = _open_capture(self.path)
+        opened = _file_state(self.path)
+        self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
+        self.read_until_s = None
+        times = FrameTimes(self.fps, self.container_times)
+        first_skipped = None
+        stopped_at = None               # the first of the undecodable frames the stream ends on
+        held = None         # (the last frame decoded, the times before it), yielded after the next
+        give_up = self.unreadable_run()
+        rewound = False
+        try:
+            index = _seek(capture, self.start_index, give_up)
+            end = self._last_index()
+            failed = 0                  # undecodable frames in a row, just before index
+            while index < end:
+                ok, image = capture.read()
+                decoded = ok and image is not None
+                if held is None and not rewound and self._seek_missed(index, decoded, capture):
+                    # Read from the first frame instead: the times decide.
+                    capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+                    index, failed, rewound = 0, 0, True
+                    times = FrameTimes(self.fps, self.container_times)
+                    continue
+                if not decoded:
+                    if _file_state(self.path) != opened:    # the live end: stop there,
+                        if held is not None:                    # the last frame unused
+                            times = held[1]
+                        self.grew, held, failed = True, None, 0
+                        break
+                    failed += 1
+                    index += 1        # a failed read consumes its frame (FFmpeg's backend)
+                    if failed >= give_up:
+                        break
+                    continue
+                before = copy.copy(times)
+                time_s = times(index, capture.get(cv2.CAP_PROP_POS_MSEC))
+                if time_s + 1.0 / self.fps <= self.start_s + 1e-6:
+                    index, failed = index + 1, 0    # a seek by frame number landed early
+                    continue
+                if self.end_s is not None and time_s >= self.end_s - 1e-6:
+                    failed = 0
+                    break
+                if failed:
+                    first_skipped = index - failed if first_skipped is None else first_skipped
+                    self.frames_skipped += failed
+                    failed = 0
+                if held is not None:
+                    yield held[0]
+                    self.frames_read, self.read_until_s = self.frames_read + 1, held[0].time_s
+                held = VideoFrame(index, time_s, self._prepare(image)), before
+                index += 1
+            if held is not None:
+                yield held[0]
+                self.frames_read, self.read_until_s = self.frames_read + 1, held[0].time_s
+            if failed and self._ended_early(times, index - failed):
+                stopped_at = index - failed
+        finally:
+            capture.release()
+        self._report(times, first_skipped, stopped_at, opened)
+
+    def _seek_missed(self, index: int, decoded: bool, capture: cv2.VideoCapture) -> bool:
+        """Whether the first read after seeking to frame ``index`` (the start time at the
+        announced rate) shows that a variable rate's start time is elsewhere, by the
+        container's times: nothing decodes there (the file has fewer frames than announced,
+        or a damaged frame), or the frame read lies over a frame past the start time."""
+        if index == 0 or not self.container_times:
+            return False
+        return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
+            self.start_s + 1.0 / self.fps + 1e-6
+
+    def _last_index(self) -> float:
+        """The index the read loop stops before: end_index, or with an end time and the
+        container's frame times, the whole stream (the end time stops it)."""
+        if self.end_s is not None and self.container_times:
+            return math.inf if self.frame_count is None else self.frame_count
+        return math.inf if self.end_index is None else self.end_index
+
+    def _ended_early(self, times: FrameTimes, stopped_at: int) -> bool:
+        """Whether a stream whose reads failed from frame ``stopped_at`` on stopped before the
+        end announced: its frames' time span short of end_index / fps (or end_s) by more than
+        half a frame; a variable frame rate's stream ends at its time, not its frame count."""
+        if self.end_index is None:
+            return False
+        if times.last is None:
+            return True
+        last_index, last_time = times.last
+        reached = last_time + (stopped_at - last_index) / self.fps
+        announced = self.end_index / self.fps
+        if self.end_s is not None:
+            announced = min(announced, self.end_s)
+        return reached < announced - 0.5 / self.fps
+
+    def _report(self, times: FrameTimes, first_skipped: int | None, stopped_at: int | None,
+                opened: tuple[int, int] | None) -> None:
+        """The one-line warnings about the iteration just finished (see the module docstring)."""
+        name = self.path.name
+        if self.frames_skipped:
+            warnings.warn(f"{name}: skipped {self.frames_skipped} undecodable "
+                          f"frame(s) from frame {first_skipped} on (a damaged file); the "
+                          f"tracks go on over them", VideoTruncatedWarning, stacklevel=3)
+        if stopped_at is not None:
+            self.truncated = True
+            warnings.warn(f"{name}: decoding stopped at frame {stopped_at} of "
+                          f"{self.end_index} (corrupt or cut-off file); using the "
+                          f"{self.frames_read} frames read", VideoTruncatedWarning,
+                          stacklevel=3)
+        if times.problem is not None:
+            warnings.warn(f"{name}: the container {times.problem}; frames from there on are "
+                          f"taken as evenly spaced at {self.fps:g} fps", VideoTimingWarning,
+                          stacklevel=3)
+        elif times.from_container and times.irregular():
+            shortest, longest = times.intervals
+            warnings.warn(f"{name}: variable frame rate (frames {1000 * shortest:.0f} to "
+                          f"{1000 * longest:.0f} ms apart, {self.fps:g} fps announced); each "
+                          f"frame keeps its own time", VideoTimingWarning, stacklevel=3)
+        now = _file_state(self.path)
+        if now != opened or self.grew:
+            self.grew = True
+            used = 0.0 if self.read_until_s is None else self.read_until_s + 1.0 / self.fps
+            tracked = f"the first {used:.1f} s" if self.start_s == 0 else f"up to {used:.1f} s"
+            if now is None or opened is None:
+                warnings.warn(f"{self.path} was removed or replaced while read; tracked "
+                              f"{tracked}", VideoGrowingWarning, stacklevel=3)
+                return
+            change = "grew" if now[0] > opened[0] else "changed"
+            warnings.warn(f"{self.path} is still being written ({change} from "
+                          f"{_megabytes(opened[0])} to {_megabytes(now[0])} while read); "
+                          f"tracked {tracked}", VideoGrowingWarning, stacklevel=3)
+
+    def unreadable_run(self) -> int:
+        """Undecodable frames in a row after which the stream counts as ended
+        (:data:`UNREADABLE_RUN_S` of video, at least :data:`UNREADABLE_RUN_MIN`)."""
+        return max(UNREADABLE_RUN_MIN, math.ceil(UNREADABLE_RUN_S * self.fps))
+
+    def _prepare(self, image: np.ndarray, size: tuple[int, int] | None = None) -> np.ndarray:
+        """A decoded image -> BGR uint8 at ``size`` (width, height; default this source's)."""
+        image = _as_bgr(image)
+        size = size or (self.width, self.height)
+        if size != (image.shape[1], image.shape[0]):
+            image = shrink(image, size)
+        return image
+
+    def sample_frames(self, count: int, size: tuple[int, int] | None = None
+                      ) -> list[np.ndarray]:
+        """Up to ``count`` frames (BGR uint8 (H, W, 3)) evenly spaced over the selected range,
+        e.g. to estimate the empty background; ``size`` (width, height) px shrinks them
+        (INTER_AREA), so a 4K video does not hold 25 full frames. An undecodable frame is passed
+        over as in iteration; decoding stops where the stream ends (or seeking fails).
+
+        Samples up to SEQUENTIAL_SPACING frames apart are read in one pass (grab() every frame,
+        retrieve() only those kept): a seek decodes from the previous key frame, so on H.264
+        with long key-frame intervals 25 seeks cost far more than reading straight through.
+        Sparser samples (long videos) are reached by seeking. A stream of unknown length (a
+        Matroska file still being written states none) is read through to its end
+        (:meth:`_sample_through`): sampling its first ``count`` frames had learned a background
+        with the person of the first second in it, a phantom second track.
+        """
+        if self.end_index is None:
+            return self._sample_through(count, size)
+        images = self._sample_by_index(count, size)
+        if not images and self.container_times and self.start_index > 0:
+            # A variable rate puts the start time at another frame than the announced rate
+            # does (or past the frames the file has): sample what iteration finds by time.
+            return self._sample_by_time(count, size)
+        return images
+
+    def _sample_by_time(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
+        """Up to ``count`` frames evenly spaced over the frames iteration yields (the time
+        range), in one pass as :meth:`_sample_through` keeps them; iteration's warnings are
+        left to the tracking pass."""
+        sample = _EvenSample(count)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            for n, frame in enumerate(self):
+                if sample.wants(n):
+                    image = frame.image
+                    if size is not None and size != (image.shape[1], image.shape[0]):
+                        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+                    sample.keep(image)
+        return sample.frames()
+
+    def _sample_by_index(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
+        """sample_frames by frame number at the announced rate (see there)."""
+        end = self.end_index
+        indices = np.linspace(self.start_index, end - 1, max(count, 1)).round().astype(int)
+        indices = np.unique(indices)
+        spacing = (indices[-1] - indices[0]) / max(len(indices) - 1, 1)
+        capture = _open_capture(self.path)
+        images = []
+        give_up = self.unreadable_run()
+        try:
+            if spacing <= SEQUENTIAL_SPACING:
+                if _seek(capture, int(indices[0]), give_up) != indices[0]:
+                    return images
+                wanted = set(indices.tolist())
+                failed = 0
+                for index in range(int(indices[0]), int(indices[-1]) + 1):
+                    if not capture.grab():
+                        failed += 1
+                        if failed >= give_up:
+                            break
+                        continue
+                    failed = 0
+                    if index in wanted:
+                        ok, image = capture.retrieve()
+                        if ok and image is not None:
+                            images.append(self._prepare(image, size))
+                return images
+            for index in indices:
+                if _seek(capture, int(index), give_up) != index:
+                    break
+                ok, image = capture.read()
+                if ok and image is not None:
+                    images.append(self._prepare(image, size))
+        finally:
+            capture.release()
+        return images
+
+
+    def _sample_through(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
+        """Up to ``count`` frames evenly spaced over a stream of unknown length, in one pass to
+        its end: every ``step``-th frame is kept, and when 2 count are kept every other one is
+        dropped and ``step`` doubles. A file that grew since it was opened ends at its first
+        failed read (its live end), as in iteration."""
+        capture = _open_capture(self.path)
+        opened = _file_state(self.path)
+        sample, give_up = _EvenSample(count), self.unreadable_run()
+        try:
+            index = _seek(capture, self.start_index, give_up)
+            offset, failed = index, 0
+            while failed < give_up:
+                if not capture.grab():
+                    if _file_state(self.path) != opened:
+                        break
+                    failed, index = failed + 1, index + 1
+                    continue
+                failed = 0
+                if sample.wants(index - offset):
+                    ok, image = capture.retrieve()
+                    sample.keep(self._prepare(image, size) if ok and image is not None
+                                else None)
+                index += 1
+        finally:
+            capture.release()
+        return sample.frames()
+
+
+class _EvenSample:
+    """Up to ``count`` frames evenly spaced over a stream of unknown length, in one pass:
+    every ``step``-th frame is kept, and when 2 count are kept every other one is dropped and
+    ``step`` doubles; :meth:`frames` picks ``count`` evenly from what is kept."""
+
+    def __init__(self, count: int):
+        self.count, self.step, self.kept = count, 1, []
+
+    def wants(self, n: int) -> bool:
+        """Whether the n-th frame (from 0) is one to keep."""
+        return n % self.step == 0
+
+    def keep(self, image: np.ndarray | None) -> None:
+        """Keep a wanted frame (None: it did not decode, nothing kept)."""
+        if image is not None:
+            self.kept.append(image)
+        if len(self.kept) >= 2 * max(self.count, 1):
+            self.kept, self.step = self.kept[::2], 2 * self.step
+
+    def frames(self) -> list[np.ndarray]:
+        if len(self.kept) <= self.count:
+            return self.kept
+        picks = np.unique(np.linspace(0, len(self.kept) - 1, self.count).round().astype(int))
+        return [self.kept[i] for i in picks]
+
+
+def _open_capture(path: Path) -> cv2.VideoCapture:
+    capture = cv2.VideoCapture(str(path), cv2.CAP_ANY)
+    if not capture.isOpened():
+        capture.release()
+        raise VideoError(f"{path}: {_why_unopenable(path)}")
+    return capture
+
+
+def _seek(capture: cv2.VideoCapture, start_index: int, give_up: int = UNREADABLE_RUN_MIN
+          ) -> int:
+    """Position ``capture`` so the next read returns frame ``start_index``; returns that index.
+
+    Tries a container seek first and falls back to decoding and discarding frames when the
+    backend lands elsewhere (some codecs only seek to key frames).
+    """
+    if start_index == 0:
+        return 0
+    capture.set(cv2.CAP_PROP_POS_FRAMES, start_index)
+    position = int(capture.get(cv2.CAP_PROP_POS_FRAMES))
+    if position == start_index:
+        return start_index
+    capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+    failed = 0                   # a damaged frame on the way is passed over, as in iteration
+    for index in range(start_index):
+        if capture.grab():
+            failed = 0
+        else:
+            failed += 1
+            if failed >= give_up:
+                return index - failed + 1
+    return start_index
+
+
+def _as_bgr(image: np.ndarray) -> np.ndarray:
+    """Any decoded frame (gray (H,W) or (H,W,1), BGR, BGRA) -> BGR uint8 (H,W,3)."""
+    if image.dtype != np.uint8:
+        image = cv2.convertScaleAbs(image, alpha=255.0 / max(float(image.max()), 1.0))
+    if image.ndim == 2 or image.shape[2] == 1:
+        return cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    if image.shape[2] == 4:
+        return cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+    return image
+
+
+def scaled_size(width: int, height: int, max_side: int | None) -> tuple[int, int]:
+    """Frame size after shrinking so the longer side is at most ``max_side`` px (never enlarges)."""
+    if max_side is None or max(width, height) <= max_side:
+        return width, height
+    scale = max_side / max(width, height)
+    return max(1, round(width * scale)), max(1, round(height * scale))
+
+
+def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = None,
+               fps: float | None = None, max_side: int | None = None) -> VideoSource:
+    """Open and check a video file; returns a :class:`VideoSource` to iterate over.
+
+    ``start_s``/``end_s``: seconds from the file's start (end exclusive; None = to the end).
+    ``fps``: frames per second to assume when the container's rate is missing or wrong; the
+    frames are then taken as evenly spaced at it (the container's frame times are not used).
+    ``max_side``: if set (px), frames whose longer side exceeds it are shrunk (INTER_AREA) so the
+    longer side equals it; pixel coordinates downstream are then in the shrunk frame.
+    The first frame is decoded here, so a file that opens but yields nothing is refused now.
+    Raises :class:`VideoError` for a missing file, a non-video, a truncated MP4 without index,
+    zero frames, a resolution below 16 px or above 16384 px per side, an unusable frame rate,
+    or a start/end range outside the video.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise VideoError(f"{path}: no such file")
+    if not path.is_file():
+        raise VideoError(f"{path}: is not a file")
+    if max_side is not None and max_side < MIN_SIDE_PX:
+        raise VideoError(f"{path}: max_side={max_side} is below the minimum of {MIN_SIDE_PX} px")
+    capture = _open_capture(path)
+    try:
+        rate = float(capture.get(cv2.CAP_PROP_FPS)) if fps is None else float(fps)
+        count = capture.get(cv2.CAP_PROP_FRAME_COUNT)
+        ok, first = capture.read()
+    finally:
+        capture.release()
+    if not ok or first is None:
+        raise VideoError(f"{path}: contains no decodable video frames")
+    height, width = first.shape[:2]
+    if min(width, height) < MIN_SIDE_PX:
+        raise VideoError(f"{path}: resolution {width}x{height} is too small "
+                         f"(each side must be at least {MIN_SIDE_PX} px)")
+    if max(width, height) > MAX_SIDE_PX:
+        raise VideoError(f"{path}: resolution {width}x{height} is too large "
+                         f"(each side must be at most {MAX_SIDE_PX} px)")
+    if not (math.isfinite(rate) and 0.0 < rate <= MAX_FPS):
+        raise VideoError(f"{path}: frame rate {rate:g} frames/s is unusable (missing or damaged "
+                         f"metadata?); state the real one (track --fps)")
+    frame_count = int(count) if math.isfinite(count) and count >= 1 else None
+    if not (math.isfinite(start_s) and start_s >= 0) or \
+            (end_s is not None and not end_s > start_s):
+        raise VideoError(f"{path}: bad time range start_s={start_s}, end_s={end_s}")
+    # Frame numbers of absurd times are capped, not overflowed (1e308 s * fps is infinite).
+    start_index = int(math.floor(min(start_s * rate, 2.0 ** 62) + 1e-9))
+    end_index = frame_count
+    if end_s is not None:
+        end_index = int(math.ceil(min(end_s * rate, 2.0 ** 62) - 1e-9))
+        end_index = end_index if frame_count is None else min(frame_count, end_index)
+    if frame_count is not None and start_index >= frame_count:
+        raise VideoError(f"{path}: start_s={start_s} is past the end "
+                         f"({frame_count} frames at {rate:g} fps)")
+    if end_index is not None and end_index <= start_index:
+        raise VideoError(f"{path}: no frames in the chosen time range ({start_s:g} s to "
+                         f"{end_s:g} s at {rate:g} fps)")
+    size = scaled_size(width, height, max_side)
+    return VideoSource(path, rate, frame_count, (width, height), size, start_index, end_index,
+                       end_s=end_s, container_times=fps is None, start_s=start_s)

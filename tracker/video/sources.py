@@ -1,0 +1,130 @@
+"""Where people's silhouettes come from (``track --silhouettes``): background subtraction, the
+person segmenter (tracker.video.segmenter, an optional extra), or auto, background subtraction
+that turns to the segmenter where it cannot work. The segmenter's module is imported only when
+a run uses it.
+"""
+from __future__ import annotations
+
+import importlib.util
+import warnings
+
+import numpy as np
+
+from regressor.errors import SilhouettePoseError
+from tracker.video.camera_motion import CameraMotionMeter, camera_moves
+from tracker.video.decode import colourless
+from tracker.video.silhouettes import BackgroundSubtractor, PersonMask, SilhouetteExtractor
+
+#: How to get the segmenter, in the words every message uses.
+INSTALL_HINT = "pip install 'silhouette-pose[segment]'"
+#: ``track --silhouettes`` choices.
+SOURCES = ("background", "segment", "auto")
+
+
+class SegmenterMissingError(SilhouettePoseError, ImportError):
+    """The person segmenter was asked for but its extra is not installed."""
+
+
+def segmenter_available() -> bool:
+    """Whether MediaPipe (the ``segment`` extra) can be imported here."""
+    return importlib.util.find_spec("mediapipe") is not None
+
+
+def require_segmenter(option: str = "--silhouettes segment") -> None:
+    """SegmenterMissingError naming ``option`` and how to install it, unless available."""
+    if not segmenter_available():
+        raise SegmenterMissingError(f"{option} needs the person segmenter, which is not "
+                                    f"installed: {INSTALL_HINT}")
+
+
+class AutoExtractor:
+    """``track --silhouettes auto``: background subtraction (``make_background(**options)``,
+    a :class:`SilhouetteExtractor` factory) where it works, ``segmenter`` (a
+    :class:`PersonSegmenter`, or None where the extra is missing) where it cannot: a camera
+    that moves, i.e. the clip's sampled frames do not line up
+    (:func:`tracker.video.camera_motion.camera_moves`), or, frame by frame, the camera starts to move
+    (:class:`tracker.video.camera_motion.CameraMotionMeter`, only with the segmenter: without it
+    nothing is measured per frame); the segmenter then proposes no moving blobs.
+    A person who never leaves the spot stays with background subtraction: on such clips
+    (Pose2Sim's balancing and swings) its colour-decided zone gave masks as good as or better
+    than the segmenter's (docs/segmenter.md).
+
+    Without the segmenter, such a clip stays with background subtraction and one warning says
+    how to install it. :attr:`source` is "background" or "segment"; :attr:`reason` why.
+    """
+
+    def __init__(self, make_background, segmenter):
+        self.make_background = make_background
+        self.background: SilhouetteExtractor = make_background()
+        self.segmenter = segmenter
+        self.meter = CameraMotionMeter()
+        self.source, self.reason = "background", None
+
+    @property
+    def subtractor(self) -> BackgroundSubtractor:
+        """The background path's subtractor (its working size decides the samples' size)."""
+        return self.background.subtractor
+
+    def prime(self, background, frame_size: tuple[int, int] | None = None) -> None:
+        """Prime both paths (:meth:`SilhouetteExtractor.prime`); frames of the clip are also
+        judged (camera motion)."""
+        image = background if isinstance(background, np.ndarray) and background.ndim == 3 \
+            else None
+        if colourless(image if image is not None else np.asarray(background)[0]):
+            self.background = self.make_background(detect_shadows=False)
+        self.background.prime(background, frame_size)
+        if self.segmenter is not None:
+            self.segmenter.prime(background, frame_size)
+        if image is None:
+            self._judge(list(background))
+
+    def learn_zone(self, frames) -> None:
+        """As :meth:`SilhouetteExtractor.learn_zone`, and judge the frames (:meth:`prime`)."""
+        self.background.learn_zone(frames)
+        self._judge(list(frames))
+
+    def _judge(self, frames: list) -> None:
+        if camera_moves(frames):
+            self._choose("the camera moves")
+
+    def _choose(self, reason: str) -> None:
+        """Turn to the segmenter for ``reason`` (or warn once that it is missing); a moving
+        camera makes everything a moving blob, so it proposes none."""
+        if self.source == "segment" or self.reason is not None:
+            return
+        self.reason = reason
+        if self.segmenter is None:
+            warnings.warn(f"{reason}: background subtraction cannot follow it; a person "
+                          f"segmenter can ({INSTALL_HINT}; then track --silhouettes auto)")
+            return
+        self.source = "segment"
+        self.segmenter.use_motion = False
+
+    def __call__(self, frame: np.ndarray) -> list[PersonMask]:
+        """The people in ``frame`` (BGR uint8 (H, W, 3)) from the path in use."""
+        if self.source == "background" and self.segmenter is not None and self.meter(frame):
+            self._choose("the camera moves")
+        if self.source == "segment":
+            return self.segmenter(frame)
+        return self.background(frame)
+
+
+def silhouette_extractor(source: str, settings):
+    """The extractor ``track --silhouettes SOURCE`` uses with tracker.pipeline.TrackerSettings
+    ``settings``: None for "background" (PoseTracker's default), a PersonSegmenter for
+    "segment" (SegmenterMissingError without the extra), an AutoExtractor for "auto" (with the
+    segmenter where installed)."""
+    from tracker.pipeline import default_extractor
+    if source not in SOURCES:
+        raise ValueError(f"silhouette source {source!r} is not one of {', '.join(SOURCES)}")
+    if source == "background":
+        return None
+    if source == "segment":
+        require_segmenter()
+    segmenter = None
+    if segmenter_available():
+        from tracker.video.segmenter import PersonSegmenter
+        segmenter = PersonSegmenter(min_area_fraction=settings.min_area_fraction)
+    if source == "segment":
+        return segmenter
+    return AutoExtractor(lambda **options: default_extractor(settings, **options), segmenter)
