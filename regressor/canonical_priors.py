@@ -1,10 +1,10 @@
 """How far the tracker's front/back chain trusts one model's canonical pair (issue 10).
 
 A model with limbs and a side classifier gives the tracker two hypotheses per frame: the limb
-networks' canonical member and its front/back flip (tracker.hypotheses, "Canonical
+networks' canonical member and its front/back flip (tracker.tracks.hypotheses, "Canonical
 hypotheses"). How often the truer of the two changes from frame to frame and how right the
 side classifier is at each of its probabilities are properties of that model's networks, learned on validation renders
-(tracker.offline.hypothesis_priors.canonical_statistics). They are stored with the model
+(lab.hypothesis_priors.canonical_statistics). They are stored with the model
 (under "canonical_prior_", float64), so a model trained anew carries its own rather than the
 shipped model's: ``scripts/train.py`` learns them after fitting, and
 ``scripts/learn_hypothesis_priors.py --save`` adds them to an existing model file.
@@ -103,7 +103,7 @@ class CanonicalPriors:
 
     @classmethod
     def from_statistics(cls, stats: dict, front_edges) -> "CanonicalPriors":
-        """The priors from canonical_statistics' dict (tracker.offline.hypothesis_priors) with
+        """The priors from canonical_statistics' dict (lab.hypothesis_priors) with
         the edges its table was binned by. A bin without frames (None) takes the overall
         rate: no evidence either way. Overall and switch rates of 0 or 1 (a member always
         right or always wrong on the renders, a state never left) are taken as 0.001 and

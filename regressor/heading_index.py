@@ -6,7 +6,7 @@ front/back cannot count (:func:`fold_heading_deg`: of h and its partner 180 - h,
 lies from the training rows', :meth:`HeadingIndex.novelty`).
 
 Its neighbours' median folded heading once replaced the experts' heading away from profile.
-With canonical hypotheses (the limb networks' member and its flip, tracker.hypotheses) the
+With canonical hypotheses (the limb networks' member and its flip, tracker.tracks.hypotheses) the
 experts' pose only lends the front/back chain its side, which that replacement kept, so it
 changed no output (docs/ablation.md) and was removed; ``limit_deg`` stays in model files for
 compatibility. The history of the heading index: docs/tuning.md, "regressor/heading_index.py".

@@ -5,7 +5,7 @@ by its outline alone, but the limbs' shapes (knees bend forwards, feet point for
 some of it. The side classifier is a ReLU network that says, from the regressor's projected
 input (the same input the limb networks take), how probable it is that the body faces the
 camera's half (|heading| <= 90 deg). The tracker's front/back chain uses it as per-frame
-evidence for the limb network's canonical member against its flip (tracker.hypotheses,
+evidence for the limb network's canonical member against its flip (tracker.tracks.hypotheses,
 "Canonical hypotheses"), through a table that calibrates it on validation renders: on its
 own held-out training rows it is right 9 times in 10, on video-like renders about 7 in 10.
 

@@ -6,7 +6,7 @@
   probability: a true heading change of ~180 degrees within a frame does not happen, so the
   only switches are the regressor's).
 - canonical_statistics, learn_canonical_priors: for a model with limbs and a side classifier,
-  the canonical chain's priors (regressor.canonical_priors; tracker.hypotheses CANONICAL_*)
+  the canonical chain's priors (regressor.canonical_priors; tracker.tracks.hypotheses CANONICAL_*)
   on the validation renders.
 - choose_weights: the exponent per frame of the regressor's evidence (consecutive frames'
   evidence is correlated), by replaying the tracker over the validation trials rendered as
@@ -42,7 +42,7 @@ def raw_is_nearer(raw: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def video_like(masks: np.ndarray, on: bool = True, seed: int = 0) -> list | np.ndarray:
     """The rendered masks (T, H, W) as the tracker's extractor gives them from video
-    (tracker.offline.training.noisy_masks, as the model was trained on), or as they are when
+    (lab.training.noisy_masks, as the model was trained on), or as they are when
     on is False. Priors learned on crisp renders would describe inputs the model never sees
     in use: the layout block reads their open gaps differently (docs/accuracy.md)."""
     if not on:
@@ -59,7 +59,7 @@ def regressor_flip_statistics(model, bvh_files, spiral_deg_per_s: float = 30.0,
     bin the fraction of frames whose raw pose is nearer the truth than its flip, and the rate
     per frame at which that changes (the switching probability). For a mixture each of the
     top n_experts experts' poses (PoseModel.hypotheses) counts as a raw pose, as
-    each gets its own evidence in tracker.hypotheses; switches are counted per expert slot
+    each gets its own evidence in tracker.tracks.hypotheses; switches are counted per expert slot
     (slot i at t -> slot i at t + 1) and pooled. video: describe video-like masks
     (video_like)."""
     nearer, norms, pairs = [], [], []

@@ -19,7 +19,7 @@ pauses (handed out a block at a time, the view froze while a block was smoothed)
 
 How the block scheme and the margin were chosen: docs/tuning.md, "tracker/fixed_lag.py".
 
-The bodies are drawn at the root path smoothed over the same window (tracker.root_path, as
+The bodies are drawn at the root path smoothed over the same window (tracker.tracks.root_path, as
 the whole-track smoothed outputs are: PoseTracker.smoothed_root_path, from the roots the
 tracker keeps with its history, 32 bytes a pose), so where the window reaches far enough on both sides (the
 weights' 4 sigma, 0.8 s: lags from 0.8 s) the root is the whole track's; with shorter lags the

@@ -32,7 +32,7 @@ picks one hypothesis per frame and the Rauch-Tung-Striebel smoother runs over th
 
 Limbs (``limb_filter_factory``, the tracker's default): the chain decides the heading; the
 output's 53 body angles come from one more filter over the limb networks' member whose heading
-is nearer the decided one (pick_member; offline, tracker.member_path's chain of members), with
+is nearer the decided one (pick_member; offline, tracker.tracks.member_path's chain of members), with
 only the white part of the regressor's error as measurement noise
 (tracker.pipeline.LIMB_R_SCALE).
 
@@ -245,7 +245,7 @@ def propose(estimator: PoseEstimator, stacked: np.ndarray, n_experts: int = DEFA
             mirrored: np.ndarray | None = None) -> Hypotheses:
     """The hypotheses of one frame from a stacked descriptor (k*D,): :func:`propose_batch`
     of one row. mirrored: the stacked descriptor (k*D,) of the frames' mirror images
-    (tracker.mirror_limbs); its limbs are averaged into the frame's."""
+    (tracker.tracks.mirror_limbs); its limbs are averaged into the frame's."""
     return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts,
                          None if mirrored is None else np.asarray(mirrored, float)[None])[0]
 
@@ -256,7 +256,7 @@ def propose_batch(estimator: PoseEstimator, stacked: np.ndarray,
     """The hypotheses of stacked descriptors (N, k*D) (one per row): the estimator's
     :meth:`~regressor.estimator.PoseEstimator.hypotheses` with n_experts experts, turned into
     front/back hypotheses by :func:`hypotheses_from`. mirrored (N, k*D) or None: the mirror
-    images' stacked descriptors (tracker.mirror_limbs)."""
+    images' stacked descriptors (tracker.tracks.mirror_limbs)."""
     estimates = estimator.hypotheses(stacked, n_experts, mirrored=mirrored, novelty=False)
     return hypotheses_from(estimates, canonical_priors(estimator))
 
@@ -267,7 +267,7 @@ def hypotheses_from(estimates: PoseEstimates,
     .PoseEstimates): with limbs and the side classifier's front probability, the limbs'
     member and its flip (:func:`canonical_hypotheses`, weighed by priors); else each expert's
     pose and its flip (:func:`_with_flips`), carrying the limbs. The limbs are first averaged
-    with the mirror images' when the answer has those (tracker.mirror_limbs.mirror_mean)."""
+    with the mirror images' when the answer has those (tracker.tracks.mirror_limbs.mirror_mean)."""
     poses, gate, limbs = estimates.poses, estimates.probabilities, estimates.limbs
     if limbs is not None and estimates.mirror_limbs is not None:
         limbs = mirror_mean(limbs, estimates.mirror_limbs)
@@ -284,7 +284,7 @@ def propose_sequence(estimator: PoseEstimator, masks, n_experts: int = DEFAULT_E
                      mirror: bool = True, step: int = 1) -> list[Hypotheses]:
     """The hypotheses of one person's silhouette sequence (masks (H, W) bool, in order), as
     the tracker makes them frame by frame: each mask described (with its mirror image's
-    descriptor too when tracker.mirror_limbs.sees_mirror(estimator, mirror)), stacked with
+    descriptor too when tracker.tracks.mirror_limbs.sees_mirror(estimator, mirror)), stacked with
     ``step`` frames between stacked descriptors (regressor.stacking.stack_step of the
     sequence's frame rate), and :func:`propose_batch` (offline evaluation and the learning
     of priors)."""
@@ -470,10 +470,10 @@ class FrontBackTracker:
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``): of the
         whole track, or of history[start:stop] as if the track were those frames alone (the
-        fixed-lag smoothing of tracker.fixed_lag). With a limb_filter_factory, the body angles
+        fixed-lag smoothing of tracker.tracks.fixed_lag). With a limb_filter_factory, the body angles
         are its RTS smoothing of the raw poses (of the limb head's members on their most
         probable chain given the smoothed heading when every frame has them, as a model's
-        frames all do: tracker.member_path), with the smoothed heading as theirs."""
+        frames all do: tracker.tracks.member_path), with the smoothed heading as theirs."""
         frames = self.history[start:stop]
         out = self.filter_factory(self.fps).rts_smooth(self.chosen_poses(start, stop))
         if self.limb_filter_factory is not None and len(out):
