@@ -1,43 +1,25 @@
 """Front/back hypotheses carried over time: which of the regressor's poses is the true one.
 
 A silhouette cannot tell a body from its reflection in depth (sequences.pose_vector.
-front_back_flip: heading h -> 180 - h, left and right exchanged). So each frame the regressor
-proposes K hypotheses (:func:`propose`): its pose and that pose's flip, or, for a mixture of
-experts, each expert's pose and its flip (regressor.estimator.PoseEstimator.hypotheses). The
-tracker keeps a discrete state per track, s_t in {0..K-1}: which hypothesis of frame t is the
-truth, in a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter bank):
+front_back_flip: heading h -> 180 - h, left and right exchanged). Each frame gives K hypotheses
+(:func:`propose`): the pose and its flip (per expert for a mixture), or, for a model with limb
+networks and a side classifier, the limbs' canonical member and its flip
+(:func:`canonical_hypotheses`). A hidden Markov model over s_t in {0..K-1}, with one Kalman
+filter per state (a GPB / IMM filter bank), keeps which hypothesis is the truth:
 
     alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
 
-- A: the switching probabilities: the state switches only where the regressor's flips do
-  (SWITCH_PROBABILITY, learned by scripts/learn_hypothesis_priors.py).
-- N(...): the innovation likelihood of hypothesis j under the filter of the predecessor i
-  (PoseKalmanFilter.log_likelihoods, 54 angles). Filter j continues the best predecessor's
-  filter, updated with hypothesis j: a regressor flip is explained by switching state, not by a
-  jump of the body.
-- e_t(j): the evidence the frame itself gives: the regressor's (its (cos, sin) norm, as a
-  likelihood ratio from RAW_NEARER_BY_NORM; for canonical pairs the side classifier's).
-- Consecutive frames' evidence is correlated (stacked descriptors share frames), so it is
-  tempered by an exponent per frame (EVIDENCE_WEIGHT, CANONICAL_EVIDENCE_WEIGHT).
+A: switching probabilities (the state switches only where the regressor's flips do); N: the
+innovation likelihood of hypothesis j under predecessor i's filter (filter j continues the
+best predecessor's, so a flip is explained by a switch, not by a jump of the body); e_t(j): the
+frame's own evidence (RAW_NEARER_BY_NORM, or the side classifier's calibrated probability,
+regressor.canonical_priors), tempered per frame since stacked descriptors share frames.
 
-Canonical hypotheses (a model with limb networks and a side classifier, as the shipped one):
-the two states are the limb networks' canonical member and its flip, whole
-(:func:`canonical_hypotheses`); the evidence for a member is the side classifier's probability
-calibrated on validation renders and the main head's side (the model file's
-regressor.canonical_priors; the CANONICAL_* constants for a file without them).
-
-Online the chosen pose is the most probable state's filtered pose; the runner-up and its
-probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
-picks one hypothesis per frame and the Rauch-Tung-Striebel smoother runs over them.
-
-Limbs (``limb_filter_factory``, the tracker's default): the chain decides the heading; the
-output's 53 body angles come from one more filter over the limb networks' member whose heading
-is nearer the decided one (pick_member; offline, tracker.tracks.member_path's chain of members), with
-only the white part of the regressor's error as measurement noise
-(tracker.pipeline.LIMB_R_SCALE).
-
-How each piece and constant was chosen, and what was tried and not adopted:
-docs/tuning.md, "tracker/hypotheses.py".
+Online the output is the most probable state's filtered pose (with the runner-up when close);
+offline (``--smooth``) the Viterbi path is RTS-smoothed. With ``limb_filter_factory`` the 53
+body angles come from one more filter over the limb member nearer the decided heading
+(pick_member; tracker.pipeline.LIMB_R_SCALE). How each piece and constant was chosen:
+docs/tuning.md, "tracker/tracks/hypotheses.py".
 """
 from __future__ import annotations
 
@@ -138,9 +120,7 @@ def deaveraged_heading(poses: np.ndarray) -> np.ndarray:
     tell a view from its flip it outputs about p (cos h, sin h) + (1 - p) (-cos h, sin h): sin h
     is kept and cos h shrinks, so the heading is pulled towards +-90 and the norm drops. Each
     hypothesis's heading takes |cos| = sqrt(1 - sin^2) back in proportion to the lost norm
-    (n >= 1 keeps the pose as it is; the norm itself, the ambiguity measure, is kept). On the
-    validation spirals this lowers the heading RMS of the better of (raw, flip) from 30-45 to
-    19-35 degrees."""
+    (n >= 1 keeps the pose as it is; the norm itself, the ambiguity measure, is kept)."""
     out = np.array(poses, dtype=np.float64, copy=True)
     c, s = out[:, 0], out[:, 1]
     n = np.hypot(c, s)
@@ -232,10 +212,8 @@ def evidence_weight(estimator: PoseEstimator) -> float:
 
 
 def chain_options(estimator: PoseEstimator) -> dict:
-    """FrontBackTracker's keyword arguments that depend on the estimator: its switch rates
-    (switch_probability), evidence weight (evidence_weight) and the frame rate they hold at
-    (its training_fps). The tracker's chains and the
-    offline replays that choose their weights both take them from here."""
+    """FrontBackTracker's keyword arguments that depend on the estimator: switch rates,
+    evidence weight and the frame rate they hold at (its training_fps)."""
     return {"switch": switch_probability(estimator),
             "evidence_weight": evidence_weight(estimator),
             "reference_fps": estimator.training_fps}
@@ -283,11 +261,9 @@ def hypotheses_from(estimates: PoseEstimates,
 def propose_sequence(estimator: PoseEstimator, masks, n_experts: int = DEFAULT_EXPERTS,
                      mirror: bool = True, step: int = 1) -> list[Hypotheses]:
     """The hypotheses of one person's silhouette sequence (masks (H, W) bool, in order), as
-    the tracker makes them frame by frame: each mask described (with its mirror image's
-    descriptor too when tracker.tracks.mirror_limbs.sees_mirror(estimator, mirror)), stacked with
-    ``step`` frames between stacked descriptors (regressor.stacking.stack_step of the
-    sequence's frame rate), and :func:`propose_batch` (offline evaluation and the learning
-    of priors)."""
+    the tracker makes them: each mask described (and its mirror image when
+    tracker.tracks.mirror_limbs.sees_mirror), stacked ``step`` frames apart, then
+    :func:`propose_batch` (offline evaluation and the learning of priors)."""
     k = estimator.stack_depth
     if sees_mirror(estimator, mirror):
         pairs = [estimator.describe_with_mirror(m) for m in masks]
@@ -335,17 +311,13 @@ class _Frame:
 class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
 
-    filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; its ``log_likelihoods``
-    is used when it has one, else hypotheses are scored by their evidence only); fps: frames
-    per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; evidence_weight: the
-    exponent per frame of the regressor's evidence. These per-frame figures hold at reference_fps (the rate of the sequences they
-    were learned and chosen on, the model's training rate): at another fps the chain keeps
-    them per second instead (:meth:`frame_rate_ratio`), so a 120 fps video's four frames
-    count as one 30 fps frame did, not four times its evidence. keep_history: keep every
-    frame's hypotheses for viterbi_path/smoothed (memory grows with the track; off when
-    nothing needs smoothing); limb_filter_factory: fps -> a pose filter for the output's body
-    angles, stepped on each frame's raw pose, or on its limb head's member that agrees with
-    the decided heading (module docstring, "Limbs"); None: the chosen state's body angles.
+    filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; without
+    ``log_likelihoods`` hypotheses are scored by their evidence only); fps: frames per second;
+    switch: (P(raw -> flip), P(flip -> raw)) per frame and evidence_weight (the exponent on
+    the evidence), both per frame at reference_fps and kept per second at other rates
+    (:meth:`frame_rate_ratio`); keep_history: keep every frame for viterbi_path/smoothed;
+    limb_filter_factory: fps -> a filter for the output's body angles, stepped on the raw
+    pose or the limb member agreeing with the decided heading; None: the chosen state's.
     """
 
     filter_factory: Callable[[float], object]
@@ -408,10 +380,9 @@ class FrontBackTracker:
 
     @property
     def frame_rate_ratio(self) -> float:
-        """reference_fps / fps: the share of a reference frame one of this video's frames is
-        (0.25 at 120 fps for a 30 fps reference); evidence and the filters'
-        likelihoods are tempered by it (exponents), and the switch probabilities are those
-        of that share of a frame (:meth:`frame_switch`). 1 at the reference rate."""
+        """reference_fps / fps (0.25 at 120 fps for a 30 fps reference): the exponent that
+        tempers evidence and likelihoods, and the share of a frame :meth:`frame_switch`
+        switches over."""
         return self.reference_fps / self.fps
 
     @property
@@ -468,12 +439,11 @@ class FrontBackTracker:
         return np.array([frame.poses[s] for frame, s in zip(frames, path)])
 
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``): of the
-        whole track, or of history[start:stop] as if the track were those frames alone (the
-        fixed-lag smoothing of tracker.tracks.fixed_lag). With a limb_filter_factory, the body angles
-        are its RTS smoothing of the raw poses (of the limb head's members on their most
-        probable chain given the smoothed heading when every frame has them, as a model's
-        frames all do: tracker.tracks.member_path), with the smoothed heading as theirs."""
+        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``), of the
+        whole track or of history[start:stop] alone (tracker.tracks.fixed_lag). With a
+        limb_filter_factory the body angles are its RTS smoothing of the raw poses, or of the
+        limb members' most probable chain (tracker.tracks.member_path), under the smoothed
+        heading."""
         frames = self.history[start:stop]
         out = self.filter_factory(self.fps).rts_smooth(self.chosen_poses(start, stop))
         if self.limb_filter_factory is not None and len(out):
