@@ -161,16 +161,13 @@ def _table(edges, values, x) -> np.ndarray:
 def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
                          priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
     """The two hypotheses of a model with limbs and a side classifier: the limbs' canonical
-    member (55,) and its front/back flip, whole (heading and body angles). Evidence (log
-    likelihood ratios): the side classifier's probability front that the body faces the
-    camera's half, calibrated by priors.by_front; priors: the model's
-    (:func:`canonical_priors`). raw (55,): the main head's pose, whose heading norm says how
-    ambiguous the frame is."""
+    member (55,) and its front/back flip, whole. Evidence (log likelihood ratios): the side
+    classifier's probability ``front`` that the body faces the camera's half, calibrated by
+    priors.by_front. raw (55,): the main head's pose; its heading norm (how ambiguous the
+    frame is) replaces the member's, which commits to one body and is ~1, so the filters'
+    R inflation and the outputs' ambiguous flag still see it."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
-    # The member commits to one body, so its (cos, sin) norm is ~1 even where the silhouette
-    # is ambiguous; the main head's norm says how ambiguous it is, and the filters (their R
-    # inflation) and the outputs (the ambiguous flag) read it from the pose.
     norm = heading_norm(raw)
     unit = pair[:, :2] / np.maximum(np.linalg.norm(pair[:, :2], axis=1, keepdims=True), 1e-9)
     pair[:, :2] = unit * norm
@@ -195,17 +192,15 @@ def canonical_priors(estimator: PoseEstimator) -> CanonicalPriors:
 
 
 def switch_probability(estimator: PoseEstimator) -> tuple[float, float]:
-    """The chain's switching probabilities for this estimator's hypotheses: canonical ones
-    (a model with limbs and a side classifier; its priors' switch) switch far less often
-    than a pose and its flip."""
+    """The chain's switching probabilities for this estimator's hypotheses (canonical pairs
+    switch far less often than a pose and its flip)."""
     if estimator.gives_canonical_pairs:
         return canonical_priors(estimator).switch
     return SWITCH_PROBABILITY
 
 
 def evidence_weight(estimator: PoseEstimator) -> float:
-    """The chain's exponent per frame on this estimator's evidence: CANONICAL_EVIDENCE_WEIGHT
-    for canonical pairs (a model with limbs and a side classifier), else EVIDENCE_WEIGHT."""
+    """The chain's exponent per frame on this estimator's evidence."""
     if estimator.gives_canonical_pairs:
         return CANONICAL_EVIDENCE_WEIGHT
     return EVIDENCE_WEIGHT
@@ -221,9 +216,8 @@ def chain_options(estimator: PoseEstimator) -> dict:
 
 def propose(estimator: PoseEstimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
             mirrored: np.ndarray | None = None) -> Hypotheses:
-    """The hypotheses of one frame from a stacked descriptor (k*D,): :func:`propose_batch`
-    of one row. mirrored: the stacked descriptor (k*D,) of the frames' mirror images
-    (tracker.tracks.mirror_limbs); its limbs are averaged into the frame's."""
+    """The hypotheses of one frame's stacked descriptor (k*D,) (and its mirror image's, or
+    None): :func:`propose_batch` of one row."""
     return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts,
                          None if mirrored is None else np.asarray(mirrored, float)[None])[0]
 
@@ -231,21 +225,19 @@ def propose(estimator: PoseEstimator, stacked: np.ndarray, n_experts: int = DEFA
 def propose_batch(estimator: PoseEstimator, stacked: np.ndarray,
                   n_experts: int = DEFAULT_EXPERTS, mirrored: np.ndarray | None = None
                   ) -> list[Hypotheses]:
-    """The hypotheses of stacked descriptors (N, k*D) (one per row): the estimator's
-    :meth:`~regressor.estimator.PoseEstimator.hypotheses` with n_experts experts, turned into
-    front/back hypotheses by :func:`hypotheses_from`. mirrored (N, k*D) or None: the mirror
-    images' stacked descriptors (tracker.tracks.mirror_limbs)."""
+    """The hypotheses of stacked descriptors (N, k*D), one per row: the estimator's
+    ``hypotheses`` with n_experts experts through :func:`hypotheses_from`. mirrored (N, k*D)
+    or None: the mirror images' stacked descriptors (tracker.tracks.mirror_limbs)."""
     estimates = estimator.hypotheses(stacked, n_experts, mirrored=mirrored, novelty=False)
     return hypotheses_from(estimates, canonical_priors(estimator))
 
 
 def hypotheses_from(estimates: PoseEstimates,
                     priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> list[Hypotheses]:
-    """Each row's front/back hypotheses from a model's answer (regressor.estimator
-    .PoseEstimates): with limbs and the side classifier's front probability, the limbs'
-    member and its flip (:func:`canonical_hypotheses`, weighed by priors); else each expert's
-    pose and its flip (:func:`_with_flips`), carrying the limbs. The limbs are first averaged
-    with the mirror images' when the answer has those (tracker.tracks.mirror_limbs.mirror_mean)."""
+    """Each row's front/back hypotheses from a model's answer (PoseEstimates): with limbs and
+    the side classifier's front probability, :func:`canonical_hypotheses`; else each expert's
+    pose and its flip (:func:`_with_flips`). Limbs are first averaged with the mirror images'
+    when the answer has those (tracker.tracks.mirror_limbs.mirror_mean)."""
     poses, gate, limbs = estimates.poses, estimates.probabilities, estimates.limbs
     if limbs is not None and estimates.mirror_limbs is not None:
         limbs = mirror_mean(limbs, estimates.mirror_limbs)
