@@ -1,13 +1,10 @@
 """How far the tracker's front/back chain trusts one model's canonical pair (issue 10).
 
-A model with limbs and a side classifier gives the tracker two hypotheses per frame: the limb
-networks' canonical member and its front/back flip (tracker.tracks.hypotheses, "Canonical
-hypotheses"). How often the truer of the two changes from frame to frame and how right the
-side classifier is at each of its probabilities are properties of that model's networks, learned on validation renders
-(lab.hypothesis_priors.canonical_statistics). They are stored with the model
-(under "canonical_prior_", float64), so a model trained anew carries its own rather than the
-shipped model's: ``scripts/train.py`` learns them after fitting, and
-``scripts/learn_hypothesis_priors.py --save`` adds them to an existing model file.
+For a model with limbs and a side classifier (tracker.tracks.hypotheses, "canonical"): how
+often the truer of the limbs' member and its flip changes per frame, and how right the side
+classifier is at each of its probabilities, learned on validation renders
+(lab.hypothesis_priors.canonical_statistics). Stored with the model under "canonical_prior_"
+(float64) by ``scripts/train.py`` or ``scripts/learn_hypothesis_priors.py --save``.
 """
 from __future__ import annotations
 

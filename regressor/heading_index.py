@@ -3,13 +3,8 @@
 The model file keeps a sample of training rows' inputs and their headings, folded so that
 front/back cannot count (:func:`fold_heading_deg`: of h and its partner 180 - h, the one within
 90 degrees of facing the camera). ``track`` uses it for each frame's novelty (how far its input
-lies from the training rows', :meth:`HeadingIndex.novelty`).
-
-Its neighbours' median folded heading once replaced the experts' heading away from profile.
-With canonical hypotheses (the limb networks' member and its flip, tracker.tracks.hypotheses) the
-experts' pose only lends the front/back chain its side, which that replacement kept, so it
-changed no output (docs/ablation.md) and was removed; ``limit_deg`` stays in model files for
-compatibility. The history of the heading index: docs/tuning.md, "regressor/heading_index.py".
+lies from the training rows', :meth:`HeadingIndex.novelty`). ``limit_deg`` stays in model
+files for compatibility; the index's history: docs/tuning.md, "regressor/heading_index.py".
 """
 from __future__ import annotations
 
@@ -115,10 +110,8 @@ class HeadingIndex:
 
     def novelty(self, X: np.ndarray) -> np.ndarray:
         """How unlike the training silhouettes each row of X (N, >= P) is: :meth:`distance`
-        over the training rows' own 99th percentile (:meth:`typical_distance`), (N,). A
-        threshold, not a boundary: about 1 % of the training rows themselves are above 1; far
-        above it the regressor extrapolates. On the rendered validation videos every frame is
-        below 1; on the real Pose2Sim video 26-79 % of a view's frames are above it
+        over the training rows' own 99th percentile (:meth:`typical_distance`), (N,): about
+        1 % of the training rows are above 1, and far above it the regressor extrapolates
         (docs/accuracy.md). NaN when the index has k or fewer rows."""
         return self.distance(X) / max(self.typical_distance(), 1e-12)
 

@@ -1,36 +1,17 @@
 """Which half the body faces: a small neural network on the regressor's input (issue 10).
 
-A silhouette cannot tell a body from its front/back flip (sequences.pose_vector.front_back_flip)
-by its outline alone, but the limbs' shapes (knees bend forwards, feet point forwards) carry
-some of it. The side classifier is a ReLU network that says, from the regressor's projected
-input (the same input the limb networks take), how probable it is that the body faces the
-camera's half (|heading| <= 90 deg). The tracker's front/back chain uses it as per-frame
-evidence for the limb network's canonical member against its flip (tracker.tracks.hypotheses,
-"Canonical hypotheses"), through a table that calibrates it on validation renders: on its
-own held-out training rows it is right 9 times in 10, on video-like renders about 7 in 10.
-
-Tried and not adopted (2026-12-02, one-off drivers): on the 6 validation trials' own rows the
-shipped classifier is right on 77.4 % of rows (63 % within 20 degrees of profile); L2 alpha
-0.1 gives 78.2 %, three such networks averaged 80.8 % (log loss 1.13 -> 0.83), a linear
-logistic regression 60.6 %, and early stopping on whole held-out trials stops after the first
-epoch (their log loss rises from then on while the accuracy still climbs). But on the 28
-validation renders the front/back chain is tuned on, the three gave 69.4 % against 68.8 %, and
-through the chain (their own priors learned) the filtered / smoothed heading went 32.7 / 26.6
--> 34.8 / 32.5 degrees and corr8 0.546 -> 0.534 (alpha 0.1 alone: 37.3 / 33.5, 0.521).
-Fitted on the training rows' mirror images too (as the limb networks are; the label does not
-change under a left/right mirror): 79.0 % on the validation rows, but 61.9 % on the 28 renders
-(68.8 % without), and through the chain 38.5 / 34.4 -> 47.8 / 45.9 degrees: not adopted.
-
-A :class:`SideClassifier` is plain arrays (no pickle): ReLU hidden layers and a linear output
-(one logit), inputs standardised by a mean and one scale. Stored under "side_net_" in a
-mixture model's file (weights as float16).
+A silhouette's outline cannot tell a body from its front/back flip, but the limbs' shapes (knees
+bend and feet point forwards) carry some of it. The side classifier is a ReLU network on the
+regressor's projected input (as the limb networks take) giving P(the body faces the camera's
+half, |heading| <= 90 deg): per-frame evidence for the limbs' canonical member against its flip
+(tracker.tracks.hypotheses), calibrated on validation renders (regressor.canonical_priors).
+Plain arrays (no pickle): ReLU hidden layers, a linear output (one logit), inputs standardised
+by a mean and one scale; stored under "side_net_" in a mixture model's file (weights float16).
+Fitting: regressor.side_classifier_training. What was tried: docs/tuning.md.
 """
 from __future__ import annotations
 
-import time
-import warnings
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -131,44 +112,3 @@ class SideClassifier:
                             "layers do not declare")
         return cls([(a[f"{prefix}W{i}"], a[f"{prefix}b{i}"]) for i in range(int(n))],
                    a[f"{prefix}input_mean"], scale)
-
-
-def facing_camera(heading_deg: np.ndarray) -> np.ndarray:
-    """The classifier's label (N,) bool: the heading (N,) degrees is in the camera's half
-    (|heading| <= 90)."""
-    return np.abs(np.asarray(heading_deg, dtype=np.float64)) <= 90.0
-
-
-def fit_side_classifier(X: np.ndarray, heading_deg: np.ndarray,
-                        hidden: tuple[int, ...] = (128,), alpha: float = 1e-3,
-                        max_iter: int = 200, seed: int = 0,
-                        log: Callable[[str], None] = lambda message: None) -> SideClassifier:
-    """Fit a :class:`SideClassifier` on inputs X (N, P) labelled by the true headings
-    heading_deg (N,) (front: |heading| <= 90) with scikit-learn's MLPClassifier (Adam,
-    minibatches of 256, L2 alpha, 10 % held out for early stopping after 10 epochs without
-    gain; seeded). Needs scikit-learn (training only)."""
-    if not 1 <= len(hidden) + 1 <= MAX_LAYERS:
-        raise ValueError(f"a side classifier has 0..{MAX_LAYERS - 1} hidden layers, got "
-                         f"{len(hidden)}")
-    try:
-        from sklearn.exceptions import ConvergenceWarning
-        from sklearn.neural_network import MLPClassifier
-    except ImportError:
-        raise ValueError("fitting the side classifier needs scikit-learn: "
-                         "pip install -e '.[train]'") from None
-    X = np.asarray(X, dtype=np.float64)
-    front = facing_camera(heading_deg).astype(int)
-    if len(np.unique(front)) < 2:
-        raise ValueError("the side classifier needs poses facing both halves")
-    x_mean, x_scale = X.mean(axis=0), float(X.std(axis=0).mean())
-    start = time.perf_counter()
-    net = MLPClassifier(hidden_layer_sizes=tuple(hidden), alpha=alpha, batch_size=256,
-                        max_iter=max_iter, early_stopping=True, n_iter_no_change=10,
-                        random_state=seed)
-    with warnings.catch_warnings():          # max_iter reached is reported below, not warned
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        net.fit((X - x_mean) / x_scale, front)
-    stopped = "max_iter reached" if net.n_iter_ >= max_iter else "early stop"
-    log(f"  side classifier: {net.n_iter_} epochs ({stopped}), held-out accuracy "
-        f"{net.best_validation_score_:.3f}, {time.perf_counter() - start:.0f} s")
-    return SideClassifier(list(zip(net.coefs_, net.intercepts_)), x_mean, x_scale)

@@ -21,7 +21,7 @@ from .descriptor import DescriptorSettings, contexts_for_masks
 from .heading_index import build_heading_index
 from .limb_net import MAX_MEMBERS, LimbNet
 from .limb_net_training import fit_limb_net
-from .side_classifier import facing_camera, fit_side_classifier
+from .side_classifier_training import facing_camera, fit_side_classifier
 
 
 def block_spread(B: np.ndarray) -> float:

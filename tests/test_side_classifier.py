@@ -69,7 +69,7 @@ def test_a_tampered_classifier_is_refused_with_a_named_problem(tamper, message):
 
 def test_fitting_learns_a_separable_side():
     pytest.importorskip("sklearn")
-    from regressor.side_classifier import fit_side_classifier
+    from regressor.side_classifier_training import fit_side_classifier
     rng = np.random.default_rng(0)
     X = rng.normal(size=(2000, 5))
     heading = np.where(X[:, 1] > 0, 20.0, 160.0) + rng.normal(0, 5, 2000)

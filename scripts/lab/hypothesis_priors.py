@@ -100,8 +100,8 @@ def validation_renders(model, bvh_files, spiral_deg_per_s: float = 30.0,
                        n_experts: int = DEFAULT_EXPERTS, video: bool = True) -> dict[str, dict]:
     """Each BVH rendered as a spiral walk and from the fixed camera, as recorded and
     time-reversed (a forward walk played backwards is a backward walk): name ->
-    {"hypotheses": list of Hypotheses, "image_track": (T, 2), "truth": (T, 55)}, the model's hypotheses frame by frame. video:
-    the model sees video-like masks (video_like)."""
+    {"hypotheses": the model's Hypotheses frame by frame, "image_track": (T, 2), "truth":
+    (T, 55)}. video: the model sees video-like masks (video_like)."""
     renders = {}
     for path in bvh_files:
         for spiral in (spiral_deg_per_s, None):

@@ -7,28 +7,22 @@ model with piecewise-constant white acceleration per frame (dt = 1/fps):
     F = [[I, dt I], [0, I]]      Q = diag(q) (x) [[dt^4/4, dt^3/2], [dt^3/2, dt^2]]
     H = [I, 0]                   R = measurement covariance (54, 54), degrees^2
 
-``q`` is the variance of angular acceleration, (deg/s^2)^2. Defaults: acceleration std 1000
-deg/s^2 (the median over angles of the RMS second difference in 12 CMU clips at 30 fps, measured
-on this project's data), measurement std 6 deg per joint angle and 20 deg for the heading
-(the paper's reported error levels); a model file should supply its own.
+``q``: angular acceleration variances, (deg/s^2)^2. Defaults (a model file supplies its own):
+acceleration std 1000 deg/s^2 (median RMS second difference of 12 CMU clips at 30 fps),
+measurement std 6 deg per joint angle and 20 deg for the heading (the paper's error levels).
 
-Wrap-around: the state is continuous (no jump at +-180). Each measured angle is unwrapped to lie
-within 180 deg of the predicted angle before the update; outputs are wrapped to (-180, 180].
+Wrap-around: the state is continuous; each measured angle is unwrapped to within 180 deg of the
+prediction before the update, and outputs are wrapped to (-180, 180].
 
-Ambiguity: a raw pose whose heading norm ||(cos, sin)|| is below ``ambiguity_threshold`` comes
-from a silhouette the regressor could not disambiguate (it averaged several headings, e.g. front
-and back views). Its R is inflated by ``ambiguous_heading_factor`` (default 25, i.e. 5x the std)
-on the heading and by ``ambiguous_joint_factor`` (default 4, 2x the std) on the other angles,
-because a front/back confusion also swaps left and right limbs, but less badly (the tracker
-takes 2 for a model whose hypotheses are the limb networks' canonical member and its flip:
-tracker.pipeline.TrackerSettings.joint_factor).
+Ambiguity: a raw pose whose heading norm ||(cos, sin)|| is below ``ambiguity_threshold`` averaged
+several views (e.g. front and back); its R is inflated by ``ambiguous_heading_factor`` on the
+heading and ``ambiguous_joint_factor`` on the other angles (a front/back confusion also swaps
+the limbs, less badly).
 
-The constant-velocity mathematics lives in :class:`ConstantVelocityFilter`, which knows nothing
-of angles: it also filters outputs without wrap-around or heading (e.g. the 63-D 3-D points of
-the paper's data, in their own units). PoseKalmanFilter adds unwrapping and ambiguity to it;
-its frame-by-frame :meth:`PoseKalmanFilter.step` does the same predict and update on plain
-arrays, so that the front/back hypotheses (tracker/hypotheses.py) can score candidates against
-one prediction, reuse its factorizations and copy a filter cheaply.
+:class:`ConstantVelocityFilter` holds the mathematics without angles (it also filters e.g. the
+paper's 63-D points); PoseKalmanFilter adds unwrapping and ambiguity, and its frame-by-frame
+:meth:`PoseKalmanFilter.step` works on plain arrays so that the front/back hypotheses
+(tracker.tracks.hypotheses) can score candidates against one prediction and copy it cheaply.
 """
 from __future__ import annotations
 
@@ -153,17 +147,12 @@ class ConstantVelocityFilter:
                lag: int = 64) -> np.ndarray:
         """Forward filter then Rauch-Tung-Striebel smoothing: values (T, dim) of zs (T, dim).
 
-        The same filter and smoother as filterpy's KalmanFilter.update and rts_smoother
-        (:meth:`smooth_filterpy`, which the tests compare it with), written for this model's
-        F = [[I, dt I], [0, I]] and H = [I, 0]: F P F' by blocks, the covariance update in its
-        short form (filterpy's Joseph form gives the same to rounding: 7e-11 apart on a
-        pose track), and only the smoothed values, not their covariances, carried backwards.
-        Five times faster than filterpy's: a track of the sample smoothed (two passes of 108
-        states) in 0.27 s instead of 1.37 (361 frames, one core), which made smoothing the
-        JSON and BVH outputs by default affordable. The filtered covariances
-        (0.09 MB a frame for a pose) are kept per window of ``window`` frames, each run on
-        ``lag`` further frames whose influence on the window has decayed (exact up to that
-        decay).
+        filterpy's KalmanFilter.update and rts_smoother to rounding (:meth:`smooth_filterpy`,
+        which the tests compare it with), written for F = [[I, dt I], [0, I]] and H = [I, 0]:
+        F P F' by blocks, the short covariance update, and only the smoothed values carried
+        backwards (five times faster: docs/speed.md). The filtered covariances are kept per
+        window of ``window`` frames, each run on ``lag`` further frames whose influence on the
+        window has decayed (exact up to that decay).
         """
         zs = self._check_sequence(zs)
         if window < 1 or lag < 0:
@@ -327,9 +316,9 @@ class PoseKalmanFilter:
     """Per-track Kalman filter over the 54 pose angles (see the module docstring).
 
     ``fps``: frames per second (dt = 1/fps). ``R``: measurement covariance, (54,) variances or
-    (54, 54), deg^2, angle order as :func:`regressor.angles.pose_angles`. ``q``: acceleration variances, scalar
-    or (54,), (deg/s^2)^2. ``ambiguity_threshold``: heading norm below which a frame is ambiguous.
-    ``rate_std``: prior std of the angular rates at the first frame, deg/s.
+    (54, 54), deg^2, in :func:`regressor.angles.pose_angles` order. ``q``: acceleration
+    variances, scalar or (54,), (deg/s^2)^2. ``ambiguity_threshold``: heading norm below which
+    a frame is ambiguous. ``rate_std``: prior std of the angular rates at the first frame, deg/s.
     """
 
     def __init__(self, fps: float, R=None, q=None,
@@ -371,9 +360,9 @@ class PoseKalmanFilter:
     def log_likelihoods(self, raws) -> np.ndarray:
         """Innovation log-likelihoods (K,) of candidate raw poses raws (K, 55) for the next
         frame: log N(z_k - H x_pred; 0, H P_pred H' + R_k), z_k the angles unwrapped against the
-        prediction, R_k as :meth:`step` would use (inflated on ambiguous frames). Does not change the filter (the prediction and the
-        factorizations are kept for the next :meth:`step`, and shared by :meth:`copy`); zeros
-        before its first step (nothing to predict from)."""
+        prediction, R_k as :meth:`step` would use. Does not change the filter (the prediction
+        and factorizations are kept for the next :meth:`step`, and shared by :meth:`copy`);
+        zeros before its first step."""
         raws = np.asarray(raws, float)
         if self._x is None:
             return np.zeros(len(raws))
@@ -400,8 +389,7 @@ class PoseKalmanFilter:
     def copy(self) -> "PoseKalmanFilter":
         """An independent filter in the same state (the pending prediction is shared: it is
         the same for both until either steps). Cheaper than copy.deepcopy."""
-        twin = copy.copy(self)
-        return twin
+        return copy.copy(self)
 
     def reset(self) -> None:
         """Forget the track: the next :meth:`step` starts afresh."""
@@ -423,22 +411,15 @@ class PoseKalmanFilter:
 
     def filter(self, raws: Sequence | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Forward-filter a whole track: raws (T, 55) -> (filtered poses (T, 55), ambiguous
-        flags (T,) bool). Same results as :meth:`step` frame by frame from a reset; does not touch the state
-        used by :meth:`step`."""
+        flags (T,) bool), as :meth:`step` from a reset gives; does not touch its state."""
         angles, Rs, ambiguous = self._measure_all(raws, "filter")
         return angles_to_pose(self.cv.filter(angles, Rs)), ambiguous
 
     def rts_smooth(self, raws: Sequence | np.ndarray, window: int = 256,
                    lag: int = 64) -> np.ndarray:
         """Forward filter then Rauch-Tung-Striebel smoothing of a whole track
-        (ConstantVelocityFilter.smooth: filterpy's filter and smoother, to rounding).
-
-        ``raws``: (T, 55) raw poses. Returns smoothed poses (T, 55). Does not touch the state
-        used by :meth:`step`. The smoother keeps the filtered (108, 108) covariances (0.09 MB
-        per frame), so long tracks are smoothed in windows of ``window`` frames, each run on
-        ``lag`` further frames whose influence on the window has decayed (exact up to that
-        decay; the tests bound it).
-        """
+        (ConstantVelocityFilter.smooth, windowed by ``window`` and ``lag``): raws (T, 55) ->
+        smoothed poses (T, 55). Does not touch the state used by :meth:`step`."""
         if window < 1 or lag < 0:
             raise FilterError(f"window={window} must be >= 1 and lag={lag} >= 0")
         angles, Rs, _ = self._measure_all(raws, "rts_smooth")

@@ -1,30 +1,16 @@
 """Fixed-lag smoothing: the outputs written while tracking get each pose a little late,
 smoothed over what the video showed next (``track --lag``).
 
-The smoothed output (``--smooth``: the JSON, the BVH and the MCAP's smoothed topics) follows
-the body better than the frame-by-frame filter, but it needs each whole track, so it can only
-be written at the end. A pose held back for ``lag`` frames can already be smoothed over those
-frames: each track's own smoother (FrontBackTracker.smoothed: the front/back hypotheses'
-most probable path, the heading's and the body angles' RTS smoothers, the limb members'
-chain) is run on a window of the track's latest poses, and the window's older frames are
-handed on. One run per frame would cost about 0.5 ms per frame of window (two 55-angle
-Kalman passes with full covariances), so frames are smoothed in blocks instead: when ``2 lag``
-frames wait unsmoothed, the oldest ``lag`` are smoothed, each track in them once, over its
-poses from ``margin`` frames before the block to its newest; so each frame is smoothed over at
-least ``lag`` frames that followed it. The window's first ``margin`` frames are there only to
-start its filters (they are smoothed again, as part of their own block, with more behind
-them). The smoothed frames then go out one per frame pushed, each ``2 lag - 1`` frames after
-it came in: at a steady pace, so a live view playing the video at its own speed shows no
-pauses (handed out a block at a time, the view froze while a block was smoothed).
-
-How the block scheme and the margin were chosen: docs/tuning.md, "tracker/fixed_lag.py".
-
-The bodies are drawn at the root path smoothed over the same window (tracker.tracks.root_path, as
-the whole-track smoothed outputs are: PoseTracker.smoothed_root_path, from the roots the
-tracker keeps with its history, 32 bytes a pose), so where the window reaches far enough on both sides (the
-weights' 4 sigma, 0.8 s: lags from 0.8 s) the root is the whole track's; with shorter lags the
-line is fitted to what the window has (tested: within 25 mm of the whole track's path at
-0.5 s on a rendered walk).
+The whole-track smoothed output (``--smooth``) can only be written at the end. A pose held back
+``lag`` frames can already be smoothed over those frames: each track's own smoother
+(FrontBackTracker.smoothed) runs on a window of its latest poses. Frames are smoothed in blocks
+(a run per frame would cost about 0.5 ms per frame of window): when ``2 lag`` frames wait, the
+oldest ``lag`` are smoothed, each track once, over its poses from ``margin`` frames before the
+block (only to start the filters) to its newest, so each frame is smoothed over at least
+``lag`` frames after it. The smoothed frames go out one per frame pushed, each ``2 lag - 1``
+frames after it came in: a steady pace a live view can play without pauses. The bodies are
+drawn at the root path smoothed over the same window (PoseTracker.smoothed_root_path).
+How the block scheme and the margin were chosen: docs/tuning.md, "tracker/tracks/fixed_lag.py".
 """
 from __future__ import annotations
 
@@ -65,22 +51,16 @@ class _Waiting:
 
 class FixedLagSmoother:
     """Holds tracked frames back and gives them out with each pose's ``filtered`` replaced
-    by the fixed-lag smoothed pose (55,) and its ``joints_m`` (18, 3) metres redrawn from it
-    at the same root (module docstring). Everything else of a pose (raw, ambiguous, the
-    runner-up of its frame's front/back decision, novelty) is as tracked. A video frame wider
-    than HELD_FRAME_WIDTH_PX is held shrunk to that width, its people's masks, boxes and
-    centroids with it (so it comes out smaller than the video, consistent with its people).
+    by the fixed-lag smoothed pose (55,) and its ``joints_m`` (18, 3) metres redrawn from it;
+    the rest of a pose is as tracked. Video frames wider than HELD_FRAME_WIDTH_PX are held
+    shrunk to that width, their people with them.
 
-    tracker: the PoseTracker producing the frames, with TrackerSettings(keep_history=True).
-    lag_frames: >= 1; margin_frames: >= 0 (None: MARGIN_S of video at the tracker's fps).
-    Frames (frame_index, time_s, image, poses, people) go in with :meth:`push`, in the order
-    tracked, and come out in the same order, each exactly once, on :attr:`ready` (a deque the
-    caller takes them from): after the first 2 lag - 1 frames, one per frame pushed, so each
-    goes out 2 lag - 1 frames after it came in, smoothed over at least lag frames that
-    followed it; :meth:`flush` at the end puts the rest there. The smoother runs once per
-    ``lag`` frames pushed, on the oldest ``lag`` of the 2 lag held (module docstring); a
-    block leaves the queue only once smoothed, so a Ctrl-C inside the smoother loses
-    nothing."""
+    tracker: the PoseTracker, with TrackerSettings(keep_history=True). lag_frames: >= 1;
+    margin_frames: >= 0 (None: MARGIN_S at the tracker's fps). Frames (frame_index, time_s,
+    image, poses, people) go in with :meth:`push` and come out in order, each once, on
+    :attr:`ready` (a deque the caller empties), 2 lag - 1 frames after they came in;
+    :meth:`flush` puts the rest there. A block leaves the queue only once smoothed, so a
+    Ctrl-C inside the smoother loses nothing."""
 
     def __init__(self, tracker: PoseTracker, lag_frames: int, margin_frames: int | None = None):
         if not tracker.settings.keep_history:
@@ -174,10 +154,9 @@ def streamed_kind(lag_s: float) -> str:
 def replay(tracker: PoseTracker, frames: list[tuple[int, list[TrackedPose]]],
            lag_s: float) -> list[TrackedPose]:
     """The poses a run with ``track_video(..., lag_s=lag_s)`` would have given the outputs,
-    from a finished run without a lag (TrackerSettings(keep_history=True)): frames is that
-    run's every frame, with or without people, as (frame_index, its poses) in order. The same
-    smoother runs on the same histories, so the poses are the same (tests/test_fixed_lag.py);
-    an evaluation gets the filtered and the lagged poses from one run."""
+    from a finished run without a lag (TrackerSettings(keep_history=True)); frames: that
+    run's every frame as (frame_index, its poses), in order. An evaluation gets the filtered
+    and the lagged poses from one run."""
     smoother = FixedLagSmoother.from_seconds(tracker, lag_s)
     for index, poses in frames:
         smoother.push((index, 0.0, None, poses, {}))

@@ -1,43 +1,25 @@
 """Front/back hypotheses carried over time: which of the regressor's poses is the true one.
 
 A silhouette cannot tell a body from its reflection in depth (sequences.pose_vector.
-front_back_flip: heading h -> 180 - h, left and right exchanged). So each frame the regressor
-proposes K hypotheses (:func:`propose`): its pose and that pose's flip, or, for a mixture of
-experts, each expert's pose and its flip (regressor.estimator.PoseEstimator.hypotheses). The
-tracker keeps a discrete state per track, s_t in {0..K-1}: which hypothesis of frame t is the
-truth, in a hidden Markov model (one Kalman filter per state, as in a GPB / IMM filter bank):
+front_back_flip: heading h -> 180 - h, left and right exchanged). Each frame gives K hypotheses
+(:func:`propose`): the pose and its flip (per expert for a mixture), or, for a model with limb
+networks and a side classifier, the limbs' canonical member and its flip
+(:func:`canonical_hypotheses`). A hidden Markov model over s_t in {0..K-1}, with one Kalman
+filter per state (a GPB / IMM filter bank), keeps which hypothesis is the truth:
 
     alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
 
-- A: the switching probabilities: the state switches only where the regressor's flips do
-  (SWITCH_PROBABILITY, learned by scripts/learn_hypothesis_priors.py).
-- N(...): the innovation likelihood of hypothesis j under the filter of the predecessor i
-  (PoseKalmanFilter.log_likelihoods, 54 angles). Filter j continues the best predecessor's
-  filter, updated with hypothesis j: a regressor flip is explained by switching state, not by a
-  jump of the body.
-- e_t(j): the evidence the frame itself gives: the regressor's (its (cos, sin) norm, as a
-  likelihood ratio from RAW_NEARER_BY_NORM; for canonical pairs the side classifier's).
-- Consecutive frames' evidence is correlated (stacked descriptors share frames), so it is
-  tempered by an exponent per frame (EVIDENCE_WEIGHT, CANONICAL_EVIDENCE_WEIGHT).
+A: switching probabilities (the state switches only where the regressor's flips do); N: the
+innovation likelihood of hypothesis j under predecessor i's filter (filter j continues the
+best predecessor's, so a flip is explained by a switch, not by a jump of the body); e_t(j): the
+frame's own evidence (RAW_NEARER_BY_NORM, or the side classifier's calibrated probability,
+regressor.canonical_priors), tempered per frame since stacked descriptors share frames.
 
-Canonical hypotheses (a model with limb networks and a side classifier, as the shipped one):
-the two states are the limb networks' canonical member and its flip, whole
-(:func:`canonical_hypotheses`); the evidence for a member is the side classifier's probability
-calibrated on validation renders and the main head's side (the model file's
-regressor.canonical_priors; the CANONICAL_* constants for a file without them).
-
-Online the chosen pose is the most probable state's filtered pose; the runner-up and its
-probability are reported when close (CLOSE_PROBABILITY). Offline (``--smooth``) the Viterbi path
-picks one hypothesis per frame and the Rauch-Tung-Striebel smoother runs over them.
-
-Limbs (``limb_filter_factory``, the tracker's default): the chain decides the heading; the
-output's 53 body angles come from one more filter over the limb networks' member whose heading
-is nearer the decided one (pick_member; offline, tracker.tracks.member_path's chain of members), with
-only the white part of the regressor's error as measurement noise
-(tracker.pipeline.LIMB_R_SCALE).
-
-How each piece and constant was chosen, and what was tried and not adopted:
-docs/tuning.md, "tracker/hypotheses.py".
+Online the output is the most probable state's filtered pose (with the runner-up when close);
+offline (``--smooth``) the Viterbi path is RTS-smoothed. With ``limb_filter_factory`` the 53
+body angles come from one more filter over the limb member nearer the decided heading
+(pick_member; tracker.pipeline.LIMB_R_SCALE). How each piece and constant was chosen:
+docs/tuning.md, "tracker/tracks/hypotheses.py".
 """
 from __future__ import annotations
 
@@ -138,9 +120,7 @@ def deaveraged_heading(poses: np.ndarray) -> np.ndarray:
     tell a view from its flip it outputs about p (cos h, sin h) + (1 - p) (-cos h, sin h): sin h
     is kept and cos h shrinks, so the heading is pulled towards +-90 and the norm drops. Each
     hypothesis's heading takes |cos| = sqrt(1 - sin^2) back in proportion to the lost norm
-    (n >= 1 keeps the pose as it is; the norm itself, the ambiguity measure, is kept). On the
-    validation spirals this lowers the heading RMS of the better of (raw, flip) from 30-45 to
-    19-35 degrees."""
+    (n >= 1 keeps the pose as it is; the norm itself, the ambiguity measure, is kept)."""
     out = np.array(poses, dtype=np.float64, copy=True)
     c, s = out[:, 0], out[:, 1]
     n = np.hypot(c, s)
@@ -181,16 +161,13 @@ def _table(edges, values, x) -> np.ndarray:
 def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
                          priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
     """The two hypotheses of a model with limbs and a side classifier: the limbs' canonical
-    member (55,) and its front/back flip, whole (heading and body angles). Evidence (log
-    likelihood ratios): the side classifier's probability front that the body faces the
-    camera's half, calibrated by priors.by_front; priors: the model's
-    (:func:`canonical_priors`). raw (55,): the main head's pose, whose heading norm says how
-    ambiguous the frame is."""
+    member (55,) and its front/back flip, whole. Evidence (log likelihood ratios): the side
+    classifier's probability ``front`` that the body faces the camera's half, calibrated by
+    priors.by_front. raw (55,): the main head's pose; its heading norm (how ambiguous the
+    frame is) replaces the member's, which commits to one body and is ~1, so the filters'
+    R inflation and the outputs' ambiguous flag still see it."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
-    # The member commits to one body, so its (cos, sin) norm is ~1 even where the silhouette
-    # is ambiguous; the main head's norm says how ambiguous it is, and the filters (their R
-    # inflation) and the outputs (the ambiguous flag) read it from the pose.
     norm = heading_norm(raw)
     unit = pair[:, :2] / np.maximum(np.linalg.norm(pair[:, :2], axis=1, keepdims=True), 1e-9)
     pair[:, :2] = unit * norm
@@ -215,27 +192,23 @@ def canonical_priors(estimator: PoseEstimator) -> CanonicalPriors:
 
 
 def switch_probability(estimator: PoseEstimator) -> tuple[float, float]:
-    """The chain's switching probabilities for this estimator's hypotheses: canonical ones
-    (a model with limbs and a side classifier; its priors' switch) switch far less often
-    than a pose and its flip."""
+    """The chain's switching probabilities for this estimator's hypotheses (canonical pairs
+    switch far less often than a pose and its flip)."""
     if estimator.gives_canonical_pairs:
         return canonical_priors(estimator).switch
     return SWITCH_PROBABILITY
 
 
 def evidence_weight(estimator: PoseEstimator) -> float:
-    """The chain's exponent per frame on this estimator's evidence: CANONICAL_EVIDENCE_WEIGHT
-    for canonical pairs (a model with limbs and a side classifier), else EVIDENCE_WEIGHT."""
+    """The chain's exponent per frame on this estimator's evidence."""
     if estimator.gives_canonical_pairs:
         return CANONICAL_EVIDENCE_WEIGHT
     return EVIDENCE_WEIGHT
 
 
 def chain_options(estimator: PoseEstimator) -> dict:
-    """FrontBackTracker's keyword arguments that depend on the estimator: its switch rates
-    (switch_probability), evidence weight (evidence_weight) and the frame rate they hold at
-    (its training_fps). The tracker's chains and the
-    offline replays that choose their weights both take them from here."""
+    """FrontBackTracker's keyword arguments that depend on the estimator: switch rates,
+    evidence weight and the frame rate they hold at (its training_fps)."""
     return {"switch": switch_probability(estimator),
             "evidence_weight": evidence_weight(estimator),
             "reference_fps": estimator.training_fps}
@@ -243,9 +216,8 @@ def chain_options(estimator: PoseEstimator) -> dict:
 
 def propose(estimator: PoseEstimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
             mirrored: np.ndarray | None = None) -> Hypotheses:
-    """The hypotheses of one frame from a stacked descriptor (k*D,): :func:`propose_batch`
-    of one row. mirrored: the stacked descriptor (k*D,) of the frames' mirror images
-    (tracker.tracks.mirror_limbs); its limbs are averaged into the frame's."""
+    """The hypotheses of one frame's stacked descriptor (k*D,) (and its mirror image's, or
+    None): :func:`propose_batch` of one row."""
     return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts,
                          None if mirrored is None else np.asarray(mirrored, float)[None])[0]
 
@@ -253,21 +225,19 @@ def propose(estimator: PoseEstimator, stacked: np.ndarray, n_experts: int = DEFA
 def propose_batch(estimator: PoseEstimator, stacked: np.ndarray,
                   n_experts: int = DEFAULT_EXPERTS, mirrored: np.ndarray | None = None
                   ) -> list[Hypotheses]:
-    """The hypotheses of stacked descriptors (N, k*D) (one per row): the estimator's
-    :meth:`~regressor.estimator.PoseEstimator.hypotheses` with n_experts experts, turned into
-    front/back hypotheses by :func:`hypotheses_from`. mirrored (N, k*D) or None: the mirror
-    images' stacked descriptors (tracker.tracks.mirror_limbs)."""
+    """The hypotheses of stacked descriptors (N, k*D), one per row: the estimator's
+    ``hypotheses`` with n_experts experts through :func:`hypotheses_from`. mirrored (N, k*D)
+    or None: the mirror images' stacked descriptors (tracker.tracks.mirror_limbs)."""
     estimates = estimator.hypotheses(stacked, n_experts, mirrored=mirrored, novelty=False)
     return hypotheses_from(estimates, canonical_priors(estimator))
 
 
 def hypotheses_from(estimates: PoseEstimates,
                     priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> list[Hypotheses]:
-    """Each row's front/back hypotheses from a model's answer (regressor.estimator
-    .PoseEstimates): with limbs and the side classifier's front probability, the limbs'
-    member and its flip (:func:`canonical_hypotheses`, weighed by priors); else each expert's
-    pose and its flip (:func:`_with_flips`), carrying the limbs. The limbs are first averaged
-    with the mirror images' when the answer has those (tracker.tracks.mirror_limbs.mirror_mean)."""
+    """Each row's front/back hypotheses from a model's answer (PoseEstimates): with limbs and
+    the side classifier's front probability, :func:`canonical_hypotheses`; else each expert's
+    pose and its flip (:func:`_with_flips`). Limbs are first averaged with the mirror images'
+    when the answer has those (tracker.tracks.mirror_limbs.mirror_mean)."""
     poses, gate, limbs = estimates.poses, estimates.probabilities, estimates.limbs
     if limbs is not None and estimates.mirror_limbs is not None:
         limbs = mirror_mean(limbs, estimates.mirror_limbs)
@@ -283,11 +253,9 @@ def hypotheses_from(estimates: PoseEstimates,
 def propose_sequence(estimator: PoseEstimator, masks, n_experts: int = DEFAULT_EXPERTS,
                      mirror: bool = True, step: int = 1) -> list[Hypotheses]:
     """The hypotheses of one person's silhouette sequence (masks (H, W) bool, in order), as
-    the tracker makes them frame by frame: each mask described (with its mirror image's
-    descriptor too when tracker.tracks.mirror_limbs.sees_mirror(estimator, mirror)), stacked with
-    ``step`` frames between stacked descriptors (regressor.stacking.stack_step of the
-    sequence's frame rate), and :func:`propose_batch` (offline evaluation and the learning
-    of priors)."""
+    the tracker makes them: each mask described (and its mirror image when
+    tracker.tracks.mirror_limbs.sees_mirror), stacked ``step`` frames apart, then
+    :func:`propose_batch` (offline evaluation and the learning of priors)."""
     k = estimator.stack_depth
     if sees_mirror(estimator, mirror):
         pairs = [estimator.describe_with_mirror(m) for m in masks]
@@ -335,17 +303,13 @@ class _Frame:
 class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
 
-    filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; its ``log_likelihoods``
-    is used when it has one, else hypotheses are scored by their evidence only); fps: frames
-    per second; switch: (P(raw -> flip), P(flip -> raw)) per frame; evidence_weight: the
-    exponent per frame of the regressor's evidence. These per-frame figures hold at reference_fps (the rate of the sequences they
-    were learned and chosen on, the model's training rate): at another fps the chain keeps
-    them per second instead (:meth:`frame_rate_ratio`), so a 120 fps video's four frames
-    count as one 30 fps frame did, not four times its evidence. keep_history: keep every
-    frame's hypotheses for viterbi_path/smoothed (memory grows with the track; off when
-    nothing needs smoothing); limb_filter_factory: fps -> a pose filter for the output's body
-    angles, stepped on each frame's raw pose, or on its limb head's member that agrees with
-    the decided heading (module docstring, "Limbs"); None: the chosen state's body angles.
+    filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; without
+    ``log_likelihoods`` hypotheses are scored by their evidence only); fps: frames per second;
+    switch: (P(raw -> flip), P(flip -> raw)) per frame and evidence_weight (the exponent on
+    the evidence), both per frame at reference_fps and kept per second at other rates
+    (:meth:`frame_rate_ratio`); keep_history: keep every frame for viterbi_path/smoothed;
+    limb_filter_factory: fps -> a filter for the output's body angles, stepped on the raw
+    pose or the limb member agreeing with the decided heading; None: the chosen state's.
     """
 
     filter_factory: Callable[[float], object]
@@ -408,10 +372,9 @@ class FrontBackTracker:
 
     @property
     def frame_rate_ratio(self) -> float:
-        """reference_fps / fps: the share of a reference frame one of this video's frames is
-        (0.25 at 120 fps for a 30 fps reference); evidence and the filters'
-        likelihoods are tempered by it (exponents), and the switch probabilities are those
-        of that share of a frame (:meth:`frame_switch`). 1 at the reference rate."""
+        """reference_fps / fps (0.25 at 120 fps for a 30 fps reference): the exponent that
+        tempers evidence and likelihoods, and the share of a frame :meth:`frame_switch`
+        switches over."""
         return self.reference_fps / self.fps
 
     @property
@@ -468,12 +431,11 @@ class FrontBackTracker:
         return np.array([frame.poses[s] for frame, s in zip(frames, path)])
 
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``): of the
-        whole track, or of history[start:stop] as if the track were those frames alone (the
-        fixed-lag smoothing of tracker.tracks.fixed_lag). With a limb_filter_factory, the body angles
-        are its RTS smoothing of the raw poses (of the limb head's members on their most
-        probable chain given the smoothed heading when every frame has them, as a model's
-        frames all do: tracker.tracks.member_path), with the smoothed heading as theirs."""
+        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``), of the
+        whole track or of history[start:stop] alone (tracker.tracks.fixed_lag). With a
+        limb_filter_factory the body angles are its RTS smoothing of the raw poses, or of the
+        limb members' most probable chain (tracker.tracks.member_path), under the smoothed
+        heading."""
         frames = self.history[start:stop]
         out = self.filter_factory(self.fps).rts_smooth(self.chosen_poses(start, stop))
         if self.limb_filter_factory is not None and len(out):
