@@ -17,6 +17,8 @@ pure, and ``get_params``/``set_params`` are written out (regressor.basis_regress
 """
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 
 from .errors import SilhouettePoseError
@@ -35,6 +37,33 @@ class RegressorTypeError(RegressorInputError, TypeError):
 
 class NotFittedError(SilhouettePoseError, ValueError, AttributeError):
     """``predict`` (or a learned attribute) was used before ``fit``."""
+
+
+class Parameters:
+    """scikit-learn's parameter protocol by hand, for the regressors and the mixture's parts:
+    the constructor's arguments are the parameters, stored under their own names."""
+
+    @classmethod
+    def _param_names(cls) -> list[str]:
+        return [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
+
+    def get_params(self, deep: bool = True) -> dict:
+        """Constructor parameters as a dict."""
+        return {name: getattr(self, name) for name in self._param_names()}
+
+    def set_params(self, **params):
+        """Set constructor parameters by name; returns self."""
+        valid = self._param_names()
+        for name, value in params.items():
+            if name not in valid:
+                raise RegressorInputError(
+                    f"{type(self).__name__} has no parameter {name!r}; valid: {valid}")
+            setattr(self, name, value)
+        return self
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        return f"{type(self).__name__}({args})"
 
 
 def squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:

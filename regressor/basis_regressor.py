@@ -4,12 +4,10 @@ Gaussian kernels on centres), hyperparameters in the constructor, learned state 
 """
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 
-from .basis import (BASIS_KINDS, NotFittedError, RegressorInputError, default_width,
-                    gaussian_design, validate_X)
+from .basis import (BASIS_KINDS, NotFittedError, Parameters, RegressorInputError,
+                    default_width, gaussian_design, validate_X)
 
 
 def design_matrix(X: np.ndarray, kind: str, centres: np.ndarray | None, width: float | None) -> np.ndarray:
@@ -36,36 +34,13 @@ def validate_Xy(X, y) -> tuple[np.ndarray, np.ndarray, bool]:
     return X, Y, y_ndim == 1
 
 
-class BasisRegressor:
+class BasisRegressor(Parameters):
     """Shared plumbing for regressors of the form y = Phi(x)[:, kept] @ coef_ + intercept_.
 
     Subclasses implement ``_fit_weights(Phi (N, M), Y (N, K)) -> (kept indices (R,), coef (R, K),
     intercept (K,))`` on the full basis of the training set; this class handles validation, the
     basis, retained centres and prediction.
     """
-
-    # --- scikit-learn parameter protocol, by hand -------------------------------------------
-    @classmethod
-    def _param_names(cls) -> list[str]:
-        sig = inspect.signature(cls.__init__)
-        return [p for p in sig.parameters if p != "self"]
-
-    def get_params(self, deep: bool = True) -> dict:
-        """Constructor hyperparameters as a dict (scikit-learn protocol)."""
-        return {name: getattr(self, name) for name in self._param_names()}
-
-    def set_params(self, **params):
-        """Set constructor hyperparameters by name; returns self (scikit-learn protocol)."""
-        valid = self._param_names()
-        for name, value in params.items():
-            if name not in valid:
-                raise RegressorInputError(f"{type(self).__name__} has no parameter {name!r}; valid: {valid}")
-            setattr(self, name, value)
-        return self
-
-    def __repr__(self) -> str:
-        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
-        return f"{type(self).__name__}({args})"
 
     def __sklearn_tags__(self):
         # Called only by scikit-learn itself, so importing it here adds no run-time dependency.

@@ -30,8 +30,6 @@ returns self, learned state ends in ``_``) without importing it.
 """
 from __future__ import annotations
 
-import inspect
-
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -39,8 +37,8 @@ import scipy.linalg
 import scipy.optimize
 import scipy.sparse
 
-from .basis import (NotFittedError, RegressorInputError, default_width, gaussian_design,
-                    squared_distances, validate_X)
+from .basis import (NotFittedError, Parameters, RegressorInputError, default_width,
+                    gaussian_design, squared_distances, validate_X)
 from .hypothesis_path import most_probable_path
 
 EXPERT_KINDS = ("ridge", "rvm", "sparse_rvm")
@@ -48,28 +46,8 @@ GATE_KINDS = ("softmax", "neighbours")
 COMBINE_KINDS = ("most_probable", "mean")
 
 
-class Estimator:
-    """scikit-learn's parameter protocol by hand (as regressor.basis_regressor.BasisRegressor)."""
-
-    @classmethod
-    def _param_names(cls) -> list[str]:
-        return [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
-
-    def get_params(self, deep: bool = True) -> dict:
-        """Constructor parameters as a dict."""
-        return {name: getattr(self, name) for name in self._param_names()}
-
-    def set_params(self, **params):
-        """Set constructor parameters by name; returns self."""
-        for name, value in params.items():
-            if name not in self._param_names():
-                raise RegressorInputError(f"{type(self).__name__} has no parameter {name!r}")
-            setattr(self, name, value)
-        return self
-
-    def __repr__(self) -> str:
-        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
-        return f"{type(self).__name__}({args})"
+class Estimator(Parameters):
+    """The parameter protocol (regressor.basis.Parameters) and a fitted-state check."""
 
     def _check_fitted(self, attribute: str) -> None:
         if not hasattr(self, attribute):
