@@ -37,7 +37,7 @@ class DampedKernelRegressor(Estimator):
     """Gaussian-kernel ridge regression on n_centres k-means centres of the inputs.
 
     width_scale: kernel width^2 = width_scale x mean squared distance between inputs
-    (regressor.basis.default_width); lam: damping, relative to the mean diagonal of
+    (regressor.basis_fit.default_width); lam: damping, relative to the mean diagonal of
     Phi^T Phi / N; the offset is not damped. Learned: centres_ (M, D), width_, coef_ (M, K),
     intercept_ (K,)."""
 
@@ -63,7 +63,7 @@ class SoftmaxGate(Estimator):
     """Multinomial logistic regression p(class | x) on Gaussian-kernel features of x.
 
     Features: exp(-||x - c||^2 / width^2) on n_centres k-means centres of the inputs (width as
-    regressor.basis.default_width with width_scale), standardised, plus a constant. l2: ridge
+    regressor.basis_fit.default_width with width_scale), standardised, plus a constant. l2: ridge
     penalty on the weights (per row of data, not on the constant). Fitted by L-BFGS on the mean
     cross-entropy. Learned: centres_, width_, feature_mean_, feature_std_, weights_ (F+1, C)."""
 
@@ -121,8 +121,8 @@ class MixtureRegressor(Estimator):
                  n_centres: int = 500, width_scale: float = 0.25, lam: float = 0.01,
                  gate_centres: int = 300, gate_width_scale: float = 0.5, gate_l2: float = 1e-4,
                  top_experts: int = 2, rvm_rows: int = 2000, seed: int = 0,
-                 gate: str = "softmax", gate_neighbours: int = 3, gate_prototypes: int | None = None,
-                 expert_params: dict | None = None,
+                 gate: str = "softmax", gate_neighbours: int = 3,
+                 gate_prototypes: int | None = None, expert_params: dict | None = None,
                  combine: str = "most_probable"):
         self.n_experts = n_experts
         self.overlap = overlap

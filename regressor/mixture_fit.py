@@ -9,7 +9,8 @@ import scipy.linalg
 import scipy.optimize
 import scipy.sparse
 
-from .basis import default_width, gaussian_design, squared_distances, validate_X
+from .basis import gaussian_design, squared_distances, validate_X
+from .basis_fit import default_width
 from .mixture import SoftmaxGate
 
 EXPERT_KINDS = ("ridge", "rvm", "sparse_rvm")

@@ -28,7 +28,7 @@ class SparseRVMRegressor(BasisRegressor):
     n_candidates : candidate kernels M (k-means centres of the training inputs); the fit's cost
         after one pass over the rows depends on M, not on the rows.
     width, width_scale : kernel width in input units, or None for
-        sqrt(width_scale x mean squared distance between training inputs) (basis.default_width).
+        sqrt(width_scale x mean squared distance between training inputs) (regressor.basis_fit.default_width).
     noise : 1/beta as a fraction of the scaled output variance, or None to estimate it.
     output_scale : "each" (every output to unit variance) or "common" (one scale for all, so a
         Euclidean error on points is what the noise measures), as in regressor.rvm.

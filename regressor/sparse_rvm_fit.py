@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from .basis import RegressorInputError, default_width, gaussian_design
-from .basis_regressor import validate_Xy
+from .basis import RegressorInputError, gaussian_design
+from .basis_fit import default_width, validate_Xy
 from .mixture_fit import kmeans
 from .rvm import _ALPHA_MAX, _BETA_MAX, _Stats, check_learning_options, step_gains
 
