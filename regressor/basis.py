@@ -1,19 +1,11 @@
 """Basis functions for pose regression, and the estimator plumbing the regressors share.
 
-A regressor predicts ``y = phi(x) @ W + b``. Two bases:
-
-- ``"linear"``: ``phi(x) = x`` (D columns); a sparse fit selects descriptor *features*.
-- ``"gaussian"``: ``phi(x)_j = exp(-||x - c_j||^2 / width^2)`` with one centre per training
-  example (N columns); a sparse fit selects training *examples* (relevance vectors).
-
-The constant offset ``b`` is always fitted and never penalised. Kernel width: by default
-``width^2 = width_scale * mean squared distance between training points`` (estimated on at most
-``_WIDTH_SAMPLE`` rows), so ``width_scale`` is a dimensionless knob that transfers between
-descriptor scalings and stacking depths.
-
-The estimators follow the scikit-learn contract without importing scikit-learn: the constructor
-stores hyperparameters only, ``fit`` returns ``self``, learned state ends in ``_``, ``predict`` is
-pure, and ``get_params``/``set_params`` are written out (regressor.basis_regressor).
+A regressor predicts ``y = phi(x) @ W + b``, b an unpenalised offset, on the ``"linear"`` basis
+``phi(x) = x`` (a sparse fit selects descriptor features) or the ``"gaussian"`` one
+``phi(x)_j = exp(-||x - c_j||^2 / width^2)`` (a sparse fit selects training examples; default
+width: regressor.basis_fit.default_width). The estimators follow the scikit-learn contract
+without importing it: the constructor stores hyperparameters only, ``fit`` returns ``self``,
+learned state ends in ``_``, ``predict`` is pure, ``get_params``/``set_params`` (Parameters).
 """
 from __future__ import annotations
 
@@ -23,8 +15,6 @@ import numpy as np
 
 from .errors import SilhouettePoseError
 
-BASIS_KINDS = ("linear", "gaussian")
-_WIDTH_SAMPLE = 2000  # rows used to estimate the mean squared distance (deterministic: evenly spaced)
 
 
 class RegressorInputError(SilhouettePoseError, ValueError):
@@ -81,18 +71,6 @@ def nearest_columns(d2: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     near_d2 = np.take_along_axis(d2, nearest, axis=1)
     order = np.argsort(near_d2, axis=1)
     return np.take_along_axis(nearest, order, axis=1), np.take_along_axis(near_d2, order, axis=1)
-
-
-def default_width(X: np.ndarray, width_scale: float = 1.0) -> float:
-    """Kernel width from the data's scatter: sqrt(width_scale * mean ||x_i - x_j||^2).
-
-    X: (N, D) training inputs. mean ||x_i - x_j||^2 over all pairs equals 2 * total variance,
-    computed exactly in O(N D) (no pairwise matrix). Returns a positive float (units of X).
-    """
-    mean_sq = 2.0 * float(np.var(X, axis=0).sum())
-    if not mean_sq > 0.0:
-        raise RegressorInputError("cannot set a kernel width: all training inputs are identical")
-    return float(np.sqrt(width_scale * mean_sq))
 
 
 def gaussian_design(X: np.ndarray, centres: np.ndarray, width: float) -> np.ndarray:

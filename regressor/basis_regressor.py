@@ -6,40 +6,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import (BASIS_KINDS, NotFittedError, Parameters, RegressorInputError,
-                    default_width, gaussian_design, validate_X)
-
-
-def design_matrix(X: np.ndarray, kind: str, centres: np.ndarray | None, width: float | None) -> np.ndarray:
-    """Basis matrix Phi (N, M) for inputs X (N, D): X itself (linear) or the Gaussian kernel on centres."""
-    if kind == "linear":
-        return X
-    return gaussian_design(X, centres, width)
-
-
-def validate_Xy(X, y) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Validate training data: X (N, D), y (N,) or (N, K). Returns (X, Y as (N, K), y_was_1d)."""
-    X = validate_X(X)
-    if y is None:
-        raise RegressorInputError("this regressor requires y to be passed, but the target y is None")
-    y = np.asarray(y)
-    y_ndim = y.ndim
-    if y_ndim not in (1, 2):
-        raise RegressorInputError(f"y must be 1-D (N,) or 2-D (N, K); got shape {np.shape(y)}")
-    Y = validate_X(np.reshape(y, (-1, 1)) if y_ndim == 1 else y, name="y")
-    if Y.shape[0] != X.shape[0]:
-        raise RegressorInputError(f"X has {X.shape[0]} samples but y has {Y.shape[0]}")
-    if X.shape[0] < 2:
-        raise RegressorInputError(f"need at least 2 training samples; got n_samples=1 (X of shape {X.shape})")
-    return X, Y, y_ndim == 1
+from .basis import NotFittedError, Parameters, gaussian_design, validate_X
 
 
 class BasisRegressor(Parameters):
     """Shared plumbing for regressors of the form y = Phi(x)[:, kept] @ coef_ + intercept_.
 
     Subclasses implement ``_fit_weights(Phi (N, M), Y (N, K)) -> (kept indices (R,), coef (R, K),
-    intercept (K,))`` on the full basis of the training set; this class handles validation, the
-    basis, retained centres and prediction.
+    intercept (K,))`` on the full basis of the training set (regressor.basis_fit); this class
+    handles the rest.
     """
 
     def __sklearn_tags__(self):
@@ -49,31 +24,10 @@ class BasisRegressor(Parameters):
                     target_tags=TargetTags(required=True, multi_output=True, single_output=True),
                     regressor_tags=RegressorTags(), input_tags=InputTags())
 
-    # --- fitting and prediction -----------------------------------------------------------
-    def _check_basis_options(self) -> None:
-        if self.basis not in BASIS_KINDS:
-            raise RegressorInputError(f"basis={self.basis!r}; expected one of {BASIS_KINDS}")
-        if self.width is not None and not (np.isfinite(self.width) and self.width > 0):
-            raise RegressorInputError(f"width={self.width!r}; expected a positive number or None")
-        if not (np.isfinite(self.width_scale) and self.width_scale > 0):
-            raise RegressorInputError(f"width_scale={self.width_scale!r}; expected a positive number")
-
     def fit(self, X, y):
-        """Fit on X (N, D) and y (N,) or (N, K); returns self."""
-        self._check_basis_options()
-        X, Y, y_1d = validate_Xy(X, y)
-        self.n_features_in_ = X.shape[1]
-        self.width_ = None
-        if self.basis == "gaussian":
-            self.width_ = float(self.width) if self.width is not None else default_width(X, self.width_scale)
-        Phi = design_matrix(X, self.basis, X, self.width_)
-        kept, coef, intercept = self._fit_weights(Phi, Y)
-        self.relevance_ = np.asarray(kept, dtype=np.int64)
-        self.coef_ = coef
-        self.intercept_ = intercept
-        self.centres_ = X[self.relevance_].copy() if self.basis == "gaussian" else None
-        self._y_1d = y_1d
-        return self
+        """Fit on X (N, D) and y (N,) or (N, K) (regressor.basis_fit); returns self."""
+        from .basis_fit import fit_basis
+        return fit_basis(self, X, y)
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "coef_"):

@@ -1,9 +1,5 @@
-"""A k-means codebook of shape contexts and soft (Gaussian) vote histograms on it.
-
-The codebook is plain arrays (centres (K, D) float64, sigma float) so a model file can store it.
-Fitting is seeded k-means++ followed by Lloyd iterations, vectorized in numpy: the same contexts
-and seed give identical centres.
-"""
+"""A k-means codebook of shape contexts (plain arrays, so a model file can store it; fitted by
+regressor.training.fit_codebook) and soft (Gaussian) vote histograms on it."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -70,13 +66,9 @@ class Codebook:
 
 
 def soft_histogram(contexts: np.ndarray, codebook: Codebook, n_votes: int = 5, total: float = 100.0) -> np.ndarray:
-    """Soft vector quantization of one silhouette's contexts onto the codebook.
-
-    contexts: (N, D) float, one silhouette's shape contexts.
-    Each context votes into its n_votes nearest centres with weights exp(-d^2 / (2 sigma^2)),
-    normalized to 1 per context (computed relative to the nearest centre, so no underflow).
-    Returns (K,) float64 histogram summing to total.
-    """
+    """Histogram (K,) float64 summing to total of one silhouette's contexts (N, D): each votes
+    into its n_votes nearest centres with weights exp(-d^2 / (2 sigma^2)), normalised to 1 per
+    context (relative to the nearest centre, so no underflow)."""
     contexts = np.asarray(contexts, dtype=np.float64)
     k = codebook.n_centres
     if contexts.ndim != 2 or contexts.shape[1] != codebook.centres.shape[1] or len(contexts) == 0:

@@ -1,14 +1,11 @@
-"""Silhouette descriptor: mask -> edge points -> shape contexts -> soft histogram on a codebook.
-
-This is the public entry to the descriptor (Agarwal & Triggs, CVPR 2004, section 2). The default
-settings give a 100-D histogram (with a 100-centre codebook) of 12 x 5 log-polar shape contexts
-at 300 outer-boundary points, summing to 100 like the paper's released descriptors.
+"""Silhouette descriptor: mask -> edge points -> shape contexts -> soft histogram on a codebook
+(Agarwal & Triggs, CVPR 2004, section 2). The defaults give a 100-D histogram (100-centre
+codebook) of 12 x 5 log-polar shape contexts at 300 outer-boundary points, summing to 100 like
+the paper's released descriptors. Many masks at once: regressor.descriptor_batch.
 """
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
-from typing import Callable, Iterable
-
 import numpy as np
 
 from regressor.codebook import Codebook, CodebookError, soft_histogram
@@ -17,22 +14,9 @@ from regressor.shape_context import mirrored_bins, shape_contexts
 
 from .errors import SilhouettePoseError
 
-__all__ = [
-    "Codebook",
-    "CodebookError",
-    "DegenerateSilhouetteError",
-    "DescriptorSettings",
-    "DescriptorSettingsError",
-    "SilhouetteError",
-    "contexts_for_masks",
-    "descriptor_and_mirror",
-    "descriptor_for_mask",
-    "descriptors_for_masks",
-    "mask_contexts",
-]
-
-Progress = Callable[[int], None]
-
+__all__ = ["Codebook", "CodebookError", "DegenerateSilhouetteError", "DescriptorSettings",
+           "DescriptorSettingsError", "SilhouetteError", "descriptor_and_mirror",
+           "descriptor_for_mask", "mask_contexts"]
 
 class DescriptorSettingsError(SilhouettePoseError, ValueError):
     """A descriptor setting is out of range, or stored settings are malformed."""
@@ -95,7 +79,7 @@ class DescriptorSettings:
 
     @classmethod
     def from_arrays(cls, arrays, prefix: str = "descriptor_") -> "DescriptorSettings":
-        """Rebuild from a mapping made by to_arrays (e.g. an NpzFile); validates every field."""
+        """Rebuild from to_arrays' mapping (e.g. an NpzFile); validates every field."""
         values = {}
         for f in fields(cls):
             key = prefix + f.name
@@ -115,17 +99,14 @@ class DescriptorSettings:
 
 
 def mask_contexts(mask: np.ndarray, settings: DescriptorSettings) -> np.ndarray:
-    """Shape contexts of a silhouette's edge points.
-
-    mask: (H, W) bool/integer silhouette (nonzero = person), any size.
-    Returns (settings.n_points, settings.context_size) float64, each row summing to 1.
-    Raises DegenerateSilhouetteError for an empty, tiny or line-like silhouette.
-    """
+    """Shape contexts (settings.n_points, settings.context_size) float64, rows summing to 1, of
+    the edge points of mask (H, W) bool/integer (nonzero = person). Raises
+    DegenerateSilhouetteError for an empty, tiny or line-like silhouette."""
     points = sample_edge_points(mask, settings.n_points, settings.include_holes)
     return shape_contexts(points, settings.n_angular, settings.n_radial, settings.r_inner, settings.r_outer)
 
 
-def _check_codebook(settings: DescriptorSettings, codebook: Codebook) -> None:
+def check_codebook(settings: DescriptorSettings, codebook: Codebook) -> None:
     if codebook.centres.shape[1] != settings.context_size:
         raise CodebookError(
             f"codebook centres have {codebook.centres.shape[1]} columns but the settings give "
@@ -134,12 +115,9 @@ def _check_codebook(settings: DescriptorSettings, codebook: Codebook) -> None:
 
 
 def descriptor_for_mask(mask: np.ndarray, settings: DescriptorSettings, codebook: Codebook) -> np.ndarray:
-    """The histogram-of-shape-contexts descriptor of one silhouette.
-
-    mask: (H, W) bool/integer silhouette. Returns (K,) float64, K = codebook.n_centres, summing
-    to settings.total. Raises DegenerateSilhouetteError for an unusable silhouette.
-    """
-    _check_codebook(settings, codebook)
+    """The histogram-of-shape-contexts descriptor (K,) float64 (K = codebook.n_centres, summing
+    to settings.total) of a silhouette mask (H, W). Raises as mask_contexts."""
+    check_codebook(settings, codebook)
     return soft_histogram(mask_contexts(mask, settings), codebook, settings.n_votes, settings.total)
 
 
@@ -147,11 +125,10 @@ def descriptor_and_mirror(mask: np.ndarray, settings: DescriptorSettings,
                           codebook: Codebook) -> tuple[np.ndarray, np.ndarray]:
     """(descriptor_for_mask(mask), the descriptor of its mirror image (the mask flipped left
     to right)), (K,) float64 each. The mirror's shape contexts are the mask's own with their
-    sectors reflected (regressor.shape_context.mirrored_bins), so the edge is sampled and the
-    contexts computed once; the flipped mask's own descriptor differs from it only by where
-    the edge sampling starts. With an odd number of sectors (no reflection of sectors) the
-    flipped mask is described. Raises as descriptor_for_mask."""
-    _check_codebook(settings, codebook)
+    sectors reflected (regressor.shape_context.mirrored_bins), so the contexts are computed
+    once (the flipped mask's own descriptor differs only by where the edge sampling starts).
+    With an odd number of sectors the flipped mask is described. Raises as mask_contexts."""
+    check_codebook(settings, codebook)
     try:
         order = mirrored_bins(settings.n_angular, settings.n_radial)
     except ValueError:
@@ -160,59 +137,3 @@ def descriptor_and_mirror(mask: np.ndarray, settings: DescriptorSettings,
     contexts = mask_contexts(mask, settings)
     return tuple(soft_histogram(c, codebook, settings.n_votes, settings.total)
                  for c in (contexts, contexts[:, order]))
-
-
-def descriptors_for_masks(
-    masks: Iterable[np.ndarray],
-    settings: DescriptorSettings,
-    codebook: Codebook,
-    progress: Progress | None = None,
-) -> np.ndarray:
-    """Descriptors of many silhouettes.
-
-    masks: iterable of (H_i, W_i) silhouettes (sizes may differ).
-    progress: called with the number of masks done so far after each mask.
-    Returns (N, K) float64. Raises DegenerateSilhouetteError naming the index of the first
-    unusable mask.
-    """
-    _check_codebook(settings, codebook)
-    rows = []
-    for i, mask in enumerate(masks):
-        try:
-            contexts = mask_contexts(mask, settings)
-        except SilhouetteError as err:
-            raise type(err)(f"mask {i}: {err}") from err
-        rows.append(soft_histogram(contexts, codebook, settings.n_votes, settings.total))
-        if progress is not None:
-            progress(i + 1)
-    return np.array(rows, dtype=np.float64).reshape(len(rows), codebook.n_centres)
-
-
-def contexts_for_masks(
-    masks: Iterable[np.ndarray],
-    settings: DescriptorSettings,
-    per_mask: int | None = None,
-    seed: int = 0,
-    progress: Progress | None = None,
-) -> np.ndarray:
-    """Shape contexts pooled from many silhouettes (the training data of a codebook).
-
-    per_mask: keep at most this many contexts per silhouette, drawn without replacement with a
-        Generator seeded by seed (None keeps all n_points).
-    Returns (M, settings.context_size) float64. Raises DegenerateSilhouetteError naming the index.
-    """
-    rng = np.random.default_rng(seed)
-    pooled = []
-    for i, mask in enumerate(masks):
-        try:
-            contexts = mask_contexts(mask, settings)
-        except SilhouetteError as err:
-            raise type(err)(f"mask {i}: {err}") from err
-        if per_mask is not None and per_mask < len(contexts):
-            contexts = contexts[np.sort(rng.choice(len(contexts), size=per_mask, replace=False))]
-        pooled.append(contexts)
-        if progress is not None:
-            progress(i + 1)
-    if not pooled:
-        raise CodebookError("no masks given to pool shape contexts from")
-    return np.vstack(pooled)

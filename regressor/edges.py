@@ -1,9 +1,6 @@
-"""Edge points of a binary silhouette, sampled at equal arc length along its boundary.
-
-The silhouette's outer boundary is the largest external contour of the mask (OpenCV
-``findContours``); holes inside it (the "internal edges" a binary mask has, e.g. the gap between an
-arm and the torso) are optional. Points are returned in image pixel coordinates, x to the right and
-y downwards, as in the mask's own indexing (column, row).
+"""Edge points of a binary silhouette at equal arc length along its boundary: the largest
+external contour (OpenCV ``findContours``) and optionally its holes (internal edges, e.g. the
+gap between an arm and the torso), in pixels (x = column, y = row pointing down).
 """
 from __future__ import annotations
 
@@ -31,11 +28,8 @@ class DegenerateSilhouetteError(SilhouetteError):
 
 
 def as_mask(mask: np.ndarray) -> np.ndarray:
-    """Validate a silhouette mask and return it as a contiguous (H, W) uint8 array of 0/1.
-
-    mask: (H, W) bool or integer array; nonzero pixels are the silhouette.
-    Raises SilhouetteError for anything that is not a 2-D array of bool or integer type.
-    """
+    """A silhouette mask (H, W) bool or integer (nonzero = person) as a contiguous (H, W) uint8
+    array of 0/1; SilhouetteError for anything but a 2-D bool or integer array."""
     mask = np.asarray(mask)
     if mask.ndim != 2:
         raise SilhouetteError(f"silhouette mask must be 2-D (H, W), got shape {mask.shape}")
@@ -100,15 +94,10 @@ def _split_count(lengths: np.ndarray, total: int) -> np.ndarray:
 
 
 def sample_edge_points(mask: np.ndarray, n_points: int = 300, include_holes: bool = False) -> np.ndarray:
-    """Points at equal arc length along a silhouette's boundary.
-
-    mask: (H, W) bool/integer silhouette (nonzero = person).
-    n_points: how many points to return (spacing = boundary length / n_points).
-    include_holes: also sample the boundaries of holes inside the largest silhouette (internal
-        edges); points are then shared among the boundaries in proportion to their lengths.
-    Returns (n_points, 2) float64 (x, y) in pixels (x = column, y = row, y pointing down).
-    Raises DegenerateSilhouetteError for an empty mask, a silhouette with fewer than
-    MIN_EDGE_PIXELS boundary pixels, or one thinner than MIN_THICKNESS_RATIO of its length (a line).
+    """n_points (n_points, 2) float64 (x, y) px at equal arc length along the boundary of mask
+    (H, W) bool/integer (nonzero = person); with include_holes shared among the outer boundary
+    and its holes in proportion to their lengths. Raises DegenerateSilhouetteError for an
+    empty mask, fewer than MIN_EDGE_PIXELS boundary pixels, or a line (MIN_THICKNESS_RATIO).
     """
     if n_points < MIN_EDGE_PIXELS:
         raise ValueError(f"n_points must be at least {MIN_EDGE_PIXELS}, got {n_points}")

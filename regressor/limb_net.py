@@ -1,15 +1,8 @@
-"""The limbs by an ensemble of small neural networks on the regressor's input (issue 9).
-
-The mixture's limb head (:class:`regressor.pose_model.LimbHead`) regresses each silhouette's
-canonical body (the member of {pose, front/back flip} facing the camera's half,
-sequences.pose_vector.canonical_member) by kernel ridge on 400 centres per expert: each expert
-sees its own region and smooths within it. A multi-layer perceptron on the same input and
-targets shares its features over all the training rows. Seeded networks differ a lot from
-one another (the validation videos' correlation of the 8 most-moving angles at the true
-heading moved by up to 0.17 between two seeds), so several are averaged.
-
-How the recipe (eight (512, 256) networks, mirror images in training, int8 weights) was
-chosen, and what was tried and not adopted: docs/tuning.md, "regressor/limb_net.py".
+"""The limbs by an ensemble of small neural networks on the regressor's input (issue 9): each
+silhouette's canonical body (sequences.pose_vector.canonical_member), as the mixture's limb head
+(regressor.pose_model.LimbHead) but with features shared over all the training rows; seeded
+networks differ, so several are averaged (why and how chosen: docs/code_notes/regress.md,
+docs/tuning.md "regressor/limb_net.py").
 
 A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
 standardised by a mean and one scale, outputs by a mean and a scale per value. The networks
@@ -26,8 +19,7 @@ import numpy as np
 
 from .angles import POSE_DIM, wrap_deg
 from .relu_layers import (as_float32_layers, check_parts, dequantised_int8, forward,
-                          forward_mean, quantised_int8, stacked_members, standardised,
-                          typical_inputs)
+                          forward_mean, stacked_members, standardised, typical_inputs)
 from .rotation6d import ROT6D_LENGTH, rot6d_to_angles
 
 PREFIX = "limb_net_"        # the file parts' names
@@ -68,8 +60,7 @@ class LimbNet:
         problem = self._problem()
         if problem:
             raise ValueError(f"invalid limb network: {problem}")
-        # checked: the members as one batched stack for predict on one row (a copy of the
-        # weights, 7.9 MB for the default's eight; members are not changed after this)
+        # the members as one batched stack for predict on one row (a copy; members stay as is)
         self._stacked = stacked_members(self.members)
 
     def _problem(self) -> str | None:
@@ -151,9 +142,9 @@ class LimbNet:
 
     def to_arrays(self, prefix: str = PREFIX) -> dict:
         """The file parts, keyed by ``prefix``; each weight matrix as int8 with a float32
-        scale per output column (``S{m}_{i}``; relu_layers.quantised_int8), half of float16's
-        space (what it changes: docs/tuning.md; training reports limb_net_int8_max_deg). Older
+        scale per output column (``S{m}_{i}``; regressor.model_writer.quantised_int8). Older
         files hold float16 weights and no scales; from_arrays reads both."""
+        from .model_writer import quantised_int8
         out = {f"{prefix}shape": np.array([len(self.members), len(self.members[0])], np.int64),
                f"{prefix}input_mean": self.input_mean,
                f"{prefix}input_scale": np.float64(self.input_scale),

@@ -1,49 +1,28 @@
 """A mixture of kernel regression experts with a gate (after Agarwal and Triggs, "Monocular
 human motion capture with a mixture of regressors", CVPR Workshops 2005).
 
-One kernel regressor covers all poses badly: it must average silhouettes that mean different
-poses and cannot afford the rows to see every motion densely. Here the training set is split
-into regions of pose space (k-means on a pose embedding), each region gets its own expert
-fitted on its members (plus a margin of rows near its border, so neighbouring experts agree
-where they meet), and a gate p(expert | stacked descriptor) - multinomial logistic regression
-on Gaussian-kernel features (the tracker's models), or the regions of the nearest training
-inputs (``gate="neighbours"``, for small sets; on the paper's data cross-validation picks it)
-- says which experts to trust. Where a silhouette is ambiguous (front/back) two experts get
-similar probabilities and :meth:`MixtureRegressor.predict_hypotheses` returns both poses;
-:meth:`MixtureRegressor.predict` returns the most probable one, and over a whole sequence
-:meth:`MixtureRegressor.predict_path` the most probable chain of them (regressor.hypothesis_path).
+The training set is split into regions of pose space (k-means on a pose embedding), each region
+gets its own expert fitted on its members (plus a margin of rows near its border, so neighbouring
+experts agree where they meet), and a gate p(expert | stacked descriptor) - multinomial logistic
+regression on Gaussian-kernel features (the tracker's models), or the regions of the nearest
+training inputs (``gate="neighbours"``) - says which experts to trust. Where a silhouette is
+ambiguous (front/back) two experts get similar probabilities and
+:meth:`MixtureRegressor.predict_hypotheses` returns both poses; :meth:`MixtureRegressor.predict`
+returns the most probable one, and over a whole sequence :meth:`MixtureRegressor.predict_path`
+the most probable chain of them (regressor.hypothesis_path).
 
-Experts (:class:`DampedKernelRegressor`): Gaussian-kernel ridge regression on a subset of
-centres (k-means centres of the expert's inputs), the damped least squares of the paper's
-baseline on a compact basis. The project's one-shot RVM (regressor.rvm) keeps 1,342 of 4,000
-rows and takes 94 s at that size (issue 9), and the cost grows as N^2-N^3; an expert here sees
-5,000-15,000 rows, so its basis is chosen by clustering and its weights by damped least
-squares, in seconds. (``expert="rvm"`` fits the RVM instead on at most ``rvm_rows`` rows of each
-expert, for comparison.) ``expert="sparse_rvm"`` (regressor.sparse_rvm) is both: a sparse RVM on
-all the expert's rows, over k-means candidate kernels, whose fit costs grow with the candidates
-rather than the rows, and which gives each pose a predictive standard deviation.
-
+Experts: :class:`DampedKernelRegressor` (damped least squares on k-means centres),
+regressor.rvm's RVM (``expert="rvm"``, on at most ``rvm_rows`` rows) or regressor.sparse_rvm's
+sparse RVM, which also gives each pose a predictive standard deviation. Why these:
+docs/code_notes/regress.md. The fits are in regressor.mixture_fit, loaded only when fitting.
 Per-frame cost: the gate's kernel features (G centres), then only the top experts' kernels.
-
-Pure numpy/scipy; follows the scikit-learn conventions (constructor stores parameters, fit
-returns self, learned state ends in ``_``) without importing it.
 """
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
-import scipy.linalg
-import scipy.optimize
-import scipy.sparse
 
-from .basis import (NotFittedError, Parameters, RegressorInputError, default_width,
-                    gaussian_design, squared_distances, validate_X)
+from .basis import NotFittedError, Parameters, gaussian_design, validate_X
 from .hypothesis_path import most_probable_path
-
-EXPERT_KINDS = ("ridge", "rvm", "sparse_rvm")
-GATE_KINDS = ("softmax", "neighbours")
-COMBINE_KINDS = ("most_probable", "mean")
 
 
 class Estimator(Parameters):
@@ -54,55 +33,11 @@ class Estimator(Parameters):
             raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit first")
 
 
-# ----------------------------------------------------------------------------- k-means
-
-def kmeans(X: np.ndarray, k: int, seed: int = 0, iterations: int = 25,
-           sample: int = 20000) -> np.ndarray:
-    """k-means centres (k, D) of rows X (N, D): k-means++ start (on at most 4,000 of them),
-    Lloyd iterations on at most ``sample`` rows, deterministic in seed. Empty clusters are re-seeded at the row
-    farthest from its centre."""
-    X = np.asarray(X, dtype=np.float64)
-    rng = np.random.default_rng(seed)
-    if len(X) > sample:
-        X = X[np.sort(rng.choice(len(X), sample, replace=False))]
-    k = min(k, len(X))
-    # k-means++ seeding on at most 4,000 rows, squared norms computed once.
-    seed_rows = X if len(X) <= 4000 else X[np.sort(rng.choice(len(X), 4000, replace=False))]
-    norms = (seed_rows * seed_rows).sum(axis=1)
-    centres = np.empty((k, X.shape[1]))
-    centres[0] = seed_rows[rng.integers(len(seed_rows))]
-    d2 = np.maximum(norms - 2 * seed_rows @ centres[0] + centres[0] @ centres[0], 0)
-    for j in range(1, k):
-        p = d2 / d2.sum() if d2.sum() > 0 else None
-        centres[j] = seed_rows[rng.choice(len(seed_rows), p=p)]
-        d2 = np.minimum(d2, np.maximum(norms - 2 * seed_rows @ centres[j]
-                                       + centres[j] @ centres[j], 0))
-    for _ in range(iterations):
-        D = squared_distances(X, centres)
-        label = D.argmin(axis=1)
-        counts = np.bincount(label, minlength=k)
-        # Sums per cluster as a sparse product (np.add.at is ~50x slower at this size).
-        new = np.asarray(scipy.sparse.csr_matrix(
-            (np.ones(len(X)), (label, np.arange(len(X)))), shape=(k, len(X))) @ X)
-        empty = counts == 0
-        new[~empty] /= counts[~empty, None]
-        if empty.any():
-            far = np.argsort(-D[np.arange(len(X)), label])[:empty.sum()]
-            new[empty] = X[far]
-        if np.allclose(new, centres):
-            centres = new
-            break
-        centres = new
-    return centres
-
-
-# ----------------------------------------------------------------------------- experts
-
 class DampedKernelRegressor(Estimator):
     """Gaussian-kernel ridge regression on n_centres k-means centres of the inputs.
 
     width_scale: kernel width^2 = width_scale x mean squared distance between inputs
-    (regressor.basis.default_width); lam: damping, relative to the mean diagonal of
+    (regressor.basis_fit.default_width); lam: damping, relative to the mean diagonal of
     Phi^T Phi / N; the offset is not damped. Learned: centres_ (M, D), width_, coef_ (M, K),
     intercept_ (K,)."""
 
@@ -114,28 +49,9 @@ class DampedKernelRegressor(Estimator):
         self.seed = seed
 
     def fit(self, X, Y, sample_weight=None):
-        X = validate_X(X)
-        Y = np.asarray(Y, dtype=np.float64)
-        Y2 = Y[:, None] if Y.ndim == 1 else Y
-        self.width_ = default_width(X, self.width_scale)
-        self.centres_ = kmeans(X, self.n_centres, seed=self.seed, iterations=8,
-                              sample=10000)
-        Phi = gaussian_design(X, self.centres_, self.width_)
-        w = np.ones(len(X)) if sample_weight is None else np.asarray(sample_weight, float)
-        sw = w / w.sum()
-        mean_phi = sw @ Phi
-        mean_y = sw @ Y2
-        P = (Phi - mean_phi) * np.sqrt(w)[:, None]
-        T = (Y2 - mean_y) * np.sqrt(w)[:, None]
-        A = P.T @ P
-        damping = self.lam * max(float(np.trace(A)) / len(A), 1e-12)
-        A[np.diag_indices_from(A)] += damping
-        self.coef_ = scipy.linalg.solve(A, P.T @ T, assume_a="pos")
-        self.intercept_ = mean_y - mean_phi @ self.coef_
-        if Y.ndim == 1:
-            self.coef_, self.intercept_ = self.coef_[:, 0], self.intercept_[0]
-        self.n_features_in_ = X.shape[1]
-        return self
+        """Fit on X (N, D), Y (N, K) or (N,) (regressor.mixture_fit); returns self."""
+        from .mixture_fit import fit_damped
+        return fit_damped(self, X, Y, sample_weight)
 
     def predict(self, X):
         self._check_fitted("coef_")
@@ -143,13 +59,11 @@ class DampedKernelRegressor(Estimator):
         return gaussian_design(X, self.centres_, self.width_) @ self.coef_ + self.intercept_
 
 
-# ----------------------------------------------------------------------------- the gate
-
 class SoftmaxGate(Estimator):
     """Multinomial logistic regression p(class | x) on Gaussian-kernel features of x.
 
     Features: exp(-||x - c||^2 / width^2) on n_centres k-means centres of the inputs (width as
-    regressor.basis.default_width with width_scale), standardised, plus a constant. l2: ridge
+    regressor.basis_fit.default_width with width_scale), standardised, plus a constant. l2: ridge
     penalty on the weights (per row of data, not on the constant). Fitted by L-BFGS on the mean
     cross-entropy. Learned: centres_, width_, feature_mean_, feature_std_, weights_ (F+1, C)."""
 
@@ -161,51 +75,17 @@ class SoftmaxGate(Estimator):
         self.max_iter = max_iter
         self.seed = seed
 
-    def features(self, X: np.ndarray) -> np.ndarray:
-        """Standardised kernel features with a trailing constant, (N, F+1)."""
-        F = (gaussian_design(X, self.centres_, self.width_) - self.feature_mean_) / self.feature_std_
-        return np.hstack([F, np.ones((len(F), 1))])
-
     def fit(self, X, labels, n_classes: int | None = None, sample_weight=None):
-        X = validate_X(X)
-        labels = np.asarray(labels, dtype=np.int64)
-        C = int(labels.max()) + 1 if n_classes is None else int(n_classes)
-        self.n_classes_ = C
-        self.width_ = default_width(X, self.width_scale)
-        self.centres_ = kmeans(X, self.n_centres, seed=self.seed, iterations=8,
-                              sample=10000)
-        raw = gaussian_design(X, self.centres_, self.width_)
-        self.feature_mean_ = raw.mean(axis=0)
-        self.feature_std_ = raw.std(axis=0) + 1e-6
-        F = np.hstack([(raw - self.feature_mean_) / self.feature_std_, np.ones((len(X), 1))])
-        N, P = F.shape
-        onehot = np.zeros((N, C))
-        onehot[np.arange(N), labels] = 1.0
-        w = np.ones(N) if sample_weight is None else np.asarray(sample_weight, float)
-        w = w / w.sum()
-        penal = np.ones((P, C))
-        penal[-1] = 0.0
-
-        def loss(flat):
-            W = flat.reshape(P, C)
-            Z = F @ W
-            Z -= Z.max(axis=1, keepdims=True)
-            logp = Z - np.log(np.exp(Z).sum(axis=1, keepdims=True))
-            value = -(w * (onehot * logp).sum(axis=1)).sum() + 0.5 * self.l2 * (penal * W * W).sum()
-            grad = F.T @ ((np.exp(logp) - onehot) * w[:, None]) + self.l2 * penal * W
-            return value, grad.ravel()
-
-        res = scipy.optimize.minimize(loss, np.zeros(P * C), jac=True, method="L-BFGS-B",
-                                      options={"maxiter": self.max_iter})
-        self.weights_ = res.x.reshape(P, C)
-        self.n_features_in_ = X.shape[1]
-        return self
+        """Fit on X (N, D) and class labels (N,) int (regressor.mixture_fit); returns self."""
+        from .mixture_fit import fit_softmax_gate
+        return fit_softmax_gate(self, X, labels, n_classes, sample_weight)
 
     def predict_proba(self, X) -> np.ndarray:
         """p(class | x), (N, C), rows summing to 1."""
         self._check_fitted("weights_")
         X = validate_X(X, self.n_features_in_)
-        Z = self.features(X) @ self.weights_
+        F = gaussian_design(X, self.centres_, self.width_) - self.feature_mean_
+        Z = np.hstack([F / self.feature_std_, np.ones((len(F), 1))]) @ self.weights_
         Z -= Z.max(axis=1, keepdims=True)
         P = np.exp(Z)
         return P / P.sum(axis=1, keepdims=True)
@@ -214,8 +94,6 @@ class SoftmaxGate(Estimator):
         """Most probable class (N,)."""
         return self.predict_proba(X).argmax(axis=1)
 
-
-# ----------------------------------------------------------------------------- the mixture
 
 class MixtureRegressor(Estimator):
     """Mixture of kernel regression experts with a gate (module docstring).
@@ -243,8 +121,8 @@ class MixtureRegressor(Estimator):
                  n_centres: int = 500, width_scale: float = 0.25, lam: float = 0.01,
                  gate_centres: int = 300, gate_width_scale: float = 0.5, gate_l2: float = 1e-4,
                  top_experts: int = 2, rvm_rows: int = 2000, seed: int = 0,
-                 gate: str = "softmax", gate_neighbours: int = 3, gate_prototypes: int | None = None,
-                 expert_params: dict | None = None,
+                 gate: str = "softmax", gate_neighbours: int = 3,
+                 gate_prototypes: int | None = None, expert_params: dict | None = None,
                  combine: str = "most_probable"):
         self.n_experts = n_experts
         self.overlap = overlap
@@ -278,58 +156,9 @@ class MixtureRegressor(Estimator):
     def fit(self, X, Y, Z=None, log=None, workers: int = 1):
         """X (N, D) inputs, Y (N, K) targets, Z (N, dZ) the space partitioned (default Y).
         log(str) reports progress. workers: experts fitted at once (threads; the experts do
-        not depend on it)."""
-        if self.expert not in EXPERT_KINDS:
-            raise ValueError(f"expert must be one of {EXPERT_KINDS}, got {self.expert!r}")
-        if self.gate not in GATE_KINDS:
-            raise ValueError(f"gate must be one of {GATE_KINDS}, got {self.gate!r}")
-        if self.combine not in COMBINE_KINDS:
-            raise ValueError(f"combine must be one of {COMBINE_KINDS}, got {self.combine!r}")
-        X = validate_X(X)
-        Y = np.asarray(Y, dtype=np.float64)
-        Z = Y if Z is None else np.asarray(Z, dtype=np.float64)
-        if len(Y) != len(X) or len(Z) != len(X):
-            raise ValueError("X, Y and Z must have the same number of rows")
-        E = max(1, int(self.n_experts))
-        self.partition_centres_ = kmeans(Z, E, seed=self.seed)
-        E = len(self.partition_centres_)
-        D = squared_distances(Z, self.partition_centres_)
-        labels = D.argmin(axis=1)
-        own = D[np.arange(len(Z)), labels]
-        members = []
-        for e in range(E):
-            member = (labels == e) | (np.sqrt(D[:, e]) <= (1.0 + self.overlap) * np.sqrt(own))
-            idx = np.flatnonzero(member)
-            if self.expert == "rvm" and len(idx) > self.rvm_rows:
-                idx = idx[np.linspace(0, len(idx) - 1, self.rvm_rows).astype(int)]
-            members.append(idx)
-
-        def fit_one(e: int):
-            expert = self._new_expert(e).fit(X[members[e]], Y[members[e]])
-            if log:
-                kept = getattr(expert, "relevance_", None)
-                log(f"  expert {e}: {int((labels == e).sum())} rows of its own, "
-                    f"{len(members[e])} fitted"
-                    + ("" if kept is None else f", {len(kept)} relevance vectors kept"))
-            return expert
-
-        if int(workers) > 1:         # numpy releases the GIL in its matrix work
-            with ThreadPoolExecutor(int(workers)) as pool:
-                self.experts_ = list(pool.map(fit_one, range(E)))
-        else:
-            self.experts_ = [fit_one(e) for e in range(E)]
-        rows = [len(idx) for idx in members]
-        self.expert_rows_ = np.array(rows)
-        if self.gate == "neighbours":
-            from .neighbour_gate import NeighbourGate
-            self.gate_ = NeighbourGate(self.gate_neighbours, prototypes=self.gate_prototypes,
-                                       seed=self.seed).fit(X, labels, n_classes=E)
-        else:
-            self.gate_ = SoftmaxGate(self.gate_centres, self.gate_width_scale, self.gate_l2,
-                                     seed=self.seed).fit(X, labels, n_classes=E)
-        self.n_features_in_ = X.shape[1]
-        self.n_outputs_ = Y.shape[1] if Y.ndim == 2 else 1
-        return self
+        not depend on it). Returns self (regressor.mixture_fit)."""
+        from .mixture_fit import fit_mixture
+        return fit_mixture(self, X, Y, Z, log, workers)
 
     def predict_proba(self, X) -> np.ndarray:
         """The gate: p(expert | x), (N, E)."""

@@ -16,6 +16,22 @@ from .model_file import save_model
 from .pose_model import MIXTURE_KIND, MODEL_KIND, LimbHead, PoseModel, PoseModelError
 
 
+def quantised_int8(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A weight matrix W (n_in, n_out) of finite floats as int8 values q in -127..127 and one
+    float32 scale per output column (n_out,), W ~ q * scale: a quarter of float32's file
+    space. Each column's scale is its largest |weight| / 127 in float32 (1 for a column that
+    is zero in float32, stored as zeros), so every column keeps 8 bits of its own range;
+    ValueError for anything but a matrix of finite floats."""
+    W = np.asarray(W, dtype=np.float64)
+    if W.ndim != 2 or not np.isfinite(W).all():
+        raise ValueError(f"quantised weights come from a matrix of finite floats, got shape "
+                         f"{W.shape}")
+    scale = (np.abs(W).max(axis=0) / 127.0).astype(np.float32)
+    scale[scale == 0] = 1.0             # an all-zero column (or one float32 cannot hold): q is 0
+    q = np.clip(np.round(W / scale.astype(np.float64)), -127, 127)
+    return q.astype(np.int8), scale
+
+
 def _is_sparse_rvm(expert) -> bool:
     """isinstance(expert, SparseRVMRegressor), importing regressor.sparse_rvm."""
     from .sparse_rvm import SparseRVMRegressor

@@ -1,5 +1,5 @@
 """NeighbourGate: a mixture's gate by the nearest training inputs (or k-means prototypes of
-them), the paper's alternative to the softmax gate; regressor.mixture imports it only for
+them), the paper's alternative to the softmax gate; regressor.mixture_fit imports it only for
 MixtureRegressor(gate="neighbours").
 """
 from __future__ import annotations
@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from .basis import nearest_columns, squared_distances, validate_X
-from .mixture import Estimator, kmeans
+from .mixture import Estimator
+from .mixture_fit import kmeans
 
 
 class NeighbourGate(Estimator):

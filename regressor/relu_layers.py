@@ -20,33 +20,15 @@ def as_float32_layers(layers, what: str) -> list[tuple[np.ndarray, np.ndarray]]:
             for W, b in layers]
 
 
-#: Stored scales must be float32 (what quantised_int8 writes), above zero and small enough
-#: that -128 * scale stays finite in float32. (A float32 scale below the smallest normal
-#: number is fine: it holds a column of tiny weights, as precisely as float32 can.)
+#: Stored int8 scales must stay under this, so -128 * scale is finite in float32. (A scale
+#: below the smallest normal float32 is fine: it holds a column of tiny weights.)
 _MAX_SCALE = _FLOAT32_MAX / 128.0
 
 
-def quantised_int8(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A weight matrix W (n_in, n_out) of finite floats as int8 values q in -127..127 and one
-    float32 scale per output column (n_out,), W ~ q * scale: a quarter of float32's file
-    space. Each column's scale is its largest |weight| / 127 in float32 (1 for a column that
-    is zero in float32, stored as zeros), so every column keeps 8 bits of its own range;
-    ValueError for anything but a matrix of finite floats."""
-    W = np.asarray(W, dtype=np.float64)
-    if W.ndim != 2 or not np.isfinite(W).all():
-        raise ValueError(f"quantised weights come from a matrix of finite floats, got shape "
-                         f"{W.shape}")
-    scale = (np.abs(W).max(axis=0) / 127.0).astype(np.float32)
-    scale[scale == 0] = 1.0             # an all-zero column (or one float32 cannot hold): q is 0
-    q = np.clip(np.round(W / scale.astype(np.float64)), -127, 127)
-    return q.astype(np.int8), scale
-
-
 def dequantised_int8(q, scale, what: str) -> np.ndarray:
-    """The float32 weights (n_in, n_out) of quantised_int8's parts q (n_in, n_out) int8 and
-    scale (n_out,) float32; ValueError naming ``what`` when q is not a matrix of int8 or the
-    scales are not one float32 per column in (0, _MAX_SCALE]. (A stored -128, which
-    quantised_int8 never writes, is read as it is.)"""
+    """The float32 weights (n_in, n_out) of regressor.model_writer.quantised_int8's parts q
+    (n_in, n_out) int8 and scale (n_out,) float32; ValueError naming ``what`` when q is not a
+    matrix of int8 or the scales are not one float32 per column in (0, _MAX_SCALE]."""
     q, scale = np.asarray(q), np.asarray(scale)
     if q.dtype != np.int8:
         raise ValueError(f"{what}: quantised weights must hold int8, not {q.dtype}")
@@ -80,9 +62,7 @@ def stacked_members(members) -> list | None:
     as_float32_layers), as one: the first layer's weights side by side (n_in, M * n_1) with
     its biases (M * n_1,), every later layer's as (M, n_i, n_o) with biases (M, 1, n_o);
     None when the shapes differ or there is no hidden layer. The members' mean
-    (forward_mean) then costs a few numpy calls instead of M times as many: for 8 networks
-    (200 -> 512 -> 256 -> 55) on one row 0.25 instead of 0.38 ms here, the weights being
-    read once either way."""
+    (forward_mean) then costs a few numpy calls instead of M times as many."""
     shapes = {tuple((W.shape, b.shape) for W, b in layers) for layers in members}
     if len(shapes) != 1 or len(members[0]) < 2:
         return None

@@ -177,7 +177,8 @@ class RVMRegressor(BasisRegressor):
     output_scale : "each" standardises every output to unit variance (for mixed units, e.g.
         angles and cos/sin); "common" divides all outputs by one scale (the RMS of their standard
         deviations) so outputs keep their relative weights, matching a Euclidean error on points.
-    width, width_scale : Gaussian kernel width (see basis.py); ignored for the linear basis.
+    width, width_scale : Gaussian kernel width (regressor.basis_fit.default_width); ignored for
+        the linear basis.
     min_gain : cost in nats per kept basis function (maximise L - min_gain * R); 0 is the plain
         RVM, larger values give sparser models. 0.5 * K * log(N) is BIC-like.
     max_iter : maximum add / re-estimate / delete steps.

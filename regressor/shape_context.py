@@ -1,18 +1,11 @@
-"""Log-polar shape contexts of a point set (Belongie, Malik & Puzicha), orientation kept.
-
-Each point's context is the histogram of the other points' positions relative to it, in
-n_angular equal angle sectors x n_radial log-spaced distance rings, normalized to sum to 1.
-
-Conventions (fixed, so descriptors made anywhere agree):
-- Angles are measured counterclockwise from the image +x axis with image "up" (decreasing row)
-  positive, i.e. the scene vertical is kept: an upside-down or mirrored silhouette gives
-  different contexts. Sector k covers [k, k+1) * 360/n_angular degrees.
-- Distances are in units of the root-mean-square distance between all pairs of points (scale
-  invariance; computed exactly in O(N) from the points' variance, and within about 10% of the
-  mean pairwise distance for silhouettes).
-  Ring boundaries are geometrically spaced from r_inner to r_outer (in those units); ring 0 also
-  takes points closer than r_inner and the last ring points farther than r_outer, so every other
-  point is counted once and each context sums to exactly 1.
+"""Log-polar shape contexts of a point set (Belongie, Malik & Puzicha), orientation kept: each
+point's histogram of the other points in n_angular sectors x n_radial log-spaced rings, summing
+to 1. Conventions (fixed, so descriptors made anywhere agree):
+- Angles counterclockwise from image +x with image "up" positive (the scene vertical is kept:
+  a mirrored silhouette gives different contexts); sector k covers [k, k+1) * 360/n_angular deg.
+- Distances in units of the RMS distance between all pairs of points (exact in O(N) from the
+  points' variance; within about 10% of the mean pairwise distance for silhouettes). Rings are
+  geometric from r_inner to r_outer; ring 0 also takes nearer points and the last farther ones.
 - Bin index = ring * n_angular + sector.
 """
 from __future__ import annotations
@@ -27,14 +20,8 @@ def shape_contexts(
     r_inner: float = 0.125,
     r_outer: float = 3.0,
 ) -> np.ndarray:
-    """Shape context of every point of a set.
-
-    points: (N, 2) float (x, y) pixels, y pointing down; N >= 2, not all coincident.
-    n_angular, n_radial: numbers of angle sectors and distance rings.
-    r_inner, r_outer: innermost and outermost ring boundaries, in units of the RMS pairwise
-        distance (0 < r_inner < r_outer).
-    Returns (N, n_radial * n_angular) float64, each row summing to 1.
-    """
+    """Shape contexts (N, n_radial * n_angular) float64, rows summing to 1, of points (N, 2)
+    float (x, y) px, y down, N >= 2 not all coincident; 0 < r_inner < r_outer (module docstring)."""
     points = np.asarray(points, dtype=np.float64)
     n = len(points)
     if points.ndim != 2 or points.shape[1] != 2 or n < 2:

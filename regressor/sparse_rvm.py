@@ -1,17 +1,10 @@
-"""Sparse relevance vector machine over a fixed set of candidate kernels (fits in candidate space).
+"""Sparse relevance vector machine over k-means candidate kernels: the estimator and its prediction.
 
 Model, for K outputs at once (Tipping 2001; one relevance set for all outputs):
     T = 1 b^T + B W + E,   B (N, M): Gaussian kernels on M k-means centres of the inputs,
     centred and scaled to unit-norm columns;  row i of W ~ N(0, I_K / alpha_i);  E ~ N(0, 1/beta).
-T is the outputs scaled as in regressor.rvm (``output_scale``); the offset b is unpenalised
-(centring). Everything the fit needs is the sufficient statistics G = B^T B (M, M), B^T T (M, K)
-and ||T||^2, accumulated once over the rows in chunks: O(N M^2) once, then every step of Tipping
-& Faul's (2003) sequential algorithm (add, re-estimate or delete the one basis function with the
-largest likelihood gain, regressor.rvm.step_gains) costs O(M R) for R active functions, whatever N.
-
-Noise: ``noise`` fixes 1/beta (a fraction of the scaled output variance); None re-estimates beta
-(the residual over N - sum gamma) whenever the steps stop and every ``_REFRESH`` steps, keeping a
-new beta only when it raises the log marginal likelihood, so the likelihood never falls.
+The fit (Tipping & Faul's sequential sparse Bayesian learning on sufficient statistics) is in
+regressor.sparse_rvm_fit, loaded only when fitting.
 
 Prediction: mean phi(x) W + b and, per row, the variance of a new observation in output units
     sigma^2(x) = y_scale^2 (1/beta + 1/(N beta) + b(x)^T Sigma b(x)),
@@ -22,88 +15,9 @@ covariance (1/(N beta) is the offset's). It is the same for every output when ou
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
-from .basis import RegressorInputError, default_width, gaussian_design, validate_X
-from .basis_regressor import BasisRegressor, validate_Xy
-from .rvm import _ALPHA_MAX, _BETA_MAX, _Stats, check_learning_options, step_gains
-
-_REFRESH = 50          # steps between exact recomputations of the factors (and noise updates)
-_CHUNK = 4096          # rows per block when accumulating the sufficient statistics
-
-
-def candidate_centres(X: np.ndarray, n: int, seed: int) -> np.ndarray:
-    """n candidate kernel centres (<= n, D) for rows X (N, D): k-means centres of X, or X itself
-    when it has no more than n distinct rows."""
-    from .mixture import kmeans      # mixture imports this module's estimator lazily, too
-    if len(X) <= n:
-        return np.unique(X, axis=0)
-    return kmeans(X, n, seed=seed, iterations=10, sample=20000)
-
-
-def sufficient_statistics(X: np.ndarray, T: np.ndarray, centres: np.ndarray, width: float):
-    """Centred kernel statistics over rows X (N, D) with centred targets T (N, K).
-
-    Returns phi_mean (M,), G = Bc^T Bc (M, M) and Bc^T T (M, K) for Bc the kernel matrix (N, M)
-    minus its column means. Accumulated in blocks of rows about a provisional mean (the first
-    block's) so that the N x M matrix is never held and the centring loses no precision.
-    """
-    N, M = len(X), len(centres)
-    G, BtT, total = np.zeros((M, M)), np.zeros((M, T.shape[1])), np.zeros(M)
-    shift = None
-    for start in range(0, N, _CHUNK):
-        P = gaussian_design(X[start:start + _CHUNK], centres, width)
-        shift = P.mean(0) if shift is None else shift
-        P -= shift
-        total += P.sum(0)
-        G += P.T @ P
-        BtT += P.T @ T[start:start + _CHUNK]
-    offset = total / N                                   # mean - shift
-    G -= N * np.outer(offset, offset)
-    return shift + offset, G, BtT                        # T is centred: BtT needs no correction
-
-
-def log_marginal_likelihood(G_AA, BtT_A, TtT: float, N: int, K: int, alpha, beta: float) -> float:
-    """log p(T | alpha, beta) of K independent outputs sharing alpha and beta, from statistics.
-
-    G_AA (R, R), BtT_A (R, K) of the active functions, TtT = ||T||^2 summed over outputs:
-    -1/2 [K (N log 2 pi - N log beta - sum log alpha + log|H|) + beta TtT - beta sum(BtT_A * Mu)],
-    H = beta G_AA + diag(alpha), Mu = beta H^-1 BtT_A.
-    """
-    H = beta * G_AA
-    H[np.diag_indices_from(H)] += alpha
-    chol = scipy.linalg.cho_factor(H, lower=True, check_finite=False)
-    Mu = beta * scipy.linalg.cho_solve(chol, BtT_A, check_finite=False)
-    logdet = 2.0 * np.log(np.diag(chol[0])).sum()
-    data = beta * TtT - beta * float((BtT_A * Mu).sum())
-    return -0.5 * (K * (N * np.log(2 * np.pi) - N * np.log(beta) - np.log(alpha).sum() + logdet)
-                   + data)
-
-
-def _posterior(G_AA: np.ndarray, BtT_A: np.ndarray, alpha: np.ndarray, beta: float):
-    """Sigma (R, R) and Mu (R, K) of the active weights."""
-    H = beta * G_AA
-    H[np.diag_indices_from(H)] += alpha
-    Sigma = scipy.linalg.cho_solve(scipy.linalg.cho_factor(H, lower=True, check_finite=False),
-                                   np.eye(len(alpha)), check_finite=False)
-    return Sigma, beta * (Sigma @ BtT_A)
-
-
-def better_beta(Gram, BtT, TtT: float, N: int, A, alpha, beta: float) -> float:
-    """Noise precision re-estimated as K (N - sum gamma) / ||T - B_A Mu||^2 (MacKay), from the
-    statistics alone; returned only if it raises the log marginal likelihood (else the geometric
-    mean with the old one, if that does), otherwise the old beta."""
-    K = BtT.shape[1]
-    G_AA, BtT_A = Gram[np.ix_(A, A)], BtT[A]
-    Sigma, Mu = _posterior(G_AA, BtT_A, alpha, beta)
-    resid = TtT - 2.0 * float((BtT_A * Mu).sum()) + float((Mu * (G_AA @ Mu)).sum())
-    gamma = 1.0 - alpha * np.diag(Sigma)
-    new = min(K * max(N - float(gamma.sum()), 1e-6) / max(resid, 1e-300), _BETA_MAX)
-    old_lml = log_marginal_likelihood(G_AA, BtT_A, TtT, N, K, alpha, beta)
-    for candidate in (new, np.sqrt(new * beta)):
-        if log_marginal_likelihood(G_AA, BtT_A, TtT, N, K, alpha, candidate) > old_lml:
-            return float(candidate)
-    return beta
+from .basis import gaussian_design, validate_X
+from .basis_regressor import BasisRegressor
 
 
 class SparseRVMRegressor(BasisRegressor):
@@ -114,7 +28,7 @@ class SparseRVMRegressor(BasisRegressor):
     n_candidates : candidate kernels M (k-means centres of the training inputs); the fit's cost
         after one pass over the rows depends on M, not on the rows.
     width, width_scale : kernel width in input units, or None for
-        sqrt(width_scale x mean squared distance between training inputs) (basis.default_width).
+        sqrt(width_scale x mean squared distance between training inputs) (regressor.basis_fit.default_width).
     noise : 1/beta as a fraction of the scaled output variance, or None to estimate it.
     output_scale : "each" (every output to unit variance) or "common" (one scale for all, so a
         Euclidean error on points is what the noise measures), as in regressor.rvm.
@@ -142,107 +56,10 @@ class SparseRVMRegressor(BasisRegressor):
         self.tol = tol
         self.seed = seed
 
-    def _check_options(self) -> None:
-        if not (int(self.n_candidates) == self.n_candidates and self.n_candidates >= 1):
-            raise RegressorInputError(f"n_candidates={self.n_candidates!r}; expected a positive integer")
-        if self.width is not None and not (np.isfinite(self.width) and self.width > 0):
-            raise RegressorInputError(f"width={self.width!r}; expected a positive number or None")
-        if not (np.isfinite(self.width_scale) and self.width_scale > 0):
-            raise RegressorInputError(f"width_scale={self.width_scale!r}; expected a positive number")
-        check_learning_options(self)
-
     def fit(self, X, y):
-        """Fit on X (N, D) and y (N,) or (N, K); returns self."""
-        self._check_options()
-        X, Y, self._y_1d = validate_Xy(X, y)
-        N, K = Y.shape
-        self.n_features_in_, self.n_train_ = X.shape[1], N
-        y_mean, y_scale = Y.mean(0), Y.std(0)
-        if self.output_scale == "common":
-            y_scale = np.full(K, np.sqrt(np.mean(y_scale ** 2)))
-        self.y_scale_ = np.where(y_scale > 0, y_scale, 1.0)
-        T = (Y - y_mean) / self.y_scale_
-        self.width_ = float(self.width) if self.width is not None else default_width(X, self.width_scale)
-        self.candidates_ = candidate_centres(X, int(self.n_candidates), self.seed)
-        phi_mean, G, BtT = sufficient_statistics(X, T, self.candidates_, self.width_)
-        norms = np.sqrt(np.maximum(np.diag(G), 0.0))
-        usable = np.flatnonzero(norms > 1e-9 * max(norms.max(), 1e-300))
-        if len(usable) == 0:           # every kernel constant over the rows: the offset alone
-            self.log_marginal_likelihood_, self.n_iter_, self.converged_ = np.nan, 0, True
-            return self._keep(usable, phi_mean, np.zeros(0), np.zeros((0, 0)), np.zeros((0, K)),
-                              1.0 / max(float(T.var()), 1e-12), y_mean)
-        scale = norms[usable]
-        Gn = G[np.ix_(usable, usable)] / np.outer(scale, scale)
-        Bn = BtT[usable] / scale[:, None]
-        A, alpha, beta = self._steps(Gn, Bn, float((T * T).sum()), N)
-        Sigma, Mu = _posterior(Gn[np.ix_(A, A)], Bn[A], alpha, beta)
-        order = np.argsort(usable[A])
-        A, alpha, Sigma, Mu = A[order], alpha[order], Sigma[np.ix_(order, order)], Mu[order]
-        s = scale[A]
-        return self._keep(usable[A], phi_mean, alpha, Sigma / np.outer(s, s), Mu / s[:, None],
-                          beta, y_mean)
-
-    def _keep(self, kept, phi_mean, alpha, sigma, W, beta, y_mean):
-        """Store the learned state: W (R, K) weights of the raw kernels in scaled output units."""
-        self.relevance_ = np.asarray(kept, np.int64)
-        self.centres_ = self.candidates_[self.relevance_]
-        self.phi_mean_ = phi_mean[self.relevance_]
-        self.alpha_, self.beta_, self.sigma_ = alpha, float(beta), sigma
-        self.coef_ = W * self.y_scale_
-        self.intercept_ = y_mean - self.phi_mean_ @ self.coef_
-        self.noise_ = self.y_scale_ ** 2 / self.beta_
-        return self
-
-    def _steps(self, Gram, BtT, TtT: float, N: int):
-        """Tipping & Faul's sequential steps on unit-norm statistics Gram (M, M), BtT (M, K).
-
-        Sets n_iter_, converged_, log_marginal_likelihood_; returns (active (R,), alpha (R,), beta).
-        """
-        K = BtT.shape[1]
-        beta = min(1.0 / self.noise if self.noise is not None else 10.0, _BETA_MAX)
-        first = int(np.argmax((BtT ** 2).sum(1)))     # the kernel best aligned with the targets
-        A = np.array([first])
-        qsum0 = beta ** 2 * float((BtT[first] ** 2).sum())
-        alpha = np.array([min(K * beta ** 2 / max(qsum0 - K * beta, 1e-12 * K * beta), _ALPHA_MAX)])
-        st = _Stats(Gram[:, A], BtT, A, alpha, beta)
-        converged, step = False, 0
-        for step in range(1, int(self.max_iter) + 1):
-            if step % _REFRESH == 0:
-                if self.noise is None:
-                    beta = better_beta(Gram, BtT, TtT, N, A, alpha, beta)
-                st = _Stats(Gram[:, A], BtT, A, alpha, beta)
-            gain, new_alpha, delete = step_gains(st, A, alpha, K, self.min_gain)
-            j = int(np.argmax(gain))
-            if not gain[j] > self.tol:
-                new_beta = beta if self.noise is not None else better_beta(Gram, BtT, TtT, N, A, alpha, beta)
-                if abs(np.log(new_beta / beta)) > 1e-3:     # it moved: go on with the new noise
-                    beta = new_beta
-                    st = _Stats(Gram[:, A], BtT, A, alpha, beta)
-                    continue
-                converged = True
-                break
-            A, alpha = self._apply(st, Gram, A, alpha, j, new_alpha[j], bool(delete[j]))
-        self.n_iter_, self.converged_ = step, converged
-        self.log_marginal_likelihood_ = log_marginal_likelihood(
-            Gram[np.ix_(A, A)], BtT[A], TtT, N, K, alpha, beta)
-        return A, alpha, beta
-
-    @staticmethod
-    def _apply(st, Gram, A, alpha, j: int, alpha_j: float, delete: bool):
-        """One step on basis j: add it with precision alpha_j, re-estimate it, or delete it;
-        st's factors follow by the rank-one formulas. Returns the new (A, alpha)."""
-        pos = np.flatnonzero(A == j)
-        if len(pos) == 0:
-            st.add(j, Gram[:, j], Gram[:, A], alpha_j)
-            return np.append(A, j), np.append(alpha, alpha_j)
-        pos = int(pos[0])
-        if delete:
-            st.delete(pos, Gram[:, A])
-            return np.delete(A, pos), np.delete(alpha, pos)
-        st.reestimate(pos, Gram[:, A], alpha_j, alpha[pos])
-        alpha = alpha.copy()
-        alpha[pos] = alpha_j
-        return A, alpha
+        """Fit on X (N, D) and y (N,) or (N, K) (regressor.sparse_rvm_fit); returns self."""
+        from .sparse_rvm_fit import fit_sparse_rvm
+        return fit_sparse_rvm(self, X, y)
 
     def predict(self, X, return_std: bool = False):
         """Mean (N, K) for X (N, D), (N,) if fitted on a 1-D y; with return_std, also the

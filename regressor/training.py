@@ -17,7 +17,8 @@ from threadpoolctl import threadpool_limits
 from .angles import pose_angles, wrap_deg
 from .basis import squared_distances
 from .codebook import Codebook, CodebookError
-from .descriptor import DescriptorSettings, contexts_for_masks
+from .descriptor import DescriptorSettings
+from .descriptor_batch import contexts_for_masks
 from .heading_index import build_heading_index
 from .limb_net import MAX_MEMBERS, LimbNet
 from .limb_net_training import fit_limb_net

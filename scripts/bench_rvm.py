@@ -16,7 +16,8 @@ import warnings
 import numpy as np
 import scipy.io
 
-from regressor.basis import default_width, gaussian_design
+from regressor.basis import gaussian_design
+from regressor.basis_fit import default_width
 from regressor.rvm import RVMRegressor
 from tracker.one_line_parser import OneLineParser
 

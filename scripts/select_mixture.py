@@ -23,7 +23,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from regressor.codebook import Codebook
-from regressor.descriptor import DescriptorSettings, descriptors_for_masks
+from regressor.descriptor import DescriptorSettings
+from regressor.descriptor_batch import descriptors_for_masks
 from regressor.mixture import MixtureRegressor
 from regressor.pose_model import transform_descriptors
 from regressor.stacking import stack_frames

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from regressor.codebook import Codebook, CodebookError
-from regressor.descriptor import DescriptorSettings, contexts_for_masks
+from regressor.descriptor import DescriptorSettings
+from regressor.descriptor_batch import contexts_for_masks
 from regressor.training import fit_codebook, fit_codebook_for_masks, kmeans
 
 

@@ -9,7 +9,8 @@ import pytest
 
 from regressor.codebook import Codebook, CodebookError, soft_histogram
 from regressor.descriptor import (DescriptorSettings, DescriptorSettingsError, descriptor_for_mask,
-                                  descriptors_for_masks, mask_contexts)
+                                  mask_contexts)
+from regressor.descriptor_batch import descriptors_for_masks
 from regressor.training import fit_codebook_for_masks
 from regressor.edges import DegenerateSilhouetteError, SilhouetteError, sample_edge_points
 from regressor.shape_context import shape_contexts

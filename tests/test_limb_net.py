@@ -197,7 +197,8 @@ def test_scales_that_float32_cannot_hold_are_refused_without_warnings():
 
 
 def test_a_column_of_tiny_weights_is_written_so_that_it_loads():
-    from regressor.relu_layers import dequantised_int8, quantised_int8
+    from regressor.model_writer import quantised_int8
+    from regressor.relu_layers import dequantised_int8
     W = np.array([[1e-44, 0.5, 0.0], [-2e-44, 0.25, 0.0]])
     q, scale = quantised_int8(W)
     back = dequantised_int8(q, scale, "w")                  # refused before: a zero scale
@@ -210,7 +211,8 @@ def test_a_column_of_tiny_weights_is_written_so_that_it_loads():
 
 
 def test_int8_weights_keep_each_columns_range():
-    from regressor.relu_layers import dequantised_int8, quantised_int8
+    from regressor.model_writer import quantised_int8
+    from regressor.relu_layers import dequantised_int8
     W = np.array([[1.0, 0.0, -1e-3], [-0.5, 0.0, 2e-3], [0.25, 0.0, 1e-4]])
     q, scale = quantised_int8(W)
     assert q.dtype == np.int8 and scale.dtype == np.float32 and np.all(scale > 0)

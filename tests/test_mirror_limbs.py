@@ -63,7 +63,8 @@ def test_training_describes_mirror_images_as_the_tracker_does(model, masks):
     """lab.training.noisy_dataset_inputs: one pass gives the video-like masks'
     histograms and layouts exactly as describing them one by one does, and their mirror images'
     inputs as the tracker makes a frame's (the contexts reflected, the layout flipped)."""
-    from regressor.descriptor import descriptor_and_mirror, descriptors_for_masks
+    from regressor.descriptor import descriptor_and_mirror
+    from regressor.descriptor_batch import descriptors_for_masks
     from regressor.layout import silhouette_layout
     from lab.training import noisy_dataset_inputs, noisy_dataset_layouts, noisy_masks
     settings, codebook = model.settings, model.codebook

@@ -6,7 +6,8 @@ import pytest
 
 from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings
-from regressor.mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate, kmeans
+from regressor.mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate
+from regressor.mixture_fit import kmeans
 from regressor.neighbour_gate import NeighbourGate
 from regressor.pose_model import PoseModel, PoseModelError, load_pose_model
 from regressor.model_writer import save_pose_model

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from regressor.basis import NotFittedError, RegressorInputError, default_width, squared_distances
+from regressor.basis import NotFittedError, RegressorInputError, squared_distances
+from regressor.basis_fit import default_width
 from regressor.dls import DLSRegressor
 
 

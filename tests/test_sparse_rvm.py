@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-import regressor.sparse_rvm as sparse_rvm
+import regressor.sparse_rvm_fit as sparse_rvm_fit
 from regressor.basis import RegressorInputError, gaussian_design
 from regressor.sparse_rvm import SparseRVMRegressor
 
@@ -104,8 +104,8 @@ def test_statistics_in_blocks_equal_the_whole_matrix(monkeypatch):
     x, T = rng.normal(size=(50, 3)), rng.normal(size=(50, 2))
     T -= T.mean(0)
     centres = rng.normal(size=(8, 3))
-    monkeypatch.setattr(sparse_rvm, "_CHUNK", 7)
-    mean, G, BtT = sparse_rvm.sufficient_statistics(x, T, centres, 2.0)
+    monkeypatch.setattr(sparse_rvm_fit, "_CHUNK", 7)
+    mean, G, BtT = sparse_rvm_fit.sufficient_statistics(x, T, centres, 2.0)
     Phi = gaussian_design(x, centres, 2.0)
     B = Phi - Phi.mean(0)
     np.testing.assert_allclose(mean, Phi.mean(0))

@@ -23,7 +23,8 @@ import numpy as np
 from regressor.angles import POSE_DIM, pose_angles, regression_targets, wrap_deg
 from regressor.codebook import Codebook
 from regressor.descriptor import (DescriptorSettings, SilhouetteError, descriptor_and_mirror,
-                                  descriptor_for_mask, descriptors_for_masks)
+                                  descriptor_for_mask)
+from regressor.descriptor_batch import descriptors_for_masks
 from regressor.layout import layouts_for_masks, silhouette_layout
 from regressor.limb_net_training import require_training_dependencies
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
