@@ -215,7 +215,55 @@ def main(argv=None) -> int:
 
 
 def _main(argv) -> int:
+    """Train as the options say: the data set, its inputs, the fit, the model file; the report
+    as JSON on stdout, progress on stderr. Exit 0, 1 with one line on a failed step, 2 on a
+    bad option."""
+    args = _parse_args(argv)
+    log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
+    start = time.perf_counter()
+    try:
+        data, config, key = _dataset(args, start, log)
+        settings = DescriptorSettings()
+        X, codebook, layouts, mirrored = _inputs(args, data, settings, key, start, log)
+        model, options, report = _fit(args, data, config, X, codebook, settings, layouts,
+                                      mirrored, log)
+        _write_model(args, model, data, config, options, report, log)
+        if model.mixture is not None:       # the file stores centres as float16: check it
+            _check_round_trip(args, model, data, X, layouts, report)
+    except (OSError, DatasetError, SpliceError, ValueError, SilhouettePoseError) as exc:
+        print(f"train: error: {exc}", file=sys.stderr)
+        return 1
+    total = time.perf_counter() - start
+    print(json.dumps({"model": str(args.out), "size_bytes": args.out.stat().st_size,
+                      "total_seconds": round(total, 1), **report}, indent=1))
+    return 0
+
+
+def _parse_args(argv):
+    """The options of argv, checked before the slow steps (one-line error, exit 2), with
+    --limb-nets and --side-classifier's defaults filled in."""
     ap = OneLineParser(description=__doc__.splitlines()[0])
+    _add_data_options(ap)
+    _add_model_options(ap)
+    args = ap.parse_args(argv)
+    _check_numbers(ap, args)
+    _check_model_options(ap, args)
+    if not 1 <= args.workers <= 64:
+        ap.error(f"--workers must be in 1..64, got {args.workers}")
+    if args.heading_index_rows < 0:
+        ap.error(f"--heading-index-rows must be >= 0, got {args.heading_index_rows}")
+    _check_out(ap, args)
+    if args.extra is not None:
+        try:                # before the slow steps
+            extra_sources(args.extra)
+        except CmuExtraError as exc:
+            ap.error(str(exc))
+    return args
+
+
+def _add_data_options(ap) -> None:
+    """The options of the files, the data set and its masks, the regressor, seed and workers,
+    and the RVM baseline's."""
     ap.add_argument("--bvh-dir", type=Path, default=Path("../shared/data/cmu/bvh"))
     ap.add_argument("--cache", type=Path, default=Path("cache"))
     ap.add_argument("--out", type=Path, default=DEFAULT_MODEL_PATH)
@@ -262,6 +310,10 @@ def _main(argv) -> int:
                          "plates made once into CACHE/plates; they are the real test trials' "
                          "rooms: a model trained over them and judged on Pose2Sim has seen "
                          "the test scenes)")
+
+
+def _add_model_options(ap) -> None:
+    """The options of the mixture of experts, its limb head, networks and side classifier."""
     ap.add_argument("--expert", choices=tuple(EXPERT_CHOICES), default=MixtureOptions.expert,
                     help="the mixture's experts: sparse RVMs over --centres candidate kernels "
                          "each, fitted on all their rows, with a predictive variance per "
@@ -328,8 +380,11 @@ def _main(argv) -> int:
                          "(regressor.heading_index; needs --components >= 50; 0: none)")
     ap.add_argument("--components", type=int, default=MixtureOptions.components,
                     help="principal directions the stacked input is projected on (0: none)")
-    args = ap.parse_args(argv)
-    _check_numbers(ap, args)
+
+
+def _check_model_options(ap, args) -> None:
+    """Refuse in one line the regressor's options that do not go together, and fill in the
+    defaults of --limb-nets and --side-classifier (they depend on the limb head)."""
     if args.limb_head not in (None, "none"):
         if args.regressor != "mixture":
             ap.error("--limb-head needs the mixture regressor")
@@ -365,152 +420,167 @@ def _main(argv) -> int:
                 prior_files(args.bvh_dir)
         except ValueError as exc:
             ap.error(str(exc))
-    if not 1 <= args.workers <= 64:
-        ap.error(f"--workers must be in 1..64, got {args.workers}")
-    if args.heading_index_rows < 0:
-        ap.error(f"--heading-index-rows must be >= 0, got {args.heading_index_rows}")
-    _check_out(ap, args)
+
+
+def _dataset(args, start: float, log):
+    """(data set, its DatasetConfig, the cache key of its descriptors): the training trials
+    rendered (cached under --cache), with --spliced motions and --extra sequences; the key
+    names the rows and masks, so other rows never meet these descriptors."""
+    config = DatasetConfig(views_per_trial=args.views, seed=args.seed,
+                           **_mask_settings(args))
+    files = training_files(args.bvh_dir)
+    per_trial = (f"1-{args.max_views} views each for about {args.rows_per_trial} "
+                 f"silhouettes" if args.rows_per_trial else f"{args.views} views")
+    log(f"data set: {len(files)} trials x {per_trial} (held out: "
+        f"{', '.join(HELD_OUT_TRIALS)})")
+    splice = None
+    if args.spliced:
+        sources = [f for f in files if trial_name(f) not in VALIDATION_TRIALS]
+        splice = SpliceConfig(n_motions=args.spliced, seed=args.seed)
+        files = files + write_spliced_files(sources, splice, args.cache / "spliced")
+        log(f"  and {args.spliced} spliced motions of {len(sources)} trials "
+            f"({time.perf_counter() - start:.0f} s so far)")
+    views = (views_by_rows(files, config, args.rows_per_trial, args.max_views)
+             if args.rows_per_trial else None)
     if args.extra is not None:
-        try:                # before the slow steps
-            extra_sources(args.extra)
-        except CmuExtraError as exc:
-            ap.error(str(exc))
-    log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
-    start = time.perf_counter()
-    try:
-        config = DatasetConfig(views_per_trial=args.views, seed=args.seed,
-                               **_mask_settings(args))
-        files = training_files(args.bvh_dir)
-        per_trial = (f"1-{args.max_views} views each for about {args.rows_per_trial} "
-                     f"silhouettes" if args.rows_per_trial else f"{args.views} views")
-        log(f"data set: {len(files)} trials x {per_trial} (held out: "
-            f"{', '.join(HELD_OUT_TRIALS)})")
-        splice = None
-        if args.spliced:
-            sources = [f for f in files if trial_name(f) not in VALIDATION_TRIALS]
-            splice = SpliceConfig(n_motions=args.spliced, seed=args.seed)
-            files = files + write_spliced_files(sources, splice, args.cache / "spliced")
-            log(f"  and {args.spliced} spliced motions of {len(sources)} trials "
-                f"({time.perf_counter() - start:.0f} s so far)")
-        views = (views_by_rows(files, config, args.rows_per_trial, args.max_views)
-                 if args.rows_per_trial else None)
-        if args.extra is not None:
-            extra, extra_views, rows = extra_dataset_trials(
-                args.extra, args.cache / "cmu_extra_windows", config.fps,
-                args.extra_rows_per_trial, args.max_views)
-            log(f"  and cmu_extra: {len(extra)} trials from --extra {args.extra} (held out: "
-                f"{', '.join(EXTRA_HELD_OUT)}), about {rows} silhouettes")
-            files, views = files + extra, {**(views or {}), **extra_views}
-        data = build_dataset(files, config, args.cache / "dataset", workers=args.workers,
-                             progress=lambda t, d, n: log(f"  rendered {t} [{d}/{n}]"),
-                             views=views)
-        log(f"  {len(data)} silhouettes ({time.perf_counter() - start:.0f} s so far)")
-        settings = DescriptorSettings()
+        extra, extra_views, rows = extra_dataset_trials(
+            args.extra, args.cache / "cmu_extra_windows", config.fps,
+            args.extra_rows_per_trial, args.max_views)
+        log(f"  and cmu_extra: {len(extra)} trials from --extra {args.extra} (held out: "
+            f"{', '.join(EXTRA_HELD_OUT)}), about {rows} silhouettes")
+        files, views = files + extra, {**(views or {}), **extra_views}
+    data = build_dataset(files, config, args.cache / "dataset", workers=args.workers,
+                         progress=lambda t, d, n: log(f"  rendered {t} [{d}/{n}]"),
+                         views=views)
+    log(f"  {len(data)} silhouettes ({time.perf_counter() - start:.0f} s so far)")
+    key = (f"v1-{config.digest()}" if views is None and args.clean else
+           descriptor_cache_key(config, views,
+                                noisy=not args.clean and args.masks == "noisy"))
+    if args.codebook_centres != 100:     # the default's key stays what its caches are under
+        key += f"-cb{args.codebook_centres}"
+    if splice is not None and views is None:  # the views then name no trial: say which
+        key += "-" + recipe_name(splice, sources)
+    return data, config, key
 
-        # From scratch, one pass over the video-like masks makes their histograms, layouts
-        # and mirror images' inputs together (each mask degraded and described once).
-        want_mirror = (args.regressor == "mixture" and bool(args.limb_nets)
-                       and args.limb_net_mirror == "on")
-        made: dict = {}
 
-        def compute():
-            log("codebook and descriptors ...")
-            # Realistic masks are video-like already: their codebook is the plain one's.
-            fit = (fit_noisy_codebook if args.masks == "noisy" and not args.clean
-                   else fit_dataset_codebook)
-            codebook = fit(data, settings, n_centres=args.codebook_centres, seed=args.seed)
-            if args.clean:
-                return _describe_clean(args, data.masks, settings, codebook, start, log,
-                                       "descriptors"), codebook
-            made.update(_noisy_inputs(args, data.masks, settings, codebook, want_mirror,
-                                      start, log, "descriptors"))
-            return made["histograms"], codebook
+def _inputs(args, data, settings, key: str, start: float, log):
+    """(descriptors (N, K), codebook, layouts (N, grid^2) or None, mirror images' (histograms,
+    layouts) or None) of the data set's masks, each cached under --cache by key."""
+    # From scratch, one pass over the video-like masks makes their histograms, layouts
+    # and mirror images' inputs together (each mask degraded and described once).
+    want_mirror = (args.regressor == "mixture" and bool(args.limb_nets)
+                   and args.limb_net_mirror == "on")
+    made: dict = {}
 
-        key = (f"v1-{config.digest()}" if views is None and args.clean else
-               descriptor_cache_key(config, views,
-                                    noisy=not args.clean and args.masks == "noisy"))
-        if args.codebook_centres != 100:     # the default's key stays what its caches are under
-            key += f"-cb{args.codebook_centres}"
-        if splice is not None and views is None:  # the views then name no trial: say which
-            key += "-" + recipe_name(splice, sources)
-        X, codebook = cached_descriptors(args.cache, key, compute)
-        log(f"  descriptors ready ({time.perf_counter() - start:.0f} s so far)")
-        layouts = None
-        if args.regressor == "mixture" and args.layout_grid:
-            layouts = cached_layouts(
-                args.cache, key, args.layout_grid,
-                lambda: made["layouts"] if "layouts" in made else
-                noisy_dataset_layouts(data.masks, args.layout_grid, seed=args.seed,
-                                      workers=args.workers, degrade=args.masks == "noisy"))
-            log(f"  layouts ready ({time.perf_counter() - start:.0f} s so far)")
-        mirrored = None
-        if want_mirror:
-            mirrored = _mirrored_inputs(args, data, settings, codebook, key, start, log, made)
-        if args.regressor == "rvm":
-            options = TrainingOptions(stack_depth=args.stack, n_fit=args.n_fit,
-                                      width_scale=args.width_scale, seed=args.seed)
-            with threadpool_limits(args.workers):
-                model, report = train_pose_model(data, X, codebook, settings, options,
-                                                 config.fps, log=log)
-        else:
-            options = MixtureOptions(stack_depth=args.stack, n_experts=args.experts,
-                                     expert=args.expert,
-                                     n_centres=args.centres, lam=args.lam, seed=args.seed,
-                                     partition=args.partition, layout_grid=args.layout_grid,
-                                     components=args.components, canonical=args.canonical,
-                                     limb_head=_limb_head(args),
-                                     heading_index_rows=args.heading_index_rows,
-                                     limb_net_members=args.limb_nets,
-                                     limb_net_noise=args.limb_net_noise,
-                                     limb_net_epochs=args.limb_net_epochs,
-                                     limb_net_output=args.limb_net_output,
-                                     limb_net_reversed=args.limb_net_reversed,
-                                     limb_net_mirror=bool(args.limb_nets)
-                                     and args.limb_net_mirror == "on",
-                                     side_classifier=args.side_classifier == "on",
-                                     **({"width_scale": args.width_scale}
-                                        if args.width_scale != TrainingOptions.width_scale else {}))
-            with threadpool_limits(args.workers):
-                model, report = train_mixture_model(data, X, codebook, settings, options,
-                                                    config.fps, log=log, layouts=layouts,
-                                                    mirrored=mirrored, workers=args.workers)
-        report["noise_aware"] = not args.clean
-        if args.variance == "off":
-            model.variance_calibration = None
-        model.description = model_description(data, config, options, report,
-                                              extra=args.extra is not None)
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        save_pose_model(args.out, model)
-        if model.gives_canonical_pairs:
-            _learn_priors(args, model, report, log)
-        if model.mixture is not None:       # the file stores centres as float16: check it
-            from regressor.pose_model import frame_descriptors
-            from regressor.stacking import stack_frames
-            from sequences.pose_vector import heading_deg
-            rows = slice(0, len(X), max(1, len(X) // 500))
-            probe = stack_frames(frame_descriptors(X, model.transform, layouts,
-                                                   model.layout_weight),
-                                 model.stack_depth, sequence_ids=data.sequence)[rows]
-            loaded = load_pose_model(args.out)
-            before, after = model.predict_batch(probe), loaded.predict_batch(probe)
-            diff = np.abs(wrap_deg(after[:, 2:] - before[:, 2:]))
-            report["file_round_trip_max_deg"] = round(float(diff.max()), 3)
-            # The heading too: the index's inputs are stored as float16, which can change a
-            # query's neighbours.
-            diff = np.abs(wrap_deg(heading_deg(after) - heading_deg(before)))
-            report["heading_round_trip_deg"] = {"median": round(float(np.median(diff)), 3),
-                                                "max": round(float(diff.max()), 3)}
-            if model.has_limbs:
-                diff = np.abs(wrap_deg(loaded.predict_limbs(probe)[:, 2:]
-                                       - model.predict_limbs(probe)[:, 2:]))
-                report["limbs_round_trip_max_deg"] = round(float(diff.max()), 3)
-    except (OSError, DatasetError, SpliceError, ValueError, SilhouettePoseError) as exc:
-        print(f"train: error: {exc}", file=sys.stderr)
-        return 1
-    total = time.perf_counter() - start
-    print(json.dumps({"model": str(args.out), "size_bytes": args.out.stat().st_size,
-                      "total_seconds": round(total, 1), **report}, indent=1))
-    return 0
+    def compute():
+        log("codebook and descriptors ...")
+        # Realistic masks are video-like already: their codebook is the plain one's.
+        fit = (fit_noisy_codebook if args.masks == "noisy" and not args.clean
+               else fit_dataset_codebook)
+        codebook = fit(data, settings, n_centres=args.codebook_centres, seed=args.seed)
+        if args.clean:
+            return _describe_clean(args, data.masks, settings, codebook, start, log,
+                                   "descriptors"), codebook
+        made.update(_noisy_inputs(args, data.masks, settings, codebook, want_mirror,
+                                  start, log, "descriptors"))
+        return made["histograms"], codebook
+
+    X, codebook = cached_descriptors(args.cache, key, compute)
+    log(f"  descriptors ready ({time.perf_counter() - start:.0f} s so far)")
+    layouts = None
+    if args.regressor == "mixture" and args.layout_grid:
+        layouts = cached_layouts(
+            args.cache, key, args.layout_grid,
+            lambda: made["layouts"] if "layouts" in made else
+            noisy_dataset_layouts(data.masks, args.layout_grid, seed=args.seed,
+                                  workers=args.workers, degrade=args.masks == "noisy"))
+        log(f"  layouts ready ({time.perf_counter() - start:.0f} s so far)")
+    mirrored = None
+    if want_mirror:
+        mirrored = _mirrored_inputs(args, data, settings, codebook, key, start, log, made)
+    return X, codebook, layouts, mirrored
+
+
+def _fit(args, data, config, X, codebook, settings, layouts, mirrored, log):
+    """(model, its options, validation report): the RVM baseline or the mixture of experts
+    (with its limb networks and side classifier) fitted on the data set's inputs, BLAS and
+    the mixture's threads limited to --workers."""
+    if args.regressor == "rvm":
+        options = TrainingOptions(stack_depth=args.stack, n_fit=args.n_fit,
+                                  width_scale=args.width_scale, seed=args.seed)
+        with threadpool_limits(args.workers):
+            model, report = train_pose_model(data, X, codebook, settings, options,
+                                             config.fps, log=log)
+    else:
+        options = _mixture_options(args)
+        with threadpool_limits(args.workers):
+            model, report = train_mixture_model(data, X, codebook, settings, options,
+                                                config.fps, log=log, layouts=layouts,
+                                                mirrored=mirrored, workers=args.workers)
+    return model, options, report
+
+
+def _mixture_options(args) -> MixtureOptions:
+    """The mixture's MixtureOptions of the options; --width-scale only when given other than
+    its default (the RVM baseline's), so the mixture keeps its own default."""
+    return MixtureOptions(stack_depth=args.stack, n_experts=args.experts,
+                          expert=args.expert,
+                          n_centres=args.centres, lam=args.lam, seed=args.seed,
+                          partition=args.partition, layout_grid=args.layout_grid,
+                          components=args.components, canonical=args.canonical,
+                          limb_head=_limb_head(args),
+                          heading_index_rows=args.heading_index_rows,
+                          limb_net_members=args.limb_nets,
+                          limb_net_noise=args.limb_net_noise,
+                          limb_net_epochs=args.limb_net_epochs,
+                          limb_net_output=args.limb_net_output,
+                          limb_net_reversed=args.limb_net_reversed,
+                          limb_net_mirror=bool(args.limb_nets)
+                          and args.limb_net_mirror == "on",
+                          side_classifier=args.side_classifier == "on",
+                          **({"width_scale": args.width_scale}
+                             if args.width_scale != TrainingOptions.width_scale else {}))
+
+
+def _write_model(args, model, data, config, options, report: dict, log) -> None:
+    """Write the model to --out with its description (model_description; the predictive
+    variance dropped unless --variance on), then, for a model giving canonical pairs, learn
+    its chain's priors into the file."""
+    report["noise_aware"] = not args.clean
+    if args.variance == "off":
+        model.variance_calibration = None
+    model.description = model_description(data, config, options, report,
+                                          extra=args.extra is not None)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    save_pose_model(args.out, model)
+    if model.gives_canonical_pairs:
+        _learn_priors(args, model, report, log)
+
+
+def _check_round_trip(args, model, data, X, layouts, report: dict) -> None:
+    """Record in report how far the model loaded back from --out (centres and the heading
+    index's inputs stored as float16) predicts from the fitted one, in degrees: the angles'
+    max, the heading's median and max, the limbs' max, on about 500 of the data set's rows."""
+    from regressor.pose_model import frame_descriptors
+    from regressor.stacking import stack_frames
+    from sequences.pose_vector import heading_deg
+    rows = slice(0, len(X), max(1, len(X) // 500))
+    probe = stack_frames(frame_descriptors(X, model.transform, layouts,
+                                           model.layout_weight),
+                         model.stack_depth, sequence_ids=data.sequence)[rows]
+    loaded = load_pose_model(args.out)
+    before, after = model.predict_batch(probe), loaded.predict_batch(probe)
+    diff = np.abs(wrap_deg(after[:, 2:] - before[:, 2:]))
+    report["file_round_trip_max_deg"] = round(float(diff.max()), 3)
+    # The heading too: the index's inputs are stored as float16, which can change a
+    # query's neighbours.
+    diff = np.abs(wrap_deg(heading_deg(after) - heading_deg(before)))
+    report["heading_round_trip_deg"] = {"median": round(float(np.median(diff)), 3),
+                                        "max": round(float(diff.max()), 3)}
+    if model.has_limbs:
+        diff = np.abs(wrap_deg(loaded.predict_limbs(probe)[:, 2:]
+                               - model.predict_limbs(probe)[:, 2:]))
+        report["limbs_round_trip_max_deg"] = round(float(diff.max()), 3)
 
 
 def model_description(data, config, options, report: dict, extra: bool) -> dict:
