@@ -4,22 +4,13 @@
     end_frame(frame_index) after every frame, with people in it or not
     close()                finish the output (idempotent); also on Ctrl-C
 
-Optional, for sinks that show the video (MeshcatView): write_frame(frame_index, time_s, frame,
-people), after the frame's poses: the frame (BGR uint8, read only) and track id -> PersonMask;
-and discard(), called after a Ctrl-C before close(): drop what is held back, not shown yet.
-Optional, for sinks that record what their poses are (JsonSummarySink): a ``pose_kind``
-attribute, "filtered" or "smoothed"; a sink given smoothed poses is told "filtered" when a
-Ctrl-C makes tracker.run.track_video write the filtered ones instead (the MCAP's
-SmoothedChannel then writes nothing: the filtered poses are in its file already).
-
-Optional, for sinks a command opened from its options: an ``option`` attribute (e.g.
-"--json"), which a failure's line names instead of the sink's class (problem_line).
+Optional: write_frame(frame_index, time_s, frame, people) and discard() (sinks that show the
+video: MeshcatView); ``pose_kind``, "filtered" or "smoothed" (sinks that record which poses
+they get; tracker.run.track_video sets "filtered" when a Ctrl-C makes it feed those instead);
+``option`` (e.g. "--json"), named by a failure's line (problem_line); ``abandon()`` (files).
 
 Sinks: McapSink (mcap.py), BVHSink (bvh.py), JsonSummarySink (json_summary.py), MeshcatView
-(meshcat_view.py), and PoseRecorder here (keeps the poses in memory, e.g. in a notebook).
-``open_sinks`` opens several, abandoning those already open if one fails (a refused run leaves
-every existing file as it was); ``close_sinks`` closes them all, collecting the problems
-instead of stopping at the first.
+(meshcat_view.py), and PoseRecorder here (keeps the poses in memory).
 """
 from __future__ import annotations
 

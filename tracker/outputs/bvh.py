@@ -45,7 +45,8 @@ from sequences.skeleton import (
     CMU_REST_OFFSETS,
     CMU_UNIT_M,
 )
-from tracker.outputs.files import LockFile, beside_name, write_beside
+from tracker.outputs.files import beside_name
+from tracker.outputs.whole_files import LockFile, write_beside
 from tracker.outputs.geometry import SinkInputError, check_joints, check_pose, checked_time
 
 if TYPE_CHECKING:

@@ -2,18 +2,13 @@
 
 - :func:`check_distinct` refuses, before anything is written, an output that is (after symlinks,
   relative paths and hard links) the input or another output.
-- :class:`OutputFile` writes ``NAME.partial`` beside ``NAME`` (a shorter name when that one
-  would be too long: :func:`beside_name`) under an exclusive lock (a second
-  run on the same output fails at once with :class:`OutputBusyError`) and renames it onto
-  ``NAME`` only by :meth:`OutputFile.commit`, once it is complete. A crash leaves ``NAME`` as it
-  was and the new data in ``NAME.partial``. A destination that exists and is not a regular file
-  (``/dev/null``, a FIFO), or is a stream the shell opened (``/dev/stdout``, ``/dev/fd/N``:
-  :func:`stream_descriptor`), is written in place; a symlink is followed (the target replaced,
-  the link kept). A ``NAME.partial`` that already holds data (an earlier run's unfinished
-  recording, or a file of the user's) is kept as ``NAME.partial.1`` (``.2``, ...) with a
-  warning (:func:`set_aside`), never overwritten.
-- :func:`write_beside` does the same for a file written in one go by a function of a path.
-- :class:`LockFile` holds such a lock on a lock file of its own (a BVH folder's set of files).
+- :class:`OutputFile` writes ``NAME.partial`` beside ``NAME`` (:func:`beside_name`) under an
+  exclusive lock (a second run on the same output fails at once: :class:`OutputBusyError`) and
+  renames it onto ``NAME`` only by :meth:`OutputFile.commit`, once complete; a crash leaves
+  ``NAME`` as it was. A destination that is not a regular file (``/dev/null``, a FIFO) or is a
+  stream the shell opened (:func:`stream_descriptor`) is written in place; a symlink is
+  followed. A ``NAME.partial`` holding data is kept as ``NAME.partial.N`` (:func:`set_aside`).
+- Files written in one go (BVH, scripts' outputs): tracker.outputs.whole_files.
 - Every failure to write is an :class:`OutputWriteError` naming the file.
 """
 from __future__ import annotations
@@ -25,7 +20,7 @@ import os
 import re
 import sys
 import warnings
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
@@ -40,8 +35,8 @@ class OutputPathError(SilhouettePoseError, ValueError):
 
 
 class _FileError(SilhouettePoseError, RuntimeError):
-    """One line starting with the file's path, which is also the ``path`` attribute (None
-    when not given): a command can name the option the file came from."""
+    """One line starting with the file's path, also the ``path`` attribute (None when not
+    given): a command can name the option the file came from."""
 
     def __init__(self, message: str, path: str | Path | None = None):
         super().__init__(message)
@@ -80,11 +75,9 @@ def stream_descriptor(path: str | Path) -> int | None:
 
 
 def beside_name(path: str | Path, suffix: str) -> Path:
-    """``path`` with ``suffix`` added to its name, in the same folder (``NAME.partial``,
-    ``.PREFIX.bvh.lock``). Where that name would pass NAME_MAX bytes (a legal 250-byte NAME),
-    NAME is cut and ``~`` and 12 hex digits of its SHA-256 follow it, so that every NAME
-    still has its own: the same NAME always gives the same name (a second run finds the
-    first's lock and partial file)."""
+    """``path`` with ``suffix`` added to its name, in the same folder. Where that would pass
+    NAME_MAX bytes, NAME is cut and ``~`` and 12 hex digits of its SHA-256 follow, so the same
+    NAME always gives the same name (a second run finds the first's lock and partial file)."""
     path = Path(path)
     name = path.name + suffix
     if len(os.fsencode(name)) <= NAME_MAX:
@@ -96,12 +89,11 @@ def beside_name(path: str | Path, suffix: str) -> Path:
 
 
 def partial_path(path: str | Path) -> Path:
-    """Where ``path`` is written until it is complete: ``NAME.partial`` beside it
-    (:func:`beside_name`: a shorter name when that one would be too long)."""
+    """Where ``path`` is written until it is complete: ``NAME.partial`` beside it."""
     return beside_name(path, PARTIAL_SUFFIX)
 
 
-def _identity(path: Path) -> tuple:
+def file_identity(path: str | Path) -> tuple:
     """What makes two paths the same file: (device, inode) of an existing file, else the
     absolute path with symlinks resolved."""
     try:
@@ -112,14 +104,12 @@ def _identity(path: Path) -> tuple:
 
 
 def check_distinct(named: Iterable[tuple[str, Path]]) -> None:
-    """Refuse two of ``named`` (description, path) that are the same file.
-
-    The first entries are the inputs (e.g. ("the input video", path)); an output's description
-    says which option it came from (e.g. "--out"). OutputPathError says which two collide.
-    """
+    """Refuse two of ``named`` (description, path) that are the same file: OutputPathError
+    naming both. The inputs come first (e.g. ("the input video", path)); an output's
+    description is its option (e.g. "--out")."""
     seen: dict[tuple, tuple[str, Path]] = {}
     for what, path in named:
-        key = _identity(Path(path))
+        key = file_identity(path)
         if key in seen:
             other, other_path = seen[key]
             raise OutputPathError(f"{what} {path} is the same file as {other} {other_path}; "
@@ -127,7 +117,24 @@ def check_distinct(named: Iterable[tuple[str, Path]]) -> None:
         seen[key] = (what, Path(path))
 
 
-def _open_locked(path: Path, flags: int) -> int:
+def _busy(path: Path, changing: bool = False) -> OutputBusyError:
+    if changing:
+        return OutputBusyError(f"{path}: kept changing while being locked; another track run "
+                               f"is writing this output", path)
+    return OutputBusyError(f"{path}: another track run is writing this output; wait for it to "
+                           f"finish or choose another file name", path)
+
+
+def _same_file(path: Path, fd: int) -> bool:
+    """Whether ``path`` still names the file open as ``fd`` (the lock holder may have renamed
+    or removed it between our open and our lock)."""
+    try:
+        return os.stat(path).st_ino == os.fstat(fd).st_ino
+    except FileNotFoundError:
+        return False
+
+
+def open_locked(path: Path, flags: int) -> int:
     """Open (creating) ``path`` and take an exclusive lock on it without waiting; returns the
     descriptor. OutputBusyError if another process holds the lock."""
     for _ in range(10):
@@ -136,19 +143,14 @@ def _open_locked(path: Path, flags: int) -> int:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             os.close(fd)
-            raise OutputBusyError(f"{path}: another track run is writing this output; wait for "
-                                  f"it to finish or choose another file name", path) from None
+            raise _busy(path) from None
         except BaseException:
             os.close(fd)
             raise
-        # The lock holder may have renamed or removed the file between our open and our lock:
-        # then we locked a file nobody will look at, so start again on the current one.
-        with contextlib.suppress(FileNotFoundError):
-            if os.stat(path).st_ino == os.fstat(fd).st_ino:
-                return fd
-        os.close(fd)
-    raise OutputBusyError(f"{path}: kept changing while being locked; another track run is "
-                          f"writing this output", path)
+        if _same_file(path, fd):
+            return fd
+        os.close(fd)     # we locked a file nobody will look at: start again on the current one
+    raise _busy(path, changing=True)
 
 
 def set_aside(path: Path) -> Path | None:
@@ -167,21 +169,12 @@ def set_aside(path: Path) -> Path | None:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                raise OutputBusyError(f"{path}: another track run is writing this output; wait "
-                                      f"for it to finish or choose another file name",
-                                      path) from None
-            # Moved by another run between our open and our lock (it set it aside and may now
-            # write a new one under the name): what we locked is not what the name holds.
-            try:
-                same = os.stat(path).st_ino == os.fstat(fd).st_ino
-            except FileNotFoundError:
-                same = False
-            if same:
+                raise _busy(path) from None
+            if _same_file(path, fd):    # else another run set it aside and may write anew
                 return _link_aside(path)
         finally:
             os.close(fd)            # also releases the lock
-    raise OutputBusyError(f"{path}: kept changing while being locked; another track run is "
-                          f"writing this output", path)
+    raise _busy(path, changing=True)
 
 
 def _open_to_lock(path: Path) -> int:
@@ -216,44 +209,31 @@ def _link_aside(path: Path) -> Path:
 
 
 class OutputFile:
-    """A binary output written beside ``path`` and renamed onto it by commit() (see the module
-    docstring). File protocol for writers: write(bytes) (everything handed to the operating
-    system at once, so finished records survive a kill), tell(), flush(), close() (= commit()).
-    Attributes: path (destination), written_path (where the bytes go now), committed.
-    """
+    """A binary output written beside ``path`` and renamed onto it by commit() (module
+    docstring). File protocol for writers: write(bytes) (handed to the operating system at
+    once, so finished records survive a kill), tell(), flush(), close() (= commit())."""
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
         stream = stream_descriptor(self.path)
-        self._in_place = stream is not None or (self.path.exists() and not self.path.is_file())
-        # A symlink the user named is followed: its target is replaced, the link kept.
-        self._target = self.path if self._in_place else Path(os.path.realpath(self.path))
-        self.written_path = self.path if self._in_place else partial_path(self._target)
+        #: True when the bytes go straight to the destination (standard output, a pipe, a
+        #: device): nothing written there can be taken back.
+        self.in_place = stream is not None or (self.path.exists() and not self.path.is_file())
+        self._target = self.path if self.in_place else Path(os.path.realpath(self.path))
+        self._written = self.path if self.in_place else partial_path(self._target)
         try:
             if stream is not None:
                 self._fd = os.dup(stream)
-            elif self._in_place:
+            elif self.in_place:
                 self._fd = os.open(self.path, os.O_WRONLY)
             else:
-                set_aside(self.written_path)
-                self._fd = _open_locked(self.written_path, os.O_WRONLY)
+                set_aside(self._written)
+                self._fd = open_locked(self._written, os.O_WRONLY)
                 os.ftruncate(self._fd, 0)   # set_aside kept any data it held
         except OSError as exc:
-            raise OutputWriteError(f"{self.written_path}: cannot write ({exc.strerror})",
-                                   self.written_path) from None
+            raise OutputWriteError(f"{self._written}: cannot write ({exc.strerror})",
+                                   self._written) from None
         self._offset = 0
-        self.committed = False
-
-    @property
-    def in_place(self) -> bool:
-        """True when the bytes go straight to the destination (standard output, a pipe, a
-        device): nothing written there can be taken back."""
-        return self._in_place
-
-    @property
-    def closed(self) -> bool:
-        """True once committed or discarded."""
-        return self._fd < 0
 
     def write(self, data) -> int:
         """Write all of ``data``; OutputWriteError naming the file on failure."""
@@ -276,37 +256,36 @@ class OutputFile:
 
     def commit(self) -> None:
         """Flush to disk and rename onto the destination (replacing it); idempotent."""
-        if self.closed:
+        if self._fd < 0:
             return
         try:
-            if not self._in_place:
+            if not self.in_place:
                 os.fsync(self._fd)
-                os.replace(self.written_path, self._target)
-                _sync_folder(self._target.parent)
+                os.replace(self._written, self._target)
+                sync_folder(self._target.parent)
         except OSError as exc:
             self.discard(keep=True)
             raise OutputWriteError(f"{self.path}: could not be finished ({exc.strerror}); the "
-                                   f"data written is in {self.written_path}", self.path) from None
+                                   f"data written is in {self._written}", self.path) from None
         self._release()
-        self.committed = True
 
     close = commit
 
     def discard(self, keep: bool = False) -> None:
         """Stop without touching the destination; remove the partial file unless ``keep``."""
-        if self.closed:
+        if self._fd < 0:
             return
         self._release()
-        if not keep and not self._in_place:
+        if not keep and not self.in_place:
             with contextlib.suppress(OSError):
-                os.unlink(self.written_path)
+                os.unlink(self._written)
 
     def _release(self) -> None:
         fd, self._fd = self._fd, -1
         os.close(fd)   # also releases the lock
 
 
-def _sync_folder(folder: Path) -> None:
+def sync_folder(folder: Path) -> None:
     """Make a rename in ``folder`` durable (best effort: not every file system allows it)."""
     with contextlib.suppress(OSError):
         fd = os.open(folder if str(folder) else ".", os.O_RDONLY)
@@ -314,80 +293,3 @@ def _sync_folder(folder: Path) -> None:
             os.fsync(fd)
         finally:
             os.close(fd)
-
-
-def write_beside(path: str | Path, write: Callable[[Path], None],
-                 partial: str | Path | None = None) -> None:
-    """Call ``write(partial path)``, flush that file to disk and rename it onto ``path`` (a
-    symlink there is replaced, not followed: BVH files are named by the sink, not the user);
-    on failure the partial file is removed and ``path`` is left as it was (OutputWriteError
-    naming the file). partial: the temporary name (default partial_path(path)), in path's
-    folder; a non-empty file there is kept aside first (set_aside)."""
-    shown = path = Path(path)
-    partial = partial_path(path) if partial is None else Path(partial)
-    set_aside(partial)
-    try:
-        write(partial)
-        fd = os.open(partial, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        os.replace(partial, path)
-    except BaseException as exc:
-        with contextlib.suppress(OSError):
-            os.unlink(partial)
-        if isinstance(exc, OSError):
-            raise OutputWriteError(f"{shown}: {exc.strerror or exc}", shown) from None
-        raise
-    _sync_folder(path.parent)
-
-
-def write_whole(path: str | Path, write: Callable[[Path], None],
-                keep_suffix: bool = False) -> None:
-    """A script's output file written whole or not at all: write_beside onto the file the
-    path names, a symlink followed (its target replaced, the link kept); a path that exists
-    and is not a regular file (/dev/null, /dev/stdout, a FIFO) is written in place. With
-    keep_suffix the temporary name ends in path's suffix (NAME.partial.png: OpenCV picks an
-    image's format by it). OutputWriteError naming the file on failure."""
-    given = Path(path)
-    # Checked on the path as given (exists and is_file follow links): a pipe has no path that
-    # realpath could give.
-    if given.exists() and not given.is_file():
-        try:
-            write(given)
-        except OSError as exc:
-            raise OutputWriteError(f"{path}: {exc.strerror or exc}", path) from None
-        return
-    target = Path(os.path.realpath(path))
-    partial = (target.with_name(f"{target.stem}{PARTIAL_SUFFIX}{target.suffix}")
-               if keep_suffix else None)
-    write_beside(target, write, partial)
-
-
-def file_identity(path: str | Path) -> tuple:
-    """What makes two paths the same file (check_distinct): (device, inode) of an existing
-    file, else the absolute path with symlinks resolved."""
-    return _identity(Path(path))
-
-
-class LockFile:
-    """An exclusive lock held on ``path`` (created, removed by release()) while a set of
-    outputs is written; OutputBusyError at once if another process holds it."""
-
-    def __init__(self, path: str | Path):
-        self.path = Path(path)
-        try:
-            self._fd = _open_locked(self.path, os.O_RDWR)
-        except OSError as exc:
-            raise OutputWriteError(f"{self.path}: cannot create ({exc.strerror})",
-                                   self.path) from None
-
-    def release(self) -> None:
-        """Remove the lock file and release the lock; idempotent."""
-        if self._fd < 0:
-            return
-        with contextlib.suppress(OSError):
-            os.unlink(self.path)
-        fd, self._fd = self._fd, -1
-        os.close(fd)
