@@ -19,7 +19,6 @@ import hashlib
 import os
 import re
 import sys
-import warnings
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -117,7 +116,8 @@ def check_distinct(named: Iterable[tuple[str, Path]]) -> None:
         seen[key] = (what, Path(path))
 
 
-def _busy(path: Path, changing: bool = False) -> OutputBusyError:
+def busy_error(path: Path, changing: bool = False) -> OutputBusyError:
+    """The error for an output another process holds locked (or keeps replacing)."""
     if changing:
         return OutputBusyError(f"{path}: kept changing while being locked; another track run "
                                f"is writing this output", path)
@@ -125,7 +125,7 @@ def _busy(path: Path, changing: bool = False) -> OutputBusyError:
                            f"finish or choose another file name", path)
 
 
-def _same_file(path: Path, fd: int) -> bool:
+def same_file(path: Path, fd: int) -> bool:
     """Whether ``path`` still names the file open as ``fd`` (the lock holder may have renamed
     or removed it between our open and our lock)."""
     try:
@@ -143,69 +143,32 @@ def open_locked(path: Path, flags: int) -> int:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             os.close(fd)
-            raise _busy(path) from None
+            raise busy_error(path) from None
         except BaseException:
             os.close(fd)
             raise
-        if _same_file(path, fd):
+        if same_file(path, fd):
             return fd
         os.close(fd)     # we locked a file nobody will look at: start again on the current one
-    raise _busy(path, changing=True)
+    raise busy_error(path, changing=True)
+
+
+def holds_data(path: Path) -> bool:
+    """Whether ``path`` is a non-empty regular file."""
+    try:
+        return path.is_file() and path.stat().st_size > 0
+    except OSError:
+        return False
 
 
 def set_aside(path: Path) -> Path | None:
     """Move a non-empty regular file at ``path`` (a ``NAME.partial`` about to be written) to the
     first free ``NAME.partial.N`` and warn naming both; returns the new name, or None when there
-    was nothing to keep. OutputBusyError if another process is writing it (holds its lock);
-    OutputWriteError if it holds data but cannot be opened to be locked."""
-    for _ in range(10):
-        try:
-            if not path.is_file() or path.stat().st_size == 0:
-                return None
-        except OSError:
-            return None
-        fd = _open_to_lock(path)
-        try:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                raise _busy(path) from None
-            if _same_file(path, fd):    # else another run set it aside and may write anew
-                return _link_aside(path)
-        finally:
-            os.close(fd)            # also releases the lock
-    raise _busy(path, changing=True)
-
-
-def _open_to_lock(path: Path) -> int:
-    """A descriptor of ``path`` to flock (read or, failing that, write access suffices);
-    OutputWriteError when neither is allowed: its data must not be written over unseen."""
-    for flags in (os.O_RDONLY, os.O_WRONLY):
-        try:
-            return os.open(path, flags)
-        except OSError as exc:
-            error = exc
-    raise OutputWriteError(f"{path}: holds an earlier run's data that cannot be kept aside "
-                           f"({error.strerror}); move it away first", path)
-
-
-def _link_aside(path: Path) -> Path:
-    """set_aside's move of the locked ``path`` to the first free ``NAME.N``."""
-    for n in range(1, 10_000):
-        aside = beside_name(path, f".{n}")
-        try:
-            os.link(path, aside)      # never replaces an existing file, unlike rename
-        except FileExistsError:
-            continue
-        except OSError as exc:
-            raise OutputWriteError(f"{path}: holds an earlier run's data and cannot be kept "
-                                   f"aside ({exc.strerror}); move it away first", path) from None
-        os.unlink(path)
-        warnings.warn(f"{path} held an earlier run's unfinished output; kept as {aside}, "
-                      f"not overwritten", stacklevel=4)
-        return aside
-    raise OutputWriteError(f"{path}: too many earlier unfinished outputs kept beside it; "
-                           f"remove some", path)
+    was nothing to keep (tracker.outputs.aside.keep_aside)."""
+    if not holds_data(path):
+        return None
+    from tracker.outputs.aside import keep_aside    # deferred: only after an unfinished run
+    return keep_aside(path)
 
 
 class OutputFile:

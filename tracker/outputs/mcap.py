@@ -1,23 +1,12 @@
 """MCAP recording of tracked poses, openable as is in Foxglove (JSON messages, JSON schemas).
 
-Channels:
-- ``/pose`` (``silhouette_pose.TrackedPose``): one message per track per frame: frame index,
-  time, track id, ambiguous flag, centroid in pixels and novelty (PoseEstimates.novelty) when
-  known, and the raw regressor output and the filtered pose (with ``track --lag`` fixed-lag
-  smoothed; the ``settings`` metadata says which): heading in degrees, heading norm and the 55
-  values keyed by ``sequences.pose_vector.pose_vector_names()`` (Foxglove plots them by name).
-- ``/skeleton`` (``foxglove.SceneUpdate``): one message per frame with people, one entity per
-  track (``track-<id>``, frame ``world``, Z-up, metres) drawn as the live view draws it: a
-  cylinder per bone, a sphere per joint, a head ball in the side colours, translucent in
-  ambiguous frames, and a label; every TRAIL_EVERY frames each track's pelvis path over the
-  last TRAIL_S seconds (``trail-<id>``) fading with age. Tracks absent from a frame are
-  deleted; entities live SKELETON_LIFETIME_S (trails TRAIL_LIFETIME_S) unless drawn again.
-- ``/smoothed/pose`` (``silhouette_pose.SmoothedPose``) and ``/smoothed/skeleton`` (as
-  ``/skeleton`` without trails): with ``track``'s --smooth (the default), each whole track
-  RTS-smoothed as the JSON and BVH get it, written at the end of the run
-  (:meth:`McapSink.smoothed_channel`); absent with --no-smooth and after a Ctrl-C's quick exit.
-- Metadata records (e.g. ``video``, ``model``, ``settings``) given to the constructor.
-Log and publish times (ns), ``time_s`` and timestamps are each frame's own time in the video.
+Channels (README, Outputs): ``/pose`` (one message per track per frame: raw and filtered, or
+with ``track --lag`` fixed-lag smoothed, pose by name), ``/skeleton`` (``foxglove.SceneUpdate``
+per frame with people: bodies as the live view draws them, Z-up metres, and every TRAIL_EVERY
+frames each track's pelvis trail; tracks gone are deleted), with --smooth ``/smoothed/pose``
+and ``/smoothed/skeleton`` (each whole track smoothed, written at the end of the run:
+:meth:`McapSink.smoothed_channel`), and the metadata records given. Times are each frame's own
+time in the video.
 
 Crash safety: messages go into small compressed chunks (``chunk_size`` bytes, a chunk closed
 at least every ``flush_every_frames`` frames), each handed to the operating system at once, so
@@ -52,7 +41,6 @@ from tracker.outputs.geometry import (BONE_INDEX, BONE_SIDE, JOINT_SIDE, SinkInp
 if TYPE_CHECKING:
     from tracker.pipeline import TrackedPose
 
-SCENE_SCHEMA_NAME = "foxglove.SceneUpdate"
 #: Drawing sizes in metres.
 BONE_THICKNESS_M, JOINT_DIAMETER_M, HEAD_DIAMETER_M, TRAIL_THICKNESS_M = 0.07, 0.1, 0.22, 0.06
 #: Opacity of bodies in ambiguous frames.
@@ -66,128 +54,24 @@ _DECIMALS = 6  # JSON rounding: 1e-6 degrees or units is far below any estimate'
 _GEOMETRY_DECIMALS = 3   # 1 mm and 1e-3 of a quaternion: below what a drawing shows
 
 
-# ---------------------------------------------------------------- JSON schemas
+@functools.cache
+def _schemas() -> dict[str, bytes]:
+    """The channels' JSON schemas by name, as written: mcap_schemas.json (Foxglove's
+    ``foxglove.SceneUpdate``, every field listed as required because we always set it, and
+    ours), each ``PoseValues`` object given the 55 pose-vector names."""
+    schemas = json.loads(Path(__file__).with_name("mcap_schemas.json").read_text("utf-8"))
+    names = pose_vector_names()
 
-def _object(title: str, properties: dict, description: str = "") -> dict:
-    """A JSON-schema object whose properties are all required (our messages always set all)."""
-    schema = {"title": title, "type": "object", "properties": properties,
-              "required": list(properties)}
-    if description:
-        schema["description"] = description
-    return schema
-
-
-def _array(items: dict) -> dict:
-    return {"type": "array", "items": items}
-
-
-_NUMBER, _STRING, _BOOLEAN = {"type": "number"}, {"type": "string"}, {"type": "boolean"}
-_INDEX = {"type": "integer", "minimum": 0}
-
-
-def _time(title: str = "time") -> dict:
-    seconds = {"type": "integer"} if title == "duration" else _INDEX
-    return _object(title, {"sec": seconds,
-                           "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999}})
-
-
-def _vector(title: str = "foxglove.Vector3", axes: str = "xyz") -> dict:
-    return _object(title, {axis: _NUMBER for axis in axes})
-
-
-def _colour() -> dict:
-    return _object("foxglove.Color", {c: _NUMBER for c in "rgba"}, "RGBA, each in [0, 1]")
-
-
-def _pose() -> dict:
-    return _object("foxglove.Pose", {"position": _vector(),
-                                     "orientation": _vector("foxglove.Quaternion", "xyzw")})
-
-
-def _enum(title: str, values: dict[str, int]) -> dict:
-    return {"title": title, "oneOf": [{"title": k, "const": v} for k, v in values.items()]}
-
-
-def scene_update_schema() -> dict:
-    """The JSON schema of Foxglove's ``foxglove.SceneUpdate`` (names and types as in Foxglove's
-    published schemas; every field required because we always set it)."""
-    empty = _array({"type": "object"})     # the primitives bodies and trails do not use
-    primitives = {
-        "arrows": empty, "cubes": empty, "triangles": empty, "models": empty,
-        "spheres": _object("foxglove.SpherePrimitive", {
-            "pose": _pose(), "size": _vector(), "color": _colour()}),
-        "cylinders": _object("foxglove.CylinderPrimitive", {
-            "pose": _pose(), "size": _vector(), "bottom_scale": _NUMBER, "top_scale": _NUMBER,
-            "color": _colour()}),
-        "lines": _object("foxglove.LinePrimitive", {
-            "type": _enum("foxglove.LineType", {"LINE_STRIP": 0, "LINE_LOOP": 1, "LINE_LIST": 2}),
-            "pose": _pose(), "thickness": {"type": "number", "minimum": 0},
-            "scale_invariant": _BOOLEAN, "points": _array(_vector("foxglove.Point3")),
-            "color": _colour(), "colors": _array(_colour()), "indices": _array(_INDEX)}),
-        "texts": _object("foxglove.TextPrimitive", {
-            "pose": _pose(), "billboard": _BOOLEAN, "font_size": _NUMBER,
-            "scale_invariant": _BOOLEAN, "color": _colour(), "text": _STRING}),
-    }
-    entity = _object("foxglove.SceneEntity", {
-        "timestamp": _time(), "frame_id": _STRING, "id": _STRING,
-        "lifetime": _time("duration"), "frame_locked": _BOOLEAN,
-        "metadata": _array(_object("foxglove.KeyValuePair", {"key": _STRING, "value": _STRING})),
-        **{name: item if item is empty else _array(item) for name, item in primitives.items()},
-    }, "A visual element in a 3D scene; replaces any prior entity with the same id")
-    deletion = _object("foxglove.SceneEntityDeletion", {
-        "timestamp": _time(),
-        "type": _enum("foxglove.SceneEntityDeletionType", {"MATCHING_ID": 0, "ALL": 1}),
-        "id": _STRING,
-    })
-    return _object(SCENE_SCHEMA_NAME, {"deletions": _array(deletion), "entities": _array(entity)},
-                   "An update to the entities displayed in a 3D scene")
-
-
-def _frame_schema(title: str, description: str, **estimates: dict) -> dict:
-    """JSON schema of a per-frame pose message: time, frame, track, then ``estimates``."""
-    return _object(title, {
-        "timestamp": _time(), "frame_index": _INDEX,
-        "time_s": {"type": "number", "description": "video time of the frame, seconds"},
-        "track_id": _INDEX, **estimates}, description)
-
-
-def _estimate_schema() -> dict:
-    """JSON schema of one pose estimate (_estimate): heading, its norm, the 55 values."""
-    values = _object("PoseValues", {name: _NUMBER for name in pose_vector_names()},
-                     "The 55 pose-vector entries by name: heading cos/sin, then angles in degrees")
-    return _object("PoseEstimate", {
-        "heading_deg": {"type": "number", "description": "atan2(sin, cos), degrees in (-180, 180]"},
-        "heading_norm": {"type": "number", "description": "norm of (cos, sin); low = ambiguous"},
-        "pose": values,
-    })
-
-
-def tracked_pose_schema() -> dict:
-    """JSON schema of the ``/pose`` messages (see the module docstring); the properties after
-    ``filtered`` are optional."""
-    estimate = _estimate_schema()
-    ambiguous = {"type": "boolean", "description": "raw heading norm below the filter's threshold"}
-    schema = _frame_schema("silhouette_pose.TrackedPose",
-                           "One tracked person's pose in one video frame",
-                           ambiguous=ambiguous, raw=estimate, filtered=estimate)
-    schema["properties"].update({
-        "runner_up": {**estimate, "description": "the next most probable front/back hypothesis, "
-                      "filtered, when it is close (tracker.tracks.hypotheses.CLOSE_PROBABILITY)"},
-        "runner_up_probability": {"type": "number", "minimum": 0, "maximum": 1,
-                                  "description": "probability of runner_up (present with it)"},
-        "novelty": {"type": "number", "minimum": 0, "description":
-                    "how unlike the training silhouettes the frame's is (about 1 % of training "
-                    "rows are above 1; far above it the pose is extrapolated); absent when "
-                    "unknown"},
-        "centroid_px": {"type": "array", "items": _NUMBER, "minItems": 2, "maxItems": 2,
-                        "description": "silhouette centroid (x, y) in pixels, when known"}})
-    return schema
-
-
-def smoothed_pose_schema() -> dict:
-    """JSON schema of the ``/smoothed/pose`` messages (see the module docstring)."""
-    return _frame_schema("silhouette_pose.SmoothedPose", "One tracked person's pose in one "
-                         "video frame, the whole track RTS-smoothed", smoothed=_estimate_schema())
+    def fill(node) -> None:
+        if isinstance(node, dict):
+            if node.get("title") == "PoseValues":
+                node["properties"] = {name: {"type": "number"} for name in names}
+                node["required"] = list(names)
+        for child in node.values() if isinstance(node, dict) else node:
+            if isinstance(child, (dict, list)):
+                fill(child)
+    fill(schemas)
+    return {name: _to_bytes(schema) for name, schema in schemas.items()}
 
 
 # ---------------------------------------------------------------- message builders
@@ -219,6 +103,11 @@ def _z_to(directions: np.ndarray) -> np.ndarray:
 
 
 _NO_TURN = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+
+
+def _placed(x: float, y: float, z: float, orientation: dict = _NO_TURN) -> dict:
+    """A foxglove.Pose at (x, y, z) metres turned by the quaternion ``orientation``."""
+    return {"position": {"x": x, "y": y, "z": z}, "orientation": orientation}
 
 
 @functools.lru_cache(maxsize=128)
@@ -266,21 +155,17 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
                      _GEOMETRY_DECIMALS).tolist()       # rows: centre x y z, quaternion, length
     points = np.round(np.vstack([joints, head, label]), _GEOMETRY_DECIMALS).tolist()
     thick = BONE_THICKNESS_M
-    cylinders = [{"pose": {"position": {"x": x, "y": y, "z": z},
-                           "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}},
+    cylinders = [{"pose": _placed(x, y, z, {"x": qx, "y": qy, "z": qz, "w": qw}),
                   "size": {"x": thick, "y": thick, "z": length},
                   "bottom_scale": 1.0, "top_scale": 1.0, "color": bone_colours[k]}
                  for (x, y, z, qx, qy, qz, qw, length), k in zip(bones, keep.tolist())]
     diameters = [JOINT_DIAMETER_M] * len(joints) + [HEAD_DIAMETER_M]
-    spheres = [{"pose": {"position": {"x": x, "y": y, "z": z}, "orientation": _NO_TURN},
-                "size": {"x": d, "y": d, "z": d}, "color": sphere_colours[i]}
-               for i, ((x, y, z), d) in enumerate(zip(points, diameters))]
-    x, y, z = points[-1]
+    spheres = [{"pose": _placed(x, y, z), "size": {"x": d, "y": d, "z": d}, "color": colour}
+               for (x, y, z), d, colour in zip(points, diameters, sphere_colours)]
     flags = [{"key": "ambiguous", "value": str(bool(ambiguous)).lower()},
              {"key": "unfamiliar", "value": str(bool(unfamiliar)).lower()}]
-    texts = [{"pose": {"position": {"x": x, "y": y, "z": z}, "orientation": _NO_TURN},
-              "billboard": True, "font_size": 0.15, "scale_invariant": False,
-              "color": label_colour, "text": text}]
+    texts = [{"pose": _placed(*points[-1]), "billboard": True, "font_size": 0.15,
+              "scale_invariant": False, "color": label_colour, "text": text}]
     return _entity("track", track_id, time_ns, SKELETON_LIFETIME_S, flags,
                    "arrows cubes lines triangles models", spheres=spheres, cylinders=cylinders,
                    texts=texts)
@@ -292,9 +177,8 @@ def trail_entity(track_id: int, time_ns: int, path_m: np.ndarray, ages: np.ndarr
     [0, 1] (0 = newest, opaque; 1 = oldest, transparent)."""
     points = np.round(np.column_stack([path_m, np.full(len(path_m), 0.005)]), _DECIMALS)
     rgb = np.tile(track_colour(track_id), (len(points), 1))
-    line = {"type": 0, "pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
-                                "orientation": _NO_TURN},
-            "thickness": TRAIL_THICKNESS_M, "scale_invariant": False,
+    line = {"type": 0, "pose": _placed(0.0, 0.0, 0.0), "thickness": TRAIL_THICKNESS_M,
+            "scale_invariant": False,
             "points": [{"x": x, "y": y, "z": z} for x, y, z in points.tolist()],
             "color": {"r": rgb[0, 0], "g": rgb[0, 1], "b": rgb[0, 2], "a": 1.0},
             "colors": _colour_dicts(rgb, 1.0 - np.clip(ages, 0.0, 1.0)), "indices": []}
@@ -383,10 +267,9 @@ class McapSink:
             writer.start(profile="", library="silhouette-pose tracker")
             for name, values in (metadata or {}).items():
                 writer.add_metadata(str(name), _metadata_strings(str(name), values))
-            self._pose_channel = writer.register_channel("/pose", "json", writer.register_schema(
-                "silhouette_pose.TrackedPose", "jsonschema", _to_bytes(tracked_pose_schema())))
-            self._scene_schema = writer.register_schema(
-                SCENE_SCHEMA_NAME, "jsonschema", _to_bytes(scene_update_schema()))
+            pose_schema = self._schema("silhouette_pose.TrackedPose")
+            self._scene_schema = self._schema("foxglove.SceneUpdate")
+            self._pose_channel = writer.register_channel("/pose", "json", pose_schema)
             scene_channel = writer.register_channel("/skeleton", "json", self._scene_schema)
         except BaseException:
             self._state["done"] = True
@@ -400,6 +283,10 @@ class McapSink:
         # /smoothed/skeleton's; its channels are registered by the first write_smoothed.
         self._smoothed = _SceneStream(None)
         self._smoothed_pose_channel: int | None = None
+
+    def _schema(self, name: str) -> int:
+        """Register the JSON schema ``name`` (_schemas); its id."""
+        return self._state["writer"].register_schema(name, "jsonschema", _schemas()[name])
 
     @property
     def closed(self) -> bool:
@@ -476,9 +363,8 @@ class McapSink:
             self._write_scene()          # the streamed frames' last scene goes first
             self._scenes.frame = None    # and the stream is over (write() refuses more)
             writer = self._state["writer"]
-            schema = writer.register_schema("silhouette_pose.SmoothedPose", "jsonschema",
-                                            _to_bytes(smoothed_pose_schema()))
-            self._smoothed_pose_channel = writer.register_channel("/smoothed/pose", "json", schema)
+            self._smoothed_pose_channel = writer.register_channel(
+                "/smoothed/pose", "json", self._schema("silhouette_pose.SmoothedPose"))
             scenes.channel = writer.register_channel("/smoothed/skeleton", "json",
                                                      self._scene_schema)
         time_ns = int(round(time_s * 1e9))
