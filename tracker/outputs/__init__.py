@@ -34,8 +34,7 @@ class Sink(Protocol):
 
 
 class PoseRecorder:
-    """A sink that keeps every pose: ``poses`` (list of TrackedPose, in order),
-    ``by_track()`` (track id -> its poses) and ``frames()`` (every frame, with its poses)."""
+    """A sink that keeps every pose in ``poses`` (TrackedPose, in order)."""
 
     def __init__(self):
         self.poses: list[TrackedPose] = []
@@ -52,11 +51,9 @@ class PoseRecorder:
     def frames(self) -> list[tuple[int, list[TrackedPose]]]:
         """Every frame ended so far, with people or without, as (frame_index, its poses) in
         order (what tracker.tracks.fixed_lag.replay takes)."""
-        out, start = [], 0
-        for index, stop in self._frame_ends:
-            out.append((index, self.poses[start:stop]))
-            start = stop
-        return out
+        starts = [0] + [stop for _, stop in self._frame_ends]
+        return [(index, self.poses[start:stop])
+                for (index, stop), start in zip(self._frame_ends, starts)]
 
     def close(self) -> None:
         """Nothing to finish."""
@@ -70,9 +67,8 @@ class PoseRecorder:
 
 
 def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
-    """Call each factory in turn; if one fails (another run holds its lock, a name the file
-    system refuses, Ctrl-C), abandon the sinks already opened (close_sinks(abandon=True): a
-    file sink then writes nothing, so what its destination held stays) and re-raise."""
+    """Call each factory in turn; if one fails (a lock held, a name refused, Ctrl-C), abandon
+    the sinks already opened (close_sinks(abandon=True): files keep what they held), re-raise."""
     opened: list[Sink] = []
     try:
         for make in factories:
@@ -84,9 +80,8 @@ def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
 
 
 def problem_line(sink: Sink, exc: BaseException) -> str:
-    """One line for a sink's failure: with its ``option`` attribute "--json /dev/full: No space
-    left on device" (an OutputWriteError's message starts with its file) or "--view: ...";
-    without, "JsonSummarySink: ..." (the sink's class)."""
+    """One line for a sink's failure, led by its ``option`` ("--json /dev/full: No space left on
+    device": an OutputWriteError starts with its file; "--view: ...") or else its class."""
     option = getattr(sink, "option", None)
     if option is None:
         return f"{type(sink).__name__}: {exc}"
@@ -94,10 +89,9 @@ def problem_line(sink: Sink, exc: BaseException) -> str:
 
 
 def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
-    """Close every sink, even when some fail (each holds the user's results); returns one
-    line per failure (problem_line). abandon: the run has nothing to give (it tracked
-    nobody): sinks with an ``abandon()`` method (the files) stop without writing, so what their
-    destinations held stays; the others are closed."""
+    """Close every sink, even when some fail (each holds the user's results); one line per
+    failure (problem_line). abandon: the run tracked nobody: sinks with ``abandon()`` (files)
+    stop without writing, so their destinations keep what they held; the others close."""
     problems = []
     for sink in sinks:
         try:

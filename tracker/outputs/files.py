@@ -1,15 +1,11 @@
 """Output files that never destroy data: distinct paths, one writer at a time, replace when done.
 
-- :func:`check_distinct` refuses, before anything is written, an output that is (after symlinks,
-  relative paths and hard links) the input or another output.
-- :class:`OutputFile` writes ``NAME.partial`` beside ``NAME`` (:func:`beside_name`) under an
-  exclusive lock (a second run on the same output fails at once: :class:`OutputBusyError`) and
-  renames it onto ``NAME`` only by :meth:`OutputFile.commit`, once complete; a crash leaves
-  ``NAME`` as it was. A destination that is not a regular file (``/dev/null``, a FIFO) or is a
-  stream the shell opened (:func:`stream_descriptor`) is written in place; a symlink is
-  followed. A ``NAME.partial`` holding data is kept as ``NAME.partial.N`` (:func:`set_aside`).
-- Files written in one go (BVH, scripts' outputs): tracker.outputs.whole_files.
-- Every failure to write is an :class:`OutputWriteError` naming the file.
+:func:`check_distinct` refuses an output that is the input or another output. :class:`OutputFile`
+writes ``NAME.partial`` under an exclusive lock (a second run fails at once: OutputBusyError) and
+renames it onto ``NAME`` once complete; a crash leaves ``NAME`` as it was. A destination that is
+not a regular file, or a stream the shell opened, is written in place; a symlink is followed. A
+``NAME.partial`` holding data is kept as ``NAME.partial.N`` (:func:`set_aside`). Files written
+in one go: tracker.outputs.whole_files. Failures to write: OutputWriteError naming the file.
 """
 from __future__ import annotations
 
@@ -30,12 +26,12 @@ NAME_MAX = 255
 
 
 class OutputPathError(SilhouettePoseError, ValueError):
-    """An output path that would overwrite the input or another output; one line."""
+    """An output path that would overwrite the input or another output."""
 
 
 class _FileError(SilhouettePoseError, RuntimeError):
-    """One line starting with the file's path, also the ``path`` attribute (None when not
-    given): a command can name the option the file came from."""
+    """One line starting with the file's path, also ``path`` (None when not given): a command
+    can name the option the file came from."""
 
     def __init__(self, message: str, path: str | Path | None = None):
         super().__init__(message)
@@ -74,9 +70,8 @@ def stream_descriptor(path: str | Path) -> int | None:
 
 
 def beside_name(path: str | Path, suffix: str) -> Path:
-    """``path`` with ``suffix`` added to its name, in the same folder. Where that would pass
-    NAME_MAX bytes, NAME is cut and ``~`` and 12 hex digits of its SHA-256 follow, so the same
-    NAME always gives the same name (a second run finds the first's lock and partial file)."""
+    """``path`` with ``suffix`` added to its name. Past NAME_MAX bytes, NAME is cut and ``~`` and
+    12 hex digits of its SHA-256 follow: the same NAME always gives the same name."""
     path = Path(path)
     name = path.name + suffix
     if len(os.fsencode(name)) <= NAME_MAX:
@@ -103,9 +98,8 @@ def file_identity(path: str | Path) -> tuple:
 
 
 def check_distinct(named: Iterable[tuple[str, Path]]) -> None:
-    """Refuse two of ``named`` (description, path) that are the same file: OutputPathError
-    naming both. The inputs come first (e.g. ("the input video", path)); an output's
-    description is its option (e.g. "--out")."""
+    """OutputPathError naming both when two of ``named`` (description, path) are the same file
+    (after symlinks, relative paths and hard links); descriptions: "the input video", "--out"."""
     seen: dict[tuple, tuple[str, Path]] = {}
     for what, path in named:
         key = file_identity(path)
@@ -135,8 +129,8 @@ def same_file(path: Path, fd: int) -> bool:
 
 
 def open_locked(path: Path, flags: int) -> int:
-    """Open (creating) ``path`` and take an exclusive lock on it without waiting; returns the
-    descriptor. OutputBusyError if another process holds the lock."""
+    """A descriptor of ``path`` (created) locked exclusively; OutputBusyError if another process
+    holds the lock."""
     for _ in range(10):
         fd = os.open(path, flags | os.O_CREAT, 0o644)
         try:
@@ -162,9 +156,8 @@ def holds_data(path: Path) -> bool:
 
 
 def set_aside(path: Path) -> Path | None:
-    """Move a non-empty regular file at ``path`` (a ``NAME.partial`` about to be written) to the
-    first free ``NAME.partial.N`` and warn naming both; returns the new name, or None when there
-    was nothing to keep (tracker.outputs.aside.keep_aside)."""
+    """Keep a non-empty file at ``path`` (a ``NAME.partial`` about to be written) as the first
+    free ``NAME.partial.N`` (aside.keep_aside); the new name, or None when there was none."""
     if not holds_data(path):
         return None
     from tracker.outputs.aside import keep_aside    # deferred: only after an unfinished run
@@ -172,15 +165,14 @@ def set_aside(path: Path) -> Path | None:
 
 
 class OutputFile:
-    """A binary output written beside ``path`` and renamed onto it by commit() (module
-    docstring). File protocol for writers: write(bytes) (handed to the operating system at
-    once, so finished records survive a kill), tell(), flush(), close() (= commit())."""
+    """A binary output written beside ``path`` and renamed onto it by commit(). File protocol:
+    write(bytes) (handed to the system at once: records survive a kill), tell(), flush(),
+    close() (= commit())."""
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
         stream = stream_descriptor(self.path)
-        #: True when the bytes go straight to the destination (standard output, a pipe, a
-        #: device): nothing written there can be taken back.
+        #: The bytes go straight to the destination (a pipe, a device): nothing can be taken back.
         self.in_place = stream is not None or (self.path.exists() and not self.path.is_file())
         self._target = self.path if self.in_place else Path(os.path.realpath(self.path))
         self._written = self.path if self.in_place else partial_path(self._target)

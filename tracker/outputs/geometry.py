@@ -1,10 +1,8 @@
 """Stick-skeleton geometry and input checks shared by the output sinks.
 
-Joint positions come as (18, 3) metres in the order of ``sequences.skeleton.POSE_JOINTS``, in the
-motion-capture frame: Y up, the subject at heading 0 faces +Z (towards the camera, on the +Z
-side looking along -Z; image x runs along +X). Viewers (Foxglove, meshcat) are Z-up:
-:func:`y_up_to_z_up`. Where a subject stands in 3-D is only estimated, from the image:
-:func:`ground_position_from_image`.
+Joint positions are (18, 3) metres in ``sequences.skeleton.POSE_JOINTS`` order, Y up, the subject
+at heading 0 facing +Z (the camera, looking along -Z; image x along +X). Viewers are Z-up
+(:func:`y_up_to_z_up`).
 """
 from __future__ import annotations
 
@@ -86,8 +84,7 @@ def heading_deg(vector: np.ndarray) -> float:
 
 
 def check_joints(joints3d: np.ndarray) -> np.ndarray:
-    """Pose-joint positions as float64 (18, 3) metres; SinkInputError for another shape or a
-    value that is not finite."""
+    """Pose-joint positions as float64 (18, 3) metres; SinkInputError otherwise."""
     joints = np.asarray(joints3d, dtype=np.float64)
     if joints.shape != (N_JOINTS, 3):
         raise SinkInputError(f"joints3d must have shape ({N_JOINTS}, 3) metres, got {joints.shape}")
@@ -97,8 +94,7 @@ def check_joints(joints3d: np.ndarray) -> np.ndarray:
 
 
 def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
-    """A 55-D pose vector called ``name`` as float64 (55,); SinkInputError naming it for
-    another shape or a value that is not finite."""
+    """A 55-D pose vector called ``name`` as float64 (55,); SinkInputError naming it otherwise."""
     vector = np.asarray(pose, dtype=np.float64)
     if vector.shape != (55,):
         raise SinkInputError(f"{name} must be a 55-D pose vector, got shape {vector.shape}")
@@ -116,9 +112,8 @@ def check_centroid(centroid_px) -> np.ndarray:
 
 
 def known_novelty(value) -> float | None:
-    """A pose's novelty (PoseEstimates.novelty, a unitless ratio) checked: a float >= 0, or None
-    when unknown (None, or NaN from a model without a heading index); SinkInputError for
-    anything else (negative, infinite, not one number). Sinks round it only when writing."""
+    """A pose's novelty (PoseEstimates.novelty, a ratio) as a float >= 0, or None when unknown
+    (None, or NaN from a model without a heading index); SinkInputError for anything else."""
     if value is None:
         return None
     try:
@@ -141,16 +136,14 @@ def _is_number(value) -> bool:
 
 
 def checked_probability(name: str, value) -> float:
-    """A probability called ``name`` (e.g. a runner-up hypothesis's) as a float in [0, 1];
-    SinkInputError naming it for anything else, so every sink refuses the same values."""
+    """A probability called ``name`` as a float in [0, 1]; SinkInputError naming it otherwise."""
     if not _is_number(value) or not 0 <= value <= 1:   # exact for huge ints, False for NaN
         raise SinkInputError(f"{name} must be a number in [0, 1], got {value!r}")
     return float(value)
 
 
 def checked_time(value) -> float:
-    """A pose's video time (seconds) as a float: a finite number >= 0; SinkInputError naming
-    it for anything else, so every sink refuses the same times."""
+    """A pose's video time (seconds) as a float >= 0; SinkInputError otherwise."""
     try:
         number = float(value) if _is_number(value) else math.nan
     except OverflowError:                                # an int beyond any float
@@ -161,27 +154,22 @@ def checked_time(value) -> float:
 
 
 def is_unfamiliar(novelty: float | None) -> bool:
-    """Whether a novelty (checked, or a pose's own) says the silhouette is unlike the training
-    ones: above UNFAMILIAR_NOVELTY; False when unknown (None or NaN). TrackedPose.unfamiliar
-    is this rule."""
+    """Whether a novelty says the silhouette is unlike the training ones: above
+    UNFAMILIAR_NOVELTY; False when unknown (None or NaN). TrackedPose.unfamiliar's rule."""
     return novelty is not None and novelty > UNFAMILIAR_NOVELTY
 
 
 def pose_joints_m(vectors: np.ndarray, template=None, root_position_m: np.ndarray | None = None
                   ) -> np.ndarray:
-    """Pose-joint positions (T, 18, 3) in metres (Y up) from pose vectors (T, 55).
-
-    template: as ``sequences.pose_vector.joint_positions`` (a Motion, (31, 3) CMU offsets, or
-    None for the default CMU skeleton). root_position_m: (T, 3) metres, None = root at origin.
-    """
+    """Pose-joint positions (T, 18, 3) in metres (Y up) from pose vectors (T, 55). template: as
+    ``sequences.pose_vector.joint_positions``; root_position_m: (T, 3) metres, None = origin."""
     root = None if root_position_m is None else np.asarray(root_position_m, np.float64) / CMU_UNIT_M
     return joint_positions(vectors, template, root_position=root) * CMU_UNIT_M
 
 
 def y_up_to_z_up(points: np.ndarray) -> np.ndarray:
-    """Rotate (..., 3) points from the Y-up motion-capture frame to a Z-up viewer frame: +90
-    degrees about X, (x, y, z) -> (x, -z, y), units unchanged. The camera then looks along +Y
-    (the subject at heading 0 faces -Y)."""
+    """Points (..., 3) turned from the Y-up motion-capture frame to a Z-up viewer frame: +90
+    degrees about X, (x, y, z) -> (x, -z, y); the camera then looks along +Y."""
     p = np.asarray(points, dtype=np.float64)
     return np.stack([p[..., 0], -p[..., 2], p[..., 1]], axis=-1)
 
@@ -196,14 +184,10 @@ def ground_position_from_image(
     hip_height_m: float = 0.95,
 ) -> np.ndarray:
     """Approximate root (hip) positions (..., 3) metres from the centroids (..., 2) pixels (x
-    right, y down) and silhouette heights bbox_height_px (...,) pixels (> 0).
-
-    A pinhole camera at the origin looks along -Z, Y up. Focal length f px: focal_px, by
-    default ``tracker.video.decode.focal_length_px(W)`` (an assumed field of view); distance
-    d = f * person_height_m / height. The root is at X = (cx - W/2) * d / f, Y = hip_height_m,
-    Z = -d: depth is only as good as the assumed height. SinkInputError for non-positive
-    heights or frame sizes.
-    """
+    right, y down) and silhouette heights bbox_height_px (...,) pixels (> 0), for a pinhole
+    camera at the origin looking along -Z with focal length f = focal_px (default: an assumed
+    field of view, focal_length_px(W)): distance d = f * person_height_m / height, root at
+    ((cx - W/2) d / f, hip_height_m, -d). SinkInputError for non-positive sizes."""
     centroid = np.asarray(centroid_px, dtype=np.float64)
     height = np.asarray(bbox_height_px, dtype=np.float64)
     if centroid.shape[-1:] != (2,):

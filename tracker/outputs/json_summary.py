@@ -1,29 +1,6 @@
 """JSON summary of a tracking run, for scripts: frames, speed, and per track its frames,
-centroids, headings, ambiguity flags, novelty and poses (docs/code_notes/outputs.md says more
-of each field).
-
-Layout (format version 1)::
-
-    {"format": "silhouette-pose tracking summary", "version": 1,
-     "frames": int,             # frames processed (with or without people)
-     "fps": float,              # frames processed per second of wall time
-     "video_fps": float,        # the frame rate the video's container announces
-     "wall_time_s": float,
-     "poses": "filtered", "smoothed" or "fixed-lag smoothed",  # what "pose" holds
-     "tracks": [{"id": int, "first_frame": int, "last_frame": int, "n_frames": int,
-                 "frames": [int],
-                 "time_s": [float],        # each frame's own time in the video, seconds
-                 "centroid_px": [[x, y]],
-                 "heading_deg": [float],   # the poses' heading, degrees in (-180, 180]
-                 "heading_norm": [float],  # norm of the RAW (cos, sin): the ambiguity measure
-                 "ambiguous": [bool], "ambiguous_frames": int,
-                 "novelty": [float or null],  # PoseEstimates.novelty; null: unknown
-                 "unfamiliar_frames": int,    # frames with novelty above UNFAMILIAR_NOVELTY
-                 "heading_mean_deg": float,   # circular mean of heading_deg
-                 "pose": [[55 values]],       # sequences.pose_vector.pose_vector_names() order
-                 "runner_up": [{"frame": int, "probability": float, "heading_deg": float,
-                                "pose": [55 values]}]}]}   # the other front/back hypothesis
-                                                           # where it was close (filtered)
+centroids, headings, ambiguity flags, novelty and poses (docs/code_notes/outputs.md gives the
+layout, format version 1, field by field).
 
 The file is written to ``PATH.partial``, locked from the sink's creation (a second run on the
 same output fails at once), and renamed onto PATH once complete: a reader never sees half a
@@ -55,12 +32,9 @@ POSES = ("filtered", "smoothed", "fixed-lag smoothed")
 
 
 class JsonSummarySink:
-    """Collect per-track results and write the summary on close (see the module docstring).
-
-    path: output JSON file. video_fps: the video's frame rate. poses: one of POSES, what the
-    poses written to it are (tracker.run.track_video may set ``pose_kind`` to "filtered" after
-    a Ctrl-C). clock: seconds counter for the speed achieved (a parameter so tests can fix it).
-    """
+    """Collect per-track results and write the summary to ``path`` on close. video_fps: the
+    video's frame rate. poses: one of POSES, what the poses written are (``pose_kind``).
+    clock: seconds counter for the speed achieved (a parameter so tests can fix it)."""
 
     def __init__(self, path: str | Path, video_fps: float, poses: str = "filtered",
                  clock: Callable[[], float] = time.perf_counter):
@@ -86,8 +60,8 @@ class JsonSummarySink:
         self._frames.add(int(frame_index))
 
     def write(self, pose: TrackedPose) -> None:
-        """Record one track in one frame. pose.centroid_px (x, y) pixels is required here.
-        Raises SinkInputError on bad input, a missing centroid, or when closed."""
+        """Record one track in one frame (pose.centroid_px required); SinkInputError on bad
+        input or when closed."""
         if self.closed:
             raise SinkInputError(f"JSON summary {self.path.name} is closed")
         frame_index, track_id = int(pose.frame_index), int(pose.track_id)
@@ -107,22 +81,20 @@ class JsonSummarySink:
             runner_up = {"frame": frame_index, "probability": round(probability, _DECIMALS),
                          "heading_deg": heading_deg(alt),
                          "pose": np.round(alt, _DECIMALS).tolist()}
+        row = {"frames": frame_index, "time_s": round(time_s, _DECIMALS),
+               "centroid_px": np.round(centroid, 3).tolist(), "heading_deg": heading_deg(filtered),
+               "heading_norm": round(math.hypot(raw[0], raw[1]), _DECIMALS),
+               "ambiguous": bool(pose.ambiguous),
+               "novelty": None if novelty is None else round(novelty, 4),
+               "pose": np.round(filtered, _DECIMALS).tolist()}
         # Everything is checked: from here on the row is written whole.
         self.end_frame(frame_index)
-        track = self._tracks.setdefault(track_id, {
-            "frames": [], "time_s": [], "centroid_px": [], "heading_deg": [],
-            "heading_norm": [], "ambiguous": [], "novelty": [], "pose": [], "runner_up": []})
-        track["frames"].append(frame_index)
-        track["time_s"].append(round(time_s, _DECIMALS))
-        track["centroid_px"].append(np.round(centroid, 3).tolist())
-        track["heading_deg"].append(heading_deg(filtered))
-        track["heading_norm"].append(round(math.hypot(raw[0], raw[1]), _DECIMALS))
-        track["ambiguous"].append(bool(pose.ambiguous))
-        track["novelty"].append(None if novelty is None else round(novelty, 4))
-        self._unfamiliar[track_id] = self._unfamiliar.get(track_id, 0) + is_unfamiliar(novelty)
-        track["pose"].append(np.round(filtered, _DECIMALS).tolist())
+        track = self._tracks.setdefault(track_id, {key: [] for key in [*row, "runner_up"]})
+        for key, value in row.items():
+            track[key].append(value)
         if runner_up is not None:
             track["runner_up"].append(runner_up)
+        self._unfamiliar[track_id] = self._unfamiliar.get(track_id, 0) + is_unfamiliar(novelty)
 
     def summary(self) -> dict:
         """The summary document as it stands (see the module docstring)."""
@@ -148,7 +120,7 @@ class JsonSummarySink:
 
     def close(self) -> None:
         """Write the summary and put it in place; idempotent. If that fails, the partial file
-        is removed and an existing summary is left as it was."""
+        is removed and an existing summary left as it was."""
         if self.closed:
             return
         self.closed = True
@@ -161,8 +133,7 @@ class JsonSummarySink:
             raise
 
     def abandon(self) -> None:
-        """Stop without writing (a run that tracked nobody): the partial file is removed and
-        the path keeps what it held; idempotent."""
+        """Stop without writing (a run that tracked nobody), the path keeping what it held."""
         if not self.closed:
             self.closed = True
             self._file.discard()

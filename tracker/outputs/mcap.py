@@ -56,9 +56,8 @@ _GEOMETRY_DECIMALS = 3   # 1 mm and 1e-3 of a quaternion: below what a drawing s
 
 @functools.cache
 def _schemas() -> dict[str, bytes]:
-    """The channels' JSON schemas by name, as written: mcap_schemas.json (Foxglove's
-    ``foxglove.SceneUpdate``, every field listed as required because we always set it, and
-    ours), each ``PoseValues`` object given the 55 pose-vector names."""
+    """The channels' JSON schemas by name, as written: mcap_schemas.json (every field required,
+    as we always set it), each ``PoseValues`` object given the 55 pose-vector names."""
     schemas = json.loads(Path(__file__).with_name("mcap_schemas.json").read_text("utf-8"))
     names = pose_vector_names()
 
@@ -134,12 +133,9 @@ def _entity(kind: str, track_id: int, time_ns: int, lifetime_s: float, metadata:
 
 def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool,
                     unfamiliar: bool = False) -> dict:
-    """A ``foxglove.SceneEntity`` ``track-<id>`` drawing one track's body as the live view does.
-
-    joints3d: (18, 3) metres, Y-up (turned here to the Z-up world frame). A cylinder per bone
-    of non-zero length and a sphere per joint in the side colours (geometry.body_colours), a
-    head ball, and a label above the head (pose_label); translucent in ambiguous frames.
-    """
+    """A ``foxglove.SceneEntity`` ``track-<id>`` drawing a body from joints3d (18, 3) metres,
+    Y-up, as the live view does: a cylinder per bone of non-zero length and a sphere per joint
+    in the side colours, a head ball and a label; translucent in ambiguous frames."""
     joints = y_up_to_z_up(joints3d)
     bone_colours, sphere_colours, label_colour, text = _body_style(int(track_id), bool(ambiguous),
                                                                    bool(unfamiliar))
@@ -192,9 +188,8 @@ def _to_bytes(message: dict) -> bytes:
 
 
 def _frame_bytes(message: dict) -> bytes:
-    """A per-frame message as compact JSON by orjson: the same JSON as :func:`_to_bytes`, faster
-    (docs/code_notes/outputs.md); every number was checked finite before (orjson writes NaN as
-    null)."""
+    """A per-frame message as compact JSON by orjson: the JSON of :func:`_to_bytes`, faster;
+    every number was checked finite before (docs/code_notes/outputs.md)."""
     return orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY)
 
 
@@ -208,8 +203,8 @@ def _metadata_strings(name: str, values: Mapping[str, object]) -> dict[str, str]
 # ---------------------------------------------------------------- the sink
 
 def _finish(state: dict) -> None:
-    """Write summary and footer and put the file in place, once (shared by close() and the
-    finalizer). If that fails, the partial file is kept for recover_mcap."""
+    """Write summary and footer and put the file in place, once (close() and the finalizer);
+    if that fails, the partial file is kept for recover_mcap."""
     if state["done"]:
         return
     state["done"] = True
@@ -222,9 +217,8 @@ def _finish(state: dict) -> None:
 
 
 class _SceneStream:
-    """A skeleton topic's frame being collected: its channel id (None: not registered yet),
-    the frame (None: none yet) and its time in ns, the tracks' entities so far, and the tracks
-    its last update drew."""
+    """A skeleton topic's frame being collected: channel id (None: not registered yet), frame
+    (None: none yet), its time in ns, the tracks' entities so far, the tracks drawn last."""
 
     def __init__(self, channel: int | None):
         self.channel = channel
@@ -245,13 +239,9 @@ class _SceneStream:
 
 
 class McapSink:
-    """Record tracked poses and skeletons into an MCAP file (see the module docstring).
-
-    path: output file (replaced once the recording is complete). metadata: name -> {key: value}
-    records (values that are not strings are stored as JSON). chunk_size: uncompressed bytes
-    per chunk. flush_every_frames: a chunk is also closed after this many frames, bounding what
-    a crash can lose.
-    """
+    """Record tracked poses and skeletons into the MCAP file ``path`` (module docstring).
+    metadata: name -> {key: value} records (values that are not strings stored as JSON).
+    chunk_size: uncompressed bytes per chunk; flush_every_frames: frames per chunk at most."""
 
     def __init__(self, path: str | Path, metadata: Mapping[str, Mapping[str, object]] | None = None,
                  chunk_size: int = 64 * 1024, flush_every_frames: int = 10):
@@ -294,8 +284,8 @@ class McapSink:
         return self._state["done"]
 
     def _checked(self, pose: TrackedPose, scenes: _SceneStream, *poses: str) -> tuple:
-        """(frame index, track id, time s, novelty or None, the named pose vectors (55,) of
-        ``pose`` checked), once ``pose`` may come next on ``scenes``; SinkInputError else."""
+        """(frame index, track id, time s, novelty or None, joints, the named pose vectors) of
+        ``pose`` checked, and that it may come next on ``scenes``; SinkInputError else."""
         if self.closed:
             raise SinkInputError(f"MCAP sink {self.path.name} is closed")
         vectors = [check_pose(f"{name}55", pose.filtered if name == "smoothed"
@@ -308,10 +298,8 @@ class McapSink:
         return frame_index, track_id, time_s, novelty, joints, *vectors
 
     def write(self, pose: TrackedPose) -> None:
-        """Record one track in one frame: pose.frame_index (>= 0, non-decreasing across calls),
-        time_s (seconds >= 0), raw and filtered (55,), joints_m (18, 3) metres Y-up (drawn as
-        given), centroid_px: optional (x, y) pixels. SinkInputError on bad input, when closed
-        or after write_smoothed."""
+        """Record one track in one frame (frames in non-decreasing order; joints_m drawn as
+        given); SinkInputError on bad input, when closed or after write_smoothed."""
         if self._smoothed.channel is not None and not self.closed:
             raise SinkInputError("poses streamed after the smoothed tracks: the stream is over")
         scenes = self._scenes
@@ -343,19 +331,16 @@ class McapSink:
             trail.popleft()
 
     def end_frame(self, frame_index: int) -> None:
-        """Nothing here: a frame's scene update is written when the next frame's first pose
-        arrives, or on close."""
+        """Nothing: a frame's scene update is written on the next frame's first pose or close."""
 
     def smoothed_channel(self) -> SmoothedChannel:
-        """A sink for ``track_video``'s smoothed_sinks that records what it is fed on
-        ``/smoothed/pose`` and ``/smoothed/skeleton`` of this file (module docstring)."""
+        """A sink for ``track_video``'s smoothed_sinks writing into this file's smoothed topics."""
         return SmoothedChannel(self)
 
     def write_smoothed(self, pose: TrackedPose) -> None:
-        """Record one track's smoothed pose in one frame: pose.filtered (55,) holds it (as
-        tracker.run feeds smoothed sinks), drawn from its own angles with the root where
-        pose.joints_m (18, 3) metres put it. Frames in non-decreasing order, after every
-        streamed pose. SinkInputError on bad input or when the sink is closed."""
+        """Record one track's smoothed pose (pose.filtered, as tracker.run feeds smoothed sinks)
+        in one frame, drawn from its angles with the root of pose.joints_m; frames in order,
+        after every streamed pose. SinkInputError on bad input or when the sink is closed."""
         scenes = self._smoothed
         frame_index, track_id, time_s, novelty, joints, smoothed = self._checked(
             pose, scenes, "smoothed")
@@ -431,9 +416,8 @@ class McapSink:
             _finish(self._state)
 
     def abandon(self) -> None:
-        """Stop without a recording (a run that tracked nobody): the partial file is removed
-        and the path keeps what it held; idempotent. A recording streamed in place (--out -)
-        has its header out already: it is finished, empty, so that it stays readable."""
+        """Stop without a recording (a run that tracked nobody), the path keeping what it held;
+        idempotent. One streamed in place (--out -) is finished, empty, to stay readable."""
         if self.closed:
             return
         if self._state["stream"].in_place:
@@ -451,10 +435,9 @@ class McapSink:
 
 
 class SmoothedChannel:
-    """The Sink that ``track_video`` feeds smoothed tracks (smoothed_sinks), writing them into
-    an open McapSink (write_smoothed). After a Ctrl-C's quick exit the run feeds the filtered
-    poses instead and says so (pose_kind = "filtered"): those are in the file already, so they
-    are not written again. Closing it closes nothing: the McapSink is closed with the others."""
+    """The Sink ``track_video`` feeds smoothed tracks, writing them into an McapSink. After a
+    Ctrl-C the run feeds the filtered poses instead, saying so (pose_kind = "filtered"): those
+    are in the file already. Closing it closes nothing: the McapSink closes with the others."""
 
     def __init__(self, sink: McapSink):
         self.sink = sink
