@@ -4,13 +4,9 @@
     end_frame(frame_index) after every frame, with people in it or not
     close()                finish the output (idempotent); also on Ctrl-C
 
-Optional: write_frame(frame_index, time_s, frame, people) and discard() (sinks that show the
-video: MeshcatView); ``pose_kind``, "filtered" or "smoothed" (sinks that record which poses
-they get; tracker.run.track_video sets "filtered" when a Ctrl-C makes it feed those instead);
-``option`` (e.g. "--json"), named by a failure's line (problem_line); ``abandon()`` (files).
-
-Sinks: McapSink (mcap.py), BVHSink (bvh.py), JsonSummarySink (json_summary.py), MeshcatView
-(meshcat_view.py), and PoseRecorder here (keeps the poses in memory).
+Optional: write_frame(frame_index, time_s, frame, people) and discard() (MeshcatView, which
+shows the video); ``pose_kind``, "filtered" or "smoothed" (set by tracker.run.track_video);
+``option`` (e.g. "--json", named by problem_line); ``abandon()`` (files: close_sinks).
 """
 from __future__ import annotations
 
@@ -95,10 +91,7 @@ def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
     problems = []
     for sink in sinks:
         try:
-            if abandon and hasattr(sink, "abandon"):
-                sink.abandon()
-            else:
-                sink.close()
+            (sink.abandon if abandon and hasattr(sink, "abandon") else sink.close)()
         except Exception as exc:
             problems.append(problem_line(sink, exc))
     return problems

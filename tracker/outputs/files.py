@@ -1,11 +1,8 @@
 """Output files that never destroy data: distinct paths, one writer at a time, replace when done.
 
-:func:`check_distinct` refuses an output that is the input or another output. :class:`OutputFile`
-writes ``NAME.partial`` under an exclusive lock (a second run fails at once: OutputBusyError) and
-renames it onto ``NAME`` once complete; a crash leaves ``NAME`` as it was. A destination that is
-not a regular file, or a stream the shell opened, is written in place; a symlink is followed. A
-``NAME.partial`` holding data is kept as ``NAME.partial.N`` (:func:`set_aside`). Files written
-in one go: tracker.outputs.whole_files. Failures to write: OutputWriteError naming the file.
+:class:`OutputFile` writes ``NAME.partial`` under an exclusive lock and renames it onto ``NAME``
+once complete; a crash leaves ``NAME`` as it was. Destinations that are not regular files, or
+streams the shell opened, are written in place. Files written in one go: whole_files.
 """
 from __future__ import annotations
 
@@ -46,8 +43,7 @@ class OutputWriteError(_FileError):
     """Writing an output failed (disk full, I/O error); one line naming the file."""
 
 
-_FD_LINK = re.compile(r"/(?:proc/self|dev)/fd/(\d+)")
-_STANDARD = {"/dev/stdin": 0, "/dev/stdout": 1, "/dev/stderr": 2}
+_STREAM = re.compile(r"/(?:proc/self|dev)/fd/(\d+)|/dev/std(in|out|err)")
 
 
 def stream_descriptor(path: str | Path) -> int | None:
@@ -56,11 +52,9 @@ def stream_descriptor(path: str | Path) -> int | None:
     written through that descriptor so that its offset and append mode are kept; else None."""
     current = os.path.abspath(path)
     for _ in range(40):                  # the kernel's own limit on a chain of links
-        if current in _STANDARD:
-            return _STANDARD[current]
-        match = _FD_LINK.fullmatch(current)
+        match = _STREAM.fullmatch(current)
         if match:
-            return int(match.group(1))
+            return int(match[1]) if match[1] else ("in", "out", "err").index(match[2])
         try:
             link = os.readlink(current)
         except OSError:
@@ -88,8 +82,7 @@ def partial_path(path: str | Path) -> Path:
 
 
 def file_identity(path: str | Path) -> tuple:
-    """What makes two paths the same file: (device, inode) of an existing file, else the
-    absolute path with symlinks resolved."""
+    """What makes paths the same file: (device, inode) if it exists, else the resolved path."""
     try:
         status = os.stat(path)
         return ("inode", status.st_dev, status.st_ino)
@@ -120,8 +113,7 @@ def busy_error(path: Path, changing: bool = False) -> OutputBusyError:
 
 
 def same_file(path: Path, fd: int) -> bool:
-    """Whether ``path`` still names the file open as ``fd`` (the lock holder may have renamed
-    or removed it between our open and our lock)."""
+    """Whether ``path`` still names the file open as ``fd`` (not renamed or removed since)."""
     try:
         return os.stat(path).st_ino == os.fstat(fd).st_ino
     except FileNotFoundError:
@@ -129,8 +121,7 @@ def same_file(path: Path, fd: int) -> bool:
 
 
 def open_locked(path: Path, flags: int) -> int:
-    """A descriptor of ``path`` (created) locked exclusively; OutputBusyError if another process
-    holds the lock."""
+    """A descriptor of ``path`` (created), locked exclusively; OutputBusyError when held."""
     for _ in range(10):
         fd = os.open(path, flags | os.O_CREAT, 0o644)
         try:
@@ -166,8 +157,7 @@ def set_aside(path: Path) -> Path | None:
 
 class OutputFile:
     """A binary output written beside ``path`` and renamed onto it by commit(). File protocol:
-    write(bytes) (handed to the system at once: records survive a kill), tell(), flush(),
-    close() (= commit())."""
+    write(bytes) (handed to the system at once: records survive a kill), tell(), flush()."""
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
@@ -222,22 +212,18 @@ class OutputFile:
             self.discard(keep=True)
             raise OutputWriteError(f"{self.path}: could not be finished ({exc.strerror}); the "
                                    f"data written is in {self._written}", self.path) from None
-        self._release()
-
-    close = commit
+        fd, self._fd = self._fd, -1
+        os.close(fd)   # also releases the lock
 
     def discard(self, keep: bool = False) -> None:
         """Stop without touching the destination; remove the partial file unless ``keep``."""
         if self._fd < 0:
             return
-        self._release()
+        fd, self._fd = self._fd, -1
+        os.close(fd)
         if not keep and not self.in_place:
             with contextlib.suppress(OSError):
                 os.unlink(self._written)
-
-    def _release(self) -> None:
-        fd, self._fd = self._fd, -1
-        os.close(fd)   # also releases the lock
 
 
 def sync_folder(folder: Path) -> None:

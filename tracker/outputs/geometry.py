@@ -1,9 +1,6 @@
-"""Stick-skeleton geometry and input checks shared by the output sinks.
-
-Joint positions are (18, 3) metres in ``sequences.skeleton.POSE_JOINTS`` order, Y up, the subject
-at heading 0 facing +Z (the camera, looking along -Z; image x along +X). Viewers are Z-up
-(:func:`y_up_to_z_up`).
-"""
+"""Stick-skeleton geometry and input checks shared by the output sinks. Joint positions are
+(18, 3) metres in ``sequences.skeleton.POSE_JOINTS`` order, Y up, heading 0 facing the camera
+(+Z); viewers are Z-up (:func:`y_up_to_z_up`)."""
 from __future__ import annotations
 
 import colorsys
@@ -21,11 +18,8 @@ from tracker.video.decode import focal_length_px
 N_JOINTS = len(POSE_JOINTS)
 
 #: (B, 2) int indices into the 18 pose joints of each drawn bone (parent, child).
-BONE_INDEX: np.ndarray = np.array(
-    [[POSE_JOINTS.index(parent), POSE_JOINTS.index(child)] for parent, child in BONES_FOR_DRAWING],
-    dtype=np.int64,
-)
-BONE_INDEX.flags.writeable = False
+BONE_INDEX: np.ndarray = np.array([[POSE_JOINTS.index(parent), POSE_JOINTS.index(child)]
+                                   for parent, child in BONES_FOR_DRAWING], dtype=np.int64)
 
 #: Track colours (RGB in [0, 1]): saturated and distinct from each other and from the grey
 #: and white backgrounds of the viewers. Track id i gets entry i mod len.
@@ -33,7 +27,6 @@ TRACK_PALETTE: np.ndarray = np.array([   # red, blue, green, orange, purple, tea
     [0.90, 0.10, 0.10], [0.10, 0.45, 0.95], [0.05, 0.70, 0.20], [0.95, 0.55, 0.00],
     [0.60, 0.20, 0.85], [0.00, 0.70, 0.75], [0.85, 0.15, 0.60], [0.55, 0.45, 0.10],
 ])
-TRACK_PALETTE.flags.writeable = False
 
 #: Body sides: every pose joint and drawn bone is on the centre line, the left or the right.
 CENTRE, LEFT, RIGHT = 0, 1, 2
@@ -42,8 +35,8 @@ JOINT_SIDE: np.ndarray = np.array([LEFT if name.startswith("Left") else
                                    RIGHT if name.startswith("Right") else CENTRE
                                    for name in POSE_JOINTS], dtype=np.int64)
 BONE_SIDE: np.ndarray = JOINT_SIDE[BONE_INDEX[:, 1]]
-JOINT_SIDE.flags.writeable = False
-BONE_SIDE.flags.writeable = False
+for _table in (BONE_INDEX, TRACK_PALETTE, JOINT_SIDE, BONE_SIDE):
+    _table.flags.writeable = False
 
 #: Hue turn (degrees) from a track's colour to its LEFT (+) and RIGHT (-) side colours.
 SIDE_HUE_TURN_DEG = 40.0
@@ -55,14 +48,12 @@ class SinkInputError(SilhouettePoseError, ValueError):
 
 def track_colour(track_id: int) -> tuple[float, float, float]:
     """Colour (r, g, b) in [0, 1] of track ``track_id`` (palette entry ``track_id mod 8``)."""
-    r, g, b = TRACK_PALETTE[int(track_id) % len(TRACK_PALETTE)]
-    return float(r), float(g), float(b)
+    return tuple(TRACK_PALETTE[int(track_id) % len(TRACK_PALETTE)].tolist())
 
 
 def body_colours(track_id: int) -> np.ndarray:
-    """Colours (3, 3) RGB in [0, 1] of track ``track_id``'s body, rows indexed by side: CENTRE
-    the track colour, LEFT and RIGHT its hue turned by +/- SIDE_HUE_TURN_DEG. Hue survives
-    shading and translucency, so the sides stay apart and a swap of sides shows at a glance."""
+    """Colours (3, 3) RGB of track ``track_id``'s sides: CENTRE its colour, LEFT and RIGHT its hue
+    turned by +/- SIDE_HUE_TURN_DEG (hue survives shading and translucency: swaps show)."""
     colour = track_colour(track_id)
     h, s, v = colorsys.rgb_to_hsv(*colour)
     turn = SIDE_HUE_TURN_DEG / 360.0
@@ -71,36 +62,36 @@ def body_colours(track_id: int) -> np.ndarray:
 
 
 def pose_label(track_id: int, ambiguous: bool = False, unfamiliar: bool = False) -> str:
-    """The text drawn above a body: "track N", with "(ambiguous)" for an ambiguous frame and
-    "(unfamiliar)" for a silhouette unlike the training ones (TrackedPose.unfamiliar)."""
+    """The text above a body: "track N", with "(ambiguous)" and "(unfamiliar)" when flagged."""
     flags = [name for name, on in (("ambiguous", ambiguous), ("unfamiliar", unfamiliar)) if on]
     return f"track {int(track_id)}" + (f" ({', '.join(flags)})" if flags else "")
 
 
 def heading_deg(vector: np.ndarray) -> float:
-    """The heading of a pose vector (55,) (entries 0, 1: cos, sin), degrees in (-180, 180]
-    rounded to 1e-6 (far below any estimate's accuracy)."""
+    """Heading of a pose vector (55,) (cos, sin first), degrees in (-180, 180] to 1e-6."""
     return round(math.degrees(math.atan2(vector[1], vector[0])), 6)
+
+
+def _finite(name: str, value, shape: tuple, wrong_shape: str) -> np.ndarray:
+    """``value`` as a float64 array of ``shape``; SinkInputError ``wrong_shape`` (formatted
+    with the shape found) for another shape, naming ``name`` for a NaN or infinite value."""
+    array = np.asarray(value, dtype=np.float64)
+    if array.shape != shape:
+        raise SinkInputError(wrong_shape.format(array.shape))
+    if not np.all(np.isfinite(array)):
+        raise SinkInputError(f"{name} contains NaN or infinite values")
+    return array
 
 
 def check_joints(joints3d: np.ndarray) -> np.ndarray:
     """Pose-joint positions as float64 (18, 3) metres; SinkInputError otherwise."""
-    joints = np.asarray(joints3d, dtype=np.float64)
-    if joints.shape != (N_JOINTS, 3):
-        raise SinkInputError(f"joints3d must have shape ({N_JOINTS}, 3) metres, got {joints.shape}")
-    if not np.all(np.isfinite(joints)):
-        raise SinkInputError("joints3d contains NaN or infinite values")
-    return joints
+    return _finite("joints3d", joints3d, (N_JOINTS, 3),
+                   f"joints3d must have shape ({N_JOINTS}, 3) metres, got {{}}")
 
 
 def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
     """A 55-D pose vector called ``name`` as float64 (55,); SinkInputError naming it otherwise."""
-    vector = np.asarray(pose, dtype=np.float64)
-    if vector.shape != (55,):
-        raise SinkInputError(f"{name} must be a 55-D pose vector, got shape {vector.shape}")
-    if not np.all(np.isfinite(vector)):
-        raise SinkInputError(f"{name} contains NaN or infinite values")
-    return vector
+    return _finite(name, pose, (55,), f"{name} must be a 55-D pose vector, got shape {{}}")
 
 
 def check_centroid(centroid_px) -> np.ndarray:
@@ -117,11 +108,11 @@ def known_novelty(value) -> float | None:
     if value is None:
         return None
     try:
+        if isinstance(value, (bool, np.bool_)):
+            raise TypeError
         number = float(value)
     except (TypeError, ValueError, OverflowError):
         raise SinkInputError(f"novelty must be one number, got {value!r}") from None
-    if isinstance(value, (bool, np.bool_)):
-        raise SinkInputError(f"novelty must be one number, got {value!r}")
     if math.isnan(number):
         return None
     if not (math.isfinite(number) and number >= 0):
@@ -129,28 +120,28 @@ def known_novelty(value) -> float | None:
     return number
 
 
-def _is_number(value) -> bool:
-    """One real number (an int or float of Python or numpy), not a bool."""
-    return (not isinstance(value, (bool, np.bool_))
-            and isinstance(value, (int, float, np.integer, np.floating)))
+def _number(value, high: float, must: str) -> float:
+    """``value``, one real number (int or float, not a bool), as a float in [0, high];
+    SinkInputError "``must``, got ``value``" otherwise (NaN, infinite, out of range)."""
+    try:
+        real = isinstance(value, (int, float, np.integer, np.floating)) \
+            and not isinstance(value, (bool, np.bool_))
+        number = float(value) if real else math.nan
+    except OverflowError:                                # an int beyond any float
+        number = math.inf
+    if not (0 <= number <= high and math.isfinite(number)):
+        raise SinkInputError(f"{must}, got {value!r}")
+    return number
 
 
 def checked_probability(name: str, value) -> float:
     """A probability called ``name`` as a float in [0, 1]; SinkInputError naming it otherwise."""
-    if not _is_number(value) or not 0 <= value <= 1:   # exact for huge ints, False for NaN
-        raise SinkInputError(f"{name} must be a number in [0, 1], got {value!r}")
-    return float(value)
+    return _number(value, 1.0, f"{name} must be a number in [0, 1]")
 
 
 def checked_time(value) -> float:
     """A pose's video time (seconds) as a float >= 0; SinkInputError otherwise."""
-    try:
-        number = float(value) if _is_number(value) else math.nan
-    except OverflowError:                                # an int beyond any float
-        number = math.inf
-    if not (math.isfinite(number) and number >= 0):
-        raise SinkInputError(f"time_s must be a finite number >= 0, got {value!r}")
-    return number
+    return _number(value, math.inf, "time_s must be a finite number >= 0")
 
 
 def is_unfamiliar(novelty: float | None) -> bool:

@@ -2,9 +2,7 @@
 centroids, headings, ambiguity flags, novelty and poses (docs/code_notes/outputs.md gives the
 layout, format version 1, field by field).
 
-The file is written to ``PATH.partial``, locked from the sink's creation (a second run on the
-same output fails at once), and renamed onto PATH once complete: a reader never sees half a
-summary and an existing summary is replaced only by a complete one.
+Written to a locked ``PATH.partial`` renamed onto PATH once complete (files.OutputFile).
 """
 from __future__ import annotations
 
@@ -32,9 +30,8 @@ POSES = ("filtered", "smoothed", "fixed-lag smoothed")
 
 
 class JsonSummarySink:
-    """Collect per-track results and write the summary to ``path`` on close. video_fps: the
-    video's frame rate. poses: one of POSES, what the poses written are (``pose_kind``).
-    clock: seconds counter for the speed achieved (a parameter so tests can fix it)."""
+    """Collect per-track results and write the summary to ``path`` on close. poses: one of POSES
+    (``pose_kind``). clock: seconds counter for the speed achieved (tests fix it)."""
 
     def __init__(self, path: str | Path, video_fps: float, poses: str = "filtered",
                  clock: Callable[[], float] = time.perf_counter):
@@ -60,8 +57,7 @@ class JsonSummarySink:
         self._frames.add(int(frame_index))
 
     def write(self, pose: TrackedPose) -> None:
-        """Record one track in one frame (pose.centroid_px required); SinkInputError on bad
-        input or when closed."""
+        """Record one track in one frame (centroid_px required); SinkInputError if bad or closed."""
         if self.closed:
             raise SinkInputError(f"JSON summary {self.path.name} is closed")
         frame_index, track_id = int(pose.frame_index), int(pose.track_id)
@@ -119,8 +115,7 @@ class JsonSummarySink:
                 "poses": self.pose_kind, "tracks": tracks}
 
     def close(self) -> None:
-        """Write the summary and put it in place; idempotent. If that fails, the partial file
-        is removed and an existing summary left as it was."""
+        """Write the summary and put it in place, idempotent; on failure the old one stays."""
         if self.closed:
             return
         self.closed = True

@@ -1,19 +1,14 @@
 """MCAP recording of tracked poses, openable as is in Foxglove (JSON messages, JSON schemas).
 
-Channels (README, Outputs): ``/pose`` (one message per track per frame: raw and filtered, or
-with ``track --lag`` fixed-lag smoothed, pose by name), ``/skeleton`` (``foxglove.SceneUpdate``
-per frame with people: bodies as the live view draws them, Z-up metres, and every TRAIL_EVERY
-frames each track's pelvis trail; tracks gone are deleted), with --smooth ``/smoothed/pose``
-and ``/smoothed/skeleton`` (each whole track smoothed, written at the end of the run:
-:meth:`McapSink.smoothed_channel`), and the metadata records given. Times are each frame's own
-time in the video.
+Channels (README, Outputs): ``/pose`` (per track per frame), ``/skeleton`` (a
+``foxglove.SceneUpdate`` per frame with people: bodies, Z-up metres, and every TRAIL_EVERY
+frames the pelvis trails), with --smooth ``/smoothed/pose`` and ``/smoothed/skeleton`` (written
+at the end: :meth:`McapSink.smoothed_channel`), and metadata. Times are the video's own.
 
-Crash safety: messages go into small compressed chunks (``chunk_size`` bytes, a chunk closed
-at least every ``flush_every_frames`` frames), each handed to the operating system at once, so
-a killed process leaves its finished chunks intact (``tracker.outputs.mcap_repair``). The file
-is written as ``PATH.partial`` (tracker.outputs.files.OutputFile) and renamed onto PATH by
-``close()``, which runs on leaving a ``with`` block and, failing that, at interpreter exit. If
-the footer cannot be written (disk full), the partial file stays for recover_mcap.
+Crash safety: small compressed chunks (closed at least every ``flush_every_frames`` frames) go
+to the operating system at once, so a killed process leaves its finished chunks intact
+(``tracker.outputs.mcap_repair``). The file is ``PATH.partial`` (files.OutputFile) until
+``close()`` (on leaving a ``with`` block, else at interpreter exit) renames it onto PATH.
 """
 from __future__ import annotations
 
@@ -133,9 +128,8 @@ def _entity(kind: str, track_id: int, time_ns: int, lifetime_s: float, metadata:
 
 def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool,
                     unfamiliar: bool = False) -> dict:
-    """A ``foxglove.SceneEntity`` ``track-<id>`` drawing a body from joints3d (18, 3) metres,
-    Y-up, as the live view does: a cylinder per bone of non-zero length and a sphere per joint
-    in the side colours, a head ball and a label; translucent in ambiguous frames."""
+    """A ``foxglove.SceneEntity`` ``track-<id>``: the body of joints3d (18, 3) metres, Y-up, as
+    the live view draws it (bone cylinders, joint spheres, head, label; ambiguous translucent)."""
     joints = y_up_to_z_up(joints3d)
     bone_colours, sphere_colours, label_colour, text = _body_style(int(track_id), bool(ambiguous),
                                                                    bool(unfamiliar))
@@ -203,8 +197,7 @@ def _metadata_strings(name: str, values: Mapping[str, object]) -> dict[str, str]
 # ---------------------------------------------------------------- the sink
 
 def _finish(state: dict) -> None:
-    """Write summary and footer and put the file in place, once (close() and the finalizer);
-    if that fails, the partial file is kept for recover_mcap."""
+    """Write summary and footer and rename, once; on failure keep the partial for recover_mcap."""
     if state["done"]:
         return
     state["done"] = True
@@ -338,9 +331,8 @@ class McapSink:
         return SmoothedChannel(self)
 
     def write_smoothed(self, pose: TrackedPose) -> None:
-        """Record one track's smoothed pose (pose.filtered, as tracker.run feeds smoothed sinks)
-        in one frame, drawn from its angles with the root of pose.joints_m; frames in order,
-        after every streamed pose. SinkInputError on bad input or when the sink is closed."""
+        """Record one track's smoothed pose (pose.filtered) in one frame, drawn at the root of
+        pose.joints_m; frames in order, after every streamed pose. SinkInputError if bad/closed."""
         scenes = self._smoothed
         frame_index, track_id, time_s, novelty, joints, smoothed = self._checked(
             pose, scenes, "smoothed")
@@ -368,8 +360,7 @@ class McapSink:
                                           data=_frame_bytes(message), publish_time=time_ns)
 
     def _write_scene(self) -> None:
-        """Write /skeleton's collected frame: its SceneUpdate with the trails every
-        TRAIL_EVERY frames; tracks that left since the last one are deleted with their trails."""
+        """Write /skeleton's frame: trails every TRAIL_EVERY frames, tracks gone deleted."""
         scenes = self._scenes
         if scenes.frame is None:
             return
@@ -384,10 +375,8 @@ class McapSink:
 
     def _write_update(self, scenes: _SceneStream, kinds: tuple[str, ...],
                       extra: list = ()) -> list[int]:
-        """Write the SceneUpdate of a skeleton topic's collected frame (none if no frame is):
-        its tracks' entities, then ``extra``; the tracks drawn last time and not now deleted,
-        each entity id ``<kind>-<track>`` of kinds. Starts the next frame's collection;
-        returns the deleted tracks."""
+        """Write the SceneUpdate of a topic's frame, if any (entities, then ``extra``; tracks now
+        gone deleted as ``<kind>-<track>`` of kinds), start the next; returns the gone tracks."""
         if scenes.frame is None:
             return []
         stamp = _timestamp(scenes.frame_ns)
@@ -418,14 +407,12 @@ class McapSink:
     def abandon(self) -> None:
         """Stop without a recording (a run that tracked nobody), the path keeping what it held;
         idempotent. One streamed in place (--out -) is finished, empty, to stay readable."""
-        if self.closed:
-            return
         if self._state["stream"].in_place:
             self.close()
-            return
-        self._state["done"] = True
-        self._finalizer.detach()
-        self._state["stream"].discard()
+        elif not self.closed:
+            self._state["done"] = True
+            self._finalizer.detach()
+            self._state["stream"].discard()
 
     def __enter__(self) -> McapSink:
         return self
