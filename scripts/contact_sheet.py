@@ -27,7 +27,8 @@ from sequences.body import BodyPoseError, BodyShape, Skinner, load_body
 from sequences.bvh import BVHError, read_bvh
 from sequences.render import look_at_camera, shaded_render, silhouette_mask
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
-from tracker.outputs.files import OutputWriteError, write_whole
+from tracker.outputs.files import OutputWriteError
+from tracker.outputs.whole_files import write_whole
 
 SHAPES = (BodyShape(0.9, 0.85), BodyShape(1.0, 1.0), BodyShape(1.1, 1.3))
 TILE = (170, 115)                      # height, width in pixels

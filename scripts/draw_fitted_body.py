@@ -29,7 +29,8 @@ from sequences.pose2sim import (DEFAULT_TRIAL, VIEWS, Pose2SimError, render_view
                                 video_frames)
 from lab.pose2sim_trial import checked_trial, missing_trial, trial_files
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
-from tracker.outputs.files import OutputWriteError, write_whole
+from tracker.outputs.files import OutputWriteError
+from tracker.outputs.whole_files import write_whole
 from tracker.video.decode import VideoError, open_video
 
 _TILE_PX = 260          # tile height

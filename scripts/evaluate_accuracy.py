@@ -58,7 +58,8 @@ from lab.evaluation import (CameraOptions, cmu_motion, constant_pose, track_long
                                         write_camera_video)
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.pipeline import TrackerSettings
-from tracker.outputs.files import OutputWriteError, write_whole
+from tracker.outputs.files import OutputWriteError
+from tracker.outputs.whole_files import write_whole
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE = REPO / "sequences" / "data" / "sample_spiral_walk.mp4"

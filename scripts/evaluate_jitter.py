@@ -37,7 +37,7 @@ from lab.evaluation import (AnkurOptions, CameraOptions, ankur_sequence, evaluat
                                         rendered_sequence, video_sequence)
 from lab.report import format_table, write_report
 from tracker.one_line_parser import EXIT_INTERRUPTED, OneLineParser
-from tracker.outputs.files import write_whole
+from tracker.outputs.whole_files import write_whole
 
 PER_FRAME_MODEL = DEFAULT_MODEL_PATH.with_name("per_frame_model.npz")
 #: What lab.report.write_report puts in the --report folder.

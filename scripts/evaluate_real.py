@@ -74,7 +74,8 @@ from lab.report import ReportError, check_plotting, plot_real_video
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
 from tracker.video.sources import INSTALL_HINT, SOURCES, segmenter_available
 from tracker.outputs import PoseRecorder
-from tracker.outputs.files import OutputWriteError, write_whole
+from tracker.outputs.files import OutputWriteError
+from tracker.outputs.whole_files import write_whole
 from tracker.video.decode import VideoError
 
 

@@ -46,7 +46,8 @@ from tracker.video.sources import (INSTALL_HINT, SOURCES, segmenter_available,
                                    silhouette_extractor)
 from tracker.video.segmenter import PersonSegmenter
 from tracker.one_line_parser import OneLineParser, quiet_decoder_logs, stops_in_one_line
-from tracker.outputs.files import OutputWriteError, write_whole
+from tracker.outputs.files import OutputWriteError
+from tracker.outputs.whole_files import write_whole
 
 
 def _main(argv) -> int:

@@ -50,7 +50,8 @@ from regressor.stacking import sequence_starts_to_ids, stack_frames
 from sequences.measures import DEFAULT_TOP_ANGLES, correlation, skill
 from lab.evaluation import EvaluationError, load_ankur
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
-from tracker.outputs.files import OutputWriteError, write_whole
+from tracker.outputs.files import OutputWriteError
+from tracker.outputs.whole_files import write_whole
 
 TRAIN_STARTS = [0, 100, 336, 405, 471, 1530, 1768]   # the 7 training sequences (README)
 RV_BUDGET = 0.10                                     # kernel RVM: keep <= 10% of training frames

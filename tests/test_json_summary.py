@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import json
 import math
-import os
 
 import numpy as np
 import pytest
 
-from tracker.outputs.json_summary import JsonSummarySink, write_json_atomically
+from tracker.outputs.json_summary import JsonSummarySink
 from tracker.outputs.geometry import SinkInputError
 from tracker import TrackedPose
 
@@ -76,19 +75,6 @@ def test_write_needs_a_centroid_and_valid_vectors(tmp_path):
     with pytest.raises(SinkInputError, match="closed"):
         sink.write(TrackedPose(1, 0.0, 1, good, good, False, JOINTS, centroid_px=(1, 2)))
     assert json.loads((tmp_path / "s.json").read_text())["tracks"] == []
-
-
-def test_atomic_write_replaces_whole_files_and_leaves_no_temporary(tmp_path):
-    path = tmp_path / "s.json"
-    write_json_atomically(path, {"a": 1})
-    inode = os.stat(path).st_ino
-    write_json_atomically(path, {"a": 2})
-    assert json.loads(path.read_text()) == {"a": 2}
-    assert os.stat(path).st_ino != inode  # a new file was renamed over the old one
-    with pytest.raises(ValueError):
-        write_json_atomically(path, {"a": float("nan")})
-    assert json.loads(path.read_text()) == {"a": 2}  # the failed write left the old file
-    assert [p.name for p in tmp_path.iterdir()] == ["s.json"]
 
 
 def test_summary_records_novelty_and_counts_unfamiliar_frames(tmp_path):

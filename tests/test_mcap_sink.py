@@ -123,6 +123,21 @@ def test_schemas_are_named_and_encoded_for_foxglove(tmp_path):
                          "colors", "indices"}
 
 
+def test_the_schemas_file_is_package_data():
+    """The schemas are read from tracker/outputs/mcap_schemas.json at run time: a package
+    installed from a wheel must carry it, and every PoseValues object gets the 55 names."""
+    import fnmatch
+    import tomllib
+    import tracker.outputs.mcap as mcap_module
+    package_data = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "package-data"]
+    assert any(fnmatch.fnmatch("outputs/mcap_schemas.json", pattern)
+               for pattern in package_data.get("tracker", []))
+    pose = json.loads(mcap_module._schemas()["silhouette_pose.TrackedPose"])
+    for name in ("raw", "filtered", "runner_up"):
+        assert pose["properties"][name]["properties"]["pose"]["required"] == pose_vector_names()
+
+
 def test_messages_satisfy_their_schemas(tmp_path):
     path = tmp_path / "run.mcap"
     _record(path, frames=6)

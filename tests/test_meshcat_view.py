@@ -25,9 +25,7 @@ from tracker.outputs.meshcat_view import MeshcatView, ViewLostWarning, smooth_pa
 from sequences.skeleton import POSE_JOINTS
 from tracker import TrackedPose
 from tracker.outputs.geometry import (
-    BONE_INDEX,
     SinkInputError,
-    bone_segments,
     ground_position_from_image,
     pose_joints_m,
     y_up_to_z_up,
@@ -322,14 +320,6 @@ def test_joint_spheres_are_closed_meshes_of_the_right_radius():
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
     _, counts = np.unique(edges, axis=0, return_counts=True)
     assert np.all(counts == 2)  # every edge shared by two triangles: watertight
-
-
-def test_bone_segments_join_the_named_joints():
-    joints = np.arange(18 * 3, dtype=float).reshape(18, 3)
-    segments = bone_segments(joints)
-    assert segments.shape == (len(BONE_INDEX), 2, 3)
-    np.testing.assert_array_equal(segments[:, 0], joints[BONE_INDEX[:, 0]])
-    np.testing.assert_array_equal(segments[:, 1], joints[BONE_INDEX[:, 1]])
 
 
 def test_y_up_to_z_up_is_a_rotation_that_puts_the_head_on_top():

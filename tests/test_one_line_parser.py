@@ -71,7 +71,7 @@ def test_check_outputs_takes_links_special_files_and_inputs_that_are_one_another
 
 
 def test_write_whole_follows_links_and_writes_special_files_in_place(tmp_path):
-    from tracker.outputs.files import write_whole
+    from tracker.outputs.whole_files import write_whole
     real = tmp_path / "real.json"
     real.write_text("old")
     link = tmp_path / "link.json"
@@ -101,7 +101,7 @@ def test_write_whole_to_a_pipe_writes_into_it(tmp_path):
     """/dev/stdout sent to a pipe has no path to resolve: written in place (it had failed,
     naming /proc/PID/fd/pipe:[N])."""
     import os
-    from tracker.outputs.files import write_whole
+    from tracker.outputs.whole_files import write_whole
     read, write = os.pipe()
     try:
         write_whole(f"/dev/fd/{write}", lambda path: path.write_text("through the pipe"))

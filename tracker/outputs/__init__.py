@@ -4,22 +4,9 @@
     end_frame(frame_index) after every frame, with people in it or not
     close()                finish the output (idempotent); also on Ctrl-C
 
-Optional, for sinks that show the video (MeshcatView): write_frame(frame_index, time_s, frame,
-people), after the frame's poses: the frame (BGR uint8, read only) and track id -> PersonMask;
-and discard(), called after a Ctrl-C before close(): drop what is held back, not shown yet.
-Optional, for sinks that record what their poses are (JsonSummarySink): a ``pose_kind``
-attribute, "filtered" or "smoothed"; a sink given smoothed poses is told "filtered" when a
-Ctrl-C makes tracker.run.track_video write the filtered ones instead (the MCAP's
-SmoothedChannel then writes nothing: the filtered poses are in its file already).
-
-Optional, for sinks a command opened from its options: an ``option`` attribute (e.g.
-"--json"), which a failure's line names instead of the sink's class (problem_line).
-
-Sinks: McapSink (mcap.py), BVHSink (bvh.py), JsonSummarySink (json_summary.py), MeshcatView
-(meshcat_view.py), and PoseRecorder here (keeps the poses in memory, e.g. in a notebook).
-``open_sinks`` opens several, abandoning those already open if one fails (a refused run leaves
-every existing file as it was); ``close_sinks`` closes them all, collecting the problems
-instead of stopping at the first.
+Optional: write_frame(frame_index, time_s, frame, people) and discard() (MeshcatView, which
+shows the video); ``pose_kind``, "filtered" or "smoothed" (set by tracker.run.track_video);
+``option`` (e.g. "--json", named by problem_line); ``abandon()`` (files: close_sinks).
 """
 from __future__ import annotations
 
@@ -43,8 +30,7 @@ class Sink(Protocol):
 
 
 class PoseRecorder:
-    """A sink that keeps every pose: ``poses`` (list of TrackedPose, in order),
-    ``by_track()`` (track id -> its poses) and ``frames()`` (every frame, with its poses)."""
+    """A sink that keeps every pose in ``poses`` (TrackedPose, in order)."""
 
     def __init__(self):
         self.poses: list[TrackedPose] = []
@@ -61,11 +47,9 @@ class PoseRecorder:
     def frames(self) -> list[tuple[int, list[TrackedPose]]]:
         """Every frame ended so far, with people or without, as (frame_index, its poses) in
         order (what tracker.tracks.fixed_lag.replay takes)."""
-        out, start = [], 0
-        for index, stop in self._frame_ends:
-            out.append((index, self.poses[start:stop]))
-            start = stop
-        return out
+        starts = [0] + [stop for _, stop in self._frame_ends]
+        return [(index, self.poses[start:stop])
+                for (index, stop), start in zip(self._frame_ends, starts)]
 
     def close(self) -> None:
         """Nothing to finish."""
@@ -79,9 +63,8 @@ class PoseRecorder:
 
 
 def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
-    """Call each factory in turn; if one fails (another run holds its lock, a name the file
-    system refuses, Ctrl-C), abandon the sinks already opened (close_sinks(abandon=True): a
-    file sink then writes nothing, so what its destination held stays) and re-raise."""
+    """Call each factory in turn; if one fails (a lock held, a name refused, Ctrl-C), abandon
+    the sinks already opened (close_sinks(abandon=True): files keep what they held), re-raise."""
     opened: list[Sink] = []
     try:
         for make in factories:
@@ -93,9 +76,8 @@ def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
 
 
 def problem_line(sink: Sink, exc: BaseException) -> str:
-    """One line for a sink's failure: with its ``option`` attribute "--json /dev/full: No space
-    left on device" (an OutputWriteError's message starts with its file) or "--view: ...";
-    without, "JsonSummarySink: ..." (the sink's class)."""
+    """One line for a sink's failure, led by its ``option`` ("--json /dev/full: No space left on
+    device": an OutputWriteError starts with its file; "--view: ...") or else its class."""
     option = getattr(sink, "option", None)
     if option is None:
         return f"{type(sink).__name__}: {exc}"
@@ -103,17 +85,13 @@ def problem_line(sink: Sink, exc: BaseException) -> str:
 
 
 def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
-    """Close every sink, even when some fail (each holds the user's results); returns one
-    line per failure (problem_line). abandon: the run has nothing to give (it tracked
-    nobody): sinks with an ``abandon()`` method (the files) stop without writing, so what their
-    destinations held stays; the others are closed."""
+    """Close every sink, even when some fail (each holds the user's results); one line per
+    failure (problem_line). abandon: the run tracked nobody: sinks with ``abandon()`` (files)
+    stop without writing, so their destinations keep what they held; the others close."""
     problems = []
     for sink in sinks:
         try:
-            if abandon and hasattr(sink, "abandon"):
-                sink.abandon()
-            else:
-                sink.close()
+            (sink.abandon if abandon and hasattr(sink, "abandon") else sink.close)()
         except Exception as exc:
             problems.append(problem_line(sink, exc))
     return problems

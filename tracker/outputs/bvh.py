@@ -1,32 +1,18 @@
 """BVH export: one file per track on the CMU skeleton, written when the sink is closed.
 
-Angles: the pose vectors given (``pose.filtered``: filtered, or smoothed when ``track``
-feeds the smoothed poses at the end, its default), converted by
-``sequences.pose_vector.pose_vectors_to_motion``
-(camera azimuth 0: the video camera sits on the subject's +Z side, so heading 0 faces it).
+Angles: the pose vectors given (``pose.filtered``: filtered, or smoothed when ``track`` feeds
+the smoothed poses at the end) by ``sequences.pose_vector.pose_vectors_to_motion`` (camera
+azimuth 0: heading 0 faces the camera). Root: the Hips of the ``joints3d`` given (metres, in CMU
+units in the file), whatever placement the caller chose (``track``: geometry.
+ground_position_from_image, smoothed over the track by tracker.tracks.root_path).
 
-Root translation: the tracker does not measure where a person is in 3-D. The BVH root follows
-the Hips position of the ``joints3d`` given to ``write`` (metres, converted to CMU units), so it
-is whatever placement the caller chose: with ``tracker.outputs.geometry.ground_position_from_image``
-it is the image-plane motion turned into an approximate ground-plane position (lateral position
-and depth from an assumed body height and field of view, so the depth is only as right as the
-field of view; hips at a fixed height), which ``track``'s smoothed outputs smooth over the
-track (tracker.tracks.root_path); with
-root-relative joints it stays at the origin.
-
-Frames: BVH frame i is the time ``t0 + i / fps`` (``fps`` as given, the video's rate; t0 the
-track's first frame's time), for every such time up to the track's last frame: each holds the
-pose and root of the latest frame written at or before it (to within half a BVH frame), so
-frames where the track was not written (missed detections, skipped frames) repeat the last
-written pose and root, and a video with a variable frame rate (BVH has one Frame Time) keeps
-its real timing: a video at 30 fps for 6 s and then 10 fps gives a file at 30 fps whose 10 fps
-part holds each pose for three frames, as long as it lasted. At a constant rate BVH frame i is
-video frame ``first_frame + i``. A track with fewer than ``min_frames``
-written frames gets no file. Nothing is written before close(): the MCAP recording is the
-crash-safe record. Each file is written as ``NAME.partial`` and renamed when complete (a file cut
-short by a full disk is removed, an existing NAME is left as it was); while the sink is open,
-a lock file ``.PREFIX.bvh.lock`` in the folder makes a second sink on the same folder and prefix
-(another ``track`` run) fail at once.
+Frames: BVH frame i is the time ``t0 + i / fps`` (t0: the track's first time) up to its last,
+holding the pose and root of the latest frame written at or before it (within half a BVH frame):
+frames not written (missed, skipped) repeat the last, and a variable frame rate keeps its real
+timing (a 10 fps stretch of a 30 fps file holds each pose three frames). A track with fewer
+than ``min_frames`` frames gets no file. Nothing is written before close() (the MCAP is the
+crash-safe record); each file goes through ``NAME.partial`` (whole_files.write_beside), and a
+lock file ``.PREFIX.bvh.lock`` makes a second sink on the same folder and prefix fail at once.
 """
 from __future__ import annotations
 
@@ -45,7 +31,8 @@ from sequences.skeleton import (
     CMU_REST_OFFSETS,
     CMU_UNIT_M,
 )
-from tracker.outputs.files import LockFile, beside_name, write_beside
+from tracker.outputs.files import beside_name
+from tracker.outputs.whole_files import LockFile, write_beside
 from tracker.outputs.geometry import SinkInputError, check_joints, check_pose, checked_time
 
 if TYPE_CHECKING:

@@ -1,14 +1,12 @@
 """Where the live view's camera looks: at every tracked person and the video screen beside them,
 following them as they move.
 
-Z-up metres (tracker.outputs.geometry.y_up_to_z_up): the video camera of the tracker's assumed
-calibration sits at the origin and looks along +Y with a horizontal field of view of
-``tracker.video.decode.ASSUMED_FOV_DEG``; people stand on the ground z = 0. The view looks the same way
-as the video camera with the same vertical field of view, from higher up (``elevation_deg``,
-so the ground and the walked path show) and far enough back that the people (left) and the
-screen (right) fit. The look-at point follows the people's mean ground position smoothly; the
-camera distance and the screen's place change only when the people spread out or gather (by
-more than a margin), so a viewer is not nudged every frame.
+Z-up metres: the video camera sits at the origin looking along +Y (horizontal field of view
+``tracker.video.decode.ASSUMED_FOV_DEG``); people stand on z = 0. The view looks the same way
+with the same vertical field of view, from higher up (``elevation_deg``: the walked path shows)
+and far enough back that the people (left) and the screen (right) fit. The look-at point
+follows the people smoothly; the distance and the screen move only when the people spread out
+or gather by more than a margin, so a viewer is not nudged every frame.
 """
 from __future__ import annotations
 

@@ -1,15 +1,6 @@
-"""Stick-skeleton geometry shared by the output sinks (MCAP scene, meshcat view, BVH root).
-
-Conventions:
-- Joint positions come in as (18, 3) metres in the pose-joint order of
-  ``sequences.skeleton.POSE_JOINTS``, in the motion-capture frame: Y up, the subject at heading 0
-  faces +Z (towards the camera, which sits on the +Z side looking along -Z; image x runs along +X).
-- Viewers (Foxglove, meshcat) are Z-up, so drawing code converts with :func:`y_up_to_z_up`, a
-  proper rotation of +90 degrees about X: (x, y, z) -> (x, -z, y).
-- The tracker does not know where a subject stands in 3-D. :func:`ground_position_from_image`
-  gives an approximate root position from the image-plane centroid and silhouette height under
-  a pinhole camera with an assumed field of view and body height; see its docstring.
-"""
+"""Stick-skeleton geometry and input checks shared by the output sinks. Joint positions are
+(18, 3) metres in ``sequences.skeleton.POSE_JOINTS`` order, Y up, heading 0 facing the camera
+(+Z); viewers are Z-up (:func:`y_up_to_z_up`)."""
 from __future__ import annotations
 
 import colorsys
@@ -27,37 +18,28 @@ from tracker.video.decode import focal_length_px
 N_JOINTS = len(POSE_JOINTS)
 
 #: (B, 2) int indices into the 18 pose joints of each drawn bone (parent, child).
-BONE_INDEX: np.ndarray = np.array(
-    [[POSE_JOINTS.index(parent), POSE_JOINTS.index(child)] for parent, child in BONES_FOR_DRAWING],
-    dtype=np.int64,
-)
-BONE_INDEX.flags.writeable = False
+BONE_INDEX: np.ndarray = np.array([[POSE_JOINTS.index(parent), POSE_JOINTS.index(child)]
+                                   for parent, child in BONES_FOR_DRAWING], dtype=np.int64)
 
 #: Track colours (RGB in [0, 1]): saturated and distinct from each other and from the grey
 #: and white backgrounds of the viewers. Track id i gets entry i mod len.
-TRACK_PALETTE: np.ndarray = np.array([
-    [0.90, 0.10, 0.10],  # red
-    [0.10, 0.45, 0.95],  # blue
-    [0.05, 0.70, 0.20],  # green
-    [0.95, 0.55, 0.00],  # orange
-    [0.60, 0.20, 0.85],  # purple
-    [0.00, 0.70, 0.75],  # teal
-    [0.85, 0.15, 0.60],  # pink
-    [0.55, 0.45, 0.10],  # olive
+TRACK_PALETTE: np.ndarray = np.array([   # red, blue, green, orange, purple, teal, pink, olive
+    [0.90, 0.10, 0.10], [0.10, 0.45, 0.95], [0.05, 0.70, 0.20], [0.95, 0.55, 0.00],
+    [0.60, 0.20, 0.85], [0.00, 0.70, 0.75], [0.85, 0.15, 0.60], [0.55, 0.45, 0.10],
 ])
-TRACK_PALETTE.flags.writeable = False
 
-
-#: Body sides: every pose joint and drawn bone is on the centre line (hips, spine, neck, head),
-#: the left or the right side of the body.
+#: Body sides: every pose joint and drawn bone is on the centre line, the left or the right.
 CENTRE, LEFT, RIGHT = 0, 1, 2
 #: (18,) int side of each pose joint; (B,) side of each drawn bone (that of its child joint).
 JOINT_SIDE: np.ndarray = np.array([LEFT if name.startswith("Left") else
                                    RIGHT if name.startswith("Right") else CENTRE
                                    for name in POSE_JOINTS], dtype=np.int64)
 BONE_SIDE: np.ndarray = JOINT_SIDE[BONE_INDEX[:, 1]]
-JOINT_SIDE.flags.writeable = False
-BONE_SIDE.flags.writeable = False
+for _table in (BONE_INDEX, TRACK_PALETTE, JOINT_SIDE, BONE_SIDE):
+    _table.flags.writeable = False
+
+#: Hue turn (degrees) from a track's colour to its LEFT (+) and RIGHT (-) side colours.
+SIDE_HUE_TURN_DEG = 40.0
 
 
 class SinkInputError(SilhouettePoseError, ValueError):
@@ -66,19 +48,12 @@ class SinkInputError(SilhouettePoseError, ValueError):
 
 def track_colour(track_id: int) -> tuple[float, float, float]:
     """Colour (r, g, b) in [0, 1] of track ``track_id`` (palette entry ``track_id mod 8``)."""
-    r, g, b = TRACK_PALETTE[int(track_id) % len(TRACK_PALETTE)]
-    return float(r), float(g), float(b)
-
-
-#: Hue turn (degrees) from a track's colour to its LEFT (+) and RIGHT (-) side colours.
-SIDE_HUE_TURN_DEG = 40.0
+    return tuple(TRACK_PALETTE[int(track_id) % len(TRACK_PALETTE)].tolist())
 
 
 def body_colours(track_id: int) -> np.ndarray:
-    """Colours (3, 3) RGB in [0, 1] of track ``track_id``'s body, rows indexed by side: CENTRE
-    the track colour, LEFT and RIGHT its hue turned by +/- SIDE_HUE_TURN_DEG (red: orange left,
-    magenta right). Hue survives shading and translucency, so the sides stay apart in any
-    light and a swap of sides shows at a glance."""
+    """Colours (3, 3) RGB of track ``track_id``'s sides: CENTRE its colour, LEFT and RIGHT its hue
+    turned by +/- SIDE_HUE_TURN_DEG (hue survives shading and translucency: swaps show)."""
     colour = track_colour(track_id)
     h, s, v = colorsys.rgb_to_hsv(*colour)
     turn = SIDE_HUE_TURN_DEG / 360.0
@@ -86,38 +61,58 @@ def body_colours(track_id: int) -> np.ndarray:
     return np.array([colour, *sides])
 
 
-def check_joints(joints3d: np.ndarray) -> np.ndarray:
-    """Validate pose-joint positions: returns them as float64 (18, 3) metres.
-
-    Raises SinkInputError when the shape is not (18, 3) or a value is not finite.
-    """
-    joints = np.asarray(joints3d, dtype=np.float64)
-    if joints.shape != (N_JOINTS, 3):
-        raise SinkInputError(f"joints3d must have shape ({N_JOINTS}, 3) metres, got {joints.shape}")
-    if not np.all(np.isfinite(joints)):
-        raise SinkInputError("joints3d contains NaN or infinite values")
-    return joints
-
-
 def pose_label(track_id: int, ambiguous: bool = False, unfamiliar: bool = False) -> str:
-    """The text drawn above a body: "track N", with "(ambiguous)" for an ambiguous frame and
-    "(unfamiliar)" for a silhouette unlike the training ones (TrackedPose.unfamiliar)."""
+    """The text above a body: "track N", with "(ambiguous)" and "(unfamiliar)" when flagged."""
     flags = [name for name, on in (("ambiguous", ambiguous), ("unfamiliar", unfamiliar)) if on]
     return f"track {int(track_id)}" + (f" ({', '.join(flags)})" if flags else "")
 
 
+def heading_deg(vector: np.ndarray) -> float:
+    """Heading of a pose vector (55,) (cos, sin first), degrees in (-180, 180] to 1e-6."""
+    return round(math.degrees(math.atan2(vector[1], vector[0])), 6)
+
+
+def _finite(name: str, value, shape: tuple, wrong_shape: str) -> np.ndarray:
+    """``value`` as a float64 array of ``shape``; SinkInputError ``wrong_shape`` (formatted
+    with the shape found) for another shape, naming ``name`` for a NaN or infinite value."""
+    array = np.asarray(value, dtype=np.float64)
+    if array.shape != shape:
+        raise SinkInputError(wrong_shape.format(array.shape))
+    if not np.all(np.isfinite(array)):
+        raise SinkInputError(f"{name} contains NaN or infinite values")
+    return array
+
+
+def check_joints(joints3d: np.ndarray) -> np.ndarray:
+    """Pose-joint positions as float64 (18, 3) metres; SinkInputError otherwise."""
+    return _finite("joints3d", joints3d, (N_JOINTS, 3),
+                   f"joints3d must have shape ({N_JOINTS}, 3) metres, got {{}}")
+
+
+def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
+    """A 55-D pose vector called ``name`` as float64 (55,); SinkInputError naming it otherwise."""
+    return _finite(name, pose, (55,), f"{name} must be a 55-D pose vector, got shape {{}}")
+
+
+def check_centroid(centroid_px) -> np.ndarray:
+    """A silhouette centroid (x, y) pixels as float64 (2,); SinkInputError otherwise."""
+    centroid = np.asarray(centroid_px, dtype=np.float64)
+    if centroid.shape != (2,) or not np.all(np.isfinite(centroid)):
+        raise SinkInputError(f"centroid_px must be two finite numbers, got {centroid_px!r}")
+    return centroid
+
+
 def known_novelty(value) -> float | None:
-    """A pose's novelty (PoseEstimates.novelty, a unitless ratio) checked: a float >= 0, or None
-    when unknown (None, or NaN from a model without a heading index); SinkInputError for
-    anything else (negative, infinite, not one number). Sinks round it only when writing."""
+    """A pose's novelty (PoseEstimates.novelty, a ratio) as a float >= 0, or None when unknown
+    (None, or NaN from a model without a heading index); SinkInputError for anything else."""
     if value is None:
         return None
     try:
+        if isinstance(value, (bool, np.bool_)):
+            raise TypeError
         number = float(value)
     except (TypeError, ValueError, OverflowError):
         raise SinkInputError(f"novelty must be one number, got {value!r}") from None
-    if isinstance(value, (bool, np.bool_)):
-        raise SinkInputError(f"novelty must be one number, got {value!r}")
     if math.isnan(number):
         return None
     if not (math.isfinite(number) and number >= 0):
@@ -125,80 +120,47 @@ def known_novelty(value) -> float | None:
     return number
 
 
-def checked_probability(name: str, value) -> float:
-    """A probability called ``name`` (e.g. a runner-up hypothesis's) as a float in [0, 1];
-    SinkInputError naming it for anything else (outside [0, 1], NaN, a bool, a string, not
-    one number), so every sink accepts and refuses the same values."""
-    if isinstance(value, (bool, np.bool_)) \
-            or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not 0 <= value <= 1:                    # exact for huge ints, False for NaN
-        raise SinkInputError(f"{name} must be a number in [0, 1], got {value!r}")
-    return float(value)
-
-
-def checked_time(value) -> float:
-    """A pose's video time (seconds) as a float: a finite number >= 0; SinkInputError naming
-    it for anything else (negative, NaN, infinite, a bool, a string, not one number), so every
-    sink accepts and refuses the same times."""
-    if isinstance(value, (bool, np.bool_)) \
-            or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SinkInputError(f"time_s must be a finite number >= 0, got {value!r}")
+def _number(value, high: float, must: str) -> float:
+    """``value``, one real number (int or float, not a bool), as a float in [0, high];
+    SinkInputError "``must``, got ``value``" otherwise (NaN, infinite, out of range)."""
     try:
-        number = float(value)
+        real = isinstance(value, (int, float, np.integer, np.floating)) \
+            and not isinstance(value, (bool, np.bool_))
+        number = float(value) if real else math.nan
     except OverflowError:                                # an int beyond any float
         number = math.inf
-    if not (math.isfinite(number) and number >= 0):
-        raise SinkInputError(f"time_s must be a finite number >= 0, got {value!r}")
+    if not (0 <= number <= high and math.isfinite(number)):
+        raise SinkInputError(f"{must}, got {value!r}")
     return number
 
 
+def checked_probability(name: str, value) -> float:
+    """A probability called ``name`` as a float in [0, 1]; SinkInputError naming it otherwise."""
+    return _number(value, 1.0, f"{name} must be a number in [0, 1]")
+
+
+def checked_time(value) -> float:
+    """A pose's video time (seconds) as a float >= 0; SinkInputError otherwise."""
+    return _number(value, math.inf, "time_s must be a finite number >= 0")
+
+
 def is_unfamiliar(novelty: float | None) -> bool:
-    """Whether a novelty (a checked one, known_novelty, or a pose's own) says the silhouette
-    is unlike the training ones: above regressor.pose_model.UNFAMILIAR_NOVELTY, False when
-    unknown (None or NaN). TrackedPose.unfamiliar is this rule."""
+    """Whether a novelty says the silhouette is unlike the training ones: above
+    UNFAMILIAR_NOVELTY; False when unknown (None or NaN). TrackedPose.unfamiliar's rule."""
     return novelty is not None and novelty > UNFAMILIAR_NOVELTY
-
-
-def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
-    """Validate a 55-D pose vector called ``name``: returns it as float64 (55,).
-
-    Raises SinkInputError naming ``name`` when the shape is not (55,) or a value is not finite.
-    """
-    vector = np.asarray(pose, dtype=np.float64)
-    if vector.shape != (55,):
-        raise SinkInputError(f"{name} must be a 55-D pose vector, got shape {vector.shape}")
-    if not np.all(np.isfinite(vector)):
-        raise SinkInputError(f"{name} contains NaN or infinite values")
-    return vector
 
 
 def pose_joints_m(vectors: np.ndarray, template=None, root_position_m: np.ndarray | None = None
                   ) -> np.ndarray:
-    """Pose-joint positions (T, 18, 3) in metres (Y up) from pose vectors (T, 55).
-
-    template: as ``sequences.pose_vector.joint_positions`` (a Motion, (31, 3) CMU offsets, or
-    None for the default CMU skeleton). root_position_m: (T, 3) metres, None = root at origin.
-    """
+    """Pose-joint positions (T, 18, 3) in metres (Y up) from pose vectors (T, 55). template: as
+    ``sequences.pose_vector.joint_positions``; root_position_m: (T, 3) metres, None = origin."""
     root = None if root_position_m is None else np.asarray(root_position_m, np.float64) / CMU_UNIT_M
     return joint_positions(vectors, template, root_position=root) * CMU_UNIT_M
 
 
-def bone_segments(joints3d: np.ndarray) -> np.ndarray:
-    """End points of the drawn bones.
-
-    joints3d: (..., 18, 3) positions. Returns (..., B, 2, 3): segment b runs from the parent
-    joint BONE_INDEX[b, 0] to the child BONE_INDEX[b, 1]; same units as the input.
-    """
-    joints = np.asarray(joints3d, dtype=np.float64)
-    return joints[..., BONE_INDEX, :]
-
-
 def y_up_to_z_up(points: np.ndarray) -> np.ndarray:
-    """Rotate (..., 3) points from the Y-up motion-capture frame to a Z-up viewer frame.
-
-    A rotation of +90 degrees about X: (x, y, z) -> (x, -z, y). Units unchanged. In the result
-    the camera looks along +Y (the subject at heading 0 faces -Y) and up is +Z.
-    """
+    """Points (..., 3) turned from the Y-up motion-capture frame to a Z-up viewer frame: +90
+    degrees about X, (x, y, z) -> (x, -z, y); the camera then looks along +Y."""
     p = np.asarray(points, dtype=np.float64)
     return np.stack([p[..., 0], -p[..., 2], p[..., 1]], axis=-1)
 
@@ -212,17 +174,11 @@ def ground_position_from_image(
     focal_px: float | None = None,
     hip_height_m: float = 0.95,
 ) -> np.ndarray:
-    """Approximate root (hip) positions in metres from image-plane measurements.
-
-    A pinhole camera at the origin looks along -Z with Y up (image x along +X, image y down
-    along -Y). The focal length f px is focal_px, by default
-    ``tracker.video.decode.focal_length_px(W)`` from the assumed horizontal field of view; the distance d = f * person_height_m / bbox_height_px from the assumed body
-    height. The root is put at lateral position X = (cx - W/2) * d / f, at height hip_height_m and
-    depth Z = -d. Only the image-plane motion is measured; depth is as good as the assumed height.
-
-    centroid_px: (..., 2) pixels (x right, y down); bbox_height_px: (...,) pixels (> 0).
-    Returns (..., 3) metres. Raises SinkInputError for non-positive heights or frame sizes.
-    """
+    """Approximate root (hip) positions (..., 3) metres from the centroids (..., 2) pixels (x
+    right, y down) and silhouette heights bbox_height_px (...,) pixels (> 0), for a pinhole
+    camera at the origin looking along -Z with focal length f = focal_px (default: an assumed
+    field of view, focal_length_px(W)): distance d = f * person_height_m / height, root at
+    ((cx - W/2) d / f, hip_height_m, -d). SinkInputError for non-positive sizes."""
     centroid = np.asarray(centroid_px, dtype=np.float64)
     height = np.asarray(bbox_height_px, dtype=np.float64)
     if centroid.shape[-1:] != (2,):

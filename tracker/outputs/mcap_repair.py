@@ -1,15 +1,11 @@
 """Recover the intact part of an MCAP recording whose writer died (no summary, no footer).
 
-How it works: the MCAP data section is a sequence of self-delimiting records, and the tracker's
-sink writes messages only inside chunks, each carrying a CRC of its uncompressed contents and
-handed to the operating system as soon as it is finished. A killed writer therefore leaves
-``header, metadata..., chunk, message indexes, chunk, ...`` followed by at most one cut record.
-``recover_mcap`` reads the source sequentially with ``mcap``'s StreamReader (``validate_crcs=True``),
-which yields a chunk's records only after the whole chunk was read and its CRC checked, and copies
-schemas, channels, messages and metadata into a new, properly finished file. It stops at the first
-record that is cut short or fails its CRC; everything before it is kept, nothing after it is
-trusted. ``mcap``'s seeking reader refuses a footer-less file (it starts from the footer), hence
-the copy.
+The tracker's sink writes messages only inside chunks, each with a CRC and handed to the
+operating system once finished, so a killed writer leaves ``header, metadata..., chunk, message
+indexes, chunk, ...`` and at most one cut record. ``recover_mcap`` reads it sequentially with
+``mcap``'s StreamReader (CRCs checked: a chunk's records come only once it is whole) and copies
+schemas, channels, messages and metadata into a new, finished file, stopping at the first record
+cut short or failing its CRC. (``mcap``'s seeking reader starts from the footer: hence the copy.)
 """
 from __future__ import annotations
 

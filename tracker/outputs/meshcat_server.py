@@ -1,23 +1,16 @@
 """A meshcat server bound to 127.0.0.1 only, running in a child process that cannot outlive us.
 
-meshcat's own server (``meshcat.servers.zmqserver``) serves its web page on every network
-interface and keeps running when the process that started it is killed. Here the same bridge
-(``ZMQWebSocketBridge``: ZeroMQ commands in, WebSocket to the browser out, viewer JavaScript
-served from the installed package, no internet needed) listens on 127.0.0.1 only, on ports the
-operating system picks, and the child process exits when:
-- ``ViewerServer.close()`` is called (SIGTERM, then SIGKILL after a timeout); also on leaving a
-  ``with`` block and at interpreter exit;
-- its stdin reaches end of file, which happens when the parent dies in any way, SIGKILL included
-  (the parent holds the only write end of that pipe);
-- it receives SIGTERM itself.
-It runs in a session of its own, so what a terminal sends its foreground process group (Ctrl-C,
-SIGHUP when the terminal closes, ``timeout``'s SIGTERM) reaches the parent only, whose
-clean-up closes the view first and then stops the child; it also ignores a SIGINT sent to it
-directly. (A server that went at once with the parent's stop made the frames the parent was
-still drawing find it gone, and ``track`` warned that the viewer had stopped on most stops.)
+meshcat's own server listens on every network interface and outlives the process that started
+it. Here the same bridge (``ZMQWebSocketBridge``: ZeroMQ in, WebSocket out, viewer JavaScript
+from the installed package) listens on 127.0.0.1 only, on ports the system picks, and the child
+exits on ``ViewerServer.close()`` (SIGTERM, then SIGKILL; also on leaving a ``with`` block and
+at interpreter exit), when its stdin reaches end of file (the parent died in any way: it holds
+the only write end), or on SIGTERM. It runs in a session of its own and ignores SIGINT, so a
+terminal's Ctrl-C or SIGHUP reaches the parent only, which closes the view first and then stops
+the child (else frames still being drawn found the server gone).
 
-Run as ``python -m tracker.outputs.meshcat_server`` it is the child: it prints ``zmq_url=...`` and
-``web_url=...`` lines and serves until one of the above happens.
+Run as ``python -m tracker.outputs.meshcat_server`` it is the child: it prints ``zmq_url=...``
+and ``web_url=...`` lines and serves until one of the above happens.
 """
 from __future__ import annotations
 
@@ -128,7 +121,7 @@ def _exit_when_stdin_closes() -> None:
 
 
 def serve() -> None:
-    """Child entry point: start the bridge, announce its URLs on stdout, serve until told to stop."""
+    """Child entry point: start the bridge, announce its URLs on stdout, serve until stopped."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)          # the parent stops us (docstring)
     signal.signal(signal.SIGTERM, lambda *_: os._exit(0))
     bridge = LoopbackBridge()

@@ -1,28 +1,17 @@
-"""Live 3-D view of the tracked people in a browser, through meshcat.
+"""Live 3-D view of the tracked people in a browser, through meshcat (Z-up metres).
 
-What the page shows (Z-up metres, tracker.outputs.geometry conventions):
-- each track's body as solid geometry (a cylinder per bone, a sphere per joint, a head ball):
-  the centre line in the track colour, the LEFT and RIGHT sides in its hue turned one way and
-  the other (geometry.body_colours: red track, orange left, magenta right), so a left/right swap
-  shows at a glance; a label "track N" above the head. Ambiguous frames
-  (TrackedPose.ambiguous) are drawn translucent and labelled "track N (ambiguous)", frames
-  whose silhouette is unlike the training ones (TrackedPose.unfamiliar) "(unfamiliar)"; when the
-  runner-up front/back hypothesis is close (TrackedPose.runner_up), it is drawn as a faint
-  ghost body at the same root, fainter the less probable it is.
-- the pelvis path of each track as a ribbon on the ground, fading over ``trail_s`` seconds.
-- the video beside the people: a small copy of the current frame with each silhouette outlined
-  in its track colour (video_panel.py), on a screen with a dark bezel, ``video_fps`` times a
-  second.
-- a camera looking the way the video camera does (the tracker's assumed field of view), from
-  above and behind it, that follows the people (framing.py): the whole scene is shifted so the
-  people stay in the middle, so the orbit controls stay the user's, and a page opened at any
-  time shows every person in view.
+The page shows each track's body (bone cylinders, joint spheres, head) in its side colours
+(geometry.body_colours, so a left/right swap shows), labelled "track N", translucent when
+ambiguous, with a faint ghost of a close runner-up hypothesis; each pelvis path as a ribbon
+fading over ``trail_s`` seconds; the video beside the people, each silhouette outlined
+(video_panel.py); and a camera placed as the video camera is, following the people
+(framing.py: the scene is shifted so the people stay in the middle and the orbit controls
+stay the user's).
 
 Scene paths: ``/people`` (shifted by the follow) holds ``ground``, ``tracks/track-<id>/body``,
-``tracks/track-<id>/label``, ``tracks/track-<id>/ghost`` and ``trails/track-<id>``; ``/video`` holds the screen. Tracks not
+``.../label``, ``.../ghost`` and ``trails/track-<id>``; ``/video`` holds the screen. Tracks not
 written in the previous frame are removed. The view talks to a
-:class:`tracker.outputs.meshcat_server.ViewerServer` (127.0.0.1 only) through meshcat's
-``Visualizer``; by default it starts its own server and stops it on ``close()``.
+:class:`tracker.outputs.meshcat_server.ViewerServer` (127.0.0.1 only), by default its own.
 """
 from __future__ import annotations
 
@@ -30,7 +19,6 @@ import base64
 import contextlib
 import functools
 import io
-import time
 import warnings
 from collections import deque
 from collections.abc import Mapping
@@ -165,8 +153,7 @@ class MeshcatView:
     the frame sent. trail_s: seconds of pelvis path drawn; trail_every: redraw each trail
     every this many frames.
     framing: a framing.Framing (default: the tracker's assumed field of view, 4:3).
-    Attributes: web_url (open it in a browser); frames_drawn, draw_seconds (time spent
-    drawing and sending, not waiting), screens_drawn.
+    Attributes: web_url (open it in a browser); frames_drawn.
     """
 
     def __init__(self, server: ViewerServer | None = None, print_url: bool = True,
@@ -199,7 +186,7 @@ class MeshcatView:
         self._video_width_px = int(video_width_px)
         self._last_screen_s = -float("inf")
         self._trail_s, self._trail_every = float(trail_s), max(1, int(trail_every))
-        self.frames_drawn, self.screens_drawn, self.draw_seconds = 0, 0, 0.0
+        self.frames_drawn = 0
         try:
             with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL itself
                 self._vis = meshcat.Visualizer(zmq_url=self.server.zmq_url)
@@ -326,7 +313,6 @@ class MeshcatView:
 
     def _draw(self, pose: TrackedPose, joints: np.ndarray, unfamiliar: bool) -> None:
         frame_index, track_id = int(pose.frame_index), int(pose.track_id)
-        clock = time.perf_counter()
         if frame_index != self._frame:
             self._finish_frame()
             self._frame, self._frame_time_s, self._frame_done = frame_index, pose.time_s, False
@@ -343,7 +329,6 @@ class MeshcatView:
             self._draw_trail(track_id, trail)
         self._roots.append(joints[0])
         self._last_frame[track_id] = frame_index
-        self.draw_seconds += time.perf_counter() - clock
 
     def _draw_label(self, node, track_id: int, joints: np.ndarray, text: str) -> None:
         if self._labels.get(track_id) != text:
@@ -425,26 +410,18 @@ class MeshcatView:
         self._play(time_s, self._draw_screen, panel_image(frame, people, self._video_width_px))
 
     def _draw_screen(self, panel: np.ndarray) -> None:
-        clock = time.perf_counter()
         g = self._g
         jpeg = encode_jpeg(panel)
         self._vis["video/frame"].set_object(
             _plane(*self.framing.screen_size_m),
             g.MeshBasicMaterial(map=g.ImageTexture(_meshcat_extras()[1](jpeg))))
-        self.screens_drawn += 1
-        self.draw_seconds += time.perf_counter() - clock
 
     def end_frame(self, frame_index: int) -> None:
         """Follow the frame's people with the camera; remove the tracks absent from it (also
         done when a pose of a later frame is written without end_frame)."""
         if self._closed:
             raise SinkInputError("meshcat view is closed")
-        self._play(self._last_time_s, self._timed_finish)
-
-    def _timed_finish(self) -> None:
-        clock = time.perf_counter()
-        self._finish_frame()
-        self.draw_seconds += time.perf_counter() - clock
+        self._play(self._last_time_s, self._finish_frame)
 
     def discard(self) -> None:
         """Drop the frames handed over and not shown yet (``realtime``; after a stop, the

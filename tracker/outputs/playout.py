@@ -1,17 +1,9 @@
 """Drawing calls made at their video times by a thread of their own, behind a bounded buffer.
 
-Why: the live view plays the video at its own speed. While it waited for each frame's time
-inside the tracking loop, every pause of that loop reached the screen: with ``--lag`` the
-tracker smooths a block of frames at a time (tens of milliseconds once per block), and the
-view stood still that long, then hurried through the frames it was late for. With a player
-the loop hands each call over and goes on tracking; the player waits for the call's time and
-makes it. Tracking outruns the video, so the buffer stays full and a pause of the loop
-shorter than the buffer's lead never shows. Measured on the sample (``python
-scripts/bench_view.py --lag 0 0.5 2 5``, 2026-12-04; the wall-clock gaps between frames
-shown, 33 ms apart in the video): largest gap 36-38 / 58-71 / 120-137 / 141-148 ms before,
-13-21 gaps over 50 ms at 0.5 s; with the player 45-49 / 46-49 / 47-58 / 38-45 ms (five runs,
-one a review's on a loaded machine), at most 2 gaps over 50 ms in a run. Without a lag the
-largest gap grows by about 10 ms: the player shares the interpreter with tracking.
+Why: the live view plays the video at its own speed; waiting for each frame's time inside the
+tracking loop let every pause of that loop (``--lag`` smooths a block of frames at a time)
+reach the screen. The loop hands each call over and goes on tracking; tracking outruns the
+video, so a pause shorter than the buffer's lead never shows (figures: docs/readme_notes.md).
 
 The lead is bounded in video time (``lead_s``): ``put`` blocks while the oldest call not yet
 made is more than lead_s older than the new one, so memory stays flat however fast tracking
