@@ -183,13 +183,6 @@ class BackgroundSubtractor:
             raise ExtractionError(f"frame size changed from {self._frame_size[0]}x"
                                   f"{self._frame_size[1]} to {size[0]}x{size[1]}")
 
-    def apply(self, frame: np.ndarray) -> np.ndarray:
-        """Update the model with ``frame`` (BGR uint8 (H, W, 3)); its foreground mask, uint8
-        (h, w) at :meth:`working_size`, 255 = foreground, 0 = background or shadow."""
-        _, raw = self.subtract(frame)
-        _, foreground = cv2.threshold(raw, _FOREGROUND_LEVEL, 255, cv2.THRESH_BINARY)
-        return foreground
-
     def subtract(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Update the model with ``frame`` (BGR uint8 (H, W, 3)); returns (the frame at
         :meth:`working_size`, brightness-normalised, BGR uint8 (h, w, 3); MOG2's raw mask uint8
@@ -527,18 +520,18 @@ class SilhouetteExtractor:
         estimate = clip_background(small)
         height, width = frames[0].shape[:2]
         self.subtractor.prime(estimate.image, frame_size=(width, height))
-        self._adapt_noise_floor(small)
-        self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
-        self.refiner = None
+        self._learn_clip(small, estimate)
 
-    def _adapt_noise_floor(self, small: np.ndarray) -> None:
-        """Retune the primed subtractor's variance floor on working-size frames (N, h, w, 3)."""
-        if not self.adapt_noise_floor:
-            return
+    def _learn_clip(self, small: np.ndarray, estimate: ClipBackground) -> None:
+        """Use the primed subtractor with the clip's unreliable zone (``estimate``), its variance
+        floor retuned on the working-size frames ``small`` (N, h, w, 3)."""
         sub = self.subtractor
-        var_min = choose_var_min(sub.primed_model, small)
-        if var_min != sub.var_min:
-            sub.retune(var_min)
+        if self.adapt_noise_floor:
+            var_min = choose_var_min(sub.primed_model, small)
+            if var_min != sub.var_min:
+                sub.retune(var_min)
+        self.background = ClipBackground(sub.reference, estimate.unreliable)
+        self.refiner = None
 
     def learn_zone(self, frames) -> None:
         """After :meth:`prime` with the clip's median image, mark where it cannot be trusted
@@ -547,10 +540,7 @@ class SilhouetteExtractor:
         if self.subtractor.reference is None:
             raise ExtractionError("learn_zone needs prime() with a background image first")
         small = self._working_frames(list(frames))
-        estimate = clip_background(small)
-        self._adapt_noise_floor(small)
-        self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
-        self.refiner = None
+        self._learn_clip(small, clip_background(small))
 
     def _working_frames(self, frames: list) -> np.ndarray:
         """Frames (each BGR uint8 (H, W, 3)) shrunk to the working size, (N, h, w, 3)."""
