@@ -70,46 +70,6 @@ class VideoGrowingWarning(UserWarning):
     """The file grew (or changed) while it was read: a recording still being written."""
 
 
-def _mp4_top_level_boxes(path: Path) -> dict[bytes, int] | None:
-    """Top-level ISO-BMFF boxes of ``path`` as {type: payload size}, or None if not an MP4/MOV;
-    reads only the box headers. Used only to explain why OpenCV refused a file."""
-    boxes: dict[bytes, int] = {}
-    size_total = path.stat().st_size
-    with path.open("rb") as f:
-        offset = 0
-        while offset + 8 <= size_total:
-            f.seek(offset)
-            header = f.read(16)
-            size = int.from_bytes(header[:4], "big")
-            kind = header[4:8]
-            header_len = 8
-            if size == 1 and len(header) == 16:
-                size, header_len = int.from_bytes(header[8:16], "big"), 16
-            elif size == 0:  # box runs to the end of the file
-                size = size_total - offset
-            if offset == 0 and kind != b"ftyp":
-                return None
-            if size < header_len:
-                break
-            boxes[kind] = boxes.get(kind, 0) + min(size, size_total - offset) - header_len
-            offset += size
-    return boxes
-
-
-def _why_unopenable(path: Path) -> str:
-    """One-line reason OpenCV could not open an existing file."""
-    if path.stat().st_size == 0:
-        return "is empty (0 bytes)"
-    boxes = _mp4_top_level_boxes(path)
-    if boxes is None:
-        return "is not a video OpenCV can decode (unknown format or not a video file)"
-    if b"moov" not in boxes:
-        return "is a truncated MP4: its index ('moov' box) is missing (file cut off?)"
-    if boxes.get(b"mdat", 0) == 0:
-        return "contains no video frames"
-    return "is an MP4 OpenCV cannot decode (no supported video stream)"
-
-
 class VideoFrame(NamedTuple):
     """One decoded frame: ``index`` from 0 at the file's start, ``time_s`` its time in the video
     (s), ``image`` BGR uint8 (H, W, 3)."""
@@ -350,27 +310,15 @@ class VideoSource:
         Undecodable frames are passed over; a stream of unknown length is read to its end
         (its first frames alone would show a person standing in the background)."""
         if self.end_index is None:
-            return self._sample_through(count, size)
+            from tracker.video.even_sample import sample_through
+            return sample_through(self, count, size)
         images = self._sample_by_index(count, size)
         if not images and self.container_times and self.start_index > 0:
             # A variable rate puts the start time at another frame than the announced rate
             # does (or past the frames the file has): sample what iteration finds by time.
-            return self._sample_by_time(count, size)
+            from tracker.video.even_sample import sample_by_time
+            return sample_by_time(self, count, size)
         return images
-
-    def _sample_by_time(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
-        """sample_frames over the frames iteration yields (the time range), its warnings left
-        to the tracking pass."""
-        sample = _EvenSample(count)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            for n, frame in enumerate(self):
-                if sample.wants(n):
-                    image = frame.image
-                    if size is not None and size != (image.shape[1], image.shape[0]):
-                        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
-                    sample.keep(image)
-        return sample.frames()
 
     def _sample_by_index(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
         """sample_frames by frame number at the announced rate: samples up to
@@ -411,63 +359,12 @@ class VideoSource:
             capture.release()
         return images
 
-    def _sample_through(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
-        """sample_frames over a stream of unknown length, in one pass to its end (or its live
-        end, as in iteration)."""
-        capture = _open_capture(self.path)
-        opened = _file_state(self.path)
-        sample, give_up = _EvenSample(count), self.unreadable_run()
-        try:
-            index = _seek(capture, self.start_index, give_up)
-            offset, failed = index, 0
-            while failed < give_up:
-                if not capture.grab():
-                    if _file_state(self.path) != opened:
-                        break
-                    failed, index = failed + 1, index + 1
-                    continue
-                failed = 0
-                if sample.wants(index - offset):
-                    ok, image = capture.retrieve()
-                    sample.keep(self._prepare(image, size) if ok and image is not None
-                                else None)
-                index += 1
-        finally:
-            capture.release()
-        return sample.frames()
-
-
-class _EvenSample:
-    """Up to ``count`` frames evenly spaced over a stream of unknown length, in one pass:
-    every ``step``-th frame is kept, and when 2 count are kept every other one is dropped and
-    ``step`` doubles; :meth:`frames` picks ``count`` evenly from what is kept."""
-
-    def __init__(self, count: int):
-        self.count, self.step, self.kept = count, 1, []
-
-    def wants(self, n: int) -> bool:
-        """Whether the n-th frame (from 0) is one to keep."""
-        return n % self.step == 0
-
-    def keep(self, image: np.ndarray | None) -> None:
-        """Keep a wanted frame (None: it did not decode, nothing kept)."""
-        if image is not None:
-            self.kept.append(image)
-        if len(self.kept) >= 2 * max(self.count, 1):
-            self.kept, self.step = self.kept[::2], 2 * self.step
-
-    def frames(self) -> list[np.ndarray]:
-        if len(self.kept) <= self.count:
-            return self.kept
-        picks = np.unique(np.linspace(0, len(self.kept) - 1, self.count).round().astype(int))
-        return [self.kept[i] for i in picks]
-
-
 def _open_capture(path: Path) -> cv2.VideoCapture:
     capture = cv2.VideoCapture(str(path), cv2.CAP_ANY)
     if not capture.isOpened():
         capture.release()
-        raise VideoError(f"{path}: {_why_unopenable(path)}")
+        from tracker.video.unopenable import why_unopenable     # only for a refused file
+        raise VideoError(f"{path}: {why_unopenable(path)}")
     return capture
 
 
