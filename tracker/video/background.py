@@ -33,7 +33,6 @@ MIN_GAIN_CHANGE = 0.03
 
 def clip_background(frames: np.ndarray, tolerance: float = 20.0, max_busy: float = 0.25,
                     close_px: int = 9, bridge_px: int = 31,
-                    min_area_fraction: float = 0.003,
                     min_gain_change: float = MIN_GAIN_CHANGE) -> ClipBackground:
     """Background and its unreliable zone from frames (N, h, w, 3) BGR uint8 spread over a clip.
 

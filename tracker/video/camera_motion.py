@@ -8,6 +8,7 @@ one STEP_FRAMES earlier (a slow pan adds up); :func:`camera_moves` a clip's samp
 """
 from __future__ import annotations
 
+import functools
 from collections import deque
 
 import cv2
@@ -27,6 +28,16 @@ MOVING_RUN = 3
 #: A grey copy varying less than this (grey levels, standard deviation) has nothing to align
 #: (black, a fade, a covered lens) and is left out, else frames after a fade-in all "moved".
 FLAT_STD = 2.0
+#: The runner-up peak is looked for at least this far (px) from no shift.
+OFF_ZERO_PX = 2
+#: ... and only where the median cell of a GRID x GRID division of the frames differs by more
+#: than this (grey levels, mean absolute difference): a still camera changes the people's cells
+#: only, a pan most. A saving only, the shift must still align the scene (figures: code_notes).
+CHANGED_LEVEL = 2.0
+#: A shift explains a cell of a GRID x GRID division when it brings the cell's mean absolute
+#: difference under this share of the unshifted one's (and fails it above it by this share).
+ALIGNED_SHARE = 0.8
+GRID = 3
 
 
 def small_grey(frame: np.ndarray, width: int = ANALYSIS_WIDTH) -> np.ndarray:
@@ -58,14 +69,6 @@ def frame_shift(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return shift, float(response)
 
 
-#: The runner-up peak is looked for at least this far (px) from no shift.
-OFF_ZERO_PX = 2
-#: ... and only where the median cell of a GRID x GRID division of the frames differs by more
-#: than this (grey levels, mean absolute difference): a still camera changes the people's cells
-#: only, a pan most. A saving only, the shift must still align the scene (figures: code_notes).
-CHANGED_LEVEL = 2.0
-
-
 def _scene_changed(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether more than half of the cells of two :func:`small_grey` images changed by over
     CHANGED_LEVEL grey levels (mean absolute difference)."""
@@ -84,12 +87,6 @@ def _off_zero_peak(a: np.ndarray, b: np.ndarray, window: np.ndarray) -> tuple[fl
     surface[cy - r + 1:cy + r, cx - r + 1:cx + r] = -np.inf
     iy, ix = np.unravel_index(int(np.argmax(surface)), surface.shape)
     return float(ix - cx), float(iy - cy)
-
-
-#: A shift explains a cell of a GRID x GRID division when it brings the cell's mean absolute
-#: difference under this share of the unshifted one's (and fails it above it by this share).
-ALIGNED_SHARE = 0.8
-GRID = 3
 
 
 def _explains(a: np.ndarray, b: np.ndarray, dx: float, dy: float) -> bool:
@@ -116,14 +113,10 @@ def _cell_means(image: np.ndarray) -> np.ndarray:
     return np.array([image[r[0]:r[-1] + 1, c[0]:c[-1] + 1].mean() for r in rows for c in cols])
 
 
-_WINDOWS: dict[tuple[int, int], np.ndarray] = {}
-
-
+@functools.lru_cache(maxsize=None)
 def _hanning(shape: tuple[int, int]) -> np.ndarray:
     """OpenCV's Hanning window (float32 (h, w)) for images of ``shape``, made once per shape."""
-    if shape not in _WINDOWS:
-        _WINDOWS[shape] = cv2.createHanningWindow((shape[1], shape[0]), cv2.CV_32F)
-    return _WINDOWS[shape]
+    return cv2.createHanningWindow((shape[1], shape[0]), cv2.CV_32F)
 
 
 def flat(grey: np.ndarray) -> bool:
@@ -131,19 +124,14 @@ def flat(grey: np.ndarray) -> bool:
     return float(grey.std()) < FLAT_STD
 
 
-def moved(shift: float, min_shift: float = MIN_SHIFT) -> bool:
-    """Whether a :func:`frame_shift` shift (a fraction of the width) is camera motion."""
-    return shift >= min_shift
-
-
-def camera_moves(frames, min_shift: float = MIN_SHIFT) -> bool:
+def camera_moves(frames) -> bool:
     """Whether frames spread over a clip (list or (N, H, W, 3) BGR uint8, in time order) were
     taken by a moving camera: more than half of the pairs of consecutive non-flat samples
-    moved. Fewer than two frames say nothing (False)."""
+    moved (MIN_SHIFT). Fewer than two frames say nothing (False)."""
     greys = [g for g in (small_grey(f) for f in frames) if not flat(g)]
     if len(greys) < 2:
         return False
-    moves = [moved(frame_shift(a, b)[0], min_shift) for a, b in zip(greys, greys[1:])]
+    moves = [frame_shift(a, b)[0] >= MIN_SHIFT for a, b in zip(greys, greys[1:])]
     return sum(moves) > len(moves) / 2
 
 
@@ -152,12 +140,10 @@ class CameraMotionMeter:
     the last ``run`` comparisons of a frame with the one ``step`` frames earlier all moved
     (flat frames skipped). :attr:`moving_since`: the frame count at the first yes (or None)."""
 
-    def __init__(self, step: int = STEP_FRAMES, run: int = MOVING_RUN,
-                 min_shift: float = MIN_SHIFT):
+    def __init__(self, step: int = STEP_FRAMES, run: int = MOVING_RUN):
         if step < 1 or run < 1:
             raise ValueError(f"step={step} and run={run} must be at least 1")
         self.step, self.run = step, run
-        self.min_shift = min_shift
         self._recent: deque = deque(maxlen=step + 1)
         self._streak = 0
         self.frames = 0
@@ -174,7 +160,7 @@ class CameraMotionMeter:
         if len(self._recent) <= self.step:
             return False
         shift, _ = frame_shift(self._recent[0], grey)
-        self._streak = self._streak + 1 if moved(shift, self.min_shift) else 0
+        self._streak = self._streak + 1 if shift >= MIN_SHIFT else 0
         moving = self._streak >= self.run
         if moving and self.moving_since is None:
             self.moving_since = self.frames

@@ -153,10 +153,7 @@ class VideoSource:
         self.end_index = end_index
         self.start_s, self.end_s = start_s, end_s
         self.container_times = container_times
-        self.frames_read = 0
-        self.frames_skipped = 0
-        self.truncated = False
-        self.grew = False
+        self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
         self.read_until_s: float | None = None
 
     def expected_frames(self) -> int | None:

@@ -48,13 +48,11 @@ def speck_ratio(model, frames: Sequence[np.ndarray]) -> float:
 
 
 def choose_var_min(make_primed_model: Callable[[float], object], frames: Sequence[np.ndarray],
-                   ladder: Sequence[float] = VAR_MIN_LADDER,
-                   max_excess_specks: float = MAX_EXCESS_SPECKS,
-                   max_growth: float = MAX_FOREGROUND_GROWTH) -> float:
+                   ladder: Sequence[float] = VAR_MIN_LADDER) -> float:
     """The lowest MOG2 variance floor (grey levels squared) in ``ladder`` whose foreground on
     ``frames`` (BGR uint8 at working size, spread over the clip) has at most
-    ``max_excess_specks`` more specks per solid px than the top rung's (specks left there are
-    not noise) and at most ``max_growth`` times its foreground (strong noise can make a low
+    MAX_EXCESS_SPECKS more specks per solid px than the top rung's (specks left there are
+    not noise) and at most MAX_FOREGROUND_GROWTH times its foreground (strong noise can make a low
     floor's foreground one solid sheet). make_primed_model(var_min): a fresh primed MOG2
     (BackgroundSubtractor.primed_model). Only specks at the top rung: the top rung."""
     if not len(ladder):
@@ -64,7 +62,7 @@ def choose_var_min(make_primed_model: Callable[[float], object], frames: Sequenc
     if not np.isfinite(top_ratio):           # only specks even at the top: all noise, no body
         return float(ladder[-1])
     for var_min, (specks, solid) in zip(ladder, counts):
-        if (_ratio(specks, solid) - top_ratio <= max_excess_specks
-                and specks + solid <= max_growth * max(top_total, 1)):
+        if (_ratio(specks, solid) - top_ratio <= MAX_EXCESS_SPECKS
+                and specks + solid <= MAX_FOREGROUND_GROWTH * max(top_total, 1)):
             return float(var_min)
     return float(ladder[-1])

@@ -30,6 +30,7 @@ DEFAULT_MAX_AREA_FRACTION = 0.5
 DEFAULT_MIN_AREA_FRACTION = 0.0015
 # OpenCV MOG2's default cap on a pixel's variance (grey levels squared).
 _MOG2_VAR_MAX = 75.0
+_SQUARE_3 = np.ones((3, 3), np.uint8)
 
 
 class ExtractionError(SilhouettePoseError, ValueError):
@@ -255,9 +256,6 @@ def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5,
     return cleaned
 
 
-_SQUARE_3 = np.ones((3, 3), np.uint8)
-
-
 @functools.lru_cache(maxsize=16)
 def _ellipse(size: int) -> np.ndarray:
     """OpenCV's elliptical structuring element of size x size px (uint8), made once."""
@@ -468,15 +466,12 @@ def _median(values: np.ndarray) -> np.floating:
 class SilhouetteExtractor:
     """Frame -> list of :class:`PersonMask`: subtraction, cleaning and splitting in one call.
 
-    Keyword arguments go to :class:`BackgroundSubtractor`; ``open_px``, ``close_px``,
-    ``restore_px`` to :func:`clean_mask`; ``min_area_fraction``, ``max_hole_fraction``,
-    ``max_fragment_area`` to :func:`person_masks`. ``keep_enclosed_shadow``: shadow enclosed
-    by a body counts as person (:func:`enclosed_shadow`). ``drop_lighting``:
-    :func:`drop_lighting_blobs`. ``refine``: re-segment by colour where the background is
-    unreliable (tracker.video.zone), relearning grabCut's colour models every
-    ``refine_relearn_every`` frames, the zone's foreground sure person if
-    ``trust_zone_foreground``. ``adapt_noise_floor``: choose the variance floor on the clip's
-    frames (:func:`tracker.video.noise_floor.choose_var_min`); off with an explicit ``var_min``.
+    Keyword arguments go to :class:`BackgroundSubtractor`, the others to :func:`clean_mask`,
+    :func:`person_masks`, :func:`enclosed_shadow` (``keep_enclosed_shadow``),
+    :func:`drop_lighting_blobs` (``drop_lighting``), tracker.video.zone.ZoneRefiner
+    (``refine``: colour decides where the background is unreliable) and
+    :func:`tracker.video.noise_floor.choose_var_min` (``adapt_noise_floor``; off with an
+    explicit ``var_min``).
     """
 
     def __init__(self, open_px: int = 3, close_px: int = 5, restore_px: int = 1,
