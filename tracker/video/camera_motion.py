@@ -3,13 +3,12 @@
 Background subtraction needs a still camera. A whole-image shift between two frames is the peak
 of their phase correlation; people cover a minority of the image, so the peak is the scene's,
 and a peak that does not align the scene is dropped (:func:`frame_shift`). A shift of at least
-MIN_SHIFT of the width is camera motion. :class:`CameraMotionMeter` compares each frame with the
-one STEP_FRAMES earlier (a slow pan adds up); :func:`camera_moves` a clip's samples in turn.
+MIN_SHIFT of the width is camera motion. :func:`camera_moves` compares a clip's samples in turn;
+tracker.video.segmenter.CameraMotionMeter each frame with one a few frames earlier.
 """
 from __future__ import annotations
 
 import functools
-from collections import deque
 
 import cv2
 import numpy as np
@@ -21,10 +20,6 @@ ANALYSIS_WIDTH = 160
 #: A shift of at least this fraction of the frame width is camera motion (1.6 px at
 #: ANALYSIS_WIDTH; a still scene's phase correlation stays within about 0.2 px).
 MIN_SHIFT = 0.01
-#: The per-frame meter compares a frame with the one this many frames earlier.
-STEP_FRAMES = 5
-#: Consecutive comparisons that must show motion before the meter says the camera moves.
-MOVING_RUN = 3
 #: A grey copy varying less than this (grey levels, standard deviation) has nothing to align
 #: (black, a fade, a covered lens) and is left out, else frames after a fade-in all "moved".
 FLAT_STD = 2.0
@@ -133,35 +128,3 @@ def camera_moves(frames) -> bool:
         return False
     moves = [frame_shift(a, b)[0] >= MIN_SHIFT for a, b in zip(greys, greys[1:])]
     return sum(moves) > len(moves) / 2
-
-
-class CameraMotionMeter:
-    """Per-frame camera motion: called with each frame (BGR uint8 (H, W, 3)) in order, whether
-    the last ``run`` comparisons of a frame with the one ``step`` frames earlier all moved
-    (flat frames skipped). :attr:`moving_since`: the frame count at the first yes (or None)."""
-
-    def __init__(self, step: int = STEP_FRAMES, run: int = MOVING_RUN):
-        if step < 1 or run < 1:
-            raise ValueError(f"step={step} and run={run} must be at least 1")
-        self.step, self.run = step, run
-        self._recent: deque = deque(maxlen=step + 1)
-        self._streak = 0
-        self.frames = 0
-        self.moving_since: int | None = None
-
-    def __call__(self, frame: np.ndarray) -> bool:
-        grey = small_grey(frame)
-        self.frames += 1
-        if flat(grey):                      # nothing to compare: the answer stays as it was
-            return self._streak >= self.run
-        if self._recent and self._recent[0].shape != grey.shape:
-            self._recent.clear()
-        self._recent.append(grey)
-        if len(self._recent) <= self.step:
-            return False
-        shift, _ = frame_shift(self._recent[0], grey)
-        self._streak = self._streak + 1 if shift >= MIN_SHIFT else 0
-        moving = self._streak >= self.run
-        if moving and self.moving_since is None:
-            self.moving_since = self.frames
-        return moving

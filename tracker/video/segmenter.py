@@ -13,12 +13,13 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+from collections import deque
 
 import cv2
 import numpy as np
 
 from tracker.video.area_shrink import shrink
-from tracker.video.camera_motion import CameraMotionMeter, camera_moves
+from tracker.video.camera_motion import MIN_SHIFT, camera_moves, flat, frame_shift, small_grey
 from tracker.video.noise_floor import FOREGROUND_LEVEL
 from tracker.video.silhouettes import (DEFAULT_MIN_AREA_FRACTION, BackgroundSubtractor,
                                        PersonMask, clean_mask, median_background, person_masks)
@@ -35,6 +36,10 @@ MAX_CROP_SIDE = 256
 PERSON_PROBABILITY = 0.3
 #: HOG detections below this SVM score are dropped (OpenCV's default people detector).
 MIN_HOG_SCORE = 0.5
+#: The per-frame camera-motion meter compares a frame with the one this many frames earlier.
+STEP_FRAMES = 5
+#: Consecutive comparisons that must show motion before the meter says the camera moves.
+MOVING_RUN = 3
 
 
 #: The process ids in which a MediaPipe graph was made (forking them breaks: made_a_graph).
@@ -45,6 +50,38 @@ def made_a_graph() -> bool:
     """Whether this process has made a MediaPipe graph: a process forked from it then crashes
     making its own (a segfault), so tracker.run keeps such a run in one process."""
     return os.getpid() in _GRAPH_PROCESSES
+
+
+class CameraMotionMeter:
+    """Per-frame camera motion: called with each frame (BGR uint8 (H, W, 3)) in order, whether
+    the last ``run`` comparisons of a frame with the one ``step`` frames earlier all moved
+    (flat frames skipped). :attr:`moving_since`: the frame count at the first yes (or None)."""
+
+    def __init__(self, step: int = STEP_FRAMES, run: int = MOVING_RUN):
+        if step < 1 or run < 1:
+            raise ValueError(f"step={step} and run={run} must be at least 1")
+        self.step, self.run = step, run
+        self._recent: deque = deque(maxlen=step + 1)
+        self._streak = 0
+        self.frames = 0
+        self.moving_since: int | None = None
+
+    def __call__(self, frame: np.ndarray) -> bool:
+        grey = small_grey(frame)
+        self.frames += 1
+        if flat(grey):                      # nothing to compare: the answer stays as it was
+            return self._streak >= self.run
+        if self._recent and self._recent[0].shape != grey.shape:
+            self._recent.clear()
+        self._recent.append(grey)
+        if len(self._recent) <= self.step:
+            return False
+        shift, _ = frame_shift(self._recent[0], grey)
+        self._streak = self._streak + 1 if shift >= MIN_SHIFT else 0
+        moving = self._streak >= self.run
+        if moving and self.moving_since is None:
+            self.moving_since = self.frames
+        return moving
 
 
 class SelfieModel:

@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
-from tracker.video.camera_motion import CameraMotionMeter, camera_moves
+from tracker.video.camera_motion import camera_moves
 from tracker.video.decode import colourless
 from tracker.video.silhouettes import BackgroundSubtractor, PersonMask, SilhouetteExtractor
 
@@ -46,7 +46,10 @@ class AutoExtractor:
         self.make_background = make_background
         self.background: SilhouetteExtractor = make_background()
         self.segmenter = segmenter
-        self.meter = CameraMotionMeter()
+        self.meter = None                       # the per-frame meter serves the segmenter only
+        if segmenter is not None:
+            from tracker.video.segmenter import CameraMotionMeter
+            self.meter = CameraMotionMeter()
         self.source, self.reason = "background", None
 
     @property
