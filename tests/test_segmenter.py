@@ -14,12 +14,12 @@ from sequences.video import textured_background
 from tests.test_track_cli import _assert_one_line_error, _noise_video, _track
 from tracker import cli
 from tracker.video import segmenter, sources
-from tracker.video.camera_motion import CameraMotionMeter, camera_moves
+from tracker.video.camera_motion import camera_moves
 from lab.silhouette_evaluation import silhouette_measures, track_masks
 from tracker.pipeline import TrackerSettings, default_extractor
 from tracker.video.sources import (INSTALL_HINT, AutoExtractor, segmenter_available,
                                    silhouette_extractor)
-from tracker.video.segmenter import PersonSegmenter, merge_boxes
+from tracker.video.segmenter import CameraMotionMeter, PersonSegmenter, merge_boxes
 
 SAMPLE = "sequences/data/sample_spiral_walk.mp4"
 needs_segmenter = pytest.mark.skipif(

@@ -201,9 +201,9 @@ def test_clean_mask_drops_specks_and_joins_gaps():
 
 def test_frame_size_change_is_refused():
     subtractor = BackgroundSubtractor()
-    subtractor.apply(np.zeros((48, 64, 3), np.uint8))
+    subtractor.subtract(np.zeros((48, 64, 3), np.uint8))
     with pytest.raises(ExtractionError, match="frame size changed from 64x48 to 32x48"):
-        subtractor.apply(np.zeros((48, 32, 3), np.uint8))
+        subtractor.subtract(np.zeros((48, 32, 3), np.uint8))
 
 
 @pytest.mark.parametrize("options", [{"working_width": 8}, {"history": 0},
@@ -215,7 +215,7 @@ def test_bad_settings_are_refused(options):
 
 def test_gray_frame_array_is_refused():
     with pytest.raises(ExtractionError, match=r"BGR uint8 \(H, W, 3\)"):
-        BackgroundSubtractor().apply(np.zeros((48, 64), np.uint8))
+        BackgroundSubtractor().subtract(np.zeros((48, 64), np.uint8))
 
 
 def test_person_cut_at_the_waist_is_joined_into_one():

@@ -1,10 +1,6 @@
-"""Shrinking frames by area averaging (OpenCV's INTER_AREA), fast for any ratio.
-
-INTER_AREA has a fast path for an exact halving and a slow general one, so :func:`shrink`
-halves while the image stays at least as large as the target, then takes one general step:
-about half the time for the same picture (one halving is INTER_AREA's result exactly; after
-halvings, pixels at sharp edges move by about a grey level). Timings and the effect on the
-Pose2Sim views' silhouettes and poses: docs/tuning.md.
+"""Shrinking frames by area averaging (OpenCV's INTER_AREA), fast for any ratio: INTER_AREA's
+exact halving is fast, so :func:`shrink` halves while it can, then takes one general step
+(about half the time; pixels at sharp edges move by about a grey level: docs/tuning.md).
 """
 from __future__ import annotations
 

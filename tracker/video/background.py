@@ -1,15 +1,8 @@
 """The empty scene without a clean plate: a background image and where it cannot be trusted.
 
-A person who never leaves the spot (someone exercising, balancing) stands in every frame of a
-clip, so any per-pixel statistic over the clip (median, mode) shows their torso: no background
-model can see behind it. What the clip does tell is *where* the background is unreliable: the
-pixels that differ from the clip's median in a large share of the frames, i.e. where the person
-stood or moved, closed and hole-filled so that a torso which barely changed (and so matches the
-median) is included. Inside that zone the silhouette extractor decides person or background by
-colour (``tracker.video.zone.refine_in_zone``), outside it background subtraction is trusted.
-
-Everything works on frames shrunk to the subtractor's working size: 25 frames of 320x569 px cost
-a few milliseconds.
+A person who never leaves the spot shows in every per-pixel statistic of a clip; what the clip
+tells is *where* the background is unreliable (pixels often unlike the median). There the
+extractor decides by colour (tracker.video.zone); elsewhere background subtraction is trusted.
 """
 from __future__ import annotations
 
@@ -33,30 +26,22 @@ def clean_plate(image: np.ndarray) -> ClipBackground:
     return ClipBackground(image, np.zeros(image.shape[:2], bool))
 
 
-#: A global brightness gain further than this from 1 is undone before subtraction
-#: (tracker.video.silhouettes.BackgroundSubtractor) and before the clip's busy pixels are counted.
+#: A global brightness gain further than this from 1 is undone before subtraction and before
+#: the clip's busy pixels are counted.
 MIN_GAIN_CHANGE = 0.03
 
 
 def clip_background(frames: np.ndarray, tolerance: float = 20.0, max_busy: float = 0.25,
                     close_px: int = 9, bridge_px: int = 31,
-                    min_area_fraction: float = 0.003,
                     min_gain_change: float = MIN_GAIN_CHANGE) -> ClipBackground:
     """Background and its unreliable zone from frames (N, h, w, 3) BGR uint8 spread over a clip.
 
-    A pixel is busy in a frame when a channel differs from the clip median by more than
-    ``tolerance`` grey levels; the zone holds the pixels busy in more than ``max_busy`` of the
-    frames (a passer-by covers a pixel in a few frames; a person on the spot, in most), opened
-    to drop specks, closed by ``close_px`` px, closed along rows by ``bridge_px`` px where the
-    zone lies above in the same column, and with its holes filled. The row closing takes in
-    the still part of a body between two busy limbs under a busy torso (dark shorts between a
-    standing and a moving leg), which is never busy and, open to the floor below, is no hole:
-    without it Pose2Sim cam02 lost its hips in 20-45 % of frames. Two people passing side by
-    side have nothing busy above the gap between them, which stays out.
-    A frame whose global brightness is more than ``min_gain_change`` from the clip median's
-    (its median gain, :class:`GainMeter`) is first brought to it, as the subtractor does with
-    each frame: under a slow change of light (auto-exposure, clouds) a bright sky had been busy
-    in most frames, and the zone it made was taken for a person.
+    The zone: pixels differing from the clip median by over ``tolerance`` grey levels in some
+    channel in more than ``max_busy`` of the frames (a person on the spot, not a passer-by),
+    opened, closed by ``close_px`` px, closed along rows by ``bridge_px`` px under zone above
+    (the still legs between busy limbs under a busy torso), holes filled. Frames whose gain
+    over the median (:class:`GainMeter`) is over ``min_gain_change`` from 1 are brought to it
+    first (a slow change of light made a bright sky busy).
     """
     stack = np.asarray(frames)
     median = np.median(stack, axis=0).astype(np.uint8)
@@ -99,10 +84,8 @@ def undo_gain(frame: np.ndarray, gain: np.ndarray) -> np.ndarray:
 
 class GainMeter:
     """Per-channel brightness gain (3,) of a frame over one background (both BGR uint8
-    (h, w, 3)): the median ratio on every ``step``-th pixel; people cover a minority of the
-    image, so a global change of light or exposure shows as a gain away from 1. The
-    background's sampled pixels and their usable ones are prepared once (the tracker measures
-    every frame against the same background); call with a frame for its gain."""
+    (h, w, 3)), called with the frame: the median ratio on every ``step``-th pixel (people
+    cover a minority of the image). The background's samples are prepared once."""
 
     def __init__(self, background: np.ndarray, step: int = 8):
         self.step = step

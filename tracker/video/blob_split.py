@@ -1,19 +1,11 @@
 """Split one blob that holds several tracked people into one silhouette per person.
 
-Background subtraction sees people who touch or overlap as one blob (tracker.tracks.association
-calls it a group). Each member track keeps its last silhouette of its own (a ``Shape``); in
-the group, that shape is moved to the track's predicted box, and every pixel of the blob goes
-to the member whose moved shape it lies deepest inside, or, outside all shapes, nearest to:
-the signed distance to each shape's outline, smallest wins. Where two shapes overlap, the
-cut runs midway between their outlines; limbs that reach out of a shape stay with the nearer
-shape. The work is done on the blob scaled to ``WORK_HEIGHT`` rows (two distance transforms
-per member on that grid), and the labels are scaled back and cut by the blob's own
-full-resolution mask: the distance work costs the same for any frame size, the scaling back
-and cutting grow with the blob's pixels (docs/crossings.md: 0.4-0.6 ms for a 180-row blob,
-5-11 ms for a 1440-row one).
-
-A member whose share of the blob is under ``min_share`` of its own shape's area (hidden
-behind the other person) gets no silhouette rather than a fragment.
+Each member track's last own silhouette (a :class:`Shape`) is moved to its predicted box, and
+each pixel of the blob goes to the member with the smallest signed distance to its shape's
+outline (deepest inside, or nearest): overlaps are cut midway, limbs go to the nearer shape.
+The distance work runs on the blob scaled to ``WORK_HEIGHT`` rows, so its cost does not grow
+with the frame (docs/crossings.md). A member with under ``min_share`` of its own shape's area
+(hidden behind) gets no silhouette rather than a fragment.
 """
 from __future__ import annotations
 

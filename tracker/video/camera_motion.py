@@ -1,20 +1,14 @@
 """Is the camera moving? Global motion between frames, by phase correlation on small grey copies.
 
-Background subtraction needs a still camera: when the camera pans, tilts or shakes, every pixel
-changes and the background model's "foreground" is the scene, not the people. A whole-image
-shift between two frames shows as the peak of their phase correlation (OpenCV's
-``phaseCorrelate``, on grey copies ANALYSIS_WIDTH px wide with a Hanning window against the
-borders): people cover a minority of the image and move on their own, so the peak is the
-background's, and where it is not (a person crossing a faintly textured scene), moving the
-whole image by it misaligns the scene, and it is dropped (:func:`frame_shift`). A shift of at
-least MIN_SHIFT of the frame's width counts as camera motion.
-Per frame (:class:`CameraMotionMeter`) a frame is compared with the one STEP_FRAMES earlier, so a
-slow pan adds up to a measurable shift; over a clip's sampled frames (:func:`camera_moves`) the
-samples are compared one with the next.
+Background subtraction needs a still camera. A whole-image shift between two frames is the peak
+of their phase correlation; people cover a minority of the image, so the peak is the scene's,
+and a peak that does not align the scene is dropped (:func:`frame_shift`). A shift of at least
+MIN_SHIFT of the width is camera motion. :func:`camera_moves` compares a clip's samples in turn;
+tracker.video.segmenter.CameraMotionMeter each frame with one a few frames earlier.
 """
 from __future__ import annotations
 
-from collections import deque
+import functools
 
 import cv2
 import numpy as np
@@ -23,17 +17,22 @@ from tracker.video.area_shrink import shrink
 
 #: Width (px) of the grey copies compared: a 160x120 phase correlation costs about 0.3 ms.
 ANALYSIS_WIDTH = 160
-#: A shift between two frames of at least this fraction of the frame width is camera motion
-#: (1.6 px at ANALYSIS_WIDTH; phase correlation of a still scene stays within about 0.2 px).
+#: A shift of at least this fraction of the frame width is camera motion (1.6 px at
+#: ANALYSIS_WIDTH; a still scene's phase correlation stays within about 0.2 px).
 MIN_SHIFT = 0.01
-#: The per-frame meter compares a frame with the one this many frames earlier.
-STEP_FRAMES = 5
-#: Consecutive comparisons that must show motion before the meter says the camera moves.
-MOVING_RUN = 3
-#: A frame whose grey copy varies less than this (grey levels, standard deviation) shows nothing
-#: to align (black, a fade, a covered lens): it is left out of the comparisons, else the first
-#: frames after a fade-in all "moved" against the black ones.
+#: A grey copy varying less than this (grey levels, standard deviation) has nothing to align
+#: (black, a fade, a covered lens) and is left out, else frames after a fade-in all "moved".
 FLAT_STD = 2.0
+#: The runner-up peak is looked for at least this far (px) from no shift.
+OFF_ZERO_PX = 2
+#: ... and only where the median cell of a GRID x GRID division of the frames differs by more
+#: than this (grey levels, mean absolute difference): a still camera changes the people's cells
+#: only, a pan most. A saving only, the shift must still align the scene (figures: code_notes).
+CHANGED_LEVEL = 2.0
+#: A shift explains a cell of a GRID x GRID division when it brings the cell's mean absolute
+#: difference under this share of the unshifted one's (and fails it above it by this share).
+ALIGNED_SHARE = 0.8
+GRID = 3
 
 
 def small_grey(frame: np.ndarray, width: int = ANALYSIS_WIDTH) -> np.ndarray:
@@ -48,14 +47,10 @@ def small_grey(frame: np.ndarray, width: int = ANALYSIS_WIDTH) -> np.ndarray:
 
 def frame_shift(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     """(shift of ``b`` against ``a`` as a fraction of the width (>= 0), peak response 0..1) of
-    two :func:`small_grey` images of one size. The shift is the phase correlation's peak, kept
-    only where it explains the two images better than no shift at all (:func:`_explains`): a
-    person moving in front of a still, faintly textured scene can make the peak theirs, but
-    moving the whole image by it misaligns the scene. Where the peak is at (or is dropped to)
-    no shift, the highest peak away from it is tried the same way: a subject the camera
-    follows stays put in the middle of the view, where the window weighs most, and can hold
-    the peak at no shift while the scene pans behind (a figure of 4 % of the view did).
-    Otherwise the shift is 0."""
+    two :func:`small_grey` images of one size: the phase correlation's peak where it aligns the
+    scene (:func:`_explains`; a person moving before a faintly textured scene can hold the
+    peak). Where that leaves no shift but the scene changed, the highest peak away from it is
+    tried the same way (a subject the camera follows stays put and can hold the peak at 0)."""
     window = _hanning(a.shape)
     # Copies: OpenCV 4.11's phaseCorrelate multiplies its inputs by the window in place.
     (dx, dy), response = cv2.phaseCorrelate(a.copy(), b.copy(), window)
@@ -63,22 +58,10 @@ def frame_shift(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     if shift > 0 and not _explains(a, b, dx, dy):
         shift = 0.0
     if shift * a.shape[1] < OFF_ZERO_PX and _scene_changed(a, b):
-        # A subject the camera follows stays put and can hold the peak at no shift.
         ox, oy = _off_zero_peak(a, b, window)
         if _explains(a, b, ox, oy):
             return float(np.hypot(ox, oy)) / a.shape[1], float(response)
     return shift, float(response)
-
-
-#: The runner-up peak is looked for at least this far (px) from no shift.
-OFF_ZERO_PX = 2
-#: ... and only where the median cell of a GRID x GRID division of the two frames differs by
-#: more than this (grey levels, mean absolute difference): a still camera's frames change in
-#: the people's cells only (the median cell: 0.3-2.2 levels on the shipped sample, the Pose2Sim
-#: views and the panning renders' static twins, up to 5.3 on swings cam01), a pan in most
-#: (6-7 on the panning renders, 13-16 on the tests' synthetic one). A saving only: the
-#: runner-up's shift must still align the scene (:func:`_explains`).
-CHANGED_LEVEL = 2.0
 
 
 def _scene_changed(a: np.ndarray, b: np.ndarray) -> bool:
@@ -88,8 +71,8 @@ def _scene_changed(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 def _off_zero_peak(a: np.ndarray, b: np.ndarray, window: np.ndarray) -> tuple[float, float]:
-    """(dx, dy) px, as phaseCorrelate's: the highest peak of the windowed phase correlation
-    of ``a`` and ``b`` at least OFF_ZERO_PX from no shift (whole pixels)."""
+    """(dx, dy) whole px, as phaseCorrelate's: the highest peak of the windowed phase
+    correlation of ``a`` and ``b`` at least OFF_ZERO_PX from no shift."""
     fa, fb = np.fft.rfft2(a * window), np.fft.rfft2(b * window)
     cross = fb * np.conj(fa)
     surface = np.fft.fftshift(np.fft.irfft2(cross / np.maximum(np.abs(cross), 1e-12),
@@ -101,21 +84,10 @@ def _off_zero_peak(a: np.ndarray, b: np.ndarray, window: np.ndarray) -> tuple[fl
     return float(ix - cx), float(iy - cy)
 
 
-#: A shift explains two frames in a cell of a GRID x GRID division of the image when it brings
-#: the cell's mean absolute difference to under this share of the unshifted frames' (and
-#: fails to where it raises it above the unshifted's over this share).
-ALIGNED_SHARE = 0.8
-GRID = 3
-
-
 def _explains(a: np.ndarray, b: np.ndarray, dx: float, dy: float) -> bool:
-    """Whether ``b`` moved back by (dx, dy) px matches ``a`` better than ``b`` as it is: in
-    more cells of a GRID x GRID division of their common part than it matches worse. A moving
-    camera moves every textured cell the same way (flat cells, a blank wall or a mat, change
-    neither way); a person moving across a still scene improves only their own cells and
-    misaligns the scene's texture in the others. (One statistic over the whole image failed
-    both ways: a median stayed at the noise level over flat surfaces and missed a pan, a mean
-    followed a person across a blank wall.)"""
+    """Whether ``b`` moved back by (dx, dy) px matches ``a`` better than as it is in more cells
+    of their common part than worse: a moving camera moves every textured cell alike, a person
+    crossing a still scene improves only their own cells."""
     height, width = a.shape
     mx, my = int(np.ceil(abs(dx))) + 1, int(np.ceil(abs(dy))) + 1
     if 2 * mx >= width or 2 * my >= height:
@@ -136,14 +108,10 @@ def _cell_means(image: np.ndarray) -> np.ndarray:
     return np.array([image[r[0]:r[-1] + 1, c[0]:c[-1] + 1].mean() for r in rows for c in cols])
 
 
-_WINDOWS: dict[tuple[int, int], np.ndarray] = {}
-
-
+@functools.lru_cache(maxsize=None)
 def _hanning(shape: tuple[int, int]) -> np.ndarray:
     """OpenCV's Hanning window (float32 (h, w)) for images of ``shape``, made once per shape."""
-    if shape not in _WINDOWS:
-        _WINDOWS[shape] = cv2.createHanningWindow((shape[1], shape[0]), cv2.CV_32F)
-    return _WINDOWS[shape]
+    return cv2.createHanningWindow((shape[1], shape[0]), cv2.CV_32F)
 
 
 def flat(grey: np.ndarray) -> bool:
@@ -151,55 +119,12 @@ def flat(grey: np.ndarray) -> bool:
     return float(grey.std()) < FLAT_STD
 
 
-def moved(shift: float, min_shift: float = MIN_SHIFT) -> bool:
-    """Whether a :func:`frame_shift` shift (a fraction of the width) is camera motion. A weak
-    peak alone is not: two frames of a still camera on a blank wall have none either."""
-    return shift >= min_shift
-
-
-def camera_moves(frames, min_shift: float = MIN_SHIFT) -> bool:
-    """Whether frames spread over a clip (a list or (N, H, W, 3) BGR uint8, in time order, e.g.
-    ``VideoSource.sample_frames``) were taken by a moving camera: more than half of the pairs
-    of consecutive samples moved (:func:`moved`), flat samples (:func:`flat`) left out. A still
-    camera's samples all line up, people or not; fewer than two frames say nothing (False)."""
+def camera_moves(frames) -> bool:
+    """Whether frames spread over a clip (list or (N, H, W, 3) BGR uint8, in time order) were
+    taken by a moving camera: more than half of the pairs of consecutive non-flat samples
+    moved (MIN_SHIFT). Fewer than two frames say nothing (False)."""
     greys = [g for g in (small_grey(f) for f in frames) if not flat(g)]
     if len(greys) < 2:
         return False
-    moves = [moved(frame_shift(a, b)[0], min_shift) for a, b in zip(greys, greys[1:])]
+    moves = [frame_shift(a, b)[0] >= MIN_SHIFT for a, b in zip(greys, greys[1:])]
     return sum(moves) > len(moves) / 2
-
-
-class CameraMotionMeter:
-    """Per-frame camera motion: call it with each frame (BGR uint8 (H, W, 3)) in order; it
-    returns whether the camera moves, i.e. the last ``run`` comparisons of a frame with the
-    one ``step`` frames earlier all moved (:func:`moved`); flat frames (:func:`flat`) are skipped.
-    :attr:`moving_since` is the frame
-    count at the first such answer (None while the camera has stayed still)."""
-
-    def __init__(self, step: int = STEP_FRAMES, run: int = MOVING_RUN,
-                 min_shift: float = MIN_SHIFT):
-        if step < 1 or run < 1:
-            raise ValueError(f"step={step} and run={run} must be at least 1")
-        self.step, self.run = step, run
-        self.min_shift = min_shift
-        self._recent: deque = deque(maxlen=step + 1)
-        self._streak = 0
-        self.frames = 0
-        self.moving_since: int | None = None
-
-    def __call__(self, frame: np.ndarray) -> bool:
-        grey = small_grey(frame)
-        self.frames += 1
-        if flat(grey):                      # nothing to compare: the answer stays as it was
-            return self._streak >= self.run
-        if self._recent and self._recent[0].shape != grey.shape:
-            self._recent.clear()
-        self._recent.append(grey)
-        if len(self._recent) <= self.step:
-            return False
-        shift, _ = frame_shift(self._recent[0], grey)
-        self._streak = self._streak + 1 if moved(shift, self.min_shift) else 0
-        moving = self._streak >= self.run
-        if moving and self.moving_since is None:
-            self.moving_since = self.frames
-        return moving

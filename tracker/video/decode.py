@@ -1,26 +1,11 @@
 """Video decoding: a file becomes a stream of (index, time, BGR frame) with checked metadata.
 
-Every failure to read a file is a :class:`VideoError` whose one-line message names the file.
-A damaged frame inside a stream is skipped (its index is not yielded) and reading goes on: a
-glitch in one frame of a long video used to end the stream there, losing the rest. A stream
-that stops before the container's announced end (a cut-off file, or a damaged stretch longer
-than :data:`UNREADABLE_RUN_S`) does not raise: it ends cleanly with what was decoded. Either
-emits a :class:`VideoTruncatedWarning` saying which frames were lost. The indices stay right
-where the decoder reports each damaged frame as a failed read (MP4); where FFmpeg drops
-damaged packets without a word (AVI, MPEG-PS) the frames after them come a few indices early,
-and the stream then seems to end short of its announced length.
-
-Times: each frame's ``time_s`` is its own time in the container (its presentation time), so a
-variable frame rate (a phone's, or 30 fps then 10 fps) keeps its real timing; a
-:class:`VideoTimingWarning` says so once. Where the container gives no times, or times that do
-not increase, frames are spaced evenly at the frame rate from there on (also said once); with
-``fps`` stated (``track --fps``) they are spaced evenly throughout.
-
-A file still being written (a recording in progress) is read up to where its data ended when
-reading reached it: a failed read on a file that has grown since it was opened ends the stream
-there, without the last frame decoded before it (the tail of a half-written frame decodes as a
-damaged picture), and a :class:`VideoGrowingWarning` says how far the file grew and how much of
-it was used; also when the stream ends at the length stated when it was opened (MPEG-TS).
+A file that cannot be read is a :class:`VideoError` with a one-line message naming it. A damaged
+frame is skipped; a stream that stops before the container's announced end (cut off, or damaged
+for longer than :data:`UNREADABLE_RUN_S`) ends cleanly; each frame keeps its container time
+(variable frame rates); a file still being written is read up to its live end. Each case says so
+in one warning (:class:`VideoTruncatedWarning`, :class:`VideoTimingWarning`,
+:class:`VideoGrowingWarning`). Details: docs/code_notes/video.md.
 """
 from __future__ import annotations
 
@@ -42,34 +27,29 @@ MIN_SIDE_PX = 16
 # Longer than any camera or 8K video; beyond this a file is almost certainly damaged metadata.
 MAX_SIDE_PX = 16384
 MAX_FPS = 1000.0
-#: Horizontal field of view (degrees) assumed for a video's camera when its focal length matters
-#: (direction of travel, ground position); a typical phone or webcam lens.
+#: Horizontal field of view (degrees) assumed for a video's camera (a typical phone or webcam).
 ASSUMED_FOV_DEG = 60.0
-#: Background samples at most this many frames apart are read by decoding straight through
-#: rather than by seeking (x264's default key-frame interval is 250 frames).
+#: Background samples at most this many frames apart are read straight through rather than by
+#: seeking (x264's default key-frame interval is 250 frames).
 SEQUENTIAL_SPACING = 250
-#: Undecodable frames in a row after which a stream whose container announces more counts as
-#: ended (cut off), in seconds of video; at least UNREADABLE_RUN_MIN frames. Shorter runs are
-#: damaged frames, skipped. Reads past a file's real end fail at once, so waiting costs little.
+#: Undecodable frames in a row (seconds of video, at least UNREADABLE_RUN_MIN frames) after
+#: which a stream counts as ended; shorter runs are damaged frames, skipped.
 UNREADABLE_RUN_S = 2.0
 UNREADABLE_RUN_MIN = 30
-#: Frame intervals further than this fraction from 1/fps make a video's timing irregular
-#: (a variable frame rate, said once); a container's millisecond rounding (33 or 34 ms at
-#: 30 fps) stays well inside.
+#: Frame intervals further than this fraction from 1/fps make the timing irregular; a
+#: container's millisecond rounding (33 or 34 ms at 30 fps) stays well inside.
 IRREGULAR_INTERVAL = 0.25
 
 
 def focal_length_px(frame_width_px: int, fov_deg: float = ASSUMED_FOV_DEG) -> float:
-    """Pinhole focal length in pixels of a camera with this horizontal field of view:
-    f = (W / 2) / tan(fov / 2)."""
+    """Pinhole focal length in px for this horizontal field of view: (W / 2) / tan(fov / 2)."""
     return 0.5 * frame_width_px / math.tan(math.radians(fov_deg) / 2.0)
 
 
 def colourless(image: np.ndarray, max_chroma_std: float = 1.5) -> bool:
-    """True when a BGR uint8 (H, W, 3) image carries no colour: a grayscale video (decoded to
-    three equal channels) or a black-and-white one stored in colour (at most a constant tint).
-    Measured by the spread over the image of its chroma (standard deviations of Cr and Cb,
-    levels): 0.0 on such videos, 10-19 on the sample and the Pose2Sim views."""
+    """True when a BGR uint8 (H, W, 3) image carries no colour (grayscale, or black-and-white
+    with a constant tint): the spreads of its Cr and Cb (levels) are 0.0 on such videos, 10-19
+    on the sample and the Pose2Sim views."""
     chroma = cv2.cvtColor(image, cv2.COLOR_BGR2YCrCb)[..., 1:].reshape(-1, 2)
     return bool(np.all(chroma.std(axis=0) < max_chroma_std))
 
@@ -79,65 +59,20 @@ class VideoError(SilhouettePoseError, ValueError):
 
 
 class VideoTruncatedWarning(UserWarning):
-    """Decoding stopped before the end the container announced (corrupt or cut-off file)."""
+    """Frames were skipped, or decoding stopped before the container's announced end."""
 
 
 class VideoTimingWarning(UserWarning):
-    """The frames are not evenly spaced in time (a variable frame rate), or the container gives
-    no usable frame times (evenly spaced ones are assumed)."""
+    """Variable frame rate, or no usable frame times in the container (evenly spaced assumed)."""
 
 
 class VideoGrowingWarning(UserWarning):
     """The file grew (or changed) while it was read: a recording still being written."""
 
 
-def _mp4_top_level_boxes(path: Path) -> dict[bytes, int] | None:
-    """Top-level ISO-BMFF boxes of ``path`` as {type: payload size}, or None if not an MP4/MOV.
-
-    Reads only the 8-16 byte box headers (seeking past payloads), so it is cheap on large files.
-    Used only to explain why OpenCV refused a file.
-    """
-    boxes: dict[bytes, int] = {}
-    size_total = path.stat().st_size
-    with path.open("rb") as f:
-        offset = 0
-        while offset + 8 <= size_total:
-            f.seek(offset)
-            header = f.read(16)
-            size = int.from_bytes(header[:4], "big")
-            kind = header[4:8]
-            header_len = 8
-            if size == 1 and len(header) == 16:
-                size, header_len = int.from_bytes(header[8:16], "big"), 16
-            elif size == 0:  # box runs to the end of the file
-                size = size_total - offset
-            if offset == 0 and kind != b"ftyp":
-                return None
-            if size < header_len:
-                break
-            boxes[kind] = boxes.get(kind, 0) + min(size, size_total - offset) - header_len
-            offset += size
-    return boxes
-
-
-def _why_unopenable(path: Path) -> str:
-    """One-line reason OpenCV could not open an existing file."""
-    if path.stat().st_size == 0:
-        return "is empty (0 bytes)"
-    boxes = _mp4_top_level_boxes(path)
-    if boxes is None:
-        return "is not a video OpenCV can decode (unknown format or not a video file)"
-    if b"moov" not in boxes:
-        return "is a truncated MP4: its index ('moov' box) is missing (file cut off?)"
-    if boxes.get(b"mdat", 0) == 0:
-        return "contains no video frames"
-    return "is an MP4 OpenCV cannot decode (no supported video stream)"
-
-
 class VideoFrame(NamedTuple):
     """One decoded frame: ``index`` from 0 at the file's start, ``time_s`` its time in the video
-    (seconds: the container's time for it, else index / fps; see the module docstring),
-    ``image`` BGR uint8 (H, W, 3)."""
+    (s), ``image`` BGR uint8 (H, W, 3)."""
 
     index: int
     time_s: float
@@ -145,10 +80,9 @@ class VideoFrame(NamedTuple):
 
 
 class FrameTimes:
-    """Each frame's time, seconds: the container's (``CAP_PROP_POS_MSEC`` after a read) while it
-    gives times that increase, else the last good time plus (index - its index) / fps.
-    ``problem`` says why the container's times were given up (None while they are used);
-    ``intervals`` is (shortest, longest) seconds per frame seen so far."""
+    """Each frame's time (s): the container's while its times increase, else the last good
+    time plus (index - its index) / fps. ``problem``: why the container's times were given up
+    (None while used); ``intervals``: (shortest, longest) s per frame so far."""
 
     def __init__(self, fps: float, from_container: bool = True):
         self.fps = float(fps)
@@ -184,8 +118,7 @@ class FrameTimes:
 
 
 def _file_state(path: Path) -> tuple[int, int] | None:
-    """(size in bytes, modification time in ns) of ``path``, to see it change while read; None
-    once it is gone (removed or renamed while read)."""
+    """(size in bytes, modification time in ns) of ``path``; None once it is gone."""
     try:
         stat = os.stat(path)
     except OSError:
@@ -198,42 +131,30 @@ def _megabytes(size: int) -> str:
 
 
 class VideoSource:
-    """A checked video file; iterate to get :class:`VideoFrame` (unpacks as index, time_s, frame).
+    """A checked video file; iterate (again and again) to get :class:`VideoFrame`.
 
-    Attributes: ``path``, ``fps`` (frames/s: the container's, or the one stated), ``frame_count``
-    (frames the container announces for the whole file, None when it does not say; may be
-    approximate: with a variable frame rate it is the duration times ``fps``),
-    ``width``/``height`` (px of the frames yielded, after any downscaling),
-    ``source_width``/``source_height`` (px in the file), ``start_index``/``end_index`` (frame
-    range yielded, end exclusive; end None = until the stream ends), ``start_s``/``end_s``
-    (the time range asked for, seconds, end None: to the end; frames outside it are not
-    yielded, so a variable frame rate's range is by time), ``container_times`` (False: frames
-    evenly spaced at ``fps``, as with a stated rate), ``frames_read`` (frames yielded by the
-    last iteration), ``frames_skipped`` (undecodable frames it skipped inside the stream),
-    ``truncated`` (True when it stopped before ``end_index``), ``grew`` (True when the file
-    grew while it was read) and ``read_until_s`` (the time of the last frame yielded, None
-    before any).
-    Each iteration reopens the file, so a source can be iterated more than once.
+    ``fps``: the container's or the stated frames/s; ``frame_count``: frames announced (None
+    when unknown; with a variable rate, duration times fps); ``width``/``height``: px yielded;
+    ``start_index``/``end_index``: frames yielded, end exclusive (None: to the end);
+    ``start_s``/``end_s``: the time range (s) asked for; ``container_times``: False to space
+    frames evenly at fps. After an iteration: ``frames_read``, ``frames_skipped``
+    (undecodable inside the stream), ``truncated`` (stopped before end_index), ``grew``,
+    ``read_until_s`` (the last frame's time, None before any).
     """
 
-    def __init__(self, path: Path, fps: float, frame_count: int | None,
-                 source_size: tuple[int, int], size: tuple[int, int], start_index: int,
-                 end_index: int | None, end_s: float | None = None,
+    def __init__(self, path: Path, fps: float, frame_count: int | None, size: tuple[int, int],
+                 start_index: int, end_index: int | None, end_s: float | None = None,
                  container_times: bool = True, start_s: float = 0.0):
         self.path = path
         self.fps = fps
         self.frame_count = frame_count
-        self.source_width, self.source_height = source_size
         self.width, self.height = size
         self.start_index = start_index
         self.end_index = end_index
         self.start_s, self.end_s = start_s, end_s
         self.container_times = container_times
-        self.frames_read = 0
-        self.frames_skipped = 0
-        self.truncated = False
-        self.grew = False
-        self.read_until_s: float | None = None      # the last frame yielded's time_s
+        self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
+        self.read_until_s: float | None = None
 
     def expected_frames(self) -> int | None:
         """Frames this source should yield (``end_index - start_index``), None if unknown."""
@@ -301,10 +222,9 @@ class VideoSource:
         self._report(times, first_skipped, stopped_at, opened)
 
     def _seek_missed(self, index: int, decoded: bool, capture: cv2.VideoCapture) -> bool:
-        """Whether the first read after seeking to frame ``index`` (the start time at the
-        announced rate) shows that a variable rate's start time is elsewhere, by the
-        container's times: nothing decodes there (the file has fewer frames than announced,
-        or a damaged frame), or the frame read lies over a frame past the start time."""
+        """Whether the first read after seeking to frame ``index`` shows, by the container's
+        times, that a variable rate's start time is elsewhere: nothing decodes there, or the
+        frame read lies past the start time."""
         if index == 0 or not self.container_times:
             return False
         return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
@@ -318,9 +238,8 @@ class VideoSource:
         return math.inf if self.end_index is None else self.end_index
 
     def _ended_early(self, times: FrameTimes, stopped_at: int) -> bool:
-        """Whether a stream whose reads failed from frame ``stopped_at`` on stopped before the
-        end announced: its frames' time span short of end_index / fps (or end_s) by more than
-        half a frame; a variable frame rate's stream ends at its time, not its frame count."""
+        """Whether a stream whose reads failed from frame ``stopped_at`` on stopped more than
+        half a frame short of end_index / fps (or end_s), by its frames' times."""
         if self.end_index is None:
             return False
         if times.last is None:
@@ -334,7 +253,7 @@ class VideoSource:
 
     def _report(self, times: FrameTimes, first_skipped: int | None, stopped_at: int | None,
                 opened: tuple[int, int] | None) -> None:
-        """The one-line warnings about the iteration just finished (see the module docstring)."""
+        """The one-line warnings about the iteration just finished."""
         name = self.path.name
         if self.frames_skipped:
             warnings.warn(f"{name}: skipped {self.frames_skipped} undecodable "
@@ -370,8 +289,7 @@ class VideoSource:
                           f"tracked {tracked}", VideoGrowingWarning, stacklevel=3)
 
     def unreadable_run(self) -> int:
-        """Undecodable frames in a row after which the stream counts as ended
-        (:data:`UNREADABLE_RUN_S` of video, at least :data:`UNREADABLE_RUN_MIN`)."""
+        """Undecodable frames in a row after which the stream counts as ended."""
         return max(UNREADABLE_RUN_MIN, math.ceil(UNREADABLE_RUN_S * self.fps))
 
     def _prepare(self, image: np.ndarray, size: tuple[int, int] | None = None) -> np.ndarray:
@@ -384,45 +302,25 @@ class VideoSource:
 
     def sample_frames(self, count: int, size: tuple[int, int] | None = None
                       ) -> list[np.ndarray]:
-        """Up to ``count`` frames (BGR uint8 (H, W, 3)) evenly spaced over the selected range,
-        e.g. to estimate the empty background; ``size`` (width, height) px shrinks them
-        (INTER_AREA), so a 4K video does not hold 25 full frames. An undecodable frame is passed
-        over as in iteration; decoding stops where the stream ends (or seeking fails).
-
-        Samples up to SEQUENTIAL_SPACING frames apart are read in one pass (grab() every frame,
-        retrieve() only those kept): a seek decodes from the previous key frame, so on H.264
-        with long key-frame intervals 25 seeks cost far more than reading straight through.
-        Sparser samples (long videos) are reached by seeking. A stream of unknown length (a
-        Matroska file still being written states none) is read through to its end
-        (:meth:`_sample_through`): sampling its first ``count`` frames had learned a background
-        with the person of the first second in it, a phantom second track.
-        """
+        """Up to ``count`` frames (BGR uint8 (H, W, 3), shrunk to ``size`` (width, height) px
+        if given) evenly spaced over the selected range, e.g. for the empty background.
+        Undecodable frames are passed over; a stream of unknown length is read to its end
+        (its first frames alone would show a person standing in the background)."""
         if self.end_index is None:
-            return self._sample_through(count, size)
+            from tracker.video.even_sample import sample_through
+            return sample_through(self, count, size)
         images = self._sample_by_index(count, size)
         if not images and self.container_times and self.start_index > 0:
             # A variable rate puts the start time at another frame than the announced rate
             # does (or past the frames the file has): sample what iteration finds by time.
-            return self._sample_by_time(count, size)
+            from tracker.video.even_sample import sample_by_time
+            return sample_by_time(self, count, size)
         return images
 
-    def _sample_by_time(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
-        """Up to ``count`` frames evenly spaced over the frames iteration yields (the time
-        range), in one pass as :meth:`_sample_through` keeps them; iteration's warnings are
-        left to the tracking pass."""
-        sample = _EvenSample(count)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            for n, frame in enumerate(self):
-                if sample.wants(n):
-                    image = frame.image
-                    if size is not None and size != (image.shape[1], image.shape[0]):
-                        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
-                    sample.keep(image)
-        return sample.frames()
-
     def _sample_by_index(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
-        """sample_frames by frame number at the announced rate (see there)."""
+        """sample_frames by frame number at the announced rate: samples up to
+        SEQUENTIAL_SPACING apart in one pass (grab() all, retrieve() those kept; a seek decodes
+        from the previous key frame), sparser ones by seeking."""
         end = self.end_index
         indices = np.linspace(self.start_index, end - 1, max(count, 1)).round().astype(int)
         indices = np.unique(indices)
@@ -458,76 +356,20 @@ class VideoSource:
             capture.release()
         return images
 
-
-    def _sample_through(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
-        """Up to ``count`` frames evenly spaced over a stream of unknown length, in one pass to
-        its end: every ``step``-th frame is kept, and when 2 count are kept every other one is
-        dropped and ``step`` doubles. A file that grew since it was opened ends at its first
-        failed read (its live end), as in iteration."""
-        capture = _open_capture(self.path)
-        opened = _file_state(self.path)
-        sample, give_up = _EvenSample(count), self.unreadable_run()
-        try:
-            index = _seek(capture, self.start_index, give_up)
-            offset, failed = index, 0
-            while failed < give_up:
-                if not capture.grab():
-                    if _file_state(self.path) != opened:
-                        break
-                    failed, index = failed + 1, index + 1
-                    continue
-                failed = 0
-                if sample.wants(index - offset):
-                    ok, image = capture.retrieve()
-                    sample.keep(self._prepare(image, size) if ok and image is not None
-                                else None)
-                index += 1
-        finally:
-            capture.release()
-        return sample.frames()
-
-
-class _EvenSample:
-    """Up to ``count`` frames evenly spaced over a stream of unknown length, in one pass:
-    every ``step``-th frame is kept, and when 2 count are kept every other one is dropped and
-    ``step`` doubles; :meth:`frames` picks ``count`` evenly from what is kept."""
-
-    def __init__(self, count: int):
-        self.count, self.step, self.kept = count, 1, []
-
-    def wants(self, n: int) -> bool:
-        """Whether the n-th frame (from 0) is one to keep."""
-        return n % self.step == 0
-
-    def keep(self, image: np.ndarray | None) -> None:
-        """Keep a wanted frame (None: it did not decode, nothing kept)."""
-        if image is not None:
-            self.kept.append(image)
-        if len(self.kept) >= 2 * max(self.count, 1):
-            self.kept, self.step = self.kept[::2], 2 * self.step
-
-    def frames(self) -> list[np.ndarray]:
-        if len(self.kept) <= self.count:
-            return self.kept
-        picks = np.unique(np.linspace(0, len(self.kept) - 1, self.count).round().astype(int))
-        return [self.kept[i] for i in picks]
-
-
 def _open_capture(path: Path) -> cv2.VideoCapture:
     capture = cv2.VideoCapture(str(path), cv2.CAP_ANY)
     if not capture.isOpened():
         capture.release()
-        raise VideoError(f"{path}: {_why_unopenable(path)}")
+        from tracker.video.unopenable import why_unopenable     # only for a refused file
+        raise VideoError(f"{path}: {why_unopenable(path)}")
     return capture
 
 
 def _seek(capture: cv2.VideoCapture, start_index: int, give_up: int = UNREADABLE_RUN_MIN
           ) -> int:
     """Position ``capture`` so the next read returns frame ``start_index``; returns that index.
-
-    Tries a container seek first and falls back to decoding and discarding frames when the
-    backend lands elsewhere (some codecs only seek to key frames).
-    """
+    A container seek first, else decoding and discarding frames (some codecs only seek to key
+    frames)."""
     if start_index == 0:
         return 0
     capture.set(cv2.CAP_PROP_POS_FRAMES, start_index)
@@ -570,14 +412,11 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
     """Open and check a video file; returns a :class:`VideoSource` to iterate over.
 
     ``start_s``/``end_s``: seconds from the file's start (end exclusive; None = to the end).
-    ``fps``: frames per second to assume when the container's rate is missing or wrong; the
-    frames are then taken as evenly spaced at it (the container's frame times are not used).
-    ``max_side``: if set (px), frames whose longer side exceeds it are shrunk (INTER_AREA) so the
-    longer side equals it; pixel coordinates downstream are then in the shrunk frame.
-    The first frame is decoded here, so a file that opens but yields nothing is refused now.
-    Raises :class:`VideoError` for a missing file, a non-video, a truncated MP4 without index,
-    zero frames, a resolution below 16 px or above 16384 px per side, an unusable frame rate,
-    or a start/end range outside the video.
+    ``fps``: frames/s to assume when the container's is missing or wrong (frames then evenly
+    spaced). ``max_side``: px the longer side is shrunk to (INTER_AREA) if above it. The first
+    frame is decoded here. Raises :class:`VideoError` for a missing file, a non-video, a
+    truncated MP4, no frames, a side below 16 or above 16384 px, an unusable frame rate, or a
+    time range outside the video.
     """
     path = Path(path)
     if not path.exists():
@@ -622,5 +461,5 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
         raise VideoError(f"{path}: no frames in the chosen time range ({start_s:g} s to "
                          f"{end_s:g} s at {rate:g} fps)")
     size = scaled_size(width, height, max_side)
-    return VideoSource(path, rate, frame_count, (width, height), size, start_index, end_index,
-                       end_s=end_s, container_times=fps is None, start_s=start_s)
+    return VideoSource(path, rate, frame_count, size, start_index, end_index, end_s=end_s,
+                       container_times=fps is None, start_s=start_s)

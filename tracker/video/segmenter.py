@@ -1,35 +1,25 @@
-"""People's silhouettes from a learned person segmenter: where background subtraction cannot work.
+"""People's silhouettes from a learned person segmenter, where background subtraction cannot work.
 
-Background subtraction needs a still camera and a scene the clip shows empty somewhere in time;
-a person who never leaves the spot, or a still second person, stays in the learned background,
-and a moving camera makes everything foreground. MediaPipe's selfie segmentation (the general
-model, its weights inside the ``mediapipe`` wheel: nothing downloaded at run time) tells person
-from background in a single image. It finds nobody under about a third of the image's height,
-so it is run on crops around the people: the boxes of OpenCV's HOG people detector and of the
-segmentation of the whole frame (every SEARCH_EVERY frames), the moving blobs of a background
-model (a still camera only), and the people found in the previous frame. The crops' person
-probabilities are pasted into one foreground image at the background model's working size and
-split into people by :func:`tracker.video.silhouettes.person_masks`, exactly as the background path's
-foreground is: the rest of the pipeline sees the same :class:`PersonMask` objects.
-
-The segmenter is an optional extra: ``pip install 'silhouette-pose[segment]'``
-(:data:`tracker.video.sources.INSTALL_HINT`); tracker.video.sources chooses between it and
-background subtraction (``track --silhouettes``).
-
-MediaPipe's graph is made on first use, in the process that segments: a graph made before a
-fork breaks the forked process's own (tracker.frame_worker forks after priming).
+MediaPipe's selfie segmentation (weights inside the ``mediapipe`` wheel) tells person from
+background in one image but finds nobody under about a third of its height, so it runs on crops
+around people: HOG's boxes and the whole frame's segmentation (every SEARCH_EVERY frames), a
+background model's moving blobs (still camera only) and the previous frame's people. Each crop's
+person is split by :func:`tracker.video.silhouettes.person_masks` into :class:`PersonMask`.
+An optional extra (:data:`tracker.video.sources.INSTALL_HINT`). MediaPipe's graph is made on
+first use, in the process that segments: one made before a fork breaks the forked process's.
 """
 from __future__ import annotations
 
 import contextlib
 import os
 import sys
+from collections import deque
 
 import cv2
 import numpy as np
 
 from tracker.video.area_shrink import shrink
-from tracker.video.camera_motion import CameraMotionMeter, camera_moves
+from tracker.video.camera_motion import MIN_SHIFT, camera_moves, flat, frame_shift, small_grey
 from tracker.video.noise_floor import FOREGROUND_LEVEL
 from tracker.video.silhouettes import (DEFAULT_MIN_AREA_FRACTION, BackgroundSubtractor,
                                        PersonMask, clean_mask, median_background, person_masks)
@@ -42,12 +32,14 @@ SEARCH_EVERY = 15
 CROP_MARGIN = 0.25
 #: Crops are shrunk to at most this side before segmentation (the model works at 256x256).
 MAX_CROP_SIDE = 256
-#: Person probability at which a pixel is person. Pose2Sim balancing cam01, first 40 frames:
-#: keypoint coverage 0.79 at 0.5, 0.87 at 0.3, 0.89 at 0.15, spill 0.1-0.2 % throughout, the
-#: mask's share off the body 0.15, 0.17, 0.18 (docs/segmenter.md).
+#: Person probability at which a pixel is person (chosen on Pose2Sim: docs/code_notes/video.md).
 PERSON_PROBABILITY = 0.3
 #: HOG detections below this SVM score are dropped (OpenCV's default people detector).
 MIN_HOG_SCORE = 0.5
+#: The per-frame camera-motion meter compares a frame with the one this many frames earlier.
+STEP_FRAMES = 5
+#: Consecutive comparisons that must show motion before the meter says the camera moves.
+MOVING_RUN = 3
 
 
 #: The process ids in which a MediaPipe graph was made (forking them breaks: made_a_graph).
@@ -56,9 +48,40 @@ _GRAPH_PROCESSES: set[int] = set()
 
 def made_a_graph() -> bool:
     """Whether this process has made a MediaPipe graph: a process forked from it then crashes
-    when it makes its own (seen: malloc's "unaligned tcache chunk", a segfault), so
-    tracker.run keeps such a run in one process."""
+    making its own (a segfault), so tracker.run keeps such a run in one process."""
     return os.getpid() in _GRAPH_PROCESSES
+
+
+class CameraMotionMeter:
+    """Per-frame camera motion: called with each frame (BGR uint8 (H, W, 3)) in order, whether
+    the last ``run`` comparisons of a frame with the one ``step`` frames earlier all moved
+    (flat frames skipped). :attr:`moving_since`: the frame count at the first yes (or None)."""
+
+    def __init__(self, step: int = STEP_FRAMES, run: int = MOVING_RUN):
+        if step < 1 or run < 1:
+            raise ValueError(f"step={step} and run={run} must be at least 1")
+        self.step, self.run = step, run
+        self._recent: deque = deque(maxlen=step + 1)
+        self._streak = 0
+        self.frames = 0
+        self.moving_since: int | None = None
+
+    def __call__(self, frame: np.ndarray) -> bool:
+        grey = small_grey(frame)
+        self.frames += 1
+        if flat(grey):                      # nothing to compare: the answer stays as it was
+            return self._streak >= self.run
+        if self._recent and self._recent[0].shape != grey.shape:
+            self._recent.clear()
+        self._recent.append(grey)
+        if len(self._recent) <= self.step:
+            return False
+        shift, _ = frame_shift(self._recent[0], grey)
+        self._streak = self._streak + 1 if shift >= MIN_SHIFT else 0
+        moving = self._streak >= self.run
+        if moving and self.moving_since is None:
+            self.moving_since = self.frames
+        return moving
 
 
 class SelfieModel:
@@ -82,9 +105,8 @@ class SelfieModel:
 
 @contextlib.contextmanager
 def _native_stderr_silenced():
-    """File descriptor 2 pointed at os.devnull inside the block: MediaPipe's native code
-    writes its start-up notes (TensorFlow Lite's delegate, absl's logging) straight to it,
-    past sys.stderr, and ``track``'s errors and warnings are one line each."""
+    """File descriptor 2 pointed at os.devnull inside the block: MediaPipe's native start-up
+    notes bypass sys.stderr, and ``track``'s errors and warnings are one line each."""
     sys.stderr.flush()
     saved = os.dup(2)
     try:
@@ -97,9 +119,8 @@ def _native_stderr_silenced():
 
 
 def hog_detector() -> cv2.HOGDescriptor | None:
-    """OpenCV's HOG people detector with its built-in (Dalal-Triggs) weights; None where this
-    OpenCV has none (OpenCV 5 moved it out of the main modules; the segment extra's OpenCV 4
-    has it)."""
+    """OpenCV's HOG people detector with its built-in weights; None where this OpenCV has none
+    (OpenCV 5 moved it out of the main modules)."""
     if not hasattr(cv2, "HOGDescriptor"):
         return None
     hog = cv2.HOGDescriptor()
@@ -109,9 +130,8 @@ def hog_detector() -> cv2.HOGDescriptor | None:
 
 def hog_boxes(hog: cv2.HOGDescriptor | None, image: np.ndarray,
               min_score: float = MIN_HOG_SCORE) -> np.ndarray:
-    """People HOG finds in ``image`` (BGR uint8): boxes (n, 4) x0, y0, x1, y1 px of the image
-    (none without a detector). The detector's window is 64x128 px: smaller people are not
-    found."""
+    """Boxes (n, 4) x0, y0, x1, y1 px of the people HOG finds in ``image`` (BGR uint8); none
+    without a detector or under its 64x128 px window."""
     if hog is None or image.shape[0] < 128 or image.shape[1] < 64:
         return np.zeros((0, 4), int)
     rects, scores = hog.detectMultiScale(image, winStride=(8, 8), padding=(8, 8), scale=1.05)
@@ -130,22 +150,17 @@ def blob_boxes(mask: np.ndarray, min_area: float, max_area: float) -> np.ndarray
     return np.column_stack([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]])
 
 
-#: A box under max_part of another's height is a part of it (a moving limb's blob) when at
-#: least this share of it lies inside the other: a person standing behind has less (Pose2Sim
-#: balancing cam02: 0.15).
+#: A box under max_part of another's height is a part of it (a moving limb's blob) when this
+#: share of it lies inside the other; a person standing behind has less (Pose2Sim: 0.15).
 PART_INSIDE = 0.3
 
 
 def merge_boxes(boxes: np.ndarray, min_iou: float = 0.3, min_inside: float = 0.6,
                 max_part: float = 0.5) -> np.ndarray:
-    """Boxes (n, 4) x0, y0, x1, y1 with those that show one person replaced by their union
-    (repeated until none are left), so a person is segmented once: two boxes are one person
-    when their intersection over union is at least ``min_iou``, or covers ``min_inside`` of
-    the smaller box, or when the smaller is under ``max_part`` of the other's height and
-    PART_INSIDE of it lies in the other (a moving limb's blob). People side by side whose
-    boxes overlap less stay apart: a crop holding two people gives the segmenter's attention
-    to the more prominent (Pose2Sim balancing cam02: the still woman behind the subject was
-    never segmented)."""
+    """Boxes (n, 4) x0, y0, x1, y1, those of one person replaced by their union until none are
+    left: intersection over union at least ``min_iou``, or covering ``min_inside`` of the
+    smaller, or the smaller under ``max_part`` of the other's height with PART_INSIDE of it
+    inside. Others stay apart: a crop with two people segments only the more prominent."""
     boxes = [tuple(int(v) for v in b) for b in np.asarray(boxes).reshape(-1, 4)]
     merged = True
     while merged and len(boxes) > 1:
@@ -177,8 +192,8 @@ def _one_person(a, b, min_iou: float, min_inside: float, max_part: float) -> boo
             or (heights[0] < max_part * heights[1] and inter >= PART_INSIDE * min(areas)))
 
 
-#: A person's next crop is at least this share of the box it was found in, on each axis: a
-#: frame whose mask lost a limb or the head does not shrink the next crop around what is left.
+#: A person's next crop is at least this share of the box it was found in, on each axis, so a
+#: mask that lost a limb or the head does not shrink the next crop.
 BOX_HOLD = 0.9
 
 
@@ -212,9 +227,8 @@ def overlapping(boxes: np.ndarray, others: np.ndarray) -> np.ndarray:
 
 
 def confirmed(boxes: np.ndarray, found: np.ndarray) -> np.ndarray:
-    """The boxes (n, 4) x0, y0, x1, y1 that overlap one of ``found`` (m, 4): people followed
-    from frame to frame stay only while a search (or a moving blob) still finds them, so that
-    a false find (a heap of clothes) does not feed itself for ever."""
+    """The boxes (n, 4) x0, y0, x1, y1 that overlap one of ``found`` (m, 4), so that a false
+    find (a heap of clothes) does not feed itself for ever."""
     boxes = np.asarray(boxes).reshape(-1, 4)
     return boxes[overlapping(boxes, found)]
 
@@ -227,10 +241,8 @@ CONFIRM_HEIGHT = 160
 def hog_confirms(hog: cv2.HOGDescriptor | None, frame: np.ndarray, box,
                  height: int = CONFIRM_HEIGHT) -> bool:
     """Whether HOG finds a person in the window around ``box`` (x0, y0, x1, y1 px of
-    ``frame``, BGR uint8; :func:`crop_window`) scaled to ``height`` px high. A search runs
-    HOG on the frame at working size, where a person under 128 px high is never found; in
-    their own crop at this scale most are (CMU 02_02's panning render, 116-182 px high in a
-    640x480 frame: 3 checks in 4, none on crops of the empty scene). False without HOG."""
+    ``frame``, BGR uint8; :func:`crop_window`) scaled to ``height`` px high, where the search
+    at working size misses people under 128 px (figures: docs/code_notes). False without HOG."""
     x0, y0, x1, y1 = crop_window(box, (frame.shape[1], frame.shape[0]))
     if hog is None or x1 - x0 < 2 or y1 - y0 < 2:
         return False
@@ -242,10 +254,9 @@ def hog_confirms(hog: cv2.HOGDescriptor | None, frame: np.ndarray, box,
 
 def crop_window(box, size: tuple[int, int], margin: float = CROP_MARGIN,
                 min_aspect: float = 0.5) -> tuple[int, int, int, int]:
-    """The window (x0, y0, x1, y1) px around a box (x0, y0, x1, y1), reaching ``margin`` x
-    its size beyond it on every side and at least ``min_aspect`` x its height wide, clipped
-    to an image of ``size`` (width, height). Not square: a standing person's square window
-    takes in the people beside them, and the segmenter then follows the more prominent."""
+    """The window (x0, y0, x1, y1) px around a box (x0, y0, x1, y1), ``margin`` x its size
+    beyond it on every side and at least ``min_aspect`` x its height wide (not square, which
+    takes in the people beside), clipped to an image of ``size`` (width, height)."""
     x0, y0, x1, y1 = box
     height = (y1 - y0) * (1 + 2 * margin)
     width = max((x1 - x0) * (1 + 2 * margin), min_aspect * height)
@@ -257,20 +268,15 @@ def crop_window(box, size: tuple[int, int], margin: float = CROP_MARGIN,
 
 
 class PersonSegmenter:
-    """Frame -> list of :class:`PersonMask` by segmenting crops around people (module
-    docstring); a drop-in for :class:`tracker.video.silhouettes.SilhouetteExtractor`.
+    """Frame -> list of :class:`PersonMask` by segmenting crops around people; a drop-in for
+    :class:`tracker.video.silhouettes.SilhouetteExtractor`.
 
-    ``min_area_fraction`` / ``max_area_fraction``: people's smallest and largest share of the
-    image, as :func:`person_masks` takes them. ``working_width``: px width of the foreground
-    image the crops' masks are pasted into (and of the motion model), as the background path's.
-    ``search_every``: frames between searches (HOG and the whole frame segmented), the first
-    frame included. ``use_motion``: propose the moving blobs of a background model, while the
-    camera stays still (the clip's samples line up, :meth:`learn_zone`, and frame by frame,
-    :class:`tracker.video.camera_motion.CameraMotionMeter`); False: never. A person followed from
-    frame to frame whom a search misses stays while HOG confirms them in their crop
-    (:meth:`_confirm`).
-    ``model``: image -> person probabilities (default :class:`SelfieModel`). :attr:`crops`
-    counts the crops segmented.
+    ``min_area_fraction`` / ``max_area_fraction``: as :func:`person_masks`. ``working_width``:
+    px width of the image masks are pasted into (and of the motion model). ``search_every``:
+    frames between searches, the first included. ``use_motion``: propose a background model's
+    moving blobs while the camera stays still (:meth:`learn_zone`, CameraMotionMeter).
+    ``model``: image -> person probabilities (default :class:`SelfieModel`). :attr:`crops`:
+    crops segmented.
     """
 
     def __init__(self, min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION,
@@ -294,9 +300,8 @@ class PersonSegmenter:
         self._confirm_left = 0                       # frames left to confirm them
 
     def prime(self, background, frame_size: tuple[int, int] | None = None) -> None:
-        """Teach the motion model the scene, as :meth:`SilhouetteExtractor.prime` takes it: an
-        image of the empty scene (at the working size when ``frame_size`` is given) or frames
-        spread over the clip (their median). A colourless scene turns shadows off."""
+        """Teach the motion model the scene, as :meth:`SilhouetteExtractor.prime` takes it
+        (frames: their median); a colourless scene turns shadows off."""
         if not (isinstance(background, np.ndarray) and background.ndim == 3):
             frames = list(background)
             height, width = frames[0].shape[:2]
@@ -309,11 +314,9 @@ class PersonSegmenter:
         self.subtractor.prime(background, frame_size)
 
     def learn_zone(self, frames) -> None:
-        """Judge frames spread over the clip (run._prime gives them): when they do not line up
-        (:func:`tracker.video.camera_motion.camera_moves`) the camera moves and no moving blob is
-        proposed from the first frame on, as ``auto`` does; otherwise the per-frame meter only
-        sees a pan after about ten frames, whose blobs (the whole moving scene) mislead the
-        first crops. The segmenter needs no unreliable zone."""
+        """Judge frames spread over the clip: when the camera moves
+        (:func:`tracker.video.camera_motion.camera_moves`) no moving blob is proposed from the
+        first frame on (the per-frame meter would see a pan only after about ten frames)."""
         if self.use_motion and camera_moves(list(frames)):
             self.use_motion = False
 
@@ -349,12 +352,10 @@ class PersonSegmenter:
         return people
 
     def _confirm(self, frame: np.ndarray, boxes: np.ndarray, scale: np.ndarray) -> np.ndarray:
-        """The boxes (n, 4) working px to follow next frame: ``boxes`` without those of
-        people the last search did not find (:attr:`_unconfirmed`) that HOG has not
-        confirmed in their own crop (:func:`hog_confirms`, the full ``frame``; ``scale``:
-        working px per frame px, x and y twice) within ``search_every`` frames. A search at
-        working size misses the smaller people the crops still follow: dropping them at once
-        had split a panning walker's track for a whole search period each time."""
+        """The boxes (n, 4) working px to follow next frame: ``boxes`` without those the last
+        search missed (:attr:`_unconfirmed`) that HOG has not confirmed in their crop
+        (:func:`hog_confirms`; ``scale``: working px per frame px, x and y twice) within
+        ``search_every`` frames (dropping them at once split a panning walker's track)."""
         if not len(self._unconfirmed):
             return boxes
         waiting = overlapping(boxes, self._unconfirmed)
@@ -368,9 +369,8 @@ class PersonSegmenter:
         return boxes
 
     def search(self, small: np.ndarray) -> np.ndarray:
-        """Boxes (n, 4) x0, y0, x1, y1 px of the people in ``small`` (a frame at working
-        size): HOG's, and the blobs of the whole image segmented (people over about a third
-        of its height)."""
+        """Boxes (n, 4) x0, y0, x1, y1 px of the people in ``small`` (a frame at working size):
+        HOG's and the whole image's segmented blobs."""
         area = small.shape[0] * small.shape[1]
         found = (self.model(small) >= self.probability).astype(np.uint8) * 255
         return np.vstack([hog_boxes(self.hog, small),
@@ -380,9 +380,8 @@ class PersonSegmenter:
     def crop_probability(self, frame: np.ndarray, small: np.ndarray, box
                          ) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
         """(the window (x0, y0, x1, y1) working px around ``box`` (working px), its person
-        probabilities float32 at the window's working size): cut from the full ``frame``
-        (:func:`crop_window`), shrunk to MAX_CROP_SIDE, segmented; None for a degenerate
-        window."""
+        probabilities float32 at that size), cut from the full ``frame``, shrunk to
+        MAX_CROP_SIDE; None for a degenerate window."""
         height, width = small.shape[:2]
         sx, sy = frame.shape[1] / width, frame.shape[0] / height
         x0, y0, x1, y1 = crop_window(box, (width, height), self.margin)
@@ -397,25 +396,12 @@ class PersonSegmenter:
         return (x0, y0, x1, y1), cv2.resize(self.model(crop), (x1 - x0, y1 - y0),
                                             interpolation=cv2.INTER_LINEAR)
 
-    def segment(self, frame: np.ndarray, small: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-        """uint8 (h, w) at ``small``'s size, 255 = person: every box's
-        :meth:`crop_probability` pasted (the highest where crops overlap), thresholded."""
-        canvas = np.zeros(small.shape[:2], np.float32)
-        for box in boxes:
-            cut = self.crop_probability(frame, small, box)
-            if cut is not None:
-                (x0, y0, x1, y1), probability = cut
-                np.maximum(canvas[y0:y1, x0:x1], probability, out=canvas[y0:y1, x0:x1])
-        return np.where(canvas >= self.probability, 255, 0).astype(np.uint8)
-
     def people_in_crops(self, frame: np.ndarray, small: np.ndarray, boxes: np.ndarray
                         ) -> list[PersonMask]:
-        """One person per box (working px) at most: the person of its crop
-        (:meth:`crop_probability`, thresholded, kept within half the crop's margin of the box,
-        split by :func:`person_masks`) whose box overlaps it most. Each crop gives its own
-        mask, so two people whose masks touch stay two (one shared foreground image made them
-        one blob); a person found by two crops is kept once (:func:`_distinct`). Largest
-        first."""
+        """One person per box (working px) at most, largest first: the person of its crop
+        (thresholded, within half the crop's margin of the box) whose box overlaps it most.
+        Each crop gives its own mask, so two people whose masks touch stay two; a person found
+        by two crops is kept once (:func:`_distinct`)."""
         size = (frame.shape[1], frame.shape[0])
         height, width = small.shape[:2]
         scale = np.array([size[0] / width, size[1] / height] * 2)
@@ -464,8 +450,7 @@ def _iou(a: np.ndarray, b: np.ndarray) -> float:
 
 def _distinct(people: list[PersonMask]) -> list[PersonMask]:
     """People (largest first) without those whose box lies by DUPLICATE_SHARE or more inside
-    a larger one's: a second crop on one person (a moving blob beside the followed box)
-    finds a piece of them, which as a second person had split their track."""
+    a larger one's (a second crop's piece of one person had split their track)."""
     kept: list[PersonMask] = []
     for person in sorted(people, key=lambda p: -p.area):
         box = _corners(person.bbox)

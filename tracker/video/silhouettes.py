@@ -1,10 +1,8 @@
 """Frames to person silhouettes: background subtraction, mask cleaning, one mask per person.
 
-The subtractor works on a copy of the frame shrunk to ``working_width`` px (default 320): OpenCV's
-MOG2 costs about 4x less at half of 640 px and a silhouette loses little, because each person's
-mask is scaled back up to frame resolution with linear interpolation (smooth edges, not blocks).
-Everything per frame is an OpenCV or numpy operation on the whole image or on the box around
-its foreground (the mask cleaning); Python loops run over people.
+MOG2 works on a copy of the frame shrunk to ``working_width`` px; each person's mask is scaled
+back to frame resolution with linear interpolation. Per frame everything is an OpenCV or numpy
+operation on the whole image or on the box around its foreground; Python loops run over people.
 """
 from __future__ import annotations
 
@@ -21,19 +19,18 @@ from tracker.video.background import (MIN_GAIN_CHANGE, ClipBackground, GainMeter
 from tracker.video.noise_floor import FOREGROUND_LEVEL as _FOREGROUND_LEVEL, choose_var_min
 
 _SHADOW_LEVEL = 127              # MOG2's mark for shadow (foreground: _FOREGROUND_LEVEL)
-# A frame darker or brighter than the background by more than this factor in some channel (a
-# black or blank frame, a flash, a cut to another scene) shows no one: it cannot be undone
-# (a black frame's gain is 0), and subtracted as it is, the whole image was one "person".
+# A frame off the background by more than this gain in some channel (black, blank, a flash, a
+# cut) shows no one and cannot be undone: subtracted as it is, it was one whole-image "person".
 _MAX_GAIN_FACTOR = 4.0
-#: Components larger than this fraction of the image are not people (a change of the whole
-#: scene): a standing person filling a portrait frame's height covers about 15-35 %.
+#: Components larger than this fraction of the image are a change of the whole scene, not
+#: people (a standing person filling a portrait frame's height covers about 15-35 %).
 DEFAULT_MAX_AREA_FRACTION = 0.5
-#: Components smaller than this fraction of the image are clutter, not people: at 640x480 a
-#: walker about 55 px tall or more passes (a 320x240 video: about 28 px); smaller walkers'
-#: headings became unreliable (docs/tuning.md, "tracker/video/silhouettes.py").
+#: Components smaller than this fraction of the image are clutter: at 640x480 a walker about
+#: 55 px tall or more passes (docs/tuning.md, "tracker/video/silhouettes.py").
 DEFAULT_MIN_AREA_FRACTION = 0.0015
 # OpenCV MOG2's default cap on a pixel's variance (grey levels squared).
 _MOG2_VAR_MAX = 75.0
+_SQUARE_3 = np.ones((3, 3), np.uint8)
 
 
 class ExtractionError(SilhouettePoseError, ValueError):
@@ -42,13 +39,10 @@ class ExtractionError(SilhouettePoseError, ValueError):
 
 @dataclass(frozen=True)
 class PersonMask:
-    """One person's silhouette in frame pixel coordinates.
-
-    ``mask``: (h, w) bool crop, True on the person; ``bbox``: (x, y, w, h) px of the crop in the
-    frame; ``centroid``: (x, y) px of the mask's centre of mass in the frame; ``area``: foreground
-    pixels in ``mask``; ``colour``: the person's appearance, :func:`colour_histogram` of the
-    frame inside the silhouette (COLOUR_BINS,), or None when not measured.
-    """
+    """One person's silhouette in frame pixel coordinates: ``mask`` (h, w) bool crop, True on
+    the person; ``bbox`` (x, y, w, h) px of the crop; ``centroid`` (x, y) px of the mask's centre
+    of mass; ``area`` foreground px; ``colour`` :func:`colour_histogram` (COLOUR_BINS,) of the
+    frame inside the silhouette, or None when not measured."""
 
     mask: np.ndarray
     bbox: tuple[int, int, int, int]
@@ -57,17 +51,16 @@ class PersonMask:
     colour: np.ndarray | None = None
 
 
-#: Bins of a person's colour histogram over hue, saturation and value (OpenCV's HSV, hue 0-180):
-#: hue and saturation tell clothes apart under the same light, value tells black from white.
+#: Bins over hue, saturation and value (OpenCV's HSV): hue and saturation tell clothes apart
+#: under the same light, value tells black from white.
 COLOUR_BINS_HSV = (8, 4, 4)
 COLOUR_BINS = int(np.prod(COLOUR_BINS_HSV))
 
 
 def colour_histogram(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """The colour of ``image`` (BGR uint8 (h, w, 3)) where ``mask`` (uint8 (h, w), nonzero =
-    person): a HSV histogram (COLOUR_BINS,) float32 summing to 1 (all zeros for an empty
-    mask). Compared by Bhattacharyya distance (tracker.tracks.association), it tells people apart
-    where their silhouettes cannot."""
+    """HSV histogram (COLOUR_BINS,) float32 summing to 1 (zeros for an empty mask) of ``image``
+    (BGR uint8 (h, w, 3)) where ``mask`` (uint8 (h, w)) is nonzero; compared by Bhattacharyya
+    distance (tracker.tracks.association) to tell people apart."""
     hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
     hist = cv2.calcHist([hsv], [0, 1, 2], mask, list(COLOUR_BINS_HSV), [0, 180, 0, 256, 0, 256])
     total = float(hist.sum())
@@ -75,24 +68,16 @@ def colour_histogram(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 
 class BackgroundSubtractor:
-    """MOG2 background model on a downscaled frame, shadows removed.
+    """MOG2 background model on a frame shrunk to ``working_width`` px, shadows removed.
 
-    ``working_width``: px width the model works at (frames are shrunk to it, never enlarged), so
-    the cost per frame does not grow with the video's resolution. ``history``: frames the model
-    remembers. ``background_ratio``: MOG2's share of weight that counts as background; a person
-    who stands still becomes background after about ln(background_ratio) / ln(1 - 1/history)
-    frames (0.7 and 500: ~180 frames, 6 s at 30 fps; MOG2's default 0.9 would give ~50).
-    Lower values keep still people longer but treat a flickering background as foreground.
-    ``var_threshold``: MOG2's squared Mahalanobis distance for foreground. ``warmup_frames``:
-    frames used only to learn the background (fast, at MOG2's rate 1/frames seen), during which
-    :attr:`ready` is False.
-    ``learning_rate``: the rate after warm-up; None means 1/history (MOG2's own automatic rate
-    would still be 1/frames seen, which swallows a person standing still within a second);
-    0 freezes the model after warm-up (static camera and light).
-    ``normalise_brightness``: undo global brightness changes against the primed background
-    (see :meth:`subtract`). ``var_min``: MOG2's floor on each pixel's variance, grey levels
-    squared (its default 4 suits a clean camera; a compressed video needs more, see
-    :mod:`tracker.video.noise_floor` and :meth:`retune`).
+    ``history``: frames remembered. ``background_ratio``: MOG2's weight share that counts as
+    background; a still person becomes background after ln(ratio) / ln(1 - 1/history) frames
+    (0.7 and 500: ~180 frames, 6 s at 30 fps; MOG2's default 0.9: ~50). ``var_threshold``:
+    squared Mahalanobis distance for foreground. ``warmup_frames``: frames only learned from
+    (:attr:`ready` False). ``learning_rate`` after warm-up: None = 1/history (MOG2's own would
+    stay 1/frames seen and swallow a still person within a second), 0 freezes the model.
+    ``normalise_brightness``: undo global brightness changes (:meth:`subtract`). ``var_min``:
+    MOG2's variance floor, grey levels squared (see :mod:`tracker.video.noise_floor`).
     """
 
     def __init__(self, working_width: int = 320, history: int = 500,
@@ -125,19 +110,17 @@ class BackgroundSubtractor:
         self._model = self.new_model(self.var_min)
 
     def new_model(self, var_min: float):
-        """A fresh, unprimed OpenCV MOG2 with this subtractor's settings and variance floor
-        ``var_min`` (grey levels squared)."""
+        """A fresh OpenCV MOG2 with these settings and variance floor ``var_min``."""
         model = cv2.createBackgroundSubtractorMOG2(**self._mog2_options)
         model.setBackgroundRatio(self._background_ratio)
         model.setVarMin(float(var_min))
-        # MOG2 starts a new Gaussian at varInit (15 by default): below the floor it would
-        # start tighter than the floor allows.
+        # A new Gaussian starts at varInit (15 by default), which must not be below the floor.
         model.setVarInit(max(model.getVarInit(), float(var_min)))
         return model
 
     def primed_model(self, var_min: float):
-        """A fresh MOG2 (:meth:`new_model`) that has learned the primed :attr:`reference` as
-        :meth:`prime` teaches it: ``max(warmup_frames, 1)`` times at MOG2's start-up rate."""
+        """A :meth:`new_model` that has learned the primed :attr:`reference` as :meth:`prime`
+        teaches it."""
         if self.reference is None:
             raise ExtractionError("a primed model needs prime() first")
         model = self.new_model(var_min)
@@ -146,8 +129,7 @@ class BackgroundSubtractor:
         return model
 
     def retune(self, var_min: float) -> None:
-        """Rebuild the background model with variance floor ``var_min`` (grey levels squared)
-        and re-learn the primed :attr:`reference` as :meth:`prime` did."""
+        """Rebuild the model with variance floor ``var_min`` and re-learn :attr:`reference`."""
         if self.reference is None:
             raise ExtractionError("retune needs prime() first")
         _check_var_min(var_min)
@@ -166,18 +148,12 @@ class BackgroundSubtractor:
         return self.working_width, max(1, round(height * self.working_width / width))
 
     def prime(self, background: np.ndarray, frame_size: tuple[int, int] | None = None) -> None:
-        """Learn the background from an image of the empty scene (BGR uint8 (H, W, 3)).
-
-        frame_size: None when ``background`` is at the size of the frames to come; else the
-        frames' (width, height) px, and ``background`` is already at :meth:`working_size` for
-        them (a median of shrunk frames: scaling it up and back down would blur it, and a
-        blurred background makes every textured pixel of a sharp frame differ from it; Pose2Sim
-        1920x1080 views: 3-4x more specks in the foreground).
-
-        Feeds it ``max(warmup_frames, 1)`` times at MOG2's fast start-up rate, after which the
-        model is :attr:`ready`. With the :func:`median_background` of frames spread over a video
-        this avoids the "ghost" a person present during a warm-up on live frames leaves behind.
-        """
+        """Learn the empty scene (BGR uint8 (H, W, 3)), ``max(warmup_frames, 1)`` times at
+        MOG2's start-up rate; the model is then :attr:`ready`, with no "ghost" of a person
+        present during a warm-up on live frames. ``frame_size``: None when ``background`` has
+        the frames' size; else the frames' (width, height) px, and ``background`` is already at
+        :meth:`working_size` (a median of shrunk frames: scaling it up and down would blur it,
+        and every textured pixel of a sharp frame would then differ from it)."""
         if background.ndim != 3 or background.shape[2] != 3 or background.dtype != np.uint8:
             raise ExtractionError(f"background must be BGR uint8 (H, W, 3), got "
                                   f"{background.dtype} {background.shape}")
@@ -208,26 +184,13 @@ class BackgroundSubtractor:
             raise ExtractionError(f"frame size changed from {self._frame_size[0]}x"
                                   f"{self._frame_size[1]} to {size[0]}x{size[1]}")
 
-    def apply(self, frame: np.ndarray) -> np.ndarray:
-        """Update the model with ``frame`` (BGR uint8 (H, W, 3)) and return its foreground mask.
-
-        Returns uint8 (h, w) at :meth:`working_size`, 255 = foreground, 0 = background or shadow.
-        All frames given to one subtractor must have the same size.
-        """
-        _, raw = self.subtract(frame)
-        _, foreground = cv2.threshold(raw, _FOREGROUND_LEVEL, 255, cv2.THRESH_BINARY)
-        return foreground
-
     def subtract(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Update the model with ``frame`` (BGR uint8 (H, W, 3)); returns (the frame at
-        :meth:`working_size`, brightness-normalised, BGR uint8 (h, w, 3); MOG2's raw mask
-        uint8 (h, w): 255 foreground, 127 shadow, 0 background).
-
-        Once a :attr:`reference` background is set (by :meth:`prime`), a global brightness
-        change (clouds, auto-exposure) is undone first: the frame is divided by its median
-        per-channel gain over the reference when that is more than 3 % away from 1. A frame
-        whose gain is beyond a factor of 4 either way (black, blank, a flash) gets an empty mask
-        and leaves the model as it was."""
+        :meth:`working_size`, brightness-normalised, BGR uint8 (h, w, 3); MOG2's raw mask uint8
+        (h, w): 255 foreground, 127 shadow, 0 background). Once primed, a global brightness
+        change is undone: the frame is divided by its median per-channel gain over the
+        reference when that is over MIN_GAIN_CHANGE from 1. A frame with a gain beyond
+        _MAX_GAIN_FACTOR gets an empty mask and is not learned."""
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise ExtractionError(f"frame must be BGR uint8 (H, W, 3), got {frame.dtype} "
                                   f"{frame.shape}")
@@ -240,11 +203,10 @@ class BackgroundSubtractor:
             gain = self._gain(small)
             low, high = float(gain.min()), float(gain.max())
             if not (low >= 1 / _MAX_GAIN_FACTOR and high <= _MAX_GAIN_FACTOR):
-                # Nobody can be told from such a frame; the model does not learn it either.
                 self.frames_seen += 1
                 return small, np.zeros(small.shape[:2], np.uint8)
             if max(1.0 - low, high - 1.0) > MIN_GAIN_CHANGE:
-                # Where the brighter light clips the background, the frame cannot be undone:
+                # Where the brighter light clips the background the frame cannot be undone:
                 # such pixels are background, not a blob.
                 expected = cv2.multiply(self.reference, tuple(float(g) for g in gain) + (0.0,))
                 saturated = (expected.max(axis=2) >= 250) & (small.max(axis=2) >= 250)
@@ -265,11 +227,8 @@ def _check_var_min(var_min: float) -> None:
 
 
 def median_background(frames: list[np.ndarray]) -> np.ndarray:
-    """Per-pixel median of frames (each BGR uint8 (H, W, 3)) -> BGR uint8 (H, W, 3).
-
-    Taken over frames spread across a video, it shows the empty scene wherever no one stood
-    still for more than half of them.
-    """
+    """Per-pixel median of frames (each BGR uint8 (H, W, 3)) -> BGR uint8 (H, W, 3): over frames
+    spread across a video, the empty scene wherever no one stood still in half of them."""
     if not frames:
         raise ExtractionError("median_background needs at least one frame")
     shapes = {f.shape for f in frames}
@@ -280,18 +239,11 @@ def median_background(frames: list[np.ndarray]) -> np.ndarray:
 
 def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5,
                restore_px: int = 1) -> np.ndarray:
-    """Remove speckle and bridge small gaps in a foreground mask.
-
-    ``mask``: uint8 (h, w), 255 = foreground. ``open_px``/``close_px``: elliptical kernel sizes
-    (px) of the opening (drops specks) and closing (joins nearby fragments); <= 1 skips a step.
-    ``restore_px``: foreground the opening removed within this many px of what it kept is put
-    back: the opening shaves a body's outline (corners, the last pixel of a toe or finger tip,
-    the edges of a wrist ~3 px wide at working size), isolated specks stay removed (0: plain
-    opening).
-    Pose2Sim coverage with 1 instead of 0: 95.0 -> 96.7 % (cam01), 94.0 -> 95.0 % (cam02).
-    Returns uint8 (h, w), 255 = foreground. Holes are filled later, per person, in
-    :func:`person_masks`.
-    """
+    """Drop specks and bridge small gaps in a foreground mask (uint8 (h, w), 255 = foreground)
+    by an elliptical opening of ``open_px`` and closing of ``close_px`` px (<= 1 skips one).
+    Foreground the opening removed within ``restore_px`` px of what it kept is put back (the
+    opening shaves toes, finger tips, thin wrists; isolated specks stay removed). Returns
+    uint8 (h, w); holes are filled per person in :func:`person_masks`."""
     cleaned = mask
     if open_px > 1:
         opened = cv2.morphologyEx(cleaned, cv2.MORPH_OPEN, _ellipse(open_px))
@@ -302,9 +254,6 @@ def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5,
     if close_px > 1:
         cleaned = cv2.morphologyEx(cleaned, cv2.MORPH_CLOSE, _ellipse(close_px))
     return cleaned
-
-
-_SQUARE_3 = np.ones((3, 3), np.uint8)
 
 
 @functools.lru_cache(maxsize=16)
@@ -319,38 +268,25 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
                  max_fragment_area: float = 0.15,
                  max_area_fraction: float = DEFAULT_MAX_AREA_FRACTION,
                  image: np.ndarray | None = None) -> list[PersonMask]:
-    """Split a cleaned foreground mask into one :class:`PersonMask` per 8-connected component.
-
-    ``mask``: uint8 (h, w) at the working size, 255 = foreground. ``frame_size``: (width, height)
-    px of the original frame; each person's crop is scaled up to it (linear interpolation,
-    threshold at half). ``min_area_fraction``: components smaller than this fraction of the image
-    are dropped as clutter; those larger than ``max_area_fraction`` as a change of the whole
-    scene (a background learned from other frames, a light switched on), not a person.
-    ``max_hole_fraction``: holes (enclosed background) up to this fraction
-    of the image are filled as subtraction dropouts; larger ones are kept, because a gap such as
-    between an arm on the hip and the torso is real background the pose depends on.
-    ``merge_fragments``: join components that look like pieces of one person (see
-    :func:`_fragment_groups`, which also gets ``max_fragment_area``; 0 joins only pieces
-    stacked one above the other); False gives exactly one person per component. ``image``:
-    the frame at the mask's size (BGR uint8 (h, w, 3)) to measure each person's colour from
-    (PersonMask.colour; None: not measured).
-    Returns people sorted by area, largest first. Two people touching form one component.
-    """
+    """One :class:`PersonMask` per 8-connected component of a cleaned mask (uint8 (h, w) at
+    working size, 255 = foreground), scaled up to ``frame_size`` (width, height) px (linear,
+    threshold at half); sorted by area, largest first. Components outside
+    [``min_area_fraction``, ``max_area_fraction``] of the image are dropped; holes up to
+    ``max_hole_fraction`` are filled (larger ones, e.g. between an arm and the torso, are
+    kept). ``merge_fragments``: join pieces of one person (:func:`_fragment_groups`).
+    ``image``: the frame at the mask's size (BGR uint8) to measure PersonMask.colour from."""
     height, width = mask.shape
     image_area = float(height * width)
     box = _padded_box(mask, 0)
     if box is None:
         return []
-    # Contours with a two-level hierarchy (outer boundaries, their holes) are ~20x cheaper than
-    # connectedComponentsWithStats here, and filling them reproduces each component exactly.
-    # Traced in the box around the foreground only (OpenCV pads the image with background):
-    # the same contours, in image coordinates, for the box's cost.
+    # Contours of outer boundaries and their holes, filled, reproduce each component exactly
+    # and cost far less than connectedComponentsWithStats; traced in the foreground's box only.
     contours, hierarchy = cv2.findContours(mask[box], cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE,
                                            offset=(box[1].start, box[0].start))
     parents = hierarchy[0][:, 3]
     areas = np.array([cv2.contourArea(c) for c in contours])
-    # contourArea runs through boundary pixel centres, so it undercounts by about half the
-    # perimeter; the gate only needs to reject clutter, the reported area is counted exactly.
+    # contourArea undercounts by about half the perimeter: enough to gate clutter.
     outers = np.flatnonzero((parents == -1) & (areas >= min_area_fraction * image_area)
                             & (areas <= max_area_fraction * image_area))
     big_holes = np.flatnonzero((parents != -1) & (areas > max_hole_fraction * image_area))
@@ -369,15 +305,11 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
 def _fragment_groups(rects: np.ndarray, areas: np.ndarray | None = None,
                      min_overlap: float = 0.5, max_gap: float = 0.25,
                      max_fragment_area: float = 0.15) -> list[list[int]]:
-    """Group the components (bounding rects (n, 4) x, y, w, h px; areas (n,) px) that are
-    pieces of one person: where skin or clothes match the background, subtraction can cut a
-    person in two at the waist or neck, or leave a foot or a hand apart. Two pieces belong
-    together when their x-ranges overlap by at least min_overlap of the narrower one and the
-    vertical gap between them is at most max_gap of the taller one; or when the smaller has at
-    most max_fragment_area of the larger's area, lies no more than max_gap of the larger's
-    height from its box on every side, and its centre is not above the larger's top (a foot, a
-    hand, a floor blob at the feet). (People side by side do not overlap in x and are of like
-    size; one standing behind another usually touches and is one component anyway.)"""
+    """Groups of components (rects (n, 4) x, y, w, h px; areas (n,) px) that are pieces of one
+    person (cut at the waist or neck, a foot or hand apart): x-ranges overlapping by
+    ``min_overlap`` of the narrower and a vertical gap of at most ``max_gap`` of the taller; or
+    the smaller at most ``max_fragment_area`` of the larger's area, within ``max_gap`` of its
+    height on every side, its centre not above the larger's top."""
     n = len(rects)
     if n < 2:
         return [[i] for i in range(n)]
@@ -413,9 +345,8 @@ def _fragment_groups(rects: np.ndarray, areas: np.ndarray | None = None,
 def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
                           shape: tuple[int, int], frame_size: tuple[int, int],
                           image: np.ndarray | None = None) -> PersonMask | None:
-    """Rasterize one person (its component pieces minus their kept holes) and scale it to
-    frame pixels. Pieces of one person are joined across the gap between them. Its colour
-    is measured in ``image`` (at the mask's size) when given, before scaling (cheaper)."""
+    """Rasterize one person (its pieces, joined across their gaps, minus their kept holes),
+    measure its colour in ``image`` (at the mask's size) and scale it to frame pixels."""
     height, width = shape
     frame_width, frame_height = frame_size
     sx, sy = frame_width / width, frame_height / height
@@ -425,8 +356,7 @@ def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
     for m in members:
         cv2.drawContours(crop, contours, m, 255, cv2.FILLED, offset=(-x, -y))
     if holes:
-        # A hole's contour runs through the foreground pixels around it: erase the inside,
-        # then restore that rim.
+        # A hole's contour runs through the foreground around it: erase inside, restore rim.
         cv2.drawContours(crop, holes, -1, 0, cv2.FILLED, offset=(-x, -y))
         cv2.drawContours(crop, holes, -1, 255, 1, offset=(-x, -y))
     if len(members) > 1:
@@ -460,17 +390,14 @@ def _bridge_vertical_gaps(crop: np.ndarray, rects) -> np.ndarray:
 
 
 def enclosed_shadow(foreground: np.ndarray, shadow: np.ndarray) -> np.ndarray:
-    """The shadow pixels that lie inside a body: uint8 (h, w) 255 where ``shadow`` (bool
-    (h, w)) has foreground (bool (h, w)) both above and below it in its column. Dark clothing
-    (shorts between torso and legs, a dark shirt under the head) is enclosed so; a shadow cast
-    on the ground is not, since nothing of the body stands below it in the image. Whole-image
-    operations (first and last foreground row per column), no per-pixel Python."""
+    """uint8 (h, w), 255 on the ``shadow`` pixels (bool (h, w)) with ``foreground`` (bool
+    (h, w)) above and below in their column: dark clothing inside a body, not a shadow cast on
+    the ground (nothing of the body below it). Computed in the shadow's box only."""
     out = np.zeros(shadow.shape, np.uint8)
     shadow_cols = np.flatnonzero(shadow.any(axis=0))
     if not len(shadow_cols):
         return out
     shadow_rows = np.flatnonzero(shadow.any(axis=1))
-    # Only the box around the shadow can change: the columns' scans are made there alone.
     c0, c1 = shadow_cols[0], shadow_cols[-1] + 1
     r0, r1 = shadow_rows[0], shadow_rows[-1] + 1
     height = foreground.shape[0]
@@ -485,13 +412,11 @@ def enclosed_shadow(foreground: np.ndarray, shadow: np.ndarray) -> np.ndarray:
 def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndarray,
                         min_correlation: float = 0.85, max_ratio_spread: float = 0.08,
                         min_area: int = 0) -> np.ndarray:
-    """Remove from ``mask`` (uint8 (h, w), 255 = foreground) the blobs where the frame is the
-    background under other light (frame and background BGR uint8 (h, w, 3)): inside the blob
-    either the grey levels correlate above ``min_correlation`` (same texture, only brightness
-    and contrast changed), or every pixel and channel changed by the same factor (the median
-    absolute deviation of log(frame / background) is under ``max_ratio_spread``: a plain
-    surface lit differently, or a soft shadow). A person in front of the background does
-    neither. Blobs under ``min_area`` px are left to the area gate. Returns a new mask."""
+    """A copy of ``mask`` (uint8 (h, w), 255 = foreground) without the blobs where the frame is
+    the background under other light (frame, background BGR uint8 (h, w, 3)): grey levels
+    correlating above ``min_correlation``, or log(frame / background)'s median absolute
+    deviation under ``max_ratio_spread`` (:func:`_relit`). Blobs under ``min_area`` px are
+    left to the area gate."""
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     out = mask.copy()
     for contour in contours:
@@ -510,9 +435,8 @@ def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndar
 
 def _relit(frame: np.ndarray, background: np.ndarray, min_correlation: float,
            max_ratio_spread: float) -> bool:
-    """Whether a blob's pixels, frame and background BGR uint8 (n, 3), are the background under
-    other light (:func:`drop_lighting_blobs`'s two tests; the ratio's spread, the dearer one,
-    only when the correlation has not decided)."""
+    """Whether a blob's pixels (frame, background BGR uint8 (n, 3)) pass either test of
+    :func:`drop_lighting_blobs`; the dearer ratio test only if the correlation fails."""
     f = frame.astype(np.float32)
     f += 4.0
     b = background.astype(np.float32)
@@ -542,20 +466,12 @@ def _median(values: np.ndarray) -> np.floating:
 class SilhouetteExtractor:
     """Frame -> list of :class:`PersonMask`: subtraction, cleaning and splitting in one call.
 
-    Keyword arguments go to :class:`BackgroundSubtractor`; ``open_px``, ``close_px`` and
-    ``restore_px`` to :func:`clean_mask` (working-resolution px); ``min_area_fraction``,
-    ``max_hole_fraction`` and ``max_fragment_area`` to :func:`person_masks`.
-    ``keep_enclosed_shadow``: shadow pixels inside a body's outline (enclosed by solid
-    foreground, not by specks) count as person (dark clothing; :func:`enclosed_shadow`).
-    ``drop_lighting``: drop blobs that are the background under other light
-    (:func:`drop_lighting_blobs`). ``refine``: re-segment people by colour where the background
-    is unreliable (tracker.video.zone; only after :meth:`prime` with frames of the clip),
-    learning grabCut's colour models every ``refine_relearn_every`` frames (1: every frame), the
-    foreground in the zone sure person unless ``trust_zone_foreground`` is False.
-    ``adapt_noise_floor``: when frames of the clip are given (:meth:`prime` with frames,
-    :meth:`learn_zone`), raise the background model's variance floor until its foreground on
-    them is no longer speckled (:func:`tracker.video.noise_floor.choose_var_min`; compressed video);
-    an explicit ``var_min`` keyword turns it off.
+    Keyword arguments go to :class:`BackgroundSubtractor`, the others to :func:`clean_mask`,
+    :func:`person_masks`, :func:`enclosed_shadow` (``keep_enclosed_shadow``),
+    :func:`drop_lighting_blobs` (``drop_lighting``), tracker.video.zone.ZoneRefiner
+    (``refine``: colour decides where the background is unreliable) and
+    :func:`tracker.video.noise_floor.choose_var_min` (``adapt_noise_floor``; off with an
+    explicit ``var_min``).
     """
 
     def __init__(self, open_px: int = 3, close_px: int = 5, restore_px: int = 1,
@@ -578,20 +494,15 @@ class SilhouetteExtractor:
             raise ExtractionError(f"refine_relearn_every={refine_relearn_every} must be >= 1")
         self.refine_relearn_every = refine_relearn_every
         self.trust_zone_foreground = trust_zone_foreground
-        #: The zone's tracker.video.zone.ZoneRefiner, made (and its module imported) only when
-        #: a clip has a zone to refine.
-        self.refiner = None
+        self.refiner = None         # a tracker.video.zone.ZoneRefiner, made when needed
         self.background: ClipBackground | None = None
 
     def prime(self, background, frame_size: tuple[int, int] | None = None) -> None:
-        """Learn the scene before the first frame. ``background``: either an image of the empty
-        scene (a clean plate, BGR uint8 (H, W, 3), e.g. ``--background IMAGE`` or
-        :func:`median_background`; at the working size when ``frame_size``, the frames' (width,
-        height) px, is given: :meth:`BackgroundSubtractor.prime`), trusted everywhere; or
-        frames spread over the clip (a list or (N, H, W, 3) array, e.g.
-        ``VideoSource.sample_frames(25)``, frame_size unused), from which
-        :func:`tracker.video.background.clip_background` estimates the scene and where it cannot be
-        trusted (a person who never leaves the spot). See :meth:`BackgroundSubtractor.prime`."""
+        """Learn the scene before the first frame from either an empty-scene image (BGR uint8
+        (H, W, 3), trusted everywhere; ``frame_size`` as in :meth:`BackgroundSubtractor.prime`)
+        or frames spread over the clip (list or (N, H, W, 3)), from which
+        :func:`tracker.video.background.clip_background` estimates the scene and where it
+        cannot be trusted (a person who never leaves the spot)."""
         if isinstance(background, np.ndarray) and background.ndim == 3:
             self.subtractor.prime(background, frame_size)
             self.background = clean_plate(self.subtractor.reference)
@@ -604,32 +515,27 @@ class SilhouetteExtractor:
         estimate = clip_background(small)
         height, width = frames[0].shape[:2]
         self.subtractor.prime(estimate.image, frame_size=(width, height))
-        self._adapt_noise_floor(small)
-        self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
+        self._learn_clip(small, estimate)
+
+    def _learn_clip(self, small: np.ndarray, estimate: ClipBackground) -> None:
+        """Use the primed subtractor with the clip's unreliable zone (``estimate``), its variance
+        floor retuned on the working-size frames ``small`` (N, h, w, 3)."""
+        sub = self.subtractor
+        if self.adapt_noise_floor:
+            var_min = choose_var_min(sub.primed_model, small)
+            if var_min != sub.var_min:
+                sub.retune(var_min)
+        self.background = ClipBackground(sub.reference, estimate.unreliable)
         self.refiner = None
 
-    def _adapt_noise_floor(self, small: np.ndarray) -> None:
-        """Retune the primed subtractor's variance floor on working-size frames (N, h, w, 3)."""
-        if not self.adapt_noise_floor:
-            return
-        sub = self.subtractor
-        var_min = choose_var_min(sub.primed_model, small)
-        if var_min != sub.var_min:
-            sub.retune(var_min)
-
     def learn_zone(self, frames) -> None:
-        """After :meth:`prime` with the clip's median image, mark where that background cannot
-        be trusted, from the same frames (list or (N, H, W, 3) BGR uint8, any size that shrinks
-        to the working size, e.g. ``sample_frames(25, size=working size)``): what priming with
-        the frames does, without learning the median twice (the variance floor is chosen on
-        them too, which re-learns the background: call it before the first frame)."""
+        """After :meth:`prime` with the clip's median image, mark where it cannot be trusted
+        from the same frames (list or (N, H, W, 3) BGR uint8 shrinking to the working size),
+        and choose the variance floor on them (call it before the first frame)."""
         if self.subtractor.reference is None:
             raise ExtractionError("learn_zone needs prime() with a background image first")
         small = self._working_frames(list(frames))
-        estimate = clip_background(small)
-        self._adapt_noise_floor(small)
-        self.background = ClipBackground(self.subtractor.reference, estimate.unreliable)
-        self.refiner = None
+        self._learn_clip(small, clip_background(small))
 
     def _working_frames(self, frames: list) -> np.ndarray:
         """Frames (each BGR uint8 (H, W, 3)) shrunk to the working size, (N, h, w, 3)."""
@@ -662,12 +568,11 @@ class SilhouetteExtractor:
 
     def _cleaned(self, mask: np.ndarray, shadow: np.ndarray, small: np.ndarray,
                  box: tuple[slice, slice], image_area: int) -> np.ndarray:
-        """The cleaned foreground (uint8 (h, w), 255 = person) of one ``box`` (rows, columns)
-        of the working-size image, from MOG2's foreground there (uint8, 255; changed in place),
-        its shadow (bool) and the frame (BGR uint8); image_area: px of the whole working-size
-        image (the area gate is a fraction of it). The box holds all of the frame's
-        foreground with a margin wider than the morphology reaches (_padded_box), so the result
-        is the whole image's, cropped: the cleaning costs what the box's size does."""
+        """Cleaned foreground (uint8 (h, w), 255 = person) of one ``box`` (rows, columns) of the
+        working-size image, from MOG2's foreground (uint8, changed in place), shadow (bool) and
+        the frame (BGR uint8) there; image_area: px of the whole image (for the area gate). The
+        box holds all foreground plus a margin wider than the morphology reaches, so the result
+        is the whole image's, cropped."""
         if self.keep_enclosed_shadow:
             # Bodies enclose shadow, specks (flicker on a window, noise on the ceiling) do not.
             solid = clean_mask(mask, self.open_px, 1, self.restore_px) > 0

@@ -1,8 +1,5 @@
-"""Where people's silhouettes come from (``track --silhouettes``): background subtraction, the
-person segmenter (tracker.video.segmenter, an optional extra), or auto, background subtraction
-that turns to the segmenter where it cannot work. The segmenter's module is imported only when
-a run uses it.
-"""
+"""Where silhouettes come from (``track --silhouettes``): background subtraction, the person
+segmenter (tracker.video.segmenter, an optional extra, imported only when used), or auto."""
 from __future__ import annotations
 
 import importlib.util
@@ -11,7 +8,7 @@ import warnings
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
-from tracker.video.camera_motion import CameraMotionMeter, camera_moves
+from tracker.video.camera_motion import camera_moves
 from tracker.video.decode import colourless
 from tracker.video.silhouettes import BackgroundSubtractor, PersonMask, SilhouetteExtractor
 
@@ -38,26 +35,21 @@ def require_segmenter(option: str = "--silhouettes segment") -> None:
 
 
 class AutoExtractor:
-    """``track --silhouettes auto``: background subtraction (``make_background(**options)``,
-    a :class:`SilhouetteExtractor` factory) where it works, ``segmenter`` (a
-    :class:`PersonSegmenter`, or None where the extra is missing) where it cannot: a camera
-    that moves, i.e. the clip's sampled frames do not line up
-    (:func:`tracker.video.camera_motion.camera_moves`), or, frame by frame, the camera starts to move
-    (:class:`tracker.video.camera_motion.CameraMotionMeter`, only with the segmenter: without it
-    nothing is measured per frame); the segmenter then proposes no moving blobs.
-    A person who never leaves the spot stays with background subtraction: on such clips
-    (Pose2Sim's balancing and swings) its colour-decided zone gave masks as good as or better
-    than the segmenter's (docs/segmenter.md).
-
-    Without the segmenter, such a clip stays with background subtraction and one warning says
-    how to install it. :attr:`source` is "background" or "segment"; :attr:`reason` why.
-    """
+    """``track --silhouettes auto``: background subtraction (``make_background(**options)``
+    makes a :class:`SilhouetteExtractor`) until the camera moves (the clip's samples, or with
+    the segmenter also frame by frame: tracker.video.camera_motion), then ``segmenter`` (a
+    PersonSegmenter proposing no moving blobs; None without the extra: one warning). A person
+    who never leaves the spot stays with background subtraction (docs/segmenter.md).
+    :attr:`source`: "background" or "segment"; :attr:`reason`: why."""
 
     def __init__(self, make_background, segmenter):
         self.make_background = make_background
         self.background: SilhouetteExtractor = make_background()
         self.segmenter = segmenter
-        self.meter = CameraMotionMeter()
+        self.meter = None                       # the per-frame meter serves the segmenter only
+        if segmenter is not None:
+            from tracker.video.segmenter import CameraMotionMeter
+            self.meter = CameraMotionMeter()
         self.source, self.reason = "background", None
 
     @property
@@ -66,8 +58,7 @@ class AutoExtractor:
         return self.background.subtractor
 
     def prime(self, background, frame_size: tuple[int, int] | None = None) -> None:
-        """Prime both paths (:meth:`SilhouetteExtractor.prime`); frames of the clip are also
-        judged (camera motion)."""
+        """Prime both paths (:meth:`SilhouetteExtractor.prime`); judge frames of the clip."""
         image = background if isinstance(background, np.ndarray) and background.ndim == 3 \
             else None
         if colourless(image if image is not None else np.asarray(background)[0]):
@@ -88,8 +79,7 @@ class AutoExtractor:
             self._choose("the camera moves")
 
     def _choose(self, reason: str) -> None:
-        """Turn to the segmenter for ``reason`` (or warn once that it is missing); a moving
-        camera makes everything a moving blob, so it proposes none."""
+        """Turn to the segmenter (without moving blobs) for ``reason``, or warn once."""
         if self.source == "segment" or self.reason is not None:
             return
         self.reason = reason
@@ -110,10 +100,8 @@ class AutoExtractor:
 
 
 def silhouette_extractor(source: str, settings):
-    """The extractor ``track --silhouettes SOURCE`` uses with tracker.pipeline.TrackerSettings
-    ``settings``: None for "background" (PoseTracker's default), a PersonSegmenter for
-    "segment" (SegmenterMissingError without the extra), an AutoExtractor for "auto" (with the
-    segmenter where installed)."""
+    """The extractor of ``track --silhouettes SOURCE`` (tracker.pipeline.TrackerSettings
+    ``settings``): None (PoseTracker's default), a PersonSegmenter or an AutoExtractor."""
     from tracker.pipeline import default_extractor
     if source not in SOURCES:
         raise ValueError(f"silhouette source {source!r} is not one of {', '.join(SOURCES)}")

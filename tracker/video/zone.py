@@ -1,7 +1,6 @@
 """Where the background model is unreliable (a person who never leaves the spot): person or
-background decided by colour, with OpenCV's grabCut seeded by what background subtraction
-found (tracker.video.silhouettes.SilhouetteExtractor's ``refine``). Imported only for clips
-with such a zone.
+background decided by colour by OpenCV's grabCut, seeded by background subtraction
+(SilhouetteExtractor's ``refine``). Imported only for clips with such a zone.
 """
 from __future__ import annotations
 
@@ -19,38 +18,15 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
     """Decide person or background by colour where the background model is unreliable.
 
     ``mask``: uint8 (h, w) foreground, 255 = person; ``frame``: BGR uint8 (h, w, 3); ``shadow``
-    and ``zone``: bool (h, w), MOG2's shadow pixels and the background's unreliable zone
-    (:func:`tracker.video.background.clip_background`). Each blob of mask | zone that touches the zone
-    and has at least ``min_seed_area`` px of foreground outside it (a person is there and
-    moving) is re-segmented inside its box (padded by ``margin``; :func:`zone_boxes`) with
-    OpenCV's grabCut, on a copy shrunk to at most ``max_side_px`` (400: a person at the default
-    working size is not shrunk; at 112 a leg ~8 px wide kept ~3 px and grabCut lost the standing
-    leg; at 224, about 1.6x faster, Pose2Sim coverage was 2.2 points lower on cam03, 0.7 higher
-    on cam02, within 0.6 on the others; at 400 this costs 67-76 ms per frame on the 320x569
-    Pose2Sim views, on a loaded machine): foreground is sure person (also inside the zone, where
-    the background model still sees most of a standing leg), background outside the zone sure
-    background (shadow: probable background), the rest of the zone probable person; the colour
-    models then fill in the still torso the background model had absorbed. Returns a new mask.
-    :class:`ZoneRefiner` does the same, keeping grabCut's colour models between frames.
-
-    ``trust_zone_foreground=False`` makes the foreground inside the zone only probable person
-    too, so that colour also decides on ghosts: where the median showed the person and the
-    person has since moved, the background differs from the median and the subtractor calls
-    it foreground, and as sure person it stays on the mask (Pose2Sim's masks are person and
-    background blobs). Measured on Pose2Sim (2026-12-02, ``scripts/evaluate_silhouettes.py
-    --extractor after colour``, mean over the 4 views): the mask's share off the keypoints'
-    body 0.254 -> 0.163, keypoint coverage 0.911 -> 0.860; through ``scripts/evaluate_real.py
-    --zone-foreground colour`` knee/elbow flexion error 31.0 -> 25.1 degrees (the constant at
-    the reference's mean 13.0). Its costs: a floor blob at the feet that the zone had glued to
-    the body becomes a track of its own for a few frames (cam01: two, of 4 and 10 frames; one
-    frame of the 16 small test frames), colour models kept between frames cut up to 6 % of the
-    mask differently from models learned every frame (5 % with the rule above), and coverage
-    falls; thin foreground kept sure (an opening of 3-9 px decides what is thick) gave masks
-    between the two (flexion 26.7 at 5 px) with kept-model differences up to 10 %. ``track``'s
-    default since 2026-12-04 (tracker.pipeline.TrackerSettings.trust_zone_foreground), chosen
-    on rendered validation videos: where a walker stays in one region of a short clip, that
-    region becomes the zone, and the sure rule kept its ghosts (12 validation videos, filtered
-    corr8 0.447 -> 0.563, heading unchanged). This function's own default stays the sure rule.
+    and ``zone``: bool (h, w), MOG2's shadow and the unreliable zone
+    (tracker.video.background.clip_background). Each box of :func:`zone_boxes` is cut by
+    grabCut on a copy shrunk to at most ``max_side_px`` (400: a person at working size is not
+    shrunk; smaller lost thin legs): foreground sure person, background outside the zone sure
+    background (shadow: probable), the rest of the zone probable person, so the colour models
+    fill in the still torso the background model absorbed. ``trust_zone_foreground=False``
+    makes the zone's foreground only probable too, so colour also removes ghosts (where the
+    person stood in the median); :data:`COLLAPSED_SHARE` guards it. Figures:
+    docs/code_notes/video.md. Returns a new mask; :class:`ZoneRefiner` keeps colour models.
     """
     out = mask.copy()
     for x0, y0, x1, y1 in zone_boxes(mask, zone, min_seed_area, margin):
@@ -64,11 +40,9 @@ def refine_in_zone(mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray, zone
     return out
 
 
-#: A colour cut (foreground in the zone only probable person) that keeps less than this share
-#: of the box's foreground has lost the person, not a ghost: the box is cut again with the
-#: foreground sure. Ghosts are a part of the foreground (Pose2Sim: the mask's share off the
-#: body 0.25 -> 0.16 with colour deciding); a rendered walker lost 70 % of itself in one frame
-#: (tests/test_track_cli.py's two walkers: the track broke in two there).
+#: A colour cut (the zone's foreground only probable person) keeping less than this share of
+#: the box's foreground has lost the person, not a ghost (ghosts are a part of it): the box is
+#: cut again with the foreground sure (a rendered walker had lost 70 % of itself in a frame).
 COLLAPSED_SHARE = 0.5
 
 
@@ -139,25 +113,11 @@ def _box_iou(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> floa
 
 class ZoneRefiner:
     """:func:`refine_in_zone` for a video: grabCut's colour models are learned in a box every
-    ``relearn_every`` frames; in between, the box is cut with the models kept from the previous
-    frame's box it overlaps most (IoU at least ``min_iou``).
-
-    The cut itself still runs every frame on that frame's pixels, so a limb that moves is
-    followed; only the colour models, which change little while the same person stands in
-    front of the same background, are kept. Learning them (k-means, then two rounds of
-    re-estimation) is most of grabCut's cost: on a 386x225 Pose2Sim box 47 ms learning and
-    cutting against 18 ms cutting with kept models, the two masks differing in 1 % of the
-    pixels. ``relearn_every`` 1 learns every frame, as :func:`refine_in_zone`; on the Pose2Sim
-    views (silhouettes of cam01 91 ms per frame learning every frame, 63 at 3, 55 at 5)
-    coverage and spill stay within a keypoint or two of learning every frame, as do different
-    seeds, but at 5 cam02 fell to 1994 of 2100 keypoints (94.95 %) for two seeds of four, at 3
-    it kept 1995-1998 for all four. Not cutting at all in two frames of three (the last mask
-    kept in the zone, today's foreground added) was faster still but leaves a moved limb where
-    it was: cam02 fell to 1990 (94.8 %) while cam03 rose to 1973 on stale masks; reusing the
-    mask only where the foreground barely changed (under 5 % of its area) reused 1 box in 101 on
-    cam03, whose window flicker changes 10-15 % of it from frame to frame.
-    Other arguments: those of :func:`refine_in_zone`.
-    ``learned`` and ``kept`` count the boxes cut each way.
+    ``relearn_every`` frames; in between, the box is cut (every frame, on its own pixels) with
+    the models kept from the previous frame's box it overlaps most (IoU at least ``min_iou``):
+    learning is most of grabCut's cost, and the models change little while the same person
+    stands before the same background (figures: docs/code_notes/video.md). Other arguments:
+    :func:`refine_in_zone`'s. ``learned`` and ``kept`` count the boxes cut each way.
     """
 
     def __init__(self, relearn_every: int = 3, min_iou: float = 0.5, min_seed_area: int = 20,
@@ -172,10 +132,6 @@ class ZoneRefiner:
         self.learned = 0
         self.kept = 0
         self._models: list[_ColourModels] = []
-
-    def reset(self) -> None:
-        """Forget the kept colour models (a new scene or background)."""
-        self._models = []
 
     def __call__(self, mask: np.ndarray, frame: np.ndarray, shadow: np.ndarray,
                  zone: np.ndarray) -> np.ndarray:
@@ -226,11 +182,10 @@ def _grabcut_models(crop: np.ndarray, labels: np.ndarray, max_side_px: int,
                     models: tuple[np.ndarray, np.ndarray] | None = None, seed: int = 0
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """grabCut of a BGR crop seeded by GC_* labels (same (h, w)), on a copy shrunk to
-    max_side_px. Without ``models``: colour models learned from the seeds, 2 iterations, their
-    k-means started from OpenCV's random generator reset to ``seed``; with (background, person)
-    float64 (1, 65) GMMs: one cut with them frozen. Returns (uint8 (h, w) 255 = person at the
-    crop's size, the background and person models used; both None when grabCut could not
-    run)."""
+    max_side_px: without ``models``, learned from the seeds (2 iterations, OpenCV's generator
+    reset to ``seed``); with (background, person) float64 (1, 65) GMMs, one cut with them
+    frozen. Returns (uint8 (h, w) 255 = person at the crop's size, the models used; both None
+    when grabCut could not run)."""
     h, w = labels.shape
     scale = min(1.0, max_side_px / max(h, w))
     small = (max(1, round(w * scale)), max(1, round(h * scale)))
