@@ -1,25 +1,21 @@
 """Front/back hypotheses carried over time: which of the regressor's poses is the true one.
 
 A silhouette cannot tell a body from its reflection in depth (sequences.pose_vector.
-front_back_flip: heading h -> 180 - h, left and right exchanged). Each frame gives K hypotheses
-(:func:`propose`): the pose and its flip (per expert for a mixture), or, for a model with limb
-networks and a side classifier, the limbs' canonical member and its flip
-(:func:`canonical_hypotheses`). A hidden Markov model over s_t in {0..K-1}, with one Kalman
-filter per state (a GPB / IMM filter bank), keeps which hypothesis is the truth:
+front_back_flip). Each frame gives K hypotheses (:func:`hypotheses_from`): the pose and its
+flip (per expert for a mixture), or, for a model with limb networks and a side classifier, the
+limbs' canonical member and its flip (:func:`canonical_hypotheses`). A hidden Markov model over
+s_t in {0..K-1}, with one Kalman filter per state (a GPB / IMM filter bank), keeps which one
+is the truth:
 
     alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
 
-A: switching probabilities (the state switches only where the regressor's flips do); N: the
-innovation likelihood of hypothesis j under predecessor i's filter (filter j continues the
-best predecessor's, so a flip is explained by a switch, not by a jump of the body); e_t(j): the
-frame's own evidence (RAW_NEARER_BY_NORM, or the side classifier's calibrated probability,
-regressor.canonical_priors), tempered per frame since stacked descriptors share frames.
-
-Online the output is the most probable state's filtered pose (with the runner-up when close);
-offline (``--smooth``) the Viterbi path is RTS-smoothed. With ``limb_filter_factory`` the 53
-body angles come from one more filter over the limb member nearer the decided heading
-(pick_member; tracker.pipeline.LIMB_R_SCALE). How each piece and constant was chosen:
-docs/tuning.md, "tracker/tracks/hypotheses.py".
+A: switching probabilities; N: the innovation likelihood of hypothesis j under predecessor i's
+filter (filter j continues the best predecessor's, so a flip is explained by a switch, not by a
+jump of the body); e_t(j): the frame's own evidence, tempered per frame since stacked
+descriptors share frames. Online the output is the most probable state's filtered pose (with
+the runner-up when close); offline (``--smooth``) the Viterbi path is RTS-smoothed. With
+``limb_filter_factory`` the 53 body angles come from one more filter over the limb member
+nearer the decided heading. How each piece and constant was chosen: docs/tuning.md.
 """
 from __future__ import annotations
 
@@ -33,10 +29,9 @@ from regressor.angles import heading_norm
 from regressor.canonical_priors import CanonicalPriors
 from regressor.estimator import PoseEstimates, PoseEstimator
 from regressor.pose_model import DEFAULT_TRAINING_FPS
-from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from tracker.tracks.member_path import members_over_time
-from tracker.tracks.mirror_limbs import mirror_mean, sees_mirror
+from tracker.tracks.mirror_limbs import mirror_mean
 
 #: P(the raw pose is nearer the truth than its flip | raw heading norm in
 #: [RAW_NEARER_NORM_EDGES[b], next edge)), and overall; learned on validation renders by
@@ -46,15 +41,13 @@ RAW_NEARER_BY_NORM = (0.672, 0.617, 0.646, 0.703, 0.744, 0.688)
 RAW_NEARER_OVERALL = 0.681
 #: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps: the regressor's flips, same data.
 SWITCH_PROBABILITY = (0.117, 0.248)
-#: Exponent per frame of the regressor's evidence (log likelihoods are multiplied by it):
-#: consecutive frames' evidence is correlated.
+#: Exponent per frame of the regressor's evidence (log likelihoods are multiplied by it).
 EVIDENCE_WEIGHT = 1.0
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
 
-#: The canonical chain's priors (module docstring) for a model file without its own
-#: (PoseModel.canonical_priors), learned on the 28 validation renders for the shipped model's
-#: networks. (P(canonical -> flip), P(flip -> canonical)) per frame: how often the truer
-#: member changes (only where the member's rule does, mostly in profile).
+#: The canonical chain's priors for a model file without its own (PoseModel.canonical_priors),
+#: learned on the 28 validation renders for the shipped model's networks: (P(canonical ->
+#: flip), P(flip -> canonical)) per frame (the member's rule changes mostly in profile).
 CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 #: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
 #: the member's every frame, scores a few nats below it and weaker evidence never catches up.
@@ -78,9 +71,9 @@ _FLOOR = 1e-3                            # no evidence is ever certain
 class Hypotheses:
     """One frame's candidate poses: poses (K, 55); log_evidence (K,) the regressor's evidence
     for each (log likelihood ratios); raw (55,) the regressor's own (first) pose; limbs (55,)
-    the model's limb head's pose (a canonical member, module docstring "Limbs") or None;
-    canonical: the poses are that member and its flip (:func:`canonical_hypotheses`); front:
-    then the side classifier's probability that the body faces the camera's half."""
+    the limb head's pose (a canonical member) or None; canonical: the poses are that member
+    and its flip; front: then the side classifier's probability that the body faces the
+    camera's half."""
 
     poses: np.ndarray
     log_evidence: np.ndarray
@@ -92,27 +85,13 @@ class Hypotheses:
 
 def pick_member(limbs: np.ndarray, heading_deg) -> np.ndarray:
     """Of each canonical pose (55,) or (T, 55) and its front/back flip, the one whose heading
-    is nearer heading_deg (scalar or (T,), degrees); same shape as limbs."""
+    is nearer heading_deg (scalar or (T,), degrees: larger cosine); same shape as limbs."""
     limbs = np.asarray(limbs, dtype=np.float64)
     h = np.radians(np.asarray(heading_deg, dtype=np.float64))
-    keep = member_on_side(limbs, np.stack([np.cos(h), np.sin(h)], axis=-1))
-    return np.where(np.asarray(keep)[..., None], limbs, front_back_flip(limbs))
-
-
-def member_on_side(members: np.ndarray, direction: np.ndarray) -> np.ndarray:
-    """Whether each pose (..., 55), not its front/back flip, has the heading nearer the
-    direction (..., 2) (cos, sin): bool (...). Nearer = larger cosine with the direction
-    (norms do not matter)."""
-    members = np.asarray(members, dtype=np.float64)
-    direction = np.asarray(direction, dtype=np.float64)
-    return ((members[..., :2] * direction).sum(-1)
-            >= (front_back_flip(members)[..., :2] * direction).sum(-1))
-
-
-def raw_probability(norm) -> np.ndarray:
-    """P(the raw pose, not its flip, is the true view | raw heading norm(s)), from
-    RAW_NEARER_BY_NORM (norms beyond the last edge use the last bin)."""
-    return _table(RAW_NEARER_NORM_EDGES, RAW_NEARER_BY_NORM, norm)
+    direction = np.stack([np.cos(h), np.sin(h)], axis=-1)
+    flips = front_back_flip(limbs)
+    keep = (limbs[..., :2] * direction).sum(-1) >= (flips[..., :2] * direction).sum(-1)
+    return np.where(np.asarray(keep)[..., None], limbs, flips)
 
 
 def deaveraged_heading(poses: np.ndarray) -> np.ndarray:
@@ -135,11 +114,11 @@ def deaveraged_heading(poses: np.ndarray) -> np.ndarray:
 def _with_flips(poses: np.ndarray, gate: np.ndarray, limbs: np.ndarray | None = None
                 ) -> Hypotheses:
     """Each pose (m, 55) with gate probability (m,) -> 2m hypotheses (pose, flip, pose, ...),
-    headings de-averaged (deaveraged_heading); raw stays the regressor's first pose; limbs
-    (55,) the limb head's pose or None, passed on."""
+    headings de-averaged, evidence from RAW_NEARER_BY_NORM; raw stays the regressor's first
+    pose; limbs (55,) the limb head's pose or None, passed on."""
     raw = poses[0]
     poses = deaveraged_heading(poses)
-    p_raw = raw_probability(heading_norm(poses))
+    p_raw = _table(RAW_NEARER_NORM_EDGES, RAW_NEARER_BY_NORM, heading_norm(poses))
     ratio = np.stack([p_raw / RAW_NEARER_OVERALL, (1 - p_raw) / (1 - RAW_NEARER_OVERALL)], 1)
     both = np.stack([poses, front_back_flip(poses)], axis=1).reshape(-1, poses.shape[-1])
     evidence = np.log(np.maximum(gate, _FLOOR))[:, None] + np.log(ratio)
@@ -191,45 +170,15 @@ def canonical_priors(estimator: PoseEstimator) -> CanonicalPriors:
     return estimator.canonical_priors or DEFAULT_CANONICAL_PRIORS
 
 
-def switch_probability(estimator: PoseEstimator) -> tuple[float, float]:
-    """The chain's switching probabilities for this estimator's hypotheses (canonical pairs
-    switch far less often than a pose and its flip)."""
-    if estimator.gives_canonical_pairs:
-        return canonical_priors(estimator).switch
-    return SWITCH_PROBABILITY
-
-
-def evidence_weight(estimator: PoseEstimator) -> float:
-    """The chain's exponent per frame on this estimator's evidence."""
-    if estimator.gives_canonical_pairs:
-        return CANONICAL_EVIDENCE_WEIGHT
-    return EVIDENCE_WEIGHT
-
-
 def chain_options(estimator: PoseEstimator) -> dict:
-    """FrontBackTracker's keyword arguments that depend on the estimator: switch rates,
-    evidence weight and the frame rate they hold at (its training_fps)."""
-    return {"switch": switch_probability(estimator),
-            "evidence_weight": evidence_weight(estimator),
-            "reference_fps": estimator.training_fps}
-
-
-def propose(estimator: PoseEstimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
-            mirrored: np.ndarray | None = None) -> Hypotheses:
-    """The hypotheses of one frame's stacked descriptor (k*D,) (and its mirror image's, or
-    None): :func:`propose_batch` of one row."""
-    return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts,
-                         None if mirrored is None else np.asarray(mirrored, float)[None])[0]
-
-
-def propose_batch(estimator: PoseEstimator, stacked: np.ndarray,
-                  n_experts: int = DEFAULT_EXPERTS, mirrored: np.ndarray | None = None
-                  ) -> list[Hypotheses]:
-    """The hypotheses of stacked descriptors (N, k*D), one per row: the estimator's
-    ``hypotheses`` with n_experts experts through :func:`hypotheses_from`. mirrored (N, k*D)
-    or None: the mirror images' stacked descriptors (tracker.tracks.mirror_limbs)."""
-    estimates = estimator.hypotheses(stacked, n_experts, mirrored=mirrored, novelty=False)
-    return hypotheses_from(estimates, canonical_priors(estimator))
+    """FrontBackTracker's keyword arguments that depend on the estimator: switch rates (canonical
+    pairs switch far less often than a pose and its flip), evidence weight and the frame rate
+    they hold at (its training_fps)."""
+    if estimator.gives_canonical_pairs:
+        switch, weight = canonical_priors(estimator).switch, CANONICAL_EVIDENCE_WEIGHT
+    else:
+        switch, weight = SWITCH_PROBABILITY, EVIDENCE_WEIGHT
+    return {"switch": switch, "evidence_weight": weight, "reference_fps": estimator.training_fps}
 
 
 def hypotheses_from(estimates: PoseEstimates,
@@ -248,22 +197,6 @@ def hypotheses_from(estimates: PoseEstimates,
         limbs = [None] * len(poses)
     return [_with_flips(np.asarray(p, float), np.asarray(g, float), lb)
             for p, g, lb in zip(poses, gate, limbs)]
-
-
-def propose_sequence(estimator: PoseEstimator, masks, n_experts: int = DEFAULT_EXPERTS,
-                     mirror: bool = True, step: int = 1) -> list[Hypotheses]:
-    """The hypotheses of one person's silhouette sequence (masks (H, W) bool, in order), as
-    the tracker makes them: each mask described (and its mirror image when
-    tracker.tracks.mirror_limbs.sees_mirror), stacked ``step`` frames apart, then
-    :func:`propose_batch` (offline evaluation and the learning of priors)."""
-    k = estimator.stack_depth
-    if sees_mirror(estimator, mirror):
-        pairs = [estimator.describe_with_mirror(m) for m in masks]
-        X, M = (np.array([p[i] for p in pairs]) for i in (0, 1))
-        return propose_batch(estimator, stack_frames(X, k, step=step), n_experts,
-                             stack_frames(M, k, step=step))
-    X = np.array([estimator.describe(m) for m in masks])
-    return propose_batch(estimator, stack_frames(X, k, step=step), n_experts)
 
 
 def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
@@ -334,12 +267,10 @@ class FrontBackTracker:
         log_A = self._log_transitions(K)
         if self.log_alpha is None or len(self.filters) != K:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
-            stationary = np.linalg.matrix_power(np.exp(log_A), 256)[0]
-            self.log_alpha, link = np.log(stationary) + evidence, None
+            self.log_alpha, link = _log_stationary(log_A) + evidence, None
         else:
             ll = np.array([f.log_likelihoods(poses) if hasattr(f, "log_likelihoods")
-                           else np.zeros(K)
-                           for f in self.filters])
+                           else np.zeros(K) for f in self.filters])
             link = log_A + rate * ll
             scores = self.log_alpha[:, None] + link
             self.filters = self._continue(scores.argmax(axis=0))
@@ -395,11 +326,14 @@ class FrontBackTracker:
 
     def _continue(self, predecessor: np.ndarray) -> list:
         """Filters for the new states: state j continues predecessor[j]'s filter (a copy when
-        two states continue the same one; copies are made before any filter steps)."""
+        two states continue the same one; copies are made before any filter steps). A filter's
+        own ``copy()`` when it has one, else a deep copy."""
         used, out = set(), []
         for i in predecessor:
             f = self.filters[int(i)]
-            out.append(_clone(f) if int(i) in used else f)
+            if int(i) in used:
+                f = f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
+            out.append(f)
             used.add(int(i))
         return out
 
@@ -409,10 +343,7 @@ class FrontBackTracker:
         frames = self.history[start:stop]
         if not frames:
             return np.zeros(0, dtype=np.int64)
-        first = frames[0]
-        K = len(first.poses)
-        log_A = self._log_transitions(K)
-        delta = np.log(np.linalg.matrix_power(np.exp(log_A), 256)[0]) + first.evidence
+        delta = _log_stationary(self._log_transitions(len(frames[0].poses))) + frames[0].evidence
         back = []
         for frame in frames[1:]:
             scores = delta[:, None] + frame.link
@@ -423,13 +354,6 @@ class FrontBackTracker:
             path.append(int(pointers[path[-1]]))
         return np.array(path[::-1], dtype=np.int64)
 
-    def chosen_poses(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """The hypotheses (n, 55) on the Viterbi path of history[start:stop] (the smoother's
-        input)."""
-        frames = self.history[start:stop]
-        path = self.viterbi_path(start, stop)
-        return np.array([frame.poses[s] for frame, s in zip(frames, path)])
-
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``), of the
         whole track or of history[start:stop] alone (tracker.tracks.fixed_lag). With a
@@ -437,7 +361,8 @@ class FrontBackTracker:
         limb members' most probable chain (tracker.tracks.member_path), under the smoothed
         heading."""
         frames = self.history[start:stop]
-        out = self.filter_factory(self.fps).rts_smooth(self.chosen_poses(start, stop))
+        chosen = [frame.poses[s] for frame, s in zip(frames, self.viterbi_path(start, stop))]
+        out = self.filter_factory(self.fps).rts_smooth(np.array(chosen))
         if self.limb_filter_factory is not None and len(out):
             raws = np.array([frame.raw for frame in frames])
             if all(frame.limbs is not None for frame in frames):
@@ -456,10 +381,9 @@ def with_body_angles(pose: np.ndarray, limbs: np.ndarray) -> np.ndarray:
     return out
 
 
-def _clone(f):
-    """An independent copy of a filter: its own ``copy()`` when it has one (PoseKalmanFilter's
-    copies two arrays), else a deep copy."""
-    return f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
+def _log_stationary(log_A: np.ndarray) -> np.ndarray:
+    """log of the stationary distribution (K,) of the transition matrix exp(log_A) (K, K)."""
+    return np.log(np.linalg.matrix_power(np.exp(log_A), 256)[0])
 
 
 def _logsumexp(x: np.ndarray, axis=None) -> np.ndarray:
