@@ -1,14 +1,11 @@
 """Which body the limbs are, decided over a whole track (``--smooth``).
 
-The limb networks give one of a silhouette's two bodies (their canonical member); online the
-tracker takes it or its front/back flip, whichever heading is nearer the chain's
-(tracker.tracks.hypotheses.pick_member). In profile the two headings nearly meet and what
-differs is which leg is forward, so offline the choice is the most probable chain of members
-(regressor.hypothesis_path): each frame's evidence for a member is a Gaussian
-(MEMBER_HEADING_SD_DEG) of its heading's distance to the smoothed heading, and each step costs
-the squared change of the 53 body angles over 2 MEMBER_STEP_VARIANCE. Away from profile the
-heading decides; in profile the legs' continuity does. Only the ratio MEMBER_STEP_VARIANCE /
-MEMBER_HEADING_SD_DEG^2 matters (0.44; docs/accuracy.md, "2026-12-04 (stop 42)").
+Online the tracker takes the limbs' canonical member or its flip, whichever heading is nearer
+the chain's (hypotheses.pick_member); in profile the headings nearly meet and what differs is
+which leg is forward. Offline the choice is the most probable chain of members
+(regressor.hypothesis_path): a frame's evidence for a member is a Gaussian (MEMBER_HEADING_SD_DEG)
+of its heading's distance to the smoothed heading, each step costs the squared change of the 53
+body angles over 2 MEMBER_STEP_VARIANCE. Only their ratio matters: docs/tuning.md.
 """
 from __future__ import annotations
 

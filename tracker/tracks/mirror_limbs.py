@@ -1,12 +1,8 @@
-"""Limbs from the image and from its mirror image, averaged.
+"""Limbs from the image and from its mirror image, averaged (``TrackerSettings.mirror_limbs``).
 
-A model whose limb networks were fitted on mirror images too (regressor.training.MixtureOptions
-.limb_net_mirror; PoseModel.limbs_see_mirror) answers for a frame's mirror image as well as for
-the frame. Its answer for the mirror image, mirrored back (sequences.pose_vector.image_mirror),
-is a second estimate of the same body with errors partly independent of the first (the
-networks' handedness and fit differ between the two sides), so the tracker averages the two
-(``TrackerSettings.mirror_limbs``, on by default) at the cost of the mirror image's descriptor
-and one more pass of the networks per person and frame. Measurements: docs/tuning.md.
+A model whose limb networks were fitted on mirror images too (PoseModel.limbs_see_mirror)
+answers for a frame's mirror image as well; mirrored back, that is a second estimate of the
+same body with partly independent errors. Measurements: docs/tuning.md.
 """
 from __future__ import annotations
 
