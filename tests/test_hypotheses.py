@@ -9,7 +9,8 @@ from regressor.angles import pose_angles, wrap_deg
 from regressor.estimator import PoseEstimates
 from sequences.pose_vector import front_back_flip
 from tracker.tracks.filtering import PoseKalmanFilter
-from tracker.tracks.hypotheses import FrontBackTracker, Hypotheses, _with_flips, transition_matrix
+from tracker.tracks.flip_hypotheses import with_flips as _with_flips
+from tracker.tracks.hypotheses import FrontBackTracker, Hypotheses, transition_matrix
 from tracker.tracks.proposals import propose_batch
 
 FPS = 30.0

@@ -142,16 +142,13 @@ class Associator:
         self.tracks: list[Track] = []
         self._next_id = 0
 
-    def cost_matrix(self, centroids: np.ndarray, areas: np.ndarray,
-                    boxes: np.ndarray | None = None,
+    def cost_matrix(self, centroids: np.ndarray, areas: np.ndarray, boxes: np.ndarray,
                     colours: np.ndarray | None = None) -> np.ndarray:
         """Costs (tracks, detections) for centroids (N, 2) px, areas (N,) px, boxes (N, 4)
-        px (x, y, w, h; nan or None: unknown) and colour histograms (N, K) (None: unknown);
-        inf = gated."""
+        px (x, y, w, h; nan: unknown) and colour histograms (N, K) (None: unknown); inf =
+        gated."""
         if not self.tracks:
             return np.zeros((0, len(areas)))
-        if boxes is None:
-            boxes = np.full((len(areas), 4), np.nan)
         predicted = np.array([t.predicted() for t in self.tracks])           # (T, 2)
         track_area = np.array([t.area for t in self.tracks])                  # (T,)
         # Coasting, in a group or unseen, widens the gate by one size a frame.

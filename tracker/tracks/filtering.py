@@ -1,8 +1,7 @@
 """Kalman filtering of regressed poses over time, with angle wrap-around handled.
 
-State: for each of the 54 angles (heading, then pose entries 2..54), in degrees, the angle and
-its rate: x = [angles (54), rates (54)] (108,). Constant-velocity model with piecewise-constant
-white acceleration per frame (dt = 1/fps):
+State: the 54 angles (heading, then pose entries 2..54), degrees, and their rates: x = [angles
+(54), rates (54)] (108,). Constant velocity, piecewise-constant white acceleration (dt = 1/fps):
 
     F = [[I, dt I], [0, I]]      Q = diag(q) (x) [[dt^4/4, dt^3/2], [dt^3/2, dt^2]]
     H = [I, 0]                   R = measurement covariance (54, 54), degrees^2
@@ -10,10 +9,9 @@ white acceleration per frame (dt = 1/fps):
 ``q``: angular acceleration variances, (deg/s^2)^2. Defaults (a model file supplies its own):
 acceleration std 1000 deg/s^2 (median RMS second difference of 12 CMU clips at 30 fps),
 measurement std 6 deg per joint angle and 20 deg for the heading (the paper's error levels).
-Each measured angle is unwrapped to within 180 deg of the prediction; outputs are wrapped to
-(-180, 180]. A raw pose whose heading norm is below ``ambiguity_threshold`` averaged several
-views (e.g. front and back): its R is inflated, more on the heading than on the other angles
-(a front/back confusion also swaps the limbs, less badly).
+Measured angles are unwrapped to within 180 deg of the prediction, outputs wrapped to (-180,
+180]. A raw pose whose heading norm is below ``ambiguity_threshold`` averaged several views:
+its R is inflated, most on the heading (a front/back confusion swaps the limbs less badly).
 """
 from __future__ import annotations
 
@@ -36,18 +34,6 @@ DEFAULT_RATE_STD = 90.0           # deg/s, prior on angular rates when a track s
 
 class FilterError(SilhouettePoseError, ValueError):
     """Bad filter settings or pose vectors; one-line message naming the problem."""
-
-
-def _as_matrix(R, dim: int, name: str) -> np.ndarray:
-    """R given as (dim,) variances or (dim, dim) -> a checked (dim, dim) covariance."""
-    R = np.asarray(R, float)
-    if R.shape == (dim,):
-        R = np.diag(R)
-    if R.shape != (dim, dim):
-        raise FilterError(f"{name} must have shape ({dim},) or ({dim}, {dim}), got {R.shape}")
-    if not np.isfinite(R).all() or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() <= 0:
-        raise FilterError(f"{name} must be finite, symmetric and positive definite")
-    return R
 
 
 def initial_state(z: np.ndarray, R: np.ndarray, rate_std: float
@@ -84,14 +70,15 @@ class ConstantVelocityFilter:
         q = np.broadcast_to(np.asarray(q, float), (int(dim),))
         if not (np.isfinite(q).all() and (q >= 0).all()):
             raise FilterError("q (acceleration variances) must be finite and >= 0")
+        R = np.asarray(R, float)
+        R = np.diag(R) if R.shape == (dim,) else R
+        if R.shape != (dim, dim):
+            raise FilterError(f"R must have shape ({dim},) or ({dim}, {dim}), got {R.shape}")
+        if not np.isfinite(R).all() or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() <= 0:
+            raise FilterError("R must be finite, symmetric and positive definite")
         self.dim, self.fps, self.dt = int(dim), float(fps), 1.0 / float(fps)
-        self.R = _as_matrix(R, self.dim, "R")
-        self.q = q.copy()
-        self.rate_std = float(rate_std)
-        self.align = align
-        dt, eye = self.dt, np.eye(self.dim)
-        self.F = np.block([[eye, dt * eye], [np.zeros_like(eye), eye]])
-        self.H = np.hstack([eye, np.zeros_like(eye)])
+        self.R, self.q, self.rate_std, self.align = R, q.copy(), float(rate_std), align
+        dt = self.dt
         self.Q = np.block([[np.diag(q * dt**4 / 4), np.diag(q * dt**3 / 2)],
                            [np.diag(q * dt**3 / 2), np.diag(q * dt**2)]])
 
@@ -104,13 +91,9 @@ class ConstantVelocityFilter:
     def smooth(self, zs: np.ndarray, Rs: Sequence | None = None, window: int = 256,
                lag: int = 64) -> np.ndarray:
         """Forward filter then Rauch-Tung-Striebel smoothing: values (T, dim) of zs (T, dim).
-
-        filterpy's KalmanFilter.update and rts_smoother to rounding (the tests compare them),
-        written for this F and H: F P F' by blocks, the short covariance update, and only the
-        smoothed values carried backwards. The filtered covariances are kept per window of
-        ``window`` frames, each run on ``lag`` further frames whose influence on the window has
-        decayed (exact up to that decay).
-        """
+        filterpy's to rounding, written for this F and H (F P F' by blocks, the short covariance
+        update). The filtered covariances are kept per window of ``window`` frames, each run on
+        ``lag`` further frames whose influence on the window has decayed."""
         zs = self._check_sequence(zs)
         if window < 1 or lag < 0:
             raise FilterError(f"window={window} must be >= 1 and lag={lag} >= 0")
@@ -212,8 +195,6 @@ class PoseKalmanFilter:
                  ambiguity_threshold: float = DEFAULT_AMBIGUITY_THRESHOLD,
                  ambiguous_heading_factor: float = 25.0, ambiguous_joint_factor: float = 4.0,
                  rate_std: float = DEFAULT_RATE_STD):
-        if not (np.isfinite(fps) and fps > 0):
-            raise FilterError(f"fps={fps} must be positive")
         if min(ambiguous_heading_factor, ambiguous_joint_factor) < 1 or ambiguity_threshold < 0:
             raise FilterError("ambiguous factors must be >= 1 and ambiguity_threshold >= 0")
         if R is None:

@@ -16,7 +16,7 @@ def _steps(cv: ConstantVelocityFilter, zs: np.ndarray, Rs: Sequence | None):
     it after each frame's update (the same KalmanFilter object each time)."""
     n = cv.dim
     kf = KalmanFilter(dim_x=2 * n, dim_z=n)
-    kf.F, kf.H, kf.Q, kf.R = cv.F, cv.H, cv.Q, cv.R
+    kf.F, kf.H, kf.Q, kf.R = _F(cv), np.eye(n, 2 * n), cv.Q, cv.R
     for t, z in enumerate(zs):
         R = cv.R if Rs is None or Rs[t] is None else Rs[t]
         if t == 0:
@@ -28,6 +28,12 @@ def _steps(cv: ConstantVelocityFilter, zs: np.ndarray, Rs: Sequence | None):
                 z = cv.align(z, kf.x[:n, 0])
             kf.update(z[:, None], R=R)
         yield kf
+
+
+def _F(cv: ConstantVelocityFilter) -> np.ndarray:
+    """The transition matrix [[I, dt I], [0, I]] (2 dim, 2 dim)."""
+    eye = np.eye(cv.dim)
+    return np.block([[eye, cv.dt * eye], [np.zeros_like(eye), eye]])
 
 
 def forward(cv: ConstantVelocityFilter, zs: np.ndarray, Rs: Sequence | None = None
@@ -44,6 +50,6 @@ def smooth(cv: ConstantVelocityFilter, zs, Rs: Sequence | None = None) -> np.nda
     for kf in _steps(cv, zs, Rs):
         xs.append(kf.x.copy())
         ps.append(kf.P.copy())
-    x_smooth, _, _, _ = kf.rts_smoother(np.array(xs), np.array(ps), Fs=[cv.F] * len(xs),
+    x_smooth, _, _, _ = kf.rts_smoother(np.array(xs), np.array(ps), Fs=[_F(cv)] * len(xs),
                                         Qs=[cv.Q] * len(xs))
     return x_smooth[:, : cv.dim, 0]

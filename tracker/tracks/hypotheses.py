@@ -1,21 +1,16 @@
 """Front/back hypotheses carried over time: which of the regressor's poses is the true one.
 
 A silhouette cannot tell a body from its reflection in depth (sequences.pose_vector.
-front_back_flip). Each frame gives K hypotheses (:func:`hypotheses_from`): the pose and its
-flip (per expert for a mixture), or, for a model with limb networks and a side classifier, the
-limbs' canonical member and its flip (:func:`canonical_hypotheses`). A hidden Markov model over
-s_t in {0..K-1}, with one Kalman filter per state (a GPB / IMM filter bank), keeps which one
-is the truth:
+front_back_flip). Each frame gives K hypotheses: the pose and its flip (per expert for a
+mixture), or the limbs' canonical member and its flip (:func:`canonical_hypotheses`). A hidden
+Markov model over s_t in {0..K-1} with one Kalman filter per state (a GPB / IMM filter bank):
 
     alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
 
-A: switching probabilities; N: the innovation likelihood of hypothesis j under predecessor i's
-filter (filter j continues the best predecessor's, so a flip is explained by a switch, not by a
-jump of the body); e_t(j): the frame's own evidence, tempered per frame since stacked
-descriptors share frames. Online the output is the most probable state's filtered pose (with
-the runner-up when close); offline (``--smooth``) the Viterbi path is RTS-smoothed. With
-``limb_filter_factory`` the 53 body angles come from one more filter over the limb member
-nearer the decided heading. How each piece and constant was chosen: docs/tuning.md.
+A: switching probabilities; N: the innovation likelihood (filter j continues the best
+predecessor's, so a flip is explained by a switch, not by a jump of the body); e_t(j): the
+frame's own evidence. Online the output is the most probable state's filtered pose; offline
+(``--smooth``) the Viterbi path is RTS-smoothed. How each piece was chosen: docs/tuning.md.
 """
 from __future__ import annotations
 
@@ -33,13 +28,8 @@ from sequences.pose_vector import front_back_flip, heading_deg
 from tracker.tracks.member_path import members_over_time
 from tracker.tracks.mirror_limbs import mirror_mean
 
-#: P(the raw pose is nearer the truth than its flip | raw heading norm in
-#: [RAW_NEARER_NORM_EDGES[b], next edge)), and overall; learned on validation renders by
-#: scripts/learn_hypothesis_priors.py ("nearer": smaller mean absolute error, 54 angles).
-RAW_NEARER_NORM_EDGES = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
-RAW_NEARER_BY_NORM = (0.672, 0.617, 0.646, 0.703, 0.744, 0.688)
-RAW_NEARER_OVERALL = 0.681
-#: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps: the regressor's flips, same data.
+#: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps: the regressor's flips, learned on
+#: validation renders by scripts/learn_hypothesis_priors.py.
 SWITCH_PROBABILITY = (0.117, 0.248)
 #: Exponent per frame of the regressor's evidence (log likelihoods are multiplied by it).
 EVIDENCE_WEIGHT = 1.0
@@ -56,11 +46,9 @@ CANONICAL_EVIDENCE_WEIGHT = 2.0
 #: [CANONICAL_FRONT_EDGES[b], next edge)), and overall: the classifier is over-confident on
 #: video-like renders, so its probability is calibrated by this table.
 CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
-CANONICAL_BY_FRONT = (0.407, 0.634, 0.608, 0.633, 0.654, 0.797)
-CANONICAL_OVERALL = 0.624
 DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
     switch=CANONICAL_SWITCH_PROBABILITY, front_edges=CANONICAL_FRONT_EDGES,
-    by_front=CANONICAL_BY_FRONT, overall=CANONICAL_OVERALL)
+    by_front=(0.407, 0.634, 0.608, 0.633, 0.654, 0.797), overall=0.624)
 #: Experts asked of a mixture model's hypotheses (2 states each: pose and flip): the
 #: other experts' poses added wrong headings more often than right ones.
 DEFAULT_EXPERTS = 1
@@ -94,37 +82,6 @@ def pick_member(limbs: np.ndarray, heading_deg) -> np.ndarray:
     return np.where(np.asarray(keep)[..., None], limbs, flips)
 
 
-def deaveraged_heading(poses: np.ndarray) -> np.ndarray:
-    """Poses (m, 55) with the heading the regressor was averaging towards. Where it could not
-    tell a view from its flip it outputs about p (cos h, sin h) + (1 - p) (-cos h, sin h): sin h
-    is kept and cos h shrinks, so the heading is pulled towards +-90 and the norm drops. Each
-    hypothesis's heading takes |cos| = sqrt(1 - sin^2) back in proportion to the lost norm
-    (n >= 1 keeps the pose as it is; the norm itself, the ambiguity measure, is kept)."""
-    out = np.array(poses, dtype=np.float64, copy=True)
-    c, s = out[:, 0], out[:, 1]
-    n = np.hypot(c, s)
-    w = np.clip(n, 0.0, 1.0)
-    s_unit = s / np.maximum(n, 1.0)
-    c_unit = np.where(c < 0, -1.0, 1.0) * np.sqrt(np.maximum(0.0, 1.0 - s_unit ** 2))
-    h = np.arctan2(w * s + (1 - w) * s_unit, w * c + (1 - w) * c_unit)
-    out[:, 0], out[:, 1] = n * np.cos(h), n * np.sin(h)
-    return out
-
-
-def _with_flips(poses: np.ndarray, gate: np.ndarray, limbs: np.ndarray | None = None
-                ) -> Hypotheses:
-    """Each pose (m, 55) with gate probability (m,) -> 2m hypotheses (pose, flip, pose, ...),
-    headings de-averaged, evidence from RAW_NEARER_BY_NORM; raw stays the regressor's first
-    pose; limbs (55,) the limb head's pose or None, passed on."""
-    raw = poses[0]
-    poses = deaveraged_heading(poses)
-    p_raw = _table(RAW_NEARER_NORM_EDGES, RAW_NEARER_BY_NORM, heading_norm(poses))
-    ratio = np.stack([p_raw / RAW_NEARER_OVERALL, (1 - p_raw) / (1 - RAW_NEARER_OVERALL)], 1)
-    both = np.stack([poses, front_back_flip(poses)], axis=1).reshape(-1, poses.shape[-1])
-    evidence = np.log(np.maximum(gate, _FLOOR))[:, None] + np.log(ratio)
-    return Hypotheses(both, evidence.reshape(-1), raw, limbs)
-
-
 def bin_index(edges, x) -> np.ndarray:
     """The bin b of each x with edges[b] <= x < edges[b + 1] (beyond the last edge: the last
     bin; below the first: the first), as the tables above are binned."""
@@ -140,11 +97,10 @@ def _table(edges, values, x) -> np.ndarray:
 def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
                          priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
     """The two hypotheses of a model with limbs and a side classifier: the limbs' canonical
-    member (55,) and its front/back flip, whole. Evidence (log likelihood ratios): the side
+    member (55,) and its front/back flip. Evidence (log likelihood ratios): the side
     classifier's probability ``front`` that the body faces the camera's half, calibrated by
-    priors.by_front. raw (55,): the main head's pose; its heading norm (how ambiguous the
-    frame is) replaces the member's, which commits to one body and is ~1, so the filters'
-    R inflation and the outputs' ambiguous flag still see it."""
+    priors.by_front. The heading norm of raw (55,), the main head's pose, replaces the
+    member's (~1), so the filters' R inflation and the ambiguous flag still see it."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
     norm = heading_norm(raw)
@@ -185,7 +141,7 @@ def hypotheses_from(estimates: PoseEstimates,
                     priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> list[Hypotheses]:
     """Each row's front/back hypotheses from a model's answer (PoseEstimates): with limbs and
     the side classifier's front probability, :func:`canonical_hypotheses`; else each expert's
-    pose and its flip (:func:`_with_flips`). Limbs are first averaged with the mirror images'
+    pose and its flip (tracker.tracks.flip_hypotheses). Limbs are first averaged with the mirror images'
     when the answer has those (tracker.tracks.mirror_limbs.mirror_mean)."""
     poses, gate, limbs = estimates.poses, estimates.probabilities, estimates.limbs
     if limbs is not None and estimates.mirror_limbs is not None:
@@ -193,9 +149,10 @@ def hypotheses_from(estimates: PoseEstimates,
     if estimates.front is not None and limbs is not None:
         return [canonical_hypotheses(p[0], lb, f, priors)
                 for p, lb, f in zip(poses, limbs, estimates.front)]
+    from tracker.tracks.flip_hypotheses import with_flips   # models without a side classifier
     if limbs is None:
         limbs = [None] * len(poses)
-    return [_with_flips(np.asarray(p, float), np.asarray(g, float), lb)
+    return [with_flips(np.asarray(p, float), np.asarray(g, float), lb)
             for p, g, lb in zip(poses, gate, limbs)]
 
 
@@ -237,12 +194,11 @@ class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
 
     filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; without
-    ``log_likelihoods`` hypotheses are scored by their evidence only); fps: frames per second;
-    switch: (P(raw -> flip), P(flip -> raw)) per frame and evidence_weight (the exponent on
-    the evidence), both per frame at reference_fps and kept per second at other rates
-    (:meth:`frame_rate_ratio`); keep_history: keep every frame for viterbi_path/smoothed;
+    ``log_likelihoods`` hypotheses are scored by their evidence only); switch: (P(raw ->
+    flip), P(flip -> raw)) and evidence_weight, per frame at reference_fps (kept per second at
+    other rates); keep_history: keep every frame for viterbi_path/smoothed;
     limb_filter_factory: fps -> a filter for the output's body angles, stepped on the raw
-    pose or the limb member agreeing with the decided heading; None: the chosen state's.
+    pose or the limb member nearer the decided heading; None: the chosen state's.
     """
 
     filter_factory: Callable[[float], object]
@@ -303,15 +259,14 @@ class FrontBackTracker:
 
     @property
     def frame_rate_ratio(self) -> float:
-        """reference_fps / fps (0.25 at 120 fps for a 30 fps reference): the exponent that
-        tempers evidence and likelihoods, and the share of a frame :meth:`frame_switch`
-        switches over."""
+        """reference_fps / fps: the exponent on evidence and likelihoods, and the share of a
+        reference frame :meth:`frame_switch` switches over."""
         return self.reference_fps / self.fps
 
     @property
     def frame_switch(self) -> tuple[float, float]:
-        """The switch probabilities per frame of this video: 1 - (1 - p)^ratio of the
-        reference frame's p, the same chance of switching per second."""
+        """The switch probabilities per frame of this video: 1 - (1 - p)^ratio, the same
+        chance of switching per second."""
         rate = self.frame_rate_ratio
         if rate == 1.0:
             return tuple(self.switch)
@@ -326,8 +281,7 @@ class FrontBackTracker:
 
     def _continue(self, predecessor: np.ndarray) -> list:
         """Filters for the new states: state j continues predecessor[j]'s filter (a copy when
-        two states continue the same one; copies are made before any filter steps). A filter's
-        own ``copy()`` when it has one, else a deep copy."""
+        two states continue the same one: its own ``copy()`` when it has one)."""
         used, out = set(), []
         for i in predecessor:
             f = self.filters[int(i)]
@@ -355,11 +309,10 @@ class FrontBackTracker:
         return np.array(path[::-1], dtype=np.int64)
 
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``), of the
-        whole track or of history[start:stop] alone (tracker.tracks.fixed_lag). With a
-        limb_filter_factory the body angles are its RTS smoothing of the raw poses, or of the
-        limb members' most probable chain (tracker.tracks.member_path), under the smoothed
-        heading."""
+        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses, of the whole track or of
+        history[start:stop] alone. With a limb_filter_factory the body angles are its RTS
+        smoothing of the raw poses, or of the limb members' most probable chain
+        (tracker.tracks.member_path), under the smoothed heading."""
         frames = self.history[start:stop]
         chosen = [frame.poses[s] for frame, s in zip(frames, self.viterbi_path(start, stop))]
         out = self.filter_factory(self.fps).rts_smooth(np.array(chosen))
