@@ -1,21 +1,16 @@
 """Track association: give each person detection a track id that persists from frame to frame.
 
-Per frame every track predicts its centroid (constant velocity), a cost matrix compares the
-predictions with the detections and the Hungarian algorithm pairs them. Costs are in units of
-the track's size (its box height, or sqrt(area) without a box), so one gate serves near and far:
+Each track predicts its centroid (constant velocity) and the Hungarian algorithm pairs the
+predictions with the detections. Costs are in units of the track's size (its box height, or
+sqrt(area) without a box), so one gate serves near and far people:
 
     cost = |centroid - predicted| / size + size_weight * |ln(detection area / track area)|
            + appearance_weight * Bhattacharyya(detection colour, track colour)
 
-A pair is gated when the distance exceeds ``max_distance`` sizes (one more per frame a track
-coasts) or the areas differ by more than ``max_area_ratio`` while the boxes do not overlap (a
-silhouette that grows in place keeps its id). A detection smaller than ``min_relative_area`` of
-the largest confirmed track gets an id only once matched in ``min_hits`` consecutive frames (a
-flickering blob never becomes a track); a track unmatched for ``max_missed`` frames is dropped.
-People who cross are one blob: a detection whose box holds two or more tracks' predictions is a
-group, given to none of them, its members coasting inside it for up to ``max_occluded`` frames,
-each given its share of the blob by its last own silhouette (tracker.video.blob_split).
-Details and measurements: docs/crossings.md.
+A small new detection gets an id only once matched in consecutive frames (a flickering blob
+never becomes a track). People who cross are one blob: a detection whose box holds two or more
+tracks' predictions is a group, given to none of them, its members coasting inside it and each
+given its share of the blob by its last own silhouette. Details: docs/crossings.md.
 """
 from __future__ import annotations
 
@@ -29,8 +24,8 @@ from scipy.optimize import linear_sum_assignment
 
 from regressor.errors import SilhouettePoseError
 
-#: How long, seconds, a track may stay hidden in a group (PoseTracker sets max_occluded from it;
-#: the sample beside its mirror image is one blob for 0.6 s per crossing).
+#: How long, seconds, a track may stay hidden in a group (PoseTracker's max_occluded): the
+#: sample beside its mirror image is one blob for 0.6 s per crossing.
 MAX_OCCLUDED_S = 1.5
 
 
@@ -51,11 +46,10 @@ class AssociationError(SilhouettePoseError, ValueError):
 
 @dataclass
 class Track:
-    """A person followed over frames: ``centroid`` (x, y) px and ``bbox`` (x, y, w, h) px at
-    the last match (bbox nan without boxes), ``velocity`` (vx, vy) px/frame and ``area`` px
-    smoothed, ``hits`` frames matched, ``missed`` consecutive frames unmatched, ``track_id`` -1
-    while tentative, ``colour`` histogram or None, ``occluded`` consecutive frames hidden in a
-    group, ``shape`` the mask (h, w) bool of its last own detection (None without masks)."""
+    """A person followed over frames: centroid (x, y) px and bbox (x, y, w, h) px (nan: none)
+    at the last match, velocity (vx, vy) px/frame and area px smoothed, hits, missed and
+    occluded (hidden in a group) frame counts, track_id (-1 while tentative), colour histogram
+    and shape, the mask (h, w) bool of its last own detection (None: unknown)."""
 
     track_id: int
     centroid: np.ndarray
@@ -94,17 +88,15 @@ def box_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class Associator:
     """Frame-to-frame association of detections to track ids (see the module docstring).
 
-    ``max_distance``: gate in track sizes. ``max_area_ratio`` (>= 1): area gate, applied when
-    the boxes overlap by less than ``min_box_overlap`` (of the smaller box). ``size_weight``:
-    weight of the log area ratio. ``max_missed``: frames unmatched before a track is dropped.
-    ``smoothing``: weight of the newest frame in velocity and area. ``min_hits``,
-    ``min_relative_area``: when a new track gets its id. ``use_boxes``: False ignores boxes
-    (sizes from sqrt(area), no groups). ``appearance_weight``: weight of the colours'
-    Bhattacharyya distance; ``colour_rate``: of the newest frame in a track's colour.
-    ``max_occluded``: frames a track may stay in a group (0: no groups); ``min_height_ratio``:
-    a group's members are at least this share of the tallest one's height and overlap its rows
-    by this share of their own (a leg cut off by the extractor is no person beside it).
-    """
+    A pair is gated beyond ``max_distance`` sizes (one more per frame coasted), or when the
+    areas differ by more than ``max_area_ratio`` and the boxes overlap by less than
+    ``min_box_overlap`` (a silhouette that grows in place keeps its id). A detection below
+    ``min_relative_area`` of the largest track's waits ``min_hits`` frames for its id; a track
+    unmatched ``max_missed`` frames is dropped. ``smoothing``, ``colour_rate``: weight of the
+    newest frame in velocity and area, colour. ``use_boxes``: False ignores boxes (no groups).
+    ``max_occluded``: frames in a group (0: no groups); ``min_height_ratio``: a group's members
+    are at least this share of the tallest one's height and overlap its rows by this share of
+    their own (a leg cut off by the extractor is no person beside it)."""
 
     def __init__(self, max_distance: float = 1.0, max_area_ratio: float = 1.8,
                  size_weight: float = 1.0, max_missed: int = 15, smoothing: float = 0.5,

@@ -49,15 +49,12 @@ def initial_state(z: np.ndarray, R: np.ndarray, rate_std: float
 
 
 class ConstantVelocityFilter:
-    """Kalman filter and RTS smoother for ``dim`` values, each with its rate.
+    """Kalman filter and RTS smoother for ``dim`` values, each with its rate (module docstring).
 
-    F, H, Q as in the module docstring with dt = 1/fps. ``R``: measurement covariance, (dim,)
-    variances or (dim, dim), squared value units (measurements may carry their own). ``q``:
-    acceleration variances, scalar or (dim,), (units/s^2)^2. ``rate_std``: prior std of the
-    rates at the first frame, units/s. ``align(z, predicted) -> z``, if given, maps a
-    measurement (dim,) before each update, given the predicted values (dim,): angle filters
-    unwrap it there.
-    """
+    R: measurement covariance, (dim,) or (dim, dim), units^2 (measurements may carry their
+    own); q: acceleration variances, scalar or (dim,), (units/s^2)^2; rate_std: prior std of
+    the rates at the first frame, units/s; align(z, predicted) -> z, if given, maps each
+    measurement (dim,) given the predicted values (dim,) (angle filters unwrap it there)."""
 
     def __init__(self, dim: int, fps: float, R, q, rate_std: float,
                  align: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None):
@@ -182,14 +179,10 @@ def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
 
 
 class PoseKalmanFilter:
-    """Per-track Kalman filter over the 54 pose angles (see the module docstring).
-
-    ``fps``: frames per second. ``R``: measurement covariance, (54,) variances or (54, 54),
-    deg^2, in :func:`regressor.angles.pose_angles` order (None: the defaults). ``q``:
-    acceleration variances, scalar or (54,), (deg/s^2)^2. ``ambiguity_threshold``: heading norm
-    below which a frame is ambiguous; its R is then scaled by the ambiguous factors (heading,
-    other angles). ``rate_std``: prior std of the angular rates at the first frame, deg/s.
-    """
+    """Per-track Kalman filter over the 54 pose angles (see the module docstring): R (54,) or
+    (54, 54) deg^2 in :func:`regressor.angles.pose_angles` order (None: the defaults), q and
+    rate_std as ConstantVelocityFilter's in degrees. A frame whose heading norm is below
+    ``ambiguity_threshold`` has its R scaled by the ambiguous factors (heading, other angles)."""
 
     def __init__(self, fps: float, R=None, q=None,
                  ambiguity_threshold: float = DEFAULT_AMBIGUITY_THRESHOLD,
@@ -198,15 +191,13 @@ class PoseKalmanFilter:
         if min(ambiguous_heading_factor, ambiguous_joint_factor) < 1 or ambiguity_threshold < 0:
             raise FilterError("ambiguous factors must be >= 1 and ambiguity_threshold >= 0")
         if R is None:
-            std = np.full(N_ANGLES, DEFAULT_JOINT_STD)
-            std[0] = DEFAULT_HEADING_STD
-            R = np.diag(std**2)
+            R = np.diag(np.r_[DEFAULT_HEADING_STD, np.full(N_ANGLES - 1, DEFAULT_JOINT_STD)]**2)
         self.cv = ConstantVelocityFilter(N_ANGLES, fps, R,
                                          DEFAULT_ACCEL_STD**2 if q is None else q, rate_std,
                                          align=_unwrap_against)
         self.R = self.cv.R
-        inflate = np.full(N_ANGLES, np.sqrt(ambiguous_joint_factor))
-        inflate[0] = np.sqrt(ambiguous_heading_factor)
+        inflate = np.sqrt(np.r_[ambiguous_heading_factor,
+                                np.full(N_ANGLES - 1, ambiguous_joint_factor)])
         # Scaling std per angle keeps correlations: R_amb = D R D with D = diag(sqrt(factor)).
         self.R_ambiguous = self.R * np.outer(inflate, inflate)
         self.ambiguity_threshold = ambiguity_threshold
@@ -215,8 +206,7 @@ class PoseKalmanFilter:
         self._predicted: tuple | None = None     # see _prediction
 
     def _measure(self, raw55) -> tuple[np.ndarray, np.ndarray, bool]:
-        """Check one raw pose; returns (angles (54,), R to use (inflated when the frame is
-        ambiguous), ambiguous)."""
+        """Check one raw pose (55,) -> (angles (54,), its R, ambiguous)."""
         raw = np.asarray(raw55, float)
         if raw.shape != (POSE_DIM,):
             raise FilterError(f"pose vector must have shape (55,), got {raw.shape}")
@@ -228,9 +218,8 @@ class PoseKalmanFilter:
         return angles, self.R_ambiguous if ambiguous else self.R, ambiguous
 
     def log_likelihoods(self, raws) -> np.ndarray:
-        """Innovation log-likelihoods (K,) of candidate raw poses raws (K, 55) for the next
-        frame: log N(z_k - H x_pred; 0, H P_pred H' + R_k), z_k the angles unwrapped against the
-        prediction, R_k as :meth:`step` would use; zeros before the first step. Leaves the
+        """Innovation log-likelihoods (K,) of candidate raw poses (K, 55) for the next frame,
+        log N(z_k - H x_pred; 0, H P_pred H' + R_k) (zeros before the first step). Leaves the
         filter as it was (the prediction and its factors are kept for the next step)."""
         raws = np.asarray(raws, float)
         if self._x is None:
@@ -245,8 +234,7 @@ class PoseKalmanFilter:
         return out
 
     def _prediction(self) -> tuple[np.ndarray, np.ndarray, dict]:
-        """(x_pred (108,), P_pred (108, 108), factors by ambiguity) of the next frame, computed
-        once per frame."""
+        """(x_pred (108,), P_pred (108, 108), factors by ambiguity) of the next frame, once."""
         if self._predicted is None:
             self._predicted = (*self.cv._predict(self._x, self._P), {})
         return self._predicted
@@ -265,8 +253,8 @@ class PoseKalmanFilter:
         return factors[ambiguous]
 
     def copy(self) -> "PoseKalmanFilter":
-        """An independent filter in the same state (the pending prediction is shared: it is
-        the same for both until either steps). Cheaper than copy.deepcopy."""
+        """An independent filter in the same state (sharing the pending prediction, the same
+        for both until either steps): cheaper than copy.deepcopy."""
         return copy.copy(self)
 
     def step(self, raw55) -> tuple[np.ndarray, bool]:

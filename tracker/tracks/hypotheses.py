@@ -35,33 +35,29 @@ SWITCH_PROBABILITY = (0.117, 0.248)
 EVIDENCE_WEIGHT = 1.0
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
 
-#: The canonical chain's priors for a model file without its own (PoseModel.canonical_priors),
-#: learned on the 28 validation renders for the shipped model's networks: (P(canonical ->
-#: flip), P(flip -> canonical)) per frame (the member's rule changes mostly in profile).
+#: The canonical chain's priors for a model file without its own, learned on the 28 validation
+#: renders: (P(canonical -> flip), P(flip -> canonical)) per frame.
 CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 #: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
 #: the member's every frame, scores a few nats below it and weaker evidence never catches up.
 CANONICAL_EVIDENCE_WEIGHT = 2.0
 #: P(the canonical member is the true one | the side classifier's probability for it in
-#: [CANONICAL_FRONT_EDGES[b], next edge)), and overall: the classifier is over-confident on
-#: video-like renders, so its probability is calibrated by this table.
+#: [CANONICAL_FRONT_EDGES[b], next edge)), and overall: the classifier is over-confident.
 CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
 DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
     switch=CANONICAL_SWITCH_PROBABILITY, front_edges=CANONICAL_FRONT_EDGES,
     by_front=(0.407, 0.634, 0.608, 0.633, 0.654, 0.797), overall=0.624)
-#: Experts asked of a mixture model's hypotheses (2 states each: pose and flip): the
-#: other experts' poses added wrong headings more often than right ones.
+#: Experts asked of a mixture model (more added wrong headings more often than right ones).
 DEFAULT_EXPERTS = 1
 _FLOOR = 1e-3                            # no evidence is ever certain
 
 
 @dataclass
 class Hypotheses:
-    """One frame's candidate poses: poses (K, 55); log_evidence (K,) the regressor's evidence
-    for each (log likelihood ratios); raw (55,) the regressor's own (first) pose; limbs (55,)
-    the limb head's pose (a canonical member) or None; canonical: the poses are that member
-    and its flip; front: then the side classifier's probability that the body faces the
-    camera's half."""
+    """One frame's candidates: poses (K, 55); log_evidence (K,) log likelihood ratios; raw
+    (55,) the regressor's own pose; limbs (55,) the limb head's canonical member or None;
+    canonical: the poses are that member and its flip, front: then the side classifier's
+    probability that the body faces the camera's half."""
 
     poses: np.ndarray
     log_evidence: np.ndarray
@@ -83,8 +79,7 @@ def pick_member(limbs: np.ndarray, heading_deg) -> np.ndarray:
 
 
 def bin_index(edges, x) -> np.ndarray:
-    """The bin b of each x with edges[b] <= x < edges[b + 1] (beyond the last edge: the last
-    bin; below the first: the first), as the tables above are binned."""
+    """The bin b of each x with edges[b] <= x < edges[b + 1], clipped to the first and last."""
     b = np.searchsorted(edges, np.asarray(x, float), side="right") - 1
     return np.clip(b, 0, len(edges) - 1)
 
@@ -113,23 +108,20 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
 
 
 def member_probability(members: np.ndarray, front) -> np.ndarray:
-    """The side classifier's probability for each canonical member (..., 55) itself, from
-    its probability front (...) that the body faces the camera's half: front where the
-    member faces that half (cos >= 0), 1 - front elsewhere."""
+    """The side classifier's probability (...) for each canonical member (..., 55) from its
+    probability front (...) that the body faces the camera's half (cos >= 0)."""
     front = np.asarray(front, dtype=np.float64)
     return np.where(np.asarray(members)[..., 0] >= 0, front, 1.0 - front)
 
 
 def canonical_priors(estimator: PoseEstimator) -> CanonicalPriors:
-    """The priors the chain weighs an estimator's canonical pairs by: its own
-    (PoseModel.canonical_priors) when it carries them, else DEFAULT_CANONICAL_PRIORS."""
+    """The estimator's canonical priors (PoseModel.canonical_priors), else the default."""
     return estimator.canonical_priors or DEFAULT_CANONICAL_PRIORS
 
 
 def chain_options(estimator: PoseEstimator) -> dict:
-    """FrontBackTracker's keyword arguments that depend on the estimator: switch rates (canonical
-    pairs switch far less often than a pose and its flip), evidence weight and the frame rate
-    they hold at (its training_fps)."""
+    """FrontBackTracker's keyword arguments that depend on the estimator: switch rates,
+    evidence weight and the frame rate they hold at (its training_fps)."""
     if estimator.gives_canonical_pairs:
         switch, weight = canonical_priors(estimator).switch, CANONICAL_EVIDENCE_WEIGHT
     else:
@@ -139,10 +131,9 @@ def chain_options(estimator: PoseEstimator) -> dict:
 
 def hypotheses_from(estimates: PoseEstimates,
                     priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> list[Hypotheses]:
-    """Each row's front/back hypotheses from a model's answer (PoseEstimates): with limbs and
-    the side classifier's front probability, :func:`canonical_hypotheses`; else each expert's
-    pose and its flip (tracker.tracks.flip_hypotheses). Limbs are first averaged with the mirror images'
-    when the answer has those (tracker.tracks.mirror_limbs.mirror_mean)."""
+    """Each row's hypotheses from a model's answer: with limbs and the side classifier's
+    front probability, :func:`canonical_hypotheses` (limbs first averaged with the mirror
+    images' when given); else each expert's pose and its flip (flip_hypotheses)."""
     poses, gate, limbs = estimates.poses, estimates.probabilities, estimates.limbs
     if limbs is not None and estimates.mirror_limbs is not None:
         limbs = mirror_mean(limbs, estimates.mirror_limbs)
@@ -157,9 +148,8 @@ def hypotheses_from(estimates: PoseEstimates,
 
 
 def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
-    """A (K, K): states are (expert slot i, flipped f) as k = 2 i + f. The flip part is
-    learned (switch = (P(raw -> flip), P(flip -> raw))); the slot part is uniform, since a
-    mixture's experts are listed by gate probability, not by identity."""
+    """A (K, K) over states k = 2 i + f (expert slot i, flipped f): the flip part from switch,
+    the slot part uniform (experts are listed by gate probability, not by identity)."""
     a, b = switch
     flip = np.array([[1 - a, a], [b, 1 - b]])
     m = K // 2
@@ -168,9 +158,8 @@ def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
 
 @dataclass
 class Decision:
-    """The tracker's output for one frame: filtered (55,) pose of the most probable state,
-    ambiguous flag (its filter's), state index and probability; the runner-up's filtered pose
-    (55,) and probability when that is at least CLOSE_PROBABILITY, else None."""
+    """One frame's output: the most probable state's filtered pose (55,), ambiguous flag,
+    index and probability; the runner-up's pose (55,) and probability from CLOSE_PROBABILITY."""
 
     filtered: np.ndarray
     ambiguous: bool
@@ -194,12 +183,10 @@ class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
 
     filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; without
-    ``log_likelihoods`` hypotheses are scored by their evidence only); switch: (P(raw ->
-    flip), P(flip -> raw)) and evidence_weight, per frame at reference_fps (kept per second at
-    other rates); keep_history: keep every frame for viterbi_path/smoothed;
-    limb_filter_factory: fps -> a filter for the output's body angles, stepped on the raw
-    pose or the limb member nearer the decided heading; None: the chosen state's.
-    """
+    ``log_likelihoods`` only the evidence scores); switch (P(raw -> flip), P(flip -> raw)) and
+    evidence_weight: per frame at reference_fps; keep_history: keep every frame for
+    viterbi_path/smoothed; limb_filter_factory: fps -> a filter of the body angles, stepped on
+    the raw pose or the limb member nearer the decided heading (None: the chosen state's)."""
 
     filter_factory: Callable[[float], object]
     fps: float
@@ -292,8 +279,7 @@ class FrontBackTracker:
         return out
 
     def viterbi_path(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """The most probable state sequence (n,) int over the frames so far, or over
-        history[start:stop] alone (its first frame taken as a track's first)."""
+        """The most probable state sequence (n,) int over history[start:stop] alone."""
         frames = self.history[start:stop]
         if not frames:
             return np.zeros(0, dtype=np.int64)

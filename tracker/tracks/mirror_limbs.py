@@ -14,11 +14,9 @@ from sequences.pose_vector import image_mirror
 
 
 def mirror_mean(limbs: np.ndarray, mirror_limbs: np.ndarray) -> np.ndarray:
-    """The mean of two estimates of the same body: limbs (N, 55), the model's canonical limbs
-    for the frames, and mirror_limbs (N, 55), its limbs for the frames' mirror images (the
-    mirror images' own bodies). mirror_limbs are mirrored back first; the 53 angles (degrees)
-    are averaged on the circle (half the wrapped difference), the heading's (cos, sin) as
-    numbers. Returns (N, 55)."""
+    """The mean (N, 55) of limbs (N, 55), the model's canonical limbs for the frames, and
+    mirror_limbs (N, 55), for their mirror images, mirrored back first: the 53 angles (degrees)
+    on the circle, the heading's (cos, sin) as numbers."""
     a = np.asarray(limbs, dtype=np.float64)
     b = image_mirror(np.asarray(mirror_limbs, dtype=np.float64))
     if a.shape != b.shape or a.shape[-1] != 55:
@@ -30,6 +28,5 @@ def mirror_mean(limbs: np.ndarray, mirror_limbs: np.ndarray) -> np.ndarray:
 
 
 def sees_mirror(estimator: PoseEstimator, enabled: bool = True) -> bool:
-    """Whether the tracker should describe each frame's mirror image for this estimator: the
-    setting (``enabled``) and the model's own say (PoseEstimator.limbs_see_mirror)."""
+    """Whether to describe each frame's mirror image: the setting and the model's say."""
     return enabled and estimator.limbs_see_mirror
