@@ -30,8 +30,7 @@ MAX_OCCLUDED_S = 1.5
 
 
 class Detection(Protocol):
-    """Anything with a centroid (x, y) px and an area px (silhouettes.PersonMask); an optional
-    ``bbox`` (x, y, w, h) px, ``colour`` (histogram summing to 1) and ``mask`` are used."""
+    """A centroid (x, y) px and area px (e.g. PersonMask); bbox, colour and mask if present."""
 
     centroid: tuple[float, float]
     area: int
@@ -63,7 +62,7 @@ class Track:
     shape: np.ndarray | None = None
 
     def predicted(self) -> np.ndarray:
-        """(x, y) px expected this frame: the last centroid moved on by the missed frames + 1."""
+        """(x, y) px expected this frame (constant velocity since the last match)."""
         return self.centroid + self.velocity * (self.missed + 1)
 
     def size(self) -> float:
@@ -72,8 +71,8 @@ class Track:
 
 
 def box_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Intersection over the smaller box's area, (A, B), of boxes a (A, 4) and b (B, 4)
-    (x, y, w, h) px; 0 where a box is nan. 1 when one box holds the other."""
+    """Intersection over the smaller box's area (A, B) of boxes a (A, 4), b (B, 4) (x, y, w, h)
+    px; 0 where a box is nan."""
     ax0, ay0, aw, ah = (a[:, i][:, None] for i in range(4))
     bx0, by0, bw, bh = (b[:, i][None, :] for i in range(4))
     iw = np.minimum(ax0 + aw, bx0 + bw) - np.maximum(ax0, bx0)
@@ -136,9 +135,8 @@ class Associator:
 
     def cost_matrix(self, centroids: np.ndarray, areas: np.ndarray, boxes: np.ndarray,
                     colours: np.ndarray | None = None) -> np.ndarray:
-        """Costs (tracks, detections) for centroids (N, 2) px, areas (N,) px, boxes (N, 4)
-        px (x, y, w, h; nan: unknown) and colour histograms (N, K) (None: unknown); inf =
-        gated."""
+        """Costs (tracks, detections), inf = gated, for centroids (N, 2) px, areas (N,) px,
+        boxes (N, 4) px (nan: unknown) and colour histograms (N, K) or None."""
         if not self.tracks:
             return np.zeros((0, len(areas)))
         predicted = np.array([t.predicted() for t in self.tracks])           # (T, 2)
@@ -158,8 +156,8 @@ class Associator:
         return cost
 
     def _colour_distance(self, colours: np.ndarray) -> np.ndarray:
-        """Bhattacharyya distances (T, N) in [0, 1] between the tracks' colours and
-        histograms (N, K) summing to 1; 0 for a track without a colour."""
+        """Bhattacharyya distances (T, N) in [0, 1] of the tracks' colours (0 without one) to
+        histograms (N, K)."""
         known = np.array([t.colour is not None for t in self.tracks])
         if not known.any():
             return np.zeros((len(self.tracks), len(colours)))
@@ -169,10 +167,9 @@ class Associator:
         return np.sqrt(np.clip(1.0 - coefficient, 0.0, 1.0)) * known[:, None]
 
     def update(self, detections: Sequence[D]) -> list[tuple[int, D]]:
-        """Match this frame's detections to tracks; returns (track_id, detection) for each
-        detection on a confirmed track, in the order given, a group's detection replaced by
-        (track_id, part) for its members (split_group). Unmatched detections start tentative
-        tracks; stale tracks are dropped."""
+        """Match this frame's detections to tracks: (track_id, detection) for each on a
+        confirmed track, in order, a group's replaced by (track_id, part) for its members
+        (split_group). Unmatched detections start tentative tracks; stale tracks are dropped."""
         centroids = np.array([d.centroid for d in detections], float).reshape(-1, 2)
         areas = np.array([d.area for d in detections], float)
         boxes = np.array([_box(d) if self.use_boxes else (np.nan,) * 4 for d in detections],
@@ -190,7 +187,6 @@ class Associator:
             matched.pop(j, None)
             for r in members:
                 _coast_inside(self.tracks[r], boxes[j])
-
         largest = max((t.area for t in self.tracks if t.track_id >= 0), default=0.0)
         pairs = []
         for j in range(len(detections)):
@@ -223,9 +219,8 @@ class Associator:
         return pairs
 
     def split_group(self, blob, members: np.ndarray) -> list[tuple[int, object]]:
-        """(track_id, part) for the members (track rows (M,), coasted into the blob's box) that
-        get a part of ``blob`` (a PersonMask) split by their last shapes moved to their boxes;
-        [] when the blob has no mask or a member has no shape or box."""
+        """(track_id, part) of the members (track rows (M,)) that get a part of ``blob`` split
+        by their last shapes at their coasted boxes ([] without the masks or boxes)."""
         tracks = [self.tracks[r] for r in members]
         if getattr(blob, "mask", None) is None or any(
                 t.shape is None or not np.isfinite(t.bbox).all() for t in tracks):
@@ -235,10 +230,9 @@ class Associator:
         return [(t.track_id, part) for t, part in zip(tracks, parts) if part is not None]
 
     def _groups(self, matched: dict[int, int], boxes: np.ndarray) -> dict[int, np.ndarray]:
-        """Detection index -> rows (M,) of the tracks hidden in it: boxes (N, 4) px holding the
-        predictions of two or more confirmed tracks seen last frame or in a group (for at most
-        max_occluded frames), side by side (class docstring) and matched (``matched``:
-        detection -> track row) to no other detection."""
+        """Detection index -> rows (M,) of the tracks hidden in it: its box (of boxes (N, 4) px)
+        holds the predictions of two or more confirmed tracks seen last frame or in a group,
+        side by side and matched to no other detection (``matched``: detection -> track row)."""
         if not self.tracks or self.max_occluded == 0 or not len(boxes):
             return {}
         eligible = np.array([t.track_id >= 0 and t.missed == 0 and t.hits >= self.min_hits
@@ -292,7 +286,7 @@ class Associator:
 
 def _coast_inside(track: Track, box: np.ndarray) -> None:
     """Move a track hidden in a group's box (x, y, w, h) px on to its prediction, kept inside
-    the box, its own box moved with it; its velocity and appearance are left as they were."""
+    the box (its own box with it)."""
     centre = np.clip(track.predicted(), box[:2], box[:2] + box[2:])
     track.bbox = track.bbox + np.r_[centre - track.centroid, 0.0, 0.0]
     track.centroid = centre

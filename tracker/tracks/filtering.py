@@ -6,12 +6,11 @@ State: the 54 angles (heading, then pose entries 2..54), degrees, and their rate
     F = [[I, dt I], [0, I]]      Q = diag(q) (x) [[dt^4/4, dt^3/2], [dt^3/2, dt^2]]
     H = [I, 0]                   R = measurement covariance (54, 54), degrees^2
 
-``q``: angular acceleration variances, (deg/s^2)^2. Defaults (a model file supplies its own):
-acceleration std 1000 deg/s^2 (median RMS second difference of 12 CMU clips at 30 fps),
-measurement std 6 deg per joint angle and 20 deg for the heading (the paper's error levels).
-Measured angles are unwrapped to within 180 deg of the prediction, outputs wrapped to (-180,
-180]. A raw pose whose heading norm is below ``ambiguity_threshold`` averaged several views:
-its R is inflated, most on the heading (a front/back confusion swaps the limbs less badly).
+q: acceleration variances, (deg/s^2)^2. Defaults (a model file has its own): acceleration std
+1000 deg/s^2 (median RMS second difference of 12 CMU clips at 30 fps), measurement std 6 deg per
+joint angle and 20 deg for the heading (the paper's error levels). Measured angles are
+unwrapped against the prediction. A raw pose whose heading norm is below
+``ambiguity_threshold`` averaged several views: its R is inflated, most on the heading.
 """
 from __future__ import annotations
 
@@ -80,17 +79,15 @@ class ConstantVelocityFilter:
                            [np.diag(q * dt**3 / 2), np.diag(q * dt**2)]])
 
     def filter(self, zs: np.ndarray, Rs: Sequence | None = None) -> np.ndarray:
-        """Forward-filtered values (T, dim) of measurements zs (T, dim); Rs: per-frame R or
-        None. By filterpy's KalmanFilter (tracker.tracks.filterpy_runs; track never needs it)."""
+        """Forward-filtered values (T, dim) of zs (T, dim), Rs: per-frame R or None (filterpy)."""
         from tracker.tracks.filterpy_runs import forward
         return forward(self, self._check_sequence(zs), Rs)
 
     def smooth(self, zs: np.ndarray, Rs: Sequence | None = None, window: int = 256,
                lag: int = 64) -> np.ndarray:
-        """Forward filter then Rauch-Tung-Striebel smoothing: values (T, dim) of zs (T, dim).
-        filterpy's to rounding, written for this F and H (F P F' by blocks, the short covariance
-        update). The filtered covariances are kept per window of ``window`` frames, each run on
-        ``lag`` further frames whose influence on the window has decayed."""
+        """Forward filter then Rauch-Tung-Striebel smoothing (filterpy's to rounding): values
+        (T, dim) of zs (T, dim). The filtered covariances are kept per window of ``window``
+        frames, each run on ``lag`` further frames whose influence on it has decayed."""
         zs = self._check_sequence(zs)
         if window < 1 or lag < 0:
             raise FilterError(f"window={window} must be >= 1 and lag={lag} >= 0")
@@ -218,9 +215,8 @@ class PoseKalmanFilter:
         return angles, self.R_ambiguous if ambiguous else self.R, ambiguous
 
     def log_likelihoods(self, raws) -> np.ndarray:
-        """Innovation log-likelihoods (K,) of candidate raw poses (K, 55) for the next frame,
-        log N(z_k - H x_pred; 0, H P_pred H' + R_k) (zeros before the first step). Leaves the
-        filter as it was (the prediction and its factors are kept for the next step)."""
+        """Innovation log-likelihoods (K,) of candidate raw poses (K, 55) for the next frame
+        (zeros before the first step); the filter keeps its state and the prediction."""
         raws = np.asarray(raws, float)
         if self._x is None:
             return np.zeros(len(raws))
@@ -240,8 +236,7 @@ class PoseKalmanFilter:
         return self._predicted
 
     def _factor(self, ambiguous: bool) -> tuple[np.ndarray, float]:
-        """Lower Cholesky factor of the innovation covariance H P_pred H' + R (54, 54) and its
-        log-determinant, cached per prediction (R is known by the frame's ambiguity)."""
+        """Lower Cholesky factor of H P_pred H' + R (54, 54) and its log-determinant, cached."""
         _, P_pred, factors = self._prediction()
         if ambiguous not in factors:
             R = self.R_ambiguous if ambiguous else self.R
@@ -253,8 +248,7 @@ class PoseKalmanFilter:
         return factors[ambiguous]
 
     def copy(self) -> "PoseKalmanFilter":
-        """An independent filter in the same state (sharing the pending prediction, the same
-        for both until either steps): cheaper than copy.deepcopy."""
+        """An independent filter in the same state (sharing the pending prediction): cheap."""
         return copy.copy(self)
 
     def step(self, raw55) -> tuple[np.ndarray, bool]:
@@ -270,8 +264,7 @@ class PoseKalmanFilter:
             # x = x_pred + W' L^-1 y and K S K' = W' W (one triangular solve, exactly symmetric).
             W = _lower_solve(L, P_pred[:n])
             x = x_pred + W.T @ _lower_solve(L, wrap_deg(angles - x_pred[:n]))
-            # Whole turns change nothing (measurements are unwrapped against the prediction)
-            # and keep the state bounded on long clips.
+            # Whole turns change nothing (measurements are unwrapped) and keep the state bounded.
             x[:n] -= 360.0 * np.round(x[:n] / 360.0)
             self._x, self._P = x, P_pred - W.T @ W
         self._predicted = None
@@ -279,8 +272,7 @@ class PoseKalmanFilter:
 
     def rts_smooth(self, raws: Sequence | np.ndarray, window: int = 256,
                    lag: int = 64) -> np.ndarray:
-        """Forward filter then RTS smoothing of a whole track (ConstantVelocityFilter.smooth):
-        raws (T, 55) -> smoothed poses (T, 55). Does not touch the state used by :meth:`step`."""
+        """RTS-smoothed poses (T, 55) of a whole track raws (T, 55); the step state is untouched."""
         angles, Rs, _ = self._measure_all(raws, "rts_smooth")
         return angles_to_pose(self.cv.smooth(angles, Rs, window=window, lag=lag))
 

@@ -8,9 +8,8 @@ Markov model over s_t in {0..K-1} with one Kalman filter per state (a GPB / IMM 
     alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
 
 A: switching probabilities; N: the innovation likelihood (filter j continues the best
-predecessor's, so a flip is explained by a switch, not by a jump of the body); e_t(j): the
-frame's own evidence. Online the output is the most probable state's filtered pose; offline
-(``--smooth``) the Viterbi path is RTS-smoothed. How each piece was chosen: docs/tuning.md.
+predecessor's: a flip is a switch, not a jump of the body); e_t(j): the frame's own evidence.
+Output: the most probable state's filtered pose, or the Viterbi path RTS-smoothed (docs/tuning.md).
 """
 from __future__ import annotations
 
@@ -68,8 +67,8 @@ class Hypotheses:
 
 
 def pick_member(limbs: np.ndarray, heading_deg) -> np.ndarray:
-    """Of each canonical pose (55,) or (T, 55) and its front/back flip, the one whose heading
-    is nearer heading_deg (scalar or (T,), degrees: larger cosine); same shape as limbs."""
+    """Of each canonical pose (55,) or (T, 55) and its flip, the one whose heading is nearer
+    heading_deg (scalar or (T,), degrees), as limbs."""
     limbs = np.asarray(limbs, dtype=np.float64)
     h = np.radians(np.asarray(heading_deg, dtype=np.float64))
     direction = np.stack([np.cos(h), np.sin(h)], axis=-1)
@@ -91,11 +90,10 @@ def _table(edges, values, x) -> np.ndarray:
 
 def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
                          priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
-    """The two hypotheses of a model with limbs and a side classifier: the limbs' canonical
-    member (55,) and its front/back flip. Evidence (log likelihood ratios): the side
-    classifier's probability ``front`` that the body faces the camera's half, calibrated by
-    priors.by_front. The heading norm of raw (55,), the main head's pose, replaces the
-    member's (~1), so the filters' R inflation and the ambiguous flag still see it."""
+    """The limbs' canonical member (55,) and its flip, weighed by the side classifier's
+    probability ``front`` that the body faces the camera's half (calibrated: priors.by_front).
+    The heading norm of raw (55,), the main head's pose, replaces the member's (~1), so the
+    filters' R inflation and the ambiguous flag still see it."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
     norm = heading_norm(raw)
@@ -246,14 +244,12 @@ class FrontBackTracker:
 
     @property
     def frame_rate_ratio(self) -> float:
-        """reference_fps / fps: the exponent on evidence and likelihoods, and the share of a
-        reference frame :meth:`frame_switch` switches over."""
+        """reference_fps / fps: the exponent on evidence and likelihoods (and frame_switch's)."""
         return self.reference_fps / self.fps
 
     @property
     def frame_switch(self) -> tuple[float, float]:
-        """The switch probabilities per frame of this video: 1 - (1 - p)^ratio, the same
-        chance of switching per second."""
+        """Switch probabilities per frame at fps: 1 - (1 - p)^ratio (the same per second)."""
         rate = self.frame_rate_ratio
         if rate == 1.0:
             return tuple(self.switch)
@@ -295,10 +291,9 @@ class FrontBackTracker:
         return np.array(path[::-1], dtype=np.int64)
 
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses, of the whole track or of
-        history[start:stop] alone. With a limb_filter_factory the body angles are its RTS
-        smoothing of the raw poses, or of the limb members' most probable chain
-        (tracker.tracks.member_path), under the smoothed heading."""
+        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses of history[start:stop];
+        with a limb_filter_factory the body angles are its smoothing of the raw poses or the
+        limb members' most probable chain (member_path), under the smoothed heading."""
         frames = self.history[start:stop]
         chosen = [frame.poses[s] for frame, s in zip(frames, self.viterbi_path(start, stop))]
         out = self.filter_factory(self.fps).rts_smooth(np.array(chosen))
@@ -313,8 +308,7 @@ class FrontBackTracker:
 
 
 def with_body_angles(pose: np.ndarray, limbs: np.ndarray) -> np.ndarray:
-    """pose (..., 55) with its 53 body angles (entries 2..54) taken from limbs (..., 55); the
-    heading (cos, sin) is pose's."""
+    """pose (..., 55) with its 53 body angles (entries 2..54) taken from limbs (..., 55)."""
     out = np.array(pose, dtype=np.float64, copy=True)
     out[..., 2:] = np.asarray(limbs)[..., 2:]
     return out

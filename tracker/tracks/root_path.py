@@ -1,10 +1,8 @@
 """Each track's root (hip) path smoothed over time, for the smoothed outputs.
 
-The root is placed per frame from the silhouette's box alone (tracker.outputs.geometry), so it
-jitters with the box as the limbs move. The smoothed outputs (and, with ``--lag``, the streamed
-ones over their window) draw their bodies at the root smoothed here: a straight line fitted with
-Gaussian weights about each pose's time (a local linear smoother, zero phase: no lag, no pull at
-the track's ends or beside a gap). ROOT_SMOOTHING_S: docs/tuning.md.
+The root, placed per frame from the silhouette's box alone, jitters with the box as the limbs
+move. The smoothed outputs are drawn at a straight line fitted with Gaussian weights about each
+pose's time (a local linear smoother: no lag, no pull at a track's ends or beside a gap).
 """
 from __future__ import annotations
 
@@ -19,7 +17,7 @@ from tracker.outputs.geometry import pose_joints_m
 if TYPE_CHECKING:
     from tracker.pipeline import TrackedPose
 
-#: Standard deviation of the Gaussian over time, seconds.
+#: Standard deviation of the Gaussian over time, seconds (chosen: docs/tuning.md).
 ROOT_SMOOTHING_S = 0.2
 _REACH_SIGMAS = 4.0        # the Gaussian is cut beyond this many standard deviations
 
@@ -48,8 +46,7 @@ def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTH
     # Weighted sums for each pose's fit: of w, w d, w d^2, w y, w d y (d: time from it).
     s0, s1, s2 = np.zeros(count), np.zeros(count), np.zeros(count)
     t0, t1 = np.zeros_like(roots), np.zeros_like(roots)
-    # Neighbours within reach in time are within reach in pose order (a gap only removes
-    # some): one vectorised pass per offset in pose order.
+    # Neighbours within reach in time are within reach in pose order: a pass per offset.
     for offset in range(-int(reach), int(reach) + 1):
         lo, hi = max(0, -offset), min(count, count - offset)
         if lo >= hi:
@@ -67,8 +64,7 @@ def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTH
     # A lone pose (no neighbour within reach) has no line: its mean, which is itself.
     line = det > 1e-9 * s0 * s0
     out = mean.copy()
-    out[line] = ((s2[line, None] * t0[line] - s1[line, None] * t1[line])
-                 / det[line, None])
+    out[line] = (s2[line, None] * t0[line] - s1[line, None] * t1[line]) / det[line, None]
     return out
 
 
