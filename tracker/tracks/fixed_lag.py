@@ -1,11 +1,9 @@
 """Fixed-lag smoothing (``track --lag``): the outputs written while tracking get each pose
-``lag`` frames late, smoothed over what the video showed next by its track's own smoother
-(FrontBackTracker.smoothed) on a window of its latest poses, drawn at the root path smoothed
-over the same window (PoseTracker.smoothed_root_path). Frames are smoothed in blocks (a run per
-frame would cost about 0.5 ms per frame of window): when ``2 lag`` frames wait, the oldest
-``lag`` are smoothed, each track once, from ``margin`` frames before the block (to start the
-filters) to its newest pose. They go out one per frame pushed, each ``2 lag - 1`` frames after
-it came in: a steady pace a live view can play. Choices: docs/tuning.md. Loaded only for a lag:
+``lag`` frames late, smoothed by its track's own smoother (FrontBackTracker.smoothed) over a
+window of its latest poses and drawn at the root path smoothed over it. Frames are smoothed in
+blocks (a run per frame would cost about 0.5 ms per frame of window): when ``2 lag`` frames
+wait, the oldest ``lag`` are smoothed from ``margin`` frames before the block (to start the
+filters); they go out one per frame pushed, a steady pace a live view can play (docs/tuning.md).
 streamed_kind and drawn_at, re-exported here, live in tracker.tracks and its root_path.
 """
 from __future__ import annotations

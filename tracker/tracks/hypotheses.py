@@ -53,10 +53,9 @@ _FLOOR = 1e-3                            # no evidence is ever certain
 
 @dataclass
 class Hypotheses:
-    """One frame's candidates: poses (K, 55); log_evidence (K,) log likelihood ratios; raw
-    (55,) the regressor's own pose; limbs (55,) the limb head's canonical member or None;
-    canonical: the poses are that member and its flip, front: then the side classifier's
-    probability that the body faces the camera's half."""
+    """One frame's candidates: poses (K, 55), log_evidence (K,) log likelihood ratios, raw (55,)
+    the regressor's own pose, limbs (55,) the canonical member or None; canonical: the poses
+    are that member and its flip, front: the side classifier's P(facing the camera's half)."""
 
     poses: np.ndarray
     log_evidence: np.ndarray
