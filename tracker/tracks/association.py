@@ -45,10 +45,9 @@ class AssociationError(SilhouettePoseError, ValueError):
 
 @dataclass
 class Track:
-    """A person followed over frames: centroid (x, y) px and bbox (x, y, w, h) px (nan: none)
-    at the last match, velocity (vx, vy) px/frame and area px smoothed, hits, missed and
-    occluded (hidden in a group) frame counts, track_id (-1 while tentative), colour histogram
-    and shape, the mask (h, w) bool of its last own detection (None: unknown)."""
+    """A person: centroid (x, y) px and bbox (x, y, w, h) px (nan: none) at the last match,
+    velocity (vx, vy) px/frame and area px smoothed, hits, missed and occluded (in a group)
+    frame counts, track_id (-1: tentative), colour and shape (its last own mask, (h, w) bool)."""
 
     track_id: int
     centroid: np.ndarray

@@ -37,8 +37,7 @@ class FilterError(SilhouettePoseError, ValueError):
 
 def initial_state(z: np.ndarray, R: np.ndarray, rate_std: float
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """A track's first state: x (2n,) = [the measurement z (n,), zero rates] and its
-    covariance P (2n, 2n): R on the values, rate_std^2 on each rate."""
+    """A first state: x (2n,) = [z (n,), zero rates], P (2n, 2n) = diag(R, rate_std^2 I)."""
     n = len(z)
     x = np.concatenate([z, np.zeros(n)])
     P = np.zeros((2 * n, 2 * n))
@@ -73,7 +72,10 @@ class ConstantVelocityFilter:
         if not np.isfinite(R).all() or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() <= 0:
             raise FilterError("R must be finite, symmetric and positive definite")
         self.dim, self.fps, self.dt = int(dim), float(fps), 1.0 / float(fps)
-        self.R, self.q, self.rate_std, self.align = R, q.copy(), float(rate_std), align
+        self.R = R
+        self.q = q.copy()
+        self.rate_std = float(rate_std)
+        self.align = align
         dt = self.dt
         self.Q = np.block([[np.diag(q * dt**4 / 4), np.diag(q * dt**3 / 2)],
                            [np.diag(q * dt**3 / 2), np.diag(q * dt**2)]])

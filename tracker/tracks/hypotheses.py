@@ -262,8 +262,7 @@ class FrontBackTracker:
         return self._log_A[1]
 
     def _continue(self, predecessor: np.ndarray) -> list:
-        """Filters for the new states: state j continues predecessor[j]'s filter (a copy when
-        two states continue the same one: its own ``copy()`` when it has one)."""
+        """Filters for the new states: state j continues predecessor[j]'s (a copy if taken)."""
         used, out = set(), []
         for i in predecessor:
             f = self.filters[int(i)]

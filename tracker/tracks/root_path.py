@@ -24,11 +24,9 @@ _REACH_SIGMAS = 4.0        # the Gaussian is cut beyond this many standard devia
 
 def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTHING_S,
                    frames: np.ndarray | None = None) -> np.ndarray:
-    """roots_m (T, 3) metres, one track's root per pose in time order at fps frames per
-    second, smoothed with Gaussian weights of sigma_s seconds (0: unchanged) over the poses'
-    frame indices frames (T,) (None: one pose per frame; poses beyond a gap weigh as far as
-    they are): each root is the value at its time of the line fitted by those weights to the
-    roots within 4 sigma. Returns (T, 3) metres."""
+    """roots_m (T, 3) metres, one track's roots in time order at fps, smoothed (T, 3): each is
+    the value at its time of the line fitted to the roots within 4 sigma by Gaussian weights of
+    sigma_s seconds (0: unchanged) over their frame indices frames (T,) (None: 0, 1, ...)."""
     roots = np.asarray(roots_m, dtype=np.float64)
     if roots.ndim != 2 or roots.shape[1] != 3:
         raise ValueError(f"roots must be (T, 3), got {roots.shape}")
