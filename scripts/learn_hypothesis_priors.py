@@ -4,9 +4,10 @@ trials rendered as spiral walks.
     python scripts/learn_hypothesis_priors.py [--cmu ../shared/data/cmu/bvh] [--model FILE]
         [--skip-regressor] [--weights] [--save OUT]
 
-Prints the values that tracker/tracks/hypotheses.py (SWITCH_PROBABILITY, RAW_NEARER_BY_NORM; with
---weights EVIDENCE_WEIGHT, which should be chosen after the others are in place) holds; for a model with limbs and a side classifier (the
-default), also the canonical chain's priors on the 28 validation renders
+Prints the values that tracker/tracks/hypotheses.py (SWITCH_PROBABILITY; with --weights
+EVIDENCE_WEIGHT, which should be chosen after the others are in place) and
+tracker/tracks/flip_hypotheses.py (RAW_NEARER_BY_NORM) hold; for a model with limbs and a side
+classifier (the default), also the canonical chain's priors on the 28 validation renders
 (regressor.canonical_priors; the model file carries them), and with --save OUT writes the
 model with those priors to OUT (a new file: never the model itself).
 """

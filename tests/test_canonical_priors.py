@@ -8,7 +8,7 @@ import pytest
 
 from regressor.canonical_priors import CanonicalPriors
 from tracker.tracks.hypotheses import (CANONICAL_FRONT_EDGES, DEFAULT_CANONICAL_PRIORS,
-                                canonical_hypotheses, canonical_priors, switch_probability)
+                                canonical_hypotheses, canonical_priors, chain_options)
 from test_side_classifier import _body, _classifier
 
 
@@ -111,15 +111,15 @@ def test_the_chain_weighs_a_pair_by_the_priors_it_is_given():
 
 def test_the_tracker_takes_a_models_own_priors_else_the_default():
     class Model:
-        gives_canonical_pairs = True
+        gives_canonical_pairs, training_fps = True, 30.0
         canonical_priors = None
 
     model = Model()
     assert canonical_priors(model) is DEFAULT_CANONICAL_PRIORS
-    assert switch_probability(model) == DEFAULT_CANONICAL_PRIORS.switch
+    assert chain_options(model)["switch"] == DEFAULT_CANONICAL_PRIORS.switch
     model.canonical_priors = _priors()
     assert canonical_priors(model) is model.canonical_priors
-    assert switch_probability(model) == (0.01, 0.02)
+    assert chain_options(model)["switch"] == (0.01, 0.02)
 
 
 def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_path):
@@ -130,7 +130,7 @@ def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_p
     from regressor.model_file import load_model
     from regressor.pose_model import PoseModelError, load_pose_model
     from regressor.model_writer import save_pose_model
-    from tracker.tracks.hypotheses import propose_batch
+    from tracker.tracks.proposals import propose_batch
     model, x = _mixture_model()
     rng = np.random.default_rng(3)
     targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),
@@ -150,7 +150,7 @@ def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_p
     for h in hyps:
         again = canonical_hypotheses(h.raw, h.limbs, h.front, model.canonical_priors)
         np.testing.assert_allclose(h.log_evidence, again.log_evidence)
-    assert switch_probability(loaded) == (0.01, 0.02)
+    assert chain_options(loaded)["switch"] == (0.01, 0.02)
     # priors without the classifier, or broken, are refused on load
     side_parts = [k for k in load_model(path).parts if k.startswith("side_net_")]
     assert_refused_when_changed(path, [

@@ -12,7 +12,7 @@ from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from sequences.video import Actor, write_video
 from tests.test_track_cli import _walker
 from tracker import PoseRecorder, PoseTracker, TrackerSettings, track_video
-from tracker.tracks.hypotheses import propose_sequence
+from tracker.tracks.proposals import propose_sequence
 
 ATTRIBUTES = ("stack_depth", "training_fps", "measurement_covariance", "process_noise",
               "ambiguity_threshold", "canonical_direction", "gives_canonical_pairs",

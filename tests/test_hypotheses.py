@@ -9,8 +9,9 @@ from regressor.angles import pose_angles, wrap_deg
 from regressor.estimator import PoseEstimates
 from sequences.pose_vector import front_back_flip
 from tracker.tracks.filtering import PoseKalmanFilter
-from tracker.tracks.hypotheses import (FrontBackTracker, Hypotheses, _with_flips, propose,
-                                transition_matrix)
+from tracker.tracks.flip_hypotheses import with_flips as _with_flips
+from tracker.tracks.hypotheses import FrontBackTracker, Hypotheses, transition_matrix
+from tracker.tracks.proposals import propose_batch
 
 FPS = 30.0
 
@@ -57,7 +58,7 @@ def test_hypotheses_are_the_pose_and_its_flip_and_a_mixture_adds_its_experts():
     assert h.poses.shape == (2, 55) and np.array_equal(h.raw, raw)
     np.testing.assert_allclose(h.poses[1], front_back_flip(h.poses[0]))
 
-    class Mixture:                      # PoseEstimator's members that propose uses
+    class Mixture:                      # PoseEstimator's members that propose_batch uses
         canonical_priors = None
 
         def hypotheses(self, stacked, m, mirrored=None, novelty=True):   # rows (N, k*D)
@@ -65,7 +66,7 @@ def test_hypotheses_are_the_pose_and_its_flip_and_a_mixture_adds_its_experts():
             poses = np.array([_pose(10.0, 0.9), _pose(-60.0, 0.5)])
             return PoseEstimates(np.repeat(poses[None], n, axis=0), np.tile([0.7, 0.3], (n, 1)))
 
-    h = propose(Mixture(), np.zeros(6))
+    (h,) = propose_batch(Mixture(), np.zeros((1, 6)))
     assert h.poses.shape == (4, 55) and h.log_evidence[0] > h.log_evidence[2]
     A = transition_matrix(4)
     np.testing.assert_allclose(A.sum(axis=1), 1.0)

@@ -75,7 +75,8 @@ def test_the_trackers_smoothed_output_takes_its_limbs_from_the_chain_of_members(
     import tracker.tracks.hypotheses as hypotheses
     from sequences.pose_vector import heading_deg
     from tracker.tracks.filtering import PoseKalmanFilter
-    from tracker.tracks.hypotheses import FrontBackTracker, _with_flips
+    from tracker.tracks.flip_hypotheses import with_flips as _with_flips
+    from tracker.tracks.hypotheses import FrontBackTracker
 
     truth, limbs, _ = _walk_in_profile(T=60)
     calls = []

@@ -111,7 +111,7 @@ def test_only_a_model_whose_networks_saw_mirror_images_sees_mirrors(model):
 
 def test_the_proposals_average_the_networks_answer_for_the_mirror_image(model, masks):
     from regressor.stacking import stack_frames
-    from tracker.tracks.hypotheses import propose_sequence
+    from tracker.tracks.proposals import propose_sequence
     plain = propose_sequence(model, masks, mirror=False)
     seen = propose_sequence(model, masks)
     pairs = [model.describe_with_mirror(m) for m in masks]
@@ -146,7 +146,7 @@ def test_the_tracker_describes_the_mirror_frame_by_frame_as_offline(model, masks
     """The streaming path (a second stacker of the mirror images' descriptors) proposes what
     propose_sequence does for the whole sequence."""
     from tracker import PoseTracker, TrackerSettings
-    from tracker.tracks.hypotheses import propose_sequence
+    from tracker.tracks.proposals import propose_sequence
     from tracker.video.silhouettes import PersonMask
     for mirror in (True, False):
         tracker = PoseTracker(model, 30.0, TrackerSettings(mirror_limbs=mirror))

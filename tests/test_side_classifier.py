@@ -12,7 +12,7 @@ from sequences.pose_vector import front_back_flip
 from tracker.tracks.filtering import PoseKalmanFilter
 from tracker.tracks.hypotheses import (CANONICAL_EVIDENCE_WEIGHT, CANONICAL_SWITCH_PROBABILITY,
                                 EVIDENCE_WEIGHT, SWITCH_PROBABILITY, FrontBackTracker,
-                                canonical_hypotheses, evidence_weight, switch_probability)
+                                canonical_hypotheses, chain_options)
 from tracker.pipeline import front_back_tracker
 
 FPS = 30.0
@@ -113,16 +113,17 @@ def test_canonical_hypotheses_are_the_member_and_its_flip_weighed_by_the_classif
 
 def test_only_a_model_with_limbs_and_a_side_classifier_switches_canonically():
     class Plain:
-        gives_canonical_pairs, canonical_priors = False, None
+        gives_canonical_pairs, canonical_priors, training_fps = False, None, 30.0
 
     class Canonical:
-        gives_canonical_pairs, canonical_priors = True, None
+        gives_canonical_pairs, canonical_priors, training_fps = True, None, 30.0
 
-    assert switch_probability(Plain()) == SWITCH_PROBABILITY
-    assert switch_probability(Canonical()) == CANONICAL_SWITCH_PROBABILITY
+    plain, canonical = chain_options(Plain()), chain_options(Canonical())
+    assert plain["switch"] == SWITCH_PROBABILITY
+    assert canonical["switch"] == CANONICAL_SWITCH_PROBABILITY
     # and weighs its evidence by the canonical chain's own exponent
-    assert evidence_weight(Plain()) == EVIDENCE_WEIGHT
-    assert evidence_weight(Canonical()) == CANONICAL_EVIDENCE_WEIGHT != EVIDENCE_WEIGHT
+    assert plain["evidence_weight"] == EVIDENCE_WEIGHT
+    assert canonical["evidence_weight"] == CANONICAL_EVIDENCE_WEIGHT != EVIDENCE_WEIGHT
 
 
 def test_the_joints_ambiguity_inflation_is_smaller_for_a_model_that_gives_canonical_pairs():
@@ -195,7 +196,7 @@ def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pai
     from regressor.model_file import load_model
     from regressor.pose_model import PoseModelError, load_pose_model
     from regressor.model_writer import save_pose_model
-    from tracker.tracks.hypotheses import propose_batch
+    from tracker.tracks.proposals import propose_batch
     model, x = _mixture_model()                              # input length 8
     rng = np.random.default_rng(3)
     targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),
@@ -217,7 +218,7 @@ def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pai
     direction = hyps[0].poses[0, :2] / np.linalg.norm(hyps[0].poses[0, :2])
     np.testing.assert_allclose(direction, limbs[0, :2] / np.linalg.norm(limbs[0, :2]))
     assert np.linalg.norm(hyps[0].poses[0, :2]) == pytest.approx(np.linalg.norm(poses[0, 0, :2]))
-    assert switch_probability(model) == CANONICAL_SWITCH_PROBABILITY
+    assert chain_options(model)["switch"] == CANONICAL_SWITCH_PROBABILITY
     # the tracker's chains (built by one helper) take the canonical switch rates and weight
     chain = front_back_tracker(model, 30.0)
     assert chain.switch == CANONICAL_SWITCH_PROBABILITY

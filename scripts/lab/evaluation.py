@@ -44,7 +44,7 @@ from regressor.errors import SilhouettePoseError
 from tracker.cli import VIEW_LAG_S
 from tracker.tracks.filtering import ConstantVelocityFilter
 from tracker.tracks.fixed_lag import replay
-from tracker.tracks.hypotheses import propose_sequence
+from tracker.tracks.proposals import propose_sequence
 from tracker.pipeline import PoseTracker, TrackerSettings, front_back_tracker
 from tracker.run import track_video
 from tracker.outputs import PoseRecorder

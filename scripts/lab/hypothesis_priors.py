@@ -25,8 +25,8 @@ from sequences.bvh import read_bvh
 from sequences.pose_vector import front_back_flip
 from regressor.stacking import stack_frames
 from sequences.spiral import spiral_walk
-from tracker.tracks.hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, chain_options,
-                                      propose_sequence)
+from tracker.tracks.hypotheses import DEFAULT_EXPERTS, FrontBackTracker, chain_options
+from tracker.tracks.proposals import propose_sequence
 from tracker.pipeline import kalman_factory
 from lab.evaluation import CameraOptions, cmu_motion, render_silhouettes
 

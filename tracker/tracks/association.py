@@ -1,44 +1,16 @@
 """Track association: give each person detection a track id that persists from frame to frame.
 
-Each track remembers its centroid, a smoothed velocity (px/frame), its area and, when detections
-carry one (``bbox``, as silhouettes.PersonMask does), its last bounding box. Per frame, every
-track predicts where it is now (constant velocity), a cost matrix compares predictions with
-detections, and the Hungarian algorithm (scipy's linear_sum_assignment) pairs them. Costs are in
-units of the track's size (its box height, or sqrt(area) for detections without a box), so the
-same gates work for near and far people:
+Each track predicts its centroid (constant velocity) and the Hungarian algorithm pairs the
+predictions with the detections. Costs are in units of the track's size (its box height, or
+sqrt(area) without a box), so one gate serves near and far people:
 
     cost = |centroid - predicted| / size + size_weight * |ln(detection area / track area)|
            + appearance_weight * Bhattacharyya(detection colour, track colour)
 
-A pair is refused (gated) when the distance exceeds ``max_distance`` sizes (widened by one size
-per frame while a track coasts, missed or hidden in a group), or the areas differ by more than
-``max_area_ratio`` while the boxes do not overlap: a silhouette that grows or shrinks in place
-(legs found or lost by the extractor) keeps its id, a different-sized blob elsewhere does not.
-An unmatched detection starts a track at once when it is at least ``min_relative_area`` of the
-largest confirmed track's area (or no track is confirmed: the first people of a video are not
-delayed); a smaller one starts a tentative track, which gets an id and is reported once matched
-in ``min_hits`` consecutive frames, so a blob that flickers for a frame or two beside a tracked
-person (light on the floor, a reflection) never becomes a track. A track
-unmatched for more than ``max_missed`` frames is dropped, so a person who leaves and comes back
-later gets a new id.
-
-People who cross or walk together are one blob to background subtraction. When a detection's
-box holds the predicted centroids of two or more established tracks (each seen last frame or
-already in a group, standing side by side, matched to no other detection), it is a group:
-it is given to none of them (a two-person silhouette is nobody's pose) and starts no track,
-and each member coasts on its constant-velocity prediction, kept inside the group's box, for
-up to ``max_occluded`` frames. When the blob splits, the predictions and each person's
-appearance pick up the ids again: detections that carry a ``colour`` histogram
-(PersonMask.colour) add ``appearance_weight`` times the Bhattacharyya distance between it and
-the track's colour (a running mean over its matched frames) to the cost. A group that lasts
-longer than ``max_occluded`` is treated as one person again.
-
-While hidden, the members still get silhouettes: detections that carry a ``mask`` and ``bbox``
-(PersonMask) leave each track its last silhouette of its own, and a group's blob is split
-between its members by those shapes moved to the members' coasted boxes
-(tracker.video.blob_split.split_blob); each member with a share of the blob is returned with its
-part (a new PersonMask, colour None), so it keeps a pose. The parts are not folded into
-the tracks (their position is the prediction's, their shape the remembered one's).
+A small new detection gets an id only once matched in consecutive frames (a flickering blob
+never becomes a track). People who cross are one blob: a detection whose box holds two or more
+tracks' predictions is a group, given to none of them, its members coasting inside it and each
+given its share of the blob by its last own silhouette. Details: docs/crossings.md.
 """
 from __future__ import annotations
 
@@ -52,19 +24,13 @@ from scipy.optimize import linear_sum_assignment
 
 from regressor.errors import SilhouettePoseError
 
-
-
-#: How long, seconds, a track may stay hidden in a group (PoseTracker sets max_occluded from it
-#: and the video's fps; Associator's default is this at 30 fps). The sample beside its mirror
-#: image is one blob for 17-18 frames (0.6 s) per crossing; people who stop together longer
-#: are taken as one person again.
+#: How long, seconds, a track may stay hidden in a group (PoseTracker's max_occluded): the
+#: sample beside its mirror image is one blob for 0.6 s per crossing.
 MAX_OCCLUDED_S = 1.5
 
 
 class Detection(Protocol):
-    """Anything with a centroid (x, y) px and an area px, e.g. silhouettes.PersonMask; an
-    optional ``bbox`` (x, y, w, h) px and ``colour`` (a histogram summing to 1) are used when
-    present."""
+    """A centroid (x, y) px and area px (e.g. PersonMask); bbox, colour and mask if present."""
 
     centroid: tuple[float, float]
     area: int
@@ -79,13 +45,9 @@ class AssociationError(SilhouettePoseError, ValueError):
 
 @dataclass
 class Track:
-    """A person followed over frames. ``centroid`` (x, y) px at the last match, ``velocity``
-    (vx, vy) px/frame smoothed, ``area`` px smoothed, ``bbox`` (x, y, w, h) px at the last match
-    (nan when detections have none), ``hits`` frames matched, ``missed`` consecutive frames
-    unmatched, ``track_id`` -1 while the track is tentative (fewer than min_hits hits),
-    ``colour`` the appearance histogram (None when detections have none), ``occluded``
-    consecutive frames hidden in a group (centroid and box then coasted, not measured),
-    ``shape`` the mask (h, w) bool of its last detection of its own (None without masks)."""
+    """A person: centroid (x, y) px and bbox (x, y, w, h) px (nan: none) at the last match,
+    velocity (vx, vy) px/frame and area px smoothed, hits, missed and occluded (in a group)
+    frame counts, track_id (-1: tentative), colour and shape (its last own mask, (h, w) bool)."""
 
     track_id: int
     centroid: np.ndarray
@@ -99,7 +61,7 @@ class Track:
     shape: np.ndarray | None = None
 
     def predicted(self) -> np.ndarray:
-        """(x, y) px expected this frame: the last centroid moved on by the missed frames + 1."""
+        """(x, y) px expected this frame (constant velocity since the last match)."""
         return self.centroid + self.velocity * (self.missed + 1)
 
     def size(self) -> float:
@@ -108,8 +70,8 @@ class Track:
 
 
 def box_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Intersection over the smaller box's area, (A, B), of boxes a (A, 4) and b (B, 4)
-    (x, y, w, h) px; 0 where a box is nan. 1 when one box holds the other."""
+    """Intersection over the smaller box's area (A, B) of boxes a (A, 4), b (B, 4) (x, y, w, h)
+    px; 0 where a box is nan."""
     ax0, ay0, aw, ah = (a[:, i][:, None] for i in range(4))
     bx0, by0, bw, bh = (b[:, i][None, :] for i in range(4))
     iw = np.minimum(ax0 + aw, bx0 + bw) - np.maximum(ax0, bx0)
@@ -124,22 +86,15 @@ def box_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class Associator:
     """Frame-to-frame association of detections to track ids (see the module docstring).
 
-    ``max_distance``: gate on centroid distance, in track sizes (box height, or sqrt of area).
-    ``max_area_ratio``: gate on the ratio of areas (>= 1), applied when the boxes overlap by
-    less than ``min_box_overlap`` (intersection over the smaller box). ``size_weight``: weight
-    of the log area ratio in the cost. ``max_missed``: frames a track may go unmatched before
-    it is dropped. ``smoothing``: weight of the newest observation in the velocity and area
-    updates. ``min_hits``: consecutive frames a new track smaller than ``min_relative_area`` of
-    the largest confirmed track must be matched in before it gets an id and its detections are
-    returned (1: at once). ``use_boxes``: False ignores detections' boxes
-    (sizes from sqrt(area), the area gate always applies, no groups: the associator before
-    issue 11). ``appearance_weight``: weight of the colour histograms' Bhattacharyya distance
-    (0-1) in the cost; ``colour_rate``: weight of the newest frame in a track's colour (the
-    first frames are averaged equally). ``max_occluded``: frames a track may stay hidden in a
-    group (0: no groups); ``min_height_ratio``: a group's members are at least this fraction
-    of the tallest member's box height and overlap its rows by this share of their own (a leg
-    cut off by the extractor is no person beside it).
-    """
+    A pair is gated beyond ``max_distance`` sizes (one more per frame coasted), or when the
+    areas differ by more than ``max_area_ratio`` and the boxes overlap by less than
+    ``min_box_overlap`` (a silhouette that grows in place keeps its id). A detection below
+    ``min_relative_area`` of the largest track's waits ``min_hits`` frames for its id; a track
+    unmatched ``max_missed`` frames is dropped. ``smoothing``, ``colour_rate``: weight of the
+    newest frame in velocity and area, colour. ``use_boxes``: False ignores boxes (no groups).
+    ``max_occluded``: frames in a group (0: no groups); ``min_height_ratio``: a group's members
+    are at least this share of the tallest one's height and overlap its rows by this share of
+    their own (a leg cut off by the extractor is no person beside it)."""
 
     def __init__(self, max_distance: float = 1.0, max_area_ratio: float = 1.8,
                  size_weight: float = 1.0, max_missed: int = 15, smoothing: float = 0.5,
@@ -177,16 +132,12 @@ class Associator:
         self.tracks: list[Track] = []
         self._next_id = 0
 
-    def cost_matrix(self, centroids: np.ndarray, areas: np.ndarray,
-                    boxes: np.ndarray | None = None,
+    def cost_matrix(self, centroids: np.ndarray, areas: np.ndarray, boxes: np.ndarray,
                     colours: np.ndarray | None = None) -> np.ndarray:
-        """Costs (tracks, detections) for centroids (N, 2) px, areas (N,) px, boxes (N, 4)
-        px (x, y, w, h; nan or None: unknown) and colour histograms (N, K) (None: unknown);
-        inf = gated."""
+        """Costs (tracks, detections), inf = gated, for centroids (N, 2) px, areas (N,) px,
+        boxes (N, 4) px (nan: unknown) and colour histograms (N, K) or None."""
         if not self.tracks:
             return np.zeros((0, len(areas)))
-        if boxes is None:
-            boxes = np.full((len(areas), 4), np.nan)
         predicted = np.array([t.predicted() for t in self.tracks])           # (T, 2)
         track_area = np.array([t.area for t in self.tracks])                  # (T,)
         # Coasting, in a group or unseen, widens the gate by one size a frame.
@@ -204,8 +155,8 @@ class Associator:
         return cost
 
     def _colour_distance(self, colours: np.ndarray) -> np.ndarray:
-        """Bhattacharyya distances (T, N) in [0, 1] between the tracks' colours and
-        histograms (N, K) summing to 1; 0 for a track without a colour."""
+        """Bhattacharyya distances (T, N) in [0, 1] of the tracks' colours (0 without one) to
+        histograms (N, K)."""
         known = np.array([t.colour is not None for t in self.tracks])
         if not known.any():
             return np.zeros((len(self.tracks), len(colours)))
@@ -215,11 +166,9 @@ class Associator:
         return np.sqrt(np.clip(1.0 - coefficient, 0.0, 1.0)) * known[:, None]
 
     def update(self, detections: Sequence[D]) -> list[tuple[int, D]]:
-        """Match this frame's detections to tracks; returns (track_id, detection) for each
-        detection on a confirmed track (all of them with min_hits=1), in the order given; a
-        group's detection (several people in one blob) is on none, but in its place come
-        (track_id, part) for its members that got a part of it (split_group).
-        Unmatched detections start tentative tracks; stale tracks are dropped."""
+        """Match this frame's detections to tracks: (track_id, detection) for each on a
+        confirmed track, in order, a group's replaced by (track_id, part) for its members
+        (split_group). Unmatched detections start tentative tracks; stale tracks are dropped."""
         centroids = np.array([d.centroid for d in detections], float).reshape(-1, 2)
         areas = np.array([d.area for d in detections], float)
         boxes = np.array([_box(d) if self.use_boxes else (np.nan,) * 4 for d in detections],
@@ -237,7 +186,6 @@ class Associator:
             matched.pop(j, None)
             for r in members:
                 _coast_inside(self.tracks[r], boxes[j])
-
         largest = max((t.area for t in self.tracks if t.track_id >= 0), default=0.0)
         pairs = []
         for j in range(len(detections)):
@@ -270,10 +218,8 @@ class Associator:
         return pairs
 
     def split_group(self, blob, members: np.ndarray) -> list[tuple[int, object]]:
-        """(track_id, part) for the members (track rows (M,), already coasted into the blob's
-        box) that get a part of ``blob`` (a PersonMask) split by their remembered shapes moved
-        to their boxes (tracker.video.blob_split); [] when the blob has no mask or a member has no
-        shape or box."""
+        """(track_id, part) of the members (track rows (M,)) that get a part of ``blob`` split
+        by their last shapes at their coasted boxes ([] without the masks or boxes)."""
         tracks = [self.tracks[r] for r in members]
         if getattr(blob, "mask", None) is None or any(
                 t.shape is None or not np.isfinite(t.bbox).all() for t in tracks):
@@ -283,13 +229,9 @@ class Associator:
         return [(t.track_id, part) for t, part in zip(tracks, parts) if part is not None]
 
     def _groups(self, matched: dict[int, int], boxes: np.ndarray) -> dict[int, np.ndarray]:
-        """Detection index -> rows (M,) of the tracks hidden in it, for detections whose box
-        (N, 4) px holds the predicted centroids of two or more confirmed tracks that were seen
-        last frame or are in a group, have hidden no longer than max_occluded, stand side by
-        side (each at least min_height_ratio of the tallest one's height, and overlapping its
-        rows by that share of its own: pieces of one person cut apart by the extractor stand one
-        above the other) and are matched (``matched``: detection -> track row) to no other
-        detection."""
+        """Detection index -> rows (M,) of the tracks hidden in it: its box (of boxes (N, 4) px)
+        holds the predictions of two or more confirmed tracks seen last frame or in a group,
+        side by side and matched to no other detection (``matched``: detection -> track row)."""
         if not self.tracks or self.max_occluded == 0 or not len(boxes):
             return {}
         eligible = np.array([t.track_id >= 0 and t.missed == 0 and t.hits >= self.min_hits
@@ -343,7 +285,7 @@ class Associator:
 
 def _coast_inside(track: Track, box: np.ndarray) -> None:
     """Move a track hidden in a group's box (x, y, w, h) px on to its prediction, kept inside
-    the box, its own box moved with it; its velocity and appearance are left as they were."""
+    the box (its own box with it)."""
     centre = np.clip(track.predicted(), box[:2], box[:2] + box[2:])
     track.bbox = track.bbox + np.r_[centre - track.centroid, 0.0, 0.0]
     track.centroid = centre

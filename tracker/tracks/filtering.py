@@ -1,28 +1,16 @@
-"""Kalman filtering of regressed poses over time (filterpy), with angle wrap-around handled.
+"""Kalman filtering of regressed poses over time, with angle wrap-around handled.
 
-State: for each of the 54 angles (heading, then the 53 angles of pose entries 2..54), in degrees,
-the angle and its rate; laid out as x = [angles (54), rates (54)] (108,). Constant-velocity
-model with piecewise-constant white acceleration per frame (dt = 1/fps):
+State: the 54 angles (heading, then pose entries 2..54), degrees, and their rates: x = [angles
+(54), rates (54)] (108,). Constant velocity, piecewise-constant white acceleration (dt = 1/fps):
 
     F = [[I, dt I], [0, I]]      Q = diag(q) (x) [[dt^4/4, dt^3/2], [dt^3/2, dt^2]]
     H = [I, 0]                   R = measurement covariance (54, 54), degrees^2
 
-``q``: angular acceleration variances, (deg/s^2)^2. Defaults (a model file supplies its own):
-acceleration std 1000 deg/s^2 (median RMS second difference of 12 CMU clips at 30 fps),
-measurement std 6 deg per joint angle and 20 deg for the heading (the paper's error levels).
-
-Wrap-around: the state is continuous; each measured angle is unwrapped to within 180 deg of the
-prediction before the update, and outputs are wrapped to (-180, 180].
-
-Ambiguity: a raw pose whose heading norm ||(cos, sin)|| is below ``ambiguity_threshold`` averaged
-several views (e.g. front and back); its R is inflated by ``ambiguous_heading_factor`` on the
-heading and ``ambiguous_joint_factor`` on the other angles (a front/back confusion also swaps
-the limbs, less badly).
-
-:class:`ConstantVelocityFilter` holds the mathematics without angles (it also filters e.g. the
-paper's 63-D points); PoseKalmanFilter adds unwrapping and ambiguity, and its frame-by-frame
-:meth:`PoseKalmanFilter.step` works on plain arrays so that the front/back hypotheses
-(tracker.tracks.hypotheses) can score candidates against one prediction and copy it cheaply.
+q: acceleration variances, (deg/s^2)^2. Defaults (a model file has its own): acceleration std
+1000 deg/s^2 (median RMS second difference of 12 CMU clips at 30 fps), measurement std 6 deg per
+joint angle and 20 deg for the heading (the paper's error levels). Measured angles are
+unwrapped against the prediction. A raw pose whose heading norm is below
+``ambiguity_threshold`` averaged several views: its R is inflated, most on the heading.
 """
 from __future__ import annotations
 
@@ -31,7 +19,6 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 import scipy.linalg
-from filterpy.kalman import KalmanFilter
 
 from regressor.angles import N_ANGLES, POSE_DIM, angles_to_pose, heading_norm, pose_angles, wrap_deg
 from regressor.pose_model import DEFAULT_AMBIGUITY_THRESHOLD
@@ -48,38 +35,24 @@ class FilterError(SilhouettePoseError, ValueError):
     """Bad filter settings or pose vectors; one-line message naming the problem."""
 
 
-def _as_covariance(R, name: str) -> np.ndarray:
-    """R given as None, (54,) variances or (54, 54) -> a checked (54, 54) covariance, deg^2."""
-    if R is None:
-        std = np.full(N_ANGLES, DEFAULT_JOINT_STD)
-        std[0] = DEFAULT_HEADING_STD
-        return np.diag(std**2)
-    return _as_matrix(R, N_ANGLES, name)
-
-
-def _as_matrix(R, dim: int, name: str) -> np.ndarray:
-    """R given as (dim,) variances or (dim, dim) -> a checked (dim, dim) covariance."""
-    R = np.asarray(R, float)
-    if R.shape == (dim,):
-        R = np.diag(R)
-    if R.shape != (dim, dim):
-        raise FilterError(f"{name} must have shape ({dim},) or ({dim}, {dim}), got {R.shape}")
-    if not np.isfinite(R).all() or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() <= 0:
-        raise FilterError(f"{name} must be finite, symmetric and positive definite")
-    return R
+def initial_state(z: np.ndarray, R: np.ndarray, rate_std: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """A first state: x (2n,) = [z (n,), zero rates], P (2n, 2n) = diag(R, rate_std^2 I)."""
+    n = len(z)
+    x = np.concatenate([z, np.zeros(n)])
+    P = np.zeros((2 * n, 2 * n))
+    P[:n, :n] = R
+    P[n:, n:] = np.eye(n) * rate_std**2
+    return x, P
 
 
 class ConstantVelocityFilter:
-    """Kalman filter and RTS smoother for ``dim`` values, each with its rate (filterpy).
+    """Kalman filter and RTS smoother for ``dim`` values, each with its rate (module docstring).
 
-    State x = [values (dim), rates (dim)] (2 dim,); F, H, Q as in the module docstring with
-    dt = 1/fps. ``R``: measurement covariance, (dim,) variances or (dim, dim), in squared value
-    units. ``q``: acceleration variances, scalar or (dim,), (units/s^2)^2. ``rate_std``: prior
-    std of the rates at the first frame, units/s. Measurements may carry their own R (e.g.
-    inflated for frames known to be unreliable). ``align(z, predicted) -> z``, if given, maps a
-    measurement (dim,) before each update, given the predicted values (dim,): angle filters
-    unwrap it there.
-    """
+    R: measurement covariance, (dim,) or (dim, dim), units^2 (measurements may carry their
+    own); q: acceleration variances, scalar or (dim,), (units/s^2)^2; rate_std: prior std of
+    the rates at the first frame, units/s; align(z, predicted) -> z, if given, maps each
+    measurement (dim,) given the predicted values (dim,) (angle filters unwrap it there)."""
 
     def __init__(self, dim: int, fps: float, R, q, rate_std: float,
                  align: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None):
@@ -92,68 +65,31 @@ class ConstantVelocityFilter:
         q = np.broadcast_to(np.asarray(q, float), (int(dim),))
         if not (np.isfinite(q).all() and (q >= 0).all()):
             raise FilterError("q (acceleration variances) must be finite and >= 0")
+        R = np.asarray(R, float)
+        R = np.diag(R) if R.shape == (dim,) else R
+        if R.shape != (dim, dim):
+            raise FilterError(f"R must have shape ({dim},) or ({dim}, {dim}), got {R.shape}")
+        if not np.isfinite(R).all() or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() <= 0:
+            raise FilterError("R must be finite, symmetric and positive definite")
         self.dim, self.fps, self.dt = int(dim), float(fps), 1.0 / float(fps)
-        self.R = _as_matrix(R, self.dim, "R")
+        self.R = R
         self.q = q.copy()
         self.rate_std = float(rate_std)
         self.align = align
-        dt, eye = self.dt, np.eye(self.dim)
-        self.F = np.block([[eye, dt * eye], [np.zeros_like(eye), eye]])
-        self.H = np.hstack([eye, np.zeros_like(eye)])
+        dt = self.dt
         self.Q = np.block([[np.diag(q * dt**4 / 4), np.diag(q * dt**3 / 2)],
                            [np.diag(q * dt**3 / 2), np.diag(q * dt**2)]])
 
-    def start(self, z: np.ndarray, R: np.ndarray | None = None) -> KalmanFilter:
-        """A filterpy filter started at measurement z (dim,) with zero rates."""
-        R = self.R if R is None else R
-        n = self.dim
-        kf = KalmanFilter(dim_x=2 * n, dim_z=n)
-        kf.F, kf.H, kf.Q, kf.R = self.F, self.H, self.Q, self.R
-        kf.x = np.concatenate([np.asarray(z, float), np.zeros(n)])[:, None]
-        kf.P = np.zeros((2 * n, 2 * n))
-        kf.P[:n, :n] = R
-        kf.P[n:, n:] = np.eye(n) * self.rate_std**2
-        return kf
-
-    def advance(self, kf: KalmanFilter, z: np.ndarray, R: np.ndarray | None = None) -> None:
-        """One predict + update of kf with measurement z (dim,) (aligned to the prediction)."""
-        kf.predict()
-        z = np.asarray(z, float)
-        if self.align is not None:
-            z = self.align(z, kf.x[: self.dim, 0])
-        kf.update(z[:, None], R=self.R if R is None else R)
-
     def filter(self, zs: np.ndarray, Rs: Sequence | None = None) -> np.ndarray:
-        """Forward-filtered values (T, dim) of measurements zs (T, dim); Rs: per-frame R or None."""
-        zs = self._check_sequence(zs)
-        out = np.empty_like(zs)
-        for t, kf in enumerate(self._filterpy_steps(zs, Rs)):
-            out[t] = kf.x[: self.dim, 0]
-        return out
-
-    def _filterpy_steps(self, zs: np.ndarray, Rs: Sequence | None):
-        """filterpy's filter over checked measurements zs (T, dim): yields it after each
-        frame's update (the same KalmanFilter object each time)."""
-        kf = None
-        for t, z in enumerate(zs):
-            R = None if Rs is None else Rs[t]
-            if kf is None:
-                kf = self.start(z, R)
-            else:
-                self.advance(kf, z, R)
-            yield kf
+        """Forward-filtered values (T, dim) of zs (T, dim), Rs: per-frame R or None (filterpy)."""
+        from tracker.tracks.filterpy_runs import forward
+        return forward(self, self._check_sequence(zs), Rs)
 
     def smooth(self, zs: np.ndarray, Rs: Sequence | None = None, window: int = 256,
                lag: int = 64) -> np.ndarray:
-        """Forward filter then Rauch-Tung-Striebel smoothing: values (T, dim) of zs (T, dim).
-
-        filterpy's KalmanFilter.update and rts_smoother to rounding (:meth:`smooth_filterpy`,
-        which the tests compare it with), written for F = [[I, dt I], [0, I]] and H = [I, 0]:
-        F P F' by blocks, the short covariance update, and only the smoothed values carried
-        backwards (five times faster: docs/speed.md). The filtered covariances are kept per
-        window of ``window`` frames, each run on ``lag`` further frames whose influence on the
-        window has decayed (exact up to that decay).
-        """
+        """Forward filter then Rauch-Tung-Striebel smoothing (filterpy's to rounding): values
+        (T, dim) of zs (T, dim). The filtered covariances are kept per window of ``window``
+        frames, each run on ``lag`` further frames whose influence on it has decayed."""
         zs = self._check_sequence(zs)
         if window < 1 or lag < 0:
             raise FilterError(f"window={window} must be >= 1 and lag={lag} >= 0")
@@ -167,10 +103,7 @@ class ConstantVelocityFilter:
             for i, t in enumerate(range(start, stop)):
                 R = self.R if Rs is None or Rs[t] is None else Rs[t]
                 if x is None:
-                    x = np.concatenate([zs[t], np.zeros(n)])
-                    P = np.zeros((2 * n, 2 * n))
-                    P[:n, :n] = R
-                    P[n:, n:] = np.eye(n) * self.rate_std**2
+                    x, P = initial_state(zs[t], R, self.rate_std)
                 else:
                     x, P = self._predict(x, P)
                     z = zs[t] if self.align is None else self.align(zs[t], x[:n])
@@ -194,8 +127,8 @@ class ConstantVelocityFilter:
         return smoothed
 
     def _predict(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q, F = [[I, dt I], [0, I]] by
-        its blocks (O(n^2) instead of two (2n)^3 products; PoseKalmanFilter's steps too)."""
+        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q by F's blocks (O(n^2)
+        instead of two (2n)^3 products)."""
         n, dt = self.dim, self.dt
         x = np.concatenate([x[:n] + dt * x[n:], x[n:]])
         B, D = P[:n, n:], P[n:, n:]
@@ -204,18 +137,6 @@ class ConstantVelocityFilter:
         out[:n, n:] += dt * D
         out[n:, :n] += dt * D
         return x, out
-
-    def smooth_filterpy(self, zs: np.ndarray, Rs: Sequence | None = None) -> np.ndarray:
-        """:meth:`smooth` done by filterpy's KalmanFilter and rts_smoother in one window (the
-        reference the tests hold :meth:`smooth` to; it keeps four (T, 2 dim, 2 dim) arrays)."""
-        zs = self._check_sequence(zs)
-        xs, ps = [], []
-        for kf in self._filterpy_steps(zs, Rs):
-            xs.append(kf.x.copy())
-            ps.append(kf.P.copy())
-        x_smooth, _, _, _ = kf.rts_smoother(np.array(xs), np.array(ps), Fs=[self.F] * len(xs),
-                                            Qs=[self.Q] * len(xs))
-        return x_smooth[:, : self.dim, 0]
 
     def _check_sequence(self, zs) -> np.ndarray:
         zs = np.asarray(zs, float)
@@ -226,22 +147,22 @@ class ConstantVelocityFilter:
         return zs
 
 
+# LAPACK directly: scipy's solve_triangular and cho_solve check and copy more than a per-frame
+# filter can afford.
+_trtrs, _potrf, _potrs = scipy.linalg.lapack.get_lapack_funcs(("trtrs", "potrf", "potrs"),
+                                                               dtype=np.float64)
+
+
 def _lower_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """L^-1 b for a lower-triangular L (n, n) and b (n,) or (n, m): LAPACK's trtrs directly
-    (scipy's solve_triangular checks and copies more than a per-frame filter can afford)."""
+    """L^-1 b for a lower-triangular L (n, n) and b (n,) or (n, m)."""
     x, info = _trtrs(L, b, lower=1)
     if info != 0:
         raise FilterError(f"singular innovation covariance (LAPACK trtrs info {info})")
     return x
 
 
-_trtrs, _potrf, _potrs = scipy.linalg.lapack.get_lapack_funcs(("trtrs", "potrf", "potrs"),
-                                                               dtype=np.float64)
-
-
 def _spd_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """A^-1 b for a symmetric positive definite A (n, n) and b (n,) or (n, m), by LAPACK's
-    Cholesky directly (scipy.linalg.cho_solve's checks cost more than the solve here)."""
+    """A^-1 b for a symmetric positive definite A (n, n) and b (n,) or (n, m) (Cholesky)."""
     c, info = _potrf(A, lower=1)
     if info != 0:
         raise FilterError(f"covariance not positive definite (LAPACK potrf info {info})")
@@ -251,102 +172,40 @@ def _spd_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     return x
 
 
-def innovation_factor(P_pred: np.ndarray, factors: dict, R: np.ndarray, ambiguous: bool
-                      ) -> tuple[np.ndarray, float]:
-    """Lower Cholesky factor of H P_pred H' + R (54, 54) for a predicted covariance P_pred
-    (108, 108), and its log-determinant; kept in ``factors`` (a dict per prediction) under R's
-    key: it is known by the frame's ambiguity."""
-    key = ambiguous
-    if key not in factors:
-        L, info = _potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1)
-        if info != 0:
-            raise FilterError(f"innovation covariance not positive definite (LAPACK potrf "
-                              f"info {info})")
-        factors[key] = (L, 2.0 * np.log(np.diag(L)).sum())
-    return factors[key]
-
-
-def initial_state(angles: np.ndarray, R: np.ndarray, rate_std: float
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """A track's first state: x (108,) = [the measured angles (54,), zero rates] and its
-    covariance P (108, 108): R on the angles, rate_std^2 (deg/s)^2 on each rate."""
-    n = N_ANGLES
-    x = np.concatenate([angles, np.zeros(n)])
-    P = np.zeros((2 * n, 2 * n))
-    P[:n, :n] = R
-    P[n:, n:] = np.eye(n) * rate_std**2
-    return x, P
-
-
-def innovation_log_likelihood(L: np.ndarray, logdet: float, angles: np.ndarray,
-                              x_pred: np.ndarray) -> float:
-    """log N(y; 0, S) of measured angles (54,) deg against a predicted state x_pred (108,), y
-    the angles unwrapped against the prediction, S = L L' with log-determinant logdet
-    (innovation_factor)."""
-    w = _lower_solve(L, wrap_deg(angles - x_pred[:N_ANGLES]))
-    return float(-0.5 * (w @ w + logdet + N_ANGLES * _LOG_2PI))
-
-
-def kalman_update(x_pred: np.ndarray, P_pred: np.ndarray, L: np.ndarray, angles: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The Kalman update in covariance form of a prediction x_pred (108,), P_pred (108, 108)
-    with measured angles (54,) deg, L the lower Cholesky factor of the innovation covariance S
-    (innovation_factor). Returns (x (108,), P (108, 108), w = L^-1 y (54,)): x = x_pred + K y,
-    P = P_pred - K S K' with K = P_pred H' S^-1, y the angles unwrapped against the prediction
-    (w @ w is the innovation's Mahalanobis term, for likelihoods)."""
-    n = N_ANGLES
-    w = _lower_solve(L, wrap_deg(angles - x_pred[:n]))
-    # With S = L L', W = L^-1 H P_pred (54, 108): K = W' L^-1, so x = x_pred + W' L^-1 y
-    # and K S K' = W' W. One triangular solve and a symmetric product (BLAS syrk, exactly
-    # symmetric) cost about half of a Cholesky solve for K and a general product.
-    W = _lower_solve(L, P_pred[:n])
-    x = x_pred + W.T @ w
-    # Shifting angles by whole turns changes nothing (measurements are unwrapped against
-    # the prediction) and keeps the state bounded on long clips.
-    x[:n] -= 360.0 * np.round(x[:n] / 360.0)
-    return x, P_pred - W.T @ W, w
-
-
 def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
     """Angles z (deg) shifted by whole turns to lie within 180 deg of predicted."""
     return predicted + wrap_deg(z - predicted)
 
 
 class PoseKalmanFilter:
-    """Per-track Kalman filter over the 54 pose angles (see the module docstring).
-
-    ``fps``: frames per second (dt = 1/fps). ``R``: measurement covariance, (54,) variances or
-    (54, 54), deg^2, in :func:`regressor.angles.pose_angles` order. ``q``: acceleration
-    variances, scalar or (54,), (deg/s^2)^2. ``ambiguity_threshold``: heading norm below which
-    a frame is ambiguous. ``rate_std``: prior std of the angular rates at the first frame, deg/s.
-    """
+    """Per-track Kalman filter over the 54 pose angles (see the module docstring): R (54,) or
+    (54, 54) deg^2 in :func:`regressor.angles.pose_angles` order (None: the defaults), q and
+    rate_std as ConstantVelocityFilter's in degrees. A frame whose heading norm is below
+    ``ambiguity_threshold`` has its R scaled by the ambiguous factors (heading, other angles)."""
 
     def __init__(self, fps: float, R=None, q=None,
                  ambiguity_threshold: float = DEFAULT_AMBIGUITY_THRESHOLD,
                  ambiguous_heading_factor: float = 25.0, ambiguous_joint_factor: float = 4.0,
                  rate_std: float = DEFAULT_RATE_STD):
-        if not (np.isfinite(fps) and fps > 0):
-            raise FilterError(f"fps={fps} must be positive")
         if min(ambiguous_heading_factor, ambiguous_joint_factor) < 1 or ambiguity_threshold < 0:
             raise FilterError("ambiguous factors must be >= 1 and ambiguity_threshold >= 0")
-        self.cv = ConstantVelocityFilter(N_ANGLES, fps, _as_covariance(R, "R"),
+        if R is None:
+            R = np.diag(np.r_[DEFAULT_HEADING_STD, np.full(N_ANGLES - 1, DEFAULT_JOINT_STD)]**2)
+        self.cv = ConstantVelocityFilter(N_ANGLES, fps, R,
                                          DEFAULT_ACCEL_STD**2 if q is None else q, rate_std,
                                          align=_unwrap_against)
-        self.fps, self.dt, self.R = self.cv.fps, self.cv.dt, self.cv.R
-        self.F, self.H, self.Q = self.cv.F, self.cv.H, self.cv.Q
-        inflate = np.full(N_ANGLES, np.sqrt(ambiguous_joint_factor))
-        inflate[0] = np.sqrt(ambiguous_heading_factor)
+        self.R = self.cv.R
+        inflate = np.sqrt(np.r_[ambiguous_heading_factor,
+                                np.full(N_ANGLES - 1, ambiguous_joint_factor)])
         # Scaling std per angle keeps correlations: R_amb = D R D with D = diag(sqrt(factor)).
         self.R_ambiguous = self.R * np.outer(inflate, inflate)
         self.ambiguity_threshold = ambiguity_threshold
-        self.rate_std = rate_std
         self._x: np.ndarray | None = None        # (108,) state, None before the first step
         self._P: np.ndarray | None = None        # (108, 108) its covariance
         self._predicted: tuple | None = None     # see _prediction
 
     def _measure(self, raw55) -> tuple[np.ndarray, np.ndarray, bool]:
-        """Check one raw pose; returns (angles (54,), R to use (inflated when the frame is
-        ambiguous), ambiguous)."""
+        """Check one raw pose (55,) -> (angles (54,), its R, ambiguous)."""
         raw = np.asarray(raw55, float)
         if raw.shape != (POSE_DIM,):
             raise FilterError(f"pose vector must have shape (55,), got {raw.shape}")
@@ -358,74 +217,69 @@ class PoseKalmanFilter:
         return angles, self.R_ambiguous if ambiguous else self.R, ambiguous
 
     def log_likelihoods(self, raws) -> np.ndarray:
-        """Innovation log-likelihoods (K,) of candidate raw poses raws (K, 55) for the next
-        frame: log N(z_k - H x_pred; 0, H P_pred H' + R_k), z_k the angles unwrapped against the
-        prediction, R_k as :meth:`step` would use. Does not change the filter (the prediction
-        and factorizations are kept for the next :meth:`step`, and shared by :meth:`copy`);
-        zeros before its first step."""
+        """Innovation log-likelihoods (K,) of candidate raw poses (K, 55) for the next frame
+        (zeros before the first step); the filter keeps its state and the prediction."""
         raws = np.asarray(raws, float)
         if self._x is None:
             return np.zeros(len(raws))
         x_pred = self._prediction()[0]
         out = np.empty(len(raws))
         for k, raw in enumerate(raws):
-            angles, R, ambiguous = self._measure(raw)
-            out[k] = innovation_log_likelihood(*self._factor(R, ambiguous), angles, x_pred)
+            angles, _, ambiguous = self._measure(raw)
+            L, logdet = self._factor(ambiguous)
+            w = _lower_solve(L, wrap_deg(angles - x_pred[:N_ANGLES]))
+            out[k] = float(-0.5 * (w @ w + logdet + N_ANGLES * _LOG_2PI))
         return out
 
     def _prediction(self) -> tuple[np.ndarray, np.ndarray, dict]:
-        """(x_pred (108,), P_pred (108, 108), factorizations by R) of the next frame, computed
-        once per frame."""
+        """(x_pred (108,), P_pred (108, 108), factors by ambiguity) of the next frame, once."""
         if self._predicted is None:
             self._predicted = (*self.cv._predict(self._x, self._P), {})
         return self._predicted
 
-    def _factor(self, R: np.ndarray, ambiguous: bool) -> tuple[np.ndarray, float]:
-        """Lower Cholesky factor of the innovation covariance H P_pred H' + R (54, 54) and its
-        log-determinant, cached per prediction (R is known by the frame's ambiguity)."""
+    def _factor(self, ambiguous: bool) -> tuple[np.ndarray, float]:
+        """Lower Cholesky factor of H P_pred H' + R (54, 54) and its log-determinant, cached."""
         _, P_pred, factors = self._prediction()
-        return innovation_factor(P_pred, factors, R, ambiguous)
+        if ambiguous not in factors:
+            R = self.R_ambiguous if ambiguous else self.R
+            L, info = _potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1)
+            if info != 0:
+                raise FilterError(f"innovation covariance not positive definite (LAPACK potrf "
+                                  f"info {info})")
+            factors[ambiguous] = (L, 2.0 * np.log(np.diag(L)).sum())
+        return factors[ambiguous]
 
     def copy(self) -> "PoseKalmanFilter":
-        """An independent filter in the same state (the pending prediction is shared: it is
-        the same for both until either steps). Cheaper than copy.deepcopy."""
+        """An independent filter in the same state (sharing the pending prediction): cheap."""
         return copy.copy(self)
 
-    def reset(self) -> None:
-        """Forget the track: the next :meth:`step` starts afresh."""
-        self._x, self._P, self._predicted = None, None, None
-
     def step(self, raw55) -> tuple[np.ndarray, bool]:
-        """Filter one raw regressor output (55,) -> (filtered pose (55,), ambiguous flag).
-        The Kalman update in covariance form, x = x_pred + K y, P = P_pred - K S K' with
-        K = P_pred H' S^-1: the same as ConstantVelocityFilter's up to rounding."""
+        """Filter one raw regressor output (55,) -> (filtered pose (55,), ambiguous flag)."""
         angles, R, ambiguous = self._measure(raw55)
+        n = N_ANGLES
         if self._x is None:
-            self._x, self._P = initial_state(angles, R, self.rate_std)
+            self._x, self._P = initial_state(angles, R, self.cv.rate_std)
         else:
             x_pred, P_pred, _ = self._prediction()
-            L, _ = self._factor(R, ambiguous)
-            self._x, self._P, _ = kalman_update(x_pred, P_pred, L, angles)
+            L, _ = self._factor(ambiguous)
+            # With S = L L' and W = L^-1 H P_pred (54, 108): K = P_pred H' S^-1 = W' L^-1, so
+            # x = x_pred + W' L^-1 y and K S K' = W' W (one triangular solve, exactly symmetric).
+            W = _lower_solve(L, P_pred[:n])
+            x = x_pred + W.T @ _lower_solve(L, wrap_deg(angles - x_pred[:n]))
+            # Whole turns change nothing (measurements are unwrapped) and keep the state bounded.
+            x[:n] -= 360.0 * np.round(x[:n] / 360.0)
+            self._x, self._P = x, P_pred - W.T @ W
         self._predicted = None
-        return angles_to_pose(self._x[:N_ANGLES]), ambiguous
-
-    def filter(self, raws: Sequence | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Forward-filter a whole track: raws (T, 55) -> (filtered poses (T, 55), ambiguous
-        flags (T,) bool), as :meth:`step` from a reset gives; does not touch its state."""
-        angles, Rs, ambiguous = self._measure_all(raws, "filter")
-        return angles_to_pose(self.cv.filter(angles, Rs)), ambiguous
+        return angles_to_pose(self._x[:n]), ambiguous
 
     def rts_smooth(self, raws: Sequence | np.ndarray, window: int = 256,
                    lag: int = 64) -> np.ndarray:
-        """Forward filter then Rauch-Tung-Striebel smoothing of a whole track
-        (ConstantVelocityFilter.smooth, windowed by ``window`` and ``lag``): raws (T, 55) ->
-        smoothed poses (T, 55). Does not touch the state used by :meth:`step`."""
-        if window < 1 or lag < 0:
-            raise FilterError(f"window={window} must be >= 1 and lag={lag} >= 0")
+        """RTS-smoothed poses (T, 55) of a whole track raws (T, 55); the step state is untouched."""
         angles, Rs, _ = self._measure_all(raws, "rts_smooth")
         return angles_to_pose(self.cv.smooth(angles, Rs, window=window, lag=lag))
 
     def _measure_all(self, raws, name: str) -> tuple[np.ndarray, list, np.ndarray]:
+        """Checked raw poses (T, 55) -> (angles (T, 54), their R each, ambiguous (T,) bool)."""
         raws = np.asarray(raws, float)
         if raws.ndim != 2 or raws.shape[1] != POSE_DIM or len(raws) == 0:
             raise FilterError(f"{name} needs poses of shape (T, 55), got {raws.shape}")

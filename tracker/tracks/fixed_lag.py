@@ -1,49 +1,41 @@
-"""Fixed-lag smoothing: the outputs written while tracking get each pose a little late,
-smoothed over what the video showed next (``track --lag``).
-
-The whole-track smoothed output (``--smooth``) can only be written at the end. A pose held back
-``lag`` frames can already be smoothed over those frames: each track's own smoother
-(FrontBackTracker.smoothed) runs on a window of its latest poses. Frames are smoothed in blocks
-(a run per frame would cost about 0.5 ms per frame of window): when ``2 lag`` frames wait, the
-oldest ``lag`` are smoothed, each track once, over its poses from ``margin`` frames before the
-block (only to start the filters) to its newest, so each frame is smoothed over at least
-``lag`` frames after it. The smoothed frames go out one per frame pushed, each ``2 lag - 1``
-frames after it came in: a steady pace a live view can play without pauses. The bodies are
-drawn at the root path smoothed over the same window (PoseTracker.smoothed_root_path).
-How the block scheme and the margin were chosen: docs/tuning.md, "tracker/tracks/fixed_lag.py".
+"""Fixed-lag smoothing (``track --lag``): the outputs written while tracking get each pose
+``lag`` frames late, smoothed by its track's own smoother (FrontBackTracker.smoothed) over a
+window of its latest poses and drawn at the root path smoothed over it. Frames are smoothed in
+blocks (a run per frame would cost about 0.5 ms per frame of window): when ``2 lag`` frames
+wait, the oldest ``lag`` are smoothed from ``margin`` frames before the block (to start the
+filters); they go out one per frame pushed, a steady pace a live view can play (docs/tuning.md).
+streamed_kind and drawn_at, re-exported here, live in tracker.tracks and its root_path.
 """
 from __future__ import annotations
 
 import itertools
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
+from tracker.tracks import streamed_kind  # noqa: F401
+from tracker.tracks.root_path import drawn_at
 from tracker.video.silhouettes import PersonMask
-from tracker.outputs.geometry import pose_joints_m
 
 if TYPE_CHECKING:
     from tracker.pipeline import PoseTracker, TrackedPose
 
-#: Frames before a block that start its window's filters, in seconds of video (longer
-#: gained nothing on the validation spirals: docs/tuning.md).
+#: Frames before a block that start its window's filters, seconds (longer gained nothing).
 MARGIN_S = 1.0
-#: The longest lag ``track --lag`` takes, seconds: the frames held back (with --view, the
-#: video frames too) grow with it.
+#: The longest lag ``track --lag`` takes, seconds: the frames held back grow with it.
 MAX_LAG_S = 10.0
-#: Video frames held back (for a sink that shows the video: the live view) are kept at most
-#: this wide, their people with them. The view shows them 256 px wide, and a 4K frame is 25
-#: MB: a 0.5 s lag at 60 fps holds 59 of them.
+#: Video frames held back (for the live view, which shows them 256 px wide) are kept at most
+#: this wide, their people with them: a 0.5 s lag at 60 fps holds 59 frames, 25 MB each at 4K.
 HELD_FRAME_WIDTH_PX = 640
 
 
 @dataclass
 class _Waiting:
-    """A tracked frame held back: as the tracking loop gives it (its image shrunk, above), and
-    per pose its track's pose number (0 for the track's first pose)."""
+    """A tracked frame held back (its image shrunk: _held), and per pose its track's pose
+    number (0 for the track's first pose)."""
 
     frame: tuple              # (frame_index, time_s, image or None, poses, people)
     numbers: list[int]
@@ -51,16 +43,13 @@ class _Waiting:
 
 class FixedLagSmoother:
     """Holds tracked frames back and gives them out with each pose's ``filtered`` replaced
-    by the fixed-lag smoothed pose (55,) and its ``joints_m`` (18, 3) metres redrawn from it;
-    the rest of a pose is as tracked. Video frames wider than HELD_FRAME_WIDTH_PX are held
-    shrunk to that width, their people with them.
+    by the fixed-lag smoothed pose (55,) and its ``joints_m`` (18, 3) metres redrawn from it.
 
     tracker: the PoseTracker, with TrackerSettings(keep_history=True). lag_frames: >= 1;
     margin_frames: >= 0 (None: MARGIN_S at the tracker's fps). Frames (frame_index, time_s,
-    image, poses, people) go in with :meth:`push` and come out in order, each once, on
-    :attr:`ready` (a deque the caller empties), 2 lag - 1 frames after they came in;
-    :meth:`flush` puts the rest there. A block leaves the queue only once smoothed, so a
-    Ctrl-C inside the smoother loses nothing."""
+    image, poses, people) go in with :meth:`push` and come out in order on :attr:`ready` (a
+    deque the caller empties); :meth:`flush` puts the rest there. A block leaves the queue
+    only once smoothed, so a Ctrl-C inside the smoother loses nothing."""
 
     def __init__(self, tracker: PoseTracker, lag_frames: int, margin_frames: int | None = None):
         if not tracker.settings.keep_history:
@@ -80,8 +69,7 @@ class FixedLagSmoother:
 
     @classmethod
     def from_seconds(cls, tracker: PoseTracker, lag_s: float) -> FixedLagSmoother:
-        """A smoother whose lag is ``lag_s`` seconds of video (> 0; rounded to whole frames
-        at the tracker's fps, at least one)."""
+        """A smoother whose lag is ``lag_s`` seconds of video (rounded to whole frames, >= 1)."""
         if not (np.isfinite(lag_s) and 0 < lag_s <= MAX_LAG_S):
             raise ValueError(f"lag {lag_s} s must be above 0 and at most {MAX_LAG_S:g} s")
         return cls(tracker, max(1, int(round(lag_s * tracker.fps))))
@@ -106,16 +94,14 @@ class FixedLagSmoother:
             self.ready.append(self._smoothed.popleft())
 
     def flush(self) -> None:
-        """Put every frame still held back on :attr:`ready` (at the end of the video, or on a
-        stop), smoothed over all that was pushed."""
+        """Put every frame still held back on :attr:`ready`, smoothed over all that was pushed."""
         if self._waiting:
             self._smooth(len(self._waiting))
         self.ready.extend(self._smoothed)
         self._smoothed.clear()
 
     def _smooth(self, count: int) -> None:
-        """Smooth the oldest ``count`` frames held back onto the internal smoothed queue; they
-        leave the waiting queue only once done."""
+        """Smooth the oldest ``count`` frames held back onto the smoothed queue."""
         block = list(itertools.islice(self._waiting, count))
         # Each track's poses in the block, one smoother run per track.
         numbers: dict[int, list[int]] = {}
@@ -145,18 +131,11 @@ class FixedLagSmoother:
         self._smoothed.extend(out)
 
 
-def streamed_kind(lag_s: float) -> str:
-    """What the poses written while tracking are, as the outputs name them: "filtered", or
-    "fixed-lag smoothed" with a lag (seconds) above 0."""
-    return "fixed-lag smoothed" if lag_s > 0 else "filtered"
-
-
 def replay(tracker: PoseTracker, frames: list[tuple[int, list[TrackedPose]]],
            lag_s: float) -> list[TrackedPose]:
     """The poses a run with ``track_video(..., lag_s=lag_s)`` would have given the outputs,
-    from a finished run without a lag (TrackerSettings(keep_history=True)); frames: that
-    run's every frame as (frame_index, its poses), in order. An evaluation gets the filtered
-    and the lagged poses from one run."""
+    from a finished run without a lag (keep_history=True) and its every frame as
+    (frame_index, its poses), in order: the filtered and the lagged poses from one run."""
     smoother = FixedLagSmoother.from_seconds(tracker, lag_s)
     for index, poses in frames:
         smoother.push((index, 0.0, None, poses, {}))
@@ -165,9 +144,8 @@ def replay(tracker: PoseTracker, frames: list[tuple[int, list[TrackedPose]]],
 
 
 def _held(frame: tuple) -> tuple:
-    """A tracked frame as held back: its image, when wider than HELD_FRAME_WIDTH_PX, shrunk to
-    that width, and its people (track id -> PersonMask) shrunk with it (masks, boxes,
-    centroids and areas in the shrunk image's pixels)."""
+    """A tracked frame as held back: an image wider than HELD_FRAME_WIDTH_PX shrunk to that
+    width, its people (track id -> PersonMask) with it."""
     index, time_s, image, poses, people = frame
     if image is None or image.shape[1] <= HELD_FRAME_WIDTH_PX:
         return frame
@@ -185,16 +163,3 @@ def _shrunk(person: PersonMask, scale: float) -> PersonMask:
     mask = cv2.resize(person.mask.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
     return PersonMask(mask, (round(x * scale), round(y * scale), size[0], size[1]),
                       (person.centroid[0] * scale, person.centroid[1] * scale), int(mask.sum()))
-
-
-def drawn_at(poses: list[tuple[TrackedPose, np.ndarray, np.ndarray]]) -> list[TrackedPose]:
-    """Each (pose, smoothed (55,), smoothed root (3,) metres) as the pose with filtered =
-    smoothed and its joints drawn from it at that root, all in one forward-kinematics call
-    (the fixed-lag and the whole-track smoothed outputs, tracker.run)."""
-    if not poses:
-        return []
-    vectors = np.array([vector for _, vector, _ in poses])
-    roots = np.array([root for _, _, root in poses])
-    joints = pose_joints_m(vectors, root_position_m=roots)
-    return [replace(pose, filtered=vector, joints_m=j)
-            for (pose, _, _), vector, j in zip(poses, vectors, joints)]

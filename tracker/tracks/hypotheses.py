@@ -1,25 +1,15 @@
 """Front/back hypotheses carried over time: which of the regressor's poses is the true one.
 
 A silhouette cannot tell a body from its reflection in depth (sequences.pose_vector.
-front_back_flip: heading h -> 180 - h, left and right exchanged). Each frame gives K hypotheses
-(:func:`propose`): the pose and its flip (per expert for a mixture), or, for a model with limb
-networks and a side classifier, the limbs' canonical member and its flip
-(:func:`canonical_hypotheses`). A hidden Markov model over s_t in {0..K-1}, with one Kalman
-filter per state (a GPB / IMM filter bank), keeps which hypothesis is the truth:
+front_back_flip). Each frame gives K hypotheses: the pose and its flip (per expert for a
+mixture), or the limbs' canonical member and its flip (:func:`canonical_hypotheses`). A hidden
+Markov model over s_t in {0..K-1} with one Kalman filter per state (a GPB / IMM filter bank):
 
     alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
 
-A: switching probabilities (the state switches only where the regressor's flips do); N: the
-innovation likelihood of hypothesis j under predecessor i's filter (filter j continues the
-best predecessor's, so a flip is explained by a switch, not by a jump of the body); e_t(j): the
-frame's own evidence (RAW_NEARER_BY_NORM, or the side classifier's calibrated probability,
-regressor.canonical_priors), tempered per frame since stacked descriptors share frames.
-
-Online the output is the most probable state's filtered pose (with the runner-up when close);
-offline (``--smooth``) the Viterbi path is RTS-smoothed. With ``limb_filter_factory`` the 53
-body angles come from one more filter over the limb member nearer the decided heading
-(pick_member; tracker.pipeline.LIMB_R_SCALE). How each piece and constant was chosen:
-docs/tuning.md, "tracker/tracks/hypotheses.py".
+A: switching probabilities; N: the innovation likelihood (filter j continues the best
+predecessor's: a flip is a switch, not a jump of the body); e_t(j): the frame's own evidence.
+Output: the most probable state's filtered pose, or the Viterbi path RTS-smoothed (docs/tuning.md).
 """
 from __future__ import annotations
 
@@ -33,54 +23,39 @@ from regressor.angles import heading_norm
 from regressor.canonical_priors import CanonicalPriors
 from regressor.estimator import PoseEstimates, PoseEstimator
 from regressor.pose_model import DEFAULT_TRAINING_FPS
-from regressor.stacking import stack_frames
 from sequences.pose_vector import front_back_flip, heading_deg
 from tracker.tracks.member_path import members_over_time
-from tracker.tracks.mirror_limbs import mirror_mean, sees_mirror
+from tracker.tracks.mirror_limbs import mirror_mean
 
-#: P(the raw pose is nearer the truth than its flip | raw heading norm in
-#: [RAW_NEARER_NORM_EDGES[b], next edge)), and overall; learned on validation renders by
-#: scripts/learn_hypothesis_priors.py ("nearer": smaller mean absolute error, 54 angles).
-RAW_NEARER_NORM_EDGES = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
-RAW_NEARER_BY_NORM = (0.672, 0.617, 0.646, 0.703, 0.744, 0.688)
-RAW_NEARER_OVERALL = 0.681
-#: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps: the regressor's flips, same data.
+#: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps: the regressor's flips, learned on
+#: validation renders by scripts/learn_hypothesis_priors.py.
 SWITCH_PROBABILITY = (0.117, 0.248)
-#: Exponent per frame of the regressor's evidence (log likelihoods are multiplied by it):
-#: consecutive frames' evidence is correlated.
+#: Exponent per frame of the regressor's evidence (log likelihoods are multiplied by it).
 EVIDENCE_WEIGHT = 1.0
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
 
-#: The canonical chain's priors (module docstring) for a model file without its own
-#: (PoseModel.canonical_priors), learned on the 28 validation renders for the shipped model's
-#: networks. (P(canonical -> flip), P(flip -> canonical)) per frame: how often the truer
-#: member changes (only where the member's rule does, mostly in profile).
+#: The canonical chain's priors for a model file without its own, learned on the 28 validation
+#: renders: (P(canonical -> flip), P(flip -> canonical)) per frame.
 CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 #: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
 #: the member's every frame, scores a few nats below it and weaker evidence never catches up.
 CANONICAL_EVIDENCE_WEIGHT = 2.0
 #: P(the canonical member is the true one | the side classifier's probability for it in
-#: [CANONICAL_FRONT_EDGES[b], next edge)), and overall: the classifier is over-confident on
-#: video-like renders, so its probability is calibrated by this table.
+#: [CANONICAL_FRONT_EDGES[b], next edge)), and overall: the classifier is over-confident.
 CANONICAL_FRONT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
-CANONICAL_BY_FRONT = (0.407, 0.634, 0.608, 0.633, 0.654, 0.797)
-CANONICAL_OVERALL = 0.624
 DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
     switch=CANONICAL_SWITCH_PROBABILITY, front_edges=CANONICAL_FRONT_EDGES,
-    by_front=CANONICAL_BY_FRONT, overall=CANONICAL_OVERALL)
-#: Experts asked of a mixture model's hypotheses (2 states each: pose and flip): the
-#: other experts' poses added wrong headings more often than right ones.
+    by_front=(0.407, 0.634, 0.608, 0.633, 0.654, 0.797), overall=0.624)
+#: Experts asked of a mixture model (more added wrong headings more often than right ones).
 DEFAULT_EXPERTS = 1
 _FLOOR = 1e-3                            # no evidence is ever certain
 
 
 @dataclass
 class Hypotheses:
-    """One frame's candidate poses: poses (K, 55); log_evidence (K,) the regressor's evidence
-    for each (log likelihood ratios); raw (55,) the regressor's own (first) pose; limbs (55,)
-    the model's limb head's pose (a canonical member, module docstring "Limbs") or None;
-    canonical: the poses are that member and its flip (:func:`canonical_hypotheses`); front:
-    then the side classifier's probability that the body faces the camera's half."""
+    """One frame's candidates: poses (K, 55), log_evidence (K,) log likelihood ratios, raw (55,)
+    the regressor's own pose, limbs (55,) the canonical member or None; canonical: the poses
+    are that member and its flip, front: the side classifier's P(facing the camera's half)."""
 
     poses: np.ndarray
     log_evidence: np.ndarray
@@ -91,64 +66,18 @@ class Hypotheses:
 
 
 def pick_member(limbs: np.ndarray, heading_deg) -> np.ndarray:
-    """Of each canonical pose (55,) or (T, 55) and its front/back flip, the one whose heading
-    is nearer heading_deg (scalar or (T,), degrees); same shape as limbs."""
+    """Of each canonical pose (55,) or (T, 55) and its flip, the one whose heading is nearer
+    heading_deg (scalar or (T,), degrees), as limbs."""
     limbs = np.asarray(limbs, dtype=np.float64)
     h = np.radians(np.asarray(heading_deg, dtype=np.float64))
-    keep = member_on_side(limbs, np.stack([np.cos(h), np.sin(h)], axis=-1))
-    return np.where(np.asarray(keep)[..., None], limbs, front_back_flip(limbs))
-
-
-def member_on_side(members: np.ndarray, direction: np.ndarray) -> np.ndarray:
-    """Whether each pose (..., 55), not its front/back flip, has the heading nearer the
-    direction (..., 2) (cos, sin): bool (...). Nearer = larger cosine with the direction
-    (norms do not matter)."""
-    members = np.asarray(members, dtype=np.float64)
-    direction = np.asarray(direction, dtype=np.float64)
-    return ((members[..., :2] * direction).sum(-1)
-            >= (front_back_flip(members)[..., :2] * direction).sum(-1))
-
-
-def raw_probability(norm) -> np.ndarray:
-    """P(the raw pose, not its flip, is the true view | raw heading norm(s)), from
-    RAW_NEARER_BY_NORM (norms beyond the last edge use the last bin)."""
-    return _table(RAW_NEARER_NORM_EDGES, RAW_NEARER_BY_NORM, norm)
-
-
-def deaveraged_heading(poses: np.ndarray) -> np.ndarray:
-    """Poses (m, 55) with the heading the regressor was averaging towards. Where it could not
-    tell a view from its flip it outputs about p (cos h, sin h) + (1 - p) (-cos h, sin h): sin h
-    is kept and cos h shrinks, so the heading is pulled towards +-90 and the norm drops. Each
-    hypothesis's heading takes |cos| = sqrt(1 - sin^2) back in proportion to the lost norm
-    (n >= 1 keeps the pose as it is; the norm itself, the ambiguity measure, is kept)."""
-    out = np.array(poses, dtype=np.float64, copy=True)
-    c, s = out[:, 0], out[:, 1]
-    n = np.hypot(c, s)
-    w = np.clip(n, 0.0, 1.0)
-    s_unit = s / np.maximum(n, 1.0)
-    c_unit = np.where(c < 0, -1.0, 1.0) * np.sqrt(np.maximum(0.0, 1.0 - s_unit ** 2))
-    h = np.arctan2(w * s + (1 - w) * s_unit, w * c + (1 - w) * c_unit)
-    out[:, 0], out[:, 1] = n * np.cos(h), n * np.sin(h)
-    return out
-
-
-def _with_flips(poses: np.ndarray, gate: np.ndarray, limbs: np.ndarray | None = None
-                ) -> Hypotheses:
-    """Each pose (m, 55) with gate probability (m,) -> 2m hypotheses (pose, flip, pose, ...),
-    headings de-averaged (deaveraged_heading); raw stays the regressor's first pose; limbs
-    (55,) the limb head's pose or None, passed on."""
-    raw = poses[0]
-    poses = deaveraged_heading(poses)
-    p_raw = raw_probability(heading_norm(poses))
-    ratio = np.stack([p_raw / RAW_NEARER_OVERALL, (1 - p_raw) / (1 - RAW_NEARER_OVERALL)], 1)
-    both = np.stack([poses, front_back_flip(poses)], axis=1).reshape(-1, poses.shape[-1])
-    evidence = np.log(np.maximum(gate, _FLOOR))[:, None] + np.log(ratio)
-    return Hypotheses(both, evidence.reshape(-1), raw, limbs)
+    direction = np.stack([np.cos(h), np.sin(h)], axis=-1)
+    flips = front_back_flip(limbs)
+    keep = (limbs[..., :2] * direction).sum(-1) >= (flips[..., :2] * direction).sum(-1)
+    return np.where(np.asarray(keep)[..., None], limbs, flips)
 
 
 def bin_index(edges, x) -> np.ndarray:
-    """The bin b of each x with edges[b] <= x < edges[b + 1] (beyond the last edge: the last
-    bin; below the first: the first), as the tables above are binned."""
+    """The bin b of each x with edges[b] <= x < edges[b + 1], clipped to the first and last."""
     b = np.searchsorted(edges, np.asarray(x, float), side="right") - 1
     return np.clip(b, 0, len(edges) - 1)
 
@@ -160,12 +89,10 @@ def _table(edges, values, x) -> np.ndarray:
 
 def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
                          priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
-    """The two hypotheses of a model with limbs and a side classifier: the limbs' canonical
-    member (55,) and its front/back flip, whole. Evidence (log likelihood ratios): the side
-    classifier's probability ``front`` that the body faces the camera's half, calibrated by
-    priors.by_front. raw (55,): the main head's pose; its heading norm (how ambiguous the
-    frame is) replaces the member's, which commits to one body and is ~1, so the filters'
-    R inflation and the outputs' ambiguous flag still see it."""
+    """The limbs' canonical member (55,) and its flip, weighed by the side classifier's
+    probability ``front`` that the body faces the camera's half (calibrated: priors.by_front).
+    The heading norm of raw (55,), the main head's pose, replaces the member's (~1), so the
+    filters' R inflation and the ambiguous flag still see it."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
     norm = heading_norm(raw)
@@ -178,98 +105,48 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
 
 
 def member_probability(members: np.ndarray, front) -> np.ndarray:
-    """The side classifier's probability for each canonical member (..., 55) itself, from
-    its probability front (...) that the body faces the camera's half: front where the
-    member faces that half (cos >= 0), 1 - front elsewhere."""
+    """The side classifier's probability (...) for each canonical member (..., 55) from its
+    probability front (...) that the body faces the camera's half (cos >= 0)."""
     front = np.asarray(front, dtype=np.float64)
     return np.where(np.asarray(members)[..., 0] >= 0, front, 1.0 - front)
 
 
 def canonical_priors(estimator: PoseEstimator) -> CanonicalPriors:
-    """The priors the chain weighs an estimator's canonical pairs by: its own
-    (PoseModel.canonical_priors) when it carries them, else DEFAULT_CANONICAL_PRIORS."""
+    """The estimator's canonical priors (PoseModel.canonical_priors), else the default."""
     return estimator.canonical_priors or DEFAULT_CANONICAL_PRIORS
-
-
-def switch_probability(estimator: PoseEstimator) -> tuple[float, float]:
-    """The chain's switching probabilities for this estimator's hypotheses (canonical pairs
-    switch far less often than a pose and its flip)."""
-    if estimator.gives_canonical_pairs:
-        return canonical_priors(estimator).switch
-    return SWITCH_PROBABILITY
-
-
-def evidence_weight(estimator: PoseEstimator) -> float:
-    """The chain's exponent per frame on this estimator's evidence."""
-    if estimator.gives_canonical_pairs:
-        return CANONICAL_EVIDENCE_WEIGHT
-    return EVIDENCE_WEIGHT
 
 
 def chain_options(estimator: PoseEstimator) -> dict:
     """FrontBackTracker's keyword arguments that depend on the estimator: switch rates,
     evidence weight and the frame rate they hold at (its training_fps)."""
-    return {"switch": switch_probability(estimator),
-            "evidence_weight": evidence_weight(estimator),
-            "reference_fps": estimator.training_fps}
-
-
-def propose(estimator: PoseEstimator, stacked: np.ndarray, n_experts: int = DEFAULT_EXPERTS,
-            mirrored: np.ndarray | None = None) -> Hypotheses:
-    """The hypotheses of one frame's stacked descriptor (k*D,) (and its mirror image's, or
-    None): :func:`propose_batch` of one row."""
-    return propose_batch(estimator, np.asarray(stacked, float)[None], n_experts,
-                         None if mirrored is None else np.asarray(mirrored, float)[None])[0]
-
-
-def propose_batch(estimator: PoseEstimator, stacked: np.ndarray,
-                  n_experts: int = DEFAULT_EXPERTS, mirrored: np.ndarray | None = None
-                  ) -> list[Hypotheses]:
-    """The hypotheses of stacked descriptors (N, k*D), one per row: the estimator's
-    ``hypotheses`` with n_experts experts through :func:`hypotheses_from`. mirrored (N, k*D)
-    or None: the mirror images' stacked descriptors (tracker.tracks.mirror_limbs)."""
-    estimates = estimator.hypotheses(stacked, n_experts, mirrored=mirrored, novelty=False)
-    return hypotheses_from(estimates, canonical_priors(estimator))
+    if estimator.gives_canonical_pairs:
+        switch, weight = canonical_priors(estimator).switch, CANONICAL_EVIDENCE_WEIGHT
+    else:
+        switch, weight = SWITCH_PROBABILITY, EVIDENCE_WEIGHT
+    return {"switch": switch, "evidence_weight": weight, "reference_fps": estimator.training_fps}
 
 
 def hypotheses_from(estimates: PoseEstimates,
                     priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> list[Hypotheses]:
-    """Each row's front/back hypotheses from a model's answer (PoseEstimates): with limbs and
-    the side classifier's front probability, :func:`canonical_hypotheses`; else each expert's
-    pose and its flip (:func:`_with_flips`). Limbs are first averaged with the mirror images'
-    when the answer has those (tracker.tracks.mirror_limbs.mirror_mean)."""
+    """Each row's hypotheses from a model's answer: with limbs and the side classifier's
+    front probability, :func:`canonical_hypotheses` (limbs first averaged with the mirror
+    images' when given); else each expert's pose and its flip (flip_hypotheses)."""
     poses, gate, limbs = estimates.poses, estimates.probabilities, estimates.limbs
     if limbs is not None and estimates.mirror_limbs is not None:
         limbs = mirror_mean(limbs, estimates.mirror_limbs)
     if estimates.front is not None and limbs is not None:
         return [canonical_hypotheses(p[0], lb, f, priors)
                 for p, lb, f in zip(poses, limbs, estimates.front)]
+    from tracker.tracks.flip_hypotheses import with_flips   # models without a side classifier
     if limbs is None:
         limbs = [None] * len(poses)
-    return [_with_flips(np.asarray(p, float), np.asarray(g, float), lb)
+    return [with_flips(np.asarray(p, float), np.asarray(g, float), lb)
             for p, g, lb in zip(poses, gate, limbs)]
 
 
-def propose_sequence(estimator: PoseEstimator, masks, n_experts: int = DEFAULT_EXPERTS,
-                     mirror: bool = True, step: int = 1) -> list[Hypotheses]:
-    """The hypotheses of one person's silhouette sequence (masks (H, W) bool, in order), as
-    the tracker makes them: each mask described (and its mirror image when
-    tracker.tracks.mirror_limbs.sees_mirror), stacked ``step`` frames apart, then
-    :func:`propose_batch` (offline evaluation and the learning of priors)."""
-    k = estimator.stack_depth
-    if sees_mirror(estimator, mirror):
-        pairs = [estimator.describe_with_mirror(m) for m in masks]
-        X, M = (np.array([p[i] for p in pairs]) for i in (0, 1))
-        return propose_batch(estimator, stack_frames(X, k, step=step), n_experts,
-                             stack_frames(M, k, step=step))
-    X = np.array([estimator.describe(m) for m in masks])
-    return propose_batch(estimator, stack_frames(X, k, step=step), n_experts)
-
-
 def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
-    """A (K, K): states are (expert slot i, flipped f) as k = 2 i + f. The flip part is
-    learned (switch = (P(raw -> flip), P(flip -> raw))); the slot part is uniform, since a
-    mixture's experts are listed by gate probability, not by identity."""
+    """A (K, K) over states k = 2 i + f (expert slot i, flipped f): the flip part from switch,
+    the slot part uniform (experts are listed by gate probability, not by identity)."""
     a, b = switch
     flip = np.array([[1 - a, a], [b, 1 - b]])
     m = K // 2
@@ -278,9 +155,8 @@ def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
 
 @dataclass
 class Decision:
-    """The tracker's output for one frame: filtered (55,) pose of the most probable state,
-    ambiguous flag (its filter's), state index and probability; the runner-up's filtered pose
-    (55,) and probability when that is at least CLOSE_PROBABILITY, else None."""
+    """One frame's output: the most probable state's filtered pose (55,), ambiguous flag,
+    index and probability; the runner-up's pose (55,) and probability from CLOSE_PROBABILITY."""
 
     filtered: np.ndarray
     ambiguous: bool
@@ -304,13 +180,10 @@ class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
 
     filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; without
-    ``log_likelihoods`` hypotheses are scored by their evidence only); fps: frames per second;
-    switch: (P(raw -> flip), P(flip -> raw)) per frame and evidence_weight (the exponent on
-    the evidence), both per frame at reference_fps and kept per second at other rates
-    (:meth:`frame_rate_ratio`); keep_history: keep every frame for viterbi_path/smoothed;
-    limb_filter_factory: fps -> a filter for the output's body angles, stepped on the raw
-    pose or the limb member agreeing with the decided heading; None: the chosen state's.
-    """
+    ``log_likelihoods`` only the evidence scores); switch (P(raw -> flip), P(flip -> raw)) and
+    evidence_weight: per frame at reference_fps; keep_history: keep every frame for
+    viterbi_path/smoothed; limb_filter_factory: fps -> a filter of the body angles, stepped on
+    the raw pose or the limb member nearer the decided heading (None: the chosen state's)."""
 
     filter_factory: Callable[[float], object]
     fps: float
@@ -334,12 +207,10 @@ class FrontBackTracker:
         log_A = self._log_transitions(K)
         if self.log_alpha is None or len(self.filters) != K:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
-            stationary = np.linalg.matrix_power(np.exp(log_A), 256)[0]
-            self.log_alpha, link = np.log(stationary) + evidence, None
+            self.log_alpha, link = _log_stationary(log_A) + evidence, None
         else:
             ll = np.array([f.log_likelihoods(poses) if hasattr(f, "log_likelihoods")
-                           else np.zeros(K)
-                           for f in self.filters])
+                           else np.zeros(K) for f in self.filters])
             link = log_A + rate * ll
             scores = self.log_alpha[:, None] + link
             self.filters = self._continue(scores.argmax(axis=0))
@@ -372,15 +243,12 @@ class FrontBackTracker:
 
     @property
     def frame_rate_ratio(self) -> float:
-        """reference_fps / fps (0.25 at 120 fps for a 30 fps reference): the exponent that
-        tempers evidence and likelihoods, and the share of a frame :meth:`frame_switch`
-        switches over."""
+        """reference_fps / fps: the exponent on evidence and likelihoods (and frame_switch's)."""
         return self.reference_fps / self.fps
 
     @property
     def frame_switch(self) -> tuple[float, float]:
-        """The switch probabilities per frame of this video: 1 - (1 - p)^ratio of the
-        reference frame's p, the same chance of switching per second."""
+        """Switch probabilities per frame at fps: 1 - (1 - p)^ratio (the same per second)."""
         rate = self.frame_rate_ratio
         if rate == 1.0:
             return tuple(self.switch)
@@ -394,25 +262,22 @@ class FrontBackTracker:
         return self._log_A[1]
 
     def _continue(self, predecessor: np.ndarray) -> list:
-        """Filters for the new states: state j continues predecessor[j]'s filter (a copy when
-        two states continue the same one; copies are made before any filter steps)."""
+        """Filters for the new states: state j continues predecessor[j]'s (a copy if taken)."""
         used, out = set(), []
         for i in predecessor:
             f = self.filters[int(i)]
-            out.append(_clone(f) if int(i) in used else f)
+            if int(i) in used:
+                f = f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
+            out.append(f)
             used.add(int(i))
         return out
 
     def viterbi_path(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """The most probable state sequence (n,) int over the frames so far, or over
-        history[start:stop] alone (its first frame taken as a track's first)."""
+        """The most probable state sequence (n,) int over history[start:stop] alone."""
         frames = self.history[start:stop]
         if not frames:
             return np.zeros(0, dtype=np.int64)
-        first = frames[0]
-        K = len(first.poses)
-        log_A = self._log_transitions(K)
-        delta = np.log(np.linalg.matrix_power(np.exp(log_A), 256)[0]) + first.evidence
+        delta = _log_stationary(self._log_transitions(len(frames[0].poses))) + frames[0].evidence
         back = []
         for frame in frames[1:]:
             scores = delta[:, None] + frame.link
@@ -423,21 +288,13 @@ class FrontBackTracker:
             path.append(int(pointers[path[-1]]))
         return np.array(path[::-1], dtype=np.int64)
 
-    def chosen_poses(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """The hypotheses (n, 55) on the Viterbi path of history[start:stop] (the smoother's
-        input)."""
-        frames = self.history[start:stop]
-        path = self.viterbi_path(start, stop)
-        return np.array([frame.poses[s] for frame, s in zip(frames, path)])
-
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses (``--smooth``), of the
-        whole track or of history[start:stop] alone (tracker.tracks.fixed_lag). With a
-        limb_filter_factory the body angles are its RTS smoothing of the raw poses, or of the
-        limb members' most probable chain (tracker.tracks.member_path), under the smoothed
-        heading."""
+        """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses of history[start:stop];
+        with a limb_filter_factory the body angles are its smoothing of the raw poses or the
+        limb members' most probable chain (member_path), under the smoothed heading."""
         frames = self.history[start:stop]
-        out = self.filter_factory(self.fps).rts_smooth(self.chosen_poses(start, stop))
+        chosen = [frame.poses[s] for frame, s in zip(frames, self.viterbi_path(start, stop))]
+        out = self.filter_factory(self.fps).rts_smooth(np.array(chosen))
         if self.limb_filter_factory is not None and len(out):
             raws = np.array([frame.raw for frame in frames])
             if all(frame.limbs is not None for frame in frames):
@@ -449,17 +306,15 @@ class FrontBackTracker:
 
 
 def with_body_angles(pose: np.ndarray, limbs: np.ndarray) -> np.ndarray:
-    """pose (..., 55) with its 53 body angles (entries 2..54) taken from limbs (..., 55); the
-    heading (cos, sin) is pose's."""
+    """pose (..., 55) with its 53 body angles (entries 2..54) taken from limbs (..., 55)."""
     out = np.array(pose, dtype=np.float64, copy=True)
     out[..., 2:] = np.asarray(limbs)[..., 2:]
     return out
 
 
-def _clone(f):
-    """An independent copy of a filter: its own ``copy()`` when it has one (PoseKalmanFilter's
-    copies two arrays), else a deep copy."""
-    return f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
+def _log_stationary(log_A: np.ndarray) -> np.ndarray:
+    """log of the stationary distribution (K,) of the transition matrix exp(log_A) (K, K)."""
+    return np.log(np.linalg.matrix_power(np.exp(log_A), 256)[0])
 
 
 def _logsumexp(x: np.ndarray, axis=None) -> np.ndarray:

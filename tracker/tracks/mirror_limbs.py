@@ -1,12 +1,8 @@
-"""Limbs from the image and from its mirror image, averaged.
+"""Limbs from the image and from its mirror image, averaged (``TrackerSettings.mirror_limbs``).
 
-A model whose limb networks were fitted on mirror images too (regressor.training.MixtureOptions
-.limb_net_mirror; PoseModel.limbs_see_mirror) answers for a frame's mirror image as well as for
-the frame. Its answer for the mirror image, mirrored back (sequences.pose_vector.image_mirror),
-is a second estimate of the same body with errors partly independent of the first (the
-networks' handedness and fit differ between the two sides), so the tracker averages the two
-(``TrackerSettings.mirror_limbs``, on by default) at the cost of the mirror image's descriptor
-and one more pass of the networks per person and frame. Measurements: docs/tuning.md.
+A model whose limb networks were fitted on mirror images too (PoseModel.limbs_see_mirror)
+answers for a frame's mirror image as well; mirrored back, that is a second estimate of the
+same body with partly independent errors. Measurements: docs/tuning.md.
 """
 from __future__ import annotations
 
@@ -18,11 +14,9 @@ from sequences.pose_vector import image_mirror
 
 
 def mirror_mean(limbs: np.ndarray, mirror_limbs: np.ndarray) -> np.ndarray:
-    """The mean of two estimates of the same body: limbs (N, 55), the model's canonical limbs
-    for the frames, and mirror_limbs (N, 55), its limbs for the frames' mirror images (the
-    mirror images' own bodies). mirror_limbs are mirrored back first; the 53 angles (degrees)
-    are averaged on the circle (half the wrapped difference), the heading's (cos, sin) as
-    numbers. Returns (N, 55)."""
+    """The mean (N, 55) of limbs (N, 55), the model's canonical limbs for the frames, and
+    mirror_limbs (N, 55), for their mirror images, mirrored back first: the 53 angles (degrees)
+    on the circle, the heading's (cos, sin) as numbers."""
     a = np.asarray(limbs, dtype=np.float64)
     b = image_mirror(np.asarray(mirror_limbs, dtype=np.float64))
     if a.shape != b.shape or a.shape[-1] != 55:
@@ -34,6 +28,5 @@ def mirror_mean(limbs: np.ndarray, mirror_limbs: np.ndarray) -> np.ndarray:
 
 
 def sees_mirror(estimator: PoseEstimator, enabled: bool = True) -> bool:
-    """Whether the tracker should describe each frame's mirror image for this estimator: the
-    setting (``enabled``) and the model's own say (PoseEstimator.limbs_see_mirror)."""
+    """Whether to describe each frame's mirror image: the setting and the model's say."""
     return enabled and estimator.limbs_see_mirror

@@ -1,34 +1,32 @@
-"""Each track's root (hip) path smoothed over the whole track, for the smoothed outputs.
+"""Each track's root (hip) path smoothed over time, for the smoothed outputs.
 
-The root is not measured in 3-D: each frame's is placed from the silhouette's box alone
-(tracker.outputs.geometry.ground_position_from_image), so it jitters with the box as the limbs
-move. The smoothed outputs (JSON, BVH, the MCAP's /smoothed topics) draw their bodies at the
-root smoothed here: a straight line fitted with Gaussian weights about each pose's time (a
-local linear smoother, zero phase: no lag, no pull at the track's ends or beside a gap); with
-``--lag`` the streamed outputs use the same path smoothed over their window
-(tracker.tracks.fixed_lag). ROOT_SMOOTHING_S: docs/tuning.md.
+The root, placed per frame from the silhouette's box alone, jitters with the box as the limbs
+move. The smoothed outputs are drawn at a straight line fitted with Gaussian weights about each
+pose's time (a local linear smoother: no lag, no pull at a track's ends or beside a gap).
 """
 from __future__ import annotations
 
 from array import array
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-#: Standard deviation of the Gaussian over time, seconds (module docstring).
+from tracker.outputs.geometry import pose_joints_m
+
+if TYPE_CHECKING:
+    from tracker.pipeline import TrackedPose
+
+#: Standard deviation of the Gaussian over time, seconds (chosen: docs/tuning.md).
 ROOT_SMOOTHING_S = 0.2
 _REACH_SIGMAS = 4.0        # the Gaussian is cut beyond this many standard deviations
 
 
 def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTHING_S,
                    frames: np.ndarray | None = None) -> np.ndarray:
-    """roots_m (T, 3) metres, one track's root per pose in time order at fps frames per
-    second, smoothed over the video's time with Gaussian weights of sigma_s seconds (0:
-    unchanged): frames (T,) are the poses' frame indices (None: one pose per frame), so the
-    poses beyond a gap (frames where the person was missed) weigh as far as they are. Each
-    root is the value at its time of a straight line fitted by those weights to the roots
-    within 4 sigma (a local linear smoother): in the middle of a track the Gaussian's mean,
-    at its ends and beside a gap no pull towards the side that has poses (a walker's root is
-    not held back there). Returns (T, 3) metres."""
+    """roots_m (T, 3) metres, one track's roots in time order at fps, smoothed (T, 3): each is
+    the value at its time of the line fitted to the roots within 4 sigma by Gaussian weights of
+    sigma_s seconds (0: unchanged) over their frame indices frames (T,) (None: 0, 1, ...)."""
     roots = np.asarray(roots_m, dtype=np.float64)
     if roots.ndim != 2 or roots.shape[1] != 3:
         raise ValueError(f"roots must be (T, 3), got {roots.shape}")
@@ -46,8 +44,7 @@ def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTH
     # Weighted sums for each pose's fit: of w, w d, w d^2, w y, w d y (d: time from it).
     s0, s1, s2 = np.zeros(count), np.zeros(count), np.zeros(count)
     t0, t1 = np.zeros_like(roots), np.zeros_like(roots)
-    # Neighbours within reach in time are within reach in pose order (a gap only removes
-    # some): one vectorised pass per offset in pose order.
+    # Neighbours within reach in time are within reach in pose order: a pass per offset.
     for offset in range(-int(reach), int(reach) + 1):
         lo, hi = max(0, -offset), min(count, count - offset)
         if lo >= hi:
@@ -65,8 +62,7 @@ def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTH
     # A lone pose (no neighbour within reach) has no line: its mean, which is itself.
     line = det > 1e-9 * s0 * s0
     out = mean.copy()
-    out[line] = ((s2[line, None] * t0[line] - s1[line, None] * t1[line])
-                 / det[line, None])
+    out[line] = (s2[line, None] * t0[line] - s1[line, None] * t1[line]) / det[line, None]
     return out
 
 
@@ -91,3 +87,15 @@ class RootHistory:
         # Only the slice is copied: a long track's history is read a block at a time.
         return (np.frombuffer(roots, np.float64, 3 * count, 24 * start).reshape(-1, 3).copy(),
                 np.frombuffer(frames, np.int64, count, 8 * start).copy())
+
+
+def drawn_at(poses: list[tuple[TrackedPose, np.ndarray, np.ndarray]]) -> list[TrackedPose]:
+    """Each (pose, smoothed (55,), smoothed root (3,) metres) as the pose with filtered =
+    smoothed and its joints drawn from it at that root, in one forward-kinematics call."""
+    if not poses:
+        return []
+    vectors = np.array([vector for _, vector, _ in poses])
+    roots = np.array([root for _, _, root in poses])
+    joints = pose_joints_m(vectors, root_position_m=roots)
+    return [replace(pose, filtered=vector, joints_m=j)
+            for (pose, _, _), vector, j in zip(poses, vectors, joints)]
