@@ -59,11 +59,6 @@ class HeadingIndex:
         """P, the input components the index compares."""
         return int(self.inputs.shape[1])
 
-    def neighbours(self, X: np.ndarray) -> np.ndarray:
-        """The folded headings (N, k) degrees of each row's k nearest training rows (Euclidean
-        on the first P columns); X (N, >= P) regressor inputs."""
-        return self.folded_deg[self._nearest(X)[0]]
-
     def distance(self, X: np.ndarray) -> np.ndarray:
         """The mean Euclidean distance (N,) from each row of X (N, >= P) to its k nearest
         training rows, in the projected input's units."""
@@ -135,10 +130,6 @@ class HeadingIndex:
             index.flags.writeable = dist2.flags.writeable = False     # shared with callers
             self._last = (key, (index, dist2))
         return index, dist2
-
-    def folded(self, X: np.ndarray) -> np.ndarray:
-        """The median folded heading (N,) degrees of each row's k nearest training rows."""
-        return np.median(self.neighbours(X), axis=1)
 
 
 def build_heading_index(inputs: np.ndarray, heading_deg: np.ndarray, rows: int, dims: int,

@@ -5,7 +5,7 @@ is ambiguous the gate's favourite is often wrong, but the body moves little betw
 (Agarwal and Triggs 2005 resolve their mixture's hypotheses by tracking). A hidden Markov
 chain: hypothesis j at frame t has evidence log_weight[t, j], and a move from i at t-1 to j
 at t costs continuity * |y_t^j - y_{t-1}^i|^2 / (2 s^2), s^2 the training motion's mean
-squared step (:func:`step_variance`). :func:`most_probable_path` finds the best chain
+squared step. :func:`most_probable_path` finds the best chain
 exactly (Viterbi), offline.
 """
 from __future__ import annotations
@@ -19,29 +19,12 @@ class HypothesisPathError(ValueError):
     """Inputs of the wrong shape or value."""
 
 
-def step_variance(Y, sequence_ids=None) -> float:
-    """s^2 > 0, the mean squared change between consecutive rows of Y (N, K) (poses in time
-    order, in the hypotheses' units) with the same sequence_ids (N,) label (default: one)."""
-    Y = np.asarray(Y, dtype=np.float64)
-    if Y.ndim != 2 or len(Y) < 2:
-        raise HypothesisPathError(f"Y must be (N, K) with N >= 2, got shape {Y.shape}")
-    if not np.isfinite(Y).all():
-        raise HypothesisPathError("Y has non-finite values")
-    same = np.ones(len(Y) - 1, bool) if sequence_ids is None else _continues(sequence_ids, len(Y))
-    if not same.any():
-        raise HypothesisPathError("no two consecutive rows belong to one sequence")
-    s2 = float((np.diff(Y, axis=0)[same] ** 2).sum(axis=1).mean())
-    if not s2 > 0:
-        raise HypothesisPathError("the poses never change: the step variance is 0")
-    return s2
-
-
 def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1.0,
                        sequence_ids=None, angles_deg: bool = False) -> np.ndarray:
     """The chosen hypothesis (T,) int of each frame, maximising evidence + smoothness.
 
     poses (T, M, K): M hypotheses per frame; log_weight (T, M): their log evidence (-inf
-    excludes one); step_var: s^2 (:func:`step_variance`); continuity: the smoothness term's
+    excludes one); step_var: s^2; continuity: the smoothness term's
     weight (0: each frame's best alone); sequence_ids (T,): the chain restarts where the label
     changes; angles_deg: the poses are degrees, their steps wrapped to (-180, 180].
     """
@@ -57,7 +40,7 @@ def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1
     if not (np.isfinite(continuity) and continuity >= 0):
         raise HypothesisPathError(f"continuity must be >= 0, got {continuity}")
     T = len(poses)
-    same = np.ones(max(T - 1, 0), bool) if sequence_ids is None else _continues(sequence_ids, T)
+    same = np.ones(max(T - 1, 0), bool) if sequence_ids is None else continues(sequence_ids, T)
     scale = continuity / (2.0 * step_var)
     score = log_weight[0].copy()
     back = np.zeros(poses.shape[:2], dtype=np.int64)
@@ -88,7 +71,7 @@ def squared_steps(before, after, angles_deg: bool = False) -> np.ndarray:
     return (step ** 2).sum(axis=2)
 
 
-def _continues(sequence_ids, n: int) -> np.ndarray:
+def continues(sequence_ids, n: int) -> np.ndarray:
     """(n - 1,) whether row t + 1 is in row t's sequence."""
     ids = np.asarray(sequence_ids)
     if ids.shape != (n,):

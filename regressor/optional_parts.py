@@ -1,10 +1,12 @@
-"""Model-file parts the shipped model lacks, read only when a file holds them
-(regressor.pose_model.load_pose_model): single-regressor files, a mixture's limb head and its
-sparse RVM experts' predictive variance.
+"""What regressor.pose_model needs only for parts the shipped model lacks (single-regressor
+files, a mixture's limb head, its sparse RVM experts' predictive variance) or only for
+training and evaluation; imported on first use, so ``track`` never loads it.
 """
 from __future__ import annotations
 
 from pathlib import Path
+
+import sys
 
 import numpy as np
 
@@ -101,3 +103,36 @@ def rvm_variance(a, experts: list, offsets: np.ndarray) -> float | None:
         ex.sigma_ = sigma[starts[e]:starts[e + 1]].astype(np.float64).reshape(R, R)
         ex.phi_mean_ = phi_mean[offsets[e]:offsets[e + 1]].astype(np.float64)
     return float(calibration)
+
+
+def regress(model: PoseModel, X: np.ndarray) -> np.ndarray:
+    """Raw poses (N, 55) from the regressor's input X (N, P): the single regressor's, or the
+    mixture's gate-weighted answer."""
+    if model.mixture is not None:
+        Y = model.mixture.predict(X)
+    elif model.basis == "gaussian":
+        Y = gaussian_design(X, model.centres, model.width) @ model.coef + model.intercept
+    else:
+        Y = X[:, model.relevance] @ model.coef + model.intercept
+    Y[:, 2:] = wrap_deg(Y[:, 2:] + model.angle_centre_deg)
+    return Y
+
+
+def gives_variance(model: PoseModel) -> bool:
+    """Whether the model's experts give a predictive variance (sparse RVMs that keep their
+    posterior covariance). Never imports regressor.sparse_rvm: a model without sparse RVM
+    experts has not loaded it."""
+    module = sys.modules.get("regressor.sparse_rvm")
+    return model.mixture is not None and all(
+        module is not None and isinstance(e, module.SparseRVMRegressor) and hasattr(e, "sigma_")
+        for e in model.mixture.experts_)
+
+
+def predict_variance(model: PoseModel, stacked: np.ndarray) -> np.ndarray:
+    """PoseModel.predict_variance: the experts' variance of a new observation (N,) deg^2,
+    averaged over the 53 body angles (regressor.sparse_rvm). Needs :func:`gives_variance`."""
+    if not gives_variance(model):
+        raise PoseModelError("this model's experts give no predictive variance "
+                             "(only sparse RVM experts do)")
+    _, std = model.mixture.predict(model._stacked(stacked), return_std=True)
+    return (std[:, 2:] ** 2).mean(axis=1)

@@ -20,14 +20,12 @@ whose nearest training rows give each frame's novelty.
 from __future__ import annotations
 
 import json
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .angles import N_ANGLES, POSE_DIM, wrap_deg
-from .basis import gaussian_design
 from .codebook import Codebook, CodebookError
 from .descriptor import (DescriptorSettings, DescriptorSettingsError, descriptor_and_mirror,
                          descriptor_for_mask)
@@ -178,18 +176,8 @@ class PoseModel:
     def predict_batch(self, stacked: np.ndarray) -> np.ndarray:
         """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D): the regressor's
         single answer (a mixture's gate-weighted one), for training and evaluation."""
-        return self._regress(self._stacked(stacked))
-
-    def _regress(self, X: np.ndarray) -> np.ndarray:
-        """Raw poses (N, 55) from the regressor's input (N, input_length) (:meth:`_stacked`)."""
-        if self.mixture is not None:
-            Y = self.mixture.predict(X)
-        elif self.basis == "gaussian":
-            Y = gaussian_design(X, self.centres, self.width) @ self.coef + self.intercept
-        else:
-            Y = X[:, self.relevance] @ self.coef + self.intercept
-        Y[:, 2:] = wrap_deg(Y[:, 2:] + self.angle_centre_deg)
-        return Y
+        from .optional_parts import regress
+        return regress(self, self._stacked(stacked))
 
     def _stacked(self, stacked) -> np.ndarray:
         """stacked (N, k*D) as the regressor's float input (N, input_length), projected when
@@ -210,7 +198,8 @@ class PoseModel:
         X = self._stacked(stacked)
         rows = self._novelty(X) if novelty else np.full(len(X), np.nan)
         if self.mixture is None:
-            return PoseEstimates(self._regress(X)[:, None], np.ones((len(X), 1)), novelty=rows)
+            from .optional_parts import regress
+            return PoseEstimates(regress(self, X)[:, None], np.ones((len(X), 1)), novelty=rows)
         gate = self.mixture.predict_proba(X)
         poses, prob = self.mixture.predict_hypotheses(X, m, proba=gate)
         poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
@@ -241,21 +230,11 @@ class PoseModel:
             return np.full(len(X), np.nan)
         return self.heading_index.novelty(X)
 
-    @property
-    def gives_variance(self) -> bool:
-        """Whether the experts give a predictive variance (sparse RVMs that keep theirs)."""
-        return self.mixture is not None and all(
-            _is_sparse_rvm(e) and hasattr(e, "sigma_") for e in self.mixture.experts_)
-
     def predict_variance(self, stacked: np.ndarray) -> np.ndarray:
         """Predictive variance (N,) deg^2 of :meth:`predict_batch`'s pose for stacked
-        descriptors (N, k*D): the experts' variance of a new observation averaged over the 53
-        body angles (regressor.sparse_rvm). Needs :attr:`gives_variance`."""
-        if not self.gives_variance:
-            raise PoseModelError("this model's experts give no predictive variance "
-                                 "(only sparse RVM experts do)")
-        _, std = self.mixture.predict(self._stacked(stacked), return_std=True)
-        return (std[:, 2:] ** 2).mean(axis=1)
+        descriptors (N, k*D), for training's calibration (regressor.optional_parts)."""
+        from .optional_parts import predict_variance
+        return predict_variance(self, stacked)
 
     def predict_limbs(self, stacked: np.ndarray) -> np.ndarray | None:
         """Canonical poses (N, 55) for the limbs from stacked descriptors (N, k*D), as
@@ -412,13 +391,6 @@ def _validate(path: Path, m: PoseModel) -> None:
 
 
 # Mixture files (model_kind MIXTURE_KIND): docs/code_notes/model.md lists their parts.
-
-
-def _is_sparse_rvm(expert) -> bool:
-    """isinstance(expert, SparseRVMRegressor) without importing regressor.sparse_rvm: a model
-    without sparse RVM experts never loads it."""
-    module = sys.modules.get("regressor.sparse_rvm")
-    return module is not None and isinstance(expert, module.SparseRVMRegressor)
 
 
 #: The most neighbours a model file's heading index may ask for (the shipped one: 20).
