@@ -16,8 +16,7 @@ from .canonical_priors import CanonicalPriors
 
 @dataclass
 class PoseEstimates:
-    """A model's answer for N rows of stacked descriptors (:meth:`PoseEstimator.hypotheses`).
-
+    """A model's answer for N rows of stacked descriptors (:meth:`PoseEstimator.hypotheses`):
     poses (N, m, 55): the m most probable experts' raw poses, most probable first (a single
     regressor: m = 1); probabilities (N, m): the gate's (1 for a single regressor); limbs (N,
     55): the limbs' canonical pose (either body), None without limbs; mirror_limbs (N, 55):
@@ -37,9 +36,7 @@ class PoseEstimates:
 
 @runtime_checkable
 class PoseEstimator(Protocol):
-    """What the tracker needs of a trained model, all of it.
-
-    stack_depth: k; training_fps: the frame rate (frames/s) the model learned at;
+    """What the tracker needs of a trained model, all of it: stack_depth: k; training_fps: the frame rate (frames/s) the model learned at;
     measurement_covariance (54, 54) deg^2 and process_noise (54,) (deg/s^2)^2: the filter's R
     and q (heading, then the 53 angles); ambiguity_threshold: raw heading norm below which a
     frame is ambiguous; canonical_direction (55,) or None: fitted on canonical members (no

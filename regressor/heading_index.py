@@ -1,7 +1,7 @@
 """Nearest neighbours among the training rows, in the regressor's projected input space.
 
 A model file keeps a sample of training rows' inputs and their headings folded so front/back
-cannot count (:func:`fold_heading_deg`). ``track`` uses it for each frame's novelty
+cannot count (regressor.heading_index_training). ``track`` uses it for each frame's novelty
 (:meth:`HeadingIndex.novelty`). ``limit_deg`` stays in model files for compatibility (history:
 docs/tuning.md, "regressor/heading_index.py").
 """
@@ -11,20 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .angles import wrap_deg
 from .basis import nearest_columns
 
 #: Queries per block in HeadingIndex._nearest (distances: block x R float32).
 _QUERY_BLOCK = 256
 #: Queries of at most this many rows are remembered (the tracker repeats a frame's query).
 _REMEMBERED_ROWS = 8
-
-
-def fold_heading_deg(heading_deg) -> np.ndarray:
-    """Of each heading h (degrees) and its front/back partner 180 - h, the one in [-90, 90]
-    (facing the camera's half); same shape."""
-    h = wrap_deg(np.asarray(heading_deg, dtype=np.float64))
-    return np.where(np.abs(h) <= 90.0, h, np.copysign(180.0, h) - h)
 
 
 @dataclass
@@ -134,15 +126,9 @@ class HeadingIndex:
 
 def build_heading_index(inputs: np.ndarray, heading_deg: np.ndarray, rows: int, dims: int,
                         k: int, limit_deg: float = 45.0, seed: int = 0) -> HeadingIndex:
-    """An index of at most ``rows`` training rows drawn at random (seeded) from inputs (N, >=
-    dims) with their headings (N,) degrees, comparing the first ``dims`` columns."""
-    inputs = np.asarray(inputs)
-    n = len(inputs)
-    if n == 0 or dims < 1 or rows < 1:        # k and the limit: HeadingIndex checks them
-        raise ValueError("a heading index needs rows and dims >= 1 and some training rows")
-    pick = _random_rows(n, rows, seed)
-    return HeadingIndex(inputs[pick, :dims], fold_heading_deg(np.asarray(heading_deg)[pick]), k,
-                        limit_deg)
+    """Training's index (regressor.heading_index_training.build_heading_index)."""
+    from .heading_index_training import build_heading_index as build
+    return build(inputs, heading_deg, rows, dims, k, limit_deg, seed)
 
 
 def _random_rows(n: int, at_most: int, seed: int) -> np.ndarray:

@@ -3,19 +3,15 @@
 One object and one file hold what the tracker needs from training: descriptor settings and
 codebook, transform, stack depth k, the regressor, the angle centres it was trained around
 (it predicts wrap(angle - centre), so angles straddling +-180 stay continuous), the Kalman
-filter's noise models and a description of the training data. Poses are the pose vector's
-layout (regressor/angles.py): [cos, sin] of the heading, then 53 angles in degrees.
+filter's noise models and a description of the training data. Poses: regressor/angles.py.
 
-A frame's descriptor (D values) is the transformed histogram of shape contexts
-(codebook.n_centres), then, when layout_grid > 0, the silhouette's layout (regressor.layout)
-times layout_weight, which balances the two blocks' spreads. k frames are stacked (k*D) and,
-with a projection, centred and projected onto P principal directions (k*D -> P).
-
-A mixture may carry canonical limbs: a limb head (:class:`LimbHead`) or a limb network
-(regressor.limb_net), fitted on each pose's canonical member of {pose, front/back flip}
-(sequences.pose_vector.canonical_member), so one silhouette has one target and the tracker
-picks the member (tracker/tracks/hypotheses.py); and a heading index (regressor.heading_index)
-whose nearest training rows give each frame's novelty.
+A frame's descriptor (D values) is the transformed histogram of shape contexts, then, when
+layout_grid > 0, the silhouette's layout (regressor.layout) times layout_weight, which
+balances the two blocks' spreads. k frames are stacked (k*D) and, with a projection, centred
+and projected onto P principal directions. A mixture may carry canonical limbs (a limb head
+or a limb network, fitted on each pose's canonical member of {pose, front/back flip}, so one
+silhouette has one target; the tracker picks the member), a side classifier and a heading
+index (regressor.heading_index) for each frame's novelty.
 """
 from __future__ import annotations
 
@@ -74,21 +70,17 @@ class LimbHead:
 
 @dataclass
 class PoseModel:
-    """A trained model (module docstring). D = descriptor_length, k = stack_depth, R basis
-    functions, P = input_length.
-
-    centres (R, P) Gaussian kernel centres, or None (linear basis: relevance (R,) kept
-    inputs); width: kernel width; coef (R, 55); intercept (55,); angle_centre_deg (53,);
-    measurement_covariance (54, 54) deg^2 and process_noise (54,) (deg/s^2)^2: the filter's R
-    and q (heading, then the 53 angles); ambiguity_threshold: raw heading norm below which a
-    frame is ambiguous. layout_grid, layout_weight: the descriptor's layout block (0: none);
-    projection (k*D, P), projection_mean (k*D,), or None (P = k*D). canonical_direction (55,):
-    the model was fitted on canonical members (its raw pose may be either body). limb_head,
-    limb_net (one or neither), heading_index, side_classifier (needs limbs), canonical_priors
-    (None: the tracker's default): a mixture's optional parts. variance_calibration: factor on
-    :meth:`predict_variance` for sparse RVM experts that keep their variance, or None.
-    The tracker calls only regressor.estimator.PoseEstimator's members; predict_batch,
-    predict_limbs and predict_variance serve training and evaluation.
+    """A trained model (module docstring); D = descriptor_length, k = stack_depth, R basis
+    functions, P = input_length. centres (R, P) Gaussian kernel centres or None (linear basis:
+    relevance (R,) kept inputs); coef (R, 55); intercept (55,); angle_centre_deg (53,);
+    measurement_covariance (54, 54) deg^2, process_noise (54,) (deg/s^2)^2: the filter's R
+    and q; ambiguity_threshold: raw heading norm below which a frame is ambiguous; layout_grid
+    0: no layout block; projection (k*D, P), projection_mean (k*D,) or None (P = k*D);
+    canonical_direction (55,): fitted on canonical members. limb_head, limb_net (one or
+    neither), heading_index, side_classifier (needs limbs), canonical_priors (None: the
+    tracker's default): a mixture's optional parts. variance_calibration: factor on
+    :meth:`predict_variance` (sparse RVM experts), or None. The tracker calls only
+    regressor.estimator.PoseEstimator's members; the predict_* methods serve training.
     """
 
     settings: DescriptorSettings
@@ -193,10 +185,11 @@ class PoseModel:
     def hypotheses(self, stacked: np.ndarray, m: int = 1, mirrored: np.ndarray | None = None,
                    novelty: bool = True) -> PoseEstimates:
         """All the tracker asks for stacked descriptors (N, k*D), the input projected and the
-        gate evaluated once (regressor.estimator.PoseEstimates). mirrored (N, k*D): the mirror
-        images' stacked descriptors, whose limbs go through the limb networks with the frames'."""
+        gate evaluated once (regressor.estimator.PoseEstimator.hypotheses); novelty: the heading
+        index's (NaN without one)."""
         X = self._stacked(stacked)
-        rows = self._novelty(X) if novelty else np.full(len(X), np.nan)
+        rows = (self.heading_index.novelty(X) if novelty and self.heading_index is not None
+                else np.full(len(X), np.nan))
         if self.mixture is None:
             from .optional_parts import regress
             return PoseEstimates(regress(self, X)[:, None], np.ones((len(X), 1)), novelty=rows)
@@ -222,13 +215,6 @@ class PoseModel:
                                  f"the frames' {X.shape}, got {X_mirror.shape}")
         both = self._limbs(np.vstack([X, X_mirror]))
         return both[:len(X)], both[len(X):]
-
-    def _novelty(self, X: np.ndarray) -> np.ndarray:
-        """Novelty (N,) of the regressor's inputs X (N, input_length)
-        (regressor.heading_index.HeadingIndex.novelty); NaN without a heading index."""
-        if self.heading_index is None:
-            return np.full(len(X), np.nan)
-        return self.heading_index.novelty(X)
 
     def predict_variance(self, stacked: np.ndarray) -> np.ndarray:
         """Predictive variance (N,) deg^2 of :meth:`predict_batch`'s pose for stacked

@@ -1,22 +1,15 @@
-"""The 55-D pose vector and every conversion to and from it.
+"""The 55-D pose vector and its conversions to rotations and joint positions.
 
-Layout (POSE_DIM = 55), all angles in degrees:
-    [0] cos(heading), [1] sin(heading)
-    [2] Hips_x, [3] Hips_z: root tilt angles
-    [4:55] 17 joints (POSE_JOINTS[1:]) x (z, y, x) Euler angles: local rotation R = Rz @ Ry @ Rx
-           (intrinsic ZYX, the CMU BVH channel order). Folded joints (skeleton.FOLDED) carry the
-           product of their CMU joints' local rotations.
+Layout (POSE_DIM = 55), angles in degrees: [0] cos(heading), [1] sin(heading); [2] Hips_x,
+[3] Hips_z, the root's tilts; [4:55] 17 joints (POSE_JOINTS[1:]) x (z, y, x) Euler angles,
+local rotation R = Rz @ Ry @ Rx (intrinsic ZYX, the CMU BVH channels); folded joints
+(skeleton.FOLDED) carry the product of their CMU joints' rotations.
 
-Root and heading. The root's global rotation is decomposed as
-    R_root = Ry(yaw) @ Rx(Hips_x) @ Rz(Hips_z)      (yaw in (-180, 180], Hips_x in [-90, 90])
-and heading = yaw - camera_azimuth. World frame: Y up; at rest the subject faces +Z. A camera
-with azimuth ``az`` sits in direction Ry(az) @ (0, 0, 1) from the subject, looking at it. So
-heading 0 means the subject faces the camera, and a positive heading means the subject is
-turned counter-clockwise seen from above (right-handed about +Y) away from facing the camera.
-Moving the camera by +d degrees of azimuth changes the heading by -d. The (cos, sin) pair need
-not have unit norm: heading = atan2(sin, cos); the norm measures how unambiguous an estimate was.
-
-Lengths are CMU units (skeleton.CMU_UNIT_M metres each).
+The root's rotation is R_root = Ry(yaw) @ Rx(Hips_x) @ Rz(Hips_z) (Hips_x in [-90, 90]) and
+heading = yaw - camera_azimuth. World: Y up, the subject at rest faces +Z; a camera at azimuth
+``az`` sits in direction Ry(az) @ (0, 0, 1) looking at it. Heading 0 faces the camera; a
+positive heading turns the subject counter-clockwise seen from above. The (cos, sin) pair
+need not have unit norm: the norm measures how unambiguous an estimate was. Lengths: CMU units.
 """
 from __future__ import annotations
 
@@ -121,13 +114,9 @@ def pose_vectors_to_local_rotations(vectors: np.ndarray, camera_azimuth_deg=0.0,
 
 def forward_kinematics(offsets: np.ndarray, parents: np.ndarray, local_rot: np.ndarray,
                        root_position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Global joint positions (T, J, 3) and rotations (T, J, 3, 3).
-
-    offsets: (J, 3) bone offsets (any length unit; output has the same); parents: (J,) int with
-    -1 for the root and every parent before its child; local_rot: (T, J, 3, 3); root_position:
-    (T, 3). Joint j sits at position[parent] + R_global[parent] @ offsets[j] and turns by
-    R_global[j] = R_global[parent] @ local_rot[j].
-    """
+    """Global joint positions (T, J, 3) (offsets' unit) and rotations (T, J, 3, 3) from bone
+    offsets (J, 3), parents (J,) (-1: the root; parents before children), local_rot (T, J, 3,
+    3) and root_position (T, 3)."""
     offsets = np.asarray(offsets, dtype=np.float64)
     parents = np.asarray(parents)
     J = len(parents)
@@ -157,11 +146,8 @@ def forward_kinematics(offsets: np.ndarray, parents: np.ndarray, local_rot: np.n
 def joint_positions(vectors: np.ndarray, template: Motion | np.ndarray | None = None,
                     root_position=None, camera_azimuth_deg=0.0) -> np.ndarray:
     """Positions (T, 18, 3) of the POSE_JOINTS, CMU units, from pose vectors (T, 55).
-
-    template: a Motion (its skeleton), or (31, 3) bone offsets of the CMU skeleton, or None for
-    skeleton.CMU_REST_OFFSETS. root_position: (T, 3), None puts the root at the origin.
-    With camera_azimuth_deg = 0 the camera looks from +Z, so heading 0 faces it.
-    """
+    template: a Motion (its skeleton), (31, 3) CMU bone offsets, or None (CMU_REST_OFFSETS);
+    root_position (T, 3), None: the origin."""
     v = _as_vectors(vectors)
     if hasattr(template, "parents"):          # a Motion (not imported: track never passes one)
         names, parents, offsets = template.names, template.parents, template.offsets

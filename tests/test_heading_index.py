@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from regressor.heading_index import HeadingIndex, build_heading_index, fold_heading_deg
+from regressor.heading_index import HeadingIndex, build_heading_index
+from regressor.heading_index_training import fold_heading_deg
 from regressor.model_file import (FORMAT_VERSION, ModelFileError, checksum, load_model,
                                   save_model)
 from regressor.pose_model import PoseModelError, load_pose_model
