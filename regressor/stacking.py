@@ -75,10 +75,6 @@ class FrameStacker:
         self.k, self.step = _check_whole(k, "depth k"), _check_whole(step, "step")
         self._buffer: np.ndarray | None = None   # ((k - 1) * step + 1, D), newest first
 
-    def reset(self) -> None:
-        """Forget the history (the next push starts a new sequence)."""
-        self._buffer = None
-
     def push(self, x) -> np.ndarray:
         """Add descriptor x (D,) and return the stacked vector (k*D,)."""
         x = np.asarray(x, dtype=np.float64)
