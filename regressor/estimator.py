@@ -1,8 +1,6 @@
-"""The one interface the tracker calls on a trained model (regressor.pose_model.PoseModel
-implements it). The tracker (tracker.pipeline, tracker.tracks.hypotheses) uses these members and
-no others; a model's optional parts show up as None, NaN or False in its answers, never as
-missing methods. Poses (55,): the heading's (cos, sin), then 53 joint angles in degrees
-(regressor/angles.py); D: one frame's descriptor length; k: the stack depth.
+"""The one interface the tracker calls on a trained model (regressor.pose_model.PoseModel);
+a model's optional parts show up as None, NaN or False in its answers, never as missing
+methods. Poses (55,): regressor/angles.py; D: a frame's descriptor length; k: stack depth.
 """
 from __future__ import annotations
 
@@ -36,14 +34,14 @@ class PoseEstimates:
 
 @runtime_checkable
 class PoseEstimator(Protocol):
-    """What the tracker needs of a trained model, all of it: stack_depth: k; training_fps: the frame rate (frames/s) the model learned at;
-    measurement_covariance (54, 54) deg^2 and process_noise (54,) (deg/s^2)^2: the filter's R
-    and q (heading, then the 53 angles); ambiguity_threshold: raw heading norm below which a
-    frame is ambiguous; canonical_direction (55,) or None: fitted on canonical members (no
-    separate limb filter then); gives_canonical_pairs: the front/back hypotheses are the limbs'
-    canonical member and its flip, weighed by the side classifier, with canonical_priors (None:
-    the tracker's default); limbs_see_mirror: the tracker also asks for each frame's mirror
-    image's limbs (tracker.tracks.mirror_limbs).
+    """What the tracker needs of a trained model, all of it. stack_depth: k; training_fps: the
+    frame rate (frames/s) the model learned at; measurement_covariance (54, 54) deg^2 and
+    process_noise (54,) (deg/s^2)^2: the filter's R and q (heading, then the 53 angles);
+    ambiguity_threshold: raw heading norm below which a frame is ambiguous; canonical_direction
+    (55,) or None: fitted on canonical members (no separate limb filter then);
+    gives_canonical_pairs: the front/back hypotheses are the limbs' canonical member and its
+    flip, weighed by the side classifier with canonical_priors (None: the tracker's default);
+    limbs_see_mirror: the tracker also asks for each frame's mirror image's limbs.
     """
 
     stack_depth: int

@@ -1,12 +1,10 @@
 """The most probable sequence of hypotheses: let time resolve what one frame cannot.
 
-A mixture gives each frame several poses with the gate's probabilities; where the silhouette
-is ambiguous the gate's favourite is often wrong, but the body moves little between frames
-(Agarwal and Triggs 2005 resolve their mixture's hypotheses by tracking). A hidden Markov
-chain: hypothesis j at frame t has evidence log_weight[t, j], and a move from i at t-1 to j
-at t costs continuity * |y_t^j - y_{t-1}^i|^2 / (2 s^2), s^2 the training motion's mean
-squared step. :func:`most_probable_path` finds the best chain
-exactly (Viterbi), offline.
+Where the silhouette is ambiguous a mixture's favourite hypothesis is often wrong, but the body
+moves little between frames (Agarwal and Triggs 2005). A hidden Markov chain: hypothesis j at
+frame t has evidence log_weight[t, j], and a move from i to j costs continuity *
+|y_t^j - y_{t-1}^i|^2 / (2 s^2), s^2 the training motion's mean squared step.
+:func:`most_probable_path` finds the best chain exactly (Viterbi), offline.
 """
 from __future__ import annotations
 

@@ -1,13 +1,11 @@
 """Model files: one versioned, checksummed .npz of plain arrays (no pickle), validated on load.
 
-A file holds named parts (arrays, numbers, strings); the known ones (PART_KINDS: codebook,
-descriptor settings, stacking, basis, weights, noise models, description...) are checked for
-kind, shape, mutual consistency and finite values whenever present, others are returned as
-they are. ``format_version`` and ``checksum`` (sha256 over every part's name, dtype, shape and
-bytes) are added on save, so a damaged, truncated or foreign file is refused with
-ModelFileError. The checksum catches accidents, not deliberate tampering (whoever changes the
-arrays can store their new checksum too): use model files only from sources you trust;
-loading never runs code from them.
+Named parts (arrays, numbers, strings); the known ones (PART_KINDS) are checked for kind,
+shape, consistency and finite values when present, others returned as they are. Saving adds
+``format_version`` and ``checksum`` (sha256 over every part's name, dtype, shape and bytes),
+so a damaged, truncated or foreign file is refused with ModelFileError. The checksum catches
+accidents, not deliberate tampering: use model files only from sources you trust; loading
+never runs code from them.
 """
 from __future__ import annotations
 

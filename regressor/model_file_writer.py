@@ -18,7 +18,8 @@ def _as_array(name: str, value) -> np.ndarray:
         value = json.dumps(value, sort_keys=True)
     a = np.asarray(value)
     if a.dtype.kind not in "biufU":
-        raise ModelFileError(f"part {name!r} has dtype {a.dtype}; only numbers and strings can be stored")
+        raise ModelFileError(f"part {name!r} has dtype {a.dtype}; only numbers and strings can "
+                             f"be stored")
     return a
 
 
