@@ -252,12 +252,12 @@ class PoseModel:
     def summary(self) -> dict:
         """Plain facts for metadata and logs."""
         if self.mixture is not None:
-            return {"basis": "mixture", "experts": len(self.mixture.experts_),
-                    "n_basis": int(sum(len(e.centres_) for e in self.mixture.experts_)),
-                    "stack_depth": self.stack_depth, "transform": self.transform,
-                    "training": self.description}
-        return {"basis": self.basis, "n_basis": int(len(self.coef)),
-                "stack_depth": self.stack_depth, "transform": self.transform,
+            experts = self.mixture.experts_
+            kind = {"basis": "mixture", "experts": len(experts),
+                    "n_basis": int(sum(len(e.centres_) for e in experts))}
+        else:
+            kind = {"basis": self.basis, "n_basis": int(len(self.coef))}
+        return {**kind, "stack_depth": self.stack_depth, "transform": self.transform,
                 "training": self.description}
 
 
