@@ -13,7 +13,7 @@ from regressor.angles import POSE_DIM, wrap_deg
 
 from .motion import Motion
 from .pose_vector import (_JOINT_ORDER, _ROOT_ORDER, ANGLE_SLICE, PoseVectorError, _as_vectors,
-                          _azimuth, _joint_index, front_back_flip, pose_vector_names,
+                          _azimuth, _joint_index, front_back_flip,
                           pose_vectors_to_local_rotations)
 from .skeleton import FOLDED, POSE_JOINT_PART, POSE_JOINTS
 
