@@ -1,13 +1,7 @@
-"""Angles and the pose vector's size: one home for the conventions every package shares.
-
-Here, in ``regressor`` (the package that imports neither of the others), so that ``sequences``,
-``regressor`` and ``tracker`` all use the same definitions without breaking the layering of
-DESIGN.md. Only numpy.
-
-- POSE_DIM = 55: [cos, sin] of the heading, then 53 angles in degrees (sequences/pose_vector.py
-  documents the layout).
-- N_ANGLES = 54: the compared / filtered angles: the heading (atan2(sin, cos)), then the 53.
-- Every angle is wrapped to (-180, 180] by :func:`wrap_deg`, the one convention.
+"""Angles and the pose vector's size, shared by every package (``regressor`` imports neither
+of the others, DESIGN.md). POSE_DIM = 55: the heading's (cos, sin), then 53 angles in degrees
+(sequences/pose_vector.py). N_ANGLES = 54: the heading (atan2(sin, cos)) and the 53, the
+filter's state. Every angle is wrapped to (-180, 180] by :func:`wrap_deg`.
 """
 from __future__ import annotations
 

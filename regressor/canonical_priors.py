@@ -3,8 +3,7 @@
 For a model with limbs and a side classifier (tracker.tracks.hypotheses, "canonical"): how
 often the truer of the limbs' member and its flip changes per frame, and how right the side
 classifier is at each of its probabilities, learned on validation renders
-(lab.hypothesis_priors.canonical_statistics). Stored with the model under "canonical_prior_"
-(float64) by ``scripts/train.py`` or ``scripts/learn_hypothesis_priors.py --save``.
+(lab.hypothesis_priors). Stored with the model under "canonical_prior_" (float64).
 """
 from __future__ import annotations
 
@@ -13,7 +12,6 @@ from dataclasses import dataclass
 import numpy as np
 
 PREFIX = "canonical_prior_"
-_FLOOR = 1e-3
 _PARTS = ("switch", "front_edges", "by_front", "overall")
 #: Parts of mechanisms since removed (docs/ablation.md): older model files carry them; ignored.
 _REMOVED_PARTS = ("raw_side_edges", "raw_side_by_norm", "raw_side_overall")
@@ -60,9 +58,8 @@ class CanonicalPriors:
             return f"the front edges must increase from 0, got {edges}"
         if not all(0.0 <= p <= 1.0 for p in table):
             return f"the front table must hold probabilities, got {table}"
-        if self.front_edges[-1] >= 1.0:
-            return f"the front edges bin a probability: they must stay below 1, got " \
-                   f"{self.front_edges}"
+        if edges[-1] >= 1.0:
+            return f"the front edges bin a probability: they must stay below 1, got {edges}"
         if not 0.0 < self.overall < 1.0:
             return "the overall rate must be strictly between 0 and 1"
         return None
@@ -75,8 +72,7 @@ class CanonicalPriors:
     @classmethod
     def from_arrays(cls, a) -> "CanonicalPriors | None":
         """The priors in a file's parts a (mapping), None when it has none; ValueError when
-        they are incomplete, carry an unknown part, or are inconsistent (the parts of removed
-        mechanisms, _REMOVED_PARTS, are ignored)."""
+        they are incomplete, carry an unknown part (but _REMOVED_PARTS) or are inconsistent."""
         present = sorted(str(k) for k in a.keys() if str(k).startswith(PREFIX))
         if not present:
             return None
@@ -97,17 +93,3 @@ class CanonicalPriors:
                 raise ValueError(f"canonical prior {name} has shape {v.shape}")
             arrays[name] = v
         return cls(**arrays)
-
-    @classmethod
-    def from_statistics(cls, stats: dict, front_edges) -> "CanonicalPriors":
-        """The priors from canonical_statistics' dict (lab.hypothesis_priors) with
-        the edges its table was binned by. A bin without frames (None) takes the overall
-        rate: no evidence either way. Overall and switch rates of 0 or 1 (a member always
-        right or always wrong on the renders, a state never left) are taken as 0.001 and
-        0.999: no evidence is ever certain, and neither state is unreachable."""
-        overall = float(np.clip(stats["canonical_overall"], _FLOOR, 1.0 - _FLOOR))
-        return cls(switch=tuple(float(np.clip(p, _FLOOR, 1.0 - _FLOOR))
-                                for p in stats["switch_probability"]),
-                   front_edges=tuple(front_edges),
-                   by_front=[overall if p is None else p for p in stats["by_front"]],
-                   overall=overall)

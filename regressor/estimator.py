@@ -1,13 +1,6 @@
-"""The one interface the tracker calls on a trained model (regressor.pose_model.PoseModel
-implements it).
-
-The tracker (tracker.pipeline, tracker.tracks.hypotheses) uses these members and no others, and
-never asks whether a model has one: a model's optional parts (limb networks, side classifier,
-heading index) show up as None, NaN or False in what it answers, not as missing methods.
-
-Pose vectors (55,) are the pose vector's layout (regressor/angles.py): the heading as
-(cos, sin), then 53 joint angles in degrees. D: one frame's descriptor length; k: the stack
-depth (k*D: one row of stacked descriptors).
+"""The one interface the tracker calls on a trained model (regressor.pose_model.PoseModel);
+a model's optional parts show up as None, NaN or False in its answers, never as missing
+methods. Poses (55,): regressor/angles.py; D: a frame's descriptor length; k: stack depth.
 """
 from __future__ import annotations
 
@@ -21,16 +14,13 @@ from .canonical_priors import CanonicalPriors
 
 @dataclass
 class PoseEstimates:
-    """A model's answer for N rows of stacked descriptors (:meth:`PoseEstimator.hypotheses`).
-
-    poses (N, m, 55): raw poses of the m most probable experts, most probable first (a single
-    regressor: m = 1); probabilities (N, m): the gate's probability of each (1 for a single
-    regressor); limbs (N, 55): the limb networks' (or limb head's) canonical pose, either body
-    of the silhouette, or None for a model without limbs; mirror_limbs (N, 55): the limbs of
-    the frames' mirror images (their own bodies, not mirrored back), when asked for and the
-    model has limbs, else None; front (N,): the side classifier's probability that the body
-    faces the camera's half, None unless the model gives canonical pairs; novelty (N,): how
-    unlike the training silhouettes each row is (unitless; above
+    """A model's answer for N rows of stacked descriptors (:meth:`PoseEstimator.hypotheses`):
+    poses (N, m, 55): the m most probable experts' raw poses, most probable first (a single
+    regressor: m = 1); probabilities (N, m): the gate's (1 for a single regressor); limbs (N,
+    55): the limbs' canonical pose (either body), None without limbs; mirror_limbs (N, 55):
+    the frames' mirror images' limbs (not mirrored back) when asked for, else None; front
+    (N,): the side classifier's P(the body faces the camera's half), None unless the model
+    gives canonical pairs; novelty (N,): unlikeness to the training silhouettes (above
     regressor.pose_model.UNFAMILIAR_NOVELTY: unfamiliar), NaN when unknown or not asked.
     """
 
@@ -44,20 +34,14 @@ class PoseEstimates:
 
 @runtime_checkable
 class PoseEstimator(Protocol):
-    """What the tracker needs of a trained model, all of it.
-
-    stack_depth: k frames per stacked row; training_fps: the frame rate (frames/s) the stacked
-    input and the front/back chain's per-frame figures were learned at;
-    measurement_covariance (54, 54) deg^2 and process_noise (54,) (deg/s^2)^2: the Kalman
-    filter's R and q (heading, then the 53 angles); ambiguity_threshold: the raw heading norm
-    below which a frame is ambiguous, as the model was trained with.
-    canonical_direction (55,) or None: set when the model was fitted on canonical members (its
-    raw pose may be either body; the tracker then runs no separate limb filter).
+    """What the tracker needs of a trained model, all of it. stack_depth: k; training_fps: the
+    frame rate (frames/s) the model learned at; measurement_covariance (54, 54) deg^2 and
+    process_noise (54,) (deg/s^2)^2: the filter's R and q (heading, then the 53 angles);
+    ambiguity_threshold: raw heading norm below which a frame is ambiguous; canonical_direction
+    (55,) or None: fitted on canonical members (no separate limb filter then);
     gives_canonical_pairs: the front/back hypotheses are the limbs' canonical member and its
-    flip, weighed by the side classifier (tracker.tracks.hypotheses.canonical_hypotheses);
-    canonical_priors: the model's own weighing of them, or None (the tracker's default).
-    limbs_see_mirror: the limbs answer for a frame's mirror image too (tracker.tracks.mirror_limbs):
-    the tracker then describes each frame's mirror image and asks for its limbs.
+    flip, weighed by the side classifier with canonical_priors (None: the tracker's default);
+    limbs_see_mirror: the tracker also asks for each frame's mirror image's limbs.
     """
 
     stack_depth: int
@@ -79,7 +63,6 @@ class PoseEstimator(Protocol):
 
     def hypotheses(self, stacked: np.ndarray, m: int = 1, mirrored: np.ndarray | None = None,
                    novelty: bool = True) -> PoseEstimates:
-        """The model's answer (:class:`PoseEstimates`) for stacked descriptors (N, k*D), with
-        the m most probable experts' poses; mirrored (N, k*D): the frames' mirror images'
-        stacked descriptors, whose limbs come back as mirror_limbs; novelty False: not
-        computed (NaN)."""
+        """The answer for stacked descriptors (N, k*D) with the m most probable experts' poses;
+        mirrored (N, k*D): the mirror images' stacked descriptors (their limbs come back as
+        mirror_limbs); novelty False: not computed (NaN)."""

@@ -1,10 +1,9 @@
-"""Nearest neighbours among the training rows, in the regressor's own projected input space.
+"""Nearest neighbours among the training rows, in the regressor's projected input space.
 
-The model file keeps a sample of training rows' inputs and their headings, folded so that
-front/back cannot count (:func:`fold_heading_deg`: of h and its partner 180 - h, the one within
-90 degrees of facing the camera). ``track`` uses it for each frame's novelty (how far its input
-lies from the training rows', :meth:`HeadingIndex.novelty`). ``limit_deg`` stays in model
-files for compatibility; the index's history: docs/tuning.md, "regressor/heading_index.py".
+A model file keeps a sample of training rows' inputs and their headings folded so front/back
+cannot count (regressor.heading_index_training). ``track`` uses it for each frame's novelty
+(:meth:`HeadingIndex.novelty`). ``limit_deg`` stays in model files for compatibility (history:
+docs/tuning.md, "regressor/heading_index.py").
 """
 from __future__ import annotations
 
@@ -12,29 +11,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .angles import wrap_deg
 from .basis import nearest_columns
 
 #: Queries per block in HeadingIndex._nearest (distances: block x R float32).
 _QUERY_BLOCK = 256
-#: At most this many rows' nearest neighbours are remembered (HeadingIndex._nearest): the
-#: tracker asks for one frame's twice (its heading, then its novelty).
+#: Queries of at most this many rows are remembered (the tracker repeats a frame's query).
 _REMEMBERED_ROWS = 8
-
-
-def fold_heading_deg(heading_deg) -> np.ndarray:
-    """Of each heading h (degrees) and its front/back partner 180 - h, the one in [-90, 90]
-    (facing the camera's half); same shape."""
-    h = wrap_deg(np.asarray(heading_deg, dtype=np.float64))
-    return np.where(np.abs(h) <= 90.0, h, np.copysign(180.0, h) - h)
 
 
 @dataclass
 class HeadingIndex:
-    """Training rows for the nearest-neighbour heading: inputs (R, P) the rows' regressor
-    inputs (the projected stacked descriptors, first P principal components), folded_deg (R,)
-    their folded headings (degrees), k neighbours per query; limit_deg: kept in model files,
-    no longer used (module docstring)."""
+    """inputs (R, P): training rows' regressor inputs (first P components); folded_deg (R,):
+    their folded headings (degrees); k neighbours per query; limit_deg: unused (module
+    docstring)."""
 
     inputs: np.ndarray
     folded_deg: np.ndarray
@@ -62,11 +51,6 @@ class HeadingIndex:
         """P, the input components the index compares."""
         return int(self.inputs.shape[1])
 
-    def neighbours(self, X: np.ndarray) -> np.ndarray:
-        """The folded headings (N, k) degrees of each row's k nearest training rows (Euclidean
-        on the first P columns); X (N, >= P) regressor inputs."""
-        return self.folded_deg[self._nearest(X)[0]]
-
     def distance(self, X: np.ndarray) -> np.ndarray:
         """The mean Euclidean distance (N,) from each row of X (N, >= P) to its k nearest
         training rows, in the projected input's units."""
@@ -75,7 +59,7 @@ class HeadingIndex:
     def typical_distance(self, percentile: float = 99.0, sample: int = 2000) -> float:
         """The percentile of :meth:`distance` over the index's own rows, each left out of its
         own neighbours (a seeded sample of at most ``sample`` rows; computed once per
-        argument pair, about 0.5 s for 2,000 of 16,000 rows). NaN with k or fewer rows."""
+        argument pair). NaN with k or fewer rows."""
         key = (float(percentile), int(sample))
         if key not in self._typical:
             n = len(self.inputs)
@@ -93,11 +77,9 @@ class HeadingIndex:
         return self._typical[key]
 
     def remember_typical_distance(self, value: float) -> None:
-        """Take ``value`` as the default :meth:`typical_distance` (99th percentile over 2,000
-        rows) instead of computing it (0.35 s for the shipped model's index): a model file
-        stores it. ValueError unless it is positive, finite and plausible: within a factor 4
-        of the same percentile over 50 rows (a few milliseconds), so that a tampered value
-        cannot call every frame unfamiliar, or none."""
+        """Take a model file's ``value`` as the default :meth:`typical_distance` instead of
+        computing it. ValueError unless positive, finite and within a factor 4 of the same
+        percentile over 50 rows, so a tampered value cannot call every frame unfamiliar."""
         value = float(value)
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"a heading index's typical distance must be positive and finite, "
@@ -109,23 +91,20 @@ class HeadingIndex:
         self._typical[(99.0, 2000)] = value
 
     def novelty(self, X: np.ndarray) -> np.ndarray:
-        """How unlike the training silhouettes each row of X (N, >= P) is: :meth:`distance`
-        over the training rows' own 99th percentile (:meth:`typical_distance`), (N,): about
-        1 % of the training rows are above 1, and far above it the regressor extrapolates
-        (docs/accuracy.md). NaN when the index has k or fewer rows."""
+        """How unlike the training silhouettes each row of X (N, >= P) is, (N,): :meth:`distance`
+        over the training rows' own 99th percentile (about 1 % of them are above 1; far above,
+        the regressor extrapolates). NaN when the index has k or fewer rows."""
         return self.distance(X) / max(self.typical_distance(), 1e-12)
 
     def _nearest(self, X: np.ndarray, extra: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """(indices (N, k'), squared distances (N, k') ascending) of the k' = k + extra
-        nearest training rows of each row of X (N, >= P). Queries go in blocks, so a long
-        sequence never holds more than a block's distances to every training row."""
+        nearest training rows of each row of X (N, >= P), queried in blocks."""
         Q = np.asarray(X, dtype=np.float32)[:, :self.dims]
         if Q.shape[1] != self.dims:
             raise ValueError(f"the heading index compares {self.dims} input columns, got "
                              f"{Q.shape[1]}")
         k = min(self.k + extra, len(self.inputs))
-        # The tracker queries each frame's input twice (apply, then novelty): the second
-        # query of the same rows reuses the first's neighbours instead of searching again.
+        # A repeated query of the same rows reuses the last one's neighbours.
         key = (k, Q.shape, Q.tobytes()) if len(Q) <= _REMEMBERED_ROWS else None
         last = self._last             # read once (the index's rows are never changed)
         if key is not None and last is not None and last[0] == key:
@@ -144,22 +123,12 @@ class HeadingIndex:
             self._last = (key, (index, dist2))
         return index, dist2
 
-    def folded(self, X: np.ndarray) -> np.ndarray:
-        """The median folded heading (N,) degrees of each row's k nearest training rows."""
-        return np.median(self.neighbours(X), axis=1)
-
 
 def build_heading_index(inputs: np.ndarray, heading_deg: np.ndarray, rows: int, dims: int,
                         k: int, limit_deg: float = 45.0, seed: int = 0) -> HeadingIndex:
-    """An index of at most ``rows`` training rows drawn at random (seeded) from inputs (N, >=
-    dims) with their headings (N,) degrees, comparing the first ``dims`` columns."""
-    inputs = np.asarray(inputs)
-    n = len(inputs)
-    if n == 0 or dims < 1 or rows < 1:        # k and the limit: HeadingIndex checks them
-        raise ValueError("a heading index needs rows and dims >= 1 and some training rows")
-    pick = _random_rows(n, rows, seed)
-    return HeadingIndex(inputs[pick, :dims], fold_heading_deg(np.asarray(heading_deg)[pick]), k,
-                        limit_deg)
+    """Training's index (regressor.heading_index_training.build_heading_index)."""
+    from .heading_index_training import build_heading_index as build
+    return build(inputs, heading_deg, rows, dims, k, limit_deg, seed)
 
 
 def _random_rows(n: int, at_most: int, seed: int) -> np.ndarray:

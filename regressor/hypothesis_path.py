@@ -1,18 +1,10 @@
 """The most probable sequence of hypotheses: let time resolve what one frame cannot.
 
-A mixture of experts (regressor.mixture) gives each frame several poses, one per expert, with
-the gate's probabilities. One frame alone must take the gate's favourite, and where the
-silhouette is ambiguous the gate is often wrong. Over a sequence the body moves little from one
-frame to the next, so the chain of hypotheses that is both probable frame by frame and smooth
-in time is the better answer (Agarwal and Triggs 2005 resolve their mixture's hypotheses by
-tracking for this reason).
-
-Model (a hidden Markov chain over which hypothesis is true at each frame): frame t's hypothesis
-j has evidence log_weight[t, j] (the gate's log probability), and moving from hypothesis i at
-t-1 to j at t costs continuity * |y_t^j - y_{t-1}^i|^2 / (2 s^2), the log of a Gaussian step
-whose variance s^2 is the training motion's own mean squared step (:func:`step_variance`).
-:func:`most_probable_path` finds the best chain exactly (Viterbi), offline: it needs the whole
-sequence, as a smoother does.
+Where the silhouette is ambiguous a mixture's favourite hypothesis is often wrong, but the body
+moves little between frames (Agarwal and Triggs 2005). A hidden Markov chain: hypothesis j at
+frame t has evidence log_weight[t, j], and a move from i to j costs continuity *
+|y_t^j - y_{t-1}^i|^2 / (2 s^2), s^2 the training motion's mean squared step.
+:func:`most_probable_path` finds the best chain exactly (Viterbi), offline.
 """
 from __future__ import annotations
 
@@ -25,39 +17,14 @@ class HypothesisPathError(ValueError):
     """Inputs of the wrong shape or value."""
 
 
-def step_variance(Y, sequence_ids=None) -> float:
-    """Mean squared change between consecutive rows of Y within each sequence.
-
-    Y: (N, K) poses in time order, in the units the hypotheses use (the paper's data: its
-    renderer's units, a body about 60 tall). sequence_ids: (N,) label per row; a step is
-    counted only between consecutive rows with the same label (default: one sequence).
-    Returns s^2 (units^2) > 0.
-    """
-    Y = np.asarray(Y, dtype=np.float64)
-    if Y.ndim != 2 or len(Y) < 2:
-        raise HypothesisPathError(f"Y must be (N, K) with N >= 2, got shape {Y.shape}")
-    if not np.isfinite(Y).all():
-        raise HypothesisPathError("Y has non-finite values")
-    same = np.ones(len(Y) - 1, bool) if sequence_ids is None else _continues(sequence_ids, len(Y))
-    if not same.any():
-        raise HypothesisPathError("no two consecutive rows belong to one sequence")
-    s2 = float((np.diff(Y, axis=0)[same] ** 2).sum(axis=1).mean())
-    if not s2 > 0:
-        raise HypothesisPathError("the poses never change: the step variance is 0")
-    return s2
-
-
 def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1.0,
                        sequence_ids=None, angles_deg: bool = False) -> np.ndarray:
-    """The chain of hypotheses that maximises evidence + smoothness (module docstring).
+    """The chosen hypothesis (T,) int of each frame, maximising evidence + smoothness.
 
-    poses: (T, M, K) M hypotheses per frame; log_weight: (T, M) their log evidence (-inf
-    excludes one); step_var: s^2 from :func:`step_variance`, in the poses' units squared;
-    continuity: the weight of the smoothness term (0: each frame's best hypothesis alone);
-    sequence_ids: (T,) label per frame, the chain restarting where it changes (default: one
-    sequence); angles_deg: the poses are angles in degrees, their steps wrapped to (-180, 180]
-    (regressor.angles.wrap_deg; default: plain numbers). Returns (T,) int: the chosen
-    hypothesis of each frame.
+    poses (T, M, K): M hypotheses per frame; log_weight (T, M): their log evidence (-inf
+    excludes one); step_var: s^2; continuity: the smoothness term's
+    weight (0: each frame's best alone); sequence_ids (T,): the chain restarts where the label
+    changes; angles_deg: the poses are degrees, their steps wrapped to (-180, 180].
     """
     poses = np.asarray(poses, dtype=np.float64)
     log_weight = np.asarray(log_weight, dtype=np.float64)
@@ -71,7 +38,7 @@ def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1
     if not (np.isfinite(continuity) and continuity >= 0):
         raise HypothesisPathError(f"continuity must be >= 0, got {continuity}")
     T = len(poses)
-    same = np.ones(max(T - 1, 0), bool) if sequence_ids is None else _continues(sequence_ids, T)
+    same = np.ones(max(T - 1, 0), bool) if sequence_ids is None else continues(sequence_ids, T)
     scale = continuity / (2.0 * step_var)
     score = log_weight[0].copy()
     back = np.zeros(poses.shape[:2], dtype=np.int64)
@@ -83,8 +50,7 @@ def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1
             back[t] = total.argmax(axis=0)
             score = total[back[t], np.arange(total.shape[1])] + log_weight[t]
         else:
-            # A new sequence: no step links it to the last, so whatever frame t takes, the
-            # last sequence's best end is where its chain is traced back from.
+            # A new sequence: the last one's chain is traced back from its best end.
             back[t] = score.argmax()
             score = log_weight[t].copy()
     path = np.empty(T, dtype=np.int64)
@@ -103,7 +69,7 @@ def squared_steps(before, after, angles_deg: bool = False) -> np.ndarray:
     return (step ** 2).sum(axis=2)
 
 
-def _continues(sequence_ids, n: int) -> np.ndarray:
+def continues(sequence_ids, n: int) -> np.ndarray:
     """(n - 1,) whether row t + 1 is in row t's sequence."""
     ids = np.asarray(sequence_ids)
     if ids.shape != (n,):

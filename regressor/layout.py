@@ -1,16 +1,11 @@
 """Silhouette layout: where the silhouette is, on a coarse grid over its own bounding square.
 
 The histogram of shape contexts (regressor.descriptor) keeps each edge point's view of the
-outline but not where on the body that point is: a knee bent forwards and a knee bent backwards
-give much the same bag of contexts. The layout is the complementary, global part: the fraction
-of each cell of a ``grid`` x ``grid`` raster covered by the silhouette, the raster laid over the
-silhouette's bounding box made square (the shorter side padded equally on both sides), so it
-does not depend on the person's size or position in the image, and keeps the scene vertical.
-
-Measured on the training renders' video-like masks (issue 9; kernel ridge on 2,000 centres,
-3 stacked frames, validation trials): correlation of the 8 most-moving angles 0.394 with the
-shape-context histogram alone, 0.435 with the layout alone (24 x 24), 0.452 with both; through
-``track`` on five spiral-walk videos the pair also halved the heading's worst errors.
+outline but not where on the body it is (a knee bent forwards or backwards gives much the same
+bag of contexts). The layout is the global complement: the fraction of each cell of a grid x
+grid raster covered by the silhouette, over its bounding box made square, so it depends on
+neither the person's size nor position, and keeps the scene vertical. Measured gains:
+docs/code_notes/model.md.
 """
 from __future__ import annotations
 
@@ -24,10 +19,9 @@ MAX_GRID = 64
 
 def silhouette_layout(mask: np.ndarray, grid: int) -> np.ndarray:
     """Coverage (grid * grid,) float64 in [0, 1], row-major from the top-left, of the
-    silhouette mask (H, W) (nonzero = person) on a grid x grid raster over its bounding box
-    made square (the box centred in it). Area averaging (cv2.INTER_AREA), so a cell's value is
-    the fraction of its pixels on the person. Raises DegenerateSilhouetteError for an empty
-    mask."""
+    silhouette mask (H, W) (nonzero = person) over its bounding box made square (the box
+    centred); area averaging, so a cell is its fraction of person pixels. Raises
+    DegenerateSilhouetteError for an empty mask."""
     if not 1 <= int(grid) <= MAX_GRID:
         raise ValueError(f"layout grid must be 1..{MAX_GRID}, got {grid}")
     m = np.asarray(mask)
@@ -45,8 +39,3 @@ def silhouette_layout(mask: np.ndarray, grid: int) -> np.ndarray:
     return cv2.resize(square, (int(grid), int(grid)),
                       interpolation=cv2.INTER_AREA).astype(np.float64).ravel()
 
-
-def layouts_for_masks(masks, grid: int) -> np.ndarray:
-    """silhouette_layout of each mask: (N, grid * grid) float64."""
-    rows = [silhouette_layout(m, grid) for m in masks]
-    return np.array(rows, dtype=np.float64).reshape(len(rows), int(grid) ** 2)

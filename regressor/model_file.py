@@ -1,40 +1,16 @@
 """Model files: one versioned, checksummed .npz of plain arrays (no pickle), validated on load.
 
-A file holds named parts (arrays, numbers, strings). The parts this module knows are checked
-for type, shape, mutual consistency and finite values whenever they are present:
-
-    codebook_centres (C, D) float, codebook_sigma () float > 0    descriptor codebook
-    descriptor_*     () numbers/strings                          descriptor settings
-    stack_depth      () int >= 1                                  stacked frames k
-    transform        () str                                       descriptor preprocessing
-    basis            () "linear" | "gaussian"
-    width            () float > 0 (NaN allowed only for the linear basis: no kernel)
-    centres          (R, k*D) float (Gaussian basis; (0, 0) or absent for linear); (R, P) with
-                     a projection
-    layout_grid      () int: D = codebook centres + layout_grid^2 (absent: 0)
-    projection       (k*D, P) float: the stacked input's projection
-    canonical_direction (55,) float: optional; the model regresses canonical members of
-                     {pose, front/back flip} (regressor.pose_model.PoseModel)
-    relevance        (R,) int >= 0                                kept basis indices
-    coef             (R, K) float; intercept (K,) float            weights and offset
-    output_mean, output_std (K,) float (std > 0)                 output scaling
-    measurement_covariance (P, P) symmetric or (P,) diagonal; process_noise (P,) or (P, P) >= 0
-    description      () str, a JSON document describing the training data
-
-Other parts are stored and returned as they are (numbers and strings only). Two reserved
-entries are added on save: ``format_version`` and ``checksum`` (sha256 over every part's name,
-dtype, shape and bytes), so a damaged, truncated or foreign file is refused with ModelFileError.
-The checksum is stored in the file it checks: it catches accidents (a cut-off download, a
-corrupted disk, an array edited by mistake), not deliberate tampering, since whoever changes the
-arrays can store their new checksum too. Use model files only from sources you trust; loading
-never runs code from them (no pickle).
+Named parts (arrays, numbers, strings); the known ones (PART_KINDS) are checked for kind,
+shape, consistency and finite values when present, others returned as they are. Saving adds
+``format_version`` and ``checksum`` (sha256 over every part's name, dtype, shape and bytes),
+so a damaged, truncated or foreign file is refused with ModelFileError. The checksum catches
+accidents, not deliberate tampering: use model files only from sources you trust; loading
+never runs code from them.
 """
 from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,10 +27,8 @@ SUPPORTED_VERSIONS = (1, 2)
 _RESERVED = ("format_version", "checksum")
 _KIND_NAMES = {"fiu": "numbers", "iu": "whole numbers", "b": "a boolean", "U": "text"}
 BASIS_KINDS = ("linear", "gaussian")
-#: The numpy dtype kinds each named part of the format may have. A part of another kind is
-#: refused: converted as it was read, a string "False" became True, 300.7 became 300 and
-#: "0.5" a number. (Floats may be stored as whole numbers; the limb and side networks' parts
-#: are checked by regressor.limb_net and regressor.side_classifier.)
+#: The numpy dtype kinds each named part may have (converted as read, a string "False" would
+#: become True and 300.7 300); regressor.limb_net and side_classifier check their own parts.
 _FLOAT_PARTS = (
     "codebook_centres", "codebook_sigma", "descriptor_r_inner", "descriptor_r_outer",
     "descriptor_total", "width", "centres", "coef", "intercept", "angle_centre_deg",
@@ -77,13 +51,13 @@ PART_KINDS = {**{name: "fiu" for name in _FLOAT_PARTS}, **{name: "iu" for name i
 
 
 class ModelFileError(SilhouettePoseError, ValueError):
-    """A model file (or the parts given to save_model) failed validation; the message names the file."""
+    """A model file (or the parts given to save_model) failed validation; names the file."""
 
 
 @dataclass(frozen=True)
 class ModelFile:
-    """A loaded model file: ``parts`` maps every stored name to its array. Mapping access
-    (m["coef"], m.get(...), "coef" in m) reads ``parts``."""
+    """A loaded model file: ``parts`` maps every stored name (but the reserved entries) to
+    its array; m["coef"], m.get(...), "coef" in m and m.keys() read it."""
 
     path: str
     format_version: int
@@ -96,11 +70,9 @@ class ModelFile:
         return name in self.parts
 
     def get(self, name: str, default=None):
-        """The stored array called ``name``, or ``default``."""
         return self.parts.get(name, default)
 
     def keys(self):
-        """Names of the stored parts (without the reserved entries)."""
         return self.parts.keys()
 
 
@@ -114,39 +86,12 @@ def checksum(parts: Mapping[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def _as_array(name: str, value) -> np.ndarray:
-    if isinstance(value, dict):
-        value = json.dumps(value, sort_keys=True)
-    a = np.asarray(value)
-    if a.dtype.kind not in "biufU":
-        raise ModelFileError(f"part {name!r} has dtype {a.dtype}; only numbers and strings can be stored")
-    return a
-
-
 def save_model(path: str | Path, parts: Mapping | None = None, /, **more) -> Path:
-    """Validate the parts and write them to ``path`` (.npz) with FORMAT_VERSION and a checksum.
-
-    parts / more: name -> array, number, str or (for ``description``) a JSON-able dict. The file
-    is written to a temporary name and renamed, so a crash never leaves half a model.
-    """
-    path = Path(path)
-    merged = {**(dict(parts) if parts is not None else {}), **more}
-    bad = [k for k in merged if k in _RESERVED]
-    if bad:
-        raise ModelFileError(f"{path}: part names {bad} are reserved")
-    arrays = {k: _as_array(k, v) for k, v in merged.items()}
-    _validate(str(path), arrays)
-    out = dict(arrays, format_version=np.int64(FORMAT_VERSION), checksum=np.str_(checksum(arrays)))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".npz", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez_compressed(fh, **out)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    """Validate the parts (name -> array, number, str, or a JSON-able dict for
+    ``description``) and write them to ``path`` (.npz) with FORMAT_VERSION and a checksum
+    (regressor.model_file_writer, which only training loads)."""
+    from .model_file_writer import write_model
+    return write_model(path, parts, **more)
 
 
 def load_model(path: str | Path) -> ModelFile:
@@ -232,12 +177,6 @@ def _validate(where: str, p: Mapping[str, np.ndarray]) -> None:
     K = None if coef is None else coef.shape[1]
     if intercept is not None and K is not None and intercept.shape != (K,):
         fail(f"intercept {intercept.shape} does not match coef {coef.shape}")
-    for name in ("output_mean", "output_std"):
-        a = need(name, 1)
-        if a is not None and K is not None and a.shape != (K,):
-            fail(f"{name} {a.shape} does not match {K} outputs")
-    if p.get("output_std") is not None and np.any(p["output_std"] <= 0):
-        fail("output_std must be > 0")
     relevance = need("relevance", 1, "iu")
     if relevance is not None:
         if R is not None and relevance.shape != (R,):

@@ -1,52 +1,27 @@
 """A trained pose model: silhouette -> descriptor -> stacked descriptors -> 55-D pose.
 
-Everything the tracker needs from training, in one object and one file: descriptor settings
-and codebook, the descriptor transform, the stacking depth k, the regressor (basis kind,
-kernel width, retained centres, weights, offset), the angle centres the regressor was trained
-around, the Kalman filter's noise models, and a description of the training data.
+One object and one file hold what the tracker needs from training: descriptor settings and
+codebook, transform, stack depth k, the regressor, the angle centres it was trained around
+(it predicts wrap(angle - centre), so angles straddling +-180 stay continuous), the Kalman
+filter's noise models and a description of the training data. Poses: regressor/angles.py.
 
-Angles are regressed around per-angle centres (their circular means on the training data):
-the regressor predicts wrap(angle - centre), so an angle whose range straddles +-180 degrees
-(shoulders, in Euler angles) is continuous for the regressor. The predictions add the centres back
-and wraps to (-180, 180].
-
-Input: each frame's descriptor is the transformed histogram of shape contexts (D_h =
-codebook.n_centres values) followed, when layout_grid > 0, by the silhouette's layout
-(regressor.layout, layout_grid^2 values) times layout_weight (which balances the two blocks'
-spreads, so the kernel weighs both); D = D_h + layout_grid^2. k frames are stacked (k*D), and,
-when the model has a projection, centred and projected onto P principal directions of the
-training rows (k*D -> P) before the regressor: this keeps a long input cheap and the file small.
-
-Output layout is the pose vector's (regressor/angles.py; sequences/pose_vector.py documents it):
-[cos, sin] of the heading, then 53 angles in degrees.
-
-A mixture model may carry a limb head (:class:`LimbHead`): the same experts (centres, widths,
-gate) with a second set of weights fitted on each pose's canonical member of {pose, front/back
-flip} (sequences.pose_vector.canonical_member). The main head must average a silhouette's two
-bodies where it cannot tell them apart (in profile, which leg is forward); the limb head sees
-one silhouette with one target except near its rule's boundary (for "facing", exactly in
-profile), so its limbs are one body's or the other's, and the tracker takes the member that
-agrees with the heading it decided (tracker/tracks/hypotheses.py, "Limbs").
-
-Its limbs may instead come from a limb network (regressor.limb_net.LimbNet): an ensemble of
-small neural networks on the same input and the same canonical targets, fitted on all the
-training rows (:attr:`PoseModel.limb_net`; a model carries a limb head or a limb network, not
-both).
-
-A mixture model may also carry a heading index (regressor.heading_index.HeadingIndex): training
-rows' projected inputs and folded headings, whose nearest neighbours give each frame's novelty.
+A frame's descriptor (D values) is the transformed histogram of shape contexts, then, when
+layout_grid > 0, the silhouette's layout (regressor.layout) times layout_weight, which
+balances the two blocks' spreads. k frames are stacked (k*D) and, with a projection, centred
+and projected onto P principal directions. A mixture may carry canonical limbs (a limb head
+or a limb network, fitted on each pose's canonical member of {pose, front/back flip}, so one
+silhouette has one target; the tracker picks the member), a side classifier and a heading
+index (regressor.heading_index) for each frame's novelty.
 """
 from __future__ import annotations
 
 import json
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .angles import N_ANGLES, POSE_DIM, wrap_deg
-from .basis import gaussian_design
 from .codebook import Codebook, CodebookError
 from .descriptor import (DescriptorSettings, DescriptorSettingsError, descriptor_and_mirror,
                          descriptor_for_mask)
@@ -57,17 +32,15 @@ from .errors import SilhouettePoseError
 from .estimator import PoseEstimates
 from .heading_index import HeadingIndex
 from .limb_net import LimbNet
-from .canonical_priors import PREFIX as CANONICAL_PRIOR_PREFIX, CanonicalPriors
+from .canonical_priors import CanonicalPriors
 from .side_classifier import SideClassifier
 
 DEFAULT_MODEL_PATH = Path(__file__).resolve().parent / "models" / "default_model.npz"
 TRANSFORMS = ("none", "sqrt")      # sqrt: Hellinger-like, tames the dominant histogram bins
 MODEL_KIND = "silhouette-pose"
-#: Raw heading norm below which a frame is ambiguous, for model files that do not store the
-#: threshold they were trained with (all written before it was stored used this value).
+#: Ambiguity threshold of model files that do not store theirs (all older files used it).
 DEFAULT_AMBIGUITY_THRESHOLD = 0.5
-#: The frame rate of the training sequences when a model's description does not say
-#: (sequences.dataset.DatasetConfig.fps).
+#: Training frame rate when a model's description does not say (DatasetConfig.fps).
 DEFAULT_TRAINING_FPS = 30.0
 #: A model's described training rate must lie in this range (frames/s).
 MIN_TRAINING_FPS, MAX_TRAINING_FPS = 1.0, 1000.0
@@ -78,21 +51,16 @@ class PoseModelError(SilhouettePoseError, ValueError):
     """A model file that is missing, unreadable, tampered with or inconsistent."""
 
 
-#: A frame whose novelty (:meth:`PoseModel.hypotheses`' PoseEstimates.novelty) is above this
-#: is unlike the training silhouettes: about 1 % of the training rows themselves are, no frame
-#: of the rendered validation and test videos is (medians 0.50-0.82, maximum 0.98), and 26-79 %
-#: of the real Pose2Sim views' frames are (docs/accuracy.md), where the poses are no better
-#: than a constant. ``track`` counts such frames per track (the JSON's "unfamiliar_frames").
+#: Novelty above which a frame is unlike the training silhouettes (about 1 % of training rows
+#: are; docs/accuracy.md). ``track`` counts such frames (the JSON's "unfamiliar_frames").
 UNFAMILIAR_NOVELTY = 1.0
 
 
 @dataclass
 class LimbHead:
-    """A mixture's second set of expert weights (module docstring): coef (R, 55) in the
-    experts' row order (regressor.mixture experts' centres concatenated), expert_intercept
-    (E, 55), angle_centre_deg (53,) the centres its angles were regressed around, and
-    canonical_direction (55,) the rule its targets' members were chosen by
-    (sequences.pose_vector.canonical_member)."""
+    """A mixture's second set of expert weights: coef (R, 55) in the experts' row order,
+    expert_intercept (E, 55), angle_centre_deg (53,) and canonical_direction (55,), the rule
+    its targets' members were chosen by (sequences.pose_vector.canonical_member)."""
 
     coef: np.ndarray
     expert_intercept: np.ndarray
@@ -102,37 +70,17 @@ class LimbHead:
 
 @dataclass
 class PoseModel:
-    """A trained model (see the module docstring). Shapes: D = codebook.n_centres descriptor
-    length, k = stack_depth, R retained basis functions.
-
-    centres: (R, k*D) kernel centres (Gaussian basis) or None (linear basis, then relevance:
-    (R,) kept feature indices); width: kernel width; coef: (R, 55); intercept: (55,);
-    angle_centre_deg: (53,); measurement_covariance: (54, 54) deg^2 (filter R, angle order:
-    heading then the 53 angles); process_noise: (54,) (deg/s^2)^2 (filter q);
-    ambiguity_threshold: raw heading norm below which a frame counts as ambiguous, as used to
-    estimate measurement_covariance (the tracker uses it unless told otherwise).
-    layout_grid, layout_weight: the layout block of each frame's descriptor (0: none);
-    projection (k*D, P), projection_mean (k*D,): the stacked input's projection (None: the
-    regressor sees the k*D values; centres then have P columns instead of k*D).
-    canonical_direction (55,): set when the model was fitted on each pose's canonical member
-    of {pose, front/back flip} (sequences.pose_vector.canonical_member): its raw pose may be
-    either body, and the tracker's front/back chain picks the member, limbs included.
-    limb_head: a mixture's canonical limb head (:class:`LimbHead`, :meth:`predict_limbs`), or
-    None. limb_net: a mixture's limb network (regressor.limb_net.LimbNet), used for the limbs
-    instead of a limb head (a model has one or neither), or None. heading_index: a mixture's
-    sample of training rows for novelty (module docstring), or None. side_classifier: a mixture's
-    front/back side classifier (regressor.side_classifier.SideClassifier; needs limbs: the
-    tracker weighs the limbs' canonical member against its flip with it), or None.
-    canonical_priors: with a side classifier, how far the tracker trusts that weighing
-    (regressor.canonical_priors.CanonicalPriors, learned on validation renders), or None (the
-    tracker then takes the shipped model's, tracker.tracks.hypotheses.DEFAULT_CANONICAL_PRIORS).
-    variance_calibration: for sparse RVM experts that keep their predictive variance, the
-    factor on :meth:`predict_variance` that makes it the measurement covariance's scale on
-    validation rows (regressor.training.calibrate_variance), or None.
-
-    The tracker calls only regressor.estimator.PoseEstimator's members (:meth:`hypotheses`,
-    :meth:`describe`, ...); predict_batch, predict_limbs and predict_variance serve training
-    and evaluation.
+    """A trained model (module docstring); D = descriptor_length, k = stack_depth, R basis
+    functions, P = input_length. centres (R, P) Gaussian kernel centres or None (linear basis:
+    relevance (R,) kept inputs); coef (R, 55); intercept (55,); angle_centre_deg (53,);
+    measurement_covariance (54, 54) deg^2, process_noise (54,) (deg/s^2)^2: the filter's R
+    and q; ambiguity_threshold: raw heading norm below which a frame is ambiguous; layout_grid
+    0: no layout block; projection (k*D, P), projection_mean (k*D,) or None (P = k*D);
+    canonical_direction (55,): fitted on canonical members. limb_head, limb_net (one or
+    neither), heading_index, side_classifier (needs limbs), canonical_priors (None: the
+    tracker's default): a mixture's optional parts. variance_calibration: factor on
+    :meth:`predict_variance` (sparse RVM experts), or None. The tracker calls only
+    regressor.estimator.PoseEstimator's members; the predict_* methods serve training.
     """
 
     settings: DescriptorSettings
@@ -161,7 +109,7 @@ class PoseModel:
     limb_net: LimbNet | None = None
     side_classifier: SideClassifier | None = None
     canonical_priors: CanonicalPriors | None = None
-    variance_calibration: float | None = None   # sparse RVM experts: see the class docstring
+    variance_calibration: float | None = None
 
     @property
     def descriptor_length(self) -> int:
@@ -176,28 +124,22 @@ class PoseModel:
         return self.stack_depth * self.descriptor_length
 
     def describe(self, mask: np.ndarray) -> np.ndarray:
-        """Descriptor (D,) of a silhouette mask (H, W) bool: the transformed histogram of
-        shape contexts, then the weighted layout (module docstring). Raises
+        """Descriptor (D,) of a silhouette mask (H, W) bool. Raises
         regressor.edges.SilhouetteError (DegenerateSilhouetteError) for unusable masks."""
         histogram = descriptor_for_mask(mask, self.settings, self.codebook)
         return self._descriptors(histogram[None], [mask])[0]
 
     def _descriptors(self, histograms: np.ndarray, masks) -> np.ndarray:
-        """Descriptors (n, D) of n masks (each (H, W) bool) from their histograms of shape
-        contexts (n, K): transformed, then the masks' weighted layouts."""
+        """Descriptors (n, D) of n masks (H, W) from their shape-context histograms (n, K)."""
         layouts = (np.array([silhouette_layout(m, self.layout_grid) for m in masks])
                    if self.layout_grid else None)
         return frame_descriptors(histograms, self.transform, layouts, self.layout_weight)
 
     def describe_with_mirror(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(describe(mask), the descriptor of its mirror image (the mask flipped left to
-        right)), (D,) each, for :attr:`limbs_see_mirror`. The mirror's histogram comes from the
-        mask's own shape contexts with their sectors reflected
-        (regressor.descriptor.descriptor_and_mirror, as the training's mirror images'), so
-        the edge is sampled and the contexts computed once; the flipped mask's own
-        descriptor differs from it only by where the edge sampling starts (the norm of the
-        difference 0.45 against 7.4 between a mask's descriptor and its mirror's, on 120
-        video-like masks of a walk). Raises as describe."""
+        """(describe(mask), the descriptor of the mask flipped left to right), (D,) each. The
+        mirror's histogram reflects the mask's own shape contexts' sectors
+        (regressor.descriptor.descriptor_and_mirror), so the edge is sampled once. Raises as
+        describe."""
         flipped = np.asarray(mask)[:, ::-1]
         histograms = np.array(descriptor_and_mirror(mask, self.settings, self.codebook))
         own, mirror = self._descriptors(histograms, (mask, flipped))
@@ -205,10 +147,8 @@ class PoseModel:
 
     @property
     def training_fps(self) -> float:
-        """Frame rate (frames per second) of the sequences the model's stacked input was
-        learned from: the description's data set fps, else the data sets' 30 (every model so
-        far). The tracker stacks a faster video's frames that far apart in time
-        (regressor.stacking.stack_step)."""
+        """Frame rate (frames/s) the stacked input was learned at: the description's data set
+        fps, else DEFAULT_TRAINING_FPS (regressor.stacking.stack_step)."""
         dataset = (self.description.get("dataset") if isinstance(self.description, dict)
                    else None)
         fps = dataset.get("fps") if isinstance(dataset, dict) else None
@@ -217,11 +157,9 @@ class PoseModel:
 
     @property
     def limbs_see_mirror(self) -> bool:
-        """Whether the limbs are best averaged with the limbs of the mirror image (mirrored
-        back): the model's limb networks were fitted on mirror images too
-        (regressor.training.MixtureOptions.limb_net_mirror, recorded in the
-        description's options), so they answer for a mirror image as well as for the image.
-        The tracker then describes each frame's mirror too (tracker.tracks.mirror_limbs)."""
+        """Whether the limb networks were fitted on mirror images too (the description's
+        options' limb_net_mirror), so the tracker averages in each frame's mirror image's
+        limbs (tracker.tracks.mirror_limbs)."""
         options = (self.description.get("options") if isinstance(self.description, dict)
                    else None)
         return (self.limb_net is not None and isinstance(options, dict)
@@ -230,18 +168,8 @@ class PoseModel:
     def predict_batch(self, stacked: np.ndarray) -> np.ndarray:
         """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D): the regressor's
         single answer (a mixture's gate-weighted one), for training and evaluation."""
-        return self._regress(self._stacked(stacked))
-
-    def _regress(self, X: np.ndarray) -> np.ndarray:
-        """Raw poses (N, 55) from the regressor's input (N, input_length) (:meth:`_stacked`)."""
-        if self.mixture is not None:
-            Y = self.mixture.predict(X)
-        elif self.basis == "gaussian":
-            Y = gaussian_design(X, self.centres, self.width) @ self.coef + self.intercept
-        else:
-            Y = X[:, self.relevance] @ self.coef + self.intercept
-        Y[:, 2:] = wrap_deg(Y[:, 2:] + self.angle_centre_deg)
-        return Y
+        from .optional_parts import regress
+        return regress(self, self._stacked(stacked))
 
     def _stacked(self, stacked) -> np.ndarray:
         """stacked (N, k*D) as the regressor's float input (N, input_length), projected when
@@ -256,17 +184,15 @@ class PoseModel:
 
     def hypotheses(self, stacked: np.ndarray, m: int = 1, mirrored: np.ndarray | None = None,
                    novelty: bool = True) -> PoseEstimates:
-        """Everything the tracker asks of the model for stacked descriptors (N, k*D), in one
-        pass (the input projected and the gate evaluated once): the m most probable experts'
-        raw poses and probabilities (a single regressor: its one pose, probability 1), the
-        limbs, the side classifier's front probability and the novelty (regressor.estimator
-        .PoseEstimates: None / NaN for the parts the model lacks). mirrored (N, k*D): the
-        frames' mirror images' stacked descriptors; their limbs go through the limb networks
-        with the frames' in one pass (one matrix product per layer instead of two)."""
+        """All the tracker asks for stacked descriptors (N, k*D), the input projected and the
+        gate evaluated once (regressor.estimator.PoseEstimator.hypotheses); novelty: the heading
+        index's (NaN without one)."""
         X = self._stacked(stacked)
-        rows = self._novelty(X) if novelty else np.full(len(X), np.nan)
+        rows = (self.heading_index.novelty(X) if novelty and self.heading_index is not None
+                else np.full(len(X), np.nan))
         if self.mixture is None:
-            return PoseEstimates(self._regress(X)[:, None], np.ones((len(X), 1)), novelty=rows)
+            from .optional_parts import regress
+            return PoseEstimates(regress(self, X)[:, None], np.ones((len(X), 1)), novelty=rows)
         gate = self.mixture.predict_proba(X)
         poses, prob = self.mixture.predict_hypotheses(X, m, proba=gate)
         poses[..., 2:] = wrap_deg(poses[..., 2:] + self.angle_centre_deg)
@@ -277,9 +203,8 @@ class PoseModel:
 
     def _limbs_of(self, X: np.ndarray, gate: np.ndarray, mirrored: np.ndarray | None
                   ) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """(limbs (N, 55), the mirror images' limbs (N, 55) or None) for the regressor's
-        input X (N, input_length) with the gate's probabilities (N, E); (None, None) without
-        limbs. mirrored: the mirror images' stacked descriptors (N, k*D) or None."""
+        """(limbs (N, 55), the mirror images' limbs (N, 55) or None), or (None, None) without
+        limbs; X (N, input_length), gate (N, E), mirrored (N, k*D) or None."""
         if not self.has_limbs:
             return None, None
         if mirrored is None:
@@ -291,33 +216,11 @@ class PoseModel:
         both = self._limbs(np.vstack([X, X_mirror]))
         return both[:len(X)], both[len(X):]
 
-    def _novelty(self, X: np.ndarray) -> np.ndarray:
-        """How unlike the training silhouettes each row of the regressor's input X (N,
-        input_length) is, (N,): the heading index's mean distance to its nearest training
-        rows over their own 99th percentile (regressor.heading_index.HeadingIndex.novelty;
-        about 1 % of training rows are above 1, inputs well above it are extrapolation). NaN
-        (unknown) for a model without a heading index."""
-        if self.heading_index is None:
-            return np.full(len(X), np.nan)
-        return self.heading_index.novelty(X)
-
-    @property
-    def gives_variance(self) -> bool:
-        """Whether the model's experts give a predictive variance per frame (sparse RVMs whose
-        posterior covariance the model keeps)."""
-        return self.mixture is not None and all(
-            _is_sparse_rvm(e) and hasattr(e, "sigma_") for e in self.mixture.experts_)
-
     def predict_variance(self, stacked: np.ndarray) -> np.ndarray:
         """Predictive variance (N,) deg^2 of :meth:`predict_batch`'s pose for stacked
-        descriptors (N, k*D): the mean over the 53 body angles of the experts' variance of a
-        new observation (regressor.sparse_rvm), for training's calibration. Needs
-        :attr:`gives_variance`."""
-        if not self.gives_variance:
-            raise PoseModelError("this model's experts give no predictive variance "
-                                 "(only sparse RVM experts do)")
-        _, std = self.mixture.predict(self._stacked(stacked), return_std=True)
-        return (std[:, 2:] ** 2).mean(axis=1)
+        descriptors (N, k*D), for training's calibration (regressor.optional_parts)."""
+        from .optional_parts import predict_variance
+        return predict_variance(self, stacked)
 
     def predict_limbs(self, stacked: np.ndarray) -> np.ndarray | None:
         """Canonical poses (N, 55) for the limbs from stacked descriptors (N, k*D), as
@@ -326,48 +229,35 @@ class PoseModel:
 
     @property
     def has_limbs(self) -> bool:
-        """Whether the model gives canonical limbs (a limb network, or a mixture's limb
-        head)."""
+        """Whether the model gives canonical limbs (a limb network or a mixture's limb head)."""
         return self.limb_net is not None or (self.limb_head is not None
                                              and self.mixture is not None)
 
     @property
     def gives_canonical_pairs(self) -> bool:
-        """Whether the tracker's front/back chain carries this model's canonical limbs and
-        their flips (a mixture with limbs and a side classifier; tracker.tracks.hypotheses), the one
-        test both the hypotheses and their switching rates go by."""
+        """Whether the tracker's front/back chain carries the canonical limbs and their flips
+        (a mixture with limbs and a side classifier; tracker.tracks.hypotheses)."""
         return (self.side_classifier is not None and self.mixture is not None
                 and self.has_limbs)
 
     def _limbs(self, X: np.ndarray, gate: np.ndarray | None = None) -> np.ndarray:
         """Canonical poses (N, 55) for the limbs from the regressor's input X (N,
-        input_length): the limb network's, else the limb head's, each row by its gate's most
-        probable expert (gate (N, E) the mixture's probabilities; None: evaluated here)."""
+        input_length): the limb network's, else the limb head's by each row's most probable
+        expert (gate (N, E), None: evaluated here)."""
         if self.limb_net is not None:
             return self.limb_net.predict(X)
-        if gate is None:
-            gate = self.mixture.predict_proba(X)
-        top = gate.argmax(axis=1)
-        head = self.limb_head
-        offsets = np.cumsum([0] + [len(e.centres_) for e in self.mixture.experts_])
-        out = np.empty((len(X), POSE_DIM))
-        for e in np.unique(top):
-            rows = np.flatnonzero(top == e)
-            expert = self.mixture.experts_[e]
-            out[rows] = (gaussian_design(X[rows], expert.centres_, expert.width_)
-                         @ head.coef[offsets[e]:offsets[e + 1]] + head.expert_intercept[e])
-        out[:, 2:] = wrap_deg(out[:, 2:] + head.angle_centre_deg)
-        return out
+        from .optional_parts import limb_head_poses
+        return limb_head_poses(self, X, gate)
 
     def summary(self) -> dict:
         """Plain facts for metadata and logs."""
         if self.mixture is not None:
-            return {"basis": "mixture", "experts": len(self.mixture.experts_),
-                    "n_basis": int(sum(len(e.centres_) for e in self.mixture.experts_)),
-                    "stack_depth": self.stack_depth, "transform": self.transform,
-                    "training": self.description}
-        return {"basis": self.basis, "n_basis": int(len(self.coef)),
-                "stack_depth": self.stack_depth, "transform": self.transform,
+            experts = self.mixture.experts_
+            kind = {"basis": "mixture", "experts": len(experts),
+                    "n_basis": int(sum(len(e.centres_) for e in experts))}
+        else:
+            kind = {"basis": self.basis, "n_basis": int(len(self.coef))}
+        return {**kind, "stack_depth": self.stack_depth, "transform": self.transform,
                 "training": self.description}
 
 
@@ -416,27 +306,8 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
             return model
         if str(a.get("model_kind", "")) != MODEL_KIND:
             raise PoseModelError(f"{path}: not a silhouette-pose model file")
-        if any(name.startswith(("limbs_", "limb_net_", "side_net_", CANONICAL_PRIOR_PREFIX))
-               for name in a.parts):
-            raise PoseModelError(f"{path}: invalid model: only a mixture can carry a limb head, "
-                                 f"limb network, side classifier or canonical priors")
-        if any(name.startswith("heading_index_") for name in a.parts):
-            raise PoseModelError(f"{path}: invalid model: only a mixture can carry a heading "
-                                 "index")
-        settings = DescriptorSettings.from_arrays(a)
-        codebook = Codebook.from_arrays(a)
-        model = PoseModel(
-            settings=settings, codebook=codebook, stack_depth=int(a["stack_depth"]),
-            transform=str(a["transform"]), basis=str(a["basis"]),
-            width=None if np.isnan(a["width"]) else float(a["width"]),
-            centres=None if a["centres"].size == 0 else a["centres"].astype(np.float64),
-            relevance=a["relevance"].astype(np.int64), coef=a["coef"].astype(np.float64),
-            intercept=a["intercept"].astype(np.float64),
-            angle_centre_deg=a["angle_centre_deg"].astype(np.float64),
-            measurement_covariance=a["measurement_covariance"].astype(np.float64),
-            process_noise=a["process_noise"].astype(np.float64),
-            ambiguity_threshold=float(a.get("ambiguity_threshold", DEFAULT_AMBIGUITY_THRESHOLD)),
-            description=_description(a), **_input_from_arrays(a))
+        from .optional_parts import single_model_from_arrays
+        model = single_model_from_arrays(path, a)
     except PoseModelError:
         raise
     except ModelFileError as exc:
@@ -490,7 +361,7 @@ def _validate(path: Path, m: PoseModel) -> None:
     checks.append((0.0 <= m.ambiguity_threshold <= 1.0, "ambiguity threshold must be in [0, 1]"))
     dataset = m.description.get("dataset") if isinstance(m.description, dict) else None
     fps = dataset.get("fps") if isinstance(dataset, dict) else None
-    # The tracker stacks frames by this rate: 1e-4 had taken minutes and gigabytes.
+    # The tracker stacks frames by this rate: a tiny one takes minutes and gigabytes.
     checks.append((fps is None or (isinstance(fps, (int, float)) and not isinstance(fps, bool)
                                    and MIN_TRAINING_FPS <= fps <= MAX_TRAINING_FPS),
                    f"the description's data set fps {fps!r} is not a frame rate in "
@@ -505,31 +376,7 @@ def _validate(path: Path, m: PoseModel) -> None:
         raise PoseModelError(f"{path}: invalid model: noise models are not positive")
 
 
-# ----------------------------------------------------------------------------- mixture files
-# A mixture model file (model_kind MIXTURE_KIND) holds the experts' kernel centres and weights
-# concatenated in the single regressor's parts (centres (R, k*D) float16: descriptors need
-# no more than 3 digits, and it halves the file; coef (R, 55) float32;
-# relevance = 0..R-1), so the generic checks of regressor.model_file apply to them, and the
-# rest under "mixture_": expert_offsets (E+1,) rows of each expert in centres/coef,
-# expert_width (E,), expert_intercept (E, 55), partition_centres (E, dZ), the gate's centres
-# (G, k*D) float16, width, feature_mean/std (G,) and weights (G+1, E), top_experts; and,
-# with a limb head, under "limbs_": coef (R, 55) float32 (rows as coef's), expert_intercept
-# (E, 55), angle_centre_deg (53,), canonical_direction (55,); with a limb network, under
-# "limb_net_" (regressor.limb_net.LimbNet.to_arrays); with a side classifier, under
-# "side_net_" (regressor.side_classifier.SideClassifier.to_arrays), and with its priors, under
-# "canonical_prior_" (regressor.canonical_priors.CanonicalPriors.to_arrays).
-# Sparse RVM experts (regressor.sparse_rvm; files of format version 2) add expert_kind "rvm",
-# expert_beta (E,), expert_rows (E,), expert_y_scale (E, 55), and, when the model keeps their
-# predictive variance, expert_sigma (sum of R_e^2,) float32 each expert's posterior weight
-# covariance flattened in order, expert_phi_mean (R,) and variance_calibration (); without
-# expert_kind the experts are damped least squares.
-
-
-def _is_sparse_rvm(expert) -> bool:
-    """isinstance(expert, SparseRVMRegressor) without importing regressor.sparse_rvm: a model
-    without sparse RVM experts never loads it."""
-    module = sys.modules.get("regressor.sparse_rvm")
-    return module is not None and isinstance(expert, module.SparseRVMRegressor)
+# Mixture files (model_kind MIXTURE_KIND): docs/code_notes/model.md lists their parts.
 
 
 #: The most neighbours a model file's heading index may ask for (the shipped one: 20).
@@ -537,9 +384,8 @@ MAX_HEADING_NEIGHBOURS = 1000
 
 
 def _description(a) -> dict:
-    """The file's training description, a JSON object (what the tracker reads from it, e.g.
-    the data set's fps and the limb networks' mirror images, is looked up by name); a
-    ValueError (PoseModelError-ready) for anything else."""
+    """The file's training description, a JSON object; a (PoseModelError-ready) ValueError
+    for anything else."""
     description = json.loads(str(a["description"]))
     if not isinstance(description, dict):
         raise ValueError(f"the description must be a JSON object, not "
@@ -572,7 +418,7 @@ def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
         raise ValueError("heading index must hold finite inputs and folded headings within "
                          "+-90 degrees")
     index = HeadingIndex(inputs, folded, k, limit)     # which checks k and the limit
-    if "heading_index_typical_distance" in a:        # files before 2026-12-02 compute it
+    if "heading_index_typical_distance" in a:        # older files compute it
         typical = np.asarray(a["heading_index_typical_distance"])
         if typical.shape != () or not np.issubdtype(typical.dtype, np.floating):
             raise ValueError("heading index typical distance must be one number")
@@ -587,29 +433,6 @@ def _has_parts(a, names: tuple[str, ...], what: str) -> bool:
     if any(present) and not all(present):
         raise ValueError(f"{what} is incomplete")
     return all(present)
-
-
-def _limb_head_from_arrays(a, n_rows: int, n_experts: int) -> LimbHead | None:
-    """A file's limb head (None when it has none), its shapes checked against the experts'
-    n_rows centres and n_experts; PoseModelError-ready ValueError otherwise."""
-    names = ("limbs_coef", "limbs_expert_intercept", "limbs_angle_centre_deg",
-             "limbs_canonical_direction")
-    if not _has_parts(a, names, "limb head"):
-        return None
-    head = LimbHead(*(a[n].astype(np.float64) for n in names))
-    if head.coef.shape != (n_rows, POSE_DIM) \
-            or head.expert_intercept.shape != (n_experts, POSE_DIM) \
-            or head.angle_centre_deg.shape != (POSE_DIM - 2,) \
-            or head.canonical_direction.shape != (POSE_DIM,):
-        raise ValueError("limb head shapes do not match the experts")
-    if not all(np.isfinite(x).all() for x in (head.coef, head.expert_intercept,
-                                               head.angle_centre_deg, head.canonical_direction)):
-        raise ValueError("limb head has non-finite values")
-    if np.any(np.abs(head.angle_centre_deg) > 180.0) \
-            or not abs(np.linalg.norm(head.canonical_direction) - 1.0) < 1e-6:
-        raise ValueError("limb head centres must be angles in [-180, 180] and its direction a "
-                         "unit vector")
-    return head
 
 
 def _gate_from_arrays(a, kD: int, E: int, fail) -> SoftmaxGate:
@@ -699,7 +522,10 @@ def _mixture_from_arrays(path: Path, a) -> PoseModel:
     mix.top_experts = int(a["mixture_top_experts"])
     mix.n_features_in_, mix.n_outputs_ = kD, POSE_DIM
     try:
-        limb_head = _limb_head_from_arrays(a, len(coef), E)
+        limb_head = None
+        if any(name.startswith("limbs_") for name in a.keys()):
+            from .optional_parts import limb_head_from_arrays
+            limb_head = limb_head_from_arrays(a, len(coef), E)
         heading_index = _heading_index_from_arrays(a, kD)
         limb_net = LimbNet.from_arrays(a)
         side_classifier = SideClassifier.from_arrays(a)
@@ -730,9 +556,8 @@ _VARIANCE_PARTS = ("mixture_expert_sigma", "mixture_expert_phi_mean",
 def _rvm_experts(a, experts: list, offsets: np.ndarray
                  ) -> tuple[list, np.ndarray, float | None]:
     """A file's sparse RVM experts built on the damped least squares experts read from the
-    shared parts (experts: their centres, weights, widths), their own parts checked against
-    the offsets (E+1,); returns (experts, rows (E,), variance calibration or None when the
-    file keeps no predictive variance) or a PoseModelError-ready ValueError."""
+    shared parts, their own parts checked against the offsets (E+1,); returns (experts, rows
+    (E,), variance calibration or None) or a PoseModelError-ready ValueError."""
     if not _has_parts(a, _RVM_PARTS, "sparse RVM experts") or \
             str(a["mixture_expert_kind"]) != "rvm":
         raise ValueError("mixture_expert_kind must be 'rvm' with all the sparse RVM parts")
@@ -753,26 +578,8 @@ def _rvm_experts(a, experts: list, offsets: np.ndarray
         ex.beta_, ex.n_train_, ex.y_scale_ = float(beta[e]), int(rows[e]), y_scale[e].astype(float)
         ex.noise_, ex._y_1d = ex.y_scale_ ** 2 / ex.beta_, False
         out.append(ex)
-    calibration = _rvm_variance(a, out, offsets)
+    calibration = None
+    if any(name in a for name in _VARIANCE_PARTS):
+        from .optional_parts import rvm_variance
+        calibration = rvm_variance(a, out, offsets)
     return out, rows.astype(np.int64), calibration
-
-
-def _rvm_variance(a, experts: list, offsets: np.ndarray) -> float | None:
-    """Give the experts their stored posterior covariance and kernel means (for the
-    predictive variance) and return the variance calibration; None when the file has none."""
-    if not _has_parts(a, _VARIANCE_PARTS, "sparse RVM predictive variance"):
-        return None
-    sizes = np.diff(offsets)
-    sigma, phi_mean = a["mixture_expert_sigma"], a["mixture_expert_phi_mean"]
-    calibration = np.asarray(a["mixture_variance_calibration"])
-    if sigma.shape != (int((sizes ** 2).sum()),) or phi_mean.shape != (int(offsets[-1]),) \
-            or calibration.shape != ():
-        raise ValueError("sparse RVM variance parts do not match the experts' sizes")
-    if not calibration > 0:
-        raise ValueError("the variance calibration must be positive")
-    starts = np.concatenate([[0], np.cumsum(sizes ** 2)])
-    for e, ex in enumerate(experts):
-        R = int(sizes[e])
-        ex.sigma_ = sigma[starts[e]:starts[e + 1]].astype(np.float64).reshape(R, R)
-        ex.phi_mean_ = phi_mean[offsets[e]:offsets[e + 1]].astype(np.float64)
-    return float(calibration)

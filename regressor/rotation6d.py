@@ -1,16 +1,10 @@
 """The 53 body angles as 6-D rotations, a continuous representation for regression targets.
 
-A joint's three Euler angles are a discontinuous chart of its rotation (near the middle angle's
-+-90 degrees very different triples give nearly the same rotation); the first two columns of
-its rotation matrix (6 numbers) are continuous, and any 6 numbers map back to a rotation by
-Gram-Schmidt (Zhou et al., "On the continuity of rotation representations in neural networks",
-CVPR 2019). An option of training (regressor.training.MixtureOptions.limb_net_output); the
-shipped model keeps Euler targets (docs/tuning.md).
-
-Layout of the 53 angles (regressor.angles): the root's two tilts (Hips x, z), then 17 joints'
-(z, y, x) angles in degrees, R = Rz @ Ry @ Rx (intrinsic ZYX, the CMU BVH channels). Here the
-root's tilts stay angles; each joint becomes its matrix's columns 0 and 1, (x0, y0, z0, x1,
-y1, z1).
+Euler angles are a discontinuous chart of a rotation; the first two columns of its matrix are
+continuous, and any 6 numbers map back to a rotation by Gram-Schmidt (Zhou et al., CVPR 2019).
+A training option (regressor.training.MixtureOptions.limb_net_output). The root's two tilts
+stay angles; each of the 17 joints' (z, y, x) angles (R = Rz @ Ry @ Rx, intrinsic ZYX)
+becomes its matrix's columns 0 and 1, (x0, y0, z0, x1, y1, z1).
 """
 from __future__ import annotations
 
@@ -37,12 +31,9 @@ def angles_to_rot6d(angles_deg: np.ndarray) -> np.ndarray:
 
 def rot6d_to_angles(values: np.ndarray) -> np.ndarray:
     """(N, ROT6D_LENGTH) -> the 53 body angles (N, 53), degrees in (-180, 180]: each joint's
-    6 numbers made a rotation by Gram-Schmidt (the first column normalised, the second made
-    orthogonal to it and normalised, the third their cross product), then its ZYX angles
-    with the middle one in [-90, 90] (scipy's choice; at +-90 exactly, the first angle takes
-    the whole turn about the axis and the last is 0). In numpy, not scipy: this runs for
-    every person in every frame (27 us a row against 81 us through scipy.Rotation,
-    measured 2026-12-03 on an idle machine)."""
+    6 numbers made a rotation by Gram-Schmidt, then its ZYX angles with the middle one in
+    [-90, 90] (as scipy; at +-90 the first angle takes the whole turn, the last is 0). In
+    numpy: 3 x faster than scipy per row, and it runs per person per frame."""
     v = np.asarray(values, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != ROT6D_LENGTH:
         raise ValueError(f"values must have shape (N, {ROT6D_LENGTH}), got {v.shape}")

@@ -1,13 +1,10 @@
 """Which half the body faces: a small neural network on the regressor's input (issue 10).
 
-A silhouette's outline cannot tell a body from its front/back flip, but the limbs' shapes (knees
-bend and feet point forwards) carry some of it. The side classifier is a ReLU network on the
-regressor's projected input (as the limb networks take) giving P(the body faces the camera's
-half, |heading| <= 90 deg): per-frame evidence for the limbs' canonical member against its flip
-(tracker.tracks.hypotheses), calibrated on validation renders (regressor.canonical_priors).
-Plain arrays (no pickle): ReLU hidden layers, a linear output (one logit), inputs standardised
-by a mean and one scale; stored under "side_net_" in a mixture model's file (weights float16).
-Fitting: regressor.side_classifier_training. What was tried: docs/tuning.md.
+An outline cannot tell a body from its front/back flip, but the limbs' shapes (knees bend and
+feet point forwards) carry some of it. A ReLU network on the regressor's projected input gives
+P(the body faces the camera's half, |heading| <= 90 deg): per-frame evidence for the limbs'
+canonical member against its flip (tracker.tracks.hypotheses). Plain arrays, stored under
+"side_net_" (weights float16). Fitting: regressor.side_classifier_training; docs/tuning.md.
 """
 from __future__ import annotations
 
@@ -25,8 +22,7 @@ MAX_LAYERS = 8
 @dataclass
 class SideClassifier:
     """layers [(W (n_in, n_out), b (n_out,)), ...]: ReLU hidden layers, the last linear to one
-    logit; input_mean (P,) and input_scale (scalar) standardise the regressor's input X
-    (N, P)."""
+    logit; input_mean (P,) and input_scale standardise the regressor's input X (N, P)."""
 
     layers: list[tuple[np.ndarray, np.ndarray]]
     input_mean: np.ndarray
@@ -72,9 +68,8 @@ class SideClassifier:
         return len(self.input_mean)
 
     def front_probability(self, X: np.ndarray) -> np.ndarray:
-        """P(the body faces the camera's half, |heading| <= 90 deg) (N,) from the regressor's
-        inputs X (N, P). Inputs the network cannot evaluate (non-finite, or beyond float32's
-        range) give 0.5: no evidence either way."""
+        """P(the body faces the camera's half) (N,) from the regressor's inputs X (N, P); 0.5
+        (no evidence) where the network cannot evaluate them (non-finite, beyond float32)."""
         with np.errstate(all="ignore"):
             logit = np.nan_to_num(self._logits(X), nan=0.0)
             return 1.0 / (1.0 + np.exp(-np.clip(logit, -50.0, 50.0)))

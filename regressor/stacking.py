@@ -1,11 +1,7 @@
-"""Stacked past-frame descriptors: the regressor input at frame t is [x_t, x_{t-1}, ..., x_{t-k+1}].
-
-Frames before the start of a sequence are padded by repeating the sequence's first frame, so no
-descriptor ever leaks across a sequence boundary. k = 1 is the paper's per-frame regressor.
-
-A model learns its stack at the frame rate of its training sequences (30 fps): on a faster video
-the same k frames would span less time, so a step s takes every s-th frame instead,
-[x_t, x_{t-s}, ..., x_{t-(k-1)s}] (:func:`stack_step` picks s from the two frame rates).
+"""Stacked past-frame descriptors: the regressor input at frame t is [x_t, x_{t-s}, ...,
+x_{t-(k-1)s}], step s = 1 at the training frame rate (:func:`stack_step` picks it for a faster
+video). Frames before a sequence's start repeat its first frame, so nothing leaks across a
+sequence boundary. k = 1 is the paper's per-frame regressor.
 """
 from __future__ import annotations
 
@@ -18,10 +14,10 @@ class StackingInputError(SilhouettePoseError, ValueError):
     """Bad descriptors, sequence labels or depth given to stacking."""
 
 
-def _check_depth(k) -> int:
-    if not (int(k) == k and k >= 1):
-        raise StackingInputError(f"stacking depth k={k!r}; expected an integer >= 1")
-    return int(k)
+def _check_whole(value, name: str) -> int:
+    if not (int(value) == value and value >= 1):
+        raise StackingInputError(f"stacking {name}={value!r}; expected an integer >= 1")
+    return int(value)
 
 
 def sequence_starts_to_ids(starts, n: int) -> np.ndarray:
@@ -34,17 +30,9 @@ def sequence_starts_to_ids(starts, n: int) -> np.ndarray:
     return np.cumsum(ids)
 
 
-def _check_step(step) -> int:
-    if not (int(step) == step and step >= 1):
-        raise StackingInputError(f"stacking step={step!r}; expected an integer >= 1")
-    return int(step)
-
-
 def stack_step(video_fps: float, model_fps: float) -> int:
-    """Frames between stacked descriptors (>= 1) so that a video at video_fps stacks frames
-    about as far apart in time as the model's training sequences at model_fps did (frames
-    per second both): the nearest whole ratio, at least 1 (1 below 1.5 x model_fps; for a
-    30 fps model 2 from 45 fps, so at 50 and 60 fps, and 4 at 120)."""
+    """Frames between stacked descriptors so that a video at video_fps stacks frames about as
+    far apart in time as training at model_fps did (frames/s): the nearest whole ratio, >= 1."""
     if not (np.isfinite(video_fps) and video_fps > 0 and np.isfinite(model_fps) and model_fps > 0):
         raise StackingInputError(f"frame rates must be positive, got video {video_fps}, "
                                  f"model {model_fps}")
@@ -52,16 +40,11 @@ def stack_step(video_fps: float, model_fps: float) -> int:
 
 
 def stack_frames(X, k: int, sequence_ids=None, sequence_starts=None, step: int = 1) -> np.ndarray:
-    """Stack each frame with its k-1 predecessors in the same sequence, step frames apart.
-
-    X: (N, D) descriptors in time order. sequence_ids: (N,) label per frame (a new sequence
-    starts wherever the label changes), or sequence_starts: first row of each sequence; neither
-    means one sequence. Returns (N, k*D): row t is [x_t, x_{t-s}, ..., x_{t-(k-1)s}] (s = step),
-    with frames before a sequence's start replaced by its first frame.
-    """
+    """Each frame stacked with its k-1 predecessors in its sequence, step frames apart: (N, k*D)
+    from X (N, D) in time order. sequence_ids (N,): a new sequence starts where the label
+    changes; or sequence_starts: each sequence's first row; neither: one sequence."""
     X = np.asarray(X, dtype=np.float64)
-    k = _check_depth(k)
-    step = _check_step(step)
+    k, step = _check_whole(k, "depth k"), _check_whole(step, "step")
     if X.ndim != 2:
         raise StackingInputError(f"X must be (N, D); got shape {X.shape}")
     N = X.shape[0]
@@ -85,20 +68,12 @@ def stack_frames(X, k: int, sequence_ids=None, sequence_starts=None, step: int =
 
 
 class FrameStacker:
-    """Streaming stacking for one track: holds its last (k - 1) * step + 1 descriptors.
-
-    push(x (D,)) -> (k*D,) stacked vector [x_t, x_{t-step}, ...]; the first push pads with x
-    itself, matching stack_frames at a sequence start. reset() starts a new sequence.
-    """
+    """Streaming stacking for one track, as stack_frames: holds its last (k - 1) * step + 1
+    descriptors; the first push pads with its own descriptor."""
 
     def __init__(self, k: int, step: int = 1):
-        self.k = _check_depth(k)
-        self.step = _check_step(step)
+        self.k, self.step = _check_whole(k, "depth k"), _check_whole(step, "step")
         self._buffer: np.ndarray | None = None   # ((k - 1) * step + 1, D), newest first
-
-    def reset(self) -> None:
-        """Forget the history (the next push starts a new sequence)."""
-        self._buffer = None
 
     def push(self, x) -> np.ndarray:
         """Add descriptor x (D,) and return the stacked vector (k*D,)."""

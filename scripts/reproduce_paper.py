@@ -42,7 +42,7 @@ import numpy as np
 
 from regressor.dls import DLSRegressor
 from regressor.errors import SilhouettePoseError
-from regressor.hypothesis_path import step_variance
+from regressor.hypothesis_path import HypothesisPathError, continues
 from regressor.mixture import MixtureRegressor
 from regressor.metrics import contiguous_folds, cross_validate, mean_point_error, point_jitter
 from regressor.rvm import RVMRegressor
@@ -57,6 +57,8 @@ TRAIN_STARTS = [0, 100, 336, 405, 471, 1530, 1768]   # the 7 training sequences 
 RV_BUDGET = 0.10                                     # kernel RVM: keep <= 10% of training frames
 FEATURE_BUDGET = 0.30                                # linear RVM: keep <= 30 of the 100 features
 SPARSE_CANDIDATES = 200                              # candidate kernels per sparse RVM expert
+
+
 class MeanPose:
     """Predicts the mean training pose (the trivial baseline)."""
     n_basis_ = 0
@@ -67,6 +69,23 @@ class MeanPose:
 
     def predict(self, X):
         return np.tile(self.mean_, (len(X), 1))
+
+
+def step_variance(Y, sequence_ids=None) -> float:
+    """s^2 > 0, the mean squared change between consecutive rows of Y (N, K) (poses in time
+    order, in the hypotheses' units) with the same sequence_ids (N,) label (default: one)."""
+    Y = np.asarray(Y, dtype=np.float64)
+    if Y.ndim != 2 or len(Y) < 2:
+        raise HypothesisPathError(f"Y must be (N, K) with N >= 2, got shape {Y.shape}")
+    if not np.isfinite(Y).all():
+        raise HypothesisPathError("Y has non-finite values")
+    same = np.ones(len(Y) - 1, bool) if sequence_ids is None else continues(sequence_ids, len(Y))
+    if not same.any():
+        raise HypothesisPathError("no two consecutive rows belong to one sequence")
+    s2 = float((np.diff(Y, axis=0)[same] ** 2).sum(axis=1).mean())
+    if not s2 > 0:
+        raise HypothesisPathError("the poses never change: the step variance is 0")
+    return s2
 
 
 class NearestNeighbours:

@@ -1,10 +1,7 @@
-"""The CMU motion-capture skeleton and the 18 joints of the pose vector.
-
-Conventions (shared by every module that touches joints):
-- Y is up; at rest the CMU character stands on its feet facing +Z (toes point +Z) with its
-  left side towards +X.
-- Lengths are CMU units: 1 unit = (1/0.45) inch = CMU_UNIT_M metres.
-- Joint order is the order of the CMU BVH conversion (parents always before children).
+"""The CMU motion-capture skeleton and the 18 joints of the pose vector. Conventions of every
+module that touches joints: Y up; at rest the CMU character faces +Z (toes point +Z), its left
+side towards +X; lengths in CMU units (CMU_UNIT_M metres); joints in the CMU BVH conversion's
+order (parents before children).
 """
 from __future__ import annotations
 
@@ -110,10 +107,8 @@ BONES_FOR_DRAWING: tuple[tuple[str, str], ...] = (
 
 
 def pose_joint_indices(names: list[str] | tuple[str, ...]) -> np.ndarray:
-    """Indices (18,) int of POSE_JOINTS within a skeleton's joint ``names``.
-
-    Raises KeyError naming the first pose joint that the skeleton lacks.
-    """
+    """Indices (18,) int of POSE_JOINTS within a skeleton's joint ``names``; KeyError naming
+    the first pose joint the skeleton lacks."""
     index = {name: i for i, name in enumerate(names)}
     missing = [name for name in POSE_JOINTS if name not in index]
     if missing:

@@ -77,14 +77,15 @@ def test_tampered_parts_are_refused(tamper, message):
 
 
 def test_learned_statistics_become_priors_with_empty_bins_taking_the_overall_rate():
+    from lab.hypothesis_priors import priors_from_statistics
     stats = {"switch_probability": [0.03, 0.0], "by_front": [0.3, None, 0.5, 0.6, 0.7, 0.8],
              "canonical_overall": 0.62}
-    priors = CanonicalPriors.from_statistics(stats, CANONICAL_FRONT_EDGES)
+    priors = priors_from_statistics(stats, CANONICAL_FRONT_EDGES)
     assert priors.switch == (0.03, 0.001)            # a state never left stays reachable
     assert priors.by_front[1] == pytest.approx(0.62) and priors.overall == pytest.approx(0.62)
-    always = CanonicalPriors.from_statistics({"switch_probability": [0.03, 0.04],
-                                              "by_front": [1.0] * 6, "canonical_overall": 1.0},
-                                             CANONICAL_FRONT_EDGES)
+    always = priors_from_statistics({"switch_probability": [0.03, 0.04],
+                                     "by_front": [1.0] * 6, "canonical_overall": 1.0},
+                                    CANONICAL_FRONT_EDGES)
     assert always.overall == pytest.approx(0.999)          # never certain
 
 

@@ -5,8 +5,10 @@ import numpy as np
 import pytest
 
 from regressor.angles import wrap_deg
-from regressor.hypothesis_path import (HypothesisPathError, most_probable_path, squared_steps,
-                                       step_variance)
+from conftest import load_script
+from regressor.hypothesis_path import HypothesisPathError, most_probable_path, squared_steps
+
+step_variance = load_script("reproduce_paper").step_variance
 
 
 def _two_tracks(T=12):

@@ -10,10 +10,9 @@ import pytest
 from conftest import load_script
 from regressor.codebook import Codebook
 from regressor.descriptor import DescriptorSettings, descriptor_and_mirror
-from regressor.layout import layouts_for_masks
 from sequences.dataset import Dataset, DatasetError
-from lab.training import (noisy_dataset_inputs, noisy_dataset_layouts,
-                                      video_like_masks)
+from lab.training import (layouts_for_masks, noisy_dataset_inputs, noisy_dataset_layouts,
+                          video_like_masks)
 
 
 @pytest.fixture(scope="module")

@@ -190,7 +190,25 @@ def learn_canonical_priors(model, bvh_files) -> tuple[CanonicalPriors, dict]:
     if not model.gives_canonical_pairs:
         raise ValueError("canonical priors need a model with limbs and a side classifier")
     stats = canonical_statistics(validation_renders(model, bvh_files))
-    return CanonicalPriors.from_statistics(stats, CANONICAL_FRONT_EDGES), stats
+    return priors_from_statistics(stats, CANONICAL_FRONT_EDGES), stats
+
+
+#: Probabilities learned as 0 or 1 are taken as this far from them.
+_FLOOR = 1e-3
+
+
+def priors_from_statistics(stats: dict, front_edges) -> CanonicalPriors:
+    """The priors from canonical_statistics' dict with the edges its table was binned by. A
+    bin without frames (None) takes the overall rate: no evidence either way. Overall and
+    switch rates of 0 or 1 (a member always right or always wrong on the renders, a state
+    never left) are taken as 0.001 and 0.999: no evidence is ever certain, and neither state
+    is unreachable."""
+    overall = float(np.clip(stats["canonical_overall"], _FLOOR, 1.0 - _FLOOR))
+    return CanonicalPriors(switch=tuple(float(np.clip(p, _FLOOR, 1.0 - _FLOOR))
+                                        for p in stats["switch_probability"]),
+                           front_edges=tuple(front_edges),
+                           by_front=[overall if p is None else p for p in stats["by_front"]],
+                           overall=overall)
 
 
 def replay_heading_rms(model, render: dict, camera: CameraOptions = CameraOptions(),

@@ -25,7 +25,7 @@ from regressor.codebook import Codebook
 from regressor.descriptor import (DescriptorSettings, SilhouetteError, descriptor_and_mirror,
                                   descriptor_for_mask)
 from regressor.descriptor_batch import descriptors_for_masks
-from regressor.layout import layouts_for_masks, silhouette_layout
+from regressor.layout import silhouette_layout
 from regressor.limb_net_training import require_training_dependencies
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
                                   frame_descriptors, transform_descriptors)
@@ -128,6 +128,12 @@ def _pooled_rows(masks: np.ndarray, task, args: tuple, width: int, workers: int,
     finally:
         _SHARED.clear()
     return out
+
+
+def layouts_for_masks(masks, grid: int) -> np.ndarray:
+    """silhouette_layout of each mask: (N, grid * grid) float64."""
+    rows = [silhouette_layout(m, grid) for m in masks]
+    return np.array(rows, dtype=np.float64).reshape(len(rows), int(grid) ** 2)
 
 
 def _noisy_layout_chunk(args) -> np.ndarray:
