@@ -1,7 +1,8 @@
-"""``track --background``: the clean plate (an image of the empty scene) read and checked
-against the video; loaded only when one is given."""
+"""``track --background``: the clean plate (an image of the empty scene) checked and read, and
+checked against the video; loaded only when one is given."""
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 
@@ -20,6 +21,18 @@ from tracker.video.silhouettes import median_background
 #: than PLATE_TOLERANCE grey levels. A person is one blob (the sample's walker touches about
 #: 10 % of the cells against its plate, a mirrored plate 95 %).
 PLATE_CHECK_FRAMES, PLATE_MAX_CELLS, PLATE_TOLERANCE = 5, 0.75, 25
+
+
+def check_background_file(path: Path) -> None:
+    """TrackError unless --background names a readable file."""
+    if path.is_dir():
+        raise TrackError(f"--background {path} is a folder; give an image file")
+    if not path.exists():
+        raise TrackError(f"--background {path}: no such file")
+    if not path.is_file():
+        raise TrackError(f"--background {path} is not a regular file; give an image file")
+    if not os.access(path, os.R_OK):
+        raise TrackError(f"--background {path}: not readable (permissions)")
 
 
 def load_background(path: Path, source: VideoSource) -> np.ndarray:

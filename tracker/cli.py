@@ -11,8 +11,6 @@ inside main(), where Ctrl-C during those first seconds is caught like any other.
 from __future__ import annotations
 
 import argparse
-import glob
-import math
 import os
 import re
 import signal
@@ -23,34 +21,23 @@ from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
 
-EXIT_ERROR = 1
-EXIT_USAGE = 2                  # argparse's status for a usage error
+EXIT_ERROR, EXIT_USAGE = 1, 2   # a failed run; argparse's status for a usage error
 EXIT_INTERRUPTED = 130          # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
-#: --zone-foreground's choices -> TrackerSettings.trust_zone_foreground (also
-#: scripts/evaluate_real.py's option).
-ZONE_FOREGROUND = {"sure": True, "colour": False}
+ZONE_FOREGROUND = {"sure": True, "colour": False}   # -> TrackerSettings.trust_zone_foreground
 #: --workers by default: a second process where this process may run on a second core.
 _CORES = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
           else os.cpu_count() or 1)
 DEFAULT_WORKERS = 2 if _CORES >= 2 else 1
-#: The constants below copy those of modules that load numpy or OpenCV, so that parsing the
-#: options loads neither; tests keep each pair equal. --silhouettes's choices and the
-#: segmenter's install command: tracker.video.sources.SOURCES and INSTALL_HINT.
+#: Copies of constants of modules that load numpy or OpenCV, so that parsing the options loads
+#: neither (tests keep each pair equal): tracker.video.sources.SOURCES and INSTALL_HINT,
+#: tracker.tracks.fixed_lag.MAX_LAG_S, tracker.video.decode.MAX_FPS, and
+#: tracker.video.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent.
 SILHOUETTE_SOURCES = ("background", "segment", "auto")
 SEGMENT_INSTALL = "pip install 'silhouette-pose[segment]'"
-#: --lag's upper end, seconds (tracker.tracks.fixed_lag.MAX_LAG_S).
-MAX_LAG_S = 10.0
-#: tracker.video.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent.
-DEFAULT_MIN_AREA_PERCENT = 0.15
-#: --fps's upper bound (tracker.video.decode.MAX_FPS).
-MAX_FPS = 1000.0
-#: --roll beyond a quarter turn means the camera is upside down or the sign is wrong.
-MAX_ROLL_DEG = 90.0
-#: --lag when not given, seconds, with --view (without it: 0, the filtered poses at once).
-VIEW_LAG_S = 0.5
-#: Past any video (about 3 years): larger values are typing mistakes, and 1e308 s would
-#: overflow the frame arithmetic.
-MAX_TIME_S = 1e8
+MAX_LAG_S, MAX_FPS, DEFAULT_MIN_AREA_PERCENT = 10.0, 1000.0, 0.15
+MAX_ROLL_DEG = 90.0     # --roll beyond a quarter turn: the camera upside down, or a wrong sign
+VIEW_LAG_S = 0.5        # --lag when not given, with --view (else 0: the filtered poses at once)
+MAX_TIME_S = 1e8        # past any video (3 years); 1e308 s would overflow the frame arithmetic
 #: --min-area's range, percent of the image: below it noise specks become people, above it
 #: only someone filling a fifth of the image would count.
 MIN_AREA_RANGE_PERCENT = (0.01, 20.0)
@@ -133,21 +120,17 @@ def _video_file(text: str) -> Path:
     return Path(text)
 
 
-def _package_version() -> str:
-    """The installed package's version, or "(version unknown)" when never installed."""
+def build_parser() -> argparse.ArgumentParser:
     from importlib import metadata
     try:
-        return metadata.version("silhouette-pose")
-    except metadata.PackageNotFoundError:
-        return "(version unknown)"
-
-
-def build_parser() -> argparse.ArgumentParser:
+        version = metadata.version("silhouette-pose")
+    except metadata.PackageNotFoundError:           # run from a folder never installed
+        version = "(version unknown)"
     ap = OneLineParser(prog="track", description="3-D human pose from a static-camera video, "
                        "regressed from each person's silhouette (a mixture of kernel experts "
                        "and limb networks), Kalman-filtered over time.")
     ap.add_argument("video", type=_video_file, help="video file (mp4, avi, ...)")
-    ap.add_argument("--version", action="version", version=f"track {_package_version()}")
+    ap.add_argument("--version", action="version", version=f"track {version}")
     ap.add_argument("--out", type=_file_name, help="MCAP recording (default VIDEO_STEM.mcap if "
                     "no other output is chosen)")
     ap.add_argument("--bvh", type=Path, metavar="DIR", help="write one BVH per track here")
@@ -231,15 +214,9 @@ def _check_options(args) -> None:
             require_segmenter()
         except SegmenterMissingError as exc:
             raise TrackError(str(exc)) from None
-    if args.background is not None and args.background.is_dir():
-        raise TrackError(f"--background {args.background} is a folder; give an image file")
-    if args.background is not None and not args.background.exists():
-        raise TrackError(f"--background {args.background}: no such file")
-    if args.background is not None and not args.background.is_file():
-        raise TrackError(f"--background {args.background} is not a regular file; give an "
-                         f"image file")
-    if args.background is not None and not os.access(args.background, os.R_OK):
-        raise TrackError(f"--background {args.background}: not readable (permissions)")
+    if args.background is not None:
+        from tracker.clean_plate import check_background_file
+        check_background_file(args.background)
     if args.out is None and args.json is None and args.bvh is None and not args.view:
         args.out = Path(args.video.stem + ".mcap")
         if _same_file(args.out, args.video):
@@ -255,15 +232,8 @@ def _check_options(args) -> None:
                             or (path.exists() and not path.is_file()))
     _check_collisions(args)
     if args.bvh is not None:
-        # Made by the BVH sink if missing, but only one level, in a folder that exists.
-        if args.bvh.exists() and not args.bvh.is_dir():
-            raise TrackError(f"--bvh {args.bvh} exists and is not a folder")
-        _check_writable("--bvh", args.bvh, in_place=args.bvh.is_dir())
-        first = f"{args.video.stem}_0.bvh"
-        if len(os.fsencode(first)) > 255:           # the file system's longest name, bytes
-            raise TrackError(f"--bvh {args.bvh}: the video's name is too long for its tracks' "
-                             f"BVH files (VIDEO_STEM_0.bvh would be {len(os.fsencode(first))} "
-                             f"bytes, over 255); rename or link the video shorter")
+        from tracker.bvh_option import check_folder
+        check_folder(args)
 
 
 def _check_writable(option: str, path: Path, in_place: bool) -> None:
@@ -302,14 +272,9 @@ def _check_collisions(args) -> None:
             named += [(what, path), (f"{what}'s temporary file",
                                      partial_path(os.path.realpath(path)))]
     if args.bvh is not None:
+        from tracker.bvh_option import check_names
+        check_names(args, named)
         named.append(("the --bvh folder", args.bvh))
-        bvh_names = re.compile(rf"\.?{re.escape(args.video.stem)}(_\d+\.bvh(\.partial)?|"
-                               rf"\.bvh\.lock)")
-        for what, path in named[:]:
-            if path.name and bvh_names.fullmatch(path.name) and \
-                    _same_file(path.parent if str(path.parent) else Path("."), args.bvh):
-                raise TrackError(f"{what} {path} may be overwritten by the BVH files in "
-                                 f"--bvh {args.bvh}; choose another name or folder")
     try:
         check_distinct(named)
     except SilhouettePoseError as exc:
@@ -449,14 +414,14 @@ def _run(args) -> int:
     except BackgroundMismatchError as exc:
         raise TrackError(f"--background {args.background}: {exc}") from None
     except (OutputWriteError, OutputError) as exc:
-        raise TrackError(_output_failure(args, exc)) from None
+        from tracker.cli_failures import output_failure
+        raise TrackError(output_failure(args, exc)) from None
     if not args.quiet:
         try:
             bvh_files = None
             if args.bvh is not None:
-                from tracker.outputs.bvh import BVHSink
-                bvh_files = next(([path for _, path in sorted(sink.paths.items())]
-                                  for sink in sinks if isinstance(sink, BVHSink)), None)
+                from tracker.bvh_option import written_files
+                bvh_files = written_files(sinks)
             _print_summary(args, source, result, bvh_files)
         except BrokenPipeError:
             # Whoever read the summary stopped (``track ... | head -1``): the outputs are
@@ -488,7 +453,8 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
     try:
         sinks = open_sinks(streaming + smoothed)   # a refusal abandons those opened before
     except (OutputBusyError, OutputWriteError) as exc:    # nothing of this run's is kept
-        raise TrackError(_output_failure(args, exc, kept=False)) from None
+        from tracker.cli_failures import output_failure
+        raise TrackError(output_failure(args, exc, kept=False)) from None
     try:
         settings = tracker_settings(args)
         tracker = PoseTracker(model, source.fps, settings,
@@ -507,71 +473,15 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
 
 
 def _open_source(args):
-    """The video opened with --start, --end and --fps; a time range outside it is told in
-    the options' terms (TrackError)."""
+    """The video opened with --start, --end and --fps (a time range outside it: TrackError)."""
     from tracker.video.decode import VideoError, open_video
     try:
         return open_video(args.video, start_s=args.start, end_s=args.end, fps=args.fps)
     except VideoError:
         if args.start == 0 and args.end is None:
             raise
-        whole = open_video(args.video, fps=args.fps)    # a fault of the file raises here
-    count = whole.frame_count
-    # The first frame as tracker.video.decode.open_video numbers it.
-    if count is not None and math.floor(args.start * whole.fps + 1e-9) >= count:
-        raise TrackError(f"--start {args.start:g} s is past the end of {args.video} "
-                         f"({count / whole.fps:.2f} s, {count} frames at {whole.fps:g} fps)")
-    end = "its end" if args.end is None else f"--end {args.end:g} s"
-    raise TrackError(f"no frames in the chosen time range of {args.video} (--start "
-                     f"{args.start:g} s to {end} at {whole.fps:g} fps)")
-
-
-def _output_option(args, path: Path | None) -> str | None:
-    """The option whose output ``path`` is (the file, its partial file, a BVH file or lock
-    in the --bvh folder), None if none's."""
-    if path is None:
-        return None
-    from tracker.outputs.files import partial_path
-    real = os.path.realpath(path)
-    for option, given in (("--out", args.out), ("--json", args.json)):
-        if given is not None:
-            target = os.path.realpath(given)
-            if real in (target, os.path.realpath(partial_path(target))):
-                return option
-    if args.bvh is not None and os.path.dirname(real) == os.path.realpath(args.bvh):
-        return "--bvh"
-    return None
-
-
-def _output_failure(args, exc, kept: bool = True) -> str:
-    """An output's failure (OutputWriteError, OutputBusyError, or OutputError from closing)
-    in the user's terms: its option and, with ``kept``, where the MCAP's recording so far is
-    kept when it is (tracker.outputs.mcap keeps its partial file on a full disk)."""
-    option = _output_option(args, getattr(exc, "path", None))
-    message = f"{option} {exc}" if option else str(exc)
-    kept = _kept_recording(args) if kept else None
-    if kept is not None and str(kept) not in message:
-        message += (f"; the recording so far is kept in {kept} "
-                    f"(tracker.outputs.mcap_repair.recover_mcap makes a readable file of it)")
-    return message
-
-
-def _kept_recording(args) -> Path | None:
-    """The --out MCAP's partial file when a failed run left one holding data, else None."""
-    if args.out is None:
-        return None
-    from tracker.outputs.files import partial_path, stream_descriptor
-    if stream_descriptor(args.out) is not None or (args.out.exists()
-                                                   and not args.out.is_file()):
-        return None
-    partial = partial_path(os.path.realpath(args.out))
-    try:
-        if not (partial.is_file() and partial.stat().st_size > 0):
-            return None
-    except OSError:
-        return None
-    # Shown as the user named the output, unless it is a link (written beside its target).
-    return partial if args.out.is_symlink() else partial_path(args.out)
+    from tracker.cli_failures import time_range_error
+    raise time_range_error(args)
 
 
 def _nothing_written(args) -> str:
@@ -579,26 +489,6 @@ def _nothing_written(args) -> str:
     if args.out is None and args.json is None and args.bvh is None:
         return "nothing to show"
     return "no output files written (files already of those names are left as they were)"
-
-
-def _bvh_files(folder: Path, stem: str, written: list[Path] | None) -> str:
-    """The BVH line's tail: the files this run wrote and those of the video's name it did not
-    (an earlier run's, with more tracks: they stay, and would pass for this run's)."""
-    if written is None:
-        return ""
-
-    def names(paths: list[Path]) -> str:
-        shown = ", ".join(p.name for p in paths[:3])
-        return shown + (f" and {len(paths) - 3} more" if len(paths) > 3 else "")
-    pattern = re.compile(rf"{re.escape(stem)}_(\d+)\.bvh")
-    mine = {p.name for p in written}
-    older = sorted((p for p in folder.glob(f"{glob.escape(stem)}_*.bvh")
-                    if pattern.fullmatch(p.name) and p.name not in mine),
-                   key=lambda p: int(pattern.fullmatch(p.name).group(1)))   # by track number
-    tail = f" ({names(written)})" if written else " (no track long enough for a file)"
-    if older:
-        tail += f"; also there from an earlier run, not replaced: {names(older)}"
-    return tail
 
 
 def _print_summary(args, source, result, bvh_files: list[Path] | None = None) -> None:
@@ -626,9 +516,13 @@ def _print_summary(args, source, result, bvh_files: list[Path] | None = None) ->
     mcap_kind = f"{streamed} + smoothed" if result.smoothed else streamed
     for path, what, poses in ((args.out, "MCAP", mcap_kind), (args.json, "JSON", kind),
                               (args.bvh, "BVH folder", kind)):
-        if path is not None:
-            tail = _bvh_files(path, args.video.stem, bvh_files) if what == "BVH folder" else ""
-            print(f"  {what} ({poses} poses): {path}{tail}", file=out)
+        if path is None:
+            continue
+        tail = ""
+        if what == "BVH folder" and bvh_files is not None:
+            from tracker.bvh_option import files_tail
+            tail = files_tail(path, args.video.stem, bvh_files)
+        print(f"  {what} ({poses} poses): {path}{tail}", file=out)
 
 
 def one_line_warning(prog: str):

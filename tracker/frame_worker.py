@@ -10,6 +10,7 @@ after the frames before them.
 """
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import signal
@@ -143,52 +144,31 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # Ctrl-C is the main process's
     for number in (signal.SIGTERM, signal.SIGHUP):    # close() ends the worker by SIGTERM
         signal.signal(number, signal.SIG_DFL)
+    caught: list = []
+
+    def send(message) -> None:
+        """Send the warnings caught since the last message (e.g. a VideoTruncatedWarning),
+        then the message."""
+        if caught:
+            writer.send(("warnings", [(str(w.message), w.category) for w in caught]))
+            caught.clear()
+        writer.send(message)
     try:
         from threadpoolctl import threadpool_limits
         with threadpool_limits(1), warnings.catch_warnings(record=True) as caught:
-            writer = _PassingWarnings(writer, caught)
             tracker.stage_seconds.clear()
             for chunk in described_chunks(source, tracker, batch, leave_to_main=True):
-                writer.send(("frames", [(index, time_s, people, descriptions)
-                                        for index, time_s, _, people, descriptions in chunk]))
-            writer.send(("end", (dict(tracker.stage_seconds), source.frames_read,
-                                 source.truncated)))
+                send(("frames", [(index, time_s, people, descriptions)
+                                 for index, time_s, _, people, descriptions in chunk]))
+            send(("end", (dict(tracker.stage_seconds), source.frames_read, source.truncated)))
     except (BrokenPipeError, ConnectionResetError):
         pass                                          # the main process has gone: so do we
     except BaseException as error:                    # noqa: BLE001 - passed on, not hidden
-        _send_error(writer, error)
+        with contextlib.suppress(BrokenPipeError, ConnectionResetError):
+            try:
+                send(("error", error))
+            except Exception:                         # noqa: BLE001 - one that does not pickle
+                send(("error", FrameWorkerError(f"{type(error).__name__}: {error}")))
     finally:
         writer.close()
         os._exit(0)                                   # no atexit handlers of the parent's
-
-
-class _PassingWarnings:
-    """The worker's end of the pipe, sending the warnings caught since the last message
-    (e.g. tracker.video.decode.VideoTruncatedWarning) before each message."""
-
-    def __init__(self, writer, caught: list):
-        self._writer, self._caught = writer, caught
-
-    def send(self, message) -> None:
-        if self._caught:
-            self._writer.send(("warnings", [(str(w.message), w.category)
-                                            for w in self._caught]))
-            self._caught.clear()
-        self._writer.send(message)
-
-    def close(self) -> None:
-        self._writer.close()
-
-
-def _send_error(writer, error: BaseException) -> None:
-    """Pass the worker's exception to the main process (as a FrameWorkerError with its message
-    if it does not pickle)."""
-    try:
-        writer.send(("error", error))
-    except (BrokenPipeError, ConnectionResetError):
-        return
-    except Exception:                                 # noqa: BLE001 - unpicklable exception
-        try:
-            writer.send(("error", FrameWorkerError(f"{type(error).__name__}: {error}")))
-        except (BrokenPipeError, ConnectionResetError):
-            return

@@ -42,7 +42,8 @@ class OneLineParser(cli.OneLineParser):
         it may not be the same file as an input or another output, also through a relative
         path, a symlink or a hard link. Inputs that are one another (a folder of links) are
         no conflict. Exits as error() does."""
-        from tracker.outputs.files import PARTIAL_SUFFIX, file_identity, partial_path  # deferred: numpy
+        # deferred: numpy
+        from tracker.outputs.files import PARTIAL_SUFFIX, file_identity, partial_path
         seen = {}
         for what, path in inputs:
             if path is not None:

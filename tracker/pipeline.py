@@ -21,78 +21,70 @@ from regressor.stacking import FrameStacker, stack_step
 from tracker.tracks.association import MAX_OCCLUDED_S, Associator
 from tracker.video.roll import upright_mask
 from tracker.tracks.filtering import PoseKalmanFilter
-from tracker.tracks.hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, canonical_priors, chain_options,
-                         hypotheses_from)
+from tracker.tracks.hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, canonical_priors,
+                                       chain_options, hypotheses_from)
 from tracker.tracks.mirror_limbs import sees_mirror
 from tracker.video.silhouettes import DEFAULT_MIN_AREA_FRACTION, PersonMask, SilhouetteExtractor
 from tracker.tracks.root_path import RootHistory, smoothed_roots
 from tracker.outputs.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
 from tracker.video.decode import ASSUMED_FOV_DEG, colourless, focal_length_px
 
-
-#: The body angles' filter takes as measurement noise only the white part of the regressor's
-#: error (its validation residual is mostly a slow bias): R times this (docs/tuning.md).
+#: The body angles' filter's R scale: it takes only the white part of the regressor's error
+#: (its validation residual is mostly a slow bias; docs/tuning.md).
 LIMB_R_SCALE = 0.1
-
-#: Multiplies the model's heading process noise: the model's q is dominated by a few pirouettes
-#: in the training motion, so the filter followed confident misreadings (docs/tuning.md).
+#: Heading process noise scale: the model's q is dominated by a few training pirouettes, so
+#: the filter followed confident misreadings (docs/tuning.md).
 HEADING_Q_SCALE = 0.01
-
 #: The joints' R inflation on ambiguous frames: the main head averages a silhouette's two
 #: bodies there; a model that gives canonical pairs (one body per frame) needs less.
-AMBIGUOUS_JOINT_FACTOR = 4.0
-CANONICAL_AMBIGUOUS_JOINT_FACTOR = 2.0
+AMBIGUOUS_JOINT_FACTOR, CANONICAL_AMBIGUOUS_JOINT_FACTOR = 4.0, 2.0
 
 
 @dataclass(frozen=True)
 class TrackerSettings:
-    """The tracker's run-time choices (why each default: docs/tuning.md).
+    """The tracker's run-time choices (why each default: docs/tuning.md)."""
 
-    max_people: at most this many (largest) people per frame, None = all.
-    ambiguity_threshold: raw heading norm below which a frame is ambiguous; None = the
-    model's. ambiguous_heading_factor, ambiguous_joint_factor: R inflation on ambiguous frames
-    (None for the joints: :meth:`joint_factor`). r_scale, q_scale: multiply the model's R and
-    q; heading_q_scale further the heading's q, limb_r_scale the body angles' filter's R.
-    roll_deg: the camera's roll, degrees clockwise. background_samples: frames for the
-    median background. fov_deg: horizontal field of view assumed for the focal length.
-    keep_history: keep each track's filter inputs for smoothed_track (~0.6 KB per person per
-    frame). novelty: give each pose the estimator's novelty (NaN if it cannot tell).
-    trust_zone_foreground: the default extractor takes the foreground inside the background's
-    unreliable zone as sure person (True) or lets colour decide (False). min_area_fraction:
-    its smallest person, a fraction of the image. mirror_limbs: average the limbs with the
-    mirror image's (tracker.tracks.mirror_limbs).
-    """
-
-    max_people: int | None = None
-    ambiguity_threshold: float | None = None
-    ambiguous_heading_factor: float = 25.0
-    ambiguous_joint_factor: float | None = None
-    r_scale: float = 1.0
-    q_scale: float = 1.0
-    heading_q_scale: float = HEADING_Q_SCALE
-    limb_r_scale: float = LIMB_R_SCALE
-    roll_deg: float = 0.0
-    background_samples: int = 25
-    fov_deg: float = ASSUMED_FOV_DEG
-    keep_history: bool = True
-    novelty: bool = True
-    trust_zone_foreground: bool = False
-    mirror_limbs: bool = True
-    min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION
+    max_people: int | None = None       # at most this many (largest) people a frame; None: all
+    ambiguity_threshold: float | None = None    # raw heading norm of ambiguity; None: model's
+    ambiguous_heading_factor: float = 25.0      # heading's R inflation on ambiguous frames
+    ambiguous_joint_factor: float | None = None     # joints' (None: joint_factor's)
+    r_scale: float = 1.0                # multiplies the model's measurement covariance R
+    q_scale: float = 1.0                # multiplies the model's process noise q
+    heading_q_scale: float = HEADING_Q_SCALE    # further multiplies the heading's q
+    limb_r_scale: float = LIMB_R_SCALE  # further multiplies the body angles' filter's R
+    roll_deg: float = 0.0               # the camera's roll, degrees clockwise
+    background_samples: int = 25        # frames spread over the video for the median background
+    fov_deg: float = ASSUMED_FOV_DEG    # horizontal field of view for the focal length
+    keep_history: bool = True   # keep filter inputs to smooth (~0.6 KB per person and frame)
+    novelty: bool = True        # give each pose the estimator's novelty (NaN if it cannot tell)
+    trust_zone_foreground: bool = False  # zone's foreground sure person (else colour decides)
+    mirror_limbs: bool = True   # average the limbs with the mirror image's (tracks.mirror_limbs)
+    min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION  # smallest person, fraction of image
 
     def threshold(self, estimator: PoseEstimator) -> float:
         """The ambiguity threshold in use: this setting, else the estimator's own."""
-        if self.ambiguity_threshold is not None:
-            return self.ambiguity_threshold
-        return estimator.ambiguity_threshold
+        return (estimator.ambiguity_threshold if self.ambiguity_threshold is None
+                else self.ambiguity_threshold)
 
     def joint_factor(self, estimator: PoseEstimator) -> float:
         """The joints' R inflation on ambiguous frames: this setting, else the estimator's."""
         if self.ambiguous_joint_factor is not None:
             return self.ambiguous_joint_factor
-        if estimator.gives_canonical_pairs:
-            return CANONICAL_AMBIGUOUS_JOINT_FACTOR
-        return AMBIGUOUS_JOINT_FACTOR
+        return (CANONICAL_AMBIGUOUS_JOINT_FACTOR if estimator.gives_canonical_pairs
+                else AMBIGUOUS_JOINT_FACTOR)
+
+
+class PoseFilter(Protocol):
+    """What the tracker needs of a per-track filter (PoseKalmanFilter is one)."""
+
+    def step(self, raw55: np.ndarray) -> tuple[np.ndarray, bool]: ...
+    # (55,) -> (filtered (55,), ambiguous)
+
+    def rts_smooth(self, raws: np.ndarray) -> np.ndarray: ...
+
+
+#: fps -> a new filter.
+FilterFactory = Callable[[float], PoseFilter]
 
 
 def kalman_factory(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings()
@@ -114,8 +106,8 @@ def kalman_factory(estimator: PoseEstimator, settings: TrackerSettings = Tracker
 
 
 def filter_factories(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings(),
-                     filter_factory: Callable[[float], PoseFilter] | None = None,
-                     ) -> tuple[Callable[[float], PoseFilter], Callable[[float], PoseFilter] | None]:
+                     filter_factory: FilterFactory | None = None
+                     ) -> tuple[FilterFactory, FilterFactory | None]:
     """(the front/back hypotheses' filter factory, the body angles' one): kalman_factory's,
     the second with R further scaled by limb_r_scale; with a custom filter_factory, it and None
     (its filters give the whole pose). A model fitted on canonical members gets no limb filter
@@ -129,44 +121,29 @@ def filter_factories(estimator: PoseEstimator, settings: TrackerSettings = Track
 
 def front_back_tracker(estimator: PoseEstimator, fps: float,
                        settings: TrackerSettings = TrackerSettings(),
-                       filter_factory: Callable[[float], PoseFilter] | None = None,
-                       ) -> FrontBackTracker:
+                       filter_factory: FilterFactory | None = None) -> FrontBackTracker:
     """A track's front/back hypotheses with the filters of filter_factories."""
     chain, limbs = filter_factories(estimator, settings, filter_factory)
     return FrontBackTracker(chain, fps, **chain_options(estimator),
                             keep_history=settings.keep_history, limb_filter_factory=limbs)
 
 
-class PoseFilter(Protocol):
-    """What the tracker needs of a per-track filter (PoseKalmanFilter is one)."""
-
-    def step(self, raw55: np.ndarray) -> tuple[np.ndarray, bool]: ...
-    # (55,) -> (filtered (55,), ambiguous)
-
-    def rts_smooth(self, raws: np.ndarray) -> np.ndarray: ...
-
-
 @dataclass
 class TrackedPose:
-    """One person in one frame: what every sink is given. raw/filtered: (55,) pose vectors
-    (degrees; heading as cos, sin); ambiguous: raw heading norm below the threshold; joints_m:
-    (18, 3) metres, Y up, root on an approximate ground position; centroid_px: (x, y) px;
-    bbox_px: (x, y, w, h) px or None; runner_up: (55,) the next front/back hypothesis's
-    filtered pose and runner_up_probability when that is close, else None; novelty: how unlike
-    the training silhouettes the input is (PoseEstimates.novelty), None unless asked for."""
+    """One person in one frame: what every sink is given."""
 
     frame_index: int
     time_s: float
     track_id: int
-    raw: np.ndarray
-    filtered: np.ndarray
-    ambiguous: bool
-    joints_m: np.ndarray
-    centroid_px: tuple[float, float] | None = None
-    bbox_px: tuple[int, int, int, int] | None = None
-    runner_up: np.ndarray | None = None
-    runner_up_probability: float | None = None
-    novelty: float | None = None
+    raw: np.ndarray             # (55,) pose vector, degrees, the heading as (cos, sin)
+    filtered: np.ndarray        # (55,) the same, filtered
+    ambiguous: bool             # raw heading norm below the ambiguity threshold
+    joints_m: np.ndarray        # (18, 3) metres, Y up, root on an approximate ground position
+    centroid_px: tuple[float, float] | None = None      # (x, y) px
+    bbox_px: tuple[int, int, int, int] | None = None    # (x, y, w, h) px
+    runner_up: np.ndarray | None = None     # (55,) the next front/back hypothesis's, if close,
+    runner_up_probability: float | None = None      # and its probability
+    novelty: float | None = None    # unlike the training silhouettes (PoseEstimates.novelty)
 
     @property
     def unfamiliar(self) -> bool:
@@ -211,7 +188,7 @@ class PoseTracker:
                  settings: TrackerSettings = TrackerSettings(),
                  extractor: SilhouetteExtractor | None = None,
                  associator: Associator | None = None,
-                 filter_factory: Callable[[float], PoseFilter] | None = None):
+                 filter_factory: FilterFactory | None = None):
         self.estimator = estimator
         self.fps = float(fps)
         self.settings = settings

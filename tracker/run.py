@@ -137,7 +137,9 @@ def _frames_in(run: _Run, source: VideoSource, tracker: PoseTracker, workers: in
             segmenter is not None and segmenter.made_a_graph()):
         run.worker = FrameWorker(source, tracker)          # a copy of the primed tracker
         return _from_worker(run.worker, tracker)
-    return _in_process(source, tracker, 1 if run.watching else BATCH_FRAMES)
+    batch = 1 if run.watching else BATCH_FRAMES         # as the worker sends them: same results
+    return (tracked for chunk in described_chunks(source, tracker, batch)
+            for tracked in _tracked(tracker, chunk))
 
 
 class _Run:
@@ -166,8 +168,8 @@ class _Run:
         for tracked in frames_in:
             if self.lagged is None:
                 self.due.append(tracked)
-            elif _smoother_step(self.stages, self.lagged.push,
-                                tracked if self.watching else _poses_only(tracked)):
+            elif _smoother_step(self.stages, self.lagged.push, tracked if self.watching
+                                else (*tracked[:2], None, tracked[3], {})):  # poses only
                 raise KeyboardInterrupt
             self._emit_due()
         if self.lagged is not None and _smoother_step(self.stages, self.lagged.flush):
@@ -242,12 +244,15 @@ class _Run:
 
     def _feed_smoothed_sinks(self, interrupted: bool) -> list[str]:
         """The smoothed sinks get each whole track smoothed, or after a stop (a quick exit)
-        the streamed poses; problem lines of those that failed."""
+        the streamed poses, a sink's ``pose_kind`` told which; problem lines of failures."""
         if self.recorder is None:
             return []
         if not interrupted:
             return _write_smoothed(self.tracker, self.recorder, self.smoothed_sinks)
-        return _write_filtered(self.recorder, self.smoothed_sinks, streamed_kind(self.lag_s))
+        for sink in self.smoothed_sinks:
+            if hasattr(sink, "pose_kind"):
+                sink.pose_kind = streamed_kind(self.lag_s)
+        return _feed(self.recorder.poses, self.smoothed_sinks)
 
 
 def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> list[str]:
@@ -278,22 +283,6 @@ def _smoother_step(stages, step, *args) -> bool:
         stages["fixed-lag smoothing"] += time.perf_counter() - clock
 
 
-def _poses_only(tracked: tuple) -> tuple:
-    """A tracked frame (frame_index, time_s, image, poses, people) without the image and
-    people only a sink that shows the video needs."""
-    index, time_s, _, poses, _ = tracked
-    return index, time_s, None, poses, {}
-
-
-def _in_process(source: VideoSource, tracker: PoseTracker, batch: int) -> Iterator[tuple]:
-    """(frame_index, time_s, frame, poses, people by track id) of each frame, tracked here
-    ``batch`` frames at a time (as the worker sends them: the same results)."""
-    for chunk in described_chunks(source, tracker, batch):
-        yield from _tracked(tracker, [(index, time_s, people, descriptions)
-                                      for index, time_s, _, people, descriptions in chunk],
-                            [frame for _, _, frame, _, _ in chunk])
-
-
 def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
     """(frame_index, time_s, None, poses, people by track id) of each frame, its people found
     and described by the worker, tracked here a message at a time; timed as "waiting"."""
@@ -301,17 +290,15 @@ def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
     clock = time.perf_counter()
     for chunk in worker.chunks():
         stages["waiting"] += time.perf_counter() - clock
-        yield from _tracked(tracker, chunk, [None] * len(chunk))
+        yield from _tracked(tracker, [(i, t, None, p, d) for i, t, p, d in chunk])
         clock = time.perf_counter()
 
 
-def _tracked(tracker: PoseTracker, chunk: list[tuple], images: list) -> Iterator[tuple]:
-    """Track consecutive frames (frame_index, time_s, people, descriptions) at once and give
-    each as (frame_index, time_s, image, poses, people by track id)."""
-    if not chunk:
-        return
-    for (index, time_s, _, _), image, (poses, people) in zip(
-            chunk, images, tracker.track_frames(chunk), strict=True):
+def _tracked(tracker: PoseTracker, chunk: list[tuple]) -> Iterator[tuple]:
+    """Track consecutive frames (frame_index, time_s, image, people, descriptions) at once
+    and give each as (frame_index, time_s, image, poses, people by track id)."""
+    results = tracker.track_frames([(i, t, p, d) for i, t, _, p, d in chunk])
+    for (index, time_s, image, _, _), (poses, people) in zip(chunk, results, strict=True):
         yield index, time_s, image, poses, people
 
 
@@ -405,16 +392,6 @@ def _stop_signals_blocked() -> Iterator[None]:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
-
-
-def _write_filtered(recorder: PoseRecorder, sinks: Sequence[Sink], kind: str = "filtered"
-                    ) -> list[str]:
-    """Feed the recorded (streamed) poses to the sinks in frame order, telling a sink with a
-    ``pose_kind`` attribute which they are; returns _feed's problems."""
-    for sink in sinks:
-        if hasattr(sink, "pose_kind"):
-            sink.pose_kind = kind
-    return _feed(recorder.poses, sinks)
 
 
 def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]
