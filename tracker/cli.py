@@ -1,12 +1,9 @@
 """The ``track`` command: 3-D poses of the people in a static-camera video (``track --help``).
 
-Without --out/--json/--bvh/--view it records to VIDEO_STEM.mcap in the current folder. Errors
-(bad video, model, options or output paths) print one line and exit non-zero; Ctrl-C stops
-cleanly, keeping every output written so far valid. Outputs never overwrite the input or each
-other, and an existing output is replaced only once its new version is complete.
-
-Only the standard library is imported at module level: numpy, OpenCV and the model are imported
-inside main(), where Ctrl-C during those first seconds is caught like any other.
+Errors print one line and exit non-zero; Ctrl-C stops cleanly, every output written so far
+valid; outputs never overwrite an input or each other, nor an earlier file until complete.
+Only the standard library is imported at module level (numpy, OpenCV and the model inside
+main(), where a Ctrl-C during those imports is caught like any other).
 """
 from __future__ import annotations
 
@@ -46,26 +43,23 @@ SHORT_USAGE = ("usage: track VIDEO [--out FILE.mcap] [--json FILE] [--bvh DIR] [
                "[options]\ntrack: give a video file to track (track --help lists the options)\n")
 #: A URL's scheme (rtsp://, http://, file://): Path would collapse its // into one slash.
 _URL = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://")
-#: Stop signals received during main(): if something swallows the KeyboardInterrupt they
-#: raise (a bare ``except:``, a weakref callback CPython can only print), the command still
-#: stops (check_interrupted; docs/tuning.md).
+#: Stop signals received during main(), so that one whose KeyboardInterrupt something swallowed
+#: still stops the command (check_interrupted; docs/tuning.md).
 _interrupts: list[int] = []
 _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def quiet_decoder_logs() -> None:
-    """Keep FFmpeg's and OpenCV's own log lines ("moov atom not found") off stderr, where they
-    would repeat a one-line error in their words (TRACK_DEBUG set: left as they are). Call
-    before the first video is opened, which reads both variables."""
+    """Keep FFmpeg's and OpenCV's log lines off stderr (unless TRACK_DEBUG is set), where they
+    would repeat a one-line error; call before the first video is opened."""
     if not os.environ.get("TRACK_DEBUG"):
         os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
         os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
 
 
 class OneLineParser(argparse.ArgumentParser):
-    """argparse.ArgumentParser whose error(message) prints ``PROG: error: MESSAGE (see PROG
-    --help)`` on one line, not the whole usage block, and exits with status 2. The scripts'
-    version, with more checks: tracker.one_line_parser."""
+    """An ArgumentParser whose usage errors are one line, ``PROG: error: MESSAGE (see PROG
+    --help)``, status 2 (the scripts' version: tracker.one_line_parser)."""
 
     def error(self, message):
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
@@ -78,9 +72,8 @@ def _record_interrupt(number, frame) -> None:
 
 
 def _unraisable_interrupt_recorded(unraisable) -> None:
-    """sys.unraisablehook during main(): a KeyboardInterrupt raised where Python cannot raise
-    it (a weakref callback, a __del__) is recorded for check_interrupted, not printed as
-    "Exception ignored ... Traceback"; anything else goes to the previous hook."""
+    """sys.unraisablehook during main(): records a KeyboardInterrupt Python could not raise
+    (in a weakref callback, a __del__) instead of printing it; passes on anything else."""
     if issubclass(unraisable.exc_type, KeyboardInterrupt):
         _interrupts.append(signal.SIGINT)
         return
@@ -91,8 +84,7 @@ _previous_unraisable_hook = sys.unraisablehook
 
 
 def check_interrupted() -> None:
-    """Raise KeyboardInterrupt if a stop signal came during main(), even if something caught
-    the first one: called after the slow imports, the model load and each frame."""
+    """Raise KeyboardInterrupt if a stop signal came during main(), even if it was caught."""
     if _interrupts:
         raise KeyboardInterrupt
 
@@ -102,8 +94,7 @@ class TrackError(SilhouettePoseError):
 
 
 def _file_name(text: str) -> Path:
-    """An output file's path; "-" is standard output (/dev/stdout); one ending in a slash names
-    a folder (refused: Path would drop the slash and write a file of the folder's name)."""
+    """An output file's path; "-" is standard output; one ending in a slash is refused."""
     if text == "-":
         return Path("/dev/stdout")
     if text.endswith(("/", os.sep)) or os.path.basename(text) in ("", ".", ".."):
@@ -112,8 +103,7 @@ def _file_name(text: str) -> Path:
 
 
 def _video_file(text: str) -> Path:
-    """The video's path; a camera index ("0", when no file has that name) or a URL is refused:
-    only files are read."""
+    """The video's path; a camera index ("0", no such file) or a URL is refused."""
     if _URL.match(text) or (text.isdigit() and not os.path.exists(text)):
         raise argparse.ArgumentTypeError(f"{text}: cameras and streams are not supported; "
                                          f"give a video file")
@@ -142,12 +132,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "beside its filtered poses (the default: it follows the body better); "
                     "--no-smooth: the JSON and BVH get the MCAP's poses (filtered, or --lag's)")
     ap.add_argument("--lag", type=float, default=None, metavar="S",
-                    help="give the live view and the MCAP's /pose and /skeleton (with "
-                    "--no-smooth, the JSON and BVH too) each pose about 2S seconds late, "
-                    "smoothed over at least S seconds that followed it: closer to the body "
-                    "than the filter's (about 2.5 ms a frame per person at 0.5 s); 0: the "
-                    "filtered poses at once. Default "
-                    f"{VIEW_LAG_S:g} with --view, else 0; at most {MAX_LAG_S:g}")
+                    help="give the live view and the MCAP's /pose (with --no-smooth, the JSON "
+                    "and BVH too) each pose about 2S seconds late, smoothed over S seconds "
+                    "that followed it: closer to the body than the filter's; 0: the filtered "
+                    f"poses at once (default {VIEW_LAG_S:g} with --view, else 0; at most "
+                    f"{MAX_LAG_S:g})")
     ap.add_argument("--model", type=Path, default=None, help="model file "
                     "(default: the shipped model)")
     ap.add_argument("--background", type=Path, metavar="IMAGE", help="an image of the empty "
@@ -164,32 +153,28 @@ def build_parser() -> argparse.ArgumentParser:
                          "the image, degrees (silhouettes are turned upright; within "
                          f"+-{MAX_ROLL_DEG:g}; default 0)")
     ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
-                    help="for a person who stays in one place (no clean plate): where the "
-                         "background is unreliable, let colour decide on the background "
-                         "model's foreground too (default: fewer ghost blobs beside the body, "
-                         "some thin limb pixels lost), or take it as sure person")
+                    help="for a person who stays in one place: where the background is "
+                         "unreliable, let colour decide on the foreground too (default: fewer "
+                         "ghost blobs, some thin limb pixels lost), or take it as sure person")
     ap.add_argument("--min-area", type=float, default=None, metavar="PERCENT",
                     help="the smallest person, in percent of the image (default "
                          f"{DEFAULT_MIN_AREA_PERCENT:g}: about 55 px tall at 640x480; "
                          f"{MIN_AREA_RANGE_PERCENT[0]:g} to {MIN_AREA_RANGE_PERCENT[1]:g}); "
                          "lower it for people far away, raise it against clutter")
     ap.add_argument("--workers", type=int, choices=(1, 2), default=DEFAULT_WORKERS,
-                    help="processes: 2 finds the people in a second process while the first "
-                         "tracks them (about 1.7x the frames per second, the same poses; not "
-                         f"with --view), 1 keeps to one (default {DEFAULT_WORKERS} on this "
-                         "machine)")
+                    help="processes: 2 finds the people in a second one (about 1.7x the frames "
+                         f"per second, the same poses; not with --view) (default "
+                         f"{DEFAULT_WORKERS} on this machine)")
     ap.add_argument("--silhouettes", choices=SILHOUETTE_SOURCES, default="auto",
-                    help="where silhouettes come from: background subtraction (a still camera, "
-                         "people who move), a learned person segmenter (needs "
-                         f"{SEGMENT_INSTALL}), or auto (the default): the segmenter where the "
-                         "camera moves or someone never leaves the spot, if installed (else a "
-                         "warning when the clip needs it), background subtraction elsewhere")
+                    help="background subtraction (a still camera, people who move), a person "
+                         f"segmenter (needs {SEGMENT_INSTALL}), or auto (default): the segmenter "
+                         "where the camera moves or someone stays put, if installed")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
 
 
 def _check_options(args) -> None:
-    """Refuse bad options and output paths before anything is written (TrackError, one line)."""
+    """Refuse bad options and output paths before anything is written (TrackError)."""
     low, high = MIN_AREA_RANGE_PERCENT
     # (option, value, in range, what it must be); NaN and infinities compare out of range.
     for option, value, ok, must in (
@@ -209,11 +194,8 @@ def _check_options(args) -> None:
         if value is not None and not ok(value):
             raise TrackError(f"{option} must be {must}, got {value}")
     if args.silhouettes == "segment":
-        from tracker.video.sources import SegmenterMissingError, require_segmenter
-        try:
-            require_segmenter()
-        except SegmenterMissingError as exc:
-            raise TrackError(str(exc)) from None
+        from tracker.video.sources import require_segmenter
+        require_segmenter()             # SegmenterMissingError: one line, as TrackError
     if args.background is not None:
         from tracker.clean_plate import check_background_file
         check_background_file(args.background)
@@ -238,7 +220,7 @@ def _check_options(args) -> None:
 
 def _check_writable(option: str, path: Path, in_place: bool) -> None:
     """TrackError unless the folder of ``path`` (a symlink's target's) exists and ``path`` can
-    be written there; in_place: it is written as it is (no new file in its folder)."""
+    be written there; in_place: written as it is (no new file in the folder)."""
     folder = Path(os.path.realpath(path)).parent
     if not folder.is_dir():
         shown = folder if path.is_symlink() else (path.parent if str(path.parent) else ".")
@@ -258,9 +240,8 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def _check_collisions(args) -> None:
-    """No output (nor the file it is written as until complete) may be an input (the video,
-    the model, the background image) or another output, also through a relative path, a
-    symlink or a hard link."""
+    """No output (nor its temporary file) may be an input or another output, also through a
+    relative path, a symlink or a hard link."""
     from regressor.pose_model import DEFAULT_MODEL_PATH
     from tracker.outputs.files import check_distinct, partial_path
     named = [("the input video", args.video),
@@ -293,8 +274,7 @@ def tracker_settings(args):
 
 
 def smoothing(args) -> bool:
-    """Whether smoothed tracks are written: --smooth (the default) and a JSON, BVH or MCAP
-    output to write them to (the live view takes poses frame by frame only)."""
+    """Whether smoothed tracks are written: --smooth and a JSON, BVH or MCAP output."""
     return (args.json is not None or args.bvh is not None or args.out is not None) \
         and bool(args.smooth)
 
@@ -319,10 +299,14 @@ def _min_area_fraction(args) -> float:
 
 
 def _sink_factories(args, source, model) -> tuple[list, list]:
-    """(factories of the sinks fed every frame, of those fed smoothed tracks at the end), one
-    per output (the MCAP has two: its frames and its smoothed topics), in the order
-    tracker.outputs.open_sinks opens them: the MCAP before its smoothed topics."""
+    """(factories of the sinks fed every frame, of those fed smoothed tracks at the end), in
+    the order open_sinks opens them (the MCAP has two, its frames first)."""
     opened = {}
+    # The options that change the silhouettes, for the MCAP's metadata when not their defaults.
+    silhouette_options = (("zone_foreground", args.zone_foreground != "colour"
+                           and args.zone_foreground), ("roll_deg", args.roll),
+                          ("min_area_percent", args.min_area),
+                          ("background", args.background and str(args.background)))
 
     def named(sink, option: str):
         sink.option = option            # a failure's line names the option (problem_line)
@@ -337,14 +321,7 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
             "settings": {"smooth": smoothing(args), "lag_s": lag_seconds(args),
                          "max_people": args.max_people,
                          "start_s": args.start, "end_s": args.end,
-                         # options that change the silhouettes, when not their defaults
-                         **({} if args.zone_foreground == "colour"
-                            else {"zone_foreground": args.zone_foreground}),
-                         **({"roll_deg": args.roll} if args.roll else {}),
-                         **({} if args.min_area is None
-                            else {"min_area_percent": args.min_area}),
-                         **({} if args.background is None
-                            else {"background": str(args.background)}),
+                         **{name: value for name, value in silhouette_options if value},
                          "note": f"/pose and /skeleton hold the {streamed_kind(args)} "
                                  "poses, frame by frame (lag_s: how late, at least, each was "
                                  "written, smoothed over what followed); /smoothed/pose and "
@@ -418,11 +395,7 @@ def _run(args) -> int:
         raise TrackError(output_failure(args, exc)) from None
     if not args.quiet:
         try:
-            bvh_files = None
-            if args.bvh is not None:
-                from tracker.bvh_option import written_files
-                bvh_files = written_files(sinks)
-            _print_summary(args, source, result, bvh_files)
+            _print_summary(args, source, result, sinks)
         except BrokenPipeError:
             # Whoever read the summary stopped (``track ... | head -1``): the outputs are
             # complete; nothing more to the closed pipe, not even the interpreter's last flush.
@@ -440,8 +413,8 @@ def _run(args) -> int:
 
 
 def _track_into_outputs(args, source, model, plate) -> tuple:
-    """Open the outputs and track the video into them: (tracker.run.TrackRun, the sinks).
-    A run that ends before its first pose leaves every file of the outputs' names as it was."""
+    """Open the outputs and track the video into them: (TrackRun, the sinks). A run that
+    ends before its first pose leaves every file of the outputs' names as it was."""
     from tracker.pipeline import PoseTracker
     from tracker.progress import Progress
     from tracker.run import track_video
@@ -491,7 +464,8 @@ def _nothing_written(args) -> str:
     return "no output files written (files already of those names are left as they were)"
 
 
-def _print_summary(args, source, result, bvh_files: list[Path] | None = None) -> None:
+def _print_summary(args, source, result, sinks=()) -> None:
+    """The run's summary: what was tracked, and which poses each output holds."""
     from tracker.outputs.files import stream_descriptor
     # With an output on standard output (--json /dev/stdout | jq) the summary goes to stderr.
     out = sys.stderr if any(path is not None and stream_descriptor(path) == 1
@@ -519,9 +493,9 @@ def _print_summary(args, source, result, bvh_files: list[Path] | None = None) ->
         if path is None:
             continue
         tail = ""
-        if what == "BVH folder" and bvh_files is not None:
-            from tracker.bvh_option import files_tail
-            tail = files_tail(path, args.video.stem, bvh_files)
+        if what == "BVH folder":
+            from tracker.bvh_option import files_tail, written_files
+            tail = files_tail(path, args.video.stem, written_files(sinks))
         print(f"  {what} ({poses} poses): {path}{tail}", file=out)
 
 

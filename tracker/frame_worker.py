@@ -1,12 +1,9 @@
 """Decoding, silhouettes and descriptors in a second process, so that ``track`` uses two cores.
 
-A frame's first half (decoding, silhouettes, descriptors: PoseTracker.find_people and
-.describe) needs nothing from its second (association, regression, filters, outputs), so a
-forked worker runs it ahead on its own copy of the tracker (no second model load, OpenCV and
-BLAS on one thread), for the same results as one process (figures: docs/tuning.md). Frames go
-through a pipe in small batches. The worker ignores Ctrl-C, is terminated on close and exits
-when its reader has gone; its errors and warnings are raised and issued in the main process
-after the frames before them.
+A frame's first half (PoseTracker.find_people, .describe) needs nothing from its second, so a
+forked worker runs it ahead on its own copy of the tracker, one thread, for the same results
+(figures: docs/tuning.md). It ignores Ctrl-C and exits when its reader has gone; its errors
+and warnings are raised and issued in the main process after the frames before them.
 """
 from __future__ import annotations
 
@@ -32,11 +29,9 @@ MAIN_DESCRIBES = (1, 2)
 
 def described_chunks(source, tracker, batch: int, leave_to_main: bool = False
                      ) -> Iterator[list[tuple]]:
-    """The first half of the tracking, in one process or the worker: the frames of ``source``
-    with their people found and described by ``tracker``, in lists of ``batch`` consecutive
-    (frame_index, time_s, frame, people, descriptions); "decode" timed. leave_to_main:
-    descriptions None for the frames the main process describes (MAIN_DESCRIBES). An error
-    is raised after a last list of the frames before it."""
+    """The first half of the tracking: lists of ``batch`` consecutive (frame_index, time_s,
+    frame, people, descriptions); leave_to_main: descriptions None for the frames the main
+    process describes. An error is raised after a last list of the frames before it."""
     share, period = MAIN_DESCRIBES
     stages = tracker.stage_seconds
     chunk: list[tuple] = []
@@ -72,10 +67,9 @@ def can_fork() -> bool:
 
 
 class FrameWorker:
-    """Runs described_chunks over ``source`` in a forked process; :meth:`chunks` gives the
-    frames in order. ``tracker`` must be primed: the worker starts from a copy of it. After
-    the last frame, ``stage_seconds`` holds the worker's stages and ``frames_read`` and
-    ``truncated`` the source's. Close it."""
+    """Runs described_chunks over ``source`` with a copy of the primed ``tracker`` in a forked
+    process; after the last frame, ``stage_seconds``, ``frames_read`` and ``truncated`` are
+    the worker's. Close it."""
 
     def __init__(self, source, tracker, batch: int = BATCH_FRAMES):
         self.stage_seconds: dict[str, float] = {}
@@ -96,20 +90,8 @@ class FrameWorker:
         writer.close()           # the worker's end: its death then ends our reads
 
     def chunks(self) -> Iterator[list[tuple]]:
-        """The frames as the worker sends them: lists of up to ``batch`` consecutive
-        (frame_index, time_s, people, descriptions) (described_chunks' without the frame)."""
-        while True:
-            kind, payload = self._receive()
-            if kind == "frames":
-                yield payload
-            elif kind == "end":
-                self.stage_seconds, self.frames_read, self.truncated = payload
-                return
-            else:
-                raise FrameWorkerError(f"the frame worker sent {kind!r} out of turn")
-
-    def _receive(self) -> tuple[str, object]:
-        """The worker's next message (kind, payload); its warnings issued, its error raised."""
+        """described_chunks' lists without the frames, in order; the worker's warnings
+        issued, its error raised."""
         while True:
             try:
                 kind, payload = self._reader.recv()
@@ -117,13 +99,18 @@ class FrameWorker:
                 self._process.join(timeout=1.0)
                 raise FrameWorkerError(f"the frame worker stopped unexpectedly (exit code "
                                        f"{self._process.exitcode})") from None
-            if kind != "warnings":
-                break
-            for message, category in payload:
-                warnings.warn(message, category, stacklevel=4)
-        if kind == "error":
-            raise payload
-        return kind, payload
+            if kind == "warnings":
+                for message, category in payload:
+                    warnings.warn(message, category, stacklevel=3)
+            elif kind == "error":
+                raise payload
+            elif kind == "frames":
+                yield payload
+            elif kind == "end":
+                self.stage_seconds, self.frames_read, self.truncated = payload
+                return
+            else:
+                raise FrameWorkerError(f"the frame worker sent {kind!r} out of turn")
 
     def close(self) -> None:
         """Stop the worker (at once if it is still running) and release the pipe."""
@@ -138,8 +125,7 @@ class FrameWorker:
 
 def _work(reader, writer, source, tracker, batch: int) -> None:
     """The worker process: send each frame's people and descriptions."""
-    # The fork copied the reading end: closed, so that a send fails once the main process
-    # has gone, instead of blocking.
+    # The fork's copy of the reading end closed: a send fails once the main process has gone.
     reader.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # Ctrl-C is the main process's
     for number in (signal.SIGTERM, signal.SIGHUP):    # close() ends the worker by SIGTERM
@@ -147,8 +133,7 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
     caught: list = []
 
     def send(message) -> None:
-        """Send the warnings caught since the last message (e.g. a VideoTruncatedWarning),
-        then the message."""
+        """Send the warnings caught since the last message, then the message."""
         if caught:
             writer.send(("warnings", [(str(w.message), w.category) for w in caught]))
             caught.clear()

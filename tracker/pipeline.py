@@ -9,7 +9,8 @@ from __future__ import annotations
 import time
 from collections import defaultdict
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
+from functools import partial
 from typing import Protocol
 
 import numpy as np
@@ -77,8 +78,7 @@ class TrackerSettings:
 class PoseFilter(Protocol):
     """What the tracker needs of a per-track filter (PoseKalmanFilter is one)."""
 
-    def step(self, raw55: np.ndarray) -> tuple[np.ndarray, bool]: ...
-    # (55,) -> (filtered (55,), ambiguous)
+    def step(self, raw55: np.ndarray) -> tuple[np.ndarray, bool]: ...    # filtered, ambiguous
 
     def rts_smooth(self, raws: np.ndarray) -> np.ndarray: ...
 
@@ -89,29 +89,22 @@ FilterFactory = Callable[[float], PoseFilter]
 
 def kalman_factory(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings()
                    ) -> Callable[[float], PoseKalmanFilter]:
-    """The default filter factory: fps -> a PoseKalmanFilter with the estimator's noise models
-    scaled as the settings say, and their ambiguity handling."""
+    """The default filter factory: the estimator's noise models as the settings scale them."""
     q = np.broadcast_to(np.asarray(estimator.process_noise, float) * settings.q_scale,
                         (N_ANGLES,)).copy()
     q[0] *= settings.heading_q_scale
-
-    kwargs = dict(R=estimator.measurement_covariance * settings.r_scale, q=q,
-                  ambiguity_threshold=settings.threshold(estimator),
-                  ambiguous_heading_factor=settings.ambiguous_heading_factor,
-                  ambiguous_joint_factor=settings.joint_factor(estimator))
-
-    def make(fps: float) -> PoseKalmanFilter:
-        return PoseKalmanFilter(fps, **kwargs)
-    return make
+    return partial(PoseKalmanFilter, R=estimator.measurement_covariance * settings.r_scale, q=q,
+                   ambiguity_threshold=settings.threshold(estimator),
+                   ambiguous_heading_factor=settings.ambiguous_heading_factor,
+                   ambiguous_joint_factor=settings.joint_factor(estimator))
 
 
 def filter_factories(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings(),
                      filter_factory: FilterFactory | None = None
                      ) -> tuple[FilterFactory, FilterFactory | None]:
-    """(the front/back hypotheses' filter factory, the body angles' one): kalman_factory's,
-    the second with R further scaled by limb_r_scale; with a custom filter_factory, it and None
-    (its filters give the whole pose). A model fitted on canonical members gets no limb filter
-    either: its raw limbs may be the other body's."""
+    """(the front/back hypotheses' filter factory, the body angles' one or None): a custom
+    filter_factory gives the whole pose; so does the default for a model fitted on canonical
+    members (its raw limbs may be the other body's)."""
     if filter_factory is not None:
         return filter_factory, None
     limbs = (None if estimator.canonical_direction is not None else kalman_factory(
@@ -158,7 +151,6 @@ class _TrackState:
     stacker: FrameStacker
     hypotheses: FrontBackTracker
     mirror_stacker: FrameStacker | None = None      # the mirror images' (mirror_limbs only)
-    measured: list = field(default_factory=list)    # (55,) raw poses (keep_history only)
     frames: int = 0                                  # frames with a pose
     unfamiliar: int = 0                              # of them, novelty > UNFAMILIAR_NOVELTY
 
@@ -175,14 +167,8 @@ Description = tuple[np.ndarray, "np.ndarray | None"]
 
 
 class PoseTracker:
-    """Tracks every person of a static-camera video (frames fed in order).
-
-    estimator: a PoseEstimator; fps: video frame rate; extractor: frame -> people (default:
-    default_extractor); associator: people -> track ids (default Associator, a track hidden
-    for up to MAX_OCCLUDED_S); filter_factory: fps -> a PoseFilter per front/back hypothesis
-    (default: filter_factories). The frame size comes from prime()'s background or the first
-    frame.
-    """
+    """Tracks every person of a static-camera video (frames fed in order). extractor: frame ->
+    people; associator: people -> track ids; filter_factory: see filter_factories."""
 
     def __init__(self, estimator: PoseEstimator, fps: float,
                  settings: TrackerSettings = TrackerSettings(),
@@ -211,18 +197,14 @@ class PoseTracker:
         self.stage_seconds: dict[str, float] = defaultdict(float)
 
     def prime(self, background: np.ndarray, frame_size: tuple[int, int] | None = None) -> None:
-        """Learn the empty scene from a background estimate (BGR uint8 (H, W, 3)): at the
-        frames' size, or at the extractor's working size for frames of ``frame_size`` (width,
-        height) px (SilhouetteExtractor.prime)."""
+        """Learn the empty scene from a background (BGR uint8 (H, W, 3)) at the frames' size,
+        or at the extractor's working size for frames of ``frame_size`` (width, height) px."""
         if self._default_extractor and colourless(background):
             # Without colour MOG2 calls every darker pixel shadow, cutting a person to pieces.
             self.extractor = default_extractor(self.settings, detect_shadows=False)
-        if frame_size is None:
-            self._set_frame_shape(background.shape[:2])
-            self.extractor.prime(background)
-        else:
-            self._set_frame_shape((frame_size[1], frame_size[0]))
-            self.extractor.prime(background, frame_size=frame_size)
+        width, height = frame_size or background.shape[1::-1]
+        self._set_frame_shape((height, width))
+        self.extractor.prime(background, frame_size=frame_size)
 
     def _set_frame_shape(self, shape: tuple[int, int]) -> None:
         """Remember the frames' (height, width) px, and the focal length it implies, once."""
@@ -231,8 +213,7 @@ class PoseTracker:
             self._focal_px = focal_length_px(self.frame_shape[1], self.settings.fov_deg)
 
     def find_people(self, frame: np.ndarray) -> list[PersonMask]:
-        """The people in one frame (BGR uint8 (H, W, 3)), at most settings.max_people, in
-        order (the background model learns)."""
+        """The people in one frame (BGR uint8 (H, W, 3)) of a video fed in order."""
         self._set_frame_shape(frame.shape[:2])
         clock = time.perf_counter()
         people = self.extractor(frame)[: self.settings.max_people]
@@ -240,9 +221,8 @@ class PoseTracker:
         return people
 
     def describe(self, person: PersonMask) -> Description | None:
-        """A person's silhouette descriptor (D,) and, when mirror images are averaged, its
-        mirror image's (D,) (else None), made upright by the roll; None for a sliver with no
-        descriptor. Needs only the mask and the settings (tracker.frame_worker runs it)."""
+        """A person's upright silhouette descriptor (D,) and its mirror image's (D,) or None;
+        None for a sliver. Needs only the mask and the settings (tracker.frame_worker)."""
         clock = time.perf_counter()
         mask = upright_mask(person.mask, self.settings.roll_deg)
         try:
@@ -258,15 +238,13 @@ class PoseTracker:
     def track_people(self, frame_index: int, time_s: float, people: Sequence[PersonMask],
                      descriptions: Sequence[Description | None] | None = None
                      ) -> list[TrackedPose]:
-        """The poses of one frame's people (find_people's, in order); descriptions: describe()
-        of each person when made elsewhere, None: described here."""
+        """The poses of one frame's people; descriptions: describe()'s, or None: made here."""
         return self.track_frames([(frame_index, time_s, people, descriptions)])[0][0]
 
     def track_frames(self, frames: Sequence[tuple]) -> list[tuple[list[TrackedPose], dict]]:
         """track_people for consecutive frames, each (frame_index, time_s, people,
-        descriptions); returns per frame (its poses, its people by track id). Every pose is
-        regressed in one batch (the weights read once; the same results to ~1e-5 degrees);
-        association, filters and skeleton go frame by frame, in order."""
+        descriptions): per frame (its poses, its people by track id). The poses are regressed
+        in one batch (the same results to ~1e-5 degrees), the rest goes frame by frame."""
         rows, people_by_frame = [], []
         for slot, (frame_index, time_s, people, descriptions) in enumerate(frames):
             clock = time.perf_counter()
@@ -342,14 +320,11 @@ class PoseTracker:
         clock = time.perf_counter()
         decision = state.hypotheses.step(hypotheses)
         state.frames += 1
-        if self.settings.keep_history:
-            state.measured.append(hypotheses.raw)
         self._lap("filter", clock)
         return decision
 
     def _skeletons(self, decisions: list, people: list[PersonMask]) -> np.ndarray:
-        """The joints (N, 18, 3) metres of the decisions' filtered poses, each on its person's
-        approximate ground position, in one forward-kinematics call."""
+        """The joints (N, 18, 3) metres of the decisions' filtered poses, on the ground."""
         clock = time.perf_counter()
         h, w = self.frame_shape
         ground = np.array([ground_position_from_image(p.centroid, p.bbox[3], w, h,

@@ -47,11 +47,9 @@ class WrittenPoses:
 
 @dataclass
 class TrackRun:
-    """What a run did: frames handed to the outputs, wall time (seconds, from priming to
-    closed outputs), interrupted by a stop signal (also one held back while the outputs
-    closed), the tracker used, per track id the poses the outputs hold (the tracker may have
-    gone a batch further) and how many were unfamiliar, and whether the smoothed sinks got
-    the smoothed tracks (False after a quick exit, or with none)."""
+    """What a run did: frames handed to the outputs, wall time (s, priming to closed outputs),
+    whether a stop signal interrupted it, the tracker, per track id the poses the outputs hold,
+    and whether the smoothed sinks got the smoothed tracks (not after a quick exit)."""
 
     frames: int
     elapsed_s: float
@@ -66,8 +64,8 @@ class TrackRun:
         return self.frames / self.elapsed_s if self.elapsed_s > 0 else 0.0
 
     def stop_if_interrupted(self) -> TrackRun:
-        """Raise KeyboardInterrupt if a Ctrl-C ended the run early, else return it: for a
-        caller that measures the run and must not take a cut track for the whole."""
+        """Raise KeyboardInterrupt if a Ctrl-C ended the run early (for a caller that measures
+        it), else return it."""
         if self.interrupted:
             raise KeyboardInterrupt
         return self
@@ -79,25 +77,17 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                 workers: int = 1, lag_s: float = 0.0, write_empty: bool = True) -> TrackRun:
     """Track every frame of ``source`` (an opened video or a path) into ``sinks``.
 
-    tracker: a PoseTracker (None: the shipped model, default settings). progress: has
-    update(people_in_view) and close() (tracker.progress.Progress). Every sink's end_frame() is
-    called after each frame; sinks with ``write_frame(frame_index, time_s, frame, people)``
-    also get each frame (BGR uint8 (H, W, 3), read-only) and its people (track id ->
-    PersonMask). smoothed_sinks: fed at the end with each whole track RTS-smoothed, in frame
-    order; after a Ctrl-C (a quick exit) with the streamed poses instead, a sink's
-    ``pose_kind`` attribute told which. A sink that fails is fed no more, the others are.
-    All sinks are closed on return, also on Ctrl-C (the result says interrupted), stop
-    signals held meanwhile so that none cuts an output short; OutputError names those that
-    failed. background: a clean plate (BGR uint8 at the video's size), trusted everywhere;
-    None: learned from frames spread over the video (_prime). workers: 2 finds and describes
-    the people in a forked process (tracker.frame_worker), same results, unless a sink shows
-    the video, processes cannot fork or this process ran the person segmenter. lag_s: give
-    the sinks each frame about 2 lag_s late, smoothed over what followed
-    (tracker.tracks.fixed_lag; needs keep_history); after a Ctrl-C the frames held back go to
-    the sinks that do not show the video. write_empty: False abandons the sinks
-    (close_sinks) when the run gives them no pose, leaving earlier files of their names.
-    tracker.stage_seconds gains "background", "decode", "outputs", "fixed-lag smoothing"
-    and, with a worker, "waiting" and the worker's stages."""
+    tracker: None: the shipped model, default settings. progress: update(people_in_view) and
+    close(). Sinks get each pose, end_frame() after each frame, and if they have write_frame,
+    each frame (BGR uint8, read-only) with its people by track id. smoothed_sinks: fed each
+    whole track RTS-smoothed at the end (after a Ctrl-C, the streamed poses, a ``pose_kind``
+    attribute told which). A failing sink is fed no more; all are closed on return, also on
+    Ctrl-C, stop signals held meanwhile; OutputError names the failures. background: a clean
+    plate (BGR uint8 at the video's size); None: learned (_prime). workers: 2 finds and
+    describes people in a forked process (tracker.frame_worker), same results. lag_s: give
+    the sinks each frame about 2 lag_s late, smoothed (tracker.tracks.fixed_lag). write_empty:
+    False abandons the sinks if no pose was written, keeping earlier files of their names.
+    tracker.stage_seconds gains the run's stages."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
@@ -129,9 +119,8 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
 
 def _frames_in(run: _Run, source: VideoSource, tracker: PoseTracker, workers: int
                ) -> Iterator[tuple]:
-    """The tracked frames: from a second process (run.worker) when asked for and possible,
-    else tracked here, one at a time for a live view, in batches for files. A worker forked
-    from a process that ran the person segmenter would crash (segmenter.made_a_graph)."""
+    """The tracked frames: from a worker process when asked for and possible (a worker
+    forked after the person segmenter ran would crash), else from here."""
     segmenter = sys.modules.get("tracker.video.segmenter")
     if workers > 1 and not run.watching and can_fork() and not (
             segmenter is not None and segmenter.made_a_graph()):
@@ -143,9 +132,8 @@ def _frames_in(run: _Run, source: VideoSource, tracker: PoseTracker, workers: in
 
 
 class _Run:
-    """One run's outputs: the streamed sinks (``watching``: those that show the video;
-    ``files``), the smoothed sinks fed at the end, the frames ``due`` (tracked, with a lag
-    smoothed, not yet written), the frames and each track's poses written."""
+    """One run's outputs (``watching``: those that show the video), the frames ``due`` to
+    them, and what was written."""
 
     def __init__(self, tracker: PoseTracker, sinks, smoothed_sinks, progress, lag_s: float):
         self.tracker, self.progress, self.lag_s = tracker, progress, lag_s
@@ -164,7 +152,7 @@ class _Run:
 
     def track(self, frames_in: Iterator[tuple]) -> None:
         """Hand every tracked frame to the outputs (through the smoother with a lag);
-        KeyboardInterrupt when a stop signal came meanwhile."""
+        KeyboardInterrupt when a stop signal came."""
         for tracked in frames_in:
             if self.lagged is None:
                 self.due.append(tracked)
@@ -182,9 +170,8 @@ class _Run:
                 raise KeyboardInterrupt
 
     def emit(self, stopped: bool = False) -> bool:
-        """Hand the next due frame to the outputs; whether a stop signal came meanwhile (it
-        acts between frames, never inside an output's write). stopped: after a stop, to the
-        files only, with no progress update (its display may raise the stop again)."""
+        """Hand the next due frame to the outputs, stop signals held (they act between frames);
+        whether one came. stopped: after a stop, to the files only, no progress update."""
         clock = time.perf_counter()
         with _signals_held() as held:
             index, time_s, frame, poses, people = self.due.popleft()
@@ -208,9 +195,8 @@ class _Run:
         return bool(held)
 
     def close(self, interrupted: bool, write_empty: bool) -> tuple[bool, bool, list[str]]:
-        """Finish every output, stop signals held meanwhile (one just before interrupts the
-        run, and the closing starts again). Returns (interrupted, smoothed tracks written,
-        problem lines)."""
+        """Finish every output, stop signals held (one just before restarts the closing).
+        Returns (interrupted, smoothed tracks written, problem lines)."""
         closed, smoothed, flushed, problems = False, False, False, []
         while not closed:
             try:
@@ -243,8 +229,8 @@ class _Run:
         return interrupted, smoothed, problems
 
     def _feed_smoothed_sinks(self, interrupted: bool) -> list[str]:
-        """The smoothed sinks get each whole track smoothed, or after a stop (a quick exit)
-        the streamed poses, a sink's ``pose_kind`` told which; problem lines of failures."""
+        """Feed the smoothed sinks each track smoothed, or after a stop the streamed poses;
+        returns problem lines."""
         if self.recorder is None:
             return []
         if not interrupted:
@@ -256,9 +242,8 @@ class _Run:
 
 
 def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> list[str]:
-    """After a stop: write the frames due and those the fixed-lag smoother holds to the files
-    (emit(stopped=True)); a problem line if an output failed there. Another stop ends this,
-    not the closing that follows."""
+    """After a stop: write the frames held back to the files (emit(stopped=True)); a problem
+    line if an output failed. Another stop ends this, not the closing."""
     try:
         if lagged is not None:
             _smoother_step(stages, lagged.flush)
@@ -272,8 +257,7 @@ def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> li
 
 
 def _smoother_step(stages, step, *args) -> bool:
-    """step(*args), a fixed-lag smoother's push or flush, timed as "fixed-lag smoothing",
-    stop signals held (no frame lost between its queues); whether one came."""
+    """A fixed-lag smoother's push or flush, timed, stop signals held; whether one came."""
     clock = time.perf_counter()
     try:
         with _signals_held() as held:
@@ -284,8 +268,7 @@ def _smoother_step(stages, step, *args) -> bool:
 
 
 def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
-    """(frame_index, time_s, None, poses, people by track id) of each frame, its people found
-    and described by the worker, tracked here a message at a time; timed as "waiting"."""
+    """The worker's frames tracked here (no image), a message at a time."""
     stages = tracker.stage_seconds
     clock = time.perf_counter()
     for chunk in worker.chunks():
@@ -295,18 +278,17 @@ def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
 
 
 def _tracked(tracker: PoseTracker, chunk: list[tuple]) -> Iterator[tuple]:
-    """Track consecutive frames (frame_index, time_s, image, people, descriptions) at once
-    and give each as (frame_index, time_s, image, poses, people by track id)."""
+    """Consecutive frames (frame_index, time_s, image, people, descriptions) tracked at once:
+    (frame_index, time_s, image, poses, people by track id) each."""
     results = tracker.track_frames([(i, t, p, d) for i, t, _, p, d in chunk])
     for (index, time_s, image, _, _), (poses, people) in zip(chunk, results, strict=True):
         yield index, time_s, image, poses, people
 
 
 def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | None) -> None:
-    """Teach the tracker the empty scene: the clean plate ``background`` when given; else the
-    median of frames spread over the video at the extractor's working size (no 25 full 4K
-    frames in memory, no blur from scaling up and down), and for an extractor with
-    ``learn_zone`` the same frames (where a person never leaves the spot)."""
+    """Teach the tracker the empty scene: the clean plate ``background``, else the median of
+    frames spread over the video at the extractor's working size (no blur from scaling), and
+    for an extractor with ``learn_zone`` those frames."""
     if background is not None:
         from tracker.clean_plate import check_plate
         check_plate(source, background)
@@ -314,10 +296,7 @@ def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | N
         return
     median, frames = sampled_background(source, tracker)
     full = (source.width, source.height)
-    if (median.shape[1], median.shape[0]) == full:
-        tracker.prime(median)
-    else:
-        tracker.prime(median, frame_size=full)
+    tracker.prime(median, frame_size=None if median.shape[1::-1] == full else full)
     learn_zone = getattr(tracker.extractor, "learn_zone", None)
     if learn_zone is not None:
         learn_zone(frames)
@@ -333,8 +312,7 @@ def sampled_background(source: VideoSource, tracker: PoseTracker
     frames = source.sample_frames(tracker.settings.background_samples, size=size)
     if not frames:
         raise nothing_decodes(source)
-    # Black or white frames (before a fade-in, a cut to white) are no picture of the scene: a
-    # median of mostly black samples made every later frame one whole-image "person".
+    # Black or white frames (before a fade-in) are no picture of the scene.
     scenes = [f for f in frames if not _blank(f)]
     frames = scenes or frames
     return median_background(frames), frames
@@ -350,8 +328,7 @@ def nothing_decodes(source: VideoSource) -> VideoError:
 def _blank(frame: np.ndarray, max_spread: float = 3.0, dark: float = 16.0,
            bright: float = 240.0) -> bool:
     """Whether a frame (BGR uint8 (h, w, 3)) is black or white all over: its grey levels'
-    standard deviation (every 4th pixel) under max_spread and their mean under ``dark`` or
-    over ``bright`` (a plain backdrop is flat too, 0.5 after mp4v, but a picture)."""
+    spread under max_spread, their mean under ``dark`` or over ``bright``."""
     grey = frame[::4, ::4].mean(axis=2)
     return float(grey.std()) < max_spread and not dark <= float(grey.mean()) <= bright
 
@@ -361,8 +338,8 @@ _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 @contextlib.contextmanager
 def _signals_held() -> Iterator[list[int]]:
-    """Hold back Ctrl-C, SIGTERM and SIGHUP inside the block (main thread only; elsewhere
-    Python delivers no signals anyway); yields the list of those received meanwhile."""
+    """Hold back the stop signals inside the block (main thread only); yields the list of
+    those received."""
     held: list[int] = []
     previous = {}
     if threading.current_thread() is threading.main_thread():
@@ -381,9 +358,8 @@ def _signals_held() -> Iterator[list[int]]:
 
 @contextlib.contextmanager
 def _stop_signals_blocked() -> Iterator[None]:
-    """Block the stop signals while their handlers are swapped (one arriving between two
-    swaps would raise there); one that came is delivered on leaving (where the platform can
-    block signals)."""
+    """Block the stop signals while their handlers are swapped; one that came is delivered on
+    leaving."""
     if not hasattr(signal, "pthread_sigmask"):
         yield
         return
@@ -396,9 +372,8 @@ def _stop_signals_blocked() -> Iterator[None]:
 
 def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]
                     ) -> list[str]:
-    """RTS-smooth every track's poses, draw them at the track's smoothed root path (the
-    tracker's own roots, not the streamed poses', which a fixed-lag smoother moved), and feed
-    them to the sinks in frame order; returns _feed's problems."""
+    """Feed the sinks every track's poses RTS-smoothed, drawn at the tracker's smoothed root
+    path, in frame order; returns _feed's problems."""
     records = recorder.by_track()
     redrawn = {track_id: drawn_at(list(zip(poses, tracker.smoothed_track(track_id),
                                            tracker.smoothed_root_path(track_id))))
@@ -408,8 +383,7 @@ def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequenc
 
 
 def _feed(poses, sinks: Sequence[Sink]) -> list[str]:
-    """Write every pose to every sink; a sink that fails is fed no more, the others are fed
-    on. Returns one line per failed sink (tracker.outputs.problem_line)."""
+    """Write every pose to every sink, a failed one no more; one problem line per failure."""
     live, problems = list(sinks), []
     for pose in poses:
         for sink in list(live):
