@@ -1,10 +1,6 @@
 """Video to tracked 3-D poses: silhouettes, filtering, outputs and the ``track`` command.
-
-Public API: track_video, TrackRun, PoseTracker, TrackerSettings, TrackedPose (what sinks
-receive), Sink (the output protocol) and PoseRecorder (a sink keeping poses in memory), loaded
-on first use, so that submodules (``python -m tracker.outputs.meshcat_server``) do not pay for
-the filter's imports.
-"""
+The public names (_PUBLIC) are loaded on first use: a submodule run alone
+(``python -m tracker.outputs.meshcat_server``) does not pay for the filter's imports."""
 from importlib import import_module
 
 _PUBLIC = {"PoseTracker": "pipeline", "TrackedPose": "pipeline", "TrackerSettings": "pipeline",

@@ -1,10 +1,7 @@
-"""The ``track`` command: 3-D poses of the people in a static-camera video (``track --help``).
-
-Errors print one line and exit non-zero; Ctrl-C stops cleanly, every output written so far
-valid; outputs never overwrite an input or each other, nor an earlier file until complete.
-Only the standard library is imported at module level (numpy, OpenCV and the model inside
-main(), where a Ctrl-C during those imports is caught like any other).
-"""
+"""The ``track`` command (``track --help``). Errors print one line and exit non-zero; Ctrl-C
+stops cleanly, every output so far valid; outputs never overwrite an input or each other, nor
+an earlier file until complete. Only the standard library is imported at module level (numpy,
+OpenCV and the model inside main(), where a Ctrl-C during their import is caught too)."""
 from __future__ import annotations
 
 import argparse
@@ -22,9 +19,8 @@ EXIT_ERROR, EXIT_USAGE = 1, 2   # a failed run; argparse's status for a usage er
 EXIT_INTERRUPTED = 130          # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
 ZONE_FOREGROUND = {"sure": True, "colour": False}   # -> TrackerSettings.trust_zone_foreground
 #: --workers by default: a second process where this process may run on a second core.
-_CORES = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-          else os.cpu_count() or 1)
-DEFAULT_WORKERS = 2 if _CORES >= 2 else 1
+DEFAULT_WORKERS = 2 if (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                        else os.cpu_count() or 1) >= 2 else 1
 #: Copies of constants of modules that load numpy or OpenCV, so that parsing the options loads
 #: neither (tests keep each pair equal): tracker.video.sources.SOURCES and INSTALL_HINT,
 #: tracker.tracks.fixed_lag.MAX_LAG_S, tracker.video.decode.MAX_FPS, and
@@ -149,9 +145,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="the video's frame rate, frames/s, where its file's is missing or wrong "
                          f"(above 0, at most {MAX_FPS:g}; default: the file's)")
     ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
-                    help="the camera's roll: how far the scene's vertical leans clockwise in "
-                         "the image, degrees (silhouettes are turned upright; within "
-                         f"+-{MAX_ROLL_DEG:g}; default 0)")
+                    help="the camera's roll: how far the scene's vertical leans clockwise, "
+                         f"degrees (silhouettes are turned upright; within +-{MAX_ROLL_DEG:g})")
     ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
                     help="for a person who stays in one place: where the background is "
                          "unreliable, let colour decide on the foreground too (default: fewer "
@@ -162,9 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
                          f"{MIN_AREA_RANGE_PERCENT[0]:g} to {MIN_AREA_RANGE_PERCENT[1]:g}); "
                          "lower it for people far away, raise it against clutter")
     ap.add_argument("--workers", type=int, choices=(1, 2), default=DEFAULT_WORKERS,
-                    help="processes: 2 finds the people in a second one (about 1.7x the frames "
-                         f"per second, the same poses; not with --view) (default "
-                         f"{DEFAULT_WORKERS} on this machine)")
+                    help="2 finds the people in a second process (about 1.7x the frames per "
+                         "second, the same poses; not with --view), 1 keeps to one process "
+                         f"(default {DEFAULT_WORKERS} on this machine)")
     ap.add_argument("--silhouettes", choices=SILHOUETTE_SOURCES, default="auto",
                     help="background subtraction (a still camera, people who move), a person "
                          f"segmenter (needs {SEGMENT_INSTALL}), or auto (default): the segmenter "
@@ -281,9 +276,7 @@ def smoothing(args) -> bool:
 
 def lag_seconds(args) -> float:
     """The fixed-lag smoothing's lag, seconds (--lag, else VIEW_LAG_S with --view, else 0)."""
-    if args.lag is not None:
-        return float(args.lag)
-    return VIEW_LAG_S if args.view else 0.0
+    return float(args.lag) if args.lag is not None else VIEW_LAG_S if args.view else 0.0
 
 
 def streamed_kind(args) -> str:
@@ -294,8 +287,7 @@ def streamed_kind(args) -> str:
 
 def _min_area_fraction(args) -> float:
     """--min-area as a fraction of the image (the default when not given)."""
-    percent = DEFAULT_MIN_AREA_PERCENT if args.min_area is None else args.min_area
-    return percent / 100.0
+    return (DEFAULT_MIN_AREA_PERCENT if args.min_area is None else args.min_area) / 100.0
 
 
 def _sink_factories(args, source, model) -> tuple[list, list]:
@@ -508,9 +500,8 @@ def one_line_warning(prog: str):
 
 def main(argv=None) -> int:
     """Entry point of the ``track`` console script."""
-    # SIGTERM and SIGHUP (terminal closed) stop like Ctrl-C: outputs are closed, not cut off.
-    # A signal the shell ignores (nohup, a background job's Ctrl-C) stays ignored. Only the
-    # main thread may set handlers: called from another thread, main() leaves them alone.
+    # SIGTERM and SIGHUP stop like Ctrl-C; a signal the shell ignores (nohup) stays ignored.
+    # Only the main thread may set handlers: from another thread main() leaves them alone.
     global _previous_unraisable_hook
     _interrupts.clear()
     previous = ({number: signal.getsignal(number) for number in _STOP_SIGNALS}

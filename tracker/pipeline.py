@@ -1,14 +1,12 @@
-"""The per-frame tracking: frame -> people -> track ids -> pose per track, filtered.
-
-The regressor side is a regressor.estimator.PoseEstimator (PoseModel is one); front/back is
-decided per track by tracker.tracks.hypotheses.FrontBackTracker (one filter per hypothesis).
-The silhouette extractor, the associator and the filter factory are injectable.
+"""The per-frame tracking: frame -> people -> track ids -> pose per track, filtered. The
+regressor is a PoseEstimator; front/back is decided per track by hypotheses.FrontBackTracker.
 """
 from __future__ import annotations
 
 import time
 from collections import defaultdict
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import Protocol
@@ -162,6 +160,16 @@ def default_extractor(settings: TrackerSettings, **options) -> SilhouetteExtract
                                min_area_fraction=settings.min_area_fraction, **options)
 
 
+@contextmanager
+def timed(stages: dict[str, float], stage: str) -> Iterator[None]:
+    """Add the block's wall time, seconds, to stages[stage] (PoseTracker.stage_seconds)."""
+    clock = time.perf_counter()
+    try:
+        yield
+    finally:
+        stages[stage] += time.perf_counter() - clock
+
+
 #: A person's descriptor (D,) and its mirror image's (D,) or None: PoseTracker.describe.
 Description = tuple[np.ndarray, "np.ndarray | None"]
 
@@ -215,42 +223,31 @@ class PoseTracker:
     def find_people(self, frame: np.ndarray) -> list[PersonMask]:
         """The people in one frame (BGR uint8 (H, W, 3)) of a video fed in order."""
         self._set_frame_shape(frame.shape[:2])
-        clock = time.perf_counter()
-        people = self.extractor(frame)[: self.settings.max_people]
-        self._lap("silhouettes", clock)
-        return people
+        with timed(self.stage_seconds, "silhouettes"):
+            return self.extractor(frame)[: self.settings.max_people]
 
     def describe(self, person: PersonMask) -> Description | None:
         """A person's upright silhouette descriptor (D,) and its mirror image's (D,) or None;
         None for a sliver. Needs only the mask and the settings (tracker.frame_worker)."""
-        clock = time.perf_counter()
-        mask = upright_mask(person.mask, self.settings.roll_deg)
-        try:
-            if self._mirror:
-                description = self.estimator.describe_with_mirror(mask)
-            else:
-                description = (self.estimator.describe(mask), None)
-        except SilhouetteError:
-            description = None
-        self._lap("descriptor", clock)
-        return description
-
-    def track_people(self, frame_index: int, time_s: float, people: Sequence[PersonMask],
-                     descriptions: Sequence[Description | None] | None = None
-                     ) -> list[TrackedPose]:
-        """The poses of one frame's people; descriptions: describe()'s, or None: made here."""
-        return self.track_frames([(frame_index, time_s, people, descriptions)])[0][0]
+        with timed(self.stage_seconds, "descriptor"):
+            mask = upright_mask(person.mask, self.settings.roll_deg)
+            try:
+                if self._mirror:
+                    return self.estimator.describe_with_mirror(mask)
+                return self.estimator.describe(mask), None
+            except SilhouetteError:
+                return None
 
     def track_frames(self, frames: Sequence[tuple]) -> list[tuple[list[TrackedPose], dict]]:
-        """track_people for consecutive frames, each (frame_index, time_s, people,
-        descriptions): per frame (its poses, its people by track id). The poses are regressed
-        in one batch (the same results to ~1e-5 degrees), the rest goes frame by frame."""
+        """The poses of consecutive frames, each (frame_index, time_s, people (find_people's),
+        descriptions (describe()'s, or None: made here)): per frame (its poses, its people by
+        track id). The poses are regressed in one batch (the same results to ~1e-5 degrees),
+        the rest goes frame by frame."""
         rows, people_by_frame = [], []
         for slot, (frame_index, time_s, people, descriptions) in enumerate(frames):
-            clock = time.perf_counter()
-            matches = self.associator.update(people)
+            with timed(self.stage_seconds, "association"):
+                matches = self.associator.update(people)
             people_by_frame.append(dict(matches))
-            self._lap("association", clock)
             known = ({} if descriptions is None
                      else {id(person): d for person, d in zip(people, descriptions, strict=True)})
             for track_id, person in matches:
@@ -292,49 +289,40 @@ class PoseTracker:
     def _stack(self, state: _TrackState, description: Description
                ) -> tuple[np.ndarray, np.ndarray | None]:
         """The track's stacked descriptor (k*D,) and its mirror images' (or None)."""
-        clock = time.perf_counter()
-        descriptor, mirrored = description
-        stacked = state.stacker.push(descriptor)
-        if mirrored is not None:
-            mirrored = state.mirror_stacker.push(mirrored)
-        self._lap("regression", clock)
-        return stacked, mirrored
+        with timed(self.stage_seconds, "regression"):
+            descriptor, mirrored = description
+            if mirrored is not None:
+                mirrored = state.mirror_stacker.push(mirrored)
+            return state.stacker.push(descriptor), mirrored
 
     def _regress(self, stacked: list[np.ndarray], mirrored: list[np.ndarray | None]
                  ) -> tuple[list, list[float | None]]:
         """The hypotheses and novelty of stacked descriptors (each (k*D,)), in one batch."""
-        clock = time.perf_counter()
-        X = np.asarray(stacked, dtype=np.float64)
-        X_mirror = None if mirrored[0] is None else np.asarray(mirrored, dtype=np.float64)
-        estimates = self.estimator.hypotheses(X, DEFAULT_EXPERTS, mirrored=X_mirror,
-                                              novelty=self.settings.novelty)
-        hypotheses = hypotheses_from(estimates, canonical_priors(self.estimator))
-        novelty = ([float(v) for v in estimates.novelty] if self.settings.novelty
-                   else [None] * len(X))
-        self._lap("regression", clock)
-        return hypotheses, novelty
+        with timed(self.stage_seconds, "regression"):
+            X = np.asarray(stacked, dtype=np.float64)
+            X_mirror = None if mirrored[0] is None else np.asarray(mirrored, dtype=np.float64)
+            estimates = self.estimator.hypotheses(X, DEFAULT_EXPERTS, mirrored=X_mirror,
+                                                  novelty=self.settings.novelty)
+            novelty = ([float(v) for v in estimates.novelty] if self.settings.novelty
+                       else [None] * len(X))
+            return hypotheses_from(estimates, canonical_priors(self.estimator)), novelty
 
     def _decide(self, track_id: int, person: PersonMask, hypotheses):
         """A track's front/back decision (hypotheses.Decision) for one frame."""
         state = self._state(track_id)
-        clock = time.perf_counter()
-        decision = state.hypotheses.step(hypotheses)
         state.frames += 1
-        self._lap("filter", clock)
-        return decision
+        with timed(self.stage_seconds, "filter"):
+            return state.hypotheses.step(hypotheses)
 
     def _skeletons(self, decisions: list, people: list[PersonMask]) -> np.ndarray:
         """The joints (N, 18, 3) metres of the decisions' filtered poses, on the ground."""
-        clock = time.perf_counter()
         h, w = self.frame_shape
-        ground = np.array([ground_position_from_image(p.centroid, p.bbox[3], w, h,
-                                                      focal_px=self._focal_px) for p in people])
-        joints = pose_joints_m(np.array([d.filtered for d in decisions]), root_position_m=ground)
-        self._lap("skeleton", clock)
-        return joints
-
-    def _lap(self, stage: str, since: float) -> None:
-        self.stage_seconds[stage] += time.perf_counter() - since
+        with timed(self.stage_seconds, "skeleton"):
+            ground = np.array([ground_position_from_image(p.centroid, p.bbox[3], w, h,
+                                                          focal_px=self._focal_px)
+                               for p in people])
+            return pose_joints_m(np.array([d.filtered for d in decisions]),
+                                 root_position_m=ground)
 
     def smoothed_track(self, track_id: int, start: int = 0, stop: int | None = None
                        ) -> np.ndarray:

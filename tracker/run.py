@@ -1,5 +1,5 @@
-"""THE tracking loop: open the video, learn its background, track every frame, feed the sinks
-(the ``track`` command's, the evaluation's and scripts/bench_track.py's). From a notebook::
+"""THE tracking loop (``track``'s, the evaluation's, the benchmark's): open the video, learn
+its background, track every frame, feed the sinks. From a notebook::
 
     from tracker import PoseRecorder, track_video
     recorder = PoseRecorder()
@@ -23,7 +23,7 @@ import numpy as np
 from regressor.errors import SilhouettePoseError
 from tracker.tracks.fixed_lag import FixedLagSmoother, drawn_at, streamed_kind
 from tracker.frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
-from tracker.pipeline import PoseTracker
+from tracker.pipeline import PoseTracker, timed
 from tracker.video.silhouettes import median_background
 from tracker.outputs import PoseRecorder, Sink, close_sinks, problem_line
 from tracker.video.decode import VideoError, VideoSource, open_video
@@ -172,8 +172,7 @@ class _Run:
     def emit(self, stopped: bool = False) -> bool:
         """Hand the next due frame to the outputs, stop signals held (they act between frames);
         whether one came. stopped: after a stop, to the files only, no progress update."""
-        clock = time.perf_counter()
-        with _signals_held() as held:
+        with timed(self.stages, "outputs"), _signals_held() as held:
             index, time_s, frame, poses, people = self.due.popleft()
             showing, fed = ([], self.files) if stopped else (self.watching, self.streaming)
             for sink in fed:
@@ -189,7 +188,6 @@ class _Run:
                 sink.write_frame(index, time_s, frame, people)
             for sink in fed + self.smoothed_sinks:   # frames with nobody count too
                 sink.end_frame(index)
-        self.stages["outputs"] += time.perf_counter() - clock
         if self.progress is not None and not stopped:
             self.progress.update(len(poses))
         return bool(held)
@@ -258,13 +256,9 @@ def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> li
 
 def _smoother_step(stages, step, *args) -> bool:
     """A fixed-lag smoother's push or flush, timed, stop signals held; whether one came."""
-    clock = time.perf_counter()
-    try:
-        with _signals_held() as held:
-            step(*args)
-        return bool(held)
-    finally:
-        stages["fixed-lag smoothing"] += time.perf_counter() - clock
+    with timed(stages, "fixed-lag smoothing"), _signals_held() as held:
+        step(*args)
+    return bool(held)
 
 
 def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
