@@ -609,8 +609,8 @@ def test_novelty_is_reported_per_pose_by_default_and_unfamiliar_frames_are_count
     tracker = PoseTracker(model, 30.0)
     summary = JsonSummarySink(tmp_path / "n.json", 30.0)
     result = track_video(walk, tracker, sinks=[summary])
-    (state,) = tracker.tracks.values()
-    assert state.frames == len(rows) >= 30 and state.unfamiliar == (len(rows) + 1) // 2
+    (state,) = result.written.values()          # the poses written, and the unfamiliar
+    assert state.poses == len(rows) >= 30 and state.unfamiliar == (len(rows) + 1) // 2
     (track,) = json.loads((tmp_path / "n.json").read_text())["tracks"]
     assert track["novelty"][:4] == [2.0, 0.5, 2.0, 0.5]
     assert track["unfamiliar_frames"] == state.unfamiliar
@@ -619,8 +619,8 @@ def test_novelty_is_reported_per_pose_by_default_and_unfamiliar_frames_are_count
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
         _print_summary(args, source, result)
-    assert (f"{state.frames} frames; {state.unfamiliar} of them "
-            f"({state.unfamiliar / state.frames:.0%}) unlike the training silhouettes") \
+    assert (f"{state.poses} frames; {state.unfamiliar} of them "
+            f"({state.unfamiliar / state.poses:.0%}) unlike the training silhouettes") \
         in out.getvalue()
 
 

@@ -18,13 +18,11 @@ from regressor.errors import SilhouettePoseError
 EXIT_ERROR, EXIT_USAGE = 1, 2   # a failed run; argparse's status for a usage error
 EXIT_INTERRUPTED = 130          # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
 ZONE_FOREGROUND = {"sure": True, "colour": False}   # -> TrackerSettings.trust_zone_foreground
-#: --workers by default: a second process where this process may run on a second core.
 DEFAULT_WORKERS = 2 if (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                        else os.cpu_count() or 1) >= 2 else 1
-#: Copies of constants of modules that load numpy or OpenCV, so that parsing the options loads
-#: neither (tests keep each pair equal): tracker.video.sources.SOURCES and INSTALL_HINT,
-#: tracker.tracks.fixed_lag.MAX_LAG_S, tracker.video.decode.MAX_FPS, and
-#: tracker.video.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent.
+                        else os.cpu_count() or 1) >= 2 else 1    # 2 with a core to spare
+#: Copies (tests keep them equal) of constants of modules that load numpy or OpenCV, so that
+#: parsing the options loads neither: video.sources.SOURCES and INSTALL_HINT, fixed_lag's
+#: MAX_LAG_S, video.decode.MAX_FPS, video.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent.
 SILHOUETTE_SOURCES = ("background", "segment", "auto")
 SEGMENT_INSTALL = "pip install 'silhouette-pose[segment]'"
 MAX_LAG_S, MAX_FPS, DEFAULT_MIN_AREA_PERCENT = 10.0, 1000.0, 0.15
@@ -37,12 +35,12 @@ MIN_AREA_RANGE_PERCENT = (0.01, 20.0)
 #: What ``track`` alone prints: the usage's first line, and where the rest is.
 SHORT_USAGE = ("usage: track VIDEO [--out FILE.mcap] [--json FILE] [--bvh DIR] [--view] "
                "[options]\ntrack: give a video file to track (track --help lists the options)\n")
-#: A URL's scheme (rtsp://, http://, file://): Path would collapse its // into one slash.
-_URL = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://")
-#: Stop signals received during main(), so that one whose KeyboardInterrupt something swallowed
-#: still stops the command (check_interrupted; docs/tuning.md).
+_URL = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://")   # rtsp://, ... (Path would drop a /)
+#: Stop signals received during main(), also if their KeyboardInterrupt was swallowed
+#: (docs/tuning.md).
 _interrupts: list[int] = []
-_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+_previous_unraisable_hook = sys.unraisablehook
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)     # also tracker.run's
 
 
 def quiet_decoder_logs() -> None:
@@ -76,13 +74,33 @@ def _unraisable_interrupt_recorded(unraisable) -> None:
     _previous_unraisable_hook(unraisable)
 
 
-_previous_unraisable_hook = sys.unraisablehook
-
-
 def check_interrupted() -> None:
     """Raise KeyboardInterrupt if a stop signal came during main(), even if it was caught."""
     if _interrupts:
         raise KeyboardInterrupt
+
+
+class _Progress:
+    """track_video's progress: a bar on stderr (frames, frames/s, people in view) on a terminal
+    without --quiet; after each frame, a check for a stop signal something swallowed."""
+
+    def __init__(self, total: int | None, quiet: bool):
+        self._bar = None
+        if not quiet and hasattr(sys.stderr, "isatty") and sys.stderr.isatty():
+            from tqdm import tqdm
+            self._bar = tqdm(total=total, unit="frame", file=sys.stderr, dynamic_ncols=True,
+                             mininterval=0.25)
+
+    def update(self, people_in_view: int) -> None:
+        if self._bar is not None:
+            self._bar.update(1)
+            self._bar.set_postfix_str(f"people {people_in_view}", refresh=False)
+        check_interrupted()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
 
 
 class TrackError(SilhouettePoseError):
@@ -133,8 +151,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "that followed it: closer to the body than the filter's; 0: the filtered "
                     f"poses at once (default {VIEW_LAG_S:g} with --view, else 0; at most "
                     f"{MAX_LAG_S:g})")
-    ap.add_argument("--model", type=Path, default=None, help="model file "
-                    "(default: the shipped model)")
+    ap.add_argument("--model", type=Path, help="model file (default: the shipped model)")
     ap.add_argument("--background", type=Path, metavar="IMAGE", help="an image of the empty "
                     "scene (clean plate) from the same camera (default: learned from the video)")
     ap.add_argument("--max-people", type=int, default=None, metavar="N",
@@ -226,12 +243,8 @@ def _check_writable(option: str, path: Path, in_place: bool) -> None:
 
 
 def _same_file(a: Path, b: Path) -> bool:
-    from tracker.outputs.files import OutputPathError, check_distinct
-    try:
-        check_distinct([("", a), ("", b)])
-    except OutputPathError:
-        return True
-    return False
+    from tracker.outputs.files import file_identity
+    return file_identity(a) == file_identity(b)
 
 
 def _check_collisions(args) -> None:
@@ -239,8 +252,7 @@ def _check_collisions(args) -> None:
     relative path, a symlink or a hard link."""
     from regressor.pose_model import DEFAULT_MODEL_PATH
     from tracker.outputs.files import check_distinct, partial_path
-    named = [("the input video", args.video),
-             ("the model", args.model or DEFAULT_MODEL_PATH)]
+    named = [("the input video", args.video), ("the model", args.model or DEFAULT_MODEL_PATH)]
     if args.background is not None:
         named.append(("the --background image", args.background))
     for path, what in ((args.out, "--out"), (args.json, "--json")):
@@ -364,7 +376,6 @@ def _run(args) -> int:
     from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
     from tracker.run import BackgroundMismatchError, OutputError
     from tracker.outputs.files import OutputWriteError
-
     _check_options(args)
     args.model = args.model or DEFAULT_MODEL_PATH
     model = load_pose_model(args.model)
@@ -389,14 +400,12 @@ def _run(args) -> int:
         try:
             _print_summary(args, source, result, sinks)
         except BrokenPipeError:
-            # Whoever read the summary stopped (``track ... | head -1``): the outputs are
-            # complete; nothing more to the closed pipe, not even the interpreter's last flush.
+            # The reader stopped (``track ... | head -1``): nothing more to it, even at exit.
             sys.stdout = open(os.devnull, "w")
     if result.interrupted:
         return EXIT_INTERRUPTED
     if not result.written:
-        # Nobody tracked: no outputs written (track_video's write_empty), so an earlier run's
-        # files of those names are still there.
+        # Nobody tracked: no outputs written (write_empty), earlier files of their names kept.
         raise TrackError(f"{args.video}: nobody found in its {result.frames} frames (a person "
                          f"must move against a still background and cover at least "
                          f"{100 * _min_area_fraction(args):g} % of the image: --min-area); "
@@ -408,12 +417,10 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
     """Open the outputs and track the video into them: (TrackRun, the sinks). A run that
     ends before its first pose leaves every file of the outputs' names as it was."""
     from tracker.pipeline import PoseTracker
-    from tracker.progress import Progress
     from tracker.run import track_video
     from tracker.video.sources import silhouette_extractor
     from tracker.outputs import close_sinks, open_sinks
     from tracker.outputs.files import OutputBusyError, OutputWriteError
-
     streaming, smoothed = _sink_factories(args, source, model)
     try:
         sinks = open_sinks(streaming + smoothed)   # a refusal abandons those opened before
@@ -425,13 +432,11 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
         tracker = PoseTracker(model, source.fps, settings,
                               extractor=silhouette_extractor(args.silhouettes, settings))
         result = track_video(source, tracker, sinks[:len(streaming)],
-                             Progress(source.expected_frames(), quiet=args.quiet,
-                                      after_update=check_interrupted),
+                             _Progress(source.expected_frames(), args.quiet),
                              smoothed_sinks=sinks[len(streaming):], background=plate,
                              workers=args.workers, lag_s=lag_seconds(args), write_empty=False)
     except BaseException:
-        # Sinks track_video closed (or abandoned) stay so (both are idempotent); those it
-        # never took are abandoned: the MCAP's finalizer would finish an empty recording.
+        # Those track_video never took are abandoned (the MCAP's finalizer would finish it).
         close_sinks(sinks, abandon=True)
         raise
     return result, sinks
@@ -500,11 +505,10 @@ def one_line_warning(prog: str):
 
 def main(argv=None) -> int:
     """Entry point of the ``track`` console script."""
-    # SIGTERM and SIGHUP stop like Ctrl-C; a signal the shell ignores (nohup) stays ignored.
-    # Only the main thread may set handlers: from another thread main() leaves them alone.
+    # SIGTERM and SIGHUP stop like Ctrl-C, unless ignored (nohup); main thread only.
     global _previous_unraisable_hook
     _interrupts.clear()
-    previous = ({number: signal.getsignal(number) for number in _STOP_SIGNALS}
+    previous = ({number: signal.getsignal(number) for number in STOP_SIGNALS}
                 if threading.current_thread() is threading.main_thread() else {})
     for number, handler in previous.items():
         if handler != signal.SIG_IGN:

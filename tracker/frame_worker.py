@@ -67,9 +67,8 @@ def can_fork() -> bool:
 
 
 class FrameWorker:
-    """Runs described_chunks over ``source`` with a copy of the primed ``tracker`` in a forked
-    process; after the last frame, ``stage_seconds``, ``frames_read`` and ``truncated`` are
-    the worker's. Close it."""
+    """described_chunks over ``source`` with a copy of the primed ``tracker`` in a forked
+    process; then ``stage_seconds``, ``frames_read`` and ``truncated`` are its. Close it."""
 
     def __init__(self, source, tracker, batch: int = BATCH_FRAMES):
         self.stage_seconds: dict[str, float] = {}
@@ -79,8 +78,7 @@ class FrameWorker:
         self._process = context.Process(target=_work, name="silhouette-pose frame worker",
                                         args=(self._reader, writer, source, tracker, batch),
                                         daemon=True)
-        # OpenCV's thread count is set before the fork: a child resizing a thread pool it
-        # inherited without its threads can hang.
+        # Set before the fork: a child resizing a thread pool it inherited can hang.
         threads = cv2.getNumThreads()
         cv2.setNumThreads(1)
         try:

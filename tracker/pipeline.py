@@ -81,8 +81,7 @@ class PoseFilter(Protocol):
     def rts_smooth(self, raws: np.ndarray) -> np.ndarray: ...
 
 
-#: fps -> a new filter.
-FilterFactory = Callable[[float], PoseFilter]
+FilterFactory = Callable[[float], PoseFilter]       # fps -> a new filter
 
 
 def kalman_factory(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings()
@@ -100,9 +99,8 @@ def kalman_factory(estimator: PoseEstimator, settings: TrackerSettings = Tracker
 def filter_factories(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings(),
                      filter_factory: FilterFactory | None = None
                      ) -> tuple[FilterFactory, FilterFactory | None]:
-    """(the front/back hypotheses' filter factory, the body angles' one or None): a custom
-    filter_factory gives the whole pose; so does the default for a model fitted on canonical
-    members (its raw limbs may be the other body's)."""
+    """(front/back hypotheses' filter factory, body angles' or None): None with a custom one,
+    and for a model fitted on canonical members (its raw limbs may be the other body's)."""
     if filter_factory is not None:
         return filter_factory, None
     limbs = (None if estimator.canonical_direction is not None else kalman_factory(
@@ -150,7 +148,6 @@ class _TrackState:
     hypotheses: FrontBackTracker
     mirror_stacker: FrameStacker | None = None      # the mirror images' (mirror_limbs only)
     frames: int = 0                                  # frames with a pose
-    unfamiliar: int = 0                              # of them, novelty > UNFAMILIAR_NOVELTY
 
 
 def default_extractor(settings: TrackerSettings, **options) -> SilhouetteExtractor:
@@ -192,17 +189,13 @@ class PoseTracker:
             max_occluded=max(1, round(MAX_OCCLUDED_S * self.fps)))
         self._filter_factory = filter_factory
         self._mirror = sees_mirror(estimator, settings.mirror_limbs)
-        #: Frames between a track's stacked descriptors, as far apart in time as in training.
-        self.stack_step = stack_step(self.fps, estimator.training_fps)
+        self.stack_step = stack_step(self.fps, estimator.training_fps)  # as apart as in training
         self.frame_shape: tuple[int, int] | None = None      # (height, width) pixels
         self._focal_px = 0.0
         self.tracks: dict[int, _TrackState] = {}
-        #: Every pose's root as placed here, by track (keep_history only: smoothed_root_path).
-        self.roots = RootHistory()
-        #: Track id -> silhouette of each person in the frame processed last (for drawing).
-        self.people: dict[int, PersonMask] = {}
-        #: Seconds spent per stage so far (silhouettes, association, ...), for benchmarks.
-        self.stage_seconds: dict[str, float] = defaultdict(float)
+        self.roots = RootHistory()          # each pose's root as placed, by track (keep_history)
+        self.people: dict[int, PersonMask] = {}     # by track id, of the last frame (drawing)
+        self.stage_seconds: dict[str, float] = defaultdict(float)   # seconds, for benchmarks
 
     def prime(self, background: np.ndarray, frame_size: tuple[int, int] | None = None) -> None:
         """Learn the empty scene from a background (BGR uint8 (H, W, 3)) at the frames' size,
@@ -271,7 +264,6 @@ class PoseTracker:
                 pose = TrackedPose(frame_index, time_s, track_id, h.raw, d.filtered, d.ambiguous,
                                    j, person.centroid, person.bbox, d.runner_up,
                                    d.runner_up_probability, n)
-                self.tracks[track_id].unfamiliar += pose.unfamiliar
                 if self.settings.keep_history:
                     self.roots.add(track_id, frame_index, j[0])
                 poses[slot].append(pose)
@@ -326,9 +318,8 @@ class PoseTracker:
 
     def smoothed_track(self, track_id: int, start: int = 0, stop: int | None = None
                        ) -> np.ndarray:
-        """RTS-smoothed poses (n, 55) of a track's poses start..stop-1 (from its first; all by
-        default) as if they were the whole track, on the most probable (Viterbi) front/back
-        sequence; needs settings.keep_history."""
+        """RTS-smoothed poses (n, 55) of a track's poses start..stop-1 (default all) as if they
+        were the whole track, on the Viterbi front/back sequence; needs keep_history."""
         if not self.settings.keep_history:
             raise ValueError("smoothed_track needs TrackerSettings(keep_history=True)")
         return self.tracks[track_id].hypotheses.smoothed(start, stop)

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
+from tracker.cli import STOP_SIGNALS
 from tracker.tracks.fixed_lag import FixedLagSmoother, drawn_at, streamed_kind
 from tracker.frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from tracker.pipeline import PoseTracker, timed
@@ -47,9 +48,8 @@ class WrittenPoses:
 
 @dataclass
 class TrackRun:
-    """What a run did: frames handed to the outputs, wall time (s, priming to closed outputs),
-    whether a stop signal interrupted it, the tracker, per track id the poses the outputs hold,
-    and whether the smoothed sinks got the smoothed tracks (not after a quick exit)."""
+    """What a run did: frames handed to the outputs, wall time (s), whether a stop interrupted
+    it, the tracker, the poses the outputs hold by track, whether smoothed tracks were fed."""
 
     frames: int
     elapsed_s: float
@@ -64,8 +64,7 @@ class TrackRun:
         return self.frames / self.elapsed_s if self.elapsed_s > 0 else 0.0
 
     def stop_if_interrupted(self) -> TrackRun:
-        """Raise KeyboardInterrupt if a Ctrl-C ended the run early (for a caller that measures
-        it), else return it."""
+        """Raise KeyboardInterrupt if a Ctrl-C ended the run early, else return it."""
         if self.interrupted:
             raise KeyboardInterrupt
         return self
@@ -75,19 +74,15 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                 sinks: Sequence[Sink] = (), progress=None,
                 smoothed_sinks: Sequence[Sink] = (), background: np.ndarray | None = None,
                 workers: int = 1, lag_s: float = 0.0, write_empty: bool = True) -> TrackRun:
-    """Track every frame of ``source`` (an opened video or a path) into ``sinks``.
-
-    tracker: None: the shipped model, default settings. progress: update(people_in_view) and
-    close(). Sinks get each pose, end_frame() after each frame, and if they have write_frame,
-    each frame (BGR uint8, read-only) with its people by track id. smoothed_sinks: fed each
-    whole track RTS-smoothed at the end (after a Ctrl-C, the streamed poses, a ``pose_kind``
-    attribute told which). A failing sink is fed no more; all are closed on return, also on
-    Ctrl-C, stop signals held meanwhile; OutputError names the failures. background: a clean
-    plate (BGR uint8 at the video's size); None: learned (_prime). workers: 2 finds and
-    describes people in a forked process (tracker.frame_worker), same results. lag_s: give
-    the sinks each frame about 2 lag_s late, smoothed (tracker.tracks.fixed_lag). write_empty:
-    False abandons the sinks if no pose was written, keeping earlier files of their names.
-    tracker.stage_seconds gains the run's stages."""
+    """Track every frame of ``source`` (an opened video or a path) into ``sinks``: each pose,
+    end_frame() after each frame, and to sinks with write_frame each frame (BGR uint8,
+    read-only) and its people by track id. tracker: None: the shipped model. progress:
+    update(people_in_view), close(). smoothed_sinks: fed each track RTS-smoothed at the end
+    (after a Ctrl-C the streamed poses). A failing sink is fed no more; all are closed on
+    return, also on Ctrl-C, stop signals held; OutputError names the failures. background: a
+    clean plate (BGR uint8 at the video's size), else learned. workers: 2 describes people in
+    a forked process, same results. lag_s: give the sinks each frame about 2 lag_s late,
+    smoothed (tracks.fixed_lag). write_empty: False abandons the sinks if no pose was written."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
@@ -159,19 +154,16 @@ class _Run:
             elif _smoother_step(self.stages, self.lagged.push, tracked if self.watching
                                 else (*tracked[:2], None, tracked[3], {})):  # poses only
                 raise KeyboardInterrupt
-            self._emit_due()
+            while self.due:
+                self.emit()
         if self.lagged is not None and _smoother_step(self.stages, self.lagged.flush):
             raise KeyboardInterrupt
-        self._emit_due()
-
-    def _emit_due(self) -> None:
         while self.due:
-            if self.emit():
-                raise KeyboardInterrupt
+            self.emit()
 
-    def emit(self, stopped: bool = False) -> bool:
-        """Hand the next due frame to the outputs, stop signals held (they act between frames);
-        whether one came. stopped: after a stop, to the files only, no progress update."""
+    def emit(self, stopped: bool = False) -> None:
+        """Hand the next due frame to the outputs, stop signals held (KeyboardInterrupt after
+        it if one came). stopped: after a stop: to the files only, no progress, no raise."""
         with timed(self.stages, "outputs"), _signals_held() as held:
             index, time_s, frame, poses, people = self.due.popleft()
             showing, fed = ([], self.files) if stopped else (self.watching, self.streaming)
@@ -190,7 +182,8 @@ class _Run:
                 sink.end_frame(index)
         if self.progress is not None and not stopped:
             self.progress.update(len(poses))
-        return bool(held)
+        if held and not stopped:
+            raise KeyboardInterrupt
 
     def close(self, interrupted: bool, write_empty: bool) -> tuple[bool, bool, list[str]]:
         """Finish every output, stop signals held (one just before restarts the closing).
@@ -227,16 +220,23 @@ class _Run:
         return interrupted, smoothed, problems
 
     def _feed_smoothed_sinks(self, interrupted: bool) -> list[str]:
-        """Feed the smoothed sinks each track smoothed, or after a stop the streamed poses;
-        returns problem lines."""
+        """Feed the smoothed sinks each track RTS-smoothed in frame order, or after a stop the
+        streamed poses; returns problem lines."""
         if self.recorder is None:
             return []
-        if not interrupted:
-            return _write_smoothed(self.tracker, self.recorder, self.smoothed_sinks)
-        for sink in self.smoothed_sinks:
-            if hasattr(sink, "pose_kind"):
-                sink.pose_kind = streamed_kind(self.lag_s)
-        return _feed(self.recorder.poses, self.smoothed_sinks)
+        if interrupted:
+            for sink in self.smoothed_sinks:
+                if hasattr(sink, "pose_kind"):
+                    sink.pose_kind = streamed_kind(self.lag_s)
+            return _feed(self.recorder.poses, self.smoothed_sinks)
+        # Drawn at the tracker's smoothed roots, not the streamed poses' (--lag moved those).
+        records, tracker = self.recorder.by_track(), self.tracker
+        redrawn = {track_id: drawn_at(list(zip(poses, tracker.smoothed_track(track_id),
+                                               tracker.smoothed_root_path(track_id))))
+                   for track_id, poses in records.items()}
+        order = sorted((p.frame_index, tid, i) for tid, ps in records.items()
+                       for i, p in enumerate(ps))
+        return _feed((redrawn[track_id][i] for _, track_id, i in order), self.smoothed_sinks)
 
 
 def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> list[str]:
@@ -281,8 +281,7 @@ def _tracked(tracker: PoseTracker, chunk: list[tuple]) -> Iterator[tuple]:
 
 def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | None) -> None:
     """Teach the tracker the empty scene: the clean plate ``background``, else the median of
-    frames spread over the video at the extractor's working size (no blur from scaling), and
-    for an extractor with ``learn_zone`` those frames."""
+    frames spread over the video at the extractor's working size (and those frames)."""
     if background is not None:
         from tracker.clean_plate import check_plate
         check_plate(source, background)
@@ -327,9 +326,6 @@ def _blank(frame: np.ndarray, max_spread: float = 3.0, dark: float = 16.0,
     return float(grey.std()) < max_spread and not dark <= float(grey.mean()) <= bright
 
 
-_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-
-
 @contextlib.contextmanager
 def _signals_held() -> Iterator[list[int]]:
     """Hold back the stop signals inside the block (main thread only); yields the list of
@@ -338,7 +334,7 @@ def _signals_held() -> Iterator[list[int]]:
     previous = {}
     if threading.current_thread() is threading.main_thread():
         with _stop_signals_blocked():
-            for number in _STOP_SIGNALS:
+            for number in STOP_SIGNALS:
                 handler = signal.getsignal(number)
                 if handler is not None and handler != signal.SIG_IGN:
                     previous[number] = signal.signal(number, lambda n, _: held.append(n))
@@ -354,26 +350,11 @@ def _signals_held() -> Iterator[list[int]]:
 def _stop_signals_blocked() -> Iterator[None]:
     """Block the stop signals while their handlers are swapped; one that came is delivered on
     leaving."""
-    if not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    before = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
-
-
-def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]
-                    ) -> list[str]:
-    """Feed the sinks every track's poses RTS-smoothed, drawn at the tracker's smoothed root
-    path, in frame order; returns _feed's problems."""
-    records = recorder.by_track()
-    redrawn = {track_id: drawn_at(list(zip(poses, tracker.smoothed_track(track_id),
-                                           tracker.smoothed_root_path(track_id))))
-               for track_id, poses in records.items()}
-    order = sorted((p.frame_index, tid, i) for tid, ps in records.items() for i, p in enumerate(ps))
-    return _feed((redrawn[track_id][i] for _, track_id, i in order), sinks)
 
 
 def _feed(poses, sinks: Sequence[Sink]) -> list[str]:
