@@ -163,7 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
                          f"(above 0, at most {MAX_FPS:g}; default: the file's)")
     ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
                     help="the camera's roll: how far the scene's vertical leans clockwise, "
-                         f"degrees (silhouettes are turned upright; within +-{MAX_ROLL_DEG:g})")
+                         f"degrees (silhouettes are turned upright; within +-{MAX_ROLL_DEG:g}; "
+                         "default 0)")
     ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
                     help="for a person who stays in one place: where the background is "
                          "unreliable, let colour decide on the foreground too (default: fewer "
@@ -179,8 +180,9 @@ def build_parser() -> argparse.ArgumentParser:
                          f"(default {DEFAULT_WORKERS} on this machine)")
     ap.add_argument("--silhouettes", choices=SILHOUETTE_SOURCES, default="auto",
                     help="background subtraction (a still camera, people who move), a person "
-                         f"segmenter (needs {SEGMENT_INSTALL}), or auto (default): the segmenter "
-                         "where the camera moves or someone stays put, if installed")
+                         f"segmenter (needs {SEGMENT_INSTALL}), or auto (default): subtraction, "
+                         "but the segmenter where the camera moves or someone stays put (if "
+                         "installed)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
 

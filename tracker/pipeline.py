@@ -151,8 +151,7 @@ class _TrackState:
 
 
 def default_extractor(settings: TrackerSettings, **options) -> SilhouetteExtractor:
-    """The SilhouetteExtractor PoseTracker makes when given none, with the settings' zone rule
-    and smallest person, and ``options`` (e.g. detect_shadows=False)."""
+    """PoseTracker's SilhouetteExtractor: the settings' zone rule and smallest person."""
     return SilhouetteExtractor(trust_zone_foreground=settings.trust_zone_foreground,
                                min_area_fraction=settings.min_area_fraction, **options)
 

@@ -114,9 +114,8 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
 
 def _frames_in(run: _Run, source: VideoSource, tracker: PoseTracker, workers: int
                ) -> Iterator[tuple]:
-    """The tracked frames: from a worker process when asked for and possible (a worker
-    forked after the person segmenter ran would crash), else from here."""
-    segmenter = sys.modules.get("tracker.video.segmenter")
+    """The tracked frames, from a worker process if asked for and possible, else from here."""
+    segmenter = sys.modules.get("tracker.video.segmenter")      # forked after it ran: crashes
     if workers > 1 and not run.watching and can_fork() and not (
             segmenter is not None and segmenter.made_a_graph()):
         run.worker = FrameWorker(source, tracker)          # a copy of the primed tracker
@@ -127,8 +126,7 @@ def _frames_in(run: _Run, source: VideoSource, tracker: PoseTracker, workers: in
 
 
 class _Run:
-    """One run's outputs (``watching``: those that show the video), the frames ``due`` to
-    them, and what was written."""
+    """One run's outputs (``watching``: those showing the video), frames due, and counts."""
 
     def __init__(self, tracker: PoseTracker, sinks, smoothed_sinks, progress, lag_s: float):
         self.tracker, self.progress, self.lag_s = tracker, progress, lag_s
@@ -272,8 +270,8 @@ def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
 
 
 def _tracked(tracker: PoseTracker, chunk: list[tuple]) -> Iterator[tuple]:
-    """Consecutive frames (frame_index, time_s, image, people, descriptions) tracked at once:
-    (frame_index, time_s, image, poses, people by track id) each."""
+    """(frame_index, time_s, image, poses, people by track id) of consecutive frames
+    (frame_index, time_s, image, people, descriptions) tracked at once."""
     results = tracker.track_frames([(i, t, p, d) for i, t, _, p, d in chunk])
     for (index, time_s, image, _, _), (poses, people) in zip(chunk, results, strict=True):
         yield index, time_s, image, poses, people
