@@ -81,8 +81,7 @@ def check_interrupted() -> None:
 
 
 class _Progress:
-    """track_video's progress: a bar on stderr (frames, frames/s, people in view) on a terminal
-    without --quiet; after each frame, a check for a stop signal something swallowed."""
+    """A progress bar on stderr (a terminal, no --quiet); then a check for a swallowed stop."""
 
     def __init__(self, total: int | None, quiet: bool):
         self._bar = None

@@ -171,8 +171,7 @@ Description = tuple[np.ndarray, "np.ndarray | None"]
 
 
 class PoseTracker:
-    """Tracks every person of a static-camera video (frames fed in order). extractor: frame ->
-    people; associator: people -> track ids; filter_factory: see filter_factories."""
+    """Tracks every person of a static-camera video (frames fed in order; filter_factories)."""
 
     def __init__(self, estimator: PoseEstimator, fps: float,
                  settings: TrackerSettings = TrackerSettings(),
@@ -186,7 +185,8 @@ class PoseTracker:
         self._default_extractor = extractor is None
         self.associator = associator or Associator(
             max_occluded=max(1, round(MAX_OCCLUDED_S * self.fps)))
-        self._filter_factory = filter_factory
+        self.filter_factory, self.limb_filter_factory = filter_factories(estimator, settings,
+                                                                         filter_factory)
         self._mirror = sees_mirror(estimator, settings.mirror_limbs)
         self.stack_step = stack_step(self.fps, estimator.training_fps)  # as apart as in training
         self.frame_shape: tuple[int, int] | None = None      # (height, width) pixels
@@ -271,10 +271,12 @@ class PoseTracker:
     def _state(self, track_id: int) -> _TrackState:
         if track_id not in self.tracks:
             depth, step = self.estimator.stack_depth, self.stack_step
-            self.tracks[track_id] = _TrackState(
-                FrameStacker(depth, step), front_back_tracker(
-                    self.estimator, self.fps, self.settings, self._filter_factory),
-                FrameStacker(depth, step) if self._mirror else None)
+            chain = FrontBackTracker(self.filter_factory, self.fps,      # as front_back_tracker's
+                                     **chain_options(self.estimator),
+                                     keep_history=self.settings.keep_history,
+                                     limb_filter_factory=self.limb_filter_factory)
+            self.tracks[track_id] = _TrackState(FrameStacker(depth, step), chain,
+                                                FrameStacker(depth, step) if self._mirror else None)
         return self.tracks[track_id]
 
     def _stack(self, state: _TrackState, description: Description

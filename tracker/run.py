@@ -238,8 +238,7 @@ class _Run:
 
 
 def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> list[str]:
-    """After a stop: write the frames held back to the files (emit(stopped=True)); a problem
-    line if an output failed. Another stop ends this, not the closing."""
+    """After a stop: the frames held back to the files; a problem line if an output failed."""
     try:
         if lagged is not None:
             _smoother_step(stages, lagged.flush)
