@@ -69,7 +69,7 @@ def test_two_processes_give_exactly_the_poses_of_one(walk, model):
 @pytest.mark.slow
 def test_frames_tracked_in_batches_give_the_poses_of_frames_tracked_one_by_one(walk, model):
     """PoseTracker.track_frames (what track_video runs, 8 frames at a time) against
-    track_people frame by frame: the same tracks, front/back decisions and skeletons; poses
+    one frame at a time: the same tracks, front/back decisions and skeletons; poses
     equal to the batched sums' rounding."""
     source = open_video(walk)
     trackers = [PoseTracker(model, source.fps, TrackerSettings()) for _ in range(2)]
@@ -77,7 +77,8 @@ def test_frames_tracked_in_batches_give_the_poses_of_frames_tracked_one_by_one(w
         _prime(source, tracker, None)
     frames = [(index, time_s, trackers[0].find_people(frame)) for index, time_s, frame
               in open_video(walk)]
-    one_by_one = [trackers[0].track_people(i, t, people) for i, t, people in frames]
+    one_by_one = [trackers[0].track_frames([(i, t, people, None)])[0][0]
+                  for i, t, people in frames]
     batched = []
     for start in range(0, len(frames), 8):
         chunk = [(i, t, people, None) for i, t, people in frames[start:start + 8]]

@@ -158,7 +158,8 @@ def test_the_tracker_gives_both_touching_people_a_pose():
     posed_touching = []
     for t, truth in _walk():
         people = _detections(truth)
-        poses = tracker.track_people(t, t / 30.0, people, [tracker.describe(p) for p in people])
+        poses = tracker.track_frames([(t, t / 30.0, people,
+                                       [tracker.describe(p) for p in people])])[0][0]
         if len(people) == 1:
             posed_touching.append(sorted(p.track_id for p in poses))
     assert len(posed_touching) >= 20 and all(ids == [0, 1] for ids in posed_touching)

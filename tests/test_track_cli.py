@@ -634,7 +634,7 @@ def test_a_reader_that_stops_reading_the_summary_fails_nothing(walk_video, tmp_p
 
 
 def test_the_summary_names_the_bvh_files_written_and_an_earlier_runs_left_beside_them(tmp_path):
-    from tracker.cli import _bvh_files
+    from tracker.bvh_option import files_tail as _bvh_files
     for name in ("clip_0.bvh", "clip_12.bvh", "clip_1.bvh", "clipper_1.bvh", "clip_a.bvh",
                  "clip_0.bvh.partial"):
         (tmp_path / name).write_text("")

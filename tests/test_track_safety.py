@@ -29,7 +29,7 @@ from sequences.video import Actor, write_video
 from tests.test_track_cli import (_assert_one_line_error, _noise_video, _track, _track_process,
                                   _walker)
 from tracker import PoseTracker, TrackerSettings, track_video
-from tracker.run import _background
+from tracker.run import sampled_background
 from tracker.outputs.bvh import BVHSink
 from tracker.outputs.files import OutputBusyError, OutputWriteError, partial_path
 from tracker.outputs.json_summary import JsonSummarySink
@@ -519,7 +519,7 @@ def test_without_smoothing_the_tracker_keeps_no_per_frame_history(walk):
     tracker = PoseTracker(load_pose_model(), 30.0, TrackerSettings(keep_history=False))
     track_video(walk, tracker)
     (state,) = tracker.tracks.values()
-    assert state.frames >= 30 and state.measured == [] and state.hypotheses.history == []
+    assert state.frames >= 30 and state.hypotheses.history == []
     with pytest.raises(ValueError, match="keep_history"):
         track_video(walk, tracker, smoothed_sinks=[JsonSummarySink(walk.with_suffix(".j"), 30)])
 
@@ -537,11 +537,12 @@ def test_a_4k_video_is_tracked_with_its_background_sampled_at_the_working_size(t
     tracker = PoseTracker(load_pose_model(), source.fps)
     tracemalloc.start()
     try:
-        background = _background(source, tracker)
+        background, _ = sampled_background(source, tracker)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    assert background.shape == (2160, 3840, 3)
+    width, height = tracker.extractor.subtractor.working_size(3840, 2160)
+    assert background.shape == (height, width, 3) and width < 3840
     assert peak < 120e6                        # a few full frames at most (25 MB each)
     result = _track(large, "--json", tmp_path / "l.json", "--quiet", cwd=tmp_path)
     # It runs through (the scene is empty, so it ends with that one-line error).
@@ -608,8 +609,8 @@ def test_novelty_is_reported_per_pose_by_default_and_unfamiliar_frames_are_count
     tracker = PoseTracker(model, 30.0)
     summary = JsonSummarySink(tmp_path / "n.json", 30.0)
     result = track_video(walk, tracker, sinks=[summary])
-    (state,) = tracker.tracks.values()
-    assert state.frames == len(rows) >= 30 and state.unfamiliar == (len(rows) + 1) // 2
+    (state,) = result.written.values()          # the poses written, and the unfamiliar
+    assert state.poses == len(rows) >= 30 and state.unfamiliar == (len(rows) + 1) // 2
     (track,) = json.loads((tmp_path / "n.json").read_text())["tracks"]
     assert track["novelty"][:4] == [2.0, 0.5, 2.0, 0.5]
     assert track["unfamiliar_frames"] == state.unfamiliar
@@ -618,8 +619,8 @@ def test_novelty_is_reported_per_pose_by_default_and_unfamiliar_frames_are_count
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
         _print_summary(args, source, result)
-    assert (f"{state.frames} frames; {state.unfamiliar} of them "
-            f"({state.unfamiliar / state.frames:.0%}) unlike the training silhouettes") \
+    assert (f"{state.poses} frames; {state.unfamiliar} of them "
+            f"({state.unfamiliar / state.poses:.0%}) unlike the training silhouettes") \
         in out.getvalue()
 
 
@@ -928,7 +929,7 @@ class _Frames:
 def test_a_grey_rooms_plate_is_accepted_though_its_person_wears_colour():
     """The video's colour was judged on one frame, person included: a red top in a grey room
     made a true plate "grey against colour"."""
-    from tracker.run import _check_plate
+    from tracker.clean_plate import check_plate
     rng = np.random.default_rng(1)
     grey = cv2.GaussianBlur(rng.integers(40, 220, (240, 320), dtype=np.uint8), (9, 9), 0)
     plate = cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR)
@@ -937,4 +938,4 @@ def test_a_grey_rooms_plate_is_accepted_though_its_person_wears_colour():
         frame = plate.copy()
         frame[60:200, 40 + 50 * i:80 + 50 * i] = (40, 40, 200)     # a red top, walking
         frames.append(frame)
-    _check_plate(_Frames(frames), plate)                # no error
+    check_plate(_Frames(frames), plate)                # no error

@@ -1,14 +1,6 @@
 """Video to tracked 3-D poses: silhouettes, filtering, outputs and the ``track`` command.
-
-Public API: :func:`track_video` (the one tracking loop), :class:`PoseTracker` (per-frame
-tracking, with injectable extractor, associator and filter factory), :class:`TrackerSettings`,
-:class:`TrackedPose` (what sinks receive), :class:`Sink` (the output protocol) and
-:class:`PoseRecorder` (a sink keeping poses in memory). ``lab`` (training,
-evaluation, reports) is not imported by anything online.
-
-Names are loaded on first use, so ``python -m tracker.outputs.meshcat_server`` and other
-submodules do not pay for the filter's imports.
-"""
+The public names (_PUBLIC) are loaded on first use: a submodule run alone
+(``python -m tracker.outputs.meshcat_server``) does not pay for the filter's imports."""
 from importlib import import_module
 
 _PUBLIC = {"PoseTracker": "pipeline", "TrackedPose": "pipeline", "TrackerSettings": "pipeline",

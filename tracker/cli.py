@@ -1,25 +1,10 @@
-"""The ``track`` command: 3-D poses of the people in a static-camera video.
-
-    track VIDEO [--out FILE.mcap] [--bvh DIR] [--json FILE] [--view] [--smooth | --no-smooth]
-          [--lag S] [--model FILE]
-          [--background IMAGE] [--max-people N] [--roll DEG] [--start S] [--end S] [--fps F]
-          [--zone-foreground {sure,colour}] [--min-area PERCENT] [--workers {1,2}]
-          [--silhouettes {background,segment,auto}] [--quiet]
-    track --version
-
-Without --out/--json/--bvh/--view it records to VIDEO_STEM.mcap in the current folder. Errors
-(bad video, model, options or output paths) print one line and exit non-zero; Ctrl-C stops
-cleanly, keeping every output written so far valid. Outputs never overwrite the input or each
-other, and an existing output is replaced only once its new version is complete.
-
-Only the standard library is imported at module level: numpy, OpenCV and the model are imported
-inside main(), where Ctrl-C during those first seconds is caught like any other.
-"""
+"""The ``track`` command (``track --help``). Errors print one line and exit non-zero; Ctrl-C
+stops cleanly, every output so far valid; outputs never overwrite an input or each other, nor
+an earlier file until complete. Only the standard library is imported at module level (numpy,
+OpenCV and the model inside main(), where a Ctrl-C during their import is caught too)."""
 from __future__ import annotations
 
 import argparse
-import glob
-import math
 import os
 import re
 import signal
@@ -29,29 +14,49 @@ import warnings
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
-from tracker.one_line_parser import EXIT_INTERRUPTED, EXIT_USAGE, OneLineParser, quiet_decoder_logs
 
-EXIT_ERROR = 1
-#: --zone-foreground's choices and what each means for TrackerSettings.trust_zone_foreground
-#: (also scripts/evaluate_real.py's option): inside the background's unreliable zone the
-#: subtractor's foreground is sure person, or colour decides on it too.
-ZONE_FOREGROUND = {"sure": True, "colour": False}
-#: --workers by default: a second process where this process may run on a second core
-#: (tracker.frame_worker; the cores it is allowed, not all the machine's, where the system says).
-_CORES = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-          else os.cpu_count() or 1)
-DEFAULT_WORKERS = 2 if _CORES >= 2 else 1
-#: --silhouettes's choices and the segmenter's install command (tracker.video.sources.SOURCES
-#: and INSTALL_HINT, written out so that parsing the options loads no OpenCV; a test keeps them
-#: equal).
+EXIT_ERROR, EXIT_USAGE = 1, 2   # a failed run; argparse's status for a usage error
+EXIT_INTERRUPTED = 130          # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
+ZONE_FOREGROUND = {"sure": True, "colour": False}   # -> TrackerSettings.trust_zone_foreground
+DEFAULT_WORKERS = 2 if (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                        else os.cpu_count() or 1) >= 2 else 1    # 2 with a core to spare
+#: Copies (tests keep them equal) of constants of modules that load numpy or OpenCV, so that
+#: parsing the options loads neither: video.sources.SOURCES and INSTALL_HINT, fixed_lag's
+#: MAX_LAG_S, video.decode.MAX_FPS, video.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent.
 SILHOUETTE_SOURCES = ("background", "segment", "auto")
 SEGMENT_INSTALL = "pip install 'silhouette-pose[segment]'"
-#: Ctrl-C, SIGTERM and SIGHUP received during main() (those the command handles: not one the
-#: shell ignores): if anything swallows the KeyboardInterrupt they raise (a library's bare
-#: ``except:``, the import system's module-lock weakref callback, which CPython can only print
-#: and drop: _unraisable_interrupt_recorded), the command still stops (docs/tuning.md).
+MAX_LAG_S, MAX_FPS, DEFAULT_MIN_AREA_PERCENT = 10.0, 1000.0, 0.15
+MAX_ROLL_DEG = 90.0     # --roll beyond a quarter turn: the camera upside down, or a wrong sign
+VIEW_LAG_S = 0.5        # --lag when not given, with --view (else 0: the filtered poses at once)
+MAX_TIME_S = 1e8        # past any video (3 years); 1e308 s would overflow the frame arithmetic
+#: --min-area's range, percent of the image: below it noise specks become people, above it
+#: only someone filling a fifth of the image would count.
+MIN_AREA_RANGE_PERCENT = (0.01, 20.0)
+#: What ``track`` alone prints: the usage's first line, and where the rest is.
+SHORT_USAGE = ("usage: track VIDEO [--out FILE.mcap] [--json FILE] [--bvh DIR] [--view] "
+               "[options]\ntrack: give a video file to track (track --help lists the options)\n")
+_URL = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://")   # rtsp://, ... (Path would drop a /)
+#: Stop signals received during main(), also if their KeyboardInterrupt was swallowed
+#: (docs/tuning.md).
 _interrupts: list[int] = []
-_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+_previous_unraisable_hook = sys.unraisablehook
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)     # also tracker.run's
+
+
+def quiet_decoder_logs() -> None:
+    """Keep FFmpeg's and OpenCV's log lines off stderr (unless TRACK_DEBUG is set), where they
+    would repeat a one-line error; call before the first video is opened."""
+    if not os.environ.get("TRACK_DEBUG"):
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+        os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An ArgumentParser whose usage errors are one line, ``PROG: error: MESSAGE (see PROG
+    --help)``, status 2 (the scripts' version: tracker.one_line_parser)."""
+
+    def error(self, message):
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def _record_interrupt(number, frame) -> None:
@@ -61,41 +66,40 @@ def _record_interrupt(number, frame) -> None:
 
 
 def _unraisable_interrupt_recorded(unraisable) -> None:
-    """sys.unraisablehook during main(): a KeyboardInterrupt that our handler raised where
-    Python cannot raise it (a weakref callback, e.g. the import system's module-lock callback
-    while a Ctrl-C arrives during start-up's imports; a __del__) is not printed as "Exception
-    ignored ... Traceback" but recorded, so check_interrupted stops the run in one line;
-    anything else goes to the hook that was there before (_previous_unraisable_hook)."""
+    """sys.unraisablehook during main(): records a KeyboardInterrupt Python could not raise
+    (in a weakref callback, a __del__) instead of printing it; passes on anything else."""
     if issubclass(unraisable.exc_type, KeyboardInterrupt):
         _interrupts.append(signal.SIGINT)
         return
     _previous_unraisable_hook(unraisable)
 
 
-_previous_unraisable_hook = sys.unraisablehook
-
-
 def check_interrupted() -> None:
-    """Raise KeyboardInterrupt if a stop signal came during main(), even if something caught
-    the first one: called after the slow imports, after the model load, and after each frame
-    (so that the outputs are still closed properly)."""
+    """Raise KeyboardInterrupt if a stop signal came during main(), even if it was caught."""
     if _interrupts:
         raise KeyboardInterrupt
 
 
-class _StopOnInterrupt:
-    """A progress display (update(people_in_view), close()) that also checks, after each
-    frame, for a stop signal that something swallowed (check_interrupted)."""
+class _Progress:
+    """A progress bar on stderr (a terminal, no --quiet); then a check for a swallowed stop."""
 
-    def __init__(self, progress):
-        self._progress = progress
+    def __init__(self, total: int | None, quiet: bool):
+        self._bar = None
+        if not quiet and hasattr(sys.stderr, "isatty") and sys.stderr.isatty():
+            from tqdm import tqdm
+            self._bar = tqdm(total=total, unit="frame", file=sys.stderr, dynamic_ncols=True,
+                             mininterval=0.25)
 
     def update(self, people_in_view: int) -> None:
-        self._progress.update(people_in_view)
+        if self._bar is not None:
+            self._bar.update(1)
+            self._bar.set_postfix_str(f"people {people_in_view}", refresh=False)
         check_interrupted()
 
     def close(self) -> None:
-        self._progress.close()
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
 
 
 class TrackError(SilhouettePoseError):
@@ -103,9 +107,7 @@ class TrackError(SilhouettePoseError):
 
 
 def _file_name(text: str) -> Path:
-    """An output file's path as given; "-" is standard output (/dev/stdout), as command-line
-    tools read it (it had written a file named "-"); one ending in a slash names a folder
-    (Path would drop the slash and write a file of the folder's name)."""
+    """An output file's path; "-" is standard output; one ending in a slash is refused."""
     if text == "-":
         return Path("/dev/stdout")
     if text.endswith(("/", os.sep)) or os.path.basename(text) in ("", ".", ".."):
@@ -113,39 +115,25 @@ def _file_name(text: str) -> Path:
     return Path(text)
 
 
-#: A URL's scheme (rtsp://, http://, file://): Path would collapse its // into one slash.
-_URL = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://")
-#: What ``track`` alone prints: the usage's first line, and where the rest is.
-SHORT_USAGE = ("usage: track VIDEO [--out FILE.mcap] [--json FILE] [--bvh DIR] [--view] "
-               "[options]\ntrack: give a video file to track (track --help lists the options)\n")
-
-
 def _video_file(text: str) -> Path:
-    """The video's path. A camera index ("0", when no file has that name) or a URL (rtsp://,
-    http://) is refused in one line: only files are read (it had said "no such file", with
-    rtsp://host/x shown as rtsp:/host/x)."""
+    """The video's path; a camera index ("0", no such file) or a URL is refused."""
     if _URL.match(text) or (text.isdigit() and not os.path.exists(text)):
         raise argparse.ArgumentTypeError(f"{text}: cameras and streams are not supported; "
                                          f"give a video file")
     return Path(text)
 
 
-def _package_version() -> str:
-    """The installed package's version (its metadata), or "(version unknown)" when it runs
-    from a folder that was never installed."""
+def build_parser() -> argparse.ArgumentParser:
     from importlib import metadata
     try:
-        return metadata.version("silhouette-pose")
-    except metadata.PackageNotFoundError:
-        return "(version unknown)"
-
-
-def build_parser() -> argparse.ArgumentParser:
+        version = metadata.version("silhouette-pose")
+    except metadata.PackageNotFoundError:           # run from a folder never installed
+        version = "(version unknown)"
     ap = OneLineParser(prog="track", description="3-D human pose from a static-camera video, "
                        "regressed from each person's silhouette (a mixture of kernel experts "
                        "and limb networks), Kalman-filtered over time.")
     ap.add_argument("video", type=_video_file, help="video file (mp4, avi, ...)")
-    ap.add_argument("--version", action="version", version=f"track {_package_version()}")
+    ap.add_argument("--version", action="version", version=f"track {version}")
     ap.add_argument("--out", type=_file_name, help="MCAP recording (default VIDEO_STEM.mcap if "
                     "no other output is chosen)")
     ap.add_argument("--bvh", type=Path, metavar="DIR", help="write one BVH per track here")
@@ -153,21 +141,16 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--view", action="store_true", help="live 3-D skeletons in meshcat "
                     "(browser, 127.0.0.1), played at the video's own speed")
     ap.add_argument("--smooth", action=argparse.BooleanOptionalAction, default=True,
-                    help="the JSON and BVH outputs get each whole track RTS-smoothed, and the "
-                    "MCAP gets it beside its filtered poses (the default; it follows the body "
-                    "better than the frame-by-frame filter) or, with --no-smooth, the JSON and "
-                    "BVH get the poses the MCAP and the live view get (filtered, or --lag's)")
+                    help="the JSON and BVH get each whole track RTS-smoothed, the MCAP gets it "
+                    "beside its filtered poses (the default: it follows the body better); "
+                    "--no-smooth: the JSON and BVH get the MCAP's poses (filtered, or --lag's)")
     ap.add_argument("--lag", type=float, default=None, metavar="S",
-                    help="give the live view and the MCAP's /pose and /skeleton (with "
-                    "--no-smooth, the JSON and BVH too) each pose about 2S seconds of video "
-                    "late (S rounded to whole frames; 2S less one frame), smoothed over at "
-                    "least S seconds that followed it: they follow the body better than the "
-                    "frame-by-frame filter (about 2.5 ms a frame per person at 0.5 s, more for "
-                    "shorter lags); 0: the filtered poses at once. Default 0.5 with --view (it "
-                    "plays the video at its own speed, so the delay shows only at the start), "
-                    f"else 0; at most {MAX_LAG_S:g}")
-    ap.add_argument("--model", type=Path, default=None, help="model file "
-                    "(default: the shipped model)")
+                    help="give the live view and the MCAP's /pose (with --no-smooth, the JSON "
+                    "and BVH too) each pose about 2S seconds late, smoothed over S seconds "
+                    "that followed it: closer to the body than the filter's; 0: the filtered "
+                    f"poses at once (default {VIEW_LAG_S:g} with --view, else 0; at most "
+                    f"{MAX_LAG_S:g})")
+    ap.add_argument("--model", type=Path, help="model file (default: the shipped model)")
     ap.add_argument("--background", type=Path, metavar="IMAGE", help="an image of the empty "
                     "scene (clean plate) from the same camera (default: learned from the video)")
     ap.add_argument("--max-people", type=int, default=None, metavar="N",
@@ -178,100 +161,57 @@ def build_parser() -> argparse.ArgumentParser:
                     help="the video's frame rate, frames/s, where its file's is missing or wrong "
                          f"(above 0, at most {MAX_FPS:g}; default: the file's)")
     ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
-                    help="the camera's roll: how far the scene's vertical leans clockwise in "
-                         "the image, degrees (silhouettes are turned upright; within "
-                         f"+-{MAX_ROLL_DEG:g}; default 0)")
+                    help="the camera's roll: how far the scene's vertical leans clockwise, "
+                         f"degrees (silhouettes are turned upright; within +-{MAX_ROLL_DEG:g}; "
+                         "default 0)")
     ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
-                    help="for a person who stays in one place (no clean plate): where the "
-                         "background is unreliable, let colour decide on the background "
-                         "model's foreground too (default: fewer ghost blobs beside the body, "
-                         "some thin limb pixels lost), or take it as sure person")
+                    help="for a person who stays in one place: where the background is "
+                         "unreliable, let colour decide on the foreground too (default: fewer "
+                         "ghost blobs, some thin limb pixels lost), or take it as sure person")
     ap.add_argument("--min-area", type=float, default=None, metavar="PERCENT",
                     help="the smallest person, in percent of the image (default "
                          f"{DEFAULT_MIN_AREA_PERCENT:g}: about 55 px tall at 640x480; "
                          f"{MIN_AREA_RANGE_PERCENT[0]:g} to {MIN_AREA_RANGE_PERCENT[1]:g}); "
                          "lower it for people far away, raise it against clutter")
     ap.add_argument("--workers", type=int, choices=(1, 2), default=DEFAULT_WORKERS,
-                    help="processes: 2 finds the people in a second process while the first "
-                         "tracks them (about 1.7x the frames per second, the same poses; not "
-                         f"with --view), 1 keeps to one (default {DEFAULT_WORKERS} on this "
-                         "machine)")
+                    help="2 finds the people in a second process (about 1.7x the frames per "
+                         "second, the same poses; not with --view), 1 keeps to one process "
+                         f"(default {DEFAULT_WORKERS} on this machine)")
     ap.add_argument("--silhouettes", choices=SILHOUETTE_SOURCES, default="auto",
-                    help="where people's silhouettes come from: background subtraction (a "
-                         "still camera, people who move), a learned person segmenter (needs "
-                         f"{SEGMENT_INSTALL}), or auto (the default): background subtraction, "
-                         "the segmenter where the camera moves or someone never leaves the "
-                         "spot (without the segmenter installed: background subtraction, and "
-                         "a warning when the clip needs the segmenter)")
+                    help="background subtraction (a still camera, people who move), a person "
+                         f"segmenter (needs {SEGMENT_INSTALL}), or auto (default): subtraction, "
+                         "but the segmenter where the camera moves or someone stays put (if "
+                         "installed)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
 
 
-# --roll beyond a quarter turn means the camera is upside down or the sign is wrong. Defined
-# here, not in tracker.video.roll, which imports OpenCV: a Ctrl-C during that import, before main()
-# catches it, printed a traceback (test_ctrl_c_during_start_up_gives_no_traceback).
-MAX_ROLL_DEG = 90.0
-
-#: --lag when not given, seconds: with --view (tracker.tracks.fixed_lag: 0.5 s at 30 fps is its
-#: 15 frames, mean corr8 0.516 against the filter's 0.481 on the five validation spirals);
-#: without it, outputs get the filtered poses at once, as before.
-VIEW_LAG_S = 0.5
-#: --lag's upper end, seconds (tracker.tracks.fixed_lag.MAX_LAG_S, written out so that parsing the
-#: options loads no numpy; a test keeps the two equal).
-MAX_LAG_S = 10.0
-
-# Past any video (about 3 years): larger values are typing mistakes, and 1e308 s would
-# overflow the frame arithmetic.
-MAX_TIME_S = 1e8
-#: --min-area's range, percent of the image: below it noise specks become people, above it
-#: only someone filling a fifth of the image would count.
-MIN_AREA_RANGE_PERCENT = (0.01, 20.0)
-#: tracker.video.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent, written out so that parsing the
-#: options loads no OpenCV (a test keeps the two equal).
-DEFAULT_MIN_AREA_PERCENT = 0.15
-#: --fps's upper bound, tracker.video.decode.MAX_FPS (kept equal by a test, for the same reason).
-MAX_FPS = 1000.0
-
-
 def _check_options(args) -> None:
-    """Refuse bad options and output paths before anything is written (TrackError, one line)."""
-    if args.max_people is not None and not 1 <= args.max_people <= 100:
-        raise TrackError(f"--max-people must be between 1 and 100, got {args.max_people}")
-    if not (math.isfinite(args.roll) and abs(args.roll) <= MAX_ROLL_DEG):
-        raise TrackError(f"--roll must be between -{MAX_ROLL_DEG:g} and {MAX_ROLL_DEG:g} "
-                         f"degrees, got {args.roll}")
-    if not (math.isfinite(args.start) and 0 <= args.start <= MAX_TIME_S):
-        raise TrackError(f"--start must be a time in seconds between 0 and {MAX_TIME_S:g}, "
-                         f"got {args.start}")
-    if args.end is not None and not (math.isfinite(args.end) and args.start < args.end
-                                     <= MAX_TIME_S):
-        raise TrackError(f"--end must be after --start ({args.start} s) and at most "
-                         f"{MAX_TIME_S:g} s, got {args.end}")
-    if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= MAX_FPS):
-        raise TrackError(f"--fps must be above 0 and at most {MAX_FPS:g} frames/s, "
-                         f"got {args.fps}")
-    if args.lag is not None and not (math.isfinite(args.lag) and 0 <= args.lag <= MAX_LAG_S):
-        raise TrackError(f"--lag must be between 0 and {MAX_LAG_S:g} seconds, got {args.lag}")
+    """Refuse bad options and output paths before anything is written (TrackError)."""
     low, high = MIN_AREA_RANGE_PERCENT
-    if args.min_area is not None and not (math.isfinite(args.min_area)
-                                          and low <= args.min_area <= high):
-        raise TrackError(f"--min-area must be between {low:g} and {high:g} percent of the "
-                         f"image, got {args.min_area}")
+    # (option, value, in range, what it must be); NaN and infinities compare out of range.
+    for option, value, ok, must in (
+            ("--max-people", args.max_people, lambda v: 1 <= v <= 100, "between 1 and 100"),
+            ("--roll", args.roll, lambda v: abs(v) <= MAX_ROLL_DEG,
+             f"between -{MAX_ROLL_DEG:g} and {MAX_ROLL_DEG:g} degrees"),
+            ("--start", args.start, lambda v: 0 <= v <= MAX_TIME_S,
+             f"a time in seconds between 0 and {MAX_TIME_S:g}"),
+            ("--end", args.end, lambda v: args.start < v <= MAX_TIME_S,
+             f"after --start ({args.start} s) and at most {MAX_TIME_S:g} s"),
+            ("--fps", args.fps, lambda v: 0 < v <= MAX_FPS,
+             f"above 0 and at most {MAX_FPS:g} frames/s"),
+            ("--lag", args.lag, lambda v: 0 <= v <= MAX_LAG_S,
+             f"between 0 and {MAX_LAG_S:g} seconds"),
+            ("--min-area", args.min_area, lambda v: low <= v <= high,
+             f"between {low:g} and {high:g} percent of the image")):
+        if value is not None and not ok(value):
+            raise TrackError(f"{option} must be {must}, got {value}")
     if args.silhouettes == "segment":
-        from tracker.video.sources import SegmenterMissingError, require_segmenter
-        try:
-            require_segmenter()
-        except SegmenterMissingError as exc:
-            raise TrackError(str(exc)) from None
-    if args.background is not None and args.background.is_dir():
-        raise TrackError(f"--background {args.background} is a folder; give an image file")
-    if args.background is not None and not args.background.exists():
-        raise TrackError(f"--background {args.background}: no such file")
-    if args.background is not None and not args.background.is_file():
-        raise TrackError(f"--background {args.background} is not a regular file; give an "
-                         f"image file")
-    if args.background is not None and not os.access(args.background, os.R_OK):
-        raise TrackError(f"--background {args.background}: not readable (permissions)")
+        from tracker.video.sources import require_segmenter
+        require_segmenter()             # SegmenterMissingError: one line, as TrackError
+    if args.background is not None:
+        from tracker.clean_plate import check_background_file
+        check_background_file(args.background)
     if args.out is None and args.json is None and args.bvh is None and not args.view:
         args.out = Path(args.video.stem + ".mcap")
         if _same_file(args.out, args.video):
@@ -279,66 +219,41 @@ def _check_options(args) -> None:
                              f"an output with --out")
     from tracker.outputs.files import stream_descriptor     # deferred: the sinks load numpy
     for path, what in ((args.out, "--out"), (args.json, "--json")):
-        if path is None:
-            continue
-        if path.is_dir():
-            raise TrackError(f"{what} {path} is a folder; give a file name")
-        # A symlink's target is what gets replaced (tracker.outputs.files), in its own folder.
-        folder = Path(os.path.realpath(path)).parent
-        if not folder.is_dir():
-            shown = folder if path.is_symlink() else (path.parent if str(path.parent) else ".")
-            raise TrackError(f"{what} {path}: folder {shown} does not exist")
-        # /dev/null, a FIFO, /dev/stdout (tracker.outputs.files.OutputFile)
-        written_in_place = stream_descriptor(path) is not None or \
-            (path.exists() and not path.is_file())
-        if (not written_in_place and not os.access(folder, os.W_OK)) or \
-                (path.exists() and not os.access(path, os.W_OK)):
-            raise TrackError(f"{what} {path}: not writable")
+        if path is not None:
+            if path.is_dir():
+                raise TrackError(f"{what} {path} is a folder; give a file name")
+            # /dev/null, a FIFO, /dev/stdout are written in place (tracker.outputs.files)
+            _check_writable(what, path, stream_descriptor(path) is not None
+                            or (path.exists() and not path.is_file()))
     _check_collisions(args)
     if args.bvh is not None:
-        _check_bvh_folder(args.bvh)
-        first = f"{args.video.stem}_0.bvh"
-        if len(os.fsencode(first)) > 255:           # the file system's longest name, bytes
-            raise TrackError(f"--bvh {args.bvh}: the video's name is too long for its tracks' "
-                             f"BVH files (VIDEO_STEM_0.bvh would be {len(os.fsencode(first))} "
-                             f"bytes, over 255); rename or link the video shorter")
+        from tracker.bvh_option import check_folder
+        check_folder(args)
 
 
-def _check_bvh_folder(bvh: Path) -> None:
-    """--bvh names a folder: made if missing (by the BVH sink, which removes it again when a
-    run that tracks nobody leaves it empty), but only one level, in a folder that exists, as
-    --out's and --json's file must be (TrackError otherwise, in their words)."""
-    if bvh.exists() and not bvh.is_dir():
-        raise TrackError(f"--bvh {bvh} exists and is not a folder")
-    if bvh.is_dir():
-        if not os.access(bvh, os.W_OK):
-            raise TrackError(f"--bvh {bvh}: not writable")
-        return
-    folder = Path(os.path.realpath(bvh)).parent
+def _check_writable(option: str, path: Path, in_place: bool) -> None:
+    """TrackError unless the folder of ``path`` (a symlink's target's) exists and ``path`` can
+    be written there; in_place: written as it is (no new file in the folder)."""
+    folder = Path(os.path.realpath(path)).parent
     if not folder.is_dir():
-        shown = folder if bvh.is_symlink() else (bvh.parent if str(bvh.parent) else ".")
-        raise TrackError(f"--bvh {bvh}: folder {shown} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise TrackError(f"--bvh {bvh}: not writable")
+        shown = folder if path.is_symlink() else (path.parent if str(path.parent) else ".")
+        raise TrackError(f"{option} {path}: folder {shown} does not exist")
+    if (not in_place and not os.access(folder, os.W_OK)) or \
+            (path.exists() and not os.access(path, os.W_OK)):
+        raise TrackError(f"{option} {path}: not writable")
 
 
 def _same_file(a: Path, b: Path) -> bool:
-    from tracker.outputs.files import OutputPathError, check_distinct
-    try:
-        check_distinct([("", a), ("", b)])
-    except OutputPathError:
-        return True
-    return False
+    from tracker.outputs.files import file_identity
+    return file_identity(a) == file_identity(b)
 
 
 def _check_collisions(args) -> None:
-    """No output (nor the file it is written as until complete) may be an input (the video,
-    the model, the background image) or another output, also through a relative path, a
-    symlink or a hard link."""
+    """No output (nor its temporary file) may be an input or another output, also through a
+    relative path, a symlink or a hard link."""
     from regressor.pose_model import DEFAULT_MODEL_PATH
     from tracker.outputs.files import check_distinct, partial_path
-    named = [("the input video", args.video),
-             ("the model", args.model or DEFAULT_MODEL_PATH)]
+    named = [("the input video", args.video), ("the model", args.model or DEFAULT_MODEL_PATH)]
     if args.background is not None:
         named.append(("the --background image", args.background))
     for path, what in ((args.out, "--out"), (args.json, "--json")):
@@ -346,14 +261,9 @@ def _check_collisions(args) -> None:
             named += [(what, path), (f"{what}'s temporary file",
                                      partial_path(os.path.realpath(path)))]
     if args.bvh is not None:
+        from tracker.bvh_option import check_names
+        check_names(args, named)
         named.append(("the --bvh folder", args.bvh))
-        bvh_names = re.compile(rf"\.?{re.escape(args.video.stem)}(_\d+\.bvh(\.partial)?|"
-                               rf"\.bvh\.lock)")
-        for what, path in named[:]:
-            if path.name and bvh_names.fullmatch(path.name) and \
-                    _same_file(path.parent if str(path.parent) else Path("."), args.bvh):
-                raise TrackError(f"{what} {path} may be overwritten by the BVH files in "
-                                 f"--bvh {args.bvh}; choose another name or folder")
     try:
         check_distinct(named)
     except SilhouettePoseError as exc:
@@ -363,8 +273,7 @@ def _check_collisions(args) -> None:
 def tracker_settings(args):
     """The tracker.pipeline.TrackerSettings the parsed options ask for."""
     from tracker.pipeline import TrackerSettings
-    # Per-track histories are kept only to smooth (a JSON, BVH or MCAP output, or a lag):
-    # without (--no-smooth --lag 0) memory stays flat.
+    # Per-track histories only to smooth: without (--no-smooth --lag 0) memory stays flat.
     return TrackerSettings(max_people=args.max_people,
                            keep_history=smoothing(args) or lag_seconds(args) > 0,
                            roll_deg=args.roll,
@@ -373,40 +282,36 @@ def tracker_settings(args):
 
 
 def smoothing(args) -> bool:
-    """Whether smoothed tracks are written: --smooth (the default) and a JSON, BVH or MCAP
-    output to write them to (the MCAP gets them beside its filtered poses, at the end; the
-    live view takes poses frame by frame only)."""
+    """Whether smoothed tracks are written: --smooth and a JSON, BVH or MCAP output."""
     return (args.json is not None or args.bvh is not None or args.out is not None) \
         and bool(args.smooth)
 
 
 def lag_seconds(args) -> float:
-    """The fixed-lag smoothing's lag, seconds (--lag; when not given VIEW_LAG_S with --view,
-    else 0: none)."""
-    if args.lag is not None:
-        return float(args.lag)
-    return VIEW_LAG_S if args.view else 0.0
+    """The fixed-lag smoothing's lag, seconds (--lag, else VIEW_LAG_S with --view, else 0)."""
+    return float(args.lag) if args.lag is not None else VIEW_LAG_S if args.view else 0.0
 
 
 def streamed_kind(args) -> str:
     """What the poses written frame by frame are: "filtered", or "fixed-lag smoothed"."""
-    from tracker.tracks.fixed_lag import streamed_kind as kind    # deferred: it loads numpy and OpenCV
+    from tracker.tracks.fixed_lag import streamed_kind as kind    # deferred: numpy, OpenCV
     return kind(lag_seconds(args))
 
 
 def _min_area_fraction(args) -> float:
     """--min-area as a fraction of the image (the default when not given)."""
-    percent = DEFAULT_MIN_AREA_PERCENT if args.min_area is None else args.min_area
-    return percent / 100.0
+    return (DEFAULT_MIN_AREA_PERCENT if args.min_area is None else args.min_area) / 100.0
 
 
 def _sink_factories(args, source, model) -> tuple[list, list]:
-    """(factories of the sinks fed every frame, of those fed smoothed tracks at the end
-    (the JSON, the BVH and the MCAP's smoothed topics unless --no-smooth)). One entry per
-    output (the MCAP has two: its frames and its smoothed topics): adding an output is adding
-    a line here. The streamed sinks are opened first (tracker.outputs.open_sinks, in order), so
-    the MCAP's smoothed topics find the MCAP open."""
+    """(factories of the sinks fed every frame, of those fed smoothed tracks at the end), in
+    the order open_sinks opens them (the MCAP has two, its frames first)."""
     opened = {}
+    # The options that change the silhouettes, for the MCAP's metadata when not their defaults.
+    silhouette_options = (("zone_foreground", args.zone_foreground != "colour"
+                           and args.zone_foreground), ("roll_deg", args.roll),
+                          ("min_area_percent", args.min_area),
+                          ("background", args.background and str(args.background)))
 
     def named(sink, option: str):
         sink.option = option            # a failure's line names the option (problem_line)
@@ -421,14 +326,7 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
             "settings": {"smooth": smoothing(args), "lag_s": lag_seconds(args),
                          "max_people": args.max_people,
                          "start_s": args.start, "end_s": args.end,
-                         # options that change the silhouettes, when not their defaults
-                         **({} if args.zone_foreground == "colour"
-                            else {"zone_foreground": args.zone_foreground}),
-                         **({"roll_deg": args.roll} if args.roll else {}),
-                         **({} if args.min_area is None
-                            else {"min_area_percent": args.min_area}),
-                         **({} if args.background is None
-                            else {"background": str(args.background)}),
+                         **{name: value for name, value in silhouette_options if value},
                          "note": f"/pose and /skeleton hold the {streamed_kind(args)} "
                                  "poses, frame by frame (lag_s: how late, at least, each was "
                                  "written, smoothed over what followed); /smoothed/pose and "
@@ -454,8 +352,7 @@ def _sink_factories(args, source, model) -> tuple[list, list]:
         from tracker.outputs.meshcat_view import MeshcatView  # deferred: starts a server process
         return named(MeshcatView(realtime=True), "--view")   # played at the video's speed
 
-    # The MCAP's smoothed topics come last of the smoothed outputs: the biggest write, and
-    # the one the others least need to wait for.
+    # The MCAP's smoothed topics come last: the biggest write, the one the others least need.
     outputs = [(args.out, mcap, False), (args.json, json_summary, True),
                (args.bvh, bvh, True), (args.out if smoothing(args) else None, mcap_smoothed, True),
                (args.view or None, view, False)]
@@ -471,8 +368,7 @@ def run(args) -> int:
 
     from tracker import pipeline  # noqa: F401 (loads numpy, scipy, filterpy, OpenCV)
     check_interrupted()
-    # One BLAS thread: the per-frame matrices are small, and threads cost more than they save
-    # (a filter step took 8.7 ms with default threads, 0.5 ms with one).
+    # One BLAS thread: the per-frame matrices are small, and threads cost more than they save.
     with threadpool_limits(1):
         return _run(args)
 
@@ -481,7 +377,6 @@ def _run(args) -> int:
     from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
     from tracker.run import BackgroundMismatchError, OutputError
     from tracker.outputs.files import OutputWriteError
-
     _check_options(args)
     args.model = args.model or DEFAULT_MODEL_PATH
     model = load_pose_model(args.model)
@@ -491,31 +386,27 @@ def _run(args) -> int:
                       f"scripts/learn_hypothesis_priors.py --model {args.model} --save NEW.npz)")
     check_interrupted()                  # the model and its imports are loaded
     source = _open_source(args)
-    plate = _load_background(args.background, source) if args.background else None
+    plate = None
+    if args.background:
+        from tracker.clean_plate import load_background
+        plate = load_background(args.background, source)
     try:
         result, sinks = _track_into_outputs(args, source, model, plate)
     except BackgroundMismatchError as exc:
         raise TrackError(f"--background {args.background}: {exc}") from None
     except (OutputWriteError, OutputError) as exc:
-        raise TrackError(_output_failure(args, exc)) from None
+        from tracker.cli_failures import output_failure
+        raise TrackError(output_failure(args, exc)) from None
     if not args.quiet:
         try:
-            bvh_files = None
-            if args.bvh is not None:
-                from tracker.outputs.bvh import BVHSink
-                bvh_files = next(([path for _, path in sorted(sink.paths.items())]
-                                  for sink in sinks if isinstance(sink, BVHSink)), None)
-            _print_summary(args, source, result, bvh_files)
+            _print_summary(args, source, result, sinks)
         except BrokenPipeError:
-            # Whoever read the summary stopped (``track ... | head -1``): the outputs are
-            # complete; say nothing more to the closed pipe, as command-line tools do.
-            _silence_stdout()
+            # The reader stopped (``track ... | head -1``): nothing more to it, even at exit.
+            sys.stdout = open(os.devnull, "w")
     if result.interrupted:
         return EXIT_INTERRUPTED
     if not result.written:
-        # A run that tracked no one did not do its job: it wrote no outputs (track_video's
-        # write_empty), so an earlier run's files of those names are still there. (A track
-        # whose silhouettes all failed to describe gives no pose: the outputs' count decides.)
+        # Nobody tracked: no outputs written (write_empty), earlier files of their names kept.
         raise TrackError(f"{args.video}: nobody found in its {result.frames} frames (a person "
                          f"must move against a still background and cover at least "
                          f"{100 * _min_area_fraction(args):g} % of the image: --min-area); "
@@ -524,107 +415,44 @@ def _run(args) -> int:
 
 
 def _track_into_outputs(args, source, model, plate) -> tuple:
-    """Open the outputs and track the video into them: (tracker.run.TrackRun, the sinks).
-    A run that ends before its first pose leaves every file of the outputs' names as it was:
-    a refused output abandons those opened before it (tracker.outputs.open_sinks), track_video
-    abandons them when nobody was tracked (write_empty=False), and a stop before
-    track_video took them abandons them here."""
+    """Open the outputs and track the video into them: (TrackRun, the sinks). A run that
+    ends before its first pose leaves every file of the outputs' names as it was."""
     from tracker.pipeline import PoseTracker
-    from tracker.progress import Progress
     from tracker.run import track_video
     from tracker.video.sources import silhouette_extractor
     from tracker.outputs import close_sinks, open_sinks
     from tracker.outputs.files import OutputBusyError, OutputWriteError
-
     streaming, smoothed = _sink_factories(args, source, model)
     try:
-        sinks = open_sinks(streaming + smoothed)
+        sinks = open_sinks(streaming + smoothed)   # a refusal abandons those opened before
     except (OutputBusyError, OutputWriteError) as exc:    # nothing of this run's is kept
-        raise TrackError(_output_failure(args, exc, kept=False)) from None
+        from tracker.cli_failures import output_failure
+        raise TrackError(output_failure(args, exc, kept=False)) from None
     try:
         settings = tracker_settings(args)
         tracker = PoseTracker(model, source.fps, settings,
                               extractor=silhouette_extractor(args.silhouettes, settings))
         result = track_video(source, tracker, sinks[:len(streaming)],
-                             _StopOnInterrupt(Progress(source.expected_frames(),
-                                                       quiet=args.quiet)),
+                             _Progress(source.expected_frames(), args.quiet),
                              smoothed_sinks=sinks[len(streaming):], background=plate,
                              workers=args.workers, lag_s=lag_seconds(args), write_empty=False)
     except BaseException:
-        # Sinks track_video closed (or abandoned) stay so (both are idempotent); those it
-        # never took are abandoned: the MCAP's finalizer would finish an empty recording.
+        # Those track_video never took are abandoned (the MCAP's finalizer would finish it).
         close_sinks(sinks, abandon=True)
         raise
     return result, sinks
 
 
 def _open_source(args):
-    """The video opened with --start, --end and --fps; a time range outside it is told in
-    the options' terms (TrackError), not the library's."""
+    """The video opened with --start, --end and --fps (a time range outside it: TrackError)."""
     from tracker.video.decode import VideoError, open_video
     try:
         return open_video(args.video, start_s=args.start, end_s=args.end, fps=args.fps)
     except VideoError:
         if args.start == 0 and args.end is None:
             raise
-        whole = open_video(args.video, fps=args.fps)    # a fault of the file raises here
-    count = whole.frame_count
-    # The first frame as tracker.video.decode.open_video numbers it.
-    if count is not None and math.floor(args.start * whole.fps + 1e-9) >= count:
-        raise TrackError(f"--start {args.start:g} s is past the end of {args.video} "
-                         f"({count / whole.fps:.2f} s, {count} frames at {whole.fps:g} fps)")
-    end = "its end" if args.end is None else f"--end {args.end:g} s"
-    raise TrackError(f"no frames in the chosen time range of {args.video} (--start "
-                     f"{args.start:g} s to {end} at {whole.fps:g} fps)")
-
-
-def _output_option(args, path: Path | None) -> str | None:
-    """The option whose output ``path`` is (the file, its partial file, a BVH file or lock
-    in the --bvh folder), None if none's."""
-    if path is None:
-        return None
-    from tracker.outputs.files import partial_path
-    real = os.path.realpath(path)
-    for option, given in (("--out", args.out), ("--json", args.json)):
-        if given is not None:
-            target = os.path.realpath(given)
-            if real in (target, os.path.realpath(partial_path(target))):
-                return option
-    if args.bvh is not None and os.path.dirname(real) == os.path.realpath(args.bvh):
-        return "--bvh"
-    return None
-
-
-def _output_failure(args, exc, kept: bool = True) -> str:
-    """An output's failure (OutputWriteError or OutputBusyError, or OutputError from closing)
-    in the user's terms: the option of the file it names and, with ``kept``, where the MCAP's
-    recording so far is kept when it is (a full disk: tracker.outputs.mcap keeps its partial
-    file for repair)."""
-    option = _output_option(args, getattr(exc, "path", None))
-    message = f"{option} {exc}" if option else str(exc)
-    kept = _kept_recording(args) if kept else None
-    if kept is not None and str(kept) not in message:
-        message += (f"; the recording so far is kept in {kept} "
-                    f"(tracker.outputs.mcap_repair.recover_mcap makes a readable file of it)")
-    return message
-
-
-def _kept_recording(args) -> Path | None:
-    """The --out MCAP's partial file when a failed run left one holding data, else None."""
-    if args.out is None:
-        return None
-    from tracker.outputs.files import partial_path, stream_descriptor
-    if stream_descriptor(args.out) is not None or (args.out.exists()
-                                                   and not args.out.is_file()):
-        return None
-    partial = partial_path(os.path.realpath(args.out))
-    try:
-        if not (partial.is_file() and partial.stat().st_size > 0):
-            return None
-    except OSError:
-        return None
-    # Shown as the user named the output, unless it is a link (written beside its target).
-    return partial if args.out.is_symlink() else partial_path(args.out)
+    from tracker.cli_failures import time_range_error
+    raise time_range_error(args)
 
 
 def _nothing_written(args) -> str:
@@ -634,59 +462,14 @@ def _nothing_written(args) -> str:
     return "no output files written (files already of those names are left as they were)"
 
 
-def _load_background(path: Path, source):
-    """The --background image as BGR uint8 at the video's size (TrackError if unreadable; a
-    one-line warning when it has to be resized)."""
-    import cv2
-    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if image is None:
-        raise TrackError(f"--background {path}: not an image OpenCV can read (PNG, JPEG, ...)")
-    size = (source.width, source.height)
-    if (image.shape[1], image.shape[0]) != size:
-        if abs(image.shape[1] / image.shape[0] - size[0] / size[1]) > 0.02 * size[0] / size[1]:
-            raise TrackError(f"--background {path} is {image.shape[1]}x{image.shape[0]}, the "
-                             f"video {size[0]}x{size[1]}: not the same view")
-        warnings.warn(f"--background {path} is {image.shape[1]}x{image.shape[0]}; resized to "
-                      f"the video's {size[0]}x{size[1]}")
-        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
-    return image
-
-
-def _silence_stdout() -> None:
-    """Point sys.stdout at os.devnull, so that nothing (not even the interpreter's last
-    flush) writes to a closed pipe again."""
-    sys.stdout = open(os.devnull, "w")
-
-
-def _bvh_files(folder: Path, stem: str, written: list[Path] | None) -> str:
-    """The BVH line's tail: the files this run wrote and those of the video's name it did not
-    (an earlier run's, with more tracks: they stay, and would pass for this run's)."""
-    if written is None:
-        return ""
-
-    def names(paths: list[Path]) -> str:
-        shown = ", ".join(p.name for p in paths[:3])
-        return shown + (f" and {len(paths) - 3} more" if len(paths) > 3 else "")
-    pattern = re.compile(rf"{re.escape(stem)}_(\d+)\.bvh")
-    mine = {p.name for p in written}
-    older = sorted((p for p in folder.glob(f"{glob.escape(stem)}_*.bvh")
-                    if pattern.fullmatch(p.name) and p.name not in mine),
-                   key=lambda p: int(pattern.fullmatch(p.name).group(1)))   # by track number
-    tail = f" ({names(written)})" if written else " (no track long enough for a file)"
-    if older:
-        tail += f"; also there from an earlier run, not replaced: {names(older)}"
-    return tail
-
-
-def _print_summary(args, source, result, bvh_files: list[Path] | None = None) -> None:
+def _print_summary(args, source, result, sinks=()) -> None:
+    """The run's summary: what was tracked, and which poses each output holds."""
     from tracker.outputs.files import stream_descriptor
-    # An output sent to standard output (--json /dev/stdout | jq) gets it alone: the summary
-    # goes to standard error then.
+    # With an output on standard output (--json /dev/stdout | jq) the summary goes to stderr.
     out = sys.stderr if any(path is not None and stream_descriptor(path) == 1
                             for path in (args.out, args.json)) else sys.stdout
     state = "interrupted after" if result.interrupted else "tracked"
-    # What the outputs hold (after a Ctrl-C the tracker may have gone a batch further).
-    tracks = result.written
+    tracks = result.written         # what the outputs hold (not the tracker's last batch)
     print(f"{args.video.name}: {state} {result.frames} frames ({source.width}x{source.height}, "
           f"{source.fps:g} fps video) at {result.fps:.0f} frames/s; {len(tracks)} track(s)",
           file=out)
@@ -699,33 +482,34 @@ def _print_summary(args, source, result, bvh_files: list[Path] | None = None) ->
         if result.interrupted:
             print(f"  {_nothing_written(args)}", file=out)
         return
-    # Which poses the JSON and BVH hold: smoothed, or those streamed (--no-smooth, or a quick
-    # exit after an interrupt, tracker.run.track_video; not a Ctrl-C while the outputs
-    # closed): filtered, or fixed-lag smoothed with --lag.
+    # The JSON and BVH hold the smoothed poses, or after a quick exit those streamed.
     streamed = streamed_kind(args)
     kind = "smoothed" if result.smoothed else streamed
     mcap_kind = f"{streamed} + smoothed" if result.smoothed else streamed
     for path, what, poses in ((args.out, "MCAP", mcap_kind), (args.json, "JSON", kind),
                               (args.bvh, "BVH folder", kind)):
-        if path is not None:
-            tail = _bvh_files(path, args.video.stem, bvh_files) if what == "BVH folder" else ""
-            print(f"  {what} ({poses} poses): {path}{tail}", file=out)
+        if path is None:
+            continue
+        tail = ""
+        if what == "BVH folder":
+            from tracker.bvh_option import files_tail, written_files
+            tail = files_tail(path, args.video.stem, written_files(sinks))
+        print(f"  {what} ({poses} poses): {path}{tail}", file=out)
 
 
-def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    """warnings.showwarning for the command: "track: warning: ..." without the source line."""
-    print(f"track: warning: {message}", file=sys.stderr)
+def one_line_warning(prog: str):
+    """A warnings.showwarning that prints "PROG: warning: MESSAGE", without the source line."""
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        print(f"{prog}: warning: {message}", file=sys.stderr)
+    return show
 
 
 def main(argv=None) -> int:
     """Entry point of the ``track`` console script."""
-    # SIGTERM and SIGHUP (terminal closed) stop like Ctrl-C: outputs are closed, not cut off.
-    # A signal the shell ignores (nohup, a background job's Ctrl-C) stays ignored.
-    # Only the main thread may set handlers (and only it gets signals): called from another
-    # thread, main() leaves them alone.
+    # SIGTERM and SIGHUP stop like Ctrl-C, unless ignored (nohup); main thread only.
     global _previous_unraisable_hook
     _interrupts.clear()
-    previous = ({number: signal.getsignal(number) for number in _STOP_SIGNALS}
+    previous = ({number: signal.getsignal(number) for number in STOP_SIGNALS}
                 if threading.current_thread() is threading.main_thread() else {})
     for number, handler in previous.items():
         if handler != signal.SIG_IGN:
@@ -740,7 +524,7 @@ def main(argv=None) -> int:
         args = parser.parse_args(argv)
         quiet_decoder_logs()            # before the first video is opened
         with warnings.catch_warnings():
-            warnings.showwarning = _one_line_warning
+            warnings.showwarning = one_line_warning("track")
             return run(args)
     except SilhouettePoseError as exc:
         print(f"track: error: {exc}", file=sys.stderr)

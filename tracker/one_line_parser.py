@@ -1,30 +1,15 @@
-"""An argument parser whose usage errors are one line, for ``track`` and the scripts.
-
-argparse's own error() prints the whole usage block before the message; a user who mistyped
-one option then has to find the line that names it. Here the message alone is printed, with a
-pointer to --help, and the exit status is argparse's (2).
-"""
+"""The scripts' argument parser: ``track``'s one-line OneLineParser (tracker.cli) with
+check_outputs, and stops_in_one_line for a script's main (``track`` itself loads neither)."""
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-EXIT_USAGE = 2                  # argparse's status for a usage error
-EXIT_INTERRUPTED = 130          # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
-
-
-def quiet_decoder_logs() -> None:
-    """Keep FFmpeg's and OpenCV's own log lines ("moov atom not found") off stderr, where
-    they would repeat a one-line error in their words (TRACK_DEBUG set: left as they are).
-    Both variables are read when the first video is opened: call before that. (Here, not
-    beside the decoding, so that ``track`` need not load OpenCV to call it.)"""
-    if not os.environ.get("TRACK_DEBUG"):
-        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
-        os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
+from tracker import cli
+from tracker.cli import EXIT_INTERRUPTED, EXIT_USAGE, quiet_decoder_logs  # noqa: F401 (theirs)
 
 
 def stops_in_one_line(prog: str, main: Callable[[list[str] | None], int]
@@ -32,13 +17,10 @@ def stops_in_one_line(prog: str, main: Callable[[list[str] | None], int]
     """A script's main(argv) that ends on Ctrl-C with "PROG: interrupted" on stderr and
     EXIT_INTERRUPTED, not a traceback, and prints warnings as one line "PROG: warning: ...",
     without Python's file name and source line."""
-    def one_line(message, category, filename, lineno, file=None, line=None) -> None:
-        print(f"{prog}: warning: {message}", file=sys.stderr)
-
     def stopping(argv: list[str] | None = None) -> int:
         try:
             with warnings.catch_warnings():
-                warnings.showwarning = one_line
+                warnings.showwarning = cli.one_line_warning(prog)
                 return main(argv)
         except KeyboardInterrupt:
             print(f"{prog}: interrupted", file=sys.stderr)
@@ -47,12 +29,8 @@ def stops_in_one_line(prog: str, main: Callable[[list[str] | None], int]
     return stopping
 
 
-class OneLineParser(argparse.ArgumentParser):
-    """argparse.ArgumentParser whose error(message) prints ``PROG: error: MESSAGE (see PROG
-    --help)`` on one line and exits with status 2."""
-
-    def error(self, message):
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+class OneLineParser(cli.OneLineParser):
+    """tracker.cli.OneLineParser (one-line usage errors, status 2) with check_outputs."""
 
     def check_outputs(self, outputs, inputs=()) -> None:
         """Refuse, before any work, output files a script could not write or that would
@@ -64,7 +42,8 @@ class OneLineParser(argparse.ArgumentParser):
         it may not be the same file as an input or another output, also through a relative
         path, a symlink or a hard link. Inputs that are one another (a folder of links) are
         no conflict. Exits as error() does."""
-        from tracker.outputs.files import PARTIAL_SUFFIX, file_identity, partial_path  # deferred: numpy
+        # deferred: numpy
+        from tracker.outputs.files import PARTIAL_SUFFIX, file_identity, partial_path
         seen = {}
         for what, path in inputs:
             if path is not None:

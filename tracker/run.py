@@ -1,7 +1,5 @@
-"""THE tracking loop: open the video, learn its background, track every frame, feed the sinks.
-
-Used by the ``track`` command, the evaluation's through-video path and scripts/bench_track.py,
-so all three measure the same thing. From a notebook::
+"""THE tracking loop (``track``'s, the evaluation's, the benchmark's): open the video, learn
+its background, track every frame, feed the sinks. From a notebook::
 
     from tracker import PoseRecorder, track_video
     recorder = PoseRecorder()
@@ -20,17 +18,16 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
+from tracker.cli import STOP_SIGNALS
 from tracker.tracks.fixed_lag import FixedLagSmoother, drawn_at, streamed_kind
 from tracker.frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
-from tracker.pipeline import PoseTracker
-from tracker.video.background import GainMeter, undo_gain
+from tracker.pipeline import PoseTracker, timed
 from tracker.video.silhouettes import median_background
 from tracker.outputs import PoseRecorder, Sink, close_sinks, problem_line
-from tracker.video.decode import VideoError, VideoSource, colourless, open_video, scaled_size
+from tracker.video.decode import VideoError, VideoSource, open_video
 
 
 class OutputError(SilhouettePoseError, RuntimeError):
@@ -51,14 +48,8 @@ class WrittenPoses:
 
 @dataclass
 class TrackRun:
-    """What a run did: frames handed to the outputs, wall time (seconds, from priming to
-    closed outputs), interrupted by Ctrl-C (or SIGTERM turned into it), the tracker used, and
-    per track id the poses handed to the outputs and how many of them were unfamiliar
-    (TrackedPose.unfamiliar). After an interrupt the tracker may have reached a few frames
-    more (the rest of a batch) than the outputs got: ``written`` counts what they hold.
-    smoothed: whether the smoothed sinks were fed the smoothed tracks (False after a quick
-    exit, which feeds them the filtered poses, or with none); a Ctrl-C held back while the
-    outputs were being closed marks the run interrupted after they were."""
+    """What a run did: frames handed to the outputs, wall time (s), whether a stop interrupted
+    it, the tracker, the poses the outputs hold by track, whether smoothed tracks were fed."""
 
     frames: int
     elapsed_s: float
@@ -73,10 +64,7 @@ class TrackRun:
         return self.frames / self.elapsed_s if self.elapsed_s > 0 else 0.0
 
     def stop_if_interrupted(self) -> TrackRun:
-        """Raise KeyboardInterrupt if a Ctrl-C ended the run early, else return it: for a
-        caller that measures the run (an evaluation, a benchmark) and must not go on with a
-        cut track as if it were the whole; track_video itself ends early and keeps what it
-        tracked, as ``track`` should."""
+        """Raise KeyboardInterrupt if a Ctrl-C ended the run early, else return it."""
         if self.interrupted:
             raise KeyboardInterrupt
         return self
@@ -86,39 +74,15 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                 sinks: Sequence[Sink] = (), progress=None,
                 smoothed_sinks: Sequence[Sink] = (), background: np.ndarray | None = None,
                 workers: int = 1, lag_s: float = 0.0, write_empty: bool = True) -> TrackRun:
-    """Track every frame of ``source`` (an opened video or a path) into ``sinks``.
-
-    tracker: a PoseTracker (None: the shipped model with default settings). progress: an object
-    with update(people_in_view) and close(), e.g. tracker.progress.Progress. Sinks with a
-    ``write_frame(frame_index, time_s, frame, people)`` method also get each frame (BGR uint8
-    (H, W, 3), not to be modified) and its people (track id -> PersonMask), after its poses.
-    smoothed_sinks: fed at the end with each whole track RTS-smoothed (``track``'s JSON, BVH and
-    the MCAP's smoothed topics unless --no-smooth), in frame order (a sink that fails there is
-    fed no more, the others are, and OutputError names it); after a Ctrl-C, which asks for a
-    quick exit, with the streamed poses instead (a sink with a ``pose_kind`` attribute, the
-    JSON's, is told "filtered", or "fixed-lag smoothed" with a lag, so its file says so).
-    Every sink's end_frame() is called after each frame. All sinks are closed on return, also
-    on Ctrl-C, which stops the loop (the result says interrupted); while they are being
-    closed, further Ctrl-C, SIGTERM and SIGHUP are held back (and mark the run interrupted),
-    so a second Ctrl-C cannot cut an output short.
-    OutputError if some could not be closed. background: an image of the empty scene (a clean
-    plate, BGR uint8 at the video's size, ``track --background``), trusted everywhere; None
-    learns the scene from frames spread over the video (see :func:`_prime`).
-    tracker.stage_seconds gains "background" (sampling the video and priming, the start-up
-    cost), "decode", "outputs" and, with a lag, "fixed-lag smoothing". workers: 2 finds and
-    describes the people in a second process (tracker.frame_worker) while this one tracks them,
-    for the same results on two cores; sinks that show the video get no frames from it, so with
-    one of those (where processes cannot fork, and where this process has run the person
-    segmenter: tracker.video.segmenter.made_a_graph) the run stays in one process. The
-    tracker's stages then include the worker's, and "waiting" (for it). lag_s: 0, or give
-    the sinks each frame about twice that many seconds of video late (tracker.tracks.fixed_lag's
-    2 lag - 1 frames), its poses smoothed over at least lag_s seconds that followed (needs
-    keep_history): they follow the body better than the filtered ones. The frames reach the
-    sinks in order, each once; after a Ctrl-C the frames held back go out too, to the sinks
-    that do not show the video, smoothed over what was given to the smoother.
-    write_empty: False abandons the sinks that can be (close_sinks) when the run ends without
-    a single pose for them (nobody found, a stop or an error before anyone was): an earlier
-    run's files of those names are not replaced by empty ones."""
+    """Track every frame of ``source`` (an opened video or a path) into ``sinks``: each pose,
+    end_frame() after each frame, and to sinks with write_frame each frame (BGR uint8,
+    read-only) and its people by track id. tracker: None: the shipped model. progress:
+    update(people_in_view), close(). smoothed_sinks: fed each track RTS-smoothed at the end
+    (after a Ctrl-C the streamed poses). A failing sink is fed no more; all are closed on
+    return, also on Ctrl-C, stop signals held; OutputError names the failures. background: a
+    clean plate (BGR uint8 at the video's size), else learned. workers: 2 describes people in
+    a forked process, same results. lag_s: give the sinks each frame about 2 lag_s late,
+    smoothed (tracks.fixed_lag). write_empty: False abandons the sinks if no pose was written."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
@@ -150,27 +114,19 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
 
 def _frames_in(run: _Run, source: VideoSource, tracker: PoseTracker, workers: int
                ) -> Iterator[tuple]:
-    """The tracked frames: from a second process (run.worker) when asked for and possible
-    (no sink shows the video, processes can fork), else tracked here, one at a time for a
-    live view, in batches for files."""
-    if workers > 1 and not run.watching and can_fork() and not _segmented_here():
+    """The tracked frames, from a worker process if asked for and possible, else from here."""
+    segmenter = sys.modules.get("tracker.video.segmenter")      # forked after it ran: crashes
+    if workers > 1 and not run.watching and can_fork() and not (
+            segmenter is not None and segmenter.made_a_graph()):
         run.worker = FrameWorker(source, tracker)          # a copy of the primed tracker
         return _from_worker(run.worker, tracker)
-    return _in_process(source, tracker, 1 if run.watching else BATCH_FRAMES)
-
-
-def _segmented_here() -> bool:
-    """Whether this process has run the person segmenter (tracker.video.segmenter.made_a_graph):
-    a worker forked from it would crash, so the run stays in one process."""
-    segmenter = sys.modules.get("tracker.video.segmenter")
-    return segmenter is not None and segmenter.made_a_graph()
+    batch = 1 if run.watching else BATCH_FRAMES         # as the worker sends them: same results
+    return (tracked for chunk in described_chunks(source, tracker, batch)
+            for tracked in _tracked(tracker, chunk))
 
 
 class _Run:
-    """One run's outputs and what they were given: the streamed sinks (those that show the
-    video: ``watching``; the others: ``files``), the smoothed sinks fed at the end, the
-    frames due to them (``due``: tracked, with a lag smoothed, not yet written), the count
-    of frames and each track's poses written."""
+    """One run's outputs (``watching``: those showing the video), frames due, and counts."""
 
     def __init__(self, tracker: PoseTracker, sinks, smoothed_sinks, progress, lag_s: float):
         self.tracker, self.progress, self.lag_s = tracker, progress, lag_s
@@ -178,52 +134,41 @@ class _Run:
         self.lagged = FixedLagSmoother.from_seconds(tracker, lag_s) if lag_s else None
         self.recorder = PoseRecorder() if smoothed_sinks else None
         self.streaming = self.sinks + ([self.recorder] if self.recorder else [])
-        # Sinks that show the video (the live view) also get every frame and its silhouettes.
         self.watching = [sink for sink in self.streaming if hasattr(sink, "write_frame")]
         self.files = [sink for sink in self.streaming if sink not in self.watching]
         self.frames = 0
         self.written: dict[int, WrittenPoses] = {}
         self.stages = tracker.stage_seconds
         self.worker: FrameWorker | None = None
-        # Taken off inside the signals-held block that writes them, so a stop cannot fall
-        # between the two.
+        # Taken off inside the signals-held block that writes them: no stop falls between.
         self.due: deque = deque() if self.lagged is None else self.lagged.ready
 
     def track(self, frames_in: Iterator[tuple]) -> None:
         """Hand every tracked frame to the outputs (through the smoother with a lag);
-        KeyboardInterrupt when a stop signal came meanwhile."""
+        KeyboardInterrupt when a stop signal came."""
         for tracked in frames_in:
             if self.lagged is None:
                 self.due.append(tracked)
-            elif _smoother_step(self.stages, self.lagged.push,
-                                tracked if self.watching else _poses_only(tracked)):
+            elif _smoother_step(self.stages, self.lagged.push, tracked if self.watching
+                                else (*tracked[:2], None, tracked[3], {})):  # poses only
                 raise KeyboardInterrupt
-            self._emit_due()
+            while self.due:
+                self.emit()
         if self.lagged is not None and _smoother_step(self.stages, self.lagged.flush):
             raise KeyboardInterrupt
-        self._emit_due()
-
-    def _emit_due(self) -> None:
         while self.due:
-            if self.emit():
-                raise KeyboardInterrupt
+            self.emit()
 
-    def emit(self, stopped: bool = False) -> bool:
-        """Hand the next due frame to the outputs; whether a stop signal came meanwhile.
-        stopped: after a stop, the frames held back go to the files only: no progress update
-        (its display may raise the stop again: cli._StopOnInterrupt) and nothing to the live
-        view, which would play them at the video's speed to nobody while stops are held."""
-        clock = time.perf_counter()
-        # A stop signal acts between frames, never inside an output's write (raised inside
-        # the MCAP writer it can leave a finished file no reader opens).
-        with _signals_held() as held:
+    def emit(self, stopped: bool = False) -> None:
+        """Hand the next due frame to the outputs, stop signals held (KeyboardInterrupt after
+        it if one came). stopped: after a stop: to the files only, no progress, no raise."""
+        with timed(self.stages, "outputs"), _signals_held() as held:
             index, time_s, frame, poses, people = self.due.popleft()
             showing, fed = ([], self.files) if stopped else (self.watching, self.streaming)
             for sink in fed:
                 for pose in poses:
                     sink.write(pose)
-            # Counted with the writes, as the outputs hold them: a sink may stop the run
-            # at end_frame.
+            # Counted with the writes: a sink may stop the run at end_frame.
             self.frames += 1
             for pose in poses:
                 counts = self.written.setdefault(pose.track_id, WrittenPoses())
@@ -233,21 +178,20 @@ class _Run:
                 sink.write_frame(index, time_s, frame, people)
             for sink in fed + self.smoothed_sinks:   # frames with nobody count too
                 sink.end_frame(index)
-        self.stages["outputs"] += time.perf_counter() - clock
         if self.progress is not None and not stopped:
             self.progress.update(len(poses))
-        return bool(held)
+        if held and not stopped:
+            raise KeyboardInterrupt
 
     def close(self, interrupted: bool, write_empty: bool) -> tuple[bool, bool, list[str]]:
-        """Finish every output, stop signals held meanwhile (a Ctrl-C just before they are
-        held interrupts the run, not the closing, which starts again if it had not happened).
+        """Finish every output, stop signals held (one just before restarts the closing).
         Returns (interrupted, smoothed tracks written, problem lines)."""
         closed, smoothed, flushed, problems = False, False, False, []
         while not closed:
             try:
                 with _signals_held() as held:
                     if interrupted:
-                        # A stop shows nothing more: frames the live view holds are dropped.
+                        # A stop shows nothing more: the live view drops what it holds.
                         for sink in self.watching:
                             if hasattr(sink, "discard"):
                                 sink.discard()
@@ -256,8 +200,7 @@ class _Run:
                     fed = []
                     try:
                         if interrupted and not flushed:
-                            # The frames held back for a lag go out before the outputs
-                            # close: a stop costs none of the frames given to the smoother.
+                            # The frames held back for a lag go out first.
                             flushed = True
                             fed = _write_held(self.lagged, self.due, self.emit, self.stages)
                         if self.progress is not None:
@@ -275,20 +218,27 @@ class _Run:
         return interrupted, smoothed, problems
 
     def _feed_smoothed_sinks(self, interrupted: bool) -> list[str]:
-        """The smoothed sinks get each whole track smoothed, or after a stop (a quick exit)
-        the streamed poses; problem lines of those that failed."""
+        """Feed the smoothed sinks each track RTS-smoothed in frame order, or after a stop the
+        streamed poses; returns problem lines."""
         if self.recorder is None:
             return []
-        if not interrupted:
-            return _write_smoothed(self.tracker, self.recorder, self.smoothed_sinks)
-        return _write_filtered(self.recorder, self.smoothed_sinks, streamed_kind(self.lag_s))
+        if interrupted:
+            for sink in self.smoothed_sinks:
+                if hasattr(sink, "pose_kind"):
+                    sink.pose_kind = streamed_kind(self.lag_s)
+            return _feed(self.recorder.poses, self.smoothed_sinks)
+        # Drawn at the tracker's smoothed roots, not the streamed poses' (--lag moved those).
+        records, tracker = self.recorder.by_track(), self.tracker
+        redrawn = {track_id: drawn_at(list(zip(poses, tracker.smoothed_track(track_id),
+                                               tracker.smoothed_root_path(track_id))))
+                   for track_id, poses in records.items()}
+        order = sorted((p.frame_index, tid, i) for tid, ps in records.items()
+                       for i, p in enumerate(ps))
+        return _feed((redrawn[track_id][i] for _, track_id, i in order), self.smoothed_sinks)
 
 
 def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> list[str]:
-    """After a stop: write the frames due and those the fixed-lag smoother holds back to the
-    files (emit(stopped=True)); returns a problem line if an output failed there (the others
-    then get no more of them either: frames go to every output together). A sink that asks
-    to stop again (KeyboardInterrupt) ends this, not the closing that follows."""
+    """After a stop: the frames held back to the files; a problem line if an output failed."""
     try:
         if lagged is not None:
             _smoother_step(stages, lagged.flush)
@@ -302,139 +252,63 @@ def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> li
 
 
 def _smoother_step(stages, step, *args) -> bool:
-    """step(*args), a fixed-lag smoother's push or flush, its time counted as the stage
-    "fixed-lag smoothing"; stop signals are held meanwhile (a frame moving between its queues
-    cannot be lost), and whether one came is returned."""
-    clock = time.perf_counter()
-    try:
-        with _signals_held() as held:
-            step(*args)
-        return bool(held)
-    finally:
-        stages["fixed-lag smoothing"] += time.perf_counter() - clock
-
-
-def _poses_only(tracked: tuple) -> tuple:
-    """A tracked frame (frame_index, time_s, image, poses, people) without its image and
-    people, which only a sink that shows the video needs: nothing else is held back."""
-    index, time_s, _, poses, _ = tracked
-    return index, time_s, None, poses, {}
-
-
-def _in_process(source: VideoSource, tracker: PoseTracker, batch: int) -> Iterator[tuple]:
-    """(frame_index, time_s, frame, poses, people by track id) of each frame, tracked here
-    (one process), ``batch`` frames at a time (as the worker sends them: the same results)."""
-    for chunk in described_chunks(source, tracker, batch):
-        yield from _tracked(tracker, [(index, time_s, people, descriptions)
-                                      for index, time_s, _, people, descriptions in chunk],
-                            [frame for _, _, frame, _, _ in chunk])
+    """A fixed-lag smoother's push or flush, timed, stop signals held; whether one came."""
+    with timed(stages, "fixed-lag smoothing"), _signals_held() as held:
+        step(*args)
+    return bool(held)
 
 
 def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
-    """(frame_index, time_s, None, poses, people by track id) of each frame, its people found
-    and described by the worker process, tracked here a message's frames at a time; the time
-    spent waiting for the worker is the stage "waiting"."""
+    """The worker's frames tracked here (no image), a message at a time."""
     stages = tracker.stage_seconds
     clock = time.perf_counter()
     for chunk in worker.chunks():
         stages["waiting"] += time.perf_counter() - clock
-        yield from _tracked(tracker, chunk, [None] * len(chunk))
+        yield from _tracked(tracker, [(i, t, None, p, d) for i, t, p, d in chunk])
         clock = time.perf_counter()
 
 
-def _tracked(tracker: PoseTracker, chunk: list[tuple], images: list) -> Iterator[tuple]:
-    """Track consecutive frames (frame_index, time_s, people, descriptions) at once and give
-    each as (frame_index, time_s, image, poses, people by track id)."""
-    if not chunk:
-        return
-    for (index, time_s, _, _), image, (poses, people) in zip(
-            chunk, images, tracker.track_frames(chunk), strict=True):
+def _tracked(tracker: PoseTracker, chunk: list[tuple]) -> Iterator[tuple]:
+    """(frame_index, time_s, image, poses, people by track id) of consecutive frames
+    (frame_index, time_s, image, people, descriptions) tracked at once."""
+    results = tracker.track_frames([(i, t, p, d) for i, t, _, p, d in chunk])
+    for (index, time_s, image, _, _), (poses, people) in zip(chunk, results, strict=True):
         yield index, time_s, image, poses, people
 
 
 def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | None) -> None:
-    """Teach the tracker the empty scene: the clean plate ``background`` when given; otherwise
-    the median of frames spread over the video, taken at the extractor's working size (a 4K
-    video needs no 25 full frames in memory) and given at that size (scaling it up and back down
-    would blur it: SilhouetteExtractor.prime), plus, for an extractor that
-    can use them (``learn_zone``), the same frames to find where that median shows a person who
-    never leaves the spot (tracker.video.background.clip_background)."""
+    """Teach the tracker the empty scene: the clean plate ``background``, else the median of
+    frames spread over the video at the extractor's working size (and those frames)."""
     if background is not None:
-        _check_plate(source, background)
+        from tracker.clean_plate import check_plate
+        check_plate(source, background)
         tracker.prime(background)
         return
-    median, frames = _sampled_background(source, tracker, full_size=False)
+    median, frames = sampled_background(source, tracker)
     full = (source.width, source.height)
-    if (median.shape[1], median.shape[0]) == full:
-        tracker.prime(median)
-    else:
-        tracker.prime(median, frame_size=full)
+    tracker.prime(median, frame_size=None if median.shape[1::-1] == full else full)
     learn_zone = getattr(tracker.extractor, "learn_zone", None)
     if learn_zone is not None:
         learn_zone(frames)
 
 
-#: A clean plate is refused when, in most of these frames spread over the video, the frame
-#: (its brightness brought to the plate's) differs from it all over: in more than
-#: PLATE_MAX_CELLS of the cells of an 8 x 8 grid, over a tenth of the pixels differ by more
-#: than PLATE_TOLERANCE grey levels. A person is one blob (the sample's walker touches about
-#: 10 % of the cells against its plate, a mirrored plate 95 %).
-PLATE_CHECK_FRAMES, PLATE_MAX_CELLS, PLATE_TOLERANCE = 5, 0.75, 25
-
-
-def _check_plate(source: VideoSource, plate: np.ndarray) -> None:
-    """BackgroundMismatchError when the clean plate (BGR uint8 at the video's size) is not of
-    this video's scene: another scene or camera, or grey against colour. Such a plate had made
-    every frame one whole-image "person", or nobody at all with a misleading message."""
-    size = scaled_size(source.width, source.height, 320)
-    small = cv2.resize(plate, size, interpolation=cv2.INTER_AREA)
-    frames = source.sample_frames(PLATE_CHECK_FRAMES, size=size)
-    if not frames:
-        raise _nothing_decodes(source)
-    # The video's colour from the samples' median, where a passing person (a red top on a grey
-    # room) is gone.
-    plate_grey, video_grey = colourless(small), colourless(median_background(frames))
-    if plate_grey != video_grey:
-        raise BackgroundMismatchError(
-            f"the background image is {'grey' if plate_grey else 'in colour'} and the video "
-            f"{'grey' if video_grey else 'in colour'}: not a clean plate of this video")
-    meter = GainMeter(small)
-    changed = []
-    for frame in frames:
-        gain = meter(frame)
-        if np.all(gain > 0):
-            frame = undo_gain(frame, gain)
-        differs = (cv2.absdiff(frame, small).max(axis=2) > PLATE_TOLERANCE).astype(np.float32)
-        cells = cv2.resize(differs, (8, 8), interpolation=cv2.INTER_AREA)
-        changed.append(float((cells > 0.1).mean()))
-    if np.median(changed) > PLATE_MAX_CELLS:
-        raise BackgroundMismatchError(
-            f"the background image differs from the video all over ({np.median(changed):.0%} "
-            f"of the image's regions, median over {len(frames)} frames): not a clean plate of "
-            f"this scene and camera")
-
-
-def _sampled_background(source: VideoSource, tracker: PoseTracker, full_size: bool = True
-                        ) -> tuple[np.ndarray, list[np.ndarray]]:
-    """(the median of frames spread over the video, BGR uint8 at the frame size, or at the
-    extractor's working size when not full_size; those frames at the working size)."""
+def sampled_background(source: VideoSource, tracker: PoseTracker
+                       ) -> tuple[np.ndarray, list[np.ndarray]]:
+    """(the median of frames spread over the video, those frames), BGR uint8 at the
+    extractor's working size."""
     full = (source.width, source.height)
     subtractor = getattr(tracker.extractor, "subtractor", None)
     size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full
     frames = source.sample_frames(tracker.settings.background_samples, size=size)
     if not frames:
-        raise _nothing_decodes(source)
-    # Black or white frames (before a fade-in, a cut to white) are no picture of the scene: a
-    # median of mostly black samples made every later frame one whole-image "person".
+        raise nothing_decodes(source)
+    # Black or white frames (before a fade-in) are no picture of the scene.
     scenes = [f for f in frames if not _blank(f)]
     frames = scenes or frames
-    median = median_background(frames)
-    if full_size and size != full:
-        median = cv2.resize(median, full, interpolation=cv2.INTER_CUBIC)
-    return median, frames
+    return median_background(frames), frames
 
 
-def _nothing_decodes(source: VideoSource) -> VideoError:
+def nothing_decodes(source: VideoSource) -> VideoError:
     """The error for a file that opened but decodes nothing in the range asked for."""
     start_s = source.start_index / source.fps
     return VideoError(f"{source.path}: no decodable frames from {start_s:g} s on (a cut-off "
@@ -444,30 +318,20 @@ def _nothing_decodes(source: VideoSource) -> VideoError:
 def _blank(frame: np.ndarray, max_spread: float = 3.0, dark: float = 16.0,
            bright: float = 240.0) -> bool:
     """Whether a frame (BGR uint8 (h, w, 3)) is black or white all over: its grey levels'
-    standard deviation (every 4th pixel) under max_spread and their mean under ``dark`` or
-    over ``bright``. An evenly lit plain backdrop is flat too (a spread of 0.5 after mp4v)
-    but a picture of the scene, and stays."""
+    spread under max_spread, their mean under ``dark`` or over ``bright``."""
     grey = frame[::4, ::4].mean(axis=2)
     return float(grey.std()) < max_spread and not dark <= float(grey.mean()) <= bright
 
 
-def _background(source: VideoSource, tracker: PoseTracker) -> np.ndarray:
-    """The median of frames spread over the video (BGR uint8 at the frame size)."""
-    return _sampled_background(source, tracker)[0]
-
-
-_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-
-
 @contextlib.contextmanager
 def _signals_held() -> Iterator[list[int]]:
-    """Hold back Ctrl-C, SIGTERM and SIGHUP inside the block (main thread only; elsewhere
-    Python delivers no signals anyway); yields the list of those received meanwhile."""
+    """Hold back the stop signals inside the block (main thread only); yields the list of
+    those received."""
     held: list[int] = []
     previous = {}
     if threading.current_thread() is threading.main_thread():
         with _stop_signals_blocked():
-            for number in _STOP_SIGNALS:
+            for number in STOP_SIGNALS:
                 handler = signal.getsignal(number)
                 if handler is not None and handler != signal.SIG_IGN:
                     previous[number] = signal.signal(number, lambda n, _: held.append(n))
@@ -481,49 +345,17 @@ def _signals_held() -> Iterator[list[int]]:
 
 @contextlib.contextmanager
 def _stop_signals_blocked() -> Iterator[None]:
-    """Block the stop signals while their handlers are swapped, so that none arrives between
-    two swaps (its handler would raise there and leave the others swapped); one that came
-    meanwhile is delivered on leaving, to the handlers then in place. Where the platform cannot
-    block signals, the swaps are left unguarded."""
-    if not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    before = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    """Block the stop signals while their handlers are swapped; one that came is delivered on
+    leaving."""
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
-def _write_filtered(recorder: PoseRecorder, sinks: Sequence[Sink], kind: str = "filtered"
-                    ) -> list[str]:
-    """Feed the recorded poses (as streamed: filtered, or "fixed-lag smoothed" with a lag) to
-    the sinks in frame order, telling a sink with a ``pose_kind`` attribute which they are;
-    returns _feed's problems."""
-    for sink in sinks:
-        if hasattr(sink, "pose_kind"):
-            sink.pose_kind = kind
-    return _feed(recorder.poses, sinks)
-
-
-def _write_smoothed(tracker: PoseTracker, recorder: PoseRecorder, sinks: Sequence[Sink]
-                    ) -> list[str]:
-    """RTS-smooth every track's poses, draw them at the track's smoothed root path
-    (PoseTracker.smoothed_root_path: the tracker's own roots, not the streamed poses', which
-    a fixed-lag smoother has moved already), and feed them to the sinks in frame order;
-    returns _feed's problems."""
-    records = recorder.by_track()
-    redrawn = {track_id: drawn_at(list(zip(poses, tracker.smoothed_track(track_id),
-                                           tracker.smoothed_root_path(track_id))))
-               for track_id, poses in records.items()}
-    order = sorted((p.frame_index, tid, i) for tid, ps in records.items() for i, p in enumerate(ps))
-    return _feed((redrawn[track_id][i] for _, track_id, i in order), sinks)
-
-
 def _feed(poses, sinks: Sequence[Sink]) -> list[str]:
-    """Write every pose to every sink; a sink that fails (a full disk under the MCAP) is fed
-    no more, the others are fed on, so one output's failure costs no other its poses.
-    Returns one line per failed sink (tracker.outputs.problem_line)."""
+    """Write every pose to every sink, a failed one no more; one problem line per failure."""
     live, problems = list(sinks), []
     for pose in poses:
         for sink in list(live):

@@ -3,7 +3,7 @@ projected keypoints.
 
 On a video whose subject has 2-D reference keypoints per frame (e.g. Pose2Sim's balancing trial,
 ``sequences.pose2sim.project_reference``), the extractor and the associator run exactly as in
-``tracker.pipeline.PoseTracker.process`` (people -> track ids); the pose regression is skipped,
+``tracker.pipeline.PoseTracker`` (people -> track ids); the pose regression is skipped,
 since it does not change the masks or the track ids. Measures per view:
 
 - ``coverage``: fraction of keypoints (over all frames) inside the subject's mask dilated by
@@ -71,7 +71,7 @@ class FramePeople:
 def track_masks(frames: Iterable[tuple[int, np.ndarray]], extractor: Callable,
                 associator: Associator | None = None) -> list[FramePeople]:
     """Run ``extractor`` (frame BGR uint8 -> list of PersonMask) and the associator (default:
-    PoseTracker's) on (index, frame) pairs in order, as PoseTracker.process does; every frame's
+    PoseTracker's) on (index, frame) pairs in order, as PoseTracker does; every frame's
     tracked people."""
     associator = associator or default_associator()
     return [FramePeople(index, associator.update(extractor(image))) for index, image in frames]
