@@ -294,7 +294,7 @@ def lag_seconds(args) -> float:
 
 def streamed_kind(args) -> str:
     """What the poses written frame by frame are: "filtered", or "fixed-lag smoothed"."""
-    from tracker.tracks.fixed_lag import streamed_kind as kind    # deferred: numpy, OpenCV
+    from tracker.tracks import streamed_kind as kind    # deferred: numpy, OpenCV
     return kind(lag_seconds(args))
 
 

@@ -17,17 +17,22 @@ from collections import deque
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
 from tracker.cli import STOP_SIGNALS
-from tracker.tracks.fixed_lag import FixedLagSmoother, drawn_at, streamed_kind
+from tracker.tracks import streamed_kind
+from tracker.tracks.root_path import drawn_at
 from tracker.frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from tracker.pipeline import PoseTracker, timed
 from tracker.video.silhouettes import median_background
 from tracker.outputs import PoseRecorder, Sink, close_sinks, problem_line
 from tracker.video.decode import VideoError, VideoSource, open_video
+
+if TYPE_CHECKING:
+    from tracker.tracks.fixed_lag import FixedLagSmoother
 
 
 class OutputError(SilhouettePoseError, RuntimeError):
@@ -131,7 +136,10 @@ class _Run:
     def __init__(self, tracker: PoseTracker, sinks, smoothed_sinks, progress, lag_s: float):
         self.tracker, self.progress, self.lag_s = tracker, progress, lag_s
         self.sinks, self.smoothed_sinks = list(sinks), list(smoothed_sinks)
-        self.lagged = FixedLagSmoother.from_seconds(tracker, lag_s) if lag_s else None
+        self.lagged = None
+        if lag_s:
+            from tracker.tracks.fixed_lag import FixedLagSmoother    # only --lag needs it
+            self.lagged = FixedLagSmoother.from_seconds(tracker, lag_s)
         self.recorder = PoseRecorder() if smoothed_sinks else None
         self.streaming = self.sinks + ([self.recorder] if self.recorder else [])
         self.watching = [sink for sink in self.streaming if hasattr(sink, "write_frame")]
