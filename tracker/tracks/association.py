@@ -22,8 +22,8 @@ from scipy.optimize import linear_sum_assignment
 
 from regressor.errors import SilhouettePoseError
 
-#: How long, seconds, a track may stay hidden in a group (PoseTracker's max_occluded): the
-#: sample beside its mirror image is one blob for 0.6 s per crossing.
+#: Seconds a track may stay hidden in a group (PoseTracker's max_occluded): the sample beside
+#: its mirror image is one blob for 0.6 s per crossing.
 MAX_OCCLUDED_S = 1.5
 
 
@@ -139,28 +139,23 @@ class Associator:
         log_ratio = np.abs(np.log(areas[None, :] / track_area[:, None]))
         overlap = box_overlap(np.array([t.bbox for t in self.tracks]), boxes)
         cost = distance + self.size_weight * log_ratio
-        if colours is not None and self.appearance_weight > 0:
-            cost += self.appearance_weight * self._colour_distance(colours)
+        known = np.array([t.colour is not None for t in self.tracks])           # (T,)
+        if colours is not None and self.appearance_weight > 0 and known.any():
+            # Bhattacharyya distances (T, N) in [0, 1] (0 for a track without a colour).
+            mean = np.stack([t.colour if t.colour is not None else np.zeros(colours.shape[1])
+                             for t in self.tracks])
+            coefficient = np.sqrt(mean) @ np.sqrt(colours).T
+            cost += self.appearance_weight * (np.sqrt(np.clip(1.0 - coefficient, 0.0, 1.0))
+                                              * known[:, None])
         gated = (distance > self.max_distance * (1 + missed[:, None])) | \
                 ((log_ratio > math.log(self.max_area_ratio)) & (overlap < self.min_box_overlap))
         cost[gated] = np.inf
         return cost
 
-    def _colour_distance(self, colours: np.ndarray) -> np.ndarray:
-        """Bhattacharyya distances (T, N) in [0, 1] of the tracks' colours (0 without one) to
-        histograms (N, K)."""
-        known = np.array([t.colour is not None for t in self.tracks])
-        if not known.any():
-            return np.zeros((len(self.tracks), len(colours)))
-        mean = np.stack([t.colour if t.colour is not None else np.zeros(colours.shape[1])
-                         for t in self.tracks])
-        coefficient = np.sqrt(mean) @ np.sqrt(colours).T
-        return np.sqrt(np.clip(1.0 - coefficient, 0.0, 1.0)) * known[:, None]
-
     def update(self, detections: Sequence[D]) -> list[tuple[int, D]]:
         """Match this frame's detections to tracks: (track_id, detection) for each on a
         confirmed track, in order, a group's replaced by (track_id, part) for its members
-        (tracker.tracks.groups). Unmatched detections start tentative tracks; stale tracks are dropped."""
+        (tracker.tracks.groups). Unmatched detections start tentative tracks; stale ones go."""
         centroids = np.array([d.centroid for d in detections], float).reshape(-1, 2)
         areas = np.array([d.area for d in detections], float)
         boxes = [getattr(d, "bbox", None) if self.use_boxes else None for d in detections]

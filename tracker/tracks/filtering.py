@@ -1,7 +1,7 @@
 """Kalman filtering of regressed poses over time, with angle wrap-around handled.
 
-State: the 54 angles (heading, then pose entries 2..54), degrees, and their rates: x = [angles
-(54), rates (54)] (108,). Constant velocity, piecewise-constant white acceleration (dt = 1/fps):
+State x (108,): the 54 angles (heading, then pose entries 2..54), degrees, then their rates.
+Constant velocity, piecewise-constant white acceleration (dt = 1/fps):
 
     F = [[I, dt I], [0, I]]      Q = diag(q) (x) [[dt^4/4, dt^3/2], [dt^3/2, dt^2]]
     H = [I, 0]                   R = measurement covariance (54, 54), degrees^2
@@ -9,8 +9,8 @@ State: the 54 angles (heading, then pose entries 2..54), degrees, and their rate
 q: acceleration variances, (deg/s^2)^2. Defaults (a model file has its own): acceleration std
 1000 deg/s^2 (median RMS second difference of 12 CMU clips at 30 fps), measurement std 6 deg per
 joint angle and 20 deg for the heading (the paper's error levels). Measured angles are
-unwrapped against the prediction. A raw pose whose heading norm is below
-``ambiguity_threshold`` averaged several views: its R is inflated, most on the heading.
+unwrapped against the prediction. A raw pose whose heading norm is below ``ambiguity_threshold``
+averaged several views: its R is inflated, most on the heading.
 """
 from __future__ import annotations
 
@@ -48,7 +48,6 @@ def initial_state(z: np.ndarray, R: np.ndarray, rate_std: float
 
 class ConstantVelocityFilter:
     """Kalman filter and RTS smoother for ``dim`` values, each with its rate (module docstring).
-
     R: measurement covariance, (dim,) or (dim, dim), units^2 (measurements may carry their
     own); q: acceleration variances, scalar or (dim,), (units/s^2)^2; rate_std: prior std of
     the rates at the first frame, units/s; align(z, predicted) -> z, if given, maps each
@@ -58,10 +57,8 @@ class ConstantVelocityFilter:
                  align: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None):
         if not (int(dim) == dim and dim >= 1):
             raise FilterError(f"dim={dim} must be a positive integer")
-        if not (np.isfinite(fps) and fps > 0):
-            raise FilterError(f"fps={fps} must be positive")
-        if not (np.isfinite(rate_std) and rate_std > 0):
-            raise FilterError(f"rate_std={rate_std} must be positive")
+        if not (np.isfinite([fps, rate_std]).all() and min(fps, rate_std) > 0):
+            raise FilterError(f"fps={fps} and rate_std={rate_std} must be positive")
         q = np.broadcast_to(np.asarray(q, float), (int(dim),))
         if not (np.isfinite(q).all() and (q >= 0).all()):
             raise FilterError("q (acceleration variances) must be finite and >= 0")
@@ -72,18 +69,10 @@ class ConstantVelocityFilter:
         if not np.isfinite(R).all() or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() <= 0:
             raise FilterError("R must be finite, symmetric and positive definite")
         self.dim, self.fps, self.dt = int(dim), float(fps), 1.0 / float(fps)
-        self.R = R
-        self.q = q.copy()
-        self.rate_std = float(rate_std)
-        self.align = align
+        self.R, self.q, self.rate_std, self.align = R, q.copy(), float(rate_std), align
         dt = self.dt
         self.Q = np.block([[np.diag(q * dt**4 / 4), np.diag(q * dt**3 / 2)],
                            [np.diag(q * dt**3 / 2), np.diag(q * dt**2)]])
-
-    def filter(self, zs: np.ndarray, Rs: Sequence | None = None) -> np.ndarray:
-        """Forward-filtered values (T, dim) of zs (T, dim), Rs: per-frame R or None (filterpy)."""
-        from tracker.tracks.filterpy_runs import forward
-        return forward(self, self._check_sequence(zs), Rs)
 
     def smooth(self, zs: np.ndarray, Rs: Sequence | None = None, window: int = 256,
                lag: int = 64) -> np.ndarray:
@@ -127,8 +116,7 @@ class ConstantVelocityFilter:
         return smoothed
 
     def _predict(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q by F's blocks (O(n^2)
-        instead of two (2n)^3 products)."""
+        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q by F's blocks (O(n^2))."""
         n, dt = self.dim, self.dt
         x = np.concatenate([x[:n] + dt * x[n:], x[n:]])
         B, D = P[:n, n:], P[n:, n:]
@@ -147,8 +135,7 @@ class ConstantVelocityFilter:
         return zs
 
 
-# LAPACK directly: scipy's solve_triangular and cho_solve check and copy more than a per-frame
-# filter can afford.
+# LAPACK directly: scipy's wrappers check and copy more than a per-frame filter can afford.
 _trtrs, _potrf, _potrs = scipy.linalg.lapack.get_lapack_funcs(("trtrs", "potrf", "potrs"),
                                                                dtype=np.float64)
 
@@ -283,6 +270,5 @@ class PoseKalmanFilter:
         raws = np.asarray(raws, float)
         if raws.ndim != 2 or raws.shape[1] != POSE_DIM or len(raws) == 0:
             raise FilterError(f"{name} needs poses of shape (T, 55), got {raws.shape}")
-        measured = [self._measure(raw) for raw in raws]
-        return (np.array([m[0] for m in measured]), [m[1] for m in measured],
-                np.array([m[2] for m in measured], bool))
+        angles, Rs, ambiguous = zip(*(self._measure(raw) for raw in raws))
+        return np.array(angles), list(Rs), np.array(ambiguous, bool)

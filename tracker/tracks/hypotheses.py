@@ -27,15 +27,13 @@ from sequences.pose_vector import front_back_flip, heading_deg
 from tracker.tracks.member_path import members_over_time
 from tracker.tracks.mirror_limbs import mirror_mean
 
-#: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps: the regressor's flips, learned on
-#: validation renders by scripts/learn_hypothesis_priors.py.
+#: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps (scripts/learn_hypothesis_priors.py).
 SWITCH_PROBABILITY = (0.117, 0.248)
-#: Exponent per frame of the regressor's evidence (log likelihoods are multiplied by it).
-EVIDENCE_WEIGHT = 1.0
+EVIDENCE_WEIGHT = 1.0                    # exponent per frame of the regressor's evidence
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
 
-#: The canonical chain's priors for a model file without its own, learned on the 28 validation
-#: renders: (P(canonical -> flip), P(flip -> canonical)) per frame.
+#: The canonical chain's (P(canonical -> flip), P(flip -> canonical)) per frame for a model
+#: file without its own priors.
 CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 #: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
 #: the member's every frame, scores a few nats below it and weaker evidence never catches up.
@@ -54,8 +52,8 @@ _FLOOR = 1e-3                            # no evidence is ever certain
 @dataclass
 class Hypotheses:
     """One frame's candidates: poses (K, 55), log_evidence (K,) log likelihood ratios, raw (55,)
-    the regressor's own pose, limbs (55,) the canonical member or None; canonical: the poses
-    are that member and its flip, front: the side classifier's P(facing the camera's half)."""
+    the regressor's pose, limbs (55,) the canonical member or None; canonical: the poses are it
+    and its flip; front: the side classifier's P(facing the camera's half)."""
 
     poses: np.ndarray
     log_evidence: np.ndarray
@@ -91,8 +89,7 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
                          priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
     """The limbs' canonical member (55,) and its flip, weighed by the side classifier's
     probability ``front`` that the body faces the camera's half (calibrated: priors.by_front).
-    The heading norm of raw (55,), the main head's pose, replaces the member's (~1), so the
-    filters' R inflation and the ambiguous flag still see it."""
+    Their heading norm is raw's (55,), for the filters' R inflation and the ambiguous flag."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
     norm = heading_norm(raw)
@@ -117,8 +114,7 @@ def canonical_priors(estimator: PoseEstimator) -> CanonicalPriors:
 
 
 def chain_options(estimator: PoseEstimator) -> dict:
-    """FrontBackTracker's keyword arguments that depend on the estimator: switch rates,
-    evidence weight and the frame rate they hold at (its training_fps)."""
+    """FrontBackTracker's switch, evidence_weight and reference_fps for the estimator."""
     if estimator.gives_canonical_pairs:
         switch, weight = canonical_priors(estimator).switch, CANONICAL_EVIDENCE_WEIGHT
     else:
@@ -138,8 +134,7 @@ def hypotheses_from(estimates: PoseEstimates,
         return [canonical_hypotheses(p[0], lb, f, priors)
                 for p, lb, f in zip(poses, limbs, estimates.front)]
     from tracker.tracks.flip_hypotheses import with_flips   # models without a side classifier
-    if limbs is None:
-        limbs = [None] * len(poses)
+    limbs = [None] * len(poses) if limbs is None else limbs
     return [with_flips(np.asarray(p, float), np.asarray(g, float), lb)
             for p, g, lb in zip(poses, gate, limbs)]
 
@@ -155,8 +150,8 @@ def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
 
 @dataclass
 class Decision:
-    """One frame's output: the most probable state's filtered pose (55,), ambiguous flag,
-    index and probability; the runner-up's pose (55,) and probability from CLOSE_PROBABILITY."""
+    """One frame's most probable state's filtered pose (55,), ambiguous flag, index and
+    probability; the runner-up's pose (55,) and probability from CLOSE_PROBABILITY on."""
 
     filtered: np.ndarray
     ambiguous: bool
@@ -196,7 +191,6 @@ class FrontBackTracker:
     limb_filter: object | None = None
     log_alpha: np.ndarray | None = None
     history: list[_Frame] = field(default_factory=list)
-    _log_A: tuple | None = field(default=None, repr=False)
 
     def step(self, hypotheses: Hypotheses) -> Decision:
         """Take one frame's hypotheses; returns the decision."""
@@ -204,7 +198,7 @@ class FrontBackTracker:
         K = len(poses)
         rate = self.frame_rate_ratio
         evidence = rate * self.evidence_weight * hypotheses.log_evidence
-        log_A = self._log_transitions(K)
+        log_A = np.log(transition_matrix(K, self.frame_switch))
         if self.log_alpha is None or len(self.filters) != K:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
             self.log_alpha, link = _log_stationary(log_A) + evidence, None
@@ -243,7 +237,7 @@ class FrontBackTracker:
 
     @property
     def frame_rate_ratio(self) -> float:
-        """reference_fps / fps: the exponent on evidence and likelihoods (and frame_switch's)."""
+        """reference_fps / fps: the exponent on evidence, likelihoods and switches."""
         return self.reference_fps / self.fps
 
     @property
@@ -253,13 +247,6 @@ class FrontBackTracker:
         if rate == 1.0:
             return tuple(self.switch)
         return tuple(float(-np.expm1(rate * np.log1p(-p))) for p in self.switch)
-
-    def _log_transitions(self, K: int) -> np.ndarray:
-        """log A (K, K) for the current switch probabilities, computed once."""
-        key = (K, tuple(self.switch), self.fps, self.reference_fps)
-        if self._log_A is None or self._log_A[0] != key:
-            self._log_A = (key, np.log(transition_matrix(K, self.frame_switch)))
-        return self._log_A[1]
 
     def _continue(self, predecessor: np.ndarray) -> list:
         """Filters for the new states: state j continues predecessor[j]'s (a copy if taken)."""
@@ -277,7 +264,8 @@ class FrontBackTracker:
         frames = self.history[start:stop]
         if not frames:
             return np.zeros(0, dtype=np.int64)
-        delta = _log_stationary(self._log_transitions(len(frames[0].poses))) + frames[0].evidence
+        log_A = np.log(transition_matrix(len(frames[0].poses), self.frame_switch))
+        delta = _log_stationary(log_A) + frames[0].evidence
         back = []
         for frame in frames[1:]:
             scores = delta[:, None] + frame.link

@@ -1,10 +1,6 @@
-"""Which body the limbs are, decided over a whole track (``--smooth``).
-
-Online the tracker takes the canonical member or its flip, whichever heading is nearer the
-chain's (hypotheses.pick_member); in profile the headings nearly meet and which leg is forward
-differs. Offline the most probable chain of members decides (regressor.hypothesis_path). Only
-the ratio MEMBER_STEP_VARIANCE / MEMBER_HEADING_SD_DEG^2 matters: docs/tuning.md.
-"""
+"""Which body the limbs are, decided over a whole track (``--smooth``): online the member whose
+heading is nearer the chain's (hypotheses.pick_member), but in profile the headings nearly meet;
+offline the most probable chain of members (regressor.hypothesis_path; docs/tuning.md)."""
 from __future__ import annotations
 
 import numpy as np
@@ -20,10 +16,9 @@ MEMBER_STEP_VARIANCE = 400.0        # deg^2: the 53 angles' summed squared step 
 def members_over_time(limbs, headings_deg, frame_rate_ratio: float = 1.0,
                       step_variance: float = MEMBER_STEP_VARIANCE) -> np.ndarray:
     """Of each frame's canonical pose and its flip (limbs (T, 55), in time order), the ones on
-    the most probable chain (T, 55): a member's evidence is a Gaussian (MEMBER_HEADING_SD_DEG)
-    of its heading's distance to headings_deg (T,), the decided heading, times
-    frame_rate_ratio (FrontBackTracker's: a second weighs the same at any rate); each step
-    costs the squared change of the 53 body angles (degrees) over 2 step_variance."""
+    the most probable chain (T, 55): a member's log evidence is a Gaussian's (sd
+    MEMBER_HEADING_SD_DEG) of its heading's distance to headings_deg (T,) times frame_rate_ratio;
+    each step costs the squared change of the 53 body angles (degrees) over 2 step_variance."""
     limbs = np.asarray(limbs, dtype=np.float64)
     headings = np.asarray(headings_deg, dtype=np.float64)
     if limbs.ndim != 2 or limbs.shape[1] != 55 or headings.shape != (len(limbs),):

@@ -1,8 +1,6 @@
-"""Each track's root (hip) path smoothed over time, for the smoothed outputs.
-
-The root, placed per frame from the silhouette's box alone, jitters with the box as the limbs
-move. The smoothed outputs are drawn at a straight line fitted with Gaussian weights about each
-pose's time (a local linear smoother: no lag, no pull at a track's ends or beside a gap).
+"""Each track's root (hip) path smoothed over time, for the smoothed outputs: the root, placed
+per frame from the silhouette's box, jitters with it as the limbs move; the outputs take a line
+fitted with Gaussian weights about each pose's time (no lag, no pull at a track's ends or gaps).
 """
 from __future__ import annotations
 
