@@ -22,8 +22,8 @@ from scipy.optimize import linear_sum_assignment
 
 from regressor.errors import SilhouettePoseError
 
-#: Seconds a track may stay hidden in a group (PoseTracker's max_occluded): the sample beside
-#: its mirror image is one blob for 0.6 s per crossing.
+#: Seconds a track may stay in a group (PoseTracker's max_occluded): the sample beside its
+#: mirror image is one blob for 0.6 s a crossing.
 MAX_OCCLUDED_S = 1.5
 
 
@@ -62,10 +62,6 @@ class Track:
         """(x, y) px expected this frame (constant velocity since the last match)."""
         return self.centroid + self.velocity * (self.missed + 1)
 
-    def size(self) -> float:
-        """The unit of distance, px: the box height, else sqrt(area)."""
-        return float(self.bbox[3]) if np.isfinite(self.bbox[3]) else math.sqrt(self.area)
-
 
 def box_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Intersection over the smaller box's area (A, B) of boxes a (A, 4), b (B, 4) (x, y, w, h)
@@ -90,16 +86,15 @@ _LIMITS = {"max_distance": "(0, inf)", "max_area_ratio": "[1, inf)", "size_weigh
 
 @dataclass(eq=False)
 class Associator:
-    """Frame-to-frame association of detections to track ids (see the module docstring).
-
-    A pair is gated beyond ``max_distance`` sizes (one more per frame coasted), or when the
-    areas differ by more than ``max_area_ratio`` and the boxes overlap by less than
+    """Frame-to-frame association of detections to track ids (see the module docstring). A pair
+    is gated beyond ``max_distance`` sizes (one more per frame coasted), or when the areas
+    differ by more than ``max_area_ratio`` and the boxes overlap by less than
     ``min_box_overlap`` (a silhouette that grows in place keeps its id). A detection below
     ``min_relative_area`` of the largest track's waits ``min_hits`` frames for its id; a track
     unmatched ``max_missed`` frames is dropped. ``smoothing``, ``colour_rate``: weight of the
     newest frame in velocity and area, colour. ``use_boxes``: False ignores boxes (no groups).
-    ``max_occluded``: frames in a group (0: no groups); ``min_height_ratio``: of a group's
-    members (tracker.tracks.groups)."""
+    ``max_occluded``, ``min_height_ratio``: frames in a group (0: none), members' heights
+    (tracker.tracks.groups)."""
 
     max_distance: float = 1.0
     max_area_ratio: float = 1.8
@@ -134,7 +129,8 @@ class Associator:
         track_area = np.array([t.area for t in self.tracks])                  # (T,)
         # Coasting, in a group or unseen, widens the gate by one size a frame.
         missed = np.array([t.missed + t.occluded for t in self.tracks])       # (T,)
-        size = np.array([t.size() for t in self.tracks])[:, None]             # (T, 1)
+        size = np.array([float(t.bbox[3]) if np.isfinite(t.bbox[3]) else math.sqrt(t.area)
+                         for t in self.tracks])[:, None]     # (T, 1) unit of distance, px
         distance = np.linalg.norm(predicted[:, None, :] - centroids[None, :, :], axis=2) / size
         log_ratio = np.abs(np.log(areas[None, :] / track_area[:, None]))
         overlap = box_overlap(np.array([t.bbox for t in self.tracks]), boxes)

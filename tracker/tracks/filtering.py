@@ -6,11 +6,9 @@ Constant velocity, piecewise-constant white acceleration (dt = 1/fps):
     F = [[I, dt I], [0, I]]      Q = diag(q) (x) [[dt^4/4, dt^3/2], [dt^3/2, dt^2]]
     H = [I, 0]                   R = measurement covariance (54, 54), degrees^2
 
-q: acceleration variances, (deg/s^2)^2. Defaults (a model file has its own): acceleration std
-1000 deg/s^2 (median RMS second difference of 12 CMU clips at 30 fps), measurement std 6 deg per
-joint angle and 20 deg for the heading (the paper's error levels). Measured angles are
-unwrapped against the prediction. A raw pose whose heading norm is below ``ambiguity_threshold``
-averaged several views: its R is inflated, most on the heading.
+q: acceleration variances, (deg/s^2)^2 (a model file has its own q and R, else the defaults).
+Measured angles are unwrapped against the prediction. A raw pose whose heading norm is below
+``ambiguity_threshold`` averaged several views: its R is inflated, most on the heading.
 """
 from __future__ import annotations
 
@@ -24,9 +22,9 @@ from regressor.angles import N_ANGLES, POSE_DIM, angles_to_pose, heading_norm, p
 from regressor.pose_model import DEFAULT_AMBIGUITY_THRESHOLD
 from regressor.errors import SilhouettePoseError
 
-DEFAULT_ACCEL_STD = 1000.0        # deg/s^2
-DEFAULT_JOINT_STD = 6.0           # deg
-DEFAULT_HEADING_STD = 20.0        # deg
+DEFAULT_ACCEL_STD = 1000.0        # deg/s^2: median RMS second difference, 12 CMU clips (30 fps)
+DEFAULT_JOINT_STD = 6.0           # deg, each joint angle (the paper's error level)
+DEFAULT_HEADING_STD = 20.0        # deg (the paper's error level)
 _LOG_2PI = float(np.log(2.0 * np.pi))
 DEFAULT_RATE_STD = 90.0           # deg/s, prior on angular rates when a track starts
 
@@ -35,23 +33,17 @@ class FilterError(SilhouettePoseError, ValueError):
     """Bad filter settings or pose vectors; one-line message naming the problem."""
 
 
-def initial_state(z: np.ndarray, R: np.ndarray, rate_std: float
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def initial_state(z: np.ndarray, R: np.ndarray, rate_std: float) -> tuple[np.ndarray, np.ndarray]:
     """A first state: x (2n,) = [z (n,), zero rates], P (2n, 2n) = diag(R, rate_std^2 I)."""
     n = len(z)
-    x = np.concatenate([z, np.zeros(n)])
-    P = np.zeros((2 * n, 2 * n))
-    P[:n, :n] = R
-    P[n:, n:] = np.eye(n) * rate_std**2
-    return x, P
+    return np.concatenate([z, np.zeros(n)]), scipy.linalg.block_diag(R, np.eye(n) * rate_std**2)
 
 
 class ConstantVelocityFilter:
     """Kalman filter and RTS smoother for ``dim`` values, each with its rate (module docstring).
-    R: measurement covariance, (dim,) or (dim, dim), units^2 (measurements may carry their
-    own); q: acceleration variances, scalar or (dim,), (units/s^2)^2; rate_std: prior std of
-    the rates at the first frame, units/s; align(z, predicted) -> z, if given, maps each
-    measurement (dim,) given the predicted values (dim,) (angle filters unwrap it there)."""
+    R: measurement covariance (dim,) or (dim, dim), units^2 (or one per measurement); q:
+    acceleration variances, scalar or (dim,), (units/s^2)^2; rate_std: the rates' prior std at
+    the first frame, units/s; align(z (dim,), predicted (dim,)) -> z: e.g. angles unwrapped."""
 
     def __init__(self, dim: int, fps: float, R, q, rate_std: float,
                  align: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None):
@@ -140,23 +132,23 @@ _trtrs, _potrf, _potrs = scipy.linalg.lapack.get_lapack_funcs(("trtrs", "potrf",
                                                                dtype=np.float64)
 
 
+def _lapack(result: tuple, problem: str) -> np.ndarray:
+    """A LAPACK call's (out, info) -> out; a FilterError naming the problem unless info is 0."""
+    out, info = result
+    if info != 0:
+        raise FilterError(f"{problem} (LAPACK info {info})")
+    return out
+
+
 def _lower_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
     """L^-1 b for a lower-triangular L (n, n) and b (n,) or (n, m)."""
-    x, info = _trtrs(L, b, lower=1)
-    if info != 0:
-        raise FilterError(f"singular innovation covariance (LAPACK trtrs info {info})")
-    return x
+    return _lapack(_trtrs(L, b, lower=1), "singular innovation covariance")
 
 
 def _spd_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     """A^-1 b for a symmetric positive definite A (n, n) and b (n,) or (n, m) (Cholesky)."""
-    c, info = _potrf(A, lower=1)
-    if info != 0:
-        raise FilterError(f"covariance not positive definite (LAPACK potrf info {info})")
-    x, info = _potrs(c, b, lower=1)
-    if info != 0:
-        raise FilterError(f"covariance solve failed (LAPACK potrs info {info})")
-    return x
+    c = _lapack(_potrf(A, lower=1), "covariance not positive definite")
+    return _lapack(_potrs(c, b, lower=1), "covariance solve failed")
 
 
 def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
@@ -199,9 +191,8 @@ class PoseKalmanFilter:
         if not np.isfinite(raw).all():
             bad = np.flatnonzero(~np.isfinite(raw)).tolist()
             raise FilterError(f"pose vector has non-finite entries at {bad}")
-        angles, norm = pose_angles(raw), heading_norm(raw)
-        ambiguous = bool(norm < self.ambiguity_threshold)
-        return angles, self.R_ambiguous if ambiguous else self.R, ambiguous
+        ambiguous = bool(heading_norm(raw) < self.ambiguity_threshold)
+        return pose_angles(raw), self.R_ambiguous if ambiguous else self.R, ambiguous
 
     def log_likelihoods(self, raws) -> np.ndarray:
         """Innovation log-likelihoods (K,) of candidate raw poses (K, 55) for the next frame
@@ -229,10 +220,8 @@ class PoseKalmanFilter:
         _, P_pred, factors = self._prediction()
         if ambiguous not in factors:
             R = self.R_ambiguous if ambiguous else self.R
-            L, info = _potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1)
-            if info != 0:
-                raise FilterError(f"innovation covariance not positive definite (LAPACK potrf "
-                                  f"info {info})")
+            L = _lapack(_potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1),
+                        "innovation covariance not positive definite")
             factors[ambiguous] = (L, 2.0 * np.log(np.diag(L)).sum())
         return factors[ambiguous]
 

@@ -19,12 +19,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from regressor.angles import heading_norm
+from regressor.angles import heading_norm, wrap_deg
 from regressor.canonical_priors import CanonicalPriors
 from regressor.estimator import PoseEstimates, PoseEstimator
+from regressor.hypothesis_path import most_probable_path
 from regressor.pose_model import DEFAULT_TRAINING_FPS
 from sequences.pose_vector import front_back_flip, heading_deg
-from tracker.tracks.member_path import members_over_time
 from tracker.tracks.mirror_limbs import mirror_mean
 
 #: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps (scripts/learn_hypothesis_priors.py).
@@ -47,6 +47,10 @@ DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
 #: Experts asked of a mixture model (more added wrong headings more often than right ones).
 DEFAULT_EXPERTS = 1
 _FLOOR = 1e-3                            # no evidence is ever certain
+#: members_over_time's evidence (how near each member's heading is) and step variance (deg^2,
+#: the 53 angles' summed squared step per frame); only their ratio matters (docs/tuning.md).
+MEMBER_HEADING_SD_DEG = 30.0
+MEMBER_STEP_VARIANCE = 400.0
 
 
 @dataclass
@@ -92,12 +96,11 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
     Their heading norm is raw's (55,), for the filters' R inflation and the ambiguous flag."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
-    norm = heading_norm(raw)
     unit = pair[:, :2] / np.maximum(np.linalg.norm(pair[:, :2], axis=1, keepdims=True), 1e-9)
-    pair[:, :2] = unit * norm
+    pair[:, :2] = unit * heading_norm(raw)
     q = _table(priors.front_edges, priors.by_front, member_probability(pair[0], front))
     evidence = np.log([q / priors.overall, (1 - q) / (1 - priors.overall)])
-    return Hypotheses(pair, evidence, np.asarray(raw, dtype=np.float64), limbs, canonical=True,
+    return Hypotheses(pair, evidence, np.asarray(raw, float), limbs, canonical=True,
                       front=float(front))
 
 
@@ -115,10 +118,9 @@ def canonical_priors(estimator: PoseEstimator) -> CanonicalPriors:
 
 def chain_options(estimator: PoseEstimator) -> dict:
     """FrontBackTracker's switch, evidence_weight and reference_fps for the estimator."""
-    if estimator.gives_canonical_pairs:
-        switch, weight = canonical_priors(estimator).switch, CANONICAL_EVIDENCE_WEIGHT
-    else:
-        switch, weight = SWITCH_PROBABILITY, EVIDENCE_WEIGHT
+    canonical = estimator.gives_canonical_pairs
+    switch = canonical_priors(estimator).switch if canonical else SWITCH_PROBABILITY
+    weight = CANONICAL_EVIDENCE_WEIGHT if canonical else EVIDENCE_WEIGHT
     return {"switch": switch, "evidence_weight": weight, "reference_fps": estimator.training_fps}
 
 
@@ -173,7 +175,6 @@ class _Frame:
 @dataclass
 class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
-
     filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; without
     ``log_likelihoods`` only the evidence scores); switch (P(raw -> flip), P(flip -> raw)) and
     evidence_weight: per frame at reference_fps; keep_history: keep every frame for
@@ -211,10 +212,9 @@ class FrontBackTracker:
             self.log_alpha = _logsumexp(scores, axis=0) + evidence
         self.log_alpha -= _logsumexp(self.log_alpha)
         if self.keep_history:
-            self.history.append(_Frame(np.array(poses, dtype=np.float64), evidence, link,
-                                       np.array(hypotheses.raw, dtype=np.float64),
-                                       None if hypotheses.limbs is None
-                                       else np.array(hypotheses.limbs, dtype=np.float64)))
+            limbs = None if hypotheses.limbs is None else np.array(hypotheses.limbs, float)
+            self.history.append(_Frame(np.array(poses, float), evidence, link,
+                                       np.array(hypotheses.raw, float), limbs))
         outputs = [f.step(pose) for f, pose in zip(self.filters, poses)]
         prob = np.exp(self.log_alpha)
         order = np.argsort(-prob)
@@ -250,13 +250,12 @@ class FrontBackTracker:
 
     def _continue(self, predecessor: np.ndarray) -> list:
         """Filters for the new states: state j continues predecessor[j]'s (a copy if taken)."""
-        used, out = set(), []
-        for i in predecessor:
+        out = []
+        for k, i in enumerate(predecessor):
             f = self.filters[int(i)]
-            if int(i) in used:
+            if i in predecessor[:k]:
                 f = f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
             out.append(f)
-            used.add(int(i))
         return out
 
     def viterbi_path(self, start: int = 0, stop: int | None = None) -> np.ndarray:
@@ -279,7 +278,7 @@ class FrontBackTracker:
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses of history[start:stop];
         with a limb_filter_factory the body angles are its smoothing of the raw poses or the
-        limb members' most probable chain (member_path), under the smoothed heading."""
+        limb members' most probable chain (members_over_time), under the smoothed heading."""
         frames = self.history[start:stop]
         chosen = [frame.poses[s] for frame, s in zip(frames, self.viterbi_path(start, stop))]
         out = self.filter_factory(self.fps).rts_smooth(np.array(chosen))
@@ -291,6 +290,27 @@ class FrontBackTracker:
             raws = with_body_angles(out, raws)          # the decided heading, as online
             out = with_body_angles(out, self.limb_filter_factory(self.fps).rts_smooth(raws))
         return out
+
+
+def members_over_time(limbs, headings_deg, frame_rate_ratio: float = 1.0,
+                      step_variance: float = MEMBER_STEP_VARIANCE) -> np.ndarray:
+    """Of each frame's canonical pose and its flip (limbs (T, 55), in time order), the ones on
+    the most probable chain (T, 55), for the smoothed outputs (in profile the headings nearly
+    meet, so pick_member may not say): a member's log evidence is a Gaussian's (sd
+    MEMBER_HEADING_SD_DEG) of its heading's distance to headings_deg (T,) times frame_rate_ratio;
+    each step costs the squared change of the 53 body angles (degrees) over 2 step_variance."""
+    limbs = np.asarray(limbs, dtype=np.float64)
+    headings = np.asarray(headings_deg, dtype=np.float64)
+    if limbs.ndim != 2 or limbs.shape[1] != 55 or headings.shape != (len(limbs),):
+        raise ValueError(f"limbs must be (T, 55) and headings (T,), got {limbs.shape} and "
+                         f"{headings.shape}")
+    if len(limbs) == 0:
+        return limbs.copy()
+    pair = np.stack([limbs, front_back_flip(limbs)], axis=1)                 # (T, 2, 55)
+    off = wrap_deg(heading_deg(pair.reshape(-1, 55)).reshape(-1, 2) - headings[:, None])
+    log_weight = -frame_rate_ratio * off ** 2 / (2.0 * MEMBER_HEADING_SD_DEG ** 2)
+    path = most_probable_path(pair[:, :, 2:], log_weight, step_variance, angles_deg=True)
+    return pair[np.arange(len(pair)), path]
 
 
 def with_body_angles(pose: np.ndarray, limbs: np.ndarray) -> np.ndarray:
