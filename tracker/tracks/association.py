@@ -71,9 +71,8 @@ def box_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     iw = np.minimum(ax0 + aw, bx0 + bw) - np.maximum(ax0, bx0)
     ih = np.minimum(ay0 + ah, by0 + bh) - np.maximum(ay0, by0)
     inter = np.clip(iw, 0, None) * np.clip(ih, 0, None)
-    smaller = np.minimum(aw * ah, bw * bh)
     with np.errstate(invalid="ignore", divide="ignore"):
-        overlap = inter / smaller
+        overlap = inter / np.minimum(aw * ah, bw * bh)              # over the smaller box
     return np.nan_to_num(overlap, nan=0.0, posinf=0.0)
 
 
