@@ -20,7 +20,7 @@ kept to read its hypotheses). Knee flexion of each output against the truth
   picked    the member or flip the online tracker takes (nearer the filtered heading),
             before the limb filter (NaN when the video held more than one track)
   filtered  what ``track`` streams
-  chain     the members chosen offline over the smoothed heading (tracker.tracks.member_path),
+  chain     the members chosen offline over the smoothed heading (hypotheses.members_over_time),
             before the limb smoother
   smoothed  what ``track --smooth`` writes
 
@@ -54,7 +54,7 @@ from sequences.gait_measures import best_of, gait_measures, knee_flexion, swappe
 from sequences.pose_vector import front_back_flip, heading_deg, pose_vector_names
 from sequences.video import load_truth, replace_video
 from tracker.tracks import hypotheses
-from tracker.tracks.member_path import MEMBER_HEADING_SD_DEG
+from tracker.tracks.hypotheses import MEMBER_HEADING_SD_DEG
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
 from lab.evaluation import CameraOptions, run_longest_track, write_camera_video
 from tracker.pipeline import HEADING_Q_SCALE, LIMB_R_SCALE, TrackerSettings
@@ -147,7 +147,7 @@ _ORIGINAL = {"pick_member": hypotheses.pick_member,
 
 def _heading_log_weight(pair: np.ndarray, heading: np.ndarray, sd_deg: float) -> np.ndarray:
     """log weight (..., 2) of each member of pair (..., 2, 55) by how near its heading is to
-    heading (...,) degrees: a Gaussian of sd_deg, as tracker.tracks.member_path's evidence."""
+    heading (...,) degrees: a Gaussian of sd_deg, as hypotheses.members_over_time's evidence."""
     off = wrap_deg(heading_deg(pair.reshape(-1, 55)).reshape(pair.shape[:-1])
                    - np.asarray(heading)[..., None])
     return -off ** 2 / (2.0 * sd_deg ** 2)
@@ -176,7 +176,7 @@ def predicted_pick(weight: float, sd_deg: float = MEMBER_HEADING_SD_DEG):
 
 def second_order_chain(acc_var: float, sd_deg: float = MEMBER_HEADING_SD_DEG):
     """members_over_time by a second-order chain: each member's evidence is its heading's
-    (as tracker.tracks.member_path), each step costs the squared change of the 53 angles' velocity
+    (as hypotheses.members_over_time), each step costs the squared change of the 53 angles' velocity
     (second difference, wrapped; deg^2 per frame^2 summed) over 2 acc_var, so a swap that
     reverses the legs' motion costs more than one that continues it. Viterbi over the pairs
     (member at t-1, member at t)."""
@@ -247,7 +247,7 @@ def unfolded_chain(profile_deg: float = 20.0, order: int = 3, depth: float = 0.5
 def gait_sign_chain(cost: float, sd_deg: float = MEMBER_HEADING_SD_DEG, order: int = 3,
                     depth: float = 0.5):
     """members_over_time as a two-state chain over (member, flip): each frame's evidence is
-    its heading's (as tracker.tracks.member_path, a Gaussian of sd_deg about the smoothed heading);
+    its heading's (as members_over_time, a Gaussian of sd_deg about the smoothed heading);
     a step costs `cost` nats when the chosen body's thigh difference g (unfolded_chain's)
     changes sign between frames with no leg crossing between them, or keeps its sign across
     a crossing (a crossing: a minimum of |g| smoothed over 3 frames, within order frames,

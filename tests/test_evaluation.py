@@ -14,6 +14,7 @@ from lab.evaluation import (AnkurOptions, EvaluatedSequence, angle_parts, ankur_
                                 rendered_sequence)
 from regressor.angles import angles_to_pose
 from tracker.tracks.filtering import ConstantVelocityFilter, FilterError
+from tracker.tracks.filterpy_runs import forward
 from lab.report import format_table
 from tracker.pipeline import TrackerSettings
 
@@ -132,11 +133,11 @@ def test_constant_velocity_filter_reduces_noise_on_points():
     truth = np.hstack([np.sin(2 * np.pi * 0.5 * t + k) * 10 for k in range(6)])
     noisy = truth + rng.normal(0, 1.0, truth.shape)
     cv = ConstantVelocityFilter(6, 30.0, R=np.ones(6), q=(10 * (np.pi) ** 2) ** 2, rate_std=50.0)
-    filtered, smoothed = cv.filter(noisy), cv.smooth(noisy, window=64, lag=32)
+    filtered, smoothed = forward(cv, noisy), cv.smooth(noisy, window=64, lag=32)
     rms = lambda a: np.sqrt(((a - truth) ** 2).mean())  # noqa: E731
     assert rms(smoothed) < rms(filtered) < 0.8 * rms(noisy)
     with pytest.raises(FilterError, match=r"shape \(T, 6\)"):
-        cv.filter(noisy[:, :5])
+        forward(cv, noisy[:, :5])
     with pytest.raises(FilterError, match="NaN"):
         cv.smooth(np.full((3, 6), np.nan))
 

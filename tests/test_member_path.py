@@ -1,4 +1,4 @@
-"""Which body the limbs are, decided over a whole track (tracker.tracks.member_path)."""
+"""Which body the limbs are, decided over a whole track (hypotheses.members_over_time)."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,8 +6,7 @@ import pytest
 
 from regressor.angles import wrap_deg
 from sequences.pose_vector import front_back_flip, pose_vector_names
-from tracker.tracks.hypotheses import pick_member
-from tracker.tracks.member_path import members_over_time
+from tracker.tracks.hypotheses import members_over_time, pick_member
 
 NAMES = pose_vector_names()
 LEFT_HIP, RIGHT_HIP = NAMES.index("LeftUpLeg_x"), NAMES.index("RightUpLeg_x")

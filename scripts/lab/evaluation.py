@@ -43,6 +43,7 @@ from sequences.video import Actor, load_truth, posed_sequences, scene_camera, wr
 from regressor.errors import SilhouettePoseError
 from tracker.cli import VIEW_LAG_S
 from tracker.tracks.filtering import ConstantVelocityFilter
+from tracker.tracks.filterpy_runs import forward
 from tracker.tracks.fixed_lag import replay
 from tracker.tracks.proposals import propose_sequence
 from tracker.pipeline import PoseTracker, TrackerSettings, front_back_tracker
@@ -317,7 +318,7 @@ def ankur_noise_models(X: np.ndarray, Z: np.ndarray, o: AnkurOptions) -> tuple[n
 
     def cv_error(scale: float) -> float:
         cv = ConstantVelocityFilter(Z.shape[1], o.fps, R * scale, q, float(np.sqrt(q.mean())))
-        filtered = np.vstack([cv.filter(held_out[ids == i]) for i in np.unique(ids)])
+        filtered = np.vstack([forward(cv, held_out[ids == i]) for i in np.unique(ids)])
         return mean_point_error(filtered, Z)
 
     best = min(R_SCALES, key=cv_error)
@@ -340,7 +341,7 @@ def ankur_sequence(path: str | Path, options: AnkurOptions = AnkurOptions(),
     cv = ConstantVelocityFilter(Z.shape[1], options.fps, R, q, rate_std=float(np.sqrt(q.mean())))
     return EvaluatedSequence(
         "ankur spiral walk (test)", "units", Zt,
-        {"per_frame": per_frame, "stacked": stacked, "kalman": cv.filter(stacked),
+        {"per_frame": per_frame, "stacked": stacked, "kalman": forward(cv, stacked),
          "smoothed": cv.smooth(stacked)}, constant=Z.mean(axis=0),
         settings={"source": str(path), "regressor": "kernel RVM on sqrt descriptors",
                   **options.__dict__, "chosen_r_scale": r_scale, "relevance_vectors": int(stacked_model.n_basis_)})

@@ -8,9 +8,7 @@ sqrt(area) without a box), so one gate serves near and far people:
            + appearance_weight * Bhattacharyya(detection colour, track colour)
 
 A small new detection gets an id only once matched in consecutive frames (a flickering blob
-never becomes a track). People who cross are one blob: a detection whose box holds two or more
-tracks' predictions is a group, given to none of them, its members coasting inside it and each
-given its share of the blob by its last own silhouette. Details: docs/crossings.md.
+never becomes a track). People who cross are one blob, a group: tracker.tracks.groups.
 """
 from __future__ import annotations
 
@@ -24,8 +22,8 @@ from scipy.optimize import linear_sum_assignment
 
 from regressor.errors import SilhouettePoseError
 
-#: How long, seconds, a track may stay hidden in a group (PoseTracker's max_occluded): the
-#: sample beside its mirror image is one blob for 0.6 s per crossing.
+#: Seconds a track may stay in a group (PoseTracker's max_occluded): the sample beside its
+#: mirror image is one blob for 0.6 s a crossing.
 MAX_OCCLUDED_S = 1.5
 
 
@@ -64,10 +62,6 @@ class Track:
         """(x, y) px expected this frame (constant velocity since the last match)."""
         return self.centroid + self.velocity * (self.missed + 1)
 
-    def size(self) -> float:
-        """The unit of distance, px: the box height, else sqrt(area)."""
-        return float(self.bbox[3]) if np.isfinite(self.bbox[3]) else math.sqrt(self.area)
-
 
 def box_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Intersection over the smaller box's area (A, B) of boxes a (A, 4), b (B, 4) (x, y, w, h)
@@ -77,60 +71,52 @@ def box_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     iw = np.minimum(ax0 + aw, bx0 + bw) - np.maximum(ax0, bx0)
     ih = np.minimum(ay0 + ah, by0 + bh) - np.maximum(ay0, by0)
     inter = np.clip(iw, 0, None) * np.clip(ih, 0, None)
-    smaller = np.minimum(aw * ah, bw * bh)
     with np.errstate(invalid="ignore", divide="ignore"):
-        overlap = inter / smaller
+        overlap = inter / np.minimum(aw * ah, bw * bh)              # over the smaller box
     return np.nan_to_num(overlap, nan=0.0, posinf=0.0)
 
 
-class Associator:
-    """Frame-to-frame association of detections to track ids (see the module docstring).
+#: Each setting's allowed values: an interval, open at an end given by a parenthesis.
+_LIMITS = {"max_distance": "(0, inf)", "max_area_ratio": "[1, inf)", "size_weight": "[0, inf)",
+           "max_missed": "[0, inf)", "smoothing": "(0, 1]", "min_box_overlap": "(0, 1]",
+           "min_hits": "[1, inf)", "appearance_weight": "[0, inf)", "colour_rate": "(0, 1]",
+           "max_occluded": "[0, inf)", "min_height_ratio": "[0, 1]"}
 
-    A pair is gated beyond ``max_distance`` sizes (one more per frame coasted), or when the
-    areas differ by more than ``max_area_ratio`` and the boxes overlap by less than
+
+@dataclass(eq=False)
+class Associator:
+    """Frame-to-frame association of detections to track ids (see the module docstring). A pair
+    is gated beyond ``max_distance`` sizes (one more per frame coasted), or when the areas
+    differ by more than ``max_area_ratio`` and the boxes overlap by less than
     ``min_box_overlap`` (a silhouette that grows in place keeps its id). A detection below
     ``min_relative_area`` of the largest track's waits ``min_hits`` frames for its id; a track
     unmatched ``max_missed`` frames is dropped. ``smoothing``, ``colour_rate``: weight of the
     newest frame in velocity and area, colour. ``use_boxes``: False ignores boxes (no groups).
-    ``max_occluded``: frames in a group (0: no groups); ``min_height_ratio``: a group's members
-    are at least this share of the tallest one's height and overlap its rows by this share of
-    their own (a leg cut off by the extractor is no person beside it)."""
+    ``max_occluded``, ``min_height_ratio``: frames in a group (0: none), members' heights
+    (tracker.tracks.groups)."""
 
-    def __init__(self, max_distance: float = 1.0, max_area_ratio: float = 1.8,
-                 size_weight: float = 1.0, max_missed: int = 15, smoothing: float = 0.5,
-                 min_box_overlap: float = 0.5, min_hits: int = 3,
-                 min_relative_area: float = 0.25, use_boxes: bool = True,
-                 appearance_weight: float = 1.0, colour_rate: float = 0.1,
-                 max_occluded: int = 45, min_height_ratio: float = 0.5):
-        if max_distance <= 0 or max_area_ratio < 1 or size_weight < 0 or max_missed < 0:
-            raise AssociationError(
-                f"need max_distance > 0, max_area_ratio >= 1, size_weight >= 0, max_missed >= 0; "
-                f"got {max_distance}, {max_area_ratio}, {size_weight}, {max_missed}")
-        if not (0 < smoothing <= 1 and 0 < colour_rate <= 1):
-            raise AssociationError(f"smoothing={smoothing} and colour_rate={colour_rate} must "
-                                   f"be in (0, 1]")
-        if min_hits < 1 or not 0 < min_box_overlap <= 1:
-            raise AssociationError(f"need min_hits >= 1 and min_box_overlap in (0, 1]; got "
-                                   f"{min_hits}, {min_box_overlap}")
-        if appearance_weight < 0 or max_occluded < 0 or not 0 <= min_height_ratio <= 1:
-            raise AssociationError(
-                f"need appearance_weight >= 0, max_occluded >= 0, min_height_ratio in [0, 1]; "
-                f"got {appearance_weight}, {max_occluded}, {min_height_ratio}")
-        self.max_distance = max_distance
-        self.max_log_area_ratio = math.log(max_area_ratio)
-        self.size_weight = size_weight
-        self.max_missed = max_missed
-        self.smoothing = smoothing
-        self.min_box_overlap = min_box_overlap
-        self.min_hits = min_hits
-        self.min_relative_area = min_relative_area
-        self.use_boxes = use_boxes
-        self.appearance_weight = appearance_weight
-        self.colour_rate = colour_rate
-        self.max_occluded = max_occluded
-        self.min_height_ratio = min_height_ratio
-        self.tracks: list[Track] = []
-        self._next_id = 0
+    max_distance: float = 1.0
+    max_area_ratio: float = 1.8
+    size_weight: float = 1.0
+    max_missed: int = 15
+    smoothing: float = 0.5
+    min_box_overlap: float = 0.5
+    min_hits: int = 3
+    min_relative_area: float = 0.25
+    use_boxes: bool = True
+    appearance_weight: float = 1.0
+    colour_rate: float = 0.1
+    max_occluded: int = 45
+    min_height_ratio: float = 0.5
+    tracks: list[Track] = field(default_factory=list, init=False)
+    _next_id: int = field(default=0, init=False, repr=False)
+
+    def __post_init__(self):
+        for name, interval in _LIMITS.items():
+            low, high = (float(end) for end in interval[1:-1].split(","))
+            value = getattr(self, name)
+            if not ((low < value if interval[0] == "(" else low <= value) and value <= high):
+                raise AssociationError(f"{name}={value} must be in {interval}")
 
     def cost_matrix(self, centroids: np.ndarray, areas: np.ndarray, boxes: np.ndarray,
                     colours: np.ndarray | None = None) -> np.ndarray:
@@ -142,55 +128,54 @@ class Associator:
         track_area = np.array([t.area for t in self.tracks])                  # (T,)
         # Coasting, in a group or unseen, widens the gate by one size a frame.
         missed = np.array([t.missed + t.occluded for t in self.tracks])       # (T,)
-        size = np.array([t.size() for t in self.tracks])[:, None]             # (T, 1)
+        size = np.array([float(t.bbox[3]) if np.isfinite(t.bbox[3]) else math.sqrt(t.area)
+                         for t in self.tracks])[:, None]     # (T, 1) unit of distance, px
         distance = np.linalg.norm(predicted[:, None, :] - centroids[None, :, :], axis=2) / size
         log_ratio = np.abs(np.log(areas[None, :] / track_area[:, None]))
         overlap = box_overlap(np.array([t.bbox for t in self.tracks]), boxes)
         cost = distance + self.size_weight * log_ratio
-        if colours is not None and self.appearance_weight > 0:
-            cost += self.appearance_weight * self._colour_distance(colours)
+        known = np.array([t.colour is not None for t in self.tracks])           # (T,)
+        if colours is not None and self.appearance_weight > 0 and known.any():
+            # Bhattacharyya distances (T, N) in [0, 1] (0 for a track without a colour).
+            mean = np.stack([t.colour if t.colour is not None else np.zeros(colours.shape[1])
+                             for t in self.tracks])
+            coefficient = np.sqrt(mean) @ np.sqrt(colours).T
+            cost += self.appearance_weight * (np.sqrt(np.clip(1.0 - coefficient, 0.0, 1.0))
+                                              * known[:, None])
         gated = (distance > self.max_distance * (1 + missed[:, None])) | \
-                ((log_ratio > self.max_log_area_ratio) & (overlap < self.min_box_overlap))
+                ((log_ratio > math.log(self.max_area_ratio)) & (overlap < self.min_box_overlap))
         cost[gated] = np.inf
         return cost
-
-    def _colour_distance(self, colours: np.ndarray) -> np.ndarray:
-        """Bhattacharyya distances (T, N) in [0, 1] of the tracks' colours (0 without one) to
-        histograms (N, K)."""
-        known = np.array([t.colour is not None for t in self.tracks])
-        if not known.any():
-            return np.zeros((len(self.tracks), len(colours)))
-        mean = np.stack([t.colour if t.colour is not None else np.zeros(colours.shape[1])
-                         for t in self.tracks])
-        coefficient = np.sqrt(mean) @ np.sqrt(colours).T
-        return np.sqrt(np.clip(1.0 - coefficient, 0.0, 1.0)) * known[:, None]
 
     def update(self, detections: Sequence[D]) -> list[tuple[int, D]]:
         """Match this frame's detections to tracks: (track_id, detection) for each on a
         confirmed track, in order, a group's replaced by (track_id, part) for its members
-        (split_group). Unmatched detections start tentative tracks; stale tracks are dropped."""
+        (tracker.tracks.groups). Unmatched detections start tentative tracks; stale ones go."""
         centroids = np.array([d.centroid for d in detections], float).reshape(-1, 2)
         areas = np.array([d.area for d in detections], float)
-        boxes = np.array([_box(d) if self.use_boxes else (np.nan,) * 4 for d in detections],
+        boxes = [getattr(d, "bbox", None) if self.use_boxes else None for d in detections]
+        boxes = np.array([(np.nan,) * 4 if b is None else tuple(b) for b in boxes],
                          float).reshape(-1, 4)
-        colours = _colours(detections)
+        colours = [getattr(d, "colour", None) for d in detections]   # (N, K) if all have one
+        colours = (None if not colours or any(c is None for c in colours)
+                   else np.asarray(colours, float))
         if not (np.isfinite(centroids).all() and (areas > 0).all()):
             raise AssociationError("detections need finite centroids and positive areas")
         cost = self.cost_matrix(centroids, areas, boxes, colours)
         finite = np.where(np.isfinite(cost), cost, 1e9)  # gated pairs can never win over new ids
         rows, cols = linear_sum_assignment(finite)
         matched = {c: r for r, c in zip(rows, cols) if np.isfinite(cost[r, c])}
-        groups = self._groups(matched, boxes)
+        groups = {}
+        if self.max_occluded and sum(t.track_id >= 0 and t.missed == 0 for t in self.tracks) > 1:
+            from tracker.tracks.groups import hide_groups   # only where two people are seen
+            groups = hide_groups(self, matched, boxes)
         hidden = {id(self.tracks[r]) for members in groups.values() for r in members}
-        for j, members in groups.items():
-            matched.pop(j, None)
-            for r in members:
-                _coast_inside(self.tracks[r], boxes[j])
         largest = max((t.area for t in self.tracks if t.track_id >= 0), default=0.0)
         pairs = []
         for j in range(len(detections)):
             if j in groups:
-                pairs += self.split_group(detections[j], groups[j])
+                from tracker.tracks.groups import split_group
+                pairs += split_group(self, detections[j], groups[j])
                 continue
             colour = None if colours is None else colours[j]
             if j in matched:
@@ -217,52 +202,6 @@ class Associator:
                        and (t.track_id >= 0 or t.missed == 0)]
         return pairs
 
-    def split_group(self, blob, members: np.ndarray) -> list[tuple[int, object]]:
-        """(track_id, part) of the members (track rows (M,)) that get a part of ``blob`` split
-        by their last shapes at their coasted boxes ([] without the masks or boxes)."""
-        tracks = [self.tracks[r] for r in members]
-        if getattr(blob, "mask", None) is None or any(
-                t.shape is None or not np.isfinite(t.bbox).all() for t in tracks):
-            return []
-        from tracker.video.blob_split import Shape, split_blob   # only where people merge
-        parts = split_blob(blob, [Shape(t.shape, tuple(t.bbox)) for t in tracks])
-        return [(t.track_id, part) for t, part in zip(tracks, parts) if part is not None]
-
-    def _groups(self, matched: dict[int, int], boxes: np.ndarray) -> dict[int, np.ndarray]:
-        """Detection index -> rows (M,) of the tracks hidden in it: its box (of boxes (N, 4) px)
-        holds the predictions of two or more confirmed tracks seen last frame or in a group,
-        side by side and matched to no other detection (``matched``: detection -> track row)."""
-        if not self.tracks or self.max_occluded == 0 or not len(boxes):
-            return {}
-        eligible = np.array([t.track_id >= 0 and t.missed == 0 and t.hits >= self.min_hits
-                             and t.occluded < self.max_occluded for t in self.tracks])
-        if eligible.sum() < 2:
-            return {}
-        predicted = np.array([t.predicted() for t in self.tracks])            # (T, 2)
-        x0, y0, w, h = (boxes[:, i][None, :] for i in range(4))
-        px, py = predicted[:, :1], predicted[:, 1:]
-        inside = (px >= x0) & (px <= x0 + w) & (py >= y0) & (py <= y0 + h)      # (T, N)
-        owner = np.full(len(self.tracks), -1)
-        owner[list(matched.values())] = list(matched.keys())
-        member = inside & eligible[:, None] & ((owner[:, None] == -1) |
-                                               (owner[:, None] == np.arange(len(boxes))))
-        tops = np.array([t.bbox[1] for t in self.tracks])
-        heights = np.array([t.bbox[3] for t in self.tracks])
-        groups, taken = {}, np.zeros(len(self.tracks), bool)
-        for j in np.flatnonzero(member.sum(axis=0) >= 2):
-            rows = np.flatnonzero(member[:, j] & ~taken)
-            if len(rows) < 2:               # its tracks were taken by an overlapping box
-                continue
-            tall = rows[np.argmax(heights[rows])]
-            beside = (np.minimum(tops[rows] + heights[rows], tops[tall] + heights[tall])
-                      - np.maximum(tops[rows], tops[tall]))
-            rows = rows[(heights[rows] >= self.min_height_ratio * heights[tall])
-                        & (beside >= self.min_height_ratio * heights[rows])]
-            if len(rows) >= 2:
-                groups[int(j)] = rows
-                taken[rows] = True
-        return groups
-
     def _observe(self, track: Track, centroid: np.ndarray, area: float,
                  bbox: np.ndarray, colour: np.ndarray | None = None) -> None:
         """Fold a matched detection into a track's velocity, area, colour, box and position."""
@@ -281,27 +220,3 @@ class Associator:
         track.hits += 1
         track.missed = 0
         track.occluded = 0
-
-
-def _coast_inside(track: Track, box: np.ndarray) -> None:
-    """Move a track hidden in a group's box (x, y, w, h) px on to its prediction, kept inside
-    the box (its own box with it)."""
-    centre = np.clip(track.predicted(), box[:2], box[:2] + box[2:])
-    track.bbox = track.bbox + np.r_[centre - track.centroid, 0.0, 0.0]
-    track.centroid = centre
-    track.missed = 0
-    track.occluded += 1
-
-
-def _colours(detections) -> np.ndarray | None:
-    """The detections' colour histograms (N, K), or None unless every one has one."""
-    colours = [getattr(d, "colour", None) for d in detections]
-    if not colours or any(c is None for c in colours):
-        return None
-    return np.asarray(colours, float)
-
-
-def _box(detection) -> tuple:
-    """A detection's (x, y, w, h) px, nan when it has no ``bbox``."""
-    box = getattr(detection, "bbox", None)
-    return (np.nan,) * 4 if box is None else tuple(box)

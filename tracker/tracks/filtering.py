@@ -1,15 +1,13 @@
 """Kalman filtering of regressed poses over time, with angle wrap-around handled.
 
-State: the 54 angles (heading, then pose entries 2..54), degrees, and their rates: x = [angles
-(54), rates (54)] (108,). Constant velocity, piecewise-constant white acceleration (dt = 1/fps):
+State x (108,): the 54 angles (heading, then pose entries 2..54), degrees, then their rates.
+Constant velocity, piecewise-constant white acceleration (dt = 1/fps):
 
     F = [[I, dt I], [0, I]]      Q = diag(q) (x) [[dt^4/4, dt^3/2], [dt^3/2, dt^2]]
     H = [I, 0]                   R = measurement covariance (54, 54), degrees^2
 
-q: acceleration variances, (deg/s^2)^2. Defaults (a model file has its own): acceleration std
-1000 deg/s^2 (median RMS second difference of 12 CMU clips at 30 fps), measurement std 6 deg per
-joint angle and 20 deg for the heading (the paper's error levels). Measured angles are
-unwrapped against the prediction. A raw pose whose heading norm is below
+q: acceleration variances, (deg/s^2)^2 (a model file has its own q and R, else the defaults).
+Measured angles are unwrapped against the prediction. A raw pose whose heading norm is below
 ``ambiguity_threshold`` averaged several views: its R is inflated, most on the heading.
 """
 from __future__ import annotations
@@ -24,9 +22,9 @@ from regressor.angles import N_ANGLES, POSE_DIM, angles_to_pose, heading_norm, p
 from regressor.pose_model import DEFAULT_AMBIGUITY_THRESHOLD
 from regressor.errors import SilhouettePoseError
 
-DEFAULT_ACCEL_STD = 1000.0        # deg/s^2
-DEFAULT_JOINT_STD = 6.0           # deg
-DEFAULT_HEADING_STD = 20.0        # deg
+DEFAULT_ACCEL_STD = 1000.0        # deg/s^2: median RMS second difference, 12 CMU clips (30 fps)
+DEFAULT_JOINT_STD = 6.0           # deg, each joint angle (the paper's error level)
+DEFAULT_HEADING_STD = 20.0        # deg (the paper's error level)
 _LOG_2PI = float(np.log(2.0 * np.pi))
 DEFAULT_RATE_STD = 90.0           # deg/s, prior on angular rates when a track starts
 
@@ -35,33 +33,24 @@ class FilterError(SilhouettePoseError, ValueError):
     """Bad filter settings or pose vectors; one-line message naming the problem."""
 
 
-def initial_state(z: np.ndarray, R: np.ndarray, rate_std: float
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def initial_state(z: np.ndarray, R: np.ndarray, rate_std: float) -> tuple[np.ndarray, np.ndarray]:
     """A first state: x (2n,) = [z (n,), zero rates], P (2n, 2n) = diag(R, rate_std^2 I)."""
     n = len(z)
-    x = np.concatenate([z, np.zeros(n)])
-    P = np.zeros((2 * n, 2 * n))
-    P[:n, :n] = R
-    P[n:, n:] = np.eye(n) * rate_std**2
-    return x, P
+    return np.concatenate([z, np.zeros(n)]), scipy.linalg.block_diag(R, np.eye(n) * rate_std**2)
 
 
 class ConstantVelocityFilter:
     """Kalman filter and RTS smoother for ``dim`` values, each with its rate (module docstring).
-
-    R: measurement covariance, (dim,) or (dim, dim), units^2 (measurements may carry their
-    own); q: acceleration variances, scalar or (dim,), (units/s^2)^2; rate_std: prior std of
-    the rates at the first frame, units/s; align(z, predicted) -> z, if given, maps each
-    measurement (dim,) given the predicted values (dim,) (angle filters unwrap it there)."""
+    R: measurement covariance (dim,) or (dim, dim), units^2 (or one per measurement); q:
+    acceleration variances, scalar or (dim,), (units/s^2)^2; rate_std: the rates' prior std at
+    the first frame, units/s; align(z (dim,), predicted (dim,)) -> z: e.g. angles unwrapped."""
 
     def __init__(self, dim: int, fps: float, R, q, rate_std: float,
                  align: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None):
         if not (int(dim) == dim and dim >= 1):
             raise FilterError(f"dim={dim} must be a positive integer")
-        if not (np.isfinite(fps) and fps > 0):
-            raise FilterError(f"fps={fps} must be positive")
-        if not (np.isfinite(rate_std) and rate_std > 0):
-            raise FilterError(f"rate_std={rate_std} must be positive")
+        if not (np.isfinite([fps, rate_std]).all() and min(fps, rate_std) > 0):
+            raise FilterError(f"fps={fps} and rate_std={rate_std} must be positive")
         q = np.broadcast_to(np.asarray(q, float), (int(dim),))
         if not (np.isfinite(q).all() and (q >= 0).all()):
             raise FilterError("q (acceleration variances) must be finite and >= 0")
@@ -72,18 +61,10 @@ class ConstantVelocityFilter:
         if not np.isfinite(R).all() or not np.allclose(R, R.T) or np.linalg.eigvalsh(R).min() <= 0:
             raise FilterError("R must be finite, symmetric and positive definite")
         self.dim, self.fps, self.dt = int(dim), float(fps), 1.0 / float(fps)
-        self.R = R
-        self.q = q.copy()
-        self.rate_std = float(rate_std)
-        self.align = align
+        self.R, self.q, self.rate_std, self.align = R, q.copy(), float(rate_std), align
         dt = self.dt
         self.Q = np.block([[np.diag(q * dt**4 / 4), np.diag(q * dt**3 / 2)],
                            [np.diag(q * dt**3 / 2), np.diag(q * dt**2)]])
-
-    def filter(self, zs: np.ndarray, Rs: Sequence | None = None) -> np.ndarray:
-        """Forward-filtered values (T, dim) of zs (T, dim), Rs: per-frame R or None (filterpy)."""
-        from tracker.tracks.filterpy_runs import forward
-        return forward(self, self._check_sequence(zs), Rs)
 
     def smooth(self, zs: np.ndarray, Rs: Sequence | None = None, window: int = 256,
                lag: int = 64) -> np.ndarray:
@@ -127,8 +108,7 @@ class ConstantVelocityFilter:
         return smoothed
 
     def _predict(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q by F's blocks (O(n^2)
-        instead of two (2n)^3 products)."""
+        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q by F's blocks (O(n^2))."""
         n, dt = self.dim, self.dt
         x = np.concatenate([x[:n] + dt * x[n:], x[n:]])
         B, D = P[:n, n:], P[n:, n:]
@@ -147,29 +127,28 @@ class ConstantVelocityFilter:
         return zs
 
 
-# LAPACK directly: scipy's solve_triangular and cho_solve check and copy more than a per-frame
-# filter can afford.
+# LAPACK directly: scipy's wrappers check and copy more than a per-frame filter can afford.
 _trtrs, _potrf, _potrs = scipy.linalg.lapack.get_lapack_funcs(("trtrs", "potrf", "potrs"),
                                                                dtype=np.float64)
 
 
+def _lapack(result: tuple, problem: str) -> np.ndarray:
+    """A LAPACK call's (out, info) -> out; a FilterError naming the problem unless info is 0."""
+    out, info = result
+    if info != 0:
+        raise FilterError(f"{problem} (LAPACK info {info})")
+    return out
+
+
 def _lower_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
     """L^-1 b for a lower-triangular L (n, n) and b (n,) or (n, m)."""
-    x, info = _trtrs(L, b, lower=1)
-    if info != 0:
-        raise FilterError(f"singular innovation covariance (LAPACK trtrs info {info})")
-    return x
+    return _lapack(_trtrs(L, b, lower=1), "singular innovation covariance")
 
 
 def _spd_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     """A^-1 b for a symmetric positive definite A (n, n) and b (n,) or (n, m) (Cholesky)."""
-    c, info = _potrf(A, lower=1)
-    if info != 0:
-        raise FilterError(f"covariance not positive definite (LAPACK potrf info {info})")
-    x, info = _potrs(c, b, lower=1)
-    if info != 0:
-        raise FilterError(f"covariance solve failed (LAPACK potrs info {info})")
-    return x
+    c = _lapack(_potrf(A, lower=1), "covariance not positive definite")
+    return _lapack(_potrs(c, b, lower=1), "covariance solve failed")
 
 
 def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
@@ -212,9 +191,8 @@ class PoseKalmanFilter:
         if not np.isfinite(raw).all():
             bad = np.flatnonzero(~np.isfinite(raw)).tolist()
             raise FilterError(f"pose vector has non-finite entries at {bad}")
-        angles, norm = pose_angles(raw), heading_norm(raw)
-        ambiguous = bool(norm < self.ambiguity_threshold)
-        return angles, self.R_ambiguous if ambiguous else self.R, ambiguous
+        ambiguous = bool(heading_norm(raw) < self.ambiguity_threshold)
+        return pose_angles(raw), self.R_ambiguous if ambiguous else self.R, ambiguous
 
     def log_likelihoods(self, raws) -> np.ndarray:
         """Innovation log-likelihoods (K,) of candidate raw poses (K, 55) for the next frame
@@ -242,10 +220,8 @@ class PoseKalmanFilter:
         _, P_pred, factors = self._prediction()
         if ambiguous not in factors:
             R = self.R_ambiguous if ambiguous else self.R
-            L, info = _potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1)
-            if info != 0:
-                raise FilterError(f"innovation covariance not positive definite (LAPACK potrf "
-                                  f"info {info})")
+            L = _lapack(_potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1),
+                        "innovation covariance not positive definite")
             factors[ambiguous] = (L, 2.0 * np.log(np.diag(L)).sum())
         return factors[ambiguous]
 
@@ -283,6 +259,5 @@ class PoseKalmanFilter:
         raws = np.asarray(raws, float)
         if raws.ndim != 2 or raws.shape[1] != POSE_DIM or len(raws) == 0:
             raise FilterError(f"{name} needs poses of shape (T, 55), got {raws.shape}")
-        measured = [self._measure(raw) for raw in raws]
-        return (np.array([m[0] for m in measured]), [m[1] for m in measured],
-                np.array([m[2] for m in measured], bool))
+        angles, Rs, ambiguous = zip(*(self._measure(raw) for raw in raws))
+        return np.array(angles), list(Rs), np.array(ambiguous, bool)

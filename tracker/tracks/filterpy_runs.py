@@ -38,8 +38,8 @@ def _F(cv: ConstantVelocityFilter) -> np.ndarray:
 
 def forward(cv: ConstantVelocityFilter, zs: np.ndarray, Rs: Sequence | None = None
             ) -> np.ndarray:
-    """Forward-filtered values (T, dim) of checked measurements zs (T, dim)."""
-    return np.array([kf.x[: cv.dim, 0].copy() for kf in _steps(cv, zs, Rs)])
+    """Forward-filtered values (T, dim) of measurements zs (T, dim); Rs: per-frame R or None."""
+    return np.array([kf.x[: cv.dim, 0].copy() for kf in _steps(cv, cv._check_sequence(zs), Rs)])
 
 
 def smooth(cv: ConstantVelocityFilter, zs, Rs: Sequence | None = None) -> np.ndarray:

@@ -19,23 +19,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from regressor.angles import heading_norm
+from regressor.angles import heading_norm, wrap_deg
 from regressor.canonical_priors import CanonicalPriors
 from regressor.estimator import PoseEstimates, PoseEstimator
+from regressor.hypothesis_path import most_probable_path
 from regressor.pose_model import DEFAULT_TRAINING_FPS
 from sequences.pose_vector import front_back_flip, heading_deg
-from tracker.tracks.member_path import members_over_time
 from tracker.tracks.mirror_limbs import mirror_mean
 
-#: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps: the regressor's flips, learned on
-#: validation renders by scripts/learn_hypothesis_priors.py.
+#: (P(raw -> flip), P(flip -> raw)) per frame at 30 fps (scripts/learn_hypothesis_priors.py).
 SWITCH_PROBABILITY = (0.117, 0.248)
-#: Exponent per frame of the regressor's evidence (log likelihoods are multiplied by it).
-EVIDENCE_WEIGHT = 1.0
+EVIDENCE_WEIGHT = 1.0                    # exponent per frame of the regressor's evidence
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
 
-#: The canonical chain's priors for a model file without its own, learned on the 28 validation
-#: renders: (P(canonical -> flip), P(flip -> canonical)) per frame.
+#: The canonical chain's (P(canonical -> flip), P(flip -> canonical)) per frame for a model
+#: file without its own priors.
 CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 #: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
 #: the member's every frame, scores a few nats below it and weaker evidence never catches up.
@@ -49,13 +47,17 @@ DEFAULT_CANONICAL_PRIORS = CanonicalPriors(
 #: Experts asked of a mixture model (more added wrong headings more often than right ones).
 DEFAULT_EXPERTS = 1
 _FLOOR = 1e-3                            # no evidence is ever certain
+#: members_over_time's evidence (how near each member's heading is) and step variance (deg^2,
+#: the 53 angles' summed squared step per frame); only their ratio matters (docs/tuning.md).
+MEMBER_HEADING_SD_DEG = 30.0
+MEMBER_STEP_VARIANCE = 400.0
 
 
 @dataclass
 class Hypotheses:
     """One frame's candidates: poses (K, 55), log_evidence (K,) log likelihood ratios, raw (55,)
-    the regressor's own pose, limbs (55,) the canonical member or None; canonical: the poses
-    are that member and its flip, front: the side classifier's P(facing the camera's half)."""
+    the regressor's pose, limbs (55,) the canonical member or None; canonical: the poses are it
+    and its flip; front: the side classifier's P(facing the camera's half)."""
 
     poses: np.ndarray
     log_evidence: np.ndarray
@@ -91,16 +93,14 @@ def canonical_hypotheses(raw: np.ndarray, limbs: np.ndarray, front: float,
                          priors: CanonicalPriors = DEFAULT_CANONICAL_PRIORS) -> Hypotheses:
     """The limbs' canonical member (55,) and its flip, weighed by the side classifier's
     probability ``front`` that the body faces the camera's half (calibrated: priors.by_front).
-    The heading norm of raw (55,), the main head's pose, replaces the member's (~1), so the
-    filters' R inflation and the ambiguous flag still see it."""
+    Their heading norm is raw's (55,), for the filters' R inflation and the ambiguous flag."""
     limbs = np.asarray(limbs, dtype=np.float64)
     pair = np.stack([limbs, front_back_flip(limbs)])
-    norm = heading_norm(raw)
     unit = pair[:, :2] / np.maximum(np.linalg.norm(pair[:, :2], axis=1, keepdims=True), 1e-9)
-    pair[:, :2] = unit * norm
+    pair[:, :2] = unit * heading_norm(raw)
     q = _table(priors.front_edges, priors.by_front, member_probability(pair[0], front))
     evidence = np.log([q / priors.overall, (1 - q) / (1 - priors.overall)])
-    return Hypotheses(pair, evidence, np.asarray(raw, dtype=np.float64), limbs, canonical=True,
+    return Hypotheses(pair, evidence, np.asarray(raw, float), limbs, canonical=True,
                       front=float(front))
 
 
@@ -117,12 +117,10 @@ def canonical_priors(estimator: PoseEstimator) -> CanonicalPriors:
 
 
 def chain_options(estimator: PoseEstimator) -> dict:
-    """FrontBackTracker's keyword arguments that depend on the estimator: switch rates,
-    evidence weight and the frame rate they hold at (its training_fps)."""
-    if estimator.gives_canonical_pairs:
-        switch, weight = canonical_priors(estimator).switch, CANONICAL_EVIDENCE_WEIGHT
-    else:
-        switch, weight = SWITCH_PROBABILITY, EVIDENCE_WEIGHT
+    """FrontBackTracker's switch, evidence_weight and reference_fps for the estimator."""
+    canonical = estimator.gives_canonical_pairs
+    switch = canonical_priors(estimator).switch if canonical else SWITCH_PROBABILITY
+    weight = CANONICAL_EVIDENCE_WEIGHT if canonical else EVIDENCE_WEIGHT
     return {"switch": switch, "evidence_weight": weight, "reference_fps": estimator.training_fps}
 
 
@@ -138,8 +136,7 @@ def hypotheses_from(estimates: PoseEstimates,
         return [canonical_hypotheses(p[0], lb, f, priors)
                 for p, lb, f in zip(poses, limbs, estimates.front)]
     from tracker.tracks.flip_hypotheses import with_flips   # models without a side classifier
-    if limbs is None:
-        limbs = [None] * len(poses)
+    limbs = [None] * len(poses) if limbs is None else limbs
     return [with_flips(np.asarray(p, float), np.asarray(g, float), lb)
             for p, g, lb in zip(poses, gate, limbs)]
 
@@ -155,8 +152,8 @@ def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
 
 @dataclass
 class Decision:
-    """One frame's output: the most probable state's filtered pose (55,), ambiguous flag,
-    index and probability; the runner-up's pose (55,) and probability from CLOSE_PROBABILITY."""
+    """One frame's most probable state's filtered pose (55,), ambiguous flag, index and
+    probability; the runner-up's pose (55,) and probability from CLOSE_PROBABILITY on."""
 
     filtered: np.ndarray
     ambiguous: bool
@@ -178,7 +175,6 @@ class _Frame:
 @dataclass
 class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
-
     filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; without
     ``log_likelihoods`` only the evidence scores); switch (P(raw -> flip), P(flip -> raw)) and
     evidence_weight: per frame at reference_fps; keep_history: keep every frame for
@@ -196,7 +192,6 @@ class FrontBackTracker:
     limb_filter: object | None = None
     log_alpha: np.ndarray | None = None
     history: list[_Frame] = field(default_factory=list)
-    _log_A: tuple | None = field(default=None, repr=False)
 
     def step(self, hypotheses: Hypotheses) -> Decision:
         """Take one frame's hypotheses; returns the decision."""
@@ -204,7 +199,7 @@ class FrontBackTracker:
         K = len(poses)
         rate = self.frame_rate_ratio
         evidence = rate * self.evidence_weight * hypotheses.log_evidence
-        log_A = self._log_transitions(K)
+        log_A = np.log(transition_matrix(K, self.frame_switch))
         if self.log_alpha is None or len(self.filters) != K:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
             self.log_alpha, link = _log_stationary(log_A) + evidence, None
@@ -217,10 +212,9 @@ class FrontBackTracker:
             self.log_alpha = _logsumexp(scores, axis=0) + evidence
         self.log_alpha -= _logsumexp(self.log_alpha)
         if self.keep_history:
-            self.history.append(_Frame(np.array(poses, dtype=np.float64), evidence, link,
-                                       np.array(hypotheses.raw, dtype=np.float64),
-                                       None if hypotheses.limbs is None
-                                       else np.array(hypotheses.limbs, dtype=np.float64)))
+            limbs = None if hypotheses.limbs is None else np.array(hypotheses.limbs, float)
+            self.history.append(_Frame(np.array(poses, float), evidence, link,
+                                       np.array(hypotheses.raw, float), limbs))
         outputs = [f.step(pose) for f, pose in zip(self.filters, poses)]
         prob = np.exp(self.log_alpha)
         order = np.argsort(-prob)
@@ -243,7 +237,7 @@ class FrontBackTracker:
 
     @property
     def frame_rate_ratio(self) -> float:
-        """reference_fps / fps: the exponent on evidence and likelihoods (and frame_switch's)."""
+        """reference_fps / fps: the exponent on evidence, likelihoods and switches."""
         return self.reference_fps / self.fps
 
     @property
@@ -254,22 +248,14 @@ class FrontBackTracker:
             return tuple(self.switch)
         return tuple(float(-np.expm1(rate * np.log1p(-p))) for p in self.switch)
 
-    def _log_transitions(self, K: int) -> np.ndarray:
-        """log A (K, K) for the current switch probabilities, computed once."""
-        key = (K, tuple(self.switch), self.fps, self.reference_fps)
-        if self._log_A is None or self._log_A[0] != key:
-            self._log_A = (key, np.log(transition_matrix(K, self.frame_switch)))
-        return self._log_A[1]
-
     def _continue(self, predecessor: np.ndarray) -> list:
         """Filters for the new states: state j continues predecessor[j]'s (a copy if taken)."""
-        used, out = set(), []
-        for i in predecessor:
+        out = []
+        for k, i in enumerate(predecessor):
             f = self.filters[int(i)]
-            if int(i) in used:
+            if i in predecessor[:k]:
                 f = f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
             out.append(f)
-            used.add(int(i))
         return out
 
     def viterbi_path(self, start: int = 0, stop: int | None = None) -> np.ndarray:
@@ -277,7 +263,8 @@ class FrontBackTracker:
         frames = self.history[start:stop]
         if not frames:
             return np.zeros(0, dtype=np.int64)
-        delta = _log_stationary(self._log_transitions(len(frames[0].poses))) + frames[0].evidence
+        log_A = np.log(transition_matrix(len(frames[0].poses), self.frame_switch))
+        delta = _log_stationary(log_A) + frames[0].evidence
         back = []
         for frame in frames[1:]:
             scores = delta[:, None] + frame.link
@@ -291,7 +278,7 @@ class FrontBackTracker:
     def smoothed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """RTS-smoothed poses (n, 55) of the Viterbi path's hypotheses of history[start:stop];
         with a limb_filter_factory the body angles are its smoothing of the raw poses or the
-        limb members' most probable chain (member_path), under the smoothed heading."""
+        limb members' most probable chain (members_over_time), under the smoothed heading."""
         frames = self.history[start:stop]
         chosen = [frame.poses[s] for frame, s in zip(frames, self.viterbi_path(start, stop))]
         out = self.filter_factory(self.fps).rts_smooth(np.array(chosen))
@@ -303,6 +290,27 @@ class FrontBackTracker:
             raws = with_body_angles(out, raws)          # the decided heading, as online
             out = with_body_angles(out, self.limb_filter_factory(self.fps).rts_smooth(raws))
         return out
+
+
+def members_over_time(limbs, headings_deg, frame_rate_ratio: float = 1.0,
+                      step_variance: float = MEMBER_STEP_VARIANCE) -> np.ndarray:
+    """Of each frame's canonical pose and its flip (limbs (T, 55), in time order), the ones on
+    the most probable chain (T, 55), for the smoothed outputs (in profile the headings nearly
+    meet, so pick_member may not say): a member's log evidence is a Gaussian's (sd
+    MEMBER_HEADING_SD_DEG) of its heading's distance to headings_deg (T,) times frame_rate_ratio;
+    each step costs the squared change of the 53 body angles (degrees) over 2 step_variance."""
+    limbs = np.asarray(limbs, dtype=np.float64)
+    headings = np.asarray(headings_deg, dtype=np.float64)
+    if limbs.ndim != 2 or limbs.shape[1] != 55 or headings.shape != (len(limbs),):
+        raise ValueError(f"limbs must be (T, 55) and headings (T,), got {limbs.shape} and "
+                         f"{headings.shape}")
+    if len(limbs) == 0:
+        return limbs.copy()
+    pair = np.stack([limbs, front_back_flip(limbs)], axis=1)                 # (T, 2, 55)
+    off = wrap_deg(heading_deg(pair.reshape(-1, 55)).reshape(-1, 2) - headings[:, None])
+    log_weight = -frame_rate_ratio * off ** 2 / (2.0 * MEMBER_HEADING_SD_DEG ** 2)
+    path = most_probable_path(pair[:, :, 2:], log_weight, step_variance, angles_deg=True)
+    return pair[np.arange(len(pair)), path]
 
 
 def with_body_angles(pose: np.ndarray, limbs: np.ndarray) -> np.ndarray:

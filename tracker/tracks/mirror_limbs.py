@@ -1,9 +1,6 @@
-"""Limbs from the image and from its mirror image, averaged (``TrackerSettings.mirror_limbs``).
-
-A model whose limb networks were fitted on mirror images too (PoseModel.limbs_see_mirror)
-answers for a frame's mirror image as well; mirrored back, that is a second estimate of the
-same body with partly independent errors. Measurements: docs/tuning.md.
-"""
+"""Limbs from the image and from its mirror image, averaged (``TrackerSettings.mirror_limbs``):
+for a model whose limb networks were fitted on mirror images too (PoseModel.limbs_see_mirror),
+the mirror image's limbs mirrored back are a second estimate with partly independent errors."""
 from __future__ import annotations
 
 import numpy as np

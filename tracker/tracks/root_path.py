@@ -1,8 +1,6 @@
-"""Each track's root (hip) path smoothed over time, for the smoothed outputs.
-
-The root, placed per frame from the silhouette's box alone, jitters with the box as the limbs
-move. The smoothed outputs are drawn at a straight line fitted with Gaussian weights about each
-pose's time (a local linear smoother: no lag, no pull at a track's ends or beside a gap).
+"""Each track's root (hip) path smoothed over time, for the smoothed outputs: the root, placed
+per frame from the silhouette's box, jitters with it as the limbs move; the outputs take a line
+fitted with Gaussian weights about each pose's time (no lag, no pull at a track's ends or gaps).
 """
 from __future__ import annotations
 
@@ -33,8 +31,7 @@ def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTH
     if not (np.isfinite(fps) and fps > 0 and np.isfinite(sigma_s) and sigma_s >= 0):
         raise ValueError(f"fps={fps} must be > 0 and sigma_s={sigma_s} >= 0")
     count = len(roots)
-    times = (np.arange(count, dtype=np.float64) if frames is None
-             else np.asarray(frames, dtype=np.float64))
+    times = np.arange(count, dtype=np.float64) if frames is None else np.asarray(frames, float)
     if times.shape != (count,) or np.any(np.diff(times) <= 0):
         raise ValueError(f"frames must be ({count},) and increasing")
     if sigma_s == 0 or count < 2:
@@ -45,10 +42,9 @@ def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTH
     s0, s1, s2 = np.zeros(count), np.zeros(count), np.zeros(count)
     t0, t1 = np.zeros_like(roots), np.zeros_like(roots)
     # Neighbours within reach in time are within reach in pose order: a pass per offset.
-    for offset in range(-int(reach), int(reach) + 1):
+    farthest = min(int(reach), count - 1)
+    for offset in range(-farthest, farthest + 1):
         lo, hi = max(0, -offset), min(count, count - offset)
-        if lo >= hi:
-            continue
         d = times[lo + offset:hi + offset] - times[lo:hi]
         w = np.exp(-0.5 * (d / sigma) ** 2) * (np.abs(d) <= reach)
         y = roots[lo + offset:hi + offset]
@@ -58,10 +54,9 @@ def smoothed_roots(roots_m: np.ndarray, fps: float, sigma_s: float = ROOT_SMOOTH
         t0[lo:hi] += w[:, None] * y
         t1[lo:hi] += (w * d)[:, None] * y
     det = s0 * s2 - s1 * s1
-    mean = t0 / s0[:, None]
-    # A lone pose (no neighbour within reach) has no line: its mean, which is itself.
+    # A lone pose (no neighbour within reach) has no line: its weighted mean, which is itself.
     line = det > 1e-9 * s0 * s0
-    out = mean.copy()
+    out = t0 / s0[:, None]
     out[line] = (s2[line, None] * t0[line] - s1[line, None] * t1[line]) / det[line, None]
     return out
 
@@ -83,10 +78,8 @@ class RootHistory:
         """Poses start:stop of a track: roots (n, 3) metres and frame indices (n,), copies."""
         roots, frames = self._tracks[int(track_id)]
         start, stop, _ = slice(start, stop).indices(len(frames))
-        count = max(0, stop - start)
         # Only the slice is copied: a long track's history is read a block at a time.
-        return (np.frombuffer(roots, np.float64, 3 * count, 24 * start).reshape(-1, 3).copy(),
-                np.frombuffer(frames, np.int64, count, 8 * start).copy())
+        return np.array(roots[3 * start:3 * stop]).reshape(-1, 3), np.array(frames[start:stop])
 
 
 def drawn_at(poses: list[tuple[TrackedPose, np.ndarray, np.ndarray]]) -> list[TrackedPose]:
