@@ -127,16 +127,14 @@ def _file_state(path: Path) -> tuple[int, int] | None:
 
 
 class VideoSource:
-    """A checked video file; iterate (again and again) to get :class:`VideoFrame`.
-
-    ``fps``: the container's or the stated frames/s; ``frame_count``: frames announced (None
-    when unknown; with a variable rate, duration times fps); ``width``/``height``: px yielded;
+    """A checked video file; iterate (again and again) to get :class:`VideoFrame`. ``fps``:
+    the container's or the stated frames/s; ``frame_count``: frames announced (None when
+    unknown; with a variable rate, duration times fps); ``width``/``height``: px yielded;
     ``start_index``/``end_index``: frames yielded, end exclusive (None: to the end);
     ``start_s``/``end_s``: the time range (s) asked for; ``container_times``: False to space
-    frames evenly at fps. After an iteration: ``frames_read``, ``frames_skipped``
-    (undecodable inside the stream), ``truncated`` (stopped before end_index), ``grew``,
-    ``read_until_s`` (the last frame's time, None before any).
-    """
+    frames evenly at fps. After an iteration: ``frames_read``, ``frames_skipped`` (undecodable
+    inside the stream), ``truncated`` (stopped before end_index), ``grew``, ``read_until_s``
+    (the last frame's time, None before any)."""
 
     def __init__(self, path: Path, fps: float, frame_count: int | None, size: tuple[int, int],
                  start_index: int, end_index: int | None, end_s: float | None = None,
@@ -175,7 +173,8 @@ class VideoSource:
             while index < end:
                 ok, image = capture.read()
                 decoded = ok and image is not None
-                if held is None and not rewound and self._seek_missed(index, decoded, capture):
+                if held is None and not rewound and index > 0 and self.container_times and \
+                        _seek_missed(self, decoded, capture):
                     # Read from the first frame instead: the times decide.
                     capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
                     index, failed, rewound = 0, 0, True
@@ -219,15 +218,6 @@ class VideoSource:
                 self.grew or (times.from_container and times.irregular()):
             from tracker.video.stream_report import report      # only when there is news
             report(self, times, first_skipped, index - failed if failed else None, opened, now)
-
-    def _seek_missed(self, index: int, decoded: bool, capture: cv2.VideoCapture) -> bool:
-        """Whether the first read after seeking to frame ``index`` shows, by the container's
-        times, that a variable rate's start time is elsewhere: nothing decodes there, or the
-        frame read lies past the start time."""
-        if index == 0 or not self.container_times:
-            return False
-        return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
-            self.start_s + 1.0 / self.fps + 1e-6
 
     def unreadable_run(self) -> int:
         """Undecodable frames in a row after which the stream counts as ended."""
@@ -309,6 +299,14 @@ def _seek(capture: cv2.VideoCapture, start_index: int, give_up: int) -> int:
     return seek(capture, start_index, give_up)
 
 
+def _seek_missed(source: VideoSource, decoded: bool, capture: cv2.VideoCapture) -> bool:
+    """Whether the first read after seeking to ``source``'s start frame shows, by the
+    container's times, that a variable rate's start time is elsewhere: nothing decodes there,
+    or the frame read lies past the start time."""
+    return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
+        source.start_s + 1.0 / source.fps + 1e-6
+
+
 def _as_bgr(image: np.ndarray) -> np.ndarray:
     """Any decoded frame (gray (H,W) or (H,W,1), BGR, BGRA) -> BGR uint8 (H,W,3)."""
     if image.dtype != np.uint8:
@@ -330,15 +328,11 @@ def scaled_size(width: int, height: int, max_side: int | None) -> tuple[int, int
 
 def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = None,
                fps: float | None = None, max_side: int | None = None) -> VideoSource:
-    """Open and check a video file; returns a :class:`VideoSource` to iterate over.
-
-    ``start_s``/``end_s``: seconds from the file's start (end exclusive; None = to the end).
-    ``fps``: frames/s to assume when the container's is missing or wrong (frames then evenly
-    spaced). ``max_side``: px the longer side is shrunk to (INTER_AREA) if above it. The first
-    frame is decoded here. Raises :class:`VideoError` for a missing file, a non-video, a
-    truncated MP4, no frames, a side below 16 or above 16384 px, an unusable frame rate, or a
-    time range outside the video.
-    """
+    """Open and check a video file (decoding its first frame); returns a :class:`VideoSource`.
+    ``start_s``/``end_s``: seconds from the file's start (end exclusive; None = to the end);
+    ``fps``: frames/s to assume instead of the container's (frames then evenly spaced);
+    ``max_side``: px the longer side is shrunk to (INTER_AREA) if above it. A file, size, rate
+    or time range that cannot be used raises :class:`VideoError`."""
     path = Path(path)
     if not path.exists():
         raise VideoError(f"{path}: no such file")

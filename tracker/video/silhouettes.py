@@ -29,10 +29,6 @@ DEFAULT_MIN_AREA_FRACTION = 0.0015
 # OpenCV MOG2's default cap on a pixel's variance (grey levels squared).
 _MOG2_VAR_MAX = 75.0
 _SQUARE_3 = np.ones((3, 3), np.uint8)
-# Pieces of one person (_fragment_groups): people side by side do not overlap in x; one
-# standing behind another usually touches them and is one component anyway.
-_MIN_OVERLAP = 0.5               # x-overlap, a share of the narrower piece
-_MAX_GAP = 0.25                  # vertical gap, a share of the taller piece
 
 
 class ExtractionError(SilhouettePoseError, ValueError):
@@ -267,7 +263,7 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
     255 = foreground) scaled to ``frame_size`` (width, height) px, largest first. Components
     outside [min, max]_area_fraction of the image go; holes up to ``max_hole_fraction`` are
     filled (not those between an arm and the torso); ``merge_fragments`` joins pieces of one
-    person (:func:`_fragment_groups`); ``image`` (BGR uint8 (h, w, 3)) gives the colours."""
+    person (tracker.video.fragments); ``image`` (BGR uint8 (h, w, 3)) gives the colours."""
     height, width = mask.shape
     image_area = float(height * width)
     box = _padded_box(mask, 0)
@@ -285,50 +281,16 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
     big_holes = np.flatnonzero((parents != -1) & (areas > max_hole_fraction * image_area))
     rects = np.array([cv2.boundingRect(contours[o]) for o in outers]).reshape(-1, 4)
     people = []
-    groups = (_fragment_groups(rects, areas[outers], max_fragment_area)
-              if merge_fragments else [[i] for i in range(len(rects))])
+    groups = [[i] for i in range(len(rects))]
+    if merge_fragments and len(rects) > 1:
+        from tracker.video.fragments import fragment_groups     # only with pieces to join
+        groups = fragment_groups(rects, areas[outers], max_fragment_area)
     for group in groups:
         members = [int(outers[g]) for g in group]
         holes = [contours[h] for h in big_holes if parents[h] in members]
         people.append(_person_from_contours(contours, members, holes, mask.shape, frame_size,
                                             image))
     return sorted((p for p in people if p is not None), key=lambda p: -p.area)
-
-
-def _fragment_groups(rects: np.ndarray, areas: np.ndarray,
-                     max_fragment_area: float) -> list[list[int]]:
-    """Groups of components (rects (n, 4) x, y, w, h px; areas (n,) px) that are pieces of one
-    person (cut at the waist or neck, a foot or hand apart): x-ranges overlapping by
-    _MIN_OVERLAP of the narrower and a vertical gap of at most _MAX_GAP of the taller; or
-    the smaller at most ``max_fragment_area`` of the larger's area, within _MAX_GAP of its
-    height on every side, its centre not above the larger's top."""
-    n = len(rects)
-    if n < 2:
-        return [[i] for i in range(n)]
-    group = list(range(n))
-
-    def root(i: int) -> int:
-        while group[i] != i:
-            i = group[i]
-        return i
-
-    x0, y0 = rects[:, 0], rects[:, 1]
-    x1, y1 = x0 + rects[:, 2], y0 + rects[:, 3]
-    overlap = np.minimum(x1[:, None], x1[None, :]) - np.maximum(x0[:, None], x0[None, :])
-    narrower = np.minimum(rects[:, 2][:, None], rects[:, 2][None, :])
-    gap = np.maximum(y0[:, None], y0[None, :]) - np.minimum(y1[:, None], y1[None, :])
-    taller = np.maximum(rects[:, 3][:, None], rects[:, 3][None, :])
-    reach = _MAX_GAP * taller
-    small = areas[:, None] <= max_fragment_area * areas[None, :]          # i a fragment of j
-    fragment = small & (-overlap <= reach) & (gap <= reach) & \
-        ((y0 + rects[:, 3] / 2)[:, None] >= y0[None, :])                  # centre below top
-    joined = (overlap >= _MIN_OVERLAP * narrower) & (gap <= reach) | fragment | fragment.T
-    for i, j in zip(*np.nonzero(np.triu(joined, 1))):
-        group[root(int(j))] = root(int(i))
-    groups: dict[int, list[int]] = {}
-    for i in range(n):
-        groups.setdefault(root(i), []).append(i)
-    return list(groups.values())
 
 
 def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
@@ -349,7 +311,8 @@ def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
         cv2.drawContours(crop, holes, -1, 0, cv2.FILLED, offset=(-x, -y))
         cv2.drawContours(crop, holes, -1, 255, 1, offset=(-x, -y))
     if len(members) > 1:
-        crop = _bridge_vertical_gaps(crop, [cv2.boundingRect(contours[m]) for m in members])
+        from tracker.video.fragments import bridge_vertical_gaps
+        crop = bridge_vertical_gaps(crop, [cv2.boundingRect(contours[m]) for m in members])
     colour = None if image is None else colour_histogram(image[y:y + h, x:x + w], crop)
     x0, y0 = int(round(x * sx)), int(round(y * sy))
     x1 = min(frame_width, int(round((x + w) * sx)))
@@ -363,19 +326,6 @@ def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
     centroid = (x0 + moments["m10"] / moments["m00"], y0 + moments["m01"] / moments["m00"])
     return PersonMask(crop > 0, (x0, y0, x1 - x0, y1 - y0), centroid, int(moments["m00"]),
                       colour)
-
-
-def _bridge_vertical_gaps(crop: np.ndarray, rects) -> np.ndarray:
-    """Close the vertical gaps between pieces with a vertical closing just taller than the
-    widest gap (padded, so background open to the crop's edge is never filled)."""
-    tops = sorted((r[1], r[1] + r[3]) for r in rects)
-    widest = max([0] + [b_top - a_bottom for (_, a_bottom), (b_top, _) in zip(tops, tops[1:])])
-    k = int(widest) + 3
-    k += 1 - k % 2                # odd: an even kernel's off-centre anchor shifts the closing
-    padded = cv2.copyMakeBorder(crop, k, k, 0, 0, cv2.BORDER_CONSTANT, value=0)
-    kernel = np.ones((k, 1), np.uint8)
-    closed = cv2.morphologyEx(padded, cv2.MORPH_CLOSE, kernel)
-    return closed[k:-k]
 
 
 def enclosed_shadow(foreground: np.ndarray, shadow: np.ndarray) -> np.ndarray:
