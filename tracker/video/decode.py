@@ -1,12 +1,8 @@
 """Video decoding: a file becomes a stream of (index, time, BGR frame) with checked metadata.
-
-A file that cannot be read is a :class:`VideoError` with a one-line message naming it. A damaged
-frame is skipped; a stream that stops before the container's announced end (cut off, or damaged
-for longer than :data:`UNREADABLE_RUN_S`) ends cleanly; each frame keeps its container time
-(variable frame rates); a file still being written is read up to its live end. Each case says so
-in one warning (:class:`VideoTruncatedWarning`, :class:`VideoTimingWarning`,
-:class:`VideoGrowingWarning`). Details: docs/code_notes/video.md.
-"""
+A file that cannot be read is a one-line :class:`VideoError`. Damaged frames are skipped, a
+stream cut short ends cleanly, frames keep their container times, a file still being written is
+read to its live end; each says so in one warning (tracker.video.stream_report; details:
+docs/code_notes/video.md)."""
 from __future__ import annotations
 
 import copy
@@ -365,10 +361,8 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
         raise VideoError(f"{path}: bad time range start_s={start_s}, end_s={end_s}")
     # Frame numbers of absurd times are capped, not overflowed (1e308 s * fps is infinite).
     start_index = int(math.floor(min(start_s * rate, 2.0 ** 62) + 1e-9))
-    end_index = frame_count
-    if end_s is not None:
-        end_index = int(math.ceil(min(end_s * rate, 2.0 ** 62) - 1e-9))
-        end_index = end_index if frame_count is None else min(frame_count, end_index)
+    end_index = frame_count if end_s is None else \
+        min(int(math.ceil(min(end_s * rate, 2.0 ** 62) - 1e-9)), frame_count or 2 ** 62)
     if frame_count is not None and start_index >= frame_count:
         raise VideoError(f"{path}: start_s={start_s} is past the end "
                          f"({frame_count} frames at {rate:g} fps)")

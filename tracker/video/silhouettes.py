@@ -57,8 +57,7 @@ COLOUR_BINS = int(np.prod(COLOUR_BINS_HSV))
 
 def colour_histogram(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """HSV histogram (COLOUR_BINS,) float32 summing to 1 (zeros for an empty mask) of ``image``
-    (BGR uint8 (h, w, 3)) where ``mask`` (uint8 (h, w)) is nonzero; compared by Bhattacharyya
-    distance (tracker.tracks.association) to tell people apart."""
+    (BGR uint8 (h, w, 3)) where ``mask`` (uint8 (h, w)) is set: tells people apart."""
     hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
     hist = cv2.calcHist([hsv], [0, 1, 2], mask, list(COLOUR_BINS_HSV), [0, 180, 0, 256, 0, 256])
     total = float(hist.sum())
@@ -67,16 +66,13 @@ def colour_histogram(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 class BackgroundSubtractor:
     """MOG2 background model on a frame shrunk to ``working_width`` px, shadows removed.
-
-    ``history``: frames remembered. ``background_ratio``: MOG2's weight share that counts as
-    background; a still person becomes background after ln(ratio) / ln(1 - 1/history) frames
-    (0.7 and 500: ~180 frames, 6 s at 30 fps; MOG2's default 0.9: ~50). ``var_threshold``:
-    squared Mahalanobis distance for foreground. ``warmup_frames``: frames only learned from
-    (:attr:`ready` False). ``learning_rate`` after warm-up: None = 1/history (MOG2's own would
-    stay 1/frames seen and swallow a still person within a second), 0 freezes the model.
-    ``normalise_brightness``: undo global brightness changes (:meth:`subtract`). ``var_min``:
-    MOG2's variance floor, grey levels squared (see :mod:`tracker.video.noise_floor`).
-    """
+    ``history``: frames remembered; ``background_ratio``: MOG2's weight share that is
+    background (a still person joins it after ln(ratio) / ln(1 - 1/history) frames: ~180 at
+    0.7 and 500, ~50 at MOG2's 0.9); ``var_threshold``: squared Mahalanobis distance for
+    foreground; ``warmup_frames``: frames only learned from; ``learning_rate`` after them: None
+    = 1/history (MOG2's own, 1/frames seen, swallows a still person within a second), 0 freezes
+    the model; ``normalise_brightness``: undo global gain changes (:meth:`subtract`);
+    ``var_min``: MOG2's variance floor (grey levels squared, tracker.video.noise_floor)."""
 
     def __init__(self, working_width: int = 320, history: int = 500,
                  background_ratio: float = 0.7, var_threshold: float = 16.0,
@@ -351,11 +347,10 @@ def enclosed_shadow(foreground: np.ndarray, shadow: np.ndarray) -> np.ndarray:
 def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndarray,
                         min_correlation: float = 0.85, max_ratio_spread: float = 0.08,
                         min_area: int = 0) -> np.ndarray:
-    """A copy of ``mask`` (uint8 (h, w), 255 = foreground) without the blobs where the frame is
-    the background under other light (frame, background BGR uint8 (h, w, 3)): grey levels
-    correlating above ``min_correlation``, or log(frame / background)'s median absolute
-    deviation under ``max_ratio_spread`` (:func:`_relit`). Blobs under ``min_area`` px are
-    left to the area gate."""
+    """A copy of ``mask`` (uint8 (h, w), 255 = foreground) without blobs (of ``min_area`` px or
+    more) where the frame is the background under other light (both BGR uint8 (h, w, 3)): grey
+    levels correlating above ``min_correlation``, or log(frame / background)'s median absolute
+    deviation under ``max_ratio_spread``."""
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     out = mask.copy()
     for contour in contours:
@@ -419,12 +414,10 @@ class SilhouetteExtractor:
         self.subtractor = BackgroundSubtractor(**subtractor_options)
         self.adapt_noise_floor = adapt_noise_floor and "var_min" not in subtractor_options
         self.open_px, self.close_px, self.restore_px = open_px, close_px, restore_px
-        self.min_area_fraction = min_area_fraction
-        self.max_hole_fraction = max_hole_fraction
-        self.max_fragment_area = max_fragment_area
-        self.keep_enclosed_shadow = keep_enclosed_shadow
-        self.drop_lighting = drop_lighting
-        self.refine = refine
+        self.min_area_fraction, self.max_hole_fraction, self.max_fragment_area = \
+            min_area_fraction, max_hole_fraction, max_fragment_area
+        self.keep_enclosed_shadow, self.drop_lighting, self.refine = \
+            keep_enclosed_shadow, drop_lighting, refine
         if refine_relearn_every < 1:
             raise ExtractionError(f"refine_relearn_every={refine_relearn_every} must be >= 1")
         self.refine_relearn_every = refine_relearn_every
@@ -446,8 +439,7 @@ class SilhouetteExtractor:
             raise ExtractionError("prime needs a background image or at least one frame")
         small = self._working_frames(frames)
         estimate = clip_background(small)
-        height, width = frames[0].shape[:2]
-        self.subtractor.prime(estimate.image, frame_size=(width, height))
+        self.subtractor.prime(estimate.image, frame_size=(frames[0].shape[1], frames[0].shape[0]))
         self._learn_clip(small, estimate)
 
     def _learn_clip(self, small: np.ndarray, estimate: ClipBackground) -> None:
