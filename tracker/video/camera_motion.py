@@ -51,17 +51,12 @@ def frame_shift(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     shift = float(np.hypot(dx, dy)) / a.shape[1]
     if shift > 0 and not _explains(a, b, dx, dy):
         shift = 0.0
-    if shift * a.shape[1] < OFF_ZERO_PX and _scene_changed(a, b):
+    if shift * a.shape[1] < OFF_ZERO_PX and \
+            float(np.median(_cell_means(np.abs(a - b)))) > CHANGED_LEVEL:    # the scene changed
         ox, oy = _off_zero_peak(a, b, window)
         if _explains(a, b, ox, oy):
             return float(np.hypot(ox, oy)) / a.shape[1], float(response)
     return shift, float(response)
-
-
-def _scene_changed(a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether more than half of the cells of two :func:`small_grey` images changed by over
-    CHANGED_LEVEL grey levels (mean absolute difference)."""
-    return float(np.median(_cell_means(np.abs(a - b)))) > CHANGED_LEVEL
 
 
 def _off_zero_peak(a: np.ndarray, b: np.ndarray, window: np.ndarray) -> tuple[float, float]:
