@@ -1,7 +1,6 @@
 """The empty scene without a clean plate: a background image and where it cannot be trusted (a
 person who never leaves the spot is in every per-pixel statistic, but makes their pixels often
-unlike the median). There colour decides (tracker.video.zone), elsewhere background subtraction.
-"""
+unlike the median). There colour decides (tracker.video.zone), elsewhere background subtraction."""
 from __future__ import annotations
 
 from dataclasses import dataclass

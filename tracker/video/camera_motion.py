@@ -1,8 +1,7 @@
 """Is the camera moving (background subtraction needs a still one)? A whole-image shift between
 frames is their phase correlation's peak where it aligns the scene (people cover a minority of
 it); at least MIN_SHIFT of the width is camera motion. :func:`camera_moves` compares a clip's
-samples in turn, tracker.video.segmenter.CameraMotionMeter each frame with an earlier one.
-"""
+samples in turn, tracker.video.segmenter.CameraMotionMeter each frame with an earlier one."""
 from __future__ import annotations
 
 import functools

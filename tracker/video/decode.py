@@ -135,12 +135,9 @@ class VideoSource:
     def __init__(self, path: Path, fps: float, frame_count: int | None, size: tuple[int, int],
                  start_index: int, end_index: int | None, end_s: float | None = None,
                  container_times: bool = True, start_s: float = 0.0):
-        self.path = path
-        self.fps = fps
-        self.frame_count = frame_count
+        self.path, self.fps, self.frame_count = path, fps, frame_count
         self.width, self.height = size
-        self.start_index = start_index
-        self.end_index = end_index
+        self.start_index, self.end_index = start_index, end_index
         self.start_s, self.end_s = start_s, end_s
         self.container_times = container_times
         self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
@@ -227,8 +224,7 @@ class VideoSource:
             image = shrink(image, size)
         return image
 
-    def sample_frames(self, count: int, size: tuple[int, int] | None = None
-                      ) -> list[np.ndarray]:
+    def sample_frames(self, count: int, size: tuple[int, int] | None = None) -> list[np.ndarray]:
         """Up to ``count`` frames (BGR uint8 (H, W, 3), shrunk to ``size`` (width, height) px
         if given) evenly spaced over the selected range, e.g. for the empty background.
         Undecodable frames are passed over; a stream of unknown length is read to its end
@@ -245,9 +241,8 @@ class VideoSource:
         return images
 
     def _sample_by_index(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
-        """sample_frames by frame number at the announced rate: samples up to
-        SEQUENTIAL_SPACING apart in one pass (grab() all, retrieve() those kept; a seek decodes
-        from the previous key frame), sparser ones by seeking."""
+        """sample_frames by frame number at the announced rate: samples up to SEQUENTIAL_SPACING
+        apart in one pass (grab() all, retrieve() those kept), sparser ones by seeking."""
         indices = np.linspace(self.start_index, self.end_index - 1, max(count, 1))
         indices = np.unique(indices.round().astype(int))
         if (indices[-1] - indices[0]) / max(len(indices) - 1, 1) > SEQUENTIAL_SPACING:
@@ -296,9 +291,8 @@ def _seek(capture: cv2.VideoCapture, start_index: int, give_up: int) -> int:
 
 
 def _seek_missed(source: VideoSource, decoded: bool, capture: cv2.VideoCapture) -> bool:
-    """Whether the first read after seeking to ``source``'s start frame shows, by the
-    container's times, that a variable rate's start time is elsewhere: nothing decodes there,
-    or the frame read lies past the start time."""
+    """Whether the first read after seeking to ``source``'s start frame shows a variable rate's
+    start time elsewhere: nothing decodes there, or its container time is past the start."""
     return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
         source.start_s + 1.0 / source.fps + 1e-6
 

@@ -1,8 +1,7 @@
 """The background model's noise floor, chosen per clip from how speckled its foreground is: a
 codec smears the background around a moving person beyond MOG2's default floor, and the speckled
 halo, cleaned, closes the gaps between the limbs. Specks (pixels a 3 px opening removes) per
-solid pixel measure that noise without ground truth (figures: docs/tuning.md).
-"""
+solid pixel measure that noise without ground truth (figures: docs/tuning.md)."""
 from __future__ import annotations
 
 from typing import Callable, Sequence

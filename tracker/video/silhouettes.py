@@ -1,7 +1,6 @@
 """Frames to person silhouettes: background subtraction (MOG2, on a copy ``working_width`` px
 wide), mask cleaning, one mask per person scaled back to the frame. Per frame: OpenCV or numpy
-on the image or its foreground's box; Python loops run over people only.
-"""
+on the image or its foreground's box; Python loops run over people only."""
 from __future__ import annotations
 
 import functools
@@ -26,7 +25,7 @@ DEFAULT_MAX_AREA_FRACTION = 0.5
 #: Components smaller than this fraction of the image are clutter: at 640x480 a walker about
 #: 55 px tall or more passes (docs/tuning.md, "tracker/video/silhouettes.py").
 DEFAULT_MIN_AREA_FRACTION = 0.0015
-# OpenCV MOG2's default cap on a pixel's variance (grey levels squared).
+# OpenCV MOG2's default cap on a pixel's variance (grey levels squared): no floor above it.
 _MOG2_VAR_MAX = 75.0
 _SQUARE_3 = np.ones((3, 3), np.uint8)
 
@@ -209,7 +208,6 @@ class BackgroundSubtractor:
 
 
 def _check_var_min(var_min: float) -> None:
-    # MOG2 caps each variance at varMax (75 by default): a floor above it means nothing.
     if not (np.isfinite(var_min) and 0.0 < var_min <= _MOG2_VAR_MAX):
         raise ExtractionError(f"var_min={var_min} must be in (0, {_MOG2_VAR_MAX:g}] grey levels "
                               "squared")

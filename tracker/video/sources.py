@@ -75,7 +75,7 @@ class AutoExtractor:
 
     def _choose(self, reason: str) -> None:
         """Turn to the segmenter (without moving blobs) for ``reason``, or warn once."""
-        if self.source == "segment" or self.reason is not None:
+        if self.reason is not None:             # set before source turns to "segment"
             return
         self.reason = reason
         if self.segmenter is None:
