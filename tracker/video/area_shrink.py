@@ -1,7 +1,6 @@
 """Shrinking frames by area averaging (OpenCV's INTER_AREA), fast for any ratio: INTER_AREA's
 exact halving is fast, so :func:`shrink` halves while it can, then takes one general step
-(about half the time; pixels at sharp edges move by about a grey level: docs/tuning.md).
-"""
+(about half the time; pixels at sharp edges move by about a grey level: docs/tuning.md)."""
 from __future__ import annotations
 
 import cv2

@@ -1,9 +1,6 @@
-"""The empty scene without a clean plate: a background image and where it cannot be trusted.
-
-A person who never leaves the spot shows in every per-pixel statistic of a clip; what the clip
-tells is *where* the background is unreliable (pixels often unlike the median). There the
-extractor decides by colour (tracker.video.zone); elsewhere background subtraction is trusted.
-"""
+"""The empty scene without a clean plate: a background image and where it cannot be trusted (a
+person who never leaves the spot is in every per-pixel statistic, but makes their pixels often
+unlike the median). There colour decides (tracker.video.zone), elsewhere background subtraction."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -34,15 +31,11 @@ MIN_GAIN_CHANGE = 0.03
 def clip_background(frames: np.ndarray, tolerance: float = 20.0, max_busy: float = 0.25,
                     close_px: int = 9, bridge_px: int = 31,
                     min_gain_change: float = MIN_GAIN_CHANGE) -> ClipBackground:
-    """Background and its unreliable zone from frames (N, h, w, 3) BGR uint8 spread over a clip.
-
-    The zone: pixels differing from the clip median by over ``tolerance`` grey levels in some
-    channel in more than ``max_busy`` of the frames (a person on the spot, not a passer-by),
-    opened, closed by ``close_px`` px, closed along rows by ``bridge_px`` px under zone above
-    (the still legs between busy limbs under a busy torso), holes filled. Frames whose gain
-    over the median (:class:`GainMeter`) is over ``min_gain_change`` from 1 are brought to it
-    first (a slow change of light made a bright sky busy).
-    """
+    """Background and its unreliable zone from frames (N, h, w, 3) BGR uint8 spread over a clip:
+    pixels off the median by over ``tolerance`` grey levels in some channel in over ``max_busy``
+    of the frames (a person on the spot, not a passer-by), opened, closed by ``close_px`` px,
+    along rows by ``bridge_px`` px under zone above (still legs under a busy torso), holes
+    filled. Frames with a gain over the median beyond ``min_gain_change`` are undone first."""
     stack = np.asarray(frames)
     median = np.median(stack, axis=0).astype(np.uint8)
     meter = GainMeter(median)

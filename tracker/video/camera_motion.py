@@ -1,11 +1,7 @@
-"""Is the camera moving? Global motion between frames, by phase correlation on small grey copies.
-
-Background subtraction needs a still camera. A whole-image shift between two frames is the peak
-of their phase correlation; people cover a minority of the image, so the peak is the scene's,
-and a peak that does not align the scene is dropped (:func:`frame_shift`). A shift of at least
-MIN_SHIFT of the width is camera motion. :func:`camera_moves` compares a clip's samples in turn;
-tracker.video.segmenter.CameraMotionMeter each frame with one a few frames earlier.
-"""
+"""Is the camera moving (background subtraction needs a still one)? A whole-image shift between
+frames is their phase correlation's peak where it aligns the scene (people cover a minority of
+it); at least MIN_SHIFT of the width is camera motion. :func:`camera_moves` compares a clip's
+samples in turn, tracker.video.segmenter.CameraMotionMeter each frame with an earlier one."""
 from __future__ import annotations
 
 import functools
@@ -25,9 +21,8 @@ MIN_SHIFT = 0.01
 FLAT_STD = 2.0
 #: The runner-up peak is looked for at least this far (px) from no shift.
 OFF_ZERO_PX = 2
-#: ... and only where the median cell of a GRID x GRID division of the frames differs by more
-#: than this (grey levels, mean absolute difference): a still camera changes the people's cells
-#: only, a pan most. A saving only, the shift must still align the scene (figures: code_notes).
+#: ... and only where the median cell of a GRID x GRID division changes by more than this (grey
+#: levels, mean absolute difference): a pan changes most cells, people a few (figures: code_notes).
 CHANGED_LEVEL = 2.0
 #: A shift explains a cell of a GRID x GRID division when it brings the cell's mean absolute
 #: difference under this share of the unshifted one's (and fails it above it by this share).
@@ -36,8 +31,7 @@ GRID = 3
 
 
 def small_grey(frame: np.ndarray, width: int = ANALYSIS_WIDTH) -> np.ndarray:
-    """A BGR uint8 (H, W, 3) or grey (H, W) frame as float32 grey (h, w) ``width`` px wide
-    (never enlarged), for :func:`frame_shift`."""
+    """A BGR uint8 (H, W, 3) or grey (H, W) frame as float32 grey (h, w), at most ``width`` px."""
     grey = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
     height, full = grey.shape
     if full > width:
@@ -47,27 +41,21 @@ def small_grey(frame: np.ndarray, width: int = ANALYSIS_WIDTH) -> np.ndarray:
 
 def frame_shift(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     """(shift of ``b`` against ``a`` as a fraction of the width (>= 0), peak response 0..1) of
-    two :func:`small_grey` images of one size: the phase correlation's peak where it aligns the
-    scene (:func:`_explains`; a person moving before a faintly textured scene can hold the
-    peak). Where that leaves no shift but the scene changed, the highest peak away from it is
-    tried the same way (a subject the camera follows stays put and can hold the peak at 0)."""
+    two :func:`small_grey` images of one size: the phase correlation's peak if it aligns the
+    scene (:func:`_explains`); with no shift but a changed scene, the highest peak off zero if
+    it does (a subject the camera follows can hold the peak at 0)."""
     window = _hanning(a.shape)
     # Copies: OpenCV 4.11's phaseCorrelate multiplies its inputs by the window in place.
     (dx, dy), response = cv2.phaseCorrelate(a.copy(), b.copy(), window)
     shift = float(np.hypot(dx, dy)) / a.shape[1]
     if shift > 0 and not _explains(a, b, dx, dy):
         shift = 0.0
-    if shift * a.shape[1] < OFF_ZERO_PX and _scene_changed(a, b):
+    if shift * a.shape[1] < OFF_ZERO_PX and \
+            float(np.median(_cell_means(np.abs(a - b)))) > CHANGED_LEVEL:    # the scene changed
         ox, oy = _off_zero_peak(a, b, window)
         if _explains(a, b, ox, oy):
             return float(np.hypot(ox, oy)) / a.shape[1], float(response)
     return shift, float(response)
-
-
-def _scene_changed(a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether more than half of the cells of two :func:`small_grey` images changed by over
-    CHANGED_LEVEL grey levels (mean absolute difference)."""
-    return float(np.median(_cell_means(np.abs(a - b)))) > CHANGED_LEVEL
 
 
 def _off_zero_peak(a: np.ndarray, b: np.ndarray, window: np.ndarray) -> tuple[float, float]:
@@ -85,9 +73,8 @@ def _off_zero_peak(a: np.ndarray, b: np.ndarray, window: np.ndarray) -> tuple[fl
 
 
 def _explains(a: np.ndarray, b: np.ndarray, dx: float, dy: float) -> bool:
-    """Whether ``b`` moved back by (dx, dy) px matches ``a`` better than as it is in more cells
-    of their common part than worse: a moving camera moves every textured cell alike, a person
-    crossing a still scene improves only their own cells."""
+    """Whether ``b`` moved back by (dx, dy) px matches ``a`` better in more cells of their common
+    part than worse (a pan moves every textured cell alike, a person only their own)."""
     height, width = a.shape
     mx, my = int(np.ceil(abs(dx))) + 1, int(np.ceil(abs(dy))) + 1
     if 2 * mx >= width or 2 * my >= height:
@@ -121,8 +108,7 @@ def flat(grey: np.ndarray) -> bool:
 
 def camera_moves(frames) -> bool:
     """Whether frames spread over a clip (list or (N, H, W, 3) BGR uint8, in time order) were
-    taken by a moving camera: more than half of the pairs of consecutive non-flat samples
-    moved (MIN_SHIFT). Fewer than two frames say nothing (False)."""
+    taken by a moving camera: over half of the consecutive non-flat pairs moved (MIN_SHIFT)."""
     greys = [g for g in (small_grey(f) for f in frames) if not flat(g)]
     if len(greys) < 2:
         return False

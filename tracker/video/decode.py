@@ -1,12 +1,8 @@
 """Video decoding: a file becomes a stream of (index, time, BGR frame) with checked metadata.
-
-A file that cannot be read is a :class:`VideoError` with a one-line message naming it. A damaged
-frame is skipped; a stream that stops before the container's announced end (cut off, or damaged
-for longer than :data:`UNREADABLE_RUN_S`) ends cleanly; each frame keeps its container time
-(variable frame rates); a file still being written is read up to its live end. Each case says so
-in one warning (:class:`VideoTruncatedWarning`, :class:`VideoTimingWarning`,
-:class:`VideoGrowingWarning`). Details: docs/code_notes/video.md.
-"""
+A file that cannot be read is a one-line :class:`VideoError`. Damaged frames are skipped, a
+stream cut short ends cleanly, frames keep their container times, a file still being written is
+read to its live end; each says so in one warning (tracker.video.stream_report; details:
+docs/code_notes/video.md)."""
 from __future__ import annotations
 
 import copy
@@ -126,31 +122,22 @@ def _file_state(path: Path) -> tuple[int, int] | None:
     return stat.st_size, stat.st_mtime_ns
 
 
-def _megabytes(size: int) -> str:
-    return f"{size / 1e6:.1f} MB" if size >= 100_000 else f"{size / 1e3:.0f} KB"
-
-
 class VideoSource:
-    """A checked video file; iterate (again and again) to get :class:`VideoFrame`.
-
-    ``fps``: the container's or the stated frames/s; ``frame_count``: frames announced (None
-    when unknown; with a variable rate, duration times fps); ``width``/``height``: px yielded;
+    """A checked video file; iterate (again and again) to get :class:`VideoFrame`. ``fps``:
+    the container's or the stated frames/s; ``frame_count``: frames announced (None when
+    unknown; with a variable rate, duration times fps); ``width``/``height``: px yielded;
     ``start_index``/``end_index``: frames yielded, end exclusive (None: to the end);
     ``start_s``/``end_s``: the time range (s) asked for; ``container_times``: False to space
-    frames evenly at fps. After an iteration: ``frames_read``, ``frames_skipped``
-    (undecodable inside the stream), ``truncated`` (stopped before end_index), ``grew``,
-    ``read_until_s`` (the last frame's time, None before any).
-    """
+    frames evenly at fps. After an iteration: ``frames_read``, ``frames_skipped`` (undecodable
+    inside the stream), ``truncated`` (stopped before end_index), ``grew``, ``read_until_s``
+    (the last frame's time, None before any)."""
 
     def __init__(self, path: Path, fps: float, frame_count: int | None, size: tuple[int, int],
                  start_index: int, end_index: int | None, end_s: float | None = None,
                  container_times: bool = True, start_s: float = 0.0):
-        self.path = path
-        self.fps = fps
-        self.frame_count = frame_count
+        self.path, self.fps, self.frame_count = path, fps, frame_count
         self.width, self.height = size
-        self.start_index = start_index
-        self.end_index = end_index
+        self.start_index, self.end_index = start_index, end_index
         self.start_s, self.end_s = start_s, end_s
         self.container_times = container_times
         self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
@@ -167,18 +154,20 @@ class VideoSource:
         self.read_until_s = None
         times = FrameTimes(self.fps, self.container_times)
         first_skipped = None
-        stopped_at = None               # the first of the undecodable frames the stream ends on
         held = None         # (the last frame decoded, the times before it), yielded after the next
         give_up = self.unreadable_run()
         rewound = False
         try:
             index = _seek(capture, self.start_index, give_up)
-            end = self._last_index()
+            # With an end time and the container's frame times the end time stops the stream.
+            end = (self.frame_count if self.end_s is not None and self.container_times
+                   else self.end_index) or math.inf       # None: unknown, read to the end
             failed = 0                  # undecodable frames in a row, just before index
             while index < end:
                 ok, image = capture.read()
                 decoded = ok and image is not None
-                if held is None and not rewound and self._seek_missed(index, decoded, capture):
+                if held is None and not rewound and index > 0 and self.container_times and \
+                        _seek_missed(self, decoded, capture):
                     # Read from the first frame instead: the times decide.
                     capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
                     index, failed, rewound = 0, 0, True
@@ -215,78 +204,13 @@ class VideoSource:
             if held is not None:
                 yield held[0]
                 self.frames_read, self.read_until_s = self.frames_read + 1, held[0].time_s
-            if failed and self._ended_early(times, index - failed):
-                stopped_at = index - failed
         finally:
             capture.release()
-        self._report(times, first_skipped, stopped_at, opened)
-
-    def _seek_missed(self, index: int, decoded: bool, capture: cv2.VideoCapture) -> bool:
-        """Whether the first read after seeking to frame ``index`` shows, by the container's
-        times, that a variable rate's start time is elsewhere: nothing decodes there, or the
-        frame read lies past the start time."""
-        if index == 0 or not self.container_times:
-            return False
-        return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
-            self.start_s + 1.0 / self.fps + 1e-6
-
-    def _last_index(self) -> float:
-        """The index the read loop stops before: end_index, or with an end time and the
-        container's frame times, the whole stream (the end time stops it)."""
-        if self.end_s is not None and self.container_times:
-            return math.inf if self.frame_count is None else self.frame_count
-        return math.inf if self.end_index is None else self.end_index
-
-    def _ended_early(self, times: FrameTimes, stopped_at: int) -> bool:
-        """Whether a stream whose reads failed from frame ``stopped_at`` on stopped more than
-        half a frame short of end_index / fps (or end_s), by its frames' times."""
-        if self.end_index is None:
-            return False
-        if times.last is None:
-            return True
-        last_index, last_time = times.last
-        reached = last_time + (stopped_at - last_index) / self.fps
-        announced = self.end_index / self.fps
-        if self.end_s is not None:
-            announced = min(announced, self.end_s)
-        return reached < announced - 0.5 / self.fps
-
-    def _report(self, times: FrameTimes, first_skipped: int | None, stopped_at: int | None,
-                opened: tuple[int, int] | None) -> None:
-        """The one-line warnings about the iteration just finished."""
-        name = self.path.name
-        if self.frames_skipped:
-            warnings.warn(f"{name}: skipped {self.frames_skipped} undecodable "
-                          f"frame(s) from frame {first_skipped} on (a damaged file); the "
-                          f"tracks go on over them", VideoTruncatedWarning, stacklevel=3)
-        if stopped_at is not None:
-            self.truncated = True
-            warnings.warn(f"{name}: decoding stopped at frame {stopped_at} of "
-                          f"{self.end_index} (corrupt or cut-off file); using the "
-                          f"{self.frames_read} frames read", VideoTruncatedWarning,
-                          stacklevel=3)
-        if times.problem is not None:
-            warnings.warn(f"{name}: the container {times.problem}; frames from there on are "
-                          f"taken as evenly spaced at {self.fps:g} fps", VideoTimingWarning,
-                          stacklevel=3)
-        elif times.from_container and times.irregular():
-            shortest, longest = times.intervals
-            warnings.warn(f"{name}: variable frame rate (frames {1000 * shortest:.0f} to "
-                          f"{1000 * longest:.0f} ms apart, {self.fps:g} fps announced); each "
-                          f"frame keeps its own time", VideoTimingWarning, stacklevel=3)
         now = _file_state(self.path)
-        if now != opened or self.grew:
-            self.grew = True
-            used = 0.0 if self.read_until_s is None else self.read_until_s + 1.0 / self.fps
-            tracked = f"the first {used:.1f} s" if self.start_s == 0 else f"up to {used:.1f} s"
-            if now is None or opened is None:
-                warnings.warn(f"{self.path} was removed or replaced while read; tracked "
-                              f"{tracked}", VideoGrowingWarning, stacklevel=3)
-                return
-            change = "grew" if now[0] > opened[0] else "changed"
-            warnings.warn(f"{self.path} is still being written ({change} from "
-                          f"{_megabytes(opened[0])} to {_megabytes(now[0])} while read); "
-                          f"tracked {tracked}", VideoGrowingWarning, stacklevel=3)
+        if failed or self.frames_skipped or times.problem is not None or now != opened or \
+                self.grew or (times.from_container and times.irregular()):
+            from tracker.video.stream_report import report      # only when there is news
+            report(self, times, first_skipped, index - failed if failed else None, opened, now)
 
     def unreadable_run(self) -> int:
         """Undecodable frames in a row after which the stream counts as ended."""
@@ -300,8 +224,7 @@ class VideoSource:
             image = shrink(image, size)
         return image
 
-    def sample_frames(self, count: int, size: tuple[int, int] | None = None
-                      ) -> list[np.ndarray]:
+    def sample_frames(self, count: int, size: tuple[int, int] | None = None) -> list[np.ndarray]:
         """Up to ``count`` frames (BGR uint8 (H, W, 3), shrunk to ``size`` (width, height) px
         if given) evenly spaced over the selected range, e.g. for the empty background.
         Undecodable frames are passed over; a stream of unknown length is read to its end
@@ -318,43 +241,36 @@ class VideoSource:
         return images
 
     def _sample_by_index(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
-        """sample_frames by frame number at the announced rate: samples up to
-        SEQUENTIAL_SPACING apart in one pass (grab() all, retrieve() those kept; a seek decodes
-        from the previous key frame), sparser ones by seeking."""
-        end = self.end_index
-        indices = np.linspace(self.start_index, end - 1, max(count, 1)).round().astype(int)
-        indices = np.unique(indices)
-        spacing = (indices[-1] - indices[0]) / max(len(indices) - 1, 1)
+        """sample_frames by frame number at the announced rate: samples up to SEQUENTIAL_SPACING
+        apart in one pass (grab() all, retrieve() those kept), sparser ones by seeking."""
+        indices = np.linspace(self.start_index, self.end_index - 1, max(count, 1))
+        indices = np.unique(indices.round().astype(int))
+        if (indices[-1] - indices[0]) / max(len(indices) - 1, 1) > SEQUENTIAL_SPACING:
+            from tracker.video.seeking import sample_by_seeking     # a long video only
+            return sample_by_seeking(self, indices, size)
         capture = _open_capture(self.path)
         images = []
         give_up = self.unreadable_run()
         try:
-            if spacing <= SEQUENTIAL_SPACING:
-                if _seek(capture, int(indices[0]), give_up) != indices[0]:
-                    return images
-                wanted = set(indices.tolist())
-                failed = 0
-                for index in range(int(indices[0]), int(indices[-1]) + 1):
-                    if not capture.grab():
-                        failed += 1
-                        if failed >= give_up:
-                            break
-                        continue
-                    failed = 0
-                    if index in wanted:
-                        ok, image = capture.retrieve()
-                        if ok and image is not None:
-                            images.append(self._prepare(image, size))
+            if _seek(capture, int(indices[0]), give_up) != indices[0]:
                 return images
-            for index in indices:
-                if _seek(capture, int(index), give_up) != index:
-                    break
-                ok, image = capture.read()
-                if ok and image is not None:
-                    images.append(self._prepare(image, size))
+            wanted = set(indices.tolist())
+            failed = 0
+            for index in range(int(indices[0]), int(indices[-1]) + 1):
+                if not capture.grab():
+                    failed += 1
+                    if failed >= give_up:
+                        break
+                    continue
+                failed = 0
+                if index in wanted:
+                    ok, image = capture.retrieve()
+                    if ok and image is not None:
+                        images.append(self._prepare(image, size))
         finally:
             capture.release()
         return images
+
 
 def _open_capture(path: Path) -> cv2.VideoCapture:
     capture = cv2.VideoCapture(str(path), cv2.CAP_ANY)
@@ -365,27 +281,20 @@ def _open_capture(path: Path) -> cv2.VideoCapture:
     return capture
 
 
-def _seek(capture: cv2.VideoCapture, start_index: int, give_up: int = UNREADABLE_RUN_MIN
-          ) -> int:
-    """Position ``capture`` so the next read returns frame ``start_index``; returns that index.
-    A container seek first, else decoding and discarding frames (some codecs only seek to key
-    frames)."""
+def _seek(capture: cv2.VideoCapture, start_index: int, give_up: int) -> int:
+    """Position ``capture`` so the next read returns frame ``start_index``; returns that index
+    (an earlier one where ``give_up`` undecodable frames in a row end the stream)."""
     if start_index == 0:
         return 0
-    capture.set(cv2.CAP_PROP_POS_FRAMES, start_index)
-    position = int(capture.get(cv2.CAP_PROP_POS_FRAMES))
-    if position == start_index:
-        return start_index
-    capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
-    failed = 0                   # a damaged frame on the way is passed over, as in iteration
-    for index in range(start_index):
-        if capture.grab():
-            failed = 0
-        else:
-            failed += 1
-            if failed >= give_up:
-                return index - failed + 1
-    return start_index
+    from tracker.video.seeking import seek          # a start past the first frame only
+    return seek(capture, start_index, give_up)
+
+
+def _seek_missed(source: VideoSource, decoded: bool, capture: cv2.VideoCapture) -> bool:
+    """Whether the first read after seeking to ``source``'s start frame shows a variable rate's
+    start time elsewhere: nothing decodes there, or its container time is past the start."""
+    return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
+        source.start_s + 1.0 / source.fps + 1e-6
 
 
 def _as_bgr(image: np.ndarray) -> np.ndarray:
@@ -409,15 +318,11 @@ def scaled_size(width: int, height: int, max_side: int | None) -> tuple[int, int
 
 def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = None,
                fps: float | None = None, max_side: int | None = None) -> VideoSource:
-    """Open and check a video file; returns a :class:`VideoSource` to iterate over.
-
-    ``start_s``/``end_s``: seconds from the file's start (end exclusive; None = to the end).
-    ``fps``: frames/s to assume when the container's is missing or wrong (frames then evenly
-    spaced). ``max_side``: px the longer side is shrunk to (INTER_AREA) if above it. The first
-    frame is decoded here. Raises :class:`VideoError` for a missing file, a non-video, a
-    truncated MP4, no frames, a side below 16 or above 16384 px, an unusable frame rate, or a
-    time range outside the video.
-    """
+    """Open and check a video file (decoding its first frame); returns a :class:`VideoSource`.
+    ``start_s``/``end_s``: seconds from the file's start (end exclusive; None = to the end);
+    ``fps``: frames/s to assume instead of the container's (frames then evenly spaced);
+    ``max_side``: px the longer side is shrunk to (INTER_AREA) if above it. A file, size, rate
+    or time range that cannot be used raises :class:`VideoError`."""
     path = Path(path)
     if not path.exists():
         raise VideoError(f"{path}: no such file")
@@ -450,10 +355,8 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
         raise VideoError(f"{path}: bad time range start_s={start_s}, end_s={end_s}")
     # Frame numbers of absurd times are capped, not overflowed (1e308 s * fps is infinite).
     start_index = int(math.floor(min(start_s * rate, 2.0 ** 62) + 1e-9))
-    end_index = frame_count
-    if end_s is not None:
-        end_index = int(math.ceil(min(end_s * rate, 2.0 ** 62) - 1e-9))
-        end_index = end_index if frame_count is None else min(frame_count, end_index)
+    end_index = frame_count if end_s is None else \
+        min(int(math.ceil(min(end_s * rate, 2.0 ** 62) - 1e-9)), frame_count or 2 ** 62)
     if frame_count is not None and start_index >= frame_count:
         raise VideoError(f"{path}: start_s={start_s} is past the end "
                          f"({frame_count} frames at {rate:g} fps)")

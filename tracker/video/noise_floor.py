@@ -1,10 +1,7 @@
-"""The background model's noise floor, chosen per clip from how speckled its foreground is.
-
-Around a moving person a compressed video's codec smears the background by more than MOG2's
-default variance floor, and the speckled halo it leaves, cleaned, closes the gaps between the
-limbs. Specks (pixels a 3 px opening removes) per solid pixel measure that noise without ground
-truth (:func:`choose_var_min`; figures: docs/tuning.md).
-"""
+"""The background model's noise floor, chosen per clip from how speckled its foreground is: a
+codec smears the background around a moving person beyond MOG2's default floor, and the speckled
+halo, cleaned, closes the gaps between the limbs. Specks (pixels a 3 px opening removes) per
+solid pixel measure that noise without ground truth (figures: docs/tuning.md)."""
 from __future__ import annotations
 
 from typing import Callable, Sequence
@@ -42,21 +39,14 @@ def _ratio(specks: int, solid: int) -> float:
     return specks / solid
 
 
-def speck_ratio(model, frames: Sequence[np.ndarray]) -> float:
-    """Specks per solid foreground px (0.0: no foreground, inf: only specks)."""
-    return _ratio(*foreground_counts(model, frames))
-
-
-def choose_var_min(make_primed_model: Callable[[float], object], frames: Sequence[np.ndarray],
-                   ladder: Sequence[float] = VAR_MIN_LADDER) -> float:
-    """The lowest MOG2 variance floor (grey levels squared) in ``ladder`` whose foreground on
-    ``frames`` (BGR uint8 at working size, spread over the clip) has at most
-    MAX_EXCESS_SPECKS more specks per solid px than the top rung's (specks left there are
-    not noise) and at most MAX_FOREGROUND_GROWTH times its foreground (strong noise can make a low
-    floor's foreground one solid sheet). make_primed_model(var_min): a fresh primed MOG2
-    (BackgroundSubtractor.primed_model). Only specks at the top rung: the top rung."""
-    if not len(ladder):
-        raise ValueError("the variance floor ladder is empty")
+def choose_var_min(make_primed_model: Callable[[float], object], frames: Sequence[np.ndarray]
+                   ) -> float:
+    """The lowest MOG2 variance floor (grey levels squared) in VAR_MIN_LADDER whose foreground on
+    ``frames`` (BGR uint8 at working size, over the clip) has at most MAX_EXCESS_SPECKS more
+    specks per solid px than the top rung's (those are not noise) and at most
+    MAX_FOREGROUND_GROWTH times its foreground (strong noise can make a low floor's foreground one
+    sheet); make_primed_model: BackgroundSubtractor.primed_model. All specks: the top rung."""
+    ladder = VAR_MIN_LADDER
     counts = [foreground_counts(make_primed_model(float(var_min)), frames) for var_min in ladder]
     top_ratio, top_total = _ratio(*counts[-1]), sum(counts[-1])
     if not np.isfinite(top_ratio):           # only specks even at the top: all noise, no body

@@ -1,9 +1,6 @@
-"""Frames to person silhouettes: background subtraction, mask cleaning, one mask per person.
-
-MOG2 works on a copy of the frame shrunk to ``working_width`` px; each person's mask is scaled
-back to frame resolution with linear interpolation. Per frame everything is an OpenCV or numpy
-operation on the whole image or on the box around its foreground; Python loops run over people.
-"""
+"""Frames to person silhouettes: background subtraction (MOG2, on a copy ``working_width`` px
+wide), mask cleaning, one mask per person scaled back to the frame. Per frame: OpenCV or numpy
+on the image or its foreground's box; Python loops run over people only."""
 from __future__ import annotations
 
 import functools
@@ -28,7 +25,7 @@ DEFAULT_MAX_AREA_FRACTION = 0.5
 #: Components smaller than this fraction of the image are clutter: at 640x480 a walker about
 #: 55 px tall or more passes (docs/tuning.md, "tracker/video/silhouettes.py").
 DEFAULT_MIN_AREA_FRACTION = 0.0015
-# OpenCV MOG2's default cap on a pixel's variance (grey levels squared).
+# OpenCV MOG2's default cap on a pixel's variance (grey levels squared): no floor above it.
 _MOG2_VAR_MAX = 75.0
 _SQUARE_3 = np.ones((3, 3), np.uint8)
 
@@ -59,8 +56,7 @@ COLOUR_BINS = int(np.prod(COLOUR_BINS_HSV))
 
 def colour_histogram(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """HSV histogram (COLOUR_BINS,) float32 summing to 1 (zeros for an empty mask) of ``image``
-    (BGR uint8 (h, w, 3)) where ``mask`` (uint8 (h, w)) is nonzero; compared by Bhattacharyya
-    distance (tracker.tracks.association) to tell people apart."""
+    (BGR uint8 (h, w, 3)) where ``mask`` (uint8 (h, w)) is set: tells people apart."""
     hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
     hist = cv2.calcHist([hsv], [0, 1, 2], mask, list(COLOUR_BINS_HSV), [0, 180, 0, 256, 0, 256])
     total = float(hist.sum())
@@ -69,16 +65,13 @@ def colour_histogram(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 class BackgroundSubtractor:
     """MOG2 background model on a frame shrunk to ``working_width`` px, shadows removed.
-
-    ``history``: frames remembered. ``background_ratio``: MOG2's weight share that counts as
-    background; a still person becomes background after ln(ratio) / ln(1 - 1/history) frames
-    (0.7 and 500: ~180 frames, 6 s at 30 fps; MOG2's default 0.9: ~50). ``var_threshold``:
-    squared Mahalanobis distance for foreground. ``warmup_frames``: frames only learned from
-    (:attr:`ready` False). ``learning_rate`` after warm-up: None = 1/history (MOG2's own would
-    stay 1/frames seen and swallow a still person within a second), 0 freezes the model.
-    ``normalise_brightness``: undo global brightness changes (:meth:`subtract`). ``var_min``:
-    MOG2's variance floor, grey levels squared (see :mod:`tracker.video.noise_floor`).
-    """
+    ``history``: frames remembered; ``background_ratio``: MOG2's weight share that is
+    background (a still person joins it after ln(ratio) / ln(1 - 1/history) frames: ~180 at
+    0.7 and 500, ~50 at MOG2's 0.9); ``var_threshold``: squared Mahalanobis distance for
+    foreground; ``warmup_frames``: frames only learned from; ``learning_rate`` after them: None
+    = 1/history (MOG2's own, 1/frames seen, swallows a still person within a second), 0 freezes
+    the model; ``normalise_brightness``: undo global gain changes (:meth:`subtract`);
+    ``var_min``: MOG2's variance floor (grey levels squared, tracker.video.noise_floor)."""
 
     def __init__(self, working_width: int = 320, history: int = 500,
                  background_ratio: float = 0.7, var_threshold: float = 16.0,
@@ -119,8 +112,7 @@ class BackgroundSubtractor:
         return model
 
     def primed_model(self, var_min: float):
-        """A :meth:`new_model` that has learned the primed :attr:`reference` as :meth:`prime`
-        teaches it."""
+        """A :meth:`new_model` that has learned :attr:`reference` as :meth:`prime` teaches it."""
         if self.reference is None:
             raise ExtractionError("a primed model needs prime() first")
         model = self.new_model(var_min)
@@ -148,12 +140,10 @@ class BackgroundSubtractor:
         return self.working_width, max(1, round(height * self.working_width / width))
 
     def prime(self, background: np.ndarray, frame_size: tuple[int, int] | None = None) -> None:
-        """Learn the empty scene (BGR uint8 (H, W, 3)), ``max(warmup_frames, 1)`` times at
-        MOG2's start-up rate; the model is then :attr:`ready`, with no "ghost" of a person
-        present during a warm-up on live frames. ``frame_size``: None when ``background`` has
-        the frames' size; else the frames' (width, height) px, and ``background`` is already at
-        :meth:`working_size` (a median of shrunk frames: scaling it up and down would blur it,
-        and every textured pixel of a sharp frame would then differ from it)."""
+        """Learn the empty scene (BGR uint8 (H, W, 3)) at MOG2's start-up rate until
+        :attr:`ready` (no warm-up "ghost" of a person). ``frame_size``: None when ``background``
+        has the frames' size; else the frames' (width, height) px, ``background`` being at
+        :meth:`working_size` already (a median of shrunk frames: rescaling would blur it)."""
         if background.ndim != 3 or background.shape[2] != 3 or background.dtype != np.uint8:
             raise ExtractionError(f"background must be BGR uint8 (H, W, 3), got "
                                   f"{background.dtype} {background.shape}")
@@ -186,11 +176,9 @@ class BackgroundSubtractor:
 
     def subtract(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Update the model with ``frame`` (BGR uint8 (H, W, 3)); returns (the frame at
-        :meth:`working_size`, brightness-normalised, BGR uint8 (h, w, 3); MOG2's raw mask uint8
-        (h, w): 255 foreground, 127 shadow, 0 background). Once primed, a global brightness
-        change is undone: the frame is divided by its median per-channel gain over the
-        reference when that is over MIN_GAIN_CHANGE from 1. A frame with a gain beyond
-        _MAX_GAIN_FACTOR gets an empty mask and is not learned."""
+        :meth:`working_size`, BGR uint8 (h, w, 3); MOG2's mask uint8 (h, w): 255 foreground,
+        127 shadow, 0 background). Once primed, a gain over the reference beyond MIN_GAIN_CHANGE
+        is undone; beyond _MAX_GAIN_FACTOR the mask is empty and the frame not learned."""
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise ExtractionError(f"frame must be BGR uint8 (H, W, 3), got {frame.dtype} "
                                   f"{frame.shape}")
@@ -220,15 +208,14 @@ class BackgroundSubtractor:
 
 
 def _check_var_min(var_min: float) -> None:
-    # MOG2 caps each variance at varMax (75 by default): a floor above it means nothing.
     if not (np.isfinite(var_min) and 0.0 < var_min <= _MOG2_VAR_MAX):
         raise ExtractionError(f"var_min={var_min} must be in (0, {_MOG2_VAR_MAX:g}] grey levels "
                               "squared")
 
 
 def median_background(frames: list[np.ndarray]) -> np.ndarray:
-    """Per-pixel median of frames (each BGR uint8 (H, W, 3)) -> BGR uint8 (H, W, 3): over frames
-    spread across a video, the empty scene wherever no one stood still in half of them."""
+    """Per-pixel median of frames (each BGR uint8 (H, W, 3)) -> BGR uint8 (H, W, 3): the empty
+    scene wherever no one stood still in half of them."""
     if not frames:
         raise ExtractionError("median_background needs at least one frame")
     shapes = {f.shape for f in frames}
@@ -239,11 +226,9 @@ def median_background(frames: list[np.ndarray]) -> np.ndarray:
 
 def clean_mask(mask: np.ndarray, open_px: int = 3, close_px: int = 5,
                restore_px: int = 1) -> np.ndarray:
-    """Drop specks and bridge small gaps in a foreground mask (uint8 (h, w), 255 = foreground)
-    by an elliptical opening of ``open_px`` and closing of ``close_px`` px (<= 1 skips one).
-    Foreground the opening removed within ``restore_px`` px of what it kept is put back (the
-    opening shaves toes, finger tips, thin wrists; isolated specks stay removed). Returns
-    uint8 (h, w); holes are filled per person in :func:`person_masks`."""
+    """A foreground mask (uint8 (h, w), 255 = foreground) without specks and small gaps: an
+    elliptical opening of ``open_px`` and closing of ``close_px`` px (<= 1 skips one); what the
+    opening shaved within ``restore_px`` px of what it kept (toes, wrists) is put back."""
     cleaned = mask
     if open_px > 1:
         opened = cv2.morphologyEx(cleaned, cv2.MORPH_OPEN, _ellipse(open_px))
@@ -268,13 +253,11 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
                  max_fragment_area: float = 0.15,
                  max_area_fraction: float = DEFAULT_MAX_AREA_FRACTION,
                  image: np.ndarray | None = None) -> list[PersonMask]:
-    """One :class:`PersonMask` per 8-connected component of a cleaned mask (uint8 (h, w) at
-    working size, 255 = foreground), scaled up to ``frame_size`` (width, height) px (linear,
-    threshold at half); sorted by area, largest first. Components outside
-    [``min_area_fraction``, ``max_area_fraction``] of the image are dropped; holes up to
-    ``max_hole_fraction`` are filled (larger ones, e.g. between an arm and the torso, are
-    kept). ``merge_fragments``: join pieces of one person (:func:`_fragment_groups`).
-    ``image``: the frame at the mask's size (BGR uint8) to measure PersonMask.colour from."""
+    """One :class:`PersonMask` per 8-connected component of a cleaned mask (uint8 (h, w),
+    255 = foreground) scaled to ``frame_size`` (width, height) px, largest first. Components
+    outside [min, max]_area_fraction of the image go; holes up to ``max_hole_fraction`` are
+    filled (not those between an arm and the torso); ``merge_fragments`` joins pieces of one
+    person (tracker.video.fragments); ``image`` (BGR uint8 (h, w, 3)) gives the colours."""
     height, width = mask.shape
     image_area = float(height * width)
     box = _padded_box(mask, 0)
@@ -292,8 +275,10 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
     big_holes = np.flatnonzero((parents != -1) & (areas > max_hole_fraction * image_area))
     rects = np.array([cv2.boundingRect(contours[o]) for o in outers]).reshape(-1, 4)
     people = []
-    groups = (_fragment_groups(rects, areas[outers], max_fragment_area=max_fragment_area)
-              if merge_fragments else [[i] for i in range(len(rects))])
+    groups = [[i] for i in range(len(rects))]
+    if merge_fragments and len(rects) > 1:
+        from tracker.video.fragments import fragment_groups     # only with pieces to join
+        groups = fragment_groups(rects, areas[outers], max_fragment_area)
     for group in groups:
         members = [int(outers[g]) for g in group]
         holes = [contours[h] for h in big_holes if parents[h] in members]
@@ -302,51 +287,11 @@ def person_masks(mask: np.ndarray, frame_size: tuple[int, int],
     return sorted((p for p in people if p is not None), key=lambda p: -p.area)
 
 
-def _fragment_groups(rects: np.ndarray, areas: np.ndarray | None = None,
-                     min_overlap: float = 0.5, max_gap: float = 0.25,
-                     max_fragment_area: float = 0.15) -> list[list[int]]:
-    """Groups of components (rects (n, 4) x, y, w, h px; areas (n,) px) that are pieces of one
-    person (cut at the waist or neck, a foot or hand apart): x-ranges overlapping by
-    ``min_overlap`` of the narrower and a vertical gap of at most ``max_gap`` of the taller; or
-    the smaller at most ``max_fragment_area`` of the larger's area, within ``max_gap`` of its
-    height on every side, its centre not above the larger's top."""
-    n = len(rects)
-    if n < 2:
-        return [[i] for i in range(n)]
-    group = list(range(n))
-
-    def root(i: int) -> int:
-        while group[i] != i:
-            i = group[i]
-        return i
-
-    x0, y0 = rects[:, 0], rects[:, 1]
-    x1, y1 = x0 + rects[:, 2], y0 + rects[:, 3]
-    overlap = np.minimum(x1[:, None], x1[None, :]) - np.maximum(x0[:, None], x0[None, :])
-    narrower = np.minimum(rects[:, 2][:, None], rects[:, 2][None, :])
-    gap = np.maximum(y0[:, None], y0[None, :]) - np.minimum(y1[:, None], y1[None, :])
-    taller = np.maximum(rects[:, 3][:, None], rects[:, 3][None, :])
-    joined = (overlap >= min_overlap * narrower) & (gap <= max_gap * taller)
-    if areas is not None:
-        reach = max_gap * taller
-        small = areas[:, None] <= max_fragment_area * areas[None, :]      # i a fragment of j
-        near = (-overlap <= reach) & (gap <= reach)
-        below_top = (y0 + rects[:, 3] / 2)[:, None] >= y0[None, :]
-        fragment = small & near & below_top
-        joined |= fragment | fragment.T
-    for i, j in zip(*np.nonzero(np.triu(joined, 1))):
-        group[root(int(j))] = root(int(i))
-    groups: dict[int, list[int]] = {}
-    for i in range(n):
-        groups.setdefault(root(i), []).append(i)
-    return list(groups.values())
-
-
 def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
                           shape: tuple[int, int], frame_size: tuple[int, int],
                           image: np.ndarray | None = None) -> PersonMask | None:
-    """Rasterize one person (its pieces, joined across their gaps, minus their kept holes),
-    measure its colour in ``image`` (at the mask's size) and scale it to frame pixels."""
+    """One person's pieces rasterized, joined across their gaps, minus their kept holes, its
+    colour measured in ``image`` (at the mask's size), scaled to frame px."""
     height, width = shape
     frame_width, frame_height = frame_size
     sx, sy = frame_width / width, frame_height / height
@@ -360,7 +305,8 @@ def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
         cv2.drawContours(crop, holes, -1, 0, cv2.FILLED, offset=(-x, -y))
         cv2.drawContours(crop, holes, -1, 255, 1, offset=(-x, -y))
     if len(members) > 1:
-        crop = _bridge_vertical_gaps(crop, [cv2.boundingRect(contours[m]) for m in members])
+        from tracker.video.fragments import bridge_vertical_gaps
+        crop = bridge_vertical_gaps(crop, [cv2.boundingRect(contours[m]) for m in members])
     colour = None if image is None else colour_histogram(image[y:y + h, x:x + w], crop)
     x0, y0 = int(round(x * sx)), int(round(y * sy))
     x1 = min(frame_width, int(round((x + w) * sx)))
@@ -374,19 +320,6 @@ def _person_from_contours(contours, members: list[int], holes: list[np.ndarray],
     centroid = (x0 + moments["m10"] / moments["m00"], y0 + moments["m01"] / moments["m00"])
     return PersonMask(crop > 0, (x0, y0, x1 - x0, y1 - y0), centroid, int(moments["m00"]),
                       colour)
-
-
-def _bridge_vertical_gaps(crop: np.ndarray, rects) -> np.ndarray:
-    """Close the vertical gaps between pieces with a vertical closing just taller than the
-    widest gap (padded, so background open to the crop's edge is never filled)."""
-    tops = sorted((r[1], r[1] + r[3]) for r in rects)
-    widest = max([0] + [b_top - a_bottom for (_, a_bottom), (b_top, _) in zip(tops, tops[1:])])
-    k = int(widest) + 3
-    k += 1 - k % 2                # odd: an even kernel's off-centre anchor shifts the closing
-    padded = cv2.copyMakeBorder(crop, k, k, 0, 0, cv2.BORDER_CONSTANT, value=0)
-    kernel = np.ones((k, 1), np.uint8)
-    closed = cv2.morphologyEx(padded, cv2.MORPH_CLOSE, kernel)
-    return closed[k:-k]
 
 
 def enclosed_shadow(foreground: np.ndarray, shadow: np.ndarray) -> np.ndarray:
@@ -412,11 +345,10 @@ def enclosed_shadow(foreground: np.ndarray, shadow: np.ndarray) -> np.ndarray:
 def drop_lighting_blobs(mask: np.ndarray, frame: np.ndarray, background: np.ndarray,
                         min_correlation: float = 0.85, max_ratio_spread: float = 0.08,
                         min_area: int = 0) -> np.ndarray:
-    """A copy of ``mask`` (uint8 (h, w), 255 = foreground) without the blobs where the frame is
-    the background under other light (frame, background BGR uint8 (h, w, 3)): grey levels
-    correlating above ``min_correlation``, or log(frame / background)'s median absolute
-    deviation under ``max_ratio_spread`` (:func:`_relit`). Blobs under ``min_area`` px are
-    left to the area gate."""
+    """A copy of ``mask`` (uint8 (h, w), 255 = foreground) without blobs (of ``min_area`` px or
+    more) where the frame is the background under other light (both BGR uint8 (h, w, 3)): grey
+    levels correlating above ``min_correlation``, or log(frame / background)'s median absolute
+    deviation under ``max_ratio_spread``."""
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     out = mask.copy()
     for contour in contours:
@@ -465,14 +397,10 @@ def _median(values: np.ndarray) -> np.floating:
 
 class SilhouetteExtractor:
     """Frame -> list of :class:`PersonMask`: subtraction, cleaning and splitting in one call.
-
-    Keyword arguments go to :class:`BackgroundSubtractor`, the others to :func:`clean_mask`,
-    :func:`person_masks`, :func:`enclosed_shadow` (``keep_enclosed_shadow``),
-    :func:`drop_lighting_blobs` (``drop_lighting``), tracker.video.zone.ZoneRefiner
-    (``refine``: colour decides where the background is unreliable) and
-    :func:`tracker.video.noise_floor.choose_var_min` (``adapt_noise_floor``; off with an
-    explicit ``var_min``).
-    """
+    Keyword arguments go to :class:`BackgroundSubtractor`; the others turn on or set
+    :func:`clean_mask`, :func:`person_masks`, :func:`enclosed_shadow`, :func:`drop_lighting_blobs`,
+    tracker.video.zone.ZoneRefiner (``refine``) and tracker.video.noise_floor.choose_var_min
+    (``adapt_noise_floor``; off with an explicit ``var_min``)."""
 
     def __init__(self, open_px: int = 3, close_px: int = 5, restore_px: int = 1,
                  min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION,
@@ -484,12 +412,10 @@ class SilhouetteExtractor:
         self.subtractor = BackgroundSubtractor(**subtractor_options)
         self.adapt_noise_floor = adapt_noise_floor and "var_min" not in subtractor_options
         self.open_px, self.close_px, self.restore_px = open_px, close_px, restore_px
-        self.min_area_fraction = min_area_fraction
-        self.max_hole_fraction = max_hole_fraction
-        self.max_fragment_area = max_fragment_area
-        self.keep_enclosed_shadow = keep_enclosed_shadow
-        self.drop_lighting = drop_lighting
-        self.refine = refine
+        self.min_area_fraction, self.max_hole_fraction, self.max_fragment_area = \
+            min_area_fraction, max_hole_fraction, max_fragment_area
+        self.keep_enclosed_shadow, self.drop_lighting, self.refine = \
+            keep_enclosed_shadow, drop_lighting, refine
         if refine_relearn_every < 1:
             raise ExtractionError(f"refine_relearn_every={refine_relearn_every} must be >= 1")
         self.refine_relearn_every = refine_relearn_every
@@ -498,11 +424,9 @@ class SilhouetteExtractor:
         self.background: ClipBackground | None = None
 
     def prime(self, background, frame_size: tuple[int, int] | None = None) -> None:
-        """Learn the scene before the first frame from either an empty-scene image (BGR uint8
-        (H, W, 3), trusted everywhere; ``frame_size`` as in :meth:`BackgroundSubtractor.prime`)
-        or frames spread over the clip (list or (N, H, W, 3)), from which
-        :func:`tracker.video.background.clip_background` estimates the scene and where it
-        cannot be trusted (a person who never leaves the spot)."""
+        """Learn the scene from an empty-scene image (BGR uint8 (H, W, 3), trusted everywhere;
+        ``frame_size`` as in :meth:`BackgroundSubtractor.prime`) or from frames spread over the
+        clip (list or (N, H, W, 3)): tracker.video.background.clip_background."""
         if isinstance(background, np.ndarray) and background.ndim == 3:
             self.subtractor.prime(background, frame_size)
             self.background = clean_plate(self.subtractor.reference)
@@ -513,8 +437,7 @@ class SilhouetteExtractor:
             raise ExtractionError("prime needs a background image or at least one frame")
         small = self._working_frames(frames)
         estimate = clip_background(small)
-        height, width = frames[0].shape[:2]
-        self.subtractor.prime(estimate.image, frame_size=(width, height))
+        self.subtractor.prime(estimate.image, frame_size=(frames[0].shape[1], frames[0].shape[0]))
         self._learn_clip(small, estimate)
 
     def _learn_clip(self, small: np.ndarray, estimate: ClipBackground) -> None:
@@ -529,9 +452,8 @@ class SilhouetteExtractor:
         self.refiner = None
 
     def learn_zone(self, frames) -> None:
-        """After :meth:`prime` with the clip's median image, mark where it cannot be trusted
-        from the same frames (list or (N, H, W, 3) BGR uint8 shrinking to the working size),
-        and choose the variance floor on them (call it before the first frame)."""
+        """After :meth:`prime` with the clip's median image, learn its unreliable zone and
+        variance floor from the same frames (list or (N, H, W, 3) BGR uint8), before frame 1."""
         if self.subtractor.reference is None:
             raise ExtractionError("learn_zone needs prime() with a background image first")
         small = self._working_frames(list(frames))
@@ -568,11 +490,9 @@ class SilhouetteExtractor:
 
     def _cleaned(self, mask: np.ndarray, shadow: np.ndarray, small: np.ndarray,
                  box: tuple[slice, slice], image_area: int) -> np.ndarray:
-        """Cleaned foreground (uint8 (h, w), 255 = person) of one ``box`` (rows, columns) of the
-        working-size image, from MOG2's foreground (uint8, changed in place), shadow (bool) and
-        the frame (BGR uint8) there; image_area: px of the whole image (for the area gate). The
-        box holds all foreground plus a margin wider than the morphology reaches, so the result
-        is the whole image's, cropped."""
+        """Cleaned foreground (uint8 (h, w), 255 = person) in ``box`` (rows, columns; all the
+        foreground and more than the morphology reaches) from MOG2's foreground there (changed
+        in place), shadow (bool) and frame (BGR uint8); image_area: px of the whole image."""
         if self.keep_enclosed_shadow:
             # Bodies enclose shadow, specks (flicker on a window, noise on the ceiling) do not.
             solid = clean_mask(mask, self.open_px, 1, self.restore_px) > 0

@@ -36,11 +36,9 @@ def require_segmenter(option: str = "--silhouettes segment") -> None:
 
 class AutoExtractor:
     """``track --silhouettes auto``: background subtraction (``make_background(**options)``
-    makes a :class:`SilhouetteExtractor`) until the camera moves (the clip's samples, or with
-    the segmenter also frame by frame: tracker.video.camera_motion), then ``segmenter`` (a
-    PersonSegmenter proposing no moving blobs; None without the extra: one warning). A person
-    who never leaves the spot stays with background subtraction (docs/segmenter.md).
-    :attr:`source`: "background" or "segment"; :attr:`reason`: why."""
+    makes a :class:`SilhouetteExtractor`) until the camera moves (by the clip's samples, and
+    with a segmenter each frame), then ``segmenter`` (a PersonSegmenter, no moving blobs; None
+    without the extra: one warning). :attr:`source`: "background" or "segment"; :attr:`reason`."""
 
     def __init__(self, make_background, segmenter):
         self.make_background = make_background
@@ -66,21 +64,18 @@ class AutoExtractor:
         self.background.prime(background, frame_size)
         if self.segmenter is not None:
             self.segmenter.prime(background, frame_size)
-        if image is None:
-            self._judge(list(background))
+        if image is None and camera_moves(list(background)):
+            self._choose("the camera moves")
 
     def learn_zone(self, frames) -> None:
         """As :meth:`SilhouetteExtractor.learn_zone`, and judge the frames (:meth:`prime`)."""
         self.background.learn_zone(frames)
-        self._judge(list(frames))
-
-    def _judge(self, frames: list) -> None:
-        if camera_moves(frames):
+        if camera_moves(list(frames)):
             self._choose("the camera moves")
 
     def _choose(self, reason: str) -> None:
         """Turn to the segmenter (without moving blobs) for ``reason``, or warn once."""
-        if self.source == "segment" or self.reason is not None:
+        if self.reason is not None:             # set before source turns to "segment"
             return
         self.reason = reason
         if self.segmenter is None:
