@@ -18,7 +18,6 @@ from regressor.edges import SilhouetteError
 from regressor.estimator import PoseEstimator
 from regressor.stacking import FrameStacker, stack_step
 from tracker.tracks.association import MAX_OCCLUDED_S, Associator
-from tracker.video.roll import upright_mask
 from tracker.tracks.filtering import PoseKalmanFilter
 from tracker.tracks.hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, canonical_priors,
                                        chain_options, hypotheses_from)
@@ -222,7 +221,10 @@ class PoseTracker:
         """A person's upright silhouette descriptor (D,) and its mirror image's (D,) or None;
         None for a sliver. Needs only the mask and the settings (tracker.frame_worker)."""
         with timed(self.stage_seconds, "descriptor"):
-            mask = upright_mask(person.mask, self.settings.roll_deg)
+            mask = person.mask
+            if self.settings.roll_deg:
+                from tracker.video.roll import upright_mask    # only --roll needs it
+                mask = upright_mask(mask, self.settings.roll_deg)
             try:
                 if self._mirror:
                     return self.estimator.describe_with_mirror(mask)
