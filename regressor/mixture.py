@@ -142,17 +142,6 @@ class MixtureRegressor(Estimator):
         self.expert_params = expert_params
         self.combine = combine
 
-    def _new_expert(self, e: int):
-        if self.expert == "ridge":
-            return DampedKernelRegressor(self.n_centres, self.width_scale, self.lam,
-                                         seed=self.seed + e)
-        if self.expert == "sparse_rvm":
-            from .sparse_rvm import SparseRVMRegressor
-            return SparseRVMRegressor(n_candidates=self.n_centres, width_scale=self.width_scale,
-                                      seed=self.seed + e, **(self.expert_params or {}))
-        from .rvm import RVMRegressor
-        return RVMRegressor("gaussian", width_scale=self.width_scale)
-
     def fit(self, X, Y, Z=None, log=None, workers: int = 1):
         """X (N, D) inputs, Y (N, K) targets, Z (N, dZ) the space partitioned (default Y).
         log(str) reports progress. workers: experts fitted at once (threads; the experts do

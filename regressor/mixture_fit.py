@@ -11,7 +11,7 @@ import scipy.sparse
 
 from .basis import gaussian_design, squared_distances, validate_X
 from .basis_fit import default_width
-from .mixture import SoftmaxGate
+from .mixture import DampedKernelRegressor, SoftmaxGate
 
 EXPERT_KINDS = ("ridge", "rvm", "sparse_rvm")
 GATE_KINDS = ("softmax", "neighbours")
@@ -147,7 +147,7 @@ def fit_mixture(est, X, Y, Z=None, log=None, workers: int = 1):
         members.append(idx)
 
     def fit_one(e: int):
-        expert = est._new_expert(e).fit(X[members[e]], Y[members[e]])
+        expert = _new_expert(est, e).fit(X[members[e]], Y[members[e]])
         if log:
             kept = getattr(expert, "relevance_", None)
             log(f"  expert {e}: {int((labels == e).sum())} rows of its own, "
@@ -171,3 +171,15 @@ def fit_mixture(est, X, Y, Z=None, log=None, workers: int = 1):
     est.n_features_in_ = X.shape[1]
     est.n_outputs_ = Y.shape[1] if Y.ndim == 2 else 1
     return est
+
+
+def _new_expert(est, e: int):
+    """Expert e's unfitted regressor, as the mixture est's ``expert`` names it."""
+    if est.expert == "ridge":
+        return DampedKernelRegressor(est.n_centres, est.width_scale, est.lam, seed=est.seed + e)
+    if est.expert == "sparse_rvm":
+        from .sparse_rvm import SparseRVMRegressor
+        return SparseRVMRegressor(n_candidates=est.n_centres, width_scale=est.width_scale,
+                                  seed=est.seed + e, **(est.expert_params or {}))
+    from .rvm import RVMRegressor
+    return RVMRegressor("gaussian", width_scale=est.width_scale)

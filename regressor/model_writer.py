@@ -10,10 +10,13 @@ from pathlib import Path
 import numpy as np
 
 from .angles import POSE_DIM
+from .canonical_priors import PARTS as PRIOR_PARTS, PREFIX as PRIORS_PREFIX, CanonicalPriors
 from .heading_index import HeadingIndex
+from .limb_net import PREFIX as LIMB_NET_PREFIX, LimbNet
 from .mixture import DampedKernelRegressor, SoftmaxGate
-from .model_file import save_model
+from .model_file_writer import save_model
 from .pose_model import MIXTURE_KIND, MODEL_KIND, LimbHead, PoseModel, PoseModelError
+from .side_classifier import PREFIX as SIDE_PREFIX, SideClassifier
 
 
 def quantised_int8(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -30,6 +33,39 @@ def quantised_int8(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     scale[scale == 0] = 1.0             # an all-zero column (or one float32 cannot hold): q is 0
     q = np.clip(np.round(W / scale.astype(np.float64)), -127, 127)
     return q.astype(np.int8), scale
+
+
+def limb_net_arrays(net: LimbNet) -> dict:
+    """A limb network's file parts (regressor.limb_net.LimbNet.from_arrays reads them): each
+    weight matrix as int8 with a float32 scale per output column (``S{m}_{i}``,
+    quantised_int8). Older files hold float16 weights and no scales."""
+    p = LIMB_NET_PREFIX
+    out = {f"{p}shape": np.array([len(net.members), len(net.members[0])], np.int64),
+           f"{p}input_mean": net.input_mean, f"{p}input_scale": np.float64(net.input_scale),
+           f"{p}output_mean": net.output_mean, f"{p}output_scale": net.output_scale,
+           f"{p}angle_centre_deg": net.angle_centre_deg,
+           f"{p}canonical_direction": net.canonical_direction}
+    for m, layers in enumerate(net.members):
+        for i, (W, b) in enumerate(layers):
+            out[f"{p}W{m}_{i}"], out[f"{p}S{m}_{i}"] = quantised_int8(W)
+            out[f"{p}b{m}_{i}"] = b.astype(np.float32)
+    return out
+
+
+def side_classifier_arrays(clf: SideClassifier) -> dict:
+    """A side classifier's file parts (SideClassifier.from_arrays reads them); weights float16."""
+    p = SIDE_PREFIX
+    out = {f"{p}layers": np.int64(len(clf.layers)), f"{p}input_mean": clf.input_mean,
+           f"{p}input_scale": np.float64(clf.input_scale)}
+    for i, (W, b) in enumerate(clf.layers):
+        out[f"{p}W{i}"], out[f"{p}b{i}"] = W.astype(np.float16), b.astype(np.float32)
+    return out
+
+
+def canonical_priors_arrays(priors: CanonicalPriors) -> dict:
+    """Canonical priors' file parts (float64; CanonicalPriors.from_arrays reads them)."""
+    return {f"{PRIORS_PREFIX}{name}": np.asarray(getattr(priors, name), dtype=np.float64)
+            for name in PRIOR_PARTS}
 
 
 def _is_sparse_rvm(expert) -> bool:
@@ -137,9 +173,11 @@ def _mixture_arrays(model: PoseModel) -> dict:
         **(_rvm_expert_arrays(model) if rvm else {}),
         **_limb_head_arrays(model.limb_head),
         **_heading_index_arrays(model.heading_index),
-        **(model.limb_net.to_arrays() if model.limb_net is not None else {}),
-        **(model.side_classifier.to_arrays() if model.side_classifier is not None else {}),
-        **(model.canonical_priors.to_arrays() if model.canonical_priors is not None else {}),
+        **(limb_net_arrays(model.limb_net) if model.limb_net is not None else {}),
+        **(side_classifier_arrays(model.side_classifier)
+           if model.side_classifier is not None else {}),
+        **(canonical_priors_arrays(model.canonical_priors)
+           if model.canonical_priors is not None else {}),
     }
 
 

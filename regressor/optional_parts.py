@@ -128,9 +128,16 @@ def gives_variance(model: PoseModel) -> bool:
         for e in model.mixture.experts_)
 
 
+def predict_batch(model: PoseModel, stacked: np.ndarray) -> np.ndarray:
+    """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D): the regressor's
+    single answer (a mixture's gate-weighted one), for training and evaluation."""
+    return regress(model, model._stacked(stacked))
+
+
 def predict_variance(model: PoseModel, stacked: np.ndarray) -> np.ndarray:
-    """PoseModel.predict_variance: the experts' variance of a new observation (N,) deg^2,
-    averaged over the 53 body angles (regressor.sparse_rvm). Needs :func:`gives_variance`."""
+    """Predictive variance (N,) deg^2 of :func:`predict_batch`'s pose for stacked descriptors
+    (N, k*D): the experts' variance of a new observation, averaged over the 53 body angles
+    (regressor.sparse_rvm), for training's calibration. Needs :func:`gives_variance`."""
     if not gives_variance(model):
         raise PoseModelError("this model's experts give no predictive variance "
                              "(only sparse RVM experts do)")

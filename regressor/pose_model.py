@@ -79,8 +79,8 @@ class PoseModel:
     canonical_direction (55,): fitted on canonical members. limb_head, limb_net (one or
     neither), heading_index, side_classifier (needs limbs), canonical_priors (None: the
     tracker's default): a mixture's optional parts. variance_calibration: factor on
-    :meth:`predict_variance` (sparse RVM experts), or None. The tracker calls only
-    regressor.estimator.PoseEstimator's members; the predict_* methods serve training.
+    regressor.optional_parts.predict_variance (sparse RVM experts), or None. The tracker calls
+    only regressor.estimator.PoseEstimator's members.
     """
 
     settings: DescriptorSettings
@@ -165,12 +165,6 @@ class PoseModel:
         return (self.limb_net is not None and isinstance(options, dict)
                 and options.get("limb_net_mirror") is True)
 
-    def predict_batch(self, stacked: np.ndarray) -> np.ndarray:
-        """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D): the regressor's
-        single answer (a mixture's gate-weighted one), for training and evaluation."""
-        from .optional_parts import regress
-        return regress(self, self._stacked(stacked))
-
     def _stacked(self, stacked) -> np.ndarray:
         """stacked (N, k*D) as the regressor's float input (N, input_length), projected when
         the model has a projection; PoseModelError naming the expected shape."""
@@ -215,12 +209,6 @@ class PoseModel:
                                  f"the frames' {X.shape}, got {X_mirror.shape}")
         both = self._limbs(np.vstack([X, X_mirror]))
         return both[:len(X)], both[len(X):]
-
-    def predict_variance(self, stacked: np.ndarray) -> np.ndarray:
-        """Predictive variance (N,) deg^2 of :meth:`predict_batch`'s pose for stacked
-        descriptors (N, k*D), for training's calibration (regressor.optional_parts)."""
-        from .optional_parts import predict_variance
-        return predict_variance(self, stacked)
 
     def predict_limbs(self, stacked: np.ndarray) -> np.ndarray | None:
         """Canonical poses (N, 55) for the limbs from stacked descriptors (N, k*D), as

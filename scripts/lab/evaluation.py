@@ -30,6 +30,7 @@ from scipy.io.matlab import MatReadError
 from regressor.angles import heading_norm, pose_angles, wrap_deg
 from regressor.metrics import (acceleration_error, angle_jitter, angular_error,
                                contiguous_folds, mean_point_error, point_jitter, rms_per_angle)
+from regressor.optional_parts import predict_batch
 from regressor.pose_model import PoseModel
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
@@ -382,7 +383,7 @@ def render_silhouettes(motion, camera: CameraOptions
 def _model_poses(model: PoseModel, masks: list[np.ndarray]) -> np.ndarray:
     """Raw poses (T, 55) of one sequence of masks by a model, stacking its own descriptors."""
     X = np.array([model.describe(m) for m in masks])
-    return model.predict_batch(stack_frames(X, model.stack_depth))
+    return predict_batch(model, stack_frames(X, model.stack_depth))
 
 
 def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: PoseModel,

@@ -27,6 +27,7 @@ from regressor.descriptor import (DescriptorSettings, SilhouetteError, descripto
 from regressor.descriptor_batch import descriptors_for_masks
 from regressor.layout import silhouette_layout
 from regressor.limb_net_training import require_training_dependencies
+from regressor.optional_parts import predict_batch, predict_variance
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
                                   frame_descriptors, transform_descriptors)
 from regressor.rvm import RVMRegressor
@@ -397,7 +398,7 @@ def train_pose_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                       measurement_covariance=np.eye(54), process_noise=np.ones(54),
                       ambiguity_threshold=options.ambiguity_threshold)
     val_rows = np.flatnonzero(val)
-    predicted = model.predict_batch(Xs[val_rows])
+    predicted = predict_batch(model, Xs[val_rows])
     R, facts = measurement_noise(predicted, dataset.pose[val_rows], options.ambiguity_threshold)
     model.measurement_covariance = R
     model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
@@ -591,14 +592,14 @@ def _validated_model(dataset: Dataset, codebook: Codebook, settings: DescriptorS
                       limb_net=parts["limb_net"], side_classifier=parts["side_classifier"])
     # R from the experts' own heading: its heading entry is mostly front/back confusions,
     # which the tracker's chain, not the filter, handles.
-    predicted = model.predict_batch(Xs[val_rows])
+    predicted = predict_batch(model, Xs[val_rows])
     model.heading_index = parts["heading_index"]     # its neighbours give each frame's novelty
     # A canonical model's error is measured against the canonical members, as its output is
     # the chain's hypothesis, not yet the decision.
     R, facts = measurement_noise(predicted, truth[val_rows], options.ambiguity_threshold)
     model.measurement_covariance = R
     if options.expert == "sparse_rvm":
-        variance = model.predict_variance(Xs[val_rows])
+        variance = predict_variance(model, Xs[val_rows])
         model.variance_calibration, z2 = calibrate_variance(predicted, truth[val_rows], R,
                                                             variance)
         facts.update(z2)
