@@ -1,6 +1,6 @@
 """The limbs by an ensemble of small neural networks on the regressor's input (issue 9): each
 silhouette's canonical body (sequences.pose_vector.canonical_member), as the mixture's limb head
-(regressor.pose_model.LimbHead) but with features shared over all the training rows; seeded
+(regressor.optional_parts.LimbHead) but with features shared over all the training rows; seeded
 networks differ, so several are averaged (why and how chosen: docs/code_notes/regress.md,
 docs/tuning.md "regressor/limb_net.py").
 

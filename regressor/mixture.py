@@ -1,28 +1,20 @@
 """A mixture of kernel regression experts with a gate (after Agarwal and Triggs, "Monocular
 human motion capture with a mixture of regressors", CVPR Workshops 2005).
 
-The training set is split into regions of pose space (k-means on a pose embedding), each region
-gets its own expert fitted on its members (plus a margin of rows near its border, so neighbouring
-experts agree where they meet), and a gate p(expert | stacked descriptor) - multinomial logistic
-regression on Gaussian-kernel features (the tracker's models), or the regions of the nearest
-training inputs (``gate="neighbours"``) - says which experts to trust. Where a silhouette is
-ambiguous (front/back) two experts get similar probabilities and
-:meth:`MixtureRegressor.predict_hypotheses` returns both poses; :meth:`MixtureRegressor.predict`
-returns the most probable one, and over a whole sequence :meth:`MixtureRegressor.predict_path`
-the most probable chain of them (regressor.hypothesis_path).
-
-Experts: :class:`DampedKernelRegressor` (damped least squares on k-means centres),
-regressor.rvm's RVM (``expert="rvm"``, on at most ``rvm_rows`` rows) or regressor.sparse_rvm's
-sparse RVM, which also gives each pose a predictive standard deviation. Why these:
-docs/code_notes/regress.md. The fits are in regressor.mixture_fit, loaded only when fitting.
-Per-frame cost: the gate's kernel features (G centres), then only the top experts' kernels.
+Training splits pose space into regions (k-means on a pose embedding) and fits an expert per
+region on its members plus a margin of rows near its border (so neighbours agree where they
+meet), and a gate p(expert | stacked descriptor): multinomial logistic regression on
+Gaussian-kernel features (the tracker's models) or the nearest training inputs' regions
+(``gate="neighbours"``). Where a silhouette is ambiguous (front/back) two experts get similar
+probabilities: :meth:`MixtureRegressor.predict_hypotheses` returns both poses. The experts:
+:class:`MixtureRegressor` (why these: docs/code_notes/regress.md); the fits are in
+regressor.mixture_fit, loaded only when fitting. Per frame, only the top experts' kernels run.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from .basis import NotFittedError, Parameters, gaussian_design, validate_X
-from .hypothesis_path import most_probable_path
 
 
 class Estimator(Parameters):
@@ -182,22 +174,6 @@ class MixtureRegressor(Estimator):
                 mean = self.experts_[e].predict(X[rows])
             poses[rows, slot] = np.asarray(mean).reshape(len(rows), -1)
         return (poses, prob, stds) if return_std else (poses, prob)
-
-    def predict_path(self, X, step_var: float, continuity: float = 1.0, sequence_ids=None,
-                     floor: float = 1e-3) -> np.ndarray:
-        """The most probable sequence of the experts' poses, (N, K) of X (N, D) rows in time
-        order, each frame's evidence the gate's log p(expert | x) (floored at floor, so an
-        expert no neighbour voted for stays possible), the steps between frames scored by a
-        Gaussian of variance step_var (regressor.hypothesis_path). Offline: it needs the whole
-        sequence. sequence_ids (N,): the chain restarts where the label changes. (N,) for a
-        single output, as predict."""
-        self._check_fitted("gate_")
-        # All experts: their probabilities, renormalised over all of them, are the gate's own.
-        poses, prob = self.predict_hypotheses(X, len(self.experts_))
-        log_w = np.log(np.maximum(prob, floor))
-        path = most_probable_path(poses, log_w, step_var, continuity, sequence_ids)
-        out = poses[np.arange(len(X)), path]
-        return out if self.n_outputs_ > 1 else out[:, 0]
 
     def predict(self, X, return_std: bool = False):
         """(N, K) per row: the most probable expert's pose, or with combine="mean" the gate's

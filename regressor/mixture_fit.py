@@ -1,5 +1,5 @@
 """The fits of regressor.mixture's estimators (k-means, the damped kernel experts, the softmax
-gate, the mixture), loaded only when fitting."""
+gate, the mixture) and their targets, loaded only when fitting."""
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
@@ -9,6 +9,7 @@ import scipy.linalg
 import scipy.optimize
 import scipy.sparse
 
+from .angles import wrap_deg
 from .basis import gaussian_design, squared_distances, validate_X
 from .basis_fit import default_width
 from .mixture import DampedKernelRegressor, SoftmaxGate
@@ -16,6 +17,13 @@ from .mixture import DampedKernelRegressor, SoftmaxGate
 EXPERT_KINDS = ("ridge", "rvm", "sparse_rvm")
 GATE_KINDS = ("softmax", "neighbours")
 COMBINE_KINDS = ("most_probable", "mean")
+
+
+def regression_targets(pose: np.ndarray, centre_deg: np.ndarray) -> np.ndarray:
+    """Targets (N, 55): heading (cos, sin) as is, angles as wrap(angle - centre) in degrees."""
+    out = np.array(pose, dtype=np.float64, copy=True)
+    out[:, 2:] = wrap_deg(out[:, 2:] - centre_deg)
+    return out
 
 
 def kmeans(X: np.ndarray, k: int, seed: int = 0, iterations: int = 25,

@@ -15,7 +15,8 @@ from .heading_index import HeadingIndex
 from .limb_net import PREFIX as LIMB_NET_PREFIX, LimbNet
 from .mixture import DampedKernelRegressor, SoftmaxGate
 from .model_file_writer import save_model
-from .pose_model import MIXTURE_KIND, MODEL_KIND, LimbHead, PoseModel, PoseModelError
+from .optional_parts import LimbHead
+from .pose_model import MIXTURE_KIND, MODEL_KIND, PoseModel, PoseModelError
 from .side_classifier import PREFIX as SIDE_PREFIX, SideClassifier
 
 

@@ -12,7 +12,7 @@ from regressor.descriptor import DescriptorSettings
 from regressor.stacking import stack_frames
 from sequences.dataset import Dataset
 from lab.training import train_mixture_model, validation_mask
-from regressor.optional_parts import predict_batch
+from regressor.optional_parts import predict_batch, predict_limbs
 from regressor.pose_model import frame_descriptors
 from regressor.training import MixtureOptions, measurement_noise
 
@@ -100,7 +100,7 @@ def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
     val = validation_mask(data)
     Xs = stack_frames(frame_descriptors(X, model.transform), model.stack_depth,
                       sequence_ids=data.sequence)
-    limbs = model.predict_limbs(Xs)
+    limbs = predict_limbs(model, Xs)
     assert (limbs[:, 0] > 0).mean() > 0.9
     np.testing.assert_allclose(model.limb_net.canonical_direction, np.eye(55)[0])
     # ... and they follow the validation rows' canonical members better than their mean does

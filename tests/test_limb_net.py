@@ -9,6 +9,7 @@ pytest.importorskip("sklearn")
 from regressor.angles import wrap_deg                       # noqa: E402
 from regressor.limb_net import LimbNet                     # noqa: E402
 from regressor.limb_net_training import fit_limb_net     # noqa: E402
+from regressor.optional_parts import predict_limbs            # noqa: E402
 from regressor.pose_model import PoseModelError, load_pose_model  # noqa: E402
 from regressor.model_writer import limb_net_arrays, save_pose_model
 
@@ -272,14 +273,14 @@ def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp
     model.limb_net = fit_limb_net(x, targets, np.zeros(53), np.eye(55)[0], members=1,
                                   hidden=(16,), max_iter=40)
     assert model.has_limbs
-    np.testing.assert_allclose(model.predict_limbs(x[:20]), model.limb_net.predict(x[:20]))
-    np.testing.assert_array_equal(model.hypotheses(x[:20], 2).limbs, model.predict_limbs(x[:20]))
+    np.testing.assert_allclose(predict_limbs(model, x[:20]), model.limb_net.predict(x[:20]))
+    np.testing.assert_array_equal(model.hypotheses(x[:20], 2).limbs, predict_limbs(model, x[:20]))
     path = tmp_path / "net.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)
     # int8 weights (model_writer.limb_net_arrays): within 1 degree of limbs spread over +-40
-    assert np.abs(wrap_deg(loaded.predict_limbs(x[:20])[:, 2:]
-                           - model.predict_limbs(x[:20])[:, 2:])).max() < 1.0
+    assert np.abs(wrap_deg(predict_limbs(loaded, x[:20])[:, 2:]
+                           - predict_limbs(model, x[:20])[:, 2:])).max() < 1.0
     raw = dict(load_model(path).parts)
     # a network for another input length, or an incomplete one, is refused at load
     other = fit_limb_net(x[:, :5], targets, np.zeros(53), np.eye(55)[0], members=1,
@@ -299,7 +300,7 @@ def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp
             load_pose_model(path)
     from test_mixture import _mixture_model as fresh
     plain, _ = fresh()
-    assert not plain.has_limbs and plain.predict_limbs(x[:3]) is None
+    assert not plain.has_limbs and predict_limbs(plain, x[:3]) is None
 
 
 def test_only_a_mixture_carries_a_limb_network(tmp_path):

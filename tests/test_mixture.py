@@ -9,7 +9,8 @@ from regressor.descriptor import DescriptorSettings
 from regressor.mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate
 from regressor.mixture_fit import kmeans
 from regressor.neighbour_gate import NeighbourGate
-from regressor.optional_parts import gives_variance, predict_batch, predict_variance
+from regressor.optional_parts import (gives_variance, predict_batch, predict_limbs,
+                                      predict_variance)
 from regressor.pose_model import PoseModel, PoseModelError, load_pose_model
 from regressor.model_writer import save_pose_model
 from regressor.sparse_rvm import SparseRVMRegressor
@@ -119,6 +120,7 @@ def test_neighbour_gated_mixture_keeps_both_modes_and_picks_distinct_experts():
 
 
 def test_a_sequence_keeps_the_pose_its_clear_frames_showed():
+    from lab.evaluation import mixture_path
     """Descriptors that settle the mode only when x0 > 1.5 (else either pose): per frame the
     gate guesses on the ambiguous frames, the most probable chain keeps the mode the clear
     frames showed, and without continuity it is the per-frame answer."""
@@ -134,9 +136,10 @@ def test_a_sequence_keeps_the_pose_its_clear_frames_showed():
     per_frame = mix.predict(seq)[:, 0]
     assert np.mean(per_frame[5:] < 0) > 0.2                 # the gate guesses
     step_var = float(np.mean(np.diff(np.sin(seq[:, 1])) ** 2))
-    path = mix.predict_path(seq, step_var)
+    path = mixture_path(mix, seq, step_var)
     np.testing.assert_allclose(path[:, 0], 3.0, atol=0.3)    # the mode frames 0-4 showed
-    np.testing.assert_allclose(mix.predict_path(seq, step_var, continuity=0.0), mix.predict(seq))
+    np.testing.assert_allclose(mixture_path(mix, seq, step_var, continuity=0.0),
+                               mix.predict(seq))
 
 
 def test_estimator_conventions():
@@ -310,7 +313,7 @@ def _with_limb_head(model, x, seed=5):
     inputs, one joint fit on [own targets, canonical members' targets] split back
     (lab.training.split_expert_outputs), the head's angles about non-zero centres.
     Returns (mixture, head, members: the head's regression targets (N, 55))."""
-    from regressor.pose_model import LimbHead
+    from regressor.optional_parts import LimbHead
     from sequences.pose_vector import canonical_member
     from regressor.training import split_expert_outputs
     rng = np.random.default_rng(seed)
@@ -345,22 +348,22 @@ def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
     from regressor.model_file_writer import save_model
     model, x = _mixture_model()
     model.mixture, model.limb_head, members = _with_limb_head(model, x)
-    assert _mixture_model()[0].predict_limbs(x[:3]) is None        # no head, no limbs
+    assert predict_limbs(_mixture_model()[0], x[:3]) is None        # no head, no limbs
     # Each row's limbs: the head's own fit (the mixture fitted on the members alone, same
     # experts), its centres added.
     alone = MixtureRegressor(n_experts=3, **SMALL).fit(x, members, x)
     expected = alone.predict(x[:50])
     expected[:, 2:] = wrap_deg(expected[:, 2:] + model.limb_head.angle_centre_deg)
-    np.testing.assert_allclose(model.predict_limbs(x[:50]), expected, atol=1e-6)
+    np.testing.assert_allclose(predict_limbs(model, x[:50]), expected, atol=1e-6)
     # the tracker's one-pass call gives the limbs as the separate one does
     estimates = model.hypotheses(x[:50], 2)
     assert estimates.poses.shape == (50, 2, 55) and estimates.front is None
-    np.testing.assert_array_equal(estimates.limbs, model.predict_limbs(x[:50]))
+    np.testing.assert_array_equal(estimates.limbs, predict_limbs(model, x[:50]))
     path = tmp_path / "mixture.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)
     np.testing.assert_allclose(loaded.limb_head.canonical_direction, np.eye(55)[0])
-    a = loaded.predict_limbs(x[:50])                        # float16 centres, float32 weights
+    a = predict_limbs(loaded, x[:50])                        # float16 centres, float32 weights
     assert a.shape == (50, 55)
     assert np.abs(wrap_deg(a[:, 2:] - expected[:, 2:])).max() < 0.02 * np.abs(members).max()
     raw = dict(load_model(path).parts)

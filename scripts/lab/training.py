@@ -20,15 +20,16 @@ from typing import Callable
 
 import numpy as np
 
-from regressor.angles import POSE_DIM, pose_angles, regression_targets, wrap_deg
+from regressor.angles import POSE_DIM, pose_angles, wrap_deg
 from regressor.codebook import Codebook
 from regressor.descriptor import (DescriptorSettings, SilhouetteError, descriptor_and_mirror,
                                   descriptor_for_mask)
 from regressor.descriptor_batch import descriptors_for_masks
 from regressor.layout import silhouette_layout
+from regressor.mixture_fit import regression_targets
 from regressor.limb_net_training import require_training_dependencies
-from regressor.optional_parts import predict_batch, predict_variance
-from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
+from regressor.optional_parts import LimbHead, predict_batch, predict_limbs, predict_variance
+from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, PoseModel,
                                   frame_descriptors, transform_descriptors)
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
@@ -637,7 +638,7 @@ def _mixture_report(model: PoseModel, options: MixtureOptions, rows: dict, mixtu
         # The head's member picked by the true heading: what the tracker gets when its chain
         # decides the heading right (an upper bound, hence the name).
         from tracker.tracks.hypotheses import pick_member
-        members = pick_member(model.predict_limbs(rows["Xs"][val_rows]),
+        members = pick_member(predict_limbs(model, rows["Xs"][val_rows]),
                               heading_deg(truth[val_rows]))
         report["validation_limb_head_at_true_heading"] = angle_measures(
             members, truth[val_rows], rows["centre"])
