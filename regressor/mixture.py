@@ -14,18 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import NotFittedError, Parameters, gaussian_design, validate_X
+from .basis import Parameters, gaussian_design, validate_X
 
 
-class Estimator(Parameters):
-    """The parameter protocol (regressor.basis.Parameters) and a fitted-state check."""
-
-    def _check_fitted(self, attribute: str) -> None:
-        if not hasattr(self, attribute):
-            raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit first")
-
-
-class DampedKernelRegressor(Estimator):
+class DampedKernelRegressor(Parameters):
     """Gaussian-kernel ridge regression on n_centres k-means centres of the inputs.
 
     width_scale: kernel width^2 = width_scale x mean squared distance between inputs
@@ -51,7 +43,7 @@ class DampedKernelRegressor(Estimator):
         return gaussian_design(X, self.centres_, self.width_) @ self.coef_ + self.intercept_
 
 
-class SoftmaxGate(Estimator):
+class SoftmaxGate(Parameters):
     """Multinomial logistic regression p(class | x) on Gaussian-kernel features of x.
 
     Features: exp(-||x - c||^2 / width^2) on n_centres k-means centres of the inputs (width as
@@ -87,7 +79,7 @@ class SoftmaxGate(Estimator):
         return self.predict_proba(X).argmax(axis=1)
 
 
-class MixtureRegressor(Estimator):
+class MixtureRegressor(Parameters):
     """Mixture of kernel regression experts with a gate (module docstring).
 
     n_experts: regions of pose space (k-means on ``partition_on``, the Z argument of fit, or

@@ -5,12 +5,15 @@
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 from .angles import POSE_DIM
 from .canonical_priors import PARTS as PRIOR_PARTS, PREFIX as PRIORS_PREFIX, CanonicalPriors
+from .codebook import Codebook
+from .descriptor import DescriptorSettings
 from .heading_index import HeadingIndex
 from .limb_net import PREFIX as LIMB_NET_PREFIX, LimbNet
 from .mixture import DampedKernelRegressor, SoftmaxGate
@@ -34,6 +37,17 @@ def quantised_int8(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     scale[scale == 0] = 1.0             # an all-zero column (or one float32 cannot hold): q is 0
     q = np.clip(np.round(W / scale.astype(np.float64)), -127, 127)
     return q.astype(np.int8), scale
+
+
+def codebook_arrays(codebook: Codebook) -> dict:
+    """A codebook's file parts: codebook_centres (K, D) float64, codebook_sigma () float64."""
+    return {"codebook_centres": codebook.centres.copy(),
+            "codebook_sigma": np.array(codebook.sigma)}
+
+
+def settings_arrays(settings: DescriptorSettings) -> dict:
+    """Descriptor settings' file parts: a 0-d array per setting, named descriptor_ + field."""
+    return {f"descriptor_{k}": np.array(v) for k, v in asdict(settings).items()}
 
 
 def limb_net_arrays(net: LimbNet) -> dict:
@@ -100,7 +114,7 @@ def save_pose_model(path: str | Path, model: PoseModel) -> None:
         raise PoseModelError("only a mixture model can carry a side classifier or canonical "
                              "priors")
     arrays = {
-        **model.codebook.to_arrays(), **model.settings.to_arrays(),
+        **codebook_arrays(model.codebook), **settings_arrays(model.settings),
         "model_kind": np.str_(MODEL_KIND),
         "stack_depth": np.int64(model.stack_depth),
         "transform": np.str_(model.transform), "basis": np.str_(model.basis),
@@ -145,7 +159,7 @@ def _mixture_arrays(model: PoseModel) -> dict:
         raise PoseModelError("only mixtures with a softmax gate can be saved (a neighbour gate "
                              "keeps every training row)")
     return {
-        **model.codebook.to_arrays(), **model.settings.to_arrays(),
+        **codebook_arrays(model.codebook), **settings_arrays(model.settings),
         "model_kind": np.str_(MIXTURE_KIND),
         "stack_depth": np.int64(model.stack_depth), "transform": np.str_(model.transform),
         "basis": np.str_("gaussian"),

@@ -28,6 +28,7 @@ from regressor.descriptor_batch import descriptors_for_masks
 from regressor.layout import silhouette_layout
 from regressor.mixture_fit import regression_targets
 from regressor.limb_net_training import require_training_dependencies
+from regressor.model_writer import settings_arrays
 from regressor.optional_parts import LimbHead, predict_batch, predict_limbs, predict_variance
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, PoseModel,
                                   frame_descriptors, transform_descriptors)
@@ -256,7 +257,7 @@ def fit_noisy_codebook(dataset: Dataset, settings: DescriptorSettings, n_centres
 def codebook_digest(codebook: Codebook, settings: DescriptorSettings) -> str:
     """Short digest of a codebook and descriptor settings (cache key)."""
     h = hashlib.sha256(np.ascontiguousarray(codebook.centres).tobytes())
-    h.update(repr(sorted(settings.to_arrays().items(), key=lambda kv: kv[0])).encode())
+    h.update(repr(sorted(settings_arrays(settings).items(), key=lambda kv: kv[0])).encode())
     return h.hexdigest()[:12]
 
 
