@@ -30,8 +30,8 @@ def stack_step(video_fps: float, model_fps: float) -> int:
 
 
 class FrameStacker:
-    """Streaming stacking for one track, as regressor.stacking_batch.stack_frames: holds its last (k - 1) * step + 1
-    descriptors; the first push pads with its own descriptor."""
+    """Streaming stacking for one track, as regressor.stacking_batch.stack_frames: holds its
+    last (k - 1) * step + 1 descriptors; the first push pads with its own descriptor."""
 
     def __init__(self, k: int, step: int = 1):
         self.k, self.step = _check_whole(k, "depth k"), _check_whole(step, "step")

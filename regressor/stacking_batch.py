@@ -37,7 +37,8 @@ def stack_frames(X, k: int, sequence_ids=None, sequence_starts=None, step: int =
     elif sequence_ids is not None:
         ids = np.asarray(sequence_ids).ravel()
         if ids.shape != (N,):
-            raise StackingInputError(f"sequence_ids has shape {np.shape(sequence_ids)}; expected ({N},)")
+            raise StackingInputError(f"sequence_ids has shape {np.shape(sequence_ids)}; "
+                                     f"expected ({N},)")
     else:
         ids = np.zeros(N, np.int64)
     # first[t] = index of the first frame of t's sequence (a run of equal labels).

@@ -35,7 +35,8 @@ def test_a_file_with_the_parts_of_removed_mechanisms_still_loads_without_them():
     removed = {"canonical_prior_raw_side_edges": np.array([0.0, 0.5]),
                "canonical_prior_raw_side_by_norm": np.array([0.5, 0.7]),
                "canonical_prior_raw_side_overall": np.float64(0.6)}
-    assert CanonicalPriors.from_arrays({**canonical_priors_arrays(_priors()), **removed}) == _priors()
+    parts = {**canonical_priors_arrays(_priors()), **removed}
+    assert CanonicalPriors.from_arrays(parts) == _priors()
     assert not set(removed) & set(canonical_priors_arrays(_priors()))
 
 
@@ -163,7 +164,8 @@ def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_p
 def test_only_a_mixture_carries_canonical_priors(tmp_path):
     from test_mixture import assert_only_a_mixture_carries
     priors = _priors()
-    assert_only_a_mixture_carries(tmp_path, "canonical_priors", priors, canonical_priors_arrays(priors))
+    assert_only_a_mixture_carries(tmp_path, "canonical_priors", priors,
+                                  canonical_priors_arrays(priors))
 
 
 @pytest.mark.slow
