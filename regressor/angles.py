@@ -17,13 +17,6 @@ def wrap_deg(angles) -> np.ndarray:
     return np.where(wrapped <= -180.0, wrapped + 360.0, wrapped)
 
 
-def regression_targets(pose: np.ndarray, centre_deg: np.ndarray) -> np.ndarray:
-    """Targets (N, 55): heading (cos, sin) as is, angles as wrap(angle - centre) in degrees."""
-    out = np.array(pose, dtype=np.float64, copy=True)
-    out[:, 2:] = wrap_deg(out[:, 2:] - centre_deg)
-    return out
-
-
 def pose_angles(poses) -> np.ndarray:
     """Pose vectors (..., 55) -> the 54 angles (..., 54) deg: heading = atan2(sin, cos), then
     entries 2..54 as they are."""

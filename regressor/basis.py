@@ -31,7 +31,12 @@ class NotFittedError(SilhouettePoseError, ValueError, AttributeError):
 
 class Parameters:
     """scikit-learn's parameter protocol by hand, for the regressors and the mixture's parts:
-    the constructor's arguments are the parameters, stored under their own names."""
+    the constructor's arguments are the parameters, stored under their own names; and the
+    fitted-state check."""
+
+    def _check_fitted(self, attribute: str = "coef_") -> None:
+        if not hasattr(self, attribute):
+            raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit first")
 
     @classmethod
     def _param_names(cls) -> list[str]:

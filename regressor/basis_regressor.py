@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import NotFittedError, Parameters, gaussian_design, validate_X
+from .basis import Parameters, gaussian_design, validate_X
 
 
 class BasisRegressor(Parameters):
@@ -28,10 +28,6 @@ class BasisRegressor(Parameters):
         """Fit on X (N, D) and y (N,) or (N, K) (regressor.basis_fit); returns self."""
         from .basis_fit import fit_basis
         return fit_basis(self, X, y)
-
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "coef_"):
-            raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit(X, y) first")
 
     def predict(self, X) -> np.ndarray:
         """Predict y for X (N, D): (N, K), or (N,) if fitted on a 1-D y."""

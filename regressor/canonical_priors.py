@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 PREFIX = "canonical_prior_"
-_PARTS = ("switch", "front_edges", "by_front", "overall")
+PARTS = ("switch", "front_edges", "by_front", "overall")
 #: Parts of mechanisms since removed (docs/ablation.md): older model files carry them; ignored.
 _REMOVED_PARTS = ("raw_side_edges", "raw_side_by_norm", "raw_side_overall")
 
@@ -64,11 +64,6 @@ class CanonicalPriors:
             return "the overall rate must be strictly between 0 and 1"
         return None
 
-    def to_arrays(self) -> dict:
-        """The file parts (float64), keyed by PREFIX."""
-        return {f"{PREFIX}{name}": np.asarray(getattr(self, name), dtype=np.float64)
-                for name in _PARTS}
-
     @classmethod
     def from_arrays(cls, a) -> "CanonicalPriors | None":
         """The priors in a file's parts a (mapping), None when it has none; ValueError when
@@ -76,7 +71,7 @@ class CanonicalPriors:
         present = sorted(str(k) for k in a.keys() if str(k).startswith(PREFIX))
         if not present:
             return None
-        needed = [f"{PREFIX}{name}" for name in _PARTS]
+        needed = [f"{PREFIX}{name}" for name in PARTS]
         missing = [k for k in needed if k not in present]
         if missing:
             raise ValueError(f"canonical priors are incomplete (no {missing[0]})")
@@ -85,7 +80,7 @@ class CanonicalPriors:
         if extra:
             raise ValueError(f"canonical priors have an unknown part ({extra[0]})")
         arrays = {}
-        for name in _PARTS:
+        for name in PARTS:
             v = np.asarray(a[f"{PREFIX}{name}"])
             if v.dtype.kind != "f":
                 raise ValueError(f"canonical prior {name} must hold floats, not {v.dtype}")

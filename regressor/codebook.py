@@ -49,13 +49,10 @@ class Codebook:
         """K, the number of centres (= descriptor length)."""
         return self.centres.shape[0]
 
-    def to_arrays(self, prefix: str = "codebook_") -> dict[str, np.ndarray]:
-        """Plain arrays for an .npz: {prefix+'centres': (K, D) float64, prefix+'sigma': () float64}."""
-        return {prefix + "centres": self.centres.copy(), prefix + "sigma": np.array(self.sigma)}
-
     @classmethod
     def from_arrays(cls, arrays, prefix: str = "codebook_") -> "Codebook":
-        """Rebuild from a mapping made by to_arrays (e.g. an NpzFile); validates shapes and values."""
+        """Rebuild from a mapping made by regressor.model_writer.codebook_arrays (e.g. an
+        NpzFile); validates shapes and values."""
         missing = [prefix + k for k in ("centres", "sigma") if prefix + k not in arrays]
         if missing:
             raise CodebookError(f"codebook arrays missing: {', '.join(missing)}")

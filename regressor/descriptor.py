@@ -5,7 +5,7 @@ the paper's released descriptors. Many masks at once: regressor.descriptor_batch
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, fields
 import numpy as np
 
 from regressor.codebook import Codebook, CodebookError, soft_histogram
@@ -73,13 +73,10 @@ class DescriptorSettings:
         """Length of one shape context, n_radial * n_angular."""
         return self.n_radial * self.n_angular
 
-    def to_arrays(self, prefix: str = "descriptor_") -> dict[str, np.ndarray]:
-        """Plain 0-d arrays for an .npz, one per setting, named prefix + field name."""
-        return {prefix + k: np.array(v) for k, v in asdict(self).items()}
-
     @classmethod
     def from_arrays(cls, arrays, prefix: str = "descriptor_") -> "DescriptorSettings":
-        """Rebuild from to_arrays' mapping (e.g. an NpzFile); validates every field."""
+        """Rebuild from regressor.model_writer.settings_arrays' mapping (e.g. an NpzFile);
+        validates every field."""
         values = {}
         for f in fields(cls):
             key = prefix + f.name

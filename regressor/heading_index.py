@@ -124,13 +124,6 @@ class HeadingIndex:
         return index, dist2
 
 
-def build_heading_index(inputs: np.ndarray, heading_deg: np.ndarray, rows: int, dims: int,
-                        k: int, limit_deg: float = 45.0, seed: int = 0) -> HeadingIndex:
-    """Training's index (regressor.heading_index_training.build_heading_index)."""
-    from .heading_index_training import build_heading_index as build
-    return build(inputs, heading_deg, rows, dims, k, limit_deg, seed)
-
-
 def _random_rows(n: int, at_most: int, seed: int) -> np.ndarray:
     """Sorted indices of at most ``at_most`` of n rows, drawn at random (seeded); all n
     rows when there are no more."""

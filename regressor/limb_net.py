@@ -1,6 +1,6 @@
 """The limbs by an ensemble of small neural networks on the regressor's input (issue 9): each
 silhouette's canonical body (sequences.pose_vector.canonical_member), as the mixture's limb head
-(regressor.pose_model.LimbHead) but with features shared over all the training rows; seeded
+(regressor.optional_parts.LimbHead) but with features shared over all the training rows; seeded
 networks differ, so several are averaged (why and how chosen: docs/code_notes/regress.md,
 docs/tuning.md "regressor/limb_net.py").
 
@@ -14,18 +14,19 @@ numbers (regressor.rotation6d, a continuous representation); the output width sa
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from .angles import POSE_DIM, wrap_deg
 from .relu_layers import (as_float32_layers, check_parts, dequantised_int8, forward,
-                          forward_mean, stacked_members, standardised, typical_inputs)
-from .rotation6d import ROT6D_LENGTH, rot6d_to_angles
+                          standardised, typical_inputs)
 
 PREFIX = "limb_net_"        # the file parts' names
 MAX_MEMBERS, MAX_LAYERS = 16, 8
-#: The networks' outputs with 6-D rotations: (cos, sin), the root's two tilts, 6 per joint.
-ROT6D_OUTPUTS = 2 + ROT6D_LENGTH
+#: The networks' outputs with 6-D rotations: (cos, sin), then regressor.rotation6d's
+#: ROT6D_LENGTH values (the root's two tilts, 6 for each of the 17 joints).
+ROT6D_OUTPUTS = 2 + 2 + 6 * 17
 #: regressor.limb_net_training.fit_limb_net's target representations -> the networks' output width.
 OUTPUT_WIDTHS = {"euler": POSE_DIM, "rot6d": ROT6D_OUTPUTS}
 
@@ -56,12 +57,9 @@ class LimbNet:
         self.output_scale = np.asarray(self.output_scale, dtype=np.float64)
         self.angle_centre_deg = np.asarray(self.angle_centre_deg, dtype=np.float64)
         self.canonical_direction = np.asarray(self.canonical_direction, dtype=np.float64)
-        self._stacked = None
         problem = self._problem()
         if problem:
             raise ValueError(f"invalid limb network: {problem}")
-        # the members as one batched stack for predict on one row (a copy; members stay as is)
-        self._stacked = stacked_members(self.members)
 
     def _problem(self) -> str | None:
         """The first inconsistency of the parts, or None."""
@@ -107,6 +105,13 @@ class LimbNet:
                 return "it gives non-finite poses"
         return None
 
+    @cached_property
+    def _stacked(self) -> list | None:
+        """The members as one batched stack for predict on one row (a copy; members stay as
+        they are), or None when their shapes differ (regressor.relu_stacked)."""
+        from .relu_stacked import stacked_members
+        return stacked_members(self.members)
+
     @property
     def output_width(self) -> int:
         """The networks' output width: 55 (Euler angles) or ROT6D_OUTPUTS (6-D rotations;
@@ -125,7 +130,8 @@ class LimbNet:
         # batched for the tracker's one row per person; for many rows (offline evaluation,
         # training) one by one is faster and holds less (the first layers of all members
         # at once would be N x 4096 values)
-        if self._stacked is not None and len(x) == 1:
+        if len(x) == 1 and self._stacked is not None:
+            from .relu_stacked import forward_mean
             mean = forward_mean(x, self._stacked)
         else:
             mean = np.mean([forward(x, layers) for layers in self.members], axis=0,
@@ -134,28 +140,11 @@ class LimbNet:
         if out.shape[1] == ROT6D_OUTPUTS:
             # the members' mean 6-D values made rotations (Gram-Schmidt); the root's tilts
             # are offsets from their centres, as every angle is in the Euler case
+            from .rotation6d import rot6d_to_angles
             angles = rot6d_to_angles(out[:, 2:])
             angles[:, :2] += self.angle_centre_deg[:2]
             return np.hstack([out[:, :2], wrap_deg(angles)])
         out[:, 2:] = wrap_deg(out[:, 2:] + self.angle_centre_deg)
-        return out
-
-    def to_arrays(self, prefix: str = PREFIX) -> dict:
-        """The file parts, keyed by ``prefix``; each weight matrix as int8 with a float32
-        scale per output column (``S{m}_{i}``; regressor.model_writer.quantised_int8). Older
-        files hold float16 weights and no scales; from_arrays reads both."""
-        from .model_writer import quantised_int8
-        out = {f"{prefix}shape": np.array([len(self.members), len(self.members[0])], np.int64),
-               f"{prefix}input_mean": self.input_mean,
-               f"{prefix}input_scale": np.float64(self.input_scale),
-               f"{prefix}output_mean": self.output_mean,
-               f"{prefix}output_scale": self.output_scale,
-               f"{prefix}angle_centre_deg": self.angle_centre_deg,
-               f"{prefix}canonical_direction": self.canonical_direction}
-        for m, layers in enumerate(self.members):
-            for i, (W, b) in enumerate(layers):
-                out[f"{prefix}W{m}_{i}"], out[f"{prefix}S{m}_{i}"] = quantised_int8(W)
-                out[f"{prefix}b{m}_{i}"] = b.astype(np.float32)
         return out
 
     @classmethod
@@ -176,8 +165,9 @@ class LimbNet:
                                           "canonical_direction")]
         layers = [[(f"{prefix}W{m}_{i}", f"{prefix}b{m}_{i}", f"{prefix}S{m}_{i}")
                    for i in range(int(shape[1]))] for m in range(int(shape[0]))]
-        # int8 weights with per-column scales (to_arrays), or float16 ones (older files): a
-        # file with any int8 weight or any scale part is the former, and then needs them all
+        # int8 weights with per-column scales (regressor.model_writer.limb_net_arrays), or
+        # float16 ones (older files): a file with any int8 weight or any scale part is the
+        # former, and then needs them all
         quantised = (f"{prefix}W0_0" in a and np.asarray(a[f"{prefix}W0_0"]).dtype == np.int8) \
             or any(str(k).startswith(f"{prefix}S") for k in a.keys())
         weights = [k for member in layers for k, _, _ in member]

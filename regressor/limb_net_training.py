@@ -11,7 +11,7 @@ from typing import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .angles import regression_targets
+from .mixture_fit import regression_targets
 from .limb_net import MAX_LAYERS, MAX_MEMBERS, OUTPUT_WIDTHS, LimbNet
 from .rotation6d import angles_to_rot6d
 

@@ -1,39 +1,23 @@
 """A mixture of kernel regression experts with a gate (after Agarwal and Triggs, "Monocular
 human motion capture with a mixture of regressors", CVPR Workshops 2005).
 
-The training set is split into regions of pose space (k-means on a pose embedding), each region
-gets its own expert fitted on its members (plus a margin of rows near its border, so neighbouring
-experts agree where they meet), and a gate p(expert | stacked descriptor) - multinomial logistic
-regression on Gaussian-kernel features (the tracker's models), or the regions of the nearest
-training inputs (``gate="neighbours"``) - says which experts to trust. Where a silhouette is
-ambiguous (front/back) two experts get similar probabilities and
-:meth:`MixtureRegressor.predict_hypotheses` returns both poses; :meth:`MixtureRegressor.predict`
-returns the most probable one, and over a whole sequence :meth:`MixtureRegressor.predict_path`
-the most probable chain of them (regressor.hypothesis_path).
-
-Experts: :class:`DampedKernelRegressor` (damped least squares on k-means centres),
-regressor.rvm's RVM (``expert="rvm"``, on at most ``rvm_rows`` rows) or regressor.sparse_rvm's
-sparse RVM, which also gives each pose a predictive standard deviation. Why these:
-docs/code_notes/regress.md. The fits are in regressor.mixture_fit, loaded only when fitting.
-Per-frame cost: the gate's kernel features (G centres), then only the top experts' kernels.
+Training splits pose space into regions (k-means on a pose embedding) and fits an expert per
+region on its members plus a margin of rows near its border (so neighbours agree where they
+meet), and a gate p(expert | stacked descriptor): multinomial logistic regression on
+Gaussian-kernel features (the tracker's models) or the nearest training inputs' regions
+(``gate="neighbours"``). Where a silhouette is ambiguous (front/back) two experts get similar
+probabilities: :meth:`MixtureRegressor.predict_hypotheses` returns both poses. The experts:
+:class:`MixtureRegressor` (why these: docs/code_notes/regress.md); the fits are in
+regressor.mixture_fit, loaded only when fitting. Per frame, only the top experts' kernels run.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .basis import NotFittedError, Parameters, gaussian_design, validate_X
-from .hypothesis_path import most_probable_path
+from .basis import Parameters, gaussian_design, validate_X
 
 
-class Estimator(Parameters):
-    """The parameter protocol (regressor.basis.Parameters) and a fitted-state check."""
-
-    def _check_fitted(self, attribute: str) -> None:
-        if not hasattr(self, attribute):
-            raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit first")
-
-
-class DampedKernelRegressor(Estimator):
+class DampedKernelRegressor(Parameters):
     """Gaussian-kernel ridge regression on n_centres k-means centres of the inputs.
 
     width_scale: kernel width^2 = width_scale x mean squared distance between inputs
@@ -59,7 +43,7 @@ class DampedKernelRegressor(Estimator):
         return gaussian_design(X, self.centres_, self.width_) @ self.coef_ + self.intercept_
 
 
-class SoftmaxGate(Estimator):
+class SoftmaxGate(Parameters):
     """Multinomial logistic regression p(class | x) on Gaussian-kernel features of x.
 
     Features: exp(-||x - c||^2 / width^2) on n_centres k-means centres of the inputs (width as
@@ -95,7 +79,7 @@ class SoftmaxGate(Estimator):
         return self.predict_proba(X).argmax(axis=1)
 
 
-class MixtureRegressor(Estimator):
+class MixtureRegressor(Parameters):
     """Mixture of kernel regression experts with a gate (module docstring).
 
     n_experts: regions of pose space (k-means on ``partition_on``, the Z argument of fit, or
@@ -142,17 +126,6 @@ class MixtureRegressor(Estimator):
         self.expert_params = expert_params
         self.combine = combine
 
-    def _new_expert(self, e: int):
-        if self.expert == "ridge":
-            return DampedKernelRegressor(self.n_centres, self.width_scale, self.lam,
-                                         seed=self.seed + e)
-        if self.expert == "sparse_rvm":
-            from .sparse_rvm import SparseRVMRegressor
-            return SparseRVMRegressor(n_candidates=self.n_centres, width_scale=self.width_scale,
-                                      seed=self.seed + e, **(self.expert_params or {}))
-        from .rvm import RVMRegressor
-        return RVMRegressor("gaussian", width_scale=self.width_scale)
-
     def fit(self, X, Y, Z=None, log=None, workers: int = 1):
         """X (N, D) inputs, Y (N, K) targets, Z (N, dZ) the space partitioned (default Y).
         log(str) reports progress. workers: experts fitted at once (threads; the experts do
@@ -193,22 +166,6 @@ class MixtureRegressor(Estimator):
                 mean = self.experts_[e].predict(X[rows])
             poses[rows, slot] = np.asarray(mean).reshape(len(rows), -1)
         return (poses, prob, stds) if return_std else (poses, prob)
-
-    def predict_path(self, X, step_var: float, continuity: float = 1.0, sequence_ids=None,
-                     floor: float = 1e-3) -> np.ndarray:
-        """The most probable sequence of the experts' poses, (N, K) of X (N, D) rows in time
-        order, each frame's evidence the gate's log p(expert | x) (floored at floor, so an
-        expert no neighbour voted for stays possible), the steps between frames scored by a
-        Gaussian of variance step_var (regressor.hypothesis_path). Offline: it needs the whole
-        sequence. sequence_ids (N,): the chain restarts where the label changes. (N,) for a
-        single output, as predict."""
-        self._check_fitted("gate_")
-        # All experts: their probabilities, renormalised over all of them, are the gate's own.
-        poses, prob = self.predict_hypotheses(X, len(self.experts_))
-        log_w = np.log(np.maximum(prob, floor))
-        path = most_probable_path(poses, log_w, step_var, continuity, sequence_ids)
-        out = poses[np.arange(len(X)), path]
-        return out if self.n_outputs_ > 1 else out[:, 0]
 
     def predict(self, X, return_std: bool = False):
         """(N, K) per row: the most probable expert's pose, or with combine="mean" the gate's

@@ -1,5 +1,5 @@
 """The fits of regressor.mixture's estimators (k-means, the damped kernel experts, the softmax
-gate, the mixture), loaded only when fitting."""
+gate, the mixture) and their targets, loaded only when fitting."""
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
@@ -9,13 +9,21 @@ import scipy.linalg
 import scipy.optimize
 import scipy.sparse
 
+from .angles import wrap_deg
 from .basis import gaussian_design, squared_distances, validate_X
 from .basis_fit import default_width
-from .mixture import SoftmaxGate
+from .mixture import DampedKernelRegressor, SoftmaxGate
 
 EXPERT_KINDS = ("ridge", "rvm", "sparse_rvm")
 GATE_KINDS = ("softmax", "neighbours")
 COMBINE_KINDS = ("most_probable", "mean")
+
+
+def regression_targets(pose: np.ndarray, centre_deg: np.ndarray) -> np.ndarray:
+    """Targets (N, 55): heading (cos, sin) as is, angles as wrap(angle - centre) in degrees."""
+    out = np.array(pose, dtype=np.float64, copy=True)
+    out[:, 2:] = wrap_deg(out[:, 2:] - centre_deg)
+    return out
 
 
 def kmeans(X: np.ndarray, k: int, seed: int = 0, iterations: int = 25,
@@ -147,7 +155,7 @@ def fit_mixture(est, X, Y, Z=None, log=None, workers: int = 1):
         members.append(idx)
 
     def fit_one(e: int):
-        expert = est._new_expert(e).fit(X[members[e]], Y[members[e]])
+        expert = _new_expert(est, e).fit(X[members[e]], Y[members[e]])
         if log:
             kept = getattr(expert, "relevance_", None)
             log(f"  expert {e}: {int((labels == e).sum())} rows of its own, "
@@ -171,3 +179,15 @@ def fit_mixture(est, X, Y, Z=None, log=None, workers: int = 1):
     est.n_features_in_ = X.shape[1]
     est.n_outputs_ = Y.shape[1] if Y.ndim == 2 else 1
     return est
+
+
+def _new_expert(est, e: int):
+    """Expert e's unfitted regressor, as the mixture est's ``expert`` names it."""
+    if est.expert == "ridge":
+        return DampedKernelRegressor(est.n_centres, est.width_scale, est.lam, seed=est.seed + e)
+    if est.expert == "sparse_rvm":
+        from .sparse_rvm import SparseRVMRegressor
+        return SparseRVMRegressor(n_candidates=est.n_centres, width_scale=est.width_scale,
+                                  seed=est.seed + e, **(est.expert_params or {}))
+    from .rvm import RVMRegressor
+    return RVMRegressor("gaussian", width_scale=est.width_scale)

@@ -86,14 +86,6 @@ def checksum(parts: Mapping[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def save_model(path: str | Path, parts: Mapping | None = None, /, **more) -> Path:
-    """Validate the parts (name -> array, number, str, or a JSON-able dict for
-    ``description``) and write them to ``path`` (.npz) with FORMAT_VERSION and a checksum
-    (regressor.model_file_writer, which only training loads)."""
-    from .model_file_writer import write_model
-    return write_model(path, parts, **more)
-
-
 def load_model(path: str | Path) -> ModelFile:
     """Read and validate a model file; ModelFileError naming the file and the problem if the
     file is missing, not an .npz, pickled, from an unsupported version, altered (checksum) or

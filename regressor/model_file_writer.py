@@ -1,4 +1,4 @@
-"""Writing model files (regressor.model_file.save_model): training writes them, ``track`` only
+"""Writing model files (regressor.model_file reads them): training writes them, ``track`` only
 reads them."""
 from __future__ import annotations
 
@@ -23,9 +23,11 @@ def _as_array(name: str, value) -> np.ndarray:
     return a
 
 
-def write_model(path: str | Path, parts: Mapping | None = None, /, **more) -> Path:
-    """regressor.model_file.save_model. The file is written to a temporary name and renamed,
-    so a crash never leaves half a model."""
+def save_model(path: str | Path, parts: Mapping | None = None, /, **more) -> Path:
+    """Validate the parts (name -> array, number, str, or a JSON-able dict for
+    ``description``) and write them to ``path`` (.npz) with FORMAT_VERSION and a checksum.
+    The file is written to a temporary name and renamed, so a crash never leaves half a
+    model."""
     path = Path(path)
     merged = {**(dict(parts) if parts is not None else {}), **more}
     bad = [k for k in merged if k in _RESERVED]

@@ -5,15 +5,22 @@
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 from .angles import POSE_DIM
+from .canonical_priors import PARTS as PRIOR_PARTS, PREFIX as PRIORS_PREFIX, CanonicalPriors
+from .codebook import Codebook
+from .descriptor import DescriptorSettings
 from .heading_index import HeadingIndex
+from .limb_net import PREFIX as LIMB_NET_PREFIX, LimbNet
 from .mixture import DampedKernelRegressor, SoftmaxGate
-from .model_file import save_model
-from .pose_model import MIXTURE_KIND, MODEL_KIND, LimbHead, PoseModel, PoseModelError
+from .model_file_writer import save_model
+from .optional_parts import LimbHead
+from .pose_model import MIXTURE_KIND, MODEL_KIND, PoseModel, PoseModelError
+from .side_classifier import PREFIX as SIDE_PREFIX, SideClassifier
 
 
 def quantised_int8(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -30,6 +37,50 @@ def quantised_int8(W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     scale[scale == 0] = 1.0             # an all-zero column (or one float32 cannot hold): q is 0
     q = np.clip(np.round(W / scale.astype(np.float64)), -127, 127)
     return q.astype(np.int8), scale
+
+
+def codebook_arrays(codebook: Codebook) -> dict:
+    """A codebook's file parts: codebook_centres (K, D) float64, codebook_sigma () float64."""
+    return {"codebook_centres": codebook.centres.copy(),
+            "codebook_sigma": np.array(codebook.sigma)}
+
+
+def settings_arrays(settings: DescriptorSettings) -> dict:
+    """Descriptor settings' file parts: a 0-d array per setting, named descriptor_ + field."""
+    return {f"descriptor_{k}": np.array(v) for k, v in asdict(settings).items()}
+
+
+def limb_net_arrays(net: LimbNet) -> dict:
+    """A limb network's file parts (regressor.limb_net.LimbNet.from_arrays reads them): each
+    weight matrix as int8 with a float32 scale per output column (``S{m}_{i}``,
+    quantised_int8). Older files hold float16 weights and no scales."""
+    p = LIMB_NET_PREFIX
+    out = {f"{p}shape": np.array([len(net.members), len(net.members[0])], np.int64),
+           f"{p}input_mean": net.input_mean, f"{p}input_scale": np.float64(net.input_scale),
+           f"{p}output_mean": net.output_mean, f"{p}output_scale": net.output_scale,
+           f"{p}angle_centre_deg": net.angle_centre_deg,
+           f"{p}canonical_direction": net.canonical_direction}
+    for m, layers in enumerate(net.members):
+        for i, (W, b) in enumerate(layers):
+            out[f"{p}W{m}_{i}"], out[f"{p}S{m}_{i}"] = quantised_int8(W)
+            out[f"{p}b{m}_{i}"] = b.astype(np.float32)
+    return out
+
+
+def side_classifier_arrays(clf: SideClassifier) -> dict:
+    """A side classifier's file parts (SideClassifier.from_arrays reads them); weights float16."""
+    p = SIDE_PREFIX
+    out = {f"{p}layers": np.int64(len(clf.layers)), f"{p}input_mean": clf.input_mean,
+           f"{p}input_scale": np.float64(clf.input_scale)}
+    for i, (W, b) in enumerate(clf.layers):
+        out[f"{p}W{i}"], out[f"{p}b{i}"] = W.astype(np.float16), b.astype(np.float32)
+    return out
+
+
+def canonical_priors_arrays(priors: CanonicalPriors) -> dict:
+    """Canonical priors' file parts (float64; CanonicalPriors.from_arrays reads them)."""
+    return {f"{PRIORS_PREFIX}{name}": np.asarray(getattr(priors, name), dtype=np.float64)
+            for name in PRIOR_PARTS}
 
 
 def _is_sparse_rvm(expert) -> bool:
@@ -63,7 +114,7 @@ def save_pose_model(path: str | Path, model: PoseModel) -> None:
         raise PoseModelError("only a mixture model can carry a side classifier or canonical "
                              "priors")
     arrays = {
-        **model.codebook.to_arrays(), **model.settings.to_arrays(),
+        **codebook_arrays(model.codebook), **settings_arrays(model.settings),
         "model_kind": np.str_(MODEL_KIND),
         "stack_depth": np.int64(model.stack_depth),
         "transform": np.str_(model.transform), "basis": np.str_(model.basis),
@@ -108,7 +159,7 @@ def _mixture_arrays(model: PoseModel) -> dict:
         raise PoseModelError("only mixtures with a softmax gate can be saved (a neighbour gate "
                              "keeps every training row)")
     return {
-        **model.codebook.to_arrays(), **model.settings.to_arrays(),
+        **codebook_arrays(model.codebook), **settings_arrays(model.settings),
         "model_kind": np.str_(MIXTURE_KIND),
         "stack_depth": np.int64(model.stack_depth), "transform": np.str_(model.transform),
         "basis": np.str_("gaussian"),
@@ -137,9 +188,11 @@ def _mixture_arrays(model: PoseModel) -> dict:
         **(_rvm_expert_arrays(model) if rvm else {}),
         **_limb_head_arrays(model.limb_head),
         **_heading_index_arrays(model.heading_index),
-        **(model.limb_net.to_arrays() if model.limb_net is not None else {}),
-        **(model.side_classifier.to_arrays() if model.side_classifier is not None else {}),
-        **(model.canonical_priors.to_arrays() if model.canonical_priors is not None else {}),
+        **(limb_net_arrays(model.limb_net) if model.limb_net is not None else {}),
+        **(side_classifier_arrays(model.side_classifier)
+           if model.side_classifier is not None else {}),
+        **(canonical_priors_arrays(model.canonical_priors)
+           if model.canonical_priors is not None else {}),
     }
 
 

@@ -6,12 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import nearest_columns, squared_distances, validate_X
-from .mixture import Estimator
+from .basis import Parameters, nearest_columns, squared_distances, validate_X
 from .mixture_fit import kmeans
 
 
-class NeighbourGate(Estimator):
+class NeighbourGate(Parameters):
     """p(class | x) from the classes of x's k nearest training inputs (Euclidean).
 
     The share of the k neighbours in class c is Bayes' rule with k-nearest-neighbour density

@@ -4,9 +4,9 @@ training and evaluation; imported on first use, so ``track`` never loads it.
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import sys
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -15,8 +15,20 @@ from .basis import gaussian_design
 from .canonical_priors import PREFIX as CANONICAL_PRIOR_PREFIX
 from .codebook import Codebook
 from .descriptor import DescriptorSettings
-from .pose_model import (_VARIANCE_PARTS, DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
+from .pose_model import (_VARIANCE_PARTS, DEFAULT_AMBIGUITY_THRESHOLD, PoseModel,
                          PoseModelError, _description, _has_parts, _input_from_arrays)
+
+
+@dataclass
+class LimbHead:
+    """A mixture's second set of expert weights: coef (R, 55) in the experts' row order,
+    expert_intercept (E, 55), angle_centre_deg (53,) and canonical_direction (55,), the rule
+    its targets' members were chosen by (sequences.pose_vector.canonical_member)."""
+
+    coef: np.ndarray
+    expert_intercept: np.ndarray
+    angle_centre_deg: np.ndarray
+    canonical_direction: np.ndarray
 
 
 def single_model_from_arrays(path: Path, a) -> PoseModel:
@@ -128,9 +140,22 @@ def gives_variance(model: PoseModel) -> bool:
         for e in model.mixture.experts_)
 
 
+def predict_batch(model: PoseModel, stacked: np.ndarray) -> np.ndarray:
+    """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D): the regressor's
+    single answer (a mixture's gate-weighted one), for training and evaluation."""
+    return regress(model, model._stacked(stacked))
+
+
+def predict_limbs(model: PoseModel, stacked: np.ndarray) -> np.ndarray | None:
+    """Canonical poses (N, 55) for the limbs from stacked descriptors (N, k*D), as
+    PoseModel.hypotheses gives them, for training and evaluation. None without limbs."""
+    return model._limbs(model._stacked(stacked)) if model.has_limbs else None
+
+
 def predict_variance(model: PoseModel, stacked: np.ndarray) -> np.ndarray:
-    """PoseModel.predict_variance: the experts' variance of a new observation (N,) deg^2,
-    averaged over the 53 body angles (regressor.sparse_rvm). Needs :func:`gives_variance`."""
+    """Predictive variance (N,) deg^2 of :func:`predict_batch`'s pose for stacked descriptors
+    (N, k*D): the experts' variance of a new observation, averaged over the 53 body angles
+    (regressor.sparse_rvm), for training's calibration. Needs :func:`gives_variance`."""
     if not gives_variance(model):
         raise PoseModelError("this model's experts give no predictive variance "
                              "(only sparse RVM experts do)")

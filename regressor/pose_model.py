@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,6 +35,9 @@ from .heading_index import HeadingIndex
 from .limb_net import LimbNet
 from .canonical_priors import CanonicalPriors
 from .side_classifier import SideClassifier
+
+if TYPE_CHECKING:
+    from .optional_parts import LimbHead
 
 DEFAULT_MODEL_PATH = Path(__file__).resolve().parent / "models" / "default_model.npz"
 TRANSFORMS = ("none", "sqrt")      # sqrt: Hellinger-like, tames the dominant histogram bins
@@ -57,18 +61,6 @@ UNFAMILIAR_NOVELTY = 1.0
 
 
 @dataclass
-class LimbHead:
-    """A mixture's second set of expert weights: coef (R, 55) in the experts' row order,
-    expert_intercept (E, 55), angle_centre_deg (53,) and canonical_direction (55,), the rule
-    its targets' members were chosen by (sequences.pose_vector.canonical_member)."""
-
-    coef: np.ndarray
-    expert_intercept: np.ndarray
-    angle_centre_deg: np.ndarray
-    canonical_direction: np.ndarray
-
-
-@dataclass
 class PoseModel:
     """A trained model (module docstring); D = descriptor_length, k = stack_depth, R basis
     functions, P = input_length. centres (R, P) Gaussian kernel centres or None (linear basis:
@@ -79,8 +71,8 @@ class PoseModel:
     canonical_direction (55,): fitted on canonical members. limb_head, limb_net (one or
     neither), heading_index, side_classifier (needs limbs), canonical_priors (None: the
     tracker's default): a mixture's optional parts. variance_calibration: factor on
-    :meth:`predict_variance` (sparse RVM experts), or None. The tracker calls only
-    regressor.estimator.PoseEstimator's members; the predict_* methods serve training.
+    regressor.optional_parts.predict_variance (sparse RVM experts), or None. The tracker calls
+    only regressor.estimator.PoseEstimator's members.
     """
 
     settings: DescriptorSettings
@@ -165,12 +157,6 @@ class PoseModel:
         return (self.limb_net is not None and isinstance(options, dict)
                 and options.get("limb_net_mirror") is True)
 
-    def predict_batch(self, stacked: np.ndarray) -> np.ndarray:
-        """Raw poses (N, 55) from stacked, transformed descriptors (N, k*D): the regressor's
-        single answer (a mixture's gate-weighted one), for training and evaluation."""
-        from .optional_parts import regress
-        return regress(self, self._stacked(stacked))
-
     def _stacked(self, stacked) -> np.ndarray:
         """stacked (N, k*D) as the regressor's float input (N, input_length), projected when
         the model has a projection; PoseModelError naming the expected shape."""
@@ -215,17 +201,6 @@ class PoseModel:
                                  f"the frames' {X.shape}, got {X_mirror.shape}")
         both = self._limbs(np.vstack([X, X_mirror]))
         return both[:len(X)], both[len(X):]
-
-    def predict_variance(self, stacked: np.ndarray) -> np.ndarray:
-        """Predictive variance (N,) deg^2 of :meth:`predict_batch`'s pose for stacked
-        descriptors (N, k*D), for training's calibration (regressor.optional_parts)."""
-        from .optional_parts import predict_variance
-        return predict_variance(self, stacked)
-
-    def predict_limbs(self, stacked: np.ndarray) -> np.ndarray | None:
-        """Canonical poses (N, 55) for the limbs from stacked descriptors (N, k*D), as
-        :meth:`hypotheses` gives them, for training and evaluation. None without limbs."""
-        return self._limbs(self._stacked(stacked)) if self.has_limbs else None
 
     @property
     def has_limbs(self) -> bool:
@@ -322,6 +297,8 @@ def load_pose_model(path: str | Path = DEFAULT_MODEL_PATH) -> PoseModel:
 
 
 def _validate(path: Path, m: PoseModel) -> None:
+    """PoseModelError for what regressor.model_file's checks (finite parts, the basis, shapes
+    that agree with one another) leave open."""
     D, k = m.descriptor_length, m.stack_depth
     R = len(m.coef)
     kD = m.input_length
@@ -329,19 +306,14 @@ def _validate(path: Path, m: PoseModel) -> None:
         (0 <= m.layout_grid <= MAX_GRID, f"layout grid {m.layout_grid} out of range 0..{MAX_GRID}"),
         (not m.layout_grid or (np.isfinite(m.layout_weight) and m.layout_weight > 0),
          "the layout weight must be > 0"),
-        (m.projection is None or (m.projection.ndim == 2 and m.projection.shape[0] == k * D
-                                  and 1 <= m.projection.shape[1] <= k * D
+        (m.projection is None or (1 <= m.projection.shape[1] <= k * D
                                   and m.projection_mean is not None
-                                  and m.projection_mean.shape == (k * D,)
-                                  and np.isfinite(m.projection).all()
-                                  and np.isfinite(m.projection_mean).all()),
+                                  and m.projection_mean.shape == (k * D,)),
          f"the projection must be ({k * D}, P) with a ({k * D},) mean"),
         (1 <= k <= 16, f"stack depth {k} out of range 1..16"),
         (m.transform in TRANSFORMS, f"unknown descriptor transform {m.transform!r}"),
-        (m.basis in ("gaussian", "linear"), f"unknown basis {m.basis!r}"),
         (m.coef.ndim == 2 and m.coef.shape[1] == POSE_DIM and R >= 1,
          f"weights must be (R, {POSE_DIM}), got {m.coef.shape}"),
-        (m.intercept.shape == (POSE_DIM,), f"offset must be ({POSE_DIM},)"),
         (m.angle_centre_deg.shape == (POSE_DIM - 2,), "angle centres must be (53,)"),
         (m.measurement_covariance.shape == (N_ANGLES, N_ANGLES),
          "measurement covariance must be (54, 54)"),
@@ -354,10 +326,6 @@ def _validate(path: Path, m: PoseModel) -> None:
     else:
         checks += [(m.relevance.shape == (R,) and m.relevance.min() >= 0
                     and m.relevance.max() < kD, "kept features out of range")]
-    arrays = [m.coef, m.intercept, m.angle_centre_deg, m.measurement_covariance, m.process_noise]
-    if m.centres is not None:
-        arrays.append(m.centres)
-    checks.append((all(np.isfinite(x).all() for x in arrays), "non-finite values"))
     checks.append((0.0 <= m.ambiguity_threshold <= 1.0, "ambiguity threshold must be in [0, 1]"))
     dataset = m.description.get("dataset") if isinstance(m.description, dict) else None
     fps = dataset.get("fps") if isinstance(dataset, dict) else None

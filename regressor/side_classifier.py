@@ -79,16 +79,6 @@ class SideClassifier:
         h = standardised(X, self.input_mean, self.input_scale)
         return forward(h, self.layers)[:, 0].astype(np.float64)
 
-    def to_arrays(self, prefix: str = PREFIX) -> dict:
-        """The file parts, keyed by ``prefix``; weights as float16."""
-        out = {f"{prefix}layers": np.int64(len(self.layers)),
-               f"{prefix}input_mean": self.input_mean,
-               f"{prefix}input_scale": np.float64(self.input_scale)}
-        for i, (W, b) in enumerate(self.layers):
-            out[f"{prefix}W{i}"] = W.astype(np.float16)
-            out[f"{prefix}b{i}"] = b.astype(np.float32)
-        return out
-
     @classmethod
     def from_arrays(cls, a, prefix: str = PREFIX) -> "SideClassifier | None":
         """The classifier in a file's parts a (mapping), None when it has none; ValueError

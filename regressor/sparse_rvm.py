@@ -23,18 +23,15 @@ from .basis_regressor import BasisRegressor
 class SparseRVMRegressor(BasisRegressor):
     """Multi-output sparse RVM on Gaussian kernels at k-means centres, fitted in candidate space.
 
-    Parameters
-    ----------
-    n_candidates : candidate kernels M (k-means centres of the training inputs); the fit's cost
-        after one pass over the rows depends on M, not on the rows.
-    width, width_scale : kernel width in input units, or None for
-        sqrt(width_scale x mean squared distance between training inputs) (regressor.basis_fit.default_width).
-    noise : 1/beta as a fraction of the scaled output variance, or None to estimate it.
-    output_scale : "each" (every output to unit variance) or "common" (one scale for all, so a
-        Euclidean error on points is what the noise measures), as in regressor.rvm.
-    min_gain : nats charged per kept kernel (maximise L - min_gain R); 0 is the plain RVM.
-    max_iter, tol : at most max_iter steps; stop when no step gains more than tol nats.
-    seed : the k-means of the candidates.
+    n_candidates: candidate kernels M (k-means centres of the training inputs; after one pass
+    over the rows the fit's cost depends on M, not on the rows). width: kernel width in input
+    units, or None for sqrt(width_scale x mean squared distance between training inputs)
+    (regressor.basis_fit.default_width). noise: 1/beta as a fraction of the scaled output
+    variance, None: estimated. output_scale: "each" (every output to unit variance) or
+    "common" (one scale for all, so the noise measures a Euclidean error on points), as in
+    regressor.rvm. min_gain: nats charged per kept kernel (maximise L - min_gain R; 0: the
+    plain RVM). max_iter, tol: at most max_iter steps, stopping when none gains more than tol
+    nats. seed: the k-means of the candidates.
 
     Learned: candidates_ (M, D), relevance_ (R,) indices of the kept candidates, centres_ (R, D),
     width_, coef_ (R, K), intercept_ (K,), alpha_ (R,) precisions of the unit-norm centred

@@ -20,16 +20,6 @@ def _check_whole(value, name: str) -> int:
     return int(value)
 
 
-def sequence_starts_to_ids(starts, n: int) -> np.ndarray:
-    """Sequence id per frame (n,) from the sorted first-row indices of each sequence (must start at 0)."""
-    starts = np.asarray(starts, dtype=np.int64).ravel()
-    if starts.size == 0 or starts[0] != 0 or np.any(np.diff(starts) <= 0) or starts[-1] >= max(n, 1):
-        raise StackingInputError(f"sequence_starts {starts.tolist()} must be increasing, start at 0 and be < {n}")
-    ids = np.zeros(n, np.int64)
-    ids[starts[1:]] = 1
-    return np.cumsum(ids)
-
-
 def stack_step(video_fps: float, model_fps: float) -> int:
     """Frames between stacked descriptors so that a video at video_fps stacks frames about as
     far apart in time as training at model_fps did (frames/s): the nearest whole ratio, >= 1."""
@@ -39,37 +29,9 @@ def stack_step(video_fps: float, model_fps: float) -> int:
     return max(1, int(np.floor(video_fps / model_fps + 0.5)))
 
 
-def stack_frames(X, k: int, sequence_ids=None, sequence_starts=None, step: int = 1) -> np.ndarray:
-    """Each frame stacked with its k-1 predecessors in its sequence, step frames apart: (N, k*D)
-    from X (N, D) in time order. sequence_ids (N,): a new sequence starts where the label
-    changes; or sequence_starts: each sequence's first row; neither: one sequence."""
-    X = np.asarray(X, dtype=np.float64)
-    k, step = _check_whole(k, "depth k"), _check_whole(step, "step")
-    if X.ndim != 2:
-        raise StackingInputError(f"X must be (N, D); got shape {X.shape}")
-    N = X.shape[0]
-    if sequence_ids is not None and sequence_starts is not None:
-        raise StackingInputError("give sequence_ids or sequence_starts, not both")
-    if sequence_starts is not None:
-        ids = sequence_starts_to_ids(sequence_starts, N)
-    elif sequence_ids is not None:
-        ids = np.asarray(sequence_ids).ravel()
-        if ids.shape != (N,):
-            raise StackingInputError(f"sequence_ids has shape {np.shape(sequence_ids)}; expected ({N},)")
-    else:
-        ids = np.zeros(N, np.int64)
-    # first[t] = index of the first frame of t's sequence (a run of equal labels).
-    new_run = np.ones(N, bool)
-    new_run[1:] = ids[1:] != ids[:-1]
-    first = np.maximum.accumulate(np.where(new_run, np.arange(N), 0))
-    t = np.arange(N)[:, None] - step * np.arange(k)[None, :]   # (N, k) source frames
-    src = np.maximum(t, first[:, None])
-    return X[src].reshape(N, k * X.shape[1])
-
-
 class FrameStacker:
-    """Streaming stacking for one track, as stack_frames: holds its last (k - 1) * step + 1
-    descriptors; the first push pads with its own descriptor."""
+    """Streaming stacking for one track, as regressor.stacking_batch.stack_frames: holds its
+    last (k - 1) * step + 1 descriptors; the first push pads with its own descriptor."""
 
     def __init__(self, k: int, step: int = 1):
         self.k, self.step = _check_whole(k, "depth k"), _check_whole(step, "step")
@@ -87,3 +49,11 @@ class FrameStacker:
         else:
             self._buffer = np.vstack([x[None, :], self._buffer[:-1]])
         return self._buffer[::self.step].reshape(-1).copy()
+
+
+def __getattr__(name: str):
+    """Whole sequences' stacking (regressor.stacking_batch), loaded on first use."""
+    if name in ("stack_frames", "sequence_starts_to_ids"):
+        from . import stacking_batch
+        return getattr(stacking_batch, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

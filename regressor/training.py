@@ -19,9 +19,10 @@ from .basis import squared_distances
 from .codebook import Codebook, CodebookError
 from .descriptor import DescriptorSettings
 from .descriptor_batch import contexts_for_masks
-from .heading_index import build_heading_index
+from .heading_index_training import build_heading_index
 from .limb_net import MAX_MEMBERS, LimbNet
 from .limb_net_training import fit_limb_net
+from .model_writer import limb_net_arrays
 from .side_classifier_training import facing_camera, fit_side_classifier
 
 
@@ -275,7 +276,7 @@ def fit_limb_networks(options: MixtureOptions, X: np.ndarray, members: np.ndarra
                           log=log)
     # As the file will hold it: the report and the front/back priors learned from this model
     # then measure the networks that are shipped.
-    shipped = LimbNet.from_arrays(fitted.to_arrays())
+    shipped = LimbNet.from_arrays(limb_net_arrays(fitted))
     change = np.abs(wrap_deg(shipped.predict(X_check)[:, 2:] - fitted.predict(X_check)[:, 2:]))
     return shipped, float(change.max())
 

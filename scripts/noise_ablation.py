@@ -27,7 +27,7 @@ from sequences.dataset import DatasetConfig, build_dataset, training_files, view
 from sequences.video import load_truth
 from lab.training import (VALIDATION_TRIALS, angle_measures, dataset_descriptors,
                           descriptor_cache_key)
-from regressor.angles import regression_targets
+from regressor.mixture_fit import regression_targets
 from regressor.training import MixtureOptions, angle_centres, mixture_space
 from tracker.one_line_parser import OneLineParser
 from select_mixture import VIDEO_TRIALS, video_descriptors

@@ -48,7 +48,7 @@ from regressor.metrics import contiguous_folds, cross_validate, mean_point_error
 from regressor.rvm import RVMRegressor
 from regressor.stacking import sequence_starts_to_ids, stack_frames
 from sequences.measures import DEFAULT_TOP_ANGLES, correlation, skill
-from lab.evaluation import EvaluationError, load_ankur
+from lab.evaluation import EvaluationError, load_ankur, mixture_path
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
 from tracker.outputs.files import OutputWriteError
 from tracker.outputs.whole_files import write_whole
@@ -151,7 +151,7 @@ class BaggedMixture:
 
 class TrackedMixture:
     """The mixture's experts' poses resolved over time: the most probable chain of them over the
-    whole test sequence (MixtureRegressor.predict_path), not each frame's favourite alone. The
+    whole test sequence (lab.evaluation.mixture_path), not each frame's favourite alone. The
     step variance is the training sequences' own (sequence_ids: (N,) label per training row)."""
 
     def __init__(self, mixture: MixtureRegressor, continuity: float, sequence_ids):
@@ -167,7 +167,7 @@ class TrackedMixture:
 
     def predict(self, X):
         """X: one test sequence, in time order."""
-        return self.mixture.predict_path(X, self.step_var_, self.continuity)
+        return mixture_path(self.mixture, X, self.step_var_, self.continuity)
 
 
 class SparseMixture(MixtureRegressor):
@@ -223,8 +223,8 @@ def choose_tracked(mixtures, continuities, neighbours, X, Y, folds, sequence_ids
                 if k is not None:     # the gate keeps every training row: another k re-reads them
                     model.set_params(gate_neighbours=k)
                     model.gate_.n_neighbours = k
-                P = model.predict_path(X[hold], step_var, c,
-                                       sequence_ids=run_labels(hold, sequence_ids))
+                P = mixture_path(model, X[hold], step_var, c,
+                                 sequence_ids=run_labels(hold, sequence_ids))
                 total += mean_point_error(P, Y[hold]) * len(hold)
             err = total / len(X)
             log(f"    {setting}, continuity {c}: cv error {err:.3f}")

@@ -33,7 +33,7 @@ from sequences.video import load_truth
 from tracker.one_line_parser import OneLineParser
 from tracker.video.silhouettes import SilhouetteExtractor, median_background
 from lab.training import VALIDATION_TRIALS, angle_measures, descriptor_cache_key
-from regressor.angles import regression_targets
+from regressor.mixture_fit import regression_targets
 from regressor.training import angle_centres, partition_space
 from tracker.video.decode import open_video
 

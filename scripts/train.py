@@ -320,8 +320,9 @@ def _add_model_options(ap) -> None:
                          "frame (default), or damped least squares on --centres kernels (dls)")
     ap.add_argument("--variance", choices=("off", "on"), default="off",
                     help="with sparse RVM experts, also store their predictive variance "
-                         "(PoseModel.predict_variance): about 15 MB at 24 x 400 centres; as the "
-                         "filter's per-frame R it did not pay (docs/rvm_experts.md); default off")
+                         "(regressor.optional_parts.predict_variance): about 15 MB at 24 x 400 "
+                         "centres; as the filter's per-frame R it did not pay "
+                         "(docs/rvm_experts.md); default off")
     ap.add_argument("--experts", type=int, default=MixtureOptions.n_experts)
     ap.add_argument("--centres", type=int, default=MixtureOptions.n_centres)
     ap.add_argument("--lam", type=float, default=MixtureOptions.lam)
@@ -341,7 +342,7 @@ def _add_model_options(ap) -> None:
                          "included); default none")
     ap.add_argument("--limb-head", choices=CANONICAL_RULES, default=None,
                     help="also fit the experts on each pose's canonical member by this rule, "
-                         "for the tracker's limbs (regressor.pose_model.LimbHead); default "
+                         "for the tracker's limbs (regressor.optional_parts.LimbHead); default "
                          f"{MixtureOptions.limb_head}, none with --canonical")
     ap.add_argument("--limb-nets", type=int, default=None,
                     help="fit the limb head as an ensemble of this many neural networks "
@@ -561,6 +562,7 @@ def _check_round_trip(args, model, data, X, layouts, report: dict) -> None:
     """Record in report how far the model loaded back from --out (centres and the heading
     index's inputs stored as float16) predicts from the fitted one, in degrees: the angles'
     max, the heading's median and max, the limbs' max, on about 500 of the data set's rows."""
+    from regressor.optional_parts import predict_batch, predict_limbs
     from regressor.pose_model import frame_descriptors
     from regressor.stacking import stack_frames
     from sequences.pose_vector import heading_deg
@@ -569,7 +571,7 @@ def _check_round_trip(args, model, data, X, layouts, report: dict) -> None:
                                            model.layout_weight),
                          model.stack_depth, sequence_ids=data.sequence)[rows]
     loaded = load_pose_model(args.out)
-    before, after = model.predict_batch(probe), loaded.predict_batch(probe)
+    before, after = predict_batch(model, probe), predict_batch(loaded, probe)
     diff = np.abs(wrap_deg(after[:, 2:] - before[:, 2:]))
     report["file_round_trip_max_deg"] = round(float(diff.max()), 3)
     # The heading too: the index's inputs are stored as float16, which can change a
@@ -578,8 +580,8 @@ def _check_round_trip(args, model, data, X, layouts, report: dict) -> None:
     report["heading_round_trip_deg"] = {"median": round(float(np.median(diff)), 3),
                                         "max": round(float(diff.max()), 3)}
     if model.has_limbs:
-        diff = np.abs(wrap_deg(loaded.predict_limbs(probe)[:, 2:]
-                               - model.predict_limbs(probe)[:, 2:]))
+        diff = np.abs(wrap_deg(predict_limbs(loaded, probe)[:, 2:]
+                               - predict_limbs(model, probe)[:, 2:]))
         report["limbs_round_trip_max_deg"] = round(float(diff.max()), 3)
 
 

@@ -53,16 +53,6 @@ CMU_REST_OFFSETS: np.ndarray = np.array([
     [-0.73041, 0.0, 0.0], [0.0, 0.0, 0.0],
 ])
 
-#: End-site offsets (31, 3) in CMU units for CMU_REST_OFFSETS; NaN rows: the joint has none.
-CMU_REST_END_SITES: np.ndarray = np.full((31, 3), np.nan)
-CMU_REST_END_SITES[5] = [0.0, 0.0, 1.11249]        # LeftToeBase
-CMU_REST_END_SITES[10] = [0.0, 0.0, 1.11569]       # RightToeBase
-CMU_REST_END_SITES[16] = [0.01305, 1.6256, -0.05265]  # Head
-CMU_REST_END_SITES[22] = [0.53306, 0.0, 0.0]       # LeftHandIndex1
-CMU_REST_END_SITES[23] = [0.5412, 0.0, 0.5412]     # LThumb
-CMU_REST_END_SITES[29] = [-0.58887, 0.0, 0.0]      # RightHandIndex1
-CMU_REST_END_SITES[30] = [-0.59786, 0.0, 0.59786]  # RThumb
-CMU_REST_END_SITES.flags.writeable = False
 CMU_REST_OFFSETS.flags.writeable = False
 CMU_PARENTS.flags.writeable = False
 
@@ -80,17 +70,6 @@ POSE_JOINTS: tuple[str, ...] = (
 FOLDED: dict[str, tuple[str, ...]] = {
     "Spine1": ("LowerBack", "Spine", "Spine1"),
     "Neck": ("Neck", "Neck1"),
-}
-
-#: Body part of each pose joint, for per-part error reports.
-POSE_JOINT_PART: dict[str, str] = {
-    "Hips": "torso", "Spine1": "torso", "Neck": "head", "Head": "head",
-    "LeftShoulder": "left arm", "LeftArm": "left arm", "LeftForeArm": "left arm",
-    "LeftHand": "left arm",
-    "RightShoulder": "right arm", "RightArm": "right arm", "RightForeArm": "right arm",
-    "RightHand": "right arm",
-    "LeftUpLeg": "left leg", "LeftLeg": "left leg", "LeftFoot": "left leg",
-    "RightUpLeg": "right leg", "RightLeg": "right leg", "RightFoot": "right leg",
 }
 
 #: (parent, child) pose-joint pairs of a stick skeleton over the 18 pose joints. Note that on
@@ -114,3 +93,12 @@ def pose_joint_indices(names: list[str] | tuple[str, ...]) -> np.ndarray:
     if missing:
         raise KeyError(f"skeleton lacks pose joint {missing[0]!r}")
     return np.array([index[name] for name in POSE_JOINTS], dtype=np.int64)
+
+
+def __getattr__(name: str):
+    """Tables ``track`` needs only for some outputs, loaded on first use
+    (sequences.skeleton_tables)."""
+    if name in ("CMU_REST_END_SITES", "POSE_JOINT_PART"):
+        from . import skeleton_tables
+        return getattr(skeleton_tables, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

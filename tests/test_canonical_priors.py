@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from regressor.canonical_priors import CanonicalPriors
+from regressor.model_writer import canonical_priors_arrays
 from tracker.tracks.hypotheses import (CANONICAL_FRONT_EDGES, DEFAULT_CANONICAL_PRIORS,
                                 canonical_hypotheses, canonical_priors, chain_options)
 from test_side_classifier import _body, _classifier
@@ -21,7 +22,7 @@ def _priors(**changes) -> CanonicalPriors:
 
 def test_the_priors_survive_the_file_parts_round_trip():
     priors = _priors()
-    parts = priors.to_arrays()
+    parts = canonical_priors_arrays(priors)
     assert all(k.startswith("canonical_prior_") and v.dtype == np.float64
                for k, v in parts.items())
     assert CanonicalPriors.from_arrays(parts) == priors
@@ -34,8 +35,9 @@ def test_a_file_with_the_parts_of_removed_mechanisms_still_loads_without_them():
     removed = {"canonical_prior_raw_side_edges": np.array([0.0, 0.5]),
                "canonical_prior_raw_side_by_norm": np.array([0.5, 0.7]),
                "canonical_prior_raw_side_overall": np.float64(0.6)}
-    assert CanonicalPriors.from_arrays({**_priors().to_arrays(), **removed}) == _priors()
-    assert not set(removed) & set(_priors().to_arrays())
+    parts = {**canonical_priors_arrays(_priors()), **removed}
+    assert CanonicalPriors.from_arrays(parts) == _priors()
+    assert not set(removed) & set(canonical_priors_arrays(_priors()))
 
 
 @pytest.mark.parametrize("change, message", [
@@ -55,7 +57,7 @@ def test_inconsistent_priors_are_refused_with_a_named_problem(change, message):
     with pytest.raises(ValueError, match=message):
         _priors(**change)
     # and the same from a file's parts
-    parts = {**_priors().to_arrays(),
+    parts = {**canonical_priors_arrays(_priors()),
              **{f"canonical_prior_{k}": np.asarray(v, dtype=np.float64)
                 for k, v in change.items()}}
     with pytest.raises(ValueError, match=message):
@@ -70,7 +72,7 @@ def test_inconsistent_priors_are_refused_with_a_named_problem(change, message):
     (lambda p: p.update(canonical_prior_by_front=np.float64(0.5)), "has shape"),
 ])
 def test_tampered_parts_are_refused(tamper, message):
-    parts = _priors().to_arrays()
+    parts = canonical_priors_arrays(_priors())
     tamper(parts)
     with pytest.raises(ValueError, match=message):
         CanonicalPriors.from_arrays(parts)
@@ -162,7 +164,8 @@ def test_a_mixture_model_saves_and_loads_its_priors_and_its_pairs_use_them(tmp_p
 def test_only_a_mixture_carries_canonical_priors(tmp_path):
     from test_mixture import assert_only_a_mixture_carries
     priors = _priors()
-    assert_only_a_mixture_carries(tmp_path, "canonical_priors", priors, priors.to_arrays())
+    assert_only_a_mixture_carries(tmp_path, "canonical_priors", priors,
+                                  canonical_priors_arrays(priors))
 
 
 @pytest.mark.slow

@@ -11,6 +11,7 @@ from regressor.codebook import Codebook, CodebookError, soft_histogram
 from regressor.descriptor import (DescriptorSettings, DescriptorSettingsError, descriptor_for_mask,
                                   mask_contexts)
 from regressor.descriptor_batch import descriptors_for_masks
+from regressor.model_writer import settings_arrays
 from regressor.training import fit_codebook_for_masks
 from regressor.edges import DegenerateSilhouetteError, SilhouetteError, sample_edge_points
 from regressor.shape_context import shape_contexts
@@ -283,7 +284,7 @@ def test_small_but_real_silhouette_is_accepted(codebook):
 
 def test_settings_round_trip_through_npz(tmp_path):
     settings = DescriptorSettings(n_points=250, include_holes=True, r_outer=2.5, n_votes=4)
-    np.savez(tmp_path / "s.npz", **settings.to_arrays())
+    np.savez(tmp_path / "s.npz", **settings_arrays(settings))
     with np.load(tmp_path / "s.npz", allow_pickle=False) as stored:
         assert DescriptorSettings.from_arrays(stored) == settings
 
@@ -291,7 +292,7 @@ def test_settings_round_trip_through_npz(tmp_path):
 def test_bad_settings_are_refused():
     with pytest.raises(DescriptorSettingsError, match="r_inner"):
         DescriptorSettings(r_inner=2.0, r_outer=1.0)
-    arrays = DescriptorSettings().to_arrays()
+    arrays = settings_arrays(DescriptorSettings())
     del arrays["descriptor_n_votes"]
     with pytest.raises(DescriptorSettingsError, match="descriptor_n_votes"):
         DescriptorSettings.from_arrays(arrays)
@@ -303,7 +304,7 @@ def test_bad_settings_are_refused():
     ("descriptor_r_outer", np.str_("3.0"))])
 def test_stored_settings_of_the_wrong_kind_are_refused(name, value):
     """bool("False") is True and int(300.7) 300: a tampered file had been misread silently."""
-    arrays = {**DescriptorSettings().to_arrays(), name: value}
+    arrays = {**settings_arrays(DescriptorSettings()), name: value}
     with pytest.raises(DescriptorSettingsError, match=f"{name} must be"):
         DescriptorSettings.from_arrays(arrays)
 

@@ -12,6 +12,7 @@ from regressor.descriptor import DescriptorSettings
 from regressor.stacking import stack_frames
 from sequences.dataset import Dataset
 from lab.training import train_mixture_model, validation_mask
+from regressor.optional_parts import predict_batch, predict_limbs
 from regressor.pose_model import frame_descriptors
 from regressor.training import MixtureOptions, measurement_noise
 
@@ -56,7 +57,7 @@ def test_training_builds_the_index_and_takes_R_from_the_experts_own_heading():
     Xs = stack_frames(frame_descriptors(X, model.transform), model.stack_depth,
                       sequence_ids=data.sequence)[val]
     model.heading_index = None
-    R, _ = measurement_noise(model.predict_batch(Xs), data.pose[val], 0.5)
+    R, _ = measurement_noise(predict_batch(model, Xs), data.pose[val], 0.5)
     np.testing.assert_allclose(model.measurement_covariance, R)
 
 
@@ -90,7 +91,8 @@ def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
     # file round trip changes nothing more
     assert 0 <= report["limb_net_int8_max_deg"] < 5
     from regressor.limb_net import LimbNet
-    again = LimbNet.from_arrays(model.limb_net.to_arrays())
+    from regressor.model_writer import limb_net_arrays
+    again = LimbNet.from_arrays(limb_net_arrays(model.limb_net))
     for a, b in zip(model.limb_net.members, again.members):
         for (W, _), (W2, _) in zip(a, b):
             np.testing.assert_array_equal(W, W2)
@@ -98,7 +100,7 @@ def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
     val = validation_mask(data)
     Xs = stack_frames(frame_descriptors(X, model.transform), model.stack_depth,
                       sequence_ids=data.sequence)
-    limbs = model.predict_limbs(Xs)
+    limbs = predict_limbs(model, Xs)
     assert (limbs[:, 0] > 0).mean() > 0.9
     np.testing.assert_allclose(model.limb_net.canonical_direction, np.eye(55)[0])
     # ... and they follow the validation rows' canonical members better than their mean does

@@ -9,8 +9,9 @@ pytest.importorskip("sklearn")
 from regressor.angles import wrap_deg                       # noqa: E402
 from regressor.limb_net import LimbNet                     # noqa: E402
 from regressor.limb_net_training import fit_limb_net     # noqa: E402
+from regressor.optional_parts import predict_limbs            # noqa: E402
 from regressor.pose_model import PoseModelError, load_pose_model  # noqa: E402
-from regressor.model_writer import save_pose_model
+from regressor.model_writer import limb_net_arrays, save_pose_model
 
 
 def _synthetic(n=3000, P=6, seed=0):
@@ -83,7 +84,7 @@ def test_input_noise_still_learns_is_seeded_and_makes_the_map_smoother():
 
 
 def test_members_of_different_widths_are_averaged_one_by_one():
-    """Same-shaped members run as one batched stack (relu_layers.stacked_members); members
+    """Same-shaped members run as one batched stack (relu_stacked.stacked_members); members
     of different widths cannot, and give the same mean one by one."""
     a, X, _ = _fitted(members=1)
     X2, Y2 = _synthetic(seed=4)
@@ -121,7 +122,7 @@ def test_members_fitted_in_parallel_are_the_ones_fitted_one_after_another():
 def _legacy_parts(net: LimbNet) -> dict:
     """The parts as files written before 2026-12-02's int8 weights held them: float16
     weights, no scales."""
-    parts = {k: v for k, v in net.to_arrays().items() if not k.startswith("limb_net_S")}
+    parts = {k: v for k, v in limb_net_arrays(net).items() if not k.startswith("limb_net_S")}
     for m, layers in enumerate(net.members):
         for i, (W, _) in enumerate(layers):
             parts[f"limb_net_W{m}_{i}"] = W.astype(np.float16)
@@ -130,7 +131,7 @@ def _legacy_parts(net: LimbNet) -> dict:
 
 def test_file_parts_round_trip_and_broken_parts_are_refused():
     net, X, _ = _fitted()
-    parts = net.to_arrays()
+    parts = limb_net_arrays(net)
     assert parts["limb_net_W0_0"].dtype == np.int8          # a quarter of float32's space
     assert parts["limb_net_S0_0"].shape == (net.members[0][0][0].shape[1],)
     back = LimbNet.from_arrays(parts)
@@ -183,7 +184,7 @@ def test_files_with_float16_weights_still_load_and_are_checked():
 def test_scales_that_float32_cannot_hold_are_refused_without_warnings():
     import warnings
     net, _, _ = _fitted()
-    parts = net.to_arrays()
+    parts = limb_net_arrays(net)
     for broken, match in (({"limb_net_S0_0": parts["limb_net_S0_0"].astype(np.float64) * 1e-300},
                            "float32 values"),
                           ({"limb_net_S0_0": np.full_like(parts["limb_net_S0_0"], 3e38)},
@@ -263,7 +264,8 @@ def test_the_tracker_never_imports_scikit_learn():
 
 def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp_path):
     from test_mixture import _mixture_model
-    from regressor.model_file import load_model, save_model
+    from regressor.model_file import load_model
+    from regressor.model_file_writer import save_model
     model, x = _mixture_model()                              # input length 8
     rng = np.random.default_rng(3)
     targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),
@@ -271,14 +273,14 @@ def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp
     model.limb_net = fit_limb_net(x, targets, np.zeros(53), np.eye(55)[0], members=1,
                                   hidden=(16,), max_iter=40)
     assert model.has_limbs
-    np.testing.assert_allclose(model.predict_limbs(x[:20]), model.limb_net.predict(x[:20]))
-    np.testing.assert_array_equal(model.hypotheses(x[:20], 2).limbs, model.predict_limbs(x[:20]))
+    np.testing.assert_allclose(predict_limbs(model, x[:20]), model.limb_net.predict(x[:20]))
+    np.testing.assert_array_equal(model.hypotheses(x[:20], 2).limbs, predict_limbs(model, x[:20]))
     path = tmp_path / "net.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)
-    # int8 weights (LimbNet.to_arrays): within 1 degree of limbs spread over +-40
-    assert np.abs(wrap_deg(loaded.predict_limbs(x[:20])[:, 2:]
-                           - model.predict_limbs(x[:20])[:, 2:])).max() < 1.0
+    # int8 weights (model_writer.limb_net_arrays): within 1 degree of limbs spread over +-40
+    assert np.abs(wrap_deg(predict_limbs(loaded, x[:20])[:, 2:]
+                           - predict_limbs(model, x[:20])[:, 2:])).max() < 1.0
     raw = dict(load_model(path).parts)
     # a network for another input length, or an incomplete one, is refused at load
     other = fit_limb_net(x[:, :5], targets, np.zeros(53), np.eye(55)[0], members=1,
@@ -288,7 +290,7 @@ def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp
     both = {**raw, "limbs_coef": head.coef, "limbs_expert_intercept": head.expert_intercept,
             "limbs_angle_centre_deg": head.angle_centre_deg,
             "limbs_canonical_direction": head.canonical_direction}
-    for broken, match in ((other.to_arrays(), "takes 5 inputs"),
+    for broken, match in ((limb_net_arrays(other), "takes 5 inputs"),
                           (both, "not both"),
                           ({"limb_net_b0_1": None}, "limb network is incomplete"),
                           ({"canonical_direction": np.eye(55)[0]}, "takes no limb head")):
@@ -298,13 +300,13 @@ def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp
             load_pose_model(path)
     from test_mixture import _mixture_model as fresh
     plain, _ = fresh()
-    assert not plain.has_limbs and plain.predict_limbs(x[:3]) is None
+    assert not plain.has_limbs and predict_limbs(plain, x[:3]) is None
 
 
 def test_only_a_mixture_carries_a_limb_network(tmp_path):
     from test_mixture import assert_only_a_mixture_carries
     net, _, _ = _fitted(members=1)
-    assert_only_a_mixture_carries(tmp_path, "limb_net", net, net.to_arrays())
+    assert_only_a_mixture_carries(tmp_path, "limb_net", net, limb_net_arrays(net))
 
 
 def _synthetic_rotations(n=3000, P=6, seed=0):
@@ -336,7 +338,7 @@ def test_networks_on_six_d_rotations_learn_the_angles_and_keep_them_in_the_file(
     assert np.all(err[:-3] < 0.3 * spread)                  # tilts across the wrap too
     assert np.abs(out[:, -3:]).max() < 1e-3                 # the still joint stays still
     assert np.corrcoef(out[:, 1], Yt[:, 1])[0, 1] > 0.8     # the heading shares the layers
-    back = LimbNet.from_arrays(net.to_arrays())
+    back = LimbNet.from_arrays(limb_net_arrays(net))
     assert back.output_width == 106
     change = np.abs(wrap_deg(back.predict(Xt[:200])[:, 2:] - out[:200, 2:]))
     assert change.mean() < 0.01 * spread.mean()
@@ -347,7 +349,7 @@ def test_networks_on_six_d_rotations_learn_the_angles_and_keep_them_in_the_file(
 
 def test_networks_of_another_output_width_are_refused():
     net, X, _ = _fitted(members=1)
-    parts = net.to_arrays()
+    parts = limb_net_arrays(net)
     last = len(net.members[0]) - 1
     for key, cut in ((f"limb_net_W0_{last}", np.s_[:, :50]), (f"limb_net_S0_{last}", np.s_[:50]),
                      (f"limb_net_b0_{last}", np.s_[:50]), ("limb_net_output_mean", np.s_[:50]),

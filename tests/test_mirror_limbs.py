@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from regressor.optional_parts import predict_limbs
 from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
 from regressor.shape_context import mirrored_bins, shape_contexts
 from sequences.pose_vector import image_mirror
@@ -116,7 +117,7 @@ def test_the_proposals_average_the_networks_answer_for_the_mirror_image(model, m
     seen = propose_sequence(model, masks)
     pairs = [model.describe_with_mirror(m) for m in masks]
     X, M = (stack_frames(np.array([p[i] for p in pairs]), model.stack_depth) for i in (0, 1))
-    expected = mirror_mean(model.predict_limbs(X), model.predict_limbs(M))
+    expected = mirror_mean(predict_limbs(model, X), predict_limbs(model, M))
     for t in range(len(masks)):
         # the chain's member is the averaged limbs (one body of the pair; its flip the other);
         # the proposals pass a frame and its mirror image through the float32 networks in one
@@ -135,7 +136,7 @@ def test_one_pass_for_the_frames_and_their_mirror_images_gives_each_ones_answer(
     assert alone.mirror_limbs is None
     for name in ("poses", "probabilities", "limbs", "front", "novelty"):
         np.testing.assert_allclose(getattr(both, name), getattr(alone, name), atol=1e-4)
-    np.testing.assert_allclose(both.mirror_limbs, model.predict_limbs(M), atol=1e-4)
+    np.testing.assert_allclose(both.mirror_limbs, predict_limbs(model, M), atol=1e-4)
     assert not np.allclose(both.mirror_limbs[:, 2:], both.limbs[:, 2:], atol=1.0)
     with pytest.raises(PoseModelError, match="mirror"):
         model.hypotheses(X, mirrored=M[:2])

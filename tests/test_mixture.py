@@ -9,7 +9,8 @@ from regressor.descriptor import DescriptorSettings
 from regressor.mixture import DampedKernelRegressor, MixtureRegressor, SoftmaxGate
 from regressor.mixture_fit import kmeans
 from regressor.neighbour_gate import NeighbourGate
-from regressor.optional_parts import gives_variance
+from regressor.optional_parts import (gives_variance, predict_batch, predict_limbs,
+                                      predict_variance)
 from regressor.pose_model import PoseModel, PoseModelError, load_pose_model
 from regressor.model_writer import save_pose_model
 from regressor.sparse_rvm import SparseRVMRegressor
@@ -119,6 +120,7 @@ def test_neighbour_gated_mixture_keeps_both_modes_and_picks_distinct_experts():
 
 
 def test_a_sequence_keeps_the_pose_its_clear_frames_showed():
+    from lab.evaluation import mixture_path
     """Descriptors that settle the mode only when x0 > 1.5 (else either pose): per frame the
     gate guesses on the ambiguous frames, the most probable chain keeps the mode the clear
     frames showed, and without continuity it is the per-frame answer."""
@@ -134,9 +136,10 @@ def test_a_sequence_keeps_the_pose_its_clear_frames_showed():
     per_frame = mix.predict(seq)[:, 0]
     assert np.mean(per_frame[5:] < 0) > 0.2                 # the gate guesses
     step_var = float(np.mean(np.diff(np.sin(seq[:, 1])) ** 2))
-    path = mix.predict_path(seq, step_var)
+    path = mixture_path(mix, seq, step_var)
     np.testing.assert_allclose(path[:, 0], 3.0, atol=0.3)    # the mode frames 0-4 showed
-    np.testing.assert_allclose(mix.predict_path(seq, step_var, continuity=0.0), mix.predict(seq))
+    np.testing.assert_allclose(mixture_path(mix, seq, step_var, continuity=0.0),
+                               mix.predict(seq))
 
 
 def test_estimator_conventions():
@@ -197,7 +200,7 @@ def test_mixture_model_file_round_trip(tmp_path):
     loaded = load_pose_model(path)
     assert loaded.mixture is not None and len(loaded.mixture.experts_) == 3
     # Centres are stored as float16, weights as float32: predictions agree closely.
-    a, b = loaded.predict_batch(x[:20]), model.predict_batch(x[:20])
+    a, b = predict_batch(loaded, x[:20]), predict_batch(model, x[:20])
     assert np.abs(a - b).max() < 0.02 * np.abs(b).max()
     w0 = model.hypotheses(x[:20], 2).probabilities
     w1 = loaded.hypotheses(x[:20], 2).probabilities
@@ -213,8 +216,8 @@ def test_sparse_rvm_experts_round_trip_with_their_variance(tmp_path):
     plain = load_pose_model(tmp_path / "plain.npz")
     assert not gives_variance(plain)
     assert all(isinstance(e, SparseRVMRegressor) for e in plain.mixture.experts_)
-    np.testing.assert_allclose(plain.predict_batch(x[:20]), model.predict_batch(x[:20]),
-                               atol=0.02 * np.abs(model.predict_batch(x[:20])).max())
+    np.testing.assert_allclose(predict_batch(plain, x[:20]), predict_batch(model, x[:20]),
+                               atol=0.02 * np.abs(predict_batch(model, x[:20])).max())
     model.variance_calibration = 0.01
     save_pose_model(path, model)
     assert path.stat().st_size > (tmp_path / "plain.npz").stat().st_size
@@ -223,19 +226,20 @@ def test_sparse_rvm_experts_round_trip_with_their_variance(tmp_path):
     kept = [len(e.relevance_) for e in model.mixture.experts_]
     assert [e["kind"] for e in experts] == ["rvm"] * 3
     assert [e["relevance_vectors"] for e in experts] == kept and max(kept) < SMALL["n_centres"]
-    a, b = loaded.predict_batch(x[:20]), model.predict_batch(x[:20])
+    a, b = predict_batch(loaded, x[:20]), predict_batch(model, x[:20])
     assert np.abs(a - b).max() < 0.02 * np.abs(b).max()
-    np.testing.assert_allclose(loaded.predict_variance(x[:20]), model.predict_variance(x[:20]),
+    np.testing.assert_allclose(predict_variance(loaded, x[:20]), predict_variance(model, x[:20]),
                                rtol=1e-3)
     _, std = model.mixture.predict(x[:20], return_std=True)
-    np.testing.assert_allclose(loaded.predict_variance(x[:20]), (std[:, 2:] ** 2).mean(1),
+    np.testing.assert_allclose(predict_variance(loaded, x[:20]), (std[:, 2:] ** 2).mean(1),
                                rtol=1e-3)
     assert loaded.variance_calibration == 0.01
     assert not gives_variance(_mixture_model()[0])                 # damped least squares
 
 
 def test_a_broken_sparse_rvm_expert_part_is_refused_in_one_line(tmp_path):
-    from regressor.model_file import load_model, save_model
+    from regressor.model_file import load_model
+    from regressor.model_file_writer import save_model
     model, _ = _mixture_model(expert="sparse_rvm")
     model.variance_calibration = 0.01
     path = tmp_path / "rvm.npz"
@@ -268,8 +272,8 @@ def test_a_version_1_file_of_damped_least_squares_experts_still_loads(tmp_path):
     np.savez(path, **parts, format_version=np.int64(1), checksum=np.str_(checksum(parts)))
     loaded = load_pose_model(path)
     assert load_model(path).format_version == 1 and not gives_variance(loaded)
-    np.testing.assert_allclose(loaded.predict_batch(x[:5]), model.predict_batch(x[:5]),
-                               atol=0.02 * np.abs(model.predict_batch(x[:5])).max())
+    np.testing.assert_allclose(predict_batch(loaded, x[:5]), predict_batch(model, x[:5]),
+                               atol=0.02 * np.abs(predict_batch(model, x[:5])).max())
 
 
 def test_a_neighbour_gated_mixture_is_not_saved_into_a_model_file(tmp_path):
@@ -292,7 +296,7 @@ def test_tampered_mixture_file_is_refused(tmp_path):
 
 
 def test_inconsistent_mixture_file_is_refused(tmp_path):
-    from regressor.model_file import save_model
+    from regressor.model_file_writer import save_model
     model, _ = _mixture_model()
     path = tmp_path / "mixture.npz"
     save_pose_model(path, model)
@@ -309,7 +313,7 @@ def _with_limb_head(model, x, seed=5):
     inputs, one joint fit on [own targets, canonical members' targets] split back
     (lab.training.split_expert_outputs), the head's angles about non-zero centres.
     Returns (mixture, head, members: the head's regression targets (N, 55))."""
-    from regressor.pose_model import LimbHead
+    from regressor.optional_parts import LimbHead
     from sequences.pose_vector import canonical_member
     from regressor.training import split_expert_outputs
     rng = np.random.default_rng(seed)
@@ -340,25 +344,26 @@ def test_a_joint_fit_splits_into_the_own_head_and_the_limb_head():
 
 def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
     from regressor.angles import wrap_deg
-    from regressor.model_file import load_model, save_model
+    from regressor.model_file import load_model
+    from regressor.model_file_writer import save_model
     model, x = _mixture_model()
     model.mixture, model.limb_head, members = _with_limb_head(model, x)
-    assert _mixture_model()[0].predict_limbs(x[:3]) is None        # no head, no limbs
+    assert predict_limbs(_mixture_model()[0], x[:3]) is None        # no head, no limbs
     # Each row's limbs: the head's own fit (the mixture fitted on the members alone, same
     # experts), its centres added.
     alone = MixtureRegressor(n_experts=3, **SMALL).fit(x, members, x)
     expected = alone.predict(x[:50])
     expected[:, 2:] = wrap_deg(expected[:, 2:] + model.limb_head.angle_centre_deg)
-    np.testing.assert_allclose(model.predict_limbs(x[:50]), expected, atol=1e-6)
+    np.testing.assert_allclose(predict_limbs(model, x[:50]), expected, atol=1e-6)
     # the tracker's one-pass call gives the limbs as the separate one does
     estimates = model.hypotheses(x[:50], 2)
     assert estimates.poses.shape == (50, 2, 55) and estimates.front is None
-    np.testing.assert_array_equal(estimates.limbs, model.predict_limbs(x[:50]))
+    np.testing.assert_array_equal(estimates.limbs, predict_limbs(model, x[:50]))
     path = tmp_path / "mixture.npz"
     save_pose_model(path, model)
     loaded = load_pose_model(path)
     np.testing.assert_allclose(loaded.limb_head.canonical_direction, np.eye(55)[0])
-    a = loaded.predict_limbs(x[:50])                        # float16 centres, float32 weights
+    a = predict_limbs(loaded, x[:50])                        # float16 centres, float32 weights
     assert a.shape == (50, 55)
     assert np.abs(wrap_deg(a[:, 2:] - expected[:, 2:])).max() < 0.02 * np.abs(members).max()
     raw = dict(load_model(path).parts)
@@ -378,7 +383,8 @@ def assert_refused_when_changed(path, cases) -> None:
     """For each (changes, match) in cases: the model file at path with its parts updated by
     changes (a part mapped to None is removed; re-checksummed, so only the model's own
     checks can refuse it) fails to load with a PoseModelError matching match."""
-    from regressor.model_file import load_model, save_model
+    from regressor.model_file import load_model
+    from regressor.model_file_writer import save_model
     raw = dict(load_model(path).parts)
     for changes, match in cases:
         save_model(path, {k: v for k, v in {**raw, **changes}.items() if v is not None})
@@ -389,7 +395,8 @@ def assert_refused_when_changed(path, cases) -> None:
 def assert_only_a_mixture_carries(tmp_path, attribute: str, value, parts: dict):
     """The single-RVM model with ``attribute`` set to ``value`` refuses to be saved, and its
     file with ``parts`` added refuses to load (both: "only a mixture")."""
-    from regressor.model_file import load_model, save_model
+    from regressor.model_file import load_model
+    from regressor.model_file_writer import save_model
     from regressor.pose_model import DEFAULT_MODEL_PATH
     single = load_pose_model(DEFAULT_MODEL_PATH.parent / "per_frame_model.npz")
     setattr(single, attribute, value)
@@ -417,7 +424,7 @@ def test_single_rvm_model_still_gives_one_hypothesis():
     x = np.full((2, model.stack_depth * model.descriptor_length), 0.5)
     estimates = model.hypotheses(x, 3)
     assert estimates.poses.shape == (2, 1, 55) and np.all(estimates.probabilities == 1)
-    np.testing.assert_array_equal(estimates.poses[:, 0], model.predict_batch(x))
+    np.testing.assert_array_equal(estimates.poses[:, 0], predict_batch(model, x))
     assert estimates.limbs is None and estimates.front is None
     assert np.isnan(estimates.novelty).all()                      # no heading index
 

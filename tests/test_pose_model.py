@@ -7,7 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from regressor.model_file import load_model, save_model
+from regressor.model_file import load_model
+from regressor.model_file_writer import save_model
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, DEFAULT_MODEL_PATH, PoseModelError,
                                   load_pose_model)
 from regressor.model_writer import save_pose_model
@@ -112,3 +113,26 @@ def test_an_archive_member_that_is_not_an_array_is_refused(tmp_path):
     with pytest.raises(PoseModelError, match="member 'notes.txt' of the archive is not an "
                                              "array"):
         load_pose_model(path)
+
+
+def test_what_track_asks_of_the_model_loads_no_training_or_batch_code():
+    """Loading the shipped model and asking what ``track`` asks (stacked frames with their
+    mirror images) loads none of the modules that only training, evaluation, whole-sequence
+    stacking, 6-D rotations, one-row batching or BVH output need."""
+    import subprocess
+    import sys
+    optional = ["regressor.rotation6d", "regressor.relu_stacked", "regressor.stacking_batch",
+                "regressor.model_writer", "regressor.model_file_writer",
+                "regressor.optional_parts", "sequences.skeleton_tables",
+                "sequences.pose_conversions"]
+    code = ("import sys, numpy as np\n"
+            "import tracker.pipeline, tracker.tracks.hypotheses, sequences.pose_vector\n"
+            "from regressor.pose_model import load_pose_model\n"
+            "m = load_pose_model()\n"
+            "x = np.full((1, m.stack_depth * m.descriptor_length), 0.1)\n"
+            "assert m.hypotheses(x, 2, mirrored=x).mirror_limbs.shape == (1, 55)\n"
+            f"print([name for name in {optional!r} if name in sys.modules])\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"

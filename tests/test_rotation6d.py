@@ -86,3 +86,10 @@ def test_at_the_middle_angles_plus_minus_90_the_rotation_comes_back_with_x_zero(
     np.testing.assert_allclose(_rotations(back), _rotations(a), atol=1e-12)
     np.testing.assert_allclose(back[:, 2:5], [[10.0, 90.0, 0.0], [-40.0, -90.0, 0.0]],
                                atol=1e-9)
+
+
+def test_the_limb_networks_6d_output_width_is_the_heading_and_rot6d_length():
+    """regressor.limb_net spells out its 6-D output width so that ``track`` need not load this
+    module for the shipped model's Euler-angle networks."""
+    from regressor.limb_net import OUTPUT_WIDTHS, ROT6D_OUTPUTS
+    assert ROT6D_OUTPUTS == 2 + ROT6D_LENGTH == OUTPUT_WIDTHS["rot6d"]

@@ -7,6 +7,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from regressor.angles import pose_angles, wrap_deg
+from regressor.model_writer import side_classifier_arrays
 from regressor.side_classifier import SideClassifier
 from sequences.pose_vector import front_back_flip
 from tracker.tracks.filtering import PoseKalmanFilter
@@ -32,7 +33,7 @@ def test_the_probability_follows_the_logit_and_survives_the_file_round_trip():
     X[:, 0] = [-2.0, 0.0, 2.0]
     p = clf.front_probability(X)
     assert p[0] < 0.01 and p[1] == pytest.approx(0.5) and p[2] > 0.99
-    back = SideClassifier.from_arrays(clf.to_arrays())
+    back = SideClassifier.from_arrays(side_classifier_arrays(clf))
     np.testing.assert_allclose(back.front_probability(X), p, atol=1e-3)
     assert SideClassifier.from_arrays({"other": np.zeros(1)}) is None
     # large inputs saturate; inputs it cannot evaluate give no evidence (0.5), never NaN
@@ -61,7 +62,7 @@ def test_the_probability_follows_the_logit_and_survives_the_file_round_trip():
                         side_net_W1=np.zeros((0, 1), np.float16)), "no units"),
 ])
 def test_a_tampered_classifier_is_refused_with_a_named_problem(tamper, message):
-    arrays = _classifier().to_arrays()
+    arrays = side_classifier_arrays(_classifier())
     tamper(arrays)
     with pytest.raises(ValueError, match=message):
         SideClassifier.from_arrays(arrays)
@@ -229,14 +230,14 @@ def test_a_mixture_model_with_limbs_and_a_side_classifier_proposes_canonical_pai
     np.testing.assert_allclose(loaded.hypotheses(x[:5], 2).front, front, atol=1e-3)
     limb_parts = [k for k in load_model(path).parts if k.startswith("limb_net_")]
     assert_refused_when_changed(path, [(dict.fromkeys(limb_parts), "needs the model's limbs"),
-                                       (_classifier(P=5).to_arrays(), "takes 5 inputs"),
+                                       (side_classifier_arrays(_classifier(P=5)), "takes 5 inputs"),
                                        ({"side_net_b1": None}, "side classifier is incomplete")])
 
 
 def test_only_a_mixture_carries_a_side_classifier(tmp_path):
     from test_mixture import assert_only_a_mixture_carries
     clf = _classifier()
-    assert_only_a_mixture_carries(tmp_path, "side_classifier", clf, clf.to_arrays())
+    assert_only_a_mixture_carries(tmp_path, "side_classifier", clf, side_classifier_arrays(clf))
 
 
 def test_canonical_statistics_count_the_true_member_its_switches_and_the_classifier():

@@ -28,8 +28,10 @@ import scipy.io
 from scipy.io.matlab import MatReadError
 
 from regressor.angles import heading_norm, pose_angles, wrap_deg
+from regressor.hypothesis_path import most_probable_path
 from regressor.metrics import (acceleration_error, angle_jitter, angular_error,
                                contiguous_folds, mean_point_error, point_jitter, rms_per_angle)
+from regressor.optional_parts import predict_batch
 from regressor.pose_model import PoseModel
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
@@ -257,6 +259,23 @@ def runner_up_analysis(chosen: np.ndarray, runner_up: np.ndarray, truth: np.ndar
 ANKUR_SHAPES = {"Y": (1927, 100), "Z": (1927, 63), "Y_test": (418, 100), "Z_test": (418, 63)}
 
 
+def mixture_path(mixture, X, step_var: float, continuity: float = 1.0, sequence_ids=None,
+                 floor: float = 1e-3) -> np.ndarray:
+    """The most probable sequence of a fitted regressor.mixture.MixtureRegressor's experts'
+    poses, (N, K) of X (N, D) rows in time order, each frame's evidence the gate's log
+    p(expert | x) (floored at floor, so an expert no neighbour voted for stays possible), the
+    steps between frames scored by a Gaussian of variance step_var
+    (regressor.hypothesis_path). Offline: it needs the whole sequence. sequence_ids (N,): the
+    chain restarts where the label changes. (N,) for a single output, as predict."""
+    mixture._check_fitted("gate_")
+    # All experts: their probabilities, renormalised over all of them, are the gate's own.
+    poses, prob = mixture.predict_hypotheses(X, len(mixture.experts_))
+    log_w = np.log(np.maximum(prob, floor))
+    path = most_probable_path(poses, log_w, step_var, continuity, sequence_ids)
+    out = poses[np.arange(len(X)), path]
+    return out if mixture.n_outputs_ > 1 else out[:, 0]
+
+
 def load_ankur(path: str | Path) -> dict[str, np.ndarray]:
     """The paper's four arrays (ANKUR_SHAPES, float64) from its .mat file; EvaluationError
     naming the file and the problem for anything else (missing, not a MATLAB file, cut short,
@@ -383,7 +402,7 @@ def render_silhouettes(motion, camera: CameraOptions
 def _model_poses(model: PoseModel, masks: list[np.ndarray]) -> np.ndarray:
     """Raw poses (T, 55) of one sequence of masks by a model, stacking its own descriptors."""
     X = np.array([model.describe(m) for m in masks])
-    return model.predict_batch(stack_frames(X, model.stack_depth))
+    return predict_batch(model, stack_frames(X, model.stack_depth))
 
 
 def rendered_sequence(bvh: str | Path, stacked_model: PoseModel, per_frame_model: PoseModel,

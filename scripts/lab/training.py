@@ -20,14 +20,17 @@ from typing import Callable
 
 import numpy as np
 
-from regressor.angles import POSE_DIM, pose_angles, regression_targets, wrap_deg
+from regressor.angles import POSE_DIM, pose_angles, wrap_deg
 from regressor.codebook import Codebook
 from regressor.descriptor import (DescriptorSettings, SilhouetteError, descriptor_and_mirror,
                                   descriptor_for_mask)
 from regressor.descriptor_batch import descriptors_for_masks
 from regressor.layout import silhouette_layout
+from regressor.mixture_fit import regression_targets
 from regressor.limb_net_training import require_training_dependencies
-from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, LimbHead, PoseModel,
+from regressor.model_writer import settings_arrays
+from regressor.optional_parts import LimbHead, predict_batch, predict_limbs, predict_variance
+from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, PoseModel,
                                   frame_descriptors, transform_descriptors)
 from regressor.rvm import RVMRegressor
 from regressor.stacking import stack_frames
@@ -254,7 +257,7 @@ def fit_noisy_codebook(dataset: Dataset, settings: DescriptorSettings, n_centres
 def codebook_digest(codebook: Codebook, settings: DescriptorSettings) -> str:
     """Short digest of a codebook and descriptor settings (cache key)."""
     h = hashlib.sha256(np.ascontiguousarray(codebook.centres).tobytes())
-    h.update(repr(sorted(settings.to_arrays().items(), key=lambda kv: kv[0])).encode())
+    h.update(repr(sorted(settings_arrays(settings).items(), key=lambda kv: kv[0])).encode())
     return h.hexdigest()[:12]
 
 
@@ -397,7 +400,7 @@ def train_pose_model(dataset: Dataset, X: np.ndarray, codebook: Codebook,
                       measurement_covariance=np.eye(54), process_noise=np.ones(54),
                       ambiguity_threshold=options.ambiguity_threshold)
     val_rows = np.flatnonzero(val)
-    predicted = model.predict_batch(Xs[val_rows])
+    predicted = predict_batch(model, Xs[val_rows])
     R, facts = measurement_noise(predicted, dataset.pose[val_rows], options.ambiguity_threshold)
     model.measurement_covariance = R
     model.process_noise = process_noise(dataset.pose[~val], dataset.sequence[~val], fps)
@@ -591,14 +594,14 @@ def _validated_model(dataset: Dataset, codebook: Codebook, settings: DescriptorS
                       limb_net=parts["limb_net"], side_classifier=parts["side_classifier"])
     # R from the experts' own heading: its heading entry is mostly front/back confusions,
     # which the tracker's chain, not the filter, handles.
-    predicted = model.predict_batch(Xs[val_rows])
+    predicted = predict_batch(model, Xs[val_rows])
     model.heading_index = parts["heading_index"]     # its neighbours give each frame's novelty
     # A canonical model's error is measured against the canonical members, as its output is
     # the chain's hypothesis, not yet the decision.
     R, facts = measurement_noise(predicted, truth[val_rows], options.ambiguity_threshold)
     model.measurement_covariance = R
     if options.expert == "sparse_rvm":
-        variance = model.predict_variance(Xs[val_rows])
+        variance = predict_variance(model, Xs[val_rows])
         model.variance_calibration, z2 = calibrate_variance(predicted, truth[val_rows], R,
                                                             variance)
         facts.update(z2)
@@ -636,7 +639,7 @@ def _mixture_report(model: PoseModel, options: MixtureOptions, rows: dict, mixtu
         # The head's member picked by the true heading: what the tracker gets when its chain
         # decides the heading right (an upper bound, hence the name).
         from tracker.tracks.hypotheses import pick_member
-        members = pick_member(model.predict_limbs(rows["Xs"][val_rows]),
+        members = pick_member(predict_limbs(model, rows["Xs"][val_rows]),
                               heading_deg(truth[val_rows]))
         report["validation_limb_head_at_true_heading"] = angle_measures(
             members, truth[val_rows], rows["centre"])
