@@ -16,6 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from regressor.errors import SilhouettePoseError
+from .bvh_write import write_bvh  # noqa: F401  (the writer, re-exported for callers)
 from .motion import ROTATION_CHANNELS, Motion, matrices_to_euler
 
 _POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
@@ -365,51 +366,3 @@ def resample(motion: Motion, fps: float) -> Motion:
                         axis=1)
     euler = matrices_to_euler(rot_out, motion.rotation_orders())
     return replace(motion, euler_deg=euler, root_position=position, fps=float(fps))
-
-
-# ----------------------------------------------------------------------------- writing
-
-
-# Nine decimals: angles re-derived from rotations (folded joints, the root) then survive a
-# write/read cycle to well within 1e-6 degrees.
-_DECIMALS = 9
-
-
-def _format_vec(values) -> str:
-    return " ".join(f"{v:.{_DECIMALS}f}" for v in values)
-
-
-def write_bvh(path: str | Path, motion: Motion) -> None:
-    """Write ``motion`` as a BVH file that read_bvh(path, fps=None, drop_tpose=False) reads
-    back to within 1e-6 (angles in degrees, positions in CMU units; 9 decimals are written).
-    """
-    J = len(motion.names)
-    children: list[list[int]] = [[] for _ in range(J)]
-    for j, p in enumerate(motion.parents):
-        if p >= 0:
-            children[p].append(j)
-    out: list[str] = ["HIERARCHY"]
-
-    def emit(j: int, depth: int) -> None:
-        pad = "\t" * depth
-        kind = "ROOT" if motion.parents[j] < 0 else "JOINT"
-        out.append(f"{pad}{kind} {motion.names[j]}")
-        out.append(f"{pad}{{")
-        out.append(f"{pad}\tOFFSET {_format_vec(motion.offsets[j])}")
-        chans = motion.channels[j]
-        out.append(f"{pad}\tCHANNELS {len(chans)} {' '.join(chans)}")
-        for c in children[j]:
-            emit(c, depth + 1)
-        if not np.isnan(motion.end_sites[j]).any():
-            out.extend([f"{pad}\tEnd Site", f"{pad}\t{{",
-                        f"{pad}\t\tOFFSET {_format_vec(motion.end_sites[j])}", f"{pad}\t}}"])
-        out.append(f"{pad}}}")
-
-    emit(int(np.flatnonzero(motion.parents < 0)[0]), 0)
-    T = motion.n_frames
-    out += ["MOTION", f"Frames: {T}", f"Frame Time: {1.0 / motion.fps:.10g}"]
-    frames = np.concatenate([motion.root_position.reshape(T, 3),
-                             motion.euler_deg.reshape(T, J * 3)], axis=1)
-    buffer = io.StringIO()
-    np.savetxt(buffer, frames, fmt=f"%.{_DECIMALS}f")
-    Path(path).write_text("\n".join(out) + "\n" + buffer.getvalue(), encoding="utf-8")

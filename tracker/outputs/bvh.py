@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sequences.bvh import Motion, write_bvh
+from sequences.bvh_write import write_bvh
+from sequences.motion import Motion
 from sequences.pose_vector import pose_vectors_to_motion
 from sequences.skeleton import (
     CMU_JOINT_NAMES,
