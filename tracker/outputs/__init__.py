@@ -1,13 +1,7 @@
-"""Outputs of the tracker: every sink takes the same three calls (the :class:`Sink` protocol).
-
-    write(pose)            one person in one frame (a tracker.pipeline.TrackedPose)
-    end_frame(frame_index) after every frame, with people in it or not
-    close()                finish the output (idempotent); also on Ctrl-C
-
-Optional: write_frame(frame_index, time_s, frame, people) and discard() (MeshcatView, which
-shows the video); ``pose_kind``, "filtered" or "smoothed" (set by tracker.run.track_video);
-``option`` (e.g. "--json", named by problem_line); ``abandon()`` (files: close_sinks).
-"""
+"""Outputs of the tracker: every sink takes the calls of the :class:`Sink` protocol. Optional:
+write_frame(frame_index, time_s, frame, people) and discard() (MeshcatView, which shows the
+video); ``pose_kind``, "filtered" or "smoothed" (set by tracker.run.track_video); ``option``
+(e.g. "--json", named by problem_line); ``abandon()`` (files: close_sinks)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
@@ -20,7 +14,8 @@ if TYPE_CHECKING:
 
 
 class Sink(Protocol):
-    """Where tracked poses go (see the module docstring)."""
+    """Where tracked poses go: write() one person in one frame, end_frame() after every frame
+    (with people in it or not), close() to finish the output (idempotent; also on Ctrl-C)."""
 
     def write(self, pose: TrackedPose) -> None: ...
 

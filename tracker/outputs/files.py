@@ -1,9 +1,6 @@
-"""Output files that never destroy data: distinct paths, one writer at a time, replace when done.
-
-:class:`OutputFile` writes ``NAME.partial`` under an exclusive lock and renames it onto ``NAME``
-once complete; a crash leaves ``NAME`` as it was. Destinations that are not regular files, or
-streams the shell opened, are written in place. Files written in one go: whole_files.
-"""
+"""Output files that never destroy data: :class:`OutputFile` writes ``NAME.partial`` under an
+exclusive lock and renames it onto ``NAME`` once complete (a crash leaves ``NAME`` as it was);
+non-regular files and the shell's streams are written in place. Written in one go: whole_files."""
 from __future__ import annotations
 
 import contextlib
@@ -197,7 +194,7 @@ class OutputFile:
         return self._offset
 
     def flush(self) -> None:
-        """Nothing is buffered here: write() hands every byte to the operating system."""
+        """Nothing: write() hands every byte to the operating system."""
 
     def commit(self) -> None:
         """Flush to disk and rename onto the destination (replacing it); idempotent."""

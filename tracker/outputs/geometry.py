@@ -15,8 +15,6 @@ from sequences.skeleton import BONES_FOR_DRAWING, CMU_UNIT_M, POSE_JOINTS
 
 from tracker.video.decode import focal_length_px
 
-N_JOINTS = len(POSE_JOINTS)
-
 #: (B, 2) int indices into the 18 pose joints of each drawn bone (parent, child).
 BONE_INDEX: np.ndarray = np.array([[POSE_JOINTS.index(parent), POSE_JOINTS.index(child)]
                                    for parent, child in BONES_FOR_DRAWING], dtype=np.int64)
@@ -85,8 +83,7 @@ def _finite(name: str, value, shape: tuple, wrong_shape: str) -> np.ndarray:
 
 def check_joints(joints3d: np.ndarray) -> np.ndarray:
     """Pose-joint positions as float64 (18, 3) metres; SinkInputError otherwise."""
-    return _finite("joints3d", joints3d, (N_JOINTS, 3),
-                   f"joints3d must have shape ({N_JOINTS}, 3) metres, got {{}}")
+    return _finite("joints3d", joints3d, (18, 3), "joints3d must have shape (18, 3) metres, got {}")
 
 
 def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
@@ -165,15 +162,10 @@ def y_up_to_z_up(points: np.ndarray) -> np.ndarray:
     return np.stack([p[..., 0], -p[..., 2], p[..., 1]], axis=-1)
 
 
-def ground_position_from_image(
-    centroid_px: np.ndarray,
-    bbox_height_px: np.ndarray,
-    frame_width_px: int,
-    frame_height_px: int,
-    person_height_m: float = 1.7,
-    focal_px: float | None = None,
-    hip_height_m: float = 0.95,
-) -> np.ndarray:
+def ground_position_from_image(centroid_px: np.ndarray, bbox_height_px: np.ndarray,
+                               frame_width_px: int, frame_height_px: int,
+                               person_height_m: float = 1.7, focal_px: float | None = None,
+                               hip_height_m: float = 0.95) -> np.ndarray:
     """Approximate root (hip) positions (..., 3) metres from the centroids (..., 2) pixels (x
     right, y down) and silhouette heights bbox_height_px (...,) pixels (> 0), for a pinhole
     camera at the origin looking along -Z with focal length f = focal_px (default: an assumed

@@ -1,9 +1,6 @@
 """JSON summary of a tracking run, for scripts: frames, speed, and per track its frames,
-centroids, headings, ambiguity flags, novelty and poses (docs/code_notes/outputs.md gives the
-layout, format version 1, field by field).
-
-Written to a locked ``PATH.partial`` renamed onto PATH once complete (files.OutputFile).
-"""
+centroids, headings, ambiguity, novelty and poses (layout: docs/code_notes/outputs.md), written
+to a locked ``PATH.partial`` renamed onto PATH once complete (files.OutputFile)."""
 from __future__ import annotations
 
 import json

@@ -1,14 +1,8 @@
-"""MCAP recording of tracked poses, openable as is in Foxglove (JSON messages, JSON schemas).
-
-Channels (README, Outputs): ``/pose`` (per track per frame), ``/skeleton`` (a
-``foxglove.SceneUpdate`` per frame with people: bodies, Z-up metres, and every TRAIL_EVERY
-frames the pelvis trails), with --smooth ``/smoothed/pose`` and ``/smoothed/skeleton`` (written
-at the end: :meth:`McapSink.smoothed_channel`), and metadata. Times are the video's own.
-
-Crash safety: small compressed chunks (closed at least every ``flush_every_frames`` frames) go
-to the operating system at once, so a killed process leaves its finished chunks intact
-(``tracker.outputs.mcap_repair``). The file is ``PATH.partial`` (files.OutputFile) until
-``close()`` (on leaving a ``with`` block, else at interpreter exit) renames it onto PATH.
+"""MCAP recording of tracked poses for Foxglove (JSON messages and schemas; README, Outputs):
+``/pose``, ``/skeleton`` (foxglove.SceneUpdate: bodies and pelvis trails, Z-up metres), with
+smoothing ``/smoothed/pose`` and ``/smoothed/skeleton`` written at the end; video times. Small
+chunks, closed every ``flush_every_frames`` frames, survive a kill (mcap_repair); the file is
+``PATH.partial`` (files.OutputFile) until close() (or interpreter exit) renames it onto PATH.
 """
 from __future__ import annotations
 
@@ -53,22 +47,16 @@ _GEOMETRY_DECIMALS = 3   # 1 mm and 1e-3 of a quaternion: below what a drawing s
 def _schemas() -> dict[str, bytes]:
     """The channels' JSON schemas by name, as written: mcap_schemas.json (every field required,
     as we always set it), each ``PoseValues`` object given the 55 pose-vector names."""
-    schemas = json.loads(Path(__file__).with_name("mcap_schemas.json").read_text("utf-8"))
     names = pose_vector_names()
 
-    def fill(node) -> None:
-        if isinstance(node, dict):
-            if node.get("title") == "PoseValues":
-                node["properties"] = {name: {"type": "number"} for name in names}
-                node["required"] = list(names)
-        for child in node.values() if isinstance(node, dict) else node:
-            if isinstance(child, (dict, list)):
-                fill(child)
-    fill(schemas)
-    return {name: _to_bytes(schema) for name, schema in schemas.items()}
+    def fill(node: dict) -> dict:
+        if node.get("title") == "PoseValues":
+            node.update(properties={name: {"type": "number"} for name in names},
+                        required=list(names))
+        return node
+    text = Path(__file__).with_name("mcap_schemas.json").read_text("utf-8")
+    return {name: _to_bytes(schema) for name, schema in json.loads(text, object_hook=fill).items()}
 
-
-# ---------------------------------------------------------------- message builders
 
 def _timestamp(time_ns: int) -> dict:
     """A foxglove time or duration {sec, nsec} of ``time_ns`` nanoseconds."""
@@ -127,12 +115,11 @@ def _entity(kind: str, track_id: int, time_ns: int, lifetime_s: float, metadata:
 
 
 def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool,
-                    unfamiliar: bool = False) -> dict:
+                    unfamiliar: bool) -> dict:
     """A ``foxglove.SceneEntity`` ``track-<id>``: the body of joints3d (18, 3) metres, Y-up, as
     the live view draws it (bone cylinders, joint spheres, head, label; ambiguous translucent)."""
     joints = y_up_to_z_up(joints3d)
-    bone_colours, sphere_colours, label_colour, text = _body_style(int(track_id), bool(ambiguous),
-                                                                   bool(unfamiliar))
+    bone_colours, sphere_colours, label_colour, text = _body_style(track_id, ambiguous, unfamiliar)
     starts, ends = joints[BONE_INDEX[:, 0]], joints[BONE_INDEX[:, 1]]
     vectors = ends - starts
     lengths = np.sqrt(np.einsum("ij,ij->i", vectors, vectors))
@@ -152,8 +139,8 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
     diameters = [JOINT_DIAMETER_M] * len(joints) + [HEAD_DIAMETER_M]
     spheres = [{"pose": _placed(x, y, z), "size": {"x": d, "y": d, "z": d}, "color": colour}
                for (x, y, z), d, colour in zip(points, diameters, sphere_colours)]
-    flags = [{"key": "ambiguous", "value": str(bool(ambiguous)).lower()},
-             {"key": "unfamiliar", "value": str(bool(unfamiliar)).lower()}]
+    flags = [{"key": key, "value": str(on).lower()}
+             for key, on in (("ambiguous", ambiguous), ("unfamiliar", unfamiliar))]
     texts = [{"pose": _placed(*points[-1]), "billboard": True, "font_size": 0.15,
               "scale_invariant": False, "color": label_colour, "text": text}]
     return _entity("track", track_id, time_ns, SKELETON_LIFETIME_S, flags,
@@ -193,8 +180,6 @@ def _metadata_strings(name: str, values: Mapping[str, object]) -> dict[str, str]
         raise SinkInputError(f"metadata {name!r} must be a mapping, got {type(values).__name__}")
     return {str(k): v if isinstance(v, str) else json.dumps(v) for k, v in values.items()}
 
-
-# ---------------------------------------------------------------- the sink
 
 def _finish(state: dict) -> None:
     """Write summary and footer and rename, once; on failure keep the partial for recover_mcap."""
@@ -263,8 +248,7 @@ class McapSink:
         self._scenes = _SceneStream(scene_channel)    # /skeleton's frame being collected
         self._frames_since_flush = 0
         self._trails: dict[int, deque] = {}   # track id -> (time s, x, y) of its root
-        # /smoothed/skeleton's; its channels are registered by the first write_smoothed.
-        self._smoothed = _SceneStream(None)
+        self._smoothed = _SceneStream(None)   # channels registered by the first write_smoothed
         self._smoothed_pose_channel: int | None = None
 
     def _schema(self, name: str) -> int:
@@ -313,7 +297,7 @@ class McapSink:
                 "runner_up_probability", pose.runner_up_probability), 4)
         # Everything is checked: only now does the sink's state change.
         if frame_index != scenes.frame:
-            self._write_scene()
+            self._write_update(scenes)
             scenes.frame, scenes.frame_ns = frame_index, time_ns
         self._add(self._pose_channel, time_ns, message)
         scenes.entities[track_id] = skeleton_entity(track_id, time_ns, joints,
@@ -337,7 +321,7 @@ class McapSink:
         frame_index, track_id, time_s, novelty, joints, smoothed = self._checked(
             pose, scenes, "smoothed")
         if scenes.channel is None:
-            self._write_scene()          # the streamed frames' last scene goes first
+            self._write_update(self._scenes)   # the streamed frames' last scene goes first
             self._scenes.frame = None    # and the stream is over (write() refuses more)
             writer = self._state["writer"]
             self._smoothed_pose_channel = writer.register_channel(
@@ -347,7 +331,7 @@ class McapSink:
         time_ns = int(round(time_s * 1e9))
         joints = pose_joints_m(smoothed[None], root_position_m=joints[:1])[0]
         if frame_index != scenes.frame:
-            self._write_update(scenes, ("track",))
+            self._write_update(scenes)
             scenes.frame, scenes.frame_ns = frame_index, time_ns
         self._add(self._smoothed_pose_channel, time_ns, {
             "timestamp": _timestamp(time_ns), "frame_index": frame_index,
@@ -359,47 +343,41 @@ class McapSink:
         self._state["writer"].add_message(channel, log_time=time_ns,
                                           data=_frame_bytes(message), publish_time=time_ns)
 
-    def _write_scene(self) -> None:
-        """Write /skeleton's frame: trails every TRAIL_EVERY frames, tracks gone deleted."""
-        scenes = self._scenes
+    def _write_update(self, scenes: _SceneStream) -> None:
+        """Write the SceneUpdate of a skeleton topic's frame, if any: bodies, tracks gone deleted;
+        on /skeleton also trails every TRAIL_EVERY frames, the chunk closed every flush_every."""
         if scenes.frame is None:
             return
-        trails = ([self._trail(t) for t in sorted(scenes.entities) if len(self._trails[t]) >= 2]
-                  if scenes.frame % TRAIL_EVERY == 0 else [])
-        for track_id in self._write_update(scenes, ("track", "trail"), trails):
-            self._trails.pop(track_id, None)
-        self._frames_since_flush += 1
-        if self._frames_since_flush >= self._flush_every:
-            self._state["writer"].flush()  # closes the chunk: it is now safe from a crash
-            self._frames_since_flush = 0
-
-    def _write_update(self, scenes: _SceneStream, kinds: tuple[str, ...],
-                      extra: list = ()) -> list[int]:
-        """Write the SceneUpdate of a topic's frame, if any (entities, then ``extra``; tracks now
-        gone deleted as ``<kind>-<track>`` of kinds), start the next; returns the gone tracks."""
-        if scenes.frame is None:
-            return []
+        streamed = scenes is self._scenes
+        kinds = ("track", "trail") if streamed else ("track",)
+        trails = []
+        for t in sorted(scenes.entities) if streamed and scenes.frame % TRAIL_EVERY == 0 else ():
+            if len(self._trails[t]) >= 2:
+                samples = np.array(self._trails[t])[::-1][::3][::-1]   # every 3rd, newest kept
+                ages = (samples[-1, 0] - samples[:, 0]) / TRAIL_S
+                trails.append(trail_entity(t, scenes.frame_ns, samples[:, 1:], ages))
         stamp = _timestamp(scenes.frame_ns)
         gone = sorted(scenes.shown - set(scenes.entities))
         self._add(scenes.channel, scenes.frame_ns, {
             "deletions": [{"timestamp": stamp, "type": 0, "id": f"{kind}-{t}"}
                           for t in gone for kind in kinds],
-            "entities": [scenes.entities[t] for t in sorted(scenes.entities)] + list(extra)})
+            "entities": [scenes.entities[t] for t in sorted(scenes.entities)] + trails})
         scenes.shown, scenes.entities = set(scenes.entities), {}
-        return gone
-
-    def _trail(self, track_id: int) -> dict:
-        samples = np.array(self._trails[track_id])[::-1][::3][::-1]   # every 3rd, newest kept
-        ages = (samples[-1, 0] - samples[:, 0]) / TRAIL_S
-        return trail_entity(track_id, self._scenes.frame_ns, samples[:, 1:], ages)
+        if streamed:
+            for t in gone:
+                self._trails.pop(t, None)
+            self._frames_since_flush += 1
+            if self._frames_since_flush >= self._flush_every:
+                self._state["writer"].flush()  # closes the chunk: it is now safe from a crash
+                self._frames_since_flush = 0
 
     def close(self) -> None:
         """Write the last frame's scene, the summary and the footer; idempotent."""
         if self.closed:
             return
         try:
-            self._write_scene()
-            self._write_update(self._smoothed, ("track",))
+            self._write_update(self._scenes)
+            self._write_update(self._smoothed)
         finally:
             self._finalizer.detach()
             _finish(self._state)
@@ -422,9 +400,8 @@ class McapSink:
 
 
 class SmoothedChannel:
-    """The Sink ``track_video`` feeds smoothed tracks, writing them into an McapSink. After a
-    Ctrl-C the run feeds the filtered poses instead, saying so (pose_kind = "filtered"): those
-    are in the file already. Closing it closes nothing: the McapSink closes with the others."""
+    """The Sink ``track_video`` feeds smoothed tracks, for an McapSink's smoothed topics; after
+    a Ctrl-C (pose_kind "filtered") it writes nothing: the filtered poses are in the file."""
 
     def __init__(self, sink: McapSink):
         self.sink = sink
@@ -438,4 +415,4 @@ class SmoothedChannel:
         """Nothing: smoothed frames arrive at the end, in order."""
 
     def close(self) -> None:
-        """Nothing: see the class docstring."""
+        """Nothing: the McapSink closes with the other sinks."""
