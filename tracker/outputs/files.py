@@ -24,8 +24,7 @@ class OutputPathError(SilhouettePoseError, ValueError):
 
 
 class _FileError(SilhouettePoseError, RuntimeError):
-    """One line starting with the file's path, also ``path`` (None when not given): a command
-    can name the option the file came from."""
+    """One line starting with the file's path; ``path`` (or None) names the option it came from."""
 
     def __init__(self, message: str, path: str | Path | None = None):
         super().__init__(message)
@@ -44,9 +43,8 @@ _STREAM = re.compile(r"/(?:proc/self|dev)/fd/(\d+)|/dev/std(in|out|err)")
 
 
 def stream_descriptor(path: str | Path) -> int | None:
-    """N when ``path`` is, or leads by symlinks to, /dev/stdout, /dev/stderr, /dev/fd/N or
-    /proc/self/fd/N: a stream the shell opened (a pipe, a terminal, a file with > or >>),
-    written through that descriptor so that its offset and append mode are kept; else None."""
+    """N when ``path`` is, or links to, /dev/std*, /dev/fd/N or /proc/self/fd/N: a stream the
+    shell opened (a pipe, a terminal, > or >>), written through N to keep offset and append."""
     current = os.path.abspath(path)
     for _ in range(40):                  # the kernel's own limit on a chain of links
         match = _STREAM.fullmatch(current)
@@ -102,11 +100,10 @@ def check_distinct(named: Iterable[tuple[str, Path]]) -> None:
 
 def busy_error(path: Path, changing: bool = False) -> OutputBusyError:
     """The error for an output another process holds locked (or keeps replacing)."""
-    if changing:
-        return OutputBusyError(f"{path}: kept changing while being locked; another track run "
-                               f"is writing this output", path)
-    return OutputBusyError(f"{path}: another track run is writing this output; wait for it to "
-                           f"finish or choose another file name", path)
+    problem = ("kept changing while being locked; another track run is writing this output"
+               if changing else "another track run is writing this output; wait for it to "
+               "finish or choose another file name")
+    return OutputBusyError(f"{path}: {problem}", path)
 
 
 def same_file(path: Path, fd: int) -> bool:

@@ -95,7 +95,7 @@ def _placed(x: float, y: float, z: float, orientation: dict = _NO_TURN) -> dict:
 @functools.lru_cache(maxsize=128)
 def _body_style(track_id: int, ambiguous: bool, unfamiliar: bool) -> tuple[list, list, dict, str]:
     """Per bone and per sphere (18 joints, head) colour dicts, the label's colour and text
-    (the same for every frame of a track; shared by its messages, which are only read)."""
+    (shared by a track's messages, which are only read)."""
     colours = body_colours(track_id)
     alpha = AMBIGUOUS_ALPHA if ambiguous else 1.0
     r, g, b = track_colour(track_id)
@@ -149,9 +149,8 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
 
 
 def trail_entity(track_id: int, time_ns: int, path_m: np.ndarray, ages: np.ndarray) -> dict:
-    """A ``foxglove.SceneEntity`` ``trail-<id>``: a track's pelvis path on the ground, path_m
-    (N, 2) Z-up world metres, as a line strip in the track colour fading with ages (N,) in
-    [0, 1] (0 = newest, opaque; 1 = oldest, transparent)."""
+    """A ``foxglove.SceneEntity`` ``trail-<id>``: the pelvis path path_m (N, 2) Z-up metres on the
+    ground, in the track colour fading with ages (N,) in [0, 1] (0 newest, 1 oldest: clear)."""
     points = np.round(np.column_stack([path_m, np.full(len(path_m), 0.005)]), _DECIMALS)
     rgb = np.tile(track_colour(track_id), (len(points), 1))
     line = {"type": 0, "pose": _placed(0.0, 0.0, 0.0), "thickness": TRAIL_THICKNESS_M,
@@ -169,8 +168,7 @@ def _to_bytes(message: dict) -> bytes:
 
 
 def _frame_bytes(message: dict) -> bytes:
-    """A per-frame message as compact JSON by orjson: the JSON of :func:`_to_bytes`, faster;
-    every number was checked finite before (docs/code_notes/outputs.md)."""
+    """:func:`_to_bytes`' JSON by orjson, faster; numbers checked finite before (code_notes)."""
     return orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY)
 
 
@@ -204,16 +202,6 @@ class _SceneStream:
         self.frame_ns = 0
         self.entities: dict[int, dict] = {}
         self.shown: set[int] = set()
-
-    def check(self, frame_index: int, track_id: int) -> None:
-        """SinkInputError unless track track_id of frame frame_index may come next."""
-        if frame_index < 0 or track_id < 0:
-            raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
-                                 f"{track_id}")
-        if self.frame is not None and frame_index < self.frame:
-            raise SinkInputError(f"frame_index went backwards: {frame_index} after {self.frame}")
-        if frame_index == self.frame and track_id in self.entities:
-            raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
 
 
 class McapSink:
@@ -271,7 +259,13 @@ class McapSink:
         time_s = checked_time(pose.time_s)
         novelty = known_novelty(getattr(pose, "novelty", None))
         frame_index, track_id = int(pose.frame_index), int(pose.track_id)
-        scenes.check(frame_index, track_id)
+        if frame_index < 0 or track_id < 0:
+            raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
+                                 f"{track_id}")
+        if scenes.frame is not None and frame_index < scenes.frame:
+            raise SinkInputError(f"frame_index went backwards: {frame_index} after {scenes.frame}")
+        if frame_index == scenes.frame and track_id in scenes.entities:
+            raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
         return frame_index, track_id, time_s, novelty, joints, *vectors
 
     def write(self, pose: TrackedPose) -> None:
