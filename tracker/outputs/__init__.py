@@ -40,8 +40,7 @@ class PoseRecorder:
         self._frame_ends.append((frame_index, len(self.poses)))
 
     def frames(self) -> list[tuple[int, list[TrackedPose]]]:
-        """Every frame ended so far, with people or without, as (frame_index, its poses) in
-        order (what tracker.tracks.fixed_lag.replay takes)."""
+        """(frame_index, its poses) of every frame ended so far, in order (fixed_lag.replay's)."""
         starts = [0] + [stop for _, stop in self._frame_ends]
         return [(index, self.poses[start:stop])
                 for (index, stop), start in zip(self._frame_ends, starts)]
@@ -58,8 +57,8 @@ class PoseRecorder:
 
 
 def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
-    """Call each factory in turn; if one fails (a lock held, a name refused, Ctrl-C), abandon
-    the sinks already opened (close_sinks(abandon=True): files keep what they held), re-raise."""
+    """Call each factory in turn; if one fails (a lock held, Ctrl-C), abandon the sinks already
+    opened (close_sinks(abandon=True): files keep what they held) and re-raise."""
     opened: list[Sink] = []
     try:
         for make in factories:
@@ -80,9 +79,8 @@ def problem_line(sink: Sink, exc: BaseException) -> str:
 
 
 def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
-    """Close every sink, even when some fail (each holds the user's results); one line per
-    failure (problem_line). abandon: the run tracked nobody: sinks with ``abandon()`` (files)
-    stop without writing, so their destinations keep what they held; the others close."""
+    """Close every sink, even when some fail; one line per failure (problem_line). abandon: the
+    run tracked nobody: sinks with ``abandon()`` (files) stop without writing, the others close."""
     problems = []
     for sink in sinks:
         try:

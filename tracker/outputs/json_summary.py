@@ -98,14 +98,11 @@ class JsonSummarySink:
             track = self._tracks[track_id]
             heading = np.radians(track["heading_deg"])
             mean = math.degrees(math.atan2(np.sin(heading).mean(), np.cos(heading).mean()))
-            tracks.append({
-                "id": track_id, "first_frame": track["frames"][0],
-                "last_frame": track["frames"][-1], "n_frames": len(track["frames"]),
-                **track,
-                "ambiguous_frames": int(sum(track["ambiguous"])),
-                "unfamiliar_frames": self._unfamiliar.get(track_id, 0),
-                "heading_mean_deg": round(mean, _DECIMALS),
-            })
+            tracks.append({"id": track_id, "first_frame": track["frames"][0],
+                           "last_frame": track["frames"][-1], "n_frames": len(track["frames"]),
+                           **track, "ambiguous_frames": int(sum(track["ambiguous"])),
+                           "unfamiliar_frames": self._unfamiliar.get(track_id, 0),
+                           "heading_mean_deg": round(mean, _DECIMALS)})
         return {"format": FORMAT, "version": VERSION, "frames": frames,
                 "fps": round(frames / wall, 3) if wall > 0 else 0.0,
                 "video_fps": self.video_fps, "wall_time_s": round(wall, 3),

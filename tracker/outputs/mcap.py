@@ -2,8 +2,7 @@
 ``/pose``, ``/skeleton`` (foxglove.SceneUpdate: bodies and pelvis trails, Z-up metres), with
 smoothing ``/smoothed/pose`` and ``/smoothed/skeleton`` written at the end; video times. Small
 chunks, closed every ``flush_every_frames`` frames, survive a kill (mcap_repair); the file is
-``PATH.partial`` (files.OutputFile) until close() (or interpreter exit) renames it onto PATH.
-"""
+``PATH.partial`` (files.OutputFile) until close() (or interpreter exit) renames it onto PATH."""
 from __future__ import annotations
 
 import functools
@@ -76,8 +75,7 @@ def _colour_dicts(rgb: np.ndarray, alpha) -> list[dict]:
 
 
 def _z_to(directions: np.ndarray) -> np.ndarray:
-    """Quaternions (N, 4) (x, y, z, w) turning +Z onto the unit vectors ``directions`` (N, 3)
-    (a foxglove cylinder's axis is its local Z)."""
+    """Quaternions (N, 4) x y z w turning +Z (a cylinder's axis) onto unit vectors (N, 3)."""
     x, y, z = directions.T
     q = np.column_stack([-y, x, np.zeros_like(x), 1.0 + z])
     q[q[:, 3] < 1e-9] = [1.0, 0.0, 0.0, 0.0]     # pointing down -Z: half a turn about X
@@ -269,8 +267,8 @@ class McapSink:
         return frame_index, track_id, time_s, novelty, joints, *vectors
 
     def write(self, pose: TrackedPose) -> None:
-        """Record one track in one frame (frames in non-decreasing order; joints_m drawn as
-        given); SinkInputError on bad input, when closed or after write_smoothed."""
+        """Record one track in one frame (frames in order); SinkInputError if bad, closed or
+        after write_smoothed."""
         if self._smoothed.channel is not None and not self.closed:
             raise SinkInputError("poses streamed after the smoothed tracks: the stream is over")
         scenes = self._scenes
