@@ -74,14 +74,6 @@ def _colour_dicts(rgb: np.ndarray, alpha) -> list[dict]:
     return [{"r": r, "g": g, "b": b, "a": a} for r, g, b, a in np.round(rgba, 3).tolist()]
 
 
-def _z_to(directions: np.ndarray) -> np.ndarray:
-    """Quaternions (N, 4) x y z w turning +Z (a cylinder's axis) onto unit vectors (N, 3)."""
-    x, y, z = directions.T
-    q = np.column_stack([-y, x, np.zeros_like(x), 1.0 + z])
-    q[q[:, 3] < 1e-9] = [1.0, 0.0, 0.0, 0.0]     # pointing down -Z: half a turn about X
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
-
-
 _NO_TURN = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
 
 
@@ -125,8 +117,12 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
     neck_to_head = joints[3] - joints[2]
     head = joints[3] + HEAD_DIAMETER_M / 2 * neck_to_head / max(np.linalg.norm(neck_to_head), 1e-9)
     label = [head[0], head[1], joints[:, 2].max() + 0.35]
-    axes = vectors[keep] / lengths[keep, None]
-    bones = np.round(np.column_stack([((starts + ends) / 2)[keep], _z_to(axes), lengths[keep]]),
+    dx, dy, dz = (vectors[keep] / lengths[keep, None]).T
+    # Quaternions (x, y, z, w) turning +Z (a foxglove cylinder's axis) onto the bones' axes.
+    q = np.column_stack([-dy, dx, np.zeros_like(dx), 1.0 + dz])
+    q[q[:, 3] < 1e-9] = [1.0, 0.0, 0.0, 0.0]     # pointing down -Z: half a turn about X
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    bones = np.round(np.column_stack([((starts + ends) / 2)[keep], q, lengths[keep]]),
                      _GEOMETRY_DECIMALS).tolist()       # rows: centre x y z, quaternion, length
     points = np.round(np.vstack([joints, head, label]), _GEOMETRY_DECIMALS).tolist()
     thick = BONE_THICKNESS_M
@@ -168,13 +164,6 @@ def _to_bytes(message: dict) -> bytes:
 def _frame_bytes(message: dict) -> bytes:
     """:func:`_to_bytes`' JSON by orjson, faster; numbers checked finite before (code_notes)."""
     return orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY)
-
-
-def _metadata_strings(name: str, values: Mapping[str, object]) -> dict[str, str]:
-    """MCAP metadata is str -> str: strings stay, anything else is written as JSON."""
-    if not isinstance(values, Mapping):
-        raise SinkInputError(f"metadata {name!r} must be a mapping, got {type(values).__name__}")
-    return {str(k): v if isinstance(v, str) else json.dumps(v) for k, v in values.items()}
 
 
 def _finish(state: dict) -> None:
@@ -219,8 +208,12 @@ class McapSink:
         self._state = {"writer": writer, "stream": stream, "done": False}
         try:
             writer.start(profile="", library="silhouette-pose tracker")
-            for name, values in (metadata or {}).items():
-                writer.add_metadata(str(name), _metadata_strings(str(name), values))
+            for name, values in (metadata or {}).items():   # str -> str: others as JSON
+                if not isinstance(values, Mapping):
+                    raise SinkInputError(f"metadata {str(name)!r} must be a mapping, got "
+                                         f"{type(values).__name__}")
+                writer.add_metadata(str(name), {str(k): v if isinstance(v, str) else json.dumps(v)
+                                                for k, v in values.items()})
             pose_schema = self._schema("silhouette_pose.TrackedPose")
             self._scene_schema = self._schema("foxglove.SceneUpdate")
             self._pose_channel = writer.register_channel("/pose", "json", pose_schema)
