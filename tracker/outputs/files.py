@@ -140,15 +140,6 @@ def holds_data(path: Path) -> bool:
         return False
 
 
-def set_aside(path: Path) -> Path | None:
-    """Keep a non-empty file at ``path`` (a ``NAME.partial`` about to be written) as the first
-    free ``NAME.partial.N`` (aside.keep_aside); the new name, or None when there was none."""
-    if not holds_data(path):
-        return None
-    from tracker.outputs.aside import keep_aside    # deferred: only after an unfinished run
-    return keep_aside(path)
-
-
 class OutputFile:
     """A binary output written beside ``path`` and renamed onto it by commit(). File protocol:
     write(bytes) (handed to the system at once: records survive a kill), tell(), flush()."""
@@ -166,7 +157,9 @@ class OutputFile:
             elif self.in_place:
                 self._fd = os.open(self.path, os.O_WRONLY)
             else:
-                set_aside(self._written)
+                if holds_data(self._written):      # an earlier run's unfinished output
+                    from tracker.outputs.aside import set_aside
+                    set_aside(self._written)
                 self._fd = open_locked(self._written, os.O_WRONLY)
                 os.ftruncate(self._fd, 0)   # set_aside kept any data it held
         except OSError as exc:

@@ -1,5 +1,5 @@
 """Output files written in one go, whole or not at all (BVH files, scripts' outputs), and the
-lock of a set of them; the rules of tracker.outputs.files (partial names, set_aside)."""
+lock of a set of them; the rules of tracker.outputs.files (partial names, aside.set_aside)."""
 from __future__ import annotations
 
 import contextlib
@@ -7,8 +7,9 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
+from tracker.outputs.aside import set_aside
 from tracker.outputs.files import (PARTIAL_SUFFIX, OutputWriteError, open_locked, partial_path,
-                                   set_aside, sync_folder)
+                                   sync_folder)
 
 
 def write_beside(path: str | Path, write: Callable[[Path], None],
