@@ -18,9 +18,7 @@ class Sink(Protocol):
     (with people in it or not), close() to finish the output (idempotent; also on Ctrl-C)."""
 
     def write(self, pose: TrackedPose) -> None: ...
-
     def end_frame(self, frame_index: int) -> None: ...
-
     def close(self) -> None: ...
 
 

@@ -69,8 +69,7 @@ class JsonSummarySink:
         runner_up = None
         if getattr(pose, "runner_up", None) is not None:
             alt = check_pose("runner_up55", pose.runner_up)
-            probability = checked_probability("runner_up_probability",
-                                              pose.runner_up_probability)
+            probability = checked_probability("runner_up_probability", pose.runner_up_probability)
             runner_up = {"frame": frame_index, "probability": round(probability, _DECIMALS),
                          "heading_deg": heading_deg(alt),
                          "pose": np.round(alt, _DECIMALS).tolist()}

@@ -40,6 +40,7 @@ TRAIL_S, TRAIL_EVERY = 8.0, 10
 SKELETON_LIFETIME_S, TRAIL_LIFETIME_S = 1.0, 3.0
 _DECIMALS = 6  # JSON rounding: 1e-6 degrees or units is far below any estimate's accuracy
 _GEOMETRY_DECIMALS = 3   # 1 mm and 1e-3 of a quaternion: below what a drawing shows
+_NO_TURN = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}    # the identity quaternion
 
 
 @functools.cache
@@ -72,9 +73,6 @@ def _colour_dicts(rgb: np.ndarray, alpha) -> list[dict]:
     """(N, 3) RGB and (N,) or scalar alpha -> foxglove.Color dicts."""
     rgba = np.column_stack([rgb, np.broadcast_to(alpha, (len(rgb),))])
     return [{"r": r, "g": g, "b": b, "a": a} for r, g, b, a in np.round(rgba, 3).tolist()]
-
-
-_NO_TURN = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
 
 
 def _placed(x: float, y: float, z: float, orientation: dict = _NO_TURN) -> dict:
