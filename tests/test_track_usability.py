@@ -16,8 +16,9 @@ from mcap.reader import make_reader
 
 from sequences.video import Actor, write_video
 from tests.test_track_cli import _assert_one_line_error, _noise_video, _track, _walker
+from tracker.outputs.aside import set_aside
 from tracker.outputs.files import (NAME_MAX, OutputBusyError, OutputFile, beside_name,
-                                 partial_path, set_aside)
+                                 partial_path)
 from tracker.outputs.mcap_repair import recover_mcap
 
 

@@ -1,13 +1,7 @@
-"""Outputs of the tracker: every sink takes the same three calls (the :class:`Sink` protocol).
-
-    write(pose)            one person in one frame (a tracker.pipeline.TrackedPose)
-    end_frame(frame_index) after every frame, with people in it or not
-    close()                finish the output (idempotent); also on Ctrl-C
-
-Optional: write_frame(frame_index, time_s, frame, people) and discard() (MeshcatView, which
-shows the video); ``pose_kind``, "filtered" or "smoothed" (set by tracker.run.track_video);
-``option`` (e.g. "--json", named by problem_line); ``abandon()`` (files: close_sinks).
-"""
+"""Outputs of the tracker: every sink takes the calls of the :class:`Sink` protocol. Optional:
+write_frame(frame_index, time_s, frame, people) and discard() (MeshcatView, which shows the
+video); ``pose_kind``, "filtered" or "smoothed" (set by tracker.run.track_video); ``option``
+(e.g. "--json", named by problem_line); ``abandon()`` (files: close_sinks)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
@@ -20,12 +14,11 @@ if TYPE_CHECKING:
 
 
 class Sink(Protocol):
-    """Where tracked poses go (see the module docstring)."""
+    """Where tracked poses go: write() one person in one frame, end_frame() after every frame
+    (with people in it or not), close() to finish the output (idempotent; also on Ctrl-C)."""
 
     def write(self, pose: TrackedPose) -> None: ...
-
     def end_frame(self, frame_index: int) -> None: ...
-
     def close(self) -> None: ...
 
 
@@ -45,8 +38,7 @@ class PoseRecorder:
         self._frame_ends.append((frame_index, len(self.poses)))
 
     def frames(self) -> list[tuple[int, list[TrackedPose]]]:
-        """Every frame ended so far, with people or without, as (frame_index, its poses) in
-        order (what tracker.tracks.fixed_lag.replay takes)."""
+        """(frame_index, its poses) of every frame ended so far, in order (fixed_lag.replay's)."""
         starts = [0] + [stop for _, stop in self._frame_ends]
         return [(index, self.poses[start:stop])
                 for (index, stop), start in zip(self._frame_ends, starts)]
@@ -63,8 +55,8 @@ class PoseRecorder:
 
 
 def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
-    """Call each factory in turn; if one fails (a lock held, a name refused, Ctrl-C), abandon
-    the sinks already opened (close_sinks(abandon=True): files keep what they held), re-raise."""
+    """Call each factory in turn; if one fails (a lock held, Ctrl-C), abandon the sinks already
+    opened (close_sinks(abandon=True): files keep what they held) and re-raise."""
     opened: list[Sink] = []
     try:
         for make in factories:
@@ -85,9 +77,8 @@ def problem_line(sink: Sink, exc: BaseException) -> str:
 
 
 def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
-    """Close every sink, even when some fail (each holds the user's results); one line per
-    failure (problem_line). abandon: the run tracked nobody: sinks with ``abandon()`` (files)
-    stop without writing, so their destinations keep what they held; the others close."""
+    """Close every sink, even when some fail; one line per failure (problem_line). abandon: the
+    run tracked nobody: sinks with ``abandon()`` (files) stop without writing, the others close."""
     problems = []
     for sink in sinks:
         try:

@@ -1,5 +1,5 @@
 """Keeping an earlier run's unfinished output aside before its name is written again
-(tracker.outputs.files.set_aside), so that no data is overwritten unseen."""
+(:func:`set_aside`), so that no data is overwritten unseen."""
 from __future__ import annotations
 
 import fcntl
@@ -9,6 +9,12 @@ from pathlib import Path
 
 from tracker.outputs.files import (OutputWriteError, beside_name, busy_error, holds_data,
                                    same_file)
+
+
+def set_aside(path: Path) -> Path | None:
+    """Keep a non-empty file at ``path`` (a ``NAME.partial`` about to be written) as the first
+    free ``NAME.partial.N`` (keep_aside); the new name, or None when there was none."""
+    return keep_aside(path) if holds_data(path) else None
 
 
 def keep_aside(path: Path) -> Path | None:

@@ -1,9 +1,6 @@
-"""Output files that never destroy data: distinct paths, one writer at a time, replace when done.
-
-:class:`OutputFile` writes ``NAME.partial`` under an exclusive lock and renames it onto ``NAME``
-once complete; a crash leaves ``NAME`` as it was. Destinations that are not regular files, or
-streams the shell opened, are written in place. Files written in one go: whole_files.
-"""
+"""Output files that never destroy data: :class:`OutputFile` writes ``NAME.partial`` under an
+exclusive lock and renames it onto ``NAME`` once complete (a crash leaves ``NAME`` as it was);
+non-regular files and the shell's streams are written in place. Written in one go: whole_files."""
 from __future__ import annotations
 
 import contextlib
@@ -27,8 +24,7 @@ class OutputPathError(SilhouettePoseError, ValueError):
 
 
 class _FileError(SilhouettePoseError, RuntimeError):
-    """One line starting with the file's path, also ``path`` (None when not given): a command
-    can name the option the file came from."""
+    """One line starting with the file's path; ``path`` (or None) names the option it came from."""
 
     def __init__(self, message: str, path: str | Path | None = None):
         super().__init__(message)
@@ -47,9 +43,8 @@ _STREAM = re.compile(r"/(?:proc/self|dev)/fd/(\d+)|/dev/std(in|out|err)")
 
 
 def stream_descriptor(path: str | Path) -> int | None:
-    """N when ``path`` is, or leads by symlinks to, /dev/stdout, /dev/stderr, /dev/fd/N or
-    /proc/self/fd/N: a stream the shell opened (a pipe, a terminal, a file with > or >>),
-    written through that descriptor so that its offset and append mode are kept; else None."""
+    """N when ``path`` is, or links to, /dev/std*, /dev/fd/N or /proc/self/fd/N: a stream the
+    shell opened (a pipe, a terminal, > or >>), written through N to keep offset and append."""
     current = os.path.abspath(path)
     for _ in range(40):                  # the kernel's own limit on a chain of links
         match = _STREAM.fullmatch(current)
@@ -105,11 +100,10 @@ def check_distinct(named: Iterable[tuple[str, Path]]) -> None:
 
 def busy_error(path: Path, changing: bool = False) -> OutputBusyError:
     """The error for an output another process holds locked (or keeps replacing)."""
-    if changing:
-        return OutputBusyError(f"{path}: kept changing while being locked; another track run "
-                               f"is writing this output", path)
-    return OutputBusyError(f"{path}: another track run is writing this output; wait for it to "
-                           f"finish or choose another file name", path)
+    problem = ("kept changing while being locked; another track run is writing this output"
+               if changing else "another track run is writing this output; wait for it to "
+               "finish or choose another file name")
+    return OutputBusyError(f"{path}: {problem}", path)
 
 
 def same_file(path: Path, fd: int) -> bool:
@@ -146,15 +140,6 @@ def holds_data(path: Path) -> bool:
         return False
 
 
-def set_aside(path: Path) -> Path | None:
-    """Keep a non-empty file at ``path`` (a ``NAME.partial`` about to be written) as the first
-    free ``NAME.partial.N`` (aside.keep_aside); the new name, or None when there was none."""
-    if not holds_data(path):
-        return None
-    from tracker.outputs.aside import keep_aside    # deferred: only after an unfinished run
-    return keep_aside(path)
-
-
 class OutputFile:
     """A binary output written beside ``path`` and renamed onto it by commit(). File protocol:
     write(bytes) (handed to the system at once: records survive a kill), tell(), flush()."""
@@ -172,7 +157,9 @@ class OutputFile:
             elif self.in_place:
                 self._fd = os.open(self.path, os.O_WRONLY)
             else:
-                set_aside(self._written)
+                if holds_data(self._written):      # an earlier run's unfinished output
+                    from tracker.outputs.aside import set_aside
+                    set_aside(self._written)
                 self._fd = open_locked(self._written, os.O_WRONLY)
                 os.ftruncate(self._fd, 0)   # set_aside kept any data it held
         except OSError as exc:
@@ -197,7 +184,7 @@ class OutputFile:
         return self._offset
 
     def flush(self) -> None:
-        """Nothing is buffered here: write() hands every byte to the operating system."""
+        """Nothing: write() hands every byte to the operating system."""
 
     def commit(self) -> None:
         """Flush to disk and rename onto the destination (replacing it); idempotent."""

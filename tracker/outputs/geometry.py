@@ -1,6 +1,5 @@
-"""Stick-skeleton geometry and input checks shared by the output sinks. Joint positions are
-(18, 3) metres in ``sequences.skeleton.POSE_JOINTS`` order, Y up, heading 0 facing the camera
-(+Z); viewers are Z-up (:func:`y_up_to_z_up`)."""
+"""Stick-skeleton geometry and input checks of the output sinks. Joints: (18, 3) metres in
+``sequences.skeleton.POSE_JOINTS`` order, Y up, heading 0 facing the camera (+Z)."""
 from __future__ import annotations
 
 import colorsys
@@ -15,14 +14,12 @@ from sequences.skeleton import BONES_FOR_DRAWING, CMU_UNIT_M, POSE_JOINTS
 
 from tracker.video.decode import focal_length_px
 
-N_JOINTS = len(POSE_JOINTS)
-
 #: (B, 2) int indices into the 18 pose joints of each drawn bone (parent, child).
 BONE_INDEX: np.ndarray = np.array([[POSE_JOINTS.index(parent), POSE_JOINTS.index(child)]
                                    for parent, child in BONES_FOR_DRAWING], dtype=np.int64)
 
-#: Track colours (RGB in [0, 1]): saturated and distinct from each other and from the grey
-#: and white backgrounds of the viewers. Track id i gets entry i mod len.
+#: Track colours (RGB in [0, 1]): saturated, distinct from each other and from the viewers' grey
+#: and white backgrounds. Track id i gets entry i mod len.
 TRACK_PALETTE: np.ndarray = np.array([   # red, blue, green, orange, purple, teal, pink, olive
     [0.90, 0.10, 0.10], [0.10, 0.45, 0.95], [0.05, 0.70, 0.20], [0.95, 0.55, 0.00],
     [0.60, 0.20, 0.85], [0.00, 0.70, 0.75], [0.85, 0.15, 0.60], [0.55, 0.45, 0.10],
@@ -73,8 +70,7 @@ def heading_deg(vector: np.ndarray) -> float:
 
 
 def _finite(name: str, value, shape: tuple, wrong_shape: str) -> np.ndarray:
-    """``value`` as a float64 array of ``shape``; SinkInputError ``wrong_shape`` (formatted
-    with the shape found) for another shape, naming ``name`` for a NaN or infinite value."""
+    """``value`` as float64 of ``shape``; SinkInputError ``wrong_shape.format(shape found)``."""
     array = np.asarray(value, dtype=np.float64)
     if array.shape != shape:
         raise SinkInputError(wrong_shape.format(array.shape))
@@ -85,8 +81,7 @@ def _finite(name: str, value, shape: tuple, wrong_shape: str) -> np.ndarray:
 
 def check_joints(joints3d: np.ndarray) -> np.ndarray:
     """Pose-joint positions as float64 (18, 3) metres; SinkInputError otherwise."""
-    return _finite("joints3d", joints3d, (N_JOINTS, 3),
-                   f"joints3d must have shape ({N_JOINTS}, 3) metres, got {{}}")
+    return _finite("joints3d", joints3d, (18, 3), "joints3d must have shape (18, 3) metres, got {}")
 
 
 def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
@@ -121,8 +116,7 @@ def known_novelty(value) -> float | None:
 
 
 def _number(value, high: float, must: str) -> float:
-    """``value``, one real number (int or float, not a bool), as a float in [0, high];
-    SinkInputError "``must``, got ``value``" otherwise (NaN, infinite, out of range)."""
+    """A real number (not a bool) in [0, high] as a float; SinkInputError "must, got value"."""
     try:
         real = isinstance(value, (int, float, np.integer, np.floating)) \
             and not isinstance(value, (bool, np.bool_))
@@ -145,8 +139,7 @@ def checked_time(value) -> float:
 
 
 def is_unfamiliar(novelty: float | None) -> bool:
-    """Whether a novelty says the silhouette is unlike the training ones: above
-    UNFAMILIAR_NOVELTY; False when unknown (None or NaN). TrackedPose.unfamiliar's rule."""
+    """TrackedPose.unfamiliar's rule: novelty above UNFAMILIAR_NOVELTY (False when unknown)."""
     return novelty is not None and novelty > UNFAMILIAR_NOVELTY
 
 
@@ -159,21 +152,15 @@ def pose_joints_m(vectors: np.ndarray, template=None, root_position_m: np.ndarra
 
 
 def y_up_to_z_up(points: np.ndarray) -> np.ndarray:
-    """Points (..., 3) turned from the Y-up motion-capture frame to a Z-up viewer frame: +90
-    degrees about X, (x, y, z) -> (x, -z, y); the camera then looks along +Y."""
+    """Points (..., 3) Y-up turned to a Z-up viewer's frame: (x, y, z) -> (x, -z, y)."""
     p = np.asarray(points, dtype=np.float64)
     return np.stack([p[..., 0], -p[..., 2], p[..., 1]], axis=-1)
 
 
-def ground_position_from_image(
-    centroid_px: np.ndarray,
-    bbox_height_px: np.ndarray,
-    frame_width_px: int,
-    frame_height_px: int,
-    person_height_m: float = 1.7,
-    focal_px: float | None = None,
-    hip_height_m: float = 0.95,
-) -> np.ndarray:
+def ground_position_from_image(centroid_px: np.ndarray, bbox_height_px: np.ndarray,
+                               frame_width_px: int, frame_height_px: int,
+                               person_height_m: float = 1.7, focal_px: float | None = None,
+                               hip_height_m: float = 0.95) -> np.ndarray:
     """Approximate root (hip) positions (..., 3) metres from the centroids (..., 2) pixels (x
     right, y down) and silhouette heights bbox_height_px (...,) pixels (> 0), for a pinhole
     camera at the origin looking along -Z with focal length f = focal_px (default: an assumed

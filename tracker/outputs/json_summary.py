@@ -1,9 +1,6 @@
 """JSON summary of a tracking run, for scripts: frames, speed, and per track its frames,
-centroids, headings, ambiguity flags, novelty and poses (docs/code_notes/outputs.md gives the
-layout, format version 1, field by field).
-
-Written to a locked ``PATH.partial`` renamed onto PATH once complete (files.OutputFile).
-"""
+centroids, headings, ambiguity, novelty and poses (layout: docs/code_notes/outputs.md), written
+to a locked ``PATH.partial`` renamed onto PATH once complete (files.OutputFile)."""
 from __future__ import annotations
 
 import json
@@ -72,8 +69,7 @@ class JsonSummarySink:
         runner_up = None
         if getattr(pose, "runner_up", None) is not None:
             alt = check_pose("runner_up55", pose.runner_up)
-            probability = checked_probability("runner_up_probability",
-                                              pose.runner_up_probability)
+            probability = checked_probability("runner_up_probability", pose.runner_up_probability)
             runner_up = {"frame": frame_index, "probability": round(probability, _DECIMALS),
                          "heading_deg": heading_deg(alt),
                          "pose": np.round(alt, _DECIMALS).tolist()}
@@ -101,14 +97,11 @@ class JsonSummarySink:
             track = self._tracks[track_id]
             heading = np.radians(track["heading_deg"])
             mean = math.degrees(math.atan2(np.sin(heading).mean(), np.cos(heading).mean()))
-            tracks.append({
-                "id": track_id, "first_frame": track["frames"][0],
-                "last_frame": track["frames"][-1], "n_frames": len(track["frames"]),
-                **track,
-                "ambiguous_frames": int(sum(track["ambiguous"])),
-                "unfamiliar_frames": self._unfamiliar.get(track_id, 0),
-                "heading_mean_deg": round(mean, _DECIMALS),
-            })
+            tracks.append({"id": track_id, "first_frame": track["frames"][0],
+                           "last_frame": track["frames"][-1], "n_frames": len(track["frames"]),
+                           **track, "ambiguous_frames": int(sum(track["ambiguous"])),
+                           "unfamiliar_frames": self._unfamiliar.get(track_id, 0),
+                           "heading_mean_deg": round(mean, _DECIMALS)})
         return {"format": FORMAT, "version": VERSION, "frames": frames,
                 "fps": round(frames / wall, 3) if wall > 0 else 0.0,
                 "video_fps": self.video_fps, "wall_time_s": round(wall, 3),

@@ -1,15 +1,8 @@
-"""MCAP recording of tracked poses, openable as is in Foxglove (JSON messages, JSON schemas).
-
-Channels (README, Outputs): ``/pose`` (per track per frame), ``/skeleton`` (a
-``foxglove.SceneUpdate`` per frame with people: bodies, Z-up metres, and every TRAIL_EVERY
-frames the pelvis trails), with --smooth ``/smoothed/pose`` and ``/smoothed/skeleton`` (written
-at the end: :meth:`McapSink.smoothed_channel`), and metadata. Times are the video's own.
-
-Crash safety: small compressed chunks (closed at least every ``flush_every_frames`` frames) go
-to the operating system at once, so a killed process leaves its finished chunks intact
-(``tracker.outputs.mcap_repair``). The file is ``PATH.partial`` (files.OutputFile) until
-``close()`` (on leaving a ``with`` block, else at interpreter exit) renames it onto PATH.
-"""
+"""MCAP recording of tracked poses for Foxglove (JSON messages and schemas; README, Outputs):
+``/pose``, ``/skeleton`` (foxglove.SceneUpdate: bodies and pelvis trails, Z-up metres), with
+smoothing ``/smoothed/pose`` and ``/smoothed/skeleton`` written at the end; video times. Small
+chunks, closed every ``flush_every_frames`` frames, survive a kill (mcap_repair); the file is
+``PATH.partial`` (files.OutputFile) until close() (or interpreter exit) renames it onto PATH."""
 from __future__ import annotations
 
 import functools
@@ -47,28 +40,23 @@ TRAIL_S, TRAIL_EVERY = 8.0, 10
 SKELETON_LIFETIME_S, TRAIL_LIFETIME_S = 1.0, 3.0
 _DECIMALS = 6  # JSON rounding: 1e-6 degrees or units is far below any estimate's accuracy
 _GEOMETRY_DECIMALS = 3   # 1 mm and 1e-3 of a quaternion: below what a drawing shows
+_NO_TURN = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}    # the identity quaternion
 
 
 @functools.cache
 def _schemas() -> dict[str, bytes]:
     """The channels' JSON schemas by name, as written: mcap_schemas.json (every field required,
     as we always set it), each ``PoseValues`` object given the 55 pose-vector names."""
-    schemas = json.loads(Path(__file__).with_name("mcap_schemas.json").read_text("utf-8"))
     names = pose_vector_names()
 
-    def fill(node) -> None:
-        if isinstance(node, dict):
-            if node.get("title") == "PoseValues":
-                node["properties"] = {name: {"type": "number"} for name in names}
-                node["required"] = list(names)
-        for child in node.values() if isinstance(node, dict) else node:
-            if isinstance(child, (dict, list)):
-                fill(child)
-    fill(schemas)
-    return {name: _to_bytes(schema) for name, schema in schemas.items()}
+    def fill(node: dict) -> dict:
+        if node.get("title") == "PoseValues":
+            node.update(properties={name: {"type": "number"} for name in names},
+                        required=list(names))
+        return node
+    text = Path(__file__).with_name("mcap_schemas.json").read_text("utf-8")
+    return {name: _to_bytes(schema) for name, schema in json.loads(text, object_hook=fill).items()}
 
-
-# ---------------------------------------------------------------- message builders
 
 def _timestamp(time_ns: int) -> dict:
     """A foxglove time or duration {sec, nsec} of ``time_ns`` nanoseconds."""
@@ -87,18 +75,6 @@ def _colour_dicts(rgb: np.ndarray, alpha) -> list[dict]:
     return [{"r": r, "g": g, "b": b, "a": a} for r, g, b, a in np.round(rgba, 3).tolist()]
 
 
-def _z_to(directions: np.ndarray) -> np.ndarray:
-    """Quaternions (N, 4) (x, y, z, w) turning +Z onto the unit vectors ``directions`` (N, 3)
-    (a foxglove cylinder's axis is its local Z)."""
-    x, y, z = directions.T
-    q = np.column_stack([-y, x, np.zeros_like(x), 1.0 + z])
-    q[q[:, 3] < 1e-9] = [1.0, 0.0, 0.0, 0.0]     # pointing down -Z: half a turn about X
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
-
-
-_NO_TURN = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
-
-
 def _placed(x: float, y: float, z: float, orientation: dict = _NO_TURN) -> dict:
     """A foxglove.Pose at (x, y, z) metres turned by the quaternion ``orientation``."""
     return {"position": {"x": x, "y": y, "z": z}, "orientation": orientation}
@@ -107,7 +83,7 @@ def _placed(x: float, y: float, z: float, orientation: dict = _NO_TURN) -> dict:
 @functools.lru_cache(maxsize=128)
 def _body_style(track_id: int, ambiguous: bool, unfamiliar: bool) -> tuple[list, list, dict, str]:
     """Per bone and per sphere (18 joints, head) colour dicts, the label's colour and text
-    (the same for every frame of a track; shared by its messages, which are only read)."""
+    (shared by a track's messages, which are only read)."""
     colours = body_colours(track_id)
     alpha = AMBIGUOUS_ALPHA if ambiguous else 1.0
     r, g, b = track_colour(track_id)
@@ -127,12 +103,11 @@ def _entity(kind: str, track_id: int, time_ns: int, lifetime_s: float, metadata:
 
 
 def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool,
-                    unfamiliar: bool = False) -> dict:
+                    unfamiliar: bool) -> dict:
     """A ``foxglove.SceneEntity`` ``track-<id>``: the body of joints3d (18, 3) metres, Y-up, as
     the live view draws it (bone cylinders, joint spheres, head, label; ambiguous translucent)."""
     joints = y_up_to_z_up(joints3d)
-    bone_colours, sphere_colours, label_colour, text = _body_style(int(track_id), bool(ambiguous),
-                                                                   bool(unfamiliar))
+    bone_colours, sphere_colours, label_colour, text = _body_style(track_id, ambiguous, unfamiliar)
     starts, ends = joints[BONE_INDEX[:, 0]], joints[BONE_INDEX[:, 1]]
     vectors = ends - starts
     lengths = np.sqrt(np.einsum("ij,ij->i", vectors, vectors))
@@ -140,8 +115,12 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
     neck_to_head = joints[3] - joints[2]
     head = joints[3] + HEAD_DIAMETER_M / 2 * neck_to_head / max(np.linalg.norm(neck_to_head), 1e-9)
     label = [head[0], head[1], joints[:, 2].max() + 0.35]
-    axes = vectors[keep] / lengths[keep, None]
-    bones = np.round(np.column_stack([((starts + ends) / 2)[keep], _z_to(axes), lengths[keep]]),
+    dx, dy, dz = (vectors[keep] / lengths[keep, None]).T
+    # Quaternions (x, y, z, w) turning +Z (a foxglove cylinder's axis) onto the bones' axes.
+    q = np.column_stack([-dy, dx, np.zeros_like(dx), 1.0 + dz])
+    q[q[:, 3] < 1e-9] = [1.0, 0.0, 0.0, 0.0]     # pointing down -Z: half a turn about X
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    bones = np.round(np.column_stack([((starts + ends) / 2)[keep], q, lengths[keep]]),
                      _GEOMETRY_DECIMALS).tolist()       # rows: centre x y z, quaternion, length
     points = np.round(np.vstack([joints, head, label]), _GEOMETRY_DECIMALS).tolist()
     thick = BONE_THICKNESS_M
@@ -152,8 +131,8 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
     diameters = [JOINT_DIAMETER_M] * len(joints) + [HEAD_DIAMETER_M]
     spheres = [{"pose": _placed(x, y, z), "size": {"x": d, "y": d, "z": d}, "color": colour}
                for (x, y, z), d, colour in zip(points, diameters, sphere_colours)]
-    flags = [{"key": "ambiguous", "value": str(bool(ambiguous)).lower()},
-             {"key": "unfamiliar", "value": str(bool(unfamiliar)).lower()}]
+    flags = [{"key": key, "value": str(on).lower()}
+             for key, on in (("ambiguous", ambiguous), ("unfamiliar", unfamiliar))]
     texts = [{"pose": _placed(*points[-1]), "billboard": True, "font_size": 0.15,
               "scale_invariant": False, "color": label_colour, "text": text}]
     return _entity("track", track_id, time_ns, SKELETON_LIFETIME_S, flags,
@@ -162,9 +141,8 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
 
 
 def trail_entity(track_id: int, time_ns: int, path_m: np.ndarray, ages: np.ndarray) -> dict:
-    """A ``foxglove.SceneEntity`` ``trail-<id>``: a track's pelvis path on the ground, path_m
-    (N, 2) Z-up world metres, as a line strip in the track colour fading with ages (N,) in
-    [0, 1] (0 = newest, opaque; 1 = oldest, transparent)."""
+    """A ``foxglove.SceneEntity`` ``trail-<id>``: the pelvis path path_m (N, 2) Z-up metres on the
+    ground, in the track colour fading with ages (N,) in [0, 1] (0 newest, 1 oldest: clear)."""
     points = np.round(np.column_stack([path_m, np.full(len(path_m), 0.005)]), _DECIMALS)
     rgb = np.tile(track_colour(track_id), (len(points), 1))
     line = {"type": 0, "pose": _placed(0.0, 0.0, 0.0), "thickness": TRAIL_THICKNESS_M,
@@ -182,19 +160,9 @@ def _to_bytes(message: dict) -> bytes:
 
 
 def _frame_bytes(message: dict) -> bytes:
-    """A per-frame message as compact JSON by orjson: the JSON of :func:`_to_bytes`, faster;
-    every number was checked finite before (docs/code_notes/outputs.md)."""
+    """:func:`_to_bytes`' JSON by orjson, faster; numbers checked finite before (code_notes)."""
     return orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY)
 
-
-def _metadata_strings(name: str, values: Mapping[str, object]) -> dict[str, str]:
-    """MCAP metadata is str -> str: strings stay, anything else is written as JSON."""
-    if not isinstance(values, Mapping):
-        raise SinkInputError(f"metadata {name!r} must be a mapping, got {type(values).__name__}")
-    return {str(k): v if isinstance(v, str) else json.dumps(v) for k, v in values.items()}
-
-
-# ---------------------------------------------------------------- the sink
 
 def _finish(state: dict) -> None:
     """Write summary and footer and rename, once; on failure keep the partial for recover_mcap."""
@@ -220,16 +188,6 @@ class _SceneStream:
         self.entities: dict[int, dict] = {}
         self.shown: set[int] = set()
 
-    def check(self, frame_index: int, track_id: int) -> None:
-        """SinkInputError unless track track_id of frame frame_index may come next."""
-        if frame_index < 0 or track_id < 0:
-            raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
-                                 f"{track_id}")
-        if self.frame is not None and frame_index < self.frame:
-            raise SinkInputError(f"frame_index went backwards: {frame_index} after {self.frame}")
-        if frame_index == self.frame and track_id in self.entities:
-            raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
-
 
 class McapSink:
     """Record tracked poses and skeletons into the MCAP file ``path`` (module docstring).
@@ -248,8 +206,12 @@ class McapSink:
         self._state = {"writer": writer, "stream": stream, "done": False}
         try:
             writer.start(profile="", library="silhouette-pose tracker")
-            for name, values in (metadata or {}).items():
-                writer.add_metadata(str(name), _metadata_strings(str(name), values))
+            for name, values in (metadata or {}).items():   # str -> str: others as JSON
+                if not isinstance(values, Mapping):
+                    raise SinkInputError(f"metadata {str(name)!r} must be a mapping, got "
+                                         f"{type(values).__name__}")
+                writer.add_metadata(str(name), {str(k): v if isinstance(v, str) else json.dumps(v)
+                                                for k, v in values.items()})
             pose_schema = self._schema("silhouette_pose.TrackedPose")
             self._scene_schema = self._schema("foxglove.SceneUpdate")
             self._pose_channel = writer.register_channel("/pose", "json", pose_schema)
@@ -263,8 +225,7 @@ class McapSink:
         self._scenes = _SceneStream(scene_channel)    # /skeleton's frame being collected
         self._frames_since_flush = 0
         self._trails: dict[int, deque] = {}   # track id -> (time s, x, y) of its root
-        # /smoothed/skeleton's; its channels are registered by the first write_smoothed.
-        self._smoothed = _SceneStream(None)
+        self._smoothed = _SceneStream(None)   # channels registered by the first write_smoothed
         self._smoothed_pose_channel: int | None = None
 
     def _schema(self, name: str) -> int:
@@ -287,12 +248,18 @@ class McapSink:
         time_s = checked_time(pose.time_s)
         novelty = known_novelty(getattr(pose, "novelty", None))
         frame_index, track_id = int(pose.frame_index), int(pose.track_id)
-        scenes.check(frame_index, track_id)
+        if frame_index < 0 or track_id < 0:
+            raise SinkInputError(f"frame_index and track_id must be >= 0, got {frame_index}, "
+                                 f"{track_id}")
+        if scenes.frame is not None and frame_index < scenes.frame:
+            raise SinkInputError(f"frame_index went backwards: {frame_index} after {scenes.frame}")
+        if frame_index == scenes.frame and track_id in scenes.entities:
+            raise SinkInputError(f"track {track_id} written twice in frame {frame_index}")
         return frame_index, track_id, time_s, novelty, joints, *vectors
 
     def write(self, pose: TrackedPose) -> None:
-        """Record one track in one frame (frames in non-decreasing order; joints_m drawn as
-        given); SinkInputError on bad input, when closed or after write_smoothed."""
+        """Record one track in one frame (frames in order); SinkInputError if bad, closed or
+        after write_smoothed."""
         if self._smoothed.channel is not None and not self.closed:
             raise SinkInputError("poses streamed after the smoothed tracks: the stream is over")
         scenes = self._scenes
@@ -313,7 +280,7 @@ class McapSink:
                 "runner_up_probability", pose.runner_up_probability), 4)
         # Everything is checked: only now does the sink's state change.
         if frame_index != scenes.frame:
-            self._write_scene()
+            self._write_update(scenes)
             scenes.frame, scenes.frame_ns = frame_index, time_ns
         self._add(self._pose_channel, time_ns, message)
         scenes.entities[track_id] = skeleton_entity(track_id, time_ns, joints,
@@ -337,7 +304,7 @@ class McapSink:
         frame_index, track_id, time_s, novelty, joints, smoothed = self._checked(
             pose, scenes, "smoothed")
         if scenes.channel is None:
-            self._write_scene()          # the streamed frames' last scene goes first
+            self._write_update(self._scenes)   # the streamed frames' last scene goes first
             self._scenes.frame = None    # and the stream is over (write() refuses more)
             writer = self._state["writer"]
             self._smoothed_pose_channel = writer.register_channel(
@@ -347,7 +314,7 @@ class McapSink:
         time_ns = int(round(time_s * 1e9))
         joints = pose_joints_m(smoothed[None], root_position_m=joints[:1])[0]
         if frame_index != scenes.frame:
-            self._write_update(scenes, ("track",))
+            self._write_update(scenes)
             scenes.frame, scenes.frame_ns = frame_index, time_ns
         self._add(self._smoothed_pose_channel, time_ns, {
             "timestamp": _timestamp(time_ns), "frame_index": frame_index,
@@ -359,47 +326,41 @@ class McapSink:
         self._state["writer"].add_message(channel, log_time=time_ns,
                                           data=_frame_bytes(message), publish_time=time_ns)
 
-    def _write_scene(self) -> None:
-        """Write /skeleton's frame: trails every TRAIL_EVERY frames, tracks gone deleted."""
-        scenes = self._scenes
+    def _write_update(self, scenes: _SceneStream) -> None:
+        """Write the SceneUpdate of a skeleton topic's frame, if any: bodies, tracks gone deleted;
+        on /skeleton also trails every TRAIL_EVERY frames, the chunk closed every flush_every."""
         if scenes.frame is None:
             return
-        trails = ([self._trail(t) for t in sorted(scenes.entities) if len(self._trails[t]) >= 2]
-                  if scenes.frame % TRAIL_EVERY == 0 else [])
-        for track_id in self._write_update(scenes, ("track", "trail"), trails):
-            self._trails.pop(track_id, None)
-        self._frames_since_flush += 1
-        if self._frames_since_flush >= self._flush_every:
-            self._state["writer"].flush()  # closes the chunk: it is now safe from a crash
-            self._frames_since_flush = 0
-
-    def _write_update(self, scenes: _SceneStream, kinds: tuple[str, ...],
-                      extra: list = ()) -> list[int]:
-        """Write the SceneUpdate of a topic's frame, if any (entities, then ``extra``; tracks now
-        gone deleted as ``<kind>-<track>`` of kinds), start the next; returns the gone tracks."""
-        if scenes.frame is None:
-            return []
+        streamed = scenes is self._scenes
+        kinds = ("track", "trail") if streamed else ("track",)
+        trails = []
+        for t in sorted(scenes.entities) if streamed and scenes.frame % TRAIL_EVERY == 0 else ():
+            if len(self._trails[t]) >= 2:
+                samples = np.array(self._trails[t])[::-1][::3][::-1]   # every 3rd, newest kept
+                ages = (samples[-1, 0] - samples[:, 0]) / TRAIL_S
+                trails.append(trail_entity(t, scenes.frame_ns, samples[:, 1:], ages))
         stamp = _timestamp(scenes.frame_ns)
         gone = sorted(scenes.shown - set(scenes.entities))
         self._add(scenes.channel, scenes.frame_ns, {
             "deletions": [{"timestamp": stamp, "type": 0, "id": f"{kind}-{t}"}
                           for t in gone for kind in kinds],
-            "entities": [scenes.entities[t] for t in sorted(scenes.entities)] + list(extra)})
+            "entities": [scenes.entities[t] for t in sorted(scenes.entities)] + trails})
         scenes.shown, scenes.entities = set(scenes.entities), {}
-        return gone
-
-    def _trail(self, track_id: int) -> dict:
-        samples = np.array(self._trails[track_id])[::-1][::3][::-1]   # every 3rd, newest kept
-        ages = (samples[-1, 0] - samples[:, 0]) / TRAIL_S
-        return trail_entity(track_id, self._scenes.frame_ns, samples[:, 1:], ages)
+        if streamed:
+            for t in gone:
+                self._trails.pop(t, None)
+            self._frames_since_flush += 1
+            if self._frames_since_flush >= self._flush_every:
+                self._state["writer"].flush()  # closes the chunk: it is now safe from a crash
+                self._frames_since_flush = 0
 
     def close(self) -> None:
         """Write the last frame's scene, the summary and the footer; idempotent."""
         if self.closed:
             return
         try:
-            self._write_scene()
-            self._write_update(self._smoothed, ("track",))
+            self._write_update(self._scenes)
+            self._write_update(self._smoothed)
         finally:
             self._finalizer.detach()
             _finish(self._state)
@@ -422,9 +383,8 @@ class McapSink:
 
 
 class SmoothedChannel:
-    """The Sink ``track_video`` feeds smoothed tracks, writing them into an McapSink. After a
-    Ctrl-C the run feeds the filtered poses instead, saying so (pose_kind = "filtered"): those
-    are in the file already. Closing it closes nothing: the McapSink closes with the others."""
+    """The Sink ``track_video`` feeds smoothed tracks, for an McapSink's smoothed topics; after
+    a Ctrl-C (pose_kind "filtered") it writes nothing: the filtered poses are in the file."""
 
     def __init__(self, sink: McapSink):
         self.sink = sink
@@ -438,4 +398,4 @@ class SmoothedChannel:
         """Nothing: smoothed frames arrive at the end, in order."""
 
     def close(self) -> None:
-        """Nothing: see the class docstring."""
+        """Nothing: the McapSink closes with the other sinks."""

@@ -3,7 +3,7 @@
 The page shows each track's body (bone cylinders, joint spheres, head) in its side colours
 (geometry.body_colours, so a left/right swap shows), labelled "track N", translucent when
 ambiguous, with a faint ghost of a close runner-up hypothesis; each pelvis path as a ribbon
-fading over ``trail_s`` seconds; the video beside the people, each silhouette outlined
+fading over TRAIL_S seconds; the video beside the people, each silhouette outlined
 (video_panel.py); and a camera placed as the video camera is, following the people
 (framing.py: the scene is shifted so the people stay in the middle and the orbit controls
 stay the user's).
@@ -57,6 +57,9 @@ GROUND_COLOUR, GRID_COLOUR, BEZEL_COLOUR = 0xE4E6EA, 0xB4B8C0, 0x1F2938
 _GROUND_RGB = np.array([0xE4, 0xE6, 0xEA]) / 255.0
 _LABEL_SIZE_M = (0.8, 0.2)
 _TRAIL_WIDTH_M = 0.07
+#: Seconds of pelvis path drawn; screen updates a second and the width (pixels) of the frame's
+#: copy sent for it.
+TRAIL_S, SCREEN_FPS, SCREEN_WIDTH_PX = 8.0, 5.0, 256
 
 
 class ViewLostWarning(UserWarning):
@@ -149,16 +152,12 @@ class MeshcatView:
     video time after the first (play at the video's own speed), from a thread of its own up to
     a second of video behind the writes (tracker.outputs.playout: a pause of the tracking loop
     does not pause the view; close() plays out what is left, discard() drops it).
-    video_fps: screen updates a second (0: no screen); video_width_px: width of the copy of
-    the frame sent. trail_s: seconds of pelvis path drawn; trail_every: redraw each trail
-    every this many frames.
-    framing: a framing.Framing (default: the tracker's assumed field of view, 4:3).
-    Attributes: web_url (open it in a browser); frames_drawn.
+    trail_every: redraw each trail every this many frames. Attributes: web_url (open it in a
+    browser); frames_drawn; framing (framing.Framing: the tracker's assumed field of view, 4:3).
     """
 
     def __init__(self, server: ViewerServer | None = None, print_url: bool = True,
-                 realtime: bool = False, video_fps: float = 5.0, video_width_px: int = 256,
-                 trail_s: float = 8.0, trail_every: int = 5, framing: Framing | None = None):
+                 realtime: bool = False, trail_every: int = 5):
         import meshcat  # deferred: it pulls in IPython and PIL, needed only for the live view
         import meshcat.geometry
 
@@ -166,7 +165,7 @@ class MeshcatView:
         self._owns_server = server is None
         self.server = ViewerServer() if server is None else server
         self.web_url = self.server.web_url
-        self.framing = framing or Framing()
+        self.framing = Framing()
         self._frame: int | None = None
         self._last_frame: dict[int, int] = {}  # track id -> last frame it was drawn in
         self._labels: dict[int, str] = {}      # track id -> label text on screen
@@ -182,10 +181,8 @@ class MeshcatView:
         # warnings go through it; the player only sets _lost), and not after a stop
         # (discard()), which the command is ending anyway.
         self._warned = self._discarded = False
-        self._video_interval_s = 1.0 / video_fps if video_fps > 0 else float("inf")
-        self._video_width_px = int(video_width_px)
         self._last_screen_s = -float("inf")
-        self._trail_s, self._trail_every = float(trail_s), max(1, int(trail_every))
+        self._trail_every = max(1, int(trail_every))
         self.frames_drawn = 0
         try:
             with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL itself
@@ -207,8 +204,6 @@ class MeshcatView:
             self._player = Player(name="meshcat-view")
         if print_url:
             print(f"meshcat viewer: {self.web_url}")
-
-    # ------------------------------------------------------------ scene set-up
 
     def _set_stage(self) -> None:
         """Light background, our own ground (it moves with the people group), the camera."""
@@ -257,8 +252,6 @@ class MeshcatView:
     def closed(self) -> bool:
         """True after close()."""
         return self._closed
-
-    # ------------------------------------------------------------ per frame
 
     def write(self, pose: TrackedPose) -> None:
         """Draw track ``pose.track_id`` at pose.joints_m (18, 3) metres (Y up); with
@@ -323,7 +316,7 @@ class MeshcatView:
         self._draw_ghost(node["ghost"], track_id, pose)
         trail = self._trails.setdefault(track_id, deque())
         trail.append((float(pose.time_s), joints[0, 0], joints[0, 1]))
-        while trail and trail[0][0] < pose.time_s - self._trail_s:
+        while trail and trail[0][0] < pose.time_s - TRAIL_S:
             trail.popleft()
         if frame_index % self._trail_every == 0:
             self._draw_trail(track_id, trail)
@@ -368,7 +361,7 @@ class MeshcatView:
         if len(trail) < 2:
             return
         samples = np.array(trail)
-        ages = (samples[-1, 0] - samples[:, 0]) / self._trail_s
+        ages = (samples[-1, 0] - samples[:, 0]) / TRAIL_S
         vertices, faces, colours = trail_ribbon(smooth_path(samples[:, 1:], 9), ages,
                                                 track_colour(track_id))
         g = self._g
@@ -398,16 +391,16 @@ class MeshcatView:
     def write_frame(self, frame_index: int, time_s: float, frame: np.ndarray,
                     people: Mapping[int, PersonMask]) -> None:
         """Show the video frame (BGR uint8 (H, W, 3)) with its people's outlines, if
-        1 / video_fps seconds of video have passed since the last one shown; with
+        1 / SCREEN_FPS seconds of video have passed since the last one shown; with
         ``realtime``, not before its video time."""
         if self._closed:
             raise SinkInputError("meshcat view is closed")
-        if time_s - self._last_screen_s < self._video_interval_s:
+        if time_s - self._last_screen_s < 1.0 / SCREEN_FPS:
             return
         self._last_screen_s = time_s
         # The small copy is made here: the player holds it, not the frame (which the caller
         # may reuse).
-        self._play(time_s, self._draw_screen, panel_image(frame, people, self._video_width_px))
+        self._play(time_s, self._draw_screen, panel_image(frame, people, SCREEN_WIDTH_PX))
 
     def _draw_screen(self, panel: np.ndarray) -> None:
         g = self._g

@@ -1,5 +1,5 @@
 """Output files written in one go, whole or not at all (BVH files, scripts' outputs), and the
-lock of a set of them; the rules of tracker.outputs.files (partial names, set_aside)."""
+lock of a set of them; the rules of tracker.outputs.files (partial names, aside.set_aside)."""
 from __future__ import annotations
 
 import contextlib
@@ -7,8 +7,9 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
+from tracker.outputs.aside import set_aside
 from tracker.outputs.files import (PARTIAL_SUFFIX, OutputWriteError, open_locked, partial_path,
-                                   set_aside, sync_folder)
+                                   sync_folder)
 
 
 def write_beside(path: str | Path, write: Callable[[Path], None],
@@ -55,9 +56,15 @@ def write_whole(path: str | Path, write: Callable[[Path], None],
             raise OutputWriteError(f"{path}: {exc.strerror or exc}", path) from None
         return
     target = Path(os.path.realpath(path))
-    partial = (target.with_name(f"{target.stem}{PARTIAL_SUFFIX}{target.suffix}")
-               if keep_suffix else None)
-    write_beside(target, write, partial)
+    write_beside(target, write, temporary_names(target)[1] if keep_suffix else None)
+
+
+def temporary_names(path: str | Path) -> tuple[Path, Path]:
+    """The two names write_whole may write the file ``path`` names (a symlink followed) under
+    until it is complete: ``NAME.partial`` and, with keep_suffix, ``STEM.partial.SUFFIX``. A
+    script refuses an output whose temporary name is one of its inputs (it would be set aside)."""
+    target = Path(os.path.realpath(path))
+    return partial_path(target), target.with_name(f"{target.stem}{PARTIAL_SUFFIX}{target.suffix}")
 
 
 class LockFile:
