@@ -38,12 +38,13 @@ class OneLineParser(cli.OneLineParser):
         (option or description, path or None) pairs, e.g. [("--json", args.json)] and
         [("--model", args.model)]; None entries are skipped. An output may not be a folder,
         the folder of the file it names (a symlink followed) must exist and be writable (but
-        for /dev/null and the like, written in place: tracker.outputs.files.write_whole), and
+        for /dev/null and the like, written in place: tracker.outputs.whole_files.write_whole), and
         it may not be the same file as an input or another output, also through a relative
         path, a symlink or a hard link. Inputs that are one another (a folder of links) are
         no conflict. Exits as error() does."""
         # deferred: numpy
-        from tracker.outputs.files import PARTIAL_SUFFIX, file_identity, partial_path
+        from tracker.outputs.files import file_identity
+        from tracker.outputs.whole_files import temporary_names
         seen = {}
         for what, path in inputs:
             if path is not None:
@@ -68,8 +69,7 @@ class OneLineParser(cli.OneLineParser):
                            f"another file name (nothing was written)")
             # Nor may the temporary names it is written under (write_whole's two forms) be
             # an input: a file found there is moved aside before writing.
-            for temporary in (partial_path(target), target.with_name(
-                    f"{target.stem}{PARTIAL_SUFFIX}{target.suffix}")):
+            for temporary in temporary_names(target):
                 other = seen.get(file_identity(temporary))
                 if other is not None:
                     self.error(f"{what} {path} is written as {temporary} until complete, which "
