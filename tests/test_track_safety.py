@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
+from lab.crossings import read_frames
 from regressor.pose_model import load_pose_model
 from sequences.video import Actor, write_video
 from tests.test_track_cli import (_assert_one_line_error, _noise_video, _track, _track_process,
@@ -482,14 +483,7 @@ def test_a_start_past_what_decodes_is_one_line_naming_the_file(tmp_path):
 def test_black_frames_before_the_scene_are_no_background_and_no_person(tmp_path, walk):
     """80 black frames, then the walk: the background had been learned black, so every
     frame's "person" was the whole image; a black frame inside made one such pose too."""
-    capture = cv2.VideoCapture(str(walk))
-    frames = []
-    while True:
-        ok, frame = capture.read()
-        if not ok:
-            break
-        frames.append(frame)
-    capture.release()
+    frames = list(read_frames(walk))
     black = np.zeros_like(frames[0])
     frames[20] = black                                          # a glitch inside the walk
     path = tmp_path / "fade.mp4"
