@@ -14,6 +14,7 @@ Output: the most probable state's filtered pose, or the Viterbi path RTS-smoothe
 from __future__ import annotations
 
 import copy
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -150,6 +151,14 @@ def transition_matrix(K: int, switch=SWITCH_PROBABILITY) -> np.ndarray:
     return np.kron(np.full((m, m), 1.0 / m), flip)
 
 
+@functools.lru_cache(maxsize=32)
+def _log_transitions(K: int, switch: tuple[float, float]) -> np.ndarray:
+    """log transition_matrix(K, switch), made once per (K, switch) (read-only: shared)."""
+    log_A = np.log(transition_matrix(K, switch))
+    log_A.flags.writeable = False
+    return log_A
+
+
 @dataclass
 class Decision:
     """One frame's most probable state's filtered pose (55,), ambiguous flag, index and
@@ -199,7 +208,7 @@ class FrontBackTracker:
         K = len(poses)
         rate = self.frame_rate_ratio
         evidence = rate * self.evidence_weight * hypotheses.log_evidence
-        log_A = np.log(transition_matrix(K, self.frame_switch))
+        log_A = _log_transitions(K, self.frame_switch)
         if self.log_alpha is None or len(self.filters) != K:
             self.filters = [self.filter_factory(self.fps) for _ in range(K)]
             self.log_alpha, link = _log_stationary(log_A) + evidence, None
@@ -263,7 +272,7 @@ class FrontBackTracker:
         frames = self.history[start:stop]
         if not frames:
             return np.zeros(0, dtype=np.int64)
-        log_A = np.log(transition_matrix(len(frames[0].poses), self.frame_switch))
+        log_A = _log_transitions(len(frames[0].poses), self.frame_switch)
         delta = _log_stationary(log_A) + frames[0].evidence
         back = []
         for frame in frames[1:]:
