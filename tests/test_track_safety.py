@@ -357,16 +357,32 @@ def test_the_command_module_imports_only_the_standard_library():
     assert out.strip() == "[]"
 
 
+def _wait_for_mapped(proc: subprocess.Popen, name: str, timeout: float = 30.0) -> bool:
+    """Wait until the child process has a file whose path holds ``name`` mapped (Linux /proc):
+    True when it has, False if the process ended or the time ran out first."""
+    maps, end = Path(f"/proc/{proc.pid}/maps"), time.monotonic() + timeout
+    while proc.poll() is None and time.monotonic() < end:
+        with contextlib.suppress(OSError):
+            if name in maps.read_text():
+                return True
+        time.sleep(0.002)
+    return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="needs Linux's /proc")
 def test_ctrl_c_during_start_up_gives_no_traceback(tmp_path, walk):
-    """Case 7: while numpy, OpenCV and the model are imported (a real process). The first
-    ~0.1 s is Python's own start-up (site), before any of our code runs. Exit 130; or death
-    by SIGINT (-2, which a shell also reports as 130) when the interrupt passed through an
+    """Case 7: while numpy, OpenCV and the model are imported (a real process). The signal is
+    sent once numpy's extension is mapped (main() imports it after installing its handler):
+    a fixed delay would also land in Python's own start-up on a loaded machine, where CPython's
+    default handler prints its traceback, or the default action kills it silently. Exit 130; or
+    death by SIGINT (-2, which a shell also reports as 130) when the interrupt passed through an
     extension module's initialisation, which makes CPython re-raise it at exit."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    for delay in (0.2, 0.5):
+    for delay in (0.0, 0.2):
         proc = subprocess.Popen([sys.executable, "-m", "tracker.cli", str(walk), "--json",
                                  str(tmp_path / "s.json")], env=env, stderr=subprocess.PIPE,
                                 text=True, cwd=tmp_path)
+        assert _wait_for_mapped(proc, "_multiarray_umath"), "track never imported numpy"
         time.sleep(delay)
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=60)
