@@ -210,3 +210,30 @@ def test_copy_is_independent_and_scoring_leaves_the_state_alone():
         fresh.step(p)
     assert np.array_equal(a.step(poses[10])[0], fresh.step(poses[10])[0])
 
+
+
+def test_copies_share_their_covariance_and_still_filter_as_independent_filters():
+    """A filter and its copies (a track's front/back hypotheses) compute the covariance's
+    prediction, factor and update once; their poses are an independent filter's bit for bit,
+    a different ambiguity parts their covariances, and old covariances are not kept."""
+    import gc
+    import weakref
+    poses = noisy_poses(true_angles(30), std=5.0)
+    flipped = noisy_poses(true_angles(30, seed=4), std=5.0)
+    poses[::5, :2] *= 0.2                       # ambiguous frames: R inflated
+    flipped[::5, :2] *= 0.2
+    a = PoseKalmanFilter(FPS)
+    b = a.copy()                                # before the first step, as FrontBackTracker's
+    lone_a, lone_b = PoseKalmanFilter(FPS), PoseKalmanFilter(FPS)
+    for p, q in zip(poses[:20], flipped[:20]):
+        np.testing.assert_array_equal(a.log_likelihoods([p, q]), lone_a.log_likelihoods([p, q]))
+        assert np.array_equal(a.step(p)[0], lone_a.step(p)[0])
+        assert np.array_equal(b.step(q)[0], lone_b.step(q)[0])
+        assert a._cov is b._cov
+    first = weakref.ref(a._cov)
+    clear, ambiguous = poses[21].copy(), poses[21].copy()
+    ambiguous[:2] *= 0.2
+    a.step(clear), b.step(ambiguous)
+    assert a._cov is not b._cov
+    gc.collect()
+    assert first() is None
