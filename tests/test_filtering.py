@@ -237,3 +237,20 @@ def test_copies_share_their_covariance_and_still_filter_as_independent_filters()
     assert a._cov is not b._cov
     gc.collect()
     assert first() is None
+
+
+def test_scoring_rows_at_once_equals_each_row_alone_and_names_a_bad_row():
+    """log_likelihoods measures its K rows at once: bit for bit each row's own score (an
+    ambiguous row among them), and a non-finite entry refused with its index as step does."""
+    poses = noisy_poses(true_angles(8), std=5.0)
+    kf = PoseKalmanFilter(FPS)
+    for p in poses[:5]:
+        kf.step(p)
+    rows = poses[5:8].copy()
+    rows[1, :2] *= 0.2                                          # ambiguous: inflated R
+    together = kf.log_likelihoods(rows)
+    alone = [kf.log_likelihoods(row[None])[0] for row in rows]
+    np.testing.assert_array_equal(together, alone)
+    rows[2, 7] = np.nan
+    with pytest.raises(FilterError, match=r"non-finite entries at \[7\]"):
+        kf.log_likelihoods(rows)

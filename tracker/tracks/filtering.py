@@ -234,13 +234,25 @@ class PoseKalmanFilter:
         if self._x is None:
             return np.zeros(len(raws))
         x_pred = self._prediction()
+        angles, ambiguous = self._measure_rows(raws)
+        offsets = wrap_deg(angles - x_pred[:N_ANGLES])                  # (K, 54)
         out = np.empty(len(raws))
-        for k, raw in enumerate(raws):
-            angles, _, ambiguous = self._measure(raw)
-            L, logdet = self._factor(ambiguous)
-            w = _lower_solve(L, wrap_deg(angles - x_pred[:N_ANGLES]))
+        for k, flag in enumerate(ambiguous.tolist()):
+            L, logdet = self._factor(flag)
+            w = _lower_solve(L, offsets[k])
             out[k] = float(-0.5 * (w @ w + logdet + N_ANGLES * _LOG_2PI))
         return out
+
+    def _measure_rows(self, raws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """_measure of each raw pose of raws (K, 55) at once -> (angles (K, 54), ambiguous
+        (K,) bool); FilterError naming the first bad row's problem, as _measure's."""
+        if raws.ndim != 2 or raws.shape[1] != POSE_DIM:
+            raise FilterError(f"pose vector must have shape (55,), got {raws.shape[1:]}")
+        finite = np.isfinite(raws)
+        if not finite.all():
+            row = int(np.flatnonzero(~finite.all(axis=1))[0])
+            self._measure(raws[row])                     # raises, naming the entries
+        return pose_angles(raws), heading_norm(raws) < self.ambiguity_threshold
 
     def _prediction(self) -> np.ndarray:
         """x_pred (108,) of the next frame, once."""
