@@ -127,13 +127,21 @@ def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous
         math.sqrt(neck_to_head.dot(neck_to_head)), 1e-9)        # np.linalg.norm's sum
     label = [head[0], head[1], joints[:, 2].max() + 0.35]
     dx, dy, dz = (vectors / lengths[:, None]).T
+    bones = np.empty((len(lengths), 8))     # rows: centre x y z, quaternion, length
+    bones[:, :3], bones[:, 7] = centres, lengths
     # Quaternions (x, y, z, w) turning +Z (a foxglove cylinder's axis) onto the bones' axes.
-    q = np.column_stack([-dy, dx, np.zeros_like(dx), 1.0 + dz])
-    q[q[:, 3] < 1e-9] = [1.0, 0.0, 0.0, 0.0]     # pointing down -Z: half a turn about X
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    bones = np.round(np.column_stack([centres, q, lengths]),
-                     _GEOMETRY_DECIMALS).tolist()       # rows: centre x y z, quaternion, length
-    points = np.round(np.vstack([joints, head, label]), _GEOMETRY_DECIMALS).tolist()
+    q = bones[:, 3:7]
+    np.negative(dy, out=q[:, 0])
+    q[:, 1], q[:, 2] = dx, 0.0
+    np.add(dz, 1.0, out=q[:, 3])
+    down = q[:, 3] < 1e-9
+    if down.any():
+        q[down] = [1.0, 0.0, 0.0, 0.0]      # pointing down -Z: half a turn about X
+    q /= np.sqrt(np.add.reduce(q * q, axis=1, keepdims=True))   # np.linalg.norm's sum
+    bones = np.round(bones, _GEOMETRY_DECIMALS, out=bones).tolist()
+    points = np.empty((len(joints) + 2, 3))     # the joints, the head, the label
+    points[:-2], points[-2], points[-1] = joints, head, label
+    points = np.round(points, _GEOMETRY_DECIMALS, out=points).tolist()
     thick = BONE_THICKNESS_M
     cylinders = [{"pose": {"position": {"x": x, "y": y, "z": z},
                            "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}},
