@@ -10,6 +10,7 @@ learned state ends in ``_``, ``predict`` is pure, ``get_params``/``set_params`` 
 from __future__ import annotations
 
 import inspect
+import weakref
 
 import numpy as np
 
@@ -61,10 +62,29 @@ class Parameters:
         return f"{type(self).__name__}({args})"
 
 
-def squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Squared Euclidean distances, (n, D) x (m, D) -> (n, m), clipped at 0 against round-off."""
-    d2 = (A * A).sum(1)[:, None] + (B * B).sum(1)[None, :] - 2.0 * (A @ B.T)
+def squared_distances(A: np.ndarray, B: np.ndarray, B_squares: np.ndarray | None = None
+                      ) -> np.ndarray:
+    """Squared Euclidean distances, (n, D) x (m, D) -> (n, m), clipped at 0 against round-off.
+    B_squares: (B * B).sum(1) (m,) when the caller keeps it (centre_squares)."""
+    b2 = (B * B).sum(1) if B_squares is None else B_squares
+    d2 = (A * A).sum(1)[:, None] + b2[None, :] - 2.0 * (A @ B.T)
     return np.maximum(d2, 0.0)
+
+
+#: centre_squares' values by estimator: (its centres array, their squares summed); kept out of
+#: the estimators' own attributes (predict leaves them as they are, as scikit-learn asks).
+_CENTRE_SQUARES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def centre_squares(owner: object, centres: np.ndarray) -> np.ndarray:
+    """(centres * centres).sum(1) (M,) of a fitted basis's centres (M, D), kept for ``owner``
+    (an estimator) while its centres are this very array: squared_distances' part that
+    depends on the centres alone, otherwise recomputed on every prediction."""
+    kept = _CENTRE_SQUARES.get(owner)
+    if kept is None or kept[0] is not centres:
+        kept = (centres, (centres * centres).sum(1))
+        _CENTRE_SQUARES[owner] = kept
+    return kept[1]
 
 
 def nearest_columns(d2: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -78,9 +98,11 @@ def nearest_columns(d2: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     return np.take_along_axis(nearest, order, axis=1), np.take_along_axis(near_d2, order, axis=1)
 
 
-def gaussian_design(X: np.ndarray, centres: np.ndarray, width: float) -> np.ndarray:
-    """Gaussian kernel design matrix: (N, D), (M, D) -> (N, M), exp(-||x - c||^2 / width^2)."""
-    return np.exp(-squared_distances(X, centres) / (width * width))
+def gaussian_design(X: np.ndarray, centres: np.ndarray, width: float,
+                    squares: np.ndarray | None = None) -> np.ndarray:
+    """Gaussian kernel design matrix: (N, D), (M, D) -> (N, M), exp(-||x - c||^2 / width^2);
+    squares: the centres' squares summed (M,) (centre_squares), else computed here."""
+    return np.exp(-squared_distances(X, centres, squares) / (width * width))
 
 
 def validate_X(X, n_features: int | None = None, name: str = "X", owner: str = "the model") -> np.ndarray:

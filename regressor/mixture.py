@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import Parameters, gaussian_design, validate_X
+from .basis import Parameters, centre_squares, gaussian_design, validate_X
 
 
 class DampedKernelRegressor(Parameters):
@@ -40,7 +40,8 @@ class DampedKernelRegressor(Parameters):
     def predict(self, X):
         self._check_fitted("coef_")
         X = validate_X(X, self.n_features_in_)
-        return gaussian_design(X, self.centres_, self.width_) @ self.coef_ + self.intercept_
+        Phi = gaussian_design(X, self.centres_, self.width_, centre_squares(self, self.centres_))
+        return Phi @ self.coef_ + self.intercept_
 
 
 class SoftmaxGate(Parameters):
@@ -68,7 +69,8 @@ class SoftmaxGate(Parameters):
         """p(class | x), (N, C), rows summing to 1."""
         self._check_fitted("weights_")
         X = validate_X(X, self.n_features_in_)
-        F = gaussian_design(X, self.centres_, self.width_) - self.feature_mean_
+        F = (gaussian_design(X, self.centres_, self.width_, centre_squares(self, self.centres_))
+             - self.feature_mean_)
         Z = np.hstack([F / self.feature_std_, np.ones((len(F), 1))]) @ self.weights_
         Z -= Z.max(axis=1, keepdims=True)
         P = np.exp(Z)

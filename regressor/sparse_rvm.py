@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import gaussian_design, validate_X
+from .basis import centre_squares, gaussian_design, validate_X
 from .basis_regressor import BasisRegressor
 
 
@@ -63,7 +63,7 @@ class SparseRVMRegressor(BasisRegressor):
         standard deviation of a new observation (same shape, output units), module docstring."""
         self._check_fitted()
         X = validate_X(X, self.n_features_in_, owner=type(self).__name__)
-        Phi = gaussian_design(X, self.centres_, self.width_)
+        Phi = gaussian_design(X, self.centres_, self.width_, centre_squares(self, self.centres_))
         Y = Phi @ self.coef_ + self.intercept_
         if not return_std:
             return Y[:, 0] if self._y_1d else Y

@@ -210,3 +210,47 @@ def test_copy_is_independent_and_scoring_leaves_the_state_alone():
         fresh.step(p)
     assert np.array_equal(a.step(poses[10])[0], fresh.step(poses[10])[0])
 
+
+
+def test_copies_share_their_covariance_and_still_filter_as_independent_filters():
+    """A filter and its copies (a track's front/back hypotheses) compute the covariance's
+    prediction, factor and update once; their poses are an independent filter's bit for bit,
+    a different ambiguity parts their covariances, and old covariances are not kept."""
+    import gc
+    import weakref
+    poses = noisy_poses(true_angles(30), std=5.0)
+    flipped = noisy_poses(true_angles(30, seed=4), std=5.0)
+    poses[::5, :2] *= 0.2                       # ambiguous frames: R inflated
+    flipped[::5, :2] *= 0.2
+    a = PoseKalmanFilter(FPS)
+    b = a.copy()                                # before the first step, as FrontBackTracker's
+    lone_a, lone_b = PoseKalmanFilter(FPS), PoseKalmanFilter(FPS)
+    for p, q in zip(poses[:20], flipped[:20]):
+        np.testing.assert_array_equal(a.log_likelihoods([p, q]), lone_a.log_likelihoods([p, q]))
+        assert np.array_equal(a.step(p)[0], lone_a.step(p)[0])
+        assert np.array_equal(b.step(q)[0], lone_b.step(q)[0])
+        assert a._cov is b._cov
+    first = weakref.ref(a._cov)
+    clear, ambiguous = poses[21].copy(), poses[21].copy()
+    ambiguous[:2] *= 0.2
+    a.step(clear), b.step(ambiguous)
+    assert a._cov is not b._cov
+    gc.collect()
+    assert first() is None
+
+
+def test_scoring_rows_at_once_equals_each_row_alone_and_names_a_bad_row():
+    """log_likelihoods measures its K rows at once: bit for bit each row's own score (an
+    ambiguous row among them), and a non-finite entry refused with its index as step does."""
+    poses = noisy_poses(true_angles(8), std=5.0)
+    kf = PoseKalmanFilter(FPS)
+    for p in poses[:5]:
+        kf.step(p)
+    rows = poses[5:8].copy()
+    rows[1, :2] *= 0.2                                          # ambiguous: inflated R
+    together = kf.log_likelihoods(rows)
+    alone = [kf.log_likelihoods(row[None])[0] for row in rows]
+    np.testing.assert_array_equal(together, alone)
+    rows[2, 7] = np.nan
+    with pytest.raises(FilterError, match=r"non-finite entries at \[7\]"):
+        kf.log_likelihoods(rows)

@@ -242,3 +242,21 @@ def test_a_repeated_small_query_reuses_its_neighbours_and_others_search_again():
     assert index._nearest(many)[0] is not index._nearest(many)[0]
     # extra neighbours (typical_distance's) are another query, not the remembered one
     assert index._nearest(q, extra=1)[0].shape == (2, 6)
+
+
+def test_novelty_distances_without_indices_are_the_neighbours_distances_bit_for_bit():
+    """distance() partitions the values only (_nearest_d2): the same squared distances, in
+    the same order, as the neighbour search, and the product as q @ rows' gives, for one
+    query row (a matrix-vector product) and several, with a tie and with k = R."""
+    rng = np.random.default_rng(8)
+    rows = rng.normal(0, 1, (300, 6)).astype(np.float32)
+    rows[7] = rows[3]                                           # a tie in distance
+    index = HeadingIndex(rows, rng.uniform(-90, 90, 300), k=9)
+    for n in (1, 2, 8, 300):
+        q = rows[:n] + rng.normal(0, 0.1, (n, 6)).astype(np.float32)
+        old = index._squared[None] - 2.0 * (q @ index.inputs.T)
+        np.testing.assert_array_equal(index._partial_d2(q), old)
+        index._last = None
+        np.testing.assert_array_equal(index._nearest_d2(q), index._nearest(q)[1])
+    small = HeadingIndex(rows[:5], np.zeros(5), k=9)            # k above R: all rows
+    np.testing.assert_array_equal(small._nearest_d2(rows[:3]), small._nearest(rows[:3])[1])

@@ -119,3 +119,23 @@ def test_bad_options_are_refused_by_name(option):
     x, y, _, _ = _kernel_data(n=30)
     with pytest.raises(RegressorInputError, match=next(iter(option))):
         SparseRVMRegressor(**option).fit(x, y)
+
+
+def test_predictions_keep_the_centres_squares_bit_for_bit_and_follow_new_centres():
+    """The kernel experts and the gate keep their centres' squared norms between predictions
+    (regressor.basis.centre_squares): the same design matrix as computing them each time, new
+    ones for new centres, and predict leaves the estimator's attributes as they were."""
+    from regressor.basis import centre_squares, gaussian_design
+    rng = np.random.default_rng(5)
+    X, y = rng.normal(size=(80, 3)), rng.normal(size=(80, 2))
+    est = SparseRVMRegressor(n_candidates=20).fit(X, y)
+    attributes = dict(vars(est))
+    first = est.predict(X[:7])
+    assert vars(est).keys() == attributes.keys()
+    np.testing.assert_array_equal(est.predict(X[:7]), first)
+    np.testing.assert_array_equal(
+        gaussian_design(X, est.centres_, est.width_, centre_squares(est, est.centres_)),
+        gaussian_design(X, est.centres_, est.width_))
+    est.centres_ = est.centres_ * 2.0                      # a new array: new squares
+    np.testing.assert_array_equal(centre_squares(est, est.centres_),
+                                  (est.centres_ ** 2).sum(1))

@@ -102,37 +102,57 @@ def _entity(kind: str, track_id: int, time_ns: int, lifetime_s: float, metadata:
             **{name: [] for name in empty.split()}, **primitives}
 
 
+#: Each bone's (start, end) joint rows (2, bones), and the spheres' sizes (18 joints, the
+#: head), shared by every message (only read).
+_BONE_ENDS = np.ascontiguousarray(BONE_INDEX.T)
+_SPHERE_SIZES = tuple({"x": d, "y": d, "z": d}
+                      for d in [JOINT_DIAMETER_M] * len(JOINT_SIDE) + [HEAD_DIAMETER_M])
+
+
 def skeleton_entity(track_id: int, time_ns: int, joints3d: np.ndarray, ambiguous: bool,
                     unfamiliar: bool) -> dict:
     """A ``foxglove.SceneEntity`` ``track-<id>``: the body of joints3d (18, 3) metres, Y-up, as
     the live view draws it (bone cylinders, joint spheres, head, label; ambiguous translucent)."""
     joints = y_up_to_z_up(joints3d)
     bone_colours, sphere_colours, label_colour, text = _body_style(track_id, ambiguous, unfamiliar)
-    starts, ends = joints[BONE_INDEX[:, 0]], joints[BONE_INDEX[:, 1]]
+    starts, ends = joints[_BONE_ENDS]
     vectors = ends - starts
     lengths = np.sqrt(np.einsum("ij,ij->i", vectors, vectors))
     keep = np.flatnonzero(lengths > 1e-6)
+    centres = (starts + ends) / 2
+    if len(keep) < len(lengths):        # a bone of no length is not drawn
+        vectors, lengths, centres = vectors[keep], lengths[keep], centres[keep]
     neck_to_head = joints[3] - joints[2]
-    head = joints[3] + HEAD_DIAMETER_M / 2 * neck_to_head / max(np.linalg.norm(neck_to_head), 1e-9)
+    head = joints[3] + HEAD_DIAMETER_M / 2 * neck_to_head / max(
+        math.sqrt(neck_to_head.dot(neck_to_head)), 1e-9)        # np.linalg.norm's sum
     label = [head[0], head[1], joints[:, 2].max() + 0.35]
-    dx, dy, dz = (vectors[keep] / lengths[keep, None]).T
+    dx, dy, dz = (vectors / lengths[:, None]).T
+    bones = np.empty((len(lengths), 8))     # rows: centre x y z, quaternion, length
+    bones[:, :3], bones[:, 7] = centres, lengths
     # Quaternions (x, y, z, w) turning +Z (a foxglove cylinder's axis) onto the bones' axes.
-    q = np.column_stack([-dy, dx, np.zeros_like(dx), 1.0 + dz])
-    q[q[:, 3] < 1e-9] = [1.0, 0.0, 0.0, 0.0]     # pointing down -Z: half a turn about X
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    bones = np.round(np.column_stack([((starts + ends) / 2)[keep], q, lengths[keep]]),
-                     _GEOMETRY_DECIMALS).tolist()       # rows: centre x y z, quaternion, length
-    points = np.round(np.vstack([joints, head, label]), _GEOMETRY_DECIMALS).tolist()
+    q = bones[:, 3:7]
+    np.negative(dy, out=q[:, 0])
+    q[:, 1], q[:, 2] = dx, 0.0
+    np.add(dz, 1.0, out=q[:, 3])
+    down = q[:, 3] < 1e-9
+    if down.any():
+        q[down] = [1.0, 0.0, 0.0, 0.0]      # pointing down -Z: half a turn about X
+    q /= np.sqrt(np.add.reduce(q * q, axis=1, keepdims=True))   # np.linalg.norm's sum
+    bones = np.round(bones, _GEOMETRY_DECIMALS, out=bones).tolist()
+    points = np.empty((len(joints) + 2, 3))     # the joints, the head, the label
+    points[:-2], points[-2], points[-1] = joints, head, label
+    points = np.round(points, _GEOMETRY_DECIMALS, out=points).tolist()
     thick = BONE_THICKNESS_M
-    cylinders = [{"pose": _placed(x, y, z, {"x": qx, "y": qy, "z": qz, "w": qw}),
+    cylinders = [{"pose": {"position": {"x": x, "y": y, "z": z},
+                           "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}},
                   "size": {"x": thick, "y": thick, "z": length},
                   "bottom_scale": 1.0, "top_scale": 1.0, "color": bone_colours[k]}
                  for (x, y, z, qx, qy, qz, qw, length), k in zip(bones, keep.tolist())]
-    diameters = [JOINT_DIAMETER_M] * len(joints) + [HEAD_DIAMETER_M]
-    spheres = [{"pose": _placed(x, y, z), "size": {"x": d, "y": d, "z": d}, "color": colour}
-               for (x, y, z), d, colour in zip(points, diameters, sphere_colours)]
-    flags = [{"key": key, "value": str(on).lower()}
-             for key, on in (("ambiguous", ambiguous), ("unfamiliar", unfamiliar))]
+    spheres = [{"pose": {"position": {"x": x, "y": y, "z": z}, "orientation": _NO_TURN},
+                "size": size, "color": colour}
+               for (x, y, z), size, colour in zip(points, _SPHERE_SIZES, sphere_colours)]
+    flags = [{"key": "ambiguous", "value": "true" if ambiguous else "false"},
+             {"key": "unfamiliar", "value": "true" if unfamiliar else "false"}]
     texts = [{"pose": _placed(*points[-1]), "billboard": True, "font_size": 0.15,
               "scale_invariant": False, "color": label_colour, "text": text}]
     return _entity("track", track_id, time_ns, SKELETON_LIFETIME_S, flags,

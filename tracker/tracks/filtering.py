@@ -13,6 +13,7 @@ Measured angles are unwrapped against the prediction. A raw pose whose heading n
 from __future__ import annotations
 
 import copy
+import weakref
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -108,15 +109,25 @@ class ConstantVelocityFilter:
         return smoothed
 
     def _predict(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q by F's blocks (O(n^2))."""
+        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q (_predict_state,
+        _predict_covariance)."""
+        return self._predict_state(x), self._predict_covariance(P)
+
+    def _predict_state(self, x: np.ndarray) -> np.ndarray:
+        """F x (2n,) of a state x (2n,)."""
+        n = self.dim
+        return np.concatenate([x[:n] + self.dt * x[n:], x[n:]])
+
+    def _predict_covariance(self, P: np.ndarray) -> np.ndarray:
+        """F P F' + Q (2n, 2n) of a covariance P (2n, 2n), by F's blocks (O(n^2))."""
         n, dt = self.dim, self.dt
-        x = np.concatenate([x[:n] + dt * x[n:], x[n:]])
         B, D = P[:n, n:], P[n:, n:]
         out = P + self.Q
         out[:n, :n] += dt * (B + P[n:, :n]) + dt * dt * D
-        out[:n, n:] += dt * D
-        out[n:, :n] += dt * D
-        return x, out
+        dD = dt * D
+        out[:n, n:] += dD
+        out[n:, :n] += dD
+        return out
 
     def _check_sequence(self, zs) -> np.ndarray:
         zs = np.asarray(zs, float)
@@ -156,6 +167,26 @@ def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
     return predicted + wrap_deg(z - predicted)
 
 
+class _Covariance:
+    """A filter's state covariance P (108, 108) and what follows from it alone, computed once
+    for every filter in it (copies: a track's front/back hypotheses continue one filter):
+    its prediction, and per ambiguity the innovation factor and the update (PoseKalmanFilter).
+    The covariance never depends on the measured values, only on the ambiguous flags."""
+
+    __slots__ = ("P", "_predicted", "factors", "updates", "__weakref__")
+
+    def __init__(self, P: np.ndarray):
+        self.P, self._predicted = P, None
+        self.factors: dict = {}     # ambiguous -> (L, log det)
+        self.updates: dict = {}     # ambiguous -> (W, the next _Covariance)
+
+    def predicted(self, cv: ConstantVelocityFilter) -> np.ndarray:
+        """P_pred = F P F' + Q (108, 108) of cv's model, once."""
+        if self._predicted is None:
+            self._predicted = cv._predict_covariance(self.P)
+        return self._predicted
+
+
 class PoseKalmanFilter:
     """Per-track Kalman filter over the 54 pose angles (see the module docstring): R (54,) or
     (54, 54) deg^2 in :func:`regressor.angles.pose_angles` order (None: the defaults), q and
@@ -180,8 +211,10 @@ class PoseKalmanFilter:
         self.R_ambiguous = self.R * np.outer(inflate, inflate)
         self.ambiguity_threshold = ambiguity_threshold
         self._x: np.ndarray | None = None        # (108,) state, None before the first step
-        self._P: np.ndarray | None = None        # (108, 108) its covariance
-        self._predicted: tuple | None = None     # see _prediction
+        self._x_pred: np.ndarray | None = None   # (108,) its prediction, once per frame
+        self._cov: _Covariance | None = None     # its covariance (108, 108), shared
+        # The first covariance by ambiguity while a filter holds it, shared by copies.
+        self._start: dict[bool, weakref.ref] = {}
 
     def _measure(self, raw55) -> tuple[np.ndarray, np.ndarray, bool]:
         """Check one raw pose (55,) -> (angles (54,), its R, ambiguous)."""
@@ -200,33 +233,69 @@ class PoseKalmanFilter:
         raws = np.asarray(raws, float)
         if self._x is None:
             return np.zeros(len(raws))
-        x_pred = self._prediction()[0]
+        x_pred = self._prediction()
+        angles, ambiguous = self._measure_rows(raws)
+        offsets = wrap_deg(angles - x_pred[:N_ANGLES])                  # (K, 54)
         out = np.empty(len(raws))
-        for k, raw in enumerate(raws):
-            angles, _, ambiguous = self._measure(raw)
-            L, logdet = self._factor(ambiguous)
-            w = _lower_solve(L, wrap_deg(angles - x_pred[:N_ANGLES]))
+        for k, flag in enumerate(ambiguous.tolist()):
+            L, logdet = self._factor(flag)
+            w = _lower_solve(L, offsets[k])
             out[k] = float(-0.5 * (w @ w + logdet + N_ANGLES * _LOG_2PI))
         return out
 
-    def _prediction(self) -> tuple[np.ndarray, np.ndarray, dict]:
-        """(x_pred (108,), P_pred (108, 108), factors by ambiguity) of the next frame, once."""
-        if self._predicted is None:
-            self._predicted = (*self.cv._predict(self._x, self._P), {})
-        return self._predicted
+    def _measure_rows(self, raws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """_measure of each raw pose of raws (K, 55) at once -> (angles (K, 54), ambiguous
+        (K,) bool); FilterError naming the first bad row's problem, as _measure's."""
+        if raws.ndim != 2 or raws.shape[1] != POSE_DIM:
+            raise FilterError(f"pose vector must have shape (55,), got {raws.shape[1:]}")
+        finite = np.isfinite(raws)
+        if not finite.all():
+            row = int(np.flatnonzero(~finite.all(axis=1))[0])
+            self._measure(raws[row])                     # raises, naming the entries
+        return pose_angles(raws), heading_norm(raws) < self.ambiguity_threshold
+
+    def _prediction(self) -> np.ndarray:
+        """x_pred (108,) of the next frame, once."""
+        if self._x_pred is None:
+            self._x_pred = self.cv._predict_state(self._x)
+        return self._x_pred
 
     def _factor(self, ambiguous: bool) -> tuple[np.ndarray, float]:
-        """Lower Cholesky factor of H P_pred H' + R (54, 54) and its log-determinant, cached."""
-        _, P_pred, factors = self._prediction()
-        if ambiguous not in factors:
+        """Lower Cholesky factor of H P_pred H' + R (54, 54) and its log-determinant, cached
+        with the covariance."""
+        cov = self._cov
+        if ambiguous not in cov.factors:
             R = self.R_ambiguous if ambiguous else self.R
-            L = _lapack(_potrf(P_pred[:N_ANGLES, :N_ANGLES] + R, lower=1, clean=1),
-                        "innovation covariance not positive definite")
-            factors[ambiguous] = (L, 2.0 * np.log(np.diag(L)).sum())
-        return factors[ambiguous]
+            L = _lapack(_potrf(cov.predicted(self.cv)[:N_ANGLES, :N_ANGLES] + R, lower=1,
+                               clean=1), "innovation covariance not positive definite")
+            cov.factors[ambiguous] = (L, 2.0 * np.log(np.diag(L)).sum())
+        return cov.factors[ambiguous]
+
+    def _update(self, ambiguous: bool) -> tuple[np.ndarray, "_Covariance"]:
+        """(W = L^-1 H P_pred (54, 108), the covariance after the update P_pred - W'W), cached
+        with the covariance: it does not depend on the measurement."""
+        cov = self._cov
+        if ambiguous not in cov.updates:
+            L, _ = self._factor(ambiguous)
+            P_pred = cov.predicted(self.cv)
+            W = _lower_solve(L, P_pred[:N_ANGLES])
+            cov.updates[ambiguous] = (W, _Covariance(P_pred - W.T @ W))
+        return cov.updates[ambiguous]
+
+    def _first(self, R: np.ndarray, ambiguous: bool) -> "_Covariance":
+        """The first frame's covariance diag(R, rate_std^2 I) (initial_state), one for this
+        filter and its copies (a weak reference: an old one is not kept)."""
+        held = self._start.get(ambiguous)
+        cov = None if held is None else held()
+        if cov is None:
+            n = N_ANGLES
+            cov = _Covariance(initial_state(np.zeros(n), R, self.cv.rate_std)[1])
+            self._start[ambiguous] = weakref.ref(cov)
+        return cov
 
     def copy(self) -> "PoseKalmanFilter":
-        """An independent filter in the same state (sharing the pending prediction): cheap."""
+        """An independent filter in the same state (sharing its covariance, which only
+        filters' steps replace, and what follows from it): cheap."""
         return copy.copy(self)
 
     def step(self, raw55) -> tuple[np.ndarray, bool]:
@@ -234,18 +303,18 @@ class PoseKalmanFilter:
         angles, R, ambiguous = self._measure(raw55)
         n = N_ANGLES
         if self._x is None:
-            self._x, self._P = initial_state(angles, R, self.cv.rate_std)
+            self._x, self._cov = np.concatenate([angles, np.zeros(n)]), self._first(R, ambiguous)
         else:
-            x_pred, P_pred, _ = self._prediction()
+            x_pred = self._prediction()
             L, _ = self._factor(ambiguous)
             # With S = L L' and W = L^-1 H P_pred (54, 108): K = P_pred H' S^-1 = W' L^-1, so
             # x = x_pred + W' L^-1 y and K S K' = W' W (one triangular solve, exactly symmetric).
-            W = _lower_solve(L, P_pred[:n])
+            W, self._cov = self._update(ambiguous)
             x = x_pred + W.T @ _lower_solve(L, wrap_deg(angles - x_pred[:n]))
             # Whole turns change nothing (measurements are unwrapped) and keep the state bounded.
             x[:n] -= 360.0 * np.round(x[:n] / 360.0)
-            self._x, self._P = x, P_pred - W.T @ W
-        self._predicted = None
+            self._x = x
+        self._x_pred = None
         return angles_to_pose(self._x[:n]), ambiguous
 
     def rts_smooth(self, raws: Sequence | np.ndarray, window: int = 256,

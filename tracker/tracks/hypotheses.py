@@ -210,7 +210,7 @@ class FrontBackTracker:
         evidence = rate * self.evidence_weight * hypotheses.log_evidence
         log_A = _log_transitions(K, self.frame_switch)
         if self.log_alpha is None or len(self.filters) != K:
-            self.filters = [self.filter_factory(self.fps) for _ in range(K)]
+            self.filters = self._new_filters(K)
             self.log_alpha, link = _log_stationary(log_A) + evidence, None
         else:
             ll = np.array([f.log_likelihoods(poses) if hasattr(f, "log_likelihoods")
@@ -256,6 +256,14 @@ class FrontBackTracker:
         if rate == 1.0:
             return tuple(self.switch)
         return tuple(float(-np.expm1(rate * np.log1p(-p))) for p in self.switch)
+
+    def _new_filters(self, K: int) -> list:
+        """K new filters: copies of one when it can copy itself (so that they may share
+        what does not depend on the measurements), else each the factory's."""
+        first = self.filter_factory(self.fps)
+        if not hasattr(first, "copy"):
+            return [first] + [self.filter_factory(self.fps) for _ in range(K - 1)]
+        return [first] + [first.copy() for _ in range(K - 1)]
 
     def _continue(self, predecessor: np.ndarray) -> list:
         """Filters for the new states: state j continues predecessor[j]'s (a copy if taken)."""
