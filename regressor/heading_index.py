@@ -15,8 +15,6 @@ from .basis import nearest_columns
 
 #: Queries per block in HeadingIndex._nearest (distances: block x R float32).
 _QUERY_BLOCK = 256
-#: Queries of at most this many rows are remembered (the tracker repeats a frame's query).
-_REMEMBERED_ROWS = 8
 
 
 @dataclass
@@ -44,7 +42,6 @@ class HeadingIndex:
         self.k = int(self.k)
         self._squared = (self.inputs.astype(np.float64) ** 2).sum(axis=1).astype(np.float32)
         self._typical: dict = {}
-        self._last: tuple | None = None       # (query key, result) of the last small query
 
     @property
     def dims(self) -> int:
@@ -100,20 +97,12 @@ class HeadingIndex:
         """(indices (N, k'), squared distances (N, k') ascending) of the k' = k + extra
         nearest training rows of each row of X (N, >= P), queried in blocks."""
         Q, k = self._query(X, extra)
-        # A repeated query of the same rows reuses the last one's neighbours.
-        key = (k, Q.shape, Q.tobytes()) if len(Q) <= _REMEMBERED_ROWS else None
-        last = self._last             # read once (the index's rows are never changed)
-        if key is not None and last is not None and last[0] == key:
-            return last[1]
         index, dist2 = np.empty((len(Q), k), dtype=np.int64), np.empty((len(Q), k))
         for start in range(0, len(Q), _QUERY_BLOCK):
             q = Q[start:start + _QUERY_BLOCK]
             nearest, near_d2 = nearest_columns(self._partial_d2(q), k)
             index[start:start + len(q)] = nearest
             dist2[start:start + len(q)] = self._with_query_norm(near_d2, q)
-        if key is not None:
-            index.flags.writeable = dist2.flags.writeable = False     # shared with callers
-            self._last = (key, (index, dist2))
         return index, dist2
 
     def _nearest_d2(self, X: np.ndarray) -> np.ndarray:

@@ -222,28 +222,6 @@ def test_a_small_index_without_a_typical_distance_still_saves_and_loads(tmp_path
     assert np.isnan(load_pose_model(tmp_path / "small.npz").hypotheses(x[:3]).novelty).all()
 
 
-def test_a_repeated_small_query_reuses_its_neighbours_and_others_search_again():
-    """The tracker asks for one frame's neighbours twice (heading, novelty): the second time
-    they are remembered, read-only; any other query gets its own, as a fresh index finds."""
-    rng = np.random.default_rng(6)
-    rows = rng.normal(0, 1, (500, 4))
-    index = HeadingIndex(rows, rng.uniform(-90, 90, 500), k=5)
-    fresh = HeadingIndex(rows, index.folded_deg, k=5)
-    q = rows[:2] + 0.1
-    first = index._nearest(q)
-    assert index._nearest(q.copy())[0] is first[0]               # same rows: remembered
-    assert not first[0].flags.writeable and not first[1].flags.writeable
-    np.testing.assert_allclose(index.novelty(q), fresh.novelty(q), rtol=1e-12)
-    other = q + 0.5
-    np.testing.assert_array_equal(index._nearest(other)[0], fresh._nearest(other)[0])
-    np.testing.assert_array_equal(index._nearest(q[:1])[0], fresh._nearest(q[:1])[0])
-    many = rows[:40] + 0.2                                       # more rows than remembered
-    np.testing.assert_allclose(index.distance(many), fresh.distance(many), rtol=1e-12)
-    assert index._nearest(many)[0] is not index._nearest(many)[0]
-    # extra neighbours (typical_distance's) are another query, not the remembered one
-    assert index._nearest(q, extra=1)[0].shape == (2, 6)
-
-
 def test_novelty_distances_without_indices_are_the_neighbours_distances_bit_for_bit():
     """distance() partitions the values only (_nearest_d2): the same squared distances, in
     the same order, as the neighbour search, and the product as q @ rows' gives, for one
@@ -256,7 +234,6 @@ def test_novelty_distances_without_indices_are_the_neighbours_distances_bit_for_
         q = rows[:n] + rng.normal(0, 0.1, (n, 6)).astype(np.float32)
         old = index._squared[None] - 2.0 * (q @ index.inputs.T)
         np.testing.assert_array_equal(index._partial_d2(q), old)
-        index._last = None
         np.testing.assert_array_equal(index._nearest_d2(q), index._nearest(q)[1])
     small = HeadingIndex(rows[:5], np.zeros(5), k=9)            # k above R: all rows
     np.testing.assert_array_equal(small._nearest_d2(rows[:3]), small._nearest(rows[:3])[1])
