@@ -213,8 +213,7 @@ def image_mirror(vectors: np.ndarray) -> np.ndarray:
     return out
 
 
-_MOVED = ("motion_to_pose_vectors", "pose_vectors_to_motion", "flip_odd_part",
-          "canonical_member", "PART_OF_ENTRY")
+_MOVED = ("motion_to_pose_vectors", "flip_odd_part", "canonical_member", "PART_OF_ENTRY")
 
 
 def __getattr__(name: str):

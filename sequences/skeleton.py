@@ -96,9 +96,9 @@ def pose_joint_indices(names: list[str] | tuple[str, ...]) -> np.ndarray:
 
 
 def __getattr__(name: str):
-    """Tables ``track`` needs only for some outputs, loaded on first use
+    """CMU_REST_END_SITES, which ``track`` needs only for BVH files, loaded on first use
     (sequences.skeleton_tables)."""
-    if name in ("CMU_REST_END_SITES", "POSE_JOINT_PART"):
-        from . import skeleton_tables
-        return getattr(skeleton_tables, name)
+    if name == "CMU_REST_END_SITES":
+        from .skeleton_tables import CMU_REST_END_SITES
+        return CMU_REST_END_SITES
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -11,8 +11,8 @@ from sequences.pose_vector import (PART_OF_ENTRY, POSE_DIM, PoseVectorError,
                                    image_mirror,
                                    heading_deg,
                                    joint_positions, motion_to_pose_vectors,
-                                   pose_vector_names, pose_vectors_to_local_rotations,
-                                   pose_vectors_to_motion)
+                                   pose_vector_names, pose_vectors_to_local_rotations)
+from sequences.bvh_write import pose_vectors_to_motion
 from sequences.skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES,
                                 CMU_REST_OFFSETS, FOLDED, POSE_JOINTS, pose_joint_indices)
 

@@ -1,7 +1,7 @@
 """BVH export: one file per track on the CMU skeleton, written when the sink is closed.
 
 Angles: the pose vectors given (``pose.filtered``: filtered, or smoothed when ``track`` feeds
-the smoothed poses at the end) by ``sequences.pose_vector.pose_vectors_to_motion`` (camera
+the smoothed poses at the end) by ``sequences.bvh_write.pose_vectors_to_motion`` (camera
 azimuth 0: heading 0 faces the camera). Root: the Hips of the ``joints3d`` given (metres, in CMU
 units in the file), whatever placement the caller chose (``track``: geometry.
 ground_position_from_image, smoothed over the track by tracker.tracks.root_path).
@@ -11,7 +11,7 @@ holding the pose and root of the latest frame written at or before it (within ha
 frames not written (missed, skipped) repeat the last, and a variable frame rate keeps its real
 timing (a 10 fps stretch of a 30 fps file holds each pose three frames). A track with fewer
 than ``min_frames`` frames gets no file. Nothing is written before close() (the MCAP is the
-crash-safe record); each file goes through ``NAME.partial`` (whole_files.write_beside), and a
+crash-safe record); each file goes through ``NAME.partial`` (atomic.write_beside), and a
 lock file ``.PREFIX.bvh.lock`` makes a second sink on the same folder and prefix fail at once.
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 
 from sequences.bvh_write import write_bvh
 from sequences.motion import Motion
-from sequences.pose_vector import pose_vectors_to_motion
+from sequences.bvh_write import pose_vectors_to_motion
 from sequences.skeleton import (
     CMU_JOINT_NAMES,
     CMU_PARENTS,
@@ -33,7 +33,7 @@ from sequences.skeleton import (
     CMU_UNIT_M,
 )
 from tracker.outputs.files import beside_name
-from tracker.outputs.whole_files import LockFile, write_beside
+from tracker.outputs.atomic import LockFile, write_beside
 from tracker.outputs.geometry import SinkInputError, check_joints, check_pose, checked_time
 
 if TYPE_CHECKING:
