@@ -43,13 +43,9 @@ class Motion:
 
     def rotation_orders(self) -> list[str]:
         """Per joint, the intrinsic Euler sequence of its rotation channels, e.g. "ZYX"."""
-        return [_rotation_order(ch) for ch in self.channels]
+        return ["".join(c[0] for c in ch if c in ROTATION_CHANNELS) for ch in self.channels]
 
     def local_rotations(self) -> np.ndarray:
         """Local joint rotation matrices (T, J, 3, 3): child vector in parent frame = R @ v."""
         from .bvh import euler_to_matrices
         return euler_to_matrices(self.euler_deg, self.rotation_orders())
-
-
-def _rotation_order(channels: list[str]) -> str:
-    return "".join(c[0] for c in channels if c in ROTATION_CHANNELS)

@@ -1,6 +1,6 @@
 """Pose-vector conversions ``track`` does not run: motion capture -> pose vectors (data sets;
 the way back is sequences.bvh_write's), canonical members (training) and each entry's body part
-(reports). Importable from sequences.pose_vector too.
+(reports).
 """
 from __future__ import annotations
 

@@ -13,6 +13,7 @@ need not have unit norm: the norm measures how unambiguous an estimate was. Leng
 """
 from __future__ import annotations
 
+import re
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -38,10 +39,8 @@ class PoseVectorError(SilhouettePoseError, ValueError):
 
 def pose_vector_names() -> list[str]:
     """The 55 entry names: heading_cos, heading_sin, Hips_x, Hips_z, Spine1_z, Spine1_y, ..."""
-    names = ["heading_cos", "heading_sin", "Hips_x", "Hips_z"]
-    for joint in POSE_JOINTS[1:]:
-        names += [f"{joint}_z", f"{joint}_y", f"{joint}_x"]
-    return names
+    return ["heading_cos", "heading_sin", "Hips_x", "Hips_z"] + [
+        f"{joint}_{axis}" for joint in POSE_JOINTS[1:] for axis in "zyx"]
 
 
 def _as_vectors(vectors: np.ndarray) -> np.ndarray:
@@ -165,24 +164,15 @@ def joint_positions(vectors: np.ndarray, template: Motion | np.ndarray | None = 
 
 
 def _front_back_permutation() -> tuple[np.ndarray, np.ndarray]:
-    """(index (55,) int, sign (55,)) of the front/back flip: flipped = sign * v[index]."""
+    """(index (55,) int, sign (55,)) of the front/back flip: flipped = sign * v[index]. Left
+    and right entries exchanged; the z and y angles (Hips_z too) and cos(heading) negated."""
     names = pose_vector_names()
-    position = {name: i for i, name in enumerate(names)}
-
-    def other_side(name: str) -> str:
-        for a, b in (("Left", "Right"), ("Right", "Left")):
-            if name.startswith(a):
-                return b + name[len(a):]
-        return name
-
-    index = np.array([position[other_side(name)] for name in names], dtype=np.int64)
-    sign = np.ones(POSE_DIM)
+    other_side = {"Left": "Right", "Right": "Left"}
+    index = [names.index(re.sub("^(Left|Right)", lambda m: other_side[m[1]], name))
+             for name in names]
+    sign = np.where([name.endswith(("_z", "_y")) for name in names], -1.0, 1.0)
     sign[0] = -1.0                                   # cos(180 - h) = -cos h; sin unchanged
-    sign[3] = -1.0                                   # Hips_z
-    for i, name in enumerate(names[4:], start=4):
-        if name.endswith(("_z", "_y")):
-            sign[i] = -1.0
-    return index, sign
+    return np.array(index, dtype=np.int64), sign
 
 
 _FLIP_INDEX, _FLIP_SIGN = _front_back_permutation()
@@ -211,14 +201,3 @@ def image_mirror(vectors: np.ndarray) -> np.ndarray:
     out[..., 0] = -out[..., 0]
     out[..., 1] = -out[..., 1]
     return out
-
-
-_MOVED = ("motion_to_pose_vectors", "flip_odd_part", "canonical_member", "PART_OF_ENTRY")
-
-
-def __getattr__(name: str):
-    """The conversions ``track`` does not run, loaded on first use (sequences.pose_conversions)."""
-    if name in _MOVED:
-        from . import pose_conversions
-        return getattr(pose_conversions, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -93,12 +93,3 @@ def pose_joint_indices(names: list[str] | tuple[str, ...]) -> np.ndarray:
     if missing:
         raise KeyError(f"skeleton lacks pose joint {missing[0]!r}")
     return np.array([index[name] for name in POSE_JOINTS], dtype=np.int64)
-
-
-def __getattr__(name: str):
-    """CMU_REST_END_SITES, which ``track`` needs only for BVH files, loaded on first use
-    (sequences.skeleton_tables)."""
-    if name == "CMU_REST_END_SITES":
-        from .skeleton_tables import CMU_REST_END_SITES
-        return CMU_REST_END_SITES
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,5 +1,4 @@
-"""The CMU skeleton's end sites (sequences.skeleton), which ``track`` needs only for BVH files;
-sequences.skeleton loads them on first use."""
+"""The CMU skeleton's (sequences.skeleton) end sites, which ``track`` needs only for BVH files."""
 from __future__ import annotations
 
 import numpy as np

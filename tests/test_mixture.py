@@ -314,7 +314,7 @@ def _with_limb_head(model, x, seed=5):
     (lab.training.split_expert_outputs), the head's angles about non-zero centres.
     Returns (mixture, head, members: the head's regression targets (N, 55))."""
     from regressor.optional_parts import LimbHead
-    from sequences.pose_vector import canonical_member
+    from sequences.pose_conversions import canonical_member
     from regressor.training import split_expert_outputs
     rng = np.random.default_rng(seed)
     own = model.mixture.predict(x)

@@ -366,37 +366,34 @@ def run(args) -> int:
     # Imported before threadpool_limits, which limits only the BLAS libraries already loaded.
     from threadpoolctl import threadpool_limits
 
+    from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
     from tracker import pipeline  # noqa: F401 (loads numpy, scipy, filterpy, OpenCV)
+    from tracker.outputs.files import OutputWriteError
+    from tracker.run import BackgroundMismatchError, OutputError
     check_interrupted()
     # One BLAS thread: the per-frame matrices are small, and threads cost more than they save.
     with threadpool_limits(1):
-        return _run(args)
-
-
-def _run(args) -> int:
-    from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-    from tracker.run import BackgroundMismatchError, OutputError
-    from tracker.outputs.files import OutputWriteError
-    _check_options(args)
-    args.model = args.model or DEFAULT_MODEL_PATH
-    model = load_pose_model(args.model)
-    if model.gives_canonical_pairs and model.canonical_priors is None:
-        warnings.warn(f"{args.model} carries no front/back priors; using the shipped model's, "
-                      f"which may not fit its side classifier (add its own: python "
-                      f"scripts/learn_hypothesis_priors.py --model {args.model} --save NEW.npz)")
-    check_interrupted()                  # the model and its imports are loaded
-    source = _open_source(args)
-    plate = None
-    if args.background:
-        from tracker.clean_plate import load_background
-        plate = load_background(args.background, source)
-    try:
-        result, sinks = _track_into_outputs(args, source, model, plate)
-    except BackgroundMismatchError as exc:
-        raise TrackError(f"--background {args.background}: {exc}") from None
-    except (OutputWriteError, OutputError) as exc:
-        from tracker.cli_failures import output_failure
-        raise TrackError(output_failure(args, exc)) from None
+        _check_options(args)
+        args.model = args.model or DEFAULT_MODEL_PATH
+        model = load_pose_model(args.model)
+        if model.gives_canonical_pairs and model.canonical_priors is None:
+            warnings.warn(f"{args.model} carries no front/back priors; using the shipped "
+                          f"model's, which may not fit its side classifier (add its own: python "
+                          f"scripts/learn_hypothesis_priors.py --model {args.model} --save "
+                          f"NEW.npz)")
+        check_interrupted()                  # the model and its imports are loaded
+        source = _open_source(args)
+        plate = None
+        if args.background:
+            from tracker.clean_plate import load_background
+            plate = load_background(args.background, source)
+        try:
+            result, sinks = _track_into_outputs(args, source, model, plate)
+        except BackgroundMismatchError as exc:
+            raise TrackError(f"--background {args.background}: {exc}") from None
+        except (OutputWriteError, OutputError) as exc:
+            from tracker.cli_failures import output_failure
+            raise TrackError(output_failure(args, exc)) from None
     if not args.quiet:
         try:
             _print_summary(args, source, result, sinks)
@@ -405,12 +402,9 @@ def _run(args) -> int:
             sys.stdout = open(os.devnull, "w")
     if result.interrupted:
         return EXIT_INTERRUPTED
-    if not result.written:
-        # Nobody tracked: no outputs written (write_empty), earlier files of their names kept.
-        raise TrackError(f"{args.video}: nobody found in its {result.frames} frames (a person "
-                         f"must move against a still background and cover at least "
-                         f"{100 * _min_area_fraction(args):g} % of the image: --min-area); "
-                         f"{_nothing_written(args)}")
+    if not result.written:      # no outputs written (write_empty), earlier files kept
+        from tracker.cli_failures import nobody_found
+        raise nobody_found(args, result.frames, 100 * _min_area_fraction(args))
     return 0
 
 
@@ -455,13 +449,6 @@ def _open_source(args):
     raise time_range_error(args)
 
 
-def _nothing_written(args) -> str:
-    """The end of the nobody-found error: what became of the outputs asked for."""
-    if args.out is None and args.json is None and args.bvh is None:
-        return "nothing to show"
-    return "no output files written (files already of those names are left as they were)"
-
-
 def _print_summary(args, source, result, sinks=()) -> None:
     """The run's summary: what was tracked, and which poses each output holds."""
     from tracker.outputs.files import stream_descriptor
@@ -480,7 +467,8 @@ def _print_summary(args, source, result, sinks=()) -> None:
         print(f"  track {track_id}: {counts.poses} frames{unfamiliar}", file=out)
     if not tracks:          # nothing written (the nobody-found error follows unless stopped)
         if result.interrupted:
-            print(f"  {_nothing_written(args)}", file=out)
+            from tracker.cli_failures import nothing_written
+            print(f"  {nothing_written(args)}", file=out)
         return
     # The JSON and BVH hold the smoothed poses, or after a quick exit those streamed.
     streamed = streamed_kind(args)

@@ -1,7 +1,6 @@
-"""Outputs of the tracker: every sink takes the calls of the :class:`Sink` protocol. Optional:
-write_frame(frame_index, time_s, frame, people) and discard() (MeshcatView, which shows the
-video); ``pose_kind``, "filtered" or "smoothed" (set by tracker.run.track_video); ``option``
-(e.g. "--json", named by problem_line); ``abandon()`` (files: close_sinks)."""
+"""Outputs of the tracker, sinks taking the calls of :class:`Sink`; optional: write_frame() and
+discard() (MeshcatView), ``pose_kind`` (set by tracker.run.track_video), ``option`` (e.g.
+"--json", for problem_line) and ``abandon()`` (files: close_sinks)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable

@@ -1,19 +1,8 @@
-"""BVH export: one file per track on the CMU skeleton, written when the sink is closed.
-
-Angles: the pose vectors given (``pose.filtered``: filtered, or smoothed when ``track`` feeds
-the smoothed poses at the end) by ``sequences.bvh_write.pose_vectors_to_motion`` (camera
-azimuth 0: heading 0 faces the camera). Root: the Hips of the ``joints3d`` given (metres, in CMU
-units in the file), whatever placement the caller chose (``track``: geometry.
-ground_position_from_image, smoothed over the track by tracker.tracks.root_path).
-
-Frames: BVH frame i is the time ``t0 + i / fps`` (t0: the track's first time) up to its last,
-holding the pose and root of the latest frame written at or before it (within half a BVH frame):
-frames not written (missed, skipped) repeat the last, and a variable frame rate keeps its real
-timing (a 10 fps stretch of a 30 fps file holds each pose three frames). A track with fewer
-than ``min_frames`` frames gets no file. Nothing is written before close() (the MCAP is the
-crash-safe record); each file goes through ``NAME.partial`` (atomic.write_beside), and a
-lock file ``.PREFIX.bvh.lock`` makes a second sink on the same folder and prefix fail at once.
-"""
+"""BVH export: one file per track on the CMU skeleton, written on close() through
+``NAME.partial`` (atomic.write_beside); a lock ``.PREFIX.bvh.lock`` makes a second sink on the
+same folder and prefix fail at once. Angles: sequences.bvh_write.pose_vectors_to_motion (camera
+azimuth 0); root: the Hips of the joints given; frames: a regular grid (regular_rows). More in
+docs/code_notes/outputs.md."""
 from __future__ import annotations
 
 import math
@@ -22,18 +11,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sequences.bvh_write import write_bvh
+from sequences.bvh_write import pose_vectors_to_motion, write_bvh
 from sequences.motion import Motion
-from sequences.bvh_write import pose_vectors_to_motion
-from sequences.skeleton import (
-    CMU_JOINT_NAMES,
-    CMU_PARENTS,
-    CMU_REST_END_SITES,
-    CMU_REST_OFFSETS,
-    CMU_UNIT_M,
-)
-from tracker.outputs.files import beside_name
+from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, CMU_UNIT_M
+from sequences.skeleton_tables import CMU_REST_END_SITES
 from tracker.outputs.atomic import LockFile, write_beside
+from tracker.outputs.files import beside_name
 from tracker.outputs.geometry import SinkInputError, check_joints, check_pose, checked_time
 
 if TYPE_CHECKING:
@@ -91,7 +74,7 @@ class BVHSink:
         self._tracks: dict[int, tuple[list[int], list[float], list[np.ndarray],
                                       list[np.ndarray]]] = {}
         self.paths: dict[int, Path] = {}
-        self._closed = False
+        self.closed = False
         # The top-most folder this sink makes, removed again (if still empty) by abandon().
         missing = [p for p in (self.directory, *self.directory.parents) if not p.exists()]
         self._made = missing[-1] if missing else None
@@ -102,16 +85,11 @@ class BVHSink:
             self._remove_made_folders()
             raise
 
-    @property
-    def closed(self) -> bool:
-        """True after close()."""
-        return self._closed
-
     def write(self, pose: TrackedPose) -> None:
         """Keep pose.filtered (55,), the Hips position pose.joints_m[0] (metres) and the time
         pose.time_s (seconds) of this track and frame. Frame indices and times of a track must
         increase. Raises SinkInputError on bad input."""
-        if self._closed:
+        if self.closed:
             raise SinkInputError("BVH sink is closed")
         frame_index, track_id = pose.frame_index, pose.track_id
         filtered = check_pose("filtered55", pose.filtered)
@@ -142,9 +120,9 @@ class BVHSink:
 
     def close(self) -> None:
         """Write one BVH per track with at least min_frames frames; idempotent."""
-        if self._closed:
+        if self.closed:
             return
-        self._closed = True
+        self.closed = True
         try:
             for track_id in sorted(self._tracks):
                 if len(self._tracks[track_id][0]) < self.min_frames:
@@ -161,9 +139,9 @@ class BVHSink:
     def abandon(self) -> None:
         """Stop without writing any file (a run that tracked nobody), removing the folders it
         made if they are still empty; idempotent."""
-        if self._closed:
+        if self.closed:
             return
-        self._closed = True
+        self.closed = True
         self._lock.release()
         self._remove_made_folders()
 
