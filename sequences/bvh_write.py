@@ -30,12 +30,10 @@ def _as_euler(rotation: Rotation, order: str) -> np.ndarray:
 
 def pose_vectors_to_motion(vectors: np.ndarray, template: Motion, root_position=None,
                            camera_azimuth_deg=0.0) -> Motion:
-    """A Motion (BVH channels) on ``template``'s skeleton from pose vectors (T, 55).
-
-    root_position: (T, 3) CMU units; None holds the root at template.root_position[0].
-    Non-folded ZYX joints get the vector's angles unchanged; joints outside the pose get zeros.
-    The result has template.fps and an empty source.
-    """
+    """A Motion (BVH channels) on ``template``'s skeleton from pose vectors (T, 55), with
+    template.fps and an empty source. root_position: (T, 3) CMU units; None holds the root at
+    template.root_position[0]. Non-folded ZYX joints get the vector's angles unchanged; joints
+    outside the pose get zeros."""
     v = _as_vectors(vectors)
     T = len(v)
     if root_position is None:
@@ -69,8 +67,7 @@ def _format_vec(values) -> str:
 
 def write_bvh(path: str | Path, motion: Motion) -> None:
     """Write ``motion`` as a BVH file that read_bvh(path, fps=None, drop_tpose=False) reads
-    back to within 1e-6 (angles in degrees, positions in CMU units; 9 decimals are written).
-    """
+    back to within 1e-6 (angles in degrees, positions in CMU units; 9 decimals are written)."""
     J = len(motion.names)
     children: list[list[int]] = [[] for _ in range(J)]
     for j, p in enumerate(motion.parents):

@@ -1,7 +1,5 @@
-"""A skeleton and its motion (what a BVH file holds). sequences.bvh reads it (and turns Euler
-angles to rotation matrices and back), sequences.bvh_write writes it; the pose vector
-(sequences.pose_vector) is computed from it.
-"""
+"""A skeleton and its motion (what a BVH file holds): sequences.bvh reads it (and turns Euler
+angles to rotation matrices and back), sequences.bvh_write writes it."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field

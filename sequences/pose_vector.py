@@ -100,11 +100,10 @@ def pose_vectors_to_local_rotations(vectors: np.ndarray, camera_azimuth_deg=0.0,
     matrices = rotations.as_matrix().reshape(T, len(joints), 3, 3)
     n_members = np.array([len(FOLDED.get(joint, (joint,))) for joint in joints])
     folded = np.flatnonzero(n_members > 1)
-    if len(folded):
-        rotvec = rotations.as_rotvec().reshape(T, len(joints), 3)[:, folded]
-        matrices[:, folded] = Rotation.from_rotvec(
-            (rotvec / n_members[folded][None, :, None]).reshape(-1, 3)
-        ).as_matrix().reshape(T, len(folded), 3, 3)
+    rotvec = rotations.as_rotvec().reshape(T, len(joints), 3)[:, folded]
+    matrices[:, folded] = Rotation.from_rotvec(
+        (rotvec / n_members[folded][None, :, None]).reshape(-1, 3)
+    ).as_matrix().reshape(T, len(folded), 3, 3)
     for k, joint in enumerate(joints):
         for member in FOLDED.get(joint, (joint,)):
             out[:, index[member]] = matrices[:, k]

@@ -23,17 +23,15 @@ CMU_JOINT_NAMES: tuple[str, ...] = (
 )
 
 #: Parent index of each joint of CMU_JOINT_NAMES (-1 for the root).
-CMU_PARENTS: np.ndarray = np.array(
-    [-1,
-     0, 1, 2, 3, 4,
-     0, 6, 7, 8, 9,
-     0, 11, 12, 13, 14, 15,
-     13, 17, 18, 19, 20, 21,
-     20,
-     13, 24, 25, 26, 27,
-     28, 27],
-    dtype=np.int64,
-)
+CMU_PARENTS: np.ndarray = np.array([
+    -1,
+    0, 1, 2, 3, 4,
+    0, 6, 7, 8, 9,
+    0, 11, 12, 13, 14, 15,
+    13, 17, 18, 19, 20, 21,
+    20,
+    13, 24, 25, 26, 27,
+    28, 27], dtype=np.int64)
 
 #: Bone offsets (31, 3) in CMU units of CMU subject 02 (e.g. trial 02_01), used as the default
 #: skeleton when no BVH template is at hand (drawing, tests without the data set).

@@ -98,8 +98,7 @@ class _Progress:
 
     def close(self) -> None:
         if self._bar is not None:
-            self._bar.close()
-            self._bar = None
+            self._bar.close()           # idempotent
 
 
 class TrackError(SilhouettePoseError):
@@ -250,9 +249,9 @@ def _same_file(a: Path, b: Path) -> bool:
 
 def _check_collisions(args) -> None:
     """No output (nor its temporary file) may be an input or another output, also through a
-    relative path, a symlink or a hard link."""
+    relative path, a symlink or a hard link (files.file_identity)."""
     from regressor.pose_model import DEFAULT_MODEL_PATH
-    from tracker.outputs.files import check_distinct, partial_path
+    from tracker.outputs.files import file_identity, partial_path
     named = [("the input video", args.video), ("the model", args.model or DEFAULT_MODEL_PATH)]
     if args.background is not None:
         named.append(("the --background image", args.background))
@@ -264,10 +263,13 @@ def _check_collisions(args) -> None:
         from tracker.bvh_option import check_names
         check_names(args, named)
         named.append(("the --bvh folder", args.bvh))
-    try:
-        check_distinct(named)
-    except SilhouettePoseError as exc:
-        raise TrackError(str(exc)) from None
+    seen: dict[tuple, tuple[str, Path]] = {}
+    for what, path in named:
+        if (key := file_identity(path)) in seen:
+            other, other_path = seen[key]
+            raise TrackError(f"{what} {path} is the same file as {other} {other_path}; choose "
+                             f"another file name (nothing was written)")
+        seen[key] = (what, Path(path))
 
 
 def tracker_settings(args):

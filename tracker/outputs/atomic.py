@@ -18,7 +18,7 @@ def write_beside(path: str | Path, write: Callable[[Path], None],
     on failure the partial file is removed and ``path`` is left as it was (OutputWriteError
     naming the file). partial: the temporary name (default partial_path(path)), in path's
     folder; a non-empty file there is kept aside first (set_aside)."""
-    shown = path = Path(path)
+    path = Path(path)
     partial = partial_path(path) if partial is None else Path(partial)
     if holds_data(partial):                 # an earlier run's unfinished file
         from tracker.outputs.aside import set_aside
@@ -35,7 +35,7 @@ def write_beside(path: str | Path, write: Callable[[Path], None],
         with contextlib.suppress(OSError):
             os.unlink(partial)
         if isinstance(exc, OSError):
-            raise OutputWriteError(f"{shown}: {exc.strerror or exc}", shown) from None
+            raise OutputWriteError(f"{path}: {exc.strerror or exc}", path) from None
         raise
     sync_folder(path.parent)
 

@@ -40,11 +40,9 @@ def default_cmu_template(fps: float) -> Motion:
 
 def regular_rows(times_s: np.ndarray, fps: float) -> np.ndarray:
     """Which row each frame of a regular grid at ``fps`` from times_s[0] to times_s[-1] holds:
-    the latest row whose time is at or before the grid time plus half a grid step (so a time
-    rounded a little late still lands on its own frame).
-
-    times_s: (N,) increasing seconds. Returns (round((times_s[-1] - times_s[0]) fps) + 1,) ints.
-    """
+    the latest row whose time is at or before the grid time plus half a grid step (a time
+    rounded a little late still lands on its own frame). times_s: (N,) increasing seconds.
+    Returns (round((times_s[-1] - times_s[0]) fps) + 1,) ints."""
     count = int(round((times_s[-1] - times_s[0]) * fps)) + 1
     grid = times_s[0] + (np.arange(count) + 0.5) / fps
     return np.maximum(np.searchsorted(times_s, grid, side="right") - 1, 0)
@@ -52,13 +50,10 @@ def regular_rows(times_s: np.ndarray, fps: float) -> np.ndarray:
 
 class BVHSink:
     """Collect each track's poses and root positions; write one BVH per track on close.
-
     directory: where files go (created if missing); files are ``<prefix>_<track id>.bvh``.
     fps: video frame rate (frames per second of the frame indices). template: the skeleton
-    (a Motion, e.g. a CMU file read with sequences.bvh.read_bvh); None uses
-    default_cmu_template. min_frames: shortest track that gets a file.
-    After close(), ``paths`` maps track id -> written file.
-    """
+    (a Motion, e.g. a CMU file read with sequences.bvh.read_bvh); None: default_cmu_template.
+    min_frames: shortest track that gets a file. After close(), ``paths``: track id -> file."""
 
     def __init__(self, directory: str | Path, fps: float, prefix: str = "track",
                  template: Motion | None = None, min_frames: int = 1):
@@ -75,9 +70,8 @@ class BVHSink:
                                       list[np.ndarray]]] = {}
         self.paths: dict[int, Path] = {}
         self.closed = False
-        # The top-most folder this sink makes, removed again (if still empty) by abandon().
-        missing = [p for p in (self.directory, *self.directory.parents) if not p.exists()]
-        self._made = missing[-1] if missing else None
+        # The folders this sink makes (innermost first), removed again if empty by abandon().
+        self._made = [p for p in (self.directory, *self.directory.parents) if not p.exists()]
         self.directory.mkdir(parents=True, exist_ok=True)
         try:
             self._lock = LockFile(beside_name(self.directory / f".{prefix}.bvh", ".lock"))
@@ -147,14 +141,10 @@ class BVHSink:
 
     def _remove_made_folders(self) -> None:
         """Remove the folders the constructor made, innermost first, while they are empty."""
-        if self._made is None:
-            return
-        for folder in (self.directory, *self.directory.parents):
+        for folder in self._made:
             try:
                 folder.rmdir()
             except OSError:                 # not empty (someone else's files): kept
-                break
-            if folder == self._made:
                 break
 
     def __enter__(self) -> "BVHSink":
