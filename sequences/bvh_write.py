@@ -69,22 +69,17 @@ def write_bvh(path: str | Path, motion: Motion) -> None:
     """Write ``motion`` as a BVH file that read_bvh(path, fps=None, drop_tpose=False) reads
     back to within 1e-6 (angles in degrees, positions in CMU units; 9 decimals are written)."""
     J = len(motion.names)
-    children: list[list[int]] = [[] for _ in range(J)]
-    for j, p in enumerate(motion.parents):
-        if p >= 0:
-            children[p].append(j)
     out: list[str] = ["HIERARCHY"]
 
     def emit(j: int, depth: int) -> None:
         pad = "\t" * depth
         kind = "ROOT" if motion.parents[j] < 0 else "JOINT"
-        out.append(f"{pad}{kind} {motion.names[j]}")
-        out.append(f"{pad}{{")
-        out.append(f"{pad}\tOFFSET {_format_vec(motion.offsets[j])}")
         chans = motion.channels[j]
-        out.append(f"{pad}\tCHANNELS {len(chans)} {' '.join(chans)}")
-        for c in children[j]:
-            emit(c, depth + 1)
+        out.extend([f"{pad}{kind} {motion.names[j]}", f"{pad}{{",
+                    f"{pad}\tOFFSET {_format_vec(motion.offsets[j])}",
+                    f"{pad}\tCHANNELS {len(chans)} {' '.join(chans)}"])
+        for child in np.flatnonzero(motion.parents == j):
+            emit(int(child), depth + 1)
         if not np.isnan(motion.end_sites[j]).any():
             out.extend([f"{pad}\tEnd Site", f"{pad}\t{{",
                         f"{pad}\t\tOFFSET {_format_vec(motion.end_sites[j])}", f"{pad}\t}}"])

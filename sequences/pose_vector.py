@@ -9,8 +9,7 @@ The root's rotation is R_root = Ry(yaw) @ Rx(Hips_x) @ Rz(Hips_z) (Hips_x in [-9
 heading = yaw - camera_azimuth. World: Y up, the subject at rest faces +Z; a camera at azimuth
 ``az`` sits in direction Ry(az) @ (0, 0, 1) looking at it. Heading 0 faces the camera; a
 positive heading turns the subject counter-clockwise seen from above. The (cos, sin) pair
-need not have unit norm: the norm measures how unambiguous an estimate was. Lengths: CMU units.
-"""
+need not have unit norm: the norm measures how unambiguous an estimate was. Lengths: CMU units."""
 from __future__ import annotations
 
 import re

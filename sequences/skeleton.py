@@ -1,8 +1,7 @@
 """The CMU motion-capture skeleton and the 18 joints of the pose vector. Conventions of every
 module that touches joints: Y up; at rest the CMU character faces +Z (toes point +Z), its left
 side towards +X; lengths in CMU units (CMU_UNIT_M metres); joints in the CMU BVH conversion's
-order (parents before children).
-"""
+order (parents before children)."""
 from __future__ import annotations
 
 import numpy as np

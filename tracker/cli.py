@@ -476,15 +476,13 @@ def _print_summary(args, source, result, sinks=()) -> None:
     streamed = streamed_kind(args)
     kind = "smoothed" if result.smoothed else streamed
     mcap_kind = f"{streamed} + smoothed" if result.smoothed else streamed
-    for path, what, poses in ((args.out, "MCAP", mcap_kind), (args.json, "JSON", kind),
-                              (args.bvh, "BVH folder", kind)):
-        if path is None:
-            continue
-        tail = ""
-        if what == "BVH folder":
-            from tracker.bvh_option import files_tail, written_files
-            tail = files_tail(path, args.video.stem, written_files(sinks))
-        print(f"  {what} ({poses} poses): {path}{tail}", file=out)
+    for path, what, poses in ((args.out, "MCAP", mcap_kind), (args.json, "JSON", kind)):
+        if path is not None:
+            print(f"  {what} ({poses} poses): {path}", file=out)
+    if args.bvh is not None:
+        from tracker.bvh_option import files_tail, written_files
+        tail = files_tail(args.bvh, args.video.stem, written_files(sinks))
+        print(f"  BVH folder ({kind} poses): {args.bvh}{tail}", file=out)
 
 
 def one_line_warning(prog: str):

@@ -65,9 +65,8 @@ class BVHSink:
         self.template = default_cmu_template(fps) if template is None else template
         self.min_frames = int(min_frames)
         self._root = int(np.flatnonzero(np.asarray(self.template.parents) < 0)[0])
-        # Per track: frame indices, times (s), poses (55,) and Hips positions (3,) m.
-        self._tracks: dict[int, tuple[list[int], list[float], list[np.ndarray],
-                                      list[np.ndarray]]] = {}
+        # Per track, per frame: (frame index, time s, pose (55,), Hips position (3,) m).
+        self._tracks: dict[int, list[tuple[int, float, np.ndarray, np.ndarray]]] = {}
         self.paths: dict[int, Path] = {}
         self.closed = False
         # The folders this sink makes (innermost first), removed again if empty by abandon().
@@ -89,21 +88,18 @@ class BVHSink:
         filtered = check_pose("filtered55", pose.filtered)
         joints = check_joints(pose.joints_m)
         time_s = checked_time(pose.time_s)
-        frames, times, poses, roots = self._tracks.setdefault(int(track_id), ([], [], [], []))
-        if frames and (int(frame_index) <= frames[-1] or time_s <= times[-1]):
+        kept = self._tracks.setdefault(int(track_id), [])
+        if kept and (int(frame_index) <= kept[-1][0] or time_s <= kept[-1][1]):
             raise SinkInputError(f"track {track_id}: frame {frame_index} at {time_s:g} s does "
-                                 f"not follow frame {frames[-1]} at {times[-1]:g} s")
-        frames.append(int(frame_index))
-        times.append(time_s)
-        poses.append(filtered)
-        roots.append(joints[0])
+                                 f"not follow frame {kept[-1][0]} at {kept[-1][1]:g} s")
+        kept.append((int(frame_index), time_s, filtered, joints[0]))
 
     def end_frame(self, frame_index: int) -> None:
         """Nothing per frame: files are written on close."""
 
     def motion(self, track_id: int) -> Motion:
         """The Motion that close() writes for ``track_id`` (KeyError if never written)."""
-        _, times, poses, roots = self._tracks[track_id]
+        _, times, poses, roots = zip(*self._tracks[track_id])
         rows = regular_rows(np.asarray(times), self.fps)
         vectors = np.asarray(poses)[rows]
         root_cmu = np.asarray(roots)[rows] / CMU_UNIT_M - self.template.offsets[self._root]
@@ -119,7 +115,7 @@ class BVHSink:
         self.closed = True
         try:
             for track_id in sorted(self._tracks):
-                if len(self._tracks[track_id][0]) < self.min_frames:
+                if len(self._tracks[track_id]) < self.min_frames:
                     continue
                 # A name past the file system's limit (a long video name, a track id of many
                 # digits) gets its prefix cut and hashed, as the partial and lock names do.
