@@ -216,15 +216,7 @@ def _check_options(args) -> None:
         if _same_file(args.out, args.video):
             raise TrackError(f"the default output {args.out} would be the input video; choose "
                              f"an output with --out")
-    from tracker.outputs.files import stream_descriptor     # deferred: the sinks load numpy
-    for path, what in ((args.out, "--out"), (args.json, "--json")):
-        if path is not None:
-            if path.is_dir():
-                raise TrackError(f"{what} {path} is a folder; give a file name")
-            # /dev/null, a FIFO, /dev/stdout are written in place (tracker.outputs.files)
-            _check_writable(what, path, stream_descriptor(path) is not None
-                            or (path.exists() and not path.is_file()))
-    _check_collisions(args)
+    _check_outputs(args)
     if args.bvh is not None:
         from tracker.bvh_option import check_folder
         check_folder(args)
@@ -247,16 +239,21 @@ def _same_file(a: Path, b: Path) -> bool:
     return file_identity(a) == file_identity(b)
 
 
-def _check_collisions(args) -> None:
-    """No output (nor its temporary file) may be an input or another output, also through a
-    relative path, a symlink or a hard link (files.file_identity)."""
+def _check_outputs(args) -> None:
+    """--out and --json can be written; no output (nor its temporary file) may be an input or
+    another output, also through a relative path, a symlink or a hard link (file_identity)."""
     from regressor.pose_model import DEFAULT_MODEL_PATH
-    from tracker.outputs.files import file_identity, partial_path
+    from tracker.outputs.files import file_identity, partial_path, stream_descriptor
     named = [("the input video", args.video), ("the model", args.model or DEFAULT_MODEL_PATH)]
     if args.background is not None:
         named.append(("the --background image", args.background))
     for path, what in ((args.out, "--out"), (args.json, "--json")):
         if path is not None:
+            if path.is_dir():
+                raise TrackError(f"{what} {path} is a folder; give a file name")
+            # /dev/null, a FIFO, /dev/stdout are written in place (tracker.outputs.files)
+            _check_writable(what, path, stream_descriptor(path) is not None
+                            or (path.exists() and not path.is_file()))
             named += [(what, path), (f"{what}'s temporary file",
                                      partial_path(os.path.realpath(path)))]
     if args.bvh is not None:
@@ -276,9 +273,8 @@ def tracker_settings(args):
     """The tracker.pipeline.TrackerSettings the parsed options ask for."""
     from tracker.pipeline import TrackerSettings
     # Per-track histories only to smooth: without (--no-smooth --lag 0) memory stays flat.
-    return TrackerSettings(max_people=args.max_people,
+    return TrackerSettings(max_people=args.max_people, roll_deg=args.roll,
                            keep_history=smoothing(args) or lag_seconds(args) > 0,
-                           roll_deg=args.roll,
                            trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
                            min_area_fraction=_min_area_fraction(args))
 
