@@ -49,8 +49,7 @@ def pose_vectors_to_motion(vectors: np.ndarray, template: Motion, root_position=
     for joint in POSE_JOINTS:
         for member in FOLDED.get(joint, (joint,)):
             j = index[member]
-            if joint != POSE_JOINTS[0] and member == joint and joint not in FOLDED \
-                    and orders[j] == _JOINT_ORDER:
+            if joint != POSE_JOINTS[0] and joint not in FOLDED and orders[j] == _JOINT_ORDER:
                 k = POSE_JOINTS.index(joint) - 1
                 euler[:, j] = v[:, 4 + 3 * k: 7 + 3 * k]
             else:

@@ -196,6 +196,5 @@ def image_mirror(vectors: np.ndarray) -> np.ndarray:
     vectors: front_back_flip turned 180 degrees about the vertical, so heading h -> -h
     ((cos, sin) -> (cos, -sin)) with left and right exchanged. Mirroring twice is the identity."""
     out = front_back_flip(vectors)
-    out[..., 0] = -out[..., 0]
-    out[..., 1] = -out[..., 1]
+    out[..., :2] = -out[..., :2]
     return out

@@ -281,8 +281,7 @@ def tracker_settings(args):
 
 def smoothing(args) -> bool:
     """Whether smoothed tracks are written: --smooth and a JSON, BVH or MCAP output."""
-    return (args.json is not None or args.bvh is not None or args.out is not None) \
-        and bool(args.smooth)
+    return bool(args.smooth) and any(p is not None for p in (args.out, args.json, args.bvh))
 
 
 def lag_seconds(args) -> float:

@@ -29,11 +29,9 @@ class PoseRecorder:
         self._frame_ends: list[tuple[int, int]] = []   # (frame index, poses up to its end)
 
     def write(self, pose: TrackedPose) -> None:
-        """Keep the pose."""
         self.poses.append(pose)
 
     def end_frame(self, frame_index: int) -> None:
-        """Note where the frame's poses end."""
         self._frame_ends.append((frame_index, len(self.poses)))
 
     def frames(self) -> list[tuple[int, list[TrackedPose]]]:

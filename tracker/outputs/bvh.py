@@ -1,8 +1,6 @@
-"""BVH export: one file per track on the CMU skeleton, written on close() through
-``NAME.partial`` (atomic.write_beside); a lock ``.PREFIX.bvh.lock`` makes a second sink on the
-same folder and prefix fail at once. Angles: sequences.bvh_write.pose_vectors_to_motion (camera
-azimuth 0); root: the Hips of the joints given; frames: a regular grid (regular_rows). More in
-docs/code_notes/outputs.md."""
+"""BVH export: one file per track, written on close() (atomic.write_beside), a lock
+``.PREFIX.bvh.lock`` failing a second sink on the same folder and prefix at once; angles from
+bvh_write.pose_vectors_to_motion, frames on a regular grid (docs/code_notes/outputs.md)."""
 from __future__ import annotations
 
 import math
