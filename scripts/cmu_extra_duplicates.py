@@ -23,7 +23,8 @@ from tqdm import tqdm
 
 from sequences.bvh import read_bvh
 from sequences.cmu_extra import convert_all
-from sequences.pose_vector import joint_positions, motion_to_pose_vectors
+from sequences.pose_conversions import motion_to_pose_vectors
+from sequences.pose_vector import joint_positions
 from sequences.skeleton import CMU_UNIT_M
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
 

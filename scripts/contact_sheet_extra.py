@@ -23,7 +23,8 @@ import numpy as np
 from sequences.bvh import read_bvh
 from sequences.cmu_extra import settle_on_floor
 from sequences.expmap import read_expmap_motion
-from sequences.pose_vector import joint_positions, motion_to_pose_vectors
+from sequences.pose_conversions import motion_to_pose_vectors
+from sequences.pose_vector import joint_positions
 from sequences.retarget import read_dance
 from sequences.skeleton import BONES_FOR_DRAWING, CMU_UNIT_M, POSE_JOINTS
 from tracker.one_line_parser import OneLineParser, stops_in_one_line

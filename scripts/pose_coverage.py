@@ -31,12 +31,12 @@ from sequences.bvh import read_bvh
 from sequences.cmu_extra import EXTRA_HELD_OUT, CmuExtraError, extra_sources
 from sequences.dataset import HELD_OUT_TRIALS, training_files
 from sequences.measures import joints_mm
-from sequences.pose_vector import PART_OF_ENTRY, motion_to_pose_vectors
+from sequences.pose_conversions import PART_OF_ENTRY, motion_to_pose_vectors
 from tracker.one_line_parser import OneLineParser, stops_in_one_line
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("SILHOUETTE_POSE_SHARED", ROOT.parent / "shared"))
-#: The body parts reported, in the table's order (sequences.pose_vector.PART_OF_ENTRY).
+#: The body parts reported, in the table's order (sequences.pose_conversions.PART_OF_ENTRY).
 PARTS = ("head", "torso", "left leg", "right leg", "left arm", "right arm")
 _ANGLES = 53
 _CHUNK_VALUES = 2 * 10**7          # query x training pose x angle values held at once

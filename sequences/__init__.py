@@ -1,5 +1,2 @@
-"""Motion capture, the human body model, silhouette rendering and data sets.
-
-Everything that turns real motion capture (CMU BVH) into ground-truthed silhouettes
-for training and evaluating the regressor. Never imports ``tracker``.
-"""
+"""Motion capture (CMU BVH), the human body model, silhouette rendering and data sets: what
+turns motion capture into ground-truthed silhouettes for the regressor. Never imports tracker."""

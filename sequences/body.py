@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sequences.skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES,
-                                CMU_REST_OFFSETS, CMU_UNIT_M)
+from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, CMU_UNIT_M
+from sequences.skeleton_tables import CMU_REST_END_SITES
 from regressor.errors import SilhouettePoseError
 
 BODY_FORMAT_VERSION = 1

@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from regressor.errors import SilhouettePoseError
 from .bvh_write import write_bvh  # noqa: F401  (the writer, re-exported for callers)
-from .motion import ROTATION_CHANNELS, Motion, matrices_to_euler
+from .motion import ROTATION_CHANNELS, Motion
 
 _POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 _TOKEN = re.compile(r"[{}]|[^\s{}]+")
@@ -32,6 +32,30 @@ MAX_RESAMPLED_FRAMES = 10_000_000
 #: Offsets and root positions beyond this (file units; CMU's are 5.6 cm, so 56 km) are damage,
 #: not a body: 1e300 had passed, to be blamed later on a camera distance.
 MAX_COORDINATE = 1e6
+
+
+def euler_to_matrices(euler_deg: np.ndarray, orders: list[str]) -> np.ndarray:
+    """Rotation matrices (T, J, 3, 3) from angles (T, J, 3) in degrees, intrinsic ``orders[j]``."""
+    T, J, _ = euler_deg.shape
+    out = np.empty((T, J, 3, 3))
+    for order in set(orders):
+        cols = [j for j, o in enumerate(orders) if o == order]
+        angles = euler_deg[:, cols].reshape(-1, 3)
+        mats = Rotation.from_euler(order, angles, degrees=True).as_matrix()
+        out[:, cols] = mats.reshape(T, len(cols), 3, 3)
+    return out
+
+
+def matrices_to_euler(rot: np.ndarray, orders: list[str]) -> np.ndarray:
+    """Angles (T, J, 3) in degrees, intrinsic ``orders[j]``, from rotation matrices (T, J, 3, 3)."""
+    T, J = rot.shape[:2]
+    out = np.empty((T, J, 3))
+    for order in set(orders):
+        cols = [j for j, o in enumerate(orders) if o == order]
+        mats = rot[:, cols].reshape(-1, 3, 3)
+        out[:, cols] = Rotation.from_matrix(mats).as_euler(order, degrees=True).reshape(
+            T, len(cols), 3)
+    return out
 
 
 def _short(token: str, limit: int = 40) -> str:

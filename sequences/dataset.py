@@ -28,7 +28,8 @@ from regressor.errors import SilhouettePoseError
 
 from .body import BodyShape, Skinner, load_body
 from .bvh import read_bvh
-from .pose_vector import POSE_DIM, motion_to_pose_vectors
+from .pose_conversions import motion_to_pose_vectors
+from .pose_vector import POSE_DIM
 from .render import centred_camera, silhouette_mask
 
 #: Trials that training never sees; evaluation and demos use them. 16_11 is the curved walk

@@ -24,7 +24,8 @@ from scipy.spatial.transform import Rotation
 from regressor.errors import SilhouettePoseError
 
 from .bvh import Motion, matrices_to_euler, resample
-from .skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES, CMU_REST_OFFSETS
+from .skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS
+from .skeleton_tables import CMU_REST_END_SITES
 
 #: Frames per second of the expmap files (found, not stated by the source: docs/cmu_extra.md).
 EXPMAP_FPS = 120.0

@@ -1,14 +1,10 @@
-"""A skeleton and its motion (what a BVH file holds), and Euler angles <-> rotation matrices.
-
-sequences.bvh reads and writes it as BVH; the pose vector (sequences.pose_vector) is computed
-from it.
-"""
+"""A skeleton and its motion (what a BVH file holds): sequences.bvh reads it (and turns Euler
+angles to rotation matrices and back), sequences.bvh_write writes it."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
 
@@ -45,36 +41,9 @@ class Motion:
 
     def rotation_orders(self) -> list[str]:
         """Per joint, the intrinsic Euler sequence of its rotation channels, e.g. "ZYX"."""
-        return [_rotation_order(ch) for ch in self.channels]
+        return ["".join(c[0] for c in ch if c in ROTATION_CHANNELS) for ch in self.channels]
 
     def local_rotations(self) -> np.ndarray:
         """Local joint rotation matrices (T, J, 3, 3): child vector in parent frame = R @ v."""
+        from .bvh import euler_to_matrices
         return euler_to_matrices(self.euler_deg, self.rotation_orders())
-
-
-def euler_to_matrices(euler_deg: np.ndarray, orders: list[str]) -> np.ndarray:
-    """Rotation matrices (T, J, 3, 3) from angles (T, J, 3) in degrees, intrinsic ``orders[j]``."""
-    T, J, _ = euler_deg.shape
-    out = np.empty((T, J, 3, 3))
-    for order in set(orders):
-        cols = [j for j, o in enumerate(orders) if o == order]
-        angles = euler_deg[:, cols].reshape(-1, 3)
-        mats = Rotation.from_euler(order, angles, degrees=True).as_matrix()
-        out[:, cols] = mats.reshape(T, len(cols), 3, 3)
-    return out
-
-
-def matrices_to_euler(rot: np.ndarray, orders: list[str]) -> np.ndarray:
-    """Angles (T, J, 3) in degrees, intrinsic ``orders[j]``, from rotation matrices (T, J, 3, 3)."""
-    T, J = rot.shape[:2]
-    out = np.empty((T, J, 3))
-    for order in set(orders):
-        cols = [j for j, o in enumerate(orders) if o == order]
-        mats = rot[:, cols].reshape(-1, 3, 3)
-        out[:, cols] = Rotation.from_matrix(mats).as_euler(order, degrees=True).reshape(
-            T, len(cols), 3)
-    return out
-
-
-def _rotation_order(channels: list[str]) -> str:
-    return "".join(c[0] for c in channels if c in ROTATION_CHANNELS)

@@ -1,35 +1,36 @@
-"""Pose-vector conversions ``track`` does not run: motion capture <-> pose vectors (data sets,
-BVH output), canonical members (training) and each entry's body part (reports). Importable
-from sequences.pose_vector too.
+"""Pose-vector conversions ``track`` does not run: motion capture -> pose vectors (data sets;
+the way back is sequences.bvh_write's), canonical members (training) and each entry's body part
+(reports).
 """
 from __future__ import annotations
-
-import warnings
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from regressor.angles import POSE_DIM, wrap_deg
 
+from .bvh_write import _as_euler
 from .motion import Motion
-from .pose_vector import (_JOINT_ORDER, _ROOT_ORDER, ANGLE_SLICE, PoseVectorError, _as_vectors,
-                          _azimuth, _joint_index, front_back_flip,
-                          pose_vectors_to_local_rotations)
-from .skeleton import FOLDED, POSE_JOINT_PART, POSE_JOINTS
+from .pose_vector import (_JOINT_ORDER, _ROOT_ORDER, ANGLE_SLICE, PoseVectorError, _azimuth,
+                          _joint_index, front_back_flip)
+from .skeleton import FOLDED, POSE_JOINTS
+
+#: Body part of each pose joint, for per-part error reports.
+POSE_JOINT_PART: dict[str, str] = {
+    "Hips": "torso", "Spine1": "torso", "Neck": "head", "Head": "head",
+    "LeftShoulder": "left arm", "LeftArm": "left arm", "LeftForeArm": "left arm",
+    "LeftHand": "left arm",
+    "RightShoulder": "right arm", "RightArm": "right arm", "RightForeArm": "right arm",
+    "RightHand": "right arm",
+    "LeftUpLeg": "left leg", "LeftLeg": "left leg", "LeftFoot": "left leg",
+    "RightUpLeg": "right leg", "RightLeg": "right leg", "RightFoot": "right leg",
+}
 
 #: Body part of each of the 55 entries (heading, torso, head, left/right arm, left/right leg;
 #: the root's tilts count as torso).
 PART_OF_ENTRY: tuple[str, ...] = tuple(
     ["heading", "heading", "torso", "torso"]
     + [POSE_JOINT_PART[joint] for joint in POSE_JOINTS[1:] for _ in range(3)])
-
-
-def _as_euler(rotation: Rotation, order: str) -> np.ndarray:
-    # Near gimbal lock scipy warns and sets the third angle to zero; the angles still give the
-    # same rotation, which is all the conversions need.
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)
-        return rotation.as_euler(order, degrees=True)
 
 
 def motion_to_pose_vectors(motion: Motion, camera_azimuth_deg=0.0) -> np.ndarray:
@@ -58,41 +59,6 @@ def motion_to_pose_vectors(motion: Motion, camera_azimuth_deg=0.0) -> np.ndarray
             product = product @ local[:, index[member]]
         out[:, cols] = _as_euler(Rotation.from_matrix(product), _JOINT_ORDER)
     return out
-
-
-def pose_vectors_to_motion(vectors: np.ndarray, template: Motion, root_position=None,
-                           camera_azimuth_deg=0.0) -> Motion:
-    """A Motion (BVH channels) on ``template``'s skeleton from pose vectors (T, 55).
-
-    root_position: (T, 3) CMU units; None holds the root at template.root_position[0].
-    Non-folded ZYX joints get the vector's angles unchanged; joints outside the pose get zeros.
-    The result has template.fps and an empty source.
-    """
-    v = _as_vectors(vectors)
-    T = len(v)
-    if root_position is None:
-        root_position = np.repeat(template.root_position[:1], T, axis=0)
-    root_position = np.asarray(root_position, dtype=np.float64)
-    if root_position.shape != (T, 3):
-        raise PoseVectorError(f"root_position must have shape ({T}, 3), got "
-                              f"{root_position.shape}")
-    index = _joint_index(template.names)
-    orders = template.rotation_orders()
-    local = pose_vectors_to_local_rotations(v, camera_azimuth_deg, template.names)
-    euler = np.zeros((T, len(template.names), 3))
-    for joint in POSE_JOINTS:
-        for member in FOLDED.get(joint, (joint,)):
-            j = index[member]
-            if joint != POSE_JOINTS[0] and member == joint and joint not in FOLDED \
-                    and orders[j] == _JOINT_ORDER:
-                k = POSE_JOINTS.index(joint) - 1
-                euler[:, j] = v[:, 4 + 3 * k: 7 + 3 * k]
-            else:
-                euler[:, j] = _as_euler(Rotation.from_matrix(local[:, j]), orders[j])
-    return Motion(names=list(template.names), parents=template.parents.copy(),
-                  offsets=template.offsets.copy(), end_sites=template.end_sites.copy(),
-                  channels=[list(c) for c in template.channels], euler_deg=euler,
-                  root_position=root_position.copy(), fps=template.fps, source="")
 
 
 def flip_odd_part(vectors: np.ndarray) -> np.ndarray:

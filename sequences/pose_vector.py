@@ -9,10 +9,10 @@ The root's rotation is R_root = Ry(yaw) @ Rx(Hips_x) @ Rz(Hips_z) (Hips_x in [-9
 heading = yaw - camera_azimuth. World: Y up, the subject at rest faces +Z; a camera at azimuth
 ``az`` sits in direction Ry(az) @ (0, 0, 1) looking at it. Heading 0 faces the camera; a
 positive heading turns the subject counter-clockwise seen from above. The (cos, sin) pair
-need not have unit norm: the norm measures how unambiguous an estimate was. Lengths: CMU units.
-"""
+need not have unit norm: the norm measures how unambiguous an estimate was. Lengths: CMU units."""
 from __future__ import annotations
 
+import re
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -38,10 +38,8 @@ class PoseVectorError(SilhouettePoseError, ValueError):
 
 def pose_vector_names() -> list[str]:
     """The 55 entry names: heading_cos, heading_sin, Hips_x, Hips_z, Spine1_z, Spine1_y, ..."""
-    names = ["heading_cos", "heading_sin", "Hips_x", "Hips_z"]
-    for joint in POSE_JOINTS[1:]:
-        names += [f"{joint}_z", f"{joint}_y", f"{joint}_x"]
-    return names
+    return ["heading_cos", "heading_sin", "Hips_x", "Hips_z"] + [
+        f"{joint}_{axis}" for joint in POSE_JOINTS[1:] for axis in "zyx"]
 
 
 def _as_vectors(vectors: np.ndarray) -> np.ndarray:
@@ -101,11 +99,10 @@ def pose_vectors_to_local_rotations(vectors: np.ndarray, camera_azimuth_deg=0.0,
     matrices = rotations.as_matrix().reshape(T, len(joints), 3, 3)
     n_members = np.array([len(FOLDED.get(joint, (joint,))) for joint in joints])
     folded = np.flatnonzero(n_members > 1)
-    if len(folded):
-        rotvec = rotations.as_rotvec().reshape(T, len(joints), 3)[:, folded]
-        matrices[:, folded] = Rotation.from_rotvec(
-            (rotvec / n_members[folded][None, :, None]).reshape(-1, 3)
-        ).as_matrix().reshape(T, len(folded), 3, 3)
+    rotvec = rotations.as_rotvec().reshape(T, len(joints), 3)[:, folded]
+    matrices[:, folded] = Rotation.from_rotvec(
+        (rotvec / n_members[folded][None, :, None]).reshape(-1, 3)
+    ).as_matrix().reshape(T, len(folded), 3, 3)
     for k, joint in enumerate(joints):
         for member in FOLDED.get(joint, (joint,)):
             out[:, index[member]] = matrices[:, k]
@@ -165,24 +162,15 @@ def joint_positions(vectors: np.ndarray, template: Motion | np.ndarray | None = 
 
 
 def _front_back_permutation() -> tuple[np.ndarray, np.ndarray]:
-    """(index (55,) int, sign (55,)) of the front/back flip: flipped = sign * v[index]."""
+    """(index (55,) int, sign (55,)) of the front/back flip: flipped = sign * v[index]. Left
+    and right entries exchanged; the z and y angles (Hips_z too) and cos(heading) negated."""
     names = pose_vector_names()
-    position = {name: i for i, name in enumerate(names)}
-
-    def other_side(name: str) -> str:
-        for a, b in (("Left", "Right"), ("Right", "Left")):
-            if name.startswith(a):
-                return b + name[len(a):]
-        return name
-
-    index = np.array([position[other_side(name)] for name in names], dtype=np.int64)
-    sign = np.ones(POSE_DIM)
+    other_side = {"Left": "Right", "Right": "Left"}
+    index = [names.index(re.sub("^(Left|Right)", lambda m: other_side[m[1]], name))
+             for name in names]
+    sign = np.where([name.endswith(("_z", "_y")) for name in names], -1.0, 1.0)
     sign[0] = -1.0                                   # cos(180 - h) = -cos h; sin unchanged
-    sign[3] = -1.0                                   # Hips_z
-    for i, name in enumerate(names[4:], start=4):
-        if name.endswith(("_z", "_y")):
-            sign[i] = -1.0
-    return index, sign
+    return np.array(index, dtype=np.int64), sign
 
 
 _FLIP_INDEX, _FLIP_SIGN = _front_back_permutation()
@@ -208,18 +196,5 @@ def image_mirror(vectors: np.ndarray) -> np.ndarray:
     vectors: front_back_flip turned 180 degrees about the vertical, so heading h -> -h
     ((cos, sin) -> (cos, -sin)) with left and right exchanged. Mirroring twice is the identity."""
     out = front_back_flip(vectors)
-    out[..., 0] = -out[..., 0]
-    out[..., 1] = -out[..., 1]
+    out[..., :2] = -out[..., :2]
     return out
-
-
-_MOVED = ("motion_to_pose_vectors", "pose_vectors_to_motion", "flip_odd_part",
-          "canonical_member", "PART_OF_ENTRY")
-
-
-def __getattr__(name: str):
-    """The conversions ``track`` does not run, loaded on first use (sequences.pose_conversions)."""
-    if name in _MOVED:
-        from . import pose_conversions
-        return getattr(pose_conversions, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

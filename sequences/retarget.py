@@ -32,8 +32,8 @@ from regressor.errors import SilhouettePoseError
 
 from .bvh import Motion, matrices_to_euler, read_bvh, resample
 from .pose_vector import forward_kinematics
-from .skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES, CMU_REST_OFFSETS,
-                       CMU_UNIT_M, FOLDED)
+from .skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, CMU_UNIT_M, FOLDED
+from .skeleton_tables import CMU_REST_END_SITES
 
 _X, _Y, _Z = np.eye(3)
 

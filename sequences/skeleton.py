@@ -1,8 +1,7 @@
 """The CMU motion-capture skeleton and the 18 joints of the pose vector. Conventions of every
 module that touches joints: Y up; at rest the CMU character faces +Z (toes point +Z), its left
 side towards +X; lengths in CMU units (CMU_UNIT_M metres); joints in the CMU BVH conversion's
-order (parents before children).
-"""
+order (parents before children)."""
 from __future__ import annotations
 
 import numpy as np
@@ -23,17 +22,15 @@ CMU_JOINT_NAMES: tuple[str, ...] = (
 )
 
 #: Parent index of each joint of CMU_JOINT_NAMES (-1 for the root).
-CMU_PARENTS: np.ndarray = np.array(
-    [-1,
-     0, 1, 2, 3, 4,
-     0, 6, 7, 8, 9,
-     0, 11, 12, 13, 14, 15,
-     13, 17, 18, 19, 20, 21,
-     20,
-     13, 24, 25, 26, 27,
-     28, 27],
-    dtype=np.int64,
-)
+CMU_PARENTS: np.ndarray = np.array([
+    -1,
+    0, 1, 2, 3, 4,
+    0, 6, 7, 8, 9,
+    0, 11, 12, 13, 14, 15,
+    13, 17, 18, 19, 20, 21,
+    20,
+    13, 24, 25, 26, 27,
+    28, 27], dtype=np.int64)
 
 #: Bone offsets (31, 3) in CMU units of CMU subject 02 (e.g. trial 02_01), used as the default
 #: skeleton when no BVH template is at hand (drawing, tests without the data set).
@@ -93,12 +90,3 @@ def pose_joint_indices(names: list[str] | tuple[str, ...]) -> np.ndarray:
     if missing:
         raise KeyError(f"skeleton lacks pose joint {missing[0]!r}")
     return np.array([index[name] for name in POSE_JOINTS], dtype=np.int64)
-
-
-def __getattr__(name: str):
-    """Tables ``track`` needs only for some outputs, loaded on first use
-    (sequences.skeleton_tables)."""
-    if name in ("CMU_REST_END_SITES", "POSE_JOINT_PART"):
-        from . import skeleton_tables
-        return getattr(skeleton_tables, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,7 +1,4 @@
-"""Tables of the CMU skeleton (sequences.skeleton) that ``track`` needs only for some outputs
-(BVH files) and the data tools need for error reports; sequences.skeleton loads them on first
-use.
-"""
+"""The CMU skeleton's (sequences.skeleton) end sites, which ``track`` needs only for BVH files."""
 from __future__ import annotations
 
 import numpy as np
@@ -16,14 +13,3 @@ CMU_REST_END_SITES[23] = [0.5412, 0.0, 0.5412]     # LThumb
 CMU_REST_END_SITES[29] = [-0.58887, 0.0, 0.0]      # RightHandIndex1
 CMU_REST_END_SITES[30] = [-0.59786, 0.0, 0.59786]  # RThumb
 CMU_REST_END_SITES.flags.writeable = False
-
-#: Body part of each pose joint, for per-part error reports.
-POSE_JOINT_PART: dict[str, str] = {
-    "Hips": "torso", "Spine1": "torso", "Neck": "head", "Head": "head",
-    "LeftShoulder": "left arm", "LeftArm": "left arm", "LeftForeArm": "left arm",
-    "LeftHand": "left arm",
-    "RightShoulder": "right arm", "RightArm": "right arm", "RightForeArm": "right arm",
-    "RightHand": "right arm",
-    "LeftUpLeg": "left leg", "LeftLeg": "left leg", "LeftFoot": "left leg",
-    "RightUpLeg": "right leg", "RightLeg": "right leg", "RightFoot": "right leg",
-}

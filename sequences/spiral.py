@@ -12,7 +12,7 @@ sequence from any CMU motion:
 3. Heading and ground path are re-integrated with an extra turning rate that ramps from
    0.75x to 1.25x the requested rate, so the path is a spiral (radius shrinking), not a circle.
 
-Ground truth for a camera is then ``pose_vector.motion_to_pose_vectors(motion, azimuths)`` with
+Ground truth for a camera is then ``pose_conversions.motion_to_pose_vectors(motion, azimuths)`` with
 ``line_of_sight_azimuth`` giving the per-frame azimuth of the camera seen from the subject.
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ from regressor.angles import wrap_deg
 from regressor.errors import SilhouettePoseError
 
 from .bvh import Motion
-from .pose_vector import motion_to_pose_vectors
+from .pose_conversions import motion_to_pose_vectors
 
 _ROOT_ORDER = "YXZ"          # R_root = Ry(yaw) Rx(tilt_x) Rz(tilt_z), as pose_vector
 _MIN_LOOP_SECONDS = 0.6      # shorter loops repeat a single step and look mechanical

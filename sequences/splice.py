@@ -22,8 +22,8 @@ earlier try of made-up trials with one limb network (regressor/limb_net.py, "New
 combinations", "Wider combinations", 2026-12-03) had found the same on the validation rows.
 
 Limb joints are found by the skeleton: a joint belongs to the part of its nearest ancestor (or
-itself) among the pose joints (sequences.skeleton.POSE_JOINT_PART, FOLDED), so fingers go with
-their hand and LHipJoint (a pelvis bone) with the torso.
+itself) among the pose joints (sequences.pose_conversions.POSE_JOINT_PART, skeleton.FOLDED),
+so fingers go with their hand and LHipJoint (a pelvis bone) with the torso.
 """
 from __future__ import annotations
 
@@ -38,7 +38,8 @@ import numpy as np
 from regressor.errors import SilhouettePoseError
 
 from .bvh import Motion, read_bvh, write_bvh
-from .skeleton import FOLDED, POSE_JOINT_PART
+from .pose_conversions import POSE_JOINT_PART
+from .skeleton import FOLDED
 
 #: The parts a spliced motion may take from another trial.
 LIMBS: tuple[str, ...] = ("left arm", "right arm", "left leg", "right leg")

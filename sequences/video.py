@@ -25,7 +25,8 @@ from regressor.errors import SilhouettePoseError
 
 from .body import BodyShape, Skinner, ground_sequence, load_body
 from .bvh import Motion
-from .pose_vector import POSE_DIM, motion_to_pose_vectors
+from .pose_conversions import motion_to_pose_vectors
+from .pose_vector import POSE_DIM
 from .render import Camera, look_at_camera, shaded_render
 from .spiral import line_of_sight_azimuth
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from sequences.bvh import Motion
-from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES, CMU_REST_OFFSETS
+from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS
+from sequences.skeleton_tables import CMU_REST_END_SITES
 
 ROOT_CHANNELS = ["Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"]
 JOINT_CHANNELS = ["Zrotation", "Yrotation", "Xrotation"]

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from sequences.bvh import BVHError, Motion, read_bvh, write_bvh
-from sequences.skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES,
-                                CMU_REST_OFFSETS)
+from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS
+from sequences.skeleton_tables import CMU_REST_END_SITES
 
 # A two-joint skeleton; the line numbers in the comments are the file's (1-based).
 TINY_HEAD = """HIERARCHY

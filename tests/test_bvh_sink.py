@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from sequences.bvh import read_bvh
-from sequences.pose_vector import joint_positions, motion_to_pose_vectors
+from sequences.pose_conversions import motion_to_pose_vectors
+from sequences.pose_vector import joint_positions
 from sequences.skeleton import CMU_UNIT_M
 from tracker.outputs.bvh import BVHSink
 from tracker.outputs.geometry import SinkInputError, pose_joints_m

@@ -12,8 +12,8 @@ from regressor.errors import SilhouettePoseError
 from regressor.model_file import load_model
 from regressor.pose_model import load_pose_model
 from regressor.model_writer import save_pose_model
-from sequences.pose_vector import (PoseVectorError, canonical_member, flip_odd_part,
-                                   front_back_flip)
+from sequences.pose_conversions import canonical_member, flip_odd_part
+from sequences.pose_vector import PoseVectorError, front_back_flip
 from tests.test_layout import _projected_model, _write_unchecked
 from tests.test_pose_vector import _random_vectors
 from lab.training import canonical_direction

@@ -15,8 +15,9 @@ from sequences.dataset import HELD_OUT_TRIALS
 from sequences.expmap import (EXPMAP_JOINTS, EXPMAP_OFFSETS, EXPMAP_PARENTS, ExpmapError,
                               expmap_to_motion, motion_to_expmap, read_expmap,
                               read_expmap_motion)
-from sequences.pose_vector import (forward_kinematics, motion_to_pose_vectors,
-                                   pose_vectors_to_motion)
+from sequences.bvh_write import pose_vectors_to_motion
+from sequences.pose_conversions import motion_to_pose_vectors
+from sequences.pose_vector import forward_kinematics
 from sequences.retarget import read_dance, retarget, source_from_cmu
 from sequences.skeleton import CMU_JOINT_NAMES, CMU_UNIT_M
 

@@ -7,8 +7,8 @@ import sys
 import numpy as np
 
 from sequences.gait_measures import gait_measures, knee_flexion
-from sequences.pose_vector import (POSE_DIM, canonical_member, front_back_flip, heading_deg,
-                                   pose_vector_names)
+from sequences.pose_conversions import canonical_member
+from sequences.pose_vector import POSE_DIM, front_back_flip, heading_deg, pose_vector_names
 from tracker.tracks.hypotheses import members_over_time
 from tests.conftest import ROOT
 

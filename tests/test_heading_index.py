@@ -7,9 +7,8 @@ import pytest
 from regressor.heading_index import HeadingIndex
 from regressor.heading_index_training import build_heading_index, fold_heading_deg
 from regressor.model_file import FORMAT_VERSION, ModelFileError, checksum, load_model
-from regressor.model_file_writer import save_model
 from regressor.pose_model import PoseModelError, load_pose_model
-from regressor.model_writer import save_pose_model
+from regressor.model_writer import save_model, save_pose_model
 from sequences.pose_vector import front_back_flip, heading_deg
 from tests.test_mixture import _mixture_model
 

@@ -75,7 +75,7 @@ def test_no_index_when_asked_and_none_without_a_projection():
 @pytest.mark.slow
 def test_training_fits_limb_networks_instead_of_the_limb_head_when_asked():
     pytest.importorskip("sklearn")
-    from sequences.pose_vector import canonical_member
+    from sequences.pose_conversions import canonical_member
     data, X, codebook, settings = _dataset()
     logged = []
     model, report = train_mixture_model(
@@ -134,7 +134,8 @@ def test_limb_networks_also_fit_every_training_rows_mirror_image(monkeypatch):
     mirrored masks' inputs, stacked and projected as the row's own, with the canonical member
     of the mirrored pose (image_mirror); without the mirrored inputs training refuses."""
     pytest.importorskip("sklearn")
-    from sequences.pose_vector import canonical_member, image_mirror
+    from sequences.pose_conversions import canonical_member
+    from sequences.pose_vector import image_mirror
     data, X, codebook, settings = _dataset()
     # The synthetic histograms say the heading as (cos, sin): a mirror image says -heading.
     X_mirror = X.copy()
@@ -181,7 +182,8 @@ def test_limb_networks_also_fit_a_share_of_the_rows_played_backwards(monkeypatch
     with its stacked frames in reverse order and the same targets."""
     pytest.importorskip("sklearn")
     from lab.training import _time_reversed_rows
-    from sequences.pose_vector import canonical_member, image_mirror
+    from sequences.pose_conversions import canonical_member
+    from sequences.pose_vector import image_mirror
     data, X, codebook, settings = _dataset()
     X_mirror = X.copy()
     X_mirror[:, 1] = 2.4 - X[:, 1]

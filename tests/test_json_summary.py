@@ -86,7 +86,8 @@ def test_summary_records_novelty_and_counts_unfamiliar_frames(tmp_path):
         for frame, novelty in enumerate(given):
             sink.write(TrackedPose(frame, frame / 25.0, 0, _pose(0, 1, 0), _pose(0, 1, 0), False,
                                    JOINTS, centroid_px=(1.0, 2.0), novelty=novelty))
-        for bad in (-0.1, float("inf"), "high", [1.0, 2.0], True, 10 ** 400):
+        # a number given as text is refused, as a runner-up's probability is (geometry._number)
+        for bad in (-0.1, float("inf"), "high", "1.5", [1.0, 2.0], True, 10 ** 400):
             with pytest.raises(SinkInputError, match="novelty"):
                 sink.write(TrackedPose(9, 0.4, 0, _pose(0, 1, 0), _pose(0, 1, 0), False, JOINTS,
                                        centroid_px=(1.0, 2.0), novelty=bad))

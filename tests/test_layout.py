@@ -10,10 +10,9 @@ from regressor.edges import DegenerateSilhouetteError
 from regressor.layout import silhouette_layout
 from regressor.mixture import MixtureRegressor
 from regressor.model_file import FORMAT_VERSION, checksum, load_model
-from regressor.model_file_writer import save_model
 from regressor.optional_parts import predict_batch
 from regressor.pose_model import PoseModel, PoseModelError, load_pose_model
-from regressor.model_writer import save_pose_model
+from regressor.model_writer import save_model, save_pose_model
 
 
 def _figure(scale: int = 1, shift: tuple[int, int] = (0, 0)) -> np.ndarray:

@@ -265,7 +265,7 @@ def test_the_tracker_never_imports_scikit_learn():
 def test_a_mixture_model_with_a_limb_network_saves_loads_and_gives_its_limbs(tmp_path):
     from test_mixture import _mixture_model
     from regressor.model_file import load_model
-    from regressor.model_file_writer import save_model
+    from regressor.model_writer import save_model
     model, x = _mixture_model()                              # input length 8
     rng = np.random.default_rng(3)
     targets = np.column_stack([np.ones(len(x)), np.zeros(len(x)),

@@ -239,7 +239,7 @@ def test_sparse_rvm_experts_round_trip_with_their_variance(tmp_path):
 
 def test_a_broken_sparse_rvm_expert_part_is_refused_in_one_line(tmp_path):
     from regressor.model_file import load_model
-    from regressor.model_file_writer import save_model
+    from regressor.model_writer import save_model
     model, _ = _mixture_model(expert="sparse_rvm")
     model.variance_calibration = 0.01
     path = tmp_path / "rvm.npz"
@@ -296,7 +296,7 @@ def test_tampered_mixture_file_is_refused(tmp_path):
 
 
 def test_inconsistent_mixture_file_is_refused(tmp_path):
-    from regressor.model_file_writer import save_model
+    from regressor.model_writer import save_model
     model, _ = _mixture_model()
     path = tmp_path / "mixture.npz"
     save_pose_model(path, model)
@@ -314,7 +314,7 @@ def _with_limb_head(model, x, seed=5):
     (lab.training.split_expert_outputs), the head's angles about non-zero centres.
     Returns (mixture, head, members: the head's regression targets (N, 55))."""
     from regressor.optional_parts import LimbHead
-    from sequences.pose_vector import canonical_member
+    from sequences.pose_conversions import canonical_member
     from regressor.training import split_expert_outputs
     rng = np.random.default_rng(seed)
     own = model.mixture.predict(x)
@@ -345,7 +345,7 @@ def test_a_joint_fit_splits_into_the_own_head_and_the_limb_head():
 def test_limb_head_round_trips_and_a_broken_one_is_refused(tmp_path):
     from regressor.angles import wrap_deg
     from regressor.model_file import load_model
-    from regressor.model_file_writer import save_model
+    from regressor.model_writer import save_model
     model, x = _mixture_model()
     model.mixture, model.limb_head, members = _with_limb_head(model, x)
     assert predict_limbs(_mixture_model()[0], x[:3]) is None        # no head, no limbs
@@ -384,7 +384,7 @@ def assert_refused_when_changed(path, cases) -> None:
     changes (a part mapped to None is removed; re-checksummed, so only the model's own
     checks can refuse it) fails to load with a PoseModelError matching match."""
     from regressor.model_file import load_model
-    from regressor.model_file_writer import save_model
+    from regressor.model_writer import save_model
     raw = dict(load_model(path).parts)
     for changes, match in cases:
         save_model(path, {k: v for k, v in {**raw, **changes}.items() if v is not None})
@@ -396,7 +396,7 @@ def assert_only_a_mixture_carries(tmp_path, attribute: str, value, parts: dict):
     """The single-RVM model with ``attribute`` set to ``value`` refuses to be saved, and its
     file with ``parts`` added refuses to load (both: "only a mixture")."""
     from regressor.model_file import load_model
-    from regressor.model_file_writer import save_model
+    from regressor.model_writer import save_model
     from regressor.pose_model import DEFAULT_MODEL_PATH
     single = load_pose_model(DEFAULT_MODEL_PATH.parent / "per_frame_model.npz")
     setattr(single, attribute, value)

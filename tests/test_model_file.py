@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from regressor.model_file import FORMAT_VERSION, ModelFileError, load_model
-from regressor.model_file_writer import save_model
+from regressor.model_writer import save_model
 
 
 def _parts(R=4, K=3, D=5, k=2):

@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 
 from regressor.model_file import load_model
-from regressor.model_file_writer import save_model
 from regressor.pose_model import (DEFAULT_AMBIGUITY_THRESHOLD, DEFAULT_MODEL_PATH, PoseModelError,
                                   load_pose_model)
-from regressor.model_writer import save_pose_model
+from regressor.model_writer import save_model, save_pose_model
 from tracker import PoseTracker, TrackerSettings
 from tracker.tracks.hypotheses import chain_options
 
@@ -122,7 +121,7 @@ def test_what_track_asks_of_the_model_loads_no_training_or_batch_code():
     import subprocess
     import sys
     optional = ["regressor.rotation6d", "regressor.relu_stacked", "regressor.stacking_batch",
-                "regressor.model_writer", "regressor.model_file_writer",
+                "regressor.model_writer",
                 "regressor.optional_parts", "sequences.skeleton_tables",
                 "sequences.pose_conversions"]
     code = ("import sys, numpy as np\n"

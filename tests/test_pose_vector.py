@@ -6,15 +6,14 @@ import pytest
 
 from sequences.bvh import Motion, matrices_to_euler, read_bvh, write_bvh
 from regressor.angles import heading_norm
-from sequences.pose_vector import (PART_OF_ENTRY, POSE_DIM, PoseVectorError,
-                                   forward_kinematics, front_back_flip,
-                                   image_mirror,
-                                   heading_deg,
-                                   joint_positions, motion_to_pose_vectors,
-                                   pose_vector_names, pose_vectors_to_local_rotations,
-                                   pose_vectors_to_motion)
-from sequences.skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_END_SITES,
-                                CMU_REST_OFFSETS, FOLDED, POSE_JOINTS, pose_joint_indices)
+from sequences.pose_conversions import PART_OF_ENTRY, motion_to_pose_vectors
+from sequences.pose_vector import (POSE_DIM, PoseVectorError, forward_kinematics,
+                                   front_back_flip, heading_deg, image_mirror, joint_positions,
+                                   pose_vector_names, pose_vectors_to_local_rotations)
+from sequences.bvh_write import pose_vectors_to_motion
+from sequences.skeleton import (CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, FOLDED,
+                                POSE_JOINTS, pose_joint_indices)
+from sequences.skeleton_tables import CMU_REST_END_SITES
 
 LEG_JOINTS = ["Hips", "LeftUpLeg", "LeftLeg", "LeftFoot", "RightUpLeg", "RightLeg", "RightFoot"]
 

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from sequences.bvh import Motion, read_bvh
-from sequences.pose_vector import heading_deg, motion_to_pose_vectors
+from sequences.pose_conversions import motion_to_pose_vectors
+from sequences.pose_vector import heading_deg
 from sequences.skeleton import CMU_JOINT_NAMES
 from tests.synthetic import cmu_motion
 from sequences.spiral import SpiralError, find_loop, line_of_sight_azimuth, spiral_walk

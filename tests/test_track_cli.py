@@ -167,7 +167,7 @@ def test_a_model_without_its_front_back_priors_is_tracked_with_a_warning(tmp_pat
     stored) still tracks, with the shipped model's priors and a one-line warning naming it;
     the shipped model carries its own and gives no such warning."""
     from regressor.model_file import load_model
-    from regressor.model_file_writer import save_model
+    from regressor.model_writer import save_model
     parts = {k: v for k, v in load_model(DEFAULT_MODEL_PATH).parts.items()
              if not k.startswith("canonical_prior_")}
     assert len(parts) < len(load_model(DEFAULT_MODEL_PATH).parts)

@@ -98,8 +98,7 @@ class _Progress:
 
     def close(self) -> None:
         if self._bar is not None:
-            self._bar.close()
-            self._bar = None
+            self._bar.close()           # idempotent
 
 
 class TrackError(SilhouettePoseError):
@@ -217,15 +216,7 @@ def _check_options(args) -> None:
         if _same_file(args.out, args.video):
             raise TrackError(f"the default output {args.out} would be the input video; choose "
                              f"an output with --out")
-    from tracker.outputs.files import stream_descriptor     # deferred: the sinks load numpy
-    for path, what in ((args.out, "--out"), (args.json, "--json")):
-        if path is not None:
-            if path.is_dir():
-                raise TrackError(f"{what} {path} is a folder; give a file name")
-            # /dev/null, a FIFO, /dev/stdout are written in place (tracker.outputs.files)
-            _check_writable(what, path, stream_descriptor(path) is not None
-                            or (path.exists() and not path.is_file()))
-    _check_collisions(args)
+    _check_outputs(args)
     if args.bvh is not None:
         from tracker.bvh_option import check_folder
         check_folder(args)
@@ -248,43 +239,49 @@ def _same_file(a: Path, b: Path) -> bool:
     return file_identity(a) == file_identity(b)
 
 
-def _check_collisions(args) -> None:
-    """No output (nor its temporary file) may be an input or another output, also through a
-    relative path, a symlink or a hard link."""
+def _check_outputs(args) -> None:
+    """--out and --json can be written; no output (nor its temporary file) may be an input or
+    another output, also through a relative path, a symlink or a hard link (file_identity)."""
     from regressor.pose_model import DEFAULT_MODEL_PATH
-    from tracker.outputs.files import check_distinct, partial_path
+    from tracker.outputs.files import file_identity, partial_path, stream_descriptor
     named = [("the input video", args.video), ("the model", args.model or DEFAULT_MODEL_PATH)]
     if args.background is not None:
         named.append(("the --background image", args.background))
     for path, what in ((args.out, "--out"), (args.json, "--json")):
         if path is not None:
+            if path.is_dir():
+                raise TrackError(f"{what} {path} is a folder; give a file name")
+            # /dev/null, a FIFO, /dev/stdout are written in place (tracker.outputs.files)
+            _check_writable(what, path, stream_descriptor(path) is not None
+                            or (path.exists() and not path.is_file()))
             named += [(what, path), (f"{what}'s temporary file",
                                      partial_path(os.path.realpath(path)))]
     if args.bvh is not None:
         from tracker.bvh_option import check_names
         check_names(args, named)
         named.append(("the --bvh folder", args.bvh))
-    try:
-        check_distinct(named)
-    except SilhouettePoseError as exc:
-        raise TrackError(str(exc)) from None
+    seen: dict[tuple, tuple[str, Path]] = {}
+    for what, path in named:
+        if (key := file_identity(path)) in seen:
+            other, other_path = seen[key]
+            raise TrackError(f"{what} {path} is the same file as {other} {other_path}; choose "
+                             f"another file name (nothing was written)")
+        seen[key] = (what, Path(path))
 
 
 def tracker_settings(args):
     """The tracker.pipeline.TrackerSettings the parsed options ask for."""
     from tracker.pipeline import TrackerSettings
     # Per-track histories only to smooth: without (--no-smooth --lag 0) memory stays flat.
-    return TrackerSettings(max_people=args.max_people,
+    return TrackerSettings(max_people=args.max_people, roll_deg=args.roll,
                            keep_history=smoothing(args) or lag_seconds(args) > 0,
-                           roll_deg=args.roll,
                            trust_zone_foreground=ZONE_FOREGROUND[args.zone_foreground],
                            min_area_fraction=_min_area_fraction(args))
 
 
 def smoothing(args) -> bool:
     """Whether smoothed tracks are written: --smooth and a JSON, BVH or MCAP output."""
-    return (args.json is not None or args.bvh is not None or args.out is not None) \
-        and bool(args.smooth)
+    return bool(args.smooth) and any(p is not None for p in (args.out, args.json, args.bvh))
 
 
 def lag_seconds(args) -> float:
@@ -366,37 +363,34 @@ def run(args) -> int:
     # Imported before threadpool_limits, which limits only the BLAS libraries already loaded.
     from threadpoolctl import threadpool_limits
 
+    from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
     from tracker import pipeline  # noqa: F401 (loads numpy, scipy, filterpy, OpenCV)
+    from tracker.outputs.files import OutputWriteError
+    from tracker.run import BackgroundMismatchError, OutputError
     check_interrupted()
     # One BLAS thread: the per-frame matrices are small, and threads cost more than they save.
     with threadpool_limits(1):
-        return _run(args)
-
-
-def _run(args) -> int:
-    from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-    from tracker.run import BackgroundMismatchError, OutputError
-    from tracker.outputs.files import OutputWriteError
-    _check_options(args)
-    args.model = args.model or DEFAULT_MODEL_PATH
-    model = load_pose_model(args.model)
-    if model.gives_canonical_pairs and model.canonical_priors is None:
-        warnings.warn(f"{args.model} carries no front/back priors; using the shipped model's, "
-                      f"which may not fit its side classifier (add its own: python "
-                      f"scripts/learn_hypothesis_priors.py --model {args.model} --save NEW.npz)")
-    check_interrupted()                  # the model and its imports are loaded
-    source = _open_source(args)
-    plate = None
-    if args.background:
-        from tracker.clean_plate import load_background
-        plate = load_background(args.background, source)
-    try:
-        result, sinks = _track_into_outputs(args, source, model, plate)
-    except BackgroundMismatchError as exc:
-        raise TrackError(f"--background {args.background}: {exc}") from None
-    except (OutputWriteError, OutputError) as exc:
-        from tracker.cli_failures import output_failure
-        raise TrackError(output_failure(args, exc)) from None
+        _check_options(args)
+        args.model = args.model or DEFAULT_MODEL_PATH
+        model = load_pose_model(args.model)
+        if model.gives_canonical_pairs and model.canonical_priors is None:
+            warnings.warn(f"{args.model} carries no front/back priors; using the shipped "
+                          f"model's, which may not fit its side classifier (add its own: python "
+                          f"scripts/learn_hypothesis_priors.py --model {args.model} --save "
+                          f"NEW.npz)")
+        check_interrupted()                  # the model and its imports are loaded
+        source = _open_source(args)
+        plate = None
+        if args.background:
+            from tracker.clean_plate import load_background
+            plate = load_background(args.background, source)
+        try:
+            result, sinks = _track_into_outputs(args, source, model, plate)
+        except BackgroundMismatchError as exc:
+            raise TrackError(f"--background {args.background}: {exc}") from None
+        except (OutputWriteError, OutputError) as exc:
+            from tracker.cli_failures import output_failure
+            raise TrackError(output_failure(args, exc)) from None
     if not args.quiet:
         try:
             _print_summary(args, source, result, sinks)
@@ -405,12 +399,9 @@ def _run(args) -> int:
             sys.stdout = open(os.devnull, "w")
     if result.interrupted:
         return EXIT_INTERRUPTED
-    if not result.written:
-        # Nobody tracked: no outputs written (write_empty), earlier files of their names kept.
-        raise TrackError(f"{args.video}: nobody found in its {result.frames} frames (a person "
-                         f"must move against a still background and cover at least "
-                         f"{100 * _min_area_fraction(args):g} % of the image: --min-area); "
-                         f"{_nothing_written(args)}")
+    if not result.written:      # no outputs written (write_empty), earlier files kept
+        from tracker.cli_failures import nobody_found
+        raise nobody_found(args, result.frames, 100 * _min_area_fraction(args))
     return 0
 
 
@@ -455,13 +446,6 @@ def _open_source(args):
     raise time_range_error(args)
 
 
-def _nothing_written(args) -> str:
-    """The end of the nobody-found error: what became of the outputs asked for."""
-    if args.out is None and args.json is None and args.bvh is None:
-        return "nothing to show"
-    return "no output files written (files already of those names are left as they were)"
-
-
 def _print_summary(args, source, result, sinks=()) -> None:
     """The run's summary: what was tracked, and which poses each output holds."""
     from tracker.outputs.files import stream_descriptor
@@ -480,21 +464,20 @@ def _print_summary(args, source, result, sinks=()) -> None:
         print(f"  track {track_id}: {counts.poses} frames{unfamiliar}", file=out)
     if not tracks:          # nothing written (the nobody-found error follows unless stopped)
         if result.interrupted:
-            print(f"  {_nothing_written(args)}", file=out)
+            from tracker.cli_failures import nothing_written
+            print(f"  {nothing_written(args)}", file=out)
         return
     # The JSON and BVH hold the smoothed poses, or after a quick exit those streamed.
     streamed = streamed_kind(args)
     kind = "smoothed" if result.smoothed else streamed
     mcap_kind = f"{streamed} + smoothed" if result.smoothed else streamed
-    for path, what, poses in ((args.out, "MCAP", mcap_kind), (args.json, "JSON", kind),
-                              (args.bvh, "BVH folder", kind)):
-        if path is None:
-            continue
-        tail = ""
-        if what == "BVH folder":
-            from tracker.bvh_option import files_tail, written_files
-            tail = files_tail(path, args.video.stem, written_files(sinks))
-        print(f"  {what} ({poses} poses): {path}{tail}", file=out)
+    for path, what, poses in ((args.out, "MCAP", mcap_kind), (args.json, "JSON", kind)):
+        if path is not None:
+            print(f"  {what} ({poses} poses): {path}", file=out)
+    if args.bvh is not None:
+        from tracker.bvh_option import files_tail, written_files
+        tail = files_tail(args.bvh, args.video.stem, written_files(sinks))
+        print(f"  BVH folder ({kind} poses): {args.bvh}{tail}", file=out)
 
 
 def one_line_warning(prog: str):

@@ -1,5 +1,5 @@
 """The messages of ``track`` runs that fail, in the options' terms: an output that could not
-be written, a time range outside the video. Loaded only then."""
+be written, a time range outside the video, nobody found. Loaded only then."""
 from __future__ import annotations
 
 import math
@@ -22,6 +22,20 @@ def time_range_error(args) -> TrackError:
     end = "its end" if args.end is None else f"--end {args.end:g} s"
     return TrackError(f"no frames in the chosen time range of {args.video} (--start "
                       f"{args.start:g} s to {end} at {whole.fps:g} fps)")
+
+
+def nobody_found(args, frames: int, min_area_percent: float) -> TrackError:
+    """The error of a run that tracked nobody in its ``frames`` frames (nothing written)."""
+    return TrackError(f"{args.video}: nobody found in its {frames} frames (a person must move "
+                      f"against a still background and cover at least {min_area_percent:g} % "
+                      f"of the image: --min-area); {nothing_written(args)}")
+
+
+def nothing_written(args) -> str:
+    """The end of the nobody-found error: what became of the outputs asked for."""
+    if args.out is None and args.json is None and args.bvh is None:
+        return "nothing to show"
+    return "no output files written (files already of those names are left as they were)"
 
 
 def _output_option(args, path: Path | None) -> str | None:

@@ -38,7 +38,7 @@ from regressor.stacking import stack_frames
 from sequences.body import sample_body_shapes
 from sequences.measures import DEFAULT_TOP_ANGLES, correlation, pose_measures, skill
 from sequences.bvh import read_bvh
-from sequences.pose_vector import PART_OF_ENTRY, motion_to_pose_vectors
+from sequences.pose_conversions import PART_OF_ENTRY, motion_to_pose_vectors
 from sequences.render import silhouette_mask
 from sequences.spiral import line_of_sight_azimuth, spiral_walk
 from sequences.video import Actor, load_truth, posed_sequences, scene_camera, write_video

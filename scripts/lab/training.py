@@ -43,7 +43,8 @@ from regressor.training import (MixtureOptions, angle_centres, block_spread, cal
 from sequences.dataset import Dataset
 from sequences.measures import body_angle_error, constant_error, skill, top_angle_correlation
 from sequences.mask_noise import MaskNoise, degrade_all
-from sequences.pose_vector import canonical_member, flip_odd_part, heading_deg, image_mirror
+from sequences.pose_conversions import canonical_member, flip_odd_part
+from sequences.pose_vector import heading_deg, image_mirror
 
 _CHUNK = 500                     # masks per worker task
 _SHARED: dict = {}               # masks handed to forked workers (copy-on-write, not pickled)
@@ -364,7 +365,7 @@ def _training_arrays(dataset: Dataset, X: np.ndarray, transform: str, stack_dept
 
 
 def canonical_direction(pose: np.ndarray, max_rows: int = 20000, seed: int = 0) -> np.ndarray:
-    """The direction (55,) unit, that sequences.pose_vector.canonical_member projects on: the
+    """The direction (55,) unit, that sequences.pose_conversions.canonical_member projects on: the
     first principal direction (about zero) of the poses' flip-odd parts (N, 55 -> at most
     max_rows drawn, seeded), so that the members of a pair differ most along it and few poses
     sit near the boundary where the choice changes (1 in 9 training rows within 5 units).

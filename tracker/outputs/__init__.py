@@ -1,7 +1,6 @@
-"""Outputs of the tracker: every sink takes the calls of the :class:`Sink` protocol. Optional:
-write_frame(frame_index, time_s, frame, people) and discard() (MeshcatView, which shows the
-video); ``pose_kind``, "filtered" or "smoothed" (set by tracker.run.track_video); ``option``
-(e.g. "--json", named by problem_line); ``abandon()`` (files: close_sinks)."""
+"""Outputs of the tracker, sinks taking the calls of :class:`Sink`; optional: write_frame() and
+discard() (MeshcatView), ``pose_kind`` (set by tracker.run.track_video), ``option`` (e.g.
+"--json", for problem_line) and ``abandon()`` (files: close_sinks)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
@@ -30,11 +29,9 @@ class PoseRecorder:
         self._frame_ends: list[tuple[int, int]] = []   # (frame index, poses up to its end)
 
     def write(self, pose: TrackedPose) -> None:
-        """Keep the pose."""
         self.poses.append(pose)
 
     def end_frame(self, frame_index: int) -> None:
-        """Note where the frame's poses end."""
         self._frame_ends.append((frame_index, len(self.poses)))
 
     def frames(self) -> list[tuple[int, list[TrackedPose]]]:

@@ -1,19 +1,6 @@
-"""BVH export: one file per track on the CMU skeleton, written when the sink is closed.
-
-Angles: the pose vectors given (``pose.filtered``: filtered, or smoothed when ``track`` feeds
-the smoothed poses at the end) by ``sequences.pose_vector.pose_vectors_to_motion`` (camera
-azimuth 0: heading 0 faces the camera). Root: the Hips of the ``joints3d`` given (metres, in CMU
-units in the file), whatever placement the caller chose (``track``: geometry.
-ground_position_from_image, smoothed over the track by tracker.tracks.root_path).
-
-Frames: BVH frame i is the time ``t0 + i / fps`` (t0: the track's first time) up to its last,
-holding the pose and root of the latest frame written at or before it (within half a BVH frame):
-frames not written (missed, skipped) repeat the last, and a variable frame rate keeps its real
-timing (a 10 fps stretch of a 30 fps file holds each pose three frames). A track with fewer
-than ``min_frames`` frames gets no file. Nothing is written before close() (the MCAP is the
-crash-safe record); each file goes through ``NAME.partial`` (whole_files.write_beside), and a
-lock file ``.PREFIX.bvh.lock`` makes a second sink on the same folder and prefix fail at once.
-"""
+"""BVH export: one file per track, written on close() (atomic.write_beside), a lock
+``.PREFIX.bvh.lock`` failing a second sink on the same folder and prefix at once; angles from
+bvh_write.pose_vectors_to_motion, frames on a regular grid (docs/code_notes/outputs.md)."""
 from __future__ import annotations
 
 import math
@@ -22,18 +9,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sequences.bvh_write import write_bvh
+from sequences.bvh_write import pose_vectors_to_motion, write_bvh
 from sequences.motion import Motion
-from sequences.pose_vector import pose_vectors_to_motion
-from sequences.skeleton import (
-    CMU_JOINT_NAMES,
-    CMU_PARENTS,
-    CMU_REST_END_SITES,
-    CMU_REST_OFFSETS,
-    CMU_UNIT_M,
-)
+from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, CMU_UNIT_M
+from sequences.skeleton_tables import CMU_REST_END_SITES
+from tracker.outputs.atomic import LockFile, write_beside
 from tracker.outputs.files import beside_name
-from tracker.outputs.whole_files import LockFile, write_beside
 from tracker.outputs.geometry import SinkInputError, check_joints, check_pose, checked_time
 
 if TYPE_CHECKING:
@@ -57,11 +38,9 @@ def default_cmu_template(fps: float) -> Motion:
 
 def regular_rows(times_s: np.ndarray, fps: float) -> np.ndarray:
     """Which row each frame of a regular grid at ``fps`` from times_s[0] to times_s[-1] holds:
-    the latest row whose time is at or before the grid time plus half a grid step (so a time
-    rounded a little late still lands on its own frame).
-
-    times_s: (N,) increasing seconds. Returns (round((times_s[-1] - times_s[0]) fps) + 1,) ints.
-    """
+    the latest row whose time is at or before the grid time plus half a grid step (a time
+    rounded a little late still lands on its own frame). times_s: (N,) increasing seconds.
+    Returns (round((times_s[-1] - times_s[0]) fps) + 1,) ints."""
     count = int(round((times_s[-1] - times_s[0]) * fps)) + 1
     grid = times_s[0] + (np.arange(count) + 0.5) / fps
     return np.maximum(np.searchsorted(times_s, grid, side="right") - 1, 0)
@@ -69,13 +48,10 @@ def regular_rows(times_s: np.ndarray, fps: float) -> np.ndarray:
 
 class BVHSink:
     """Collect each track's poses and root positions; write one BVH per track on close.
-
     directory: where files go (created if missing); files are ``<prefix>_<track id>.bvh``.
     fps: video frame rate (frames per second of the frame indices). template: the skeleton
-    (a Motion, e.g. a CMU file read with sequences.bvh.read_bvh); None uses
-    default_cmu_template. min_frames: shortest track that gets a file.
-    After close(), ``paths`` maps track id -> written file.
-    """
+    (a Motion, e.g. a CMU file read with sequences.bvh.read_bvh); None: default_cmu_template.
+    min_frames: shortest track that gets a file. After close(), ``paths``: track id -> file."""
 
     def __init__(self, directory: str | Path, fps: float, prefix: str = "track",
                  template: Motion | None = None, min_frames: int = 1):
@@ -87,14 +63,12 @@ class BVHSink:
         self.template = default_cmu_template(fps) if template is None else template
         self.min_frames = int(min_frames)
         self._root = int(np.flatnonzero(np.asarray(self.template.parents) < 0)[0])
-        # Per track: frame indices, times (s), poses (55,) and Hips positions (3,) m.
-        self._tracks: dict[int, tuple[list[int], list[float], list[np.ndarray],
-                                      list[np.ndarray]]] = {}
+        # Per track, per frame: (frame index, time s, pose (55,), Hips position (3,) m).
+        self._tracks: dict[int, list[tuple[int, float, np.ndarray, np.ndarray]]] = {}
         self.paths: dict[int, Path] = {}
-        self._closed = False
-        # The top-most folder this sink makes, removed again (if still empty) by abandon().
-        missing = [p for p in (self.directory, *self.directory.parents) if not p.exists()]
-        self._made = missing[-1] if missing else None
+        self.closed = False
+        # The folders this sink makes (innermost first), removed again if empty by abandon().
+        self._made = [p for p in (self.directory, *self.directory.parents) if not p.exists()]
         self.directory.mkdir(parents=True, exist_ok=True)
         try:
             self._lock = LockFile(beside_name(self.directory / f".{prefix}.bvh", ".lock"))
@@ -102,36 +76,28 @@ class BVHSink:
             self._remove_made_folders()
             raise
 
-    @property
-    def closed(self) -> bool:
-        """True after close()."""
-        return self._closed
-
     def write(self, pose: TrackedPose) -> None:
         """Keep pose.filtered (55,), the Hips position pose.joints_m[0] (metres) and the time
         pose.time_s (seconds) of this track and frame. Frame indices and times of a track must
         increase. Raises SinkInputError on bad input."""
-        if self._closed:
+        if self.closed:
             raise SinkInputError("BVH sink is closed")
         frame_index, track_id = pose.frame_index, pose.track_id
         filtered = check_pose("filtered55", pose.filtered)
         joints = check_joints(pose.joints_m)
         time_s = checked_time(pose.time_s)
-        frames, times, poses, roots = self._tracks.setdefault(int(track_id), ([], [], [], []))
-        if frames and (int(frame_index) <= frames[-1] or time_s <= times[-1]):
+        kept = self._tracks.setdefault(int(track_id), [])
+        if kept and (int(frame_index) <= kept[-1][0] or time_s <= kept[-1][1]):
             raise SinkInputError(f"track {track_id}: frame {frame_index} at {time_s:g} s does "
-                                 f"not follow frame {frames[-1]} at {times[-1]:g} s")
-        frames.append(int(frame_index))
-        times.append(time_s)
-        poses.append(filtered)
-        roots.append(joints[0])
+                                 f"not follow frame {kept[-1][0]} at {kept[-1][1]:g} s")
+        kept.append((int(frame_index), time_s, filtered, joints[0]))
 
     def end_frame(self, frame_index: int) -> None:
         """Nothing per frame: files are written on close."""
 
     def motion(self, track_id: int) -> Motion:
         """The Motion that close() writes for ``track_id`` (KeyError if never written)."""
-        _, times, poses, roots = self._tracks[track_id]
+        _, times, poses, roots = zip(*self._tracks[track_id])
         rows = regular_rows(np.asarray(times), self.fps)
         vectors = np.asarray(poses)[rows]
         root_cmu = np.asarray(roots)[rows] / CMU_UNIT_M - self.template.offsets[self._root]
@@ -142,12 +108,12 @@ class BVHSink:
 
     def close(self) -> None:
         """Write one BVH per track with at least min_frames frames; idempotent."""
-        if self._closed:
+        if self.closed:
             return
-        self._closed = True
+        self.closed = True
         try:
             for track_id in sorted(self._tracks):
-                if len(self._tracks[track_id][0]) < self.min_frames:
+                if len(self._tracks[track_id]) < self.min_frames:
                     continue
                 # A name past the file system's limit (a long video name, a track id of many
                 # digits) gets its prefix cut and hashed, as the partial and lock names do.
@@ -161,22 +127,18 @@ class BVHSink:
     def abandon(self) -> None:
         """Stop without writing any file (a run that tracked nobody), removing the folders it
         made if they are still empty; idempotent."""
-        if self._closed:
+        if self.closed:
             return
-        self._closed = True
+        self.closed = True
         self._lock.release()
         self._remove_made_folders()
 
     def _remove_made_folders(self) -> None:
         """Remove the folders the constructor made, innermost first, while they are empty."""
-        if self._made is None:
-            return
-        for folder in (self.directory, *self.directory.parents):
+        for folder in self._made:
             try:
                 folder.rmdir()
             except OSError:                 # not empty (someone else's files): kept
-                break
-            if folder == self._made:
                 break
 
     def __enter__(self) -> "BVHSink":

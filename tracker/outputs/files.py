@@ -1,6 +1,6 @@
 """Output files that never destroy data: :class:`OutputFile` writes ``NAME.partial`` under an
 exclusive lock and renames it onto ``NAME`` once complete (a crash leaves ``NAME`` as it was);
-non-regular files and the shell's streams are written in place. Written in one go: whole_files."""
+non-regular files and the shell's streams are written in place. Written in one go: atomic."""
 from __future__ import annotations
 
 import contextlib
@@ -9,7 +9,6 @@ import hashlib
 import os
 import re
 import sys
-from collections.abc import Iterable
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
@@ -17,10 +16,6 @@ from regressor.errors import SilhouettePoseError
 PARTIAL_SUFFIX = ".partial"
 #: The longest file name, in bytes, of the usual file systems (ext4, XFS, btrfs, tmpfs).
 NAME_MAX = 255
-
-
-class OutputPathError(SilhouettePoseError, ValueError):
-    """An output path that would overwrite the input or another output."""
 
 
 class _FileError(SilhouettePoseError, RuntimeError):
@@ -83,19 +78,6 @@ def file_identity(path: str | Path) -> tuple:
         return ("inode", status.st_dev, status.st_ino)
     except OSError:
         return ("path", os.path.realpath(path))
-
-
-def check_distinct(named: Iterable[tuple[str, Path]]) -> None:
-    """OutputPathError naming both when two of ``named`` (description, path) are the same file
-    (after symlinks, relative paths and hard links); descriptions: "the input video", "--out"."""
-    seen: dict[tuple, tuple[str, Path]] = {}
-    for what, path in named:
-        key = file_identity(path)
-        if key in seen:
-            other, other_path = seen[key]
-            raise OutputPathError(f"{what} {path} is the same file as {other} {other_path}; "
-                                  f"choose another file name (nothing was written)")
-        seen[key] = (what, Path(path))
 
 
 def busy_error(path: Path, changing: bool = False) -> OutputBusyError:

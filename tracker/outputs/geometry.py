@@ -91,28 +91,16 @@ def check_pose(name: str, pose: np.ndarray) -> np.ndarray:
 
 def check_centroid(centroid_px) -> np.ndarray:
     """A silhouette centroid (x, y) pixels as float64 (2,); SinkInputError otherwise."""
-    centroid = np.asarray(centroid_px, dtype=np.float64)
-    if centroid.shape != (2,) or not np.all(np.isfinite(centroid)):
-        raise SinkInputError(f"centroid_px must be two finite numbers, got {centroid_px!r}")
-    return centroid
+    return _finite("centroid_px", centroid_px, (2,),
+                   "centroid_px must be two numbers (x, y) pixels, got shape {}")
 
 
 def known_novelty(value) -> float | None:
     """A pose's novelty (PoseEstimates.novelty, a ratio) as a float >= 0, or None when unknown
     (None, or NaN from a model without a heading index); SinkInputError for anything else."""
-    if value is None:
+    if value is None or (isinstance(value, (float, np.floating)) and math.isnan(value)):
         return None
-    try:
-        if isinstance(value, (bool, np.bool_)):
-            raise TypeError
-        number = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise SinkInputError(f"novelty must be one number, got {value!r}") from None
-    if math.isnan(number):
-        return None
-    if not (math.isfinite(number) and number >= 0):
-        raise SinkInputError(f"novelty must be a finite number >= 0, got {value}")
-    return number
+    return _number(value, math.inf, "novelty must be a finite number >= 0")
 
 
 def _number(value, high: float, must: str) -> float:

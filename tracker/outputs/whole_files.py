@@ -1,42 +1,13 @@
-"""Output files written in one go, whole or not at all (BVH files, scripts' outputs), and the
-lock of a set of them; the rules of tracker.outputs.files (partial names, aside.set_aside)."""
+"""A script's output files, written whole or not at all (atomic.write_beside) onto the file a
+path names, and the temporary names they are written under."""
 from __future__ import annotations
 
-import contextlib
 import os
 from collections.abc import Callable
 from pathlib import Path
 
-from tracker.outputs.aside import set_aside
-from tracker.outputs.files import (PARTIAL_SUFFIX, OutputWriteError, open_locked, partial_path,
-                                   sync_folder)
-
-
-def write_beside(path: str | Path, write: Callable[[Path], None],
-                 partial: str | Path | None = None) -> None:
-    """Call ``write(partial path)``, flush that file to disk and rename it onto ``path`` (a
-    symlink there is replaced, not followed: BVH files are named by the sink, not the user);
-    on failure the partial file is removed and ``path`` is left as it was (OutputWriteError
-    naming the file). partial: the temporary name (default partial_path(path)), in path's
-    folder; a non-empty file there is kept aside first (set_aside)."""
-    shown = path = Path(path)
-    partial = partial_path(path) if partial is None else Path(partial)
-    set_aside(partial)
-    try:
-        write(partial)
-        fd = os.open(partial, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        os.replace(partial, path)
-    except BaseException as exc:
-        with contextlib.suppress(OSError):
-            os.unlink(partial)
-        if isinstance(exc, OSError):
-            raise OutputWriteError(f"{shown}: {exc.strerror or exc}", shown) from None
-        raise
-    sync_folder(path.parent)
+from tracker.outputs.atomic import write_beside
+from tracker.outputs.files import PARTIAL_SUFFIX, OutputWriteError, partial_path
 
 
 def write_whole(path: str | Path, write: Callable[[Path], None],
@@ -65,25 +36,3 @@ def temporary_names(path: str | Path) -> tuple[Path, Path]:
     script refuses an output whose temporary name is one of its inputs (it would be set aside)."""
     target = Path(os.path.realpath(path))
     return partial_path(target), target.with_name(f"{target.stem}{PARTIAL_SUFFIX}{target.suffix}")
-
-
-class LockFile:
-    """An exclusive lock held on ``path`` (created, removed by release()) while a set of
-    outputs is written; OutputBusyError at once if another process holds it."""
-
-    def __init__(self, path: str | Path):
-        self.path = Path(path)
-        try:
-            self._fd = open_locked(self.path, os.O_RDWR)
-        except OSError as exc:
-            raise OutputWriteError(f"{self.path}: cannot create ({exc.strerror})",
-                                   self.path) from None
-
-    def release(self) -> None:
-        """Remove the lock file and release the lock; idempotent."""
-        if self._fd < 0:
-            return
-        with contextlib.suppress(OSError):
-            os.unlink(self.path)
-        fd, self._fd = self._fd, -1
-        os.close(fd)
