@@ -1,5 +1,5 @@
 """The limbs by an ensemble of small neural networks on the regressor's input (issue 9): each
-silhouette's canonical body (sequences.pose_vector.canonical_member), as the mixture's limb head
+silhouette's canonical body (sequences.pose_conversions.canonical_member), as the mixture's limb head
 (regressor.optional_parts.LimbHead) but with features shared over all the training rows; seeded
 networks differ, so several are averaged (why and how chosen: docs/code_notes/regress.md,
 docs/tuning.md "regressor/limb_net.py").
@@ -39,7 +39,7 @@ class LimbNet:
     regressor's input X (N, P); output_mean, output_scale (O,) undo the targets'
     standardisation, O = 55 (Euler angles) or ROT6D_OUTPUTS (6-D rotations; module
     docstring); angle_centre_deg (53,); canonical_direction (55,): the rule the targets'
-    members were chosen by (sequences.pose_vector.canonical_member)."""
+    members were chosen by (sequences.pose_conversions.canonical_member)."""
 
     members: list[list[tuple[np.ndarray, np.ndarray]]]
     input_mean: np.ndarray

@@ -23,7 +23,7 @@ from .pose_model import (_VARIANCE_PARTS, DEFAULT_AMBIGUITY_THRESHOLD, PoseModel
 class LimbHead:
     """A mixture's second set of expert weights: coef (R, 55) in the experts' row order,
     expert_intercept (E, 55), angle_centre_deg (53,) and canonical_direction (55,), the rule
-    its targets' members were chosen by (sequences.pose_vector.canonical_member)."""
+    its targets' members were chosen by (sequences.pose_conversions.canonical_member)."""
 
     coef: np.ndarray
     expert_intercept: np.ndarray
