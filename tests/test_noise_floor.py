@@ -135,3 +135,48 @@ def test_an_empty_scene_of_pure_noise_gets_a_floor_that_quiets_it(sigma):
     lowest = sub.primed_model(4.0)
     assert foreground < 0.5 * np.mean([(lowest.apply(f, learningRate=0.0) > 200).mean()
                                        for f in frames])
+
+
+def _eager_choice(make_primed_model, frames) -> float:
+    """choose_var_min's rule with every rung of the ladder measured first."""
+    from tracker.video.noise_floor import (MAX_EXCESS_SPECKS, MAX_FOREGROUND_GROWTH,
+                                           VAR_MIN_LADDER)
+    counts = [foreground_counts(make_primed_model(v), frames) for v in VAR_MIN_LADDER]
+    top_ratio, top_total = _ratio(*counts[-1]), sum(counts[-1])
+    if not np.isfinite(top_ratio):
+        return VAR_MIN_LADDER[-1]
+    for var_min, (specks, solid) in zip(VAR_MIN_LADDER, counts):
+        if (_ratio(specks, solid) - top_ratio <= MAX_EXCESS_SPECKS
+                and specks + solid <= MAX_FOREGROUND_GROWTH * max(top_total, 1)):
+            return var_min
+    return VAR_MIN_LADDER[-1]
+
+
+def test_floor_choice_builds_only_the_rungs_it_needs_and_chooses_as_the_whole_ladder():
+    bg = textured(160, 120)
+    sub = primed_on(bg)
+    for sigma in (0.0, 3.0, 6.0, 12.0):
+        frames = frames_with_person(bg, sigma, 6)
+        built: list[float] = []
+
+        def counting(var_min: float):
+            built.append(var_min)
+            return sub.primed_model(var_min)
+        chosen = choose_var_min(counting, frames)
+        assert chosen == _eager_choice(sub.primed_model, frames)
+        lower = [v for v in built[1:] if v < chosen]
+        assert built[0] == 36.0 and built[1:] == lower + ([chosen] if chosen < 36.0 else [])
+
+
+def test_foreground_counts_are_the_mask_sums():
+    bg = textured(160, 120)
+    sub = primed_on(bg)
+    frames = frames_with_person(bg, 6.0, 4)
+    specks = solid = 0
+    model = sub.primed_model(4.0)
+    for frame in frames:
+        foreground = (model.apply(frame, learningRate=0.0) > 200).astype(np.uint8)
+        kept = int(cv2.morphologyEx(foreground, cv2.MORPH_OPEN,
+                                    cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))).sum())
+        specks, solid = specks + int(foreground.sum()) - kept, solid + kept
+    assert foreground_counts(sub.primed_model(4.0), frames) == (specks, solid)

@@ -297,7 +297,7 @@ def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | N
     tracker.prime(median, frame_size=None if median.shape[1::-1] == full else full)
     learn_zone = getattr(tracker.extractor, "learn_zone", None)
     if learn_zone is not None:
-        learn_zone(frames)
+        learn_zone(frames, median)
 
 
 def sampled_background(source: VideoSource, tracker: PoseTracker

@@ -26,9 +26,10 @@ def foreground_counts(model, frames: Sequence[np.ndarray]) -> tuple[int, int]:
     MOG2 ``model`` (learning rate 0); specks: removed by a 3 px elliptical opening."""
     specks = solid = 0
     for frame in frames:
-        foreground = (model.apply(frame, learningRate=0.0) > FOREGROUND_LEVEL).astype(np.uint8)
-        kept = int(cv2.morphologyEx(foreground, cv2.MORPH_OPEN, _OPEN_KERNEL).sum())
-        specks += int(foreground.sum()) - kept
+        _, foreground = cv2.threshold(model.apply(frame, learningRate=0.0), FOREGROUND_LEVEL, 1,
+                                      cv2.THRESH_BINARY)
+        kept = cv2.countNonZero(cv2.morphologyEx(foreground, cv2.MORPH_OPEN, _OPEN_KERNEL))
+        specks += cv2.countNonZero(foreground) - kept
         solid += kept
     return specks, solid
 
@@ -47,11 +48,15 @@ def choose_var_min(make_primed_model: Callable[[float], object], frames: Sequenc
     MAX_FOREGROUND_GROWTH times its foreground (strong noise can make a low floor's foreground one
     sheet); make_primed_model: BackgroundSubtractor.primed_model. All specks: the top rung."""
     ladder = VAR_MIN_LADDER
-    counts = [foreground_counts(make_primed_model(float(var_min)), frames) for var_min in ladder]
-    top_ratio, top_total = _ratio(*counts[-1]), sum(counts[-1])
+
+    def counts(var_min: float) -> tuple[int, int]:
+        return foreground_counts(make_primed_model(float(var_min)), frames)
+    top = counts(ladder[-1])
+    top_ratio, top_total = _ratio(*top), sum(top)
     if not np.isfinite(top_ratio):           # only specks even at the top: all noise, no body
         return float(ladder[-1])
-    for var_min, (specks, solid) in zip(ladder, counts):
+    for var_min in ladder[:-1]:              # the lowest that passes; the top one always does
+        specks, solid = counts(var_min)
         if (_ratio(specks, solid) - top_ratio <= MAX_EXCESS_SPECKS
                 and specks + solid <= MAX_FOREGROUND_GROWTH * max(top_total, 1)):
             return float(var_min)

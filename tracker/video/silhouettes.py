@@ -451,13 +451,16 @@ class SilhouetteExtractor:
         self.background = ClipBackground(sub.reference, estimate.unreliable)
         self.refiner = None
 
-    def learn_zone(self, frames) -> None:
+    def learn_zone(self, frames, median: np.ndarray | None = None) -> None:
         """After :meth:`prime` with the clip's median image, learn its unreliable zone and
-        variance floor from the same frames (list or (N, H, W, 3) BGR uint8), before frame 1."""
+        variance floor from the same frames (list or (N, H, W, 3) BGR uint8), before frame 1;
+        ``median``: that image when the frames are at working size (not computed again)."""
         if self.subtractor.reference is None:
             raise ExtractionError("learn_zone needs prime() with a background image first")
         small = self._working_frames(list(frames))
-        self._learn_clip(small, clip_background(small))
+        if median is not None and median.shape != small.shape[1:]:
+            median = None
+        self._learn_clip(small, clip_background(small, median=median))
 
     def _working_frames(self, frames: list) -> np.ndarray:
         """Frames (each BGR uint8 (H, W, 3)) shrunk to the working size, (N, h, w, 3)."""
