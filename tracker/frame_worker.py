@@ -140,6 +140,8 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
         from threadpoolctl import threadpool_limits
         with threadpool_limits(1), warnings.catch_warnings(record=True) as caught:
             tracker.stage_seconds.clear()
+            # The other core is the main process's: a second decoding thread only contends.
+            source.decoder_threads = 1
             for chunk in described_chunks(source, tracker, batch, leave_to_main=True):
                 send(("frames", [(index, time_s, people, descriptions)
                                  for index, time_s, _, people, descriptions in chunk]))

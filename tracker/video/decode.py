@@ -130,7 +130,8 @@ class VideoSource:
     ``start_s``/``end_s``: the time range (s) asked for; ``container_times``: False to space
     frames evenly at fps. After an iteration: ``frames_read``, ``frames_skipped`` (undecodable
     inside the stream), ``truncated`` (stopped before end_index), ``grew``, ``read_until_s``
-    (the last frame's time, None before any)."""
+    (the last frame's time, None before any). ``decoder_threads``: threads decoding for
+    iteration (None: OpenCV's choice, one per core)."""
 
     def __init__(self, path: Path, fps: float, frame_count: int | None, size: tuple[int, int],
                  start_index: int, end_index: int | None, end_s: float | None = None,
@@ -142,13 +143,14 @@ class VideoSource:
         self.container_times = container_times
         self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
         self.read_until_s: float | None = None
+        self.decoder_threads: int | None = None
 
     def expected_frames(self) -> int | None:
         """Frames this source should yield (``end_index - start_index``), None if unknown."""
         return None if self.end_index is None else self.end_index - self.start_index
 
     def __iter__(self) -> Iterator[VideoFrame]:
-        capture = _open_capture(self.path)
+        capture = _open_capture(self.path, self.decoder_threads)
         opened = _file_state(self.path)
         self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
         self.read_until_s = None
@@ -295,7 +297,14 @@ class VideoSource:
         return images
 
 
-def _open_capture(path: Path) -> cv2.VideoCapture:
+def _open_capture(path: Path, threads: int | None = None) -> cv2.VideoCapture:
+    """An opened capture of ``path`` (``threads`` decoding where the backend takes the
+    setting: FFmpeg's are bit-exact whatever their number), else VideoError naming why."""
+    if threads is not None:
+        capture = cv2.VideoCapture(str(path), cv2.CAP_ANY, [cv2.CAP_PROP_N_THREADS, threads])
+        if capture.isOpened():
+            return capture
+        capture.release()
     capture = cv2.VideoCapture(str(path), cv2.CAP_ANY)
     if not capture.isOpened():
         capture.release()
