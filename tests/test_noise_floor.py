@@ -180,3 +180,56 @@ def test_foreground_counts_are_the_mask_sums():
                                     cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))).sum())
         specks, solid = specks + int(foreground.sum()) - kept, solid + kept
     assert foreground_counts(sub.primed_model(4.0), frames) == (specks, solid)
+
+
+def test_two_threads_choose_the_floor_one_chooses_building_at_most_one_rung_more():
+    bg = textured(160, 120)
+    sub = primed_on(bg)
+    for sigma in (0.0, 3.0, 6.0, 12.0):
+        frames = frames_with_person(bg, sigma, 6)
+        built: list[float] = []
+
+        def counting(var_min: float):
+            built.append(var_min)
+            return sub.primed_model(var_min)
+        chosen = choose_var_min(counting, frames, threads=2)
+        assert chosen == _eager_choice(sub.primed_model, frames)
+        needed = 1 + sum(v <= chosen for v in (4.0, 9.0, 16.0, 25.0))
+        assert needed <= len(built) <= needed + 1
+
+
+class _CountedModel:
+    """A MOG2 counting its apply() calls."""
+
+    def __init__(self, model):
+        self.model, self.applied = model, 0
+
+    def apply(self, image, learningRate):
+        self.applied += 1
+        return self.model.apply(image, learningRate=learningRate)
+
+
+class _CountingSubtractor(BackgroundSubtractor):
+    def new_model(self, var_min):
+        return _CountedModel(super().new_model(var_min))
+
+
+def test_prime_teaches_the_model_on_its_first_use_and_not_the_model_retune_replaces():
+    bg = textured(160, 120)
+    frames = frames_with_person(bg, 3.0, 5)
+    sub = _CountingSubtractor()
+    first = sub._model
+    sub.prime(bg)
+    assert first.applied == 0 and sub.ready
+    eager = BackgroundSubtractor().new_model(4.0)      # prime's lessons given at once
+    for _ in range(15):
+        eager.apply(bg, learningRate=-1.0)
+    for frame in frames:
+        _, raw = sub.subtract(frame)
+        np.testing.assert_array_equal(raw, eager.apply(frame, learningRate=1 / 500))
+    assert first.applied == 15 + len(frames)
+    retuned = _CountingSubtractor()
+    replaced = retuned._model
+    retuned.prime(bg)
+    retuned.retune(9.0)
+    assert replaced.applied == 0 and retuned._model.applied == 15

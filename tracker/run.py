@@ -293,8 +293,8 @@ def _tracked(tracker: PoseTracker, chunk: list[tuple]) -> Iterator[tuple]:
 def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | None,
            two_processes: bool = False) -> None:
     """Teach the tracker the empty scene: the clean plate ``background``, else the median of
-    frames spread over the video at the extractor's working size (and those frames), their
-    pass shared with a second process if ``two_processes``."""
+    frames spread over the video at the extractor's working size (and those frames); with
+    ``two_processes`` a second core shares their pass and the choice of the noise floor."""
     if background is not None:
         from tracker.clean_plate import check_plate
         check_plate(source, background)
@@ -305,7 +305,7 @@ def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | N
     tracker.prime(median, frame_size=None if median.shape[1::-1] == full else full)
     learn_zone = getattr(tracker.extractor, "learn_zone", None)
     if learn_zone is not None:
-        learn_zone(frames, median)
+        learn_zone(frames, median, 2 if two_processes else 1)
 
 
 def sampled_background(source: VideoSource, tracker: PoseTracker, two_processes: bool = False
