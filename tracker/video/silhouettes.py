@@ -523,10 +523,9 @@ class SilhouetteExtractor:
 def _padded_box(mask: np.ndarray, margin: int) -> tuple[slice, slice] | None:
     """(rows, columns) slices of the box around the nonzero pixels of ``mask`` (uint8 (h, w)),
     widened by ``margin`` px on each side within the image; None when the mask is empty."""
-    points = cv2.findNonZero(mask)
-    if points is None:
+    x, y, w, h = cv2.boundingRect(mask)           # of a uint8 image: its nonzero pixels
+    if w == 0:
         return None
-    x, y, w, h = cv2.boundingRect(points)
     height, width = mask.shape
     return (slice(max(y - margin, 0), min(y + h + margin, height)),
             slice(max(x - margin, 0), min(x + w + margin, width)))
