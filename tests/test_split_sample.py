@@ -113,3 +113,10 @@ def test_the_helper_ignores_a_ctrl_c_sent_to_it(clip, joins, monkeypatch, capfd)
     assert _same(source.sample_frames(25, size=(64, 48), two_processes=True), _alone(source))
     assert joins == [100]
     assert "Traceback" not in capfd.readouterr().err
+
+
+def test_samples_too_large_for_a_pipe_are_read_alone(clip, monkeypatch):
+    monkeypatch.setattr(split_sample, "MAX_SPLIT_BYTES", 25 * 64 * 48 * 3 - 1)
+    monkeypatch.setattr(split_sample, "SampleHelper", None)     # would fail if made
+    source = open_video(clip)
+    assert _same(source.sample_frames(25, size=(64, 48), two_processes=True), _alone(source))

@@ -257,7 +257,8 @@ class VideoSource:
         helper = None
         if two_processes:
             from tracker.video.split_sample import SampleHelper, worth_splitting
-            helper = SampleHelper(self, indices, size) if worth_splitting(indices) else None
+            shared = worth_splitting(indices, size or (self.width, self.height))
+            helper = SampleHelper(self, indices, size) if shared else None
         try:
             return self._sample_in_order(indices, size, helper)
         finally:

@@ -18,11 +18,15 @@ import numpy as np
 #: Fewer frames than this between the first and last sample are read by the caller alone (the
 #: fork and the helper's seek would cost about what they save).
 MIN_SPLIT_FRAMES = 120
+#: Samples larger than this in all (bytes; full-size 4K frames) are not sent through a pipe.
+MAX_SPLIT_BYTES = 64 * 2 ** 20
 
 
-def worth_splitting(indices: np.ndarray) -> bool:
-    """Whether sorted frame ``indices`` span enough frames to share their pass."""
-    return len(indices) >= 4 and int(indices[-1] - indices[0]) >= MIN_SPLIT_FRAMES
+def worth_splitting(indices: np.ndarray, size: tuple[int, int]) -> bool:
+    """Whether sorted frame ``indices``, sampled at ``size`` (width, height) px, span enough
+    frames to share their pass, and are small enough to pass between processes."""
+    return len(indices) >= 4 and int(indices[-1] - indices[0]) >= MIN_SPLIT_FRAMES and \
+        size[0] * size[1] * 3 * len(indices) <= MAX_SPLIT_BYTES
 
 
 def _digest(image: np.ndarray) -> bytes:
