@@ -150,7 +150,9 @@ class VideoSource:
         return None if self.end_index is None else self.end_index - self.start_index
 
     def __iter__(self) -> Iterator[VideoFrame]:
-        capture = _open_capture(self.path, self.decoder_threads)
+        threads = self.decoder_threads
+        capture = _open_capture(self.path) if threads is None else \
+            _open_capture(self.path, threads)
         opened = _file_state(self.path)
         self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
         self.read_until_s = None
