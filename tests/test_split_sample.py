@@ -120,3 +120,28 @@ def test_samples_too_large_for_a_pipe_are_read_alone(clip, monkeypatch):
     monkeypatch.setattr(split_sample, "SampleHelper", None)     # would fail if made
     source = open_video(clip)
     assert _same(source.sample_frames(25, size=(64, 48), two_processes=True), _alone(source))
+
+
+def test_a_ctrl_c_as_the_helper_starts_prints_nothing(clip, joins, monkeypatch, capfd,
+                                                      tmp_path):
+    """Before the helper has set its own handlers (here a long start) a Ctrl-C waits for them."""
+    import time
+    real, started = split_sample._help, tmp_path / "started"
+
+    def slow_start(*args):
+        started.touch()
+        time.sleep(0.5)
+        real(*args)
+    monkeypatch.setattr(split_sample, "_help", slow_start)
+    made = SampleHelper.__init__
+
+    def ctrl_c_once_started(self, *args):
+        made(self, *args)
+        while not started.exists():
+            time.sleep(0.001)
+        os.kill(self._process.pid, signal.SIGINT)
+    monkeypatch.setattr(SampleHelper, "__init__", ctrl_c_once_started)
+    source = open_video(clip)
+    assert _same(source.sample_frames(25, size=(64, 48), two_processes=True), _alone(source))
+    assert joins == [100]
+    assert "Traceback" not in capfd.readouterr().err
