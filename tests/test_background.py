@@ -49,3 +49,55 @@ def test_a_slow_change_of_light_makes_no_unreliable_zone():
     frames[1::2, 60:110, 75:95] = 20
     zone = clip_background(frames).unreliable
     assert zone[70:100, 62:93].all() and zone[:55].mean() < 0.01
+
+
+def _median_gain(background: np.ndarray, frame: np.ndarray, step: int = 8) -> np.ndarray:
+    """GainMeter's definition, written out: the per-channel np.median of frame / background
+    over every step-th pixel that is neither dark nor bright in the background nor clipped
+    in the frame (ones with under 16 such pixels)."""
+    b = background[::step, ::step].reshape(-1, 3).astype(np.float32)
+    f = frame[::step, ::step].reshape(-1, 3).astype(np.float32)
+    ok = (b > 16).all(axis=1) & (b < 240).all(axis=1) & (f < 250).all(axis=1)
+    if ok.sum() < 16:
+        return np.ones(3, np.float32)
+    return np.median(f[ok] / b[ok], axis=0)
+
+
+def test_gain_meter_is_the_median_ratio_bit_for_bit():
+    from tracker.video.background import GainMeter
+    rng = np.random.default_rng(3)
+    background = rng.integers(0, 256, (240, 320, 3), np.uint8)
+    meter = GainMeter(background)
+    frames = [np.clip(background * gain + rng.normal(0, 3, background.shape), 0, 255)
+              .astype(np.uint8) for gain in (0.5, 0.97, 1.0, 1.3, 2.5)]
+    frames += [rng.integers(0, 256, background.shape, np.uint8) for _ in range(20)]
+    frames += [np.full_like(background, 255), np.zeros_like(background)]
+    counts = set()
+    for frame in frames:
+        expected, got = _median_gain(background, frame), meter(frame)
+        assert got.dtype == expected.dtype == np.float32 and got.shape == (3,)
+        assert np.array_equal(got, expected)
+        counts.add(int(((background[::8, ::8] > 16).all(axis=2) & (background[::8, ::8] < 240)
+                        .all(axis=2) & (frame[::8, ::8] < 250).all(axis=2)).sum()) % 2)
+    assert counts == {0, 1}             # both an odd and an even number of pixels measured
+
+
+def test_learn_zone_given_the_median_learns_what_it_learns_computing_it():
+    """run._prime hands learn_zone the median it primed with; the zone and floor are those
+    learn_zone finds from the frames alone (also when frame gains make it recompute)."""
+    from tracker.video.silhouettes import SilhouetteExtractor, median_background
+    rng = np.random.default_rng(5)
+    poses = [[(20, 60, 40 + s, 80 + s)] for s in (0, 7, 14, 21, 28, 35, 3)]
+    frames = frames_with(poses).astype(np.int16) + rng.integers(-4, 5, (7, 120, 160, 3))
+    frames[2] = frames[2] * 1.2                        # one frame brighter: its gain undone
+    frames = list(np.clip(frames, 0, 255).astype(np.uint8))
+    median = median_background(frames)
+    given, computed = SilhouetteExtractor(), SilhouetteExtractor()
+    for extractor, passed in ((given, median), (computed, None)):
+        extractor.prime(median)
+        extractor.learn_zone(frames, passed)
+    assert given.background.unreliable.any()
+    assert np.array_equal(given.background.unreliable, computed.background.unreliable)
+    assert given.subtractor.var_min == computed.subtractor.var_min
+    assert np.array_equal(clip_background(np.stack(frames), median=median).unreliable,
+                          clip_background(np.stack(frames)).unreliable)

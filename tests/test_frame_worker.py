@@ -214,3 +214,59 @@ def test_the_workers_warnings_are_issued_in_the_main_process(tmp_path):
     with pytest.warns(VideoTruncatedWarning, match="decoding stopped"):
         run = track_video(source, workers=2)
     assert source.truncated and 0 < source.frames_read == run.frames < 40
+
+
+def test_the_worker_decodes_on_one_thread_and_one_process_as_opencv_chooses(walk, model,
+                                                                            tmp_path,
+                                                                            monkeypatch):
+    """The main process's core is busy while the worker runs: a second decoding thread there
+    only contends (FFmpeg's decoding is bit-exact whatever its threads)."""
+    import tracker.video.decode as decode
+    log = tmp_path / "threads.txt"
+    real = decode._open_capture
+
+    def logged(path, threads=None):
+        with open(log, "a") as f:
+            f.write(f"{os.getpid()} {threads}\n")
+        return real(path, threads)
+    monkeypatch.setattr(decode, "_open_capture", logged)
+    source = open_video(walk)
+    tracker = PoseTracker(model, source.fps, TrackerSettings(keep_history=False))
+    _prime(source, tracker, None)
+    log.unlink()
+    worker = FrameWorker(source, tracker)
+    try:
+        assert sum(len(chunk) for chunk in worker.chunks()) == 45
+    finally:
+        worker.close()
+    assert log.read_text().split() == [str(worker._process.pid), "1"]
+    assert source.decoder_threads is None                   # the main process's copy
+    one = [frame.image for frame in source]
+    source.decoder_threads = 1
+    assert all(np.array_equal(a, b.image) for a, b in zip(one, source, strict=True))
+
+
+def test_a_ctrl_c_as_the_worker_starts_prints_nothing_and_stops_nothing(walk, model, capfd,
+                                                                        monkeypatch, tmp_path):
+    """A Ctrl-C reaches every process of the terminal's group, the worker's too before it has
+    set its own handlers (here a long start): it waits for them, and they ignore it."""
+    import tracker.frame_worker as frame_worker
+    real, started = frame_worker._work, tmp_path / "started"
+
+    def slow_start(*args):
+        started.touch()
+        time.sleep(0.5)
+        real(*args)
+    monkeypatch.setattr(frame_worker, "_work", slow_start)
+    source = open_video(walk)
+    tracker = PoseTracker(model, source.fps, TrackerSettings(keep_history=False))
+    _prime(source, tracker, None)
+    worker = FrameWorker(source, tracker)
+    try:
+        while not started.exists():
+            time.sleep(0.001)
+        os.kill(worker._process.pid, signal.SIGINT)
+        assert sum(len(chunk) for chunk in worker.chunks()) == 45
+    finally:
+        worker.close()
+    assert "Traceback" not in capfd.readouterr().err

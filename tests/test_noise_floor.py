@@ -135,3 +135,101 @@ def test_an_empty_scene_of_pure_noise_gets_a_floor_that_quiets_it(sigma):
     lowest = sub.primed_model(4.0)
     assert foreground < 0.5 * np.mean([(lowest.apply(f, learningRate=0.0) > 200).mean()
                                        for f in frames])
+
+
+def _eager_choice(make_primed_model, frames) -> float:
+    """choose_var_min's rule with every rung of the ladder measured first."""
+    from tracker.video.noise_floor import (MAX_EXCESS_SPECKS, MAX_FOREGROUND_GROWTH,
+                                           VAR_MIN_LADDER)
+    counts = [foreground_counts(make_primed_model(v), frames) for v in VAR_MIN_LADDER]
+    top_ratio, top_total = _ratio(*counts[-1]), sum(counts[-1])
+    if not np.isfinite(top_ratio):
+        return VAR_MIN_LADDER[-1]
+    for var_min, (specks, solid) in zip(VAR_MIN_LADDER, counts):
+        if (_ratio(specks, solid) - top_ratio <= MAX_EXCESS_SPECKS
+                and specks + solid <= MAX_FOREGROUND_GROWTH * max(top_total, 1)):
+            return var_min
+    return VAR_MIN_LADDER[-1]
+
+
+def test_floor_choice_builds_only_the_rungs_it_needs_and_chooses_as_the_whole_ladder():
+    bg = textured(160, 120)
+    sub = primed_on(bg)
+    for sigma in (0.0, 3.0, 6.0, 12.0):
+        frames = frames_with_person(bg, sigma, 6)
+        built: list[float] = []
+
+        def counting(var_min: float):
+            built.append(var_min)
+            return sub.primed_model(var_min)
+        chosen = choose_var_min(counting, frames)
+        assert chosen == _eager_choice(sub.primed_model, frames)
+        lower = [v for v in built[1:] if v < chosen]
+        assert built[0] == 36.0 and built[1:] == lower + ([chosen] if chosen < 36.0 else [])
+
+
+def test_foreground_counts_are_the_mask_sums():
+    bg = textured(160, 120)
+    sub = primed_on(bg)
+    frames = frames_with_person(bg, 6.0, 4)
+    specks = solid = 0
+    model = sub.primed_model(4.0)
+    for frame in frames:
+        foreground = (model.apply(frame, learningRate=0.0) > 200).astype(np.uint8)
+        kept = int(cv2.morphologyEx(foreground, cv2.MORPH_OPEN,
+                                    cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))).sum())
+        specks, solid = specks + int(foreground.sum()) - kept, solid + kept
+    assert foreground_counts(sub.primed_model(4.0), frames) == (specks, solid)
+
+
+def test_two_threads_choose_the_floor_one_chooses_building_at_most_one_rung_more():
+    bg = textured(160, 120)
+    sub = primed_on(bg)
+    for sigma in (0.0, 3.0, 6.0, 12.0):
+        frames = frames_with_person(bg, sigma, 6)
+        built: list[float] = []
+
+        def counting(var_min: float):
+            built.append(var_min)
+            return sub.primed_model(var_min)
+        chosen = choose_var_min(counting, frames, threads=2)
+        assert chosen == _eager_choice(sub.primed_model, frames)
+        needed = 1 + sum(v <= chosen for v in (4.0, 9.0, 16.0, 25.0))
+        assert needed <= len(built) <= needed + 1
+
+
+class _CountedModel:
+    """A MOG2 counting its apply() calls."""
+
+    def __init__(self, model):
+        self.model, self.applied = model, 0
+
+    def apply(self, image, learningRate):
+        self.applied += 1
+        return self.model.apply(image, learningRate=learningRate)
+
+
+class _CountingSubtractor(BackgroundSubtractor):
+    def new_model(self, var_min):
+        return _CountedModel(super().new_model(var_min))
+
+
+def test_prime_teaches_the_model_on_its_first_use_and_not_the_model_retune_replaces():
+    bg = textured(160, 120)
+    frames = frames_with_person(bg, 3.0, 5)
+    sub = _CountingSubtractor()
+    first = sub._model
+    sub.prime(bg)
+    assert first.applied == 0 and sub.ready
+    eager = BackgroundSubtractor().new_model(4.0)      # prime's lessons given at once
+    for _ in range(15):
+        eager.apply(bg, learningRate=-1.0)
+    for frame in frames:
+        _, raw = sub.subtract(frame)
+        np.testing.assert_array_equal(raw, eager.apply(frame, learningRate=1 / 500))
+    assert first.applied == 15 + len(frames)
+    retuned = _CountingSubtractor()
+    replaced = retuned._model
+    retuned.prime(bg)
+    retuned.retune(9.0)
+    assert replaced.applied == 0 and retuned._model.applied == 15

@@ -149,3 +149,22 @@ def test_a_frame_without_foreground_still_clears_the_kept_colour_models():
     for frame in (person, bg, person):
         extractor(cv2.add(frame, rng.integers(0, 4, bg.shape, dtype=np.uint8)))
     assert (extractor.refiner.learned, extractor.refiner.kept) == (2, 0)
+
+
+def test_the_padded_box_is_the_box_of_the_nonzero_pixels():
+    """_padded_box takes boundingRect of the mask itself: the box findNonZero's points give,
+    also for a view into a larger mask, and None for an empty one."""
+    from tracker.video.silhouettes import _padded_box
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        h, w = rng.integers(1, 50, 2)
+        big = ((rng.random((h + 9, w + 9)) < rng.choice([0.001, 0.02, 0.4])) * 255)
+        mask = big.astype(np.uint8)[4:4 + h, 2:2 + w]
+        margin = int(rng.integers(0, 4))
+        points = cv2.findNonZero(mask)
+        if points is None:
+            assert _padded_box(mask, margin) is None
+            continue
+        x, y, bw, bh = cv2.boundingRect(points)
+        assert _padded_box(mask, margin) == (slice(max(y - margin, 0), min(y + bh + margin, h)),
+                                             slice(max(x - margin, 0), min(x + bw + margin, w)))

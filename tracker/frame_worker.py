@@ -25,6 +25,7 @@ BATCH_FRAMES = 8
 #: Of every MAIN_DESCRIBES[1] frames, the first MAIN_DESCRIBES[0] are described by the main
 #: process instead (sent with descriptions None), to balance the two halves' costs.
 MAIN_DESCRIBES = (1, 2)
+_STOPS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def described_chunks(source, tracker, batch: int, leave_to_main: bool = False
@@ -81,9 +82,12 @@ class FrameWorker:
         # Set before the fork: a child resizing a thread pool it inherited can hang.
         threads = cv2.getNumThreads()
         cv2.setNumThreads(1)
+        # Stop signals wait until the child has its own handlers (a Ctrl-C reaches both).
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS)
         try:
             self._process.start()
         finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
             cv2.setNumThreads(threads)
         writer.close()           # the worker's end: its death then ends our reads
 
@@ -128,6 +132,7 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # Ctrl-C is the main process's
     for number in (signal.SIGTERM, signal.SIGHUP):    # close() ends the worker by SIGTERM
         signal.signal(number, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)
     caught: list = []
 
     def send(message) -> None:
@@ -140,6 +145,8 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
         from threadpoolctl import threadpool_limits
         with threadpool_limits(1), warnings.catch_warnings(record=True) as caught:
             tracker.stage_seconds.clear()
+            # The other core is the main process's: a second decoding thread only contends.
+            source.decoder_threads = 1
             for chunk in described_chunks(source, tracker, batch, leave_to_main=True):
                 send(("frames", [(index, time_s, people, descriptions)
                                  for index, time_s, _, people, descriptions in chunk]))

@@ -100,7 +100,7 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
     run = _Run(tracker, sinks, smoothed_sinks, progress, lag_s)
     started, interrupted = time.perf_counter(), False
     try:
-        _prime(source, tracker, background)
+        _prime(source, tracker, background, two_processes=_worker_wanted(run, workers))
         run.stages["background"] += time.perf_counter() - started
         run.track(_frames_in(run, source, tracker, workers))
         if run.worker is not None:
@@ -120,14 +120,20 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
 def _frames_in(run: _Run, source: VideoSource, tracker: PoseTracker, workers: int
                ) -> Iterator[tuple]:
     """The tracked frames, from a worker process if asked for and possible, else from here."""
-    segmenter = sys.modules.get("tracker.video.segmenter")      # forked after it ran: crashes
-    if workers > 1 and not run.watching and can_fork() and not (
-            segmenter is not None and segmenter.made_a_graph()):
+    if _worker_wanted(run, workers):
         run.worker = FrameWorker(source, tracker)          # a copy of the primed tracker
         return _from_worker(run.worker, tracker)
     batch = 1 if run.watching else BATCH_FRAMES         # as the worker sends them: same results
     return (tracked for chunk in described_chunks(source, tracker, batch)
             for tracked in _tracked(tracker, chunk))
+
+
+def _worker_wanted(run: _Run, workers: int) -> bool:
+    """Whether a second process may share the work: asked for, nothing shown live, a platform
+    that forks, no segmenter graph made (a process forked after one crashes)."""
+    segmenter = sys.modules.get("tracker.video.segmenter")
+    return workers > 1 and not run.watching and can_fork() and not (
+        segmenter is not None and segmenter.made_a_graph())
 
 
 class _Run:
@@ -284,30 +290,33 @@ def _tracked(tracker: PoseTracker, chunk: list[tuple]) -> Iterator[tuple]:
         yield index, time_s, image, poses, people
 
 
-def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | None) -> None:
+def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | None,
+           two_processes: bool = False) -> None:
     """Teach the tracker the empty scene: the clean plate ``background``, else the median of
-    frames spread over the video at the extractor's working size (and those frames)."""
+    frames spread over the video at the extractor's working size (and those frames); with
+    ``two_processes`` a second core shares their pass and the choice of the noise floor."""
     if background is not None:
         from tracker.clean_plate import check_plate
         check_plate(source, background)
         tracker.prime(background)
         return
-    median, frames = sampled_background(source, tracker)
+    median, frames = sampled_background(source, tracker, two_processes)
     full = (source.width, source.height)
     tracker.prime(median, frame_size=None if median.shape[1::-1] == full else full)
     learn_zone = getattr(tracker.extractor, "learn_zone", None)
     if learn_zone is not None:
-        learn_zone(frames)
+        learn_zone(frames, median, 2 if two_processes else 1)
 
 
-def sampled_background(source: VideoSource, tracker: PoseTracker
+def sampled_background(source: VideoSource, tracker: PoseTracker, two_processes: bool = False
                        ) -> tuple[np.ndarray, list[np.ndarray]]:
     """(the median of frames spread over the video, those frames), BGR uint8 at the
-    extractor's working size."""
+    extractor's working size; two_processes: VideoSource.sample_frames'."""
     full = (source.width, source.height)
     subtractor = getattr(tracker.extractor, "subtractor", None)
     size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full
-    frames = source.sample_frames(tracker.settings.background_samples, size=size)
+    shared = {"two_processes": True} if two_processes else {}
+    frames = source.sample_frames(tracker.settings.background_samples, size=size, **shared)
     if not frames:
         raise nothing_decodes(source)
     # Black or white frames (before a fade-in) are no picture of the scene.

@@ -30,14 +30,17 @@ MIN_GAIN_CHANGE = 0.03
 
 def clip_background(frames: np.ndarray, tolerance: float = 20.0, max_busy: float = 0.25,
                     close_px: int = 9, bridge_px: int = 31,
-                    min_gain_change: float = MIN_GAIN_CHANGE) -> ClipBackground:
+                    min_gain_change: float = MIN_GAIN_CHANGE,
+                    median: np.ndarray | None = None) -> ClipBackground:
     """Background and its unreliable zone from frames (N, h, w, 3) BGR uint8 spread over a clip:
     pixels off the median by over ``tolerance`` grey levels in some channel in over ``max_busy``
     of the frames (a person on the spot, not a passer-by), opened, closed by ``close_px`` px,
     along rows by ``bridge_px`` px under zone above (still legs under a busy torso), holes
-    filled. Frames with a gain over the median beyond ``min_gain_change`` are undone first."""
+    filled. Frames with a gain over the median beyond ``min_gain_change`` are undone first.
+    ``median``: the frames' per-pixel median (median_background's) when known already."""
     stack = np.asarray(frames)
-    median = np.median(stack, axis=0).astype(np.uint8)
+    if median is None:
+        median = np.median(stack, axis=0).astype(np.uint8)
     meter = GainMeter(median)
     gains = [meter(frame) for frame in stack]
     changed = [np.all(g > 0) and np.abs(g - 1).max() > min_gain_change for g in gains]
@@ -82,13 +85,31 @@ class GainMeter:
 
     def __init__(self, background: np.ndarray, step: int = 8):
         self.step = step
-        self._background = background[::step, ::step].reshape(-1, 3).astype(np.float32)
-        b = self._background
-        self._usable = (b > 16).all(axis=1) & (b < 240).all(axis=1)
+        b = self._channels(background)                                      # (3, n)
+        self._usable = (b > 16).all(axis=0) & (b < 240).all(axis=0)
+        self._background = b
+
+    def _channels(self, image: np.ndarray) -> np.ndarray:
+        """Every ``step``-th pixel of ``image`` (h, w, 3) as float32 (3, n), channel by channel."""
+        sampled = image[::self.step, ::self.step]
+        return np.moveaxis(sampled, 2, 0).reshape(3, -1).astype(np.float32)
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
-        f = frame[::self.step, ::self.step].reshape(-1, 3).astype(np.float32)
-        ok = self._usable & (f < 250).all(axis=1)
-        if ok.sum() < 16:
+        f = self._channels(frame)
+        ok = self._usable & (f < 250).all(axis=0)
+        ratio = np.compress(ok, f, axis=1)                                  # (3, n ok)
+        count = ratio.shape[1]
+        if count < 16:
             return np.ones(3, np.float32)
-        return np.median(f[ok] / self._background[ok], axis=0)
+        ratio /= np.compress(ok, self._background, axis=1)
+        return _row_medians(ratio)
+
+
+def _row_medians(values: np.ndarray) -> np.ndarray:
+    """np.median(values, axis=1) of float32 (3, n) without NaN, by a partial sort in place."""
+    half = values.shape[1] // 2
+    if values.shape[1] % 2:
+        values.partition(half, axis=1)
+        return values[:, half].copy()
+    values.partition((half - 1, half), axis=1)
+    return (values[:, half - 1] + values[:, half]) / np.float32(2)

@@ -130,7 +130,8 @@ class VideoSource:
     ``start_s``/``end_s``: the time range (s) asked for; ``container_times``: False to space
     frames evenly at fps. After an iteration: ``frames_read``, ``frames_skipped`` (undecodable
     inside the stream), ``truncated`` (stopped before end_index), ``grew``, ``read_until_s``
-    (the last frame's time, None before any)."""
+    (the last frame's time, None before any). ``decoder_threads``: threads decoding for
+    iteration (None: OpenCV's choice, one per core)."""
 
     def __init__(self, path: Path, fps: float, frame_count: int | None, size: tuple[int, int],
                  start_index: int, end_index: int | None, end_s: float | None = None,
@@ -142,13 +143,16 @@ class VideoSource:
         self.container_times = container_times
         self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
         self.read_until_s: float | None = None
+        self.decoder_threads: int | None = None
 
     def expected_frames(self) -> int | None:
         """Frames this source should yield (``end_index - start_index``), None if unknown."""
         return None if self.end_index is None else self.end_index - self.start_index
 
     def __iter__(self) -> Iterator[VideoFrame]:
-        capture = _open_capture(self.path)
+        threads = self.decoder_threads
+        capture = _open_capture(self.path) if threads is None else \
+            _open_capture(self.path, threads)
         opened = _file_state(self.path)
         self.frames_read, self.frames_skipped, self.truncated, self.grew = 0, 0, False, False
         self.read_until_s = None
@@ -224,15 +228,17 @@ class VideoSource:
             image = shrink(image, size)
         return image
 
-    def sample_frames(self, count: int, size: tuple[int, int] | None = None) -> list[np.ndarray]:
+    def sample_frames(self, count: int, size: tuple[int, int] | None = None,
+                      two_processes: bool = False) -> list[np.ndarray]:
         """Up to ``count`` frames (BGR uint8 (H, W, 3), shrunk to ``size`` (width, height) px
         if given) evenly spaced over the selected range, e.g. for the empty background.
         Undecodable frames are passed over; a stream of unknown length is read to its end
-        (its first frames alone would show a person standing in the background)."""
+        (its first frames alone would show a person standing in the background).
+        two_processes: a forked process may share the pass (tracker.video.split_sample)."""
         if self.end_index is None:
             from tracker.video.even_sample import sample_through
             return sample_through(self, count, size)
-        images = self._sample_by_index(count, size)
+        images = self._sample_by_index(count, size, two_processes)
         if not images and self.container_times and self.start_index > 0:
             # A variable rate puts the start time at another frame than the announced rate
             # does (or past the frames the file has): sample what iteration finds by time.
@@ -240,14 +246,31 @@ class VideoSource:
             return sample_by_time(self, count, size)
         return images
 
-    def _sample_by_index(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
+    def _sample_by_index(self, count: int, size: tuple[int, int] | None,
+                         two_processes: bool = False) -> list[np.ndarray]:
         """sample_frames by frame number at the announced rate: samples up to SEQUENTIAL_SPACING
-        apart in one pass (grab() all, retrieve() those kept), sparser ones by seeking."""
+        apart in one pass (grab() all, retrieve() those kept; its second half perhaps read by
+        a helper process), sparser ones by seeking."""
         indices = np.linspace(self.start_index, self.end_index - 1, max(count, 1))
         indices = np.unique(indices.round().astype(int))
         if (indices[-1] - indices[0]) / max(len(indices) - 1, 1) > SEQUENTIAL_SPACING:
             from tracker.video.seeking import sample_by_seeking     # a long video only
             return sample_by_seeking(self, indices, size)
+        helper = None
+        if two_processes:
+            from tracker.video.split_sample import SampleHelper, worth_splitting
+            shared = worth_splitting(indices, size or (self.width, self.height))
+            helper = SampleHelper(self, indices, size) if shared else None
+        try:
+            return self._sample_in_order(indices, size, helper)
+        finally:
+            if helper is not None:
+                helper.close()
+
+    def _sample_in_order(self, indices: np.ndarray, size: tuple[int, int] | None,
+                         helper=None) -> list[np.ndarray]:
+        """Frames ``indices`` (sorted) read in one pass from the first; ``helper``: a
+        split_sample.SampleHelper whose samples end the pass once they join."""
         capture = _open_capture(self.path)
         images = []
         give_up = self.unreadable_run()
@@ -263,16 +286,28 @@ class VideoSource:
                         break
                     continue
                 failed = 0
+                image = None
                 if index in wanted:
                     ok, image = capture.retrieve()
-                    if ok and image is not None:
+                    image = image if ok else None
+                    if image is not None:
                         images.append(self._prepare(image, size))
+                rest = None if helper is None else helper.rest(index, image, capture)
+                if rest is not None:
+                    return images + rest
         finally:
             capture.release()
         return images
 
 
-def _open_capture(path: Path) -> cv2.VideoCapture:
+def _open_capture(path: Path, threads: int | None = None) -> cv2.VideoCapture:
+    """An opened capture of ``path`` (``threads`` decoding where the backend takes the
+    setting: FFmpeg's are bit-exact whatever their number), else VideoError naming why."""
+    if threads is not None:
+        capture = cv2.VideoCapture(str(path), cv2.CAP_ANY, [cv2.CAP_PROP_N_THREADS, threads])
+        if capture.isOpened():
+            return capture
+        capture.release()
     capture = cv2.VideoCapture(str(path), cv2.CAP_ANY)
     if not capture.isOpened():
         capture.release()

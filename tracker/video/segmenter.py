@@ -313,10 +313,11 @@ class PersonSegmenter:
                                                    detect_shadows=False)
         self.subtractor.prime(background, frame_size)
 
-    def learn_zone(self, frames) -> None:
-        """Judge frames spread over the clip: when the camera moves
-        (:func:`tracker.video.camera_motion.camera_moves`) no moving blob is proposed from the
-        first frame on (the per-frame meter would see a pan only after about ten frames)."""
+    def learn_zone(self, frames, median: np.ndarray | None = None, threads: int = 1) -> None:
+        """Judge frames spread over the clip (``median``, ``threads``: unused): when the
+        camera moves (:func:`tracker.video.camera_motion.camera_moves`) no moving blob is
+        proposed from the first frame on (the per-frame meter would see a pan only after about
+        ten frames)."""
         if self.use_motion and camera_moves(list(frames)):
             self.use_motion = False
 

@@ -101,6 +101,9 @@ class BackgroundSubtractor:
         self._background_ratio = background_ratio
         self.var_min = float(var_min)
         self._model = self.new_model(self.var_min)
+        # Learning rates of prime's lessons of the reference not yet given to the model: given
+        # on its first use, never when retune replaces it first (a floor chosen for the clip).
+        self._lessons: list[float] = []
 
     def new_model(self, var_min: float):
         """A fresh OpenCV MOG2 with these settings and variance floor ``var_min``."""
@@ -127,6 +130,7 @@ class BackgroundSubtractor:
         _check_var_min(var_min)
         self.var_min = float(var_min)
         self._model = self.primed_model(self.var_min)
+        self._lessons = []
 
     @property
     def ready(self) -> bool:
@@ -160,11 +164,18 @@ class BackgroundSubtractor:
                                       f"size, got {given[0]}x{given[1]}")
             small = background
         self._check_frame_size(frame_size)
+        self._learn_lessons()
         for _ in range(max(self.warmup_frames - self.frames_seen, 1)):
-            self._model.apply(small, learningRate=-1.0 if not self.ready else self.learning_rate)
+            self._lessons.append(-1.0 if not self.ready else self.learning_rate)
             self.frames_seen += 1
         self.reference = small.copy()
         self._gain = GainMeter(self.reference)
+
+    def _learn_lessons(self) -> None:
+        """Give the model prime's lessons of :attr:`reference` still owed (see __init__)."""
+        for rate in self._lessons:
+            self._model.apply(self.reference, learningRate=rate)
+        self._lessons = []
 
     def _check_frame_size(self, size: tuple[int, int]) -> None:
         """Remember the frames' (width, height) px on first use; refuse any other size later."""
@@ -200,6 +211,7 @@ class BackgroundSubtractor:
                 saturated = (expected.max(axis=2) >= 250) & (small.max(axis=2) >= 250)
                 small = undo_gain(small, gain)
         rate = -1.0 if not self.ready else self.learning_rate
+        self._learn_lessons()
         raw = self._model.apply(small, learningRate=rate)
         if saturated is not None:
             raw[saturated] = 0
@@ -440,24 +452,28 @@ class SilhouetteExtractor:
         self.subtractor.prime(estimate.image, frame_size=(frames[0].shape[1], frames[0].shape[0]))
         self._learn_clip(small, estimate)
 
-    def _learn_clip(self, small: np.ndarray, estimate: ClipBackground) -> None:
+    def _learn_clip(self, small: np.ndarray, estimate: ClipBackground, threads: int = 1) -> None:
         """Use the primed subtractor with the clip's unreliable zone (``estimate``), its variance
-        floor retuned on the working-size frames ``small`` (N, h, w, 3)."""
+        floor retuned on the working-size frames ``small`` (N, h, w, 3) by ``threads``."""
         sub = self.subtractor
         if self.adapt_noise_floor:
-            var_min = choose_var_min(sub.primed_model, small)
+            var_min = choose_var_min(sub.primed_model, small, threads)
             if var_min != sub.var_min:
                 sub.retune(var_min)
         self.background = ClipBackground(sub.reference, estimate.unreliable)
         self.refiner = None
 
-    def learn_zone(self, frames) -> None:
+    def learn_zone(self, frames, median: np.ndarray | None = None, threads: int = 1) -> None:
         """After :meth:`prime` with the clip's median image, learn its unreliable zone and
-        variance floor from the same frames (list or (N, H, W, 3) BGR uint8), before frame 1."""
+        variance floor from the same frames (list or (N, H, W, 3) BGR uint8), before frame 1;
+        ``median``: that image when the frames are at working size (not computed again);
+        ``threads``: how many may choose the floor (two where two cores are the run's)."""
         if self.subtractor.reference is None:
             raise ExtractionError("learn_zone needs prime() with a background image first")
         small = self._working_frames(list(frames))
-        self._learn_clip(small, clip_background(small))
+        if median is not None and median.shape != small.shape[1:]:
+            median = None
+        self._learn_clip(small, clip_background(small, median=median), threads)
 
     def _working_frames(self, frames: list) -> np.ndarray:
         """Frames (each BGR uint8 (H, W, 3)) shrunk to the working size, (N, h, w, 3)."""
@@ -507,10 +523,9 @@ class SilhouetteExtractor:
 def _padded_box(mask: np.ndarray, margin: int) -> tuple[slice, slice] | None:
     """(rows, columns) slices of the box around the nonzero pixels of ``mask`` (uint8 (h, w)),
     widened by ``margin`` px on each side within the image; None when the mask is empty."""
-    points = cv2.findNonZero(mask)
-    if points is None:
+    x, y, w, h = cv2.boundingRect(mask)           # of a uint8 image: its nonzero pixels
+    if w == 0:
         return None
-    x, y, w, h = cv2.boundingRect(points)
     height, width = mask.shape
     return (slice(max(y - margin, 0), min(y + h + margin, height)),
             slice(max(x - margin, 0), min(x + w + margin, width)))

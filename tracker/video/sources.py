@@ -67,9 +67,9 @@ class AutoExtractor:
         if image is None and camera_moves(list(background)):
             self._choose("the camera moves")
 
-    def learn_zone(self, frames) -> None:
+    def learn_zone(self, frames, median: np.ndarray | None = None, threads: int = 1) -> None:
         """As :meth:`SilhouetteExtractor.learn_zone`, and judge the frames (:meth:`prime`)."""
-        self.background.learn_zone(frames)
+        self.background.learn_zone(frames, median, threads)
         if camera_moves(list(frames)):
             self._choose("the camera moves")
 
