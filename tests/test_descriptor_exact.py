@@ -111,3 +111,27 @@ def test_mirrored_bins_are_made_once_and_read_only():
     order = mirrored_bins(12, 5)
     assert order is mirrored_bins(12, 5)
     assert not order.flags.writeable
+
+
+def test_edge_points_of_bool_masks_equal_those_of_integer_masks():
+    import cv2
+    from regressor.edges import sample_edge_points
+    mask = np.zeros((90, 60), np.uint8)
+    cv2.ellipse(mask, (30, 45), (18, 38), 10, 0, 360, 255, -1)
+    cv2.circle(mask, (30, 40), 6, 0, -1)                 # a hole
+    as_bool = mask.astype(bool)
+    for holes in (False, True):
+        np.testing.assert_array_equal(sample_edge_points(as_bool, 120, holes),
+                                      sample_edge_points(mask, 120, holes))
+        np.testing.assert_array_equal(sample_edge_points(as_bool[:, ::-1], 120, holes),
+                                      sample_edge_points(mask[:, ::-1].copy(), 120, holes))
+    assert as_bool.sum() == np.count_nonzero(mask)      # the input is left as it was
+
+
+def test_streamed_stacks_are_independent_copies():
+    from regressor.stacking import FrameStacker, stack_frames
+    X = np.arange(14.0).reshape(7, 2)
+    for k, step in ((1, 1), (3, 1), (2, 3)):
+        stacker = FrameStacker(k, step)
+        streamed = [stacker.push(x) for x in X]
+        np.testing.assert_array_equal(np.array(streamed), stack_frames(X, k, step=step))
