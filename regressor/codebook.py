@@ -91,11 +91,14 @@ def soft_histograms(contexts, codebook: Codebook, n_votes: int = 5, total: float
         np.matmul(c, codebook.centres.T, out=out)
     d2 *= -2.0
     d2 += codebook.squared_norms
-    nearest, near_d2 = _nearest(d2.reshape(-1, k), min(n_votes, k))
-    weights = np.exp(-(near_d2 - near_d2[:, :1]) / (2.0 * codebook.sigma**2))
+    nearest, weights = _nearest(d2.reshape(-1, k), min(n_votes, k))
+    weights -= weights[:, :1].copy()          # exp(-(d2 - nearest d2) / (2 sigma^2)), in place
+    np.negative(weights, out=weights)
+    weights /= 2.0 * codebook.sigma**2
+    np.exp(weights, out=weights)
     weights /= weights.sum(axis=1, keepdims=True)
     # Centre indices made keys per silhouette (b * K + centre), rows in order: the same sums.
-    nearest += np.repeat(np.arange(0, len(contexts) * k, k), n)[:, None]
+    nearest.reshape(len(contexts), -1)[...] += np.arange(0, len(contexts) * k, k)[:, None]
     hist = np.bincount(nearest.ravel(), weights=weights.ravel(), minlength=len(contexts) * k)
     hist = hist.reshape(len(contexts), k)
     return hist * (total / hist.sum(axis=1, keepdims=True))
