@@ -56,7 +56,8 @@ def shape_contexts(
     # interleaved (N, N, 2) views, and exact enough for pixel coordinates (centred first).
     centred = points - points.mean(axis=0)
     # RMS pairwise distance, exactly, in O(N): mean over i != j of |p_i - p_j|^2 = 2 N/(N-1) var.
-    scale = np.sqrt(2.0 * n / (n - 1) * (centred**2).sum(axis=1).mean())
+    squares = centred * centred
+    scale = np.sqrt(2.0 * n / (n - 1) * (squares[:, 0] + squares[:, 1]).mean())
     if not scale > 0.0:
         raise ValueError("points are all coincident; shape contexts are undefined")
     x, y = centred.T.astype(np.float32, order="C")
@@ -65,15 +66,16 @@ def shape_contexts(
     # throughout: at N = 300 the cost is memory traffic, not arithmetic.
     u, v = _differences(x, y)
 
-    # Sector in a doubled range [n_angular/2, 3 n_angular/2] so a plain truncating cast floors it;
-    # the wrap-around (raw sectors >= n_angular) is folded back after counting, on 2 n_angular
-    # raw sectors a ring.
+    # Sector in a doubled range [n_angular/2, 3 n_angular/2] so a plain truncating cast floors it,
+    # then the wrap-around (sectors >= n_angular) folded back: min(s, s - n_angular) in unsigned
+    # integers, where s - n_angular wraps above s when s < n_angular.
+    size = n_radial * n_angular
+    key_type = np.uint16 if n * size <= np.iinfo(np.uint16).max else np.uint32
     angle = np.arctan2(v, u)
     angle *= np.float32(n_angular / (2 * np.pi))
     angle += np.float32(n_angular)
-    stride = 2 * n_angular * n_radial + 1      # a row's keys below: 2 n_angular raw sectors a ring
-    key_type = np.uint16 if n * stride <= np.iinfo(np.uint16).max else np.intp
     sector = angle.astype(key_type)
+    np.minimum(sector, sector - key_type(n_angular), out=sector)
 
     # Ring k holds log distances in [k, k+1) steps above r_inner * scale (step = log ratio / n_radial).
     log_step = np.log(r_outer / r_inner) / n_radial
@@ -81,33 +83,28 @@ def shape_contexts(
     ring *= u
     v *= v
     ring += v
-    with np.errstate(divide="ignore"):  # log(0) on the diagonal; clipped and discarded below
+    with np.errstate(divide="ignore"):  # log(0) on the diagonal: ring 0 after the clip
         np.log(ring, out=ring)
     ring -= np.float32(2.0 * np.log(r_inner * scale))
     ring *= np.float32(0.5 / log_step)
     np.clip(ring, np.float32(0.0), np.float32(n_radial - 0.5), out=ring)
-    return _count_bins(ring.astype(key_type), sector, n_angular, n_radial)
+    return _count_bins(ring.astype(key_type), sector, n_angular, size)
 
 
-def _count_bins(ring: np.ndarray, sector: np.ndarray, n_angular: int, n_radial: int) -> np.ndarray:
+def _count_bins(ring: np.ndarray, sector: np.ndarray, n_angular: int, size: int) -> np.ndarray:
     """Each point's histogram (N, n_radial * n_angular) float64 of the other points, from ring
-    and raw sector (N, N) integers (overwritten), both [j, i] (point j seen from point i): key
-    i * stride + ring * 2 n_angular + raw sector, the point itself sent to a spare last column,
-    then raw sectors s and s + n_angular added. Keys of the same dtype as ring (uint16 when
-    they fit: half the memory traffic of int32)."""
+    and sector (N, N) unsigned integers (overwritten), both [j, i] (point j seen from point i):
+    key i * size + ring * n_angular + sector. A point counts itself once, always in bin 0
+    (distance 0: ring 0; arctan2(+0, +0) = 0: sector 0), taken off after counting. Keys of the
+    smallest unsigned type that holds them (uint16 at 300 points: less memory traffic)."""
     n = len(ring)
-    width = 2 * n_angular
-    stride = n_radial * width + 1
     bins = ring
-    bins *= width
+    bins *= n_angular
     bins += sector
-    bins.flat[:: n + 1] = stride - 1
-    bins += np.arange(0, n * stride, stride, dtype=bins.dtype)
-    counts = np.bincount(bins.ravel(), minlength=n * stride).reshape(n, stride)[:, :-1]
-    counts = counts.reshape(n, n_radial, 2, n_angular)
-    contexts = np.add(counts[:, :, 0], counts[:, :, 1], dtype=np.float64)
-    contexts /= float(n - 1)
-    return contexts.reshape(n, n_radial * n_angular)
+    bins += np.arange(0, n * size, size, dtype=bins.dtype)
+    counts = np.bincount(bins.ravel(), minlength=n * size).reshape(n, size)
+    counts[:, 0] -= 1
+    return counts / float(n - 1)
 
 
 def mirrored_bins(n_angular: int = 12, n_radial: int = 5) -> np.ndarray:

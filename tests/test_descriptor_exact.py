@@ -1,6 +1,7 @@
 """The descriptor's fast paths give exactly what their plain numpy formulation gives: shape
-contexts (pair differences by sgemm, keys on doubled sectors, uint16 or intp keys) and the soft
-histograms of several silhouettes at once (own and mirror image)."""
+contexts (pair differences by sgemm, sectors wrapped in unsigned integers, uint16 or uint32
+keys, the point itself taken off bin 0) and the soft histograms of several silhouettes at once
+(own and mirror image); edge points of bool masks; streamed stacks."""
 from __future__ import annotations
 
 import numpy as np
@@ -42,7 +43,7 @@ def point_sets():
     yield np.round(rng.normal(size=(120, 2)) * 6)                    # equal coordinates, exact sector edges
     dup = rng.normal(size=(80, 2)) * 9
     yield np.vstack([dup, dup])                                      # coincident pairs
-    yield rng.normal(size=(600, 2)) * 30                             # 600 * 121 keys: intp
+    yield rng.normal(size=(1100, 2)) * 30                            # 1100 * 60 keys: uint32
     # -0.0 after centring (x = -0.0 with a mean of +0.0): the plain-subtraction branch.
     yield np.array([[-0.0, 1.0], [0.0, 1.0], [1.0, -1.0], [-1.0, -1.0], [0.0, 2.0], [0.0, -2.0]])
 
