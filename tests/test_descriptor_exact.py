@@ -136,3 +136,27 @@ def test_streamed_stacks_are_independent_copies():
         stacker = FrameStacker(k, step)
         streamed = [stacker.push(x) for x in X]
         np.testing.assert_array_equal(np.array(streamed), stack_frames(X, k, step=step))
+
+
+def plain_layout(mask, grid):
+    """silhouette_layout's steps written directly (bounding box from row / column any())."""
+    import cv2
+    m = np.asarray(mask)
+    rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
+    crop = m[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] != 0
+    h, w = crop.shape
+    side = max(h, w)
+    square = np.zeros((side, side), np.float32)
+    square[(side - h) // 2:(side - h) // 2 + h, (side - w) // 2:(side - w) // 2 + w] = crop
+    return cv2.resize(square, (grid, grid), interpolation=cv2.INTER_AREA).astype(np.float64).ravel()
+
+
+def test_layouts_of_bool_views_and_integer_masks_equal_the_plain_formulation():
+    import cv2
+    from regressor.layout import silhouette_layout
+    mask = np.zeros((70, 90), np.uint8)
+    cv2.ellipse(mask, (40, 30), (12, 25), 20, 0, 360, 7, -1)
+    for m in (mask.astype(bool), mask.astype(bool)[:, ::-1], mask.astype(bool)[::-1, 5:],
+              mask, mask.astype(np.int64)[:, ::-1] * -3, mask.astype(np.float32)):
+        for grid in (16, 5):
+            np.testing.assert_array_equal(silhouette_layout(m, grid), plain_layout(m, grid))
