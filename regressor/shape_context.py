@@ -15,16 +15,19 @@ import functools
 import numpy as np
 
 
-def _differences(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(u, v) (N, N) float32 with u[j, i] = x[j] - x[i] (point j rightwards of point i) and
-    v[j, i] = y[i] - y[j] (upwards), from x, y (N,) float32. One sgemm of the rows
+def _differences(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(u, v) as one (2, N, N) float32 array, u[j, i] = x[j] - x[i] (point j rightwards of
+    point i) and v[j, i] = y[i] - y[j] (upwards), from x, y (N,) float32. One sgemm of the rows
     [x_j, 1, 0, 0], [0, 0, -y_j, 1] by the columns [1, -x_i, 1, y_i]: exactly the subtractions
     (each element is one rounded sum of exact products and zeros), in a third of their time;
     a -0.0 coordinate (whose difference keeps a sign the sgemm would lose) takes the plain
     subtractions."""
     n = len(x)
     if np.signbit(x[x == 0]).any() or np.signbit(y[y == 0]).any():
-        return np.subtract(x[:, None], x[None, :]), np.subtract(y[None, :], y[:, None])
+        uv = np.empty((2, n, n), np.float32)
+        np.subtract(x[:, None], x[None, :], out=uv[0])
+        np.subtract(y[None, :], y[:, None], out=uv[1])
+        return uv
     left = np.zeros((2 * n, 4), np.float32)
     left[:n, 0] = x
     left[:n, 1] = 1.0
@@ -33,8 +36,7 @@ def _differences(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     right = np.ones((4, n), np.float32)
     right[1] = -x
     right[3] = y
-    uv = left @ right
-    return uv[:n], uv[n:]
+    return (left @ right).reshape(2, n, n)
 
 
 def shape_contexts(
@@ -64,14 +66,14 @@ def shape_contexts(
     # Pair arrays indexed [j, i], point j seen from point i: the bin keys below then run through
     # different rows' counters one after another, which np.bincount counts faster. In place
     # throughout: at N = 300 the cost is memory traffic, not arithmetic.
-    u, v = _differences(x, y)
+    uv = _differences(x, y)
 
     # Sector in a doubled range [n_angular/2, 3 n_angular/2] so a plain truncating cast floors it,
     # then the wrap-around (sectors >= n_angular) folded back: min(s, s - n_angular) in unsigned
     # integers, where s - n_angular wraps above s when s < n_angular.
     size = n_radial * n_angular
     key_type = np.uint16 if n * size <= np.iinfo(np.uint16).max else np.uint32
-    angle = np.arctan2(v, u)
+    angle = np.arctan2(uv[1], uv[0])
     angle *= np.float32(n_angular / (2 * np.pi))
     angle += np.float32(n_angular)
     sector = angle.astype(key_type)
@@ -79,10 +81,9 @@ def shape_contexts(
 
     # Ring k holds log distances in [k, k+1) steps above r_inner * scale (step = log ratio / n_radial).
     log_step = np.log(r_outer / r_inner) / n_radial
-    ring = u
-    ring *= u
-    v *= v
-    ring += v
+    uv *= uv
+    ring = uv[0]
+    ring += uv[1]
     with np.errstate(divide="ignore"):  # log(0) on the diagonal: ring 0 after the clip
         np.log(ring, out=ring)
     ring -= np.float32(2.0 * np.log(r_inner * scale))
