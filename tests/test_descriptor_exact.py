@@ -4,11 +4,15 @@ keys, the point itself taken off bin 0) and the soft histograms of several silho
 (own and mirror image); edge points of bool masks; streamed stacks."""
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
 from regressor.codebook import Codebook, CodebookError, soft_histogram, soft_histograms
+from regressor.edges import sample_edge_points
+from regressor.layout import silhouette_layout
 from regressor.shape_context import mirrored_bins, shape_contexts
+from regressor.stacking import FrameStacker, stack_frames
 
 
 def plain_shape_contexts(points, n_angular=12, n_radial=5, r_inner=0.125, r_outer=3.0):
@@ -115,8 +119,6 @@ def test_mirrored_bins_are_made_once_and_read_only():
 
 
 def test_edge_points_of_bool_masks_equal_those_of_integer_masks():
-    import cv2
-    from regressor.edges import sample_edge_points
     mask = np.zeros((90, 60), np.uint8)
     cv2.ellipse(mask, (30, 45), (18, 38), 10, 0, 360, 255, -1)
     cv2.circle(mask, (30, 40), 6, 0, -1)                 # a hole
@@ -130,7 +132,6 @@ def test_edge_points_of_bool_masks_equal_those_of_integer_masks():
 
 
 def test_streamed_stacks_are_independent_copies():
-    from regressor.stacking import FrameStacker, stack_frames
     X = np.arange(14.0).reshape(7, 2)
     for k, step in ((1, 1), (3, 1), (2, 3)):
         stacker = FrameStacker(k, step)
@@ -140,7 +141,6 @@ def test_streamed_stacks_are_independent_copies():
 
 def plain_layout(mask, grid):
     """silhouette_layout's steps written directly (bounding box from row / column any())."""
-    import cv2
     m = np.asarray(mask)
     rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
     crop = m[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] != 0
@@ -152,8 +152,6 @@ def plain_layout(mask, grid):
 
 
 def test_layouts_of_bool_views_and_integer_masks_equal_the_plain_formulation():
-    import cv2
-    from regressor.layout import silhouette_layout
     mask = np.zeros((70, 90), np.uint8)
     cv2.ellipse(mask, (40, 30), (12, 25), 20, 0, 360, 7, -1)
     for m in (mask.astype(bool), mask.astype(bool)[:, ::-1], mask.astype(bool)[::-1, 5:],
