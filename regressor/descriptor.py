@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 import numpy as np
 
-from regressor.codebook import Codebook, CodebookError, soft_histogram
+from regressor.codebook import Codebook, CodebookError, soft_histogram, soft_histograms
 from regressor.edges import DegenerateSilhouetteError, SilhouetteError, sample_edge_points
 from regressor.shape_context import mirrored_bins, shape_contexts
 
@@ -132,5 +132,6 @@ def descriptor_and_mirror(mask: np.ndarray, settings: DescriptorSettings,
         return (descriptor_for_mask(mask, settings, codebook),
                 descriptor_for_mask(np.asarray(mask)[:, ::-1], settings, codebook))
     contexts = mask_contexts(mask, settings)
-    return tuple(soft_histogram(c, codebook, settings.n_votes, settings.total)
-                 for c in (contexts, contexts[:, order]))
+    own, mirror = soft_histograms((contexts, contexts[:, order]), codebook, settings.n_votes,
+                                  settings.total)
+    return own, mirror

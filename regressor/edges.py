@@ -33,7 +33,9 @@ def as_mask(mask: np.ndarray) -> np.ndarray:
     mask = np.asarray(mask)
     if mask.ndim != 2:
         raise SilhouetteError(f"silhouette mask must be 2-D (H, W), got shape {mask.shape}")
-    if mask.dtype != bool and not np.issubdtype(mask.dtype, np.integer):
+    if mask.dtype == bool:       # already 0/1 bytes: a view, no pass over the pixels
+        return np.ascontiguousarray(mask).view(np.uint8)
+    if not np.issubdtype(mask.dtype, np.integer):
         raise SilhouetteError(f"silhouette mask must be bool or integer, got dtype {mask.dtype}")
     return np.ascontiguousarray(mask != 0, dtype=np.uint8)
 
@@ -65,8 +67,11 @@ def _closed_lengths(polyline: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A closed polyline (M, 2) as (vertices (M+1, 2) with the first repeated at the end,
     cumulative arc length (M+1,) px starting at 0)."""
     closed = np.vstack([polyline, polyline[:1]])
-    seg = np.hypot(*np.diff(closed, axis=0).T)
-    return closed, np.concatenate([[0.0], np.cumsum(seg)])
+    step = closed[1:] - closed[:-1]
+    cum = np.empty(len(closed))
+    cum[0] = 0.0
+    np.cumsum(np.hypot(step[:, 0], step[:, 1]), out=cum[1:])
+    return closed, cum
 
 
 def _resample_closed(closed: np.ndarray, cum: np.ndarray, count: int) -> np.ndarray:
@@ -86,6 +91,8 @@ def _thickness_ratio(points: np.ndarray) -> float:
 
 def _split_count(lengths: np.ndarray, total: int) -> np.ndarray:
     """Share total points among boundaries in proportion to their lengths (largest remainder)."""
+    if len(lengths) == 1:
+        return np.array([total])
     share = total * lengths / lengths.sum()
     counts = np.floor(share).astype(int)
     order = np.argsort(-(share - counts), kind="stable")

@@ -27,11 +27,13 @@ def silhouette_layout(mask: np.ndarray, grid: int) -> np.ndarray:
     m = np.asarray(mask)
     if m.ndim != 2:
         raise DegenerateSilhouetteError(f"a silhouette mask must be 2-D, got shape {m.shape}")
-    rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
-    if len(rows) == 0:
+    if m.dtype != bool:
+        m = m != 0
+    # The bounding box of the nonzero pixels (a bool mask's bytes are 0/1: viewed, not copied).
+    left0, top0, w, h = cv2.boundingRect(m.view(np.uint8))
+    if w == 0:
         raise DegenerateSilhouetteError("the silhouette is empty")
-    crop = m[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] != 0
-    h, w = crop.shape
+    crop = m[top0:top0 + h, left0:left0 + w]
     side = max(h, w)
     square = np.zeros((side, side), np.float32)
     top, left = (side - h) // 2, (side - w) // 2

@@ -10,7 +10,33 @@ to 1. Conventions (fixed, so descriptors made anywhere agree):
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
+
+
+def _differences(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(u, v) as one (2, N, N) float32 array, u[j, i] = x[j] - x[i] (point j rightwards of
+    point i) and v[j, i] = y[i] - y[j] (upwards), from x, y (N,) float32. One sgemm of the rows
+    [x_j, 1, 0, 0], [0, 0, -y_j, 1] by the columns [1, -x_i, 1, y_i]: exactly the subtractions
+    (each element is one rounded sum of exact products and zeros), in a third of their time;
+    a -0.0 coordinate (whose difference keeps a sign the sgemm would lose) takes the plain
+    subtractions."""
+    n = len(x)
+    if np.signbit(x[x == 0]).any() or np.signbit(y[y == 0]).any():
+        uv = np.empty((2, n, n), np.float32)
+        np.subtract(x[:, None], x[None, :], out=uv[0])
+        np.subtract(y[None, :], y[:, None], out=uv[1])
+        return uv
+    left = np.zeros((2 * n, 4), np.float32)
+    left[:n, 0] = x
+    left[:n, 1] = 1.0
+    left[n:, 2] = -y
+    left[n:, 3] = 1.0
+    right = np.ones((4, n), np.float32)
+    right[1] = -x
+    right[3] = y
+    return (left @ right).reshape(2, n, n)
 
 
 def shape_contexts(
@@ -32,43 +58,54 @@ def shape_contexts(
     # interleaved (N, N, 2) views, and exact enough for pixel coordinates (centred first).
     centred = points - points.mean(axis=0)
     # RMS pairwise distance, exactly, in O(N): mean over i != j of |p_i - p_j|^2 = 2 N/(N-1) var.
-    scale = np.sqrt(2.0 * n / (n - 1) * (centred**2).sum(axis=1).mean())
+    squares = centred * centred
+    scale = np.sqrt(2.0 * n / (n - 1) * (squares[:, 0] + squares[:, 1]).mean())
     if not scale > 0.0:
         raise ValueError("points are all coincident; shape contexts are undefined")
-    x, y = centred.astype(np.float32).T.copy()
-    u = x[None, :] - x[:, None]  # u[i, j]: point j relative to point i, rightwards
-    v = y[:, None] - y[None, :]  # v[i, j]: upwards (rows grow downwards)
-    # Below, (N, N) work is done in place on float32 / int32 arrays: at N = 300 the cost is memory
-    # traffic, not arithmetic.
+    x, y = centred.T.astype(np.float32, order="C")
+    # Pair arrays indexed [j, i], point j seen from point i: the bin keys below then run through
+    # different rows' counters one after another, which np.bincount counts faster. In place
+    # throughout: at N = 300 the cost is memory traffic, not arithmetic.
+    uv = _differences(x, y)
 
     # Sector in a doubled range [n_angular/2, 3 n_angular/2] so a plain truncating cast floors it,
-    # then the wrap-around (sectors >= n_angular) folded back: a histogram of n_angular sectors.
-    angle = np.arctan2(v, u)
+    # then the wrap-around (sectors >= n_angular) folded back: min(s, s - n_angular) in unsigned
+    # integers, where s - n_angular wraps above s when s < n_angular.
+    size = n_radial * n_angular
+    key_type = np.uint16 if n * size <= np.iinfo(np.uint16).max else np.uint32
+    angle = np.arctan2(uv[1], uv[0])
     angle *= np.float32(n_angular / (2 * np.pi))
     angle += np.float32(n_angular)
-    sector = angle.astype(np.int32)
-    np.subtract(sector, n_angular, out=sector, where=sector >= n_angular)
+    sector = angle.astype(key_type)
+    np.minimum(sector, sector - key_type(n_angular), out=sector)
 
     # Ring k holds log distances in [k, k+1) steps above r_inner * scale (step = log ratio / n_radial).
     log_step = np.log(r_outer / r_inner) / n_radial
-    ring = u
-    ring *= u
-    v *= v
-    ring += v
-    with np.errstate(divide="ignore"):  # log(0) on the diagonal; clipped and discarded below
+    uv *= uv
+    ring = uv[0]
+    ring += uv[1]
+    with np.errstate(divide="ignore"):  # log(0) on the diagonal: ring 0 after the clip
         np.log(ring, out=ring)
     ring -= np.float32(2.0 * np.log(r_inner * scale))
     ring *= np.float32(0.5 / log_step)
     np.clip(ring, np.float32(0.0), np.float32(n_radial - 0.5), out=ring)
+    return _count_bins(ring.astype(key_type), sector, n_angular, size)
 
-    size = n_radial * n_angular
-    bins = ring.astype(np.int32)
+
+def _count_bins(ring: np.ndarray, sector: np.ndarray, n_angular: int, size: int) -> np.ndarray:
+    """Each point's histogram (N, n_radial * n_angular) float64 of the other points, from ring
+    and sector (N, N) unsigned integers (overwritten), both [j, i] (point j seen from point i):
+    key i * size + ring * n_angular + sector. A point counts itself once, always in bin 0
+    (distance 0: ring 0; arctan2(+0, +0) = 0: sector 0), taken off after counting. Keys of the
+    smallest unsigned type that holds them (uint16 at 300 points: less memory traffic)."""
+    n = len(ring)
+    bins = ring
     bins *= n_angular
     bins += sector
-    bins.flat[:: n + 1] = size  # a point is not its own neighbour: send it to a spare column
-    bins += np.arange(0, n * (size + 1), size + 1, dtype=np.int32)[:, None]
-    counts = np.bincount(bins.ravel(), minlength=n * (size + 1)).reshape(n, size + 1)
-    return counts[:, :size] / float(n - 1)
+    bins += np.arange(0, n * size, size, dtype=bins.dtype)
+    counts = np.bincount(bins.ravel(), minlength=n * size).reshape(n, size)
+    counts[:, 0] -= 1
+    return counts / float(n - 1)
 
 
 def mirrored_bins(n_angular: int = 12, n_radial: int = 5) -> np.ndarray:
@@ -78,8 +115,15 @@ def mirrored_bins(n_angular: int = 12, n_radial: int = 5) -> np.ndarray:
     Mirroring sends an angle a to 180 - a, so sector k goes to sector n_angular/2 - 1 - k
     (mod n_angular); rings are unchanged. Exact for points off the sector boundaries. Needs an
     even n_angular (a sector edge at 90 degrees); ValueError otherwise. Returns
-    (n_radial * n_angular,) int, a permutation (its own inverse)."""
+    (n_radial * n_angular,) int, a permutation (its own inverse), read-only (made once)."""
     if n_angular < 2 or n_angular % 2:
         raise ValueError(f"mirrored contexts need an even number of sectors, got {n_angular}")
+    return _mirrored_bins(int(n_angular), int(n_radial))
+
+
+@functools.lru_cache(maxsize=8)
+def _mirrored_bins(n_angular: int, n_radial: int) -> np.ndarray:
     sectors = (n_angular // 2 - 1 - np.arange(n_angular)) % n_angular
-    return (np.arange(n_radial)[:, None] * n_angular + sectors[None, :]).ravel()
+    order = (np.arange(n_radial)[:, None] * n_angular + sectors[None, :]).ravel()
+    order.flags.writeable = False
+    return order

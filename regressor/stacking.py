@@ -47,8 +47,9 @@ class FrameStacker:
         elif self._buffer.shape[1] != x.shape[0]:
             raise StackingInputError(f"descriptor has {x.shape[0]} values; this track's have {self._buffer.shape[1]}")
         else:
-            self._buffer = np.vstack([x[None, :], self._buffer[:-1]])
-        return self._buffer[::self.step].reshape(-1).copy()
+            self._buffer[1:] = self._buffer[:-1]    # in place (numpy copies overlapping rows safely)
+            self._buffer[0] = x
+        return self._buffer[::self.step].flatten()    # a copy: the buffer changes
 
 
 def __getattr__(name: str):
