@@ -1,7 +1,11 @@
 """Video to tracked 3-D poses: silhouettes, filtering, outputs and the ``track`` command.
 The public names (_PUBLIC) are loaded on first use: a submodule run alone
 (``python -m tracker.outputs.meshcat_server``) does not pay for the filter's imports."""
+import signal
 from importlib import import_module
+
+#: What stops a run as Ctrl-C does (the command's handlers, the loop's held outputs, the worker).
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 _PUBLIC = {"PoseTracker": "pipeline", "TrackedPose": "pipeline", "TrackerSettings": "pipeline",
            "track_video": "run", "TrackRun": "run", "Sink": "outputs", "PoseRecorder": "outputs"}

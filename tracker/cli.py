@@ -14,6 +14,7 @@ import warnings
 from pathlib import Path
 
 from regressor.errors import SilhouettePoseError
+from tracker import STOP_SIGNALS
 
 EXIT_ERROR, EXIT_USAGE = 1, 2   # a failed run; argparse's status for a usage error
 EXIT_INTERRUPTED = 130          # the shell's status for a run ended by Ctrl-C (128 + SIGINT)
@@ -40,7 +41,6 @@ _URL = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://")   # rtsp://, ... (Path would dr
 #: (docs/tuning.md).
 _interrupts: list[int] = []
 _previous_unraisable_hook = sys.unraisablehook
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)     # also tracker.run's
 
 
 def quiet_decoder_logs() -> None:

@@ -18,14 +18,14 @@ from collections.abc import Iterator
 import cv2
 
 from regressor.errors import SilhouettePoseError
+from tracker import STOP_SIGNALS
 
 #: Frames per message (and per regression batch, also in one process: the same results):
 #: the pipe's cost negligible, the worker never far ahead, a live output little late.
 BATCH_FRAMES = 8
 #: Of every MAIN_DESCRIBES[1] frames, the first MAIN_DESCRIBES[0] are described by the main
 #: process instead (sent with descriptions None), to balance the two halves' costs.
-MAIN_DESCRIBES = (1, 2)
-_STOPS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+MAIN_DESCRIBES = (2, 3)
 
 
 def described_chunks(source, tracker, batch: int, leave_to_main: bool = False
@@ -83,7 +83,7 @@ class FrameWorker:
         threads = cv2.getNumThreads()
         cv2.setNumThreads(1)
         # Stop signals wait until the child has its own handlers (a Ctrl-C reaches both).
-        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS)
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
         try:
             self._process.start()
         finally:
@@ -132,7 +132,7 @@ def _work(reader, writer, source, tracker, batch: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # Ctrl-C is the main process's
     for number in (signal.SIGTERM, signal.SIGHUP):    # close() ends the worker by SIGTERM
         signal.signal(number, signal.SIG_DFL)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
     caught: list = []
 
     def send(message) -> None:

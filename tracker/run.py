@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from regressor.errors import SilhouettePoseError
-from tracker.cli import STOP_SIGNALS
+from tracker import STOP_SIGNALS
 from tracker.tracks import streamed_kind
 from tracker.tracks.root_path import drawn_at
 from tracker.frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
@@ -294,13 +294,13 @@ def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | N
            two_processes: bool = False) -> None:
     """Teach the tracker the empty scene: the clean plate ``background``, else the median of
     frames spread over the video at the extractor's working size (and those frames); with
-    ``two_processes`` a second core shares their pass and the choice of the noise floor."""
+    ``two_processes`` two threads measure the noise floor's candidates."""
     if background is not None:
         from tracker.clean_plate import check_plate
         check_plate(source, background)
         tracker.prime(background)
         return
-    median, frames = sampled_background(source, tracker, two_processes)
+    median, frames = sampled_background(source, tracker)
     full = (source.width, source.height)
     tracker.prime(median, frame_size=None if median.shape[1::-1] == full else full)
     learn_zone = getattr(tracker.extractor, "learn_zone", None)
@@ -308,15 +308,14 @@ def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | N
         learn_zone(frames, median, 2 if two_processes else 1)
 
 
-def sampled_background(source: VideoSource, tracker: PoseTracker, two_processes: bool = False
+def sampled_background(source: VideoSource, tracker: PoseTracker
                        ) -> tuple[np.ndarray, list[np.ndarray]]:
     """(the median of frames spread over the video, those frames), BGR uint8 at the
-    extractor's working size; two_processes: VideoSource.sample_frames'."""
+    extractor's working size."""
     full = (source.width, source.height)
     subtractor = getattr(tracker.extractor, "subtractor", None)
     size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full
-    shared = {"two_processes": True} if two_processes else {}
-    frames = source.sample_frames(tracker.settings.background_samples, size=size, **shared)
+    frames = source.sample_frames(tracker.settings.background_samples, size=size)
     if not frames:
         raise nothing_decodes(source)
     # Black or white frames (before a fade-in) are no picture of the scene.

@@ -150,7 +150,7 @@ class VideoSource:
         return None if self.end_index is None else self.end_index - self.start_index
 
     def __iter__(self) -> Iterator[VideoFrame]:
-        threads = self.decoder_threads
+        threads = self.decoder_threads       # unset: the one-argument call (as tests stub it)
         capture = _open_capture(self.path) if threads is None else \
             _open_capture(self.path, threads)
         opened = _file_state(self.path)
@@ -228,17 +228,15 @@ class VideoSource:
             image = shrink(image, size)
         return image
 
-    def sample_frames(self, count: int, size: tuple[int, int] | None = None,
-                      two_processes: bool = False) -> list[np.ndarray]:
+    def sample_frames(self, count: int, size: tuple[int, int] | None = None) -> list[np.ndarray]:
         """Up to ``count`` frames (BGR uint8 (H, W, 3), shrunk to ``size`` (width, height) px
         if given) evenly spaced over the selected range, e.g. for the empty background.
         Undecodable frames are passed over; a stream of unknown length is read to its end
-        (its first frames alone would show a person standing in the background).
-        two_processes: a forked process may share the pass (tracker.video.split_sample)."""
+        (its first frames alone would show a person standing in the background)."""
         if self.end_index is None:
             from tracker.video.even_sample import sample_through
             return sample_through(self, count, size)
-        images = self._sample_by_index(count, size, two_processes)
+        images = self._sample_by_index(count, size)
         if not images and self.container_times and self.start_index > 0:
             # A variable rate puts the start time at another frame than the announced rate
             # does (or past the frames the file has): sample what iteration finds by time.
@@ -246,31 +244,14 @@ class VideoSource:
             return sample_by_time(self, count, size)
         return images
 
-    def _sample_by_index(self, count: int, size: tuple[int, int] | None,
-                         two_processes: bool = False) -> list[np.ndarray]:
+    def _sample_by_index(self, count: int, size: tuple[int, int] | None) -> list[np.ndarray]:
         """sample_frames by frame number at the announced rate: samples up to SEQUENTIAL_SPACING
-        apart in one pass (grab() all, retrieve() those kept; its second half perhaps read by
-        a helper process), sparser ones by seeking."""
+        apart in one pass (grab() all, retrieve() those kept), sparser ones by seeking."""
         indices = np.linspace(self.start_index, self.end_index - 1, max(count, 1))
         indices = np.unique(indices.round().astype(int))
         if (indices[-1] - indices[0]) / max(len(indices) - 1, 1) > SEQUENTIAL_SPACING:
             from tracker.video.seeking import sample_by_seeking     # a long video only
             return sample_by_seeking(self, indices, size)
-        helper = None
-        if two_processes:
-            from tracker.video.split_sample import SampleHelper, worth_splitting
-            shared = worth_splitting(indices, size or (self.width, self.height))
-            helper = SampleHelper(self, indices, size) if shared else None
-        try:
-            return self._sample_in_order(indices, size, helper)
-        finally:
-            if helper is not None:
-                helper.close()
-
-    def _sample_in_order(self, indices: np.ndarray, size: tuple[int, int] | None,
-                         helper=None) -> list[np.ndarray]:
-        """Frames ``indices`` (sorted) read in one pass from the first; ``helper``: a
-        split_sample.SampleHelper whose samples end the pass once they join."""
         capture = _open_capture(self.path)
         images = []
         give_up = self.unreadable_run()
@@ -286,15 +267,10 @@ class VideoSource:
                         break
                     continue
                 failed = 0
-                image = None
                 if index in wanted:
                     ok, image = capture.retrieve()
-                    image = image if ok else None
-                    if image is not None:
+                    if ok and image is not None:
                         images.append(self._prepare(image, size))
-                rest = None if helper is None else helper.rest(index, image, capture)
-                if rest is not None:
-                    return images + rest
         finally:
             capture.release()
         return images
