@@ -1,7 +1,5 @@
 """BasisRegressor: the scikit-learn-style base of the kernel regressors (regressor.rvm,
-regressor.dls, regressor.sparse_rvm): a linear model on a basis (the inputs themselves, or
-Gaussian kernels on centres), hyperparameters in the constructor, learned state ending in ``_``.
-"""
+regressor.dls, regressor.sparse_rvm): a linear model on a basis (regressor.basis)."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,12 +8,9 @@ from .basis import Parameters, gaussian_design, validate_X
 
 
 class BasisRegressor(Parameters):
-    """Shared plumbing for regressors of the form y = Phi(x)[:, kept] @ coef_ + intercept_.
-
-    Subclasses implement ``_fit_weights(Phi (N, M), Y (N, K)) -> (kept indices (R,), coef (R, K),
-    intercept (K,))`` on the full basis of the training set (regressor.basis_fit); this class
-    handles the rest.
-    """
+    """Regressors y = Phi(x)[:, kept] @ coef_ + intercept_. Subclasses implement
+    ``_fit_weights(Phi (N, M), Y (N, K)) -> (kept (R,), coef (R, K), intercept (K,))`` on the
+    training set's full basis (regressor.basis_fit); this class does the rest."""
 
     def __sklearn_tags__(self):
         # Called only by scikit-learn itself, so importing it here adds no run-time dependency.

@@ -1,17 +1,10 @@
 """A trained pose model: silhouette -> descriptor -> stacked descriptors -> 55-D pose.
 
-One object and one file hold what the tracker needs from training: descriptor settings and
-codebook, transform, stack depth k, the regressor, the angle centres it was trained around
-(it predicts wrap(angle - centre), so angles straddling +-180 stay continuous), the Kalman
-filter's noise models and a description of the training data. Poses: regressor/angles.py.
-
-A frame's descriptor (D values) is the transformed histogram of shape contexts, then, when
-layout_grid > 0, the silhouette's layout (regressor.layout) times layout_weight, which
-balances the two blocks' spreads. k frames are stacked (k*D) and, with a projection, centred
-and projected onto P principal directions. A mixture may carry canonical limbs (a limb head
-or a limb network, fitted on each pose's canonical member of {pose, front/back flip}, so one
-silhouette has one target; the tracker picks the member), a side classifier and a heading
-index (regressor.heading_index) for each frame's novelty.
+One object and one file hold what the tracker needs from training (PoseModel's fields). A
+frame's descriptor (D values): the transformed histogram of shape contexts, then, when
+layout_grid > 0, the silhouette's layout (regressor.layout) times layout_weight (which balances
+the two blocks' spreads). k frames are stacked (k*D) and, with a projection, centred and
+projected onto P principal directions. Poses: regressor/angles.py.
 """
 from __future__ import annotations
 
@@ -48,7 +41,7 @@ DEFAULT_AMBIGUITY_THRESHOLD = 0.5
 DEFAULT_TRAINING_FPS = 30.0
 #: A model's described training rate must lie in this range (frames/s).
 MIN_TRAINING_FPS, MAX_TRAINING_FPS = 1.0, 1000.0
-MIXTURE_KIND = "silhouette-pose-mixture"    # a mixture of experts (regressor.mixture)
+MIXTURE_KIND = "silhouette-pose-mixture"    # its parts: docs/code_notes/model.md
 
 
 class PoseModelError(SilhouettePoseError, ValueError):
@@ -64,15 +57,13 @@ UNFAMILIAR_NOVELTY = 1.0
 class PoseModel:
     """A trained model (module docstring); D = descriptor_length, k = stack_depth, R basis
     functions, P = input_length. centres (R, P) Gaussian kernel centres or None (linear basis:
-    relevance (R,) kept inputs); coef (R, 55); intercept (55,); angle_centre_deg (53,);
-    measurement_covariance (54, 54) deg^2, process_noise (54,) (deg/s^2)^2: the filter's R
-    and q; ambiguity_threshold: raw heading norm below which a frame is ambiguous; layout_grid
-    0: no layout block; projection (k*D, P), projection_mean (k*D,) or None (P = k*D);
-    canonical_direction (55,): fitted on canonical members. limb_head, limb_net (one or
-    neither), heading_index, side_classifier (needs limbs), canonical_priors (None: the
-    tracker's default): a mixture's optional parts. variance_calibration: factor on
-    regressor.optional_parts.predict_variance (sparse RVM experts), or None. The tracker calls
-    only regressor.estimator.PoseEstimator's members.
+    relevance (R,) kept inputs); coef (R, 55); intercept (55,); angle_centre_deg (53,): the
+    regressor predicts wrap(angle - centre), so angles near +-180 stay continuous; layout_grid
+    0: no layout block; projection (k*D, P), projection_mean (k*D,) or None (P = k*D). A
+    mixture's optional parts: limb_head or limb_net (canonical limbs), heading_index (novelty),
+    side_classifier (needs limbs), canonical_priors; variance_calibration: factor on
+    regressor.optional_parts.predict_variance, or None. The other fields, and all the tracker
+    calls: regressor.estimator.PoseEstimator.
     """
 
     settings: DescriptorSettings
@@ -116,8 +107,7 @@ class PoseModel:
         return self.stack_depth * self.descriptor_length
 
     def describe(self, mask: np.ndarray) -> np.ndarray:
-        """Descriptor (D,) of a silhouette mask (H, W) bool. Raises
-        regressor.edges.SilhouetteError (DegenerateSilhouetteError) for unusable masks."""
+        """Descriptor (D,) of a silhouette mask (H, W) bool (PoseEstimator.describe)."""
         histogram = descriptor_for_mask(mask, self.settings, self.codebook)
         return self._descriptors(histogram[None], [mask])[0]
 
@@ -128,10 +118,8 @@ class PoseModel:
         return frame_descriptors(histograms, self.transform, layouts, self.layout_weight)
 
     def describe_with_mirror(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(describe(mask), the descriptor of the mask flipped left to right), (D,) each. The
-        mirror's histogram reflects the mask's own shape contexts' sectors
-        (regressor.descriptor.descriptor_and_mirror), so the edge is sampled once. Raises as
-        describe."""
+        """(describe(mask), the descriptor of the mask flipped left to right), (D,) each, the edge
+        sampled once (regressor.descriptor.descriptor_and_mirror). Raises as describe."""
         flipped = np.asarray(mask)[:, ::-1]
         histograms = np.array(descriptor_and_mirror(mask, self.settings, self.codebook))
         own, mirror = self._descriptors(histograms, (mask, flipped))
@@ -170,9 +158,8 @@ class PoseModel:
 
     def hypotheses(self, stacked: np.ndarray, m: int = 1, mirrored: np.ndarray | None = None,
                    novelty: bool = True) -> PoseEstimates:
-        """All the tracker asks for stacked descriptors (N, k*D), the input projected and the
-        gate evaluated once (regressor.estimator.PoseEstimator.hypotheses); novelty: the heading
-        index's (NaN without one)."""
+        """PoseEstimator.hypotheses for stacked descriptors (N, k*D), the input projected and the
+        gate evaluated once; novelty: the heading index's (NaN without one)."""
         X = self._stacked(stacked)
         rows = (self.heading_index.novelty(X) if novelty and self.heading_index is not None
                 else np.full(len(X), np.nan))
@@ -342,9 +329,6 @@ def _validate(path: Path, m: PoseModel) -> None:
             raise PoseModelError(f"{path}: invalid model: {problem}")
     if np.any(np.linalg.eigvalsh(m.measurement_covariance) <= 0) or np.any(m.process_noise < 0):
         raise PoseModelError(f"{path}: invalid model: noise models are not positive")
-
-
-# Mixture files (model_kind MIXTURE_KIND): docs/code_notes/model.md lists their parts.
 
 
 #: The most neighbours a model file's heading index may ask for (the shipped one: 20).
