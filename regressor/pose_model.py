@@ -138,8 +138,7 @@ class PoseModel:
     @property
     def limbs_see_mirror(self) -> bool:
         """Whether the limb networks were fitted on mirror images too (the description's
-        options' limb_net_mirror), so the tracker averages in each frame's mirror image's
-        limbs (tracker.tracks.mirror_limbs)."""
+        limb_net_mirror option): the tracker then uses the mirror images' limbs as well."""
         options = (self.description.get("options") if isinstance(self.description, dict)
                    else None)
         return (self.limb_net is not None and isinstance(options, dict)
@@ -203,9 +202,8 @@ class PoseModel:
                 and self.has_limbs)
 
     def _limbs(self, X: np.ndarray, gate: np.ndarray | None = None) -> np.ndarray:
-        """Canonical poses (N, 55) for the limbs from the regressor's input X (N,
-        input_length): the limb network's, else the limb head's by each row's most probable
-        expert (gate (N, E), None: evaluated here)."""
+        """Canonical poses (N, 55) of the limbs from X (N, input_length): the limb network's,
+        else the limb head's by each row's most probable expert (gate (N, E) or None)."""
         if self.limb_net is not None:
             return self.limb_net.predict(X)
         from .optional_parts import limb_head_poses
@@ -336,8 +334,7 @@ MAX_HEADING_NEIGHBOURS = 1000
 
 
 def _description(a) -> dict:
-    """The file's training description, a JSON object; a (PoseModelError-ready) ValueError
-    for anything else."""
+    """The file's training description, a JSON object; else a PoseModelError-ready ValueError."""
     description = json.loads(str(a["description"]))
     if not isinstance(description, dict):
         raise ValueError(f"the description must be a JSON object, not "
@@ -346,8 +343,7 @@ def _description(a) -> dict:
 
 
 def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
-    """A file's heading index (None when it has none), checked against the regressor's input
-    length; PoseModelError-ready ValueError otherwise."""
+    """A file's heading index or None, checked against the input length; else a ValueError."""
     if not _has_parts(a, ("heading_index_inputs", "heading_index_folded_deg", "heading_index_k",
                           "heading_index_limit_deg"), "heading index"):
         if "heading_index_typical_distance" in a:
@@ -388,8 +384,7 @@ def _has_parts(a, names: tuple[str, ...], what: str) -> bool:
 
 
 def _gate_from_arrays(a, kD: int, E: int, fail) -> SoftmaxGate:
-    """The mixture's softmax gate from its file's parts, checking their shapes agree with the
-    input length kD and the E experts."""
+    """The mixture's softmax gate from its file's parts, checked against kD inputs, E experts."""
     gate_centres = a["mixture_gate_centres"].astype(np.float64)
     G = len(gate_centres)
     weights = a["mixture_gate_weights"].astype(np.float64)
@@ -407,8 +402,8 @@ def _gate_from_arrays(a, kD: int, E: int, fail) -> SoftmaxGate:
 
 def _check_parts(fail, kD: int, limb_head, limb_net, side_classifier, canonical_priors,
                  canonical: bool) -> None:
-    """The parts beside the experts fit together and take the regressor's kD inputs;
-    canonical: the model was fitted on canonical members."""
+    """The parts beside the experts fit together and take kD inputs; canonical: the model
+    was fitted on canonical members."""
     if canonical_priors is not None and side_classifier is None:
         fail("canonical priors need a side classifier")
     if side_classifier is not None and limb_net is None and limb_head is None:
@@ -507,9 +502,8 @@ _VARIANCE_PARTS = ("mixture_expert_sigma", "mixture_expert_phi_mean",
 
 def _rvm_experts(a, experts: list, offsets: np.ndarray
                  ) -> tuple[list, np.ndarray, float | None]:
-    """A file's sparse RVM experts built on the damped least squares experts read from the
-    shared parts, their own parts checked against the offsets (E+1,); returns (experts, rows
-    (E,), variance calibration or None) or a PoseModelError-ready ValueError."""
+    """(sparse RVM experts built on the damped least squares ones read from the shared parts,
+    rows (E,), variance calibration or None); a PoseModelError-ready ValueError."""
     if not _has_parts(a, _RVM_PARTS, "sparse RVM experts") or \
             str(a["mixture_expert_kind"]) != "rvm":
         raise ValueError("mixture_expert_kind must be 'rvm' with all the sparse RVM parts")

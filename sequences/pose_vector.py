@@ -146,7 +146,7 @@ def joint_positions(vectors: np.ndarray, template: Motion | np.ndarray | None = 
     template: a Motion (its skeleton), (31, 3) CMU bone offsets, or None (CMU_REST_OFFSETS);
     root_position (T, 3), None: the origin."""
     v = _as_vectors(vectors)
-    if hasattr(template, "parents"):          # a Motion (not imported: track never passes one)
+    if hasattr(template, "parents"):          # a Motion
         names, parents, offsets = template.names, template.parents, template.offsets
     else:
         offsets = CMU_REST_OFFSETS if template is None else np.asarray(template, np.float64)
@@ -192,9 +192,9 @@ def front_back_flip(vectors: np.ndarray) -> np.ndarray:
 
 
 def image_mirror(vectors: np.ndarray) -> np.ndarray:
-    """The pose of the body seen in the image flipped left to right, (55,) or (T, 55) like
-    vectors: front_back_flip turned 180 degrees about the vertical, so heading h -> -h
-    ((cos, sin) -> (cos, -sin)) with left and right exchanged. Mirroring twice is the identity."""
+    """The pose of the body in the image flipped left to right, (55,) or (T, 55) like vectors:
+    front_back_flip turned 180 degrees about the vertical (heading h -> -h, left and right
+    exchanged). Mirroring twice is the identity."""
     out = front_back_flip(vectors)
     out[..., :2] = -out[..., :2]
     return out
