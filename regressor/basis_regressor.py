@@ -36,15 +36,9 @@ class BasisRegressor(Parameters):
         return Y[:, 0] if self._y_1d else Y
 
     def score(self, X, y) -> float:
-        """Coefficient of determination R^2 averaged uniformly over outputs (scikit-learn convention)."""
-        Y = np.asarray(y, dtype=np.float64).reshape(len(y), -1)
-        P = self.predict(X).reshape(len(y), -1)
-        ss_res = ((Y - P) ** 2).sum(0)
-        ss_tot = ((Y - Y.mean(0)) ** 2).sum(0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r2 = np.where(ss_tot > 0, 1.0 - ss_res / np.where(ss_tot > 0, ss_tot, 1.0),
-                          np.where(ss_res > 0, 0.0, 1.0))
-        return float(r2.mean())
+        """R^2 of predict(X) against y, averaged over outputs (regressor.metrics.r2_score)."""
+        from .metrics import r2_score
+        return r2_score(self.predict(X), y)
 
     @property
     def n_basis_(self) -> int:

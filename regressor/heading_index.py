@@ -50,9 +50,8 @@ class HeadingIndex:
         return np.sqrt(self._nearest_d2(X)).mean(axis=1)
 
     def typical_distance(self, percentile: float = 99.0, sample: int = 2000) -> float:
-        """The percentile of :meth:`distance` over the index's own rows, each left out of its
-        own neighbours (a seeded sample of at most ``sample`` rows; computed once per
-        argument pair). NaN with k or fewer rows."""
+        """The percentile of distance() over a seeded sample of at most ``sample`` of the
+        index's own rows, each left out of its neighbours (cached); NaN with k or fewer rows."""
         key = (float(percentile), int(sample))
         if key not in self._typical:
             n = len(self.inputs)

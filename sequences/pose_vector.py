@@ -79,9 +79,9 @@ def heading_deg(vectors: np.ndarray) -> np.ndarray:
 
 def pose_vectors_to_local_rotations(vectors: np.ndarray, camera_azimuth_deg=0.0,
                                     names=CMU_JOINT_NAMES) -> np.ndarray:
-    """Local joint rotations (T, J, 3, 3) on a skeleton with joint ``names`` (default: the 31
-    CMU joints) from pose vectors (T, 55). Folded joints get the 1/n power of the pose joint's
-    rotation each; joints outside the pose are identity. camera_azimuth_deg: scalar or (T,)."""
+    """Local joint rotations (T, J, 3, 3) on a skeleton with joint ``names`` from pose vectors
+    (T, 55); folded joints get the 1/n power of the pose joint's rotation each, joints outside
+    the pose identity. camera_azimuth_deg: scalar or (T,)."""
     v = _as_vectors(vectors)
     T = len(v)
     az = _azimuth(camera_azimuth_deg, T)
