@@ -1,11 +1,8 @@
 """Basis functions for pose regression, and the estimator plumbing the regressors share.
 
-A regressor predicts ``y = phi(x) @ W + b``, b an unpenalised offset, on the ``"linear"`` basis
-``phi(x) = x`` (a sparse fit selects descriptor features) or the ``"gaussian"`` one
-``phi(x)_j = exp(-||x - c_j||^2 / width^2)`` (a sparse fit selects training examples; default
-width: regressor.basis_fit.default_width). The estimators follow the scikit-learn contract
-without importing it: the constructor stores hyperparameters only, ``fit`` returns ``self``,
-learned state ends in ``_``, ``predict`` is pure, ``get_params``/``set_params`` (Parameters).
+A regressor predicts ``y = phi(x) @ W + b`` (b an unpenalised offset) on the ``"linear"`` basis
+``phi(x) = x`` or the ``"gaussian"`` one ``phi(x)_j = exp(-||x - c_j||^2 / width^2)``. The
+estimators follow the scikit-learn contract without importing it (Parameters).
 """
 from __future__ import annotations
 
@@ -15,7 +12,6 @@ import weakref
 import numpy as np
 
 from .errors import SilhouettePoseError
-
 
 
 class RegressorInputError(SilhouettePoseError, ValueError):
@@ -31,9 +27,8 @@ class NotFittedError(SilhouettePoseError, ValueError, AttributeError):
 
 
 class Parameters:
-    """scikit-learn's parameter protocol by hand, for the regressors and the mixture's parts:
-    the constructor's arguments are the parameters, stored under their own names; and the
-    fitted-state check."""
+    """scikit-learn's parameter protocol by hand: the constructor's arguments are the
+    parameters, stored under their own names; fit returns self; learned state ends in _."""
 
     def _check_fitted(self, attribute: str = "coef_") -> None:
         if not hasattr(self, attribute):
@@ -107,9 +102,7 @@ def gaussian_design(X: np.ndarray, centres: np.ndarray, width: float,
 
 def validate_X(X, n_features: int | None = None, name: str = "X", owner: str = "the model") -> np.ndarray:
     """Check X is a finite 2-D real array (N, D) (D = n_features if given); return it as float64.
-
-    Messages include scikit-learn's standard phrases so its estimator checks recognise them.
-    """
+    Messages include scikit-learn's standard phrases so its estimator checks recognise them."""
     if hasattr(X, "toarray") or hasattr(X, "tocsr"):
         raise TypeError(f"{name}: sparse input is not supported; pass a dense array (X.toarray())")
     try:

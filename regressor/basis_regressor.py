@@ -1,7 +1,5 @@
 """BasisRegressor: the scikit-learn-style base of the kernel regressors (regressor.rvm,
-regressor.dls, regressor.sparse_rvm): a linear model on a basis (the inputs themselves, or
-Gaussian kernels on centres), hyperparameters in the constructor, learned state ending in ``_``.
-"""
+regressor.dls, regressor.sparse_rvm): a linear model on a basis (regressor.basis)."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,12 +8,9 @@ from .basis import Parameters, gaussian_design, validate_X
 
 
 class BasisRegressor(Parameters):
-    """Shared plumbing for regressors of the form y = Phi(x)[:, kept] @ coef_ + intercept_.
-
-    Subclasses implement ``_fit_weights(Phi (N, M), Y (N, K)) -> (kept indices (R,), coef (R, K),
-    intercept (K,))`` on the full basis of the training set (regressor.basis_fit); this class
-    handles the rest.
-    """
+    """Regressors y = Phi(x)[:, kept] @ coef_ + intercept_. Subclasses implement
+    ``_fit_weights(Phi (N, M), Y (N, K)) -> (kept (R,), coef (R, K), intercept (K,))`` on the
+    training set's full basis (regressor.basis_fit); this class does the rest."""
 
     def __sklearn_tags__(self):
         # Called only by scikit-learn itself, so importing it here adds no run-time dependency.
@@ -41,15 +36,9 @@ class BasisRegressor(Parameters):
         return Y[:, 0] if self._y_1d else Y
 
     def score(self, X, y) -> float:
-        """Coefficient of determination R^2 averaged uniformly over outputs (scikit-learn convention)."""
-        Y = np.asarray(y, dtype=np.float64).reshape(len(y), -1)
-        P = self.predict(X).reshape(len(y), -1)
-        ss_res = ((Y - P) ** 2).sum(0)
-        ss_tot = ((Y - Y.mean(0)) ** 2).sum(0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r2 = np.where(ss_tot > 0, 1.0 - ss_res / np.where(ss_tot > 0, ss_tot, 1.0),
-                          np.where(ss_res > 0, 0.0, 1.0))
-        return float(r2.mean())
+        """R^2 of predict(X) against y, averaged over outputs (regressor.metrics.r2_score)."""
+        from .metrics import r2_score
+        return r2_score(self.predict(X), y)
 
     @property
     def n_basis_(self) -> int:

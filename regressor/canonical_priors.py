@@ -1,9 +1,7 @@
-"""How far the tracker's front/back chain trusts one model's canonical pair (issue 10).
-
-For a model with limbs and a side classifier (tracker.tracks.hypotheses, "canonical"): how
-often the truer of the limbs' member and its flip changes per frame, and how right the side
-classifier is at each of its probabilities, learned on validation renders
-(lab.hypothesis_priors). Stored with the model under "canonical_prior_" (float64).
+"""How far the tracker's front/back chain (tracker.tracks.hypotheses) trusts one model's
+canonical pair (issue 10): how often the truer of the limbs' member and its flip changes per
+frame, and how right the side classifier is at each of its probabilities, learned on
+validation renders (lab.hypothesis_priors). Parts "canonical_prior_" (float64).
 """
 from __future__ import annotations
 

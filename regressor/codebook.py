@@ -20,15 +20,12 @@ SIGMA_RANGE = (1e-6, 1e3)
 
 @dataclass(frozen=True, eq=False)
 class Codebook:
-    """k-means centres of shape contexts and the width of the Gaussian votes onto them.
-
-    centres: (K, D) float64, D = n_radial * n_angular (60 by default).
-    sigma: vote width, in the same units as the distance between contexts (> 0).
-    """
+    """centres (K, D) float64 of shape contexts, D = n_radial * n_angular; sigma: the
+    Gaussian votes' width (the distance between contexts' units); squared_norms (K,) |centre|^2
+    (made once here, not a field)."""
 
     centres: np.ndarray
     sigma: float
-    # squared_norms: (K,) float64 |centre|^2, made once here (not a field).
 
     def __post_init__(self) -> None:
         centres = np.asarray(self.centres)
@@ -74,9 +71,8 @@ def soft_histogram(contexts: np.ndarray, codebook: Codebook, n_votes: int = 5, t
 
 
 def soft_histograms(contexts, codebook: Codebook, n_votes: int = 5, total: float = 100.0) -> np.ndarray:
-    """soft_histogram of each of B silhouettes' contexts, a sequence of B (N, D) arrays with the
-    same N (e.g. a silhouette's and its mirror image's): (B, K) float64, the same values as B
-    calls, with the per-call work done once for all."""
+    """soft_histogram of each of B silhouettes' contexts, B (N, D) arrays with the same N (e.g.
+    a silhouette's and its mirror image's): (B, K) float64, the same values as B calls."""
     contexts = [np.asarray(c, dtype=np.float64) for c in contexts]
     k, width = codebook.centres.shape
     n = len(contexts[0]) if contexts else 0

@@ -1,7 +1,5 @@
 """Silhouette descriptor: mask -> edge points -> shape contexts -> soft histogram on a codebook
-(Agarwal & Triggs, CVPR 2004, section 2). The defaults give a 100-D histogram (100-centre
-codebook) of 12 x 5 log-polar shape contexts at 300 outer-boundary points, summing to 100 like
-the paper's released descriptors. Many masks at once: regressor.descriptor_batch.
+(Agarwal & Triggs, CVPR 2004, section 2). Many masks at once: regressor.descriptor_batch.
 """
 from __future__ import annotations
 
@@ -28,17 +26,13 @@ MAX_EDGE_POINTS = 4096
 
 @dataclass(frozen=True)
 class DescriptorSettings:
-    """How a silhouette becomes a descriptor (everything but the codebook).
-
-    n_points: edge points sampled at equal arc length along the boundary.
-    include_holes: also sample the boundaries of holes in the silhouette (internal edges).
-    n_angular, n_radial: shape context sectors and rings (context length n_angular * n_radial).
-    r_inner, r_outer: innermost / outermost ring boundaries in units of the root-mean-square
-        distance between edge points (about 0.38 of a standing person's height, so r_outer = 3
-        spans the whole body from any point; r_inner = 1/8 is about a limb's width).
-    n_votes: each context votes into this many nearest codebook centres (Gaussian weights).
-    total: the descriptor's sum (100, the scale of the paper's released data).
-    """
+    """How a silhouette becomes a descriptor (everything but the codebook). n_points: edge
+    points at equal arc length; include_holes: also the holes' boundaries; n_angular, n_radial:
+    shape context sectors and rings; r_inner, r_outer: the innermost / outermost ring in units
+    of the RMS distance between edge points (about 0.38 of a standing person's height: r_outer
+    = 3 spans the body from any point, r_inner = 1/8 is about a limb's width); n_votes: nearest
+    codebook centres each context votes into; total: the descriptor's sum (100, the scale of
+    the paper's released data)."""
 
     n_points: int = 300
     include_holes: bool = False
@@ -120,11 +114,10 @@ def descriptor_for_mask(mask: np.ndarray, settings: DescriptorSettings, codebook
 
 def descriptor_and_mirror(mask: np.ndarray, settings: DescriptorSettings,
                           codebook: Codebook) -> tuple[np.ndarray, np.ndarray]:
-    """(descriptor_for_mask(mask), the descriptor of its mirror image (the mask flipped left
-    to right)), (K,) float64 each. The mirror's shape contexts are the mask's own with their
-    sectors reflected (regressor.shape_context.mirrored_bins), so the contexts are computed
-    once (the flipped mask's own descriptor differs only by where the edge sampling starts).
-    With an odd number of sectors the flipped mask is described. Raises as mask_contexts."""
+    """(descriptor_for_mask(mask), the descriptor of the mask flipped left to right), (K,)
+    float64 each: the mask's own contexts with their sectors reflected (mirrored_bins; the
+    flipped mask's own differs only by where the edge sampling starts); with an odd number of
+    sectors the flipped mask is described. Raises as mask_contexts."""
     check_codebook(settings, codebook)
     try:
         order = mirrored_bins(settings.n_angular, settings.n_radial)

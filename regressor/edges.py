@@ -1,7 +1,5 @@
-"""Edge points of a binary silhouette at equal arc length along its boundary: the largest
-external contour (OpenCV ``findContours``) and optionally its holes (internal edges, e.g. the
-gap between an arm and the torso), in pixels (x = column, y = row pointing down).
-"""
+"""Edge points at equal arc length along a silhouette's largest outer contour (OpenCV) and
+optionally its holes, in pixels (x = column, y = row pointing down)."""
 from __future__ import annotations
 
 import cv2
@@ -9,9 +7,8 @@ import numpy as np
 
 from .errors import SilhouettePoseError
 
-# A person's silhouette is never thinner than this fraction of its length (ratio of the smaller to
-# the larger standard deviation of its edge points). A 1-pixel line, straight or diagonal, scores
-# below 0.02; a standing person with arms down scores about 0.2.
+# A person's silhouette is never thinner than this (smaller / larger standard deviation of its
+# edge points): a 1-pixel line scores below 0.02, a person standing arms down about 0.2.
 MIN_THICKNESS_RATIO = 0.05
 # Fewer boundary pixels than this cannot give a meaningful shape context histogram.
 MIN_EDGE_PIXELS = 10

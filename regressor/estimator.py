@@ -14,14 +14,13 @@ from .canonical_priors import CanonicalPriors
 
 @dataclass
 class PoseEstimates:
-    """A model's answer for N rows of stacked descriptors (:meth:`PoseEstimator.hypotheses`):
-    poses (N, m, 55): the m most probable experts' raw poses, most probable first (a single
-    regressor: m = 1); probabilities (N, m): the gate's (1 for a single regressor); limbs (N,
-    55): the limbs' canonical pose (either body), None without limbs; mirror_limbs (N, 55):
-    the frames' mirror images' limbs (not mirrored back) when asked for, else None; front
-    (N,): the side classifier's P(the body faces the camera's half), None unless the model
-    gives canonical pairs; novelty (N,): unlikeness to the training silhouettes (above
-    regressor.pose_model.UNFAMILIAR_NOVELTY: unfamiliar), NaN when unknown or not asked.
+    """A model's answer for N rows of stacked descriptors (PoseEstimator.hypotheses): poses
+    (N, m, 55): the m most probable experts' poses, most probable first (m = 1 and
+    probabilities 1 for a single regressor); probabilities (N, m): the gate's; limbs (N, 55):
+    the limbs' canonical pose or None; mirror_limbs (N, 55): the mirror images' limbs (not
+    mirrored back) or None; front (N,): the side classifier's P(the body faces the camera's
+    half), None unless the model gives canonical pairs; novelty (N,): unlikeness to the
+    training silhouettes (pose_model.UNFAMILIAR_NOVELTY), NaN when unknown or not asked.
     """
 
     poses: np.ndarray
@@ -55,8 +54,7 @@ class PoseEstimator(Protocol):
     limbs_see_mirror: bool
 
     def describe(self, mask: np.ndarray) -> np.ndarray:
-        """Descriptor (D,) of a silhouette mask (H, W) bool; raises
-        regressor.edges.SilhouetteError for a mask that has none."""
+        """Descriptor (D,) of a mask (H, W) bool; regressor.edges.SilhouetteError if none."""
 
     def describe_with_mirror(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(describe(mask), the descriptor of the mask's mirror image), (D,) each."""

@@ -1,9 +1,6 @@
-"""Nearest neighbours among the training rows, in the regressor's projected input space.
-
-A model file keeps a sample of training rows' inputs and their headings folded so front/back
-cannot count (regressor.heading_index_training). ``track`` uses it for each frame's novelty
-(:meth:`HeadingIndex.novelty`). ``limit_deg`` stays in model files for compatibility (history:
-docs/tuning.md, "regressor/heading_index.py").
+"""Nearest neighbours among a sample of training rows (regressor.heading_index_training), in
+the regressor's projected input space: each frame's novelty (HeadingIndex.novelty). limit_deg
+stays in model files for compatibility (docs/tuning.md, "regressor/heading_index.py").
 """
 from __future__ import annotations
 
@@ -20,8 +17,7 @@ _QUERY_BLOCK = 256
 @dataclass
 class HeadingIndex:
     """inputs (R, P): training rows' regressor inputs (first P components); folded_deg (R,):
-    their folded headings (degrees); k neighbours per query; limit_deg: unused (module
-    docstring)."""
+    their folded headings (degrees); k neighbours per query; limit_deg: unused."""
 
     inputs: np.ndarray
     folded_deg: np.ndarray
@@ -54,9 +50,8 @@ class HeadingIndex:
         return np.sqrt(self._nearest_d2(X)).mean(axis=1)
 
     def typical_distance(self, percentile: float = 99.0, sample: int = 2000) -> float:
-        """The percentile of :meth:`distance` over the index's own rows, each left out of its
-        own neighbours (a seeded sample of at most ``sample`` rows; computed once per
-        argument pair). NaN with k or fewer rows."""
+        """The percentile of distance() over a seeded sample of at most ``sample`` of the
+        index's own rows, each left out of its neighbours (cached); NaN with k or fewer rows."""
         key = (float(percentile), int(sample))
         if key not in self._typical:
             n = len(self.inputs)
@@ -64,8 +59,7 @@ class HeadingIndex:
                 return float("nan")
             pick = _random_rows(n, sample, seed=0)
             index, d2 = self._nearest(self.inputs[pick], extra=1)
-            # Leave each row out: drop its own entry (distance ~0), or the farthest of the
-            # k + 1 when an exact duplicate took its place.
+            # Each row left out: its own entry dropped (or the farthest, if a duplicate's)
             own = index == pick[:, None]
             own[~own.any(axis=1), -1] = True
             own &= np.cumsum(own, axis=1) == 1                     # one entry per row
@@ -106,8 +100,7 @@ class HeadingIndex:
         return index, dist2
 
     def _nearest_d2(self, X: np.ndarray) -> np.ndarray:
-        """_nearest(X)[1] (N, k), the same values, without the rows' indices: a partition of
-        the distances, cheaper than finding where they are (novelty needs only them)."""
+        """_nearest(X)[1] (N, k), the same values, without the rows' indices (cheaper)."""
         Q, k = self._query(X, 0)
         dist2 = np.empty((len(Q), k))
         for start in range(0, len(Q), _QUERY_BLOCK):

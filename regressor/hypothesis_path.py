@@ -1,11 +1,8 @@
-"""The most probable sequence of hypotheses: let time resolve what one frame cannot.
-
-Where the silhouette is ambiguous a mixture's favourite hypothesis is often wrong, but the body
-moves little between frames (Agarwal and Triggs 2005). A hidden Markov chain: hypothesis j at
-frame t has evidence log_weight[t, j], and a move from i to j costs continuity *
-|y_t^j - y_{t-1}^i|^2 / (2 s^2), s^2 the training motion's mean squared step.
-:func:`most_probable_path` finds the best chain exactly (Viterbi), offline.
-"""
+"""The most probable sequence of hypotheses (Viterbi): where the silhouette is ambiguous a
+mixture's favourite hypothesis is often wrong, but the body moves little between frames
+(Agarwal and Triggs 2005). Hypothesis j at frame t has evidence log_weight[t, j]; a move from
+i to j costs continuity * |y_t^j - y_{t-1}^i|^2 / (2 s^2), s^2 the training motion's mean
+squared step."""
 from __future__ import annotations
 
 import numpy as np
@@ -20,12 +17,10 @@ class HypothesisPathError(ValueError):
 def most_probable_path(poses, log_weight, step_var: float, continuity: float = 1.0,
                        sequence_ids=None, angles_deg: bool = False) -> np.ndarray:
     """The chosen hypothesis (T,) int of each frame, maximising evidence + smoothness.
-
     poses (T, M, K): M hypotheses per frame; log_weight (T, M): their log evidence (-inf
-    excludes one); step_var: s^2; continuity: the smoothness term's
-    weight (0: each frame's best alone); sequence_ids (T,): the chain restarts where the label
-    changes; angles_deg: the poses are degrees, their steps wrapped to (-180, 180].
-    """
+    excludes one); step_var: s^2; continuity: the smoothness term's weight (0: each frame's
+    best alone); sequence_ids (T,): the chain restarts where the label changes; angles_deg:
+    the poses are degrees, their steps wrapped to (-180, 180]."""
     poses = np.asarray(poses, dtype=np.float64)
     log_weight = np.asarray(log_weight, dtype=np.float64)
     if poses.ndim != 3 or log_weight.shape != poses.shape[:2] or 0 in poses.shape[:2]:

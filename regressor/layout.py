@@ -1,11 +1,8 @@
-"""Silhouette layout: where the silhouette is, on a coarse grid over its own bounding square.
-
-The histogram of shape contexts (regressor.descriptor) keeps each edge point's view of the
-outline but not where on the body it is (a knee bent forwards or backwards gives much the same
-bag of contexts). The layout is the global complement: the fraction of each cell of a grid x
-grid raster covered by the silhouette, over its bounding box made square, so it depends on
-neither the person's size nor position, and keeps the scene vertical. Measured gains:
-docs/code_notes/model.md.
+"""Silhouette layout: the fraction of each cell of a grid x grid raster over the silhouette's
+bounding box made square that it covers (independent of the person's size and position, scene
+vertical kept). The global complement of the shape contexts' histogram, which does not keep
+where on the body a context is (a knee bent forwards or backwards gives much the same bag of
+contexts). Measured gains: docs/code_notes/model.md.
 """
 from __future__ import annotations
 

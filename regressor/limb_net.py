@@ -1,15 +1,9 @@
 """The limbs by an ensemble of small neural networks on the regressor's input (issue 9): each
-silhouette's canonical body (sequences.pose_conversions.canonical_member), as the mixture's limb head
-(regressor.optional_parts.LimbHead) but with features shared over all the training rows; seeded
-networks differ, so several are averaged (why and how chosen: docs/code_notes/regress.md,
-docs/tuning.md "regressor/limb_net.py").
-
-A :class:`LimbNet` is plain arrays (no pickle): ReLU hidden layers, a linear output, inputs
-standardised by a mean and one scale, outputs by a mean and a scale per value. The networks
-give either the pose vector's 55 values, the 53 body angles as wrapped offsets (degrees) from
-``angle_centre_deg`` as the experts' (older files), or ROT6D_OUTPUTS values: the
-heading's (cos, sin), the root's two tilts as such offsets, and each joint's rotation as 6
-numbers (regressor.rotation6d, a continuous representation); the output width says which.
+silhouette's canonical body (sequences.pose_conversions.canonical_member). Plain arrays (no
+pickle): ReLU hidden layers, a linear output; seeded networks differ, so several are averaged
+(why: docs/code_notes/regress.md). The output width says what they give: the pose vector's 55
+values (the 53 angles as wrapped offsets from angle_centre_deg) or ROT6D_OUTPUTS values (the
+heading's (cos, sin), the root's two tilts as such offsets, 6 per joint: regressor.rotation6d).
 """
 from __future__ import annotations
 
@@ -33,13 +27,11 @@ OUTPUT_WIDTHS = {"euler": POSE_DIM, "rot6d": ROT6D_OUTPUTS}
 
 @dataclass
 class LimbNet:
-    """An ensemble of networks with shared standardisation. members: per network, its layers
-    [(W (n_in, n_out), b (n_out,)), ...], the last linear, the others ReLU; the ensemble's
-    output is the members' mean. input_mean (P,), input_scale (scalar) standardise the
-    regressor's input X (N, P); output_mean, output_scale (O,) undo the targets'
-    standardisation, O = 55 (Euler angles) or ROT6D_OUTPUTS (6-D rotations; module
-    docstring); angle_centre_deg (53,); canonical_direction (55,): the rule the targets'
-    members were chosen by (sequences.pose_conversions.canonical_member)."""
+    """members: per network, its layers [(W (n_in, n_out), b (n_out,)), ...]; the output is
+    the members' mean. input_mean (P,), input_scale (scalar) standardise the regressor's input
+    X (N, P); output_mean, output_scale (O,) undo the targets' (O = 55 or ROT6D_OUTPUTS);
+    angle_centre_deg (53,); canonical_direction (55,): the rule the targets' members were
+    chosen by (sequences.pose_conversions.canonical_member)."""
 
     members: list[list[tuple[np.ndarray, np.ndarray]]]
     input_mean: np.ndarray
@@ -114,8 +106,7 @@ class LimbNet:
 
     @property
     def output_width(self) -> int:
-        """The networks' output width: 55 (Euler angles) or ROT6D_OUTPUTS (6-D rotations;
-        a network of another width is refused on load)."""
+        """The networks' output width: 55 (Euler angles) or ROT6D_OUTPUTS (6-D rotations)."""
         return int(self.members[0][-1][0].shape[1])
 
     @property
@@ -127,9 +118,7 @@ class LimbNet:
         """Canonical poses (N, 55) from the regressor's inputs X (N, P): (cos, sin) of the
         heading, then the 53 body angles in degrees wrapped to (-180, 180]."""
         x = standardised(X, self.input_mean, self.input_scale)
-        # batched for the tracker's one row per person; for many rows (offline evaluation,
-        # training) one by one is faster and holds less (the first layers of all members
-        # at once would be N x 4096 values)
+        # batched for one row; for many, one member at a time is faster and holds less
         if len(x) == 1 and self._stacked is not None:
             from .relu_stacked import forward_mean
             mean = forward_mean(x, self._stacked)
@@ -138,8 +127,7 @@ class LimbNet:
                            dtype=np.float64)
         out = mean * self.output_scale + self.output_mean
         if out.shape[1] == ROT6D_OUTPUTS:
-            # the members' mean 6-D values made rotations (Gram-Schmidt); the root's tilts
-            # are offsets from their centres, as every angle is in the Euler case
+            # the mean 6-D values made rotations; the root's tilts are offsets from centres
             from .rotation6d import rot6d_to_angles
             angles = rot6d_to_angles(out[:, 2:])
             angles[:, :2] += self.angle_centre_deg[:2]
@@ -165,9 +153,8 @@ class LimbNet:
                                           "canonical_direction")]
         layers = [[(f"{prefix}W{m}_{i}", f"{prefix}b{m}_{i}", f"{prefix}S{m}_{i}")
                    for i in range(int(shape[1]))] for m in range(int(shape[0]))]
-        # int8 weights with per-column scales (regressor.model_writer.limb_net_arrays), or
-        # float16 ones (older files): a file with any int8 weight or any scale part is the
-        # former, and then needs them all
+        # int8 weights with per-column scales (model_writer.limb_net_arrays; any int8 weight
+        # or scale part: all needed), or float16 ones (older files)
         quantised = (f"{prefix}W0_0" in a and np.asarray(a[f"{prefix}W0_0"]).dtype == np.int8) \
             or any(str(k).startswith(f"{prefix}S") for k in a.keys())
         weights = [k for member in layers for k, _, _ in member]

@@ -78,6 +78,20 @@ def acceleration_error(est, true) -> float:
     return float(np.abs(_angle_second_difference(wrap_deg(est - true))).mean())
 
 
+def r2_score(predicted, y) -> float:
+    """Coefficient of determination R^2 of predictions (N,) or (N, K) of y (the same shape),
+    averaged uniformly over outputs (scikit-learn's convention: a constant output scores 1 if
+    predicted exactly, else 0)."""
+    Y = np.asarray(y, dtype=np.float64).reshape(len(y), -1)
+    P = np.asarray(predicted).reshape(len(y), -1)
+    ss_res = ((Y - P) ** 2).sum(0)
+    ss_tot = ((Y - Y.mean(0)) ** 2).sum(0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r2 = np.where(ss_tot > 0, 1.0 - ss_res / np.where(ss_tot > 0, ss_tot, 1.0),
+                      np.where(ss_res > 0, 0.0, 1.0))
+    return float(r2.mean())
+
+
 def contiguous_folds(n: int, n_folds: int) -> list[np.ndarray]:
     """Split range(n) into n_folds contiguous blocks (validation sets for time series)."""
     if not 2 <= n_folds <= n:

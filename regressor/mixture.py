@@ -1,14 +1,9 @@
 """A mixture of kernel regression experts with a gate (after Agarwal and Triggs, "Monocular
-human motion capture with a mixture of regressors", CVPR Workshops 2005).
-
-Training splits pose space into regions (k-means on a pose embedding) and fits an expert per
-region on its members plus a margin of rows near its border (so neighbours agree where they
-meet), and a gate p(expert | stacked descriptor): multinomial logistic regression on
-Gaussian-kernel features (the tracker's models) or the nearest training inputs' regions
-(``gate="neighbours"``). Where a silhouette is ambiguous (front/back) two experts get similar
-probabilities: :meth:`MixtureRegressor.predict_hypotheses` returns both poses. The experts:
-:class:`MixtureRegressor` (why these: docs/code_notes/regress.md); the fits are in
-regressor.mixture_fit, loaded only when fitting. Per frame, only the top experts' kernels run.
+human motion capture with a mixture of regressors", CVPR Workshops 2005): an expert per region
+of pose space (fitted with a margin of rows near its border, so neighbours agree where they
+meet) and a gate p(expert | stacked descriptor). Where a silhouette is ambiguous (front/back)
+two experts get similar probabilities: predict_hypotheses returns both poses. Per frame, only
+the top experts' kernels run. Why these experts, where the fits are: docs/code_notes/regress.md.
 """
 from __future__ import annotations
 
@@ -84,23 +79,17 @@ class SoftmaxGate(Parameters):
 class MixtureRegressor(Parameters):
     """Mixture of kernel regression experts with a gate (module docstring).
 
-    n_experts: regions of pose space (k-means on ``partition_on``, the Z argument of fit, or
-    on Y when Z is None). overlap: an expert also trains on rows whose distance to its region
-    centre is within (1 + overlap) x their distance to their own region's centre (0: hard
-    partition). expert: "ridge" (DampedKernelRegressor with n_centres, width_scale, lam) or
-    "rvm" (regressor.rvm.RVMRegressor on at most rvm_rows rows per expert) or "sparse_rvm"
-    (regressor.sparse_rvm.SparseRVMRegressor on all the expert's rows: n_centres candidate
-    kernels, width_scale, further arguments in expert_params, a dict). gate_centres,
-    gate_width_scale, gate_l2: the SoftmaxGate. gate: "softmax" (SoftmaxGate) or "neighbours"
-    (NeighbourGate over gate_neighbours training inputs, or over gate_prototypes k-means
-    centres of them when that is set). top_experts: experts evaluated per row in
-    predict (the gate's most probable ones; their poses are the hypotheses). combine: what
-    predict returns, "most_probable" (the most probable expert's pose) or "mean" (the experts'
-    poses weighted by the gate: smoother where the gate hesitates, but an average of the
-    hypotheses there).
-
-    Learned: partition_centres_ (E, dZ), experts_ (list of fitted regressors), gate_
-    (SoftmaxGate or NeighbourGate), expert_rows_ (E,) rows each expert was fitted on.
+    n_experts: regions of pose space (k-means on fit's Z, else on Y). overlap: an expert also
+    trains on rows within (1 + overlap) x their distance to their own region's centre (0: hard
+    partition). expert: "ridge" (DampedKernelRegressor: n_centres, width_scale, lam), "rvm"
+    (regressor.rvm.RVMRegressor on at most rvm_rows rows per expert) or "sparse_rvm"
+    (regressor.sparse_rvm on all its rows: n_centres candidates, width_scale, expert_params).
+    gate: "softmax" (SoftmaxGate: gate_centres, gate_width_scale, gate_l2) or "neighbours"
+    (NeighbourGate over gate_neighbours training inputs, or gate_prototypes k-means centres of
+    them). top_experts: experts evaluated per row (their poses are the hypotheses). combine:
+    predict's pose, "most_probable" or "mean" (weighted by the gate: smoother where it
+    hesitates, but an average of the hypotheses). Learned: partition_centres_ (E, dZ),
+    experts_, gate_, expert_rows_ (E,) rows each expert was fitted on.
     """
 
     def __init__(self, n_experts: int = 8, overlap: float = 0.2, expert: str = "ridge",
@@ -140,45 +129,32 @@ class MixtureRegressor(Parameters):
         self._check_fitted("gate_")
         return self.gate_.predict_proba(X)
 
-    def predict_hypotheses(self, X, m: int | None = None, proba: np.ndarray | None = None,
-                           return_std: bool = False):
+    def predict_hypotheses(self, X, m: int | None = None, proba: np.ndarray | None = None):
         """The m most probable experts' poses for each row: (poses (N, m, K), probabilities
         (N, m), most probable first; probabilities are the gate's, renormalised over the m).
-        proba: the gate's predict_proba(X) (N, E) when the caller has it already. return_std:
-        also each pose's predictive standard deviation (N, m, K), from experts that give one
-        (expert="sparse_rvm")."""
+        proba: the gate's predict_proba(X) (N, E) when the caller has it already."""
+        X, order, prob = self._top_experts(X, m, proba)
+        poses = np.empty((len(X), order.shape[1], self.n_outputs_))
+        for e in np.unique(order):
+            rows, slot = np.nonzero(order == e)
+            mean = self.experts_[e].predict(X[rows])
+            poses[rows, slot] = np.asarray(mean).reshape(len(rows), -1)
+        return poses, prob
+
+    def _top_experts(self, X, m: int | None, proba: np.ndarray | None):
+        """(X (N, D) as floats, the m most probable experts (N, m) int, most probable first,
+        their probabilities renormalised over the m (N, m)) for predict_hypotheses."""
         self._check_fitted("gate_")
         X = validate_X(X, self.n_features_in_)
-        if return_std and self.expert != "sparse_rvm":
-            raise ValueError(f"return_std needs experts with a predictive variance "
-                             f"(expert='sparse_rvm'), not expert={self.expert!r}")
         m = min(self.top_experts if m is None else int(m), len(self.experts_))
         P = self.gate_.predict_proba(X) if proba is None else proba
         order = np.argsort(-P, axis=1, kind="stable")[:, :m]
         prob = np.take_along_axis(P, order, axis=1)
-        prob = prob / np.maximum(prob.sum(axis=1, keepdims=True), 1e-300)
-        poses = np.empty((len(X), m, self.n_outputs_))
-        stds = np.empty_like(poses) if return_std else None
-        for e in np.unique(order):
-            rows, slot = np.nonzero(order == e)
-            if return_std:
-                mean, std = self.experts_[e].predict(X[rows], return_std=True)
-                stds[rows, slot] = np.asarray(std).reshape(len(rows), -1)
-            else:
-                mean = self.experts_[e].predict(X[rows])
-            poses[rows, slot] = np.asarray(mean).reshape(len(rows), -1)
-        return (poses, prob, stds) if return_std else (poses, prob)
+        return X, order, prob / np.maximum(prob.sum(axis=1, keepdims=True), 1e-300)
 
     def predict(self, X, return_std: bool = False):
         """(N, K) per row: the most probable expert's pose, or with combine="mean" the gate's
-        weighting of all the experts' poses. return_std: also the standard deviation (N, K) of a
-        new observation, the expert's or the mixture's (its second moment less the squared
-        mean), for experts that give one (expert="sparse_rvm"). (N,) for a single output."""
-        m = 1 if self.combine == "most_probable" else len(self.experts_)
-        out = self.predict_hypotheses(X, m, return_std=return_std)
-        poses, prob = out[0], out[1][:, :, None]
-        mean = (poses * prob).sum(axis=1)
-        if not return_std:
-            return mean if self.n_outputs_ > 1 else mean[:, 0]
-        std = np.sqrt(np.maximum((prob * (out[2] ** 2 + poses ** 2)).sum(axis=1) - mean ** 2, 0.0))
-        return (mean, std) if self.n_outputs_ > 1 else (mean[:, 0], std[:, 0])
+        weighting of all the experts' poses; (N,) for a single output. return_std: also the
+        standard deviation of a new observation (regressor.mixture_std; sparse RVM experts)."""
+        from .mixture_std import predict_mixture
+        return predict_mixture(self, X, return_std)

@@ -1,11 +1,8 @@
 """Model files: one versioned, checksummed .npz of plain arrays (no pickle), validated on load.
 
-Named parts (arrays, numbers, strings); the known ones (PART_KINDS) are checked for kind,
-shape, consistency and finite values when present, others returned as they are. Saving adds
-``format_version`` and ``checksum`` (sha256 over every part's name, dtype, shape and bytes),
-so a damaged, truncated or foreign file is refused with ModelFileError. The checksum catches
-accidents, not deliberate tampering: use model files only from sources you trust; loading
-never runs code from them.
+Known parts (PART_KINDS) are checked for kind, shape, consistency and finite values when
+present; others are returned as they are. The checksum (sha256 over every part's name, dtype,
+shape and bytes) catches accidents, not tampering: loading never runs code from a file.
 """
 from __future__ import annotations
 
@@ -20,15 +17,14 @@ import numpy as np
 
 from .errors import SilhouettePoseError
 
-#: 2: a mixture's experts may be sparse RVMs (regressor.pose_model, mixture_expert_* parts);
-#: version 1 files (damped least squares experts) still load.
+#: 2: a mixture's experts may be sparse RVMs (mixture_expert_* parts); 1 still loads.
 FORMAT_VERSION = 2
 SUPPORTED_VERSIONS = (1, 2)
 _RESERVED = ("format_version", "checksum")
 _KIND_NAMES = {"fiu": "numbers", "iu": "whole numbers", "b": "a boolean", "U": "text"}
 BASIS_KINDS = ("linear", "gaussian")
-#: The numpy dtype kinds each named part may have (converted as read, a string "False" would
-#: become True and 300.7 300); regressor.limb_net and side_classifier check their own parts.
+#: The numpy dtype kinds each named part may have (read as another kind, "False" would become
+#: True and 300.7 300); the limb network and side classifier check their own parts.
 _FLOAT_PARTS = (
     "codebook_centres", "codebook_sigma", "descriptor_r_inner", "descriptor_r_outer",
     "descriptor_total", "width", "centres", "coef", "intercept", "angle_centre_deg",
@@ -56,8 +52,7 @@ class ModelFileError(SilhouettePoseError, ValueError):
 
 @dataclass(frozen=True)
 class ModelFile:
-    """A loaded model file: ``parts`` maps every stored name (but the reserved entries) to
-    its array; m["coef"], m.get(...), "coef" in m and m.keys() read it."""
+    """A loaded model file: ``parts`` maps every stored name (but _RESERVED) to its array."""
 
     path: str
     format_version: int

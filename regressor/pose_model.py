@@ -1,17 +1,10 @@
 """A trained pose model: silhouette -> descriptor -> stacked descriptors -> 55-D pose.
 
-One object and one file hold what the tracker needs from training: descriptor settings and
-codebook, transform, stack depth k, the regressor, the angle centres it was trained around
-(it predicts wrap(angle - centre), so angles straddling +-180 stay continuous), the Kalman
-filter's noise models and a description of the training data. Poses: regressor/angles.py.
-
-A frame's descriptor (D values) is the transformed histogram of shape contexts, then, when
-layout_grid > 0, the silhouette's layout (regressor.layout) times layout_weight, which
-balances the two blocks' spreads. k frames are stacked (k*D) and, with a projection, centred
-and projected onto P principal directions. A mixture may carry canonical limbs (a limb head
-or a limb network, fitted on each pose's canonical member of {pose, front/back flip}, so one
-silhouette has one target; the tracker picks the member), a side classifier and a heading
-index (regressor.heading_index) for each frame's novelty.
+One object and one file hold what the tracker needs from training (PoseModel's fields). A
+frame's descriptor (D values): the transformed histogram of shape contexts, then, when
+layout_grid > 0, the silhouette's layout (regressor.layout) times layout_weight (which balances
+the two blocks' spreads). k frames are stacked (k*D) and, with a projection, centred and
+projected onto P principal directions. Poses: regressor/angles.py.
 """
 from __future__ import annotations
 
@@ -48,7 +41,7 @@ DEFAULT_AMBIGUITY_THRESHOLD = 0.5
 DEFAULT_TRAINING_FPS = 30.0
 #: A model's described training rate must lie in this range (frames/s).
 MIN_TRAINING_FPS, MAX_TRAINING_FPS = 1.0, 1000.0
-MIXTURE_KIND = "silhouette-pose-mixture"    # a mixture of experts (regressor.mixture)
+MIXTURE_KIND = "silhouette-pose-mixture"    # its parts: docs/code_notes/model.md
 
 
 class PoseModelError(SilhouettePoseError, ValueError):
@@ -64,15 +57,13 @@ UNFAMILIAR_NOVELTY = 1.0
 class PoseModel:
     """A trained model (module docstring); D = descriptor_length, k = stack_depth, R basis
     functions, P = input_length. centres (R, P) Gaussian kernel centres or None (linear basis:
-    relevance (R,) kept inputs); coef (R, 55); intercept (55,); angle_centre_deg (53,);
-    measurement_covariance (54, 54) deg^2, process_noise (54,) (deg/s^2)^2: the filter's R
-    and q; ambiguity_threshold: raw heading norm below which a frame is ambiguous; layout_grid
-    0: no layout block; projection (k*D, P), projection_mean (k*D,) or None (P = k*D);
-    canonical_direction (55,): fitted on canonical members. limb_head, limb_net (one or
-    neither), heading_index, side_classifier (needs limbs), canonical_priors (None: the
-    tracker's default): a mixture's optional parts. variance_calibration: factor on
-    regressor.optional_parts.predict_variance (sparse RVM experts), or None. The tracker calls
-    only regressor.estimator.PoseEstimator's members.
+    relevance (R,) kept inputs); coef (R, 55); intercept (55,); angle_centre_deg (53,): the
+    regressor predicts wrap(angle - centre), so angles near +-180 stay continuous; layout_grid
+    0: no layout block; projection (k*D, P), projection_mean (k*D,) or None (P = k*D). A
+    mixture's optional parts: limb_head or limb_net (canonical limbs), heading_index (novelty),
+    side_classifier (needs limbs), canonical_priors; variance_calibration: factor on
+    regressor.optional_parts.predict_variance, or None. The other fields, and all the tracker
+    calls: regressor.estimator.PoseEstimator.
     """
 
     settings: DescriptorSettings
@@ -116,8 +107,7 @@ class PoseModel:
         return self.stack_depth * self.descriptor_length
 
     def describe(self, mask: np.ndarray) -> np.ndarray:
-        """Descriptor (D,) of a silhouette mask (H, W) bool. Raises
-        regressor.edges.SilhouetteError (DegenerateSilhouetteError) for unusable masks."""
+        """Descriptor (D,) of a silhouette mask (H, W) bool (PoseEstimator.describe)."""
         histogram = descriptor_for_mask(mask, self.settings, self.codebook)
         return self._descriptors(histogram[None], [mask])[0]
 
@@ -128,10 +118,8 @@ class PoseModel:
         return frame_descriptors(histograms, self.transform, layouts, self.layout_weight)
 
     def describe_with_mirror(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(describe(mask), the descriptor of the mask flipped left to right), (D,) each. The
-        mirror's histogram reflects the mask's own shape contexts' sectors
-        (regressor.descriptor.descriptor_and_mirror), so the edge is sampled once. Raises as
-        describe."""
+        """(describe(mask), the descriptor of the mask flipped left to right), (D,) each, the edge
+        sampled once (regressor.descriptor.descriptor_and_mirror). Raises as describe."""
         flipped = np.asarray(mask)[:, ::-1]
         histograms = np.array(descriptor_and_mirror(mask, self.settings, self.codebook))
         own, mirror = self._descriptors(histograms, (mask, flipped))
@@ -150,8 +138,7 @@ class PoseModel:
     @property
     def limbs_see_mirror(self) -> bool:
         """Whether the limb networks were fitted on mirror images too (the description's
-        options' limb_net_mirror), so the tracker averages in each frame's mirror image's
-        limbs (tracker.tracks.mirror_limbs)."""
+        limb_net_mirror option): the tracker then uses the mirror images' limbs as well."""
         options = (self.description.get("options") if isinstance(self.description, dict)
                    else None)
         return (self.limb_net is not None and isinstance(options, dict)
@@ -170,9 +157,8 @@ class PoseModel:
 
     def hypotheses(self, stacked: np.ndarray, m: int = 1, mirrored: np.ndarray | None = None,
                    novelty: bool = True) -> PoseEstimates:
-        """All the tracker asks for stacked descriptors (N, k*D), the input projected and the
-        gate evaluated once (regressor.estimator.PoseEstimator.hypotheses); novelty: the heading
-        index's (NaN without one)."""
+        """PoseEstimator.hypotheses for stacked descriptors (N, k*D), the input projected and the
+        gate evaluated once; novelty: the heading index's (NaN without one)."""
         X = self._stacked(stacked)
         rows = (self.heading_index.novelty(X) if novelty and self.heading_index is not None
                 else np.full(len(X), np.nan))
@@ -216,9 +202,8 @@ class PoseModel:
                 and self.has_limbs)
 
     def _limbs(self, X: np.ndarray, gate: np.ndarray | None = None) -> np.ndarray:
-        """Canonical poses (N, 55) for the limbs from the regressor's input X (N,
-        input_length): the limb network's, else the limb head's by each row's most probable
-        expert (gate (N, E), None: evaluated here)."""
+        """Canonical poses (N, 55) of the limbs from X (N, input_length): the limb network's,
+        else the limb head's by each row's most probable expert (gate (N, E) or None)."""
         if self.limb_net is not None:
             return self.limb_net.predict(X)
         from .optional_parts import limb_head_poses
@@ -344,16 +329,12 @@ def _validate(path: Path, m: PoseModel) -> None:
         raise PoseModelError(f"{path}: invalid model: noise models are not positive")
 
 
-# Mixture files (model_kind MIXTURE_KIND): docs/code_notes/model.md lists their parts.
-
-
 #: The most neighbours a model file's heading index may ask for (the shipped one: 20).
 MAX_HEADING_NEIGHBOURS = 1000
 
 
 def _description(a) -> dict:
-    """The file's training description, a JSON object; a (PoseModelError-ready) ValueError
-    for anything else."""
+    """The file's training description, a JSON object; else a PoseModelError-ready ValueError."""
     description = json.loads(str(a["description"]))
     if not isinstance(description, dict):
         raise ValueError(f"the description must be a JSON object, not "
@@ -362,8 +343,7 @@ def _description(a) -> dict:
 
 
 def _heading_index_from_arrays(a, input_length: int) -> HeadingIndex | None:
-    """A file's heading index (None when it has none), checked against the regressor's input
-    length; PoseModelError-ready ValueError otherwise."""
+    """A file's heading index or None, checked against the input length; else a ValueError."""
     if not _has_parts(a, ("heading_index_inputs", "heading_index_folded_deg", "heading_index_k",
                           "heading_index_limit_deg"), "heading index"):
         if "heading_index_typical_distance" in a:
@@ -404,8 +384,7 @@ def _has_parts(a, names: tuple[str, ...], what: str) -> bool:
 
 
 def _gate_from_arrays(a, kD: int, E: int, fail) -> SoftmaxGate:
-    """The mixture's softmax gate from its file's parts, checking their shapes agree with the
-    input length kD and the E experts."""
+    """The mixture's softmax gate from its file's parts, checked against kD inputs, E experts."""
     gate_centres = a["mixture_gate_centres"].astype(np.float64)
     G = len(gate_centres)
     weights = a["mixture_gate_weights"].astype(np.float64)
@@ -423,8 +402,8 @@ def _gate_from_arrays(a, kD: int, E: int, fail) -> SoftmaxGate:
 
 def _check_parts(fail, kD: int, limb_head, limb_net, side_classifier, canonical_priors,
                  canonical: bool) -> None:
-    """The parts beside the experts fit together and take the regressor's kD inputs;
-    canonical: the model was fitted on canonical members."""
+    """The parts beside the experts fit together and take kD inputs; canonical: the model
+    was fitted on canonical members."""
     if canonical_priors is not None and side_classifier is None:
         fail("canonical priors need a side classifier")
     if side_classifier is not None and limb_net is None and limb_head is None:
@@ -523,9 +502,8 @@ _VARIANCE_PARTS = ("mixture_expert_sigma", "mixture_expert_phi_mean",
 
 def _rvm_experts(a, experts: list, offsets: np.ndarray
                  ) -> tuple[list, np.ndarray, float | None]:
-    """A file's sparse RVM experts built on the damped least squares experts read from the
-    shared parts, their own parts checked against the offsets (E+1,); returns (experts, rows
-    (E,), variance calibration or None) or a PoseModelError-ready ValueError."""
+    """(sparse RVM experts built on the damped least squares ones read from the shared parts,
+    rows (E,), variance calibration or None); a PoseModelError-ready ValueError."""
     if not _has_parts(a, _RVM_PARTS, "sparse RVM experts") or \
             str(a["mixture_expert_kind"]) != "rvm":
         raise ValueError("mixture_expert_kind must be 'rvm' with all the sparse RVM parts")

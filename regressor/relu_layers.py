@@ -60,11 +60,9 @@ def forward(x: np.ndarray, layers) -> np.ndarray:
 def check_parts(a, needed: list[str], prefix: str, header: str, what: str,
                 declarer: str, int8_parts: tuple[str, ...] = ()) -> float:
     """Check a file's parts a (mapping) for ``what`` (e.g. "limb network"): every needed part
-    present, no other part under ``prefix`` but ``header`` (the part that declares the
-    others, by ``declarer``, e.g. "shape"), every needed part floats, and the
-    ``{prefix}input_scale`` part one number, which is returned. int8_parts: needed parts that
-    hold int8 instead (quantised weights: quantised_int8). ValueError naming the first
-    problem."""
+    present and floats (int8_parts: int8), no other part under ``prefix`` but ``header`` (which
+    declares the others, by ``declarer``), ``{prefix}input_scale`` one number, which is
+    returned. ValueError naming the first problem."""
     missing = [k for k in needed if k not in a]
     if missing:
         raise ValueError(f"{what} is incomplete (no {missing[0]})")
@@ -85,7 +83,6 @@ def check_parts(a, needed: list[str], prefix: str, header: str, what: str,
 
 
 def typical_inputs(input_mean: np.ndarray) -> np.ndarray:
-    """Probe inputs (3, P) like the regressor's (centred, of order 1): zeros, ones and the
-    mean itself. A stack whose parts are absurd but finite (a tiny scale, a huge mean)
-    overflows on them, so loaders refuse it."""
+    """Probe inputs (3, P) like the regressor's: zeros, ones and the mean itself. A stack with
+    absurd but finite parts (a tiny scale, a huge mean) overflows on them: loaders refuse it."""
     return np.vstack([np.zeros_like(input_mean), np.ones_like(input_mean), input_mean])

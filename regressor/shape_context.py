@@ -54,8 +54,7 @@ def shape_contexts(
         raise ValueError(f"points must be (N, 2) with N >= 2, got shape {points.shape}")
     if not 0.0 < r_inner < r_outer:
         raise ValueError(f"need 0 < r_inner < r_outer, got r_inner={r_inner}, r_outer={r_outer}")
-    # float32 pairwise arrays on contiguous x / y planes: several times faster than float64 on
-    # interleaved (N, N, 2) views, and exact enough for pixel coordinates (centred first).
+    # float32 pair arrays (centred first: exact enough for pixel coordinates), much faster
     centred = points - points.mean(axis=0)
     # RMS pairwise distance, exactly, in O(N): mean over i != j of |p_i - p_j|^2 = 2 N/(N-1) var.
     squares = centred * centred
@@ -63,9 +62,8 @@ def shape_contexts(
     if not scale > 0.0:
         raise ValueError("points are all coincident; shape contexts are undefined")
     x, y = centred.T.astype(np.float32, order="C")
-    # Pair arrays indexed [j, i], point j seen from point i: the bin keys below then run through
-    # different rows' counters one after another, which np.bincount counts faster. In place
-    # throughout: at N = 300 the cost is memory traffic, not arithmetic.
+    # Pairs [j, i] (j seen from i): np.bincount counts such keys faster. In place throughout:
+    # at N = 300 the cost is memory traffic, not arithmetic.
     uv = _differences(x, y)
 
     # Sector in a doubled range [n_angular/2, 3 n_angular/2] so a plain truncating cast floors it,
@@ -109,13 +107,10 @@ def _count_bins(ring: np.ndarray, sector: np.ndarray, n_angular: int, size: int)
 
 
 def mirrored_bins(n_angular: int = 12, n_radial: int = 5) -> np.ndarray:
-    """Bin order that turns a shape context into the context of the mirror-image point set
-    (x -> -x, the image flipped left to right): contexts_of_mirror = contexts[:, order].
-
-    Mirroring sends an angle a to 180 - a, so sector k goes to sector n_angular/2 - 1 - k
-    (mod n_angular); rings are unchanged. Exact for points off the sector boundaries. Needs an
-    even n_angular (a sector edge at 90 degrees); ValueError otherwise. Returns
-    (n_radial * n_angular,) int, a permutation (its own inverse), read-only (made once)."""
+    """Bin order (n_radial * n_angular,) int (read-only, its own inverse) that gives the
+    contexts of the mirror-image point set (x -> -x): contexts[:, order]. An angle a goes to
+    180 - a, so sector k to n_angular/2 - 1 - k (mod n_angular); rings stay. Exact off the
+    sector boundaries; ValueError unless n_angular is even (a sector edge at 90 degrees)."""
     if n_angular < 2 or n_angular % 2:
         raise ValueError(f"mirrored contexts need an even number of sectors, got {n_angular}")
     return _mirrored_bins(int(n_angular), int(n_radial))

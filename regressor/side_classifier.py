@@ -1,10 +1,8 @@
-"""Which half the body faces: a small neural network on the regressor's input (issue 10).
-
-An outline cannot tell a body from its front/back flip, but the limbs' shapes (knees bend and
-feet point forwards) carry some of it. A ReLU network on the regressor's projected input gives
-P(the body faces the camera's half, |heading| <= 90 deg): per-frame evidence for the limbs'
-canonical member against its flip (tracker.tracks.hypotheses). Plain arrays, stored under
-"side_net_" (weights float16). Fitting: regressor.side_classifier_training; docs/tuning.md.
+"""Which half the body faces (issue 10): an outline cannot tell a body from its front/back
+flip, but the limbs' shapes (knees bend, feet point forwards) carry some of it. A ReLU network
+on the regressor's input gives P(the body faces the camera's half, |heading| <= 90 deg), the
+evidence for the limbs' canonical member against its flip (tracker.tracks.hypotheses). Parts
+"side_net_" (weights float16); fitting: regressor.side_classifier_training, docs/tuning.md.
 """
 from __future__ import annotations
 

@@ -1,16 +1,11 @@
-"""Sparse relevance vector machine over k-means candidate kernels: the estimator and its prediction.
-
-Model, for K outputs at once (Tipping 2001; one relevance set for all outputs):
-    T = 1 b^T + B W + E,   B (N, M): Gaussian kernels on M k-means centres of the inputs,
-    centred and scaled to unit-norm columns;  row i of W ~ N(0, I_K / alpha_i);  E ~ N(0, 1/beta).
-The fit (Tipping & Faul's sequential sparse Bayesian learning on sufficient statistics) is in
-regressor.sparse_rvm_fit, loaded only when fitting.
-
-Prediction: mean phi(x) W + b and, per row, the variance of a new observation in output units
+"""Sparse relevance vector machine over k-means candidate kernels (Tipping 2001; one relevance
+set for all K outputs): T = 1 b^T + B W + E, B (N, M) Gaussian kernels on M k-means centres of
+the inputs, centred and scaled to unit-norm columns; row i of W ~ N(0, I_K / alpha_i); E ~ N(0,
+1/beta). The fit (Tipping & Faul's sequential sparse Bayesian learning) is in
+regressor.sparse_rvm_fit. A new observation's variance, per row (the same for every output when
+output_scale is "common": a measurement noise for a Kalman filter):
     sigma^2(x) = y_scale^2 (1/beta + 1/(N beta) + b(x)^T Sigma b(x)),
-b(x) the centred, scaled kernels of the kept centres and Sigma their weights' posterior
-covariance (1/(N beta) is the offset's). It is the same for every output when output_scale is
-"common": a measurement noise for a Kalman filter.
+b(x) the kept centres' centred, scaled kernels, Sigma their weights' posterior covariance.
 """
 from __future__ import annotations
 
@@ -23,21 +18,16 @@ from .basis_regressor import BasisRegressor
 class SparseRVMRegressor(BasisRegressor):
     """Multi-output sparse RVM on Gaussian kernels at k-means centres, fitted in candidate space.
 
-    n_candidates: candidate kernels M (k-means centres of the training inputs; after one pass
-    over the rows the fit's cost depends on M, not on the rows). width: kernel width in input
-    units, or None for sqrt(width_scale x mean squared distance between training inputs)
-    (regressor.basis_fit.default_width). noise: 1/beta as a fraction of the scaled output
-    variance, None: estimated. output_scale: "each" (every output to unit variance) or
-    "common" (one scale for all, so the noise measures a Euclidean error on points), as in
-    regressor.rvm. min_gain: nats charged per kept kernel (maximise L - min_gain R; 0: the
-    plain RVM). max_iter, tol: at most max_iter steps, stopping when none gains more than tol
-    nats. seed: the k-means of the candidates.
-
-    Learned: candidates_ (M, D), relevance_ (R,) indices of the kept candidates, centres_ (R, D),
-    width_, coef_ (R, K), intercept_ (K,), alpha_ (R,) precisions of the unit-norm centred
-    kernels, beta_ (noise precision, scaled outputs), noise_ (K,) noise variance in output
-    units, sigma_ (R, R) posterior covariance of coef_ in scaled output units, phi_mean_ (R,),
-    y_scale_ (K,), n_train_, log_marginal_likelihood_, n_iter_, converged_, n_features_in_.
+    n_candidates: candidate kernels M (the fit's cost, after one pass over the rows, depends on
+    M, not on the rows). width: kernel width in input units, None: regressor.basis_fit's
+    default_width with width_scale. noise: 1/beta as a fraction of the scaled output variance,
+    None: estimated. output_scale: "each" (unit variance per output) or "common" (one scale, so
+    the noise measures a Euclidean error), as in regressor.rvm. min_gain: nats charged per kept
+    kernel (0: the plain RVM). max_iter, tol: steps, stopping when none gains tol nats. seed:
+    the candidates' k-means. Learned: candidates_ (M, D), relevance_ (R,) kept candidates,
+    centres_ (R, D), width_, coef_ (R, K), intercept_ (K,), alpha_ (R,), beta_ (scaled
+    outputs), noise_ (K,) output units, sigma_ (R, R) (scaled), phi_mean_ (R,), y_scale_ (K,),
+    n_train_, log_marginal_likelihood_, n_iter_, converged_, n_features_in_.
     """
 
     def __init__(self, n_candidates: int = 200, width: float | None = None,

@@ -1,7 +1,5 @@
 """Stacked past-frame descriptors: the regressor input at frame t is [x_t, x_{t-s}, ...,
-x_{t-(k-1)s}], step s = 1 at the training frame rate (:func:`stack_step` picks it for a faster
-video). Frames before a sequence's start repeat its first frame, so nothing leaks across a
-sequence boundary. k = 1 is the paper's per-frame regressor.
+x_{t-(k-1)s}] (stack_step picks s); frames before a sequence's start repeat its first frame.
 """
 from __future__ import annotations
 

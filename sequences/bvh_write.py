@@ -30,10 +30,9 @@ def _as_euler(rotation: Rotation, order: str) -> np.ndarray:
 
 def pose_vectors_to_motion(vectors: np.ndarray, template: Motion, root_position=None,
                            camera_azimuth_deg=0.0) -> Motion:
-    """A Motion (BVH channels) on ``template``'s skeleton from pose vectors (T, 55), with
-    template.fps and an empty source. root_position: (T, 3) CMU units; None holds the root at
-    template.root_position[0]. Non-folded ZYX joints get the vector's angles unchanged; joints
-    outside the pose get zeros."""
+    """A Motion on ``template``'s skeleton (and fps) from pose vectors (T, 55); root_position
+    (T, 3) CMU units, None: template.root_position[0]. Non-folded ZYX joints get the vector's
+    angles unchanged; joints outside the pose zeros."""
     v = _as_vectors(vectors)
     T = len(v)
     if root_position is None:

@@ -11,18 +11,12 @@ ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
 
 @dataclass
 class Motion:
-    """A skeleton and its motion, one row per frame.
-
-    names: (J,) joint names; parents: (J,) int, -1 for the root (parents precede children).
-    offsets: (J, 3) bone offsets from the parent, CMU units.
-    end_sites: (J, 3) end-site offsets in the joint's frame, CMU units; NaN rows where the
-        joint has no end site.
-    channels: per joint, its channel names as in the file (root: 3 positions + 3 rotations).
-    euler_deg: (T, J, 3) local rotation angles in degrees, in each joint's rotation-channel
-        order (CMU: Z, Y, X, meaning R = Rz @ Ry @ Rx, intrinsic, as in BVH).
-    root_position: (T, 3) root translation, CMU units.
-    fps: frames per second; source: file name the motion came from ("" if none).
-    """
+    """A skeleton and its motion, one row per frame. names (J,); parents (J,) int, -1 for the
+    root (parents precede children); offsets (J, 3) from the parent and end_sites (J, 3) in the
+    joint's frame (NaN rows: none), CMU units; channels: per joint, its channel names as in the
+    file (root: 3 positions + 3 rotations); euler_deg (T, J, 3) local rotation angles in each
+    joint's rotation-channel order (CMU: Z, Y, X, R = Rz @ Ry @ Rx, intrinsic); root_position
+    (T, 3) CMU units; fps; source: the file it came from ("" if none)."""
 
     names: list[str]
     parents: np.ndarray

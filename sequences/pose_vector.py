@@ -79,9 +79,9 @@ def heading_deg(vectors: np.ndarray) -> np.ndarray:
 
 def pose_vectors_to_local_rotations(vectors: np.ndarray, camera_azimuth_deg=0.0,
                                     names=CMU_JOINT_NAMES) -> np.ndarray:
-    """Local joint rotations (T, J, 3, 3) on a skeleton with joint ``names`` (default: the 31
-    CMU joints) from pose vectors (T, 55). Folded joints get the 1/n power of the pose joint's
-    rotation each; joints outside the pose are identity. camera_azimuth_deg: scalar or (T,)."""
+    """Local joint rotations (T, J, 3, 3) on a skeleton with joint ``names`` from pose vectors
+    (T, 55); folded joints get the 1/n power of the pose joint's rotation each, joints outside
+    the pose identity. camera_azimuth_deg: scalar or (T,)."""
     v = _as_vectors(vectors)
     T = len(v)
     az = _azimuth(camera_azimuth_deg, T)
@@ -146,7 +146,7 @@ def joint_positions(vectors: np.ndarray, template: Motion | np.ndarray | None = 
     template: a Motion (its skeleton), (31, 3) CMU bone offsets, or None (CMU_REST_OFFSETS);
     root_position (T, 3), None: the origin."""
     v = _as_vectors(vectors)
-    if hasattr(template, "parents"):          # a Motion (not imported: track never passes one)
+    if hasattr(template, "parents"):          # a Motion
         names, parents, offsets = template.names, template.parents, template.offsets
     else:
         offsets = CMU_REST_OFFSETS if template is None else np.asarray(template, np.float64)
@@ -192,9 +192,9 @@ def front_back_flip(vectors: np.ndarray) -> np.ndarray:
 
 
 def image_mirror(vectors: np.ndarray) -> np.ndarray:
-    """The pose of the body seen in the image flipped left to right, (55,) or (T, 55) like
-    vectors: front_back_flip turned 180 degrees about the vertical, so heading h -> -h
-    ((cos, sin) -> (cos, -sin)) with left and right exchanged. Mirroring twice is the identity."""
+    """The pose of the body in the image flipped left to right, (55,) or (T, 55) like vectors:
+    front_back_flip turned 180 degrees about the vertical (heading h -> -h, left and right
+    exchanged). Mirroring twice is the identity."""
     out = front_back_flip(vectors)
     out[..., :2] = -out[..., :2]
     return out

@@ -69,8 +69,8 @@ FOLDED: dict[str, tuple[str, ...]] = {
     "Neck": ("Neck", "Neck1"),
 }
 
-#: (parent, child) pose-joint pairs of a stick skeleton over the 18 pose joints. Note that on
-#: the CMU skeleton Spine1, Neck and both Shoulders sit at one point (zero-length bones there).
+#: (parent, child) pose-joint pairs of a stick skeleton (on the CMU skeleton Spine1, Neck and
+#: both Shoulders sit at one point).
 BONES_FOR_DRAWING: tuple[tuple[str, str], ...] = (
     ("Hips", "Spine1"), ("Spine1", "Neck"), ("Neck", "Head"),
     ("Spine1", "LeftShoulder"), ("LeftShoulder", "LeftArm"), ("LeftArm", "LeftForeArm"),

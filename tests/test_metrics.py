@@ -58,3 +58,19 @@ def test_bad_inputs_are_refused():
 def test_contiguous_folds_cover_everything_once():
     folds = contiguous_folds(10, 3)
     np.testing.assert_array_equal(np.concatenate(folds), np.arange(10))
+
+
+def test_r2_score_is_scikit_learns_uniform_average_and_the_regressors_score():
+    from sklearn.metrics import r2_score as sklearn_r2
+    from regressor.dls import DLSRegressor
+    from regressor.metrics import r2_score
+    rng = np.random.default_rng(0)
+    y = rng.normal(size=(40, 3))
+    y[:, 2] = 1.5                                  # a constant output: 1 if exact, else 0
+    predicted = y + rng.normal(scale=0.3, size=y.shape)
+    assert r2_score(predicted, y) == pytest.approx(sklearn_r2(y, predicted))
+    predicted[:, 2] = 1.5
+    assert r2_score(predicted, y) == pytest.approx(sklearn_r2(y, predicted))
+    model = DLSRegressor().fit(y[:, :2], y[:, 0])
+    expected = sklearn_r2(y[:, 0], model.predict(y[:, :2]))
+    assert model.score(y[:, :2], y[:, 0]) == pytest.approx(expected)
