@@ -8,8 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.video.decode import (FrameTimes, VideoError, VideoGrowingWarning, VideoTimingWarning,
-                           VideoTruncatedWarning, _as_bgr, open_video)
+from tracker.video.decode import FrameTimes, VideoError, _as_bgr, open_video
+from tracker.video.stream_report import (VideoGrowingWarning, VideoTimingWarning,
+                                         VideoTruncatedWarning)
 
 #: The sample walk at 30 fps for 6 s, then 10 fps to 12 s (scripts/make_vfr_clip.py): 241 frames;
 #: Matroska announces 30 fps and 361 frames (its duration at 30 fps).

@@ -1,11 +1,5 @@
 """THE tracking loop (``track``'s, the evaluation's, the benchmark's): open the video, learn
-its background, track every frame, feed the sinks. From a notebook::
-
-    from tracker import PoseRecorder, track_video
-    recorder = PoseRecorder()
-    track_video("sequences/data/sample_spiral_walk.mp4", sinks=[recorder])
-    poses = recorder.poses          # TrackedPose per person per frame: .filtered (55,), ...
-"""
+its background, track every frame, feed the sinks (from Python: README, "From Python")."""
 from __future__ import annotations
 
 import contextlib

@@ -14,7 +14,7 @@ from sequences.motion import Motion
 from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, CMU_UNIT_M
 from sequences.skeleton_tables import CMU_REST_END_SITES
 from tracker.outputs.atomic import LockFile, write_beside
-from tracker.outputs.files import beside_name
+from tracker.outputs.files import ClosedOnExit, beside_name
 from tracker.outputs.geometry import SinkInputError, check_joints, check_pose, checked_time
 
 if TYPE_CHECKING:
@@ -46,7 +46,7 @@ def regular_rows(times_s: np.ndarray, fps: float) -> np.ndarray:
     return np.maximum(np.searchsorted(times_s, grid, side="right") - 1, 0)
 
 
-class BVHSink:
+class BVHSink(ClosedOnExit):
     """Collect each track's poses and root positions; write one BVH per track on close.
     directory: where files go (created if missing); files are ``<prefix>_<track id>.bvh``.
     fps: video frame rate (frames per second of the frame indices). template: the skeleton
@@ -140,9 +140,3 @@ class BVHSink:
                 folder.rmdir()
             except OSError:                 # not empty (someone else's files): kept
                 break
-
-    def __enter__(self) -> "BVHSink":
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        self.close()

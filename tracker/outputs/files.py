@@ -34,6 +34,16 @@ class OutputWriteError(_FileError):
     """Writing an output failed (disk full, I/O error); one line naming the file."""
 
 
+class ClosedOnExit:
+    """A sink that a ``with`` block closes (close()) on leaving."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+
 _STREAM = re.compile(r"/(?:proc/self|dev)/fd/(\d+)|/dev/std(in|out|err)")
 
 

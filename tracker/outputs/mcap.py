@@ -19,7 +19,7 @@ import orjson
 from mcap.writer import CompressionType, Writer
 
 from sequences.pose_vector import pose_vector_names
-from tracker.outputs.files import OutputFile
+from tracker.outputs.files import ClosedOnExit, OutputFile
 from tracker.outputs.geometry import (BONE_INDEX, BONE_SIDE, JOINT_SIDE, SinkInputError,
                                       body_colours, check_centroid, check_joints, check_pose,
                                       checked_probability, checked_time, heading_deg,
@@ -209,7 +209,7 @@ class _SceneStream:
         self.shown: set[int] = set()
 
 
-class McapSink:
+class McapSink(ClosedOnExit):
     """Record tracked poses and skeletons into the MCAP file ``path`` (module docstring).
     metadata: name -> {key: value} records (values that are not strings stored as JSON).
     chunk_size: uncompressed bytes per chunk; flush_every_frames: frames per chunk at most."""
@@ -394,12 +394,6 @@ class McapSink:
             self._state["done"] = True
             self._finalizer.detach()
             self._state["stream"].discard()
-
-    def __enter__(self) -> McapSink:
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        self.close()
 
 
 class SmoothedChannel:

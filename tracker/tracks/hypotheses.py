@@ -1,16 +1,9 @@
 """Front/back hypotheses carried over time: which of the regressor's poses is the true one.
-
-A silhouette cannot tell a body from its reflection in depth (sequences.pose_vector.
-front_back_flip). Each frame gives K hypotheses: the pose and its flip (per expert for a
-mixture), or the limbs' canonical member and its flip (:func:`canonical_hypotheses`). A hidden
-Markov model over s_t in {0..K-1} with one Kalman filter per state (a GPB / IMM filter bank):
-
-    alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
-
-A: switching probabilities; N: the innovation likelihood (filter j continues the best
-predecessor's: a flip is a switch, not a jump of the body); e_t(j): the frame's own evidence.
-Output: the most probable state's filtered pose, or the Viterbi path RTS-smoothed (docs/tuning.md).
-"""
+A silhouette cannot tell a body from its reflection in depth (pose_vector.front_back_flip). Each
+frame gives K hypotheses: the pose and its flip (per expert for a mixture), or the limbs'
+canonical member and its flip. A hidden Markov model over them, one Kalman filter per state (a
+GPB / IMM filter bank; its recursion: docs/tuning.md), gives the most probable state's filtered
+pose, or the Viterbi path RTS-smoothed."""
 from __future__ import annotations
 
 import copy

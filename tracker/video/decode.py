@@ -54,18 +54,6 @@ class VideoError(SilhouettePoseError, ValueError):
     """A video file that cannot be used; the message is one line and names the file."""
 
 
-class VideoTruncatedWarning(UserWarning):
-    """Frames were skipped, or decoding stopped before the container's announced end."""
-
-
-class VideoTimingWarning(UserWarning):
-    """Variable frame rate, or no usable frame times in the container (evenly spaced assumed)."""
-
-
-class VideoGrowingWarning(UserWarning):
-    """The file grew (or changed) while it was read: a recording still being written."""
-
-
 class VideoFrame(NamedTuple):
     """One decoded frame: ``index`` from 0 at the file's start, ``time_s`` its time in the video
     (s), ``image`` BGR uint8 (H, W, 3)."""
