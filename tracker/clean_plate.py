@@ -10,7 +10,8 @@ import cv2
 import numpy as np
 
 from tracker.cli import TrackError
-from tracker.run import BackgroundMismatchError, nothing_decodes
+from tracker.run import BackgroundMismatchError
+from tracker.video.unopenable import nothing_decodes
 from tracker.video.background import GainMeter, undo_gain
 from tracker.video.decode import VideoSource, colourless, scaled_size
 from tracker.video.silhouettes import median_background

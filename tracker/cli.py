@@ -21,9 +21,8 @@ EXIT_INTERRUPTED = 130          # the shell's status for a run ended by Ctrl-C (
 ZONE_FOREGROUND = {"sure": True, "colour": False}   # -> TrackerSettings.trust_zone_foreground
 DEFAULT_WORKERS = 2 if (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                         else os.cpu_count() or 1) >= 2 else 1    # 2 with a core to spare
-#: Copies (tests keep them equal) of constants of modules that load numpy or OpenCV, so that
-#: parsing the options loads neither: video.sources.SOURCES and INSTALL_HINT, fixed_lag's
-#: MAX_LAG_S, video.decode.MAX_FPS, video.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent.
+#: Copies (tests keep them equal), so that parsing loads no numpy or OpenCV: video.sources'
+#: SOURCES, INSTALL_HINT; fixed_lag's MAX_LAG_S; decode's MAX_FPS; DEFAULT_MIN_AREA_FRACTION %.
 SILHOUETTE_SOURCES = ("background", "segment", "auto")
 SEGMENT_INSTALL = "pip install 'silhouette-pose[segment]'"
 MAX_LAG_S, MAX_FPS, DEFAULT_MIN_AREA_PERCENT = 10.0, 1000.0, 0.15
@@ -37,8 +36,7 @@ MIN_AREA_RANGE_PERCENT = (0.01, 20.0)
 SHORT_USAGE = ("usage: track VIDEO [--out FILE.mcap] [--json FILE] [--bvh DIR] [--view] "
                "[options]\ntrack: give a video file to track (track --help lists the options)\n")
 _URL = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://")   # rtsp://, ... (Path would drop a /)
-#: Stop signals received during main(), also if their KeyboardInterrupt was swallowed
-#: (docs/tuning.md).
+#: Stop signals received during main(), also if their KeyboardInterrupt was swallowed.
 _interrupts: list[int] = []
 _previous_unraisable_hook = sys.unraisablehook
 
@@ -66,8 +64,8 @@ def _record_interrupt(number, frame) -> None:
 
 
 def _unraisable_interrupt_recorded(unraisable) -> None:
-    """sys.unraisablehook during main(): records a KeyboardInterrupt Python could not raise
-    (in a weakref callback, a __del__) instead of printing it; passes on anything else."""
+    """sys.unraisablehook during main(): records a KeyboardInterrupt Python could not raise (a
+    weakref callback's, a __del__'s) instead of printing it; passes on anything else."""
     if issubclass(unraisable.exc_type, KeyboardInterrupt):
         _interrupts.append(signal.SIGINT)
         return

@@ -1,10 +1,7 @@
-"""Decoding, silhouettes and descriptors in a second process, so that ``track`` uses two cores.
-
-A frame's first half (PoseTracker.find_people, .describe) needs nothing from its second, so a
-forked worker runs it ahead on its own copy of the tracker, one thread, for the same results
-(figures: docs/tuning.md). It ignores Ctrl-C and exits when its reader has gone; its errors
-and warnings are raised and issued in the main process after the frames before them.
-"""
+"""Decoding, silhouettes and descriptors in a second process, so that ``track`` uses two cores:
+a forked worker runs each frame's first half (PoseTracker.find_people, .describe) ahead on its
+own copy of the tracker, one thread, for the same results (figures: docs/tuning.md). It ignores
+Ctrl-C, exits when its reader has gone; its errors and warnings reach the main process in order."""
 from __future__ import annotations
 
 import contextlib

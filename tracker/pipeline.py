@@ -9,7 +9,6 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from functools import partial
-from typing import Protocol
 
 import numpy as np
 
@@ -27,11 +26,9 @@ from tracker.tracks.root_path import RootHistory, smoothed_roots
 from tracker.outputs.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
 from tracker.video.decode import ASSUMED_FOV_DEG, colourless, focal_length_px
 
-#: The body angles' filter's R scale: it takes only the white part of the regressor's error
-#: (its validation residual is mostly a slow bias; docs/tuning.md).
+#: The body angles' R scale: only the white part of the regressor's error (docs/tuning.md).
 LIMB_R_SCALE = 0.1
-#: Heading process noise scale: the model's q is dominated by a few training pirouettes, so
-#: the filter followed confident misreadings (docs/tuning.md).
+#: Heading q scale: the model's q, set by a few training pirouettes, followed misreadings.
 HEADING_Q_SCALE = 0.01
 #: The joints' R inflation on ambiguous frames: the main head averages a silhouette's two
 #: bodies there; a model that gives canonical pairs (one body per frame) needs less.
@@ -72,15 +69,9 @@ class TrackerSettings:
                 else AMBIGUOUS_JOINT_FACTOR)
 
 
-class PoseFilter(Protocol):
-    """What the tracker needs of a per-track filter (PoseKalmanFilter is one)."""
-
-    def step(self, raw55: np.ndarray) -> tuple[np.ndarray, bool]: ...    # filtered, ambiguous
-
-    def rts_smooth(self, raws: np.ndarray) -> np.ndarray: ...
-
-
-FilterFactory = Callable[[float], PoseFilter]       # fps -> a new filter
+#: fps -> a new per-track filter: step(raw55) -> (filtered (55,), ambiguous) and
+#: rts_smooth(raws (T, 55)) -> (T, 55), as PoseKalmanFilter's.
+FilterFactory = Callable[[float], PoseKalmanFilter]
 
 
 def kalman_factory(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings()

@@ -23,7 +23,7 @@ from tracker.frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_
 from tracker.pipeline import PoseTracker, timed
 from tracker.video.silhouettes import median_background
 from tracker.outputs import PoseRecorder, Sink, close_sinks, problem_line
-from tracker.video.decode import VideoError, VideoSource, open_video
+from tracker.video.decode import VideoSource, open_video
 
 if TYPE_CHECKING:
     from tracker.tracks.fixed_lag import FixedLagSmoother
@@ -311,18 +311,12 @@ def sampled_background(source: VideoSource, tracker: PoseTracker
     size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full
     frames = source.sample_frames(tracker.settings.background_samples, size=size)
     if not frames:
+        from tracker.video.unopenable import nothing_decodes     # a file that decodes nothing
         raise nothing_decodes(source)
     # Black or white frames (before a fade-in) are no picture of the scene.
     scenes = [f for f in frames if not _blank(f)]
     frames = scenes or frames
     return median_background(frames), frames
-
-
-def nothing_decodes(source: VideoSource) -> VideoError:
-    """The error for a file that opened but decodes nothing in the range asked for."""
-    start_s = source.start_index / source.fps
-    return VideoError(f"{source.path}: no decodable frames from {start_s:g} s on (a cut-off "
-                      f"or damaged file?)")
 
 
 def _blank(frame: np.ndarray, max_spread: float = 3.0, dark: float = 16.0,
@@ -335,8 +329,7 @@ def _blank(frame: np.ndarray, max_spread: float = 3.0, dark: float = 16.0,
 
 @contextlib.contextmanager
 def _signals_held() -> Iterator[list[int]]:
-    """Hold back the stop signals inside the block (main thread only); yields the list of
-    those received."""
+    """Hold back the stop signals inside the block (main thread only); yields those received."""
     held: list[int] = []
     previous = {}
     if threading.current_thread() is threading.main_thread():
@@ -355,8 +348,7 @@ def _signals_held() -> Iterator[list[int]]:
 
 @contextlib.contextmanager
 def _stop_signals_blocked() -> Iterator[None]:
-    """Block the stop signals while their handlers are swapped; one that came is delivered on
-    leaving."""
+    """Block the stop signals while handlers are swapped; one that came is delivered on leaving."""
     before = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:
         yield

@@ -109,8 +109,7 @@ class ConstantVelocityFilter:
         return smoothed
 
     def _predict(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q (_predict_state,
-        _predict_covariance)."""
+        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q."""
         return self._predict_state(x), self._predict_covariance(P)
 
     def _predict_state(self, x: np.ndarray) -> np.ndarray:
@@ -168,10 +167,9 @@ def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
 
 
 class _Covariance:
-    """A filter's state covariance P (108, 108) and what follows from it alone, computed once
-    for every filter in it (copies: a track's front/back hypotheses continue one filter):
-    its prediction, and per ambiguity the innovation factor and the update (PoseKalmanFilter).
-    The covariance never depends on the measured values, only on the ambiguous flags."""
+    """A state covariance P (108, 108) and what follows from it alone (its prediction; per
+    ambiguity the innovation factor and update), computed once for all filters holding it (a
+    track's hypotheses' copies): it depends on the ambiguous flags, never on measured values."""
 
     __slots__ = ("P", "_predicted", "factors", "updates", "__weakref__")
 

@@ -177,7 +177,7 @@ class _Frame:
 @dataclass
 class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
-    filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; without
+    filter_factory: fps -> a pose filter (tracker.pipeline.FilterFactory; without
     ``log_likelihoods`` only the evidence scores); switch (P(raw -> flip), P(flip -> raw)) and
     evidence_weight: per frame at reference_fps; keep_history: keep every frame for
     viterbi_path/smoothed; limb_filter_factory: fps -> a filter of the body angles, stepped on

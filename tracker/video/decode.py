@@ -158,13 +158,13 @@ class VideoSource:
             while index < end:
                 ok, image = capture.read()
                 decoded = ok and image is not None
-                if held is None and not rewound and index > 0 and self.container_times and \
-                        _seek_missed(self, decoded, capture):
-                    # Read from the first frame instead: the times decide.
-                    capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
-                    index, failed, rewound = 0, 0, True
-                    times = FrameTimes(self.fps, self.container_times)
-                    continue
+                if held is None and not rewound and index > 0 and self.container_times:
+                    from tracker.video.seeking import seek_missed      # after a seek only
+                    if seek_missed(self, decoded, capture):     # read from frame 0: times decide
+                        capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+                        index, failed, rewound = 0, 0, True
+                        times = FrameTimes(self.fps, self.container_times)
+                        continue
                 if not decoded:
                     if _file_state(self.path) != opened:    # the live end: stop there,
                         if held is not None:                    # the last frame unused
@@ -287,13 +287,6 @@ def _seek(capture: cv2.VideoCapture, start_index: int, give_up: int) -> int:
         return 0
     from tracker.video.seeking import seek          # a start past the first frame only
     return seek(capture, start_index, give_up)
-
-
-def _seek_missed(source: VideoSource, decoded: bool, capture: cv2.VideoCapture) -> bool:
-    """Whether the first read after seeking to ``source``'s start frame shows a variable rate's
-    start time elsewhere: nothing decodes there, or its container time is past the start."""
-    return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
-        source.start_s + 1.0 / source.fps + 1e-6
 
 
 def _as_bgr(image: np.ndarray) -> np.ndarray:

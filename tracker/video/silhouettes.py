@@ -12,7 +12,7 @@ import numpy as np
 from regressor.errors import SilhouettePoseError
 from tracker.video.area_shrink import shrink
 from tracker.video.background import (MIN_GAIN_CHANGE, ClipBackground, GainMeter, clean_plate,
-                         clip_background, undo_gain)
+                                      clip_background, row_medians, undo_gain)
 from tracker.video.noise_floor import FOREGROUND_LEVEL as _FOREGROUND_LEVEL, choose_var_min
 
 _SHADOW_LEVEL = 127              # MOG2's mark for shadow (foreground: _FOREGROUND_LEVEL)
@@ -393,18 +393,8 @@ def _relit(frame: np.ndarray, background: np.ndarray, min_correlation: float,
     if denominator > 0 and float(np.dot(fg, bg)) / denominator > min_correlation:
         return True
     log_ratio = np.log(np.divide(f, b, out=f), out=f).ravel()
-    log_ratio -= _median(log_ratio)
-    return float(_median(np.abs(log_ratio, out=log_ratio))) < max_ratio_spread
-
-
-def _median(values: np.ndarray) -> np.floating:
-    """np.median of a 1-D float array (not empty), by a partial sort of it in place."""
-    half = len(values) // 2
-    if len(values) % 2:
-        values.partition(half)
-        return values[half]
-    values.partition((half - 1, half))
-    return (values[half - 1] + values[half]) / 2
+    log_ratio -= row_medians(log_ratio[None])[0]        # np.median's, by a partial sort
+    return float(row_medians(np.abs(log_ratio, out=log_ratio)[None])[0]) < max_ratio_spread
 
 
 class SilhouetteExtractor:
