@@ -29,8 +29,7 @@ MAX_LAG_S, MAX_FPS, DEFAULT_MIN_AREA_PERCENT = 10.0, 1000.0, 0.15
 MAX_ROLL_DEG = 90.0     # --roll beyond a quarter turn: the camera upside down, or a wrong sign
 VIEW_LAG_S = 0.5        # --lag when not given, with --view (else 0: the filtered poses at once)
 MAX_TIME_S = 1e8        # past any video (3 years); 1e308 s would overflow the frame arithmetic
-#: --min-area's range, percent of the image: below it noise specks become people, above it
-#: only someone filling a fifth of the image would count.
+#: --min-area's range, % of the image: below, specks become people; above, only a fifth counts.
 MIN_AREA_RANGE_PERCENT = (0.01, 20.0)
 #: What ``track`` alone prints: the usage's first line, and where the rest is.
 SHORT_USAGE = ("usage: track VIDEO [--out FILE.mcap] [--json FILE] [--bvh DIR] [--view] "

@@ -37,10 +37,9 @@ def default_cmu_template(fps: float) -> Motion:
 
 
 def regular_rows(times_s: np.ndarray, fps: float) -> np.ndarray:
-    """Which row each frame of a regular grid at ``fps`` from times_s[0] to times_s[-1] holds:
-    the latest row whose time is at or before the grid time plus half a grid step (a time
-    rounded a little late still lands on its own frame). times_s: (N,) increasing seconds.
-    Returns (round((times_s[-1] - times_s[0]) fps) + 1,) ints."""
+    """Rows (round((times_s[-1] - times_s[0]) fps) + 1,) int of a regular grid at ``fps`` over
+    times_s (N,) increasing seconds: the latest at or before the grid time plus half a step (a
+    time rounded a little late still lands on its own frame)."""
     count = int(round((times_s[-1] - times_s[0]) * fps)) + 1
     grid = times_s[0] + (np.arange(count) + 0.5) / fps
     return np.maximum(np.searchsorted(times_s, grid, side="right") - 1, 0)
@@ -77,9 +76,8 @@ class BVHSink(ClosedOnExit):
             raise
 
     def write(self, pose: TrackedPose) -> None:
-        """Keep pose.filtered (55,), the Hips position pose.joints_m[0] (metres) and the time
-        pose.time_s (seconds) of this track and frame. Frame indices and times of a track must
-        increase. Raises SinkInputError on bad input."""
+        """Keep pose.filtered (55,), Hips position pose.joints_m[0] (m) and pose.time_s (s) of
+        this track and frame; a track's frames and times must increase (else SinkInputError)."""
         if self.closed:
             raise SinkInputError("BVH sink is closed")
         frame_index, track_id = pose.frame_index, pose.track_id

@@ -43,9 +43,8 @@ def focal_length_px(frame_width_px: int, fov_deg: float = ASSUMED_FOV_DEG) -> fl
 
 
 def colourless(image: np.ndarray, max_chroma_std: float = 1.5) -> bool:
-    """True when a BGR uint8 (H, W, 3) image carries no colour (grayscale, or black-and-white
-    with a constant tint): the spreads of its Cr and Cb (levels) are 0.0 on such videos, 10-19
-    on the sample and the Pose2Sim views."""
+    """True when a BGR uint8 (H, W, 3) image carries no colour (grey, or a constant tint): its
+    Cr and Cb spreads (levels) are 0.0 on such videos, 10-19 on the sample and Pose2Sim's."""
     chroma = cv2.cvtColor(image, cv2.COLOR_BGR2YCrCb)[..., 1:].reshape(-1, 2)
     return bool(np.all(chroma.std(axis=0) < max_chroma_std))
 
