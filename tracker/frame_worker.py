@@ -89,8 +89,7 @@ class FrameWorker:
         writer.close()           # the worker's end: its death then ends our reads
 
     def chunks(self) -> Iterator[list[tuple]]:
-        """described_chunks' lists without the frames, in order; the worker's warnings
-        issued, its error raised."""
+        """described_chunks' lists, frames left out; its warnings issued, its error raised."""
         while True:
             try:
                 kind, payload = self._reader.recv()

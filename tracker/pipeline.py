@@ -69,8 +69,8 @@ class TrackerSettings:
                 else AMBIGUOUS_JOINT_FACTOR)
 
 
-#: fps -> a new per-track filter: step(raw55) -> (filtered (55,), ambiguous) and
-#: rts_smooth(raws (T, 55)) -> (T, 55), as PoseKalmanFilter's.
+#: fps -> a new per-track filter with PoseKalmanFilter's step, log_likelihoods, copy and
+#: rts_smooth (the body angles' filter needs only step and rts_smooth).
 FilterFactory = Callable[[float], PoseKalmanFilter]
 
 
@@ -226,8 +226,7 @@ class PoseTracker:
     def track_frames(self, frames: Sequence[tuple]) -> list[tuple[list[TrackedPose], dict]]:
         """The poses of consecutive frames, each (frame_index, time_s, people (find_people's),
         descriptions (describe()'s, or None: made here)): per frame (its poses, its people by
-        track id). The poses are regressed in one batch (the same results to ~1e-5 degrees),
-        the rest goes frame by frame."""
+        track id). The poses are regressed in one batch (the same to ~1e-5 degrees)."""
         rows, people_by_frame = [], []
         for slot, (frame_index, time_s, people, descriptions) in enumerate(frames):
             with timed(self.stage_seconds, "association"):

@@ -152,8 +152,7 @@ class _Run:
         self.due: deque = deque() if self.lagged is None else self.lagged.ready
 
     def track(self, frames_in: Iterator[tuple]) -> None:
-        """Hand every tracked frame to the outputs (through the smoother with a lag);
-        KeyboardInterrupt when a stop signal came."""
+        """Hand each tracked frame to the outputs (lag: smoothed); KeyboardInterrupt on a stop."""
         for tracked in frames_in:
             if self.lagged is None:
                 self.due.append(tracked)
@@ -226,8 +225,7 @@ class _Run:
         return interrupted, smoothed, problems
 
     def _feed_smoothed_sinks(self, interrupted: bool) -> list[str]:
-        """Feed the smoothed sinks each track RTS-smoothed in frame order, or after a stop the
-        streamed poses; returns problem lines."""
+        """Feed the smoothed sinks each track RTS-smoothed (after a stop: as streamed); problems."""
         if self.recorder is None:
             return []
         if interrupted:
@@ -304,8 +302,7 @@ def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | N
 
 def sampled_background(source: VideoSource, tracker: PoseTracker
                        ) -> tuple[np.ndarray, list[np.ndarray]]:
-    """(the median of frames spread over the video, those frames), BGR uint8 at the
-    extractor's working size."""
+    """(the median of frames spread over the video, those frames), BGR uint8 at working size."""
     full = (source.width, source.height)
     subtractor = getattr(tracker.extractor, "subtractor", None)
     size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full

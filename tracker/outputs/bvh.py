@@ -113,8 +113,7 @@ class BVHSink(ClosedOnExit):
             for track_id in sorted(self._tracks):
                 if len(self._tracks[track_id]) < self.min_frames:
                     continue
-                # A name past the file system's limit (a long video name, a track id of many
-                # digits) gets its prefix cut and hashed, as the partial and lock names do.
+                # A name past the file system's limit gets its prefix cut and hashed (beside_name).
                 path = beside_name(self.directory / self.prefix, f"_{track_id}.bvh")
                 motion = self.motion(track_id)
                 write_beside(path, lambda partial: write_bvh(partial, motion))
@@ -123,8 +122,7 @@ class BVHSink(ClosedOnExit):
             self._lock.release()
 
     def abandon(self) -> None:
-        """Stop without writing any file (a run that tracked nobody), removing the folders it
-        made if they are still empty; idempotent."""
+        """Write nothing (a run tracked nobody); remove the folders it made if empty; idempotent."""
         if self.closed:
             return
         self.closed = True

@@ -259,8 +259,7 @@ class PoseKalmanFilter:
         return self._x_pred
 
     def _factor(self, ambiguous: bool) -> tuple[np.ndarray, float]:
-        """Lower Cholesky factor of H P_pred H' + R (54, 54) and its log-determinant, cached
-        with the covariance."""
+        """Lower Cholesky factor of H P_pred H' + R (54, 54) and its log-determinant (cached)."""
         cov = self._cov
         if ambiguous not in cov.factors:
             R = self.R_ambiguous if ambiguous else self.R

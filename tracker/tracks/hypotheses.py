@@ -6,7 +6,6 @@ GPB / IMM filter bank; its recursion: docs/tuning.md), gives the most probable s
 pose, or the Viterbi path RTS-smoothed."""
 from __future__ import annotations
 
-import copy
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -177,11 +176,11 @@ class _Frame:
 @dataclass
 class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
-    filter_factory: fps -> a pose filter (tracker.pipeline.FilterFactory; without
-    ``log_likelihoods`` only the evidence scores); switch (P(raw -> flip), P(flip -> raw)) and
-    evidence_weight: per frame at reference_fps; keep_history: keep every frame for
-    viterbi_path/smoothed; limb_filter_factory: fps -> a filter of the body angles, stepped on
-    the raw pose or the limb member nearer the decided heading (None: the chosen state's)."""
+    filter_factory: fps -> a pose filter (tracker.pipeline.FilterFactory); switch (P(raw ->
+    flip), P(flip -> raw)) and evidence_weight: per frame at reference_fps; keep_history: keep
+    every frame for viterbi_path/smoothed; limb_filter_factory: fps -> a filter of the body
+    angles, stepped on the raw pose or the limb member nearer the decided heading (None: the
+    chosen state's)."""
 
     filter_factory: Callable[[float], object]
     fps: float
@@ -206,8 +205,7 @@ class FrontBackTracker:
             self.filters = self._new_filters(K)
             self.log_alpha, link = _log_stationary(log_A) + evidence, None
         else:
-            ll = np.array([f.log_likelihoods(poses) if hasattr(f, "log_likelihoods")
-                           else np.zeros(K) for f in self.filters])
+            ll = np.array([f.log_likelihoods(poses) for f in self.filters])
             link = log_A + rate * ll
             scores = self.log_alpha[:, None] + link
             self.filters = self._continue(scores.argmax(axis=0))
@@ -251,11 +249,8 @@ class FrontBackTracker:
         return tuple(float(-np.expm1(rate * np.log1p(-p))) for p in self.switch)
 
     def _new_filters(self, K: int) -> list:
-        """K new filters: copies of one when it can copy itself (so that they may share
-        what does not depend on the measurements), else each the factory's."""
+        """K new filters, copies of one: they share what does not depend on the measurements."""
         first = self.filter_factory(self.fps)
-        if not hasattr(first, "copy"):
-            return [first] + [self.filter_factory(self.fps) for _ in range(K - 1)]
         return [first] + [first.copy() for _ in range(K - 1)]
 
     def _continue(self, predecessor: np.ndarray) -> list:
@@ -264,7 +259,7 @@ class FrontBackTracker:
         for k, i in enumerate(predecessor):
             f = self.filters[int(i)]
             if i in predecessor[:k]:
-                f = f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
+                f = f.copy()
             out.append(f)
         return out
 

@@ -225,8 +225,7 @@ class VideoSource:
             return sample_through(self, count, size)
         images = self._sample_by_index(count, size)
         if not images and self.container_times and self.start_index > 0:
-            # A variable rate puts the start time at another frame than the announced rate
-            # does (or past the frames the file has): sample what iteration finds by time.
+            # A variable rate can put the start time at another frame: sample by time instead.
             from tracker.video.even_sample import sample_by_time
             return sample_by_time(self, count, size)
         return images
