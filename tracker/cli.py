@@ -136,16 +136,15 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--json", type=_file_name, metavar="FILE", help="write a JSON summary")
     ap.add_argument("--view", action="store_true", help="live 3-D skeletons in meshcat "
                     "(browser, 127.0.0.1), played at the video's own speed")
-    ap.add_argument("--smooth", action=argparse.BooleanOptionalAction, default=True,
-                    help="the JSON and BVH get each whole track RTS-smoothed, the MCAP gets it "
-                    "beside its filtered poses (the default: it follows the body better); "
-                    "--no-smooth: the JSON and BVH get the MCAP's poses (filtered, or --lag's)")
-    ap.add_argument("--lag", type=float, default=None, metavar="S",
-                    help="give the live view and the MCAP's /pose (with --no-smooth, the JSON "
-                    "and BVH too) each pose about 2S seconds late, smoothed over S seconds "
-                    "that followed it: closer to the body than the filter's; 0: the filtered "
-                    f"poses at once (default {VIEW_LAG_S:g} with --view, else 0; at most "
-                    f"{MAX_LAG_S:g})")
+    ap.add_argument("--smooth", action=argparse.BooleanOptionalAction, default=True, help="the "
+                    "JSON and BVH get each whole track RTS-smoothed, the MCAP gets it beside its "
+                    "filtered poses (the default: it follows the body better); --no-smooth: the "
+                    "JSON and BVH get the MCAP's poses (filtered, or --lag's)")
+    ap.add_argument("--lag", type=float, default=None, metavar="S", help="give the live view and "
+                    "the MCAP's /pose (with --no-smooth, the JSON and BVH too) each pose about 2S "
+                    "seconds late, smoothed over S seconds that followed it: closer to the body "
+                    f"than the filter's; 0: the filtered poses at once (default {VIEW_LAG_S:g} "
+                    f"with --view, else 0; at most {MAX_LAG_S:g})")
     ap.add_argument("--model", type=Path, help="model file (default: the shipped model)")
     ap.add_argument("--background", type=Path, metavar="IMAGE", help="an image of the empty "
                     "scene (clean plate) from the same camera (default: learned from the video)")
@@ -153,31 +152,29 @@ def build_parser() -> argparse.ArgumentParser:
                     help="track at most N people per frame (largest first; 1 to 100)")
     ap.add_argument("--start", type=float, default=0.0, metavar="S", help="start at S seconds")
     ap.add_argument("--end", type=float, default=None, metavar="S", help="stop at S seconds")
-    ap.add_argument("--fps", type=float, default=None, metavar="F",
-                    help="the video's frame rate, frames/s, where its file's is missing or wrong "
-                         f"(above 0, at most {MAX_FPS:g}; default: the file's)")
-    ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
-                    help="the camera's roll: how far the scene's vertical leans clockwise, "
-                         f"degrees (silhouettes are turned upright; within +-{MAX_ROLL_DEG:g}; "
-                         "default 0)")
+    ap.add_argument("--fps", type=float, default=None, metavar="F", help="the video's frame rate, "
+                    "frames/s, where its file's is missing or wrong (above 0, at most "
+                    f"{MAX_FPS:g}; default: the file's)")
+    ap.add_argument("--roll", type=float, default=0.0, metavar="DEG", help="the camera's roll: "
+                    "how far the scene's vertical leans clockwise, degrees (silhouettes are turned "
+                    f"upright; within +-{MAX_ROLL_DEG:g}; default 0)")
     ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
                     help="for a person who stays in one place: where the background is "
                          "unreliable, let colour decide on the foreground too (default: fewer "
                          "ghost blobs, some thin limb pixels lost), or take it as sure person")
-    ap.add_argument("--min-area", type=float, default=None, metavar="PERCENT",
-                    help="the smallest person, in percent of the image (default "
-                         f"{DEFAULT_MIN_AREA_PERCENT:g}: about 55 px tall at 640x480; "
-                         f"{MIN_AREA_RANGE_PERCENT[0]:g} to {MIN_AREA_RANGE_PERCENT[1]:g}); "
-                         "lower it for people far away, raise it against clutter")
-    ap.add_argument("--workers", type=int, choices=(1, 2), default=DEFAULT_WORKERS,
-                    help="2 finds the people in a second process (about 1.7x the frames per "
-                         "second, the same poses; not with --view), 1 keeps to one process "
-                         f"(default {DEFAULT_WORKERS} on this machine)")
-    ap.add_argument("--silhouettes", choices=SILHOUETTE_SOURCES, default="auto",
-                    help="background subtraction (a still camera, people who move), a person "
-                         f"segmenter (needs {SEGMENT_INSTALL}), or auto (default): subtraction, "
-                         "but the segmenter where the camera moves or someone stays put (if "
-                         "installed)")
+    low, high, default = *MIN_AREA_RANGE_PERCENT, DEFAULT_MIN_AREA_PERCENT
+    ap.add_argument("--min-area", type=float, default=None, metavar="PERCENT", help="the "
+                    f"smallest person, in percent of the image (default {default:g}: about 55 px "
+                    f"tall at 640x480; {low:g} to {high:g}); lower it for people far away, raise "
+                    "it against clutter")
+    ap.add_argument("--workers", type=int, choices=(1, 2), default=DEFAULT_WORKERS, help="2 finds "
+                    "the people in a second process (about 1.7x the frames per second, the same "
+                    "poses; not with --view), 1 keeps to one process (default "
+                    f"{DEFAULT_WORKERS} on this machine)")
+    ap.add_argument("--silhouettes", choices=SILHOUETTE_SOURCES, default="auto", help="background "
+                    "subtraction (a still camera, people who move), a person segmenter (needs "
+                    f"{SEGMENT_INSTALL}), or auto (default): subtraction, but the segmenter where "
+                    "the camera moves or someone stays put (if installed)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
 
