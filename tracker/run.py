@@ -22,7 +22,7 @@ from tracker.tracks.root_path import drawn_at
 from tracker.frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from tracker.pipeline import PoseTracker, timed
 from tracker.video.silhouettes import median_background
-from tracker.outputs import PoseRecorder, Sink, close_sinks, problem_line
+from tracker.outputs import PoseRecorder, Sink, close_sinks
 from tracker.video.decode import VideoSource, open_video
 
 if TYPE_CHECKING:
@@ -156,12 +156,12 @@ class _Run:
         for tracked in frames_in:
             if self.lagged is None:
                 self.due.append(tracked)
-            elif _smoother_step(self.stages, self.lagged.push, tracked if self.watching
-                                else (*tracked[:2], None, tracked[3], {})):  # poses only
+            elif self.lagged.held(self.stages, "push", tracked if self.watching
+                                  else (*tracked[:2], None, tracked[3], {})):  # poses only
                 raise KeyboardInterrupt
             while self.due:
                 self.emit()
-        if self.lagged is not None and _smoother_step(self.stages, self.lagged.flush):
+        if self.lagged is not None and self.lagged.held(self.stages, "flush"):
             raise KeyboardInterrupt
         while self.due:
             self.emit()
@@ -247,7 +247,7 @@ def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> li
     """After a stop: the frames held back to the files; a problem line if an output failed."""
     try:
         if lagged is not None:
-            _smoother_step(stages, lagged.flush)
+            lagged.held(stages, "flush")
         while due:
             emit(stopped=True)
     except KeyboardInterrupt:
@@ -255,13 +255,6 @@ def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> li
     except Exception as exc:
         return [f"the frames held back for --lag: {type(exc).__name__}: {exc}"]
     return []
-
-
-def _smoother_step(stages, step, *args) -> bool:
-    """A fixed-lag smoother's push or flush, timed, stop signals held; whether one came."""
-    with timed(stages, "fixed-lag smoothing"), _signals_held() as held:
-        step(*args)
-    return bool(held)
 
 
 def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
@@ -361,6 +354,7 @@ def _feed(poses, sinks: Sequence[Sink]) -> list[str]:
             try:
                 sink.write(pose)
             except Exception as exc:
+                from tracker.outputs.failures import problem_line
                 live.remove(sink)
                 problems.append(problem_line(sink, exc))
     return problems
