@@ -41,8 +41,7 @@ _previous_unraisable_hook = sys.unraisablehook
 
 
 def quiet_decoder_logs() -> None:
-    """Keep FFmpeg's and OpenCV's log lines off stderr (unless TRACK_DEBUG is set), where they
-    would repeat a one-line error; call before the first video is opened."""
+    """Keep FFmpeg's and OpenCV's logs off stderr unless TRACK_DEBUG: they repeat our errors."""
     if not os.environ.get("TRACK_DEBUG"):
         os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
         os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")

@@ -280,8 +280,7 @@ class PoseKalmanFilter:
         return cov.updates[ambiguous]
 
     def _first(self, R: np.ndarray, ambiguous: bool) -> "_Covariance":
-        """The first frame's covariance diag(R, rate_std^2 I) (initial_state), one for this
-        filter and its copies (a weak reference: an old one is not kept)."""
+        """The first covariance diag(R, rate_std^2 I), shared by copies (weakly: not kept old)."""
         held = self._start.get(ambiguous)
         cov = None if held is None else held()
         if cov is None:
