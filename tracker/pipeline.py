@@ -98,15 +98,6 @@ def filter_factories(estimator: PoseEstimator, settings: TrackerSettings = Track
     return kalman_factory(estimator, settings), limbs
 
 
-def front_back_tracker(estimator: PoseEstimator, fps: float,
-                       settings: TrackerSettings = TrackerSettings(),
-                       filter_factory: FilterFactory | None = None) -> FrontBackTracker:
-    """A track's front/back hypotheses with the filters of filter_factories."""
-    chain, limbs = filter_factories(estimator, settings, filter_factory)
-    return FrontBackTracker(chain, fps, **chain_options(estimator),
-                            keep_history=settings.keep_history, limb_filter_factory=limbs)
-
-
 @dataclass
 class TrackedPose:
     """One person in one frame: what every sink is given."""

@@ -123,11 +123,10 @@ class BVHSink(ClosedOnExit):
 
     def abandon(self) -> None:
         """Write nothing (a run tracked nobody); remove the folders it made if empty; idempotent."""
-        if self.closed:
-            return
-        self.closed = True
-        self._lock.release()
-        self._remove_made_folders()
+        if not self.closed:
+            self.closed = True
+            self._lock.release()
+            self._remove_made_folders()
 
     def _remove_made_folders(self) -> None:
         """Remove the folders the constructor made, innermost first, while they are empty."""

@@ -25,8 +25,7 @@ SWITCH_PROBABILITY = (0.117, 0.248)
 EVIDENCE_WEIGHT = 1.0                    # exponent per frame of the regressor's evidence
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
 
-#: The canonical chain's (P(canonical -> flip), P(flip -> canonical)) per frame for a model
-#: file without its own priors.
+#: (P(canonical -> flip), P(flip -> canonical)) per frame, for a model without its own priors.
 CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 #: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
 #: the member's every frame, scores a few nats below it and weaker evidence never catches up.

@@ -298,28 +298,17 @@ def _as_bgr(image: np.ndarray) -> np.ndarray:
     return image
 
 
-def scaled_size(width: int, height: int, max_side: int | None) -> tuple[int, int]:
-    """Frame size after shrinking so the longer side is at most ``max_side`` px (never enlarges)."""
-    if max_side is None or max(width, height) <= max_side:
-        return width, height
-    scale = max_side / max(width, height)
-    return max(1, round(width * scale)), max(1, round(height * scale))
-
-
 def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = None,
-               fps: float | None = None, max_side: int | None = None) -> VideoSource:
+               fps: float | None = None) -> VideoSource:
     """Open and check a video file (decoding its first frame); returns a :class:`VideoSource`.
     ``start_s``/``end_s``: seconds from the file's start (end exclusive; None = to the end);
-    ``fps``: frames/s to assume instead of the container's (frames then evenly spaced);
-    ``max_side``: px the longer side is shrunk to (INTER_AREA) if above it. A file, size, rate
-    or time range that cannot be used raises :class:`VideoError`."""
+    ``fps``: frames/s to assume instead of the container's (frames then evenly spaced). A file,
+    size, rate or time range that cannot be used raises :class:`VideoError`."""
     path = Path(path)
     if not path.exists():
         raise VideoError(f"{path}: no such file")
     if not path.is_file():
         raise VideoError(f"{path}: is not a file")
-    if max_side is not None and max_side < MIN_SIDE_PX:
-        raise VideoError(f"{path}: max_side={max_side} is below the minimum of {MIN_SIDE_PX} px")
     capture = _open_capture(path)
     try:
         rate = float(capture.get(cv2.CAP_PROP_FPS)) if fps is None else float(fps)
@@ -353,6 +342,5 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
     if end_index is not None and end_index <= start_index:
         raise VideoError(f"{path}: no frames in the chosen time range ({start_s:g} s to "
                          f"{end_s:g} s at {rate:g} fps)")
-    size = scaled_size(width, height, max_side)
-    return VideoSource(path, rate, frame_count, size, start_index, end_index, end_s=end_s,
-                       container_times=fps is None, start_s=start_s)
+    return VideoSource(path, rate, frame_count, (width, height), start_index, end_index,
+                       end_s=end_s, container_times=fps is None, start_s=start_s)
