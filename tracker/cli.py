@@ -79,10 +79,11 @@ def check_interrupted() -> None:
 class _Progress:
     """A progress bar on stderr (a terminal, no --quiet); then a check for a swallowed stop."""
 
-    def __init__(self, total: int | None, quiet: bool):
+    def __init__(self, source, quiet: bool):
         self._bar = None
         if not quiet and hasattr(sys.stderr, "isatty") and sys.stderr.isatty():
             from tqdm import tqdm
+            total = None if source.end_index is None else source.end_index - source.start_index
             self._bar = tqdm(total=total, unit="frame", file=sys.stderr, dynamic_ncols=True,
                              mininterval=0.25)
 
@@ -417,7 +418,7 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
         tracker = PoseTracker(model, source.fps, settings,
                               extractor=silhouette_extractor(args.silhouettes, settings))
         result = track_video(source, tracker, sinks[:len(streaming)],
-                             _Progress(source.expected_frames(), args.quiet),
+                             _Progress(source, args.quiet),
                              smoothed_sinks=sinks[len(streaming):], background=plate,
                              workers=args.workers, lag_s=lag_seconds(args), write_empty=False)
     except BaseException:

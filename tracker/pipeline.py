@@ -1,6 +1,5 @@
-"""The per-frame tracking: frame -> people -> track ids -> pose per track, filtered. The
-regressor is a PoseEstimator; front/back is decided per track by hypotheses.FrontBackTracker.
-"""
+"""The per-frame tracking: frame -> people -> track ids -> pose per track, filtered. The regressor
+is a PoseEstimator; front/back is decided per track by hypotheses.FrontBackTracker."""
 from __future__ import annotations
 
 import time

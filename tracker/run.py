@@ -74,14 +74,14 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                 smoothed_sinks: Sequence[Sink] = (), background: np.ndarray | None = None,
                 workers: int = 1, lag_s: float = 0.0, write_empty: bool = True) -> TrackRun:
     """Track every frame of ``source`` (an opened video or a path) into ``sinks``: each pose,
-    end_frame() after each frame, and to sinks with write_frame each frame (BGR uint8,
-    read-only) and its people by track id. tracker: None: the shipped model. progress:
+    end_frame() after each frame, and to those with write_frame the frame (BGR uint8, read-only)
+    and its people by track id. tracker: None: the shipped model. progress:
     update(people_in_view), close(). smoothed_sinks: fed each track RTS-smoothed at the end
-    (after a Ctrl-C the streamed poses). A failing sink is fed no more; all are closed on
-    return, also on Ctrl-C, stop signals held; OutputError names the failures. background: a
-    clean plate (BGR uint8 at the video's size), else learned. workers: 2 describes people in
-    a forked process, same results. lag_s: give the sinks each frame about 2 lag_s late,
-    smoothed (tracks.fixed_lag). write_empty: False abandons the sinks if no pose was written."""
+    (after a Ctrl-C as streamed). A failing sink is fed no more; all close on return, also on
+    Ctrl-C, stop signals held; OutputError names the failures. background: a clean plate (BGR
+    uint8, the video's size), else learned. workers: 2 describes people in a forked process
+    (same results). lag_s: each frame about 2 lag_s late, smoothed (tracks.fixed_lag).
+    write_empty: False abandons the sinks if no pose was written."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
@@ -309,12 +309,11 @@ def sampled_background(source: VideoSource, tracker: PoseTracker
     return median_background(frames), frames
 
 
-def _blank(frame: np.ndarray, max_spread: float = 3.0, dark: float = 16.0,
-           bright: float = 240.0) -> bool:
+def _blank(frame: np.ndarray) -> bool:
     """Whether a frame (BGR uint8 (h, w, 3)) is black or white all over: its grey levels'
-    spread under max_spread, their mean under ``dark`` or over ``bright``."""
+    spread under 3, their mean under 16 or over 240."""
     grey = frame[::4, ::4].mean(axis=2)
-    return float(grey.std()) < max_spread and not dark <= float(grey.mean()) <= bright
+    return float(grey.std()) < 3.0 and not 16.0 <= float(grey.mean()) <= 240.0
 
 
 @contextlib.contextmanager

@@ -290,8 +290,7 @@ class PoseKalmanFilter:
         return cov
 
     def copy(self) -> "PoseKalmanFilter":
-        """An independent filter in the same state (sharing its covariance, which only
-        filters' steps replace, and what follows from it): cheap."""
+        """A cheap independent copy: it shares the covariance (steps replace it, never alter it)."""
         return copy.copy(self)
 
     def step(self, raw55) -> tuple[np.ndarray, bool]:

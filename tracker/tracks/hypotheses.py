@@ -175,11 +175,10 @@ class _Frame:
 @dataclass
 class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
-    filter_factory: fps -> a pose filter (tracker.pipeline.FilterFactory); switch (P(raw ->
-    flip), P(flip -> raw)) and evidence_weight: per frame at reference_fps; keep_history: keep
-    every frame for viterbi_path/smoothed; limb_filter_factory: fps -> a filter of the body
-    angles, stepped on the raw pose or the limb member nearer the decided heading (None: the
-    chosen state's)."""
+    filter_factory: fps -> a pose filter (tracker.pipeline.FilterFactory); switch (P(raw -> flip),
+    P(flip -> raw)) and evidence_weight: per frame at reference_fps; keep_history: keep every frame
+    for viterbi_path/smoothed; limb_filter_factory: fps -> a filter of the body angles, stepped on
+    the raw pose or the limb member nearer the decided heading (None: the chosen state's)."""
 
     filter_factory: Callable[[float], object]
     fps: float

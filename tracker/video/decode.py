@@ -132,10 +132,6 @@ class VideoSource:
         self.read_until_s: float | None = None
         self.decoder_threads: int | None = None
 
-    def expected_frames(self) -> int | None:
-        """Frames this source should yield (``end_index - start_index``), None if unknown."""
-        return None if self.end_index is None else self.end_index - self.start_index
-
     def __iter__(self) -> Iterator[VideoFrame]:
         threads = self.decoder_threads       # unset: the one-argument call (as tests stub it)
         capture = _open_capture(self.path) if threads is None else \
@@ -216,10 +212,9 @@ class VideoSource:
         return image
 
     def sample_frames(self, count: int, size: tuple[int, int] | None = None) -> list[np.ndarray]:
-        """Up to ``count`` frames (BGR uint8 (H, W, 3), shrunk to ``size`` (width, height) px
-        if given) evenly spaced over the selected range, e.g. for the empty background.
-        Undecodable frames are passed over; a stream of unknown length is read to its end
-        (its first frames alone would show a person standing in the background)."""
+        """Up to ``count`` frames (BGR uint8 (H, W, 3), at ``size`` (width, height) px if given)
+        spread evenly over the range, undecodable ones passed over; a stream of unknown length is
+        read to its end (its first frames alone could show a person standing in the background)."""
         if self.end_index is None:
             from tracker.video.even_sample import sample_through
             return sample_through(self, count, size)

@@ -446,8 +446,7 @@ class SilhouetteExtractor:
     def learn_zone(self, frames, median: np.ndarray | None = None, threads: int = 1) -> None:
         """After :meth:`prime` with the clip's median image, learn its unreliable zone and
         variance floor from the same frames (list or (N, H, W, 3) BGR uint8), before frame 1;
-        ``median``: that image when the frames are at working size (not computed again);
-        ``threads``: how many may choose the floor (two where two cores are the run's)."""
+        ``median``: that image if the frames are at working size; ``threads``: measuring floors."""
         if self.subtractor.reference is None:
             raise ExtractionError("learn_zone needs prime() with a background image first")
         small = self._working_frames(list(frames))
