@@ -209,7 +209,7 @@ def test_track_with_one_or_two_workers_writes_the_same_json(walk, tmp_path):
 
 def test_the_workers_warnings_are_issued_in_the_main_process(tmp_path):
     """A video cut short warns in the worker, which reads it; the user must still see it."""
-    from tracker.video.decode import VideoTruncatedWarning
+    from tracker.video.stream_report import VideoTruncatedWarning
     source = open_video(cut_off_avi(tmp_path))
     with pytest.warns(VideoTruncatedWarning, match="decoding stopped"):
         run = track_video(source, workers=2)

@@ -131,7 +131,8 @@ def test_body_angles_follow_the_regressors_own_pose_when_the_chain_chooses_the_f
 
 def test_the_trackers_limb_filter_trusts_the_regressor_more_than_the_chains_filters():
     from regressor.pose_model import DEFAULT_MODEL_PATH, load_pose_model
-    from tracker.pipeline import LIMB_R_SCALE, TrackerSettings, front_back_tracker
+    from tracker.pipeline import LIMB_R_SCALE, TrackerSettings
+    from tracker.tracks.proposals import front_back_tracker
     model = load_pose_model(DEFAULT_MODEL_PATH)
     bank = front_back_tracker(model, FPS, TrackerSettings(r_scale=2.0))
     chain, limbs = bank.filter_factory(FPS), bank.limb_filter_factory(FPS)

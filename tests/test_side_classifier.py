@@ -14,7 +14,7 @@ from tracker.tracks.filtering import PoseKalmanFilter
 from tracker.tracks.hypotheses import (CANONICAL_EVIDENCE_WEIGHT, CANONICAL_SWITCH_PROBABILITY,
                                 EVIDENCE_WEIGHT, SWITCH_PROBABILITY, FrontBackTracker,
                                 canonical_hypotheses, chain_options)
-from tracker.pipeline import front_back_tracker
+from tracker.tracks.proposals import front_back_tracker
 
 FPS = 30.0
 

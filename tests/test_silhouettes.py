@@ -207,7 +207,7 @@ def test_frame_size_change_is_refused():
 
 
 @pytest.mark.parametrize("options", [{"working_width": 8}, {"history": 0},
-                                     {"background_ratio": 1.5}, {"learning_rate": 2.0}])
+                                     {"warmup_frames": -1}, {"var_min": 0.0}])
 def test_bad_settings_are_refused(options):
     with pytest.raises(ExtractionError):
         BackgroundSubtractor(**options)

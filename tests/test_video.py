@@ -8,8 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
-from tracker.video.decode import (FrameTimes, VideoError, VideoGrowingWarning, VideoTimingWarning,
-                           VideoTruncatedWarning, _as_bgr, open_video)
+from tracker.video.decode import FrameTimes, VideoError, _as_bgr, open_video
+from tracker.video.stream_report import (VideoGrowingWarning, VideoTimingWarning,
+                                         VideoTruncatedWarning)
 
 #: The sample walk at 30 fps for 6 s, then 10 fps to 12 s (scripts/make_vfr_clip.py): 241 frames;
 #: Matroska announces 30 fps and 361 frames (its duration at 30 fps).
@@ -201,15 +202,13 @@ def test_tiny_resolution_is_refused(tmp_path):
         open_video(path)
 
 
-def test_large_video_is_read_and_can_be_shrunk(tmp_path):
+def test_large_video_is_read(tmp_path):
     frames = flat_frames(2, width=4000, height=3000)
     path = write_video(tmp_path / "large.mp4", frames)
     full = open_video(path)
     assert (full.width, full.height) == (4000, 3000)
-    shrunk = open_video(path, max_side=1000)
-    assert (shrunk.width, shrunk.height) == (1000, 750)
-    (_, _, first), (_, _, second) = list(shrunk)
-    assert first.shape == (750, 1000, 3) and decoded_index(second) == 1
+    (_, _, first), (_, _, second) = list(full)
+    assert first.shape == (3000, 4000, 3) and decoded_index(second) == 1
 
 
 @pytest.mark.parametrize("start_s, end_s", [(-1.0, None), (1.0, 0.5), (100.0, None)])

@@ -1,6 +1,5 @@
-"""Video to tracked 3-D poses: silhouettes, filtering, outputs and the ``track`` command.
-The public names (_PUBLIC) are loaded on first use: a submodule run alone
-(``python -m tracker.outputs.meshcat_server``) does not pay for the filter's imports."""
+"""Video to tracked 3-D poses: silhouettes, filtering, outputs and the ``track`` command. The
+public names (_PUBLIC) load on first use: a submodule run alone does not pay for their imports."""
 import signal
 from importlib import import_module
 

@@ -11,8 +11,7 @@ from tracker.cli import TrackError, _check_writable, _same_file
 
 
 def check_names(args, named: list[tuple[str, Path]]) -> None:
-    """TrackError if one of the ``named`` (what, path) files may be overwritten by a track's
-    BVH file, its partial file or the lock in --bvh."""
+    """TrackError if a ``named`` (what, path) file could be a BVH, partial or lock file in --bvh."""
     bvh_names = re.compile(rf"\.?{re.escape(args.video.stem)}(_\d+\.bvh(\.partial)?|"
                            rf"\.bvh\.lock)")
     for what, path in named:

@@ -10,9 +10,10 @@ import cv2
 import numpy as np
 
 from tracker.cli import TrackError
-from tracker.run import BackgroundMismatchError, nothing_decodes
+from tracker.run import BackgroundMismatchError
+from tracker.video.unopenable import nothing_decodes
 from tracker.video.background import GainMeter, undo_gain
-from tracker.video.decode import VideoSource, colourless, scaled_size
+from tracker.video.decode import VideoSource, colourless
 from tracker.video.silhouettes import median_background
 
 #: A clean plate is refused when, in most of these frames spread over the video, the frame
@@ -52,11 +53,19 @@ def load_background(path: Path, source: VideoSource) -> np.ndarray:
     return image
 
 
+def _scaled_size(width: int, height: int, max_side: int) -> tuple[int, int]:
+    """Frame size after shrinking so the longer side is at most ``max_side`` px (never enlarges)."""
+    if max(width, height) <= max_side:
+        return width, height
+    scale = max_side / max(width, height)
+    return max(1, round(width * scale)), max(1, round(height * scale))
+
+
 def check_plate(source: VideoSource, plate: np.ndarray) -> None:
     """BackgroundMismatchError when the clean plate (BGR uint8 at the video's size) is not of
     this video's scene: another scene or camera, or grey against colour (such a plate makes
     every frame one whole-image "person", or nobody at all)."""
-    size = scaled_size(source.width, source.height, 320)
+    size = _scaled_size(source.width, source.height, 320)
     small = cv2.resize(plate, size, interpolation=cv2.INTER_AREA)
     frames = source.sample_frames(PLATE_CHECK_FRAMES, size=size)
     if not frames:

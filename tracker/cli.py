@@ -21,31 +21,27 @@ EXIT_INTERRUPTED = 130          # the shell's status for a run ended by Ctrl-C (
 ZONE_FOREGROUND = {"sure": True, "colour": False}   # -> TrackerSettings.trust_zone_foreground
 DEFAULT_WORKERS = 2 if (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                         else os.cpu_count() or 1) >= 2 else 1    # 2 with a core to spare
-#: Copies (tests keep them equal) of constants of modules that load numpy or OpenCV, so that
-#: parsing the options loads neither: video.sources.SOURCES and INSTALL_HINT, fixed_lag's
-#: MAX_LAG_S, video.decode.MAX_FPS, video.silhouettes.DEFAULT_MIN_AREA_FRACTION in percent.
+#: Copies (tests keep them equal), so that parsing loads no numpy or OpenCV: video.sources'
+#: SOURCES, INSTALL_HINT; fixed_lag's MAX_LAG_S; decode's MAX_FPS; DEFAULT_MIN_AREA_FRACTION %.
 SILHOUETTE_SOURCES = ("background", "segment", "auto")
 SEGMENT_INSTALL = "pip install 'silhouette-pose[segment]'"
 MAX_LAG_S, MAX_FPS, DEFAULT_MIN_AREA_PERCENT = 10.0, 1000.0, 0.15
 MAX_ROLL_DEG = 90.0     # --roll beyond a quarter turn: the camera upside down, or a wrong sign
 VIEW_LAG_S = 0.5        # --lag when not given, with --view (else 0: the filtered poses at once)
 MAX_TIME_S = 1e8        # past any video (3 years); 1e308 s would overflow the frame arithmetic
-#: --min-area's range, percent of the image: below it noise specks become people, above it
-#: only someone filling a fifth of the image would count.
+#: --min-area's range, % of the image: below, specks become people; above, only a fifth counts.
 MIN_AREA_RANGE_PERCENT = (0.01, 20.0)
 #: What ``track`` alone prints: the usage's first line, and where the rest is.
 SHORT_USAGE = ("usage: track VIDEO [--out FILE.mcap] [--json FILE] [--bvh DIR] [--view] "
                "[options]\ntrack: give a video file to track (track --help lists the options)\n")
 _URL = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://")   # rtsp://, ... (Path would drop a /)
-#: Stop signals received during main(), also if their KeyboardInterrupt was swallowed
-#: (docs/tuning.md).
+#: Stop signals received during main(), also if their KeyboardInterrupt was swallowed.
 _interrupts: list[int] = []
 _previous_unraisable_hook = sys.unraisablehook
 
 
 def quiet_decoder_logs() -> None:
-    """Keep FFmpeg's and OpenCV's log lines off stderr (unless TRACK_DEBUG is set), where they
-    would repeat a one-line error; call before the first video is opened."""
+    """Keep FFmpeg's and OpenCV's logs off stderr unless TRACK_DEBUG: they repeat our errors."""
     if not os.environ.get("TRACK_DEBUG"):
         os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
         os.environ.setdefault("OPENCV_LOG_LEVEL", "OFF")
@@ -66,8 +62,8 @@ def _record_interrupt(number, frame) -> None:
 
 
 def _unraisable_interrupt_recorded(unraisable) -> None:
-    """sys.unraisablehook during main(): records a KeyboardInterrupt Python could not raise
-    (in a weakref callback, a __del__) instead of printing it; passes on anything else."""
+    """sys.unraisablehook during main(): records a KeyboardInterrupt Python could not raise (a
+    weakref callback's, a __del__'s) instead of printing it; passes on anything else."""
     if issubclass(unraisable.exc_type, KeyboardInterrupt):
         _interrupts.append(signal.SIGINT)
         return
@@ -83,10 +79,11 @@ def check_interrupted() -> None:
 class _Progress:
     """A progress bar on stderr (a terminal, no --quiet); then a check for a swallowed stop."""
 
-    def __init__(self, total: int | None, quiet: bool):
+    def __init__(self, source, quiet: bool):
         self._bar = None
         if not quiet and hasattr(sys.stderr, "isatty") and sys.stderr.isatty():
             from tqdm import tqdm
+            total = None if source.end_index is None else source.end_index - source.start_index
             self._bar = tqdm(total=total, unit="frame", file=sys.stderr, dynamic_ncols=True,
                              mininterval=0.25)
 
@@ -139,16 +136,15 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--json", type=_file_name, metavar="FILE", help="write a JSON summary")
     ap.add_argument("--view", action="store_true", help="live 3-D skeletons in meshcat "
                     "(browser, 127.0.0.1), played at the video's own speed")
-    ap.add_argument("--smooth", action=argparse.BooleanOptionalAction, default=True,
-                    help="the JSON and BVH get each whole track RTS-smoothed, the MCAP gets it "
-                    "beside its filtered poses (the default: it follows the body better); "
-                    "--no-smooth: the JSON and BVH get the MCAP's poses (filtered, or --lag's)")
-    ap.add_argument("--lag", type=float, default=None, metavar="S",
-                    help="give the live view and the MCAP's /pose (with --no-smooth, the JSON "
-                    "and BVH too) each pose about 2S seconds late, smoothed over S seconds "
-                    "that followed it: closer to the body than the filter's; 0: the filtered "
-                    f"poses at once (default {VIEW_LAG_S:g} with --view, else 0; at most "
-                    f"{MAX_LAG_S:g})")
+    ap.add_argument("--smooth", action=argparse.BooleanOptionalAction, default=True, help="the "
+                    "JSON and BVH get each whole track RTS-smoothed, the MCAP gets it beside its "
+                    "filtered poses (the default: it follows the body better); --no-smooth: the "
+                    "JSON and BVH get the MCAP's poses (filtered, or --lag's)")
+    ap.add_argument("--lag", type=float, default=None, metavar="S", help="give the live view and "
+                    "the MCAP's /pose (with --no-smooth, the JSON and BVH too) each pose about 2S "
+                    "seconds late, smoothed over S seconds that followed it: closer to the body "
+                    f"than the filter's; 0: the filtered poses at once (default {VIEW_LAG_S:g} "
+                    f"with --view, else 0; at most {MAX_LAG_S:g})")
     ap.add_argument("--model", type=Path, help="model file (default: the shipped model)")
     ap.add_argument("--background", type=Path, metavar="IMAGE", help="an image of the empty "
                     "scene (clean plate) from the same camera (default: learned from the video)")
@@ -156,31 +152,29 @@ def build_parser() -> argparse.ArgumentParser:
                     help="track at most N people per frame (largest first; 1 to 100)")
     ap.add_argument("--start", type=float, default=0.0, metavar="S", help="start at S seconds")
     ap.add_argument("--end", type=float, default=None, metavar="S", help="stop at S seconds")
-    ap.add_argument("--fps", type=float, default=None, metavar="F",
-                    help="the video's frame rate, frames/s, where its file's is missing or wrong "
-                         f"(above 0, at most {MAX_FPS:g}; default: the file's)")
-    ap.add_argument("--roll", type=float, default=0.0, metavar="DEG",
-                    help="the camera's roll: how far the scene's vertical leans clockwise, "
-                         f"degrees (silhouettes are turned upright; within +-{MAX_ROLL_DEG:g}; "
-                         "default 0)")
+    ap.add_argument("--fps", type=float, default=None, metavar="F", help="the video's frame rate, "
+                    "frames/s, where its file's is missing or wrong (above 0, at most "
+                    f"{MAX_FPS:g}; default: the file's)")
+    ap.add_argument("--roll", type=float, default=0.0, metavar="DEG", help="the camera's roll: "
+                    "how far the scene's vertical leans clockwise, degrees (silhouettes are turned "
+                    f"upright; within +-{MAX_ROLL_DEG:g}; default 0)")
     ap.add_argument("--zone-foreground", choices=tuple(ZONE_FOREGROUND), default="colour",
                     help="for a person who stays in one place: where the background is "
                          "unreliable, let colour decide on the foreground too (default: fewer "
                          "ghost blobs, some thin limb pixels lost), or take it as sure person")
-    ap.add_argument("--min-area", type=float, default=None, metavar="PERCENT",
-                    help="the smallest person, in percent of the image (default "
-                         f"{DEFAULT_MIN_AREA_PERCENT:g}: about 55 px tall at 640x480; "
-                         f"{MIN_AREA_RANGE_PERCENT[0]:g} to {MIN_AREA_RANGE_PERCENT[1]:g}); "
-                         "lower it for people far away, raise it against clutter")
-    ap.add_argument("--workers", type=int, choices=(1, 2), default=DEFAULT_WORKERS,
-                    help="2 finds the people in a second process (about 1.7x the frames per "
-                         "second, the same poses; not with --view), 1 keeps to one process "
-                         f"(default {DEFAULT_WORKERS} on this machine)")
-    ap.add_argument("--silhouettes", choices=SILHOUETTE_SOURCES, default="auto",
-                    help="background subtraction (a still camera, people who move), a person "
-                         f"segmenter (needs {SEGMENT_INSTALL}), or auto (default): subtraction, "
-                         "but the segmenter where the camera moves or someone stays put (if "
-                         "installed)")
+    low, high, default = *MIN_AREA_RANGE_PERCENT, DEFAULT_MIN_AREA_PERCENT
+    ap.add_argument("--min-area", type=float, default=None, metavar="PERCENT", help="the "
+                    f"smallest person, in percent of the image (default {default:g}: about 55 px "
+                    f"tall at 640x480; {low:g} to {high:g}); lower it for people far away, raise "
+                    "it against clutter")
+    ap.add_argument("--workers", type=int, choices=(1, 2), default=DEFAULT_WORKERS, help="2 finds "
+                    "the people in a second process (about 1.7x the frames per second, the same "
+                    "poses; not with --view), 1 keeps to one process (default "
+                    f"{DEFAULT_WORKERS} on this machine)")
+    ap.add_argument("--silhouettes", choices=SILHOUETTE_SOURCES, default="auto", help="background "
+                    "subtraction (a still camera, people who move), a person segmenter (needs "
+                    f"{SEGMENT_INSTALL}), or auto (default): subtraction, but the segmenter where "
+                    "the camera moves or someone stays put (if installed)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return ap
 
@@ -424,7 +418,7 @@ def _track_into_outputs(args, source, model, plate) -> tuple:
         tracker = PoseTracker(model, source.fps, settings,
                               extractor=silhouette_extractor(args.silhouettes, settings))
         result = track_video(source, tracker, sinks[:len(streaming)],
-                             _Progress(source.expected_frames(), args.quiet),
+                             _Progress(source, args.quiet),
                              smoothed_sinks=sinks[len(streaming):], background=plate,
                              workers=args.workers, lag_s=lag_seconds(args), write_empty=False)
     except BaseException:

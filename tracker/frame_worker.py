@@ -1,10 +1,7 @@
-"""Decoding, silhouettes and descriptors in a second process, so that ``track`` uses two cores.
-
-A frame's first half (PoseTracker.find_people, .describe) needs nothing from its second, so a
-forked worker runs it ahead on its own copy of the tracker, one thread, for the same results
-(figures: docs/tuning.md). It ignores Ctrl-C and exits when its reader has gone; its errors
-and warnings are raised and issued in the main process after the frames before them.
-"""
+"""Decoding, silhouettes and descriptors in a second process, so that ``track`` uses two cores:
+a forked worker runs each frame's first half (PoseTracker.find_people, .describe) ahead on its
+own copy of the tracker, one thread, for the same results (figures: docs/tuning.md). It ignores
+Ctrl-C, exits when its reader has gone; its errors and warnings reach the main process in order."""
 from __future__ import annotations
 
 import contextlib
@@ -92,8 +89,7 @@ class FrameWorker:
         writer.close()           # the worker's end: its death then ends our reads
 
     def chunks(self) -> Iterator[list[tuple]]:
-        """described_chunks' lists without the frames, in order; the worker's warnings
-        issued, its error raised."""
+        """described_chunks' lists, frames left out; its warnings issued, its error raised."""
         while True:
             try:
                 kind, payload = self._reader.recv()

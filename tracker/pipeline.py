@@ -1,6 +1,5 @@
-"""The per-frame tracking: frame -> people -> track ids -> pose per track, filtered. The
-regressor is a PoseEstimator; front/back is decided per track by hypotheses.FrontBackTracker.
-"""
+"""The per-frame tracking: frame -> people -> track ids -> pose per track, filtered. The regressor
+is a PoseEstimator; front/back is decided per track by hypotheses.FrontBackTracker."""
 from __future__ import annotations
 
 import time
@@ -9,7 +8,6 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from functools import partial
-from typing import Protocol
 
 import numpy as np
 
@@ -27,11 +25,9 @@ from tracker.tracks.root_path import RootHistory, smoothed_roots
 from tracker.outputs.geometry import ground_position_from_image, is_unfamiliar, pose_joints_m
 from tracker.video.decode import ASSUMED_FOV_DEG, colourless, focal_length_px
 
-#: The body angles' filter's R scale: it takes only the white part of the regressor's error
-#: (its validation residual is mostly a slow bias; docs/tuning.md).
+#: The body angles' R scale: only the white part of the regressor's error (docs/tuning.md).
 LIMB_R_SCALE = 0.1
-#: Heading process noise scale: the model's q is dominated by a few training pirouettes, so
-#: the filter followed confident misreadings (docs/tuning.md).
+#: Heading q scale: the model's q, set by a few training pirouettes, followed misreadings.
 HEADING_Q_SCALE = 0.01
 #: The joints' R inflation on ambiguous frames: the main head averages a silhouette's two
 #: bodies there; a model that gives canonical pairs (one body per frame) needs less.
@@ -72,15 +68,9 @@ class TrackerSettings:
                 else AMBIGUOUS_JOINT_FACTOR)
 
 
-class PoseFilter(Protocol):
-    """What the tracker needs of a per-track filter (PoseKalmanFilter is one)."""
-
-    def step(self, raw55: np.ndarray) -> tuple[np.ndarray, bool]: ...    # filtered, ambiguous
-
-    def rts_smooth(self, raws: np.ndarray) -> np.ndarray: ...
-
-
-FilterFactory = Callable[[float], PoseFilter]       # fps -> a new filter
+#: fps -> a new per-track filter with PoseKalmanFilter's step, log_likelihoods, copy and
+#: rts_smooth (the body angles' filter needs only step and rts_smooth).
+FilterFactory = Callable[[float], PoseKalmanFilter]
 
 
 def kalman_factory(estimator: PoseEstimator, settings: TrackerSettings = TrackerSettings()
@@ -105,15 +95,6 @@ def filter_factories(estimator: PoseEstimator, settings: TrackerSettings = Track
     limbs = (None if estimator.canonical_direction is not None else kalman_factory(
         estimator, replace(settings, r_scale=settings.r_scale * settings.limb_r_scale)))
     return kalman_factory(estimator, settings), limbs
-
-
-def front_back_tracker(estimator: PoseEstimator, fps: float,
-                       settings: TrackerSettings = TrackerSettings(),
-                       filter_factory: FilterFactory | None = None) -> FrontBackTracker:
-    """A track's front/back hypotheses with the filters of filter_factories."""
-    chain, limbs = filter_factories(estimator, settings, filter_factory)
-    return FrontBackTracker(chain, fps, **chain_options(estimator),
-                            keep_history=settings.keep_history, limb_filter_factory=limbs)
 
 
 @dataclass
@@ -235,8 +216,7 @@ class PoseTracker:
     def track_frames(self, frames: Sequence[tuple]) -> list[tuple[list[TrackedPose], dict]]:
         """The poses of consecutive frames, each (frame_index, time_s, people (find_people's),
         descriptions (describe()'s, or None: made here)): per frame (its poses, its people by
-        track id). The poses are regressed in one batch (the same results to ~1e-5 degrees),
-        the rest goes frame by frame."""
+        track id). The poses are regressed in one batch (the same to ~1e-5 degrees)."""
         rows, people_by_frame = [], []
         for slot, (frame_index, time_s, people, descriptions) in enumerate(frames):
             with timed(self.stage_seconds, "association"):

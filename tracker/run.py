@@ -1,11 +1,5 @@
 """THE tracking loop (``track``'s, the evaluation's, the benchmark's): open the video, learn
-its background, track every frame, feed the sinks. From a notebook::
-
-    from tracker import PoseRecorder, track_video
-    recorder = PoseRecorder()
-    track_video("sequences/data/sample_spiral_walk.mp4", sinks=[recorder])
-    poses = recorder.poses          # TrackedPose per person per frame: .filtered (55,), ...
-"""
+its background, track every frame, feed the sinks (from Python: README, "From Python")."""
 from __future__ import annotations
 
 import contextlib
@@ -28,8 +22,8 @@ from tracker.tracks.root_path import drawn_at
 from tracker.frame_worker import BATCH_FRAMES, FrameWorker, can_fork, described_chunks
 from tracker.pipeline import PoseTracker, timed
 from tracker.video.silhouettes import median_background
-from tracker.outputs import PoseRecorder, Sink, close_sinks, problem_line
-from tracker.video.decode import VideoError, VideoSource, open_video
+from tracker.outputs import PoseRecorder, Sink, close_sinks
+from tracker.video.decode import VideoSource, open_video
 
 if TYPE_CHECKING:
     from tracker.tracks.fixed_lag import FixedLagSmoother
@@ -80,14 +74,14 @@ def track_video(source: VideoSource | str | Path, tracker: PoseTracker | None = 
                 smoothed_sinks: Sequence[Sink] = (), background: np.ndarray | None = None,
                 workers: int = 1, lag_s: float = 0.0, write_empty: bool = True) -> TrackRun:
     """Track every frame of ``source`` (an opened video or a path) into ``sinks``: each pose,
-    end_frame() after each frame, and to sinks with write_frame each frame (BGR uint8,
-    read-only) and its people by track id. tracker: None: the shipped model. progress:
+    end_frame() after each frame, and to those with write_frame the frame (BGR uint8, read-only)
+    and its people by track id. tracker: None: the shipped model. progress:
     update(people_in_view), close(). smoothed_sinks: fed each track RTS-smoothed at the end
-    (after a Ctrl-C the streamed poses). A failing sink is fed no more; all are closed on
-    return, also on Ctrl-C, stop signals held; OutputError names the failures. background: a
-    clean plate (BGR uint8 at the video's size), else learned. workers: 2 describes people in
-    a forked process, same results. lag_s: give the sinks each frame about 2 lag_s late,
-    smoothed (tracks.fixed_lag). write_empty: False abandons the sinks if no pose was written."""
+    (after a Ctrl-C as streamed). A failing sink is fed no more; all close on return, also on
+    Ctrl-C, stop signals held; OutputError names the failures. background: a clean plate (BGR
+    uint8, the video's size), else learned. workers: 2 describes people in a forked process
+    (same results). lag_s: each frame about 2 lag_s late, smoothed (tracks.fixed_lag).
+    write_empty: False abandons the sinks if no pose was written."""
     if workers not in (1, 2):
         raise ValueError(f"workers={workers} must be 1 or 2")
     if not isinstance(source, VideoSource):
@@ -158,17 +152,16 @@ class _Run:
         self.due: deque = deque() if self.lagged is None else self.lagged.ready
 
     def track(self, frames_in: Iterator[tuple]) -> None:
-        """Hand every tracked frame to the outputs (through the smoother with a lag);
-        KeyboardInterrupt when a stop signal came."""
+        """Hand each tracked frame to the outputs (lag: smoothed); KeyboardInterrupt on a stop."""
         for tracked in frames_in:
             if self.lagged is None:
                 self.due.append(tracked)
-            elif _smoother_step(self.stages, self.lagged.push, tracked if self.watching
-                                else (*tracked[:2], None, tracked[3], {})):  # poses only
+            elif self.lagged.held(self.stages, "push", tracked if self.watching
+                                  else (*tracked[:2], None, tracked[3], {})):  # poses only
                 raise KeyboardInterrupt
             while self.due:
                 self.emit()
-        if self.lagged is not None and _smoother_step(self.stages, self.lagged.flush):
+        if self.lagged is not None and self.lagged.held(self.stages, "flush"):
             raise KeyboardInterrupt
         while self.due:
             self.emit()
@@ -232,8 +225,7 @@ class _Run:
         return interrupted, smoothed, problems
 
     def _feed_smoothed_sinks(self, interrupted: bool) -> list[str]:
-        """Feed the smoothed sinks each track RTS-smoothed in frame order, or after a stop the
-        streamed poses; returns problem lines."""
+        """Feed the smoothed sinks each track RTS-smoothed (after a stop: as streamed); problems."""
         if self.recorder is None:
             return []
         if interrupted:
@@ -255,7 +247,7 @@ def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> li
     """After a stop: the frames held back to the files; a problem line if an output failed."""
     try:
         if lagged is not None:
-            _smoother_step(stages, lagged.flush)
+            lagged.held(stages, "flush")
         while due:
             emit(stopped=True)
     except KeyboardInterrupt:
@@ -263,13 +255,6 @@ def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> li
     except Exception as exc:
         return [f"the frames held back for --lag: {type(exc).__name__}: {exc}"]
     return []
-
-
-def _smoother_step(stages, step, *args) -> bool:
-    """A fixed-lag smoother's push or flush, timed, stop signals held; whether one came."""
-    with timed(stages, "fixed-lag smoothing"), _signals_held() as held:
-        step(*args)
-    return bool(held)
 
 
 def _from_worker(worker: FrameWorker, tracker: PoseTracker) -> Iterator[tuple]:
@@ -310,13 +295,13 @@ def _prime(source: VideoSource, tracker: PoseTracker, background: np.ndarray | N
 
 def sampled_background(source: VideoSource, tracker: PoseTracker
                        ) -> tuple[np.ndarray, list[np.ndarray]]:
-    """(the median of frames spread over the video, those frames), BGR uint8 at the
-    extractor's working size."""
+    """(the median of frames spread over the video, those frames), BGR uint8 at working size."""
     full = (source.width, source.height)
     subtractor = getattr(tracker.extractor, "subtractor", None)
     size = subtractor.working_size(*full) if hasattr(subtractor, "working_size") else full
     frames = source.sample_frames(tracker.settings.background_samples, size=size)
     if not frames:
+        from tracker.video.unopenable import nothing_decodes     # a file that decodes nothing
         raise nothing_decodes(source)
     # Black or white frames (before a fade-in) are no picture of the scene.
     scenes = [f for f in frames if not _blank(f)]
@@ -324,25 +309,16 @@ def sampled_background(source: VideoSource, tracker: PoseTracker
     return median_background(frames), frames
 
 
-def nothing_decodes(source: VideoSource) -> VideoError:
-    """The error for a file that opened but decodes nothing in the range asked for."""
-    start_s = source.start_index / source.fps
-    return VideoError(f"{source.path}: no decodable frames from {start_s:g} s on (a cut-off "
-                      f"or damaged file?)")
-
-
-def _blank(frame: np.ndarray, max_spread: float = 3.0, dark: float = 16.0,
-           bright: float = 240.0) -> bool:
+def _blank(frame: np.ndarray) -> bool:
     """Whether a frame (BGR uint8 (h, w, 3)) is black or white all over: its grey levels'
-    spread under max_spread, their mean under ``dark`` or over ``bright``."""
+    spread under 3, their mean under 16 or over 240."""
     grey = frame[::4, ::4].mean(axis=2)
-    return float(grey.std()) < max_spread and not dark <= float(grey.mean()) <= bright
+    return float(grey.std()) < 3.0 and not 16.0 <= float(grey.mean()) <= 240.0
 
 
 @contextlib.contextmanager
 def _signals_held() -> Iterator[list[int]]:
-    """Hold back the stop signals inside the block (main thread only); yields the list of
-    those received."""
+    """Hold back the stop signals inside the block (main thread only); yields those received."""
     held: list[int] = []
     previous = {}
     if threading.current_thread() is threading.main_thread():
@@ -361,8 +337,7 @@ def _signals_held() -> Iterator[list[int]]:
 
 @contextlib.contextmanager
 def _stop_signals_blocked() -> Iterator[None]:
-    """Block the stop signals while their handlers are swapped; one that came is delivered on
-    leaving."""
+    """Block the stop signals while handlers are swapped; one that came is delivered on leaving."""
     before = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:
         yield
@@ -378,6 +353,7 @@ def _feed(poses, sinks: Sequence[Sink]) -> list[str]:
             try:
                 sink.write(pose)
             except Exception as exc:
+                from tracker.outputs.failures import problem_line
                 live.remove(sink)
                 problems.append(problem_line(sink, exc))
     return problems

@@ -48,7 +48,8 @@ from tracker.tracks.filtering import ConstantVelocityFilter
 from tracker.tracks.filterpy_runs import forward
 from tracker.tracks.fixed_lag import replay
 from tracker.tracks.proposals import propose_sequence
-from tracker.pipeline import PoseTracker, TrackerSettings, front_back_tracker
+from tracker.pipeline import PoseTracker, TrackerSettings
+from tracker.tracks.proposals import front_back_tracker
 from tracker.run import track_video
 from tracker.outputs import PoseRecorder
 from tracker.video.decode import open_video

@@ -1,12 +1,10 @@
 """Outputs of the tracker, sinks taking the calls of :class:`Sink`; optional: write_frame() and
 discard() (MeshcatView), ``pose_kind`` (set by tracker.run.track_video), ``option`` (e.g.
-"--json", for problem_line) and ``abandon()`` (files: close_sinks)."""
+"--json", for failures.problem_line) and ``abandon()`` (files: close_sinks)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Protocol
-
-from tracker.outputs.files import OutputWriteError
 
 if TYPE_CHECKING:
     from tracker.pipeline import TrackedPose
@@ -64,15 +62,6 @@ def open_sinks(factories: Iterable[Callable[[], Sink]]) -> list[Sink]:
     return opened
 
 
-def problem_line(sink: Sink, exc: BaseException) -> str:
-    """One line for a sink's failure, led by its ``option`` ("--json /dev/full: No space left on
-    device": an OutputWriteError starts with its file; "--view: ...") or else its class."""
-    option = getattr(sink, "option", None)
-    if option is None:
-        return f"{type(sink).__name__}: {exc}"
-    return f"{option} {exc}" if isinstance(exc, OutputWriteError) else f"{option}: {exc}"
-
-
 def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
     """Close every sink, even when some fail; one line per failure (problem_line). abandon: the
     run tracked nobody: sinks with ``abandon()`` (files) stop without writing, the others close."""
@@ -81,5 +70,6 @@ def close_sinks(sinks: Iterable[Sink], abandon: bool = False) -> list[str]:
         try:
             (sink.abandon if abandon and hasattr(sink, "abandon") else sink.close)()
         except Exception as exc:
+            from tracker.outputs.failures import problem_line      # only on a failure
             problems.append(problem_line(sink, exc))
     return problems

@@ -7,8 +7,8 @@ import os
 import warnings
 from pathlib import Path
 
-from tracker.outputs.files import (OutputWriteError, beside_name, busy_error, holds_data,
-                                   same_file)
+from tracker.outputs.failures import busy_error
+from tracker.outputs.files import OutputWriteError, beside_name, holds_data, same_file
 
 
 def set_aside(path: Path) -> Path | None:

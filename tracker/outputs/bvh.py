@@ -14,7 +14,7 @@ from sequences.motion import Motion
 from sequences.skeleton import CMU_JOINT_NAMES, CMU_PARENTS, CMU_REST_OFFSETS, CMU_UNIT_M
 from sequences.skeleton_tables import CMU_REST_END_SITES
 from tracker.outputs.atomic import LockFile, write_beside
-from tracker.outputs.files import beside_name
+from tracker.outputs.files import ClosedOnExit, beside_name
 from tracker.outputs.geometry import SinkInputError, check_joints, check_pose, checked_time
 
 if TYPE_CHECKING:
@@ -37,16 +37,15 @@ def default_cmu_template(fps: float) -> Motion:
 
 
 def regular_rows(times_s: np.ndarray, fps: float) -> np.ndarray:
-    """Which row each frame of a regular grid at ``fps`` from times_s[0] to times_s[-1] holds:
-    the latest row whose time is at or before the grid time plus half a grid step (a time
-    rounded a little late still lands on its own frame). times_s: (N,) increasing seconds.
-    Returns (round((times_s[-1] - times_s[0]) fps) + 1,) ints."""
+    """Rows (round((times_s[-1] - times_s[0]) fps) + 1,) int of a regular grid at ``fps`` over
+    times_s (N,) increasing seconds: the latest at or before the grid time plus half a step (a
+    time rounded a little late still lands on its own frame)."""
     count = int(round((times_s[-1] - times_s[0]) * fps)) + 1
     grid = times_s[0] + (np.arange(count) + 0.5) / fps
     return np.maximum(np.searchsorted(times_s, grid, side="right") - 1, 0)
 
 
-class BVHSink:
+class BVHSink(ClosedOnExit):
     """Collect each track's poses and root positions; write one BVH per track on close.
     directory: where files go (created if missing); files are ``<prefix>_<track id>.bvh``.
     fps: video frame rate (frames per second of the frame indices). template: the skeleton
@@ -77,9 +76,8 @@ class BVHSink:
             raise
 
     def write(self, pose: TrackedPose) -> None:
-        """Keep pose.filtered (55,), the Hips position pose.joints_m[0] (metres) and the time
-        pose.time_s (seconds) of this track and frame. Frame indices and times of a track must
-        increase. Raises SinkInputError on bad input."""
+        """Keep pose.filtered (55,), Hips position pose.joints_m[0] (m) and pose.time_s (s) of
+        this track and frame; a track's frames and times must increase (else SinkInputError)."""
         if self.closed:
             raise SinkInputError("BVH sink is closed")
         frame_index, track_id = pose.frame_index, pose.track_id
@@ -115,8 +113,7 @@ class BVHSink:
             for track_id in sorted(self._tracks):
                 if len(self._tracks[track_id]) < self.min_frames:
                     continue
-                # A name past the file system's limit (a long video name, a track id of many
-                # digits) gets its prefix cut and hashed, as the partial and lock names do.
+                # A name past the file system's limit gets its prefix cut and hashed (beside_name).
                 path = beside_name(self.directory / self.prefix, f"_{track_id}.bvh")
                 motion = self.motion(track_id)
                 write_beside(path, lambda partial: write_bvh(partial, motion))
@@ -125,13 +122,11 @@ class BVHSink:
             self._lock.release()
 
     def abandon(self) -> None:
-        """Stop without writing any file (a run that tracked nobody), removing the folders it
-        made if they are still empty; idempotent."""
-        if self.closed:
-            return
-        self.closed = True
-        self._lock.release()
-        self._remove_made_folders()
+        """Write nothing (a run tracked nobody); remove the folders it made if empty; idempotent."""
+        if not self.closed:
+            self.closed = True
+            self._lock.release()
+            self._remove_made_folders()
 
     def _remove_made_folders(self) -> None:
         """Remove the folders the constructor made, innermost first, while they are empty."""
@@ -140,9 +135,3 @@ class BVHSink:
                 folder.rmdir()
             except OSError:                 # not empty (someone else's files): kept
                 break
-
-    def __enter__(self) -> "BVHSink":
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        self.close()

@@ -34,6 +34,16 @@ class OutputWriteError(_FileError):
     """Writing an output failed (disk full, I/O error); one line naming the file."""
 
 
+class ClosedOnExit:
+    """A sink that a ``with`` block closes (close()) on leaving."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+
 _STREAM = re.compile(r"/(?:proc/self|dev)/fd/(\d+)|/dev/std(in|out|err)")
 
 
@@ -80,14 +90,6 @@ def file_identity(path: str | Path) -> tuple:
         return ("path", os.path.realpath(path))
 
 
-def busy_error(path: Path, changing: bool = False) -> OutputBusyError:
-    """The error for an output another process holds locked (or keeps replacing)."""
-    problem = ("kept changing while being locked; another track run is writing this output"
-               if changing else "another track run is writing this output; wait for it to "
-               "finish or choose another file name")
-    return OutputBusyError(f"{path}: {problem}", path)
-
-
 def same_file(path: Path, fd: int) -> bool:
     """Whether ``path`` still names the file open as ``fd`` (not renamed or removed since)."""
     try:
@@ -104,6 +106,7 @@ def open_locked(path: Path, flags: int) -> int:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             os.close(fd)
+            from tracker.outputs.failures import busy_error     # only on a refusal
             raise busy_error(path) from None
         except BaseException:
             os.close(fd)
@@ -111,6 +114,7 @@ def open_locked(path: Path, flags: int) -> int:
         if same_file(path, fd):
             return fd
         os.close(fd)     # we locked a file nobody will look at: start again on the current one
+    from tracker.outputs.failures import busy_error
     raise busy_error(path, changing=True)
 
 

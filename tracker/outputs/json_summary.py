@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tracker.outputs.files import OutputFile
+from tracker.outputs.files import ClosedOnExit, OutputFile
 from tracker.outputs.geometry import (SinkInputError, check_centroid, check_joints, check_pose,
                                       checked_probability, checked_time, heading_deg,
                                       is_unfamiliar, known_novelty)
@@ -26,7 +26,7 @@ _DECIMALS = 6
 POSES = ("filtered", "smoothed", "fixed-lag smoothed")
 
 
-class JsonSummarySink:
+class JsonSummarySink(ClosedOnExit):
     """Collect per-track results and write the summary to ``path`` on close. poses: one of POSES
     (``pose_kind``). clock: seconds counter for the speed achieved (tests fix it)."""
 
@@ -125,9 +125,3 @@ class JsonSummarySink:
         if not self.closed:
             self.closed = True
             self._file.discard()
-
-    def __enter__(self) -> "JsonSummarySink":
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        self.close()

@@ -19,7 +19,7 @@ import orjson
 from mcap.writer import CompressionType, Writer
 
 from sequences.pose_vector import pose_vector_names
-from tracker.outputs.files import OutputFile
+from tracker.outputs.files import ClosedOnExit, OutputFile
 from tracker.outputs.geometry import (BONE_INDEX, BONE_SIDE, JOINT_SIDE, SinkInputError,
                                       body_colours, check_centroid, check_joints, check_pose,
                                       checked_probability, checked_time, heading_deg,
@@ -31,12 +31,10 @@ if TYPE_CHECKING:
 
 #: Drawing sizes in metres.
 BONE_THICKNESS_M, JOINT_DIAMETER_M, HEAD_DIAMETER_M, TRAIL_THICKNESS_M = 0.07, 0.1, 0.22, 0.06
-#: Opacity of bodies in ambiguous frames.
-AMBIGUOUS_ALPHA = 0.5
+AMBIGUOUS_ALPHA = 0.5       # opacity of bodies in ambiguous frames
 #: A track's trail (pelvis path) covers this many seconds and is redrawn every TRAIL_EVERY frames.
 TRAIL_S, TRAIL_EVERY = 8.0, 10
-#: Seconds a body (a trail) stays drawn unless drawn again, so that a person who left does not
-#: stay standing; longer than a frame down to 1 frame/s (docs/code_notes/outputs.md).
+#: Seconds a body (a trail) stays drawn unless drawn again: one who left does not stay (code_notes).
 SKELETON_LIFETIME_S, TRAIL_LIFETIME_S = 1.0, 3.0
 _DECIMALS = 6  # JSON rounding: 1e-6 degrees or units is far below any estimate's accuracy
 _GEOMETRY_DECIMALS = 3   # 1 mm and 1e-3 of a quaternion: below what a drawing shows
@@ -82,8 +80,7 @@ def _placed(x: float, y: float, z: float, orientation: dict = _NO_TURN) -> dict:
 
 @functools.lru_cache(maxsize=128)
 def _body_style(track_id: int, ambiguous: bool, unfamiliar: bool) -> tuple[list, list, dict, str]:
-    """Per bone and per sphere (18 joints, head) colour dicts, the label's colour and text
-    (shared by a track's messages, which are only read)."""
+    """Per bone and sphere (18 joints, head) colour dicts, the label's colour and text (shared)."""
     colours = body_colours(track_id)
     alpha = AMBIGUOUS_ALPHA if ambiguous else 1.0
     r, g, b = track_colour(track_id)
@@ -209,7 +206,7 @@ class _SceneStream:
         self.shown: set[int] = set()
 
 
-class McapSink:
+class McapSink(ClosedOnExit):
     """Record tracked poses and skeletons into the MCAP file ``path`` (module docstring).
     metadata: name -> {key: value} records (values that are not strings stored as JSON).
     chunk_size: uncompressed bytes per chunk; flush_every_frames: frames per chunk at most."""
@@ -394,12 +391,6 @@ class McapSink:
             self._state["done"] = True
             self._finalizer.detach()
             self._state["stream"].discard()
-
-    def __enter__(self) -> McapSink:
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        self.close()
 
 
 class SmoothedChannel:

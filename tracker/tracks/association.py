@@ -85,15 +85,14 @@ _LIMITS = {"max_distance": "(0, inf)", "max_area_ratio": "[1, inf)", "size_weigh
 
 @dataclass(eq=False)
 class Associator:
-    """Frame-to-frame association of detections to track ids (see the module docstring). A pair
-    is gated beyond ``max_distance`` sizes (one more per frame coasted), or when the areas
-    differ by more than ``max_area_ratio`` and the boxes overlap by less than
-    ``min_box_overlap`` (a silhouette that grows in place keeps its id). A detection below
-    ``min_relative_area`` of the largest track's waits ``min_hits`` frames for its id; a track
-    unmatched ``max_missed`` frames is dropped. ``smoothing``, ``colour_rate``: weight of the
-    newest frame in velocity and area, colour. ``use_boxes``: False ignores boxes (no groups).
-    ``max_occluded``, ``min_height_ratio``: frames in a group (0: none), members' heights
-    (tracker.tracks.groups)."""
+    """Frame-to-frame association of detections to track ids (see the module docstring). A pair is
+    gated beyond ``max_distance`` sizes (one more per frame coasted), or when the areas differ by
+    more than ``max_area_ratio`` and the boxes overlap by less than ``min_box_overlap`` (a
+    silhouette that grows in place keeps its id). A detection below ``min_relative_area`` of the
+    largest track's waits ``min_hits`` frames for its id; a track unmatched ``max_missed`` frames
+    is dropped. ``smoothing``, ``colour_rate``: weight of the newest frame in velocity and area,
+    colour. ``use_boxes``: False ignores boxes (no groups). ``max_occluded``, ``min_height_ratio``:
+    frames in a group (0: none), members' heights (tracker.tracks.groups)."""
 
     max_distance: float = 1.0
     max_area_ratio: float = 1.8

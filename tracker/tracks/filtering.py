@@ -109,8 +109,7 @@ class ConstantVelocityFilter:
         return smoothed
 
     def _predict(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q (_predict_state,
-        _predict_covariance)."""
+        """x (2n,), P (2n, 2n) one frame ahead: F x and F P F' + Q."""
         return self._predict_state(x), self._predict_covariance(P)
 
     def _predict_state(self, x: np.ndarray) -> np.ndarray:
@@ -168,10 +167,9 @@ def _unwrap_against(z: np.ndarray, predicted: np.ndarray) -> np.ndarray:
 
 
 class _Covariance:
-    """A filter's state covariance P (108, 108) and what follows from it alone, computed once
-    for every filter in it (copies: a track's front/back hypotheses continue one filter):
-    its prediction, and per ambiguity the innovation factor and the update (PoseKalmanFilter).
-    The covariance never depends on the measured values, only on the ambiguous flags."""
+    """A state covariance P (108, 108) and what follows from it alone (its prediction; per
+    ambiguity the innovation factor and update), computed once for all filters holding it (a
+    track's hypotheses' copies): it depends on the ambiguous flags, never on measured values."""
 
     __slots__ = ("P", "_predicted", "factors", "updates", "__weakref__")
 
@@ -261,8 +259,7 @@ class PoseKalmanFilter:
         return self._x_pred
 
     def _factor(self, ambiguous: bool) -> tuple[np.ndarray, float]:
-        """Lower Cholesky factor of H P_pred H' + R (54, 54) and its log-determinant, cached
-        with the covariance."""
+        """Lower Cholesky factor of H P_pred H' + R (54, 54) and its log-determinant (cached)."""
         cov = self._cov
         if ambiguous not in cov.factors:
             R = self.R_ambiguous if ambiguous else self.R
@@ -283,8 +280,7 @@ class PoseKalmanFilter:
         return cov.updates[ambiguous]
 
     def _first(self, R: np.ndarray, ambiguous: bool) -> "_Covariance":
-        """The first frame's covariance diag(R, rate_std^2 I) (initial_state), one for this
-        filter and its copies (a weak reference: an old one is not kept)."""
+        """The first covariance diag(R, rate_std^2 I), shared by copies (weakly: not kept old)."""
         held = self._start.get(ambiguous)
         cov = None if held is None else held()
         if cov is None:
@@ -294,8 +290,7 @@ class PoseKalmanFilter:
         return cov
 
     def copy(self) -> "PoseKalmanFilter":
-        """An independent filter in the same state (sharing its covariance, which only
-        filters' steps replace, and what follows from it): cheap."""
+        """A cheap independent copy: it shares the covariance (steps replace it, never alter it)."""
         return copy.copy(self)
 
     def step(self, raw55) -> tuple[np.ndarray, bool]:

@@ -1,19 +1,11 @@
 """Front/back hypotheses carried over time: which of the regressor's poses is the true one.
-
-A silhouette cannot tell a body from its reflection in depth (sequences.pose_vector.
-front_back_flip). Each frame gives K hypotheses: the pose and its flip (per expert for a
-mixture), or the limbs' canonical member and its flip (:func:`canonical_hypotheses`). A hidden
-Markov model over s_t in {0..K-1} with one Kalman filter per state (a GPB / IMM filter bank):
-
-    alpha_t(j) = e_t(j) * sum_i alpha_{t-1}(i) A_ij N(z_t(j); filter i's prediction)
-
-A: switching probabilities; N: the innovation likelihood (filter j continues the best
-predecessor's: a flip is a switch, not a jump of the body); e_t(j): the frame's own evidence.
-Output: the most probable state's filtered pose, or the Viterbi path RTS-smoothed (docs/tuning.md).
-"""
+A silhouette cannot tell a body from its reflection in depth (pose_vector.front_back_flip). Each
+frame gives K hypotheses: the pose and its flip (per expert for a mixture), or the limbs'
+canonical member and its flip. A hidden Markov model over them, one Kalman filter per state (a
+GPB / IMM filter bank; its recursion: docs/tuning.md), gives the most probable state's filtered
+pose, or the Viterbi path RTS-smoothed."""
 from __future__ import annotations
 
-import copy
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -33,8 +25,7 @@ SWITCH_PROBABILITY = (0.117, 0.248)
 EVIDENCE_WEIGHT = 1.0                    # exponent per frame of the regressor's evidence
 CLOSE_PROBABILITY = 0.2                  # the runner-up is reported from this probability on
 
-#: The canonical chain's (P(canonical -> flip), P(flip -> canonical)) per frame for a model
-#: file without its own priors.
+#: (P(canonical -> flip), P(flip -> canonical)) per frame, for a model without its own priors.
 CANONICAL_SWITCH_PROBABILITY = (0.025, 0.041)
 #: EVIDENCE_WEIGHT for the canonical chain: above 1, since a flip's filter, restarted from
 #: the member's every frame, scores a few nats below it and weaker evidence never catches up.
@@ -184,10 +175,9 @@ class _Frame:
 @dataclass
 class FrontBackTracker:
     """Per-track front/back (and expert) hypotheses over time (see the module docstring).
-    filter_factory: fps -> a pose filter (tracker.pipeline.PoseFilter; without
-    ``log_likelihoods`` only the evidence scores); switch (P(raw -> flip), P(flip -> raw)) and
-    evidence_weight: per frame at reference_fps; keep_history: keep every frame for
-    viterbi_path/smoothed; limb_filter_factory: fps -> a filter of the body angles, stepped on
+    filter_factory: fps -> a pose filter (tracker.pipeline.FilterFactory); switch (P(raw -> flip),
+    P(flip -> raw)) and evidence_weight: per frame at reference_fps; keep_history: keep every frame
+    for viterbi_path/smoothed; limb_filter_factory: fps -> a filter of the body angles, stepped on
     the raw pose or the limb member nearer the decided heading (None: the chosen state's)."""
 
     filter_factory: Callable[[float], object]
@@ -213,8 +203,7 @@ class FrontBackTracker:
             self.filters = self._new_filters(K)
             self.log_alpha, link = _log_stationary(log_A) + evidence, None
         else:
-            ll = np.array([f.log_likelihoods(poses) if hasattr(f, "log_likelihoods")
-                           else np.zeros(K) for f in self.filters])
+            ll = np.array([f.log_likelihoods(poses) for f in self.filters])
             link = log_A + rate * ll
             scores = self.log_alpha[:, None] + link
             self.filters = self._continue(scores.argmax(axis=0))
@@ -258,11 +247,8 @@ class FrontBackTracker:
         return tuple(float(-np.expm1(rate * np.log1p(-p))) for p in self.switch)
 
     def _new_filters(self, K: int) -> list:
-        """K new filters: copies of one when it can copy itself (so that they may share
-        what does not depend on the measurements), else each the factory's."""
+        """K new filters, copies of one: they share what does not depend on the measurements."""
         first = self.filter_factory(self.fps)
-        if not hasattr(first, "copy"):
-            return [first] + [self.filter_factory(self.fps) for _ in range(K - 1)]
         return [first] + [first.copy() for _ in range(K - 1)]
 
     def _continue(self, predecessor: np.ndarray) -> list:
@@ -271,7 +257,7 @@ class FrontBackTracker:
         for k, i in enumerate(predecessor):
             f = self.filters[int(i)]
             if i in predecessor[:k]:
-                f = f.copy() if hasattr(f, "copy") else copy.deepcopy(f)
+                f = f.copy()
             out.append(f)
         return out
 

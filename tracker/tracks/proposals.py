@@ -7,9 +7,20 @@ import numpy as np
 
 from regressor.estimator import PoseEstimator
 from regressor.stacking import stack_frames
-from tracker.tracks.hypotheses import (DEFAULT_EXPERTS, Hypotheses, canonical_priors,
-                                       hypotheses_from)
+from tracker.pipeline import FilterFactory, TrackerSettings, filter_factories
+from tracker.tracks.hypotheses import (DEFAULT_EXPERTS, FrontBackTracker, Hypotheses,
+                                       canonical_priors, chain_options, hypotheses_from)
 from tracker.tracks.mirror_limbs import sees_mirror
+
+
+def front_back_tracker(estimator: PoseEstimator, fps: float,
+                       settings: TrackerSettings = TrackerSettings(),
+                       filter_factory: FilterFactory | None = None) -> FrontBackTracker:
+    """A track's front/back hypotheses with the filters of filter_factories, as PoseTracker
+    makes them (for the evaluations)."""
+    chain, limbs = filter_factories(estimator, settings, filter_factory)
+    return FrontBackTracker(chain, fps, **chain_options(estimator),
+                            keep_history=settings.keep_history, limb_filter_factory=limbs)
 
 
 def propose_batch(estimator: PoseEstimator, stacked: np.ndarray,

@@ -1,7 +1,6 @@
 """Each track's root (hip) path smoothed over time, for the smoothed outputs: the root, placed
 per frame from the silhouette's box, jitters with it as the limbs move; the outputs take a line
-fitted with Gaussian weights about each pose's time (no lag, no pull at a track's ends or gaps).
-"""
+fitted with Gaussian weights about each pose's time (no lag, no pull at a track's ends or gaps)."""
 from __future__ import annotations
 
 from array import array

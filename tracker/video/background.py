@@ -98,14 +98,13 @@ class GainMeter:
         f = self._channels(frame)
         ok = self._usable & (f < 250).all(axis=0)
         ratio = np.compress(ok, f, axis=1)                                  # (3, n ok)
-        count = ratio.shape[1]
-        if count < 16:
+        if ratio.shape[1] < 16:
             return np.ones(3, np.float32)
         ratio /= np.compress(ok, self._background, axis=1)
-        return _row_medians(ratio)
+        return row_medians(ratio)
 
 
-def _row_medians(values: np.ndarray) -> np.ndarray:
+def row_medians(values: np.ndarray) -> np.ndarray:
     """np.median(values, axis=1) of float32 (3, n) without NaN, by a partial sort in place."""
     half = values.shape[1] // 2
     if values.shape[1] % 2:

@@ -13,8 +13,7 @@ from tracker.video.area_shrink import shrink
 
 #: Width (px) of the grey copies compared: a 160x120 phase correlation costs about 0.3 ms.
 ANALYSIS_WIDTH = 160
-#: A shift of at least this fraction of the frame width is camera motion (1.6 px at
-#: ANALYSIS_WIDTH; a still scene's phase correlation stays within about 0.2 px).
+#: Camera motion: a shift of at least this fraction of the width (a still scene's: ~0.2 px).
 MIN_SHIFT = 0.01
 #: A grey copy varying less than this (grey levels, standard deviation) has nothing to align
 #: (black, a fade, a covered lens) and is left out, else frames after a fade-in all "moved".

@@ -8,7 +8,6 @@ from __future__ import annotations
 import copy
 import math
 import os
-import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import NamedTuple
@@ -43,27 +42,14 @@ def focal_length_px(frame_width_px: int, fov_deg: float = ASSUMED_FOV_DEG) -> fl
 
 
 def colourless(image: np.ndarray, max_chroma_std: float = 1.5) -> bool:
-    """True when a BGR uint8 (H, W, 3) image carries no colour (grayscale, or black-and-white
-    with a constant tint): the spreads of its Cr and Cb (levels) are 0.0 on such videos, 10-19
-    on the sample and the Pose2Sim views."""
+    """True when a BGR uint8 (H, W, 3) image carries no colour (grey, or a constant tint): its
+    Cr and Cb spreads (levels) are 0.0 on such videos, 10-19 on the sample and Pose2Sim's."""
     chroma = cv2.cvtColor(image, cv2.COLOR_BGR2YCrCb)[..., 1:].reshape(-1, 2)
     return bool(np.all(chroma.std(axis=0) < max_chroma_std))
 
 
 class VideoError(SilhouettePoseError, ValueError):
     """A video file that cannot be used; the message is one line and names the file."""
-
-
-class VideoTruncatedWarning(UserWarning):
-    """Frames were skipped, or decoding stopped before the container's announced end."""
-
-
-class VideoTimingWarning(UserWarning):
-    """Variable frame rate, or no usable frame times in the container (evenly spaced assumed)."""
-
-
-class VideoGrowingWarning(UserWarning):
-    """The file grew (or changed) while it was read: a recording still being written."""
 
 
 class VideoFrame(NamedTuple):
@@ -145,10 +131,6 @@ class VideoSource:
         self.read_until_s: float | None = None
         self.decoder_threads: int | None = None
 
-    def expected_frames(self) -> int | None:
-        """Frames this source should yield (``end_index - start_index``), None if unknown."""
-        return None if self.end_index is None else self.end_index - self.start_index
-
     def __iter__(self) -> Iterator[VideoFrame]:
         threads = self.decoder_threads       # unset: the one-argument call (as tests stub it)
         capture = _open_capture(self.path) if threads is None else \
@@ -170,13 +152,13 @@ class VideoSource:
             while index < end:
                 ok, image = capture.read()
                 decoded = ok and image is not None
-                if held is None and not rewound and index > 0 and self.container_times and \
-                        _seek_missed(self, decoded, capture):
-                    # Read from the first frame instead: the times decide.
-                    capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
-                    index, failed, rewound = 0, 0, True
-                    times = FrameTimes(self.fps, self.container_times)
-                    continue
+                if held is None and not rewound and index > 0 and self.container_times:
+                    from tracker.video.seeking import seek_missed      # after a seek only
+                    if seek_missed(self, decoded, capture):     # read from frame 0: times decide
+                        capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+                        index, failed, rewound = 0, 0, True
+                        times = FrameTimes(self.fps, self.container_times)
+                        continue
                 if not decoded:
                     if _file_state(self.path) != opened:    # the live end: stop there,
                         if held is not None:                    # the last frame unused
@@ -229,17 +211,15 @@ class VideoSource:
         return image
 
     def sample_frames(self, count: int, size: tuple[int, int] | None = None) -> list[np.ndarray]:
-        """Up to ``count`` frames (BGR uint8 (H, W, 3), shrunk to ``size`` (width, height) px
-        if given) evenly spaced over the selected range, e.g. for the empty background.
-        Undecodable frames are passed over; a stream of unknown length is read to its end
-        (its first frames alone would show a person standing in the background)."""
+        """Up to ``count`` frames (BGR uint8 (H, W, 3), at ``size`` (width, height) px if given)
+        spread evenly over the range, undecodable ones passed over; a stream of unknown length is
+        read to its end (its first frames alone could show a person standing in the background)."""
         if self.end_index is None:
             from tracker.video.even_sample import sample_through
             return sample_through(self, count, size)
         images = self._sample_by_index(count, size)
         if not images and self.container_times and self.start_index > 0:
-            # A variable rate puts the start time at another frame than the announced rate
-            # does (or past the frames the file has): sample what iteration finds by time.
+            # A variable rate can put the start time at another frame: sample by time instead.
             from tracker.video.even_sample import sample_by_time
             return sample_by_time(self, count, size)
         return images
@@ -301,13 +281,6 @@ def _seek(capture: cv2.VideoCapture, start_index: int, give_up: int) -> int:
     return seek(capture, start_index, give_up)
 
 
-def _seek_missed(source: VideoSource, decoded: bool, capture: cv2.VideoCapture) -> bool:
-    """Whether the first read after seeking to ``source``'s start frame shows a variable rate's
-    start time elsewhere: nothing decodes there, or its container time is past the start."""
-    return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
-        source.start_s + 1.0 / source.fps + 1e-6
-
-
 def _as_bgr(image: np.ndarray) -> np.ndarray:
     """Any decoded frame (gray (H,W) or (H,W,1), BGR, BGRA) -> BGR uint8 (H,W,3)."""
     if image.dtype != np.uint8:
@@ -319,28 +292,17 @@ def _as_bgr(image: np.ndarray) -> np.ndarray:
     return image
 
 
-def scaled_size(width: int, height: int, max_side: int | None) -> tuple[int, int]:
-    """Frame size after shrinking so the longer side is at most ``max_side`` px (never enlarges)."""
-    if max_side is None or max(width, height) <= max_side:
-        return width, height
-    scale = max_side / max(width, height)
-    return max(1, round(width * scale)), max(1, round(height * scale))
-
-
 def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = None,
-               fps: float | None = None, max_side: int | None = None) -> VideoSource:
+               fps: float | None = None) -> VideoSource:
     """Open and check a video file (decoding its first frame); returns a :class:`VideoSource`.
     ``start_s``/``end_s``: seconds from the file's start (end exclusive; None = to the end);
-    ``fps``: frames/s to assume instead of the container's (frames then evenly spaced);
-    ``max_side``: px the longer side is shrunk to (INTER_AREA) if above it. A file, size, rate
-    or time range that cannot be used raises :class:`VideoError`."""
+    ``fps``: frames/s to assume instead of the container's (frames then evenly spaced). A file,
+    size, rate or time range that cannot be used raises :class:`VideoError`."""
     path = Path(path)
     if not path.exists():
         raise VideoError(f"{path}: no such file")
     if not path.is_file():
         raise VideoError(f"{path}: is not a file")
-    if max_side is not None and max_side < MIN_SIDE_PX:
-        raise VideoError(f"{path}: max_side={max_side} is below the minimum of {MIN_SIDE_PX} px")
     capture = _open_capture(path)
     try:
         rate = float(capture.get(cv2.CAP_PROP_FPS)) if fps is None else float(fps)
@@ -374,6 +336,5 @@ def open_video(path: str | Path, start_s: float = 0.0, end_s: float | None = Non
     if end_index is not None and end_index <= start_index:
         raise VideoError(f"{path}: no frames in the chosen time range ({start_s:g} s to "
                          f"{end_s:g} s at {rate:g} fps)")
-    size = scaled_size(width, height, max_side)
-    return VideoSource(path, rate, frame_count, size, start_index, end_index, end_s=end_s,
-                       container_times=fps is None, start_s=start_s)
+    return VideoSource(path, rate, frame_count, (width, height), start_index, end_index,
+                       end_s=end_s, container_times=fps is None, start_s=start_s)

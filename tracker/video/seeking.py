@@ -28,6 +28,13 @@ def seek(capture: cv2.VideoCapture, start_index: int, give_up: int) -> int:
     return start_index
 
 
+def seek_missed(source: decode.VideoSource, decoded: bool, capture: cv2.VideoCapture) -> bool:
+    """Whether the first read after seeking to ``source``'s start frame shows a variable rate's
+    start time elsewhere: nothing decodes there, or its container time is past the start."""
+    return not decoded or capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0 > \
+        source.start_s + 1.0 / source.fps + 1e-6
+
+
 def sample_by_seeking(source: decode.VideoSource, indices: np.ndarray,
                       size: tuple[int, int] | None) -> list[np.ndarray]:
     """VideoSource.sample_frames of frames ``indices`` (sorted, more than SEQUENTIAL_SPACING

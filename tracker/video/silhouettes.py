@@ -12,21 +12,23 @@ import numpy as np
 from regressor.errors import SilhouettePoseError
 from tracker.video.area_shrink import shrink
 from tracker.video.background import (MIN_GAIN_CHANGE, ClipBackground, GainMeter, clean_plate,
-                         clip_background, undo_gain)
+                                      clip_background, row_medians, undo_gain)
 from tracker.video.noise_floor import FOREGROUND_LEVEL as _FOREGROUND_LEVEL, choose_var_min
 
 _SHADOW_LEVEL = 127              # MOG2's mark for shadow (foreground: _FOREGROUND_LEVEL)
-# A frame off the background by more than this gain in some channel (black, blank, a flash, a
-# cut) shows no one and cannot be undone: subtracted as it is, it was one whole-image "person".
+# A gain beyond this in a channel (black, a flash, a cut) is no one: it made a whole-image blob.
 _MAX_GAIN_FACTOR = 4.0
 #: Components larger than this fraction of the image are a change of the whole scene, not
 #: people (a standing person filling a portrait frame's height covers about 15-35 %).
 DEFAULT_MAX_AREA_FRACTION = 0.5
-#: Components smaller than this fraction of the image are clutter: at 640x480 a walker about
-#: 55 px tall or more passes (docs/tuning.md, "tracker/video/silhouettes.py").
+#: Smaller components (fraction of the image) are clutter; a 55 px walker at 640x480 passes.
 DEFAULT_MIN_AREA_FRACTION = 0.0015
 # OpenCV MOG2's default cap on a pixel's variance (grey levels squared): no floor above it.
 _MOG2_VAR_MAX = 75.0
+_VAR_THRESHOLD = 16.0       # MOG2's: squared Mahalanobis distance beyond which is foreground
+#: MOG2's weight share that is background: a still person joins it after ln(ratio) /
+#: ln(1 - 1/history) frames (~180 at 0.7 and history 500, ~50 at MOG2's 0.9).
+_BACKGROUND_RATIO = 0.7
 _SQUARE_3 = np.ones((3, 3), np.uint8)
 
 
@@ -65,40 +67,29 @@ def colour_histogram(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 class BackgroundSubtractor:
     """MOG2 background model on a frame shrunk to ``working_width`` px, shadows removed.
-    ``history``: frames remembered; ``background_ratio``: MOG2's weight share that is
-    background (a still person joins it after ln(ratio) / ln(1 - 1/history) frames: ~180 at
-    0.7 and 500, ~50 at MOG2's 0.9); ``var_threshold``: squared Mahalanobis distance for
-    foreground; ``warmup_frames``: frames only learned from; ``learning_rate`` after them: None
-    = 1/history (MOG2's own, 1/frames seen, swallows a still person within a second), 0 freezes
-    the model; ``normalise_brightness``: undo global gain changes (:meth:`subtract`);
-    ``var_min``: MOG2's variance floor (grey levels squared, tracker.video.noise_floor)."""
+    ``history``: frames remembered; after ``warmup_frames`` only learned from, the model learns
+    at 1/history (MOG2's own 1/frames seen swallows a still person within a second);
+    ``normalise_brightness``: undo global gain changes (:meth:`subtract`); ``var_min``: MOG2's
+    variance floor (grey levels squared, tracker.video.noise_floor)."""
 
-    def __init__(self, working_width: int = 320, history: int = 500,
-                 background_ratio: float = 0.7, var_threshold: float = 16.0,
-                 detect_shadows: bool = True, warmup_frames: int = 15,
-                 learning_rate: float | None = None, normalise_brightness: bool = True,
-                 var_min: float = 4.0):
+    def __init__(self, working_width: int = 320, history: int = 500, detect_shadows: bool = True,
+                 warmup_frames: int = 15, normalise_brightness: bool = True, var_min: float = 4.0):
         if working_width < 16:
             raise ExtractionError(f"working_width={working_width} must be at least 16 px")
         if history < 1 or warmup_frames < 0:
             raise ExtractionError(f"history={history} must be >= 1 and warmup_frames="
                                   f"{warmup_frames} >= 0")
-        if not 0.0 < background_ratio < 1.0:
-            raise ExtractionError(f"background_ratio={background_ratio} must be in (0, 1)")
-        if learning_rate is not None and not 0.0 <= learning_rate <= 1.0:
-            raise ExtractionError(f"learning_rate={learning_rate} must be in [0, 1]")
         _check_var_min(var_min)
         self.working_width = working_width
         self.warmup_frames = warmup_frames
-        self.learning_rate = 1.0 / history if learning_rate is None else learning_rate
+        self.learning_rate = 1.0 / history
         self.normalise_brightness = normalise_brightness
         #: Background at working size the brightness gain is measured against (set by prime).
         self.reference: np.ndarray | None = None
         self.frames_seen = 0
         self._frame_size: tuple[int, int] | None = None
-        self._mog2_options = dict(history=history, varThreshold=var_threshold,
+        self._mog2_options = dict(history=history, varThreshold=_VAR_THRESHOLD,
                                   detectShadows=detect_shadows)
-        self._background_ratio = background_ratio
         self.var_min = float(var_min)
         self._model = self.new_model(self.var_min)
         # Learning rates of prime's lessons of the reference not yet given to the model: given
@@ -108,7 +99,7 @@ class BackgroundSubtractor:
     def new_model(self, var_min: float):
         """A fresh OpenCV MOG2 with these settings and variance floor ``var_min``."""
         model = cv2.createBackgroundSubtractorMOG2(**self._mog2_options)
-        model.setBackgroundRatio(self._background_ratio)
+        model.setBackgroundRatio(_BACKGROUND_RATIO)
         model.setVarMin(float(var_min))
         # A new Gaussian starts at varInit (15 by default), which must not be below the floor.
         model.setVarInit(max(model.getVarInit(), float(var_min)))
@@ -205,8 +196,7 @@ class BackgroundSubtractor:
                 self.frames_seen += 1
                 return small, np.zeros(small.shape[:2], np.uint8)
             if max(1.0 - low, high - 1.0) > MIN_GAIN_CHANGE:
-                # Where the brighter light clips the background the frame cannot be undone:
-                # such pixels are background, not a blob.
+                # Where brighter light clips the background it cannot be undone: no blob there.
                 expected = cv2.multiply(self.reference, tuple(float(g) for g in gain) + (0.0,))
                 saturated = (expected.max(axis=2) >= 250) & (small.max(axis=2) >= 250)
                 small = undo_gain(small, gain)
@@ -393,18 +383,8 @@ def _relit(frame: np.ndarray, background: np.ndarray, min_correlation: float,
     if denominator > 0 and float(np.dot(fg, bg)) / denominator > min_correlation:
         return True
     log_ratio = np.log(np.divide(f, b, out=f), out=f).ravel()
-    log_ratio -= _median(log_ratio)
-    return float(_median(np.abs(log_ratio, out=log_ratio))) < max_ratio_spread
-
-
-def _median(values: np.ndarray) -> np.floating:
-    """np.median of a 1-D float array (not empty), by a partial sort of it in place."""
-    half = len(values) // 2
-    if len(values) % 2:
-        values.partition(half)
-        return values[half]
-    values.partition((half - 1, half))
-    return (values[half - 1] + values[half]) / 2
+    log_ratio -= row_medians(log_ratio[None])[0]        # np.median's, by a partial sort
+    return float(row_medians(np.abs(log_ratio, out=log_ratio)[None])[0]) < max_ratio_spread
 
 
 class SilhouetteExtractor:
@@ -466,8 +446,7 @@ class SilhouetteExtractor:
     def learn_zone(self, frames, median: np.ndarray | None = None, threads: int = 1) -> None:
         """After :meth:`prime` with the clip's median image, learn its unreliable zone and
         variance floor from the same frames (list or (N, H, W, 3) BGR uint8), before frame 1;
-        ``median``: that image when the frames are at working size (not computed again);
-        ``threads``: how many may choose the floor (two where two cores are the run's)."""
+        ``median``: that image if the frames are at working size; ``threads``: measuring floors."""
         if self.subtractor.reference is None:
             raise ExtractionError("learn_zone needs prime() with a background image first")
         small = self._working_frames(list(frames))

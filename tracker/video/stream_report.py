@@ -4,8 +4,19 @@ from __future__ import annotations
 
 import warnings
 
-from tracker.video.decode import FrameTimes, VideoGrowingWarning, VideoSource, \
-    VideoTimingWarning, VideoTruncatedWarning
+from tracker.video.decode import FrameTimes, VideoSource
+
+
+class VideoTruncatedWarning(UserWarning):
+    """Frames were skipped, or decoding stopped before the container's announced end."""
+
+
+class VideoTimingWarning(UserWarning):
+    """Variable frame rate, or no usable frame times in the container (evenly spaced assumed)."""
+
+
+class VideoGrowingWarning(UserWarning):
+    """The file grew (or changed) while it was read: a recording still being written."""
 
 
 def _ended_early(source: VideoSource, times: FrameTimes, stopped_at: int) -> bool:

@@ -1,7 +1,16 @@
-"""Why OpenCV refused a video file, in one line (imported only when it does)."""
+"""Why OpenCV refused a video file, or a file decodes nothing, in one line (imported only then)."""
 from __future__ import annotations
 
 from pathlib import Path
+
+from tracker.video.decode import VideoError, VideoSource
+
+
+def nothing_decodes(source: VideoSource) -> VideoError:
+    """The error for a file that opened but decodes nothing in the range asked for."""
+    start_s = source.start_index / source.fps
+    return VideoError(f"{source.path}: no decodable frames from {start_s:g} s on (a cut-off "
+                      f"or damaged file?)")
 
 
 def _mp4_top_level_boxes(path: Path) -> dict[bytes, int] | None:
