@@ -156,12 +156,12 @@ class _Run:
         for tracked in frames_in:
             if self.lagged is None:
                 self.due.append(tracked)
-            elif self.lagged.held(self.stages, "push", tracked if self.watching
-                                  else (*tracked[:2], None, tracked[3], {})):  # poses only
+            elif _smoother_step(self.stages, self.lagged.push, tracked if self.watching
+                                else (*tracked[:2], None, tracked[3], {})):  # poses only
                 raise KeyboardInterrupt
             while self.due:
                 self.emit()
-        if self.lagged is not None and self.lagged.held(self.stages, "flush"):
+        if self.lagged is not None and _smoother_step(self.stages, self.lagged.flush):
             raise KeyboardInterrupt
         while self.due:
             self.emit()
@@ -243,11 +243,18 @@ class _Run:
         return _feed((redrawn[track_id][i] for _, track_id, i in order), self.smoothed_sinks)
 
 
+def _smoother_step(stages, step, *args) -> bool:
+    """A fixed-lag smoother's push or flush, timed, stop signals held; whether one came."""
+    with timed(stages, "fixed-lag smoothing"), _signals_held() as held:
+        step(*args)
+    return bool(held)
+
+
 def _write_held(lagged: FixedLagSmoother | None, due: deque, emit, stages) -> list[str]:
     """After a stop: the frames held back to the files; a problem line if an output failed."""
     try:
         if lagged is not None:
-            lagged.held(stages, "flush")
+            _smoother_step(stages, lagged.flush)
         while due:
             emit(stopped=True)
     except KeyboardInterrupt:

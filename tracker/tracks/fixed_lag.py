@@ -16,8 +16,6 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from tracker import run
-from tracker.pipeline import timed
 from tracker.tracks import streamed_kind  # noqa: F401
 from tracker.tracks.root_path import drawn_at
 from tracker.video.silhouettes import PersonMask
@@ -101,13 +99,6 @@ class FixedLagSmoother:
             self._smooth(len(self._waiting))
         self.ready.extend(self._smoothed)
         self._smoothed.clear()
-
-    def held(self, stages: dict[str, float], step: str, *args) -> bool:
-        """:meth:`push` or :meth:`flush` (``step``) timed into ``stages``, stop signals held
-        (tracker.run's loop); whether one came."""
-        with timed(stages, "fixed-lag smoothing"), run._signals_held() as held:
-            getattr(self, step)(*args)
-        return bool(held)
 
     def _smooth(self, count: int) -> None:
         """Smooth the oldest ``count`` frames held back onto the smoothed queue."""
