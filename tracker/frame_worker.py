@@ -19,10 +19,10 @@ from tracker import STOP_SIGNALS
 
 #: Frames per message (and per regression batch, also in one process: the same results):
 #: the pipe's cost negligible, the worker never far ahead, a live output little late.
-BATCH_FRAMES = 8
+BATCH_FRAMES = 16
 #: Of every MAIN_DESCRIBES[1] frames, the first MAIN_DESCRIBES[0] are described by the main
 #: process instead (sent with descriptions None), to balance the two halves' costs.
-MAIN_DESCRIBES = (2, 3)
+MAIN_DESCRIBES = (3, 4)
 
 
 def described_chunks(source, tracker, batch: int, leave_to_main: bool = False
