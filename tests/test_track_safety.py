@@ -744,21 +744,21 @@ def test_a_ctrl_c_while_tracking_with_a_lag_writes_every_frame_given_to_the_smoo
     signal.signal(signal.SIGINT, signal.default_int_handler)
     track_frames, calls = PoseTracker.track_frames, []
 
-    def stopped_in_the_fourth_batch(self, frames):
+    def stopped_in_the_third_batch(self, frames):          # the walk's last (40 frames)
         calls.append(len(frames))
-        if len(calls) == 4:
+        if len(calls) == 3:
             os.kill(os.getpid(), signal.SIGINT)
         return track_frames(self, frames)
-    monkeypatch.setattr(PoseTracker, "track_frames", stopped_in_the_fourth_batch)
+    monkeypatch.setattr(PoseTracker, "track_frames", stopped_in_the_third_batch)
     out, bvh = tmp_path / "s.json", tmp_path / "b"
     assert cli.main([str(walk), "--json", str(out), "--bvh", str(bvh), "--lag", "0.3",
                      "--workers", "1", "--quiet"]) == cli.EXIT_INTERRUPTED
     summary = json.loads(out.read_text())
-    # The stop lands while the fourth batch is tracked: the three batches given to the
+    # The stop lands while the third batch is tracked: the two batches given to the
     # smoother are all written (a 0.3 s lag holds 17 frames back at 30 fps).
-    assert summary["poses"] == "fixed-lag smoothed" and summary["frames"] == 3 * BATCH_FRAMES
+    assert summary["poses"] == "fixed-lag smoothed" and summary["frames"] == 2 * BATCH_FRAMES
     (track,) = summary["tracks"]
-    assert track["frames"] == list(range(track["first_frame"], 3 * BATCH_FRAMES))
+    assert track["frames"] == list(range(track["first_frame"], 2 * BATCH_FRAMES))
     assert len(list(bvh.glob("*.bvh"))) == 1
 
 
